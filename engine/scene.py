@@ -1,0 +1,243 @@
+"""Scene model: camera, materials and primitives the tracer renders.
+
+Everything here is plain NumPy data with no behaviour beyond validation, so the
+Blender exporter, the scene file reader and the built-in scenes all build the
+same objects.  Units are Blender's: metres, millimetres for lens and sensor.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class SceneError(ValueError):
+    """Invalid scene input; the message names the object and the problem."""
+
+
+# Material kinds: how a surface scatters (emission is independent of kind).
+DIFFUSE = "diffuse"
+MIRROR = "mirror"
+GLASS = "glass"
+MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS)
+
+
+@dataclass
+class Material:
+    """A surface: Lambertian, perfect mirror or smooth glass, optionally emitting.
+
+    ``color`` is the diffuse albedo (diffuse), the reflectance (mirror) or the tint of
+    both reflection and transmission (glass, as Cycles' Glass BSDF).  ``emission`` is
+    radiance (colour x strength), emitted from both sides as Cycles mesh lights do.
+    A pure emitter (Cycles' Emission shader) is a diffuse material with colour 0.
+    """
+    name: str
+    kind: str = DIFFUSE
+    color: tuple = (0.8, 0.8, 0.8)
+    ior: float = 1.5
+    emission: tuple = (0.0, 0.0, 0.0)
+
+    @property
+    def is_emissive(self) -> bool:
+        return max(self.emission) > 0.0
+
+    def validate(self) -> None:
+        if self.kind not in MATERIAL_KINDS:
+            raise SceneError(f"Material '{self.name}': unknown kind '{self.kind}' "
+                             f"(expected one of {', '.join(MATERIAL_KINDS)})")
+        for label, value in (("color", self.color), ("emission", self.emission)):
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.shape != (3,) or not np.isfinite(arr).all() or (arr < 0).any():
+                raise SceneError(f"Material '{self.name}': {label} must be 3 finite "
+                                 f"non-negative numbers, got {value!r}")
+        if not (math.isfinite(self.ior) and self.ior > 0):
+            raise SceneError(f"Material '{self.name}': IOR must be positive, got {self.ior!r}")
+
+
+SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
+
+
+@dataclass
+class Camera:
+    """A Blender perspective camera.
+
+    ``matrix`` is the 4x4 camera-to-world matrix (Blender's ``matrix_world``): the camera
+    looks down its local -Z axis with +Y up.  Lens and sensor are in millimetres; shift is
+    in units of the fitted sensor side, as in Blender.
+    """
+    matrix: np.ndarray
+    lens: float = 50.0
+    sensor_width: float = 36.0
+    sensor_height: float = 24.0
+    sensor_fit: str = "AUTO"
+    shift_x: float = 0.0
+    shift_y: float = 0.0
+    name: str = "Camera"
+
+    @staticmethod
+    def look_at(position, target, up=(0.0, 0.0, 1.0), **kwargs) -> "Camera":
+        position = np.asarray(position, dtype=np.float64)
+        back = position - np.asarray(target, dtype=np.float64)
+        back /= np.linalg.norm(back)
+        right = np.cross(np.asarray(up, dtype=np.float64), back)
+        right /= np.linalg.norm(right)
+        true_up = np.cross(back, right)
+        matrix = np.eye(4)
+        matrix[:3, 0], matrix[:3, 1], matrix[:3, 2], matrix[:3, 3] = right, true_up, back, position
+        return Camera(matrix=matrix, **kwargs)
+
+    def validate(self) -> None:
+        m = np.asarray(self.matrix, dtype=np.float64)
+        if m.shape != (4, 4) or not np.isfinite(m).all():
+            raise SceneError(f"Camera '{self.name}': transform must be a finite 4x4 matrix")
+        if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+            raise SceneError(f"Camera '{self.name}': transform is singular (zero scale)")
+        for label, value in (("lens", self.lens), ("sensor width", self.sensor_width),
+                             ("sensor height", self.sensor_height)):
+            if not (math.isfinite(value) and value > 0):
+                raise SceneError(f"Camera '{self.name}': {label} must be positive, got {value!r}")
+        if self.sensor_fit not in SENSOR_FITS:
+            raise SceneError(f"Camera '{self.name}': unknown sensor fit '{self.sensor_fit}'")
+        if not (math.isfinite(self.shift_x) and math.isfinite(self.shift_y)):
+            raise SceneError(f"Camera '{self.name}': shift must be finite")
+
+
+@dataclass
+class TriangleMesh:
+    """Indexed triangles in world space with one material index per triangle."""
+    name: str
+    vertices: np.ndarray          # (V, 3) float64
+    triangles: np.ndarray         # (T, 3) int
+    material_ids: np.ndarray      # (T,) int, indices into Scene.materials
+
+    def validate(self, n_materials: int) -> int:
+        """Check the mesh; drop degenerate triangles.  Returns how many were dropped."""
+        self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float64).reshape(-1, 3)
+        self.triangles = np.ascontiguousarray(self.triangles, dtype=np.int64).reshape(-1, 3)
+        self.material_ids = np.broadcast_to(
+            np.asarray(self.material_ids, dtype=np.int64), (len(self.triangles),)).copy()
+        if not np.isfinite(self.vertices).all():
+            bad = int((~np.isfinite(self.vertices).all(axis=1)).sum())
+            raise SceneError(f"Object '{self.name}': {bad} vertices have NaN or infinite coordinates")
+        if len(self.triangles) and (self.triangles.min() < 0 or self.triangles.max() >= len(self.vertices)):
+            raise SceneError(f"Object '{self.name}': triangle indices out of range")
+        if len(self.material_ids) and (self.material_ids.min() < 0 or self.material_ids.max() >= n_materials):
+            raise SceneError(f"Object '{self.name}': material index out of range")
+        v = self.vertices[self.triangles]
+        doubled_area = np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+        scale = np.abs(v).max(axis=(1, 2)) + 1e-300
+        keep = doubled_area > (scale * 1e-12) ** 2 * 16  # area ~ 0 relative to float64 resolution
+        dropped = int((~keep).sum())
+        if dropped:
+            self.triangles = self.triangles[keep]
+            self.material_ids = self.material_ids[keep]
+        return dropped
+
+
+@dataclass
+class Sphere:
+    """An implicit sphere (report eq. 2.2)."""
+    name: str
+    center: tuple
+    radius: float
+    material_id: int
+
+    def validate(self, n_materials: int) -> None:
+        c = np.asarray(self.center, dtype=np.float64)
+        if c.shape != (3,) or not np.isfinite(c).all():
+            raise SceneError(f"Object '{self.name}': sphere centre must be 3 finite numbers")
+        if not (math.isfinite(self.radius) and self.radius > 0):
+            raise SceneError(f"Object '{self.name}': sphere radius must be positive, got {self.radius!r}")
+        if not 0 <= self.material_id < n_materials:
+            raise SceneError(f"Object '{self.name}': material index out of range")
+
+
+@dataclass
+class Quad:
+    """A planar convex quadrilateral v00, v10, v11, v01 in counter-clockwise order (report 2.2.2)."""
+    name: str
+    corners: np.ndarray           # (4, 3): v00, v10, v11, v01
+    material_id: int
+
+    def validate(self, n_materials: int) -> None:
+        q = np.asarray(self.corners, dtype=np.float64)
+        if q.shape != (4, 3) or not np.isfinite(q).all():
+            raise SceneError(f"Object '{self.name}': quad needs 4 finite corners")
+        self.corners = q
+        e1, e3 = q[1] - q[0], q[3] - q[0]
+        normal = np.cross(e1, e3)
+        size = max(np.linalg.norm(e1), np.linalg.norm(e3), np.linalg.norm(q[2] - q[0]))
+        if np.linalg.norm(normal) <= 1e-12 * size * size or size == 0:
+            raise SceneError(f"Object '{self.name}': quad is degenerate (zero area)")
+        normal /= np.linalg.norm(normal)
+        if abs(np.dot(q[2] - q[0], normal)) > 1e-6 * size:
+            raise SceneError(f"Object '{self.name}': quad is not planar")
+        # Convex and counter-clockwise: every corner turns the same way about the normal.
+        for i in range(4):
+            a, b, c = q[i], q[(i + 1) % 4], q[(i + 2) % 4]
+            if np.dot(np.cross(b - a, c - b), normal) <= 0:
+                raise SceneError(f"Object '{self.name}': quad is not convex or its corners are not in order")
+        if not 0 <= self.material_id < n_materials:
+            raise SceneError(f"Object '{self.name}': material index out of range")
+
+
+@dataclass
+class Scene:
+    camera: Camera | None
+    materials: list = field(default_factory=list)
+    meshes: list = field(default_factory=list)
+    spheres: list = field(default_factory=list)
+    quads: list = field(default_factory=list)
+    background: tuple = (0.0, 0.0, 0.0)
+    resolution: tuple = (256, 256)
+    name: str = "scene"
+
+    def validate(self) -> list[str]:
+        """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""
+        warnings: list[str] = []
+        if self.camera is None:
+            raise SceneError(f"Scene '{self.name}': no camera")
+        self.camera.validate()
+        w, h = self.resolution
+        if int(w) <= 0 or int(h) <= 0:
+            raise SceneError(f"Scene '{self.name}': resolution must be positive, got {w}x{h}")
+        if int(w) * int(h) > 16384 * 16384:
+            raise SceneError(f"Scene '{self.name}': resolution {w}x{h} is too large")
+        if not self.materials:
+            raise SceneError(f"Scene '{self.name}': no materials")
+        for material in self.materials:
+            material.validate()
+        bg = np.asarray(self.background, dtype=np.float64)
+        if bg.shape != (3,) or not np.isfinite(bg).all() or (bg < 0).any():
+            raise SceneError(f"Scene '{self.name}': background must be 3 finite non-negative numbers")
+        n = len(self.materials)
+        dropped = 0
+        for mesh in self.meshes:
+            dropped += mesh.validate(n)
+        if dropped:
+            warnings.append(f"{dropped} degenerate triangle(s) dropped")
+        for sphere in self.spheres:
+            sphere.validate(n)
+        for quad in self.quads:
+            quad.validate(n)
+        for mesh in self.meshes:
+            emissive = np.array([self.materials[m].is_emissive for m in range(n)])
+            ids = mesh.material_ids
+            if len(ids) and emissive[ids].any():
+                v = mesh.vertices[mesh.triangles[emissive[ids]]]
+                area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum()
+                if area <= 0:
+                    raise SceneError(f"Object '{mesh.name}': emitter has zero area")
+        if not self.has_light() :
+            warnings.append("the scene has no emitters and a black background: the image will be black")
+        return warnings
+
+    def has_light(self) -> bool:
+        if max(self.background) > 0:
+            return True
+        emissive = {i for i, m in enumerate(self.materials) if m.is_emissive}
+        return (any(s.material_id in emissive for s in self.spheres)
+                or any(q.material_id in emissive for q in self.quads)
+                or any(len(m.material_ids) and np.isin(m.material_ids, list(emissive)).any()
+                       for m in self.meshes))

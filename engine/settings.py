@@ -1,0 +1,45 @@
+"""Render settings: every knob the study, the CLI and the Blender panels expose."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, asdict
+
+FRESNEL_MODELS = ("schlick", "exact")
+ACCELERATORS = ("embree", "auto")
+
+
+@dataclass
+class RenderSettings:
+    samples: int = 16             # camera rays per pixel (report 2.3)
+    shadow_rays: int = 1          # N_s in eq. 2.11
+    max_depth: int = 8            # bounces after the camera hit; 0 = direct light only (report 3.4)
+    russian_roulette: bool = True  # report 2.4
+    rr_start_depth: int = 3       # roulette only from this bounce on
+    fresnel: str = "schlick"      # eq. 2.17, or exact dielectric Fresnel as Cycles
+    threads: int = 0              # 0 = all cores
+    seed: int = 0
+    tile_size: int = 64
+    accelerator: str = "auto"
+
+    def resolved_threads(self) -> int:
+        return self.threads if self.threads > 0 else (os.cpu_count() or 1)
+
+    def validate(self) -> None:
+        from .scene import SceneError
+        if self.samples < 1:
+            raise SceneError(f"samples must be at least 1, got {self.samples}")
+        if self.shadow_rays < 0:
+            raise SceneError(f"shadow rays must be 0 or more, got {self.shadow_rays}")
+        if self.max_depth < 0:
+            raise SceneError(f"max depth must be 0 or more, got {self.max_depth}")
+        if self.fresnel not in FRESNEL_MODELS:
+            raise SceneError(f"unknown Fresnel model '{self.fresnel}' (expected schlick or exact)")
+        if self.accelerator not in ACCELERATORS:
+            raise SceneError(f"unknown accelerator '{self.accelerator}' (expected one of {', '.join(ACCELERATORS)})")
+        if self.tile_size < 8:
+            raise SceneError(f"tile size must be at least 8, got {self.tile_size}")
+        if self.threads < 0:
+            raise SceneError(f"threads must be 0 (all cores) or more, got {self.threads}")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
