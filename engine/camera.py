@@ -1,0 +1,42 @@
+"""Primary rays of a Blender perspective camera, pixel centres as Cycles (+0.5)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def view_plane(camera, width: int, height: int):
+    """Size of the image plane at distance 1 and the extent that shift is measured in.
+
+    Blender's sensor fit: AUTO applies sensor_width to the larger image side;
+    HORIZONTAL fits sensor_width to the width, VERTICAL sensor_height to the height.
+    Shift is a fraction of the fitted side.
+    """
+    fit = camera.sensor_fit
+    if fit == "AUTO":
+        fit = "HORIZONTAL" if width >= height else "VERTICAL"
+        sensor = camera.sensor_width
+    else:
+        sensor = camera.sensor_width if fit == "HORIZONTAL" else camera.sensor_height
+    extent = sensor / camera.lens
+    if fit == "HORIZONTAL":
+        plane_w, plane_h = extent, extent * height / width
+    else:
+        plane_w, plane_h = extent * width / height, extent
+    return plane_w, plane_h, extent
+
+
+def camera_rays(camera, width: int, height: int, sx: np.ndarray, sy: np.ndarray):
+    """Rays through raster positions (sx, sy): x to the right, y down from the top edge.
+
+    Returns (origins, unit directions) in world space.
+    """
+    plane_w, plane_h, extent = view_plane(camera, width, height)
+    x = (sx / width - 0.5) * plane_w + camera.shift_x * extent
+    y = (0.5 - sy / height) * plane_h + camera.shift_y * extent
+    m = np.asarray(camera.matrix, dtype=np.float64)
+    axes = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)  # drop object scale
+    local = np.stack([x, y, -np.ones_like(x)], axis=1)
+    directions = local @ axes.T
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    origins = np.broadcast_to(m[:3, 3], directions.shape).copy()
+    return origins, directions

@@ -1,0 +1,91 @@
+"""Area lights: every emissive triangle, quad and sphere, sampled by area (eq. 2.11).
+
+One light is picked with probability proportional to its power (area x mean
+radiance), then a point uniform over its area (pdf 1/A).  Quads are split into two
+triangles for sampling.  Emission is two-sided, as Cycles mesh lights.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .sampling import uniform_sphere, uniform_triangle
+
+# Shadow-ray end points are pulled off the light by this relative amount (as the
+# triangle spawn offset) so the ray never reports the light itself as occluder.
+LIGHT_OFFSET = 2.0 ** -20
+
+
+@dataclass
+class LightSample:
+    point: np.ndarray      # (N, 3) on the light
+    normal: np.ndarray     # (N, 3) unit normal of the light at the point
+    radiance: np.ndarray   # (N, 3) emitted radiance Le
+    inv_pdf: np.ndarray    # (N,) area / selection probability: 1 / p(y) in eq. 2.11
+    offset: np.ndarray     # (N,) distance along the normal that clears the light
+
+
+class LightSampler:
+    def __init__(self, scene):
+        mats = scene.materials
+        emission = np.array([m.emission for m in mats], dtype=np.float64).reshape(-1, 3)
+        emissive = emission.max(axis=1) > 0
+        tris, tri_le = [], []
+        for mesh in scene.meshes:
+            sel = emissive[mesh.material_ids] if len(mesh.material_ids) else np.zeros(0, bool)
+            if sel.any():
+                tris.append(mesh.vertices[mesh.triangles[sel]])
+                tri_le.append(emission[mesh.material_ids[sel]])
+        for quad in scene.quads:
+            if emissive[quad.material_id]:
+                c = np.asarray(quad.corners, dtype=np.float64)
+                tris.append(np.stack([c[[0, 1, 2]], c[[0, 2, 3]]]))
+                tri_le.append(np.repeat(emission[quad.material_id][None], 2, axis=0))
+        self.tri = np.concatenate(tris) if tris else np.zeros((0, 3, 3))
+        self.tri_le = np.concatenate(tri_le) if tri_le else np.zeros((0, 3))
+        cross = np.cross(self.tri[:, 1] - self.tri[:, 0], self.tri[:, 2] - self.tri[:, 0])
+        self.tri_area = 0.5 * np.linalg.norm(cross, axis=1)
+        self.tri_normal = cross / np.maximum(2.0 * self.tri_area, 1e-300)[:, None]
+        # Zero-area emitters carry no power and are never picked (hard case S8).
+        spheres = [s for s in scene.spheres if emissive[s.material_id]]
+        self.sph_center = np.array([s.center for s in spheres], dtype=np.float64).reshape(-1, 3)
+        self.sph_radius = np.array([s.radius for s in spheres], dtype=np.float64)
+        self.sph_le = emission[[s.material_id for s in spheres]].reshape(-1, 3)
+        self.sph_area = 4.0 * np.pi * self.sph_radius ** 2
+
+        area = np.concatenate([self.tri_area, self.sph_area])
+        le = np.concatenate([self.tri_le, self.sph_le])
+        power = area * le.mean(axis=1) if len(area) else np.zeros(0)
+        self.count = int((power > 0).sum())
+        self.total_power = float(power.sum())
+        self.area = area
+        self.prob = power / self.total_power if self.total_power > 0 else power
+        self.cdf = np.cumsum(self.prob)
+        self.n_tri = len(self.tri_area)
+
+    def sample(self, u_pick: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> LightSample:
+        n = len(u_pick)
+        index = np.searchsorted(self.cdf, u_pick * self.cdf[-1], side="right")
+        index = np.minimum(index, len(self.cdf) - 1)
+        point = np.empty((n, 3))
+        normal = np.empty((n, 3))
+        radiance = np.empty((n, 3))
+        is_tri = index < self.n_tri
+        if is_tri.any():
+            k = index[is_tri]
+            b1, b2 = uniform_triangle(u1[is_tri], u2[is_tri])
+            tri = self.tri[k]
+            point[is_tri] = tri[:, 0] + b1[:, None] * (tri[:, 1] - tri[:, 0]) + b2[:, None] * (tri[:, 2] - tri[:, 0])
+            normal[is_tri] = self.tri_normal[k]
+            radiance[is_tri] = self.tri_le[k]
+        is_sph = ~is_tri
+        if is_sph.any():
+            k = index[is_sph] - self.n_tri
+            direction = uniform_sphere(u1[is_sph], u2[is_sph])
+            point[is_sph] = self.sph_center[k] + self.sph_radius[k, None] * direction
+            normal[is_sph] = direction
+            radiance[is_sph] = self.sph_le[k]
+        inv_pdf = self.area[index] / self.prob[index]
+        offset = LIGHT_OFFSET * np.abs(point).max(axis=1)
+        return LightSample(point, normal, radiance, inv_pdf, offset)

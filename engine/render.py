@@ -1,0 +1,196 @@
+"""Render a scene: tiles over worker threads, progress, cancel, stats.
+
+Each tile draws its random numbers from its own generator seeded by (seed, tile),
+so the image for a given seed is identical whatever the number of threads.  Embree's
+run() and large NumPy operations release the GIL, so threads keep all cores busy.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .accel import choose_accelerator
+from .camera import camera_rays
+from .effects import plan_effects
+from .film import TileFilm
+from .geometry import Counters, SceneGeometry
+from .integrator import PathTracer
+from .lights import LightSampler
+from .settings import RenderSettings
+
+ENGINE_NAME = "TNCG15 MC"
+PATHS_PER_BATCH = 1 << 15
+
+
+@dataclass
+class Tile:
+    index: int
+    x0: int
+    y0: int
+    x1: int
+    y1: int
+
+
+@dataclass
+class RenderResult:
+    image: np.ndarray
+    variance: np.ndarray
+    stats: dict
+    warnings: list = field(default_factory=list)
+    cancelled: bool = False
+
+
+def make_tiles(width: int, height: int, size: int) -> list[Tile]:
+    tiles = []
+    for y0 in range(0, height, size):
+        for x0 in range(0, width, size):
+            tiles.append(Tile(len(tiles), x0, y0, min(x0 + size, width), min(y0 + size, height)))
+    return tiles
+
+
+class Renderer:
+    """Scene preparation (BVH, lights, effect plan) separated from tracing."""
+
+    def __init__(self, scene, settings: RenderSettings, log=print):
+        settings.validate()
+        self.warnings = scene.validate()
+        for w in self.warnings:
+            log(f"warning: {w}")
+        self.scene = scene
+        self.settings = settings
+        self.plan = plan_effects(scene, settings)
+        n_tri = sum(len(m.triangles) for m in scene.meshes)
+        self.accelerator, self.accelerator_reason = choose_accelerator(settings.accelerator, n_tri)
+        self.geometry = SceneGeometry(scene, self.accelerator)
+        self.lights = LightSampler(scene)
+        self.tracer = PathTracer(self.geometry, self.lights, scene.materials, self.plan,
+                                 settings, scene.background)
+
+    def render_tile(self, tile: Tile, cancel: threading.Event, counters: Counters) -> TileFilm:
+        s = self.settings
+        width, height = self.scene.resolution
+        tw, th = tile.x1 - tile.x0, tile.y1 - tile.y0
+        film = TileFilm(tw, th)
+        rng = np.random.default_rng([s.seed, tile.index])
+        local = np.arange(tw * th)
+        px = (local % tw + tile.x0).astype(np.float64)
+        py = (local // tw + tile.y0).astype(np.float64)
+        spp_per_batch = max(1, PATHS_PER_BATCH // (tw * th))
+        done = 0
+        while done < s.samples and not cancel.is_set():
+            spp = min(spp_per_batch, s.samples - done)
+            pixel = np.tile(local, spp)
+            # Jittered sub-pixel positions (report 2.3); pixel centres at +0.5.
+            sx = np.tile(px, spp) + rng.random(len(pixel))
+            sy = np.tile(py, spp) + rng.random(len(pixel))
+            origins, directions = camera_rays(self.scene.camera, width, height, sx, sy)
+            radiance = self.tracer.trace(origins, directions, rng, counters)
+            bad = ~np.isfinite(radiance).all(axis=1)
+            if bad.any():
+                # Counted before the guard, never hidden silently.
+                counters.nonfinite_samples += int(bad.sum())
+                radiance[bad] = 0.0
+            film.add(pixel, radiance)
+            done += spp
+        return film
+
+
+def render(scene, settings: RenderSettings | None = None, on_tile=None, should_cancel=None,
+           on_progress=None, log=print) -> RenderResult:
+    """Render `scene`; see module docstring.  Callbacks run on the calling thread.
+
+    on_tile(x0, y0, x1, y1, pixels) with pixels (y1-y0, x1-x0, 3) float32, rows from the top.
+    should_cancel() -> bool is polled about every 0.1 s.  on_progress(fraction, message).
+    """
+    settings = settings or RenderSettings()
+    setup_start = time.perf_counter()
+    renderer = Renderer(scene, settings, log=log)
+    setup_seconds = time.perf_counter() - setup_start
+    width, height = scene.resolution
+    tiles = make_tiles(width, height, settings.tile_size)
+    threads = settings.resolved_threads()
+    log(f"{ENGINE_NAME}: {width}x{height}, {settings.samples} spp, {settings.shadow_rays} shadow ray(s), "
+        f"max depth {settings.max_depth}, {threads} thread(s), accelerator {renderer.accelerator} "
+        f"({renderer.accelerator_reason})")
+    log("effect plan:\n" + renderer.plan.describe())
+
+    image = np.zeros((height, width, 3), dtype=np.float32)
+    variance = np.zeros((height, width, 3), dtype=np.float32)
+    cancel = threading.Event()
+    finished: queue.Queue = queue.Queue()
+    totals = Counters()
+    lock = threading.Lock()
+
+    def work(tile: Tile):
+        counters = Counters()
+        try:
+            film = renderer.render_tile(tile, cancel, counters)
+            finished.put((tile, film, None))
+        except BaseException as exc:  # surfaced on the calling thread
+            finished.put((tile, None, exc))
+        with lock:
+            totals.merge(counters)
+
+    start = time.perf_counter()
+    done_tiles = 0
+    error = None
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        for tile in tiles:
+            pool.submit(work, tile)
+        while done_tiles < len(tiles):
+            try:
+                tile, film, exc = finished.get(timeout=0.1)
+            except queue.Empty:
+                if should_cancel is not None and should_cancel():
+                    cancel.set()
+                continue
+            done_tiles += 1
+            if exc is not None:
+                error = error or exc
+                cancel.set()
+                continue
+            pixels = film.mean().astype(np.float32)
+            image[tile.y0:tile.y1, tile.x0:tile.x1] = pixels
+            variance[tile.y0:tile.y1, tile.x0:tile.x1] = film.variance_of_mean()
+            if on_tile is not None and film.count.any():
+                on_tile(tile.x0, tile.y0, tile.x1, tile.y1, pixels)
+            if on_progress is not None:
+                on_progress(done_tiles / len(tiles), f"tile {done_tiles}/{len(tiles)}")
+            if should_cancel is not None and should_cancel():
+                cancel.set()
+    if error is not None:
+        raise error
+    seconds = time.perf_counter() - start
+    rays = dict(totals.rays)
+    total_rays = sum(rays.values())
+    stats = {
+        "engine": ENGINE_NAME,
+        "render_seconds": seconds,
+        "setup_seconds": setup_seconds,
+        "build_seconds": renderer.geometry.build_seconds,
+        "samples": settings.samples,
+        "shadow_rays": settings.shadow_rays,
+        "max_depth": settings.max_depth,
+        "russian_roulette": settings.russian_roulette,
+        "fresnel": settings.fresnel,
+        "seed": settings.seed,
+        "resolution": [width, height],
+        "threads": threads,
+        "accelerator": renderer.accelerator,
+        "accelerator_reason": renderer.accelerator_reason,
+        "rays": rays,
+        "rays_per_second": total_rays / seconds if seconds > 0 else 0.0,
+        "effects": dict(renderer.plan.enabled),
+        "effects_reason": dict(renderer.plan.reason),
+        "nonfinite_samples": totals.nonfinite_samples,
+        "seconds_in_intersection": totals.seconds_in_intersection,
+        "seconds_in_embree": totals.seconds_in_embree,
+        "cancelled": cancel.is_set(),
+        "warnings": list(renderer.warnings),
+    }
+    return RenderResult(image, variance, stats, list(renderer.warnings), cancel.is_set())

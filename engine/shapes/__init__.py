@@ -1,0 +1,1 @@
+"""Analytic primitives intersected in float64 NumPy: spheres and quads."""

@@ -1,0 +1,75 @@
+"""Planar convex quadrilaterals by the test of Lagae and Dutre (report 2.2.2).
+
+The quad V00, V10, V11, V01 is split along the diagonal V10-V01 into T = (V00, V10, V01)
+and T' = (V11, V01, V10).  A ray is first tested against T with barycentric
+coordinates alpha, beta (eq. 2.7-2.8); only when alpha + beta > 1 is T' tested, without
+its own alpha' + beta' <= 1 check, so the diagonal can never open a crack (hard case H8).
+The distance t comes from the quad's plane, the same for both halves.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+EPS64 = np.finfo(np.float64).eps
+
+
+class QuadSet:
+    """All quads of a scene as arrays, for the vectorised test."""
+
+    def __init__(self, corners: np.ndarray):
+        q = np.asarray(corners, dtype=np.float64).reshape(-1, 4, 3)
+        self.v00, self.v10, self.v11, self.v01 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+        normal = np.cross(self.v10 - self.v00, self.v01 - self.v00)
+        self.normal = normal / np.linalg.norm(normal, axis=1)[:, None]
+        self.scale = np.abs(q).max(axis=(1, 2))
+        self.count = len(q)
+
+    def intersect_one(self, k: int, origins: np.ndarray, directions: np.ndarray,
+                      t_best: np.ndarray | None = None) -> np.ndarray:
+        """t > 0 of each ray with quad k, +inf where it misses (parallel rays miss).
+
+        The plane distance is computed first; the edge tests run only for rays whose
+        plane hit lies in (0, t_best).
+        """
+        v00, v10, v11, v01, n = self.v00[k], self.v10[k], self.v11[k], self.v01[k], self.normal[k]
+        t_out = np.full(len(origins), np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = ((v00 - origins) @ n) / (directions @ n)
+        candidate = (t > 0.0) & np.isfinite(t)
+        if t_best is not None:
+            candidate &= t < t_best
+        idx = np.flatnonzero(candidate)
+        if len(idx) == 0:
+            return t_out
+        o, d, t = origins[idx], directions[idx], t[idx]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e01 = v10 - v00
+            e03 = v01 - v00
+            p = np.cross(d, e03)
+            det = p @ e01
+            inv = 1.0 / det
+            tvec = o - v00
+            alpha = np.einsum("ij,ij->i", tvec, p) * inv
+            beta = np.einsum("ij,ij->i", d, np.cross(tvec, e01)) * inv
+            inside = (alpha >= 0.0) & (beta >= 0.0) & (det != 0.0) & np.isfinite(det)
+            second = inside & (alpha + beta > 1.0)
+            if second.any():
+                e23 = v01 - v11
+                e21 = v10 - v11
+                d2 = d[second]
+                p2 = np.cross(d2, e21)
+                inv2 = 1.0 / (p2 @ e23)
+                t2vec = o[second] - v11
+                alpha2 = np.einsum("ij,ij->i", t2vec, p2) * inv2
+                beta2 = np.einsum("ij,ij->i", d2, np.cross(t2vec, e23)) * inv2
+                inside[second] = (alpha2 >= 0.0) & (beta2 >= 0.0)
+        t_out[idx] = np.where(inside, t, np.inf)
+        return t_out
+
+    def surface(self, origins, directions, t, index):
+        """Hit point projected onto the plane, unit normal and spawn offset."""
+        n = self.normal[index]
+        p = origins + t[:, None] * directions
+        p -= np.einsum("ij,ij->i", p - self.v00[index], n)[:, None] * n
+        offset = 64.0 * EPS64 * np.maximum(np.abs(p).max(axis=1), self.scale[index])
+        return p, n, offset
