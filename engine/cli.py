@@ -1,0 +1,140 @@
+"""Command line: `python -m engine render ...` and `python -m engine bench ...`."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+from .scene import SceneError
+from .settings import ACCELERATORS, FRESNEL_MODELS, RenderSettings
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """Bad arguments: one line on stderr, exit code 2."""
+
+    def error(self, message):
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise SystemExit(2)
+
+
+def positive_int(text):
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def non_negative_int(text):
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
+    return value
+
+
+def add_settings_arguments(p):
+    defaults = RenderSettings()
+    p.add_argument("--samples", type=positive_int, default=defaults.samples, help="camera rays per pixel")
+    p.add_argument("--shadow-rays", type=non_negative_int, default=defaults.shadow_rays,
+                   help="shadow rays per diffuse hit (eq. 2.11)")
+    p.add_argument("--max-depth", type=non_negative_int, default=defaults.max_depth,
+                   help="bounces after the camera hit (0 = direct light only)")
+    p.add_argument("--no-russian-roulette", action="store_true", help="disable Russian roulette")
+    p.add_argument("--fresnel", choices=FRESNEL_MODELS, default=defaults.fresnel)
+    p.add_argument("--accelerator", choices=ACCELERATORS, default=defaults.accelerator)
+    p.add_argument("--threads", type=non_negative_int, default=0, help="0 = all cores")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tile-size", type=positive_int, default=defaults.tile_size)
+
+
+def settings_from_args(args) -> RenderSettings:
+    return RenderSettings(samples=args.samples, shadow_rays=args.shadow_rays, max_depth=args.max_depth,
+                          russian_roulette=not args.no_russian_roulette, fresnel=args.fresnel,
+                          threads=args.threads, seed=args.seed, tile_size=args.tile_size,
+                          accelerator=args.accelerator)
+
+
+def progress_bar(stream=sys.stderr):
+    start = time.perf_counter()
+
+    def show(fraction, message):
+        width = 30
+        filled = int(round(fraction * width))
+        elapsed = time.perf_counter() - start
+        stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {fraction * 100:5.1f}%  "
+                     f"{message}  {elapsed:6.1f}s")
+        if fraction >= 1.0:
+            stream.write("\n")
+        stream.flush()
+    return show
+
+
+def cmd_render(args) -> int:
+    from .default_scene import cornell_scene
+    from .film import write_image
+    from .render import render
+    from .scene_io import load_scene
+
+    scene = load_scene(args.scene) if args.scene else cornell_scene()
+    if args.resolution:
+        scene.resolution = tuple(args.resolution)
+    settings = settings_from_args(args)
+    log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    result = render(scene, settings, on_progress=None if args.quiet else progress_bar(), log=log)
+    out_dir = os.path.dirname(os.path.abspath(args.output))
+    os.makedirs(out_dir, exist_ok=True)
+    write_image(args.output, result.image)
+    if args.png:
+        write_image(args.png, result.image)
+    stats = result.stats
+    if args.stats_json:
+        with open(args.stats_json, "w") as fh:
+            json.dump(stats, fh, indent=1)
+    rays = sum(stats["rays"].values())
+    print(f"wrote {args.output}: {stats['render_seconds']:.2f} s, {rays / 1e6:.2f} M rays "
+          f"({stats['rays_per_second'] / 1e6:.2f} M rays/s), effects: "
+          f"{', '.join(k for k, v in stats['effects'].items() if v)}, "
+          f"non-finite samples: {stats['nonfinite_samples']}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from .bench import run_bench
+    run_bench(resolution=tuple(args.resolution), samples=args.samples)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = OneLineParser(prog="python -m engine", description="TNCG15 MC tracer")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
+    r = sub.add_parser("render", help="render a scene file (or the built-in Cornell scene)")
+    r.add_argument("scene", nargs="?", help="scene .json (default: built-in Cornell scene)")
+    r.add_argument("-o", "--output", required=True, help="output image (.exr linear or .png sRGB)")
+    r.add_argument("--png", help="also write an sRGB PNG here")
+    r.add_argument("--resolution", type=positive_int, nargs=2, metavar=("W", "H"))
+    r.add_argument("--stats-json", metavar="PATH")
+    r.add_argument("--quiet", action="store_true")
+    add_settings_arguments(r)
+    r.set_defaults(func=cmd_render)
+    b = sub.add_parser("bench", help="rays/s, Embree share and thread speed-up on the built-in scene")
+    b.add_argument("--resolution", type=positive_int, nargs=2, default=(256, 256), metavar=("W", "H"))
+    b.add_argument("--samples", type=positive_int, default=16)
+    b.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except SceneError as exc:
+        sys.stderr.write(f"python -m engine: error: {exc}\n")
+        return 2
+    except OSError as exc:
+        sys.stderr.write(f"python -m engine: error: {exc}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write("python -m engine: interrupted\n")
+        return 130

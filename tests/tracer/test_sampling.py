@@ -1,0 +1,148 @@
+"""Sampling routines: chi-square goodness of fit (hard-cases §3.1) and edge cases."""
+import numpy as np
+import pytest
+from scipy import stats
+
+from engine.lights import LightSampler
+from engine.sampling import cosine_hemisphere, orthonormal_basis, to_world, uniform_triangle
+from engine.scene import Camera, Material, Quad, Scene, Sphere
+
+ALPHA = 0.01
+
+
+def pooled_chi2(observed, expected):
+    """Pool cells with expected < 5 (Mitsuba/pbrt), return (chi2 p-value, dof)."""
+    order = np.argsort(expected)
+    obs, exp = observed[order].astype(float), expected[order].astype(float)
+    pooled_o, pooled_e, acc_o, acc_e = [], [], 0.0, 0.0
+    for o, e in zip(obs, exp):
+        acc_o += o
+        acc_e += e
+        if acc_e >= 5:
+            pooled_o.append(acc_o)
+            pooled_e.append(acc_e)
+            acc_o = acc_e = 0.0
+    if acc_e > 0:
+        pooled_o[-1] += acc_o
+        pooled_e[-1] += acc_e
+    pooled_o, pooled_e = np.array(pooled_o), np.array(pooled_e)
+    chi2 = ((pooled_o - pooled_e) ** 2 / pooled_e).sum()
+    dof = len(pooled_o) - 1
+    return stats.chi2.sf(chi2, dof), dof
+
+
+def cosine_cells(z_bins, phi_bins, n):
+    """Exact expected counts of cosine sampling over (z = cos theta, phi) cells."""
+    z = np.linspace(0, 1, z_bins + 1)
+    per_z = (z[1:] ** 2 - z[:-1] ** 2)          # integral of cos over the z band, normalised
+    return n * np.repeat(per_z[:, None], phi_bins, axis=1).ravel() / phi_bins
+
+
+def histogram_directions(d, z_bins, phi_bins):
+    z = np.clip(d[:, 2], 0, np.nextafter(1, 0))
+    phi = np.mod(np.arctan2(d[:, 1], d[:, 0]), 2 * np.pi)
+    iz = np.minimum((z * z_bins).astype(int), z_bins - 1)
+    ip = np.minimum((phi / (2 * np.pi) * phi_bins).astype(int), phi_bins - 1)
+    return np.bincount(iz * phi_bins + ip, minlength=z_bins * phi_bins)
+
+
+def test_cosine_hemisphere_chi2():
+    rng = np.random.default_rng(10)
+    n = 1_000_000
+    d = cosine_hemisphere(rng.random(n), rng.random(n))
+    assert (d[:, 2] > 0).all()
+    p, dof = pooled_chi2(histogram_directions(d, 40, 40), cosine_cells(40, 40, n))
+    assert dof > 100
+    assert p > ALPHA
+
+
+def test_chi2_rejects_a_wrong_hemisphere_sampler():
+    """The same harness must fail a uniform-hemisphere sampler (the test has power)."""
+    rng = np.random.default_rng(11)
+    n = 200_000
+    z = rng.random(n)
+    r = np.sqrt(1 - z * z)
+    phi = 2 * np.pi * rng.random(n)
+    d = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+    p, _ = pooled_chi2(histogram_directions(d, 40, 40), cosine_cells(40, 40, n))
+    assert p < 1e-6
+
+
+@pytest.mark.parametrize("normal", [(0, 0, 1), (0, 0, -1), (1, 0, 0), (0, -1, 0), (1, 0, -0.0), (0, 1, -0.0),
+                                    (0.00038527316, 0.00038460016, -0.99999988079),
+                                    (-0.00019813581, -0.00008946839, -0.99999988079)])
+def test_orthonormal_basis_is_orthonormal(normal):
+    n = np.array([normal], dtype=float)
+    n /= np.linalg.norm(n)
+    t, b = orthonormal_basis(n)
+    m = np.stack([t[0], b[0], n[0]])
+    assert np.isfinite(m).all()
+    assert np.abs(m @ m.T - np.eye(3)).max() < 1e-10
+
+
+def test_cosine_sample_at_u_one_keeps_positive_pdf():
+    # Hard case S1: u -> 1 would give z = 0, pdf 0 and 0/0 downstream.
+    u = np.array([np.nextafter(1.0, 0.0), 1.0, float(np.float32(1 - 2 ** -25))])
+    d = cosine_hemisphere(u, np.full(3, 0.3))
+    assert (d[:, 2] > 0).all()
+    assert np.allclose(np.linalg.norm(d, axis=1), 1, atol=1e-12)
+
+
+def test_to_world_keeps_directions_in_the_normal_hemisphere():
+    rng = np.random.default_rng(12)
+    n = rng.normal(size=(5000, 3))
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    d = to_world(cosine_hemisphere(rng.random(5000), rng.random(5000)), n)
+    assert (np.einsum("ij,ij->i", d, n) > 0).all()
+
+
+def _light_scene():
+    mats = [Material("L", emission=(1, 1, 1), color=(0, 0, 0))]
+    quad = Quad("Light", np.array([[0, 0, 1], [2, 0, 1], [2, 1, 1], [0, 1, 1]], float), 0)
+    return Scene(Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0)), mats, quads=[quad])
+
+
+def test_light_area_sampler_chi2():
+    """Points on a 2x1 quad light: uniform over its area (pdf 1/A, eq. 2.11)."""
+    lights = LightSampler(_light_scene())
+    rng = np.random.default_rng(13)
+    n = 400_000
+    s = lights.sample(rng.random(n), rng.random(n), rng.random(n))
+    assert np.allclose(s.inv_pdf, 2.0)
+    assert np.allclose(s.point[:, 2], 1.0)
+    bx, by = 20, 10
+    ix = np.minimum((s.point[:, 0] / 2 * bx).astype(int), bx - 1)
+    iy = np.minimum((s.point[:, 1] * by).astype(int), by - 1)
+    counts = np.bincount(ix * by + iy, minlength=bx * by)
+    p, _ = pooled_chi2(counts, np.full(bx * by, n / (bx * by)))
+    assert p > ALPHA
+
+
+def test_chi2_rejects_a_non_uniform_triangle_sampler():
+    rng = np.random.default_rng(14)
+    n = 200_000
+    u1, u2 = rng.random(n), rng.random(n)
+    b1, b2 = u1 * (1 - u2), u1 * u2          # missing sqrt: clusters at vertex 0
+    right_b1, right_b2 = uniform_triangle(u1, u2)
+    bins = 10
+
+    def counts(b1, b2):
+        return np.bincount(np.minimum(((b1 + b2) ** 2 * bins).astype(int), bins - 1), minlength=bins)
+    expected = np.full(bins, n / bins)      # (b1 + b2)^2 is uniform for a uniform sampler
+    assert pooled_chi2(counts(right_b1, right_b2), expected)[0] > ALPHA
+    assert pooled_chi2(counts(b1, b2), expected)[0] < 1e-6
+
+
+def test_lights_picked_by_power():
+    mats = [Material("Dim", color=(0, 0, 0), emission=(1, 1, 1)),
+            Material("Bright", color=(0, 0, 0), emission=(3, 3, 3))]
+    q = np.array([[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
+    scene = Scene(Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0)), mats,
+                  quads=[Quad("Dim", q, 0), Quad("Bright", q + [5, 0, 0], 1)],
+                  spheres=[Sphere("Zero", (9, 9, 9), 1.0, 0)])
+    lights = LightSampler(scene)
+    rng = np.random.default_rng(15)
+    n = 100_000
+    s = lights.sample(rng.random(n), rng.random(n), rng.random(n))
+    # Estimator of total power over area: E[Le / p] = sum(A_i * Le_i)
+    assert np.mean(s.radiance[:, 0] * s.inv_pdf) == pytest.approx(1 + 3 + 4 * np.pi, rel=1e-9)
