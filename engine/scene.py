@@ -111,8 +111,12 @@ class TriangleMesh:
     triangles: np.ndarray         # (T, 3) int
     material_ids: np.ndarray      # (T,) int, indices into Scene.materials
 
-    def validate(self, n_materials: int) -> int:
-        """Check the mesh; drop degenerate triangles.  Returns how many were dropped."""
+    def validate(self, n_materials: int, emissive: np.ndarray | None = None) -> int:
+        """Check the mesh; drop degenerate triangles.  Returns how many were dropped.
+
+        ``emissive`` flags emissive materials: an emitter whose triangles all have
+        zero area is an error (it would emit nothing), not a silent drop.
+        """
         self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float64).reshape(-1, 3)
         self.triangles = np.ascontiguousarray(self.triangles, dtype=np.int64).reshape(-1, 3)
         self.material_ids = np.broadcast_to(
@@ -129,6 +133,10 @@ class TriangleMesh:
         scale = np.abs(v).max(axis=(1, 2)) + 1e-300
         keep = doubled_area > (scale * 1e-12) ** 2 * 16  # area ~ 0 relative to float64 resolution
         dropped = int((~keep).sum())
+        if emissive is not None and len(self.material_ids):
+            lit = emissive[self.material_ids]
+            if lit.any() and not (lit & keep).any():
+                raise SceneError(f"Object '{self.name}': emitter has zero area")
         if dropped:
             self.triangles = self.triangles[keep]
             self.material_ids = self.material_ids[keep]
@@ -213,23 +221,16 @@ class Scene:
             raise SceneError(f"Scene '{self.name}': background must be 3 finite non-negative numbers")
         n = len(self.materials)
         dropped = 0
+        emissive = np.array([m.is_emissive for m in self.materials])
         for mesh in self.meshes:
-            dropped += mesh.validate(n)
+            dropped += mesh.validate(n, emissive)
         if dropped:
             warnings.append(f"{dropped} degenerate triangle(s) dropped")
         for sphere in self.spheres:
             sphere.validate(n)
         for quad in self.quads:
             quad.validate(n)
-        for mesh in self.meshes:
-            emissive = np.array([self.materials[m].is_emissive for m in range(n)])
-            ids = mesh.material_ids
-            if len(ids) and emissive[ids].any():
-                v = mesh.vertices[mesh.triangles[emissive[ids]]]
-                area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum()
-                if area <= 0:
-                    raise SceneError(f"Object '{mesh.name}': emitter has zero area")
-        if not self.has_light() :
+        if not self.has_light():
             warnings.append("the scene has no emitters and a black background: the image will be black")
         return warnings
 

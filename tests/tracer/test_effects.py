@@ -1,0 +1,62 @@
+"""The effect plan: kernels a scene does not need never run."""
+import numpy as np
+import pytest
+
+import engine.geometry
+import engine.integrator
+from engine import RenderSettings, render
+from engine.effects import plan_effects
+from engine.scene import GLASS, Material, Sphere
+
+from .scenes import diffuse_box_scene
+
+EXPECTED_KEYS = {"engine", "render_seconds", "samples", "resolution", "threads", "accelerator", "rays",
+                 "effects", "effects_reason", "nonfinite_samples", "seconds_in_intersection"}
+
+
+class CallCounter:
+    def __init__(self, fn):
+        self.fn, self.calls = fn, 0
+
+    def __call__(self, *a, **kw):
+        self.calls += 1
+        return self.fn(*a, **kw)
+
+
+@pytest.fixture
+def spies(monkeypatch):
+    sphere = CallCounter(engine.geometry.intersect_sphere)
+    refract = CallCounter(engine.integrator.refract_cos)
+    monkeypatch.setattr(engine.geometry, "intersect_sphere", sphere)
+    monkeypatch.setattr(engine.integrator, "refract_cos", refract)
+    return sphere, refract
+
+
+def test_diffuse_only_scene_never_runs_sphere_or_refraction_code(spies):
+    sphere, refract = spies
+    result = render(diffuse_box_scene(), RenderSettings(samples=4), log=lambda *a: None)
+    assert sphere.calls == 0 and refract.calls == 0
+    fx = result.stats["effects"]
+    assert fx == {"spheres": False, "quads": True, "triangles": True, "diffuse": True,
+                  "mirror": False, "glass": False, "emission": True}
+    assert "never evaluated" in result.stats["effects_reason"]["glass"]
+    assert EXPECTED_KEYS <= set(result.stats)
+    assert set(result.stats["rays"]) == {"camera", "extension", "shadow"}
+
+
+def test_glass_sphere_turns_both_kernels_on(spies):
+    sphere, refract = spies
+    scene = diffuse_box_scene()
+    scene.materials.append(Material("Glass", GLASS, (1, 1, 1), ior=1.5))
+    scene.spheres.append(Sphere("Glass ball", (0, 0.3, 0.5), 0.3, len(scene.materials) - 1))
+    result = render(scene, RenderSettings(samples=4), log=lambda *a: None)
+    assert sphere.calls > 0 and refract.calls > 0
+    assert result.stats["effects"]["glass"] and result.stats["effects"]["spheres"]
+    assert "'Glass ball'" in result.stats["effects_reason"]["spheres"]
+
+
+def test_unused_glass_material_does_not_enable_glass():
+    scene = diffuse_box_scene()
+    scene.materials.append(Material("Spare glass", GLASS))
+    plan = plan_effects(scene, RenderSettings())
+    assert not plan.glass

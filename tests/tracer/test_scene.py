@@ -1,0 +1,99 @@
+"""Validation errors name the object; scene files round-trip; the camera matches Blender."""
+import json
+
+import numpy as np
+import pytest
+
+from engine import RenderSettings, render
+from engine.camera import camera_rays
+from engine.default_scene import cornell_scene
+from engine.scene import Camera, Material, Quad, Scene, SceneError, Sphere, TriangleMesh
+from engine.scene_io import load_scene, save_scene
+
+
+def base_scene(**kw):
+    return Scene(Camera.look_at((0, -5, 0), (0, 0, 0)),
+                 [Material("White"), Material("Lamp", color=(0, 0, 0), emission=(1, 1, 1))], **kw)
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: base_scene(spheres=[Sphere("Ball", (0, 0, 0), 0.0, 0)]), "Object 'Ball': sphere radius"),
+    (lambda: base_scene(spheres=[Sphere("Ball", (np.nan, 0, 0), 1.0, 0)]), "Object 'Ball': sphere centre"),
+    (lambda: base_scene(meshes=[TriangleMesh("Suzanne", np.array([[0, 0, np.inf], [1, 0, 0], [0, 1, 0]]),
+                                             np.array([[0, 1, 2]]), [0])]), "Object 'Suzanne': 1 vertices"),
+    (lambda: base_scene(quads=[Quad("Card", np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0.5], [0, 1, 0]]), 0)]),
+     "Object 'Card': quad is not planar"),
+    (lambda: base_scene(quads=[Quad("Card", np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]]), 0)]),
+     "Object 'Card': quad is degenerate"),
+    (lambda: base_scene(meshes=[TriangleMesh("Lamp", np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]]),
+                                             np.array([[0, 1, 2]]), [1])]), "Object 'Lamp': emitter has zero area"),
+    (lambda: Scene(None, [Material("m")], name="Shot"), "Scene 'Shot': no camera"),
+    (lambda: base_scene(resolution=(0, 10)), "resolution must be positive"),
+])
+def test_validation_names_the_object(make, message):
+    scene = make()
+    with pytest.raises(SceneError, match=message.replace("(", r"\(")):
+        scene.validate()
+
+
+def test_degenerate_triangles_are_dropped_with_one_counted_warning():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]], float)
+    mesh = TriangleMesh("Mixed", v, np.array([[0, 1, 2], [0, 1, 3], [1, 1, 2]]), [0, 0, 0])
+    scene = base_scene(meshes=[mesh], background=(1, 1, 1))
+    warnings = scene.validate()
+    assert "2 degenerate triangle(s) dropped" in warnings
+    assert len(mesh.triangles) == 1
+
+
+def test_render_rejects_an_invalid_scene_before_tracing():
+    scene = base_scene(spheres=[Sphere("Ball", (0, 0, 0), -1.0, 0)])
+    with pytest.raises(SceneError, match="Ball"):
+        render(scene, RenderSettings(samples=1), log=lambda *a: None)
+
+
+def test_scene_file_round_trip(tmp_path):
+    scene = cornell_scene((32, 24))
+    path = str(tmp_path / "cornell.json")
+    save_scene(scene, path)
+    again = load_scene(path)
+    assert again.resolution == (32, 24)
+    assert [m.name for m in again.materials] == [m.name for m in scene.materials]
+    assert sum(len(m.triangles) for m in again.meshes) == sum(len(m.triangles) for m in scene.meshes)
+    a = render(scene, RenderSettings(samples=2, seed=3), log=lambda *a: None)
+    b = render(again, RenderSettings(samples=2, seed=3), log=lambda *a: None)
+    assert np.array_equal(a.image, b.image)
+
+
+def test_scene_file_errors_name_the_problem(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"format": "tncg15-scene", "materials": [{"name": "m"}],
+                               "spheres": [{"name": "Ball", "center": [0, 0, 0], "radius": 1, "material": "nope"}]}))
+    with pytest.raises(SceneError, match="Object 'Ball': unknown material 'nope'"):
+        load_scene(str(bad))
+    with pytest.raises(SceneError, match="not a tncg15-scene"):
+        (tmp_path / "x.json").write_text("{}")
+        load_scene(str(tmp_path / "x.json"))
+
+
+@pytest.mark.parametrize("w, h, fit, expect_axis", [(200, 100, "AUTO", 0), (100, 200, "AUTO", 1),
+                                                    (100, 200, "HORIZONTAL", 0), (200, 100, "VERTICAL", 1)])
+def test_camera_field_of_view_follows_blender_sensor_fit(w, h, fit, expect_axis):
+    cam = Camera(matrix=np.eye(4), lens=50.0, sensor_width=36.0, sensor_height=24.0, sensor_fit=fit)
+    # Rays through the image edges along the fitted axis.
+    if expect_axis == 0:
+        _, d = camera_rays(cam, w, h, np.array([0.0, float(w)]), np.array([h / 2, h / 2]))
+        slope = d[:, 0] / -d[:, 2]
+    else:
+        _, d = camera_rays(cam, w, h, np.array([w / 2, w / 2]), np.array([0.0, float(h)]))
+        slope = d[:, 1] / -d[:, 2]
+    sensor = 24.0 if fit == "VERTICAL" else 36.0
+    assert np.abs(slope).tolist() == pytest.approx([sensor / 2 / 50.0] * 2, rel=1e-12)
+    assert slope[0] * slope[1] < 0
+
+
+def test_camera_shift_and_orientation():
+    cam = Camera.look_at((0, -5, 1), (0, 0, 1), lens=50.0, shift_x=0.1)
+    o, d = camera_rays(cam, 100, 100, np.array([50.0]), np.array([50.0]))
+    assert np.allclose(o, [0, -5, 1])
+    # Looking along +y; shift 0.1 of the 36 mm sensor at lens 50 moves the centre ray right (+x).
+    assert d[0, 1] > 0 and d[0, 0] / d[0, 1] == pytest.approx(0.1 * 36 / 50, rel=1e-12)
