@@ -137,20 +137,16 @@ class SceneGeometry:
     def surface(self, origins, directions, t, kind, prim, u, v) -> SurfaceHits:
         """Shading data for rays that hit (all arrays already restricted to hits)."""
         m = len(t)
+        if self.has_triangles and (kind == TRIANGLE).all():   # fast path: triangles only
+            return self._triangle_surface(prim, u, v)
         point = np.empty((m, 3))
         normal = np.empty((m, 3))
         material = np.empty(m, dtype=np.int64)
         offset = np.empty(m)
         sel = kind == TRIANGLE
         if sel.any():
-            p = prim[sel]
-            # Barycentric interpolation in float64 puts the point on the triangle's plane
-            # (pbrt): the float32 error of o + t d would be along the ray instead.
-            pt = self.tri_v0[p] + u[sel, None] * self.tri_e1[p] + v[sel, None] * self.tri_e2[p]
-            point[sel] = pt
-            normal[sel] = self.tri_normal[p]
-            material[sel] = self.triangle_material[p]
-            offset[sel] = TRIANGLE_OFFSET * np.maximum(np.abs(pt).max(axis=1), self.tri_scale[p])
+            tri = self._triangle_surface(prim[sel], u[sel], v[sel])
+            point[sel], normal[sel], material[sel], offset[sel] = tri.point, tri.normal, tri.material, tri.offset
         sel = kind == SPHERE
         if sel.any():
             p = prim[sel]
@@ -165,3 +161,10 @@ class SceneGeometry:
             point[sel], normal[sel], offset[sel] = pt, nrm, off
             material[sel] = self.quad_material[p]
         return SurfaceHits(point, normal, material, offset)
+
+    def _triangle_surface(self, prim, u, v) -> SurfaceHits:
+        # Barycentric interpolation in float64 puts the point on the triangle's plane
+        # (pbrt): the float32 error of o + t d would be along the ray instead.
+        point = self.tri_v0[prim] + u[:, None] * self.tri_e1[prim] + v[:, None] * self.tri_e2[prim]
+        offset = TRIANGLE_OFFSET * np.maximum(np.abs(point).max(axis=1), self.tri_scale[prim])
+        return SurfaceHits(point, self.tri_normal[prim], self.triangle_material[prim], offset)

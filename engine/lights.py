@@ -47,6 +47,9 @@ class LightSampler:
         cross = np.cross(self.tri[:, 1] - self.tri[:, 0], self.tri[:, 2] - self.tri[:, 0])
         self.tri_area = 0.5 * np.linalg.norm(cross, axis=1)
         self.tri_normal = cross / np.maximum(2.0 * self.tri_area, 1e-300)[:, None]
+        self.tri_v0 = self.tri[:, 0]
+        self.tri_e1 = self.tri[:, 1] - self.tri[:, 0]
+        self.tri_e2 = self.tri[:, 2] - self.tri[:, 0]
         # Zero-area emitters carry no power and are never picked (hard case S8).
         spheres = [s for s in scene.spheres if emissive[s.material_id]]
         self.sph_center = np.array([s.center for s in spheres], dtype=np.float64).reshape(-1, 3)
@@ -68,19 +71,23 @@ class LightSampler:
         n = len(u_pick)
         index = np.searchsorted(self.cdf, u_pick * self.cdf[-1], side="right")
         index = np.minimum(index, len(self.cdf) - 1)
-        point = np.empty((n, 3))
-        normal = np.empty((n, 3))
-        radiance = np.empty((n, 3))
         is_tri = index < self.n_tri
-        if is_tri.any():
-            k = index[is_tri]
-            b1, b2 = uniform_triangle(u1[is_tri], u2[is_tri])
-            tri = self.tri[k]
-            point[is_tri] = tri[:, 0] + b1[:, None] * (tri[:, 1] - tri[:, 0]) + b2[:, None] * (tri[:, 2] - tri[:, 0])
-            normal[is_tri] = self.tri_normal[k]
-            radiance[is_tri] = self.tri_le[k]
-        is_sph = ~is_tri
-        if is_sph.any():
+        if is_tri.all():                       # the common case: no spherical lights
+            b1, b2 = uniform_triangle(u1, u2)
+            point = self.tri_v0[index] + b1[:, None] * self.tri_e1[index] + b2[:, None] * self.tri_e2[index]
+            normal = self.tri_normal[index]
+            radiance = self.tri_le[index]
+        else:
+            point = np.empty((n, 3))
+            normal = np.empty((n, 3))
+            radiance = np.empty((n, 3))
+            if is_tri.any():
+                k = index[is_tri]
+                b1, b2 = uniform_triangle(u1[is_tri], u2[is_tri])
+                point[is_tri] = self.tri_v0[k] + b1[:, None] * self.tri_e1[k] + b2[:, None] * self.tri_e2[k]
+                normal[is_tri] = self.tri_normal[k]
+                radiance[is_tri] = self.tri_le[k]
+            is_sph = ~is_tri
             k = index[is_sph] - self.n_tri
             direction = uniform_sphere(u1[is_sph], u2[is_sph])
             point[is_sph] = self.sph_center[k] + self.sph_radius[k, None] * direction

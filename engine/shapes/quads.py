@@ -22,6 +22,9 @@ class QuadSet:
         normal = np.cross(self.v10 - self.v00, self.v01 - self.v00)
         self.normal = normal / np.linalg.norm(normal, axis=1)[:, None]
         self.scale = np.abs(q).max(axis=(1, 2))
+        # Circumscribed circle about the centroid: a cheap test before the edge tests.
+        self.center = q.mean(axis=1)
+        self.radius2 = (((q - self.center[:, None]) ** 2).sum(axis=2)).max(axis=1) * (1 + 1e-9)
         self.count = len(q)
 
     def intersect_one(self, k: int, origins: np.ndarray, directions: np.ndarray,
@@ -42,6 +45,11 @@ class QuadSet:
         if len(idx) == 0:
             return t_out
         o, d, t = origins[idx], directions[idx], t[idx]
+        rel = o + t[:, None] * d - self.center[k]
+        near = np.einsum("ij,ij->i", rel, rel) <= self.radius2[k]
+        idx, o, d, t = idx[near], o[near], d[near], t[near]
+        if len(idx) == 0:
+            return t_out
         with np.errstate(divide="ignore", invalid="ignore"):
             e01 = v10 - v00
             e03 = v01 - v00
