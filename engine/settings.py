@@ -5,7 +5,7 @@ import os
 from dataclasses import dataclass, asdict
 
 FRESNEL_MODELS = ("schlick", "exact")
-ACCELERATORS = ("embree", "auto")
+ACCELERATORS = ("auto", "embree", "octree", "brute")
 
 
 @dataclass
