@@ -105,6 +105,14 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_study(args) -> int:
+    from .study import run_study
+    mode = "full" if args.full else "quick"
+    command = f"python -m engine study --{mode}" + (f" --out {args.out}" if args.out != "docs" else "")
+    run_study(mode, args.out, command, log=lambda msg: print(msg, file=sys.stderr))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="python -m engine", description="TNCG15 MC tracer")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
@@ -121,6 +129,12 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--resolution", type=positive_int, nargs=2, default=(256, 256), metavar=("W", "H"))
     b.add_argument("--samples", type=positive_int, default=16)
     b.set_defaults(func=cmd_bench)
+    st = sub.add_parser("study", help="error and time for every knob (docs/accuracy-vs-time.md)")
+    group = st.add_mutually_exclusive_group()
+    group.add_argument("--quick", action="store_true", help="small and fast (CI); the default")
+    group.add_argument("--full", action="store_true", help="the committed figures (about half an hour)")
+    st.add_argument("--out", default="docs", help="directory for the markdown and the plots")
+    st.set_defaults(func=cmd_study)
     return parser
 
 
