@@ -19,9 +19,9 @@ def test_quick_study_writes_tables_plots_and_sane_errors(tmp_path):
     rows = json.loads((tmp_path / "accuracy" / "rows.json").read_text())
     assert all(len(r["seconds"]) >= 2 and all(np.isfinite(r["mse"])) for r in rows)
     by_label = {r.label: r for r in study.rows}
-    # Same seeds, same estimator: the three accelerators give the same error.
-    accel = [r for r in study.rows if r.table == "3.2" and r.extra["mesh"]]
-    assert len({round(r.rmse, 12) for r in accel}) == 1
+    # Same seeds, same estimator: the three accelerators give the same error (Embree is float32).
+    accel = [r.rmse for r in study.rows if r.table == "3.2" and r.extra["mesh"]]
+    assert len(accel) == 3 and np.ptp(accel) < 1e-3 * accel[0]
     # Direct light only is biased; more samples lower the error.
     assert by_label["depth 0"].rel_bias2 > 0.01
     assert by_label["depth 0"].time_to_target() == float("inf")
