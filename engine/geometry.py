@@ -14,7 +14,7 @@ import numpy as np
 
 from .accel import build_accelerator
 from .shapes.quads import QuadSet
-from .shapes.spheres import intersect_sphere, surface_point
+from .shapes.spheres import intersect_sphere_soa, soa, surface_point
 
 NONE, TRIANGLE, SPHERE, QUAD = 0, 1, 2, 3
 
@@ -31,6 +31,25 @@ class SurfaceHits:
     normal: np.ndarray     # (M, 3) unit geometric normal (winding / outward)
     material: np.ndarray   # (M,) material index
     offset: np.ndarray     # (M,) distance along the normal that clears the surface
+
+
+@dataclass
+class HitSet:
+    """Nearest hits of a batch, compacted and grouped by primitive kind.
+
+    ``index`` lists the rays that hit, ordered so that each kind forms one contiguous run
+    (``runs[kind] = (start, stop)``); ``miss`` lists the rays that hit nothing.  Rays
+    keep no particular order in a wavefront, and contiguous runs let shading work on
+    slices instead of scattering through masks.
+    """
+    index: np.ndarray
+    miss: np.ndarray
+    t: np.ndarray
+    kind: np.ndarray
+    prim: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    runs: dict
 
 
 class Counters:
@@ -96,14 +115,16 @@ class SceneGeometry:
             t = np.where(closer, tt, t)
             kind[closer] = TRIANGLE
             prim[closer] = tp[closer]
+        if self.has_spheres or self.has_quads:
+            o_rows, d_rows = soa(origins), soa(directions)
         for k in range(len(self.sphere_radius)) if self.has_spheres else ():
-            ts = intersect_sphere(origins, directions, self.sphere_center[k], self.sphere_radius[k], t)
+            ts = intersect_sphere_soa(o_rows, d_rows, self.sphere_center[k], self.sphere_radius[k], t)
             closer = ts < t
             t = np.where(closer, ts, t)
             kind[closer] = SPHERE
             prim[closer] = k
         for k in range(self.quads.count) if self.has_quads else ():
-            tq = self.quads.intersect_one(k, origins, directions, t)
+            tq = self.quads.intersect_one_soa(k, o_rows, d_rows, t)
             closer = tq < t
             t = np.where(closer, tq, t)
             kind[closer] = QUAD
@@ -114,6 +135,16 @@ class SceneGeometry:
         counters.seconds_in_intersection += time.perf_counter() - start
         return t, kind, prim, u, v
 
+    def nearest_hits(self, origins, directions, counters: Counters) -> HitSet:
+        t, kind, prim, u, v = self.intersect(origins, directions, counters)
+        order = np.argsort(kind, kind="stable")
+        bounds = np.searchsorted(kind[order], [NONE, TRIANGLE, SPHERE, QUAD, QUAD + 1])
+        miss = order[bounds[0]:bounds[1]]
+        index = order[bounds[1]:]
+        runs = {k: (bounds[k] - bounds[1], bounds[k + 1] - bounds[1]) for k in (TRIANGLE, SPHERE, QUAD)}
+        return HitSet(index, miss, t.take(index), kind.take(index), prim.take(index),
+                      u.take(index), v.take(index), runs)
+
     def occluded(self, origins, directions, tmax, counters: Counters):
         """True where something lies on the segment (0, tmax) of the ray."""
         start = time.perf_counter()
@@ -122,49 +153,43 @@ class SceneGeometry:
             t0 = time.perf_counter()
             blocked |= self.accelerator.occluded(origins, directions, tmax)
             counters.seconds_in_embree += time.perf_counter() - t0
-        rest = ~blocked
-        if (self.has_spheres or self.has_quads) and rest.any():
-            o, d, tm = origins[rest], directions[rest], tmax[rest]
-            hit = np.zeros(len(o), dtype=bool)
+        rest = np.flatnonzero(~blocked)
+        if (self.has_spheres or self.has_quads) and len(rest):
+            o, d, tm = soa(origins.take(rest, axis=0)), soa(directions.take(rest, axis=0)), tmax.take(rest)
+            hit = np.zeros(len(rest), dtype=bool)
             for k in range(len(self.sphere_radius)):
-                hit |= intersect_sphere(o, d, self.sphere_center[k], self.sphere_radius[k], tm) < tm
+                hit |= intersect_sphere_soa(o, d, self.sphere_center[k], self.sphere_radius[k], tm) < tm
             for k in range(self.quads.count):
-                hit |= self.quads.intersect_one(k, o, d, tm) < tm
+                hit |= self.quads.intersect_one_soa(k, o, d, tm) < tm
             blocked[rest] = hit
         counters.seconds_in_intersection += time.perf_counter() - start
         return blocked
 
-    def surface(self, origins, directions, t, kind, prim, u, v) -> SurfaceHits:
-        """Shading data for rays that hit (all arrays already restricted to hits)."""
-        m = len(t)
-        if self.has_triangles and (kind == TRIANGLE).all():   # fast path: triangles only
-            return self._triangle_surface(prim, u, v)
-        point = np.empty((m, 3))
-        normal = np.empty((m, 3))
-        material = np.empty(m, dtype=np.int64)
-        offset = np.empty(m)
-        sel = kind == TRIANGLE
-        if sel.any():
-            tri = self._triangle_surface(prim[sel], u[sel], v[sel])
-            point[sel], normal[sel], material[sel], offset[sel] = tri.point, tri.normal, tri.material, tri.offset
-        sel = kind == SPHERE
-        if sel.any():
-            p = prim[sel]
-            pt, nrm, off = surface_point(origins[sel], directions[sel], t[sel],
-                                         self.sphere_center[p], self.sphere_radius[p])
-            point[sel], normal[sel], offset[sel] = pt, nrm, off
-            material[sel] = self.sphere_material[p]
-        sel = kind == QUAD
-        if sel.any():
-            p = prim[sel]
-            pt, nrm, off = self.quads.surface(origins[sel], directions[sel], t[sel], p)
-            point[sel], normal[sel], offset[sel] = pt, nrm, off
-            material[sel] = self.quad_material[p]
-        return SurfaceHits(point, normal, material, offset)
+    def surface(self, origins, directions, hits: HitSet) -> SurfaceHits:
+        """Shading data for the hit rays; origins and directions already in hits.index order."""
+        parts = []
+        for k, (a, b) in sorted(hits.runs.items()):
+            if b <= a:
+                continue
+            prim = hits.prim[a:b]
+            if k == TRIANGLE:
+                parts.append(self._triangle_surface(prim, hits.u[a:b], hits.v[a:b]))
+            elif k == SPHERE:
+                pt, nrm, off = surface_point(origins[a:b], directions[a:b], hits.t[a:b],
+                                             self.sphere_center.take(prim, axis=0), self.sphere_radius.take(prim))
+                parts.append(SurfaceHits(pt, nrm, self.sphere_material.take(prim), off))
+            else:
+                pt, nrm, off = self.quads.surface(origins[a:b], directions[a:b], hits.t[a:b], prim)
+                parts.append(SurfaceHits(pt, nrm, self.quad_material.take(prim), off))
+        if len(parts) == 1:
+            return parts[0]
+        return SurfaceHits(*(np.concatenate([getattr(p, f) for p in parts])
+                             for f in ("point", "normal", "material", "offset")))
 
     def _triangle_surface(self, prim, u, v) -> SurfaceHits:
         # Barycentric interpolation in float64 puts the point on the triangle's plane
         # (pbrt): the float32 error of o + t d would be along the ray instead.
-        point = self.tri_v0[prim] + u[:, None] * self.tri_e1[prim] + v[:, None] * self.tri_e2[prim]
-        offset = TRIANGLE_OFFSET * np.maximum(np.abs(point).max(axis=1), self.tri_scale[prim])
-        return SurfaceHits(point, self.tri_normal[prim], self.triangle_material[prim], offset)
+        point = (self.tri_v0.take(prim, axis=0) + u[:, None] * self.tri_e1.take(prim, axis=0)
+                 + v[:, None] * self.tri_e2.take(prim, axis=0))
+        offset = TRIANGLE_OFFSET * np.maximum(np.abs(point).max(axis=1), self.tri_scale.take(prim))
+        return SurfaceHits(point, self.tri_normal.take(prim, axis=0), self.triangle_material.take(prim), offset)

@@ -19,7 +19,6 @@ from __future__ import annotations
 import numpy as np
 
 from .bsdf import FRESNEL, dot, reflect, refract, refract_cos
-from .geometry import NONE
 from .sampling import cosine_hemisphere, to_world
 from .scene import DIFFUSE, GLASS, MIRROR
 
@@ -51,10 +50,15 @@ class PathTracer:
 
     # -- one batch of camera paths ---------------------------------------------------
     def trace(self, origins, directions, rng, counters) -> np.ndarray:
-        """Radiance (N, 3) carried by each camera ray."""
+        """Radiance (N, 3) carried by each camera ray.
+
+        Paths are reordered freely between bounces (hits grouped by primitive kind, then
+        by scattering kind) so every group is a contiguous slice; contributions are
+        recorded as (path id, value) pairs and summed once at the end.
+        """
         s = self.settings
         n = len(origins)
-        radiance = np.zeros((n, 3))
+        record_ids, record_values = [], []
         ids = np.arange(n)
         o, d = origins, directions
         beta = np.ones((n, 3))
@@ -64,70 +68,75 @@ class PathTracer:
             if len(ids) == 0:
                 break
             counters.rays["camera" if bounce == 0 else "extension"] += len(ids)
-            t, kind, prim, u, v = self.geometry.intersect(o, d, counters)
-            miss = kind == NONE
-            if has_background and miss.any():
-                radiance[ids[miss]] += beta[miss] * self.background
-            hit = ~miss
-            ids, o, d, beta, count_emission = ids[hit], o[hit], d[hit], beta[hit], count_emission[hit]
-            if len(ids) == 0:
+            hits = self.geometry.nearest_hits(o, d, counters)
+            if has_background and len(hits.miss):
+                record_ids.append(ids.take(hits.miss))
+                record_values.append(beta.take(hits.miss, axis=0) * self.background)
+            h = hits.index
+            if len(h) == 0:
                 break
-            surf = self.geometry.surface(o, d, t[hit], kind[hit], prim[hit], u[hit], v[hit])
+            ids, beta, count_emission = ids.take(h), beta.take(h, axis=0), count_emission.take(h)
+            o, d = o.take(h, axis=0), d.take(h, axis=0)
+            surf = self.geometry.surface(o, d, hits)
             mat = surf.material
             if self.plan.emission:
-                glow = count_emission & self.mats.is_emissive[mat]
-                if glow.any():
-                    radiance[ids[glow]] += beta[glow] * self.mats.emission[mat[glow]]
-            cos_in = dot(d, surf.normal)
-            facing = np.where((cos_in < 0.0)[:, None], surf.normal, -surf.normal)
-            kind_code = self.mats.kind[mat]
-            color = self.mats.color[mat]
-            last = bounce == s.max_depth
+                glow = np.flatnonzero(count_emission & self.mats.is_emissive.take(mat))
+                if len(glow):
+                    record_ids.append(ids.take(glow))
+                    record_values.append(beta.take(glow, axis=0) * self.mats.emission.take(mat.take(glow), axis=0))
 
-            diffuse = (kind_code == 0) & (color.max(axis=1) > 0.0) if self.plan.diffuse else None
-            if self.use_nee and diffuse.any():
-                radiance[ids[diffuse]] += beta[diffuse] * self.direct_light(
-                    surf.point[diffuse], facing[diffuse], color[diffuse], surf.offset[diffuse], rng, counters)
-            if last:
+            # Group by how the surface scatters: 0 diffuse, 1 mirror, 2 glass, 3 black (absorbs).
+            color = self.mats.color.take(mat, axis=0)
+            group = self.mats.kind.take(mat)
+            group = np.where(color.max(axis=1) > 0.0, group, 3)
+            order = np.argsort(group, kind="stable")
+            bounds = np.searchsorted(group.take(order), [0, 1, 2, 3])
+            ids, beta, d, mat, color = (ids.take(order), beta.take(order, axis=0), d.take(order, axis=0),
+                                        mat.take(order), color.take(order, axis=0))
+            point, normal, offset = surf.point.take(order, axis=0), surf.normal.take(order, axis=0), surf.offset.take(order)
+            cos_in = dot(d, normal)
+            facing = normal * np.where(cos_in < 0.0, 1.0, -1.0)[:, None]   # towards the incoming ray
+            diffuse, mirror, glass = (slice(bounds[0], bounds[1]), slice(bounds[1], bounds[2]),
+                                      slice(bounds[2], bounds[3]))
+            n_diffuse = bounds[1] - bounds[0]
+
+            if self.use_nee and n_diffuse:
+                record_ids.append(ids[diffuse])
+                record_values.append(beta[diffuse] * self.direct_light(
+                    point[diffuse], facing[diffuse], color[diffuse], offset[diffuse], rng, counters))
+            if bounce == s.max_depth:
                 break
 
-            alive = np.zeros(len(ids), dtype=bool)
-            side = np.ones(len(ids))             # +1: leave on the facing side, -1: go through
-            new_d = np.empty_like(d)
-            next_emission = np.zeros(len(ids), dtype=bool)
-            if self.plan.diffuse and diffuse.any():
-                local = cosine_hemisphere(rng.random(int(diffuse.sum())), rng.random(int(diffuse.sum())))
+            alive = bounds[3]                     # groups 0-2 continue, black surfaces end here
+            new_d = np.empty((alive, 3))
+            side = np.ones(alive)                 # +1: leave on the facing side, -1: go through
+            next_emission = np.ones(alive, dtype=bool)
+            if n_diffuse:
+                local = cosine_hemisphere(rng.random(n_diffuse), rng.random(n_diffuse))
                 new_d[diffuse] = to_world(local, facing[diffuse])
-                beta[diffuse] *= color[diffuse]              # eq. 2.14: f cos / pdf = colour
-                alive |= diffuse
                 next_emission[diffuse] = not self.use_nee
-            if self.plan.mirror:
-                mirror = kind_code == 1
-                if mirror.any():
-                    new_d[mirror] = reflect(d[mirror], facing[mirror])
-                    beta[mirror] *= color[mirror]            # eq. 2.16
-                    alive |= mirror
-                    next_emission[mirror] = True
-            if self.plan.glass:
-                glass = kind_code == 2
-                if glass.any():
-                    dirs, sides = self.scatter_glass(d[glass], surf.normal[glass], facing[glass],
-                                                     cos_in[glass], self.mats.ior[mat[glass]], rng)
-                    new_d[glass], side[glass] = dirs, sides
-                    beta[glass] *= color[glass]
-                    alive |= glass
-                    next_emission[glass] = True
+            if bounds[2] > bounds[1]:
+                new_d[mirror] = reflect(d[mirror], facing[mirror])           # eq. 2.20
+            if bounds[3] > bounds[2]:
+                new_d[glass], side[glass] = self.scatter_glass(
+                    d[glass], normal[glass], facing[glass], cos_in[glass], self.mats.ior.take(mat[glass]), rng)
+            beta = beta[:alive] * color[:alive]  # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
 
+            keep = beta.max(axis=1) > 0.0
             if s.russian_roulette and bounce + 1 >= s.rr_start_depth:
                 survive_p = np.minimum(beta.max(axis=1), 1.0)
-                survive = rng.random(len(ids)) < survive_p
-                beta[survive] /= survive_p[survive, None]
-                alive &= survive
-            alive &= beta.max(axis=1) > 0.0
-            offset = (side * surf.offset)[:, None] * facing
-            o = (surf.point + offset)[alive]
-            d = new_d[alive]
-            ids, beta, count_emission = ids[alive], beta[alive], next_emission[alive]
+                keep &= rng.random(alive) < survive_p
+                beta = beta / np.where(keep, survive_p, 1.0)[:, None]
+            keep = np.flatnonzero(keep)
+            o = point.take(keep, axis=0) + (side.take(keep) * offset.take(keep))[:, None] * facing.take(keep, axis=0)
+            d = new_d.take(keep, axis=0)
+            ids, beta, count_emission = ids.take(keep), beta.take(keep, axis=0), next_emission.take(keep)
+        radiance = np.zeros((n, 3))
+        if record_ids:
+            all_ids = np.concatenate(record_ids)
+            values = np.concatenate(record_values)
+            for c in range(3):
+                radiance[:, c] = np.bincount(all_ids, weights=values[:, c], minlength=n)
         return radiance
 
     # -- direct light, eq. 2.11 ---------------------------------------------------------
@@ -136,9 +145,10 @@ class PathTracer:
         ns = self.settings.shadow_rays
         m = len(point)
         k = m * ns
-        idx = np.repeat(np.arange(m), ns)
         ls = self.lights.sample(rng.random(k), rng.random(k), rng.random(k))
-        x, nx = point[idx], normal[idx]
+        x = np.repeat(point, ns, axis=0) if ns > 1 else point
+        nx = np.repeat(normal, ns, axis=0) if ns > 1 else normal
+        off_x = np.repeat(offset, ns) if ns > 1 else offset
         w = ls.point - x
         dist2 = dot(w, w)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -146,21 +156,22 @@ class PathTracer:
         cos_x = dot(nx, w)
         cos_ly = dot(ls.normal, w)
         cos_y = np.abs(cos_ly)                          # two-sided emitters
-        valid = (cos_x > 0.0) & (cos_y > 0.0) & (dist2 > 0.0) & np.isfinite(dist2)
-        contrib = np.zeros((k, 3))
-        if valid.any():
-            v = valid
-            origin = x[v] + (offset[idx[v]])[:, None] * nx[v]
-            target = ls.point[v] - (np.copysign(1.0, cos_ly[v]) * ls.offset[v])[:, None] * ls.normal[v]
+        valid = np.flatnonzero((cos_x > 0.0) & (cos_y > 0.0) & (dist2 > 0.0) & np.isfinite(dist2))
+        weight = np.zeros(k)
+        if len(valid):
+            origin = x.take(valid, axis=0) + off_x.take(valid)[:, None] * nx.take(valid, axis=0)
+            # End point pulled off the light towards x, so the light never occludes itself.
+            pull = (np.copysign(1.0, cos_ly.take(valid)) * ls.offset.take(valid))[:, None]
+            target = ls.point.take(valid, axis=0) - pull * ls.normal.take(valid, axis=0)
             seg = target - origin
             seg_len = np.sqrt(dot(seg, seg))
             direction = seg / seg_len[:, None]
-            counters.rays["shadow"] += int(v.sum())
+            counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
-            g = cos_x[v] * cos_y[v] / dist2[v]                        # G(x, y)
-            weight = np.where(blocked, 0.0, g * ls.inv_pdf[v])         # V G / p(y)
-            contrib[v] = ls.radiance[v] * weight[:, None]
-        mean = contrib.reshape(m, ns, 3).sum(axis=1) / ns
+            g = cos_x.take(valid) * cos_y.take(valid) / dist2.take(valid)          # G(x, y)
+            weight[valid] = np.where(blocked, 0.0, g * ls.inv_pdf.take(valid))     # V G / p(y)
+        contrib = ls.radiance * weight[:, None]
+        mean = contrib.reshape(m, ns, 3).sum(axis=1) / ns if ns > 1 else contrib
         return mean * albedo / np.pi                                    # f_r = colour / pi (eq. 2.13a)
 
     # -- glass, report 2.5.4 ----------------------------------------------------------

@@ -74,9 +74,10 @@ class LightSampler:
         is_tri = index < self.n_tri
         if is_tri.all():                       # the common case: no spherical lights
             b1, b2 = uniform_triangle(u1, u2)
-            point = self.tri_v0[index] + b1[:, None] * self.tri_e1[index] + b2[:, None] * self.tri_e2[index]
-            normal = self.tri_normal[index]
-            radiance = self.tri_le[index]
+            point = (self.tri_v0.take(index, axis=0) + b1[:, None] * self.tri_e1.take(index, axis=0)
+                     + b2[:, None] * self.tri_e2.take(index, axis=0))
+            normal = self.tri_normal.take(index, axis=0)
+            radiance = self.tri_le.take(index, axis=0)
         else:
             point = np.empty((n, 3))
             normal = np.empty((n, 3))
@@ -93,6 +94,6 @@ class LightSampler:
             point[is_sph] = self.sph_center[k] + self.sph_radius[k, None] * direction
             normal[is_sph] = direction
             radiance[is_sph] = self.sph_le[k]
-        inv_pdf = self.area[index] / self.prob[index]
+        inv_pdf = self.area.take(index) / self.prob.take(index)
         offset = LIGHT_OFFSET * np.abs(point).max(axis=1)
         return LightSample(point, normal, radiance, inv_pdf, offset)

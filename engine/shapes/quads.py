@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .spheres import soa
+
 EPS64 = np.finfo(np.float64).eps
 
 
@@ -29,22 +31,28 @@ class QuadSet:
 
     def intersect_one(self, k: int, origins: np.ndarray, directions: np.ndarray,
                       t_best: np.ndarray | None = None) -> np.ndarray:
-        """t > 0 of each ray with quad k, +inf where it misses (parallel rays miss).
+        """t > 0 of each ray (rows of (N, 3) arrays) with quad k, +inf where it misses."""
+        return self.intersect_one_soa(k, soa(origins), soa(directions), t_best)
+
+    def intersect_one_soa(self, k: int, o_rows: np.ndarray, d_rows: np.ndarray,
+                          t_best: np.ndarray | None = None) -> np.ndarray:
+        """As intersect_one for (3, N) rays.  Parallel rays miss.
 
         The plane distance is computed first; the edge tests run only for rays whose
-        plane hit lies in (0, t_best).
+        plane hit lies in (0, t_best) and within the quad's circumscribed circle.
         """
         v00, v10, v11, v01, n = self.v00[k], self.v10[k], self.v11[k], self.v01[k], self.normal[k]
-        t_out = np.full(len(origins), np.inf)
+        t_out = np.full(o_rows.shape[1], np.inf)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = ((v00 - origins) @ n) / (directions @ n)
+            t = (v00 @ n - (n[0] * o_rows[0] + n[1] * o_rows[1] + n[2] * o_rows[2])) / (
+                n[0] * d_rows[0] + n[1] * d_rows[1] + n[2] * d_rows[2])
         candidate = (t > 0.0) & np.isfinite(t)
         if t_best is not None:
             candidate &= t < t_best
         idx = np.flatnonzero(candidate)
         if len(idx) == 0:
             return t_out
-        o, d, t = origins[idx], directions[idx], t[idx]
+        o, d, t = o_rows[:, idx].T, d_rows[:, idx].T, t.take(idx)
         rel = o + t[:, None] * d - self.center[k]
         near = np.einsum("ij,ij->i", rel, rel) <= self.radius2[k]
         idx, o, d, t = idx[near], o[near], d[near], t[near]
@@ -76,8 +84,8 @@ class QuadSet:
 
     def surface(self, origins, directions, t, index):
         """Hit point projected onto the plane, unit normal and spawn offset."""
-        n = self.normal[index]
+        n = self.normal.take(index, axis=0)
         p = origins + t[:, None] * directions
-        p -= np.einsum("ij,ij->i", p - self.v00[index], n)[:, None] * n
-        offset = 64.0 * EPS64 * np.maximum(np.abs(p).max(axis=1), self.scale[index])
+        p -= np.einsum("ij,ij->i", p - self.v00.take(index, axis=0), n)[:, None] * n
+        offset = 64.0 * EPS64 * np.maximum(np.abs(p).max(axis=1), self.scale.take(index))
         return p, n, offset

@@ -15,31 +15,38 @@ EPS64 = np.finfo(np.float64).eps
 
 def intersect_sphere(origins: np.ndarray, directions: np.ndarray, center: np.ndarray,
                      radius: float, t_best: np.ndarray | None = None) -> np.ndarray:
-    """Nearest t > 0 of each ray with one sphere; +inf where there is none.
+    """Nearest t > 0 of each ray (rows of (N, 3) arrays) with one sphere; +inf if none."""
+    return intersect_sphere_soa(soa(origins), soa(directions), center, radius, t_best)
+
+
+def intersect_sphere_soa(o: np.ndarray, d: np.ndarray, center: np.ndarray,
+                         radius: float, t_best: np.ndarray | None = None) -> np.ndarray:
+    """As intersect_sphere, for rays given as (3, N) rows (see `soa`).
 
     A cheap test on the textbook discriminant first discards rays that clearly miss
     (or whose sphere lies beyond t_best); the stable solve runs on the rest only.
     """
-    t_out = np.full(len(origins), np.inf)
-    f = origins - center
-    half_b = np.einsum("ij,ij->i", f, directions)
-    c = np.einsum("ij,ij->i", f, f) - radius * radius            # eq. 2.5c
+    n = o.shape[1]
+    t_out = np.full(n, np.inf)
+    fx, fy, fz = o[0] - center[0], o[1] - center[1], o[2] - center[2]
+    half_b = fx * d[0] + fy * d[1] + fz * d[2]
+    c = fx * fx + fy * fy + fz * fz - radius * radius                # eq. 2.5c
     # Unit directions: B^2 - 4AC = 4 (half_b^2 - c).  Keep a generous margin so the
     # pre-test never rejects a ray the stable solve would accept.
     maybe = (half_b * half_b - c) >= -1e-6 * radius * radius
-    maybe &= ~((c > 0.0) & (half_b > 0.0))                        # outside, moving away
+    maybe &= (c <= 0.0) | (half_b <= 0.0)                            # not outside and moving away
     if t_best is not None:
-        maybe &= (-half_b - radius) < t_best                       # sphere not beyond best hit
+        maybe &= (-half_b - radius) < t_best                         # sphere not beyond best hit
     idx = np.flatnonzero(maybe)
     if len(idx) == 0:
         return t_out
-    d = directions[idx]
-    f = f[idx]
-    a = np.einsum("ij,ij->i", d, d)                                # eq. 2.5a
-    b = 2.0 * half_b[idx]                                          # eq. 2.5b
-    c = c[idx]
+    dd = d[:, idx].T
+    f = np.stack([fx.take(idx), fy.take(idx), fz.take(idx)], axis=1)
+    a = np.einsum("ij,ij->i", dd, dd)                                # eq. 2.5a
+    b = 2.0 * half_b.take(idx)                                       # eq. 2.5b
+    c = c.take(idx)
     with np.errstate(divide="ignore", invalid="ignore"):
-        v = f - (0.5 * b / a)[:, None] * d
+        v = f - (0.5 * b / a)[:, None] * dd
         length = np.sqrt(np.einsum("ij,ij->i", v, v))
         discriminant = 4.0 * a * (radius + length) * (radius - length)   # B^2 - 4AC
         root = np.sqrt(np.maximum(discriminant, 0.0))
@@ -52,6 +59,12 @@ def intersect_sphere(origins: np.ndarray, directions: np.ndarray, center: np.nda
     valid = (discriminant >= 0.0) & (t > 0.0) & np.isfinite(t)
     t_out[idx] = np.where(valid, t, np.inf)
     return t_out
+
+
+def soa(rays: np.ndarray) -> np.ndarray:
+    """(3, N) contiguous rows of an (N, 3) array: x, y and z each contiguous for fast
+    element-wise arithmetic."""
+    return np.ascontiguousarray(np.asarray(rays, dtype=np.float64).T)
 
 
 def surface_point(origins, directions, t, centers, radii):

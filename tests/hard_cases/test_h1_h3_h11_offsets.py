@@ -25,9 +25,10 @@ def scene_of(meshes=(), spheres=()):
 
 def spawn_from_hits(geo, origins, directions, rng):
     counters = Counters()
-    t, kind, prim, u, v = geo.intersect(origins, directions, counters)
-    assert (kind != NONE).all()
-    s = geo.surface(origins, directions, t, kind, prim, u, v)
+    hits = geo.nearest_hits(origins, directions, counters)
+    assert len(hits.miss) == 0
+    origins, directions = origins[hits.index], directions[hits.index]
+    s = geo.surface(origins, directions, hits)
     facing = np.where((np.einsum("ij,ij->i", directions, s.normal) < 0)[:, None], s.normal, -s.normal)
     n = len(origins)
     new_d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), facing)
@@ -67,7 +68,8 @@ def test_thin_gap_is_not_skipped(height, gap):
     o, new_d, facing, _ = spawn_from_hits(geo, origins, d, rng)
     assert (facing[:, 2] < 0).all()  # seen from below
     # Go through: origin on the far side of the lower plane, heading up.
-    hits = geo.surface(origins, d, *geo.intersect(origins, d, counters))
+    first = geo.nearest_hits(origins, d, counters)
+    hits = geo.surface(origins[first.index], d[first.index], first)
     o = hits.point + hits.offset[:, None] * np.array([0, 0, 1.0])
     t, kind, prim, u, v = geo.intersect(o, d, counters)
     assert (kind != NONE).all()
