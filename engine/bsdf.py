@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from .vec import dot, normalize
+
 # Interfaces closer to index-matched than this pass light straight through, as
 # Cycles does (hard case S5): Schlick would otherwise reflect 99 % at grazing angles.
 INDEX_MATCHED = 1e-4
 
 
-def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
 
 
 def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
@@ -37,7 +37,7 @@ def refract(d: np.ndarray, n: np.ndarray, cos_i: np.ndarray, cos_t: np.ndarray,
             eta: np.ndarray) -> np.ndarray:
     """Transmitted direction t = eta i + (eta cos_i - cos_t) n (eq. 2.22-2.24)."""
     t = eta[:, None] * d + (eta * cos_i - cos_t)[:, None] * n
-    return t / np.linalg.norm(t, axis=1)[:, None]
+    return normalize(t)
 
 
 def fresnel_schlick(cos_i: np.ndarray, cos_t: np.ndarray, eta: np.ndarray,

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .vec import normalize
+
 
 def view_plane(camera, width: int, height: int):
     """Size of the image plane at distance 1 and the extent that shift is measured in.
@@ -37,6 +39,6 @@ def camera_rays(camera, width: int, height: int, sx: np.ndarray, sy: np.ndarray)
     axes = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)  # drop object scale
     local = np.stack([x, y, -np.ones_like(x)], axis=1)
     directions = local @ axes.T
-    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    directions = normalize(directions)
     origins = np.broadcast_to(m[:3, 3], directions.shape).copy()
     return origins, directions

@@ -14,6 +14,7 @@ import numpy as np
 
 from .accel import build_accelerator
 from .shapes.quads import QuadSet
+from .vec import max_abs3
 from .shapes.spheres import intersect_sphere_soa, soa, surface_point
 
 NONE, TRIANGLE, SPHERE, QUAD = 0, 1, 2, 3
@@ -191,5 +192,5 @@ class SceneGeometry:
         # (pbrt): the float32 error of o + t d would be along the ray instead.
         point = (self.tri_v0.take(prim, axis=0) + u[:, None] * self.tri_e1.take(prim, axis=0)
                  + v[:, None] * self.tri_e2.take(prim, axis=0))
-        offset = TRIANGLE_OFFSET * np.maximum(np.abs(point).max(axis=1), self.tri_scale.take(prim))
+        offset = TRIANGLE_OFFSET * np.maximum(max_abs3(point), self.tri_scale.take(prim))
         return SurfaceHits(point, self.tri_normal.take(prim, axis=0), self.triangle_material.take(prim), offset)

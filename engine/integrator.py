@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bsdf import FRESNEL, dot, reflect, refract, refract_cos
+from .bsdf import FRESNEL, reflect, refract, refract_cos
 from .sampling import cosine_hemisphere, to_world
 from .scene import DIFFUSE, GLASS, MIRROR
+from .vec import dot, max3
 
 KIND_CODE = {DIFFUSE: 0, MIRROR: 1, GLASS: 2}
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
@@ -88,7 +89,7 @@ class PathTracer:
             # Group by how the surface scatters: 0 diffuse, 1 mirror, 2 glass, 3 black (absorbs).
             color = self.mats.color.take(mat, axis=0)
             group = self.mats.kind.take(mat)
-            group = np.where(color.max(axis=1) > 0.0, group, 3)
+            group = np.where(max3(color) > 0.0, group, 3)
             order = np.argsort(group, kind="stable")
             bounds = np.searchsorted(group.take(order), [0, 1, 2, 3])
             ids, beta, d, mat, color = (ids.take(order), beta.take(order, axis=0), d.take(order, axis=0),
@@ -122,9 +123,9 @@ class PathTracer:
                     d[glass], normal[glass], facing[glass], cos_in[glass], self.mats.ior.take(mat[glass]), rng)
             beta = beta[:alive] * color[:alive]  # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
 
-            keep = beta.max(axis=1) > 0.0
+            keep = max3(beta) > 0.0
             if s.russian_roulette and bounce + 1 >= s.rr_start_depth:
-                survive_p = np.minimum(beta.max(axis=1), 1.0)
+                survive_p = np.minimum(max3(beta), 1.0)
                 keep &= rng.random(alive) < survive_p
                 beta = beta / np.where(keep, survive_p, 1.0)[:, None]
             keep = np.flatnonzero(keep)

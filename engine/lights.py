@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .sampling import uniform_sphere, uniform_triangle
+from .vec import max_abs3
 
 # Shadow-ray end points are pulled off the light by this relative amount (as the
 # triangle spawn offset) so the ray never reports the light itself as occluder.
@@ -95,5 +96,5 @@ class LightSampler:
             normal[is_sph] = direction
             radiance[is_sph] = self.sph_le[k]
         inv_pdf = self.area.take(index) / self.prob.take(index)
-        offset = LIGHT_OFFSET * np.abs(point).max(axis=1)
+        offset = LIGHT_OFFSET * max_abs3(point)
         return LightSample(point, normal, radiance, inv_pdf, offset)

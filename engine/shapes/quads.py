@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..vec import cross, dot, max_abs3
 from .spheres import soa
 
 EPS64 = np.finfo(np.float64).eps
@@ -54,30 +55,30 @@ class QuadSet:
             return t_out
         o, d, t = o_rows[:, idx].T, d_rows[:, idx].T, t.take(idx)
         rel = o + t[:, None] * d - self.center[k]
-        near = np.einsum("ij,ij->i", rel, rel) <= self.radius2[k]
+        near = dot(rel, rel) <= self.radius2[k]
         idx, o, d, t = idx[near], o[near], d[near], t[near]
         if len(idx) == 0:
             return t_out
         with np.errstate(divide="ignore", invalid="ignore"):
             e01 = v10 - v00
             e03 = v01 - v00
-            p = np.cross(d, e03)
+            p = cross(d, e03)
             det = p @ e01
             inv = 1.0 / det
             tvec = o - v00
-            alpha = np.einsum("ij,ij->i", tvec, p) * inv
-            beta = np.einsum("ij,ij->i", d, np.cross(tvec, e01)) * inv
+            alpha = dot(tvec, p) * inv
+            beta = dot(d, cross(tvec, e01)) * inv
             inside = (alpha >= 0.0) & (beta >= 0.0) & (det != 0.0) & np.isfinite(det)
             second = inside & (alpha + beta > 1.0)
             if second.any():
                 e23 = v01 - v11
                 e21 = v10 - v11
                 d2 = d[second]
-                p2 = np.cross(d2, e21)
+                p2 = cross(d2, e21)
                 inv2 = 1.0 / (p2 @ e23)
                 t2vec = o[second] - v11
-                alpha2 = np.einsum("ij,ij->i", t2vec, p2) * inv2
-                beta2 = np.einsum("ij,ij->i", d2, np.cross(t2vec, e23)) * inv2
+                alpha2 = dot(t2vec, p2) * inv2
+                beta2 = dot(d2, cross(t2vec, e23)) * inv2
                 inside[second] = (alpha2 >= 0.0) & (beta2 >= 0.0)
         t_out[idx] = np.where(inside, t, np.inf)
         return t_out
@@ -86,6 +87,6 @@ class QuadSet:
         """Hit point projected onto the plane, unit normal and spawn offset."""
         n = self.normal.take(index, axis=0)
         p = origins + t[:, None] * directions
-        p -= np.einsum("ij,ij->i", p - self.v00.take(index, axis=0), n)[:, None] * n
-        offset = 64.0 * EPS64 * np.maximum(np.abs(p).max(axis=1), self.scale.take(index))
+        p -= dot(p - self.v00.take(index, axis=0), n)[:, None] * n
+        offset = 64.0 * EPS64 * np.maximum(max_abs3(p), self.scale.take(index))
         return p, n, offset

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..vec import dot, max_abs3, norm
+
 EPS64 = np.finfo(np.float64).eps
 
 
@@ -42,12 +44,12 @@ def intersect_sphere_soa(o: np.ndarray, d: np.ndarray, center: np.ndarray,
         return t_out
     dd = d[:, idx].T
     f = np.stack([fx.take(idx), fy.take(idx), fz.take(idx)], axis=1)
-    a = np.einsum("ij,ij->i", dd, dd)                                # eq. 2.5a
+    a = dot(dd, dd)                                                  # eq. 2.5a
     b = 2.0 * half_b.take(idx)                                       # eq. 2.5b
     c = c.take(idx)
     with np.errstate(divide="ignore", invalid="ignore"):
         v = f - (0.5 * b / a)[:, None] * dd
-        length = np.sqrt(np.einsum("ij,ij->i", v, v))
+        length = np.sqrt(dot(v, v))
         discriminant = 4.0 * a * (radius + length) * (radius - length)   # B^2 - 4AC
         root = np.sqrt(np.maximum(discriminant, 0.0))
         q = -0.5 * (b + np.copysign(root, b))
@@ -76,8 +78,8 @@ def surface_point(origins, directions, t, centers, radii):
     """
     p = origins + t[:, None] * directions
     rel = p - centers
-    dist = np.linalg.norm(rel, axis=1)
+    dist = norm(rel)
     normal = rel / dist[:, None]
     p = centers + radii[:, None] * normal
-    offset = 64.0 * EPS64 * (np.abs(p).max(axis=1) + radii)
+    offset = 64.0 * EPS64 * (max_abs3(p) + radii)
     return p, normal, offset
