@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup render test test-all bench clean
+.PHONY: setup render test test-all bench study extension samples clean
 
 setup: $(STAMP)
 
@@ -14,8 +14,10 @@ $(STAMP): requirements.txt
 	$(PY) -m pip install -q -r requirements.txt
 	touch $(STAMP)
 
+# The sample Cornell .blend rendered by Blender (the bpy module) with the TNCG15 MC engine.
 render: $(STAMP)
-	$(PY) -m engine render -o renders/cornell.exr --png renders/cornell.png --samples 64
+	$(PY) -m mcrt_addon render sample_blends/cornell.blend -o renders/cornell.exr --png renders/cornell.png \
+	    --samples 64 --resolution 256 256
 
 test: $(STAMP)
 	$(PY) -m pytest -q -m "not slow" tests
@@ -25,6 +27,16 @@ test-all: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m engine bench
+	$(PY) -m mcrt_addon bench-export
+
+study: $(STAMP)
+	$(PY) -m engine study --full
+
+extension: $(STAMP)
+	$(PY) scripts/build_extension.py
+
+samples: $(STAMP)
+	$(PY) sample_blends/make_samples.py
 
 clean:
 	rm -rf renders .pytest_cache

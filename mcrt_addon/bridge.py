@@ -1,0 +1,55 @@
+"""Finds the tracer package.
+
+* In the repository (and with PYTHONPATH=<repo>) the tracer is the top-level package ``engine``.
+* In the extension / legacy zip built by ``scripts/build_extension.py`` a copy of it is shipped
+  inside the add-on as the sub-package ``tracer`` (``engine/`` would clash with ``engine.py``,
+  the RenderEngine module), imported relatively: ``<addon package>.tracer``.
+
+The tracer is imported lazily (at render time), so the add-on registers even when embreex is
+missing and the user gets a readable error instead of a failed registration.
+"""
+import importlib
+
+_base = None
+
+
+def tracer_base() -> str:
+    """Module path of the tracer package; raises ImportError with a user-readable message."""
+    global _base
+    if _base is not None:
+        return _base
+    errors = []
+    for base in (__package__ + ".tracer", "engine"):
+        try:
+            module = importlib.import_module(base)
+        except ImportError as exc:          # not there (or a dependency missing)
+            errors.append(f"{base}: {exc}")
+            continue
+        if hasattr(module, "__path__"):
+            try:
+                importlib.import_module(base + ".scene")
+            except ImportError as exc:
+                errors.append(f"{base}.scene: {exc}")
+                continue
+            _base = base
+            return base
+        errors.append(f"{base}: not a package")
+    raise ImportError("TNCG15 MC: the tracer package was not found (" + "; ".join(errors) + ")")
+
+
+def module(name: str):
+    """``module('scene')`` -> the tracer's scene module, wherever it lives."""
+    return importlib.import_module(tracer_base() + "." + name)
+
+
+def scene_module():
+    return module("scene")
+
+
+def settings_class():
+    return module("settings").RenderSettings
+
+
+def render_function():
+    """``engine.render.render``; raises ImportError with a clear message when it does not exist yet."""
+    return module("render").render

@@ -1,0 +1,161 @@
+"""Evaluated depsgraph -> tracer Scene.
+
+One job per module: camera.py, mesh.py, materials.py, lights.py, world.py; this module walks
+``depsgraph.object_instances`` (render-visible objects, instances from particles / geometry nodes /
+collection instances) and assembles the Scene.  Nothing here writes to the user's data.
+"""
+import time
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from .. import bridge
+from .camera import export_camera
+from .lights import export_area_light
+from .materials import MaterialTable
+from .mesh import bounding_sphere, has_smooth_faces, mesh_arrays, sphere_fit, transform_points, uniform_scale
+from .util import ExportError
+from .world import export_world
+
+CONVERTIBLE_TYPES = {"CURVE", "SURFACE", "META", "FONT"}     # converted with to_mesh()
+SKIPPED_TYPES = {"CURVES", "POINTCLOUD", "VOLUME", "GPENCIL", "GREASEPENCIL"}
+
+
+class ExportCancelled(Exception):
+    pass
+
+
+@dataclass
+class ExportResult:
+    scene: object
+    warnings: list = field(default_factory=list)
+    info: dict = field(default_factory=dict)
+
+
+def _sphere_mode(ob):
+    # read the original object's setting: the evaluated copy is only refreshed on depsgraph updates
+    original = ob.original if getattr(ob, "original", None) is not None else ob
+    props = getattr(original, "tncg15", None)
+    return props.implicit_sphere if props is not None else "AUTO"
+
+
+def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=None, name=None):
+    """Build the tracer Scene.
+
+    resolution: full-frame (width, height) in pixels (after the resolution percentage).
+    crop: optional border (x0, y0, x1, y1) in full-frame pixels, y from the bottom; the exported
+          scene then has the crop's resolution and a camera that sees exactly those pixels.
+    Raises ExportError (user-facing message) or ExportCancelled.
+    """
+    t0 = time.perf_counter()
+    sm = bridge.scene_module()
+    warnings = []
+    table = MaterialTable(sm.Material, (sm.DIFFUSE, sm.MIRROR, sm.GLASS), warnings)
+    scene = depsgraph.scene
+    version = tuple(bpy.app.version)
+
+    cam_obj = camera if camera is not None else scene.camera
+    if cam_obj is not None:
+        cam_obj = cam_obj.evaluated_get(depsgraph)
+    width, height = int(resolution[0]), int(resolution[1])
+    cam = export_camera(cam_obj, (width, height), crop, Camera=sm.Camera, warnings=warnings)
+    out_res = (width, height) if crop is None else (int(crop[2] - crop[0]), int(crop[3] - crop[1]))
+
+    meshes, spheres = [], []
+    cache = {}
+    n_instances = n_triangles = 0
+    skipped = set()
+    smooth_checked = set()
+    for n, inst in enumerate(depsgraph.object_instances):
+        if test_break is not None and n % 512 == 0 and test_break():
+            raise ExportCancelled()
+        ob = inst.object
+        otype = ob.type
+        if otype == "LIGHT":
+            if ob.data.type == "AREA":
+                try:
+                    meshes.append(export_area_light(ob, np.array(inst.matrix_world, dtype=np.float64), version,
+                                                    Material=sm.Material, TriangleMesh=sm.TriangleMesh,
+                                                    material_table=table, warnings=warnings))
+                except ValueError as exc:
+                    raise ExportError(str(exc)) from None
+            elif ob.name not in skipped:
+                skipped.add(ob.name)
+                warnings.append(f"Light '{ob.name}': {ob.data.type.lower()} lights are not supported "
+                                "(use an area light or an emissive mesh); ignored")
+            continue
+        if otype in SKIPPED_TYPES:
+            if ob.name not in skipped:
+                skipped.add(ob.name)
+                warnings.append(f"Object '{ob.name}': {otype.lower()} objects are not supported; ignored")
+            continue
+        if otype != "MESH" and otype not in CONVERTIBLE_TYPES:
+            continue
+        matrix = np.array(inst.matrix_world, dtype=np.float64)     # copy: inst is transient
+        label = ob.name if not inst.is_instance else f"{ob.name} (instanced by {inst.parent.name})"
+
+        key = ob.data.as_pointer() if (otype == "MESH" and ob.data is not None) else None
+        arrays = cache.get(key) if key is not None else None
+        if arrays is None:
+            if otype == "MESH":
+                arrays = mesh_arrays(ob.data)
+            else:
+                me = ob.to_mesh()
+                try:
+                    arrays = mesh_arrays(me) if me is not None else None
+                finally:
+                    ob.to_mesh_clear()
+                if arrays is None:
+                    continue
+            if key is not None:
+                cache[key] = arrays
+        verts, tris, slots = arrays
+        if len(tris) == 0:
+            continue
+        slot_ids = np.asarray(table.slot_indices(ob), dtype=np.int64)
+        mat_ids = slot_ids[np.clip(slots, 0, len(slot_ids) - 1)]
+
+        mode = _sphere_mode(ob) if otype == "MESH" else "NEVER"
+        if mode != "NEVER":
+            fit = sphere_fit(verts, tris, slots)
+            scale = uniform_scale(matrix)
+            if mode == "ALWAYS" and (fit is None or scale is None):
+                if len(np.unique(mat_ids)) > 1:
+                    warnings.append(f"Object '{label}': implicit sphere uses the first material only")
+                if scale is None:
+                    warnings.append(f"Object '{label}': non-uniform scale; implicit sphere uses "
+                                    "the largest axis")
+                centre, radius = bounding_sphere(verts)
+                s = float(np.linalg.svd(matrix[:3, :3], compute_uv=False).max())
+                fit, scale = (centre, radius), s
+            if fit is not None and scale is not None:
+                centre = transform_points(fit[0][None, :], matrix)[0]
+                spheres.append(sm.Sphere(name=label, center=tuple(float(c) for c in centre),
+                                         radius=fit[1] * scale, material_id=int(mat_ids[0])))
+                n_instances += 1
+                continue
+        if key is not None and key not in smooth_checked:
+            smooth_checked.add(key)
+            if has_smooth_faces(ob.data):
+                warnings.append(f"Object '{label}': smooth shading is not supported; rendered with flat "
+                                "(geometric) normals, unlike Cycles")
+        world_verts = transform_points(verts, matrix)
+        emissive = np.array([max(table.materials[i].emission) > 0 for i in slot_ids])[np.clip(slots, 0, len(slot_ids) - 1)]
+        if emissive.any():
+            v = world_verts[tris[emissive]]
+            if not np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum() > 0:
+                raise ExportError(f"Object '{label}': emitter has zero area")
+        tri_idx = tris if np.linalg.det(matrix[:3, :3]) > 0 else tris[:, ::-1]
+        meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
+                                      material_ids=mat_ids))
+        n_instances += 1
+        n_triangles += len(tris)
+
+    materials = table.materials or [sm.Material(name="(unused)")]
+    background = export_world(scene.world, warnings)
+    result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
+                      background=background, resolution=out_res, name=name or scene.name)
+    info = dict(export_seconds=time.perf_counter() - t0, objects=n_instances, triangles=n_triangles,
+                spheres=len(spheres), meshes_shared=len(cache), materials=len(materials))
+    return ExportResult(scene=result, warnings=warnings, info=info)

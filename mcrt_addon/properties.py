@@ -1,0 +1,77 @@
+"""Render settings stored on the scene (``scene.tncg15``) and per-object options (``object.tncg15``).
+
+Mirrors Cycles' ``properties.py``: plain PropertyGroups, no behaviour except converting the
+scene settings into the tracer's ``RenderSettings``.
+"""
+import bpy
+from bpy.props import BoolProperty, EnumProperty, IntProperty, PointerProperty
+
+FRESNEL_ITEMS = (
+    ("SCHLICK", "Schlick", "Schlick's approximation (report eq. 2.17)"),
+    ("EXACT", "Exact", "Exact dielectric Fresnel, as Cycles uses"),
+)
+ACCELERATOR_ITEMS = (
+    ("AUTO", "Auto", "Pick the fastest available accelerator"),
+    ("EMBREE", "Embree", "Intel Embree through embreex"),
+    ("OCTREE", "Octree", "The tracer's own octree (NumPy)"),
+    ("BRUTE", "Brute Force", "Test every primitive (reference, slow)"),
+)
+SPHERE_ITEMS = (
+    ("AUTO", "Auto", "Render as an exact sphere when the mesh is a closed sphere "
+                     "(all vertices equidistant from the centre, uniform scale)"),
+    ("ALWAYS", "Always", "Always render as the mesh's bounding sphere"),
+    ("NEVER", "Never", "Always render the triangles"),
+)
+
+
+class TNCG15RenderSettings(bpy.types.PropertyGroup):
+    samples: IntProperty(name="Samples", description="Camera rays per pixel",
+                         default=16, min=1, soft_max=4096)
+    shadow_rays: IntProperty(name="Shadow Rays", description="Light samples per diffuse hit",
+                             default=1, min=0, soft_max=64)
+    seed: IntProperty(name="Seed", description="Random seed; the same seed gives the same image",
+                      default=0, min=0)
+    max_depth: IntProperty(name="Max Bounces", description="Bounces after the camera hit (0 = direct light only)",
+                           default=8, min=0, soft_max=128)
+    russian_roulette: BoolProperty(name="Russian Roulette", description="Terminate paths randomly "
+                                   "(unbiased) from the start depth on", default=True)
+    rr_start_depth: IntProperty(name="Start Depth", description="First bounce at which Russian roulette applies",
+                                default=3, min=0, soft_max=64)
+    fresnel: EnumProperty(name="Fresnel", description="Fresnel model for glass", items=FRESNEL_ITEMS,
+                          default="SCHLICK")
+    threads: IntProperty(name="Threads", description="Worker threads (0 = all cores)", default=0, min=0,
+                         soft_max=256)
+    accelerator: EnumProperty(name="Accelerator", description="Ray-intersection acceleration structure",
+                              items=ACCELERATOR_ITEMS, default="AUTO")
+    tile_size: IntProperty(name="Tile Size", description="Tile edge in pixels", default=64, min=8,
+                           soft_max=1024)
+
+    def to_settings(self, settings_cls):
+        """The tracer's RenderSettings for these values (the class is passed in: the tracer loads lazily)."""
+        return settings_cls(
+            samples=self.samples, shadow_rays=self.shadow_rays, max_depth=self.max_depth,
+            russian_roulette=self.russian_roulette, rr_start_depth=self.rr_start_depth,
+            fresnel=self.fresnel.lower(), threads=self.threads, seed=self.seed,
+            tile_size=self.tile_size, accelerator=self.accelerator.lower())
+
+
+class TNCG15ObjectSettings(bpy.types.PropertyGroup):
+    implicit_sphere: EnumProperty(name="Implicit Sphere", items=SPHERE_ITEMS, default="AUTO",
+                                  description="Render this mesh as an exact (implicit) sphere")
+
+
+classes = (TNCG15RenderSettings, TNCG15ObjectSettings)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.tncg15 = PointerProperty(type=TNCG15RenderSettings, name="TNCG15 MC")
+    bpy.types.Object.tncg15 = PointerProperty(type=TNCG15ObjectSettings, name="TNCG15 MC")
+
+
+def unregister():
+    del bpy.types.Object.tncg15
+    del bpy.types.Scene.tncg15
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

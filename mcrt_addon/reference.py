@@ -1,0 +1,57 @@
+"""A fair Cycles reference (hard-cases.md 2d): what TNCG15 MC computes, without Cycles' speed-ups.
+
+Box filter of width 1 px (pixels independent, as the tracer's jittered box), no clamping, no
+denoising, no adaptive sampling, Filter Glossy 0, light threshold 0, caustics on, every bounce
+limit = max_depth, Standard view transform, fixed seed, CPU.
+"""
+
+
+def _set(obj, name, value):
+    if hasattr(obj, name):
+        setattr(obj, name, value)
+
+
+def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0):
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    _set(c, "device", "CPU")
+    c.samples = int(samples)
+    _set(c, "use_adaptive_sampling", False)
+    _set(c, "use_denoising", False)
+    _set(c, "use_preview_denoising", False)
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0
+    c.light_sampling_threshold = 0.0
+    c.caustics_reflective = True
+    c.caustics_refractive = True
+    depth = int(max_depth)
+    c.max_bounces = depth
+    c.diffuse_bounces = depth
+    c.glossy_bounces = depth
+    c.transmission_bounces = depth
+    c.transparent_max_bounces = depth
+    c.volume_bounces = 0
+    _set(c, "min_light_bounces", 0)
+    _set(c, "min_transparent_bounces", 0)
+    c.pixel_filter_type = "BOX"
+    c.filter_width = 1.0
+    c.seed = int(seed)
+    c.use_animated_seed = False
+    _set(c, "use_guiding", False)
+    _set(c, "sample_offset", 0)
+    _set(c, "use_auto_tile", False)
+    _set(c, "use_layer_samples", "IGNORE")
+    scene.render.film_transparent = False
+    scene.render.threads_mode = "AUTO" if not threads else "FIXED"
+    if threads:
+        scene.render.threads = int(threads)
+    view = scene.view_settings
+    view.view_transform = "Standard"
+    view.look = "None"
+    view.exposure = 0.0
+    view.gamma = 1.0
+    for layer in scene.view_layers:
+        _set(layer, "samples", 0)
+        if hasattr(layer, "cycles"):
+            _set(layer.cycles, "use_denoising", False)

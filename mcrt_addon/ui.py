@@ -1,0 +1,122 @@
+"""Panels, laid out as Cycles lays out its render properties: Sampling, Light Paths, Performance,
+plus an object panel for the implicit-sphere option.  Also lends our engine id to Blender's generic
+panels (output, dimensions, camera, light, material and world surface) the way the RenderEngine
+documentation template does."""
+import bpy
+
+ENGINE_ID = "TNCG15_MC"
+
+# Generic panels that draw nothing engine-specific but are gated by COMPAT_ENGINES.
+EXTRA_PANELS = (
+    "EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface", "EEVEE_WORLD_PT_surface",
+    "EEVEE_NEXT_MATERIAL_PT_surface", "EEVEE_NEXT_WORLD_PT_surface", "DATA_PT_EEVEE_light",
+    "DATA_PT_EEVEE_light_distance", "MATERIAL_PT_preview", "WORLD_PT_context_world",
+)
+EXCLUDED_PANELS = {"VIEWLAYER_PT_filter", "VIEWLAYER_PT_layer_passes"}
+
+
+class TNCG15ButtonsPanel:
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class RENDER_PT_tncg15_sampling(TNCG15ButtonsPanel, bpy.types.Panel):
+    bl_label = "Sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        props = context.scene.tncg15
+        col = layout.column(align=True)
+        col.prop(props, "samples")
+        col.prop(props, "shadow_rays")
+        layout.prop(props, "seed")
+
+
+class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):
+    bl_label = "Light Paths"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        props = context.scene.tncg15
+        layout.prop(props, "max_depth")
+        col = layout.column(heading="Russian Roulette")
+        col.prop(props, "russian_roulette", text="")
+        sub = col.column()
+        sub.active = props.russian_roulette
+        sub.prop(props, "rr_start_depth")
+        layout.prop(props, "fresnel")
+
+
+class RENDER_PT_tncg15_performance(TNCG15ButtonsPanel, bpy.types.Panel):
+    bl_label = "Performance"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        props = context.scene.tncg15
+        layout.prop(props, "threads")
+        layout.prop(props, "accelerator")
+        layout.prop(props, "tile_size")
+
+
+class OBJECT_PT_tncg15(bpy.types.Panel):
+    bl_label = "TNCG15 MC"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "object"
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.object is not None \
+            and context.object.type == "MESH"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.object.tncg15, "implicit_sphere")
+
+
+classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_light_paths, RENDER_PT_tncg15_performance,
+           OBJECT_PT_tncg15)
+
+_lent = []   # panels we added our engine id to, so unregister removes exactly those
+
+
+def _compatible_panels():
+    for panel in bpy.types.Panel.__subclasses__():
+        engines = getattr(panel, "COMPAT_ENGINES", None)
+        if engines is None or panel.__name__ in EXCLUDED_PANELS:
+            continue
+        if "BLENDER_RENDER" in engines or panel.__name__ in EXTRA_PANELS:
+            yield panel
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    for panel in _compatible_panels():
+        if ENGINE_ID not in panel.COMPAT_ENGINES:
+            panel.COMPAT_ENGINES.add(ENGINE_ID)
+            _lent.append(panel)
+
+
+def unregister():
+    while _lent:
+        panel = _lent.pop()
+        panel.COMPAT_ENGINES.discard(ENGINE_ID)
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

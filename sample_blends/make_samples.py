@@ -1,0 +1,335 @@
+"""Generates the sample .blend files used by the add-on tests and the README.
+
+Runs with the bpy module (Blender 5.0) or inside a Blender binary (Debian's 3.4 too):
+
+  .venv/bin/python sample_blends/make_samples.py [--outdir DIR] [--only NAME ...] [--resolution W H]
+  blender -b --factory-startup --python sample_blends/make_samples.py -- --outdir DIR
+
+Only the bpy data API and bmesh are used (no operators), so the script is independent of the UI
+context and of the Blender version.  Meshes are small in the file: the heavy Suzannes are
+Subdivision modifiers evaluated at render time.
+
+Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards the camera):
+  cornell        red left wall, green right, white floor/ceiling/back, emissive ceiling plane,
+                 a mirror sphere, a glass sphere and a ~5k-triangle diffuse torus (the report's scene)
+  suzanne_5k     subdivided Suzanne, 5.8k triangles (triangulated Suzanne + Subdivision level 1), diffuse
+  suzanne_100k   subdivided Suzanne, 93k triangles (Subdivision level 3), diffuse
+  mirror_glass   a glass sphere and a glass cube resting on the floor, a mirror sphere
+  diffuse_room   diffuse walls, boxes and a sphere only
+  principled     the Cornell scene made of Principled BSDF materials (Specular IOR Level 0)
+  area_light     a diffuse room lit by a Blender Area light (exporter checks; one-sided in Cycles)
+"""
+import math
+import os
+import sys
+
+import bpy  # noqa: I001 - bpy must come before bmesh in the module build
+import bmesh
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+V4 = bpy.app.version >= (4, 0, 0)
+DEFAULT_RES = (128, 128)
+
+
+# ---------------------------------------------------------------------------------------- helpers
+def reset():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    for ob in list(bpy.data.objects):
+        bpy.data.objects.remove(ob)
+    return scene
+
+
+def node_material(name, kind, **kw):
+    mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True              # always on (and deprecated) in 5.0
+    nodes = mat.node_tree.nodes
+    for n in list(nodes):
+        nodes.remove(n)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    node = nodes.new(kind)
+    for key, value in kw.items():
+        sock = node.inputs.get(key)
+        if sock is None:
+            continue                      # socket absent in this Blender version
+        sock.default_value = value
+    mat.node_tree.links.new(node.outputs[0], out.inputs["Surface"])
+    mat.diffuse_color = tuple(kw.get("Color", kw.get("Base Color", (0.8, 0.8, 0.8, 1.0))))[:3] + (1.0,)
+    return mat
+
+
+def diffuse(name, rgb):
+    return node_material(name, "ShaderNodeBsdfDiffuse", Color=(*rgb, 1.0), Roughness=0.0)
+
+
+def mirror(name, rgb):
+    return node_material(name, "ShaderNodeBsdfGlossy", Color=(*rgb, 1.0), Roughness=0.0)
+
+
+def glass(name, rgb=(1, 1, 1), ior=1.5):
+    return node_material(name, "ShaderNodeBsdfGlass", Color=(*rgb, 1.0), Roughness=0.0, IOR=ior)
+
+
+def emission(name, rgb, strength):
+    return node_material(name, "ShaderNodeEmission", Color=(*rgb, 1.0), Strength=strength)
+
+
+def principled(name, base, metallic=0.0, roughness=0.5, transmission=0.0, ior=1.5,
+               emission_rgb=(0, 0, 0), emission_strength=0.0):
+    kw = {"Base Color": (*base, 1.0), "Metallic": metallic, "Roughness": roughness, "IOR": ior,
+          "Specular IOR Level": 0.0, "Specular": 0.0,
+          "Transmission Weight": transmission, "Transmission": transmission,
+          "Emission Strength": emission_strength}
+    if V4:
+        kw["Emission Color"] = (*emission_rgb, 1.0)
+    else:
+        kw["Emission"] = (*emission_rgb, 1.0)
+    return node_material(name, "ShaderNodeBsdfPrincipled", **kw)
+
+
+def mesh_object(scene, name, build, material=None, location=(0, 0, 0), rotation=(0, 0, 0),
+                scale=(1, 1, 1), smooth=False):
+    bm = bmesh.new()
+    build(bm)
+    me = bpy.data.meshes.new(name)
+    bm.to_mesh(me)
+    bm.free()
+    if smooth:
+        for p in me.polygons:
+            p.use_smooth = True
+    ob = bpy.data.objects.new(name, me)
+    ob.location, ob.rotation_euler, ob.scale = location, rotation, scale
+    if material is not None:
+        me.materials.append(material)
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def quad(bm, corners):
+    verts = [bm.verts.new(c) for c in corners]
+    bm.faces.new(verts)
+
+
+def plane(scene, name, corners, material):
+    return mesh_object(scene, name, lambda bm: quad(bm, corners), material)
+
+
+def uv_sphere(bm, radius, segments=64, rings=32):
+    bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
+
+
+def cube(bm, size):
+    bmesh.ops.create_cube(bm, size=size)
+
+
+def torus(bm, major=0.3, minor=0.12, nu=64, nv=40):
+    rows = []
+    for i in range(nu):
+        u = 2 * math.pi * i / nu
+        row = []
+        for j in range(nv):
+            v = 2 * math.pi * j / nv
+            r = major + minor * math.cos(v)
+            row.append(bm.verts.new((r * math.cos(u), r * math.sin(u), minor * math.sin(v))))
+        rows.append(row)
+    for i in range(nu):
+        for j in range(nv):
+            a, b = rows[i][j], rows[(i + 1) % nu][j]
+            c, d = rows[(i + 1) % nu][(j + 1) % nv], rows[i][(j + 1) % nv]
+            bm.faces.new((a, b, c, d))
+
+
+def camera(scene, lens=50.0, location=(0.0, -3.9, 1.0), target=(0.0, 0.0, 1.0)):
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.data.lens = lens
+    cam.data.sensor_width = 36.0
+    cam.data.sensor_fit = "AUTO"
+    cam.location = location
+    dx, dy, dz = (t - l for t, l in zip(target, location))
+    cam.rotation_euler = (math.atan2(math.hypot(dx, dy), -dz), 0.0, math.atan2(dx, dy) * -1.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return cam
+
+
+def black_world(scene):
+    world = bpy.data.worlds.new("World")
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    nodes = world.node_tree.nodes
+    for n in list(nodes):
+        nodes.remove(n)
+    bg = nodes.new("ShaderNodeBackground")
+    bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bg.inputs["Strength"].default_value = 1.0
+    out = nodes.new("ShaderNodeOutputWorld")
+    world.node_tree.links.new(bg.outputs[0], out.inputs["Surface"])
+    world.color = (0.0, 0.0, 0.0)
+    scene.world = world
+
+
+def settings(scene, resolution):
+    scene.render.resolution_x, scene.render.resolution_y = resolution
+    scene.render.resolution_percentage = 100
+    scene.frame_start = scene.frame_end = scene.frame_current = 1
+    if hasattr(scene, "tncg15"):                 # only when the add-on is registered
+        scene.tncg15.samples = 16
+        scene.tncg15.max_depth = 8
+
+
+def room(scene, mats=None, light_strength=12.0, light_size=0.5, ceiling_light=True):
+    """Walls as separate planes (normals facing into the room) and a ceiling light plane."""
+    if mats is None:
+        mats = dict(white=diffuse("White", (0.73, 0.73, 0.73)), red=diffuse("Red", (0.65, 0.05, 0.05)),
+                    green=diffuse("Green", (0.12, 0.45, 0.15)),
+                    light=emission("Light", (1.0, 0.9, 0.75), light_strength))
+    w, r, g = mats["white"], mats["red"], mats["green"]
+    plane(scene, "Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], w)
+    if ceiling_light:
+        # the lamp fills a hole in the ceiling, flush with it: no gap between lamp and ceiling
+        # (a gap makes a 1/r^2-bright strip next to the lamp: fireflies and edge bias)
+        s = light_size / 2
+        outer = [(-1, -1, 2), (-1, 1, 2), (1, 1, 2), (1, -1, 2)]
+        inner = [(-s, -s, 2), (-s, s, 2), (s, s, 2), (s, -s, 2)]
+
+        def ceiling(bm):
+            vo = [bm.verts.new(c) for c in outer]
+            vi = [bm.verts.new(c) for c in inner]
+            for k in range(4):
+                bm.faces.new((vo[k], vo[(k + 1) % 4], vi[(k + 1) % 4], vi[k]))
+        mesh_object(scene, "Ceiling", ceiling, w)
+        plane(scene, "Lamp", inner, mats["light"])
+    else:
+        plane(scene, "Ceiling", [(-1, -1, 2), (-1, 1, 2), (1, 1, 2), (1, -1, 2)], w)
+    plane(scene, "Back", [(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)], w)
+    plane(scene, "Left", [(-1, -1, 0), (-1, 1, 0), (-1, 1, 2), (-1, -1, 2)], r)
+    plane(scene, "Right", [(1, -1, 0), (1, -1, 2), (1, 1, 2), (1, 1, 0)], g)
+    return mats
+
+
+# ----------------------------------------------------------------------------------------- scenes
+def make_cornell(scene, res, principled_mats=False):
+    if principled_mats:
+        mats = dict(white=principled("White", (0.73, 0.73, 0.73), roughness=0.5),
+                    red=principled("Red", (0.65, 0.05, 0.05)), green=principled("Green", (0.12, 0.45, 0.15)),
+                    light=principled("Light", (0.0, 0.0, 0.0), emission_rgb=(1.0, 0.9, 0.75),
+                                     emission_strength=12.0))
+        mirror_mat = principled("Mirror", (0.95, 0.95, 0.95), metallic=1.0, roughness=0.0)
+        glass_mat = principled("Glass", (1.0, 1.0, 1.0), roughness=0.0, transmission=1.0, ior=1.5)
+        torus_mat = principled("Blue", (0.2, 0.3, 0.7))
+    else:
+        mats = None
+        mirror_mat = mirror("Mirror", (0.9, 0.9, 0.9))
+        glass_mat = glass("Glass", ior=1.5)
+        torus_mat = diffuse("Blue", (0.2, 0.3, 0.7))
+    room(scene, mats)
+    mesh_object(scene, "MirrorSphere", lambda bm: uv_sphere(bm, 0.35), mirror_mat,
+                location=(-0.45, 0.35, 0.35), smooth=True)
+    mesh_object(scene, "GlassSphere", lambda bm: uv_sphere(bm, 0.3), glass_mat,
+                location=(0.45, -0.2, 0.75), smooth=True)
+    mesh_object(scene, "Torus", lambda bm: torus(bm), torus_mat, location=(0.4, 0.45, 0.25),
+                rotation=(math.radians(60), 0, math.radians(20)))
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_suzanne(scene, res, level):
+    room(scene)
+    def monkey(bm):
+        bmesh.ops.create_monkey(bm)
+        bmesh.ops.triangulate(bm, faces=bm.faces[:])   # 968 triangles -> 3 quads each per level 1
+
+    ob = mesh_object(scene, "Suzanne", monkey,
+                     diffuse("Clay", (0.75, 0.6, 0.45)), location=(0, 0, 0.8),
+                     rotation=(0, 0, math.radians(-20)), scale=(0.6, 0.6, 0.6), smooth=False)  # flat: the tracer has no shading normals
+    mod = ob.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels = mod.render_levels = level
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_mirror_glass(scene, res):
+    room(scene)
+    mesh_object(scene, "GlassSphere", lambda bm: uv_sphere(bm, 0.35), glass("Glass", ior=1.5),
+                location=(-0.35, -0.1, 0.35), smooth=True)          # resting on the floor
+    mesh_object(scene, "GlassCube", lambda bm: cube(bm, 0.4), glass("GlassCube", (0.9, 1.0, 0.95), 1.5),
+                location=(0.5, -0.3, 0.202), rotation=(0, 0, math.radians(30)))  # 2 mm above the floor: coplanar faces are ill-posed
+    mesh_object(scene, "MirrorSphere", lambda bm: uv_sphere(bm, 0.4), mirror("Mirror", (0.95, 0.95, 0.95)),
+                location=(0.2, 0.5, 0.4), smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_diffuse_room(scene, res):
+    room(scene)
+    white = bpy.data.materials["White"]
+    mesh_object(scene, "TallBox", lambda bm: cube(bm, 1.0), white, location=(-0.35, 0.3, 0.6),
+                rotation=(0, 0, math.radians(20)), scale=(0.3, 0.3, 0.6))
+    mesh_object(scene, "ShortBox", lambda bm: cube(bm, 1.0), diffuse("Yellow", (0.7, 0.6, 0.2)),
+                location=(0.4, -0.25, 0.3), rotation=(0, 0, math.radians(-17)), scale=(0.3, 0.3, 0.3))
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.2), diffuse("Pink", (0.8, 0.4, 0.5)),
+                location=(0.45, 0.5, 0.2), smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_area_light(scene, res):
+    room(scene, ceiling_light=False)
+    light = bpy.data.lights.new("AreaLight", "AREA")
+    light.shape = "RECTANGLE"
+    light.size, light.size_y = 0.6, 0.4
+    light.energy = 40.0
+    light.color = (1.0, 0.95, 0.9)
+    ob = bpy.data.objects.new("AreaLight", light)
+    ob.location = (0.0, 0.0, 1.97)                   # emits along its local -Z: down
+    scene.collection.objects.link(ob)
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.3), diffuse("Pink", (0.8, 0.4, 0.5)),
+                location=(0.0, 0.0, 0.3), smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+SCENES = {
+    "cornell": lambda s, r: make_cornell(s, r),
+    "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
+    "suzanne_100k": lambda s, r: make_suzanne(s, r, 3),
+    "mirror_glass": make_mirror_glass,
+    "diffuse_room": make_diffuse_room,
+    "principled": lambda s, r: make_cornell(s, r, principled_mats=True),
+    "area_light": make_area_light,
+}
+
+
+def make(name, outdir, resolution=DEFAULT_RES):
+    scene = reset()
+    scene.name = name
+    SCENES[name](scene, resolution)
+    path = os.path.join(outdir, f"{name}.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path, compress=True, check_existing=False)
+    return path
+
+
+def main(argv):
+    import argparse
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--outdir", default=HERE)
+    parser.add_argument("--only", nargs="*", choices=sorted(SCENES))
+    parser.add_argument("--resolution", type=int, nargs=2, default=DEFAULT_RES)
+    args = parser.parse_args(argv)
+    os.makedirs(args.outdir, exist_ok=True)
+    for name in args.only or SCENES:
+        path = make(name, args.outdir, tuple(args.resolution))
+        print(f"wrote {path} ({os.path.getsize(path) / 1024:.0f} KiB)")
+
+
+if __name__ == "__main__":
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+    if bpy.app.background and "--" not in sys.argv and any(a.endswith("make_samples.py") for a in argv[:1]):
+        argv = argv[1:]
+    main(argv)

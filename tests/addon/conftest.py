@@ -1,0 +1,46 @@
+"""Fixtures for the Blender add-on tests (bpy 5.0.1 module, in-process)."""
+import importlib.util
+import os
+import sys
+
+import pytest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(os.path.dirname(HERE))
+for p in (REPO, HERE):
+    if p not in sys.path:
+        sys.path.insert(0, p)
+
+import bpy  # noqa: E402  (requirements.txt installs the bpy module: a missing one is a failure)
+
+
+@pytest.fixture(scope="session")
+def addon():
+    import mcrt_addon
+    from mcrt_addon.cli import ensure_registered
+    ensure_registered(mcrt_addon)
+    return mcrt_addon
+
+
+@pytest.fixture(scope="session")
+def make_samples_module():
+    spec = importlib.util.spec_from_file_location("make_samples", os.path.join(REPO, "sample_blends",
+                                                                                "make_samples.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="session")
+def samples(tmp_path_factory, make_samples_module, addon):
+    """Freshly generated sample .blend files (so the generator script itself is tested)."""
+    outdir = tmp_path_factory.mktemp("sample_blends")
+    paths = {name: make_samples_module.make(name, str(outdir)) for name in make_samples_module.SCENES}
+    return paths
+
+
+@pytest.fixture
+def empty_scene(addon):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return bpy.context.scene
+
