@@ -78,7 +78,7 @@ def plan_effects(scene, settings) -> EffectPlan:
     diffuse = users(lambda m: m.kind == DIFFUSE and max(m.color) > 0)
     mirror = users(lambda m: m.kind == MIRROR and max(m.color) > 0)
     glass = users(lambda m: m.kind == GLASS)
-    emitters = users(lambda m: m.is_emissive)
+    emitters = users(lambda m: m.is_emissive) + [l for l in scene.lights if max(l.radiance) > 0]
     set_effect("diffuse", diffuse,
                f"diffuse materials {_names(diffuse)}: shadow rays (eq. 2.11) and cosine bounces (eq. 2.14)"
                if diffuse else "no diffuse material: no shadow rays or diffuse bounces")

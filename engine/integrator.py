@@ -157,7 +157,10 @@ class PathTracer:
         cos_x = dot(nx, w)
         cos_ly = dot(ls.normal, w)
         cos_y = np.abs(cos_ly)                          # two-sided emitters
-        valid = np.flatnonzero((cos_x > 0.0) & (cos_y > 0.0) & (dist2 > 0.0) & np.isfinite(dist2))
+        ok = (cos_x > 0.0) & (cos_y > 0.0) & (dist2 > 0.0) & np.isfinite(dist2)
+        if self.lights.any_one_sided:                   # front side only: emits towards -w
+            ok &= ~(ls.one_sided & (cos_ly >= 0.0))
+        valid = np.flatnonzero(ok)
         weight = np.zeros(k)
         if len(valid):
             origin = x.take(valid, axis=0) + off_x.take(valid)[:, None] * nx.take(valid, axis=0)

@@ -59,6 +59,9 @@ class Renderer:
     def __init__(self, scene, settings: RenderSettings, log=print):
         settings.validate()
         self.warnings = scene.validate()
+        if scene.lights and settings.shadow_rays == 0:
+            self.warnings.append(f"{len(scene.lights)} area light(s) are reached by shadow rays only: "
+                                 "with 0 shadow rays they light nothing")
         for w in self.warnings:
             log(f"warning: {w}")
         self.scene = scene

@@ -191,6 +191,37 @@ class Quad:
 
 
 @dataclass
+class AreaLight:
+    """A light-only emitter, as a Blender Area light in Cycles: a planar convex polygon that
+    emits `radiance` from its front side only (the side its normal faces; the normal follows
+    the counter-clockwise order of `vertices`), or from both sides with `two_sided`.
+
+    It is not geometry: camera, bounce and shadow rays pass through it, so it is reached
+    only by shadow rays (next-event estimation, eq. 2.11).
+    """
+    name: str
+    vertices: np.ndarray          # (N, 3), N >= 3, in order around the polygon
+    radiance: tuple
+    two_sided: bool = False
+
+    def triangles(self) -> np.ndarray:
+        v = np.asarray(self.vertices, dtype=np.float64)
+        return np.stack([np.repeat(v[:1], len(v) - 2, axis=0), v[1:-1], v[2:]], axis=1)
+
+    def validate(self) -> None:
+        v = np.asarray(self.vertices, dtype=np.float64)
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) < 3 or not np.isfinite(v).all():
+            raise SceneError(f"Light '{self.name}': needs at least 3 finite corners")
+        le = np.asarray(self.radiance, dtype=np.float64)
+        if le.shape != (3,) or not np.isfinite(le).all() or (le < 0).any():
+            raise SceneError(f"Light '{self.name}': radiance must be 3 finite non-negative numbers")
+        t = self.triangles()
+        area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
+        if not area > 0:
+            raise SceneError(f"Light '{self.name}': area light has zero area")
+
+
+@dataclass
 class Scene:
     camera: Camera | None
     materials: list = field(default_factory=list)
@@ -200,6 +231,7 @@ class Scene:
     background: tuple = (0.0, 0.0, 0.0)
     resolution: tuple = (256, 256)
     name: str = "scene"
+    lights: list = field(default_factory=list)      # AreaLight: light-only emitters
 
     def validate(self) -> list[str]:
         """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""
@@ -230,12 +262,14 @@ class Scene:
             sphere.validate(n)
         for quad in self.quads:
             quad.validate(n)
+        for light in self.lights:
+            light.validate()
         if not self.has_light():
             warnings.append("the scene has no emitters and a black background: the image will be black")
         return warnings
 
     def has_light(self) -> bool:
-        if max(self.background) > 0:
+        if max(self.background) > 0 or any(max(light.radiance) > 0 for light in self.lights):
             return True
         emissive = {i for i, m in enumerate(self.materials) if m.is_emissive}
         return (any(s.material_id in emissive for s in self.spheres)

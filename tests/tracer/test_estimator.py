@@ -101,3 +101,37 @@ def test_image_is_identical_across_thread_counts():
     assert np.array_equal(one.image, two.image)
     other_seed = render(scene, RenderSettings(samples=8, threads=2, tile_size=8, seed=8), log=lambda *a: None)
     assert not np.array_equal(one.image, other_seed.image)
+
+
+def _floor_under_area_light(facing_down=True, two_sided=False):
+    from engine.scene import AreaLight
+    scene = floor_under_square_light(albedo=0.8)
+    light_quad = scene.quads.pop()          # replace the emissive quad by a light-only AreaLight
+    corners = light_quad.corners if facing_down else light_quad.corners[::-1]
+    scene.lights.append(AreaLight("Area", corners, (1.0, 1.0, 1.0), two_sided=two_sided))
+    return scene
+
+
+def test_one_sided_area_light_matches_form_factor_and_is_dark_behind():
+    """A Blender Area light: lights the side its normal faces (eq. 2.11 with pdf 1/A)."""
+    expected = 0.8 * form_factor_square(1.0, 1.0)
+    # The quad's corners wind so that its normal points down (-z), towards the floor.
+    down = render(_floor_under_area_light(True), quiet(samples=4096, max_depth=0), log=lambda *a: None)
+    mean, se = image_mean_and_se(down)
+    assert abs(mean - expected) < Z * se, (mean, expected, se)
+    up = render(_floor_under_area_light(False), quiet(samples=64, max_depth=0), log=lambda *a: None)
+    assert up.image.max() == 0.0
+    both = render(_floor_under_area_light(False, two_sided=True), quiet(samples=4096, max_depth=0),
+                  log=lambda *a: None)
+    mean, se = image_mean_and_se(both)
+    assert abs(mean - expected) < Z * se
+
+
+def test_area_light_is_invisible_to_camera_and_casts_no_shadow():
+    from engine.scene import AreaLight, Camera
+    scene = _floor_under_area_light(True)
+    # Camera above the light looking down through it at the floor.
+    scene.camera = Camera.look_at((0, 0, 3.0), (0, 0, 0), up=(0, 1, 0), lens=20000.0)
+    through = render(scene, quiet(samples=1024, max_depth=0), log=lambda *a: None)
+    mean, se = image_mean_and_se(through)
+    assert abs(mean - 0.8 * form_factor_square(1.0, 1.0)) < Z * se
