@@ -243,7 +243,8 @@ class Scene:
         if int(w) <= 0 or int(h) <= 0:
             raise SceneError(f"Scene '{self.name}': resolution must be positive, got {w}x{h}")
         if int(w) * int(h) > 16384 * 16384:
-            raise SceneError(f"Scene '{self.name}': resolution {w}x{h} is too large")
+            raise SceneError(f"Scene '{self.name}': resolution {w}x{h} is too large "
+                             f"(at most {16384 * 16384:,} pixels)")
         if not self.materials:
             raise SceneError(f"Scene '{self.name}': no materials")
         for material in self.materials:
@@ -252,12 +253,11 @@ class Scene:
         if bg.shape != (3,) or not np.isfinite(bg).all() or (bg < 0).any():
             raise SceneError(f"Scene '{self.name}': background must be 3 finite non-negative numbers")
         n = len(self.materials)
-        dropped = 0
         emissive = np.array([m.is_emissive for m in self.materials])
         for mesh in self.meshes:
-            dropped += mesh.validate(n, emissive)
-        if dropped:
-            warnings.append(f"{dropped} degenerate triangle(s) dropped")
+            dropped = mesh.validate(n, emissive)
+            if dropped:
+                warnings.append(f"Object '{mesh.name}': {dropped} degenerate triangle(s) dropped")
         for sphere in self.spheres:
             sphere.validate(n)
         for quad in self.quads:

@@ -115,7 +115,8 @@ def render_file(args):
     try:
         bpy.ops.render.render(write_still=True)
     except RuntimeError as exc:
-        msg = engine_module.LAST_RENDER.get("error") or str(exc)
+        # Blender's own refusals ("Cannot render, no camera") arrive as "Error: ...\n"
+        msg = engine_module.LAST_RENDER.get("error") or str(exc).strip().removeprefix("Error: ")
         print(f"error: {msg}", file=sys.stderr)
         return 1
     wall = time.perf_counter() - t0

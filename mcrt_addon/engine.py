@@ -172,7 +172,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         self.update_stats("", "TNCG15 MC | Rendering")
         result = render(exported.scene, settings, on_tile=on_tile, should_cancel=self._cancel_requested,
                         on_progress=on_progress, log=log)
-        warnings += list(getattr(result, "warnings", []) or [])
+        # the tracer validates the scene again and returns the same warnings: report each once
+        warnings = list(dict.fromkeys(warnings + list(getattr(result, "warnings", []) or [])))
         if n_bad[0]:
             warnings.append(f"{n_bad[0]} pixels had NaN/infinite values and were set to black")
         stats = dict(getattr(result, "stats", {}) or {})

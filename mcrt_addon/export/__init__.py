@@ -40,6 +40,21 @@ def _sphere_mode(ob):
     return props.implicit_sphere if props is not None else "AUTO"
 
 
+def instance_label(inst, ob):
+    return ob.name if not inst.is_instance else f"{ob.name} (instanced by {inst.parent.name})"
+
+
+def finite_matrix(inst, ob):
+    """The instance's world matrix as float64 (a copy); ExportError naming the object when it holds
+    NaN or infinity (a NaN location, rotation or scale, or a driver gone wrong)."""
+    matrix = np.array(inst.matrix_world, dtype=np.float64)
+    if not np.isfinite(matrix).all():
+        kind = "Light" if ob.type == "LIGHT" else "Object"
+        raise ExportError(f"{kind} '{instance_label(inst, ob)}': transform has NaN or infinite values "
+                          "(check its location, rotation and scale)")
+    return matrix
+
+
 def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=None, name=None):
     """Build the tracer Scene.
 
@@ -62,7 +77,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     cam = export_camera(cam_obj, (width, height), crop, Camera=sm.Camera, warnings=warnings)
     out_res = (width, height) if crop is None else (int(crop[2] - crop[0]), int(crop[3] - crop[1]))
 
-    meshes, spheres = [], []
+    meshes, spheres, lights = [], [], []
     cache = {}
     n_instances = n_triangles = 0
     skipped = set()
@@ -74,10 +89,10 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         otype = ob.type
         if otype == "LIGHT":
             if ob.data.type == "AREA":
+                matrix = finite_matrix(inst, ob)
                 try:
-                    meshes.append(export_area_light(ob, np.array(inst.matrix_world, dtype=np.float64), version,
-                                                    Material=sm.Material, TriangleMesh=sm.TriangleMesh,
-                                                    material_table=table, warnings=warnings))
+                    lights.append(export_area_light(ob, matrix, version, AreaLight=sm.AreaLight,
+                                                    warnings=warnings))
                 except ValueError as exc:
                     raise ExportError(str(exc)) from None
             elif ob.name not in skipped:
@@ -92,8 +107,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             continue
         if otype != "MESH" and otype not in CONVERTIBLE_TYPES:
             continue
-        matrix = np.array(inst.matrix_world, dtype=np.float64)     # copy: inst is transient
-        label = ob.name if not inst.is_instance else f"{ob.name} (instanced by {inst.parent.name})"
+        matrix = finite_matrix(inst, ob)     # a copy: inst is transient
+        label = instance_label(inst, ob)
 
         key = ob.data.as_pointer() if (otype == "MESH" and ob.data is not None) else None
         arrays = cache.get(key) if key is not None else None
@@ -112,6 +127,9 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                 cache[key] = arrays
         verts, tris, slots = arrays
         if len(tris) == 0:
+            if otype == "MESH" and ob.name not in skipped:
+                skipped.add(ob.name)
+                warnings.append(f"Object '{ob.name}': mesh has no faces; skipped")
             continue
         slot_ids = np.asarray(table.slot_indices(ob), dtype=np.int64)
         mat_ids = slot_ids[np.clip(slots, 0, len(slot_ids) - 1)]
@@ -154,8 +172,12 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
 
     materials = table.materials or [sm.Material(name="(unused)")]
     background = export_world(scene.world, warnings)
+    if lights and any(m.kind != sm.DIFFUSE for m in materials):
+        warnings.append(f"{len(lights)} area light(s) are not seen in mirror or glass reflections "
+                        "(the tracer reaches area lights by shadow rays only; use an emissive mesh "
+                        "to see a light in reflections)")
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
-                      background=background, resolution=out_res, name=name or scene.name)
+                      background=background, resolution=out_res, name=name or scene.name, lights=lights)
     info = dict(export_seconds=time.perf_counter() - t0, objects=n_instances, triangles=n_triangles,
                 spheres=len(spheres), meshes_shared=len(cache), materials=len(materials))
     return ExportResult(scene=result, warnings=warnings, info=info)

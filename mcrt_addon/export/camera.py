@@ -32,6 +32,8 @@ def frame_window(lens, sensor_width, sensor_height, sensor_fit, shift_x, shift_y
 def orthonormal_matrix(matrix):
     """Camera-to-world matrix without scale (Cycles clears the camera's scale too)."""
     m = np.array(matrix, dtype=np.float64).reshape(4, 4)
+    if not np.isfinite(m).all():
+        raise ExportError("transform has NaN or infinite values (check its location, rotation and scale)")
     for axis in range(3):
         n = np.linalg.norm(m[:3, axis])
         if not np.isfinite(n) or n < 1e-12:

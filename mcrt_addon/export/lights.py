@@ -1,11 +1,12 @@
-"""Light export: Blender Area lights -> emissive triangles (the tracer's only light source).
+"""Light export: Blender Area lights -> the tracer's light-only AreaLight emitters.
 
 Radiance of an area light with power P [W], colour c and exposure e:
   Blender >= 4.0 (Cycles commit a21af93e6):  L = c * P * 2^e / (pi * A)
   Blender 3.x:                                L = c * P / (4 * A)
 (A = area including the object's scale; with ``normalize`` off the 1/A is dropped.)
-Cycles' area lights emit from their front (-Z) side only; the tracer's emitters are two-sided,
-so light leaving the back of the lamp is an acknowledged model difference (a warning says so).
+As in Cycles, the exported light emits from its front (-Z) side only, is invisible to camera
+rays and casts no shadow.  Unlike Cycles, it is not seen in mirror or glass reflections (the
+tracer reaches it by shadow rays only); a warning says so when the scene has such materials.
 Point, spot and sun lights are ignored with a warning.
 """
 import math
@@ -43,7 +44,7 @@ def area_light_polygon(light):
     return np.column_stack([pts, np.zeros(len(pts))]), area
 
 
-def export_area_light(ob, matrix, version, *, Material, TriangleMesh, material_table, warnings):
+def export_area_light(ob, matrix, version, *, AreaLight, warnings):
     light = ob.data
     local, area = area_light_polygon(light)
     world = transform_points(local, matrix)
@@ -56,11 +57,5 @@ def export_area_light(ob, matrix, version, *, Material, TriangleMesh, material_t
     if getattr(light, "spread", math.pi) < math.pi - 1e-6:
         warnings.append(f"Light '{ob.name}': spread {math.degrees(light.spread):.0f} deg is ignored "
                         "(full hemisphere)")
-    warnings.append(f"Light '{ob.name}': area light exported as a two-sided emissive "
-                    "polygon (Cycles' area lights emit from the front only)")
-    n = len(world)
-    tris = np.array([[0, i, i + 1] for i in range(1, n - 1)], dtype=np.int64)
-    mat_id = material_table.add(Material(name=f"{ob.name} (area light)", kind=material_table.DIFFUSE,
-                                         color=(0.0, 0.0, 0.0), emission=radiance))
-    return TriangleMesh(name=ob.name, vertices=world, triangles=tris,
-                        material_ids=np.full(len(tris), mat_id, dtype=np.int64))
+    # Corners run counter-clockwise seen from -Z: the polygon's normal is the emitting side.
+    return AreaLight(name=ob.name, vertices=world, radiance=radiance, two_sided=False)

@@ -41,7 +41,7 @@ def test_degenerate_triangles_are_dropped_with_one_counted_warning():
     mesh = TriangleMesh("Mixed", v, np.array([[0, 1, 2], [0, 1, 3], [1, 1, 2]]), [0, 0, 0])
     scene = base_scene(meshes=[mesh], background=(1, 1, 1))
     warnings = scene.validate()
-    assert "2 degenerate triangle(s) dropped" in warnings
+    assert "Object 'Mixed': 2 degenerate triangle(s) dropped" in warnings
     assert len(mesh.triangles) == 1
 
 
