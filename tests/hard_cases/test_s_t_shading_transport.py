@@ -124,3 +124,42 @@ def test_t6_box_filter_pixel_value_is_the_covered_fraction():
     assert np.allclose(row[:10], 1.0) and np.allclose(row[11:], 0.0)
     se = np.sqrt(result.variance[:, 10, 0].mean() / 4)
     assert abs(row[10] - 0.3) < 3 * se + 1e-3, (row[10], se)
+
+
+def test_t1_every_shadow_ray_inside_an_emitting_sphere_weighs_exactly_rho_le():
+    """Two points on a sphere's inside: cos cos / r^2 = 1/(4 R^2), so V G / p(y) = pi and each
+    next-event sample is exactly rho * Le.  A self-occluded shadow ray would give 0."""
+    from engine.effects import plan_effects
+    from engine.geometry import Counters, SceneGeometry
+    from engine.integrator import PathTracer
+    from engine.lights import LightSampler
+    from engine.shapes.spheres import surface_point
+    rho, le, radius = 0.7, 2.0, 3.0
+    mats = [Material("Shell", DIFFUSE, (rho,) * 3, emission=(le,) * 3)]
+    scene = Scene(Camera.look_at((0, 0, 0), (0, 1, 0)), mats, spheres=[Sphere("Shell", (1e3, 2e3, -5e2), radius, 0)])
+    scene.validate()
+    settings = RenderSettings(shadow_rays=1)
+    geo, lights = SceneGeometry(scene), LightSampler(scene)
+    tracer = PathTracer(geo, lights, mats, plan_effects(scene, settings), settings, (0, 0, 0))
+    rng = np.random.default_rng(21)
+    n = 20000
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    centre = np.array(scene.spheres[0].center)
+    o = np.tile(centre, (n, 1))
+    t = np.full(n, radius)
+    point, normal, offset = surface_point(o, dirs, t, np.tile(centre, (n, 1)), np.full(n, radius))
+    direct = tracer.direct_light(point, -normal, np.full((n, 3), rho), offset, rng, Counters())
+    # Samples landing (almost) on the shading point itself carry cos -> 0 and are dropped: none here.
+    assert np.allclose(direct, rho * le / np.pi * np.pi, rtol=1e-6)
+
+
+def test_s8_back_facing_area_light_gives_exactly_zero():
+    from engine.scene import AreaLight
+    mats = [Material("Floor", DIFFUSE, (0.8, 0.8, 0.8))]
+    floor = Quad("Floor", np.array([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)], float), 0)
+    facing_up = np.array([(-0.5, -0.5, 1), (0.5, -0.5, 1), (0.5, 0.5, 1), (-0.5, 0.5, 1)], float)
+    scene = Scene(Camera.look_at((0, -3, 2), (0, 0, 0)), mats, quads=[floor], resolution=(12, 12),
+                  lights=[AreaLight("Lamp", facing_up, (5.0, 5.0, 5.0))])
+    result = render(scene, RenderSettings(samples=16, max_depth=3), **SILENT)
+    assert result.image.max() == 0.0 and result.stats["nonfinite_samples"] == 0
