@@ -46,17 +46,24 @@ def cornell_scene(resolution=(256, 256), light_radiance: float = 12.0) -> Scene:
     ]
     white, red, green, light, mirror, glass, blue = range(len(materials))
     x0, x1, y0, y1, z0, z1 = -1.0, 1.0, -1.0, 1.0, 0.0, 2.0
+    h = 0.3                                     # half size of the square ceiling light
+    # The ceiling has a hole that the light fills, flush: a two-sided emitter just under a
+    # ceiling would light it from millimetres away (heavy-tailed 1/r^2 samples, hard case S9).
+    ceiling = [
+        box_wall("Ceiling (back)", [(x0, h, z1), (x0, y1, z1), (x1, y1, z1), (x1, h, z1)], white),
+        box_wall("Ceiling (front)", [(x0, y0, z1), (x0, -h, z1), (x1, -h, z1), (x1, y0, z1)], white),
+        box_wall("Ceiling (left)", [(x0, -h, z1), (x0, h, z1), (-h, h, z1), (-h, -h, z1)], white),
+        box_wall("Ceiling (right)", [(h, -h, z1), (h, h, z1), (x1, h, z1), (x1, -h, z1)], white),
+    ]
     meshes = [
         box_wall("Floor", [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0)], white),
-        box_wall("Ceiling", [(x0, y0, z1), (x0, y1, z1), (x1, y1, z1), (x1, y0, z1)], white),
+        *ceiling,
         box_wall("Back wall", [(x0, y1, z0), (x1, y1, z0), (x1, y1, z1), (x0, y1, z1)], white),
         box_wall("Left wall", [(x0, y0, z0), (x0, y1, z0), (x0, y1, z1), (x0, y0, z1)], red),
         box_wall("Right wall", [(x1, y0, z0), (x1, y0, z1), (x1, y1, z1), (x1, y1, z0)], green),
         torus("Torus", (0.25, 0.45, 0.12), 0.3, 0.12, 50, 50, blue),
     ]
-    h = 0.3
-    lz = z1 - 1e-3
-    quads = [Quad("Ceiling light", np.array([(-h, -h, lz), (-h, h, lz), (h, h, lz), (h, -h, lz)]), light)]
+    quads = [Quad("Ceiling light", np.array([(-h, -h, z1), (-h, h, z1), (h, h, z1), (h, -h, z1)]), light)]
     spheres = [
         Sphere("Mirror ball", (-0.45, 0.25, 0.35), 0.35, mirror),
         Sphere("Glass ball", (0.4, -0.35, 0.3), 0.3, glass),
