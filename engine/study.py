@@ -125,7 +125,8 @@ class Study:
         self.log = log
         self.rows: list[Row] = []
         self.notes: list[str] = []
-        self.base = RenderSettings(samples=mode.base_spp, shadow_rays=1, max_depth=8, threads=0)
+        # 16-pixel tiles: enough tiles for every core even at the small study resolutions.
+        self.base = RenderSettings(samples=mode.base_spp, shadow_rays=1, max_depth=8, threads=0, tile_size=16)
 
     def scene(self, with_mesh=True, resolution=None, torus_size=None):
         scene = cornell_scene(resolution or self.mode.resolution)
