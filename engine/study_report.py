@@ -57,20 +57,36 @@ def contact_sheet(path, images, labels, title):
     plt.close(fig)
 
 
-def plots(study, fig_dir):
+def _figure():
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    return plt.subplots(figsize=(6, 4.2))
+
+
+def _save(fig, ax, path, title, xlabel, ylabel, legend=True):
+    import matplotlib.pyplot as plt
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    if legend:
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def plots(study, fig_dir):
     rows = study.rows
     by = lambda table: [r for r in rows if r.table == table]
     files = {}
-
-    spp_rows = by("3.6")
-    fig, ax = plt.subplots(figsize=(6, 4.2))
+    spp_rows, sr = by("3.6"), by("3.1")
     t = np.array([r.t for r in spp_rows])
     e = np.array([r.rmse for r in spp_rows])
+
+    fig, ax = _figure()
     ax.loglog(t, e, "o-", label="TNCG15 MC, spp sweep")
-    sr = by("3.1")
     ax.loglog([r.t for r in sr], [r.rmse for r in sr], "s--", label="shadow-ray sweep")
     for engine, style in (("CYCLES", "^-"), ("TNCG15_MC", "v-")):
         cr = [r for r in by("cycles") if r.extra["engine"] == engine]
@@ -78,51 +94,29 @@ def plots(study, fig_dir):
             ax.loglog([r.t for r in cr], [r.rmse for r in cr], style, label=f"{engine} vs Cycles reference")
     if len(t):
         ax.loglog(t, e[0] * np.sqrt(t[0] / t), "k:", label="1/√t")
-    ax.set_xlabel("render time (s)")
-    ax.set_ylabel("RMSE against reference")
-    ax.legend(fontsize=8)
-    ax.set_title("Error against time")
-    fig.tight_layout()
-    files["error_vs_time"] = os.path.join(fig_dir, "error-vs-time.png")
-    fig.savefig(files["error_vs_time"], dpi=100)
-    plt.close(fig)
+    files["error_vs_time"] = _save(fig, ax, os.path.join(fig_dir, "error-vs-time.png"), "Error against time",
+                                   "render time (s)", "RMSE against reference")
 
-    fig, ax = plt.subplots(figsize=(6, 4.2))
+    fig, ax = _figure()
     spp = np.array([r.extra["spp"] for r in spp_rows], float)
     ax.loglog(spp, e, "o-", label=f"RMSE (fitted slope {spp_slope(spp_rows):.3f})")
     if len(spp):
         ax.loglog(spp, e[0] * np.sqrt(spp[0] / spp), "k:", label="slope −0.5")
-    ax.set_xlabel("samples per pixel")
-    ax.set_ylabel("RMSE")
-    ax.legend(fontsize=8)
-    ax.set_title("Error against samples per pixel")
-    fig.tight_layout()
-    files["error_vs_spp"] = os.path.join(fig_dir, "error-vs-spp.png")
-    fig.savefig(files["error_vs_spp"], dpi=100)
-    plt.close(fig)
+    files["error_vs_spp"] = _save(fig, ax, os.path.join(fig_dir, "error-vs-spp.png"),
+                                  "Error against samples per pixel", "samples per pixel", "RMSE")
 
-    fig, ax = plt.subplots(figsize=(6, 4.2))
+    fig, ax = _figure()
     ax.semilogx([r.extra["shadow_rays"] for r in sr], [r.efficiency for r in sr], "o-")
-    ax.set_xlabel("shadow rays per diffuse hit")
-    ax.set_ylabel("efficiency 1/(MSE·t)")
-    ax.set_title("Efficiency against shadow rays")
-    fig.tight_layout()
-    files["efficiency"] = os.path.join(fig_dir, "efficiency-vs-shadow-rays.png")
-    fig.savefig(files["efficiency"], dpi=100)
-    plt.close(fig)
+    files["efficiency"] = _save(fig, ax, os.path.join(fig_dir, "efficiency-vs-shadow-rays.png"),
+                                "Efficiency against shadow rays", "shadow rays per diffuse hit",
+                                "efficiency 1/(MSE·t)", legend=False)
 
-    fig, ax = plt.subplots(figsize=(6, 4.2))
+    fig, ax = _figure()
     for accel in ("embree", "octree"):
         ar = [r for r in by("3.2b") if r.extra["accelerator"] == accel]
         ax.loglog([r.extra["triangles"] for r in ar], [r.t for r in ar], "o-", label=accel)
-    ax.set_xlabel("triangles in the scene")
-    ax.set_ylabel("render time (s)")
-    ax.legend(fontsize=8)
-    ax.set_title("Embree against the octree")
-    fig.tight_layout()
-    files["accel"] = os.path.join(fig_dir, "accelerator-time-vs-triangles.png")
-    fig.savefig(files["accel"], dpi=100)
-    plt.close(fig)
+    files["accel"] = _save(fig, ax, os.path.join(fig_dir, "accelerator-time-vs-triangles.png"),
+                           "Embree against the octree", "triangles in the scene", "render time (s)")
 
     contact_sheet(os.path.join(fig_dir, "fig-3-1-shadow-rays.png"), [r.image for r in sr],
                   [r.label for r in sr], "Shadow rays (cf. report Figure 3.1)")

@@ -175,15 +175,10 @@ def test_h15_unoccluded_light_has_visibility_exactly_one(as_mesh):
         kw["meshes"] = [TriangleMesh("Light", corners, np.array([[0, 1, 2], [0, 2, 3]]), [1, 1])]
     else:
         kw["quads"].append(Quad("Light", corners, 1))
-    from engine.geometry import SceneGeometry
-    from engine.integrator import PathTracer
-    from engine.effects import plan_effects
-    from engine.lights import LightSampler
+    from engine.render import Renderer
     scene = Scene(Camera.look_at((0, 0, 0.5), (0, 0, 0), up=(0, 1, 0)), mats, **kw)
-    scene.validate()
-    settings = RenderSettings(shadow_rays=1)
-    geo, lights = SceneGeometry(scene), LightSampler(scene)
-    tracer = PathTracer(geo, lights, mats, plan_effects(scene, settings), settings, (0, 0, 0))
+    renderer = Renderer(scene, RenderSettings(shadow_rays=1), **SILENT)
+    geo, lights, tracer = renderer.geometry, renderer.lights, renderer.tracer
     rng = np.random.default_rng(15)
     n = 20000
     pts = np.concatenate([rng.uniform(-3, 3, (n, 2)), np.zeros((n, 1))], axis=1)

@@ -129,18 +129,13 @@ def test_t6_box_filter_pixel_value_is_the_covered_fraction():
 def test_t1_every_shadow_ray_inside_an_emitting_sphere_weighs_exactly_rho_le():
     """Two points on a sphere's inside: cos cos / r^2 = 1/(4 R^2), so V G / p(y) = pi and each
     next-event sample is exactly rho * Le.  A self-occluded shadow ray would give 0."""
-    from engine.effects import plan_effects
-    from engine.geometry import Counters, SceneGeometry
-    from engine.integrator import PathTracer
-    from engine.lights import LightSampler
+    from engine.geometry import Counters
+    from engine.render import Renderer
     from engine.shapes.spheres import surface_point
     rho, le, radius = 0.7, 2.0, 3.0
     mats = [Material("Shell", DIFFUSE, (rho,) * 3, emission=(le,) * 3)]
     scene = Scene(Camera.look_at((0, 0, 0), (0, 1, 0)), mats, spheres=[Sphere("Shell", (1e3, 2e3, -5e2), radius, 0)])
-    scene.validate()
-    settings = RenderSettings(shadow_rays=1)
-    geo, lights = SceneGeometry(scene), LightSampler(scene)
-    tracer = PathTracer(geo, lights, mats, plan_effects(scene, settings), settings, (0, 0, 0))
+    tracer = Renderer(scene, RenderSettings(shadow_rays=1), **SILENT).tracer
     rng = np.random.default_rng(21)
     n = 20000
     dirs = rng.normal(size=(n, 3))
