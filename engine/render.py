@@ -1,15 +1,12 @@
-"""Render a scene: tiles over worker threads, progress, cancel, stats.
+"""Render a scene: tiles over worker threads or processes, progress, cancel, stats.
 
 Each tile draws its random numbers from its own generator seeded by (seed, tile),
-so the image for a given seed is identical whatever the number of threads.  Embree's
-run() and large NumPy operations release the GIL, so threads keep all cores busy.
+so the image for a given seed is identical whatever the number or kind of workers
+(engine/workers.py).
 """
 from __future__ import annotations
 
-import queue
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,6 +19,7 @@ from .geometry import Counters, SceneGeometry
 from .integrator import PathTracer
 from .lights import LightSampler
 from .settings import RenderSettings
+from .workers import choose_parallelism, make_workers
 
 ENGINE_NAME = "TNCG15 MC"
 PATHS_PER_BATCH = 1 << 15
@@ -74,7 +72,8 @@ class Renderer:
         self.tracer = PathTracer(self.geometry, self.lights, scene.materials, self.plan,
                                  settings, scene.background)
 
-    def render_tile(self, tile: Tile, cancel: threading.Event, counters: Counters) -> TileFilm:
+    def render_tile(self, tile: Tile, cancel, counters: Counters) -> TileFilm:
+        """Render one tile; `cancel` is any event with is_set() (thread or process)."""
         s = self.settings
         width, height = self.scene.resolution
         tw, th = tile.x1 - tile.x0, tile.y1 - tile.y0
@@ -124,38 +123,28 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
 
     image = np.zeros((height, width, 3), dtype=np.float32)
     variance = np.zeros((height, width, 3), dtype=np.float32)
-    cancel = threading.Event()
-    finished: queue.Queue = queue.Queue()
     totals = Counters()
-    lock = threading.Lock()
-
-    def work(tile: Tile):
-        counters = Counters()
-        try:
-            film = renderer.render_tile(tile, cancel, counters)
-            finished.put((tile, film, None))
-        except BaseException as exc:  # surfaced on the calling thread
-            finished.put((tile, None, exc))
-        with lock:
-            totals.merge(counters)
-
+    parallelism = choose_parallelism(settings.parallelism, threads) if threads > 1 else "threads"
+    cancelled = False
     start = time.perf_counter()
+    workers = make_workers(parallelism, renderer, threads)
     done_tiles = 0
     error = None
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        for tile in tiles:
-            pool.submit(work, tile)
+    try:
+        workers.start(tiles)
         while done_tiles < len(tiles):
-            try:
-                tile, film, exc = finished.get(timeout=0.1)
-            except queue.Empty:
-                if should_cancel is not None and should_cancel():
-                    cancel.set()
+            result = workers.next_result(timeout=0.1)
+            if should_cancel is not None and not cancelled and should_cancel():
+                cancelled = True
+                workers.cancel()
+            if result is None:
                 continue
+            tile, film, counters, exc = result
             done_tiles += 1
+            totals.merge(counters)
             if exc is not None:
                 error = error or exc
-                cancel.set()
+                workers.cancel()
                 continue
             pixels = film.mean().astype(np.float32)
             image[tile.y0:tile.y1, tile.x0:tile.x1] = pixels
@@ -164,8 +153,8 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
                 on_tile(tile.x0, tile.y0, tile.x1, tile.y1, pixels)
             if on_progress is not None:
                 on_progress(done_tiles / len(tiles), f"tile {done_tiles}/{len(tiles)}")
-            if should_cancel is not None and should_cancel():
-                cancel.set()
+    finally:
+        workers.close()
     if error is not None:
         raise error
     seconds = time.perf_counter() - start
@@ -193,7 +182,8 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
         "nonfinite_samples": totals.nonfinite_samples,
         "seconds_in_intersection": totals.seconds_in_intersection,
         "seconds_in_embree": totals.seconds_in_embree,
-        "cancelled": cancel.is_set(),
+        "cancelled": cancelled,
+        "parallelism": parallelism,
         "warnings": list(renderer.warnings),
     }
-    return RenderResult(image, variance, stats, list(renderer.warnings), cancel.is_set())
+    return RenderResult(image, variance, stats, list(renderer.warnings), cancelled)

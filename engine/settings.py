@@ -20,6 +20,7 @@ class RenderSettings:
     seed: int = 0
     tile_size: int = 64
     accelerator: str = "auto"
+    parallelism: str = "auto"     # threads | processes (forked, Linux, outside Blender) | auto
 
     def resolved_threads(self) -> int:
         return self.threads if self.threads > 0 else (os.cpu_count() or 1)
@@ -38,6 +39,8 @@ class RenderSettings:
             raise SceneError(f"unknown accelerator '{self.accelerator}' (expected one of {', '.join(ACCELERATORS)})")
         if self.tile_size < 8:
             raise SceneError(f"tile size must be at least 8, got {self.tile_size}")
+        if self.parallelism not in ("auto", "threads", "processes"):
+            raise SceneError(f"unknown parallelism '{self.parallelism}' (expected auto, threads or processes)")
         if self.threads < 0:
             raise SceneError(f"threads must be 0 (all cores) or more, got {self.threads}")
 

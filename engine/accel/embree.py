@@ -18,6 +18,9 @@ class EmbreeAccelerator:
         self.count = len(triangles)
         if self.count:
             TriangleMesh(self.scene, np.ascontiguousarray(triangles, dtype=np.float32))
+            # Build the BVH now (embreex commits on the first query): the build uses Embree's
+            # thread pool, which a forked render worker does not have.
+            self.scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
 
     def _tfar(self, tmax: np.ndarray) -> np.ndarray:
         # A fresh array: embreex overwrites `dists` in place (hard-cases §1).

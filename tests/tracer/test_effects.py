@@ -34,7 +34,7 @@ def spies(monkeypatch):
 
 def test_diffuse_only_scene_never_runs_sphere_or_refraction_code(spies):
     sphere, refract = spies
-    result = render(diffuse_box_scene(), RenderSettings(samples=4), log=lambda *a: None)
+    result = render(diffuse_box_scene(), RenderSettings(samples=4, parallelism="threads"), log=lambda *a: None)
     assert sphere.calls == 0 and refract.calls == 0
     fx = result.stats["effects"]
     assert fx == {"spheres": False, "quads": True, "triangles": True, "diffuse": True,
@@ -49,7 +49,7 @@ def test_glass_sphere_turns_both_kernels_on(spies):
     scene = diffuse_box_scene()
     scene.materials.append(Material("Glass", GLASS, (1, 1, 1), ior=1.5))
     scene.spheres.append(Sphere("Glass ball", (0, 0.3, 0.5), 0.3, len(scene.materials) - 1))
-    result = render(scene, RenderSettings(samples=4), log=lambda *a: None)
+    result = render(scene, RenderSettings(samples=4, parallelism="threads"), log=lambda *a: None)
     assert sphere.calls > 0 and refract.calls > 0
     assert result.stats["effects"]["glass"] and result.stats["effects"]["spheres"]
     assert "'Glass ball'" in result.stats["effects_reason"]["spheres"]
