@@ -42,6 +42,8 @@ def add_settings_arguments(p):
                    help="bounces after the camera hit (0 = direct light only)")
     p.add_argument("--no-russian-roulette", action="store_true", help="disable Russian roulette")
     p.add_argument("--fresnel", choices=FRESNEL_MODELS, default=defaults.fresnel)
+    p.add_argument("--nested-dielectrics", action="store_true",
+                   help="track nested glass media (glass in glass refracts by the IOR ratio)")
     p.add_argument("--accelerator", choices=ACCELERATORS, default=defaults.accelerator)
     p.add_argument("--threads", type=non_negative_int, default=0, help="0 = all cores")
     p.add_argument("--seed", type=int, default=0)
@@ -51,6 +53,7 @@ def add_settings_arguments(p):
 def settings_from_args(args) -> RenderSettings:
     return RenderSettings(samples=args.samples, shadow_rays=args.shadow_rays, max_depth=args.max_depth,
                           russian_roulette=not args.no_russian_roulette, fresnel=args.fresnel,
+                          nested_dielectrics=args.nested_dielectrics,
                           threads=args.threads, seed=args.seed, tile_size=args.tile_size,
                           accelerator=args.accelerator)
 

@@ -87,6 +87,7 @@ def plan_effects(scene, settings) -> EffectPlan:
                if mirror else "no mirror material: reflection path skipped")
     set_effect("glass", glass,
                f"glass materials {_names(glass)}: {settings.fresnel} Fresnel and refraction (eq. 2.17, 2.24)"
+               + ("; nested media tracked" if settings.nested_dielectrics else "")
                if glass else "no glass material: Fresnel and refraction never evaluated")
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}: area lights sampled by area (pdf 1/A)"

@@ -10,7 +10,11 @@ the arrays are compacted to the paths still alive.  Per hit:
   bounce whose weight f cos / pdf is the albedo (eq. 2.13-2.14);
 * mirror: perfect reflection, weight = colour (eq. 2.15-2.16, 2.20);
 * glass: Fresnel (eq. 2.17, Schlick or exact) picks reflection or refraction
-  (eq. 2.21-2.24) stochastically, weight = tint; total internal reflection has R = 1;
+  (eq. 2.21-2.24) stochastically, weight = tint; total internal reflection has R = 1.
+  By default every glass surface separates its IOR from air, as the report (and
+  Cycles) do; with `nested_dielectrics` each path keeps a stack of the media it is in,
+  so glass inside glass or water in a glass refracts with the ratio of the two IORs
+  (the report's §4 future work);
 * Russian roulette (report 2.4) with survival probability min(1, max throughput),
   survivors divided by it; a zero throughput always terminates, without a division.
 """
@@ -24,6 +28,7 @@ from .scene import DIFFUSE, GLASS, MIRROR
 from .vec import dot, max3
 
 KIND_CODE = {DIFFUSE: 0, MIRROR: 1, GLASS: 2}
+MEDIUM_STACK_DEPTH = 4          # nested dielectrics: media a path can be inside at once
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
 
 
@@ -64,6 +69,9 @@ class PathTracer:
         o, d = origins, directions
         beta = np.ones((n, 3))
         count_emission = np.ones(n, dtype=bool)
+        # Medium stack (nested dielectrics): IORs of the objects the path is inside, air below.
+        media = np.ones((n, MEDIUM_STACK_DEPTH)) if s.nested_dielectrics else None
+        depth = np.zeros(n, dtype=np.int64) if s.nested_dielectrics else None
         has_background = self.background.max() > 0
         for bounce in range(s.max_depth + 1):
             if len(ids) == 0:
@@ -78,6 +86,8 @@ class PathTracer:
                 break
             ids, beta, count_emission = ids.take(h), beta.take(h, axis=0), count_emission.take(h)
             o, d = o.take(h, axis=0), d.take(h, axis=0)
+            if media is not None:
+                media, depth = media.take(h, axis=0), depth.take(h)
             surf = self.geometry.surface(o, d, hits)
             mat = surf.material
             if self.plan.emission:
@@ -95,6 +105,8 @@ class PathTracer:
             ids, beta, d, mat, color = (ids.take(order), beta.take(order, axis=0), d.take(order, axis=0),
                                         mat.take(order), color.take(order, axis=0))
             point, normal, offset = surf.point.take(order, axis=0), surf.normal.take(order, axis=0), surf.offset.take(order)
+            if media is not None:
+                media, depth = media.take(order, axis=0), depth.take(order)
             cos_in = dot(d, normal)
             facing = normal * np.where(cos_in < 0.0, 1.0, -1.0)[:, None]   # towards the incoming ray
             diffuse, mirror, glass = (slice(bounds[0], bounds[1]), slice(bounds[1], bounds[2]),
@@ -119,8 +131,10 @@ class PathTracer:
             if bounds[2] > bounds[1]:
                 new_d[mirror] = reflect(d[mirror], facing[mirror])           # eq. 2.20
             if bounds[3] > bounds[2]:
+                stack = None if media is None else (media[glass], depth[glass])   # views: updated in place
                 new_d[glass], side[glass] = self.scatter_glass(
-                    d[glass], normal[glass], facing[glass], cos_in[glass], self.mats.ior.take(mat[glass]), rng)
+                    d[glass], normal[glass], facing[glass], cos_in[glass], self.mats.ior.take(mat[glass]), rng,
+                    stack)
             beta = beta[:alive] * color[:alive]  # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
 
             keep = max3(beta) > 0.0
@@ -132,6 +146,8 @@ class PathTracer:
             o = point.take(keep, axis=0) + (side.take(keep) * offset.take(keep))[:, None] * facing.take(keep, axis=0)
             d = new_d.take(keep, axis=0)
             ids, beta, count_emission = ids.take(keep), beta.take(keep, axis=0), next_emission.take(keep)
+            if media is not None:
+                media, depth = media.take(keep, axis=0), depth.take(keep)
         radiance = np.zeros((n, 3))
         if record_ids:
             all_ids = np.concatenate(record_ids)
@@ -179,10 +195,20 @@ class PathTracer:
         return mean * albedo / np.pi                                    # f_r = colour / pi (eq. 2.13a)
 
     # -- glass, report 2.5.4 ----------------------------------------------------------
-    def scatter_glass(self, d, normal, facing, cos_in, ior, rng):
+    def scatter_glass(self, d, normal, facing, cos_in, ior, rng, stack=None):
+        """Reflect or refract at glass; returns (directions, side).  `stack` = (media, depth)
+        views of the paths' medium stacks (nested dielectrics), updated in place."""
         cos_i = np.abs(cos_in)
         entering = cos_in < 0.0
-        eta = np.where(entering, 1.0 / ior, ior)           # n1 / n2
+        if stack is None:
+            eta = np.where(entering, 1.0 / ior, ior)       # n1 / n2, air on the other side
+        else:
+            media, depth = stack
+            rows = np.arange(len(d))
+            current = np.where(depth > 0, media[rows, np.maximum(depth - 1, 0)], 1.0)
+            below = np.where(depth > 1, media[rows, np.maximum(depth - 2, 0)], 1.0)
+            # Entering: from the medium the path is in.  Leaving: into the one below it.
+            eta = np.where(entering, current / ior, ior / below)
         cos_t, tir = refract_cos(cos_i, eta)
         fresnel = self.fresnel(cos_i, cos_t, eta, tir)
         reflected = rng.random(len(d)) < fresnel
@@ -192,4 +218,11 @@ class PathTracer:
         through = ~reflected
         if through.any():
             out[through] = refract(d[through], facing[through], cos_i[through], cos_t[through], eta[through])
+        if stack is not None:
+            rows = np.flatnonzero(through)
+            push = rows[entering[rows] & (depth[rows] < MEDIUM_STACK_DEPTH)]
+            media[push, depth[push]] = ior[push]
+            depth[push] += 1
+            pop = rows[~entering[rows] & (depth[rows] > 0)]
+            depth[pop] -= 1
         return out, np.where(reflected, 1.0, -1.0)

@@ -16,6 +16,7 @@ class RenderSettings:
     russian_roulette: bool = True  # report 2.4
     rr_start_depth: int = 3       # roulette only from this bounce on
     fresnel: str = "schlick"      # eq. 2.17, or exact dielectric Fresnel as Cycles
+    nested_dielectrics: bool = False  # medium stack: glass in glass refracts by the IOR ratio
     threads: int = 0              # 0 = all cores
     seed: int = 0
     tile_size: int = 64

@@ -27,6 +27,8 @@ def build_parser():
     r.add_argument("--max-depth", type=int)
     r.add_argument("--accelerator", choices=("auto", "embree", "octree", "brute"), type=str.lower)
     r.add_argument("--fresnel", choices=("schlick", "exact"), type=str.lower)
+    r.add_argument("--nested-dielectrics", action="store_true",
+                   help="track nested glass media (TNCG15 MC only; Cycles has no such model)")
     r.add_argument("--threads", type=int)
     r.add_argument("--seed", type=int)
     r.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"))
@@ -63,6 +65,8 @@ def apply_tncg15_settings(props, args):
         props.accelerator = args.accelerator.upper()
     if args.fresnel is not None:
         props.fresnel = args.fresnel.upper()
+    if getattr(args, "nested_dielectrics", False):
+        props.nested_dielectrics = True
     if args.threads is not None:
         props.threads = args.threads
     if args.seed is not None:

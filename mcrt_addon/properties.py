@@ -39,6 +39,9 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
                                 default=3, min=0, soft_max=64)
     fresnel: EnumProperty(name="Fresnel", description="Fresnel model for glass", items=FRESNEL_ITEMS,
                           default="SCHLICK")
+    nested_dielectrics: BoolProperty(name="Nested Dielectrics", description="Track the media a path is "
+                                     "inside, so glass inside glass refracts by the ratio of the two IORs "
+                                     "(off: every glass surface is against air, as Cycles)", default=False)
     threads: IntProperty(name="Threads", description="Worker threads (0 = all cores)", default=0, min=0,
                          soft_max=256)
     accelerator: EnumProperty(name="Accelerator", description="Ray-intersection acceleration structure",
@@ -51,7 +54,8 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
         return settings_cls(
             samples=self.samples, shadow_rays=self.shadow_rays, max_depth=self.max_depth,
             russian_roulette=self.russian_roulette, rr_start_depth=self.rr_start_depth,
-            fresnel=self.fresnel.lower(), threads=self.threads, seed=self.seed,
+            fresnel=self.fresnel.lower(), nested_dielectrics=self.nested_dielectrics,
+            threads=self.threads, seed=self.seed,
             tile_size=self.tile_size, accelerator=self.accelerator.lower())
 
 

@@ -55,6 +55,7 @@ class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):
         sub.active = props.russian_roulette
         sub.prop(props, "rr_start_depth")
         layout.prop(props, "fresnel")
+        layout.prop(props, "nested_dielectrics")
 
 
 class RENDER_PT_tncg15_performance(TNCG15ButtonsPanel, bpy.types.Panel):

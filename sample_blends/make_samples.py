@@ -18,6 +18,8 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
   diffuse_room   diffuse walls, boxes and a sphere only
   principled     the Cornell scene made of Principled BSDF materials (Specular IOR Level 0)
   area_light     a diffuse room lit by a Blender Area light (exporter checks; one-sided in Cycles)
+  nested_glass   glass inside glass: a "water" sphere (IOR 1.33) inside a glass cube (IOR 1.5),
+                 and a glass sphere resting on the cube's top face
 """
 import math
 import os
@@ -295,6 +297,19 @@ def make_area_light(scene, res):
     settings(scene, res)
 
 
+def make_nested_glass(scene, res):
+    room(scene)
+    mesh_object(scene, "GlassBlock", lambda bm: cube(bm, 0.8), glass("BlockGlass", (0.95, 1.0, 0.97), 1.5),
+                location=(0.0, 0.0, 0.402), rotation=(0, 0, math.radians(20)))   # 2 mm above the floor
+    mesh_object(scene, "Water", lambda bm: uv_sphere(bm, 0.25), glass("Water", (0.85, 0.92, 1.0), 1.33),
+                location=(0.0, 0.0, 0.4), smooth=True)                         # inside the block
+    mesh_object(scene, "Marble", lambda bm: uv_sphere(bm, 0.15), glass("Marble", ior=1.5),
+                location=(0.1, -0.1, 0.952), smooth=True)                       # resting on the block
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
@@ -303,6 +318,7 @@ SCENES = {
     "diffuse_room": make_diffuse_room,
     "principled": lambda s, r: make_cornell(s, r, principled_mats=True),
     "area_light": make_area_light,
+    "nested_glass": make_nested_glass,
 }
 
 

@@ -20,7 +20,7 @@ SPP = 32
 DEPTH = 8
 K = 4
 TAU = {"cornell": 0.05, "mirror_glass": 0.05, "principled": 0.05, "diffuse_room": 0.02,
-       "suzanne_5k": 0.02, "suzanne_100k": 0.02, "area_light": 0.02}
+       "suzanne_5k": 0.02, "suzanne_100k": 0.02, "area_light": 0.02, "nested_glass": 0.05}
 _cache = {}
 
 
@@ -35,7 +35,8 @@ def ours(scene, first_seed=1000):
 
 
 @pytest.mark.parametrize("name", [
-    "cornell", "diffuse_room", "mirror_glass", "principled", "suzanne_5k", "suzanne_100k", "area_light"])
+    "cornell", "diffuse_room", "mirror_glass", "principled", "suzanne_5k", "suzanne_100k", "area_light",
+    "nested_glass"])
 def test_agrees_with_cycles(samples, name):
     ref = reference(samples, name)
     exported = export_blend(samples[name], RES)
