@@ -152,7 +152,10 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
             if on_tile is not None and film.count.any():
                 on_tile(tile.x0, tile.y0, tile.x1, tile.y1, pixels)
             if on_progress is not None:
-                on_progress(done_tiles / len(tiles), f"tile {done_tiles}/{len(tiles)}")
+                elapsed = max(time.perf_counter() - start, 1e-9)
+                rate = sum(totals.rays.values()) / elapsed / 1e6
+                on_progress(done_tiles / len(tiles), f"tile {done_tiles}/{len(tiles)} · {rate:.2f} M rays/s · "
+                                                     f"effects: {renderer.plan.summary()}")
     finally:
         workers.close()
     if error is not None:
