@@ -37,8 +37,11 @@ def camera_rays(camera, width: int, height: int, sx: np.ndarray, sy: np.ndarray)
     y = (0.5 - sy / height) * plane_h + camera.shift_y * extent
     m = np.asarray(camera.matrix, dtype=np.float64)
     axes = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)  # drop object scale
-    local = np.stack([x, y, -np.ones_like(x)], axis=1)
-    directions = local @ axes.T
+    # Per component, not `local @ axes.T`: a matmul wakes OpenBLAS's thread pool, whose
+    # spinning threads steal the other core from a second render worker.
+    directions = np.empty((len(x), 3))
+    for i in range(3):
+        directions[:, i] = x * axes[i, 0] + y * axes[i, 1] - axes[i, 2]
     directions = normalize(directions)
     origins = np.broadcast_to(m[:3, 3], directions.shape).copy()
     return origins, directions
