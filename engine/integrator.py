@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from .bsdf import FRESNEL, reflect, refract, refract_cos
-from .sampling import cosine_hemisphere, to_world
+from .sampling import cosine_directions
 from .scene import DIFFUSE, GLASS, MIRROR
 from .vec import dot, max3
 
@@ -125,8 +125,8 @@ class PathTracer:
             side = np.ones(alive)                 # +1: leave on the facing side, -1: go through
             next_emission = np.ones(alive, dtype=bool)
             if n_diffuse:
-                local = cosine_hemisphere(rng.random(n_diffuse), rng.random(n_diffuse))
-                new_d[diffuse] = to_world(local, facing[diffuse])
+                new_d[diffuse] = cosine_directions(rng.random(n_diffuse), rng.random(n_diffuse),
+                                                   facing[diffuse])         # eq. 2.13b
                 next_emission[diffuse] = not self.use_nee
             if bounds[2] > bounds[1]:
                 new_d[mirror] = reflect(d[mirror], facing[mirror])           # eq. 2.20
