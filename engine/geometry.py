@@ -36,12 +36,13 @@ class SurfaceHits:
 
 @dataclass
 class HitSet:
-    """Nearest hits of a batch, compacted and grouped by primitive kind.
+    """Nearest hits of a batch, compacted and sorted by (group, primitive kind).
 
-    ``index`` lists the rays that hit, ordered so that each kind forms one contiguous run
-    (``runs[kind] = (start, stop)``); ``miss`` lists the rays that hit nothing.  Rays
-    keep no particular order in a wavefront, and contiguous runs let shading work on
-    slices instead of scattering through masks.
+    ``index`` lists the rays that hit, ordered so that every (group, kind) pair forms
+    one contiguous run (``runs[(group, kind)] = (start, stop)``) and every group one
+    contiguous range (``groups[g] = (start, stop)``); ``miss`` lists the rays that hit
+    nothing.  Groups are whatever the caller maps materials to (the integrator: how
+    the surface scatters), so shading works on slices after a single sort.
     """
     index: np.ndarray
     miss: np.ndarray
@@ -50,7 +51,9 @@ class HitSet:
     prim: np.ndarray
     u: np.ndarray
     v: np.ndarray
+    material: np.ndarray
     runs: dict
+    groups: list
 
 
 class Counters:
@@ -91,6 +94,13 @@ class SceneGeometry:
 
         self.quads = QuadSet(np.array([q.corners for q in scene.quads]).reshape(-1, 4, 3))
         self.quad_material = np.array([q.material_id for q in scene.quads], dtype=np.int64)
+
+        # Material of (kind, prim) as one lookup: primitive_material[kind_base[kind] + prim].
+        self.primitive_material = np.concatenate([
+            np.zeros(1, np.int64), self.triangle_material.astype(np.int64),
+            self.sphere_material, self.quad_material])
+        n_tri, n_sph = len(self.triangle_material), len(self.sphere_material)
+        self.kind_base = np.array([1, 1, 1 + n_tri, 1 + n_tri + n_sph], dtype=np.int64)  # a miss (prim -1) -> slot 0
 
         self.has_triangles = len(self.triangles) > 0
         self.has_spheres = len(self.sphere_radius) > 0
@@ -136,15 +146,30 @@ class SceneGeometry:
         counters.seconds_in_intersection += time.perf_counter() - start
         return t, kind, prim, u, v
 
-    def nearest_hits(self, origins, directions, counters: Counters) -> HitSet:
+    def nearest_hits(self, origins, directions, counters: Counters, material_group=None,
+                     n_groups: int = 1) -> HitSet:
+        """Nearest hits sorted by (material_group[material], kind); see HitSet.
+
+        `material_group` maps material ids to 0 .. n_groups-1 (default: one group)."""
         t, kind, prim, u, v = self.intersect(origins, directions, counters)
-        order = np.argsort(kind, kind="stable")
-        bounds = np.searchsorted(kind[order], [NONE, TRIANGLE, SPHERE, QUAD, QUAD + 1])
-        miss = order[bounds[0]:bounds[1]]
-        index = order[bounds[1]:]
-        runs = {k: (bounds[k] - bounds[1], bounds[k + 1] - bounds[1]) for k in (TRIANGLE, SPHERE, QUAD)}
+        material = self.primitive_material.take(prim + self.kind_base.take(kind))   # misses: ignored
+        group = (np.zeros(len(kind), np.int8) if material_group is None
+                 else material_group.take(material).astype(np.int8))
+        kinds = 3                                                            # TRIANGLE, SPHERE, QUAD
+        key = np.where(kind == NONE, 0, 1 + group * kinds + (kind - 1)).astype(np.int8)
+        order = np.argsort(key, kind="stable")
+        bounds = np.searchsorted(key.take(order), np.arange(2 + n_groups * kinds))
+        first = bounds[1]
+        miss, index = order[:first], order[first:]
+        runs = {}
+        for g in range(n_groups):
+            for k in (TRIANGLE, SPHERE, QUAD):
+                slot = 1 + g * kinds + (k - 1)
+                if bounds[slot + 1] > bounds[slot]:
+                    runs[(g, k)] = (bounds[slot] - first, bounds[slot + 1] - first)
+        groups = [(bounds[1 + g * kinds] - first, bounds[1 + (g + 1) * kinds] - first) for g in range(n_groups)]
         return HitSet(index, miss, t.take(index), kind.take(index), prim.take(index),
-                      u.take(index), v.take(index), runs)
+                      u.take(index), v.take(index), material.take(index), runs, groups)
 
     def occluded(self, origins, directions, tmax, counters: Counters):
         """True where something lies on the segment (0, tmax) of the ray."""
@@ -169,23 +194,24 @@ class SceneGeometry:
     def surface(self, origins, directions, hits: HitSet) -> SurfaceHits:
         """Shading data for the hit rays; origins and directions already in hits.index order."""
         parts = []
-        for k, (a, b) in sorted(hits.runs.items()):
-            if b <= a:
-                continue
+        for (_, k), (a, b) in sorted(hits.runs.items(), key=lambda item: item[1]):
             prim = hits.prim[a:b]
             if k == TRIANGLE:
-                parts.append(self._triangle_surface(prim, hits.u[a:b], hits.v[a:b]))
+                pt, nrm, off = self._triangle_surface(prim, hits.u[a:b], hits.v[a:b])
             elif k == SPHERE:
                 pt, nrm, off = surface_point(origins[a:b], directions[a:b], hits.t[a:b],
                                              self.sphere_center.take(prim, axis=0), self.sphere_radius.take(prim))
-                parts.append(SurfaceHits(pt, nrm, self.sphere_material.take(prim), off))
             else:
                 pt, nrm, off = self.quads.surface(origins[a:b], directions[a:b], hits.t[a:b], prim)
-                parts.append(SurfaceHits(pt, nrm, self.quad_material.take(prim), off))
+            parts.append((pt, nrm, off))
         if len(parts) == 1:
-            return parts[0]
-        return SurfaceHits(*(np.concatenate([getattr(p, f) for p in parts])
-                             for f in ("point", "normal", "material", "offset")))
+            pt, nrm, off = parts[0]
+            return SurfaceHits(pt, nrm, hits.material, off)
+        if not parts:
+            empty = np.zeros((0, 3))
+            return SurfaceHits(empty, empty, hits.material, np.zeros(0))
+        point, normal, offset = (np.concatenate(column) for column in zip(*parts))
+        return SurfaceHits(point, normal, hits.material, offset)
 
     def _triangle_surface(self, prim, u, v) -> SurfaceHits:
         # Barycentric interpolation in float64 puts the point on the triangle's plane
@@ -193,4 +219,4 @@ class SceneGeometry:
         point = (self.tri_v0.take(prim, axis=0) + u[:, None] * self.tri_e1.take(prim, axis=0)
                  + v[:, None] * self.tri_e2.take(prim, axis=0))
         offset = TRIANGLE_OFFSET * np.maximum(max_abs3(point), self.tri_scale.take(prim))
-        return SurfaceHits(point, self.tri_normal.take(prim, axis=0), self.triangle_material.take(prim), offset)
+        return point, self.tri_normal.take(prim, axis=0), offset

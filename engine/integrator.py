@@ -1,7 +1,8 @@
 """Wavefront path tracer: the report's Monte Carlo estimator (§2.3-2.5).
 
-All paths of a batch advance one bounce at a time as NumPy arrays; after each bounce
-the arrays are compacted to the paths still alive.  Per hit:
+The paths of a wavefront advance one bounce at a time as NumPy arrays; after each
+bounce the arrays are compacted to the paths still alive and topped up with new
+camera paths (path regeneration), so the wavefront stays full.  Per hit:
 
 * emission is added when the path arrived from the camera or a specular bounce, or
   when no shadow rays sample the lights (then BSDF sampling must find them); so
@@ -20,6 +21,8 @@ the arrays are compacted to the paths still alive.  Per hit:
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
+
 import numpy as np
 
 from .bsdf import FRESNEL, reflect, refract, refract_cos
@@ -28,6 +31,9 @@ from .scene import DIFFUSE, GLASS, MIRROR
 from .vec import dot, max3
 
 KIND_CODE = {DIFFUSE: 0, MIRROR: 1, GLASS: 2}
+BLACK = 3
+N_GROUPS = 4
+WAVEFRONT_SIZE = 1 << 15       # paths advanced together; 32768 measured fastest here
 MEDIUM_STACK_DEPTH = 4          # nested dielectrics: media a path can be inside at once
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
 
@@ -41,6 +47,40 @@ class MaterialTable:
         self.ior = np.array([m.ior for m in materials], dtype=np.float64)
         self.emission = np.array([m.emission for m in materials], dtype=np.float64).reshape(-1, 3)
         self.is_emissive = self.emission.max(axis=1) > 0
+        # Scattering group: the kind, or BLACK for surfaces that absorb everything.
+        self.group = np.where(self.color.max(axis=1) > 0.0, self.kind, BLACK).astype(np.int8)
+
+
+@dataclass
+class Paths:
+    """The state of the paths in the wavefront, one row each (struct of arrays)."""
+    pixel: np.ndarray           # (N,) pixel of the tile the camera sample belongs to
+    o: np.ndarray               # (N, 3) ray origins
+    d: np.ndarray               # (N, 3) unit ray directions
+    beta: np.ndarray            # (N, 3) path throughput
+    radiance: np.ndarray        # (N, 3) radiance L gathered so far
+    count_emission: np.ndarray  # (N,) emission at the next hit counts (camera/specular ray, no NEE)
+    bounce: np.ndarray          # (N,) bounces made so far (0: camera ray)
+    media: np.ndarray | None = None   # nested dielectrics: (N, MEDIUM_STACK_DEPTH) IOR stack
+    depth: np.ndarray | None = None   # nested dielectrics: (N,) stack height
+
+    @classmethod
+    def start(cls, pixel, origins, directions, nested: bool) -> "Paths":
+        n = len(pixel)
+        return cls(pixel, origins, directions, np.ones((n, 3)), np.zeros((n, 3)), np.ones(n, dtype=bool),
+                   np.zeros(n, dtype=np.int16),
+                   np.ones((n, MEDIUM_STACK_DEPTH)) if nested else None,
+                   np.zeros(n, dtype=np.int64) if nested else None)
+
+    def _fields(self):
+        return [f.name for f in fields(self) if getattr(self, f.name) is not None]
+
+    def take(self, index) -> "Paths":
+        return Paths(**{name: getattr(self, name).take(index, axis=0) for name in self._fields()})
+
+    def extend(self, other: "Paths") -> "Paths":
+        return Paths(**{name: np.concatenate([getattr(self, name), getattr(other, name)])
+                        for name in self._fields()})
 
 
 class PathTracer:
@@ -53,108 +93,113 @@ class PathTracer:
         self.background = np.asarray(background, dtype=np.float64)
         self.fresnel = FRESNEL[settings.fresnel]
         self.use_nee = (plan.diffuse and lights.count > 0 and settings.shadow_rays > 0)
+        self.has_background = bool(self.background.max() > 0)
 
-    # -- one batch of camera paths ---------------------------------------------------
-    def trace(self, origins, directions, rng, counters) -> np.ndarray:
-        """Radiance (N, 3) carried by each camera ray.
+    # -- the wavefront -----------------------------------------------------------------
+    def trace(self, samples, rng, counters, on_finished, cancel=None) -> None:
+        """Trace every camera sample of `samples` (a camera.TileSamples) to completion.
 
-        Paths are reordered freely between bounces (hits grouped by primitive kind, then
-        by scattering kind) so every group is a contiguous slice; contributions are
-        recorded as (path id, value) pairs and summed once at the end.
+        The wavefront holds up to WAVEFRONT_SIZE paths that advance one bounce per
+        iteration; whenever paths end and there is room, new camera paths join it, so
+        the arrays stay long and the per-call cost of NumPy is paid once per bounce of
+        a full wavefront, not for the few paths left at depth 8.  Each path carries its
+        pixel, throughput beta and radiance L; a finished path is handed to
+        `on_finished(pixel, L)`.  Paths still in flight when `cancel` is set are dropped
+        (they never reach the film, so nothing is biased).
         """
+        paths = None
+        while not (cancel is not None and cancel.is_set()):
+            alive = 0 if paths is None else len(paths.pixel)
+            room = WAVEFRONT_SIZE - alive
+            fresh = 0
+            if samples.remaining and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
+                pixel, o, d = samples.take(room)
+                fresh = len(pixel)
+                new = Paths.start(pixel, o, d, self.settings.nested_dielectrics)
+                paths = new if paths is None else paths.extend(new)
+            if paths is None or len(paths.pixel) == 0:
+                break
+            counters.rays["camera"] += fresh
+            counters.rays["extension"] += len(paths.pixel) - fresh
+            paths = self.bounce(paths, rng, counters, on_finished)
+
+    def bounce(self, p: "Paths", rng, counters, on_finished) -> "Paths":
+        """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
         s = self.settings
-        n = len(origins)
-        record_ids, record_values = [], []
-        ids = np.arange(n)
-        o, d = origins, directions
-        beta = np.ones((n, 3))
-        count_emission = np.ones(n, dtype=bool)
-        # Medium stack (nested dielectrics): IORs of the objects the path is inside, air below.
-        media = np.ones((n, MEDIUM_STACK_DEPTH)) if s.nested_dielectrics else None
-        depth = np.zeros(n, dtype=np.int64) if s.nested_dielectrics else None
-        has_background = self.background.max() > 0
-        for bounce in range(s.max_depth + 1):
-            if len(ids) == 0:
-                break
-            counters.rays["camera" if bounce == 0 else "extension"] += len(ids)
-            hits = self.geometry.nearest_hits(o, d, counters)
-            if has_background and len(hits.miss):
-                record_ids.append(ids.take(hits.miss))
-                record_values.append(beta.take(hits.miss, axis=0) * self.background)
-            h = hits.index
-            if len(h) == 0:
-                break
-            ids, beta, count_emission = ids.take(h), beta.take(h, axis=0), count_emission.take(h)
-            o, d = o.take(h, axis=0), d.take(h, axis=0)
-            if media is not None:
-                media, depth = media.take(h, axis=0), depth.take(h)
-            surf = self.geometry.surface(o, d, hits)
-            mat = surf.material
-            if self.plan.emission:
-                glow = np.flatnonzero(count_emission & self.mats.is_emissive.take(mat))
-                if len(glow):
-                    record_ids.append(ids.take(glow))
-                    record_values.append(beta.take(glow, axis=0) * self.mats.emission.take(mat.take(glow), axis=0))
+        finished_pixel, finished_l = [], []
+        # Hits sorted by how their surface scatters, 0 diffuse, 1 mirror, 2 glass, 3 black
+        # (absorbs), then by primitive kind: every group is one slice.
+        hits = self.geometry.nearest_hits(p.o, p.d, counters, self.mats.group, N_GROUPS)
+        if len(hits.miss):
+            m = hits.miss
+            radiance = p.radiance.take(m, axis=0)
+            if self.has_background:
+                radiance += p.beta.take(m, axis=0) * self.background
+            finished_pixel.append(p.pixel.take(m))
+            finished_l.append(radiance)
+        p = p.take(hits.index)
+        surf = self.geometry.surface(p.o, p.d, hits)
+        mat = surf.material
+        if self.plan.emission:
+            glow = np.flatnonzero(p.count_emission & self.mats.is_emissive.take(mat))
+            if len(glow):
+                p.radiance[glow] += p.beta.take(glow, axis=0) * self.mats.emission.take(mat.take(glow), axis=0)
 
-            # Group by how the surface scatters: 0 diffuse, 1 mirror, 2 glass, 3 black (absorbs).
-            color = self.mats.color.take(mat, axis=0)
-            group = self.mats.kind.take(mat)
-            group = np.where(max3(color) > 0.0, group, 3)
-            order = np.argsort(group, kind="stable")
-            bounds = np.searchsorted(group.take(order), [0, 1, 2, 3])
-            ids, beta, d, mat, color = (ids.take(order), beta.take(order, axis=0), d.take(order, axis=0),
-                                        mat.take(order), color.take(order, axis=0))
-            point, normal, offset = surf.point.take(order, axis=0), surf.normal.take(order, axis=0), surf.offset.take(order)
-            if media is not None:
-                media, depth = media.take(order, axis=0), depth.take(order)
-            cos_in = dot(d, normal)
-            facing = normal * np.where(cos_in < 0.0, 1.0, -1.0)[:, None]   # towards the incoming ray
-            diffuse, mirror, glass = (slice(bounds[0], bounds[1]), slice(bounds[1], bounds[2]),
-                                      slice(bounds[2], bounds[3]))
-            n_diffuse = bounds[1] - bounds[0]
+        color = self.mats.color.take(mat, axis=0)
+        bounds = [start for start, _ in hits.groups] + [hits.groups[-1][1]]
+        point, normal, offset, d = surf.point, surf.normal, surf.offset, p.d
+        cos_in = dot(d, normal)
+        facing = normal * np.where(cos_in < 0.0, 1.0, -1.0)[:, None]   # towards the incoming ray
+        diffuse, mirror, glass = (slice(bounds[0], bounds[1]), slice(bounds[1], bounds[2]),
+                                  slice(bounds[2], bounds[3]))
+        n_diffuse = bounds[1] - bounds[0]
 
-            if self.use_nee and n_diffuse:
-                record_ids.append(ids[diffuse])
-                record_values.append(beta[diffuse] * self.direct_light(
-                    point[diffuse], facing[diffuse], color[diffuse], offset[diffuse], rng, counters))
-            if bounce == s.max_depth:
-                break
+        if self.use_nee and n_diffuse:                                    # eq. 2.11
+            p.radiance[diffuse] += p.beta[diffuse] * self.direct_light(
+                point[diffuse], facing[diffuse], color[diffuse], offset[diffuse], rng, counters)
 
-            alive = bounds[3]                     # groups 0-2 continue, black surfaces end here
-            new_d = np.empty((alive, 3))
-            side = np.ones(alive)                 # +1: leave on the facing side, -1: go through
-            next_emission = np.ones(alive, dtype=bool)
-            if n_diffuse:
-                new_d[diffuse] = cosine_directions(rng.random(n_diffuse), rng.random(n_diffuse),
-                                                   facing[diffuse])         # eq. 2.13b
-                next_emission[diffuse] = not self.use_nee
-            if bounds[2] > bounds[1]:
-                new_d[mirror] = reflect(d[mirror], facing[mirror])           # eq. 2.20
-            if bounds[3] > bounds[2]:
-                stack = None if media is None else (media[glass], depth[glass])   # views: updated in place
-                new_d[glass], side[glass] = self.scatter_glass(
-                    d[glass], normal[glass], facing[glass], cos_in[glass], self.mats.ior.take(mat[glass]), rng,
-                    stack)
-            beta = beta[:alive] * color[:alive]  # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
+        alive = bounds[3]                     # groups 0-2 continue, black surfaces end here
+        new_d = np.empty((alive, 3))
+        side = np.ones(alive)                 # +1: leave on the facing side, -1: go through
+        next_emission = np.ones(alive, dtype=bool)
+        if n_diffuse:
+            new_d[diffuse] = cosine_directions(rng.random(n_diffuse), rng.random(n_diffuse),
+                                               facing[diffuse])         # eq. 2.13b
+            next_emission[diffuse] = not self.use_nee
+        if bounds[2] > bounds[1]:
+            new_d[mirror] = reflect(d[mirror], facing[mirror])           # eq. 2.20
+        if bounds[3] > bounds[2]:
+            stack = None if p.media is None else (p.media[glass], p.depth[glass])   # views: updated in place
+            new_d[glass], side[glass] = self.scatter_glass(
+                d[glass], normal[glass], facing[glass], cos_in[glass], self.mats.ior.take(mat[glass]), rng,
+                stack)
+        beta = p.beta[:alive] * color[:alive]  # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
+        bounce = p.bounce[:alive]
 
-            keep = max3(beta) > 0.0
-            if s.russian_roulette and bounce + 1 >= s.rr_start_depth:
-                survive_p = np.minimum(max3(beta), 1.0)
-                keep &= rng.random(alive) < survive_p
-                beta = beta / np.where(keep, survive_p, 1.0)[:, None]
-            keep = np.flatnonzero(keep)
-            o = point.take(keep, axis=0) + (side.take(keep) * offset.take(keep))[:, None] * facing.take(keep, axis=0)
-            d = new_d.take(keep, axis=0)
-            ids, beta, count_emission = ids.take(keep), beta.take(keep, axis=0), next_emission.take(keep)
-            if media is not None:
-                media, depth = media.take(keep, axis=0), depth.take(keep)
-        radiance = np.zeros((n, 3))
-        if record_ids:
-            all_ids = np.concatenate(record_ids)
-            values = np.concatenate(record_values)
-            for c in range(3):
-                radiance[:, c] = np.bincount(all_ids, weights=values[:, c], minlength=n)
-        return radiance
+        keep = (max3(beta) > 0.0) & (bounce < s.max_depth)
+        if s.russian_roulette:                                            # report 2.4
+            survive_p = np.where(bounce + 1 >= s.rr_start_depth, np.minimum(max3(beta), 1.0), 1.0)
+            keep &= rng.random(alive) < survive_p
+            beta = beta / np.where(keep, survive_p, 1.0)[:, None]
+        ended = np.flatnonzero(~keep)
+        finished_pixel += [p.pixel.take(ended), p.pixel[alive:]]
+        finished_l += [p.radiance.take(ended, axis=0), p.radiance[alive:]]
+        keep = np.flatnonzero(keep)
+        pixel = np.concatenate(finished_pixel)
+        if len(pixel):
+            on_finished(pixel, np.concatenate(finished_l))
+
+        survivors = Paths(
+            pixel=p.pixel.take(keep),
+            o=point.take(keep, axis=0) + (side.take(keep) * offset.take(keep))[:, None] * facing.take(keep, axis=0),
+            d=new_d.take(keep, axis=0),
+            beta=beta.take(keep, axis=0),
+            radiance=p.radiance.take(keep, axis=0),
+            count_emission=next_emission.take(keep),
+            bounce=bounce.take(keep) + 1,
+            media=None if p.media is None else p.media.take(keep, axis=0),
+            depth=None if p.depth is None else p.depth.take(keep))
+        return survivors
 
     # -- direct light, eq. 2.11 ---------------------------------------------------------
     def direct_light(self, point, normal, albedo, offset, rng, counters) -> np.ndarray:

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .accel import choose_accelerator
-from .camera import camera_rays
+from .allocator import tune_malloc
+from .camera import TileSamples
 from .effects import plan_effects
 from .film import TileFilm
 from .geometry import Counters, SceneGeometry
@@ -22,7 +23,6 @@ from .settings import RenderSettings
 from .workers import choose_parallelism, make_workers
 
 ENGINE_NAME = "TNCG15 MC"
-PATHS_PER_BATCH = 1 << 15
 
 
 @dataclass
@@ -76,29 +76,20 @@ class Renderer:
         """Render one tile; `cancel` is any event with is_set() (thread or process)."""
         s = self.settings
         width, height = self.scene.resolution
-        tw, th = tile.x1 - tile.x0, tile.y1 - tile.y0
-        film = TileFilm(tw, th)
+        film = TileFilm(tile.x1 - tile.x0, tile.y1 - tile.y0)
         rng = np.random.default_rng([s.seed, tile.index])
-        local = np.arange(tw * th)
-        px = (local % tw + tile.x0).astype(np.float64)
-        py = (local // tw + tile.y0).astype(np.float64)
-        spp_per_batch = max(1, PATHS_PER_BATCH // (tw * th))
-        done = 0
-        while done < s.samples and not cancel.is_set():
-            spp = min(spp_per_batch, s.samples - done)
-            pixel = np.tile(local, spp)
-            # Jittered sub-pixel positions (report 2.3); pixel centres at +0.5.
-            sx = np.tile(px, spp) + rng.random(len(pixel))
-            sy = np.tile(py, spp) + rng.random(len(pixel))
-            origins, directions = camera_rays(self.scene.camera, width, height, sx, sy)
-            radiance = self.tracer.trace(origins, directions, rng, counters)
+        samples = TileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1, tile.y1,
+                              s.samples, rng)
+
+        def finished(pixel, radiance):
             bad = ~np.isfinite(radiance).all(axis=1)
             if bad.any():
                 # Counted before the guard, never hidden silently.
                 counters.nonfinite_samples += int(bad.sum())
                 radiance[bad] = 0.0
             film.add(pixel, radiance)
-            done += spp
+
+        self.tracer.trace(samples, rng, counters, finished, cancel)
         return film
 
 
@@ -110,6 +101,7 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
     should_cancel() -> bool is polled about every 0.1 s.  on_progress(fraction, message).
     """
     settings = settings or RenderSettings()
+    tune_malloc()                      # keep the bounce temporaries off mmap (engine/allocator.py)
     setup_start = time.perf_counter()
     renderer = Renderer(scene, settings, log=log)
     setup_seconds = time.perf_counter() - setup_start
