@@ -1,6 +1,6 @@
 """Scattering at perfect mirrors and smooth glass (report 2.5.3, 2.5.4).
 
-Directions are unit vectors (N, 3); ``normal`` always faces the incoming ray
+Directions are unit vector rows (3, N) (engine/vec.py); ``normal`` always faces the incoming ray
 (dot(d, n) <= 0), so cos_i = -dot(d, n) >= 0.
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ INDEX_MATCHED = 1e-4
 
 def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Mirror direction r = i - 2 (i . n) n (eq. 2.20c)."""
-    return d - 2.0 * dot(d, n)[:, None] * n
+    return d - 2.0 * dot(d, n) * n
 
 
 def refract_cos(cos_i: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -36,7 +36,7 @@ def refract_cos(cos_i: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndar
 def refract(d: np.ndarray, n: np.ndarray, cos_i: np.ndarray, cos_t: np.ndarray,
             eta: np.ndarray) -> np.ndarray:
     """Transmitted direction t = eta i + (eta cos_i - cos_t) n (eq. 2.22-2.24)."""
-    t = eta[:, None] * d + (eta * cos_i - cos_t)[:, None] * n
+    t = eta * d + (eta * cos_i - cos_t) * n
     return normalize(t)
 
 

@@ -30,20 +30,20 @@ def view_plane(camera, width: int, height: int):
 def camera_rays(camera, width: int, height: int, sx: np.ndarray, sy: np.ndarray):
     """Rays through raster positions (sx, sy): x to the right, y down from the top edge.
 
-    Returns (origins, unit directions) in world space.
+    Returns (origins, unit directions) in world space, as rows (3, N) (engine/vec.py).
     """
     plane_w, plane_h, extent = view_plane(camera, width, height)
     x = (sx / width - 0.5) * plane_w + camera.shift_x * extent
     y = (0.5 - sy / height) * plane_h + camera.shift_y * extent
     m = np.asarray(camera.matrix, dtype=np.float64)
     axes = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)  # drop object scale
-    # Per component, not `local @ axes.T`: a matmul wakes OpenBLAS's thread pool, whose
-    # spinning threads steal the other core from a second render worker.
-    directions = np.empty((len(x), 3))
+    # Per component, not a matmul: that wakes OpenBLAS's thread pool, whose spinning
+    # threads steal the other core from a second render worker.
+    directions = np.empty((3, len(x)))
     for i in range(3):
-        directions[:, i] = x * axes[i, 0] + y * axes[i, 1] - axes[i, 2]
+        directions[i] = x * axes[i, 0] + y * axes[i, 1] - axes[i, 2]
     directions = normalize(directions)
-    origins = np.broadcast_to(m[:3, 3], directions.shape).copy()
+    origins = np.repeat(m[:3, 3:4], len(x), axis=1)
     return origins, directions
 
 

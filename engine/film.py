@@ -19,11 +19,12 @@ class TileFilm:
         self.count = np.zeros(n)
 
     def add(self, pixel: np.ndarray, radiance: np.ndarray) -> None:
+        """Samples' radiance as rows (3, N) (engine/vec.py) into their pixels."""
         n = self.width * self.height
         self.count += np.bincount(pixel, minlength=n)
         for c in range(3):
-            self.sum[:, c] += np.bincount(pixel, weights=radiance[:, c], minlength=n)
-            self.sum_sq[:, c] += np.bincount(pixel, weights=radiance[:, c] ** 2, minlength=n)
+            self.sum[:, c] += np.bincount(pixel, weights=radiance[c], minlength=n)
+            self.sum_sq[:, c] += np.bincount(pixel, weights=radiance[c] * radiance[c], minlength=n)
 
     def mean(self) -> np.ndarray:
         with np.errstate(invalid="ignore", divide="ignore"):

@@ -1,6 +1,7 @@
 """All primitives of a scene behind one nearest-hit and one shadow-ray query.
 
-Triangles go to the accelerator (Embree); spheres and quads are analytic.  A kernel
+Triangles go to the accelerator (Embree); spheres and quads are analytic.  Rays and
+surface vectors are rows, (3, N) arrays (engine/vec.py).  A kernel
 runs only if the scene has that kind of primitive (the effect plan).  The nearest hit
 is merged with `<` on arrays whose misses are +inf, so a NaN distance can never win
 (np.argmin would pick it: hard case H7).
@@ -14,8 +15,8 @@ import numpy as np
 
 from .accel import build_accelerator
 from .shapes.quads import QuadSet
-from .vec import max_abs3
-from .shapes.spheres import intersect_sphere_soa, soa, surface_point
+from .shapes.spheres import intersect_sphere, surface_point
+from .vec import aos, max_abs3, rows
 
 NONE, TRIANGLE, SPHERE, QUAD = 0, 1, 2, 3
 
@@ -28,8 +29,8 @@ TRIANGLE_OFFSET = 2.0 ** -20
 @dataclass
 class SurfaceHits:
     """Shading data for the rays that hit something."""
-    point: np.ndarray      # (M, 3) float64, on the surface
-    normal: np.ndarray     # (M, 3) unit geometric normal (winding / outward)
+    point: np.ndarray      # (3, M) float64, on the surface
+    normal: np.ndarray     # (3, M) unit geometric normal (winding / outward)
     material: np.ndarray   # (M,) material index
     offset: np.ndarray     # (M,) distance along the normal that clears the surface
 
@@ -54,6 +55,11 @@ class HitSet:
     material: np.ndarray
     runs: dict
     groups: list
+
+
+def check_rows(o, d) -> None:
+    if o.ndim != 2 or o.shape[0] != 3 or d.shape != o.shape:
+        raise ValueError(f"rays must be (3, N) rows (engine/vec.py), got {o.shape} and {d.shape}")
 
 
 class Counters:
@@ -83,12 +89,12 @@ class SceneGeometry:
         self.triangles = np.concatenate(tris) if tris else np.zeros((0, 3, 3))
         self.triangle_material = np.concatenate(tri_mats) if tri_mats else np.zeros(0, np.int64)
         v0, v1, v2 = self.triangles[:, 0], self.triangles[:, 1], self.triangles[:, 2]
-        self.tri_v0, self.tri_e1, self.tri_e2 = v0, v1 - v0, v2 - v0
-        normal = np.cross(self.tri_e1, self.tri_e2)
-        self.tri_normal = normal / np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+        normal = np.cross(v1 - v0, v2 - v0)
+        normal = normal / np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+        self.tri_v0, self.tri_e1, self.tri_e2, self.tri_normal = (rows(a) for a in (v0, v1 - v0, v2 - v0, normal))
         self.tri_scale = np.abs(self.triangles).max(axis=(1, 2)) if len(self.triangles) else np.zeros(0)
 
-        self.sphere_center = np.array([s.center for s in scene.spheres], dtype=np.float64).reshape(-1, 3)
+        self.sphere_center = rows([s.center for s in scene.spheres])      # (3, S)
         self.sphere_radius = np.array([s.radius for s in scene.spheres], dtype=np.float64)
         self.sphere_material = np.array([s.material_id for s in scene.spheres], dtype=np.int64)
 
@@ -110,48 +116,49 @@ class SceneGeometry:
         self.build_seconds = time.perf_counter() - start
 
     # -- queries -----------------------------------------------------------------
-    def intersect(self, origins, directions, counters: Counters, tmax=None):
-        """Nearest hit of each ray: (t, kind, prim, u, v); t = +inf and kind = NONE on a miss."""
-        n = len(origins)
+    def intersect(self, o, d, counters: Counters, tmax=None):
+        """Nearest hit of each ray (rows o, d): (t, kind, prim, u, v); t = +inf and kind =
+        NONE on a miss."""
+        check_rows(o, d)
+        n = o.shape[1]
         start = time.perf_counter()
         t = np.full(n, np.inf) if tmax is None else np.asarray(tmax, dtype=np.float64).copy()
         kind = np.zeros(n, dtype=np.int8)
         prim = np.full(n, -1, dtype=np.int64)
         u = v = np.zeros(n)
         if self.has_triangles:
+            dtype = self.accelerator.ray_dtype
             t0 = time.perf_counter()
-            tt, tp, u, v = self.accelerator.intersect(origins, directions, t)
+            tt, tp, u, v = self.accelerator.intersect(aos(o, dtype), aos(d, dtype), t)
             counters.seconds_in_embree += time.perf_counter() - t0
             closer = tt < t
             t = np.where(closer, tt, t)
-            kind[closer] = TRIANGLE
-            prim[closer] = tp[closer]
-        if self.has_spheres or self.has_quads:
-            o_rows, d_rows = soa(origins), soa(directions)
+            kind = closer.astype(np.int8)                   # TRIANGLE where closer
+            prim = np.where(closer, tp, prim)
         for k in range(len(self.sphere_radius)) if self.has_spheres else ():
-            ts = intersect_sphere_soa(o_rows, d_rows, self.sphere_center[k], self.sphere_radius[k], t)
+            ts = intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], t)
             closer = ts < t
             t = np.where(closer, ts, t)
-            kind[closer] = SPHERE
-            prim[closer] = k
+            kind = np.where(closer, np.int8(SPHERE), kind)
+            prim = np.where(closer, k, prim)
         for k in range(self.quads.count) if self.has_quads else ():
-            tq = self.quads.intersect_one_soa(k, o_rows, d_rows, t)
+            tq = self.quads.intersect_one(k, o, d, t)
             closer = tq < t
             t = np.where(closer, tq, t)
-            kind[closer] = QUAD
-            prim[closer] = k
+            kind = np.where(closer, np.int8(QUAD), kind)
+            prim = np.where(closer, k, prim)
         kind[~np.isfinite(t)] = NONE
         if tmax is not None:
             t[kind == NONE] = np.inf
         counters.seconds_in_intersection += time.perf_counter() - start
         return t, kind, prim, u, v
 
-    def nearest_hits(self, origins, directions, counters: Counters, material_group=None,
+    def nearest_hits(self, o, d, counters: Counters, material_group=None,
                      n_groups: int = 1) -> HitSet:
         """Nearest hits sorted by (material_group[material], kind); see HitSet.
 
         `material_group` maps material ids to 0 .. n_groups-1 (default: one group)."""
-        t, kind, prim, u, v = self.intersect(origins, directions, counters)
+        t, kind, prim, u, v = self.intersect(o, d, counters)
         material = self.primitive_material.take(prim + self.kind_base.take(kind))   # misses: ignored
         group = (np.zeros(len(kind), np.int8) if material_group is None
                  else material_group.take(material).astype(np.int8))
@@ -171,52 +178,57 @@ class SceneGeometry:
         return HitSet(index, miss, t.take(index), kind.take(index), prim.take(index),
                       u.take(index), v.take(index), material.take(index), runs, groups)
 
-    def occluded(self, origins, directions, tmax, counters: Counters):
-        """True where something lies on the segment (0, tmax) of the ray."""
+    def occluded(self, o, d, tmax, counters: Counters):
+        """True where something lies on the segment (0, tmax) of the ray (rows o, d)."""
+        check_rows(o, d)
         start = time.perf_counter()
-        blocked = np.zeros(len(origins), dtype=bool)
+        blocked = np.zeros(o.shape[1], dtype=bool)
         if self.has_triangles:
+            dtype = self.accelerator.ray_dtype
             t0 = time.perf_counter()
-            blocked |= self.accelerator.occluded(origins, directions, tmax)
+            blocked |= self.accelerator.occluded(aos(o, dtype), aos(d, dtype), tmax)
             counters.seconds_in_embree += time.perf_counter() - t0
-        rest = np.flatnonzero(~blocked)
-        if (self.has_spheres or self.has_quads) and len(rest):
-            o, d, tm = soa(origins.take(rest, axis=0)), soa(directions.take(rest, axis=0)), tmax.take(rest)
+        if self.has_spheres or self.has_quads:
+            rest = np.flatnonzero(~blocked)
+            if len(rest) < len(blocked):
+                o, d, tmax = o.take(rest, axis=1), d.take(rest, axis=1), tmax.take(rest)
             hit = np.zeros(len(rest), dtype=bool)
             for k in range(len(self.sphere_radius)):
-                hit |= intersect_sphere_soa(o, d, self.sphere_center[k], self.sphere_radius[k], tm) < tm
+                hit |= intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], tmax) < tmax
             for k in range(self.quads.count):
-                hit |= self.quads.intersect_one_soa(k, o, d, tm) < tm
+                hit |= self.quads.intersect_one(k, o, d, tmax) < tmax
             blocked[rest] = hit
         counters.seconds_in_intersection += time.perf_counter() - start
         return blocked
 
-    def surface(self, origins, directions, hits: HitSet) -> SurfaceHits:
-        """Shading data for the hit rays; origins and directions already in hits.index order."""
+    def surface(self, o, d, hits: HitSet) -> SurfaceHits:
+        """Shading data for the hit rays; rows o and d already in hits.index order."""
         parts = []
         for (_, k), (a, b) in sorted(hits.runs.items(), key=lambda item: item[1]):
             prim = hits.prim[a:b]
             if k == TRIANGLE:
                 pt, nrm, off = self._triangle_surface(prim, hits.u[a:b], hits.v[a:b])
             elif k == SPHERE:
-                pt, nrm, off = surface_point(origins[a:b], directions[a:b], hits.t[a:b],
-                                             self.sphere_center.take(prim, axis=0), self.sphere_radius.take(prim))
+                pt, nrm, off = surface_point(o[:, a:b], d[:, a:b], hits.t[a:b],
+                                             self.sphere_center.take(prim, axis=1), self.sphere_radius.take(prim))
             else:
-                pt, nrm, off = self.quads.surface(origins[a:b], directions[a:b], hits.t[a:b], prim)
+                pt, nrm, off = self.quads.surface(o[:, a:b], d[:, a:b], hits.t[a:b], prim)
             parts.append((pt, nrm, off))
         if len(parts) == 1:
             pt, nrm, off = parts[0]
             return SurfaceHits(pt, nrm, hits.material, off)
         if not parts:
-            empty = np.zeros((0, 3))
+            empty = np.zeros((3, 0))
             return SurfaceHits(empty, empty, hits.material, np.zeros(0))
-        point, normal, offset = (np.concatenate(column) for column in zip(*parts))
+        points, normals, offsets = zip(*parts)
+        point, normal, offset = (np.concatenate(points, axis=1), np.concatenate(normals, axis=1),
+                                 np.concatenate(offsets))
         return SurfaceHits(point, normal, hits.material, offset)
 
     def _triangle_surface(self, prim, u, v) -> SurfaceHits:
         # Barycentric interpolation in float64 puts the point on the triangle's plane
         # (pbrt): the float32 error of o + t d would be along the ray instead.
-        point = (self.tri_v0.take(prim, axis=0) + u[:, None] * self.tri_e1.take(prim, axis=0)
-                 + v[:, None] * self.tri_e2.take(prim, axis=0))
+        point = (self.tri_v0.take(prim, axis=1) + u * self.tri_e1.take(prim, axis=1)
+                 + v * self.tri_e2.take(prim, axis=1))
         offset = TRIANGLE_OFFSET * np.maximum(max_abs3(point), self.tri_scale.take(prim))
-        return point, self.tri_normal.take(prim, axis=0), offset
+        return point, self.tri_normal.take(prim, axis=1), offset

@@ -82,11 +82,11 @@ class Renderer:
                               s.samples, rng)
 
         def finished(pixel, radiance):
-            bad = ~np.isfinite(radiance).all(axis=1)
+            bad = ~np.isfinite(radiance).all(axis=0)
             if bad.any():
                 # Counted before the guard, never hidden silently.
                 counters.nonfinite_samples += int(bad.sum())
-                radiance[bad] = 0.0
+                radiance[:, bad] = 0.0
             film.add(pixel, radiance)
 
         self.tracer.trace(samples, rng, counters, finished, cancel)

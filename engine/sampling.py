@@ -1,7 +1,7 @@
 """Sample warps and local frames, vectorised over rays.
 
-Every function takes arrays of uniform numbers in [0, 1) and returns float64 arrays,
-so the same code serves the integrator and the chi-square tests.
+Every function takes arrays of uniform numbers in [0, 1) and returns float64 rows
+(3, N) (engine/vec.py), so the same code serves the integrator and the chi-square tests.
 """
 from __future__ import annotations
 
@@ -12,17 +12,17 @@ ONE_MINUS_EPSILON = np.nextafter(1.0, 0.0)
 
 
 def orthonormal_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Tangent and bitangent for unit normals n (N, 3): Duff et al. 2017.
+    """Tangent and bitangent rows for unit normal rows n (3, N): Duff et al. 2017.
 
     Uses copysign so a normal with z = 0 or -0.0 (every Cornell wall) is safe;
     np.sign would give 0 there and a NaN basis (hard case S2).
     """
-    x, y, z = n[:, 0], n[:, 1], n[:, 2]
+    x, y, z = n[0], n[1], n[2]
     sign = np.copysign(1.0, z)
     a = -1.0 / (sign + z)
     b = x * y * a
-    tangent = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=1)
-    bitangent = np.stack([b, sign + y * y * a, -y], axis=1)
+    tangent = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x])
+    bitangent = np.stack([b, sign + y * y * a, -y])
     return tangent, bitangent
 
 
@@ -40,46 +40,29 @@ def unit_circle(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c * inv, s * inv
 
 
-def _cosine_local(u1, u2):
-    """Local components (x, y, z) of cosine-weighted directions about +z."""
-    u1 = np.minimum(u1, ONE_MINUS_EPSILON)
-    z = np.sqrt(1.0 - u1)
-    r = np.sqrt(u1)
-    c, s = unit_circle(u2)
-    return r * c, r * s, z
-
-
 def cosine_hemisphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
-    """Cosine-weighted directions about +z (report eq. 2.13b, pdf = cos(theta)/pi).
+    """Cosine-weighted direction rows about +z (report eq. 2.13b, pdf = cos(theta)/pi).
 
     The report draws theta = acos(r^(1/(1+n))) with n = 1, i.e. cos(theta) = sqrt(r).
     Written as z = sqrt(1 - u1) with u1 clamped below 1 it never returns z = 0, so
     the pdf is always positive and f*cos/pdf is exactly the albedo (hard case S1).
     """
-    return np.stack(_cosine_local(u1, u2), axis=1)
+    u1 = np.minimum(u1, ONE_MINUS_EPSILON)
+    z = np.sqrt(1.0 - u1)
+    r = np.sqrt(u1)
+    c, s = unit_circle(u2)
+    return np.stack([r * c, r * s, z])
 
 
 def to_world(local: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """Rotate directions given about +z into the frame of each normal."""
+    """Rotate direction rows given about +z into the frame of each normal (rows)."""
     tangent, bitangent = orthonormal_basis(normal)
-    return (local[:, 0:1] * tangent + local[:, 1:2] * bitangent + local[:, 2:3] * normal)
+    return local[0] * tangent + local[1] * bitangent + local[2] * normal
 
 
 def cosine_directions(u1: np.ndarray, u2: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """to_world(cosine_hemisphere(u1, u2), normal) computed per component, without the
-    intermediate (N, 3) arrays: the diffuse bounce of the integrator (eq. 2.13-2.14)."""
-    lx, ly, lz = _cosine_local(u1, u2)
-    x, y, z = normal[:, 0], normal[:, 1], normal[:, 2]
-    sign = np.copysign(1.0, z)                      # Duff et al., as orthonormal_basis
-    a = -1.0 / (sign + z)
-    b = x * y * a
-    out = np.empty((len(lx), 3))
-    # tangent = (1 + sign x^2 a, sign b, -sign x); bitangent = (b, sign + y^2 a, -y)
-    sx = sign * x
-    out[:, 0] = lx * (1.0 + sx * x * a) + ly * b + lz * x
-    out[:, 1] = lx * (sign * b) + ly * (sign + y * y * a) + lz * y
-    out[:, 2] = ly * -y - lx * sx + lz * z
-    return out
+    """to_world(cosine_hemisphere(u1, u2), normal): the diffuse bounce (eq. 2.13-2.14)."""
+    return to_world(cosine_hemisphere(u1, u2), normal)
 
 
 def uniform_triangle(u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -89,8 +72,8 @@ def uniform_triangle(u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 def uniform_sphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
-    """Directions uniform over the unit sphere (pdf over the sphere's area = 1/A)."""
+    """Direction rows uniform over the unit sphere (pdf over the sphere's area = 1/A)."""
     z = 1.0 - 2.0 * u1
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
     c, s = unit_circle(u2)
-    return np.stack([r * c, r * s, z], axis=1)
+    return np.stack([r * c, r * s, z])

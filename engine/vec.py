@@ -1,9 +1,14 @@
-"""Row-wise 3-vector helpers for (N, 3) arrays.
+"""3-vectors of a batch as rows: (3, N) arrays, x, y and z each contiguous (struct of arrays).
 
-NumPy reduces slowly along a short last axis: on this project's machines
-`a.max(axis=1)` on (32768, 3) takes ~1.8 ms and `np.einsum('ij,ij->i')` ~0.3 ms,
-while the same work written per component takes 0.25 and 0.15 ms.  The hot paths
-use these helpers instead.
+Why rows: on this project's machines NumPy is slow on the short last axis of (N, 3)
+arrays.  For 25,000 vectors, `u[:, None] * e` takes 173 us against 57 us for rows,
+`e * colour` with a (3,) colour 212 us against 21 us, and a row-wise dot product with
+strided components several times the time of contiguous ones.  The tracer keeps every
+per-ray vector as rows; a single vector (a sphere centre, a colour) is a (3,) array,
+and `vector[:, None]` broadcasts it over rows.
+
+The triangle accelerators take (N, 3) arrays (Embree: float32); `aos` builds one in
+a single pass.
 """
 from __future__ import annotations
 
@@ -11,7 +16,8 @@ import numpy as np
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+    """Per-ray dot product of rows (either may be a single (3,) vector)."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 def norm(a: np.ndarray) -> np.ndarray:
@@ -19,23 +25,31 @@ def norm(a: np.ndarray) -> np.ndarray:
 
 
 def normalize(a: np.ndarray) -> np.ndarray:
-    return a / norm(a)[:, None]
+    return a / norm(a)
 
 
 def max3(a: np.ndarray) -> np.ndarray:
-    """Largest component of each row."""
-    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
+    """Largest component of each vector."""
+    return np.maximum(np.maximum(a[0], a[1]), a[2])
 
 
 def max_abs3(a: np.ndarray) -> np.ndarray:
-    """Largest absolute component of each row (the scale of a position)."""
-    return np.maximum(np.maximum(np.abs(a[:, 0]), np.abs(a[:, 1])), np.abs(a[:, 2]))
+    """Largest absolute component of each vector (the scale of a position)."""
+    return np.maximum(np.maximum(np.abs(a[0]), np.abs(a[1])), np.abs(a[2]))
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product; either argument may be a single 3-vector."""
-    a = np.asarray(a)
-    b = np.asarray(b)
-    ax, ay, az = (a[..., 0], a[..., 1], a[..., 2])
-    bx, by, bz = (b[..., 0], b[..., 1], b[..., 2])
-    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
+    """Per-ray cross product of rows; either argument may be a single (3,) vector."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def rows(vectors) -> np.ndarray:
+    """(3, N) float64 rows from (N, 3) vectors (the layout of scene data and tests)."""
+    return np.ascontiguousarray(np.asarray(vectors, dtype=np.float64).reshape(-1, 3).T)
+
+
+def aos(a: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """(N, 3) C-contiguous vectors from rows (for Embree: dtype float32)."""
+    out = np.empty((a.shape[1], 3), dtype=dtype)
+    out[:, 0], out[:, 1], out[:, 2] = a[0], a[1], a[2]
+    return out

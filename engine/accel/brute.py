@@ -10,6 +10,7 @@ PAIRS_PER_CHUNK = 1 << 20
 
 
 class BruteForceAccelerator:
+    ray_dtype = np.float64               # what intersect() and occluded() take
     name = "brute"
 
     def __init__(self, triangles: np.ndarray):

@@ -10,6 +10,7 @@ FLOAT32_FAR = np.float32(3.0e38)
 
 
 class EmbreeAccelerator:
+    ray_dtype = np.float32               # what intersect() and occluded() take
     name = "embree"
 
     def __init__(self, triangles: np.ndarray):
@@ -31,7 +32,7 @@ class EmbreeAccelerator:
         if self.count == 0 or n == 0:
             return (np.full(n, np.inf), np.full(n, -1, dtype=np.int64),
                     np.zeros(n), np.zeros(n))
-        result = self.scene.run(origins.astype(np.float32), directions.astype(np.float32),
+        result = self.scene.run(np.asarray(origins, np.float32), np.asarray(directions, np.float32),
                                 dists=self._tfar(tmax), output=1)
         prim = result["primID"].astype(np.int64)
         hit = prim >= 0
@@ -42,6 +43,6 @@ class EmbreeAccelerator:
         n = len(origins)
         if self.count == 0 or n == 0:
             return np.zeros(n, dtype=bool)
-        ids = self.scene.run(origins.astype(np.float32), directions.astype(np.float32),
+        ids = self.scene.run(np.asarray(origins, np.float32), np.asarray(directions, np.float32),
                              dists=self._tfar(tmax), query="OCCLUDED")
         return ids >= 0

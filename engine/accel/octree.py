@@ -24,6 +24,7 @@ GAMMA3 = 3 * 2.0 ** -53 / (1 - 3 * 2.0 ** -53)
 
 
 class OctreeAccelerator:
+    ray_dtype = np.float64               # what intersect() and occluded() take
     name = "octree"
 
     def __init__(self, triangles: np.ndarray):

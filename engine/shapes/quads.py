@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..vec import cross, dot, max_abs3
-from .spheres import soa
+from ..vec import cross, dot, max_abs3, rows
 
 EPS64 = np.finfo(np.float64).eps
 
@@ -29,64 +28,60 @@ class QuadSet:
         self.center = q.mean(axis=1)
         self.radius2 = (((q - self.center[:, None]) ** 2).sum(axis=2)).max(axis=1) * (1 + 1e-9)
         self.count = len(q)
+        self.normal_rows, self.v00_rows = rows(self.normal), rows(self.v00)
 
-    def intersect_one(self, k: int, origins: np.ndarray, directions: np.ndarray,
+    def intersect_one(self, k: int, o: np.ndarray, d: np.ndarray,
                       t_best: np.ndarray | None = None) -> np.ndarray:
-        """t > 0 of each ray (rows of (N, 3) arrays) with quad k, +inf where it misses."""
-        return self.intersect_one_soa(k, soa(origins), soa(directions), t_best)
-
-    def intersect_one_soa(self, k: int, o_rows: np.ndarray, d_rows: np.ndarray,
-                          t_best: np.ndarray | None = None) -> np.ndarray:
-        """As intersect_one for (3, N) rays.  Parallel rays miss.
+        """t > 0 of each ray (rows, see engine/vec.py) with quad k, +inf where it misses.
+        Parallel rays miss.
 
         The plane distance is computed first; the edge tests run only for rays whose
         plane hit lies in (0, t_best) and within the quad's circumscribed circle.
         """
         v00, v10, v11, v01, n = self.v00[k], self.v10[k], self.v11[k], self.v01[k], self.normal[k]
-        t_out = np.full(o_rows.shape[1], np.inf)
+        t_out = np.full(o.shape[1], np.inf)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = (v00 @ n - (n[0] * o_rows[0] + n[1] * o_rows[1] + n[2] * o_rows[2])) / (
-                n[0] * d_rows[0] + n[1] * d_rows[1] + n[2] * d_rows[2])
+            t = (dot(v00, n) - dot(n, o)) / dot(n, d)
         candidate = (t > 0.0) & np.isfinite(t)
         if t_best is not None:
             candidate &= t < t_best
         idx = np.flatnonzero(candidate)
         if len(idx) == 0:
             return t_out
-        o, d, t = o_rows[:, idx].T, d_rows[:, idx].T, t.take(idx)
-        rel = o + t[:, None] * d - self.center[k]
-        near = dot(rel, rel) <= self.radius2[k]
-        idx, o, d, t = idx[near], o[near], d[near], t[near]
+        o, d, t = o.take(idx, axis=1), d.take(idx, axis=1), t.take(idx)
+        rel = o + t * d - self.center[k][:, None]
+        near = np.flatnonzero(dot(rel, rel) <= self.radius2[k])
+        idx, o, d, t = idx.take(near), o.take(near, axis=1), d.take(near, axis=1), t.take(near)
         if len(idx) == 0:
             return t_out
         with np.errstate(divide="ignore", invalid="ignore"):
             e01 = v10 - v00
             e03 = v01 - v00
             p = cross(d, e03)
-            det = p @ e01
+            det = dot(p, e01)
             inv = 1.0 / det
-            tvec = o - v00
+            tvec = o - v00[:, None]
             alpha = dot(tvec, p) * inv
             beta = dot(d, cross(tvec, e01)) * inv
             inside = (alpha >= 0.0) & (beta >= 0.0) & (det != 0.0) & np.isfinite(det)
-            second = inside & (alpha + beta > 1.0)
-            if second.any():
+            second = np.flatnonzero(inside & (alpha + beta > 1.0))
+            if len(second):
                 e23 = v01 - v11
                 e21 = v10 - v11
-                d2 = d[second]
+                d2 = d.take(second, axis=1)
                 p2 = cross(d2, e21)
-                inv2 = 1.0 / (p2 @ e23)
-                t2vec = o[second] - v11
+                inv2 = 1.0 / dot(p2, e23)
+                t2vec = o.take(second, axis=1) - v11[:, None]
                 alpha2 = dot(t2vec, p2) * inv2
                 beta2 = dot(d2, cross(t2vec, e23)) * inv2
                 inside[second] = (alpha2 >= 0.0) & (beta2 >= 0.0)
         t_out[idx] = np.where(inside, t, np.inf)
         return t_out
 
-    def surface(self, origins, directions, t, index):
-        """Hit point projected onto the plane, unit normal and spawn offset."""
-        n = self.normal.take(index, axis=0)
-        p = origins + t[:, None] * directions
-        p -= dot(p - self.v00.take(index, axis=0), n)[:, None] * n
+    def surface(self, o, d, t, index):
+        """Hit point projected onto the plane, unit normal (rows) and spawn offset."""
+        n = self.normal_rows.take(index, axis=1)
+        p = o + t * d
+        p -= dot(p - self.v00_rows.take(index, axis=1), n) * n
         offset = 64.0 * EPS64 * np.maximum(max_abs3(p), self.scale.take(index))
         return p, n, offset

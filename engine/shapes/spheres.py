@@ -15,15 +15,9 @@ from ..vec import dot, max_abs3, norm
 EPS64 = np.finfo(np.float64).eps
 
 
-def intersect_sphere(origins: np.ndarray, directions: np.ndarray, center: np.ndarray,
+def intersect_sphere(o: np.ndarray, d: np.ndarray, center: np.ndarray,
                      radius: float, t_best: np.ndarray | None = None) -> np.ndarray:
-    """Nearest t > 0 of each ray (rows of (N, 3) arrays) with one sphere; +inf if none."""
-    return intersect_sphere_soa(soa(origins), soa(directions), center, radius, t_best)
-
-
-def intersect_sphere_soa(o: np.ndarray, d: np.ndarray, center: np.ndarray,
-                         radius: float, t_best: np.ndarray | None = None) -> np.ndarray:
-    """As intersect_sphere, for rays given as (3, N) rows (see `soa`).
+    """Nearest t > 0 of each ray (rows, see engine/vec.py) with one sphere; +inf if none.
 
     A cheap test on the textbook discriminant first discards rays that clearly miss
     (or whose sphere lies beyond t_best); the stable solve runs on the rest only.
@@ -42,13 +36,13 @@ def intersect_sphere_soa(o: np.ndarray, d: np.ndarray, center: np.ndarray,
     idx = np.flatnonzero(maybe)
     if len(idx) == 0:
         return t_out
-    dd = d[:, idx].T
-    f = np.stack([fx.take(idx), fy.take(idx), fz.take(idx)], axis=1)
+    dd = d.take(idx, axis=1)
+    f = np.stack([fx.take(idx), fy.take(idx), fz.take(idx)])
     a = dot(dd, dd)                                                  # eq. 2.5a
     b = 2.0 * half_b.take(idx)                                       # eq. 2.5b
     c = c.take(idx)
     with np.errstate(divide="ignore", invalid="ignore"):
-        v = f - (0.5 * b / a)[:, None] * dd
+        v = f - (0.5 * b / a) * dd
         length = np.sqrt(dot(v, v))
         discriminant = 4.0 * a * (radius + length) * (radius - length)   # B^2 - 4AC
         root = np.sqrt(np.maximum(discriminant, 0.0))
@@ -63,23 +57,16 @@ def intersect_sphere_soa(o: np.ndarray, d: np.ndarray, center: np.ndarray,
     return t_out
 
 
-def soa(rays: np.ndarray) -> np.ndarray:
-    """(3, N) contiguous rows of an (N, 3) array: x, y and z each contiguous for fast
-    element-wise arithmetic."""
-    return np.ascontiguousarray(np.asarray(rays, dtype=np.float64).T)
-
-
-def surface_point(origins, directions, t, centers, radii):
-    """Hit point projected back onto the sphere, outward unit normal, offset distance.
+def surface_point(o, d, t, centers, radii):
+    """Hit point projected back onto the sphere, outward unit normal (rows), offset distance.
 
     Reprojection (pbrt) removes the error of o + t d.  The spawn offset covers the
     float64 error of the reprojected point only: spheres are tested in float64, and a
     far-away tiny sphere must not be offset by more than its own size.
     """
-    p = origins + t[:, None] * directions
+    p = o + t * d
     rel = p - centers
-    dist = norm(rel)
-    normal = rel / dist[:, None]
-    p = centers + radii[:, None] * normal
+    normal = rel / norm(rel)
+    p = centers + radii * normal
     offset = 64.0 * EPS64 * (max_abs3(p) + radii)
     return p, normal, offset

@@ -75,7 +75,7 @@ def test_camera_matches_blender_projection(scene, res, fit, shift):
     from mcrt_addon import bridge
     camera_rays = bridge.module("camera").camera_rays
     _, dirs = camera_rays(cam, res[0], res[1], xs.ravel(), ys.ravel())
-    np.testing.assert_allclose(dirs.reshape(d.shape), d, atol=1e-9)
+    np.testing.assert_allclose(dirs.T.reshape(d.shape), d, atol=1e-9)
 
 
 @pytest.mark.parametrize("crop", [(5, 3, 20, 11), (0, 0, 10, 24), (13, 7, 40, 24)])

@@ -99,7 +99,8 @@ def fuzz_one(seed: int) -> None:
     d[1] = np.nan
     with np.errstate(all="ignore"):
         d = d / np.linalg.norm(d, axis=1)[:, None]
-        t, kind, prim, u, v = geo.intersect(o, d, Counters())
+        t, kind, prim, u, v = geo.intersect(o.T.copy(), d.T.copy(), Counters())
+    assert len(t) == n
     assert not np.isnan(t).any(), f"seed {seed}: NaN distance"
     assert (t[kind > 0] > 0).all(), f"seed {seed}: hit at t <= 0"
 

@@ -5,6 +5,7 @@ import pytest
 from engine.geometry import NONE, Counters, SceneGeometry
 from engine.sampling import cosine_hemisphere, to_world
 from engine.scene import Camera, Material, Scene, Sphere, TriangleMesh
+from engine.vec import rows
 
 
 def plane_mesh(center, normal, size, name="Plane"):
@@ -23,15 +24,26 @@ def scene_of(meshes=(), spheres=()):
     return Scene(Camera.look_at((0, 0, 10), (0, 0, 0), up=(0, 1, 0)), [Material("m")], list(meshes), list(spheres))
 
 
+def intersect(geo, o, d, counters=None):
+    """geo.intersect for (N, 3) rays (the tracer takes rows)."""
+    return geo.intersect(rows(o), rows(d), counters or Counters())
+
+
+def surface_of_hits(geo, origins, directions, counters=None):
+    """(hits, surface with point and normal as (N, 3)) for (N, 3) rays, in hit order."""
+    hits = geo.nearest_hits(rows(origins), rows(directions), counters or Counters())
+    s = geo.surface(rows(origins[hits.index]), rows(directions[hits.index]), hits)
+    s.point, s.normal = s.point.T, s.normal.T
+    return hits, s
+
+
 def spawn_from_hits(geo, origins, directions, rng):
-    counters = Counters()
-    hits = geo.nearest_hits(origins, directions, counters)
+    hits, s = surface_of_hits(geo, origins, directions)
     assert len(hits.miss) == 0
     origins, directions = origins[hits.index], directions[hits.index]
-    s = geo.surface(origins, directions, hits)
     facing = np.where((np.einsum("ij,ij->i", directions, s.normal) < 0)[:, None], s.normal, -s.normal)
     n = len(origins)
-    new_d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), facing)
+    new_d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), rows(facing)).T
     return s.point + s.offset[:, None] * facing, new_d, facing, s
 
 
@@ -48,7 +60,7 @@ def test_no_self_hits_on_planes_far_from_origin(distance, normal):
     targets = center + jitter
     origins = targets + n_hat * max(distance, 10)
     o, d, _, _ = spawn_from_hits(geo, origins, np.tile(-n_hat, (m, 1)), rng)
-    t, kind, *_ = geo.intersect(o, d, Counters())
+    t, kind, *_ = intersect(geo, o, d)
     assert (kind == NONE).sum() == m, f"{m - (kind == NONE).sum()} self-hits at {distance}"
 
 
@@ -68,10 +80,9 @@ def test_thin_gap_is_not_skipped(height, gap):
     o, new_d, facing, _ = spawn_from_hits(geo, origins, d, rng)
     assert (facing[:, 2] < 0).all()  # seen from below
     # Go through: origin on the far side of the lower plane, heading up.
-    first = geo.nearest_hits(origins, d, counters)
-    hits = geo.surface(origins[first.index], d[first.index], first)
+    _, hits = surface_of_hits(geo, origins, d, counters)
     o = hits.point + hits.offset[:, None] * np.array([0, 0, 1.0])
-    t, kind, prim, u, v = geo.intersect(o, d, counters)
+    t, kind, prim, u, v = intersect(geo, o, d, counters)
     assert (kind != NONE).all()
     assert np.allclose(o[:, 2] + t, height + gap, atol=gap * 0.5)
 
@@ -87,12 +98,12 @@ def test_sphere_reintersection_and_inner_chord(radius, center):
     dirs /= np.linalg.norm(dirs, axis=1)[:, None]
     origins = c + dirs * radius * 3
     o, d, facing, s = spawn_from_hits(geo, origins, -dirs, rng)
-    t, kind, *_ = geo.intersect(o, d, Counters())
+    t, kind, *_ = intersect(geo, o, d)
     assert (kind == NONE).all(), "outward rays re-hit their own sphere"
     # Inward: the far side at chord 2 r cos(theta).
     inward = -d
     o_in = s.point - s.offset[:, None] * facing
-    t, kind, *_ = geo.intersect(o_in, inward, Counters())
+    t, kind, *_ = intersect(geo, o_in, inward)
     cos_theta = np.einsum("ij,ij->i", inward, -s.normal)
     assert (kind != NONE).all()
     # Starting `offset` inside the surface shortens the chord by about offset / cos(theta).

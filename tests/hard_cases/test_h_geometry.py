@@ -9,6 +9,7 @@ from engine.accel.octree import OctreeAccelerator
 from engine.geometry import NONE, QUAD, Counters, SceneGeometry
 from engine.sampling import orthonormal_basis
 from engine.scene import DIFFUSE, GLASS, Camera, Material, Quad, Scene, Sphere, TriangleMesh
+from engine.vec import rows
 
 SILENT = dict(log=lambda *a: None)
 
@@ -106,7 +107,8 @@ def test_h8_closed_box_of_quads_leaks_no_ray():
     edge_targets = np.round(rng.uniform(-1, 1, (k, 3)) * 2) / 2
     edge_targets[:, rng.integers(0, 3)] = np.sign(rng.normal(size=k)) + 0.0
     d[:k] = unit_rows(edge_targets - o[:k])
-    t, kind, *_ = geo.intersect(o, d, Counters())
+    t, kind, *_ = geo.intersect(rows(o), rows(d), Counters())
+    assert len(kind) == n
     assert (kind == QUAD).all()
 
 
@@ -118,7 +120,8 @@ def test_h8_closed_triangle_box_leaks_no_ray():
     n = 200_000
     o = rng.uniform(-0.5, 0.5, (n, 3))
     d = unit_rows(np.concatenate([rng.normal(size=(n // 2, 3)), v[rng.integers(0, len(v), n - n // 2)] * 2 - o[n // 2:]]))
-    t, kind, *_ = geo.intersect(o, d, Counters())
+    t, kind, *_ = geo.intersect(rows(o), rows(d), Counters())
+    assert len(kind) == n
     assert (kind != NONE).all()
 
 
@@ -141,12 +144,12 @@ def test_h12_sphere_pole_frame_is_orthonormal():
     from engine.shapes.spheres import intersect_sphere, surface_point
     o = np.array([[0, 0, -5.0], [0, 0, 5.0]])
     d = np.array([[0, 0, 1.0], [0, 0, -1.0]])
-    t = intersect_sphere(o, d, np.zeros(3), 1.0)
-    p, n, _ = surface_point(o, d, t, np.zeros((2, 3)), np.ones(2))
-    assert np.allclose(n, [[0, 0, -1], [0, 0, 1]])
+    t = intersect_sphere(rows(o), rows(d), np.zeros(3), 1.0)
+    p, n, _ = surface_point(rows(o), rows(d), t, np.zeros((3, 2)), np.ones(2))
+    assert np.allclose(n.T, [[0, 0, -1], [0, 0, 1]])
     tangent, bitangent = orthonormal_basis(n)
     for i in range(2):
-        m = np.stack([tangent[i], bitangent[i], n[i]])
+        m = np.stack([tangent[:, i], bitangent[:, i], n[:, i]])
         assert np.isfinite(m).all() and np.abs(m @ m.T - np.eye(3)).max() < 1e-12
 
 
@@ -187,11 +190,12 @@ def test_h15_unoccluded_light_has_visibility_exactly_one(as_mesh):
     counters = Counters()
     # Occlusion alone: every shadow ray toward the light must be unblocked.
     ls = lights.sample(rng.random(n), rng.random(n), rng.random(n))
+    point, ls_normal = ls.point.T, ls.normal.T
     origin = pts + offset[:, None] * normal
-    target = ls.point - ls.offset[:, None] * ls.normal * np.sign(np.einsum("ij,ij->i", ls.normal, ls.point - pts))[:, None]
+    target = point - ls.offset[:, None] * ls_normal * np.sign(np.einsum("ij,ij->i", ls_normal, point - pts))[:, None]
     seg = target - origin
     length = np.linalg.norm(seg, axis=1)
-    blocked = geo.occluded(origin, seg / length[:, None], length * (1 - 2 ** -20), counters)
-    assert blocked.sum() == 0
-    direct = tracer.direct_light(pts, normal, np.ones((n, 3)), offset, rng, counters)
-    assert np.isfinite(direct).all() and (direct > 0).all()
+    blocked = geo.occluded(rows(origin), rows(seg / length[:, None]), length * (1 - 2 ** -20), counters)
+    assert len(blocked) == n and blocked.sum() == 0
+    direct = tracer.direct_light(rows(pts), rows(normal), np.ones((3, n)), offset, rng, counters)
+    assert direct.shape == (3, n) and np.isfinite(direct).all() and (direct > 0).all()

@@ -65,15 +65,17 @@ def test_water_in_glass_refracts_by_the_ior_ratio_and_the_stack_pushes_and_pops(
     n_out = np.array([[0.0, 0.0, 1.0]])                  # water surface normal, ray comes from above
     media = np.array([[1.5, 1.0, 1.0, 1.0]])             # the path is inside the glass (1.5)
     depth = np.array([1])
-    out, side = tracer.scatter_glass(d, n_out, n_out, d @ n_out[0], np.array([1.33]), AlwaysRefract(),
+    out, side = tracer.scatter_glass(d.T, n_out.T, n_out.T, d @ n_out[0], np.array([1.33]), AlwaysRefract(),
                                      (media, depth))
+    out = out.T                                          # rows -> (N, 3)
     sin_t = np.hypot(out[0, 0], out[0, 1])
     assert side[0] == -1.0
     assert 1.5 * np.sin(theta) == pytest.approx(1.33 * sin_t, abs=1e-12)   # Snell with n1 = glass
     assert depth[0] == 2 and media[0, 1] == 1.33                            # pushed: now in water
     # Leaving the water again (hitting its surface from inside): back into glass, popped.
     back = np.array([[np.sin(theta), 0.0, np.cos(theta)]])
-    out2, side2 = tracer.scatter_glass(back, n_out, -n_out, back @ n_out[0], np.array([1.33]),
+    out2, side2 = tracer.scatter_glass(back.T, n_out.T, -n_out.T, back @ n_out[0], np.array([1.33]),
                                        AlwaysRefract(), (media, depth))
+    out2 = out2.T
     assert 1.33 * np.sin(theta) == pytest.approx(1.5 * np.hypot(out2[0, 0], out2[0, 1]), abs=1e-12)
     assert depth[0] == 1 and side2[0] == -1.0

@@ -46,7 +46,7 @@ def test_index_matched_interface_passes_straight_through(model):
     n = np.array([[0, 0, 1.0]])
     cos_i = -np.einsum("ij,ij->i", d, n)
     cos_t, _ = refract_cos(cos_i, np.array([1.0]))
-    assert np.allclose(refract(d, n, cos_i, cos_t, np.array([1.0])), d, atol=1e-15)
+    assert np.allclose(refract(d.T, n.T, cos_i, cos_t, np.array([1.0])).T, d, atol=1e-15)
 
 
 def test_snell_law_and_unit_length():
@@ -58,7 +58,7 @@ def test_snell_law_and_unit_length():
     cos_i = np.cos(theta)
     cos_t, tir = refract_cos(cos_i, eta)
     assert not tir.any()
-    t = refract(d, n, cos_i, cos_t, eta)
+    t = refract(d.T, n.T, cos_i, cos_t, eta).T             # directions as rows (3, N)
     assert np.allclose(np.linalg.norm(t, axis=1), 1, atol=1e-12)
     sin_t = np.hypot(t[:, 0], t[:, 1])
     assert np.abs(np.sin(theta) - 1.5 * sin_t).max() < 1e-12
@@ -68,5 +68,5 @@ def test_snell_law_and_unit_length():
 def test_reflect_at_grazing_incidence():
     theta = np.radians(89.99)
     d = np.array([[np.sin(theta), 0, -np.cos(theta)]])
-    r = reflect(d, np.array([[0, 0, 1.0]]))
+    r = reflect(d.T, np.array([[0, 0, 1.0]]).T).T
     assert r[0, 2] > 0 and np.linalg.norm(r) == pytest.approx(1.0, abs=1e-15)

@@ -143,8 +143,9 @@ def test_t1_every_shadow_ray_inside_an_emitting_sphere_weighs_exactly_rho_le():
     centre = np.array(scene.spheres[0].center)
     o = np.tile(centre, (n, 1))
     t = np.full(n, radius)
-    point, normal, offset = surface_point(o, dirs, t, np.tile(centre, (n, 1)), np.full(n, radius))
-    direct = tracer.direct_light(point, -normal, np.full((n, 3), rho), offset, rng, Counters())
+    point, normal, offset = surface_point(o.T, dirs.T, t, np.tile(centre, (n, 1)).T, np.full(n, radius))
+    direct = tracer.direct_light(point, -normal, np.full((3, n), rho), offset, rng, Counters())
+    assert direct.shape == (3, n)
     # Samples landing (almost) on the shading point itself carry cos -> 0 and are dropped: none here.
     assert np.allclose(direct, rho * le / np.pi * np.pi, rtol=1e-6)
 

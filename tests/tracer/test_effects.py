@@ -25,9 +25,9 @@ class CallCounter:
 
 @pytest.fixture
 def spies(monkeypatch):
-    sphere = CallCounter(engine.geometry.intersect_sphere_soa)
+    sphere = CallCounter(engine.geometry.intersect_sphere)
     refract = CallCounter(engine.integrator.refract_cos)
-    monkeypatch.setattr(engine.geometry, "intersect_sphere_soa", sphere)
+    monkeypatch.setattr(engine.geometry, "intersect_sphere", sphere)
     monkeypatch.setattr(engine.integrator, "refract_cos", refract)
     return sphere, refract
 

@@ -7,6 +7,7 @@ from engine.geometry import NONE, QUAD, SPHERE, TRIANGLE, Counters, SceneGeometr
 from engine.scene import Camera, Material, Quad, Scene, Sphere, TriangleMesh
 from engine.shapes.quads import QuadSet
 from engine.shapes.spheres import intersect_sphere, surface_point
+from engine.vec import rows
 
 
 def unit(v):
@@ -18,12 +19,12 @@ class TestSphere:
     def test_head_on_hit_and_miss(self):
         o = np.array([[0, 0, -5.0], [0, 2, -5.0], [0, 0, 5.0]])
         d = np.array([[0, 0, 1.0], [0, 0, 1.0], [0, 0, 1.0]])
-        t = intersect_sphere(o, d, np.zeros(3), 1.0)
+        t = intersect_sphere(rows(o), rows(d), np.zeros(3), 1.0)
         assert t[0] == pytest.approx(4.0, abs=1e-12)
         assert np.isinf(t[1]) and np.isinf(t[2])  # passes beside; sphere behind
 
     def test_from_inside_hits_far_side(self):
-        t = intersect_sphere(np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]), np.zeros(3), 2.0)
+        t = intersect_sphere(rows([[0.0, 0, 0]]), rows([[1.0, 0, 0]]), np.zeros(3), 2.0)
         assert t[0] == pytest.approx(2.0, abs=1e-12)
 
     def test_chord_length_matches_analytic(self):
@@ -31,7 +32,7 @@ class TestSphere:
         offsets = rng.uniform(-0.99, 0.99, 200)
         o = np.stack([offsets, np.zeros(200), np.full(200, -10.0)], axis=1)
         d = np.tile([0, 0, 1.0], (200, 1))
-        t = intersect_sphere(o, d, np.zeros(3), 1.0)
+        t = intersect_sphere(rows(o), rows(d), np.zeros(3), 1.0)
         assert np.allclose(t, 10.0 - np.sqrt(1 - offsets ** 2), rtol=1e-12)
 
     def test_grazing_tangent_rays(self):
@@ -43,15 +44,16 @@ class TestSphere:
         for scale, expect_hit in ((0.999, True), (1.001, False)):
             target = c + scale * r * np.stack([np.cos(phi), np.sin(phi), np.zeros(n)], axis=1)
             d = unit(target)
-            t = intersect_sphere(np.zeros((n, 3)), d, c, r)
+            t = intersect_sphere(np.zeros((3, n)), rows(d), c, r)
             assert (np.isfinite(t) == expect_hit).all()
             if expect_hit:
-                p, normal, _ = surface_point(np.zeros((n, 3)), d, t, np.tile(c, (n, 1)), np.full(n, r))
+                p, normal, _ = surface_point(np.zeros((3, n)), rows(d), t, rows(np.tile(c, (n, 1))), np.full(n, r))
+                assert np.abs(np.linalg.norm(p.T - c, axis=1) - r).max() <= 1e-12 * np.abs(c).max()
                 raw = d * t[:, None]
                 assert np.abs(np.linalg.norm(raw - c, axis=1) - r).max() <= 1e-6 * r
 
     def test_degenerate_direction_is_a_miss_not_nan(self):
-        t = intersect_sphere(np.array([[0, 0, -5.0]]), np.array([[0, 0, 0.0]]), np.zeros(3), 1.0)
+        t = intersect_sphere(rows([[0, 0, -5.0]]), rows([[0, 0, 0.0]]), np.zeros(3), 1.0)
         assert np.isinf(t[0])
 
 
@@ -67,19 +69,19 @@ class TestQuad:
         pts = np.concatenate([pts, diag])
         o = pts + np.array([0, 0, 3.0])
         d = np.tile([0, 0, -1.0], (len(o), 1))
-        t = qs.intersect_one(0, o, d)
+        t = qs.intersect_one(0, rows(o), rows(d))
         assert np.allclose(t, 3.0, rtol=1e-12)
 
     def test_outside_misses(self):
         qs = QuadSet(self.corners)
         o = np.array([[2.01, 0.5, 1], [-0.01, 0.5, 1], [1, 1.01, 1], [1, -0.01, 1]])
-        t = qs.intersect_one(0, o, np.tile([0, 0, -1.0], (4, 1)))
+        t = qs.intersect_one(0, rows(o), rows(np.tile([0, 0, -1.0], (4, 1))))
         assert np.isinf(t).all()
 
     def test_parallel_in_plane_ray_is_a_miss(self):
         qs = QuadSet(self.corners)
         o = np.array([[-1, 0.5, 0.0], [-1, 0.5, 1e-12]])
-        t = qs.intersect_one(0, o, np.tile([1.0, 0, 0], (2, 1)))
+        t = qs.intersect_one(0, rows(o), rows(np.tile([1.0, 0, 0], (2, 1))))
         assert np.isinf(t).all()
 
     def test_general_convex_quad_matches_two_triangles(self):
@@ -88,7 +90,7 @@ class TestQuad:
         rng = np.random.default_rng(3)
         xy = rng.uniform(-0.5, 3.5, (4000, 2))
         o = np.concatenate([xy, np.ones((4000, 1))], axis=1)
-        t = qs.intersect_one(0, o, np.tile([0, 0, -1.0], (4000, 1)))
+        t = qs.intersect_one(0, rows(o), rows(np.tile([0, 0, -1.0], (4000, 1))))
 
         def inside_tri(p, a, b, c):
             def s(p1, p2, p3):
@@ -143,7 +145,7 @@ def test_nearest_hit_across_kinds():
     geo = SceneGeometry(_mixed_scene())
     o = np.array([[0, 0, 0.0], [0, 0, 1.8], [0, 0, 2.5], [0, 0, 4.0], [9, 9, 0.0]])
     d = np.tile([0, 0, 1.0], (5, 1))
-    t, kind, prim, u, v = geo.intersect(o, d, Counters())
+    t, kind, prim, u, v = geo.intersect(rows(o), rows(d), Counters())
     assert kind.tolist() == [SPHERE, QUAD, TRIANGLE, NONE, NONE]
     assert t[:3] == pytest.approx([0.5, 0.2, 0.5], rel=1e-6)
     assert np.isinf(t[3:]).all()
@@ -153,6 +155,6 @@ def test_nan_ray_never_wins_the_nearest_hit():
     geo = SceneGeometry(_mixed_scene())
     o = np.array([[0, 0, 0.0], [np.nan, 0, 0.0]])
     d = np.array([[0, 0, 1.0], [0, 0, 1.0]])
-    t, kind, prim, u, v = geo.intersect(o, d, Counters())
+    t, kind, prim, u, v = geo.intersect(rows(o), rows(d), Counters())
     assert kind[0] == SPHERE and t[0] == pytest.approx(0.5)
     assert kind[1] == NONE and np.isinf(t[1])

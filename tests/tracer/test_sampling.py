@@ -5,7 +5,7 @@ from scipy import stats
 
 from engine.lights import LightSampler
 from engine.sampling import cosine_hemisphere, orthonormal_basis, to_world, uniform_triangle
-from engine.scene import Camera, Material, Quad, Scene, Sphere
+from engine.scene import Camera, Material, Quad, Scene, Sphere, TriangleMesh
 
 ALPHA = 0.01
 
@@ -49,7 +49,7 @@ def histogram_directions(d, z_bins, phi_bins):
 def test_cosine_hemisphere_chi2():
     rng = np.random.default_rng(10)
     n = 1_000_000
-    d = cosine_hemisphere(rng.random(n), rng.random(n))
+    d = cosine_hemisphere(rng.random(n), rng.random(n)).T      # rows -> (N, 3)
     assert (d[:, 2] > 0).all()
     p, dof = pooled_chi2(histogram_directions(d, 40, 40), cosine_cells(40, 40, n))
     assert dof > 100
@@ -74,8 +74,8 @@ def test_chi2_rejects_a_wrong_hemisphere_sampler():
 def test_orthonormal_basis_is_orthonormal(normal):
     n = np.array([normal], dtype=float)
     n /= np.linalg.norm(n)
-    t, b = orthonormal_basis(n)
-    m = np.stack([t[0], b[0], n[0]])
+    t, b = orthonormal_basis(n.T)
+    m = np.stack([t[:, 0], b[:, 0], n[0]])
     assert np.isfinite(m).all()
     assert np.abs(m @ m.T - np.eye(3)).max() < 1e-10
 
@@ -83,7 +83,7 @@ def test_orthonormal_basis_is_orthonormal(normal):
 def test_cosine_sample_at_u_one_keeps_positive_pdf():
     # Hard case S1: u -> 1 would give z = 0, pdf 0 and 0/0 downstream.
     u = np.array([np.nextafter(1.0, 0.0), 1.0, float(np.float32(1 - 2 ** -25))])
-    d = cosine_hemisphere(u, np.full(3, 0.3))
+    d = cosine_hemisphere(u, np.full(3, 0.3)).T
     assert (d[:, 2] > 0).all()
     assert np.allclose(np.linalg.norm(d, axis=1), 1, atol=1e-12)
 
@@ -92,27 +92,33 @@ def test_to_world_keeps_directions_in_the_normal_hemisphere():
     rng = np.random.default_rng(12)
     n = rng.normal(size=(5000, 3))
     n /= np.linalg.norm(n, axis=1)[:, None]
-    d = to_world(cosine_hemisphere(rng.random(5000), rng.random(5000)), n)
+    d = to_world(cosine_hemisphere(rng.random(5000), rng.random(5000)), n.T).T
     assert (np.einsum("ij,ij->i", d, n) > 0).all()
 
 
-def _light_scene():
+def _light_scene(shape="parallelogram"):
+    """A 2x1 light at z = 1: one quad (sampled as a parallelogram) or two mesh triangles."""
     mats = [Material("L", emission=(1, 1, 1), color=(0, 0, 0))]
-    quad = Quad("Light", np.array([[0, 0, 1], [2, 0, 1], [2, 1, 1], [0, 1, 1]], float), 0)
-    return Scene(Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0)), mats, quads=[quad])
+    corners = np.array([[0, 0, 1], [2, 0, 1], [2, 1, 1], [0, 1, 1]], float)
+    camera = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0))
+    if shape == "parallelogram":
+        return Scene(camera, mats, quads=[Quad("Light", corners, 0)])
+    return Scene(camera, mats, meshes=[TriangleMesh("Light", corners, np.array([[0, 1, 2], [0, 2, 3]]), [0, 0])])
 
 
-def test_light_area_sampler_chi2():
-    """Points on a 2x1 quad light: uniform over its area (pdf 1/A, eq. 2.11)."""
-    lights = LightSampler(_light_scene())
+@pytest.mark.parametrize("shape", ["parallelogram", "triangles"])
+def test_light_area_sampler_chi2(shape):
+    """Points on a 2x1 light: uniform over its area (pdf 1/A, eq. 2.11)."""
+    lights = LightSampler(_light_scene(shape))
+    assert lights.parallelogram.tolist() == ([True] if shape == "parallelogram" else [False, False])
     rng = np.random.default_rng(13)
     n = 400_000
     s = lights.sample(rng.random(n), rng.random(n), rng.random(n))
     assert np.allclose(s.inv_pdf, 2.0)
-    assert np.allclose(s.point[:, 2], 1.0)
+    assert np.allclose(s.point[2], 1.0)
     bx, by = 20, 10
-    ix = np.minimum((s.point[:, 0] / 2 * bx).astype(int), bx - 1)
-    iy = np.minimum((s.point[:, 1] * by).astype(int), by - 1)
+    ix = np.minimum((s.point[0] / 2 * bx).astype(int), bx - 1)
+    iy = np.minimum((s.point[1] * by).astype(int), by - 1)
     counts = np.bincount(ix * by + iy, minlength=bx * by)
     p, _ = pooled_chi2(counts, np.full(bx * by, n / (bx * by)))
     assert p > ALPHA
@@ -145,4 +151,4 @@ def test_lights_picked_by_power():
     n = 100_000
     s = lights.sample(rng.random(n), rng.random(n), rng.random(n))
     # Estimator of total power over area: E[Le / p] = sum(A_i * Le_i)
-    assert np.mean(s.radiance[:, 0] * s.inv_pdf) == pytest.approx(1 + 3 + 4 * np.pi, rel=1e-9)
+    assert np.mean(s.radiance[0] * s.inv_pdf) == pytest.approx(1 + 3 + 4 * np.pi, rel=1e-9)

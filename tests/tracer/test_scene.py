@@ -82,9 +82,11 @@ def test_camera_field_of_view_follows_blender_sensor_fit(w, h, fit, expect_axis)
     # Rays through the image edges along the fitted axis.
     if expect_axis == 0:
         _, d = camera_rays(cam, w, h, np.array([0.0, float(w)]), np.array([h / 2, h / 2]))
+        d = d.T                                    # rows -> (N, 3)
         slope = d[:, 0] / -d[:, 2]
     else:
         _, d = camera_rays(cam, w, h, np.array([w / 2, w / 2]), np.array([0.0, float(h)]))
+        d = d.T
         slope = d[:, 1] / -d[:, 2]
     sensor = 24.0 if fit == "VERTICAL" else 36.0
     assert np.abs(slope).tolist() == pytest.approx([sensor / 2 / 50.0] * 2, rel=1e-12)
@@ -94,6 +96,7 @@ def test_camera_field_of_view_follows_blender_sensor_fit(w, h, fit, expect_axis)
 def test_camera_shift_and_orientation():
     cam = Camera.look_at((0, -5, 1), (0, 0, 1), lens=50.0, shift_x=0.1)
     o, d = camera_rays(cam, 100, 100, np.array([50.0]), np.array([50.0]))
+    o, d = o.T, d.T
     assert np.allclose(o, [0, -5, 1])
     # Looking along +y; shift 0.1 of the 36 mm sensor at lens 50 moves the centre ray right (+x).
     assert d[0, 1] > 0 and d[0, 0] / d[0, 1] == pytest.approx(0.1 * 36 / 50, rel=1e-12)
