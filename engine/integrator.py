@@ -229,19 +229,23 @@ class PathTracer:
         if self.lights.any_one_sided:                   # front side only: emits towards -w
             ok &= ~(ls.one_sided & (cos_ly >= 0.0))
         valid = np.flatnonzero(ok)
+        everything = len(valid) == k
+
+        def pick(a, axis=0):                          # the valid samples (no copy if all are)
+            return a if everything else a.take(valid, axis=axis)
         weight = np.zeros(k)
         if len(valid):
-            origin = x.take(valid, axis=1) + off_x.take(valid) * nx.take(valid, axis=1)
+            origin = pick(x, 1) + pick(off_x) * pick(nx, 1)
             # End point pulled off the light towards x, so the light never occludes itself.
-            pull = np.copysign(1.0, cos_ly.take(valid)) * ls.offset.take(valid)
-            target = ls.point.take(valid, axis=1) - pull * ls.normal.take(valid, axis=1)
+            pull = np.copysign(1.0, pick(cos_ly)) * pick(ls.offset)
+            target = pick(ls.point, 1) - pull * pick(ls.normal, 1)
             seg = target - origin
             seg_len = np.sqrt(dot(seg, seg))
             direction = seg / seg_len
             counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
-            g = cos_x.take(valid) * cos_y.take(valid) / dist2.take(valid)          # G(x, y)
-            weight[valid] = np.where(blocked, 0.0, g * ls.inv_pdf.take(valid))     # V G / p(y)
+            g = pick(cos_x) * pick(cos_y) / pick(dist2)                            # G(x, y)
+            weight[valid] = np.where(blocked, 0.0, g * pick(ls.inv_pdf))           # V G / p(y)
         contrib = ls.radiance * weight
         mean = contrib.reshape(3, m, ns).sum(axis=2) / ns if ns > 1 else contrib
         return mean * albedo * (1.0 / np.pi)                            # f_r = colour / pi (eq. 2.13a)

@@ -61,8 +61,24 @@ def to_world(local: np.ndarray, normal: np.ndarray) -> np.ndarray:
 
 
 def cosine_directions(u1: np.ndarray, u2: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """to_world(cosine_hemisphere(u1, u2), normal): the diffuse bounce (eq. 2.13-2.14)."""
-    return to_world(cosine_hemisphere(u1, u2), normal)
+    """to_world(cosine_hemisphere(u1, u2), normal), the diffuse bounce (eq. 2.13-2.14),
+    written out per component: no intermediate tangent and bitangent arrays."""
+    u1 = np.minimum(u1, ONE_MINUS_EPSILON)
+    lz = np.sqrt(1.0 - u1)
+    r = np.sqrt(u1)
+    c, s = unit_circle(u2)
+    lx, ly = r * c, r * s
+    x, y, z = normal[0], normal[1], normal[2]
+    sign = np.copysign(1.0, z)                      # the frame of orthonormal_basis
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    sx = sign * x
+    out = np.empty((3, len(u1)))
+    # tangent = (1 + sign x^2 a, sign b, -sign x), bitangent = (b, sign + y^2 a, -y)
+    out[0] = lx * (1.0 + sx * x * a) + ly * b + lz * x
+    out[1] = lx * (sign * b) + ly * (sign + y * y * a) + lz * y
+    out[2] = lz * z - lx * sx - ly * y
+    return out
 
 
 def uniform_triangle(u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -4,7 +4,7 @@ import pytest
 from scipy import stats
 
 from engine.lights import LightSampler
-from engine.sampling import cosine_hemisphere, orthonormal_basis, to_world, uniform_triangle
+from engine.sampling import cosine_directions, cosine_hemisphere, orthonormal_basis, to_world, uniform_triangle
 from engine.scene import Camera, Material, Quad, Scene, Sphere, TriangleMesh
 
 ALPHA = 0.01
@@ -94,6 +94,18 @@ def test_to_world_keeps_directions_in_the_normal_hemisphere():
     n /= np.linalg.norm(n, axis=1)[:, None]
     d = to_world(cosine_hemisphere(rng.random(5000), rng.random(5000)), n.T).T
     assert (np.einsum("ij,ij->i", d, n) > 0).all()
+
+
+def test_integrator_bounce_equals_the_tested_sampler_in_the_normal_frame():
+    """cosine_directions (what the integrator calls) is the chi-square-tested cosine_hemisphere
+    rotated by the tested orthonormal basis, including normals along the axes and -0.0."""
+    rng = np.random.default_rng(16)
+    n = rng.normal(size=(5000, 3))
+    n[:6] = [(1, 0, 0), (0, -1, 0), (1, 0, -0.0), (0, 0, -1), (0, 0, 1), (0, 1, -0.0)]
+    n = (n / np.linalg.norm(n, axis=1)[:, None]).T.copy()
+    u1, u2 = rng.random(5000), rng.random(5000)
+    expected = to_world(cosine_hemisphere(u1, u2), n)
+    assert np.abs(cosine_directions(u1, u2, n) - expected).max() < 1e-12
 
 
 def _light_scene(shape="parallelogram"):
