@@ -6,8 +6,9 @@ wall time and error against a converged reference rendered once at high sample c
 * RMSE and relMSE = mean((I - R)^2 / (R^2 + 0.01)) (pbrt's MRSE form), mean and spread
   over the K runs;
 * variance: per-pixel sample variance across the K runs, averaged over pixels;
-* bias^2 = MSE - variance - (the reference's own variance), the part more samples never
-  remove (depth limits, Schlick against an exact-Fresnel reference);
+* bias^2 = (mean of the K images - reference)^2 - variance / K - (the reference's own
+  variance), averaged over pixels: the part more samples never remove (depth limits,
+  Schlick against an exact-Fresnel reference), with its standard error over pixels;
 * efficiency 1 / (MSE t) (pbrt-v3 §13.7), and the time to reach relMSE = target,
   t relMSE / target for unbiased rows (variance falls as 1/t), "never" when the
   relative bias^2 alone exceeds the target.
@@ -74,6 +75,7 @@ class Row:
     rel_variance: float = 0.0
     bias2: float = 0.0
     rel_bias2: float = 0.0
+    rel_bias2_se: float = 0.0
     extra: dict = field(default_factory=dict)
     image: np.ndarray | None = None
 
@@ -96,8 +98,7 @@ class Row:
     def time_to_target(self, target=REL_MSE_TARGET):
         # "never" only when the bias is significant: its estimate less two standard
         # errors still exceeds half the target.
-        se = float(np.std(self.rel_mse, ddof=1) / np.sqrt(len(self.rel_mse))) if len(self.rel_mse) > 1 else 0.0
-        if self.rel_bias2 - 2.0 * se > 0.5 * target:
+        if self.rel_bias2 - 2.0 * self.rel_bias2_se > 0.5 * target:
             return float("inf")
         return self.t * float(np.mean(self.rel_mse)) / target
 
@@ -124,8 +125,13 @@ def error_row(table, label, images, seconds, reference, reference_var, extra=Non
     var = stack.var(axis=0, ddof=1)
     row.variance = float(var.mean())
     row.rel_variance = float((var * weight).mean())
-    row.bias2 = row.mse_mean - row.variance - float(reference_var.mean())
-    row.rel_bias2 = float(np.mean(row.rel_mse)) - row.rel_variance - float((reference_var * weight).mean())
+    # The mean of the K images has variance var / K: a far steadier bias estimate than
+    # MSE - variance, which keeps the fireflies of every single run.
+    bias2 = (stack.mean(axis=0) - ref) ** 2 - var / len(images) - reference_var
+    row.bias2 = float(bias2.mean())
+    rel = (bias2 * weight).ravel()
+    row.rel_bias2 = float(rel.mean())
+    row.rel_bias2_se = float(rel.std(ddof=1) / np.sqrt(rel.size))
     row.image = images[0]
     return row
 
@@ -283,6 +289,6 @@ def run_study(mode_name: str, out_dir: str, command: str, log=print) -> Study:
     with open(os.path.join(fig_dir, "rows.json"), "w") as fh:
         json.dump([{"table": r.table, "label": r.label, "seconds": r.seconds, "mse": r.mse,
                     "rel_mse": r.rel_mse, "variance": r.variance, "bias2": r.bias2,
-                    "rel_bias2": r.rel_bias2, "extra": r.extra} for r in study.rows], fh, indent=1)
+                    "rel_bias2": r.rel_bias2, "rel_bias2_se": r.rel_bias2_se, "extra": r.extra} for r in study.rows], fh, indent=1)
     log(f"study written to {out_dir} in {seconds:.0f} s")
     return study

@@ -147,7 +147,7 @@ def write_markdown(study, path, fig_rel, command, seconds):
         f"{m.accel_resolution[0]}×{m.accel_resolution[1]}, {m.accel_spp} spp); time is tracing only, mean ± sd.",
         "",
         "Columns: RMSE and relMSE = mean((I − R)²/(R² + 0.01)) against the reference R; variance = per-pixel "
-        "variance across the runs, averaged; bias² = MSE − variance − the reference's own variance (≈ 0 for "
+        "variance across the runs, averaged; bias² = (mean of the runs − reference)² − variance/runs − the reference's own variance (≈ 0 for "
         "unbiased settings, up to noise); efficiency = 1/(MSE·t); time to relMSE 1e-2 = t·relMSE/1e-2 "
         "(variance falls as 1/t), or *never* when the bias alone exceeds it.",
         "",

@@ -25,4 +25,9 @@ def test_quick_study_writes_tables_plots_and_sane_errors(tmp_path):
     # Direct light only is biased; more samples lower the error.
     assert by_label["depth 0"].rel_bias2 > 0.01
     assert by_label["depth 0"].time_to_target() == float("inf")
+    assert by_label["depth 0"].rel_bias2 > 10 * by_label["depth 0"].rel_bias2_se
+    # An unbiased setting: its bias estimate is zero within noise, so a target time is given.
+    unbiased = by_label["16 spp"]
+    assert abs(unbiased.rel_bias2) < 4 * unbiased.rel_bias2_se + 1e-3
+    assert np.isfinite(unbiased.time_to_target())
     assert by_label["16 spp"].rmse < by_label["1 spp"].rmse
