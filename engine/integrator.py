@@ -72,7 +72,7 @@ class Paths:
     def start(cls, pixel, origins, directions, nested: bool) -> "Paths":
         n = len(pixel)
         return cls(pixel, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
-                   np.zeros(n, dtype=np.int16),
+                   np.zeros(n, dtype=np.int32),
                    np.ones((n, MEDIUM_STACK_DEPTH)) if nested else None,
                    np.zeros(n, dtype=np.int64) if nested else None)
 
@@ -109,15 +109,17 @@ class PathTracer:
         the arrays stay long and the per-call cost of NumPy is paid once per bounce of
         a full wavefront, not for the few paths left at depth 8.  Each path carries its
         pixel, throughput beta and radiance L; a finished path is handed to
-        `on_finished(pixel, L)`.  Paths still in flight when `cancel` is set are dropped
-        (they never reach the film, so nothing is biased).
+        `on_finished(pixel, L)`.  Once `cancel` is set no new sample starts, but the paths
+        in flight are traced to their end (a few bounces): dropping them would keep only
+        the short paths of a partial tile and darken it.
         """
         paths = None
-        while not (cancel is not None and cancel.is_set()):
+        while True:
             alive = 0 if paths is None else len(paths.pixel)
             room = WAVEFRONT_SIZE - alive
             fresh = 0
-            if samples.remaining and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
+            stopping = cancel is not None and cancel.is_set()
+            if samples.remaining and not stopping and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
                 pixel, o, d = samples.take(room)
                 fresh = len(pixel)
                 new = Paths.start(pixel, o, d, self.settings.nested_dielectrics)

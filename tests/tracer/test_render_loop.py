@@ -4,6 +4,8 @@ import numpy as np
 from engine import RenderSettings, render
 from engine.default_scene import cornell_scene
 
+from .scenes import camera_inside_sphere_scene
+
 
 def test_tiles_cover_the_image_and_match_the_result():
     seen = []
@@ -37,3 +39,32 @@ def test_cancel_stops_early_and_keeps_finished_tiles():
     x0, y0, x1, y1 = tiles[0]
     assert result.image[y0:y1, x0:x1].mean() > 0  # the finished tile is kept
     assert result.stats["rays"]["camera"] < 128 * 128 * 64 / 4
+
+
+class CancelAfter:
+    """A cancel event that is set from its (k+1)-th look on: the tracer looks once per bounce."""
+
+    def __init__(self, k):
+        self.k, self.looks = k, 0
+
+    def is_set(self):
+        self.looks += 1
+        return self.looks > self.k
+
+
+def test_a_cancelled_tile_is_not_biased_towards_short_paths():
+    """Cancel after 3 bounces of the wavefront inside the white furnace (L = 5 everywhere).
+
+    Samples that finish first are the paths Russian roulette ended early, which carry less
+    light (about 2.4); a partial tile must still average 5, so the paths already in flight
+    are traced to their end instead of being dropped."""
+    from engine.geometry import Counters
+    from engine.render import Renderer, Tile
+    scene = camera_inside_sphere_scene(albedo=0.8, emission=1.0, resolution=(64, 64))
+    renderer = Renderer(scene, RenderSettings(samples=64, threads=1, seed=5, max_depth=400), log=lambda *a: None)
+    film = renderer.render_tile(Tile(0, 0, 0, 64, 64), CancelAfter(3), Counters())
+    n = film.count.sum()
+    assert 0 < n < 64 * 64 * 64                      # partial
+    mean = film.sum[:, 0].sum() / n
+    se = np.sqrt((film.sum_sq[:, 0].sum() / n - mean ** 2) / n)
+    assert abs(mean - 5.0) < 4 * se, f"partial tile mean {mean:.4f} +- {se:.4f}, expected 5"
