@@ -39,6 +39,7 @@ def tune_malloc() -> bool:
                 return False
             mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
             mallopt.restype = ctypes.c_int
-            _tuned = bool(mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and bool(
-                mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD))
+            mmap_ok = mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)
+            trim_ok = mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD)
+            _tuned = bool(mmap_ok) and bool(trim_ok)
     return _tuned

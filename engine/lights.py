@@ -43,18 +43,22 @@ class LightSampler:
         mats = scene.materials
         emission = np.array([m.emission for m in mats], dtype=np.float64).reshape(-1, 3)
         emissive = emission.max(axis=1) > 0
-        # Flat patches (triangles and parallelograms) as v0 + b1 e1 + b2 e2.
-        v0, e1, e2, le, para, one_sided = [], [], [], [], [], []
+        # Flat patches (triangles and parallelograms) as v0 + b1 e1 + b2 e2, gathered as
+        # arrays of (corner a, corner b, corner c, radiance, is parallelogram, one-sided).
+        parts = []
 
         def add(a, b, c, radiance, parallelogram, single_sided):
-            v0.append(a), e1.append(b - a), e2.append(c - a), le.append(radiance)
-            para.append(parallelogram), one_sided.append(single_sided)
+            a, b, c = (np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in (a, b, c))
+            n = len(a)
+            parts.append((a, b, c, np.broadcast_to(radiance, (n, 3)), np.full(n, parallelogram),
+                          np.full(n, single_sided)))
 
         for mesh in scene.meshes:
-            for tri, mat in zip(mesh.triangles, mesh.material_ids):
-                if emissive[mat]:
-                    v = mesh.vertices[tri]
-                    add(v[0], v[1], v[2], emission[mat], False, False)
+            ids = np.asarray(mesh.material_ids, dtype=np.int64)
+            sel = emissive[ids] if len(ids) else np.zeros(0, bool)
+            if sel.any():
+                v = np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.triangles)[sel]]   # (k, 3, 3)
+                add(v[:, 0], v[:, 1], v[:, 2], emission[ids[sel]], False, False)
         for quad in scene.quads:
             if emissive[quad.material_id]:
                 self._add_quad(np.asarray(quad.corners, dtype=np.float64), emission[quad.material_id], False, add)
@@ -64,14 +68,16 @@ class LightSampler:
             if len(corners) == 4:
                 self._add_quad(corners, radiance, not light.two_sided, add)
             else:                               # a polygon (Blender disk/ellipse): a fan
-                for t in light.triangles():
-                    add(t[0], t[1], t[2], radiance, False, not light.two_sided)
-        shape = (-1, 3)
-        self.v0, self.e1, self.e2 = (rows(np.reshape(a, shape)) for a in (v0, e1, e2))
-        self.le = rows(np.reshape(le, shape))
-        self.parallelogram = np.array(para, dtype=bool)
-        self.patch_one_sided = np.array(one_sided, dtype=bool)
-        cross = np.cross(self.e1.T, self.e2.T).reshape(shape)
+                t = light.triangles()
+                add(t[:, 0], t[:, 1], t[:, 2], radiance, False, not light.two_sided)
+        a, b, c, le, para, one_sided = (
+            [np.concatenate(column) for column in zip(*parts)] if parts
+            else [np.zeros((0, 3))] * 4 + [np.zeros(0, bool)] * 2)
+        self.v0, self.e1, self.e2 = rows(a), rows(b - a), rows(c - a)
+        self.le = rows(le)
+        self.parallelogram = para.astype(bool)
+        self.patch_one_sided = one_sided.astype(bool)
+        cross = np.cross(b - a, c - a).reshape(-1, 3)
         doubled = np.linalg.norm(cross, axis=1)
         self.patch_area = np.where(self.parallelogram, doubled, 0.5 * doubled)
         self.patch_normal = rows(cross / np.maximum(doubled, 1e-300)[:, None])
