@@ -206,7 +206,7 @@ class SceneGeometry:
     def surface(self, o, d, hits: HitSet) -> SurfaceHits:
         """Shading data for the hit rays; rows o and d already in hits.index order."""
         parts = []
-        for (_, k), (a, b) in sorted(hits.runs.items(), key=lambda item: item[1]):
+        for (_, k), (a, b) in hits.runs.items():             # in index order (nearest_hits)
             prim = hits.prim[a:b]
             if k == TRIANGLE:
                 pt, nrm, off = self._triangle_surface(prim, hits.u[a:b], hits.v[a:b])
@@ -227,7 +227,8 @@ class SceneGeometry:
                                  np.concatenate(offsets))
         return SurfaceHits(point, normal, hits.material, offset)
 
-    def _triangle_surface(self, prim, u, v) -> SurfaceHits:
+    def _triangle_surface(self, prim, u, v):
+        """(point, normal, offset) of triangle hits."""
         # Barycentric interpolation in float64 puts the point on the triangle's plane
         # (pbrt): the float32 error of o + t d would be along the ray instead.
         point = (self.tri_v0.take(prim, axis=1) + u * self.tri_e1.take(prim, axis=1)

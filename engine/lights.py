@@ -75,8 +75,7 @@ class LightSampler:
             else [np.zeros((0, 3))] * 4 + [np.zeros(0, bool)] * 2)
         self.v0, self.e1, self.e2 = rows(a), rows(b - a), rows(c - a)
         self.le = rows(le)
-        self.parallelogram = para.astype(bool)
-        self.patch_one_sided = one_sided.astype(bool)
+        self.parallelogram, self.patch_one_sided = para, one_sided
         cross = np.cross(b - a, c - a).reshape(-1, 3)
         doubled = np.linalg.norm(cross, axis=1)
         self.patch_area = np.where(self.parallelogram, doubled, 0.5 * doubled)

@@ -40,6 +40,14 @@ def unit_circle(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c * inv, s * inv
 
 
+def _cosine_local(u1: np.ndarray, u2: np.ndarray):
+    """Components (x, y, z) of cosine-weighted directions about +z (eq. 2.13b)."""
+    u1 = np.minimum(u1, ONE_MINUS_EPSILON)
+    r = np.sqrt(u1)
+    c, s = unit_circle(u2)
+    return r * c, r * s, np.sqrt(1.0 - u1)
+
+
 def cosine_hemisphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
     """Cosine-weighted direction rows about +z (report eq. 2.13b, pdf = cos(theta)/pi).
 
@@ -47,11 +55,7 @@ def cosine_hemisphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
     Written as z = sqrt(1 - u1) with u1 clamped below 1 it never returns z = 0, so
     the pdf is always positive and f*cos/pdf is exactly the albedo (hard case S1).
     """
-    u1 = np.minimum(u1, ONE_MINUS_EPSILON)
-    z = np.sqrt(1.0 - u1)
-    r = np.sqrt(u1)
-    c, s = unit_circle(u2)
-    return np.stack([r * c, r * s, z])
+    return np.stack(_cosine_local(u1, u2))
 
 
 def to_world(local: np.ndarray, normal: np.ndarray) -> np.ndarray:
@@ -63,17 +67,13 @@ def to_world(local: np.ndarray, normal: np.ndarray) -> np.ndarray:
 def cosine_directions(u1: np.ndarray, u2: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """to_world(cosine_hemisphere(u1, u2), normal), the diffuse bounce (eq. 2.13-2.14),
     written out per component: no intermediate tangent and bitangent arrays."""
-    u1 = np.minimum(u1, ONE_MINUS_EPSILON)
-    lz = np.sqrt(1.0 - u1)
-    r = np.sqrt(u1)
-    c, s = unit_circle(u2)
-    lx, ly = r * c, r * s
+    lx, ly, lz = _cosine_local(u1, u2)
     x, y, z = normal[0], normal[1], normal[2]
     sign = np.copysign(1.0, z)                      # the frame of orthonormal_basis
     a = -1.0 / (sign + z)
     b = x * y * a
     sx = sign * x
-    out = np.empty((3, len(u1)))
+    out = np.empty((3, len(lx)))
     # tangent = (1 + sign x^2 a, sign b, -sign x), bitangent = (b, sign + y^2 a, -y)
     out[0] = lx * (1.0 + sx * x * a) + ly * b + lz * x
     out[1] = lx * (sign * b) + ly * (sign + y * y * a) + lz * y
