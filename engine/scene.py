@@ -196,13 +196,20 @@ class AreaLight:
     emits `radiance` from its front side only (the side its normal faces; the normal follows
     the counter-clockwise order of `vertices`), or from both sides with `two_sided`.
 
-    It is not geometry: camera, bounce and shadow rays pass through it, so it is reached
-    only by shadow rays (next-event estimation, eq. 2.11).
+    As in Cycles it casts no shadow (shadow rays pass through it).  Under the `mis` and
+    `solid-angle` estimators rays of the kinds marked visible reach it (Cycles' ray
+    visibility: camera, diffuse, glossy = mirror and glass reflection, transmission =
+    glass refraction), add its emission and go on through it; under the report's
+    estimator it is reached by shadow rays only (eq. 2.11).
     """
     name: str
     vertices: np.ndarray          # (N, 3), N >= 3, in order around the polygon
     radiance: tuple
     two_sided: bool = False
+    visible_camera: bool = False
+    visible_diffuse: bool = True
+    visible_glossy: bool = True
+    visible_transmission: bool = True
 
     def triangles(self) -> np.ndarray:
         v = np.asarray(self.vertices, dtype=np.float64)

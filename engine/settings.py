@@ -6,6 +6,10 @@ from dataclasses import dataclass, asdict
 
 FRESNEL_MODELS = ("schlick", "exact")
 ACCELERATORS = ("auto", "embree", "octree", "brute")
+# report: eq. 2.11 as written (area sampling, pdf 1/A, power pmf, no MIS);
+# solid-angle: solid-angle light sampling and a spatial light pmf, emission after diffuse dropped;
+# mis: solid-angle light sampling combined with the cosine BSDF sample by MIS (power heuristic).
+ESTIMATORS = ("mis", "solid-angle", "report")
 
 
 @dataclass
@@ -17,6 +21,7 @@ class RenderSettings:
     rr_start_depth: int = 3       # roulette only from this bounce on
     fresnel: str = "schlick"      # eq. 2.17, or exact dielectric Fresnel as Cycles
     nested_dielectrics: bool = False  # medium stack: glass in glass refracts by the IOR ratio
+    estimator: str = "mis"        # ESTIMATORS: how direct light is estimated
     threads: int = 0              # 0 = all cores
     seed: int = 0
     tile_size: int = 64
@@ -36,6 +41,8 @@ class RenderSettings:
             raise SceneError(f"max depth must be 0 or more, got {self.max_depth}")
         if self.fresnel not in FRESNEL_MODELS:
             raise SceneError(f"unknown Fresnel model '{self.fresnel}' (expected schlick or exact)")
+        if self.estimator not in ESTIMATORS:
+            raise SceneError(f"unknown estimator '{self.estimator}' (expected one of {', '.join(ESTIMATORS)})")
         if self.accelerator not in ACCELERATORS:
             raise SceneError(f"unknown accelerator '{self.accelerator}' (expected one of {', '.join(ACCELERATORS)})")
         if self.tile_size < 8:
