@@ -1,8 +1,11 @@
-"""The effect plan: which kernels and scattering effects a scene needs, and why.
+"""The effect plan: which kernels and which parts of the estimator a scene needs, and why.
 
-Decided once from the scene before tracing.  The integrator consults it so that a
-diffuse-only scene never evaluates Fresnel or refraction and a scene without spheres
-never runs the sphere test.
+Decided once from the scene and the settings before tracing; it is the one place that
+switches work on.  The geometry builds only the intersection kernels the plan enables
+(a scene without spheres never runs the sphere test), the integrator runs only the stages
+it enables (a diffuse-only scene never evaluates Fresnel or refraction; no MIS weights where
+only one strategy can reach a light), and the light sampler builds the light tree only for
+more than one light.  `describe()` prints every decision with its reason.
 """
 from __future__ import annotations
 
@@ -12,7 +15,10 @@ import numpy as np
 
 from .scene import DIFFUSE, GLASS, MIRROR
 
-EFFECTS = ("spheres", "quads", "triangles", "diffuse", "mirror", "glass", "emission")
+EFFECTS = ("triangles", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass", "emission",
+           "direct_light", "solid_angle", "light_tree", "mis")
+ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
+                      "brute": "brute-force kernel (every triangle)"}
 
 
 @dataclass
@@ -34,8 +40,20 @@ class EffectPlan:
         lines = []
         for name in EFFECTS:
             mark = "on " if self.enabled[name] else "off"
-            lines.append(f"  {mark} {name:9s} {self.reason[name]}")
+            lines.append(f"  {mark} {name:12s} {self.reason[name]}")
         return "\n".join(lines)
+
+    def describe_light_kinds(self, lights) -> None:
+        """Add to the solid-angle reason how each kind of light in `lights` is sampled."""
+        if not self.enabled["solid_angle"]:
+            return
+        how = {"parallelogram": "spherical rectangles (area where grazing or not rectangular)",
+               "triangle": "spherical triangles (area where grazing or tiny)",
+               "sphere": "cones from outside, area from inside", "polygon": "area (disks, ellipses)"}
+        counts = {}
+        for _, kind, _ in lights.kinds:
+            counts[kind.kind] = counts.get(kind.kind, 0) + kind.count
+        self.reason["solid_angle"] += ": " + "; ".join(f"{n} {k} light(s) by {how[k]}" for k, n in counts.items())
 
 
 def _names(objects, limit=3) -> str:
@@ -44,7 +62,7 @@ def _names(objects, limit=3) -> str:
     return ", ".join(names) + more
 
 
-def plan_effects(scene, settings) -> EffectPlan:
+def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     plan = EffectPlan()
     mats = scene.materials
 
@@ -55,8 +73,8 @@ def plan_effects(scene, settings) -> EffectPlan:
     meshes = [m for m in scene.meshes if len(m.triangles)]
     n_tri = sum(len(m.triangles) for m in meshes)
     set_effect("triangles", n_tri > 0,
-               f"{n_tri} triangles in {_names(meshes)}: Embree kernel" if n_tri
-               else "no triangle meshes: triangle kernel skipped")
+               f"{n_tri} triangles in {_names(meshes)}: {ACCELERATOR_KERNEL.get(accelerator, accelerator)}"
+               if n_tri else "no triangle meshes: triangle kernel skipped")
     set_effect("spheres", bool(scene.spheres),
                f"{len(scene.spheres)} implicit sphere(s) {_names(scene.spheres)}: sphere kernel"
                if scene.spheres else "no implicit spheres: sphere kernel skipped")
@@ -75,13 +93,25 @@ def plan_effects(scene, settings) -> EffectPlan:
     def users(predicate):
         return [m for m in used_mats if predicate(m)]
 
+    report = settings.estimator == "report"
+    lamps = [light for light in scene.lights if max(light.radiance) > 0]
+    seen_lamps = [light for light in lamps if any(
+        getattr(light, f"visible_{k}") for k in ("camera", "diffuse", "glossy", "transmission"))]
+    set_effect("area_lights", lamps and not report and seen_lamps,
+               f"Area light(s) {_names(seen_lamps)} reached by rays (Cycles' ray visibility), light kernel"
+               if lamps and not report and seen_lamps else
+               "no Area lights: light kernel skipped" if not lamps else
+               "report estimator: Area lights are reached by shadow rays only (eq. 2.11)" if report else
+               "Area lights invisible to every ray kind: reached by shadow rays only")
+
     diffuse = users(lambda m: m.kind == DIFFUSE and max(m.color) > 0)
     mirror = users(lambda m: m.kind == MIRROR and max(m.color) > 0)
     glass = users(lambda m: m.kind == GLASS)
-    emitters = users(lambda m: m.is_emissive) + [l for l in scene.lights if max(l.radiance) > 0]
+    surface_emitters = users(lambda m: m.is_emissive)
+    emitters = surface_emitters + lamps
     set_effect("diffuse", diffuse,
-               f"diffuse materials {_names(diffuse)}: shadow rays (eq. 2.11) and cosine bounces (eq. 2.14)"
-               if diffuse else "no diffuse material: no shadow rays or diffuse bounces")
+               f"diffuse materials {_names(diffuse)}: cosine bounces (eq. 2.13-2.14)"
+               if diffuse else "no diffuse material: no diffuse bounces")
     set_effect("mirror", mirror,
                f"mirror materials {_names(mirror)}: perfect reflection (eq. 2.20)"
                if mirror else "no mirror material: reflection path skipped")
@@ -90,7 +120,37 @@ def plan_effects(scene, settings) -> EffectPlan:
                + ("; nested media tracked" if settings.nested_dielectrics else "")
                if glass else "no glass material: Fresnel and refraction never evaluated")
     set_effect("emission", emitters,
-               f"emitters {_names(emitters)}: area lights sampled by area (pdf 1/A)"
-               if emitters else "no emissive surfaces: no light sampling"
+               f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
+
+    nee = bool(diffuse and emitters and settings.shadow_rays > 0)
+    set_effect("direct_light", nee,
+               f"{settings.shadow_rays} shadow ray(s) per diffuse hit (eq. 2.11)" if nee else
+               "no diffuse surface to light" if not diffuse else "no emitters" if not emitters else
+               "0 shadow rays: emitters found by BSDF sampling alone")
+    set_effect("solid_angle", nee and not report,
+               "lights sampled by solid angle where stable" if nee and not report else
+               "report estimator: lights sampled by area (pdf 1/A, eq. 2.11)" if nee else "no direct light")
+    n_lights = n_emissive_primitives(scene) + len(lamps)
+    set_effect("light_tree", nee and not report and n_lights > 1,
+               f"{n_lights} lights: picked by a light tree (importance at the shading point)"
+               if nee and not report and n_lights > 1 else
+               "report estimator: lights picked by power" if nee and report and n_lights > 1 else
+               "one light: no light selection" if nee else "no direct light")
+    reachable = bool(surface_emitters) or plan.enabled["area_lights"]
+    mis = nee and settings.estimator == "mis" and reachable
+    set_effect("mis", mis,
+               "light and cosine BSDF samples weighted by the power heuristic (Veach & Guibas 1995)" if mis else
+               f"{settings.estimator} estimator: emission after a diffuse bounce is left to the shadow rays"
+               if nee and settings.estimator != "mis" else
+               "no emitter that bounce rays can reach" if nee else
+               "no direct light: BSDF sampling alone (weight 1)")
     return plan
+
+
+def n_emissive_primitives(scene) -> int:
+    emissive = np.array([m.is_emissive for m in scene.materials])
+    n = sum(int(emissive[np.asarray(m.material_ids, dtype=np.int64)].sum()) for m in scene.meshes
+            if len(m.triangles))
+    return n + sum(bool(emissive[q.material_id]) for q in scene.quads) + \
+        sum(bool(emissive[s.material_id]) for s in scene.spheres)

@@ -1,8 +1,10 @@
 """All primitives of a scene behind one nearest-hit and one shadow-ray query.
 
-Triangles go to the accelerator (Embree); spheres and quads are analytic.  Rays and
-surface vectors are rows, (3, N) arrays (engine/vec.py).  A kernel
-runs only if the scene has that kind of primitive (the effect plan).  The nearest hit
+Triangles go to the accelerator (Embree, or the octree / brute force); spheres, quads and
+the polygons of Blender Area lights are analytic.  Rays and surface vectors are rows, (3, N)
+arrays (engine/vec.py).  A kernel runs only if the effect plan switches it on (the plan is
+the one place that decides; it says why).  Area lights are tested by nearest-hit queries
+only (they cast no shadow) and only for the ray kinds they are visible to.  The nearest hit
 is merged with `<` on arrays whose misses are +inf, so a NaN distance can never win
 (np.argmin would pick it: hard case H7).
 """
@@ -14,11 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import build_accelerator
+from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shapes.spheres import intersect_sphere, surface_point
 from .vec import aos, max_abs3, rows
 
-NONE, TRIANGLE, SPHERE, QUAD = 0, 1, 2, 3
+NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
+KINDS = (TRIANGLE, SPHERE, QUAD, LIGHT)
 
 # Spawn offset for Embree triangles, relative to the largest coordinate of the hit
 # point or its triangle: about 16 float32 ulps, which covers rounding the origin to
@@ -63,24 +67,27 @@ def check_rows(o, d) -> None:
 
 
 class Counters:
-    """Per-worker ray counts and time spent inside intersection kernels."""
+    """Per-worker ray counts and time spent inside intersection kernels (all of them, and
+    the triangle accelerator's call alone: Embree, octree or brute force)."""
 
     def __init__(self):
         self.rays = {"camera": 0, "extension": 0, "shadow": 0}
         self.seconds_in_intersection = 0.0
-        self.seconds_in_embree = 0.0
+        self.seconds_in_accelerator = 0.0
         self.nonfinite_samples = 0
 
     def merge(self, other: "Counters") -> None:
         for key, value in other.rays.items():
             self.rays[key] += value
         self.seconds_in_intersection += other.seconds_in_intersection
-        self.seconds_in_embree += other.seconds_in_embree
+        self.seconds_in_accelerator += other.seconds_in_accelerator
         self.nonfinite_samples += other.nonfinite_samples
 
 
 class SceneGeometry:
-    def __init__(self, scene, accelerator: str = "embree"):
+    def __init__(self, scene, accelerator: str = "embree", plan=None):
+        """plan: the effect plan (engine/effects.py) that switches kernels on; None = every
+        kernel whose primitives the scene has (tests of geometry alone)."""
         tris, tri_mats = [], []
         for mesh in scene.meshes:
             if len(mesh.triangles):
@@ -101,24 +108,31 @@ class SceneGeometry:
         self.quads = QuadSet(np.array([q.corners for q in scene.quads]).reshape(-1, 4, 3))
         self.quad_material = np.array([q.material_id for q in scene.quads], dtype=np.int64)
 
-        # Material of (kind, prim) as one lookup: primitive_material[kind_base[kind] + prim].
+        def kernel(name, present):
+            return bool(present) if plan is None else bool(plan.enabled[name])
+        self.has_triangles = kernel("triangles", len(self.triangles))
+        self.has_spheres = kernel("spheres", len(self.sphere_radius))
+        self.has_quads = kernel("quads", self.quads.count)
+        self.has_lights = plan is not None and bool(plan.enabled.get("area_lights"))
+        self.lights = LightPolygons(scene.lights if self.has_lights else [])
+
+        # Material of (kind, prim) as one lookup: primitive_material[kind_base[kind] + prim];
+        # light polygons have no material (slot 0: the caller groups them by kind).
         self.primitive_material = np.concatenate([
             np.zeros(1, np.int64), self.triangle_material.astype(np.int64),
-            self.sphere_material, self.quad_material])
-        n_tri, n_sph = len(self.triangle_material), len(self.sphere_material)
-        self.kind_base = np.array([1, 1, 1 + n_tri, 1 + n_tri + n_sph], dtype=np.int64)  # a miss (prim -1) -> slot 0
-
-        self.has_triangles = len(self.triangles) > 0
-        self.has_spheres = len(self.sphere_radius) > 0
-        self.has_quads = self.quads.count > 0
+            self.sphere_material, self.quad_material, np.zeros(self.lights.count, np.int64)])
+        n_tri, n_sph, n_quad = len(self.triangle_material), len(self.sphere_material), len(self.quad_material)
+        self.kind_base = np.array([1, 1, 1 + n_tri, 1 + n_tri + n_sph, 1 + n_tri + n_sph + n_quad],
+                                  dtype=np.int64)                   # a miss (prim -1) -> slot 0
         start = time.perf_counter()
         self.accelerator = build_accelerator(accelerator, self.triangles) if self.has_triangles else None
         self.build_seconds = time.perf_counter() - start
 
     # -- queries -----------------------------------------------------------------
-    def intersect(self, o, d, counters: Counters, tmax=None):
+    def intersect(self, o, d, counters: Counters, tmax=None, ray_kind=None):
         """Nearest hit of each ray (rows o, d): (t, kind, prim, u, v); t = +inf and kind =
-        NONE on a miss."""
+        NONE on a miss.  ray_kind (N,) int8 (LightPolygons.RAY_KINDS) selects which Area
+        lights each ray can see; None: all of them."""
         check_rows(o, d)
         n = o.shape[1]
         start = time.perf_counter()
@@ -131,7 +145,7 @@ class SceneGeometry:
             o_aos, d_aos = aos(o, dtype), aos(d, dtype)
             t0 = time.perf_counter()                        # the accelerator call only
             tt, tp, u, v = self.accelerator.intersect(o_aos, d_aos, t)
-            counters.seconds_in_embree += time.perf_counter() - t0
+            counters.seconds_in_accelerator += time.perf_counter() - t0
             closer = tt < t
             t = np.where(closer, tt, t)
             kind = closer.astype(np.int8)                   # TRIANGLE where closer
@@ -148,6 +162,19 @@ class SceneGeometry:
             t = np.where(closer, tq, t)
             kind = np.where(closer, np.int8(QUAD), kind)
             prim = np.where(closer, k, prim)
+        for k in range(self.lights.count):
+            sees = self.lights.rays_that_see(k, ray_kind)
+            if sees is None:
+                tl = self.lights.intersect_one(k, o, d, t)
+            elif len(sees):
+                tl = np.full(n, np.inf)
+                tl[sees] = self.lights.intersect_one(k, o.take(sees, axis=1), d.take(sees, axis=1), t.take(sees))
+            else:
+                continue
+            closer = tl < t
+            t = np.where(closer, tl, t)
+            kind = np.where(closer, np.int8(LIGHT), kind)
+            prim = np.where(closer, k, prim)
         kind[~np.isfinite(t)] = NONE
         if tmax is not None:
             t[kind == NONE] = np.inf
@@ -155,15 +182,20 @@ class SceneGeometry:
         return t, kind, prim, u, v
 
     def nearest_hits(self, o, d, counters: Counters, material_group=None,
-                     n_groups: int = 1) -> HitSet:
+                     n_groups: int = 1, light_group: int = 0, ray_kind=None, forced_group=None) -> HitSet:
         """Nearest hits sorted by (material_group[material], kind); see HitSet.
 
-        `material_group` maps material ids to 0 .. n_groups-1 (default: one group)."""
-        t, kind, prim, u, v = self.intersect(o, d, counters)
+        `material_group` maps material ids to 0 .. n_groups-1 (default: one group); rays with
+        forced_group >= 0 go to that group instead; hits on Area lights form group `light_group`."""
+        t, kind, prim, u, v = self.intersect(o, d, counters, ray_kind=ray_kind)
         material = self.primitive_material.take(prim + self.kind_base.take(kind))   # misses: ignored
         group = (np.zeros(len(kind), np.int8) if material_group is None
                  else material_group.take(material).astype(np.int8))
-        kinds = 3                                                            # TRIANGLE, SPHERE, QUAD
+        if forced_group is not None:
+            group = np.where(forced_group >= 0, forced_group, group).astype(np.int8)
+        if self.lights.count:
+            group = np.where(kind == LIGHT, np.int8(light_group), group)
+        kinds = len(KINDS)
         key = np.where(kind == NONE, 0, 1 + group * kinds + (kind - 1)).astype(np.int8)
         order = np.argsort(key, kind="stable")
         bounds = np.searchsorted(key.take(order), np.arange(2 + n_groups * kinds))
@@ -171,7 +203,7 @@ class SceneGeometry:
         miss, index = order[:first], order[first:]
         runs = {}
         for g in range(n_groups):
-            for k in (TRIANGLE, SPHERE, QUAD):
+            for k in KINDS:
                 slot = 1 + g * kinds + (k - 1)
                 if bounds[slot + 1] > bounds[slot]:
                     runs[(g, k)] = (bounds[slot] - first, bounds[slot + 1] - first)
@@ -189,7 +221,7 @@ class SceneGeometry:
             o_aos, d_aos = aos(o, dtype), aos(d, dtype)
             t0 = time.perf_counter()
             blocked |= self.accelerator.occluded(o_aos, d_aos, tmax)
-            counters.seconds_in_embree += time.perf_counter() - t0
+            counters.seconds_in_accelerator += time.perf_counter() - t0
         if self.has_spheres or self.has_quads:
             rest = np.flatnonzero(~blocked)
             if len(rest) < len(blocked):
@@ -213,6 +245,8 @@ class SceneGeometry:
             elif k == SPHERE:
                 pt, nrm, off = surface_point(o[:, a:b], d[:, a:b], hits.t[a:b],
                                              self.sphere_center.take(prim, axis=1), self.sphere_radius.take(prim))
+            elif k == LIGHT:
+                pt, nrm, off = self.lights.surface(o[:, a:b], d[:, a:b], hits.t[a:b], prim)
             else:
                 pt, nrm, off = self.quads.surface(o[:, a:b], d[:, a:b], hits.t[a:b], prim)
             parts.append((pt, nrm, off))

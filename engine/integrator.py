@@ -1,14 +1,25 @@
-"""Wavefront path tracer: the report's Monte Carlo estimator (§2.3-2.5).
+"""Wavefront path tracer: the report's Monte Carlo estimator (§2.3-2.5), with the light
+sampling and MIS of its §4 future work.
 
 The paths of a wavefront advance one bounce at a time as NumPy arrays; after each
 bounce the arrays are compacted to the paths still alive and topped up with new
-camera paths (path regeneration), so the wavefront stays full.  Per hit:
+camera paths (path regeneration), so the wavefront stays full.  One bounce runs in
+named stages (`bounce`): intersect, misses, emission, pass-through (Blender Area
+lights), direct light, scatter, roulette, compaction.
 
-* emission is added when the path arrived from the camera or a specular bounce, or
-  when no shadow rays sample the lights (then BSDF sampling must find them); so
-  light is never counted twice;
-* diffuse: N_s shadow rays to the area lights (eq. 2.11), then a cosine-weighted
-  bounce whose weight f cos / pdf is the albedo (eq. 2.13-2.14);
+* Direct light at diffuse hits: N_s shadow rays (eq. 2.11).  Under the `report`
+  estimator a light is picked by power and a point on it by area (pdf 1/A); otherwise
+  the light tree picks by importance at the shading point and the light is sampled by
+  solid angle where stable (engine/lights).
+* Emission reached by a ray counts with weight 1 after the camera or a mirror/glass
+  bounce, and when no shadow rays run.  After a diffuse bounce: `report` and
+  `solid-angle` drop it (the shadow rays account for it: light is never counted
+  twice); `mis` weights it, and the shadow-ray samples, by the power heuristic
+  (Veach & Guibas 1995, beta = 2) with the multi-sample counts N_s light samples and
+  one BSDF sample (Veach's thesis ch. 9):
+      w_light = (N_s p_l)^2 / ((N_s p_l)^2 + p_b^2),  w_bsdf = p_b^2 / (p_b^2 + (N_s p_l)^2)
+  with p_l = P(k | x, n) p_w(x -> y) from the light sampler and p_b = cos/pi.
+* diffuse: a cosine-weighted bounce whose weight f cos / pdf is the albedo (eq. 2.13-2.14);
 * mirror: perfect reflection, weight = colour (eq. 2.15-2.16, 2.20);
 * glass: Fresnel (eq. 2.17, Schlick or exact) picks reflection or refraction
   (eq. 2.21-2.24) stochastically, weight = tint; total internal reflection has R = 1.
@@ -26,13 +37,15 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .bsdf import FRESNEL, reflect, refract, refract_cos
+from .geometry import LIGHT, QUAD, SPHERE, TRIANGLE
 from .sampling import cosine_directions
 from .scene import DIFFUSE, GLASS, MIRROR
 from .vec import dot, max3, rows
 
 KIND_CODE = {DIFFUSE: 0, MIRROR: 1, GLASS: 2}
-BLACK = 3
-N_GROUPS = 4
+BLACK = 3                       # surfaces that absorb everything
+PASS = 4                        # Area lights: emission, then the ray goes on
+N_GROUPS = 5
 WAVEFRONT_SIZE = 1 << 15       # paths advanced together; 32768 measured fastest here
 MEDIUM_STACK_DEPTH = 4          # nested dielectrics: media a path can be inside at once
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
@@ -52,7 +65,8 @@ class MaterialTable:
         self.group = np.where(color.max(axis=1) > 0.0, self.kind, BLACK).astype(np.int8)
 
 
-VECTOR_FIELDS = ("o", "d", "beta", "radiance")
+VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n")
+CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = 0, 1, 2, 3   # LightPolygons.RAY_KINDS
 
 
 @dataclass
@@ -63,16 +77,22 @@ class Paths:
     d: np.ndarray               # (3, N) unit ray directions
     beta: np.ndarray            # (3, N) path throughput
     radiance: np.ndarray        # (3, N) radiance L gathered so far
-    count_emission: np.ndarray  # (N,) emission at the next hit counts (camera/specular ray, no NEE)
+    specular: np.ndarray        # (N,) camera ray or after a mirror/glass bounce: emission weight 1
+    ray_kind: np.ndarray        # (N,) int8 CAMERA_RAY .. TRANSMISSION_RAY (Area lights' visibility)
     bounce: np.ndarray          # (N,) bounces made so far (0: camera ray)
+    prev_p: np.ndarray | None = None    # MIS: (3, N) the diffuse vertex that sampled the ray
+    prev_n: np.ndarray | None = None    # MIS: (3, N) its facing normal (the light tree's input)
+    prev_pdf: np.ndarray | None = None  # MIS: (N,) cosine pdf of the ray's direction there
     media: np.ndarray | None = None   # nested dielectrics: (N, MEDIUM_STACK_DEPTH) IOR stack
     depth: np.ndarray | None = None   # nested dielectrics: (N,) stack height
 
     @classmethod
-    def start(cls, pixel, origins, directions, nested: bool) -> "Paths":
+    def start(cls, pixel, origins, directions, nested: bool, mis: bool) -> "Paths":
         n = len(pixel)
         return cls(pixel, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
-                   np.zeros(n, dtype=np.int32),
+                   np.zeros(n, dtype=np.int8), np.zeros(n, dtype=np.int32),
+                   np.zeros((3, n)) if mis else None, np.zeros((3, n)) if mis else None,
+                   np.ones(n) if mis else None,
                    np.ones((n, MEDIUM_STACK_DEPTH)) if nested else None,
                    np.zeros(n, dtype=np.int64) if nested else None)
 
@@ -88,6 +108,15 @@ class Paths:
                         for name, axis in self._fields()})
 
 
+def power_heuristic(n_f, p_f, n_g, p_g):
+    """Veach's power heuristic (beta = 2) weight of technique f: (n_f p_f)^2 / sum (n p)^2.
+    Overflow-safe: computed from the ratio, 1 where p_g = 0 and 0 where p_f = 0."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        r = (n_g * p_g) / (n_f * p_f)
+        w = 1.0 / (1.0 + r * r)
+    return np.where(p_f > 0.0, np.nan_to_num(w, nan=0.0), 0.0)
+
+
 class PathTracer:
     def __init__(self, geometry, lights, materials, plan, settings, background):
         self.geometry = geometry
@@ -97,8 +126,16 @@ class PathTracer:
         self.settings = settings
         self.background = np.asarray(background, dtype=np.float64)
         self.fresnel = FRESNEL[settings.fresnel]
-        self.use_nee = (plan.diffuse and lights.count > 0 and settings.shadow_rays > 0)
+        self.use_nee = bool(plan.direct_light and lights.count > 0)
+        self.mis = bool(plan.mis and self.use_nee)
+        # Under `mis` a diffuse vertex at the depth limit still traces its BSDF ray for the
+        # emission it reaches (weighted by MIS, or 1 without shadow rays), so every estimator
+        # counts the same paths: light reached by up to max_depth + 1 segments.
+        self.final_rays = settings.estimator == "mis" and (self.mis or not self.use_nee)
         self.has_background = bool(self.background.max() > 0)
+        self.material_group = self.mats.group
+        self.light_of_kind = {TRIANGLE: lights.triangle_light, SPHERE: lights.sphere_light,
+                              QUAD: lights.quad_light, LIGHT: lights.area_light_light}
 
     # -- the wavefront -----------------------------------------------------------------
     def trace(self, samples, rng, counters, on_finished, cancel=None) -> None:
@@ -122,7 +159,7 @@ class PathTracer:
             if samples.remaining and not stopping and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
                 pixel, o, d = samples.take(room)
                 fresh = len(pixel)
-                new = Paths.start(pixel, o, d, self.settings.nested_dielectrics)
+                new = Paths.start(pixel, o, d, self.settings.nested_dielectrics, self.mis)
                 paths = new if paths is None else paths.extend(new)
             if paths is None or len(paths.pixel) == 0:
                 break
@@ -132,102 +169,188 @@ class PathTracer:
 
     def bounce(self, p: "Paths", rng, counters, on_finished) -> "Paths":
         """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
-        s = self.settings
-        finished_pixel, finished_l = [], []
-        # Hits sorted by how their surface scatters, 0 diffuse, 1 mirror, 2 glass, 3 black
-        # (absorbs), then by primitive kind: every group is one slice.
-        hits = self.geometry.nearest_hits(p.o, p.d, counters, self.mats.group, N_GROUPS)
+        finished = []                                   # (pixel, radiance) of paths that end
+        # 1. Intersect.  Hits sorted by how their surface scatters, 0 diffuse, 1 mirror,
+        # 2 glass, 3 black (absorbs), 4 Area light (passed through), then by primitive kind:
+        # every group is one slice.
+        # Under MIS a diffuse vertex at the depth limit still traces its BSDF ray: that ray only
+        # collects the MIS-weighted emission it reaches (the other half of that vertex's direct
+        # light), then ends: its surface counts as black (as Cycles' terminate-on-next-surface).
+        final = p.bounce > self.settings.max_depth if self.final_rays else None
+        hits = self.geometry.nearest_hits(p.o, p.d, counters, self.material_group, N_GROUPS,
+                                          light_group=PASS, ray_kind=p.ray_kind,
+                                          forced_group=None if final is None or not final.any()
+                                          else np.where(final, BLACK, -1))
+        # 2. Misses: the background.
         if len(hits.miss):
-            m = hits.miss
-            radiance = p.radiance.take(m, axis=1)
-            if self.has_background:
-                radiance += p.beta.take(m, axis=1) * self.background[:, None]
-            finished_pixel.append(p.pixel.take(m))
-            finished_l.append(radiance)
+            finished.append(self.misses(p, hits.miss))
         p = p.take(hits.index)
         surf = self.geometry.surface(p.o, p.d, hits)
-        mat = surf.material
-        if self.plan.emission:
-            glow = np.flatnonzero(p.count_emission & self.mats.is_emissive.take(mat))
-            if len(glow):
-                p.radiance[:, glow] += p.beta.take(glow, axis=1) * self.mats.emission.take(mat.take(glow), axis=1)
-
-        color = self.mats.color.take(mat, axis=1)
         bounds = [start for start, _ in hits.groups] + [hits.groups[-1][1]]
-        point, normal, offset, d = surf.point, surf.normal, surf.offset, p.d
-        cos_in = dot(d, normal)
-        facing = normal * np.where(cos_in < 0.0, 1.0, -1.0)             # towards the incoming ray
+        alive = bounds[BLACK]                 # diffuse, mirror and glass paths scatter on
+        surfaces = bounds[PASS]               # black surfaces end the path here
+        through = slice(bounds[PASS], bounds[PASS + 1])
+        # 3. Emission found by the ray (surfaces and Area lights), MIS-weighted after diffuse.
+        if self.plan.emission:
+            self.emission(p, surf, hits, surfaces)
+        # 4. Area lights: the ray goes on through them, as it was.
+        passing = self.pass_through(p.take(np.arange(through.start, through.stop)), surf, through)
+        # 5. Direct light at diffuse hits (eq. 2.11).
+        diffuse = slice(bounds[0], bounds[1])
+        facing = surf.normal * np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)   # towards the ray
+        color = self.mats.color.take(surf.material, axis=1)
+        if self.use_nee and bounds[1] > bounds[0]:
+            p.radiance[:, diffuse] += p.beta[:, diffuse] * self.direct_light(
+                surf.point[:, diffuse], facing[:, diffuse], color[:, diffuse], surf.offset[diffuse], rng, counters)
+        # 6. Scatter: the next direction and throughput of every scattering path.
+        new_d, side, beta = self.scatter(p, surf, facing, color, bounds, rng)
+        # 7. Russian roulette and the depth limit.
+        keep, beta = self.roulette(beta, p.bounce[:alive], p.specular[:alive], rng)
+        # 8. Compaction: hand finished paths to the film, keep the rest.
+        ended = np.flatnonzero(~keep)
+        finished += [(p.pixel.take(ended), p.radiance.take(ended, axis=1)),
+                     (p.pixel[alive:surfaces], p.radiance[:, alive:surfaces])]
+        pixel = np.concatenate([f[0] for f in finished])
+        if len(pixel):
+            on_finished(pixel, np.concatenate([f[1] for f in finished], axis=1))
+        keep = np.flatnonzero(keep)
+        survivors = p.take(keep)
+        survivors.o = (surf.point.take(keep, axis=1)
+                       + (side.take(keep) * surf.offset.take(keep)) * facing.take(keep, axis=1))
+        survivors.d = new_d.take(keep, axis=1)
+        survivors.beta = beta.take(keep, axis=1)
+        survivors.bounce = survivors.bounce + 1
+        return survivors if passing is None else survivors.extend(passing)
+
+    # -- stages ------------------------------------------------------------------------
+    def misses(self, p, miss):
+        radiance = p.radiance.take(miss, axis=1)
+        if self.has_background:
+            counted = (p.bounce.take(miss) <= self.settings.max_depth)[None, :]   # not the final MIS rays
+            radiance += np.where(counted, p.beta.take(miss, axis=1) * self.background[:, None], 0.0)
+        return p.pixel.take(miss), radiance
+
+    def emission(self, p, surf, hits, surfaces):
+        """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
+        the camera or a specular bounce or without shadow rays; after a diffuse bounce 0 under
+        `report`/`solid-angle`, the power-heuristic weight under `mis`."""
+        mat = surf.material
+        lit = np.flatnonzero(self.mats.is_emissive.take(mat[:surfaces]))
+        parts = [(lit, self.mats.emission.take(mat.take(lit), axis=1))] if len(lit) else []
+        for (group, kind), (a, b) in hits.runs.items():
+            if group == PASS:
+                lamp = self.lights.area_light_light.take(hits.prim[a:b])
+                front = ~self.lights.one_sided.take(lamp) | (dot(p.d[:, a:b], surf.normal[:, a:b]) < 0.0)
+                idx = np.arange(a, b)[front]
+                if len(idx):
+                    parts.append((idx, self.lights.radiance.take(lamp[front], axis=1)))
+        for idx, le in parts:
+            weight = self.emission_weight(p, surf, hits, idx)
+            p.radiance[:, idx] += p.beta.take(idx, axis=1) * le * weight
+
+    def emission_weight(self, p, surf, hits, idx):
+        specular = p.specular.take(idx)
+        if not self.use_nee or specular.all():
+            return 1.0
+        if not self.mis:
+            return specular.astype(np.float64)
+        weight = np.ones(len(idx))
+        sel = np.flatnonzero(~specular)
+        hit = idx.take(sel)
+        kind, prim = hits.kind.take(hit), hits.prim.take(hit)
+        light = np.full(len(hit), -1, dtype=np.int64)
+        for k, table in self.light_of_kind.items():
+            mine = np.flatnonzero(kind == k)
+            if len(mine):
+                light[mine] = table.take(prim.take(mine))
+        known = light >= 0                  # an emitter the light sampler has (always, here)
+        p_light = np.zeros(len(hit))
+        if known.any():
+            j = np.flatnonzero(known)
+            h = hit.take(j)
+            p_light[j] = self.lights.pdf(p.prev_p.take(h, axis=1), p.prev_n.take(h, axis=1), light.take(j),
+                                         surf.point.take(h, axis=1))
+        weight[sel] = power_heuristic(1.0, p.prev_pdf.take(hit), float(self.settings.shadow_rays), p_light)
+        return weight
+
+    def pass_through(self, through: "Paths", surf, span):
+        """Paths that reached an Area light continue behind it, direction and state unchanged."""
+        if span.stop == span.start:
+            return None
+        point, offset = surf.point[:, span], surf.offset[span]
+        through.o = point + offset * through.d
+        return through
+
+    def scatter(self, p, surf, facing, color, bounds, rng):
+        """New directions, the side to leave on (+1 facing, -1 through) and throughputs of the
+        diffuse, mirror and glass paths (groups 0-2); updates their specular/MIS state."""
+        alive = bounds[BLACK]
         diffuse, mirror, glass = (slice(bounds[0], bounds[1]), slice(bounds[1], bounds[2]),
                                   slice(bounds[2], bounds[3]))
         n_diffuse = bounds[1] - bounds[0]
-
-        if self.use_nee and n_diffuse:                                    # eq. 2.11
-            p.radiance[:, diffuse] += p.beta[:, diffuse] * self.direct_light(
-                point[:, diffuse], facing[:, diffuse], color[:, diffuse], offset[diffuse], rng, counters)
-
-        alive = bounds[3]                     # groups 0-2 continue, black surfaces end here
         new_d = np.empty((3, alive))
-        side = np.ones(alive)                 # +1: leave on the facing side, -1: go through
-        next_emission = np.ones(alive, dtype=bool)
+        side = np.ones(alive)
+        d = p.d
         if n_diffuse:
             new_d[:, diffuse] = cosine_directions(rng.random(n_diffuse), rng.random(n_diffuse),
                                                   facing[:, diffuse])      # eq. 2.13b
-            next_emission[diffuse] = not self.use_nee
+            p.specular[diffuse] = False
+            p.ray_kind[diffuse] = DIFFUSE_RAY
+            if self.mis:
+                p.prev_p[:, diffuse] = surf.point[:, diffuse]
+                p.prev_n[:, diffuse] = facing[:, diffuse]
+                p.prev_pdf[diffuse] = dot(new_d[:, diffuse], facing[:, diffuse]) * (1.0 / np.pi)
         if bounds[2] > bounds[1]:
             new_d[:, mirror] = reflect(d[:, mirror], facing[:, mirror])   # eq. 2.20
+            p.specular[mirror] = True
+            p.ray_kind[mirror] = GLOSSY_RAY
         if bounds[3] > bounds[2]:
             stack = None if p.media is None else (p.media[glass], p.depth[glass])   # views: updated in place
             new_d[:, glass], side[glass] = self.scatter_glass(
-                d[:, glass], normal[:, glass], facing[:, glass], cos_in[glass], self.mats.ior.take(mat[glass]),
-                rng, stack)
+                d[:, glass], surf.normal[:, glass], facing[:, glass], dot(d[:, glass], surf.normal[:, glass]),
+                self.mats.ior.take(surf.material[glass]), rng, stack)
+            p.specular[glass] = True
+            p.ray_kind[glass] = np.where(side[glass] > 0.0, GLOSSY_RAY, TRANSMISSION_RAY)
         beta = p.beta[:, :alive] * color[:, :alive]  # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
-        bounce = p.bounce[:alive]
+        return new_d, side, beta
 
-        keep = (max3(beta) > 0.0) & (bounce < s.max_depth)
-        if s.russian_roulette:                                            # report 2.4
+    def roulette(self, beta, bounce, specular, rng):
+        """Which paths go on (report 2.4) and their throughput after the survival division.
+        Under `mis` a diffuse bounce at the depth limit goes on for its emission (see `bounce`)."""
+        s = self.settings
+        within = bounce < s.max_depth
+        if self.final_rays:
+            within |= (bounce == s.max_depth) & ~specular
+        keep = (max3(beta) > 0.0) & within
+        if s.russian_roulette:
             survive_p = np.where(bounce + 1 >= s.rr_start_depth, np.minimum(max3(beta), 1.0), 1.0)
-            keep &= rng.random(alive) < survive_p
+            keep &= rng.random(len(bounce)) < survive_p
             beta = beta / np.where(keep, survive_p, 1.0)
-        ended = np.flatnonzero(~keep)
-        finished_pixel += [p.pixel.take(ended), p.pixel[alive:]]
-        finished_l += [p.radiance.take(ended, axis=1), p.radiance[:, alive:]]
-        keep = np.flatnonzero(keep)
-        pixel = np.concatenate(finished_pixel)
-        if len(pixel):
-            on_finished(pixel, np.concatenate(finished_l, axis=1))
-
-        return Paths(
-            pixel=p.pixel.take(keep),
-            o=point.take(keep, axis=1) + (side.take(keep) * offset.take(keep)) * facing.take(keep, axis=1),
-            d=new_d.take(keep, axis=1),
-            beta=beta.take(keep, axis=1),
-            radiance=p.radiance.take(keep, axis=1),
-            count_emission=next_emission.take(keep),
-            bounce=bounce.take(keep) + 1,
-            media=None if p.media is None else p.media.take(keep, axis=0),
-            depth=None if p.depth is None else p.depth.take(keep))
+        return keep, beta
 
     # -- direct light, eq. 2.11 ---------------------------------------------------------
     def direct_light(self, point, normal, albedo, offset, rng, counters) -> np.ndarray:
         """<L_direct> with N_s shadow rays per point, divided by N_s: rows (3, M).
 
-        point, normal (facing the viewer) and albedo are rows (3, M); offset (M,)."""
+        point, normal (facing the viewer) and albedo are rows (3, M); offset (M,).  Each
+        sample adds Le f cos(theta_x) V / p_l (eq. 2.11 written per unit solid angle: with
+        p_l = P(k) d^2 / (A cos(theta_y)) it is the report's Le f G V A / P(k)), times the
+        MIS weight under `mis`."""
         ns = self.settings.shadow_rays
         m = point.shape[1]
         k = m * ns
-        ls = self.lights.sample(rng.random(k), rng.random(k), rng.random(k))
         # Shadow ray j of point i is column i * ns + j.
         x = np.repeat(point, ns, axis=1) if ns > 1 else point
         nx = np.repeat(normal, ns, axis=1) if ns > 1 else normal
         off_x = np.repeat(offset, ns) if ns > 1 else offset
+        ls = self.lights.sample(x, nx, rng.random(k), rng.random(k), rng.random(k))
         w = ls.point - x
         dist2 = dot(w, w)
         with np.errstate(divide="ignore", invalid="ignore"):
             w = w / np.sqrt(dist2)
         cos_x = dot(nx, w)
         cos_ly = dot(ls.normal, w)
-        cos_y = np.abs(cos_ly)                          # two-sided emitters
-        ok = (cos_x > 0.0) & (cos_y > 0.0) & (dist2 > 0.0) & np.isfinite(dist2)
+        ok = (cos_x > 0.0) & (cos_ly != 0.0) & (ls.pdf > 0.0) & (dist2 > 0.0) & np.isfinite(dist2)
         if self.lights.any_one_sided:                   # front side only: emits towards -w
             ok &= ~(ls.one_sided & (cos_ly >= 0.0))
         valid = np.flatnonzero(ok)
@@ -246,8 +369,11 @@ class PathTracer:
             direction = seg / seg_len
             counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
-            g = pick(cos_x) * pick(cos_y) / pick(dist2)                            # G(x, y)
-            weight[valid] = np.where(blocked, 0.0, g * pick(ls.inv_pdf))           # V G / p(y)
+            cos, pdf = pick(cos_x), pick(ls.pdf)
+            sample = cos / pdf                                                  # cos V / p_l
+            if self.mis:
+                sample *= power_heuristic(float(ns), pdf, 1.0, cos * (1.0 / np.pi))
+            weight[valid] = np.where(blocked, 0.0, sample)
         contrib = ls.radiance * weight
         mean = contrib.reshape(3, m, ns).sum(axis=2) / ns if ns > 1 else contrib
         return mean * albedo * (1.0 / np.pi)                            # f_r = colour / pi (eq. 2.13a)

@@ -57,18 +57,19 @@ class Renderer:
     def __init__(self, scene, settings: RenderSettings, log=print):
         settings.validate()
         self.warnings = scene.validate()
-        if scene.lights and settings.shadow_rays == 0:
-            self.warnings.append(f"{len(scene.lights)} area light(s) are reached by shadow rays only: "
+        self.scene = scene
+        self.settings = settings
+        n_tri = sum(len(m.triangles) for m in scene.meshes)
+        self.accelerator, self.accelerator_reason = choose_accelerator(settings.accelerator, n_tri)
+        self.plan = plan_effects(scene, settings, self.accelerator)
+        if scene.lights and not self.plan.area_lights and settings.shadow_rays == 0:
+            self.warnings.append(f"{len(scene.lights)} area light(s) are reached by shadow rays only here: "
                                  "with 0 shadow rays they light nothing")
         for w in self.warnings:
             log(f"warning: {w}")
-        self.scene = scene
-        self.settings = settings
-        self.plan = plan_effects(scene, settings)
-        n_tri = sum(len(m.triangles) for m in scene.meshes)
-        self.accelerator, self.accelerator_reason = choose_accelerator(settings.accelerator, n_tri)
-        self.geometry = SceneGeometry(scene, self.accelerator)
-        self.lights = LightSampler(scene)
+        self.geometry = SceneGeometry(scene, self.accelerator, self.plan)
+        self.lights = LightSampler(scene, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree)
+        self.plan.describe_light_kinds(self.lights)
         self.tracer = PathTracer(self.geometry, self.lights, scene.materials, self.plan,
                                  settings, scene.background)
 
@@ -109,6 +110,7 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
     tiles = make_tiles(width, height, settings.tile_size)
     threads = settings.resolved_threads()
     log(f"{ENGINE_NAME}: {width}x{height}, {settings.samples} spp, {settings.shadow_rays} shadow ray(s), "
+        f"estimator {settings.estimator}, "
         f"max depth {settings.max_depth}, {threads} thread(s), accelerator {renderer.accelerator} "
         f"({renderer.accelerator_reason})")
     log("effect plan:\n" + renderer.plan.describe())
@@ -165,6 +167,7 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
         "max_depth": settings.max_depth,
         "russian_roulette": settings.russian_roulette,
         "fresnel": settings.fresnel,
+        "estimator": settings.estimator,
         "seed": settings.seed,
         "resolution": [width, height],
         "threads": threads,
@@ -176,7 +179,7 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
         "effects_reason": dict(renderer.plan.reason),
         "nonfinite_samples": totals.nonfinite_samples,
         "seconds_in_intersection": totals.seconds_in_intersection,
-        "seconds_in_embree": totals.seconds_in_embree,
+        "seconds_in_accelerator": totals.seconds_in_accelerator,
         "cancelled": cancelled,
         "parallelism": parallelism,
         "warnings": list(renderer.warnings),

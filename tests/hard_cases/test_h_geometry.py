@@ -189,7 +189,7 @@ def test_h15_unoccluded_light_has_visibility_exactly_one(as_mesh):
     offset = np.full(n, 1e-6)
     counters = Counters()
     # Occlusion alone: every shadow ray toward the light must be unblocked.
-    ls = lights.sample(rng.random(n), rng.random(n), rng.random(n))
+    ls = lights.sample(rows(pts), rows(normal), rng.random(n), rng.random(n), rng.random(n))
     point, ls_normal = ls.point.T, ls.normal.T
     origin = pts + offset[:, None] * normal
     target = point - ls.offset[:, None] * ls_normal * np.sign(np.einsum("ij,ij->i", ls_normal, point - pts))[:, None]

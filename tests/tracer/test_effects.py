@@ -37,8 +37,9 @@ def test_diffuse_only_scene_never_runs_sphere_or_refraction_code(spies):
     result = render(diffuse_box_scene(), RenderSettings(samples=4, parallelism="threads"), log=lambda *a: None)
     assert sphere.calls == 0 and refract.calls == 0
     fx = result.stats["effects"]
-    assert fx == {"spheres": False, "quads": True, "triangles": True, "diffuse": True,
-                  "mirror": False, "glass": False, "emission": True}
+    assert fx == {"spheres": False, "quads": True, "triangles": True, "area_lights": False, "diffuse": True,
+                  "mirror": False, "glass": False, "emission": True, "direct_light": True, "solid_angle": True,
+                  "light_tree": False, "mis": True}
     assert "never evaluated" in result.stats["effects_reason"]["glass"]
     assert EXPECTED_KEYS <= set(result.stats)
     assert set(result.stats["rays"]) == {"camera", "extension", "shadow"}

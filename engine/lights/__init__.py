@@ -1,0 +1,211 @@
+"""Lights: every emitter of a scene, how a shading point picks one, and how it samples it.
+
+Emitter kinds (one module each, all with `sample(x, idx, u1, u2, solid_angle)` and
+`pdf(x, idx, point, solid_angle)` returning densities per unit solid angle at x):
+
+* parallelograms.py: emissive quads that are parallelograms and 4-corner Area lights
+  (spherical rectangles, Urena et al. 2013, for rectangles);
+* triangles.py: emissive mesh triangles (spherical triangles, Arvo 1995);
+* spheres.py: emissive implicit spheres (cone from outside, area from inside);
+* polygons.py: disk/ellipse Area lights and quads that are not parallelograms (area).
+
+`LightSampler` numbers the lights kind after kind, picks one with a selection pmf
+(selection.py: by power for the report's estimator, a light tree otherwise), and returns
+light samples whose `pdf` is P(k | x, n) x p_w, the density of the direction x -> y.  It
+also maps every emissive primitive to its light (`triangle_light`, `sphere_light`,
+`quad_light`, `area_light_light`), so an emitter found by BSDF sampling knows the
+density the light sampler had for it (MIS).
+
+Emissive surfaces emit from both sides, as Cycles mesh lights; AreaLights (Blender Area
+lights) from their front only unless marked two-sided.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..vec import max_abs3, rows
+from .parallelograms import Parallelograms
+from .polygons import Polygons
+from .selection import LightTree, PowerSelection
+from .spheres import Spheres
+from .triangles import Triangles
+
+# Shadow-ray end points are pulled off the light by this relative amount (as the
+# triangle spawn offset) so the ray never reports the light itself as occluder.
+LIGHT_OFFSET = 2.0 ** -20
+PARALLELOGRAM_TOLERANCE = 1e-9       # |v00 + v11 - v10 - v01| relative to the quad's size
+
+
+@dataclass
+class LightSample:
+    point: np.ndarray      # (3, N) on the light
+    normal: np.ndarray     # (3, N) unit normal of the light at the point
+    radiance: np.ndarray   # (3, N) emitted radiance Le
+    pdf: np.ndarray        # (N,) P(k | x, n) * p_w(x -> point); 0: no sample
+    light: np.ndarray      # (N,) light index
+    offset: np.ndarray     # (N,) distance along the normal that clears the light
+    one_sided: np.ndarray  # (N,) bool: emits only towards the side its normal faces
+
+
+def is_parallelogram(c: np.ndarray) -> bool:
+    size = np.abs(c - c[0]).max()
+    return bool(np.abs(c[0] + c[2] - c[1] - c[3]).max() <= PARALLELOGRAM_TOLERANCE * max(size, 1e-300))
+
+
+class _Gather:
+    """Emitters of one kind as they are found; `add` returns their light numbers in the kind."""
+
+    def __init__(self):
+        self.parts, self.radiance, self.one_sided, self.count = [], [], [], 0
+
+    def add(self, data, radiance, one_sided):
+        n = len(data[0]) if isinstance(data, tuple) else len(data)
+        self.parts.append(data)
+        self.radiance.append(np.broadcast_to(np.asarray(radiance, dtype=np.float64), (n, 3)))
+        self.one_sided.append(np.full(n, bool(one_sided)))
+        self.count += n
+        return np.arange(self.count - n, self.count)
+
+
+class LightSampler:
+    """All emitters of a scene.  solid_angle: sample each light by solid angle where stable
+    (else by area, as eq. 2.11); spatial: pick lights with the light tree (else by power)."""
+
+    def __init__(self, scene, solid_angle: bool = True, spatial: bool = True):
+        self.solid_angle = solid_angle
+        mats = scene.materials
+        emission = np.array([m.emission for m in mats], dtype=np.float64).reshape(-1, 3)
+        emissive = emission.max(axis=1) > 0
+        para, tri, sph, poly = _Gather(), _Gather(), _Gather(), _Gather()
+
+        # Mesh triangles, in the order SceneGeometry numbers them.
+        tri_local, n_tri = [], 0
+        for mesh in scene.meshes:
+            if not len(mesh.triangles):
+                continue
+            ids = np.asarray(mesh.material_ids, dtype=np.int64)
+            local = np.full(len(ids), -1, dtype=np.int64)
+            sel = emissive[ids]
+            if sel.any():
+                v = np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.triangles)[sel]]
+                local[sel] = tri.add((v[:, 0], v[:, 1], v[:, 2]), emission[ids[sel]], False)
+            tri_local.append(local)
+            n_tri += len(ids)
+
+        def add_flat(corners, radiance, one_sided):
+            c = np.asarray(corners, dtype=np.float64)
+            if len(c) == 4 and is_parallelogram(c):
+                return ("para", int(para.add((c[None, 0], c[None, 1] - c[0], c[None, 3] - c[0]), radiance,
+                                             one_sided)[0]))
+            return ("poly", int(poly.add([c], radiance, one_sided)[0]))
+
+        quad_ref = [add_flat(q.corners, emission[q.material_id], False) if emissive[q.material_id] else None
+                    for q in scene.quads]
+        light_ref = [add_flat(light.vertices, light.radiance, not light.two_sided) for light in scene.lights]
+        sphere_ref = [("sph", int(sph.add(([s.center], [s.radius]), emission[s.material_id], False)[0]))
+                      if emissive[s.material_id] else None for s in scene.spheres]
+
+        def stack(gather, columns):
+            return [np.concatenate([p[i] for p in gather.parts]) for i in range(columns)]
+        self.kinds = []
+        if para.count:
+            self.kinds.append(("para", Parallelograms(*stack(para, 3)), para))
+        if tri.count:
+            self.kinds.append(("tri", Triangles(*stack(tri, 3)), tri))
+        if sph.count:
+            self.kinds.append(("sph", Spheres(*stack(sph, 2)), sph))
+        if poly.count:
+            self.kinds.append(("poly", Polygons([c for part in poly.parts for c in part]), poly))
+        base, start = {}, 0
+        for name, kind, gather in self.kinds:
+            base[name] = start
+            start += kind.count
+        self.count_all = start
+        self.kind_of = np.concatenate([np.full(k.count, i) for i, (_, k, _) in enumerate(self.kinds)]
+                                      ) if self.kinds else np.zeros(0, np.int64)
+        self.local = np.concatenate([np.arange(k.count) for _, k, _ in self.kinds]) if self.kinds \
+            else np.zeros(0, np.int64)
+        self.radiance = rows(np.concatenate([np.concatenate(g.radiance) for _, _, g in self.kinds])
+                             if self.kinds else np.zeros((0, 3)))
+        self.one_sided = (np.concatenate([np.concatenate(g.one_sided) for _, _, g in self.kinds])
+                          if self.kinds else np.zeros(0, bool))
+        self.any_one_sided = bool(self.one_sided.any())
+
+        def glob(ref):
+            return -1 if ref is None else base[ref[0]] + ref[1]
+        tri_base = base.get("tri", 0)
+        self.triangle_light = (np.concatenate([np.where(t >= 0, t + tri_base, -1) for t in tri_local])
+                               if tri_local else np.zeros(0, np.int64))
+        self.quad_light = np.array([glob(r) for r in quad_ref], dtype=np.int64)
+        self.area_light_light = np.array([glob(r) for r in light_ref], dtype=np.int64)
+        self.sphere_light = np.array([glob(r) for r in sphere_ref], dtype=np.int64)
+
+        # Per light: area, the report's power (area x mean radiance) and bounds for the tree.
+        area = np.concatenate([k.area for _, k, _ in self.kinds]) if self.kinds else np.zeros(0)
+        mean_le = self.radiance.mean(axis=0)
+        self.area = area
+        self.report_power = area * mean_le
+        sides = np.where(self.one_sided, 1.0, 2.0)
+        self.power = np.pi * area * mean_le * sides               # emitted flux
+        self.count = int((self.report_power > 0).sum())
+        self.total_power = float(self.report_power.sum())
+        if spatial and self.count_all > 1:
+            center, radius, axis, cos_o = self._bounds()
+            self.selection = LightTree(center, radius, axis, cos_o, self.power, self.power)
+        else:
+            self.selection = PowerSelection(self.report_power if self.count_all else np.ones(0))
+        self.uses_tree = isinstance(self.selection, LightTree)
+
+    def _bounds(self):
+        """(centre (K,3), radius, normal axis (K,3), cos of the normal cone) of every light."""
+        center, radius, axis, cos_o = [], [], [], []
+        for name, kind, gather in self.kinds:
+            center.append(kind.center.T)
+            radius.append(kind.radius)
+            if name == "sph":
+                axis.append(np.tile([0.0, 0.0, 1.0], (kind.count, 1)))
+                cos_o.append(np.full(kind.count, -1.0))              # normals in every direction
+            else:
+                axis.append(kind.normal.T)
+                one_sided = np.concatenate(gather.one_sided)
+                cos_o.append(np.where(one_sided, 1.0, -1.0))         # two-sided: either face
+        return np.concatenate(center), np.concatenate(radius), np.concatenate(axis), np.concatenate(cos_o)
+
+    # -- sampling --------------------------------------------------------------------------
+    def sample(self, x, n, u_pick, u1, u2) -> LightSample:
+        """One light sample per receiver x with facing normal n (rows)."""
+        light, pmf = self.selection.sample(x, n, u_pick)
+        m = len(u_pick)
+        if len(self.kinds) == 1:
+            point, normal, pdf = self.kinds[0][1].sample(x, light, u1, u2, self.solid_angle)
+        else:
+            point, normal, pdf = np.empty((3, m)), np.empty((3, m)), np.empty(m)
+            kind_of = self.kind_of.take(light)
+            for i, (_, kind, _) in enumerate(self.kinds):
+                sel = np.flatnonzero(kind_of == i)
+                if len(sel):
+                    p, nrm, pd = kind.sample(x.take(sel, axis=1), self.local.take(light.take(sel)),
+                                             u1.take(sel), u2.take(sel), self.solid_angle)
+                    point[:, sel], normal[:, sel], pdf[sel] = p, nrm, pd
+        return LightSample(point, normal, self.radiance.take(light, axis=1), pdf * pmf, light,
+                           LIGHT_OFFSET * max_abs3(point), self.one_sided.take(light))
+
+    def pdf(self, x, n, light, point) -> np.ndarray:
+        """P(k | x, n) * p_w of the direction from x to `point` on light k: the density with
+        which `sample` at (x, n) produces that direction (for MIS at an emission hit)."""
+        pdf = np.empty(len(light))
+        if len(self.kinds) == 1:
+            pdf[:] = self.kinds[0][1].pdf(x, light, point, self.solid_angle)
+        else:
+            kind_of = self.kind_of.take(light)
+            for i, (_, kind, _) in enumerate(self.kinds):
+                sel = np.flatnonzero(kind_of == i)
+                if len(sel):
+                    pdf[sel] = kind.pdf(x.take(sel, axis=1), self.local.take(light.take(sel)),
+                                        point.take(sel, axis=1), self.solid_angle)
+        return pdf * self.selection.pmf(x, n, light)
+
+    def kind_names(self) -> list[str]:
+        return [kind.kind for _, kind, _ in self.kinds]

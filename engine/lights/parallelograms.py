@@ -1,0 +1,133 @@
+"""Parallelogram emitters (Cornell-style quads, Blender rectangle and square Area lights).
+
+A light is v0 + s e1 + t e2, s, t in [0, 1].  Two ways to draw a point y on it:
+
+* by area (the report's eq. 2.11): y uniform over the parallelogram, pdf 1/A, i.e.
+  p_w = d^2 / (A |cos theta_y|) per unit solid angle at the receiver x;
+* by solid angle (rectangles only): the area-preserving map of Urena, Fajardo and King,
+  "An Area-Preserving Parametrization for Spherical Rectangles" (EGSR 2013), as Cycles'
+  `area_light_rect_sample`: directions uniform over the rectangle's solid angle Omega,
+  p_w = 1 / Omega.  Omega comes from the edge-plane normals in the arcsin form (no
+  cancellation against 2 pi; light-sampling.md section 2).
+
+`use_solid_angle` is the one predicate both `sample` and `pdf` consult, so the pdf of a
+BSDF-sampled direction is the density the light sampler really has there.  Where the
+spherical map loses precision (x almost in the light's plane, or a vanishing Omega) it
+falls back to area sampling, which is exact there.  All vectors are rows (engine/vec.py);
+`idx` picks each ray's light within this kind.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..vec import cross, dot, rows
+
+OMEGA_MIN = 1e-6          # sr: below this area sampling is as good and cheaper
+GRAZING = 1e-5            # |plane distance| / distance to the centre below which x is "in the plane"
+RECTANGLE_TOLERANCE = 1e-9
+
+
+class Parallelograms:
+    kind = "parallelogram"
+
+    def __init__(self, v0, e1, e2):
+        v0, e1, e2 = (np.asarray(a, dtype=np.float64).reshape(-1, 3) for a in (v0, e1, e2))
+        self.count = len(v0)
+        n = np.cross(e1, e2)
+        self.area = np.linalg.norm(n, axis=1)
+        len1, len2 = np.linalg.norm(e1, axis=1), np.linalg.norm(e2, axis=1)
+        scale = np.maximum(len1 * len2, 1e-300)
+        self.rectangle = np.abs(np.einsum("ij,ij->i", e1, e2)) <= RECTANGLE_TOLERANCE * scale
+        self.v0, self.e1, self.e2 = rows(v0), rows(e1), rows(e2)
+        self.normal = rows(n / np.maximum(self.area, 1e-300)[:, None])
+        self.len1, self.len2 = len1, len2
+        self.axis1 = rows(e1 / np.maximum(len1, 1e-300)[:, None])
+        self.axis2 = rows(e2 / np.maximum(len2, 1e-300)[:, None])
+        self.center = rows(v0 + 0.5 * (e1 + e2))
+        corners = np.stack([v0, v0 + e1, v0 + e2, v0 + e1 + e2], axis=1)
+        self.radius = np.linalg.norm(corners - (v0 + 0.5 * (e1 + e2))[:, None], axis=2).max(axis=1)
+
+    # -- the spherical rectangle ---------------------------------------------------------
+    def _frame(self, x, idx):
+        """Local coordinates of each light seen from x (Urena et al., section 3)."""
+        ax, ay = self.axis1.take(idx, axis=1), self.axis2.take(idx, axis=1)
+        az = cross(ax, ay)
+        rel = self.v0.take(idx, axis=1) - x
+        z0 = dot(rel, az)
+        flip = np.where(z0 > 0.0, -1.0, 1.0)          # z points away from the light: z0 <= 0
+        az, z0 = az * flip, z0 * flip
+        x0, y0 = dot(rel, ax), dot(rel, ay)
+        x1, y1 = x0 + self.len1.take(idx), y0 + self.len2.take(idx)
+        z2 = z0 * z0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e0 = -y0 / np.sqrt(y0 * y0 + z2)          # z components of the edge-plane normals
+            e1 = x1 / np.sqrt(x1 * x1 + z2)
+            e2 = y1 / np.sqrt(y1 * y1 + z2)
+            e3 = -x0 / np.sqrt(x0 * x0 + z2)
+        g = [np.arcsin(np.clip(-a * b, -1.0, 1.0)) for a, b in ((e0, e1), (e1, e2), (e2, e3), (e3, e0))]
+        omega = -(g[0] + g[1] + g[2] + g[3])         # spherical excess, arcsin form
+        return dict(ax=ax, ay=ay, az=az, x0=x0, y0=y0, x1=x1, y1=y1, z0=z0, e0=e0, e2=e2,
+                    g23=g[2] + g[3], omega=omega)
+
+    def _use_solid_angle(self, x, idx, f):
+        dist = np.sqrt(dot(self.center.take(idx, axis=1) - x, self.center.take(idx, axis=1) - x))
+        ok = self.rectangle.take(idx) & (f["omega"] >= OMEGA_MIN) & (-f["z0"] >= GRAZING * dist)
+        return ok & np.isfinite(f["omega"])
+
+    def _spherical_point(self, x, f, u1, u2):
+        """The point of the rectangle in the direction that (u1, u2) maps to (Cycles' form)."""
+        e0, z0 = f["e0"], f["z0"]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            au = u1 * f["omega"] + f["g23"]
+            fu = (np.cos(au) * e0 + f["e2"]) / np.sin(au)
+            cu = np.clip(np.copysign(1.0, fu) / np.sqrt(fu * fu + e0 * e0), -1.0, 1.0)
+            xu = np.clip(-(cu * z0) / np.maximum(np.sqrt(1.0 - cu * cu), 1e-300), f["x0"], f["x1"])
+            d2 = xu * xu + z0 * z0
+            y0, y1 = f["y0"], f["y1"]
+            h0 = y0 / np.sqrt(d2 + y0 * y0)
+            h1 = y1 / np.sqrt(d2 + y1 * y1)
+            hv = h0 + u2 * (h1 - h0)
+            yv = np.where(hv * hv < 1.0 - 1e-12, hv * np.sqrt(d2) / np.sqrt(1.0 - hv * hv), y1)
+        yv = np.clip(np.nan_to_num(yv), y0, y1)
+        return x + xu * f["ax"] + yv * f["ay"] + z0 * f["az"]
+
+    # -- the interface every emitter kind offers ------------------------------------------
+    def sample(self, x, idx, u1, u2, solid_angle: bool):
+        """(point y, light normal, p_w of the direction x -> y) for rays x (rows), lights idx."""
+        v0, e1, e2 = self.v0.take(idx, axis=1), self.e1.take(idx, axis=1), self.e2.take(idx, axis=1)
+        point = v0 + u1 * e1 + u2 * e2                       # by area
+        normal = self.normal.take(idx, axis=1)
+        pdf = area_pdf(x, point, normal, self.area.take(idx))
+        if solid_angle:
+            f = self._frame(x, idx)
+            use = self._use_solid_angle(x, idx, f)
+            if use.any():
+                sel = np.flatnonzero(use)
+                fs = {k: v.take(sel, axis=-1) for k, v in f.items()}
+                point[:, sel] = self._spherical_point(x.take(sel, axis=1), fs, u1.take(sel), u2.take(sel))
+                pdf[sel] = 1.0 / fs["omega"]
+        return point, normal, pdf
+
+    def pdf(self, x, idx, point, solid_angle: bool):
+        """p_w at x of the direction towards `point` on light idx (the density `sample` has)."""
+        normal = self.normal.take(idx, axis=1)
+        pdf = area_pdf(x, point, normal, self.area.take(idx))
+        if solid_angle:
+            f = self._frame(x, idx)
+            use = self._use_solid_angle(x, idx, f)
+            pdf = np.where(use, 1.0 / np.where(use, f["omega"], 1.0), pdf)
+        return pdf
+
+    def solid_angle(self, x, idx):
+        """Omega of each light seen from x (for tests and the effect plan)."""
+        return self._frame(x, idx)["omega"]
+
+
+def area_pdf(x, point, normal, area):
+    """p_w = d^2 / (A |cos theta_y|): uniform area sampling seen from x (0 where undefined)."""
+    w = point - x
+    d2 = dot(w, w)
+    cos_y = np.abs(dot(normal, w))                         # |cos theta_y| * d
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pdf = d2 * np.sqrt(d2) / (area * cos_y)
+    return np.where(np.isfinite(pdf), pdf, 0.0)
