@@ -8,7 +8,7 @@ import sys
 import time
 
 from .scene import SceneError
-from .settings import ACCELERATORS, FRESNEL_MODELS, RenderSettings
+from .settings import ACCELERATORS, ESTIMATORS, FRESNEL_MODELS, RenderSettings
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -42,6 +42,9 @@ def add_settings_arguments(p):
                    help="bounces after the camera hit (0 = direct light only)")
     p.add_argument("--no-russian-roulette", action="store_true", help="disable Russian roulette")
     p.add_argument("--fresnel", choices=FRESNEL_MODELS, default=defaults.fresnel)
+    p.add_argument("--estimator", choices=ESTIMATORS, default=defaults.estimator,
+                   help="direct light: mis (solid-angle light samples and BSDF samples combined by MIS), "
+                        "solid-angle (light samples only), report (eq. 2.11: area sampling, pdf 1/A)")
     p.add_argument("--nested-dielectrics", action="store_true",
                    help="track nested glass media (glass in glass refracts by the IOR ratio)")
     p.add_argument("--accelerator", choices=ACCELERATORS, default=defaults.accelerator)
@@ -53,7 +56,7 @@ def add_settings_arguments(p):
 def settings_from_args(args) -> RenderSettings:
     return RenderSettings(samples=args.samples, shadow_rays=args.shadow_rays, max_depth=args.max_depth,
                           russian_roulette=not args.no_russian_roulette, fresnel=args.fresnel,
-                          nested_dielectrics=args.nested_dielectrics,
+                          nested_dielectrics=args.nested_dielectrics, estimator=args.estimator,
                           threads=args.threads, seed=args.seed, tile_size=args.tile_size,
                           accelerator=args.accelerator)
 

@@ -58,3 +58,30 @@ def diffuse_box_scene(resolution=(16, 16)):
     cam = Camera.look_at((0, -0.95, 1.0), (0, 1, 1.0), lens=14.0)
     return Scene(cam, mats, meshes=[TriangleMesh("Box", v, faces, ids)], quads=[light],
                  resolution=resolution)
+
+
+def near_lamp_box(resolution=(16, 16), gap=0.02, lamp_size=0.5, radiance=10.0, albedo=0.7):
+    """A closed diffuse box (2 x 2 x 2) whose two-sided lamp quad hangs `gap` under the ceiling:
+    the ceiling above it is lit from `gap` away (the near-field case of issue 9).  The camera
+    looks up at the lamp's edge and the ceiling."""
+    mats = [Material("White", DIFFUSE, (albedo,) * 3), Material("Lamp", DIFFUSE, (0, 0, 0), emission=(radiance,) * 3)]
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0],
+                  [-1, -1, 2], [1, -1, 2], [1, 1, 2], [-1, 1, 2]], dtype=float)
+    faces = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                      [2, 3, 7], [2, 7, 6], [1, 2, 6], [1, 6, 5], [3, 0, 4], [3, 4, 7]])
+    s, z = lamp_size / 2, 2.0 - gap
+    lamp = Quad("Lamp", np.array([(-s, -s, z), (s, -s, z), (s, s, z), (-s, s, z)]), 1)
+    cam = Camera.look_at((0.0, -0.9, 0.6), (0.25, 0.3, 2.0), lens=18.0)
+    return Scene(cam, mats, meshes=[TriangleMesh("Box", v, faces, np.zeros(12, int))], quads=[lamp],
+                 resolution=resolution)
+
+
+def emitting_box(albedo=0.5, emission=1.0, resolution=(8, 8)):
+    """A closed box of six quads, each diffuse and emitting: L = Le / (1 - albedo) everywhere."""
+    mats = [Material("Wall", DIFFUSE, (albedo,) * 3, emission=(emission,) * 3)]
+    c = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
+                  [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float)
+    faces = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (2, 3, 7, 6), (1, 2, 6, 5), (3, 0, 4, 7)]
+    quads = [Quad(f"Wall {i}", c[list(f)], 0) for i, f in enumerate(faces)]
+    cam = Camera.look_at((0.1, -0.2, 0.05), (0.3, 1, 0.2), lens=15.0)
+    return Scene(cam, mats, quads=quads, resolution=resolution)
