@@ -10,6 +10,15 @@ FRESNEL_ITEMS = (
     ("SCHLICK", "Schlick", "Schlick's approximation (report eq. 2.17)"),
     ("EXACT", "Exact", "Exact dielectric Fresnel, as Cycles uses"),
 )
+ESTIMATOR_ITEMS = (
+    ("MIS", "Multiple Importance", "Lights sampled by solid angle (spherical rectangles and triangles, "
+                                   "sphere cones) and picked by a light tree, combined with the BSDF "
+                                   "sample by multiple importance sampling, as Cycles"),
+    ("SOLID_ANGLE", "Light Sampling", "Lights sampled by solid angle and picked by a light tree; "
+                                      "emission found by diffuse bounces is left to the shadow rays"),
+    ("REPORT", "Report (Area)", "The report's estimator (eq. 2.11): a light picked by power, a point on "
+                                "it uniform by area (pdf 1/A); noisy near lights"),
+)
 ACCELERATOR_ITEMS = (
     ("AUTO", "Auto", "Pick the fastest available accelerator"),
     ("EMBREE", "Embree", "Intel Embree through embreex"),
@@ -39,6 +48,8 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
                                 default=3, min=0, soft_max=64)
     fresnel: EnumProperty(name="Fresnel", description="Fresnel model for glass", items=FRESNEL_ITEMS,
                           default="SCHLICK")
+    estimator: EnumProperty(name="Estimator", description="How direct light is estimated",
+                            items=ESTIMATOR_ITEMS, default="MIS")
     nested_dielectrics: BoolProperty(name="Nested Dielectrics", description="Track the media a path is "
                                      "inside, so glass inside glass refracts by the ratio of the two IORs "
                                      "(off: every glass surface is against air, as Cycles)", default=False)
@@ -55,6 +66,7 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
             samples=self.samples, shadow_rays=self.shadow_rays, max_depth=self.max_depth,
             russian_roulette=self.russian_roulette, rr_start_depth=self.rr_start_depth,
             fresnel=self.fresnel.lower(), nested_dielectrics=self.nested_dielectrics,
+            estimator=self.estimator.lower().replace("_", "-"),
             threads=self.threads, seed=self.seed,
             tile_size=self.tile_size, accelerator=self.accelerator.lower())
 

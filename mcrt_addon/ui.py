@@ -48,6 +48,7 @@ class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         props = context.scene.tncg15
+        layout.prop(props, "estimator")
         layout.prop(props, "max_depth")
         col = layout.column(heading="Russian Roulette")
         col.prop(props, "russian_roulette", text="")

@@ -36,6 +36,7 @@ from .triangles import Triangles
 # triangle spawn offset) so the ray never reports the light itself as occluder.
 LIGHT_OFFSET = 2.0 ** -20
 PARALLELOGRAM_TOLERANCE = 1e-9       # |v00 + v11 - v10 - v01| relative to the quad's size
+PAIRED = 1 << 40                     # marks a mesh triangle whose light is a parallelogram pair
 
 
 @dataclass
@@ -47,6 +48,39 @@ class LightSample:
     light: np.ndarray      # (N,) light index
     offset: np.ndarray     # (N,) distance along the normal that clears the light
     one_sided: np.ndarray  # (N,) bool: emits only towards the side its normal faces
+
+
+def parallelogram_pairs(vertices, triangles, material_ids):
+    """Consecutive triangles of one material that form a parallelogram (a quad as Blender
+    triangulates it): returns (first triangle of each pair, corner v0, edges e1, e2), the
+    edges oriented like the first triangle's normal.  Such a pair is sampled as one
+    parallelogram light (spherical rectangle) instead of two spherical triangles."""
+    t = np.asarray(triangles, dtype=np.int64)
+    if len(t) < 2:
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+    v = np.asarray(vertices, dtype=np.float64)
+    a, b = t[:-1], t[1:]
+    in_b = (a[:, :, None] == b[:, None, :]).any(axis=2)        # which corners of a are in b
+    in_a = (b[:, :, None] == a[:, None, :]).any(axis=2)
+    rows_ = np.arange(len(a))
+    candidate = (in_b.sum(axis=1) == 2) & (material_ids[:-1] == material_ids[1:])
+    p = v[a[rows_, np.argmin(in_b, axis=1)]]                   # a's corner not shared
+    q = v[b[rows_, np.argmin(in_a, axis=1)]]                   # b's corner not shared
+    shared = np.sort(np.where(in_b, a, -1), axis=1)[:, 1:]     # a's two shared corners
+    s1, s2 = v[shared[:, 0]], v[shared[:, 1]]
+    size = np.maximum(np.abs(s1 - p).max(axis=1), np.abs(s2 - p).max(axis=1))
+    candidate &= np.abs(p + q - s1 - s2).max(axis=1) <= PARALLELOGRAM_TOLERANCE * np.maximum(size, 1e-300)
+    first, taken = [], -2
+    for i in np.flatnonzero(candidate):                          # no triangle in two pairs
+        if i > taken + 1:
+            first.append(i)
+            taken = i
+    first = np.array(first, dtype=np.int64)
+    e1, e2 = s1[first] - p[first], s2[first] - p[first]
+    normal = np.cross(v[a[first, 1]] - v[a[first, 0]], v[a[first, 2]] - v[a[first, 0]])
+    flip = np.einsum("ij,ij->i", np.cross(e1, e2), normal) < 0
+    e1[flip], e2[flip] = s2[first][flip] - p[first][flip], s1[first][flip] - p[first][flip]
+    return first, p[first], e1, e2
 
 
 def is_parallelogram(c: np.ndarray) -> bool:
@@ -86,11 +120,19 @@ class LightSampler:
             if not len(mesh.triangles):
                 continue
             ids = np.asarray(mesh.material_ids, dtype=np.int64)
-            local = np.full(len(ids), -1, dtype=np.int64)
-            sel = emissive[ids]
-            if sel.any():
-                v = np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.triangles)[sel]]
-                local[sel] = tri.add((v[:, 0], v[:, 1], v[:, 2]), emission[ids[sel]], False)
+            local = np.full(len(ids), -1, dtype=np.int64)        # light of each triangle
+            sel = np.flatnonzero(emissive[ids])
+            if len(sel):
+                tris = np.asarray(mesh.triangles)[sel]
+                single = np.ones(len(sel), dtype=bool)
+                if solid_angle:                                     # quads as parallelograms
+                    first, v0, e1, e2 = parallelogram_pairs(mesh.vertices, tris, ids[sel])
+                    if len(first):
+                        lights = para.add((v0, e1, e2), emission[ids[sel[first]]], False)
+                        local[sel[first]] = local[sel[first + 1]] = PAIRED + lights
+                        single[first] = single[first + 1] = False
+                v = np.asarray(mesh.vertices, dtype=np.float64)[tris[single]]
+                local[sel[single]] = tri.add((v[:, 0], v[:, 1], v[:, 2]), emission[ids[sel[single]]], False)
             tri_local.append(local)
             n_tri += len(ids)
 
@@ -135,8 +177,9 @@ class LightSampler:
 
         def glob(ref):
             return -1 if ref is None else base[ref[0]] + ref[1]
-        tri_base = base.get("tri", 0)
-        self.triangle_light = (np.concatenate([np.where(t >= 0, t + tri_base, -1) for t in tri_local])
+        tri_base, para_base = base.get("tri", 0), base.get("para", 0)
+        self.triangle_light = (np.concatenate([np.where(t >= PAIRED, t - PAIRED + para_base,
+                                                        np.where(t >= 0, t + tri_base, -1)) for t in tri_local])
                                if tri_local else np.zeros(0, np.int64))
         self.quad_light = np.array([glob(r) for r in quad_ref], dtype=np.int64)
         self.area_light_light = np.array([glob(r) for r in light_ref], dtype=np.int64)

@@ -219,15 +219,17 @@ def test_pdf_of_a_sampled_direction_equals_the_sampled_pdf(solid_angle):
 def test_light_samples_integrate_cosine_to_lamberts_formula(where, kind):
     """E[cos theta_x / p_w] = Omega_perp (Lambert's polygon formula) within a 4-sigma interval."""
     corners = np.array([[-0.5, -0.25, 0], [0.5, -0.25, 0], [0.5, 0.25, 0], [-0.5, 0.25, 0]], float)
-    mats = [Material("L", emission=(1, 1, 1), color=(0, 0, 0))]
+    # Two materials of one emission: the triangles are not merged into one parallelogram light.
+    mats = [Material("L", emission=(1, 1, 1), color=(0, 0, 0)), Material("L2", emission=(1, 1, 1), color=(0, 0, 0))]
     if kind == "rectangle":
         scene = Scene(None, mats, quads=[Quad("L", corners, 0)])
     else:
-        scene = Scene(None, mats, meshes=[TriangleMesh("L", corners, np.array([[0, 1, 2], [0, 2, 3]]), [0, 0])])
+        scene = Scene(None, mats, meshes=[TriangleMesh("L", corners, np.array([[0, 1, 2], [0, 2, 3]]), [0, 1])])
     height = {"above": 0.4, "near field 1e-3": 1e-3, "near field 1e-2": 1e-2}[where]
     x = np.array([0.2, 0.1, -height])
     n = np.array([0.0, 0.0, 1.0])
     lights = LightSampler(scene)
+    assert lights.kind_names() == ["parallelogram" if kind == "rectangle" else "triangle"]
     rng = np.random.default_rng(36)
     s = lights.sample(at(x, N), at(n, N), rng.random(N), rng.random(N), rng.random(N))
     w = s.point.T - x
@@ -274,3 +276,18 @@ def test_light_tree_prefers_the_lamp_next_to_the_receiver():
     x, n = centers[14] + [0.01, 0.0, 0.01], np.array([0.0, 0.0, -1.0])
     pmf = tree.pmf(at(x, k), at(n, k), np.arange(k))
     assert pmf[14] > 0.5 and pmf.argmax() == 14
+
+
+@pytest.mark.parametrize("tris", [[[0, 1, 2], [0, 2, 3]], [[0, 1, 3], [1, 2, 3]], [[0, 3, 2], [0, 2, 1]]])
+def test_a_quad_made_of_two_triangles_is_one_parallelogram_light(tris):
+    """Blender lamp planes arrive as two triangles: both map to one rectangle light with the
+    triangles' orientation; the report's estimator keeps the two triangles."""
+    corners = np.array([[0, 0, 1], [2, 0, 1], [2, 1, 1], [0, 1, 1]], float)
+    scene = Scene(None, [Material("L", emission=(1, 1, 1), color=(0, 0, 0))],
+                  meshes=[TriangleMesh("L", corners, np.array(tris), [0, 0])])
+    lights = LightSampler(scene)
+    assert lights.kind_names() == ["parallelogram"] and lights.triangle_light.tolist() == [0, 0]
+    winding = np.cross(*(corners[tris[0][1:]] - corners[tris[0][0]]))
+    assert np.allclose(lights.kinds[0][1].normal[:, 0], winding / np.linalg.norm(winding))
+    assert lights.area.tolist() == [2.0]
+    assert LightSampler(scene, solid_angle=False, spatial=False).kind_names() == ["triangle"]
