@@ -53,3 +53,9 @@ def aos(a: np.ndarray, dtype=np.float64) -> np.ndarray:
     out = np.empty((a.shape[1], 3), dtype=dtype)
     out[:, 0], out[:, 1], out[:, 2] = a[0], a[1], a[2]
     return out
+
+
+def gather(a: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """a.take(index, axis=-1) for per-object arrays ((K,) or rows (3, K)); with one object the
+    array itself, which broadcasts against per-ray arrays without a copy."""
+    return a if a.shape[-1] == 1 else a.take(index, axis=-1)

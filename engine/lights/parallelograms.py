@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..vec import cross, dot, rows
+from ..vec import cross, dot, gather, rows
 
 OMEGA_MIN = 1e-6          # sr: below this area sampling is as good and cheaper
 GRAZING = 1e-5            # |plane distance| / distance to the centre below which x is "in the plane"
@@ -43,21 +43,23 @@ class Parallelograms:
         self.len1, self.len2 = len1, len2
         self.axis1 = rows(e1 / np.maximum(len1, 1e-300)[:, None])
         self.axis2 = rows(e2 / np.maximum(len2, 1e-300)[:, None])
+        self.axis3 = cross(self.axis1, self.axis2)
         self.center = rows(v0 + 0.5 * (e1 + e2))
         corners = np.stack([v0, v0 + e1, v0 + e2, v0 + e1 + e2], axis=1)
         self.radius = np.linalg.norm(corners - (v0 + 0.5 * (e1 + e2))[:, None], axis=2).max(axis=1)
 
     # -- the spherical rectangle ---------------------------------------------------------
     def _frame(self, x, idx):
-        """Local coordinates of each light seen from x (Urena et al., section 3)."""
-        ax, ay = self.axis1.take(idx, axis=1), self.axis2.take(idx, axis=1)
-        az = cross(ax, ay)
-        rel = self.v0.take(idx, axis=1) - x
+        """Local coordinates of each light seen from x (Urena et al., section 3), its solid
+        angle and `use`: the predicate that sample() and pdf() share."""
+        ax, ay = gather(self.axis1, idx), gather(self.axis2, idx)
+        az = gather(self.axis3, idx)
+        rel = gather(self.v0, idx) - x
         z0 = dot(rel, az)
         flip = np.where(z0 > 0.0, -1.0, 1.0)          # z points away from the light: z0 <= 0
         az, z0 = az * flip, z0 * flip
         x0, y0 = dot(rel, ax), dot(rel, ay)
-        x1, y1 = x0 + self.len1.take(idx), y0 + self.len2.take(idx)
+        x1, y1 = x0 + gather(self.len1, idx), y0 + gather(self.len2, idx)
         z2 = z0 * z0
         with np.errstate(divide="ignore", invalid="ignore"):
             e0 = -y0 / np.sqrt(y0 * y0 + z2)          # z components of the edge-plane normals
@@ -66,13 +68,11 @@ class Parallelograms:
             e3 = -x0 / np.sqrt(x0 * x0 + z2)
         g = [np.arcsin(np.clip(-a * b, -1.0, 1.0)) for a, b in ((e0, e1), (e1, e2), (e2, e3), (e3, e0))]
         omega = -(g[0] + g[1] + g[2] + g[3])         # spherical excess, arcsin form
+        centre = gather(self.center, idx) - x
+        use = (gather(self.rectangle, idx) & (omega >= OMEGA_MIN) & np.isfinite(omega)
+               & (-z0 >= GRAZING * np.sqrt(dot(centre, centre))))
         return dict(ax=ax, ay=ay, az=az, x0=x0, y0=y0, x1=x1, y1=y1, z0=z0, e0=e0, e2=e2,
-                    g23=g[2] + g[3], omega=omega)
-
-    def _use_solid_angle(self, x, idx, f):
-        dist = np.sqrt(dot(self.center.take(idx, axis=1) - x, self.center.take(idx, axis=1) - x))
-        ok = self.rectangle.take(idx) & (f["omega"] >= OMEGA_MIN) & (-f["z0"] >= GRAZING * dist)
-        return ok & np.isfinite(f["omega"])
+                    g23=g[2] + g[3], omega=omega, use=use)
 
     def _spherical_point(self, x, f, u1, u2):
         """The point of the rectangle in the direction that (u1, u2) maps to (Cycles' form)."""
@@ -94,28 +94,31 @@ class Parallelograms:
     # -- the interface every emitter kind offers ------------------------------------------
     def sample(self, x, idx, u1, u2, solid_angle: bool):
         """(point y, light normal, p_w of the direction x -> y) for rays x (rows), lights idx."""
-        v0, e1, e2 = self.v0.take(idx, axis=1), self.e1.take(idx, axis=1), self.e2.take(idx, axis=1)
-        point = v0 + u1 * e1 + u2 * e2                       # by area
-        normal = self.normal.take(idx, axis=1)
-        pdf = area_pdf(x, point, normal, self.area.take(idx))
-        if solid_angle:
-            f = self._frame(x, idx)
-            use = self._use_solid_angle(x, idx, f)
-            if use.any():
-                sel = np.flatnonzero(use)
-                fs = {k: v.take(sel, axis=-1) for k, v in f.items()}
-                point[:, sel] = self._spherical_point(x.take(sel, axis=1), fs, u1.take(sel), u2.take(sel))
-                pdf[sel] = 1.0 / fs["omega"]
+        m = x.shape[1]
+        normal = np.broadcast_to(gather(self.normal, idx), (3, m))
+        if not solid_angle:
+            return self._area_sample(x, idx, u1, u2, normal)
+        f = self._frame(x, idx)
+        point = self._spherical_point(x, f, u1, u2)
+        with np.errstate(divide="ignore"):
+            pdf = 1.0 / f["omega"]
+        if not f["use"].all():                                 # area sampling where unstable
+            sel = np.flatnonzero(~f["use"])
+            p, _, pd = self._area_sample(x.take(sel, axis=1), gather(idx, sel), u1.take(sel), u2.take(sel),
+                                         normal.take(sel, axis=1))
+            point[:, sel], pdf[sel] = p, pd
         return point, normal, pdf
+
+    def _area_sample(self, x, idx, u1, u2, normal):
+        point = gather(self.v0, idx) + u1 * gather(self.e1, idx) + u2 * gather(self.e2, idx)
+        return point, normal, area_pdf(x, point, normal, gather(self.area, idx))
 
     def pdf(self, x, idx, point, solid_angle: bool):
         """p_w at x of the direction towards `point` on light idx (the density `sample` has)."""
-        normal = self.normal.take(idx, axis=1)
-        pdf = area_pdf(x, point, normal, self.area.take(idx))
+        pdf = area_pdf(x, point, gather(self.normal, idx), gather(self.area, idx))
         if solid_angle:
             f = self._frame(x, idx)
-            use = self._use_solid_angle(x, idx, f)
-            pdf = np.where(use, 1.0 / np.where(use, f["omega"], 1.0), pdf)
+            pdf = np.where(f["use"], 1.0 / np.where(f["use"], f["omega"], 1.0), pdf)
         return pdf
 
     def solid_angle(self, x, idx):
