@@ -52,29 +52,33 @@ class TileSamples:
 
     Sample i of the tile belongs to pixel i mod (tile pixels): the first pass covers
     every pixel once, then the second, ... `spp` passes in all.  Each sample is a
-    jittered sub-pixel position (box filter), drawn from `rng` when its chunk is taken.
+    jittered sub-pixel position (box filter), from dimension pair 0 of `sampler`
+    (engine/qmc.py) when its chunk is taken.
     """
 
     def __init__(self, camera, width: int, height: int, x0: int, y0: int, x1: int, y1: int,
-                 spp: int, rng):
+                 spp: int, sampler):
         self.camera, self.width, self.height = camera, width, height
         self.tile_width = x1 - x0
         self.pixels = self.tile_width * (y1 - y0)
         self.x0, self.y0 = x0, y0
         self.total = self.pixels * spp
         self.taken = 0
-        self.rng = rng
+        self.sampler = sampler
 
     @property
     def remaining(self) -> int:
         return self.total - self.taken
 
     def take(self, count: int):
-        """(pixel index within the tile, origins, directions) of the next `count` samples."""
+        """(pixel index within the tile, sample index within the pixel, origins, directions)
+        of the next `count` samples."""
         count = min(count, self.remaining)
-        pixel = np.arange(self.taken, self.taken + count) % self.pixels
+        serial = np.arange(self.taken, self.taken + count)
+        pixel, sample = serial % self.pixels, serial // self.pixels
         self.taken += count
-        sx = (pixel % self.tile_width + self.x0) + self.rng.random(count)
-        sy = (pixel // self.tile_width + self.y0) + self.rng.random(count)
+        jx, jy = self.sampler.pair(pixel, sample, 0)
+        sx = (pixel % self.tile_width + self.x0) + jx
+        sy = (pixel // self.tile_width + self.y0) + jy
         origins, directions = camera_rays(self.camera, self.width, self.height, sx, sy)
-        return pixel, origins, directions
+        return pixel, sample.astype(np.int64), origins, directions

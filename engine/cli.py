@@ -8,7 +8,7 @@ import sys
 import time
 
 from .scene import SceneError
-from .settings import ACCELERATORS, ESTIMATORS, FRESNEL_MODELS, RenderSettings
+from .settings import ACCELERATORS, ESTIMATORS, FRESNEL_MODELS, SAMPLERS, RenderSettings
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -45,6 +45,8 @@ def add_settings_arguments(p):
     p.add_argument("--estimator", choices=ESTIMATORS, default=defaults.estimator,
                    help="direct light: mis (solid-angle light samples and BSDF samples combined by MIS), "
                         "solid-angle (light samples only), report (eq. 2.11: area sampling, pdf 1/A)")
+    p.add_argument("--sampler", choices=SAMPLERS, default=defaults.sampler,
+                   help="sobol: Owen-scrambled Sobol' points per pixel; random: independent uniforms")
     p.add_argument("--nested-dielectrics", action="store_true",
                    help="track nested glass media (glass in glass refracts by the IOR ratio)")
     p.add_argument("--accelerator", choices=ACCELERATORS, default=defaults.accelerator)
@@ -57,6 +59,7 @@ def settings_from_args(args) -> RenderSettings:
     return RenderSettings(samples=args.samples, shadow_rays=args.shadow_rays, max_depth=args.max_depth,
                           russian_roulette=not args.no_russian_roulette, fresnel=args.fresnel,
                           nested_dielectrics=args.nested_dielectrics, estimator=args.estimator,
+                          sampler=args.sampler,
                           threads=args.threads, seed=args.seed, tile_size=args.tile_size,
                           accelerator=args.accelerator)
 

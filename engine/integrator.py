@@ -38,6 +38,7 @@ import numpy as np
 
 from .bsdf import FRESNEL, reflect, refract, refract_cos
 from .geometry import LIGHT, QUAD, SPHERE, TRIANGLE
+from .qmc import RandomSampler
 from .sampling import cosine_directions
 from .scene import DIFFUSE, GLASS, MIRROR
 from .vec import dot, max3, rows
@@ -67,12 +68,18 @@ class MaterialTable:
 
 VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n")
 CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = 0, 1, 2, 3   # LightPolygons.RAY_KINDS
+# Dimension pairs of the sampler (engine/qmc.py): 0 is the camera jitter (engine/camera.py);
+# the hit after bounce b uses DIMS_PER_BOUNCE pairs from 1 + DIMS_PER_BOUNCE b on.
+# CHOICES: (light pick with one shadow ray, or the Fresnel choice at glass; roulette).
+LIGHT_UV, BSDF_UV, CHOICES, LIGHT_PICK = 1, 2, 3, 4          # LIGHT_PICK: with several shadow rays
+DIMS_PER_BOUNCE = 4
 
 
 @dataclass
 class Paths:
     """The state of the paths in the wavefront (struct of arrays; vectors as (3, N) rows)."""
     pixel: np.ndarray           # (N,) pixel of the tile the camera sample belongs to
+    sample: np.ndarray          # (N,) the camera sample's number within its pixel (QMC index)
     o: np.ndarray               # (3, N) ray origins
     d: np.ndarray               # (3, N) unit ray directions
     beta: np.ndarray            # (3, N) path throughput
@@ -87,9 +94,9 @@ class Paths:
     depth: np.ndarray | None = None   # nested dielectrics: (N,) stack height
 
     @classmethod
-    def start(cls, pixel, origins, directions, nested: bool, mis: bool) -> "Paths":
+    def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool) -> "Paths":
         n = len(pixel)
-        return cls(pixel, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
+        return cls(pixel, sample, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
                    np.zeros(n, dtype=np.int8), np.zeros(n, dtype=np.int32),
                    np.zeros((3, n)) if mis else None, np.zeros((3, n)) if mis else None,
                    np.ones(n) if mis else None,
@@ -138,7 +145,7 @@ class PathTracer:
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
 
     # -- the wavefront -----------------------------------------------------------------
-    def trace(self, samples, rng, counters, on_finished, cancel=None) -> None:
+    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None) -> None:
         """Trace every camera sample of `samples` (a camera.TileSamples) to completion.
 
         The wavefront holds up to WAVEFRONT_SIZE paths that advance one bounce per
@@ -148,8 +155,10 @@ class PathTracer:
         pixel, throughput beta and radiance L; a finished path is handed to
         `on_finished(pixel, L)`.  Once `cancel` is set no new sample starts, but the paths
         in flight are traced to their end (a few bounces): dropping them would keep only
-        the short paths of a partial tile and darken it.
+        the short paths of a partial tile and darken it.  Uniform numbers come from
+        `sampler` (engine/qmc.py; default: independent ones from `rng`).
         """
+        sampler = sampler or RandomSampler(rng)
         paths = None
         while True:
             alive = 0 if paths is None else len(paths.pixel)
@@ -157,17 +166,17 @@ class PathTracer:
             fresh = 0
             stopping = cancel is not None and cancel.is_set()
             if samples.remaining and not stopping and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
-                pixel, o, d = samples.take(room)
+                pixel, sample, o, d = samples.take(room)
                 fresh = len(pixel)
-                new = Paths.start(pixel, o, d, self.settings.nested_dielectrics, self.mis)
+                new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis)
                 paths = new if paths is None else paths.extend(new)
             if paths is None or len(paths.pixel) == 0:
                 break
             counters.rays["camera"] += fresh
             counters.rays["extension"] += len(paths.pixel) - fresh
-            paths = self.bounce(paths, rng, counters, on_finished)
+            paths = self.bounce(paths, sampler, counters, on_finished)
 
-    def bounce(self, p: "Paths", rng, counters, on_finished) -> "Paths":
+    def bounce(self, p: "Paths", sampler, counters, on_finished) -> "Paths":
         """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
         finished = []                                   # (pixel, radiance) of paths that end
         # 1. Intersect.  Hits sorted by how their surface scatters, 0 diffuse, 1 mirror,
@@ -199,13 +208,17 @@ class PathTracer:
         diffuse = slice(bounds[0], bounds[1])
         facing = surf.normal * np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)   # towards the ray
         color = self.mats.color.take(surf.material, axis=1)
+        dim = 1 + DIMS_PER_BOUNCE * p.bounce[:alive]                        # this hit's dimensions
+        u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
         if self.use_nee and bounds[1] > bounds[0]:
             p.radiance[:, diffuse] += p.beta[:, diffuse] * self.direct_light(
-                surf.point[:, diffuse], facing[:, diffuse], color[:, diffuse], surf.offset[diffuse], rng, counters)
+                surf.point[:, diffuse], facing[:, diffuse], color[:, diffuse], surf.offset[diffuse], None, counters,
+                u=self.light_uniforms(sampler, p.pixel[diffuse], p.sample[diffuse], dim[diffuse], u_choice[diffuse]))
         # 6. Scatter: the next direction and throughput of every scattering path.
-        new_d, side, beta = self.scatter(p, surf, facing, color, bounds, rng)
+        u_bsdf = sampler.pair(p.pixel[diffuse], p.sample[diffuse], dim[diffuse] + (BSDF_UV - 1))
+        new_d, side, beta = self.scatter(p, surf, facing, color, bounds, u_bsdf, u_choice)
         # 7. Russian roulette and the depth limit.
-        keep, beta = self.roulette(beta, p.bounce[:alive], p.specular[:alive], rng)
+        keep, beta = self.roulette(beta, p.bounce[:alive], p.specular[:alive], u_rr)
         # 8. Compaction: hand finished paths to the film, keep the rest.
         ended = np.flatnonzero(~keep)
         finished += [(p.pixel.take(ended), p.radiance.take(ended, axis=1)),
@@ -281,7 +294,21 @@ class PathTracer:
         through.o = point + offset * through.d
         return through
 
-    def scatter(self, p, surf, facing, color, bounds, rng):
+    def light_uniforms(self, sampler, pixel, sample, dim, u_choice):
+        """(pick, u1, u2) for the N_s shadow rays of each diffuse hit: ray j of sample s is
+        point s N_s + j of the light dimensions, so a pixel's light samples stay one net.
+        With one shadow ray the pick is the hit's choice number (u_choice)."""
+        ns = self.settings.shadow_rays
+        if ns == 1:
+            u1, u2 = sampler.pair(pixel, sample, dim + (LIGHT_UV - 1))
+            return u_choice, u1, u2
+        pixel, dim = np.repeat(pixel, ns), np.repeat(dim, ns)
+        sample = np.repeat(sample * ns, ns) + np.tile(np.arange(ns), len(sample))
+        u1, u2 = sampler.pair(pixel, sample, dim + (LIGHT_UV - 1), light=True)
+        pick, _ = sampler.pair(pixel, sample, dim + (LIGHT_PICK - 1), light=True)
+        return pick, u1, u2
+
+    def scatter(self, p, surf, facing, color, bounds, u_bsdf, u_choice):
         """New directions, the side to leave on (+1 facing, -1 through) and throughputs of the
         diffuse, mirror and glass paths (groups 0-2); updates their specular/MIS state."""
         alive = bounds[BLACK]
@@ -292,8 +319,7 @@ class PathTracer:
         side = np.ones(alive)
         d = p.d
         if n_diffuse:
-            new_d[:, diffuse] = cosine_directions(rng.random(n_diffuse), rng.random(n_diffuse),
-                                                  facing[:, diffuse])      # eq. 2.13b
+            new_d[:, diffuse] = cosine_directions(u_bsdf[0], u_bsdf[1], facing[:, diffuse])   # eq. 2.13b
             p.specular[diffuse] = False
             p.ray_kind[diffuse] = DIFFUSE_RAY
             if self.mis:
@@ -308,13 +334,13 @@ class PathTracer:
             stack = None if p.media is None else (p.media[glass], p.depth[glass])   # views: updated in place
             new_d[:, glass], side[glass] = self.scatter_glass(
                 d[:, glass], surf.normal[:, glass], facing[:, glass], dot(d[:, glass], surf.normal[:, glass]),
-                self.mats.ior.take(surf.material[glass]), rng, stack)
+                self.mats.ior.take(surf.material[glass]), None, stack, u=u_choice[glass])
             p.specular[glass] = True
             p.ray_kind[glass] = np.where(side[glass] > 0.0, GLOSSY_RAY, TRANSMISSION_RAY)
         beta = p.beta[:, :alive] * color[:, :alive]  # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
         return new_d, side, beta
 
-    def roulette(self, beta, bounce, specular, rng):
+    def roulette(self, beta, bounce, specular, u):
         """Which paths go on (report 2.4) and their throughput after the survival division.
         Under `mis` a diffuse bounce at the depth limit goes on for its emission (see `bounce`)."""
         s = self.settings
@@ -324,18 +350,18 @@ class PathTracer:
         keep = (max3(beta) > 0.0) & within
         if s.russian_roulette:
             survive_p = np.where(bounce + 1 >= s.rr_start_depth, np.minimum(max3(beta), 1.0), 1.0)
-            keep &= rng.random(len(bounce)) < survive_p
+            keep &= u < survive_p
             beta = beta / np.where(keep, survive_p, 1.0)
         return keep, beta
 
     # -- direct light, eq. 2.11 ---------------------------------------------------------
-    def direct_light(self, point, normal, albedo, offset, rng, counters) -> np.ndarray:
+    def direct_light(self, point, normal, albedo, offset, rng, counters, u=None) -> np.ndarray:
         """<L_direct> with N_s shadow rays per point, divided by N_s: rows (3, M).
 
         point, normal (facing the viewer) and albedo are rows (3, M); offset (M,).  Each
         sample adds Le f cos(theta_x) V / p_l (eq. 2.11 written per unit solid angle: with
         p_l = P(k) d^2 / (A cos(theta_y)) it is the report's Le f G V A / P(k)), times the
-        MIS weight under `mis`."""
+        MIS weight under `mis`.  u: (pick, u1, u2) per shadow ray, else drawn from rng."""
         ns = self.settings.shadow_rays
         m = point.shape[1]
         k = m * ns
@@ -343,7 +369,8 @@ class PathTracer:
         x = np.repeat(point, ns, axis=1) if ns > 1 else point
         nx = np.repeat(normal, ns, axis=1) if ns > 1 else normal
         off_x = np.repeat(offset, ns) if ns > 1 else offset
-        ls = self.lights.sample(x, nx, rng.random(k), rng.random(k), rng.random(k))
+        u_pick, u1, u2 = u if u is not None else (rng.random(k), rng.random(k), rng.random(k))
+        ls = self.lights.sample(x, nx, u_pick, u1, u2)
         w = ls.point - x
         dist2 = dot(w, w)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -379,7 +406,7 @@ class PathTracer:
         return mean * albedo * (1.0 / np.pi)                            # f_r = colour / pi (eq. 2.13a)
 
     # -- glass, report 2.5.4 ----------------------------------------------------------
-    def scatter_glass(self, d, normal, facing, cos_in, ior, rng, stack=None):
+    def scatter_glass(self, d, normal, facing, cos_in, ior, rng, stack=None, u=None):
         """Reflect or refract at glass (direction rows); returns (directions, side).
         `stack` = (media, depth) views of the paths' medium stacks (nested dielectrics),
         updated in place."""
@@ -397,7 +424,7 @@ class PathTracer:
             eta = np.where(entering, current / ior, ior / below)
         cos_t, tir = refract_cos(cos_i, eta)
         fresnel = self.fresnel(cos_i, cos_t, eta, tir)
-        reflected = rng.random(n) < fresnel
+        reflected = (u if u is not None else rng.random(n)) < fresnel
         out = np.empty_like(d)
         sel = np.flatnonzero(reflected)
         if len(sel):

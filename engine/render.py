@@ -19,6 +19,7 @@ from .film import TileFilm
 from .geometry import Counters, SceneGeometry
 from .integrator import PathTracer
 from .lights import LightSampler
+from .qmc import RandomSampler, SobolSampler
 from .settings import RenderSettings
 from .workers import choose_parallelism, make_workers
 
@@ -41,6 +42,18 @@ class RenderResult:
     stats: dict
     warnings: list = field(default_factory=list)
     cancelled: bool = False
+
+
+MIN_TILES = 4          # so that both cores of a small frame have work (one 64-px tile would idle one)
+
+
+def tile_size_for(width: int, height: int, size: int) -> int:
+    """The tile edge used: `size`, halved (not below 16) until the frame has MIN_TILES tiles.
+    It depends on the frame only, never on the thread count, so images stay identical
+    whatever the number of workers."""
+    while size > 16 and -(-width // size) * -(-height // size) < MIN_TILES:
+        size = max(16, size // 2)
+    return size
 
 
 def make_tiles(width: int, height: int, size: int) -> list[Tile]:
@@ -79,8 +92,11 @@ class Renderer:
         width, height = self.scene.resolution
         film = TileFilm(tile.x1 - tile.x0, tile.y1 - tile.y0)
         rng = np.random.default_rng([s.seed, tile.index])
+        sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.samples, s.shadow_rays)
+                   if s.sampler == "sobol"
+                   else RandomSampler(rng))
         samples = TileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1, tile.y1,
-                              s.samples, rng)
+                              s.samples, sampler)
 
         def finished(pixel, radiance):
             bad = ~np.isfinite(radiance).all(axis=0)
@@ -90,7 +106,7 @@ class Renderer:
                 radiance[:, bad] = 0.0
             film.add(pixel, radiance)
 
-        self.tracer.trace(samples, rng, counters, finished, cancel)
+        self.tracer.trace(samples, rng, counters, finished, cancel, sampler)
         return film
 
 
@@ -107,7 +123,8 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
     renderer = Renderer(scene, settings, log=log)
     setup_seconds = time.perf_counter() - setup_start
     width, height = scene.resolution
-    tiles = make_tiles(width, height, settings.tile_size)
+    tile_size = tile_size_for(width, height, settings.tile_size)
+    tiles = make_tiles(width, height, tile_size)
     threads = settings.resolved_threads()
     log(f"{ENGINE_NAME}: {width}x{height}, {settings.samples} spp, {settings.shadow_rays} shadow ray(s), "
         f"estimator {settings.estimator}, "
@@ -168,9 +185,11 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
         "russian_roulette": settings.russian_roulette,
         "fresnel": settings.fresnel,
         "estimator": settings.estimator,
+        "sampler": settings.sampler,
         "seed": settings.seed,
         "resolution": [width, height],
         "threads": threads,
+        "tile_size": tile_size,
         "accelerator": renderer.accelerator,
         "accelerator_reason": renderer.accelerator_reason,
         "rays": rays,

@@ -10,6 +10,8 @@ ACCELERATORS = ("auto", "embree", "octree", "brute")
 # solid-angle: solid-angle light sampling and a spatial light pmf, emission after diffuse dropped;
 # mis: solid-angle light sampling combined with the cosine BSDF sample by MIS (power heuristic).
 ESTIMATORS = ("mis", "solid-angle", "report")
+# sobol: Owen-scrambled Sobol' points per pixel (engine/qmc.py); random: independent uniforms.
+SAMPLERS = ("sobol", "random")
 
 
 @dataclass
@@ -22,6 +24,7 @@ class RenderSettings:
     fresnel: str = "schlick"      # eq. 2.17, or exact dielectric Fresnel as Cycles
     nested_dielectrics: bool = False  # medium stack: glass in glass refracts by the IOR ratio
     estimator: str = "mis"        # ESTIMATORS: how direct light is estimated
+    sampler: str = "sobol"        # SAMPLERS: where the uniform numbers come from
     threads: int = 0              # 0 = all cores
     seed: int = 0
     tile_size: int = 64
@@ -43,6 +46,8 @@ class RenderSettings:
             raise SceneError(f"unknown Fresnel model '{self.fresnel}' (expected schlick or exact)")
         if self.estimator not in ESTIMATORS:
             raise SceneError(f"unknown estimator '{self.estimator}' (expected one of {', '.join(ESTIMATORS)})")
+        if self.sampler not in SAMPLERS:
+            raise SceneError(f"unknown sampler '{self.sampler}' (expected one of {', '.join(SAMPLERS)})")
         if self.accelerator not in ACCELERATORS:
             raise SceneError(f"unknown accelerator '{self.accelerator}' (expected one of {', '.join(ACCELERATORS)})")
         if self.tile_size < 8:

@@ -19,6 +19,11 @@ ESTIMATOR_ITEMS = (
     ("REPORT", "Report (Area)", "The report's estimator (eq. 2.11): a light picked by power, a point on "
                                 "it uniform by area (pdf 1/A); noisy near lights"),
 )
+SAMPLER_ITEMS = (
+    ("SOBOL", "Sobol", "Owen-scrambled Sobol' points per pixel, each dimension pair shuffled "
+                       "independently (lower noise, as Cycles' default pattern)"),
+    ("RANDOM", "Random", "Independent uniform random numbers (plain Monte Carlo)"),
+)
 ACCELERATOR_ITEMS = (
     ("AUTO", "Auto", "Pick the fastest available accelerator"),
     ("EMBREE", "Embree", "Intel Embree through embreex"),
@@ -38,6 +43,8 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
                          default=16, min=1, soft_max=4096)
     shadow_rays: IntProperty(name="Shadow Rays", description="Light samples per diffuse hit",
                              default=1, min=0, soft_max=64)
+    sampler: EnumProperty(name="Pattern", description="Where the random numbers of each pixel come from",
+                          items=SAMPLER_ITEMS, default="SOBOL")
     seed: IntProperty(name="Seed", description="Random seed; the same seed gives the same image",
                       default=0, min=0)
     max_depth: IntProperty(name="Max Bounces", description="Bounces after the camera hit (0 = direct light only)",
@@ -66,7 +73,7 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
             samples=self.samples, shadow_rays=self.shadow_rays, max_depth=self.max_depth,
             russian_roulette=self.russian_roulette, rr_start_depth=self.rr_start_depth,
             fresnel=self.fresnel.lower(), nested_dielectrics=self.nested_dielectrics,
-            estimator=self.estimator.lower().replace("_", "-"),
+            estimator=self.estimator.lower().replace("_", "-"), sampler=self.sampler.lower(),
             threads=self.threads, seed=self.seed,
             tile_size=self.tile_size, accelerator=self.accelerator.lower())
 

@@ -38,6 +38,7 @@ class RENDER_PT_tncg15_sampling(TNCG15ButtonsPanel, bpy.types.Panel):
         col.prop(props, "samples")
         col.prop(props, "shadow_rays")
         layout.prop(props, "seed")
+        layout.prop(props, "sampler")
 
 
 class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):

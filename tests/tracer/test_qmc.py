@@ -1,0 +1,87 @@
+"""The Sobol' sampler (engine/qmc.py): nets per dimension pair, independent pairs, unbiased
+renders, and random numbers that depend on (seed, pixel, sample, dimension) only."""
+import numpy as np
+import pytest
+from scipy.stats import chi2_contingency
+
+from engine import RenderSettings, render
+from engine.qmc import owen_scramble, pixel_seeds, reverse_bits, sample_2d
+
+from .scenes import diffuse_box_scene, near_lamp_box
+
+
+def points(pixel, dim, n=1024):
+    seed = pixel_seeds(3, np.array([pixel]), np.array([5]))[0]
+    return sample_2d(np.arange(n), np.full(n, seed, np.uint32), dim, n)
+
+
+@pytest.mark.parametrize("dim", [0, 1, 7, 333])
+def test_each_pair_is_a_scrambled_0_m_2_net(dim):
+    """Every elementary interval of area 1/n holds exactly one of a pixel's n points."""
+    n = 1024
+    x, y = points(11, dim, n)
+    for a in range(11):
+        cells = (x * 2 ** a).astype(int) * 2 ** (10 - a) + (y * 2 ** (10 - a)).astype(int)
+        assert (np.bincount(cells, minlength=n) == 1).all(), a
+    assert x.min() >= 0.0 and max(x.max(), y.max()) < 1.0
+
+
+def dependent_pairs(sample):
+    """How many (dimension, component) pairs of a pixel's 4096 points fail a chi-square test of
+    independence at p < 1e-3, over 6 pixels x 6 dimensions."""
+    bad = total = 0
+    for pixel in range(6):
+        pts = [sample(pixel, d) for d in range(6)]
+        for d1 in range(6):
+            for d2 in range(d1 + 1, 6):
+                for c in range(2):
+                    a, b = (pts[d1][c] * 8).astype(int), (pts[d2][c] * 8).astype(int)
+                    table = np.zeros((8, 8))
+                    np.add.at(table, (a, b), 1)
+                    total += 1
+                    bad += chi2_contingency(table)[1] < 1e-3
+    return bad, total
+
+
+def test_dimension_pairs_are_independent():
+    bad, total = dependent_pairs(lambda pixel, d: points(pixel, d, 4096))
+    assert bad <= 3, (bad, total)          # about total / 1000 expected
+
+
+def test_independence_test_catches_an_owen_shuffled_index():
+    """Control: shuffling the index by Owen scrambling (Burley's LK shuffle) keeps low bits of
+    the index in place, so the pairs' coarse strata line up: the same test rejects it."""
+    def owen_shuffled(pixel, d):
+        n = 4096
+        seed = pixel_seeds(3, np.array([pixel]), np.array([5]))[0] ^ np.uint32(0x9E3779B9 * (d + 1) & 0xFFFFFFFF)
+        i = owen_scramble(np.arange(n, dtype=np.uint32), np.full(n, seed, np.uint32))
+        x = reverse_bits(i) / 2.0 ** 32
+        return x, x
+    bad, total = dependent_pairs(owen_shuffled)
+    assert bad > 10, (bad, total)
+
+
+def test_sobol_and_random_samplers_converge_to_the_same_image():
+    scene = near_lamp_box()
+    a = render(scene, RenderSettings(samples=512, sampler="sobol", seed=1, threads=2), log=lambda *a: None)
+    b = render(scene, RenderSettings(samples=512, sampler="random", seed=2, threads=2), log=lambda *a: None)
+    se = np.sqrt((a.variance.sum() + b.variance.sum())) / a.image.size
+    assert abs(a.image.mean() - b.image.mean()) < 4 * se
+
+
+def test_sobol_lowers_the_error_of_direct_light():
+    """Near-lamp box, direct light only: between-seed error of pixel means, 4 seeds each."""
+    def spread(sampler):
+        images = [render(near_lamp_box(), RenderSettings(samples=64, max_depth=0, sampler=sampler, seed=s,
+                                                         threads=2), log=lambda *a: None).image for s in range(4)]
+        return float(np.stack(images).var(axis=0, ddof=1).mean())
+    assert spread("sobol") < 0.5 * spread("random")
+
+
+def test_sobol_images_do_not_depend_on_tiles_or_threads():
+    scene = diffuse_box_scene()
+    one = render(scene, RenderSettings(samples=8, threads=1, tile_size=8, seed=4), log=lambda *a: None)
+    two = render(scene, RenderSettings(samples=8, threads=2, tile_size=16, seed=4), log=lambda *a: None)
+    assert np.allclose(one.image, two.image, rtol=1e-5, atol=1e-7)
+    other = render(scene, RenderSettings(samples=8, threads=2, tile_size=16, seed=5), log=lambda *a: None)
+    assert not np.allclose(one.image, other.image)
