@@ -252,11 +252,11 @@ class PathTracer:
         parts = [(lit, self.mats.emission.take(mat.take(lit), axis=1))] if len(lit) else []
         for (group, kind), (a, b) in hits.runs.items():
             if group == PASS:
-                lamp = self.lights.area_light_light.take(hits.prim[a:b])
-                front = ~self.lights.one_sided.take(lamp) | (dot(p.d[:, a:b], surf.normal[:, a:b]) < 0.0)
+                lamps, prim = self.geometry.lights, hits.prim[a:b]
+                front = lamps.two_sided.take(prim) | (dot(p.d[:, a:b], surf.normal[:, a:b]) < 0.0)
                 idx = np.arange(a, b)[front]
                 if len(idx):
-                    parts.append((idx, self.lights.radiance.take(lamp[front], axis=1)))
+                    parts.append((idx, lamps.radiance.take(prim[front], axis=1)))
         for idx, le in parts:
             weight = self.emission_weight(p, surf, hits, idx)
             p.radiance[:, idx] += p.beta.take(idx, axis=1) * le * weight
@@ -398,8 +398,9 @@ class PathTracer:
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
             cos, pdf = pick(cos_x), pick(ls.pdf)
             sample = cos / pdf                                                  # cos V / p_l
-            if self.mis:
-                sample *= power_heuristic(float(ns), pdf, 1.0, cos * (1.0 / np.pi))
+            if self.mis:                            # lights a diffuse bounce cannot reach: weight 1
+                p_bsdf = np.where(pick(self.lights.bsdf_reachable.take(ls.light)), cos * (1.0 / np.pi), 0.0)
+                sample *= power_heuristic(float(ns), pdf, 1.0, p_bsdf)
             weight[valid] = np.where(blocked, 0.0, sample)
         contrib = ls.radiance * weight
         mean = contrib.reshape(3, m, ns).sum(axis=2) / ns if ns > 1 else contrib

@@ -81,7 +81,8 @@ class Renderer:
         for w in self.warnings:
             log(f"warning: {w}")
         self.geometry = SceneGeometry(scene, self.accelerator, self.plan)
-        self.lights = LightSampler(scene, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree)
+        self.lights = LightSampler(scene, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
+                                   lamps_hittable=self.plan.area_lights)
         self.plan.describe_light_kinds(self.lights)
         self.tracer = PathTracer(self.geometry, self.lights, scene.materials, self.plan,
                                  settings, scene.background)

@@ -210,6 +210,7 @@ class AreaLight:
     visible_diffuse: bool = True
     visible_glossy: bool = True
     visible_transmission: bool = True
+    lights_diffuse: bool = True   # lights diffuse surfaces at all (Cycles: Diffuse visibility off: no)
 
     def triangles(self) -> np.ndarray:
         v = np.asarray(self.vertices, dtype=np.float64)

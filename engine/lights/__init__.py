@@ -105,9 +105,10 @@ class _Gather:
 
 class LightSampler:
     """All emitters of a scene.  solid_angle: sample each light by solid angle where stable
-    (else by area, as eq. 2.11); spatial: pick lights with the light tree (else by power)."""
+    (else by area, as eq. 2.11); spatial: pick lights with the light tree (else by power);
+    lamps_hittable: rays can reach Area lights (the geometry tests them)."""
 
-    def __init__(self, scene, solid_angle: bool = True, spatial: bool = True):
+    def __init__(self, scene, solid_angle: bool = True, spatial: bool = True, lamps_hittable: bool = False):
         self.solid_angle = solid_angle
         mats = scene.materials
         emission = np.array([m.emission for m in mats], dtype=np.float64).reshape(-1, 3)
@@ -145,7 +146,10 @@ class LightSampler:
 
         quad_ref = [add_flat(q.corners, emission[q.material_id], False) if emissive[q.material_id] else None
                     for q in scene.quads]
-        light_ref = [add_flat(light.vertices, light.radiance, not light.two_sided) for light in scene.lights]
+        # An Area light whose Diffuse visibility is off lights no diffuse surface (as in Cycles):
+        # the light sampler leaves it out; rays of the kinds it is visible to still see it.
+        light_ref = [add_flat(light.vertices, light.radiance, not light.two_sided) if light.lights_diffuse
+                     else None for light in scene.lights]
         sphere_ref = [("sph", int(sph.add(([s.center], [s.radius]), emission[s.material_id], False)[0]))
                       if emissive[s.material_id] else None for s in scene.spheres]
 
@@ -184,6 +188,12 @@ class LightSampler:
         self.quad_light = np.array([glob(r) for r in quad_ref], dtype=np.int64)
         self.area_light_light = np.array([glob(r) for r in light_ref], dtype=np.int64)
         self.sphere_light = np.array([glob(r) for r in sphere_ref], dtype=np.int64)
+        # Whether a diffuse bounce ray can reach each light (MIS needs both strategies): emissive
+        # surfaces always; Area lights when rays test them and their diffuse visibility is on.
+        self.bsdf_reachable = np.ones(self.count_all, dtype=bool)
+        for light, ref in zip(scene.lights, light_ref):
+            if ref is not None:
+                self.bsdf_reachable[glob(ref)] = lamps_hittable and light.visible_diffuse
 
         # Per light: area, the report's power (area x mean radiance) and bounds for the tree.
         area = np.concatenate([k.area for _, k, _ in self.kinds]) if self.kinds else np.zeros(0)

@@ -29,6 +29,8 @@ class LightPolygons:
         self.normal = np.array(normals).reshape(-1, 3)
         self.origin = np.array([c[0] for c in self.corners]).reshape(-1, 3)
         self.scale = np.array([np.abs(c).max() for c in self.corners])
+        self.radiance = np.array([light.radiance for light in lights], dtype=np.float64).reshape(-1, 3).T.copy()
+        self.two_sided = np.array([light.two_sided for light in lights], dtype=bool)
         self.visible = np.array([[getattr(light, f"visible_{kind}") for kind in RAY_KINDS] for light in lights],
                                 dtype=bool).reshape(-1, len(RAY_KINDS))
 

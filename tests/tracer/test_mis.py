@@ -148,3 +148,21 @@ def test_area_light_in_a_mirror(estimator, visibility, expected):
         scene.camera = Camera.look_at((0, 0, 0.5), (0, 0, 2), up=(0, 1, 0), lens=200.0)   # below, looking up
     result = render(scene, settings(samples=4, estimator=estimator), **SILENT)
     assert np.allclose(result.image, expected, rtol=1e-6), (result.image.min(), result.image.max())
+
+
+@pytest.mark.parametrize("flags, lit", [({}, True), ({"lights_diffuse": False, "visible_diffuse": False}, False),
+                                        ({"visible_diffuse": False}, True)])
+def test_area_light_diffuse_visibility(flags, lit):
+    """Cycles: Diffuse visibility off -> the lamp lights no diffuse surface; MIS off (no ray
+    reaches the lamp) -> shadow rays alone light them, at full weight: the form factor again."""
+    from .scenes import floor_under_square_light
+    scene = floor_under_square_light(albedo=0.8)
+    quad = scene.quads.pop()
+    scene.lights.append(AreaLight("Lamp", quad.corners, (1.0, 1.0, 1.0), **flags))
+    result = render(scene, settings(samples=2048, max_depth=0), **SILENT)
+    mean = result.image[..., 0].mean()
+    se = np.sqrt(result.variance[..., 0].sum()) / result.image[..., 0].size
+    if lit:
+        assert abs(mean - 0.8 * form_factor_square(1.0, 1.0)) < 4 * se, (mean, se)
+    else:
+        assert result.image.max() == 0.0
