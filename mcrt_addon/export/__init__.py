@@ -172,10 +172,6 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
 
     materials = table.materials or [sm.Material(name="(unused)")]
     background = export_world(scene.world, warnings)
-    if lights and any(m.kind != sm.DIFFUSE for m in materials):
-        warnings.append(f"{len(lights)} area light(s) are not seen in mirror or glass reflections "
-                        "(the tracer reaches area lights by shadow rays only; use an emissive mesh "
-                        "to see a light in reflections)")
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
                       background=background, resolution=out_res, name=name or scene.name, lights=lights)
     info = dict(export_seconds=time.perf_counter() - t0, objects=n_instances, triangles=n_triangles,

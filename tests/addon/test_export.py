@@ -263,6 +263,69 @@ def test_area_light_radiance_34_convention():
     assert area_light_radiance(L, 2.0, (4, 0, 0))[0] == pytest.approx(10.0 / (math.pi * 2.0))
 
 
+def _area_light(scene, name="Lamp"):
+    ob = bpy.data.objects.new(name, bpy.data.lights.new(name, "AREA"))
+    ob.location = (0.0, 0.0, 1.9)
+    scene.collection.objects.link(ob)
+    return ob
+
+
+FLAGS = ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission")
+
+
+def test_area_light_visibility_defaults_are_cycles_defaults(scene, ms):
+    """Cycles (5.0.1 and 3.4.1, measured): a new area light is not seen by camera rays, but is seen
+    in mirrors and through glass, and lights diffuse surfaces; no warning about it."""
+    _area_light(scene)
+    ms.mesh_object(scene, "Ball", lambda bm: ms.uv_sphere(bm, 0.3), ms.mirror("M", (0.9, 0.9, 0.9)))
+    res = export()
+    lamp = res.scene.lights[0]
+    assert [getattr(lamp, f) for f in FLAGS] == [False, True, True, True]
+    assert not any("Lamp" in w or "area light" in w for w in res.warnings), res.warnings
+
+
+@pytest.mark.parametrize("what,value,expected", [
+    ("visible_camera", True, [True, True, True, True]),
+    ("visible_diffuse", False, [False, False, True, True]),
+    ("visible_glossy", False, [False, True, False, True]),
+    ("visible_transmission", False, [False, True, True, False]),
+    ("mis", False, [False, False, False, False]),       # MIS off: no ray kind reaches the lamp
+])
+def test_area_light_visibility_toggled(scene, what, value, expected):
+    ob = _area_light(scene)
+    if what == "mis":
+        ob.visible_camera = True                        # even then: Cycles shows nothing without MIS
+        ob.data.cycles.use_multiple_importance_sampling = value
+    else:
+        setattr(ob, what, value)
+    res = export()
+    lamp = res.scene.lights[0]
+    assert [getattr(lamp, f) for f in FLAGS] == expected
+    assert max(lamp.radiance) > 0
+    # Diffuse visibility off: as in Cycles it lights no diffuse surface; MIS off still does.
+    assert lamp.lights_diffuse == (what != "visible_diffuse")
+
+
+def test_area_light_portal_emits_nothing(scene):
+    ob = _area_light(scene)
+    ob.data.cycles.is_portal = True
+    res = export()
+    lamp = res.scene.lights[0]
+    assert tuple(lamp.radiance) == (0.0, 0.0, 0.0)
+    assert not any(getattr(lamp, f) for f in FLAGS)
+    assert any("Light 'Lamp'" in w and "portal" in w for w in res.warnings)
+
+
+def test_area_light_visibility_pre_30_cycles_visibility():
+    """Blender < 3.0 kept the flags in Object.cycles_visibility."""
+    from types import SimpleNamespace as NS
+    from mcrt_addon.export.lights import area_light_visibility
+    ob = NS(data=NS(cycles=NS(use_multiple_importance_sampling=True)),
+            cycles_visibility=NS(camera=True, diffuse=True, glossy=False, transmission=True))
+    assert area_light_visibility(ob) == dict(lights_diffuse=True, visible_camera=True, visible_diffuse=True,
+                                             visible_glossy=False, visible_transmission=True)
+
+
 def test_point_light_is_ignored_with_warning(scene):
     ob = bpy.data.objects.new("Bulb", bpy.data.lights.new("Bulb", "POINT"))
     scene.collection.objects.link(ob)
