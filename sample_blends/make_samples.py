@@ -20,6 +20,15 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
   area_light     a diffuse room lit by a Blender Area light (exporter checks; one-sided in Cycles)
   nested_glass   glass inside glass: a "water" sphere (IOR 1.33) inside a glass cube (IOR 1.5),
                  and a glass sphere resting on the cube's top face
+Light-sampling stress scenes (issue 9; plain ceiling, the lamps are two-sided emissive meshes, as
+mesh emission in Cycles, hung just under it so they also light the ceiling):
+  near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
+  caustic        a glass ball (r 0.35, IOR 1.5) resting on the floor, lit from behind and above by a
+                 0.2 m lamp quad (strength 60) 2 cm under the ceiling: a caustic in front of the ball
+  many_lights    a 6x6 grid of 8 cm lamp quads 1 cm under the ceiling (strength 13: 36 x 8 cm x 8 cm
+                 x 13 ~ the Cornell lamp's 0.5 m x 0.5 m x 12), a diffuse sphere and box
+  area_mirror    a Blender Area light (as area_light) seen in a mirror sphere and through a glass
+                 sphere (Cycles: area lights are seen by mirror and glass rays, not by the camera)
 """
 import math
 import os
@@ -310,6 +319,81 @@ def make_nested_glass(scene, res):
     settings(scene, res)
 
 
+def lamp_quad(scene, name, material, size, z, centre=(0.0, 0.0)):
+    """A square emissive mesh quad of side `size` at height z (normal down; emits both ways)."""
+    s, (cx, cy) = size / 2, centre
+    return plane(scene, name, [(cx - s, cy - s, z), (cx - s, cy + s, z), (cx + s, cy + s, z),
+                               (cx + s, cy - s, z)], material)
+
+
+def make_near_lamp(scene, res):
+    mats = room(scene, ceiling_light=False)
+    lamp_quad(scene, "Lamp", mats["light"], 0.5, 1.98)             # 2 cm under the ceiling
+    # boxes 2 mm above the floor (coplanar faces are ill-posed)
+    mesh_object(scene, "TallBox", lambda bm: cube(bm, 1.0), mats["white"], location=(-0.35, 0.3, 0.502),
+                rotation=(0, 0, math.radians(20)), scale=(0.3, 0.3, 1.0))
+    mesh_object(scene, "ShortBox", lambda bm: cube(bm, 1.0), diffuse("Yellow", (0.7, 0.6, 0.2)),
+                location=(0.4, -0.25, 0.152), rotation=(0, 0, math.radians(-17)), scale=(0.3, 0.3, 0.3))
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_caustic(scene, res):
+    mats = room(scene, mats=dict(white=diffuse("White", (0.73, 0.73, 0.73)),
+                                 red=diffuse("Red", (0.65, 0.05, 0.05)),
+                                 green=diffuse("Green", (0.12, 0.45, 0.15)),
+                                 light=emission("Light", (1.0, 0.9, 0.75), 60.0)), ceiling_light=False)
+    # lamp behind and above the ball: the caustic lands on the floor in front of the ball (towards
+    # the camera), where shadow rays are blocked by the glass and only caustic paths light it
+    lamp_quad(scene, "Lamp", mats["light"], 0.2, 1.98, centre=(0.0, 0.7))
+    mesh_object(scene, "GlassBall", lambda bm: uv_sphere(bm, 0.35), glass("Glass", ior=1.5),
+                location=(0.0, -0.4, 0.35), smooth=True)            # resting on the floor
+    camera(scene, location=(0.0, -3.9, 1.3), target=(0.0, 0.0, 0.8))  # a little above: sees the floor
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_many_lights(scene, res, n=6, size=0.08, pitch=0.3, strength=13.0):
+    mats = room(scene, ceiling_light=False)
+    lamp = emission("Light", (1.0, 0.9, 0.75), strength)
+    offsets = [(k - (n - 1) / 2) * pitch for k in range(n)]
+
+    def grid(bm):                       # one mesh, n*n separate quads 1 cm under the ceiling
+        h = size / 2
+        for x in offsets:
+            for y in offsets:
+                quad(bm, [(x - h, y - h, 1.99), (x - h, y + h, 1.99), (x + h, y + h, 1.99),
+                          (x + h, y - h, 1.99)])
+    mesh_object(scene, "LampGrid", grid, lamp)
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.3), diffuse("Pink", (0.8, 0.4, 0.5)),
+                location=(-0.35, 0.1, 0.3), smooth=True)
+    mesh_object(scene, "Box", lambda bm: cube(bm, 1.0), mats["white"], location=(0.4, 0.3, 0.352),
+                rotation=(0, 0, math.radians(25)), scale=(0.35, 0.35, 0.7))        # 2 mm above the floor
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_area_mirror(scene, res):
+    room(scene, ceiling_light=False)
+    light = bpy.data.lights.new("AreaLight", "AREA")
+    light.shape = "RECTANGLE"
+    light.size, light.size_y = 0.6, 0.4
+    light.energy = 40.0
+    light.color = (1.0, 0.95, 0.9)
+    ob = bpy.data.objects.new("AreaLight", light)
+    ob.location = (0.0, 0.0, 1.97)                   # emits down; not seen by the camera (Cycles default)
+    scene.collection.objects.link(ob)
+    mesh_object(scene, "MirrorSphere", lambda bm: uv_sphere(bm, 0.35), mirror("Mirror", (0.9, 0.9, 0.9)),
+                location=(-0.45, 0.1, 0.35), smooth=True)
+    mesh_object(scene, "GlassSphere", lambda bm: uv_sphere(bm, 0.3), glass("Glass", ior=1.5),
+                location=(0.45, -0.3, 0.6), smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
@@ -319,6 +403,10 @@ SCENES = {
     "principled": lambda s, r: make_cornell(s, r, principled_mats=True),
     "area_light": make_area_light,
     "nested_glass": make_nested_glass,
+    "near_lamp": make_near_lamp,
+    "caustic": make_caustic,
+    "many_lights": make_many_lights,
+    "area_mirror": make_area_mirror,
 }
 
 
