@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup render test test-all bench study extension samples clean
+.PHONY: setup render test test-all bench bench-estimators study extension samples clean
 
 setup: $(STAMP)
 
@@ -28,6 +28,11 @@ test-all: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m engine bench
 	$(PY) -m mcrt_addon bench-export
+
+# Light-sampling estimators (report | solid-angle | mis) vs Cycles on the light-sampling stress scenes:
+# markdown table + docs/estimators.json; Cycles references cached in renders/reference/.
+bench-estimators: $(STAMP)
+	$(PY) -m mcrt_addon bench-estimators --out docs/estimators.json
 
 study: $(STAMP)
 	$(PY) -m engine study --full

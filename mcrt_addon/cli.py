@@ -3,14 +3,20 @@ export benchmark.  Runs in the ``bpy`` module (Blender 5.0.1 as a Python package
 
   python -m mcrt_addon render FILE.blend -o OUT.exr [--engine TNCG15_MC|CYCLES] [--samples N]
          [--shadow-rays N] [--max-depth N] [--accelerator NAME] [--fresnel schlick|exact]
-         [--threads N] [--seed N] [--resolution W H] [--frame F] [--stats-json PATH]
+         [--estimator report|solid-angle|mis] [--threads N] [--seed N] [--resolution W H]
+         [--frame F] [--stats-json PATH]
   python -m mcrt_addon bench-export [--triangles N]
+  python -m mcrt_addon bench-estimators [--scenes ...] [--resolution W H] [--samples N]
+         [--reference-samples N] [--max-depth N] [--out docs/estimators.json]
+         (light-sampling estimators vs Cycles; see mcrt_addon/bench_estimators.py)
 """
 import argparse
 import json
 import os
 import sys
 import time
+
+ESTIMATOR_CHOICES = ("report", "solid-angle", "mis")
 
 
 def build_parser():
@@ -27,6 +33,8 @@ def build_parser():
     r.add_argument("--max-depth", type=int)
     r.add_argument("--accelerator", choices=("auto", "embree", "octree", "brute"), type=str.lower)
     r.add_argument("--fresnel", choices=("schlick", "exact"), type=str.lower)
+    r.add_argument("--estimator", choices=ESTIMATOR_CHOICES, type=str.lower,
+                   help="direct-light estimator (TNCG15 MC only)")
     r.add_argument("--nested-dielectrics", action="store_true",
                    help="track nested glass media (TNCG15 MC only; Cycles has no such model)")
     r.add_argument("--threads", type=int)
@@ -38,6 +46,10 @@ def build_parser():
     b = sub.add_parser("bench-export", help="time the exporter on a large mesh (prints figures)")
     b.add_argument("--triangles", type=int, default=1_000_000)
     b.add_argument("--instances", type=int, default=100)
+    from .bench_estimators import add_arguments
+    e = sub.add_parser("bench-estimators", help="light-sampling estimators vs Cycles: time, MSE, "
+                       "efficiency (markdown table + JSON)")
+    add_arguments(e)
     return parser
 
 
@@ -65,6 +77,12 @@ def apply_tncg15_settings(props, args):
         props.accelerator = args.accelerator.upper()
     if args.fresnel is not None:
         props.fresnel = args.fresnel.upper()
+    if getattr(args, "estimator", None) is not None:
+        if hasattr(props, "estimator"):
+            props.estimator = args.estimator.upper().replace("-", "_")   # REPORT, SOLID_ANGLE, MIS
+        else:
+            print("warning: this add-on has no estimator setting yet; --estimator ignored",
+                  file=sys.stderr)
     if getattr(args, "nested_dielectrics", False):
         props.nested_dielectrics = True
     if args.threads is not None:
@@ -188,6 +206,10 @@ def main(argv=None):
     _check_positive(parser, args)
     if args.command == "render":
         return render_file(args)
+    if args.command == "bench-estimators":
+        from .bench_estimators import bench_estimators, check_arguments
+        check_arguments(parser, args)
+        return bench_estimators(args)
     if args.command == "bench-export":
         from .bench import bench_export
         return bench_export(args.triangles, args.instances)
