@@ -1,10 +1,17 @@
-"""The built-in scene, in the spirit of the report's Figure 3.5.
+"""The built-in scenes: the report's Figure 3.5 and three rooms that stress light sampling.
 
-A Cornell room (red left wall, green right wall, white floor, ceiling and back; open
-towards the camera), a square ceiling light, a mirror sphere, a glass sphere and a
-procedural diffuse torus of 5,000 triangles.  Z is up, as in Blender.
+`cornell_scene`: a Cornell room (red left wall, green right wall, white floor, ceiling and
+back; open towards the camera), a square ceiling light, a mirror sphere, a glass sphere and
+a procedural diffuse torus of 5,000 triangles.  The same room with
+* `near_lamp_scene`: a closed ceiling and the lamp hung 2 cm under it (two-sided: it lights
+  the ceiling from 2 cm, the near-field case of the light-sampling study);
+* `caustic_scene`: a glass ball resting on the floor under a small lamp;
+* `many_lights_scene`: a 6 x 6 grid of small lamps 1 cm under the ceiling.
+Z is up, as in Blender.  `BUILTIN_SCENES` names them for the command line and the study.
 """
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 
@@ -34,40 +41,89 @@ def torus(name: str, center, major: float, minor: float, rings: int, sides: int,
     return TriangleMesh(name, verts, tris, np.full(len(tris), material_id))
 
 
-def cornell_scene(resolution=(256, 256), light_radiance: float = 12.0) -> Scene:
-    materials = [
-        Material("White", DIFFUSE, (0.75, 0.75, 0.75)),
-        Material("Red", DIFFUSE, (0.63, 0.065, 0.05)),
-        Material("Green", DIFFUSE, (0.14, 0.45, 0.091)),
-        Material("Light", DIFFUSE, (0.0, 0.0, 0.0), emission=(light_radiance,) * 3),
-        Material("Mirror", MIRROR, (0.95, 0.95, 0.95)),
-        Material("Glass", GLASS, (1.0, 1.0, 1.0), ior=1.5),
-        Material("Blue", DIFFUSE, (0.2, 0.35, 0.7)),
+ROOM_MATERIALS = [
+    Material("White", DIFFUSE, (0.75, 0.75, 0.75)),
+    Material("Red", DIFFUSE, (0.63, 0.065, 0.05)),
+    Material("Green", DIFFUSE, (0.14, 0.45, 0.091)),
+    Material("Light", DIFFUSE, (0.0, 0.0, 0.0), emission=(12.0, 12.0, 12.0)),
+    Material("Mirror", MIRROR, (0.95, 0.95, 0.95)),
+    Material("Glass", GLASS, (1.0, 1.0, 1.0), ior=1.5),
+    Material("Blue", DIFFUSE, (0.2, 0.35, 0.7)),
+]
+WHITE, RED, GREEN, LIGHT, MIRROR_MAT, GLASS_MAT, BLUE = range(len(ROOM_MATERIALS))
+X0, X1, Y0, Y1, Z0, Z1 = -1.0, 1.0, -1.0, 1.0, 0.0, 2.0
+
+
+def room_walls(ceiling_hole: float | None = None) -> list:
+    """Floor, back, left (red) and right (green) walls and the ceiling, with a square hole of
+    half-size `ceiling_hole` in its middle (filled flush by a lamp) or closed."""
+    h = ceiling_hole
+    if h is None:
+        ceiling = [box_wall("Ceiling", [(X0, Y0, Z1), (X0, Y1, Z1), (X1, Y1, Z1), (X1, Y0, Z1)], WHITE)]
+    else:
+        ceiling = [
+            box_wall("Ceiling (back)", [(X0, h, Z1), (X0, Y1, Z1), (X1, Y1, Z1), (X1, h, Z1)], WHITE),
+            box_wall("Ceiling (front)", [(X0, Y0, Z1), (X0, -h, Z1), (X1, -h, Z1), (X1, Y0, Z1)], WHITE),
+            box_wall("Ceiling (left)", [(X0, -h, Z1), (X0, h, Z1), (-h, h, Z1), (-h, -h, Z1)], WHITE),
+            box_wall("Ceiling (right)", [(h, -h, Z1), (h, h, Z1), (X1, h, Z1), (X1, -h, Z1)], WHITE),
+        ]
+    return [
+        box_wall("Floor", [(X0, Y0, Z0), (X1, Y0, Z0), (X1, Y1, Z0), (X0, Y1, Z0)], WHITE),
+        *ceiling,
+        box_wall("Back wall", [(X0, Y1, Z0), (X1, Y1, Z0), (X1, Y1, Z1), (X0, Y1, Z1)], WHITE),
+        box_wall("Left wall", [(X0, Y0, Z0), (X0, Y1, Z0), (X0, Y1, Z1), (X0, Y0, Z1)], RED),
+        box_wall("Right wall", [(X1, Y0, Z0), (X1, Y0, Z1), (X1, Y1, Z1), (X1, Y1, Z0)], GREEN),
     ]
-    white, red, green, light, mirror, glass, blue = range(len(materials))
-    x0, x1, y0, y1, z0, z1 = -1.0, 1.0, -1.0, 1.0, 0.0, 2.0
+
+
+def lamp(name: str, cx: float, cy: float, half: float, z: float) -> Quad:
+    return Quad(name, np.array([(cx - half, cy - half, z), (cx - half, cy + half, z), (cx + half, cy + half, z),
+                                (cx + half, cy - half, z)]), LIGHT)
+
+
+def room(name, meshes, quads, spheres, resolution, materials=None) -> Scene:
+    camera = Camera.look_at((0.0, -3.4, 1.0), (0.0, 0.0, 1.0), lens=38.0, name="Camera")
+    return Scene(camera, [copy.copy(m) for m in (materials or ROOM_MATERIALS)], meshes, spheres, quads,
+                 background=(0.0, 0.0, 0.0), resolution=tuple(resolution), name=name)
+
+
+def cornell_scene(resolution=(256, 256), light_radiance: float = 12.0) -> Scene:
     h = 0.3                                     # half size of the square ceiling light
     # The ceiling has a hole that the light fills, flush: a two-sided emitter just under a
     # ceiling would light it from millimetres away (heavy-tailed 1/r^2 samples, hard case S9).
-    ceiling = [
-        box_wall("Ceiling (back)", [(x0, h, z1), (x0, y1, z1), (x1, y1, z1), (x1, h, z1)], white),
-        box_wall("Ceiling (front)", [(x0, y0, z1), (x0, -h, z1), (x1, -h, z1), (x1, y0, z1)], white),
-        box_wall("Ceiling (left)", [(x0, -h, z1), (x0, h, z1), (-h, h, z1), (-h, -h, z1)], white),
-        box_wall("Ceiling (right)", [(h, -h, z1), (h, h, z1), (x1, h, z1), (x1, -h, z1)], white),
-    ]
-    meshes = [
-        box_wall("Floor", [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0)], white),
-        *ceiling,
-        box_wall("Back wall", [(x0, y1, z0), (x1, y1, z0), (x1, y1, z1), (x0, y1, z1)], white),
-        box_wall("Left wall", [(x0, y0, z0), (x0, y1, z0), (x0, y1, z1), (x0, y0, z1)], red),
-        box_wall("Right wall", [(x1, y0, z0), (x1, y0, z1), (x1, y1, z1), (x1, y1, z0)], green),
-        torus("Torus", (0.25, 0.45, 0.12), 0.3, 0.12, 50, 50, blue),
-    ]
-    quads = [Quad("Ceiling light", np.array([(-h, -h, z1), (-h, h, z1), (h, h, z1), (h, -h, z1)]), light)]
-    spheres = [
-        Sphere("Mirror ball", (-0.45, 0.25, 0.35), 0.35, mirror),
-        Sphere("Glass ball", (0.4, -0.35, 0.3), 0.3, glass),
-    ]
-    camera = Camera.look_at((0.0, -3.4, 1.0), (0.0, 0.0, 1.0), lens=38.0, name="Camera")
-    return Scene(camera, materials, meshes, spheres, quads, background=(0.0, 0.0, 0.0),
-                 resolution=tuple(resolution), name="Cornell (report Fig. 3.5)")
+    meshes = room_walls(ceiling_hole=h) + [torus("Torus", (0.25, 0.45, 0.12), 0.3, 0.12, 50, 50, BLUE)]
+    spheres = [Sphere("Mirror ball", (-0.45, 0.25, 0.35), 0.35, MIRROR_MAT),
+               Sphere("Glass ball", (0.4, -0.35, 0.3), 0.3, GLASS_MAT)]
+    scene = room("Cornell (report Fig. 3.5)", meshes, [lamp("Ceiling light", 0, 0, h, Z1)], spheres, resolution)
+    scene.materials[LIGHT].emission = (light_radiance,) * 3
+    return scene
+
+
+def near_lamp_scene(resolution=(256, 256)) -> Scene:
+    """The lamp hangs 2 cm under a closed ceiling and lights it from there (two-sided)."""
+    meshes = room_walls() + [torus("Torus", (0.25, 0.45, 0.12), 0.3, 0.12, 50, 50, BLUE)]
+    return room("Near-field lamp", meshes, [lamp("Lamp 2 cm under the ceiling", 0, 0, 0.25, Z1 - 0.02)], [],
+                resolution)
+
+
+def caustic_scene(resolution=(256, 256)) -> Scene:
+    """A glass ball resting on the floor under a small lamp: the floor under it is lit by caustics."""
+    scene = room("Caustic", room_walls(ceiling_hole=0.1), [lamp("Small lamp", 0, 0, 0.1, Z1)],
+                 [Sphere("Glass ball", (0.0, 0.0, 0.35), 0.35, GLASS_MAT)], resolution)
+    scene.materials[LIGHT].emission = (60.0, 60.0, 60.0)
+    return scene
+
+
+def many_lights_scene(resolution=(256, 256)) -> Scene:
+    """36 lamps of 8 cm in a 6 x 6 grid, 1 cm under the ceiling, with the power of the Cornell lamp."""
+    grid = (np.arange(6) - 2.5) * 0.3
+    lamps = [lamp(f"Lamp {i}", x, y, 0.04, Z1 - 0.01) for i, (x, y) in enumerate((x, y) for x in grid for y in grid)]
+    meshes = room_walls() + [torus("Torus", (0.25, 0.45, 0.12), 0.3, 0.12, 50, 50, BLUE)]
+    scene = room("Many lights", meshes, lamps, [Sphere("Ball", (-0.4, -0.2, 0.3), 0.3, WHITE)], resolution)
+    # 0.36 m^2 at radiance 12, spread over 36 x 0.0064 m^2 (both emit from two sides).
+    scene.materials[LIGHT].emission = (12.0 * 0.36 / (36 * 0.0064),) * 3
+    return scene
+
+
+BUILTIN_SCENES = {"cornell": cornell_scene, "near_lamp": near_lamp_scene, "caustic": caustic_scene,
+                  "many_lights": many_lights_scene}
