@@ -107,13 +107,13 @@ def check_outputs(requested, inputs=(), base_dir: str | None = None) -> list[Out
         absolute = resolve_path(path, base_dir)
         if os.path.isdir(absolute):
             raise OutputError(f"{option} '{absolute}': is a directory")
+        for source in inputs:
+            if source and _same_file(absolute, source):
+                raise OutputError(f"{option} '{absolute}': is an input file; refusing to overwrite it")
         if kind in ("image", "png"):
             kind = image_kind(option, absolute, None if kind == "image" else "png")
         outputs.append(Output(option, absolute, kind))
     for i, output in enumerate(outputs):
-        for source in inputs:
-            if source and _same_file(output.path, source):
-                raise OutputError(f"{output.describe()}: is an input file; refusing to overwrite it")
         for other in outputs[:i]:
             if _same_file(output.path, other.path):
                 raise OutputError(f"{output.describe()}: is also the target of {other.option}")
