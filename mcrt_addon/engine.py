@@ -145,6 +145,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             exported.warnings.append(note)
         settings.validate()
         warnings = list(exported.warnings) + list(exported.scene.validate())
+        bridge.module("memory").check_memory(exported.scene, settings)     # refused before allocating
         render = bridge.render_function()
         out_w, out_h = exported.scene.resolution
         LAST_RENDER.update(export=exported.info, resolution=(out_w, out_h), crop=crop)

@@ -3,7 +3,6 @@ input with one line (exit 2) and every stop signal cleanly (130/143, finished ti
 
 Each case runs the command line as a subprocess in a directory holding the .blend and an earlier
 render, and checks that every file there is byte-identical afterwards."""
-import hashlib
 import os
 import shutil
 import signal
@@ -17,9 +16,9 @@ import numpy as np
 import pytest
 
 from conftest import REPO
+from file_safety import OLD_OUTPUT, assert_one_line, snapshot
 from rendering import read_exr
 
-OLD_OUTPUT = b"an earlier render that must survive"
 CORNELL = os.path.join(REPO, "sample_blends", "cornell.blend")
 
 
@@ -31,15 +30,6 @@ def cli(*args, env=None):
 def run_cli(*args, env=None):
     command, env = cli(*args, env=env)
     return subprocess.run(command, cwd=REPO, env=env, capture_output=True, text=True, timeout=300)
-
-
-def snapshot(directory):
-    found = {}
-    for base, _, files in os.walk(directory):
-        for name in files:
-            with open(os.path.join(base, name), "rb") as fh:
-                found[os.path.relpath(os.path.join(base, name), directory)] = hashlib.sha256(fh.read()).hexdigest()
-    return found
 
 
 @pytest.fixture
@@ -85,9 +75,7 @@ def test_bad_input_is_one_line_and_touches_nothing(workdir, name, args, fragment
     output = [] if "-o" in args else ["-o", str(workdir / "out.exr")]
     before = snapshot(workdir)
     r = run_cli("render", blend, *output, *args, "--samples", "1", "--resolution", "8", "8")
-    lines = [line for line in r.stderr.splitlines() if line.strip()]
-    assert r.returncode == 2, r.stderr[-2000:]
-    assert len(lines) == 1 and fragment in lines[0] and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert_one_line(r, 2, fragment)
     assert snapshot(workdir) == before
 
 
@@ -123,24 +111,13 @@ def test_no_copy_of_the_scene_is_left_in_the_temporary_directory(workdir):
         shutil.rmtree(tmp)
 
 
-@pytest.fixture
-def tiny_disk(tmp_path):
-    mount = tmp_path / "disk"
-    mount.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(mount)],
-                      capture_output=True).returncode != 0:
-        pytest.skip("cannot mount a tmpfs here (not root)")
-    yield mount
-    subprocess.run(["umount", str(mount)], check=True)
 
 
 def test_disk_full_is_one_line_and_keeps_the_earlier_output(tiny_disk):
     (tiny_disk / "out.exr").write_bytes(OLD_OUTPUT)
     before = snapshot(tiny_disk)
     r = run_cli("render", CORNELL, "-o", tiny_disk / "out.exr", "--samples", "1", "--resolution", "128", "128")
-    assert r.returncode == 1, r.stderr[-2000:]
-    lines = [line for line in r.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and "cannot write -o" in lines[0], r.stderr
+    assert_one_line(r, 1, "cannot write -o")
     assert snapshot(tiny_disk) == before
 
 

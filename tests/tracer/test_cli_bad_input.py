@@ -2,7 +2,6 @@
 every file in the directory (inputs, an existing output) byte-identical afterwards.  Plus outputs
 (atomic, disk full) and signals (SIGINT/SIGTERM keep finished tiles, SIGKILL leaves no worker)."""
 import copy
-import hashlib
 import json
 import os
 import signal
@@ -14,12 +13,12 @@ import numpy as np
 import pytest
 
 from engine.film import read_image
+from file_safety import OLD_OUTPUT, assert_one_line, snapshot
 from engine.memory import check_memory, estimate_bytes
 from engine.scene import SceneError
 from engine.settings import RenderSettings
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-OLD_OUTPUT = b"an earlier render that must survive"
 
 SCENE = {
     "format": "tncg15-scene", "name": "T", "resolution": [8, 8],
@@ -36,24 +35,6 @@ SCENE = {
 def run(*args, cwd=ROOT):
     return subprocess.run([sys.executable, "-m", "engine", *map(str, args)], cwd=cwd, capture_output=True,
                           text=True, env=dict(os.environ, PYTHONPATH=ROOT), timeout=120)
-
-
-def snapshot(directory):
-    """Every file under ``directory`` with its content hash."""
-    found = {}
-    for base, _, files in os.walk(directory):
-        for name in files:
-            path = os.path.join(base, name)
-            with open(path, "rb") as fh:
-                found[os.path.relpath(path, directory)] = hashlib.sha256(fh.read()).hexdigest()
-    return found
-
-
-def assert_one_line_error(r, fragment):
-    assert r.returncode == 2, (r.returncode, r.stderr[-2000:])
-    lines = [line for line in r.stderr.splitlines() if line.strip()]
-    assert "Traceback" not in r.stderr
-    assert len(lines) == 1 and fragment in lines[0], r.stderr[-2000:]
 
 
 def edited(*path_and_value):
@@ -139,7 +120,7 @@ def test_bad_scene_file(tmp_path, name, content, fragment):
     (tmp_path / "out.exr").write_bytes(OLD_OUTPUT)
     before = snapshot(tmp_path)
     r = run("render", scene, "-o", tmp_path / "out.exr", "--stats-json", tmp_path / "s.json", "--samples", "1")
-    assert_one_line_error(r, fragment)
+    assert_one_line(r, 2, fragment)
     assert snapshot(tmp_path) == before
 
 
@@ -148,7 +129,7 @@ def test_corrupt_npz_beside_the_scene(tmp_path):
     (tmp_path / "scene.npz").write_bytes(b"PK\x03\x04 this is no zip archive")
     before = snapshot(tmp_path)
     r = run("render", tmp_path / "scene.json", "-o", tmp_path / "out.exr")
-    assert_one_line_error(r, "cannot read arrays")
+    assert_one_line(r, 2, "cannot read arrays")
     assert snapshot(tmp_path) == before
 
 
@@ -191,7 +172,7 @@ def test_bad_option(tmp_path, name, args, fragment):
     output = [] if "-o" in args else ["-o", str(tmp_path / "out.exr")]
     before = snapshot(tmp_path)
     r = run("render", *scene, *output, *args, "--samples", "1")
-    assert_one_line_error(r, fragment.replace("{dir}", str(tmp_path)))
+    assert_one_line(r, 2, fragment.replace("{dir}", str(tmp_path)))
     assert snapshot(tmp_path) == before
 
 
@@ -212,25 +193,13 @@ def test_outputs_are_written_whole_with_no_temporary_left(tmp_path):
     assert json.loads((tmp_path / "s.json").read_text())["resolution"] == [16, 8]
 
 
-@pytest.fixture
-def tiny_disk(tmp_path):
-    """A 64 KiB tmpfs (needs root, as CI runs): a render's EXR does not fit."""
-    mount = tmp_path / "disk"
-    mount.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(mount)],
-                      capture_output=True).returncode != 0:
-        pytest.skip("cannot mount a tmpfs here (not root)")
-    yield mount
-    subprocess.run(["umount", str(mount)], check=True)
 
 
 def test_disk_full_is_one_line_and_leaves_the_old_file(tiny_disk):
     (tiny_disk / "out.exr").write_bytes(OLD_OUTPUT)
     before = snapshot(tiny_disk)
     r = run("render", "-o", tiny_disk / "out.exr", "--samples", "1", "--resolution", "128", "128", "--quiet")
-    assert r.returncode == 1
-    lines = [line for line in r.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and "cannot write -o" in lines[0] and "Traceback" not in r.stderr, r.stderr
+    assert_one_line(r, 1, "cannot write -o")
     assert snapshot(tiny_disk) == before                      # no partial file, no temporary left
     assert "wrote" not in r.stdout
 
