@@ -7,8 +7,14 @@ import os
 import sys
 import time
 
+import numpy as np
+
 from .scene import SceneError
-from .settings import ACCELERATORS, ESTIMATORS, FRESNEL_MODELS, SAMPLERS, RenderSettings
+from .output import OutputError, check_outputs, write_image, write_text
+from .settings import ACCELERATORS, ESTIMATORS, FRESNEL_MODELS, INT32_MAX, INT_LIMITS, SAMPLERS, RenderSettings
+from .stop import StopRequest
+
+PROG = "python -m engine"
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -19,26 +25,34 @@ class OneLineParser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-def positive_int(text):
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
+def bounded_int(low: int, high: int):
+    """An argparse type: an integer from low to high (one-line error otherwise)."""
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must be from {low} to {high:,}, got {value}")
+        return value
+    return parse
 
 
-def non_negative_int(text):
-    value = int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
-    return value
+def setting_int(name):
+    return bounded_int(*INT_LIMITS[name])
+
+
+positive_int = bounded_int(1, INT32_MAX)
+MAX_RESOLUTION = 65536
 
 
 def add_settings_arguments(p):
     defaults = RenderSettings()
-    p.add_argument("--samples", type=positive_int, default=defaults.samples, help="camera rays per pixel")
-    p.add_argument("--shadow-rays", type=non_negative_int, default=defaults.shadow_rays,
+    p.add_argument("--samples", type=setting_int("samples"), default=defaults.samples,
+                   help="camera rays per pixel")
+    p.add_argument("--shadow-rays", type=setting_int("shadow_rays"), default=defaults.shadow_rays,
                    help="shadow rays per diffuse hit (eq. 2.11)")
-    p.add_argument("--max-depth", type=non_negative_int, default=defaults.max_depth,
+    p.add_argument("--max-depth", type=setting_int("max_depth"), default=defaults.max_depth,
                    help="bounces after the camera hit (0 = direct light only)")
     p.add_argument("--no-russian-roulette", action="store_true", help="disable Russian roulette")
     p.add_argument("--fresnel", choices=FRESNEL_MODELS, default=defaults.fresnel)
@@ -50,9 +64,9 @@ def add_settings_arguments(p):
     p.add_argument("--nested-dielectrics", action="store_true",
                    help="track nested glass media (glass in glass refracts by the IOR ratio)")
     p.add_argument("--accelerator", choices=ACCELERATORS, default=defaults.accelerator)
-    p.add_argument("--threads", type=non_negative_int, default=0, help="0 = all cores")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--tile-size", type=positive_int, default=defaults.tile_size)
+    p.add_argument("--threads", type=setting_int("threads"), default=0, help="0 = all cores")
+    p.add_argument("--seed", type=setting_int("seed"), default=0)
+    p.add_argument("--tile-size", type=setting_int("tile_size"), default=defaults.tile_size)
 
 
 def settings_from_args(args) -> RenderSettings:
@@ -79,33 +93,53 @@ def progress_bar(stream=sys.stderr):
     return show
 
 
+def scene_inputs(path):
+    """The files a render reads: never to be written."""
+    return [path, os.path.splitext(path)[0] + ".npz"] if path else []
+
+
 def cmd_render(args) -> int:
     from .default_scene import cornell_scene
-    from .film import write_image
+    from .memory import check_memory
     from .render import render
     from .scene_io import load_scene
 
+    stop = StopRequest(PROG).install()
+    outputs = check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
+                             ("--stats-json", args.stats_json, "json")], inputs=scene_inputs(args.scene),
+                            base_dir=os.path.dirname(os.path.abspath(args.scene)) if args.scene else None)
     scene = load_scene(args.scene) if args.scene else cornell_scene()
     if args.resolution:
         scene.resolution = tuple(args.resolution)
     settings = settings_from_args(args)
+    settings.validate()
+    scene.validate()
+    check_memory(scene, settings)
+    if stop.requested():
+        return stop.report_exit()
     log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    result = render(scene, settings, on_progress=None if args.quiet else progress_bar(), log=log)
-    out_dir = os.path.dirname(os.path.abspath(args.output))
-    os.makedirs(out_dir, exist_ok=True)
-    write_image(args.output, result.image)
-    if args.png:
-        write_image(args.png, result.image)
+    result = render(scene, settings, on_progress=None if args.quiet else progress_bar(),
+                    should_cancel=stop.requested, log=log)
     stats = result.stats
-    if args.stats_json:
-        with open(args.stats_json, "w") as fh:
-            json.dump(stats, fh, indent=1)
+    bad_pixels = int((~np.isfinite(result.image)).any(axis=-1).sum())
+    if bad_pixels:
+        log(f"warning: {bad_pixels} pixels are not finite (the values overflow float32)")
+    try:
+        for output in outputs:
+            if output.kind == "json":
+                write_text(output, json.dumps(stats, indent=1))
+            else:
+                write_image(output, result.image)
+    except OutputError as exc:
+        sys.stderr.write(f"{PROG}: error: {exc}\n")
+        return 1
     rays = sum(stats["rays"].values())
-    print(f"wrote {args.output}: {stats['render_seconds']:.2f} s, {rays / 1e6:.2f} M rays "
-          f"({stats['rays_per_second'] / 1e6:.2f} M rays/s), effects: "
+    print(f"wrote {', '.join(o.path for o in outputs)}: {stats['render_seconds']:.2f} s, "
+          f"{rays / 1e6:.2f} M rays ({stats['rays_per_second'] / 1e6:.2f} M rays/s), effects: "
           f"{', '.join(k for k, v in stats['effects'].items() if v)}, "
-          f"non-finite samples: {stats['nonfinite_samples']}")
-    return 0
+          f"non-finite samples: {stats['nonfinite_samples']}"
+          + (" (stopped early: finished tiles only)" if result.cancelled else ""))
+    return stop.report_exit()
 
 
 def cmd_bench(args) -> int:
@@ -123,19 +157,20 @@ def cmd_study(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = OneLineParser(prog="python -m engine", description="TNCG15 MC tracer")
+    parser = OneLineParser(prog=PROG, description="TNCG15 MC tracer")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     r = sub.add_parser("render", help="render a scene file (or the built-in Cornell scene)")
     r.add_argument("scene", nargs="?", help="scene .json (default: built-in Cornell scene)")
     r.add_argument("-o", "--output", required=True, help="output image (.exr linear or .png sRGB)")
     r.add_argument("--png", help="also write an sRGB PNG here")
-    r.add_argument("--resolution", type=positive_int, nargs=2, metavar=("W", "H"))
+    r.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
     r.add_argument("--stats-json", metavar="PATH")
     r.add_argument("--quiet", action="store_true")
     add_settings_arguments(r)
     r.set_defaults(func=cmd_render)
     b = sub.add_parser("bench", help="rays/s, Embree share and thread speed-up on the built-in scene")
-    b.add_argument("--resolution", type=positive_int, nargs=2, default=(256, 256), metavar=("W", "H"))
+    b.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, default=(256, 256),
+                   metavar=("W", "H"))
     b.add_argument("--samples", type=positive_int, default=64)
     b.set_defaults(func=cmd_bench)
     st = sub.add_parser("study", help="error and time for every knob (docs/accuracy-vs-time.md)")
@@ -152,12 +187,15 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except SceneError as exc:
-        sys.stderr.write(f"python -m engine: error: {exc}\n")
+    except (SceneError, OutputError) as exc:
+        sys.stderr.write(f"{PROG}: error: {exc}\n")
         return 2
+    except MemoryError:
+        sys.stderr.write(f"{PROG}: error: out of memory (lower the resolution or the threads)\n")
+        return 1
     except OSError as exc:
-        sys.stderr.write(f"python -m engine: error: {exc}\n")
+        sys.stderr.write(f"{PROG}: error: {exc}\n")
         return 2
     except KeyboardInterrupt:
-        sys.stderr.write("python -m engine: interrupted\n")
+        sys.stderr.write(f"{PROG}: interrupted\n")
         return 130

@@ -44,38 +44,35 @@ def linear_to_srgb(image: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
 
 
-def write_exr(path: str, image: np.ndarray) -> None:
+def _write_checked(path: str, pixels: np.ndarray, pixel_type: str, attributes=()) -> None:
+    """One image through OpenImageIO, every step checked: a full disk or a failed write raises
+    OSError instead of leaving a truncated file behind a success (OIIO's PNG writer reports
+    short writes only through geterror())."""
     import OpenImageIO as oiio
-    image = np.ascontiguousarray(image, dtype=np.float32)
-    h, w, c = image.shape
+    pixels = np.ascontiguousarray(pixels)
+    h, w, c = pixels.shape
     out = oiio.ImageOutput.create(str(path))
     if out is None:
-        raise OSError(f"cannot write '{path}': {oiio.geterror()}")
-    spec = oiio.ImageSpec(w, h, c, "float")
-    spec.attribute("compression", "zip")
+        raise OSError(f"no image writer for '{path}': {oiio.geterror()}")
+    spec = oiio.ImageSpec(w, h, c, pixel_type)
+    for name, value in attributes:
+        spec.attribute(name, value)
     if not out.open(str(path), spec):
-        raise OSError(f"cannot write '{path}': {out.geterror()}")
-    out.write_image(image)
-    out.close()
+        raise OSError(out.geterror() or oiio.geterror())
+    written = out.write_image(pixels)
+    error = out.geterror()
+    closed = out.close()
+    error = error or out.geterror()
+    if not (written and closed) or error:
+        raise OSError(error.strip().splitlines()[0] if error else "image write failed")
+
+
+def write_exr(path: str, image: np.ndarray) -> None:
+    _write_checked(path, np.asarray(image, dtype=np.float32), "float", [("compression", "zip")])
 
 
 def write_png(path: str, image: np.ndarray) -> None:
-    import OpenImageIO as oiio
-    encoded = (linear_to_srgb(image) * 255.0 + 0.5).astype(np.uint8)
-    h, w, c = encoded.shape
-    out = oiio.ImageOutput.create(str(path))
-    if out is None or not out.open(str(path), oiio.ImageSpec(w, h, c, "uint8")):
-        raise OSError(f"cannot write '{path}': {oiio.geterror()}")
-    out.write_image(np.ascontiguousarray(encoded))
-    out.close()
-
-
-def write_image(path: str, image: np.ndarray) -> None:
-    """EXR for .exr (linear), PNG otherwise (sRGB)."""
-    if str(path).lower().endswith(".exr"):
-        write_exr(path, image)
-    else:
-        write_png(path, image)
+    _write_checked(path, (linear_to_srgb(image) * 255.0 + 0.5).astype(np.uint8), "uint8")
 
 
 def read_image(path: str) -> np.ndarray:

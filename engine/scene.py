@@ -16,6 +16,29 @@ class SceneError(ValueError):
     """Invalid scene input; the message names the object and the problem."""
 
 
+# Radiance, colours, coordinates and radii: far inside float32 (3.4e38, the image and Embree's
+# type), so that sums over samples and squares (r^2 of a sphere) stay finite.
+LARGEST_VALUE = 1e30
+LENS_RANGE = (1e-3, 1e6)          # millimetres; Blender's own minimum is 1 mm
+
+
+def check_magnitude(owner: str, label: str, value) -> None:
+    """SceneError when any of the (already finite) numbers exceeds LARGEST_VALUE in magnitude."""
+    largest = float(np.abs(np.asarray(value, dtype=np.float64)).max(initial=0.0))
+    if largest > LARGEST_VALUE:
+        raise SceneError(f"{owner}: {label} {largest:.3g} is too large (at most {LARGEST_VALUE:.0e})")
+
+
+def check_resolution(name: str, resolution) -> tuple:
+    try:
+        w, h = resolution
+    except (TypeError, ValueError):
+        raise SceneError(f"Scene '{name}': resolution must be 2 integers, got {resolution!r}") from None
+    if any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in (w, h)):
+        raise SceneError(f"Scene '{name}': resolution must be 2 integers, got {resolution!r}")
+    return int(w), int(h)
+
+
 # Material kinds: how a surface scatters (emission is independent of kind).
 DIFFUSE = "diffuse"
 MIRROR = "mirror"
@@ -51,8 +74,9 @@ class Material:
             if arr.shape != (3,) or not np.isfinite(arr).all() or (arr < 0).any():
                 raise SceneError(f"Material '{self.name}': {label} must be 3 finite "
                                  f"non-negative numbers, got {value!r}")
-        if not (math.isfinite(self.ior) and self.ior > 0):
-            raise SceneError(f"Material '{self.name}': IOR must be positive, got {self.ior!r}")
+            check_magnitude(f"Material '{self.name}'", label, arr)
+        if not (math.isfinite(self.ior) and 0 < self.ior <= 1e6):
+            raise SceneError(f"Material '{self.name}': IOR must be positive (at most 1e6), got {self.ior!r}")
 
 
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
@@ -77,12 +101,13 @@ class Camera:
 
     @staticmethod
     def look_at(position, target, up=(0.0, 0.0, 1.0), **kwargs) -> "Camera":
-        position = np.asarray(position, dtype=np.float64)
-        back = position - np.asarray(target, dtype=np.float64)
-        back /= np.linalg.norm(back)
-        right = np.cross(np.asarray(up, dtype=np.float64), back)
-        right /= np.linalg.norm(right)
-        true_up = np.cross(back, right)
+        with np.errstate(all="ignore"):        # position == target or up along the view: NaN, refused by validate()
+            position = np.asarray(position, dtype=np.float64)
+            back = position - np.asarray(target, dtype=np.float64)
+            back /= np.linalg.norm(back)
+            right = np.cross(np.asarray(up, dtype=np.float64), back)
+            right /= np.linalg.norm(right)
+            true_up = np.cross(back, right)
         matrix = np.eye(4)
         matrix[:3, 0], matrix[:3, 1], matrix[:3, 2], matrix[:3, 3] = right, true_up, back, position
         return Camera(matrix=matrix, **kwargs)
@@ -97,10 +122,16 @@ class Camera:
                              ("sensor height", self.sensor_height)):
             if not (math.isfinite(value) and value > 0):
                 raise SceneError(f"Camera '{self.name}': {label} must be positive, got {value!r}")
+            check_magnitude(f"Camera '{self.name}'", label, value)
+        if not LENS_RANGE[0] <= self.lens <= LENS_RANGE[1]:
+            raise SceneError(f"Camera '{self.name}': lens must be from {LENS_RANGE[0]:g} to "
+                             f"{LENS_RANGE[1]:g} mm, got {self.lens!r}")
         if self.sensor_fit not in SENSOR_FITS:
             raise SceneError(f"Camera '{self.name}': unknown sensor fit '{self.sensor_fit}'")
         if not (math.isfinite(self.shift_x) and math.isfinite(self.shift_y)):
             raise SceneError(f"Camera '{self.name}': shift must be finite")
+        check_magnitude(f"Camera '{self.name}'", "shift", (self.shift_x, self.shift_y))
+        check_magnitude(f"Camera '{self.name}'", "location", m[:3, 3])
 
 
 @dataclass
@@ -117,13 +148,24 @@ class TriangleMesh:
         ``emissive`` flags emissive materials: an emitter whose triangles all have
         zero area is an error (it would emit nothing), not a silent drop.
         """
-        self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float64).reshape(-1, 3)
-        self.triangles = np.ascontiguousarray(self.triangles, dtype=np.int64).reshape(-1, 3)
-        self.material_ids = np.broadcast_to(
-            np.asarray(self.material_ids, dtype=np.int64), (len(self.triangles),)).copy()
+        owner = f"Object '{self.name}'"
+        try:
+            vertices = np.ascontiguousarray(self.vertices, dtype=np.float64)
+            triangles = np.ascontiguousarray(self.triangles, dtype=np.int64)
+            ids = np.asarray(self.material_ids, dtype=np.int64)
+        except (TypeError, ValueError, OverflowError):
+            raise SceneError(f"{owner}: vertices, triangles and material ids must be numbers") from None
+        if vertices.size % 3 or triangles.size % 3:
+            raise SceneError(f"{owner}: vertices and triangles must be rows of 3 values")
+        self.vertices, self.triangles = vertices.reshape(-1, 3), triangles.reshape(-1, 3)
+        if ids.ndim > 1 or (ids.ndim == 1 and len(ids) not in (1, len(self.triangles))):
+            raise SceneError(f"{owner}: {ids.size} material ids for {len(self.triangles)} triangles "
+                             "(need one per triangle)")
+        self.material_ids = np.broadcast_to(ids, (len(self.triangles),)).copy()
         if not np.isfinite(self.vertices).all():
             bad = int((~np.isfinite(self.vertices).all(axis=1)).sum())
-            raise SceneError(f"Object '{self.name}': {bad} vertices have NaN or infinite coordinates")
+            raise SceneError(f"{owner}: {bad} vertices have NaN or infinite coordinates")
+        check_magnitude(owner, "vertex coordinate", self.vertices)
         if len(self.triangles) and (self.triangles.min() < 0 or self.triangles.max() >= len(self.vertices)):
             raise SceneError(f"Object '{self.name}': triangle indices out of range")
         if len(self.material_ids) and (self.material_ids.min() < 0 or self.material_ids.max() >= n_materials):
@@ -157,6 +199,8 @@ class Sphere:
             raise SceneError(f"Object '{self.name}': sphere centre must be 3 finite numbers")
         if not (math.isfinite(self.radius) and self.radius > 0):
             raise SceneError(f"Object '{self.name}': sphere radius must be positive, got {self.radius!r}")
+        check_magnitude(f"Object '{self.name}'", "sphere centre coordinate", c)
+        check_magnitude(f"Object '{self.name}'", "sphere radius", self.radius)
         if not 0 <= self.material_id < n_materials:
             raise SceneError(f"Object '{self.name}': material index out of range")
 
@@ -172,6 +216,7 @@ class Quad:
         q = np.asarray(self.corners, dtype=np.float64)
         if q.shape != (4, 3) or not np.isfinite(q).all():
             raise SceneError(f"Object '{self.name}': quad needs 4 finite corners")
+        check_magnitude(f"Object '{self.name}'", "quad corner coordinate", q)
         self.corners = q
         e1, e3 = q[1] - q[0], q[3] - q[0]
         normal = np.cross(e1, e3)
@@ -223,6 +268,8 @@ class AreaLight:
         le = np.asarray(self.radiance, dtype=np.float64)
         if le.shape != (3,) or not np.isfinite(le).all() or (le < 0).any():
             raise SceneError(f"Light '{self.name}': radiance must be 3 finite non-negative numbers")
+        check_magnitude(f"Light '{self.name}'", "radiance", le)
+        check_magnitude(f"Light '{self.name}'", "corner coordinate", v)
         t = self.triangles()
         area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
         if not area > 0:
@@ -247,10 +294,10 @@ class Scene:
         if self.camera is None:
             raise SceneError(f"Scene '{self.name}': no camera")
         self.camera.validate()
-        w, h = self.resolution
-        if int(w) <= 0 or int(h) <= 0:
+        w, h = check_resolution(self.name, self.resolution)
+        if w <= 0 or h <= 0:
             raise SceneError(f"Scene '{self.name}': resolution must be positive, got {w}x{h}")
-        if int(w) * int(h) > 16384 * 16384:
+        if w * h > 16384 * 16384:
             raise SceneError(f"Scene '{self.name}': resolution {w}x{h} is too large "
                              f"(at most {16384 * 16384:,} pixels)")
         if not self.materials:
@@ -260,6 +307,7 @@ class Scene:
         bg = np.asarray(self.background, dtype=np.float64)
         if bg.shape != (3,) or not np.isfinite(bg).all() or (bg < 0).any():
             raise SceneError(f"Scene '{self.name}': background must be 3 finite non-negative numbers")
+        check_magnitude(f"Scene '{self.name}'", "background", bg)
         n = len(self.materials)
         emissive = np.array([m.is_emissive for m in self.materials])
         for mesh in self.meshes:

@@ -21,81 +21,108 @@ import os
 import numpy as np
 
 from .scene import Camera, Material, Quad, Scene, SceneError, Sphere, TriangleMesh
+from .scene_fields import Fields, is_integer
 
 FORMAT = "tncg15-scene"
 
 
-def _material_index(entry, names, owner):
-    ref = entry.get("material", 0)
-    if isinstance(ref, int):
+def _material_index(fields, names):
+    ref = fields.get("material", 0)
+    if is_integer(ref):
         if not 0 <= ref < len(names):
-            raise SceneError(f"Object '{owner}': material index {ref} out of range")
-        return ref
+            raise SceneError(f"{fields.owner}: material index {ref} out of range")
+        return int(ref)
+    if not isinstance(ref, str):
+        fields.fail("material", "a material name or index", ref)
     if ref not in names:
-        raise SceneError(f"Object '{owner}': unknown material '{ref}'")
+        raise SceneError(f"{fields.owner}: unknown material '{ref}'")
     return names.index(ref)
 
 
-def load_scene(path: str) -> Scene:
+def _read_json(path: str):
     try:
-        with open(path) as fh:
-            data = json.load(fh)
+        with open(path, encoding="utf-8") as fh:
+            return json.load(fh)
     except OSError as exc:
         raise SceneError(f"cannot read scene '{path}': {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise SceneError(f"scene '{path}' is not a text (JSON) file") from None
     except json.JSONDecodeError as exc:
         raise SceneError(f"scene '{path}' is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise SceneError(f"scene '{path}' is nested too deeply to be a scene file") from None
+
+
+def _read_npz(path: str) -> dict:
+    """Every array of the NPZ beside the scene, read now so a corrupt file is one clear error."""
+    if not os.path.exists(path):
+        return {}
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            return {name: np.asarray(npz[name]) for name in npz.files}
+    except Exception as exc:                       # noqa: BLE001 - zip, zlib, format and pickle errors
+        raise SceneError(f"cannot read arrays '{path}': {type(exc).__name__}: {exc}") from None
+
+
+def _camera(entry) -> Camera:
+    fields, name = _named(entry, "Camera", "Camera")
+    optics = {"name": name}
+    for key in ("lens", "sensor_width", "sensor_height", "shift_x", "shift_y"):
+        if key in fields:
+            optics[key] = fields.number(key)
+    if "sensor_fit" in fields:
+        optics["sensor_fit"] = fields.text("sensor_fit")
+    if "look_at" in fields:
+        la = Fields(fields.get("look_at"), f"{fields.owner}: look_at")
+        return Camera.look_at(la.numbers("position", 3), la.numbers("target", 3),
+                              la.numbers("up", 3, (0.0, 0.0, 1.0)), **optics)
+    return Camera(matrix=fields.matrix("matrix", 4, 4), **optics)
+
+
+def _named(entry, kind: str, default: str, required: bool = False):
+    """Fields of one list entry, named in messages by its "name" ("Object 'Floor'")."""
+    fields = Fields(entry, f"{kind} {default}" if required else f"{kind} '{default}'")
+    name = fields.text("name") if required else fields.text("name", default)
+    fields.owner = f"{kind} '{name}'"
+    return fields, name
+
+
+def load_scene(path: str) -> Scene:
+    data = _read_json(path)
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise SceneError(f"scene '{path}' is not a {FORMAT} file (missing \"format\": \"{FORMAT}\")")
-    npz_path = os.path.splitext(path)[0] + ".npz"
-    arrays = np.load(npz_path) if os.path.exists(npz_path) else {}
+    top = Fields(data, f"Scene '{os.path.basename(path)}'")
+    name = top.text("name", os.path.basename(path))
+    top.owner = f"Scene '{name}'"
+    arrays = _read_npz(os.path.splitext(path)[0] + ".npz")
 
-    def array(value, owner, label):
-        if isinstance(value, str) and value.startswith("@"):
-            if value[1:] not in arrays:
-                raise SceneError(f"Object '{owner}': array '{value[1:]}' not found in {npz_path}")
-            return np.asarray(arrays[value[1:]])
-        return np.asarray(value)
-
-    try:
-        materials = [Material(name=m["name"], kind=m.get("kind", "diffuse"),
-                              color=tuple(m.get("color", (0.8, 0.8, 0.8))),
-                              ior=float(m.get("ior", 1.5)),
-                              emission=tuple(m.get("emission", (0.0, 0.0, 0.0))))
-                     for m in data.get("materials", [])]
-        names = [m.name for m in materials]
-        cam = data.get("camera")
-        camera = None
-        if cam is not None:
-            optics = {k: cam[k] for k in ("lens", "sensor_width", "sensor_height", "sensor_fit",
-                                          "shift_x", "shift_y", "name") if k in cam}
-            if "look_at" in cam:
-                la = cam["look_at"]
-                camera = Camera.look_at(la["position"], la["target"], la.get("up", (0, 0, 1)), **optics)
-            else:
-                camera = Camera(matrix=np.asarray(cam["matrix"], dtype=np.float64), **optics)
-        meshes = []
-        for m in data.get("meshes", []):
-            name = m.get("name", f"mesh{len(meshes)}")
-            tris = array(m["triangles"], name, "triangles")
-            if "material_ids" in m:
-                ids = array(m["material_ids"], name, "material_ids")
-            else:
-                ids = np.full(len(tris), _material_index(m, names, name))
-            meshes.append(TriangleMesh(name, array(m["vertices"], name, "vertices"), tris, ids))
-        spheres = [Sphere(s.get("name", f"sphere{i}"), tuple(s["center"]), float(s["radius"]),
-                          _material_index(s, names, s.get("name", f"sphere{i}")))
-                   for i, s in enumerate(data.get("spheres", []))]
-        quads = [Quad(q.get("name", f"quad{i}"), np.asarray(q["corners"], dtype=np.float64),
-                      _material_index(q, names, q.get("name", f"quad{i}")))
-                 for i, q in enumerate(data.get("quads", []))]
-    except (KeyError, TypeError, ValueError) as exc:
-        if isinstance(exc, SceneError):
-            raise
-        raise SceneError(f"scene '{path}': malformed entry ({type(exc).__name__}: {exc})") from None
+    materials = []
+    for i, entry in enumerate(top.objects("materials")):
+        m, material_name = _named(entry, "Material", f"#{i}", required=True)
+        materials.append(Material(name=material_name, kind=m.text("kind", "diffuse"),
+                                  color=m.numbers("color", 3, (0.8, 0.8, 0.8)), ior=m.number("ior", 1.5),
+                                  emission=m.numbers("emission", 3, (0.0, 0.0, 0.0))))
+    names = [m.name for m in materials]
+    cam = top.get("camera", None)
+    camera = None if cam is None else _camera(cam)
+    meshes = []
+    for i, entry in enumerate(top.objects("meshes")):
+        m, mesh_name = _named(entry, "Object", f"mesh{i}")
+        tris = m.array("triangles", arrays, 3, integer=True)
+        ids = (m.array("material_ids", arrays, None, integer=True) if "material_ids" in m
+               else np.full(len(tris), _material_index(m, names)))
+        meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids))
+    spheres = []
+    for i, entry in enumerate(top.objects("spheres")):
+        s, sphere_name = _named(entry, "Object", f"sphere{i}")
+        spheres.append(Sphere(sphere_name, s.numbers("center", 3), s.number("radius"), _material_index(s, names)))
+    quads = []
+    for i, entry in enumerate(top.objects("quads")):
+        q, quad_name = _named(entry, "Object", f"quad{i}")
+        quads.append(Quad(quad_name, q.matrix("corners", 4, 3), _material_index(q, names)))
     return Scene(camera, materials, meshes, spheres, quads,
-                 background=tuple(data.get("background", (0.0, 0.0, 0.0))),
-                 resolution=tuple(data.get("resolution", (256, 256))),
-                 name=data.get("name", os.path.basename(path)))
+                 background=top.numbers("background", 3, (0.0, 0.0, 0.0)),
+                 resolution=top.integers("resolution", 2, (256, 256)), name=name)
 
 
 def save_scene(scene: Scene, path: str) -> None:

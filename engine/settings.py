@@ -1,6 +1,7 @@
 """Render settings: every knob the study, the CLI and the Blender panels expose."""
 from __future__ import annotations
 
+import numbers
 import os
 from dataclasses import dataclass, asdict
 
@@ -12,6 +13,17 @@ ACCELERATORS = ("auto", "embree", "octree", "brute")
 ESTIMATORS = ("mis", "solid-angle", "report")
 # sobol: Owen-scrambled Sobol' points per pixel (engine/qmc.py); random: independent uniforms.
 SAMPLERS = ("sobol", "random")
+INT32_MAX = 2**31 - 1
+# Allowed range of every integer knob, checked by validate() and by both command lines.
+INT_LIMITS = {
+    "samples": (1, INT32_MAX),
+    "shadow_rays": (0, 1024),
+    "max_depth": (0, INT32_MAX - 1),
+    "rr_start_depth": (0, INT32_MAX),
+    "threads": (0, 1024),
+    "seed": (0, INT32_MAX),
+    "tile_size": (8, 16384),
+}
 
 
 @dataclass
@@ -36,12 +48,11 @@ class RenderSettings:
 
     def validate(self) -> None:
         from .scene import SceneError
-        if self.samples < 1:
-            raise SceneError(f"samples must be at least 1, got {self.samples}")
-        if self.shadow_rays < 0:
-            raise SceneError(f"shadow rays must be 0 or more, got {self.shadow_rays}")
-        if self.max_depth < 0:
-            raise SceneError(f"max depth must be 0 or more, got {self.max_depth}")
+        for name, (low, high) in INT_LIMITS.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not low <= value <= high:
+                raise SceneError(f"{name.replace('_', ' ')} must be an integer from {low} to {high:,}, "
+                                 f"got {value!r}")
         if self.fresnel not in FRESNEL_MODELS:
             raise SceneError(f"unknown Fresnel model '{self.fresnel}' (expected schlick or exact)")
         if self.estimator not in ESTIMATORS:
@@ -50,12 +61,8 @@ class RenderSettings:
             raise SceneError(f"unknown sampler '{self.sampler}' (expected one of {', '.join(SAMPLERS)})")
         if self.accelerator not in ACCELERATORS:
             raise SceneError(f"unknown accelerator '{self.accelerator}' (expected one of {', '.join(ACCELERATORS)})")
-        if self.tile_size < 8:
-            raise SceneError(f"tile size must be at least 8, got {self.tile_size}")
         if self.parallelism not in ("auto", "threads", "processes"):
             raise SceneError(f"unknown parallelism '{self.parallelism}' (expected auto, threads or processes)")
-        if self.threads < 0:
-            raise SceneError(f"threads must be 0 (all cores) or more, got {self.threads}")
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -11,8 +11,11 @@ numbers from their own generators, so the image does not depend on the pool.
 """
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
+import os
 import queue
+import signal
 import sys
 import threading
 import traceback
@@ -66,7 +69,24 @@ class ThreadWorkers:
 _FORKED_RENDERER = None   # set just before fork; the children inherit it
 
 
-def _process_main(tasks, results, cancel_event):
+PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """In a forked worker: SIGKILL when the parent dies (Linux prctl), so a killed render leaves no
+    orphan; ignore SIGINT (a terminal's Ctrl-C reaches the whole group: the parent decides)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent_pid:          # the parent died before prctl took effect
+        os._exit(1)
+
+
+def _process_main(tasks, results, cancel_event, parent_pid):
+    die_with_parent(parent_pid)
     renderer = _FORKED_RENDERER
     while True:
         tile = tasks.get()
@@ -89,7 +109,8 @@ class ProcessWorkers:
         self.cancel_event = ctx.Event()
         _FORKED_RENDERER = renderer
         try:
-            self.procs = [ctx.Process(target=_process_main, args=(self.tasks, self.results, self.cancel_event),
+            self.procs = [ctx.Process(target=_process_main, args=(self.tasks, self.results, self.cancel_event,
+                                                                     os.getpid()),
                                       daemon=True) for _ in range(count)]
             for p in self.procs:
                 p.start()

@@ -1,7 +1,7 @@
 """Command line: render a .blend headless with TNCG15 MC or a fair Cycles reference, and the
 export benchmark.  Runs in the ``bpy`` module (Blender 5.0.1 as a Python package):
 
-  python -m mcrt_addon render FILE.blend -o OUT.exr [--engine TNCG15_MC|CYCLES] [--samples N]
+  python -m mcrt_addon render FILE.blend -o OUT.exr|OUT.png [--png OUT.png] [--engine TNCG15_MC|CYCLES] [--samples N]
          [--shadow-rays N] [--max-depth N] [--accelerator NAME] [--fresnel schlick|exact]
          [--estimator report|solid-angle|mis] [--threads N] [--seed N] [--resolution W H]
          [--frame F] [--stats-json PATH]
@@ -10,60 +10,60 @@ export benchmark.  Runs in the ``bpy`` module (Blender 5.0.1 as a Python package
          [--reference-samples N] [--max-depth N] [--out docs/estimators.json]
          (light-sampling estimators vs Cycles; see mcrt_addon/bench_estimators.py)
 """
-import argparse
 import json
 import os
+import shutil
 import sys
+import tempfile
 import time
 
+from . import bridge
+
 ESTIMATOR_CHOICES = ("report", "solid-angle", "mis")
+SAMPLER_CHOICES = ("sobol", "random")
+PROG = "python -m mcrt_addon"
+MAX_FRAME = 1048574                    # Blender's MAXFRAME
+MAX_RESOLUTION = 65536                 # Blender's largest resolution_x / resolution_y
+BLEND_MAGIC = (b"BLENDER", b"\x1f\x8b", b"\x28\xb5\x2f\xfd")   # plain, gzip, zstd
 
 
 def build_parser():
-    parser = argparse.ArgumentParser(prog="python -m mcrt_addon",
-                                     description="TNCG15 MC headless tools (bpy module)")
-    sub = parser.add_subparsers(dest="command", required=True)
+    cli = bridge.module("cli")             # the tracer's: one-line errors, the shared integer limits
+    setting_int, bounded_int = cli.setting_int, cli.bounded_int
+    parser = cli.OneLineParser(prog=PROG, description="TNCG15 MC headless tools (bpy module)")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=cli.OneLineParser)
     r = sub.add_parser("render", help="render a .blend file to a linear EXR")
     r.add_argument("file", help=".blend file")
-    r.add_argument("-o", "--output", required=True, help="output EXR path (linear, 32-bit float)")
+    r.add_argument("-o", "--output", required=True,
+                   help="output image: .exr (linear, 32-bit float) or .png (sRGB); '//' = beside the .blend")
     r.add_argument("--engine", default="TNCG15_MC", choices=("TNCG15_MC", "CYCLES"),
                    type=str.upper)
-    r.add_argument("--samples", type=int)
-    r.add_argument("--shadow-rays", type=int)
-    r.add_argument("--max-depth", type=int)
+    r.add_argument("--samples", type=setting_int("samples"))
+    r.add_argument("--shadow-rays", type=setting_int("shadow_rays"))
+    r.add_argument("--max-depth", type=setting_int("max_depth"))
     r.add_argument("--accelerator", choices=("auto", "embree", "octree", "brute"), type=str.lower)
     r.add_argument("--fresnel", choices=("schlick", "exact"), type=str.lower)
     r.add_argument("--estimator", choices=ESTIMATOR_CHOICES, type=str.lower,
                    help="direct-light estimator (TNCG15 MC only)")
+    r.add_argument("--sampler", choices=SAMPLER_CHOICES, type=str.lower,
+                   help="random-number pattern (TNCG15 MC only)")
     r.add_argument("--nested-dielectrics", action="store_true",
                    help="track nested glass media (TNCG15 MC only; Cycles has no such model)")
-    r.add_argument("--threads", type=int)
-    r.add_argument("--seed", type=int)
-    r.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"))
-    r.add_argument("--frame", type=int, help="frame to render (default: the file's current frame)")
+    r.add_argument("--threads", type=setting_int("threads"))
+    r.add_argument("--seed", type=setting_int("seed"))
+    r.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
+    r.add_argument("--frame", type=bounded_int(-MAX_FRAME, MAX_FRAME),
+                   help="frame to render (default: the file's current frame)")
     r.add_argument("--stats-json", help="write render statistics (JSON) here")
     r.add_argument("--png", help="also write an sRGB PNG of the render here")
     b = sub.add_parser("bench-export", help="time the exporter on a large mesh (prints figures)")
-    b.add_argument("--triangles", type=int, default=1_000_000)
-    b.add_argument("--instances", type=int, default=100)
+    b.add_argument("--triangles", type=bounded_int(1, 100_000_000), default=1_000_000)
+    b.add_argument("--instances", type=bounded_int(1, 1_000_000), default=100)
     from .bench_estimators import add_arguments
     e = sub.add_parser("bench-estimators", help="light-sampling estimators vs Cycles: time, MSE, "
                        "efficiency (markdown table + JSON)")
     add_arguments(e)
     return parser
-
-
-def _check_positive(parser, args):
-    for name in ("samples", "threads"):
-        value = getattr(args, name, None)
-        if value is not None and value < (1 if name == "samples" else 0):
-            parser.error(f"--{name.replace('_', '-')} must be {'>= 1' if name == 'samples' else '>= 0'}")
-    for name in ("shadow_rays", "max_depth", "seed"):
-        value = getattr(args, name, None)
-        if value is not None and value < 0:
-            parser.error(f"--{name.replace('_', '-')} must be >= 0")
-    if getattr(args, "resolution", None) and min(args.resolution) < 1:
-        parser.error("--resolution must be positive")
 
 
 def apply_tncg15_settings(props, args):
@@ -78,11 +78,9 @@ def apply_tncg15_settings(props, args):
     if args.fresnel is not None:
         props.fresnel = args.fresnel.upper()
     if getattr(args, "estimator", None) is not None:
-        if hasattr(props, "estimator"):
-            props.estimator = args.estimator.upper().replace("-", "_")   # REPORT, SOLID_ANGLE, MIS
-        else:
-            print("warning: this add-on has no estimator setting yet; --estimator ignored",
-                  file=sys.stderr)
+        props.estimator = args.estimator.upper().replace("-", "_")   # REPORT, SOLID_ANGLE, MIS
+    if getattr(args, "sampler", None) is not None:
+        props.sampler = args.sampler.upper()
     if getattr(args, "nested_dielectrics", False):
         props.nested_dielectrics = True
     if args.threads is not None:
@@ -103,17 +101,60 @@ def set_exr_output(scene, path):
     scene.render.use_sequencer = False
 
 
+def error(message, code=2):
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return code
+
+
+def blend_problem(path):
+    """Why ``path`` cannot be a .blend file, or None (Blender's own error is three lines)."""
+    if not os.path.isfile(path):
+        return f"no such file: {path}"
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(12)
+    except OSError as exc:
+        return f"cannot read '{path}': {exc.strerror}"
+    if not head.startswith(BLEND_MAGIC):
+        return f"'{path}' is not a .blend file"
+    return None
+
+
 def render_file(args):
+    """Checks everything it can before Blender opens the file; renders into a private temporary
+    directory (Blender's temp files and its EXR), then writes each output atomically."""
+    output = bridge.module("output")
+    blend = os.path.abspath(args.file)
+    problem = blend_problem(blend)
+    if problem:
+        return error(problem)
+    try:
+        outputs = output.check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
+                                        ("--stats-json", args.stats_json, "json")],
+                                       inputs=[blend], base_dir=os.path.dirname(blend))
+    except output.OutputError as exc:
+        return error(exc)
+    stop = bridge.module("stop").StopRequest(PROG).install()
+    private = tempfile.mkdtemp(prefix="tncg15-")       # 0700; Blender's quit.blend would land here
+    try:
+        return render_in(args, blend, outputs, stop, private)
+    finally:
+        shutil.rmtree(private, ignore_errors=True)
+
+
+def render_in(args, blend, outputs, stop, private):
     import bpy
     import mcrt_addon
     from mcrt_addon import engine as engine_module
     from mcrt_addon.reference import setup_cycles_reference
 
-    if not os.path.isfile(args.file):
-        print(f"error: no such file: {args.file}", file=sys.stderr)
-        return 2
+    bpy.context.preferences.filepaths.temporary_directory = private
     ensure_registered(mcrt_addon)
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.file), load_ui=False)
+    try:
+        bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
+    except RuntimeError as exc:
+        return error(str(exc).strip().removeprefix("Error: ").splitlines()[0])
+    ensure_registered(mcrt_addon)
     scene = bpy.context.scene
     if args.frame is not None:
         scene.frame_set(args.frame)
@@ -127,28 +168,50 @@ def render_file(args):
                                threads=props.threads)
     else:
         scene.render.engine = "TNCG15_MC"
-    out = os.path.abspath(args.output)
-    os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
-    set_exr_output(scene, out)
-    if os.path.exists(out):
-        os.remove(out)
+    rendered = os.path.join(private, "render.exr")
+    set_exr_output(scene, rendered)
+    if stop.requested():
+        return stop.report_exit()
     engine_module.LAST_RENDER.clear()
+    engine_module.STOP_REQUESTS.append(stop.requested)
     t0 = time.perf_counter()
     try:
         bpy.ops.render.render(write_still=True)
     except RuntimeError as exc:
         # Blender's own refusals ("Cannot render, no camera") arrive as "Error: ...\n"
         msg = engine_module.LAST_RENDER.get("error") or str(exc).strip().removeprefix("Error: ")
-        print(f"error: {msg}", file=sys.stderr)
-        return 1
+        return error(msg, 1)
+    finally:
+        engine_module.STOP_REQUESTS.remove(stop.requested)
     wall = time.perf_counter() - t0
     last = dict(engine_module.LAST_RENDER)
     if args.engine == "TNCG15_MC" and last.get("error"):
-        print(f"error: {last['error']}", file=sys.stderr)
-        return 1
-    if not os.path.isfile(out):
-        print("error: no image was written", file=sys.stderr)
-        return 1
+        return error(last["error"], 1)
+    if not os.path.isfile(rendered):
+        return error("no image was written", 1) if not stop.requested() else stop.report_exit()
+    stats = render_stats(args, scene, last, wall)
+    stats["file"] = blend
+    stats["output"] = [o.path for o in outputs if o.kind != "json"]
+    try:
+        write_outputs(outputs, bridge.module("film").read_image(rendered)[..., :3], stats)
+    except (bridge.module("output").OutputError, OSError) as exc:
+        return error(exc, 1)
+    print(f"{args.engine}: wrote {', '.join(o.path for o in outputs)} in {wall:.2f} s "
+          f"(render {stats['render_seconds']:.2f} s)")
+    return stop.report_exit()
+
+
+def write_outputs(outputs, image, stats):
+    output = bridge.module("output")
+    for target in outputs:
+        if target.kind == "json":
+            output.write_text(target, json.dumps(stats, indent=2, default=_json_default))
+        else:
+            output.write_image(target, image)
+
+
+def render_stats(args, scene, last, wall):
+    import bpy
     stats = {}
     if args.engine == "TNCG15_MC":
         stats.update(last.get("stats") or {})
@@ -165,19 +228,7 @@ def render_file(args):
     pct = scene.render.resolution_percentage / 100.0
     stats.setdefault("resolution", [int(scene.render.resolution_x * pct), int(scene.render.resolution_y * pct)])
     stats["wall_seconds"] = wall
-    stats["file"] = os.path.abspath(args.file)
-    stats["output"] = out
-    print(f"{args.engine}: wrote {out} in {wall:.2f} s (render {stats['render_seconds']:.2f} s)")
-    if args.png:
-        from mcrt_addon import bridge
-        film = bridge.module("film")
-        os.makedirs(os.path.dirname(os.path.abspath(args.png)) or ".", exist_ok=True)
-        film.write_png(args.png, film.read_image(out)[..., :3])
-        print(f"{args.engine}: wrote {args.png}")
-    if args.stats_json:
-        with open(args.stats_json, "w") as fh:
-            json.dump(stats, fh, indent=2, default=_json_default)
-    return 0
+    return stats
 
 
 def _json_default(value):
@@ -203,7 +254,6 @@ def ensure_registered(mcrt_addon):
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
-    _check_positive(parser, args)
     if args.command == "render":
         return render_file(args)
     if args.command == "bench-estimators":

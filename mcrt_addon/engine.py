@@ -16,6 +16,8 @@ from .export.util import ExportError
 
 # Statistics of the most recent render in this process (read by the command-line renderer and tests).
 LAST_RENDER = {}
+# Stop requests besides Esc: callables polled with test_break() (the command line's SIGINT/SIGTERM).
+STOP_REQUESTS = []
 
 
 def border_rect(render, width, height):
@@ -114,8 +116,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
                 self._fail(f"TNCG15 MC internal error: {type(exc).__name__}: {exc}")
 
     def _cancel_requested(self):
-        """Esc in the render window (polled by the tracer between batches, ~0.1 s)."""
-        return self.test_break()
+        """Esc in the render window, or a stop request (polled by the tracer between batches, ~0.1 s)."""
+        return self.test_break() or any(stop() for stop in STOP_REQUESTS)
 
     def _fail(self, message):
         LAST_RENDER["error"] = message
@@ -143,6 +145,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             exported.warnings.append(note)
         settings.validate()
         warnings = list(exported.warnings) + list(exported.scene.validate())
+        bridge.module("memory").check_memory(exported.scene, settings)     # refused before allocating
         render = bridge.render_function()
         out_w, out_h = exported.scene.resolution
         LAST_RENDER.update(export=exported.info, resolution=(out_w, out_h), crop=crop)

@@ -15,6 +15,7 @@ from .camera import export_camera
 from .lights import export_area_light
 from .materials import MaterialTable
 from .mesh import bounding_sphere, has_smooth_faces, mesh_arrays, sphere_fit, transform_points, uniform_scale
+from .unsupported import object_warnings, scene_warnings
 from .util import ExportError
 from .world import export_world
 
@@ -77,8 +78,10 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     cam = export_camera(cam_obj, (width, height), crop, Camera=sm.Camera, warnings=warnings)
     out_res = (width, height) if crop is None else (int(crop[2] - crop[0]), int(crop[3] - crop[1]))
 
+    warnings.extend(scene_warnings(scene, getattr(depsgraph, "view_layer", None)))
     meshes, spheres, lights = [], [], []
     cache = {}
+    flagged = set()
     n_instances = n_triangles = 0
     skipped = set()
     smooth_checked = set()
@@ -87,6 +90,9 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             raise ExportCancelled()
         ob = inst.object
         otype = ob.type
+        if ob.name not in flagged:
+            flagged.add(ob.name)
+            warnings.extend(object_warnings(ob, ob.name))
         if otype == "LIGHT":
             if ob.data.type == "AREA":
                 matrix = finite_matrix(inst, ob)

@@ -146,6 +146,9 @@ class MaterialTable:
         e_color = self._color(mat, node, "Emission Color", "Emission", default=(0.0, 0.0, 0.0))
         e_strength = self._float(mat, node, "Emission Strength", default=1.0)
         emission = tuple(max(c * e_strength, 0.0) for c in e_color)
+        alpha = self._float(mat, node, "Alpha", default=1.0)
+        if alpha < 1:
+            self.warn(mat, node, f"alpha {alpha:g} is not modelled (rendered opaque)")
         for names in (("Coat Weight", "Clearcoat"), ("Sheen Weight", "Sheen"),
                       ("Subsurface Weight", "Subsurface")):
             value = self._float(mat, node, *names)

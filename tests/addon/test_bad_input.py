@@ -298,8 +298,8 @@ def test_cli_reports_one_line_and_leaves_the_file_alone(empty_scene, make_sample
     before = file_state(blend)
     r = _cli("render", blend, "-o", tmp_path / "out.exr")
     assert r.returncode == 1, r.stderr
-    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
-    assert errors == [expected], r.stderr
+    errors = [line for line in r.stderr.splitlines() if "error:" in line]
+    assert errors == ["python -m mcrt_addon: " + expected], r.stderr
     assert "Traceback" not in r.stderr + r.stdout
     assert not os.path.exists(tmp_path / "out.exr")
     assert file_state(blend) == before

@@ -411,3 +411,38 @@ def test_zero_area_emitter_is_an_error_naming_the_object(scene, ms):
         ms.emission("E", (1, 1, 1), 5.0))
     with pytest.raises(ExportError, match="Object 'Lamp': emitter has zero area"):
         export()
+
+
+@pytest.mark.parametrize("feature, expected", [
+    ("holdout", "Object 'Q': holdout is not supported"),
+    ("camera_ray", "Object 'Q': ray visibility is not supported (camera off)"),
+    ("shadow_ray", "Object 'Q': ray visibility is not supported (shadow off)"),
+    ("holdout_collection", "Collection 'Held': holdout is not supported"),
+    ("motion_blur", "Motion blur is not rendered"),
+    ("film_transparent", "Film > Transparent is not supported"),
+    ("alpha", "Material 'Seethrough', node 'Principled BSDF': alpha 0.5 is not modelled"),
+    ("transparent_bsdf", "Material 'Glassless', node 'Transparent BSDF': ShaderNodeBsdfTransparent is not supported"),
+    ("holdout_node", "Material 'Hole', node 'Holdout': ShaderNodeHoldout is not supported"),
+])
+def test_unmodelled_blender_features_are_named_in_a_warning(scene, ms, feature, expected):
+    mat = {"alpha": lambda: ms.node_material("Seethrough", "ShaderNodeBsdfPrincipled", Alpha=0.5),
+           "transparent_bsdf": lambda: ms.node_material("Glassless", "ShaderNodeBsdfTransparent"),
+           "holdout_node": lambda: ms.node_material("Hole", "ShaderNodeHoldout")}.get(feature, lambda: None)()
+    ob = add(ms, scene, "Q", lambda bm: ms.quad(bm, [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), mat)
+    if mat is None:                      # the plain quad exports without any of these warnings
+        assert not any("not supported" in w or "not rendered" in w for w in export().warnings)
+    if feature == "holdout":
+        ob.is_holdout = True
+    elif feature == "camera_ray":
+        ob.visible_camera = False
+    elif feature == "shadow_ray":
+        ob.visible_shadow = False
+    elif feature == "holdout_collection":
+        scene.collection.children.link(bpy.data.collections.new("Held"))
+        bpy.context.view_layer.layer_collection.children["Held"].holdout = True
+    elif feature == "motion_blur":
+        scene.render.use_motion_blur = True
+    elif feature == "film_transparent":
+        scene.render.film_transparent = True
+    warnings = export().warnings
+    assert any(expected in w for w in warnings), warnings
