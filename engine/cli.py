@@ -99,7 +99,7 @@ def scene_inputs(path):
 
 
 def cmd_render(args) -> int:
-    from .default_scene import cornell_scene
+    from .default_scene import BUILTIN_SCENES
     from .memory import check_memory
     from .render import render
     from .scene_io import load_scene
@@ -108,7 +108,9 @@ def cmd_render(args) -> int:
     outputs = check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
                              ("--stats-json", args.stats_json, "json")], inputs=scene_inputs(args.scene),
                             base_dir=os.path.dirname(os.path.abspath(args.scene)) if args.scene else None)
-    scene = load_scene(args.scene) if args.scene else cornell_scene()
+    if args.scene and args.builtin:
+        raise SceneError("give a scene file or --builtin, not both")
+    scene = load_scene(args.scene) if args.scene else BUILTIN_SCENES[args.builtin or "cornell"]()
     if args.resolution:
         scene.resolution = tuple(args.resolution)
     settings = settings_from_args(args)
@@ -160,7 +162,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog=PROG, description="TNCG15 MC tracer")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     r = sub.add_parser("render", help="render a scene file (or the built-in Cornell scene)")
-    r.add_argument("scene", nargs="?", help="scene .json (default: built-in Cornell scene)")
+    r.add_argument("scene", nargs="?", help="scene .json (default: a built-in scene, see --builtin)")
+    r.add_argument("--builtin", choices=("cornell", "near_lamp", "caustic", "many_lights"),
+                   help="built-in scene (engine/default_scene.py; default cornell)")
     r.add_argument("-o", "--output", required=True, help="output image (.exr linear or .png sRGB)")
     r.add_argument("--png", help="also write an sRGB PNG here")
     r.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))

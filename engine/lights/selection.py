@@ -23,6 +23,7 @@ import numpy as np
 from ..vec import dot, rows
 
 DEFENSIVE = 0.05
+TINY = np.float32(1e-30)          # floor of the squared distance in the (float32) importance
 
 
 class PowerSelection:
@@ -43,7 +44,7 @@ class PowerSelection:
         return self.prob.take(light)
 
 
-def importance(x, n, center, radius, axis, cos_o, power, near2, min2):
+def importance(x, n, center, radius, axis, cos_o, power, near2, min2, oriented=True):
     """Importance of light clusters for receivers (x, n) (pbrt-v4 LightBounds::Importance,
     with the distance of Cycles' "max importance").
 
@@ -53,31 +54,32 @@ def importance(x, n, center, radius, axis, cos_o, power, near2, min2):
     size of its largest emitter): a receiver inside a cluster of small lamps favours that
     cluster by how close its nearest lamp can be, not by where the cluster's centre is.
     Emission spread theta_e = pi / 2 (Lambertian).  Receivers are opaque: a cluster entirely
-    below the tangent plane of x gets 0.
+    below the tangent plane of x gets 0.  oriented=False skips the emitter-side cone test
+    (every cone of the call is the whole sphere, e.g. two-sided lamps).
     """
     w = center - x
-    d2 = dot(w, w)
     with np.errstate(divide="ignore", invalid="ignore"):
-        inv_d = 1.0 / np.sqrt(d2)
-        wn = w * inv_d
+        inv_d = 1.0 / np.sqrt(dot(w, w))
         sin_u = np.minimum(radius * inv_d, 1.0)
-    inside = ~(sin_u < 1.0)                              # x in the bounding sphere (or d = 0)
-    cos_u = np.where(inside, -1.0, np.sqrt(1.0 - sin_u * sin_u))
-    sin_u = np.where(inside, 0.0, sin_u)
-    wn = np.where(inside, 0.0, wn)
-    # Emitter side: theta = angle(axis, -wn), reduced by the cone's half-angle and theta_u.
-    cos_t = -dot(axis, wn)
-    sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
-    sin_o = np.sqrt(np.maximum(1.0 - cos_o * cos_o, 0.0))
-    beyond = cos_t <= cos_o
-    cos_a = np.where(beyond, cos_t * cos_o + sin_t * sin_o, 1.0)
-    sin_a = np.where(beyond, sin_t * cos_o - cos_t * sin_o, 0.0)
-    cos_e = np.where(cos_a > cos_u, 1.0, cos_a * cos_u + sin_a * sin_u)
-    # Receiver side: theta_i = angle(n, wn), reduced by theta_u.
-    cos_i = dot(n, wn)
-    sin_i = np.sqrt(np.maximum(1.0 - cos_i * cos_i, 0.0))
-    cos_r = np.where(cos_i > cos_u, 1.0, cos_i * cos_u + sin_i * sin_u)
-    return power * np.maximum(cos_e, 0.0) * np.maximum(cos_r, 0.0) / np.maximum(near2, min2)
+        inside = ~(sin_u < 1.0)                          # x in the bounding sphere (or d = 0)
+        cos_u = np.where(inside, -1.0, np.sqrt(1.0 - sin_u * sin_u))
+        sin_u = np.where(inside, 0.0, sin_u)
+        # Receiver side: theta_i = angle(n, w), reduced by theta_u.
+        cos_i = dot(n, w) * inv_d
+        sin_i = np.sqrt(np.maximum(1.0 - cos_i * cos_i, 0.0))
+        cos_r = np.where(inside | (cos_i > cos_u), 1.0, cos_i * cos_u + sin_i * sin_u)
+        result = power * np.maximum(cos_r, 0.0) / np.maximum(np.maximum(near2, min2), TINY)
+        if oriented:
+            # Emitter side: theta = angle(axis, -w), reduced by the cone's half-angle and theta_u.
+            cos_t = -dot(axis, w) * inv_d
+            sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
+            sin_o = np.sqrt(np.maximum(1.0 - cos_o * cos_o, 0.0))
+            beyond = cos_t <= cos_o
+            cos_a = np.where(beyond, cos_t * cos_o + sin_t * sin_o, 1.0)
+            sin_a = np.where(beyond, sin_t * cos_o - cos_t * sin_o, 0.0)
+            cos_e = np.where(inside | (cos_a > cos_u), 1.0, cos_a * cos_u + sin_a * sin_u)
+            result = result * np.maximum(cos_e, 0.0)
+    return result
 
 
 def box_distance2(x, lo, hi):
@@ -131,10 +133,15 @@ class LightTree:
             owner = np.searchsorted(start, np.arange(k), side="right") - 1
             spread = np.arccos(np.clip(np.einsum("ij,ij->i", node_axis[owner], a), -1.0, 1.0)) + theta_o
             node_theta = np.minimum(np.maximum.reduceat(spread, start), np.pi)
+            f32 = np.float32                   # importance is a heuristic: float32 halves its cost
             self.levels.append(dict(
-                center=rows(0.5 * (box_lo + box_hi)), radius=0.5 * np.linalg.norm(box_hi - box_lo, axis=1),
-                lo=rows(box_lo), hi=rows(box_hi), min2=np.maximum.reduceat(r, start) ** 2,
-                axis=rows(node_axis), cos_o=np.cos(node_theta), power=node_power))
+                center=rows(0.5 * (box_lo + box_hi)).astype(f32),
+                radius=(0.5 * np.linalg.norm(box_hi - box_lo, axis=1)).astype(f32),
+                lo=rows(box_lo).astype(f32), hi=rows(box_hi).astype(f32),
+                min2=(np.maximum.reduceat(r, start) ** 2).astype(f32),
+                axis=rows(node_axis).astype(f32), cos_o=np.cos(node_theta).astype(f32),
+                power=(node_power / max(p.sum(), 1e-300)).astype(f32),
+                oriented=bool((node_theta < np.pi).any())))
 
     def _left_probability(self, x, n, level, left):
         nodes = self.levels[level]
@@ -143,13 +150,13 @@ class LightTree:
             near2 = box_distance2(x, nodes["lo"].take(node, axis=1), nodes["hi"].take(node, axis=1))
             return importance(x, n, nodes["center"].take(node, axis=1), nodes["radius"].take(node),
                               nodes["axis"].take(node, axis=1), nodes["cos_o"].take(node),
-                              nodes["power"].take(node), near2, nodes["min2"].take(node))
+                              nodes["power"].take(node), near2, nodes["min2"].take(node), nodes["oriented"])
         i_left, i_right = imp(left), imp(left + 1)
         total = i_left + i_right
         p_left, p_right = nodes["power"].take(left), nodes["power"].take(left + 1)
-        by_power = p_left / np.maximum(p_left + p_right, 1e-300)
+        by_power = p_left / np.maximum(p_left + p_right, TINY)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(total > 0.0, i_left / total, by_power)
+            return np.where(total > 0.0, i_left / total, by_power).astype(np.float64)
 
     def _tree_sample(self, x, n, u):
         node = np.zeros(len(u), dtype=np.int64)
@@ -182,6 +189,7 @@ class LightTree:
     def sample(self, x, n, u):
         if self.count == 1:
             return np.zeros(len(u), dtype=np.int64), np.ones(len(u))
+        x, n = x.astype(np.float32), n.astype(np.float32)
         defensive = u < DEFENSIVE
         light, tree_pmf = self._tree_sample(x, n, np.where(defensive, 0.0, (u - DEFENSIVE) / (1.0 - DEFENSIVE)))
         sel = np.flatnonzero(defensive)
@@ -193,4 +201,5 @@ class LightTree:
     def pmf(self, x, n, light):
         if self.count == 1:
             return np.ones(len(light))
+        x, n = x.astype(np.float32), n.astype(np.float32)
         return DEFENSIVE * self.fallback.pmf(x, n, light) + (1.0 - DEFENSIVE) * self._tree_pmf(x, n, light)

@@ -31,7 +31,8 @@ def object_warnings(ob, label):
     warnings = []
     if getattr(original, "is_holdout", False):
         warnings.append(f"Object '{label}': holdout is not supported; rendered as an ordinary object")
-    hidden = [name for attr, name in RAY_VISIBILITY if not getattr(original, attr, True)]
+    # Lights: Area lights export their ray visibility (export/lights.py); others are ignored.
+    hidden = [] if ob.type == "LIGHT" else [name for attr, name in RAY_VISIBILITY if not getattr(original, attr, True)]
     if hidden:
         warnings.append(f"Object '{label}': ray visibility is not supported ({', '.join(hidden)} off); "
                         "the object is seen by every ray")
