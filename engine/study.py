@@ -14,8 +14,10 @@ wall time and error against a converged reference rendered once at high sample c
   relative bias^2 alone exceeds the target.
 
 The tables follow the report's chapter 3 (Tables 3.1-3.4, §3.6), plus Schlick against
-exact Fresnel and an equal-time / equal-error comparison against Cycles on the same
-.blend file and cores (when the bpy module and the add-on are available).
+exact Fresnel, the estimators (the report's area sampling against solid-angle light sampling
+and MIS, random numbers against Sobol' points) on four rooms, and an equal-time / equal-error
+comparison against Cycles on the same .blend file and cores (when the bpy module and the
+add-on are available).
 """
 from __future__ import annotations
 
@@ -209,7 +211,22 @@ class Study:
             self.add("fresnel", f"{fresnel} (vs exact reference)", scene, replace(self.base, fresnel=fresnel),
                      ref_exact, extra={"fresnel": fresnel})
         self.accelerator_table()
+        self.estimators_table()
         self.cycles_table()
+
+    def estimators_table(self):
+        """The report's estimator against solid-angle light sampling, MIS and the Sobol' sampler
+        on the built-in rooms that stress light sampling (reference: mis, reference_spp)."""
+        from .default_scene import BUILTIN_SCENES
+        variants = (("report, random numbers", "report", "random"), ("solid-angle", "solid-angle", "sobol"),
+                    ("mis, random numbers", "mis", "random"), ("mis", "mis", "sobol"))
+        for name in ("cornell", "near_lamp", "caustic", "many_lights"):
+            scene = BUILTIN_SCENES[name](self.mode.resolution)
+            ref = self.reference(scene, replace(self.base, estimator="mis"), f"estimators, {name}")
+            for label, estimator, sampler in variants:
+                self.add("estimators", f"{name}: {label}", scene,
+                         replace(self.base, estimator=estimator, sampler=sampler), ref,
+                         extra={"scene": name, "estimator": estimator, "sampler": sampler})
 
     def accelerator_table(self):                                   # Table 3.2
         m = self.mode

@@ -17,6 +17,7 @@ TABLE_TITLES = {
     "3.4": "Table 3.4 — recursion depth and Russian roulette",
     "3.6": "§3.6 — samples per pixel",
     "fresnel": "Schlick against exact Fresnel (reference: exact Fresnel)",
+    "estimators": "Estimators — the report's area sampling against solid-angle light sampling and MIS",
     "cycles": "Against Cycles on sample_blends/cornell.blend (reference: Cycles, high spp)",
 }
 
@@ -153,7 +154,7 @@ def write_markdown(study, path, fig_rel, command, seconds):
         "",
     ]
     out += [f"- {n}" for n in study.notes] + [""]
-    for table in ("3.1", "3.2", "3.2b", "3.3", "3.4", "3.6", "fresnel", "cycles"):
+    for table in ("3.1", "3.2", "3.2b", "3.3", "3.4", "3.6", "fresnel", "estimators", "cycles"):
         rs = by(table)
         if not rs:
             continue
@@ -165,6 +166,8 @@ def write_markdown(study, path, fig_rel, command, seconds):
             out += [f"Speed-up 1 → {rs[-1].extra['threads']} threads: **{rs[0].t / rs[-1].t:.2f}×**.", ""]
         if table == "cycles":
             out += cycles_summary(rs) + [""]
+        if table == "estimators":
+            out += estimators_summary(rs, os.path.join(os.path.dirname(path), "estimators.json")) + [""]
         if table == "fresnel" and getattr(study, "fresnel_bias", None):
             fb = study.fresnel_bias
             out += [f"Between the two converged references ({m.reference_spp} spp each): bias² of Schlick = "
@@ -202,4 +205,30 @@ def cycles_summary(rows):
         t_o = np.exp(np.interp(np.log(target), eo[::-1], to[::-1]))
         lines.append(f"Equal error (relMSE {target:.3g}): Cycles needs {fmt_time(t_c)}, TNCG15 MC "
                      f"{fmt_time(t_o)} (ratio {t_o / t_c:.2f}×), interpolated between the measured rows.")
+    return lines
+
+
+def estimators_summary(rows, bench_json):
+    """Efficiency of each estimator against the report's on the same scene, and the measured
+    comparison with Cycles from `make bench-estimators` (docs/estimators.json) when present."""
+    lines = ["Scenes: `engine/default_scene.py` (`near_lamp`: the lamp hangs 2 cm under a closed ceiling; "
+             "`caustic`: a glass ball on the floor under a small lamp; `many_lights`: 36 lamps of 8 cm, 1 cm under "
+             "the ceiling). Reference: `mis` at the reference sample count. Efficiency gain over the report's "
+             "estimator (random numbers) on the same scene:", ""]
+    for scene in dict.fromkeys(r.extra["scene"] for r in rows):
+        rs = [r for r in rows if r.extra["scene"] == scene]
+        base = next(r for r in rs if r.extra["estimator"] == "report")
+        gains = ", ".join(f"{r.label.split(': ', 1)[1]} {r.efficiency / base.efficiency:.3g}×" for r in rs
+                          if r is not base)
+        lines.append(f"- {scene}: {gains}")
+    if os.path.exists(bench_json):
+        import json
+        with open(bench_json) as fh:
+            bench = json.load(fh)
+        st = bench.get("settings", {})
+        lines += ["", "### Against Cycles (`make bench-estimators`, same machine, same threads)", "",
+                  f"Blender's sample scenes at {st.get('resolution')}, {st.get('samples')} spp, max depth "
+                  f"{st.get('max_depth')}, {st.get('repeats')} seed(s) per row; reference: Cycles at "
+                  f"{st.get('reference_samples')} spp. Written {bench.get('machine', {}).get('date', '')}.", "",
+                  bench["table"]]
     return lines

@@ -2,7 +2,7 @@
 
   python -m mcrt_addon bench-estimators [--scenes cornell near_lamp caustic many_lights]
          [--resolution 96 96] [--samples 256] [--reference-samples 4096] [--max-depth 12]
-         [--estimators report solid-angle mis] [--threads N] [--repeats K]
+         [--estimators report/random solid-angle mis/random mis] [--threads N] [--repeats K]
          [--out docs/estimators.json] [--cache-dir renders/reference] [--images DIR]
 
 For every scene (a name from sample_blends/make_samples.py, generated afresh into the cache
@@ -47,7 +47,10 @@ import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEFAULT_SCENES = ("cornell", "near_lamp", "caustic", "many_lights")
-ESTIMATORS = ("report", "solid-angle", "mis")
+# An estimator, optionally with "/random": independent random numbers instead of the default
+# Sobol' sampler ("report/random" is the report's estimator as it was before issue 9).
+ESTIMATORS = ("report/random", "report", "solid-angle", "mis/random", "mis")
+DEFAULT_ESTIMATORS = ("report/random", "solid-angle", "mis/random", "mis")
 REFERENCE_SEED = 4242
 RELMSE_EPS = 1e-2
 TARGET_RELMSE = 1e-2
@@ -164,8 +167,9 @@ def render_tncg15(tracer_scene, *, samples, max_depth, seed, threads, estimator)
     """One TNCG15 MC render (in-process): (image, wall seconds, process CPU seconds, stats)."""
     from mcrt_addon import bridge
     render = bridge.render_function()
+    name, _, sampler = estimator.partition("/")
     settings = tracer_settings(samples=samples, max_depth=max_depth, seed=seed, threads=threads,
-                               fresnel="exact", estimator=estimator)
+                               fresnel="exact", estimator=name, sampler=sampler or "sobol")
     c0, t0 = time.process_time(), time.perf_counter()
     result = render(tracer_scene, settings, log=lambda *a, **k: None)
     seconds = time.perf_counter() - t0
@@ -251,7 +255,7 @@ def bench_scene(label, blend, identity, args, threads, log):
         rows.append(row)
         if args.images:
             os.makedirs(args.images, exist_ok=True)
-            tag = renderer if estimator is None else f"{renderer}_{estimator}"
+            tag = renderer if estimator is None else f"{renderer}_{estimator.replace('/', '-')}"
             write_png(os.path.join(args.images, f"{label}_{tag}.png"), runs[0][0])
         log(f"  {renderer:9s} {estimator or '':11s} {row['seconds']:7.2f} s  MSE {row['mse']:.3e}  "
             f"relMSE {row['relmse']:.3e}  worst10 {row['worst10_share']:.2f}")
@@ -335,7 +339,7 @@ def bench_estimators(args, log=print):
                       reference_seed=REFERENCE_SEED, relmse_eps=RELMSE_EPS, target_relmse=TARGET_RELMSE,
                       tncg15=dict(fresnel="exact", russian_roulette="default"),
                       cycles="mcrt_addon/reference.py fair settings"),
-        machine=dict(cpu_count=os.cpu_count(), platform=platform.platform(),
+        machine=dict(cpu_count=os.cpu_count(), platform=platform.platform(), date=time.strftime("%Y-%m-%d"),
                      python=sys.version.split()[0], blender=bpy.app.version_string),
         scenes=results, table=table)
     if args.out:
@@ -362,7 +366,8 @@ def add_arguments(parser):
     parser.add_argument("--samples", type=int, default=256)
     parser.add_argument("--reference-samples", type=int, default=4096)
     parser.add_argument("--max-depth", type=int, default=12)
-    parser.add_argument("--estimators", nargs="+", default=list(ESTIMATORS), choices=ESTIMATORS)
+    parser.add_argument("--estimators", nargs="+", default=list(DEFAULT_ESTIMATORS), choices=ESTIMATORS,
+                        help="estimators; NAME/random: with independent random numbers")
     parser.add_argument("--threads", type=int, default=0, help="threads for both renderers (0 = all cores)")
     parser.add_argument("--repeats", type=int, default=1, help="runs (seeds) per renderer; means reported")
     parser.add_argument("--out", default=os.path.join("docs", "estimators.json"),
