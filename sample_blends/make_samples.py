@@ -289,16 +289,23 @@ def make_diffuse_room(scene, res):
     settings(scene, res)
 
 
-def make_area_light(scene, res):
-    room(scene, ceiling_light=False)
+def area_light(scene):
+    """A 0.6 x 0.4 m rectangle Area light of 40 W, 3 cm under the ceiling, emitting down (its
+    local -Z); not seen by the camera (Cycles' default), seen in mirrors and through glass."""
     light = bpy.data.lights.new("AreaLight", "AREA")
     light.shape = "RECTANGLE"
     light.size, light.size_y = 0.6, 0.4
     light.energy = 40.0
     light.color = (1.0, 0.95, 0.9)
     ob = bpy.data.objects.new("AreaLight", light)
-    ob.location = (0.0, 0.0, 1.97)                   # emits along its local -Z: down
+    ob.location = (0.0, 0.0, 1.97)
     scene.collection.objects.link(ob)
+    return ob
+
+
+def make_area_light(scene, res):
+    room(scene, ceiling_light=False)
+    area_light(scene)
     mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.3), diffuse("Pink", (0.8, 0.4, 0.5)),
                 location=(0.0, 0.0, 0.3), smooth=True)
     camera(scene)
@@ -377,14 +384,7 @@ def make_many_lights(scene, res, n=6, size=0.08, pitch=0.3, strength=13.0):
 
 def make_area_mirror(scene, res):
     room(scene, ceiling_light=False)
-    light = bpy.data.lights.new("AreaLight", "AREA")
-    light.shape = "RECTANGLE"
-    light.size, light.size_y = 0.6, 0.4
-    light.energy = 40.0
-    light.color = (1.0, 0.95, 0.9)
-    ob = bpy.data.objects.new("AreaLight", light)
-    ob.location = (0.0, 0.0, 1.97)                   # emits down; not seen by the camera (Cycles default)
-    scene.collection.objects.link(ob)
+    area_light(scene)
     mesh_object(scene, "MirrorSphere", lambda bm: uv_sphere(bm, 0.35), mirror("Mirror", (0.9, 0.9, 0.9)),
                 location=(-0.45, 0.1, 0.35), smooth=True)
     mesh_object(scene, "GlassSphere", lambda bm: uv_sphere(bm, 0.3), glass("Glass", ior=1.5),
