@@ -227,7 +227,8 @@ def estimators_summary(rows, bench_json):
             bench = json.load(fh)
         st = bench.get("settings", {})
         lines += ["", "### Against Cycles (`make bench-estimators`, same machine, same threads)", "",
-                  f"Blender's sample scenes at {st.get('resolution')}, {st.get('samples')} spp, max depth "
+                  f"Blender's sample scenes at {'×'.join(map(str, st.get('resolution', [])))}, "
+                  f"{st.get('samples')} spp, max depth "
                   f"{st.get('max_depth')}, {st.get('repeats')} seed(s) per row; reference: Cycles at "
                   f"{st.get('reference_samples')} spp. Written {bench.get('machine', {}).get('date', '')}.", "",
                   bench["table"]]

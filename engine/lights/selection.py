@@ -133,24 +133,21 @@ class LightTree:
             owner = np.searchsorted(start, np.arange(k), side="right") - 1
             spread = np.arccos(np.clip(np.einsum("ij,ij->i", node_axis[owner], a), -1.0, 1.0)) + theta_o
             node_theta = np.minimum(np.maximum.reduceat(spread, start), np.pi)
-            f32 = np.float32                   # importance is a heuristic: float32 halves its cost
-            self.levels.append(dict(
-                center=rows(0.5 * (box_lo + box_hi)).astype(f32),
-                radius=(0.5 * np.linalg.norm(box_hi - box_lo, axis=1)).astype(f32),
-                lo=rows(box_lo).astype(f32), hi=rows(box_hi).astype(f32),
-                min2=(np.maximum.reduceat(r, start) ** 2).astype(f32),
-                axis=rows(node_axis).astype(f32), cos_o=np.cos(node_theta).astype(f32),
-                power=(node_power / max(p.sum(), 1e-300)).astype(f32),
-                oriented=bool((node_theta < np.pi).any())))
+            # One float32 table per level (importance is a heuristic: float32 halves its cost), so
+            # a child's bounds are gathered with a single take: rows as NODE_ROWS says.
+            table = np.vstack([rows(0.5 * (box_lo + box_hi)), rows(box_lo), rows(box_hi), rows(node_axis),
+                               0.5 * np.linalg.norm(box_hi - box_lo, axis=1), np.cos(node_theta),
+                               node_power / max(p.sum(), 1e-300), np.maximum.reduceat(r, start) ** 2])
+            self.levels.append(dict(table=table.astype(np.float32), power=table[14].astype(np.float32),
+                                    oriented=bool((node_theta < np.pi).any())))
 
     def _left_probability(self, x, n, level, left):
         nodes = self.levels[level]
 
         def imp(node):
-            near2 = box_distance2(x, nodes["lo"].take(node, axis=1), nodes["hi"].take(node, axis=1))
-            return importance(x, n, nodes["center"].take(node, axis=1), nodes["radius"].take(node),
-                              nodes["axis"].take(node, axis=1), nodes["cos_o"].take(node),
-                              nodes["power"].take(node), near2, nodes["min2"].take(node), nodes["oriented"])
+            b = nodes["table"].take(node, axis=1)          # centre, lo, hi, axis, radius, cos_o, power, min2
+            return importance(x, n, b[0:3], b[12], b[9:12], b[13], b[14], box_distance2(x, b[3:6], b[6:9]),
+                              b[15], nodes["oriented"])
         i_left, i_right = imp(left), imp(left + 1)
         total = i_left + i_right
         p_left, p_right = nodes["power"].take(left), nodes["power"].take(left + 1)
