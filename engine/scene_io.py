@@ -9,7 +9,12 @@
      "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
                  "material": "White"  or  "material_ids": [..] or "@key"}],
      "spheres": [{"name": "Ball", "center": [..], "radius": 0.3, "material": "Glass"}],
-     "quads": [{"name": "Light", "corners": [[..] x4], "material": "Light"}]}
+     "quads": [{"name": "Light", "corners": [[..] x4], "material": "Light"}],
+     "lights": [{"name": "Lamp", "vertices": [[..] x N], "radiance": [r, g, b], "two_sided": false,
+                 "visible_camera": false, "visible_diffuse": true, "visible_glossy": true,
+                 "visible_transmission": true, "lights_diffuse": true}]}
+
+"version" is FORMAT_VERSION (2: Area lights); files of a newer version are refused.
 
 A value "@key" names an array in the NPZ file with the JSON's name and suffix .npz.
 """
@@ -20,10 +25,13 @@ import os
 
 import numpy as np
 
-from .scene import Camera, Material, Quad, Scene, SceneError, Sphere, TriangleMesh
+from .scene import AreaLight, Camera, Material, Quad, Scene, SceneError, Sphere, TriangleMesh
 from .scene_fields import Fields, is_integer
 
 FORMAT = "tncg15-scene"
+FORMAT_VERSION = 2
+LIGHT_FLAGS = ("two_sided", "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
+               "lights_diffuse")
 
 
 def _material_index(fields, names):
@@ -92,6 +100,9 @@ def load_scene(path: str) -> Scene:
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise SceneError(f"scene '{path}' is not a {FORMAT} file (missing \"format\": \"{FORMAT}\")")
     top = Fields(data, f"Scene '{os.path.basename(path)}'")
+    version = top.get("version", 1)
+    if not (isinstance(version, int) and 1 <= version <= FORMAT_VERSION):
+        raise SceneError(f"scene '{path}' has format version {version!r}; this engine reads 1 to {FORMAT_VERSION}")
     name = top.text("name", os.path.basename(path))
     top.owner = f"Scene '{name}'"
     arrays = _read_npz(os.path.splitext(path)[0] + ".npz")
@@ -120,9 +131,21 @@ def load_scene(path: str) -> Scene:
     for i, entry in enumerate(top.objects("quads")):
         q, quad_name = _named(entry, "Object", f"quad{i}")
         quads.append(Quad(quad_name, q.matrix("corners", 4, 3), _material_index(q, names)))
+    lights = []
+    for i, entry in enumerate(top.objects("lights")):
+        f, light_name = _named(entry, "Light", f"light{i}")
+        flags = {}
+        for key in LIGHT_FLAGS:
+            if key in f:
+                value = f.get(key)
+                if not isinstance(value, bool):
+                    f.fail(key, "true or false", value)
+                flags[key] = value
+        lights.append(AreaLight(light_name, f.array("vertices", arrays, 3, integer=False),
+                                f.numbers("radiance", 3), **flags))
     return Scene(camera, materials, meshes, spheres, quads,
                  background=top.numbers("background", 3, (0.0, 0.0, 0.0)),
-                 resolution=top.integers("resolution", 2, (256, 256)), name=name)
+                 resolution=top.integers("resolution", 2, (256, 256)), name=name, lights=lights)
 
 
 def save_scene(scene: Scene, path: str) -> None:
@@ -137,7 +160,7 @@ def save_scene(scene: Scene, path: str) -> None:
                        "triangles": f"@mesh{i}_triangles", "material_ids": f"@mesh{i}_material_ids"})
     cam = scene.camera
     data = {
-        "format": FORMAT, "version": 1, "name": scene.name,
+        "format": FORMAT, "version": FORMAT_VERSION, "name": scene.name,
         "resolution": list(scene.resolution), "background": list(scene.background),
         "camera": None if cam is None else {
             "name": cam.name, "matrix": np.asarray(cam.matrix).tolist(), "lens": cam.lens,
@@ -150,6 +173,9 @@ def save_scene(scene: Scene, path: str) -> None:
                      "material": s.material_id} for s in scene.spheres],
         "quads": [{"name": q.name, "corners": np.asarray(q.corners).tolist(), "material": q.material_id}
                   for q in scene.quads],
+        "lights": [dict({"name": light.name, "vertices": np.asarray(light.vertices).tolist(),
+                         "radiance": [float(c) for c in light.radiance]},
+                        **{key: bool(getattr(light, key)) for key in LIGHT_FLAGS}) for light in scene.lights],
     }
     with open(path, "w") as fh:
         json.dump(data, fh, indent=1)

@@ -64,6 +64,32 @@ def test_scene_file_round_trip(tmp_path):
     assert np.array_equal(a.image, b.image)
 
 
+def test_scene_file_round_trip_keeps_area_lights_and_their_visibility(tmp_path):
+    from engine.scene import AreaLight
+    scene = cornell_scene((16, 16))
+    disk = np.stack([0.2 * np.cos(np.linspace(0, -2 * np.pi, 12, endpoint=False)),
+                     0.2 * np.sin(np.linspace(0, -2 * np.pi, 12, endpoint=False)), np.full(12, 1.9)], axis=1)
+    scene.lights = [AreaLight("Disk", disk, (3.0, 2.0, 1.0), visible_camera=True, visible_glossy=False),
+                    AreaLight("Panel", disk[:4] + [0, 0, -0.1], (1.0, 1.0, 1.0), two_sided=True, lights_diffuse=False)]
+    path = str(tmp_path / "lit.json")
+    save_scene(scene, path)
+    again = load_scene(path)
+    assert [(l.name, l.radiance, l.two_sided, l.visible_camera, l.visible_glossy, l.lights_diffuse)
+            for l in again.lights] == [("Disk", (3.0, 2.0, 1.0), False, True, False, True),
+                                        ("Panel", (1.0, 1.0, 1.0), True, False, True, False)]
+    assert np.array_equal(again.lights[0].vertices, disk)
+    a = render(scene, RenderSettings(samples=2, seed=3), log=lambda *a: None)
+    b = render(again, RenderSettings(samples=2, seed=3), log=lambda *a: None)
+    assert np.array_equal(a.image, b.image)
+
+
+def test_scene_file_of_a_newer_format_is_refused(tmp_path):
+    path = tmp_path / "future.json"
+    path.write_text(json.dumps({"format": "tncg15-scene", "version": 99, "materials": [{"name": "m"}]}))
+    with pytest.raises(SceneError, match="format version 99"):
+        load_scene(str(path))
+
+
 def test_scene_file_errors_name_the_problem(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"format": "tncg15-scene", "materials": [{"name": "m"}],
