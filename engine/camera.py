@@ -51,19 +51,20 @@ class TileSamples:
     """The camera samples of one image tile, handed out in chunks (report 2.3).
 
     Sample i of the tile belongs to pixel i mod (tile pixels): the first pass covers
-    every pixel once, then the second, ... `spp` passes in all.  Each sample is a
+    every pixel once, then the second, ... up to pass `spp`, from pass `first` on.  Each sample is a
     jittered sub-pixel position (box filter), from dimension pair 0 of `sampler`
     (engine/qmc.py) when its chunk is taken.
     """
 
     def __init__(self, camera, width: int, height: int, x0: int, y0: int, x1: int, y1: int,
-                 spp: int, sampler):
+                 spp: int, sampler, first: int = 0):
+        """Samples first .. spp-1 of every pixel (a work unit's sample range)."""
         self.camera, self.width, self.height = camera, width, height
         self.tile_width = x1 - x0
         self.pixels = self.tile_width * (y1 - y0)
         self.x0, self.y0 = x0, y0
         self.total = self.pixels * spp
-        self.taken = 0
+        self.taken = self.pixels * first
         self.sampler = sampler
 
     @property

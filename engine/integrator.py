@@ -153,9 +153,9 @@ class PathTracer:
         the arrays stay long and the per-call cost of NumPy is paid once per bounce of
         a full wavefront, not for the few paths left at depth 8.  Each path carries its
         pixel, throughput beta and radiance L; a finished path is handed to
-        `on_finished(pixel, L)`.  Once `cancel` is set no new sample starts, but the paths
-        in flight are traced to their end (a few bounces): dropping them would keep only
-        the short paths of a partial tile and darken it.  Uniform numbers come from
+        `on_finished(pixel, L)`.  Returns False as soon as `cancel` is set (checked every
+        bounce): the caller drops the whole unit (engine/session.py), since a partial one
+        would keep only its short paths and darken its tile.  Uniform numbers come from
         `sampler` (engine/qmc.py; default: independent ones from `rng`).
         """
         sampler = sampler or RandomSampler(rng)
@@ -164,14 +164,15 @@ class PathTracer:
             alive = 0 if paths is None else len(paths.pixel)
             room = WAVEFRONT_SIZE - alive
             fresh = 0
-            stopping = cancel is not None and cancel.is_set()
-            if samples.remaining and not stopping and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
+            if cancel is not None and cancel.is_set():
+                return False
+            if samples.remaining and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
                 pixel, sample, o, d = samples.take(room)
                 fresh = len(pixel)
                 new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis)
                 paths = new if paths is None else paths.extend(new)
             if paths is None or len(paths.pixel) == 0:
-                break
+                return True
             counters.rays["camera"] += fresh
             counters.rays["extension"] += len(paths.pixel) - fresh
             paths = self.bounce(paths, sampler, counters, on_finished)

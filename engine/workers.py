@@ -1,13 +1,15 @@
-"""Worker pools that render tiles: threads or forked processes, behind one interface.
+"""Local worker pools that render work units: threads or forked processes, one interface.
 
 Threads share everything, and Embree's run() and large NumPy loops release the GIL,
 but the many small NumPy calls of a wavefront bounce hold it: on 2 cores threads reach
-about 1.4x.  Forked processes (Linux) each own a copy of the prepared Renderer (its
-Embree scene already committed) and reach close to 2x; tiles travel back as arrays.
+about 1.6x.  Forked processes (Linux) each own a copy of the prepared RenderSession (its
+Embree scene already committed) and reach close to 2x; unit results travel back as arrays.
 Inside Blender (bpy imported) the process is never forked.
 
-Both pools yield (tile, film, counters, error) as tiles finish.  Tiles draw random
-numbers from their own generators, so the image does not depend on the pool.
+Every pool offers start(units), next_result(timeout) -> (unit, UnitResult or None when
+cancelled, error) or None, cancel(), close() and `describe`; RenderSession.run drives any of
+them (engine/cluster.py is the Dask one).  A unit's random numbers do not depend on where it
+runs, so the image does not depend on the pool.
 """
 from __future__ import annotations
 
@@ -21,8 +23,6 @@ import threading
 import traceback
 from concurrent.futures import ThreadPoolExecutor
 
-from .geometry import Counters
-
 PARALLELISM = ("auto", "threads", "processes")
 
 
@@ -34,23 +34,23 @@ def choose_parallelism(requested: str, workers: int) -> str:
 
 
 class ThreadWorkers:
-    def __init__(self, renderer, count: int):
-        self.renderer = renderer
+    describe = "threads"
+
+    def __init__(self, session, count: int):
+        self.session = session
         self.cancel_event = threading.Event()
         self.finished: queue.Queue = queue.Queue()
         self.pool = ThreadPoolExecutor(max_workers=count)
 
-    def _work(self, tile):
-        counters = Counters()
+    def _work(self, unit):
         try:
-            film = self.renderer.render_tile(tile, self.cancel_event, counters)
-            self.finished.put((tile, film, counters, None))
+            self.finished.put((unit, self.session.render_unit(unit, self.cancel_event), None))
         except BaseException as exc:  # surfaced on the calling thread
-            self.finished.put((tile, None, counters, exc))
+            self.finished.put((unit, None, exc))
 
-    def start(self, tiles):
-        for tile in tiles:
-            self.pool.submit(self._work, tile)
+    def start(self, units):
+        for unit in units:
+            self.pool.submit(self._work, unit)
 
     def next_result(self, timeout: float):
         try:
@@ -66,7 +66,7 @@ class ThreadWorkers:
         self.pool.shutdown(wait=True)
 
 
-_FORKED_RENDERER = None   # set just before fork; the children inherit it
+_FORKED_SESSION = None   # set just before fork; the children inherit it
 
 
 PR_SET_PDEATHSIG = 1
@@ -87,27 +87,27 @@ def die_with_parent(parent_pid: int) -> None:
 
 def _process_main(tasks, results, cancel_event, parent_pid):
     die_with_parent(parent_pid)
-    renderer = _FORKED_RENDERER
+    session = _FORKED_SESSION
     while True:
-        tile = tasks.get()
-        if tile is None:
+        unit = tasks.get()
+        if unit is None:
             return
-        counters = Counters()
         try:
-            film = renderer.render_tile(tile, cancel_event, counters)
-            results.put((tile, film, counters, None))
+            results.put((unit, session.render_unit(unit, cancel_event), None))
         except BaseException:
-            results.put((tile, None, counters, traceback.format_exc()))
+            results.put((unit, None, traceback.format_exc()))
 
 
 class ProcessWorkers:
-    def __init__(self, renderer, count: int):
-        global _FORKED_RENDERER
+    describe = "processes"
+
+    def __init__(self, session, count: int):
+        global _FORKED_SESSION
         ctx = multiprocessing.get_context("fork")
         self.tasks = ctx.Queue()
         self.results = ctx.Queue()
         self.cancel_event = ctx.Event()
-        _FORKED_RENDERER = renderer
+        _FORKED_SESSION = session
         try:
             self.procs = [ctx.Process(target=_process_main, args=(self.tasks, self.results, self.cancel_event,
                                                                      os.getpid()),
@@ -115,24 +115,24 @@ class ProcessWorkers:
             for p in self.procs:
                 p.start()
         finally:
-            _FORKED_RENDERER = None
+            _FORKED_SESSION = None
 
-    def start(self, tiles):
-        for tile in tiles:
-            self.tasks.put(tile)
+    def start(self, units):
+        for unit in units:
+            self.tasks.put(unit)
         for _ in self.procs:
             self.tasks.put(None)
 
     def next_result(self, timeout: float):
         try:
-            tile, film, counters, error = self.results.get(timeout=timeout)
+            unit, result, error = self.results.get(timeout=timeout)
         except queue.Empty:
             if not any(p.is_alive() for p in self.procs) and self.results.empty():
                 raise RuntimeError("TNCG15 MC: all render worker processes died") from None
             return None
         if isinstance(error, str):
             error = RuntimeError(f"render worker failed:\n{error}")
-        return tile, film, counters, error
+        return unit, result, error
 
     def cancel(self):
         self.cancel_event.set()
@@ -145,5 +145,5 @@ class ProcessWorkers:
                 p.terminate()
 
 
-def make_workers(kind: str, renderer, count: int):
-    return ProcessWorkers(renderer, count) if kind == "processes" else ThreadWorkers(renderer, count)
+def make_workers(kind: str, session, count: int):
+    return ProcessWorkers(session, count) if kind == "processes" else ThreadWorkers(session, count)

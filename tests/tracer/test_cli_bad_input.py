@@ -4,6 +4,7 @@ every file in the directory (inputs, an existing output) byte-identical afterwar
 import copy
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -218,13 +219,13 @@ def test_memory_estimate_refuses_before_allocating():
 
 # ------------------------------------------------------------------------------------- signals
 def start_render(tmp_path, *extra):
-    """A render that takes a while (about 5 s on 2 cores); returns once the first tile is done."""
+    """A render that takes a while (about 5 s on 2 cores); returns once the first work unit is done."""
     proc = subprocess.Popen([sys.executable, "-m", "engine", "render", "-o", str(tmp_path / "out.exr"),
                              "--samples", "4096", "--resolution", "64", "64", "--tile-size", "16",
                              "--threads", "2", *extra], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, env=dict(os.environ, PYTHONPATH=ROOT))
     seen = b""
-    while b"tile 1/" not in seen:
+    while not re.search(rb"unit [1-9]\d*/", seen):
         chunk = os.read(proc.stderr.fileno(), 4096)
         assert chunk, f"the render ended early: {seen[-2000:]!r}"
         seen += chunk

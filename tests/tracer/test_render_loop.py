@@ -25,15 +25,10 @@ def test_tiles_cover_the_image_and_match_the_result():
 
 
 def test_cancel_stops_early_and_keeps_finished_tiles():
-    calls = {"n": 0}
     tiles = []
-
-    def should_cancel():
-        calls["n"] += 1
-        return len(tiles) >= 1
-
     result = render(cornell_scene((128, 128)), RenderSettings(samples=64, tile_size=16, threads=1),
-                    on_tile=lambda *a: tiles.append(a[:4]), should_cancel=should_cancel, log=lambda *a: None)
+                    on_tile=lambda *a: tiles.append(a[:4]), should_cancel=lambda: len(tiles) >= 1,
+                    log=lambda *a: None)
     assert result.cancelled and result.stats["cancelled"]
     assert 1 <= len(tiles) < 64
     x0, y0, x1, y1 = tiles[0]
@@ -52,19 +47,54 @@ class CancelAfter:
         return self.looks > self.k
 
 
-def test_a_cancelled_tile_is_not_biased_towards_short_paths():
-    """Cancel after 3 bounces of the wavefront inside the white furnace (L = 5 everywhere).
-
-    Samples that finish first are the paths Russian roulette ended early, which carry less
-    light (about 2.4); a partial tile must still average 5, so the paths already in flight
-    are traced to their end instead of being dropped."""
-    from engine.geometry import Counters
-    from engine.render import Renderer, Tile
+def test_a_cancelled_unit_is_dropped_whole():
+    """Cancel after 3 bounces: the unit returns nothing (a partial unit would keep only the paths
+    that Russian roulette ended early, about 2.4 in the white furnace instead of 5)."""
+    from engine.session import RenderSession
     scene = camera_inside_sphere_scene(albedo=0.8, emission=1.0, resolution=(64, 64))
-    renderer = Renderer(scene, RenderSettings(samples=64, threads=1, seed=5, max_depth=400), log=lambda *a: None)
-    film = renderer.render_tile(Tile(0, 0, 0, 64, 64), CancelAfter(3), Counters())
-    n = film.count.sum()
-    assert 0 < n < 64 * 64 * 64                      # partial
-    mean = film.sum[:, 0].sum() / n
-    se = np.sqrt((film.sum_sq[:, 0].sum() / n - mean ** 2) / n)
-    assert abs(mean - 5.0) < 4 * se, f"partial tile mean {mean:.4f} +- {se:.4f}, expected 5"
+    session = RenderSession(scene, RenderSettings(samples=64, threads=1, seed=5, max_depth=400), log=lambda *a: None)
+    cancel = CancelAfter(3)
+    assert session.render_unit(session.units[0], cancel) is None
+    assert cancel.looks == 4                                  # stopped at the first look after 3 bounces
+    finished = session.render_unit(session.units[0])
+    n = finished.count.sum()
+    mean = finished.sum[:, 0].sum() / n
+    se = np.sqrt((finished.sum_sq[:, 0].sum() / n - mean ** 2) / n)
+    assert abs(mean - 5.0) < 4 * se
+
+
+def test_a_cancelled_render_keeps_unbiased_finished_units():
+    """The furnace again, cancelled part-way: every pixel that has samples averages 5."""
+    units = []
+    scene = camera_inside_sphere_scene(albedo=0.8, emission=1.0, resolution=(64, 64))
+    result = render(scene, RenderSettings(samples=256, threads=2, max_depth=400),
+                    on_progress=lambda f, msg: units.append(f), should_cancel=lambda: len(units) >= 3,
+                    log=lambda *a: None)
+    assert result.cancelled and 3 <= result.stats["units_done"] < result.stats["units"]
+    lit = result.image[..., 0] > 0
+    assert lit.any() and abs(result.image[..., 0][lit].mean() - 5.0) < 0.05
+
+
+def test_units_in_any_order_give_the_same_image_bit_for_bit(monkeypatch):
+    """Units rendered by hand in reverse order, merged into a fresh film: the same image as a
+    normal render, whatever order the units finish in."""
+    import engine.session
+    from engine.session import RenderSession
+    monkeypatch.setattr(engine.session, "UNIT_PATHS", 2048)       # 8 samples of a 16 x 16 tile per unit
+    scene = cornell_scene((48, 32))
+    settings = RenderSettings(samples=40, tile_size=16, threads=2, seed=9)
+    reference = render(scene, settings, log=lambda *a: None)
+    session = RenderSession(scene, settings, log=lambda *a: None)
+    assert len(session.units) > len(session.tiles)          # several sample chunks per tile
+    for unit in reversed(session.units):
+        session.add(session.render_unit(unit))
+    assert np.array_equal(session.film.mean(), reference.image)
+
+
+def test_progressive_passes_refine_the_whole_frame_first():
+    from engine.session import RenderSession
+    session = RenderSession(cornell_scene((64, 64)), RenderSettings(samples=64, tile_size=16), log=lambda *a: None,
+                            progressive="passes")
+    first = session.units[:len(session.tiles)]
+    assert sorted(u.tile.index for u in first) == list(range(len(session.tiles)))
+    assert all(u.chunk == 0 for u in first)

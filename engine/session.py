@@ -1,0 +1,286 @@
+"""A render session: a scene prepared once, rendered as work units, merged into one film.
+
+One object that every driver uses: the command line, the Blender add-on, the local worker pool
+(engine/workers.py) and a Dask cluster (engine/cluster.py):
+
+    session = RenderSession(scene, settings)      # validate, effect plan, BVH, lights: once
+    for unit in session.units:                    # (tile, sample range): anywhere, any order
+        result = session.render_unit(unit, cancel)
+        session.film.add(result)                  # merged per tile in sample order
+    session.result()                              # image, variance, stats
+
+A work unit is a tile and a range of sample numbers.  Every random number is a function of
+(seed, pixel, sample number, dimension) with the Sobol' sampler (engine/qmc.py), or of (seed,
+unit) with independent random numbers, so a unit renders the same wherever and however often it
+runs; the film adds each tile's units in sample order, so the image is the same bit for bit
+whatever the number and kind of workers, the order units finish in, and retries after failures.
+A unit that is cancelled returns None and is dropped whole: the film keeps the finished ones
+(unbiased means over fewer samples), so Esc takes effect within a bounce.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .accel import choose_accelerator
+from .camera import TileSamples
+from .effects import plan_effects
+from .film import TileFilm
+from .geometry import Counters, SceneGeometry
+from .integrator import PathTracer
+from .lights import LightSampler
+from .qmc import RandomSampler, SobolSampler
+from .settings import RenderSettings
+
+ENGINE_NAME = "TNCG15 MC"
+ENGINE_VERSION = "0.2.0"          # workers of another version are refused (engine/cluster.py)
+MIN_TILES = 4                     # so that both cores of a small frame have work
+UNIT_PATHS = 1 << 16              # camera samples per work unit (tile pixels x samples), about
+
+
+@dataclass(frozen=True)
+class Tile:
+    index: int
+    x0: int
+    y0: int
+    x1: int
+    y1: int
+
+    @property
+    def pixels(self) -> int:
+        return (self.x1 - self.x0) * (self.y1 - self.y0)
+
+
+@dataclass(frozen=True)
+class WorkUnit:
+    """Samples start .. stop-1 of every pixel of one tile; `chunk` numbers it within the tile."""
+    index: int
+    tile: Tile
+    chunk: int
+    start: int
+    stop: int
+
+
+@dataclass
+class UnitResult:
+    unit: WorkUnit
+    sum: np.ndarray              # (pixels, 3) radiance sums
+    sum_sq: np.ndarray           # (pixels, 3) sums of squares
+    count: np.ndarray            # (pixels,) samples
+    counters: Counters
+    seconds: float
+    engine_version: str = ENGINE_VERSION
+
+
+@dataclass
+class RenderResult:
+    image: np.ndarray
+    variance: np.ndarray
+    stats: dict
+    warnings: list = field(default_factory=list)
+    cancelled: bool = False
+
+
+def tile_size_for(width: int, height: int, size: int) -> int:
+    """The tile edge used: `size`, halved (not below 16) until the frame has MIN_TILES tiles.
+    It depends on the frame only, never on the workers, so images stay identical whatever
+    the number of workers."""
+    while size > 16 and -(-width // size) * -(-height // size) < MIN_TILES:
+        size = max(16, size // 2)
+    return size
+
+
+def make_tiles(width: int, height: int, size: int) -> list[Tile]:
+    tiles = []
+    for y0 in range(0, height, size):
+        for x0 in range(0, width, size):
+            tiles.append(Tile(len(tiles), x0, y0, min(x0 + size, width), min(y0 + size, height)))
+    return tiles
+
+
+def make_units(tiles, samples: int, order: str = "tiles") -> list[WorkUnit]:
+    """Each tile's samples in chunks of about UNIT_PATHS camera samples.  order "tiles": a tile's
+    chunks one after the other (the frame fills tile by tile); "passes": chunk 0 of every tile,
+    then chunk 1, ... (the whole frame refines)."""
+    per_tile = []
+    for tile in tiles:
+        step = max(1, min(samples, -(-UNIT_PATHS // tile.pixels)))
+        per_tile.append([(tile, c, s, min(s + step, samples)) for c, s in enumerate(range(0, samples, step))])
+    if order == "passes":
+        chunks = [units[d] for d in range(max(map(len, per_tile))) for units in per_tile if d < len(units)]
+    else:
+        chunks = [u for units in per_tile for u in units]
+    return [WorkUnit(i, tile, c, start, stop) for i, (tile, c, start, stop) in enumerate(chunks)]
+
+
+class SessionFilm:
+    """The frame's sums, merged from unit results: each tile's units in chunk order (results
+    that arrive early wait), so floating-point sums never depend on arrival order."""
+
+    def __init__(self, width: int, height: int, units):
+        self.width, self.height = width, height
+        self.sum = np.zeros((height, width, 3))
+        self.sum_sq = np.zeros((height, width, 3))
+        self.count = np.zeros((height, width))
+        self.next_chunk = {}                    # tile index -> next chunk to add
+        self.pending = {}                       # (tile index, chunk) -> UnitResult
+        self.units_total = len(units)
+        self.units_added = 0
+
+    def add(self, result: UnitResult) -> list[Tile]:
+        """Merge a unit's result; returns the tiles whose pixels changed."""
+        unit = result.unit
+        self.pending[(unit.tile.index, unit.chunk)] = result
+        changed = []
+        key = (unit.tile.index, self.next_chunk.get(unit.tile.index, 0))
+        while key in self.pending:
+            r = self.pending.pop(key)
+            t = r.unit.tile
+            h, w = t.y1 - t.y0, t.x1 - t.x0
+            self.sum[t.y0:t.y1, t.x0:t.x1] += r.sum.reshape(h, w, 3)
+            self.sum_sq[t.y0:t.y1, t.x0:t.x1] += r.sum_sq.reshape(h, w, 3)
+            self.count[t.y0:t.y1, t.x0:t.x1] += r.count.reshape(h, w)
+            self.units_added += 1
+            self.next_chunk[t.index] = key[1] + 1
+            key = (t.index, key[1] + 1)
+            changed = [t]
+        return changed
+
+    def mean(self, tile: Tile | None = None) -> np.ndarray:
+        s = (slice(None), slice(None)) if tile is None else (slice(tile.y0, tile.y1), slice(tile.x0, tile.x1))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            m = self.sum[s] / self.count[s][..., None]
+        return np.nan_to_num(m).astype(np.float32)
+
+    def variance_of_mean(self) -> np.ndarray:
+        """Per-pixel variance of the pixel estimate (sample variance / n)."""
+        n = np.maximum(self.count, 2)[..., None]
+        mean = self.sum / n
+        return (np.maximum(self.sum_sq / n - mean * mean, 0.0) / (n - 1)).astype(np.float32)
+
+
+class RenderSession:
+    """Scene preparation (validation, effect plan, BVH, lights) once; units rendered on demand."""
+
+    def __init__(self, scene, settings: RenderSettings | None = None, log=print, progressive: str = "tiles"):
+        settings = settings or RenderSettings()
+        settings.validate()
+        start = time.perf_counter()
+        self.warnings = scene.validate()
+        self.scene, self.settings = scene, settings
+        n_tri = sum(len(m.triangles) for m in scene.meshes)
+        self.accelerator, self.accelerator_reason = choose_accelerator(settings.accelerator, n_tri)
+        self.plan = plan_effects(scene, settings, self.accelerator)
+        if scene.lights and not self.plan.area_lights and settings.shadow_rays == 0:
+            self.warnings.append(f"{len(scene.lights)} area light(s) are reached by shadow rays only here: "
+                                 "with 0 shadow rays they light nothing")
+        for w in self.warnings:
+            log(f"warning: {w}")
+        self.geometry = SceneGeometry(scene, self.accelerator, self.plan)
+        self.lights = LightSampler(scene, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
+                                   lamps_hittable=self.plan.area_lights)
+        self.plan.describe_light_kinds(self.lights)
+        self.tracer = PathTracer(self.geometry, self.lights, scene.materials, self.plan, settings,
+                                 scene.background)
+        width, height = scene.resolution
+        self.tile_size = tile_size_for(width, height, settings.tile_size)
+        self.tiles = make_tiles(width, height, self.tile_size)
+        self.units = make_units(self.tiles, settings.samples, progressive)
+        self.progressive = progressive
+        self.film = SessionFilm(width, height, self.units)
+        self.totals = Counters()
+        self.setup_seconds = time.perf_counter() - start
+
+    # -- one unit -------------------------------------------------------------------------
+    def render_unit(self, unit: WorkUnit, cancel=None) -> UnitResult | None:
+        """Trace the unit's samples; None when `cancel` (anything with is_set()) was set first."""
+        s, tile = self.settings, unit.tile
+        start = time.perf_counter()
+        width, height = self.scene.resolution
+        counters = Counters()
+        film = TileFilm(tile.x1 - tile.x0, tile.y1 - tile.y0)
+        rng = np.random.default_rng([s.seed, tile.index, unit.start])
+        sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.samples, s.shadow_rays)
+                   if s.sampler == "sobol" else RandomSampler(rng))
+        samples = TileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1, tile.y1,
+                              unit.stop, sampler, first=unit.start)
+
+        def finished(pixel, radiance):
+            bad = ~np.isfinite(radiance).all(axis=0)
+            if bad.any():
+                # Counted before the guard, never hidden silently.
+                counters.nonfinite_samples += int(bad.sum())
+                radiance[:, bad] = 0.0
+            film.add(pixel, radiance)
+
+        if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler):
+            return None
+        return UnitResult(unit, film.sum, film.sum_sq, film.count, counters, time.perf_counter() - start)
+
+    # -- the whole frame --------------------------------------------------------------------
+    def add(self, result: UnitResult) -> list[Tile]:
+        self.totals.merge(result.counters)
+        return self.film.add(result)
+
+    def run(self, workers, on_tile=None, should_cancel=None, on_progress=None) -> RenderResult:
+        """Render every unit on `workers` (start(units), next_result(timeout), cancel(), close():
+        engine/workers.py, engine/cluster.py).  Callbacks run on the calling thread: on_tile(x0, y0,
+        x1, y1, pixels) after each merge, should_cancel() polled about every 0.1 s,
+        on_progress(fraction, message)."""
+        cancelled, error, done = False, None, 0
+        start = time.perf_counter()
+        try:
+            workers.start(self.units)
+            while done < len(self.units):
+                if should_cancel is not None and not cancelled and should_cancel():
+                    cancelled = True
+                    workers.cancel()
+                item = workers.next_result(timeout=0.1)
+                if item is None:
+                    continue
+                unit, result, exc = item
+                done += 1
+                if exc is not None:
+                    error = error or exc
+                    workers.cancel()
+                    continue
+                if result is None:                         # cancelled: dropped whole
+                    continue
+                for tile in self.add(result):
+                    if on_tile is not None:
+                        on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
+                if on_progress is not None:
+                    elapsed = max(time.perf_counter() - start, 1e-9)
+                    rate = sum(self.totals.rays.values()) / elapsed / 1e6
+                    on_progress(self.film.units_added / len(self.units),
+                                f"unit {self.film.units_added}/{len(self.units)} · {rate:.2f} M rays/s · "
+                                f"effects: {self.plan.summary()}")
+        finally:
+            workers.close()
+        if error is not None:
+            raise error
+        return self.result(time.perf_counter() - start, cancelled, getattr(workers, "describe", "local"))
+
+    def result(self, seconds: float, cancelled: bool = False, workers: str = "local") -> RenderResult:
+        s, geo = self.settings, self.geometry
+        width, height = self.scene.resolution
+        rays = dict(self.totals.rays)
+        stats = {
+            "engine": ENGINE_NAME, "engine_version": ENGINE_VERSION,
+            "render_seconds": seconds, "setup_seconds": self.setup_seconds, "build_seconds": geo.build_seconds,
+            "samples": s.samples, "shadow_rays": s.shadow_rays, "max_depth": s.max_depth,
+            "russian_roulette": s.russian_roulette, "fresnel": s.fresnel, "estimator": s.estimator,
+            "sampler": s.sampler, "seed": s.seed, "resolution": [width, height], "threads": s.resolved_threads(),
+            "tile_size": self.tile_size, "units": len(self.units), "units_done": self.film.units_added,
+            "progressive": self.progressive, "parallelism": workers,
+            "accelerator": self.accelerator, "accelerator_reason": self.accelerator_reason,
+            "rays": rays, "rays_per_second": sum(rays.values()) / seconds if seconds > 0 else 0.0,
+            "effects": dict(self.plan.enabled), "effects_reason": dict(self.plan.reason),
+            "nonfinite_samples": self.totals.nonfinite_samples,
+            "seconds_in_intersection": self.totals.seconds_in_intersection,
+            "seconds_in_accelerator": self.totals.seconds_in_accelerator,
+            "cancelled": cancelled, "warnings": list(self.warnings),
+        }
+        return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled)
