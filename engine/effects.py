@@ -16,7 +16,7 @@ import numpy as np
 from .scene import DIFFUSE, GLASS, MIRROR
 
 EFFECTS = ("triangles", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass", "emission",
-           "direct_light", "solid_angle", "light_tree", "mis")
+           "world_light", "direct_light", "solid_angle", "light_tree", "mis")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -123,7 +123,13 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
 
-    nee = bool(diffuse and emitters and settings.shadow_rays > 0)
+    sky = max(scene.background) > 0
+    world = bool(sky and diffuse and settings.shadow_rays > 0 and not report)
+    set_effect("world_light", world,
+               "the background is sampled as a light (cosine directions, shadow rays to infinity)" if world else
+               "black background" if not sky else "report estimator: the background is found by bounce rays"
+               if report else "no diffuse surface or no shadow rays: the background is found by bounce rays")
+    nee = bool(diffuse and (emitters or world) and settings.shadow_rays > 0)
     set_effect("direct_light", nee,
                f"{settings.shadow_rays} shadow ray(s) per diffuse hit (eq. 2.11)" if nee else
                "no diffuse surface to light" if not diffuse else "no emitters" if not emitters else
@@ -137,7 +143,7 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if nee and not report and n_lights > 1 else
                "report estimator: lights picked by power" if nee and report and n_lights > 1 else
                "one light: no light selection" if nee else "no direct light")
-    reachable = bool(surface_emitters) or plan.enabled["area_lights"]
+    reachable = bool(surface_emitters) or plan.enabled["area_lights"] or world
     mis = nee and settings.estimator == "mis" and reachable
     set_effect("mis", mis,
                "light and cosine BSDF samples weighted by the power heuristic (Veach & Guibas 1995)" if mis else

@@ -140,6 +140,7 @@ class PathTracer:
         # counts the same paths: light reached by up to max_depth + 1 segments.
         self.final_rays = settings.estimator == "mis" and (self.mis or not self.use_nee)
         self.has_background = bool(self.background.max() > 0)
+        self.world_nee = self.use_nee and lights.world is not None       # shadow rays sample the world
         self.material_group = self.mats.group
         self.light_of_kind = {TRIANGLE: lights.triangle_light, SPHERE: lights.sphere_light,
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
@@ -238,10 +239,23 @@ class PathTracer:
 
     # -- stages ------------------------------------------------------------------------
     def misses(self, p, miss):
+        """Rays that leave the scene reach the background, with weight 1 (the report), unless
+        the world is a light (shadow rays sample it): then a ray sampled at a diffuse vertex
+        (the final MIS rays beyond the depth limit included) counts with its MIS weight, or 0
+        without MIS."""
         radiance = p.radiance.take(miss, axis=1)
         if self.has_background:
-            counted = (p.bounce.take(miss) <= self.settings.max_depth)[None, :]   # not the final MIS rays
-            radiance += np.where(counted, p.beta.take(miss, axis=1) * self.background[:, None], 0.0)
+            weight = np.ones(len(miss))
+            if self.world_nee:
+                specular = p.specular.take(miss)
+                weight[~specular] = 0.0
+                if self.mis:
+                    diffuse = np.flatnonzero(~specular)
+                    m = miss.take(diffuse)
+                    p_world = self.lights.world_pdf(p.prev_n.take(m, axis=1), p.d.take(m, axis=1))
+                    weight[diffuse] = power_heuristic(1.0, p.prev_pdf.take(m), float(self.settings.shadow_rays),
+                                                      p_world)
+            radiance += p.beta.take(miss, axis=1) * self.background[:, None] * weight
         return p.pixel.take(miss), radiance
 
     def emission(self, p, surf, hits, surfaces):
@@ -372,13 +386,10 @@ class PathTracer:
         off_x = np.repeat(offset, ns) if ns > 1 else offset
         u_pick, u1, u2 = u if u is not None else (rng.random(k), rng.random(k), rng.random(k))
         ls = self.lights.sample(x, nx, u_pick, u1, u2)
-        w = ls.point - x
-        dist2 = dot(w, w)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            w = w / np.sqrt(dist2)
+        w = ls.direction
         cos_x = dot(nx, w)
         cos_ly = dot(ls.normal, w)
-        ok = (cos_x > 0.0) & (cos_ly != 0.0) & (ls.pdf > 0.0) & (dist2 > 0.0) & np.isfinite(dist2)
+        ok = (cos_x > 0.0) & (cos_ly != 0.0) & (ls.pdf > 0.0) & (ls.distance > 0.0)
         if self.lights.any_one_sided:                   # front side only: emits towards -w
             ok &= ~(ls.one_sided & (cos_ly >= 0.0))
         valid = np.flatnonzero(ok)
@@ -389,12 +400,14 @@ class PathTracer:
         weight = np.zeros(k)
         if len(valid):
             origin = pick(x, 1) + pick(off_x) * pick(nx, 1)
-            # End point pulled off the light towards x, so the light never occludes itself.
+            # End point pulled off the light towards x, so the light never occludes itself;
+            # the world is at infinity: its shadow rays run to t = inf.
             pull = np.copysign(1.0, pick(cos_ly)) * pick(ls.offset)
-            target = pick(ls.point, 1) - pull * pick(ls.normal, 1)
-            seg = target - origin
-            seg_len = np.sqrt(dot(seg, seg))
-            direction = seg / seg_len
+            seg = pick(ls.point, 1) - pull * pick(ls.normal, 1) - origin
+            finite = np.isfinite(pick(ls.distance))
+            with np.errstate(invalid="ignore"):
+                seg_len = np.where(finite, np.sqrt(dot(seg, seg)), np.inf)
+                direction = np.where(finite, seg / seg_len, pick(w, 1))
             counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
             cos, pdf = pick(cos_x), pick(ls.pdf)

@@ -180,7 +180,7 @@ class RenderSession:
             log(f"warning: {w}")
         self.geometry = SceneGeometry(scene, self.accelerator, self.plan)
         self.lights = LightSampler(scene, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
-                                   lamps_hittable=self.plan.area_lights)
+                                   lamps_hittable=self.plan.area_lights, world=self.plan.world_light)
         self.plan.describe_light_kinds(self.lights)
         self.tracer = PathTracer(self.geometry, self.lights, scene.materials, self.plan, settings,
                                  scene.background)

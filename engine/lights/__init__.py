@@ -25,12 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..vec import max_abs3, rows
+from ..vec import dot, max_abs3, rows
 from .parallelograms import Parallelograms
 from .polygons import Polygons
 from .selection import LightTree, PowerSelection
 from .spheres import Spheres
 from .triangles import Triangles
+from .world import WorldLight
 
 # Shadow-ray end points are pulled off the light by this relative amount (as the
 # triangle spawn offset) so the ray never reports the light itself as occluder.
@@ -41,8 +42,10 @@ PAIRED = 1 << 40                     # marks a mesh triangle whose light is a pa
 
 @dataclass
 class LightSample:
-    point: np.ndarray      # (3, N) on the light
-    normal: np.ndarray     # (3, N) unit normal of the light at the point
+    point: np.ndarray      # (3, N) on the light (the world: one unit along `direction`)
+    direction: np.ndarray  # (3, N) unit direction from the receiver to the point
+    distance: np.ndarray   # (N,) to the point; inf for the world
+    normal: np.ndarray     # (3, N) unit normal of the light at the point (the world: -direction)
     radiance: np.ndarray   # (3, N) emitted radiance Le
     pdf: np.ndarray        # (N,) P(k | x, n) * p_w(x -> point); 0: no sample
     light: np.ndarray      # (N,) light index
@@ -106,9 +109,14 @@ class _Gather:
 class LightSampler:
     """All emitters of a scene.  solid_angle: sample each light by solid angle where stable
     (else by area, as eq. 2.11); spatial: pick lights with the light tree (else by power);
-    lamps_hittable: rays can reach Area lights (the geometry tests them)."""
+    lamps_hittable: rays can reach Area lights (the geometry tests them); world: the constant
+    background is a light too (index `world_index`, picked with probability `world_share`,
+    the other lights share the rest)."""
 
-    def __init__(self, scene, solid_angle: bool = True, spatial: bool = True, lamps_hittable: bool = False):
+    WORLD_SHARE = (0.1, 0.9)          # bounds of the world's selection probability beside lamps
+
+    def __init__(self, scene, solid_angle: bool = True, spatial: bool = True, lamps_hittable: bool = False,
+                 world: bool = False):
         self.solid_angle = solid_angle
         mats = scene.materials
         emission = np.array([m.emission for m in mats], dtype=np.float64).reshape(-1, 3)
@@ -210,6 +218,17 @@ class LightSampler:
         else:
             self.selection = PowerSelection(self.report_power if self.count_all else np.ones(0))
         self.uses_tree = isinstance(self.selection, LightTree)
+        self.world, self.world_index, self.world_share = None, None, 0.0
+        if world and max(scene.background) > 0:
+            self.world = WorldLight(scene.background, scene_radius(scene))
+            self.world_index = self.count_all
+            lamps = float(self.power.sum())
+            self.world_share = 1.0 if lamps <= 0 else float(np.clip(
+                self.world.power / (self.world.power + lamps), *self.WORLD_SHARE))
+            self.radiance = np.concatenate([self.radiance, self.world.radiance[:, None]], axis=1)
+            self.one_sided = np.append(self.one_sided, False)
+            self.bsdf_reachable = np.append(self.bsdf_reachable, True)
+            self.count += 1
 
     def _bounds(self):
         """(centre (K,3), radius, normal axis (K,3), cos of the normal cone) of every light."""
@@ -229,6 +248,34 @@ class LightSampler:
     # -- sampling --------------------------------------------------------------------------
     def sample(self, x, n, u_pick, u1, u2) -> LightSample:
         """One light sample per receiver x with facing normal n (rows)."""
+        m = len(u_pick)
+        q = self.world_share
+        to_world = u_pick < q
+        light = np.full(m, -1 if self.world_index is None else self.world_index, dtype=np.int64)
+        point, normal, pdf = np.empty((3, m)), np.empty((3, m)), np.zeros(m)
+        local = np.flatnonzero(~to_world) if q > 0 else None
+        if local is None or len(local) == m:
+            point, normal, pdf, light = self._sample_local(x, n, u_pick if q == 0 else (u_pick - q) / (1 - q), u1, u2)
+        elif len(local):
+            p, nrm, pd, lt = self._sample_local(x.take(local, axis=1), n.take(local, axis=1),
+                                                (u_pick.take(local) - q) / (1.0 - q), u1.take(local), u2.take(local))
+            point[:, local], normal[:, local], pdf[local], light[local] = p, nrm, pd, lt
+        pdf = pdf * (1.0 - q)
+        w = point - x
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):     # unused samples (pdf 0)
+            distance = np.sqrt(dot(w, w))
+            direction = w / distance
+        if q > 0 and to_world.any():
+            sky = np.flatnonzero(to_world)
+            normal = np.array(normal)                 # a kind may hand back a broadcast view
+            d, pd = self.world.sample(n.take(sky, axis=1), u1.take(sky), u2.take(sky))
+            direction[:, sky], pdf[sky], distance[sky] = d, q * pd, np.inf
+            point[:, sky], normal[:, sky] = x.take(sky, axis=1) + d, -d
+        return LightSample(point, direction, distance, normal, self.radiance.take(light, axis=1), pdf, light,
+                           LIGHT_OFFSET * max_abs3(point), self.one_sided.take(light))
+
+    def _sample_local(self, x, n, u_pick, u1, u2):
+        """(point, normal, P(k) p_w, light) from the lamps and emissive surfaces."""
         light, pmf = self.selection.sample(x, n, u_pick)
         m = len(u_pick)
         if len(self.kinds) == 1:
@@ -242,12 +289,11 @@ class LightSampler:
                     p, nrm, pd = kind.sample(x.take(sel, axis=1), self.local.take(light.take(sel)),
                                              u1.take(sel), u2.take(sel), self.solid_angle)
                     point[:, sel], normal[:, sel], pdf[sel] = p, nrm, pd
-        return LightSample(point, normal, self.radiance.take(light, axis=1), pdf * pmf, light,
-                           LIGHT_OFFSET * max_abs3(point), self.one_sided.take(light))
+        return point, normal, pdf * pmf, light
 
     def pdf(self, x, n, light, point) -> np.ndarray:
-        """P(k | x, n) * p_w of the direction from x to `point` on light k: the density with
-        which `sample` at (x, n) produces that direction (for MIS at an emission hit)."""
+        """P(k | x, n) * p_w of the direction from x to `point` on lamp or emissive surface k: the
+        density with which `sample` at (x, n) produces that direction (MIS at an emission hit)."""
         pdf = np.empty(len(light))
         if len(self.kinds) == 1:
             pdf[:] = self.kinds[0][1].pdf(x, light, point, self.solid_angle)
@@ -258,7 +304,21 @@ class LightSampler:
                 if len(sel):
                     pdf[sel] = kind.pdf(x.take(sel, axis=1), self.local.take(light.take(sel)),
                                         point.take(sel, axis=1), self.solid_angle)
-        return pdf * self.selection.pmf(x, n, light)
+        return pdf * self.selection.pmf(x, n, light) * (1.0 - self.world_share)
+
+    def world_pdf(self, n, d) -> np.ndarray:
+        """Density with which `sample` at a receiver with facing normal n produces the world
+        direction d (MIS for a bounce ray that escapes)."""
+        return self.world_share * self.world.pdf(n, d)
 
     def kind_names(self) -> list[str]:
         return [kind.kind for _, kind, _ in self.kinds]
+
+
+def scene_radius(scene) -> float:
+    """Radius of a sphere about the origin that holds every primitive of the scene."""
+    extent = [0.0]
+    extent += [float(np.abs(np.asarray(m.vertices)).max()) for m in scene.meshes if len(m.vertices)]
+    extent += [float(np.abs(np.asarray(s.center)).max() + s.radius) for s in scene.spheres]
+    extent += [float(np.abs(np.asarray(q.corners)).max()) for q in scene.quads]
+    return float(np.sqrt(3.0) * max(extent))

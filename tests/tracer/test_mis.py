@@ -166,3 +166,40 @@ def test_area_light_diffuse_visibility(flags, lit):
         assert abs(mean - 0.8 * form_factor_square(1.0, 1.0)) < 4 * se, (mean, se)
     else:
         assert result.image.max() == 0.0
+
+
+def sky_over_floor(albedo=0.6, sky=2.0, with_lamp=False):
+    """A diffuse floor under a uniform sky (and optionally a box and a lamp)."""
+    mats = [Material("Floor", DIFFUSE, (albedo,) * 3), Material("Lamp", DIFFUSE, (0, 0, 0), emission=(6.0,) * 3)]
+    floor = Quad("Floor", np.array([(-50, -50, 0), (50, -50, 0), (50, 50, 0), (-50, 50, 0)], float), 0)
+    quads = [floor]
+    if with_lamp:
+        quads.append(Quad("Lamp", np.array([(-0.3, -0.3, 1.5), (-0.3, 0.3, 1.5), (0.3, 0.3, 1.5), (0.3, -0.3, 1.5)],
+                                           float), 1))
+        quads.append(Quad("Wall", np.array([(0.5, -1, 0), (0.5, 1, 0), (0.5, 1, 2), (0.5, -1, 2)], float), 0))
+    cam = Camera.look_at((0.0, -1.5, 2.0), (0.0, 0.2, 0.0), up=(0, 0, 1), lens=20.0)
+    return Scene(cam, mats, quads=quads, background=(sky,) * 3, resolution=(16, 16))
+
+
+@pytest.mark.parametrize("estimator, shadow_rays", [("report", 1), ("solid-angle", 1), ("mis", 1), ("mis", 4),
+                                                    ("mis", 0)])
+def test_floor_under_a_uniform_sky_is_exact(estimator, shadow_rays):
+    """Irradiance pi Le from the sky: L = albedo Le with zero variance under every estimator (the
+    world sampled by cosine directions, by bounce rays, or both weighted by MIS)."""
+    result = render(sky_over_floor(), settings(samples=8, max_depth=1, estimator=estimator,
+                                               shadow_rays=shadow_rays), **SILENT)
+    floor = result.image[8:, :, 0]                           # the lower half sees the floor
+    assert np.allclose(floor, 0.6 * 2.0, rtol=1e-9), (floor.min(), floor.max())
+    assert result.stats["effects"]["world_light"] == (estimator != "report" and shadow_rays > 0)
+
+
+@pytest.mark.parametrize("depth", [0, 2])
+def test_sky_and_lamp_estimators_agree(depth):
+    """Sky, a lamp and a wall: light-only, BSDF-only and MIS count the same paths at every depth."""
+    base = render(sky_over_floor(with_lamp=True), settings(samples=1024, max_depth=depth, estimator="solid-angle",
+                                                          seed=1), **SILENT)
+    for kw in (dict(estimator="mis"), dict(estimator="mis", shadow_rays=0, samples=4096)):
+        other = render(sky_over_floor(with_lamp=True), settings(**{"samples": 1024, "max_depth": depth, "seed": 2,
+                                                                   **kw}), **SILENT)
+        z, z_crit = block_test(other, base, block=4)
+        assert z < z_crit, (kw, depth, z, z_crit)
