@@ -49,7 +49,8 @@ class EffectPlan:
             return
         how = {"parallelogram": "spherical rectangles (area where grazing or not rectangular)",
                "triangle": "spherical triangles (area where grazing or tiny)",
-               "sphere": "cones from outside, area from inside", "polygon": "area (disks, ellipses)"}
+               "sphere": "cones from outside, area from inside", "polygon": "area (disks, ellipses)",
+               "point": "the cone of the disk they show (a delta light without a radius)"}
         counts = {}
         for _, kind, _ in lights.kinds:
             counts[kind.kind] = counts.get(kind.kind, 0) + kind.count
@@ -108,7 +109,9 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     mirror = users(lambda m: m.kind == MIRROR and max(m.color) > 0)
     glass = users(lambda m: m.kind == GLASS)
     surface_emitters = users(lambda m: m.is_emissive)
-    emitters = surface_emitters + lamps
+    bulbs = [p for p in scene.points if max(p.intensity) > 0]
+    suns = [s for s in scene.suns if max(s.irradiance) > 0]
+    emitters = surface_emitters + lamps + bulbs + suns
     set_effect("diffuse", diffuse,
                f"diffuse materials {_names(diffuse)}: cosine bounces (eq. 2.13-2.14)"
                if diffuse else "no diffuse material: no diffuse bounces")
@@ -137,7 +140,7 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     set_effect("solid_angle", nee and not report,
                "lights sampled by solid angle where stable" if nee and not report else
                "report estimator: lights sampled by area (pdf 1/A, eq. 2.11)" if nee else "no direct light")
-    n_lights = n_emissive_primitives(scene) + len(lamps)
+    n_lights = n_emissive_primitives(scene) + len(lamps) + len(bulbs)
     set_effect("light_tree", nee and not report and n_lights > 1,
                f"{n_lights} lights: picked by a light tree (importance at the shading point)"
                if nee and not report and n_lights > 1 else

@@ -111,10 +111,13 @@ def sample_2d(index: np.ndarray, pixel_seed: np.ndarray, dim, count: int = 1 << 
     bits = max(int(count - 1).bit_length(), 0)
     with np.errstate(over="ignore"):
         seed = hash32(pixel_seed ^ hash32(np.asarray(dim, dtype=np.uint32) + U32(0x68E31DA4)))
-        i = permute(np.asarray(index, dtype=np.uint32), bits, seed)             # shuffle the order
+        # Three independent keys: the shuffle and each coordinate's scramble.  (Keys that are
+        # odd multiples of one seed share its low bit, and the low bits of the Laine-Karras keys
+        # decide the top bits of x and y: the pair's two numbers would fall in the same half.)
+        i = permute(np.asarray(index, dtype=np.uint32), bits, hash32(seed ^ U32(0x1B873593)))
         # Dimension 0 is the bit-reversed index: its Owen scramble needs one reversal only.
-        x = reverse_bits(laine_karras(i, seed * U32(0xA511E9B3)))
-        y = owen_scramble(sobol_dim1(i), seed * U32(0x63D83595))
+        x = reverse_bits(laine_karras(i, hash32(seed ^ U32(0xA511E9B3))))
+        y = owen_scramble(sobol_dim1(i), hash32(seed ^ U32(0x63D83595)))
     scale = 1.0 / 4294967296.0
     one = np.nextafter(1.0, 0.0)
     return np.minimum(x * scale, one), np.minimum(y * scale, one)

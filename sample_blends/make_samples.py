@@ -18,6 +18,8 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
   diffuse_room   diffuse walls, boxes and a sphere only
   principled     the Cornell scene made of Principled BSDF materials (Specular IOR Level 0)
   area_light     a diffuse room lit by a Blender Area light (exporter checks; one-sided in Cycles)
+  point_light    the room lit by a point light of radius 10 cm
+  sun_window     a sun shining through a window in the left wall
   nested_glass   glass inside glass: a "water" sphere (IOR 1.33) inside a glass cube (IOR 1.5),
                  and a glass sphere resting on the cube's top face
 Light-sampling stress scenes (issue 9; plain ceiling, the lamps are two-sided emissive meshes, as
@@ -394,6 +396,50 @@ def make_area_mirror(scene, res):
     settings(scene, res)
 
 
+def light_object(scene, name, kind, location, rotation=(0.0, 0.0, 0.0), **props):
+    light = bpy.data.lights.new(name, kind)
+    for key, value in props.items():
+        setattr(light, key, value)
+    ob = bpy.data.objects.new(name, light)
+    ob.location, ob.rotation_euler = location, rotation
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def make_point_light(scene, res):
+    """The Cornell room without its lamp, lit by a point light of radius 10 cm (Blender's default
+    kind of light) above a diffuse box and ball."""
+    room(scene, ceiling_light=False)
+    light_object(scene, "Bulb", "POINT", (0.0, 0.1, 1.6), energy=40.0, shadow_soft_size=0.1, color=(1.0, 0.9, 0.8))
+    mesh_object(scene, "Box", lambda bm: cube(bm, 1.0), bpy.data.materials["White"], location=(0.35, 0.3, 0.302),
+                rotation=(0, 0, math.radians(20)), scale=(0.3, 0.3, 0.6))
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.25), diffuse("Pink", (0.8, 0.4, 0.5)),
+                location=(-0.4, -0.1, 0.25), smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_sun_window(scene, res):
+    """The Cornell room with a window in its left wall: a sun of 0.1 rad shines in and across the
+    floor; no other light."""
+    room(scene, ceiling_light=False)
+    bpy.data.objects.remove(bpy.data.objects["Left"])
+    red = bpy.data.materials["Red"]
+    for name, corners in (("Left low", [(-1, -1, 0), (-1, 1, 0), (-1, 1, 0.6), (-1, -1, 0.6)]),
+                          ("Left high", [(-1, -1, 1.4), (-1, 1, 1.4), (-1, 1, 2), (-1, -1, 2)]),
+                          ("Left front", [(-1, -1, 0.6), (-1, -0.3, 0.6), (-1, -0.3, 1.4), (-1, -1, 1.4)]),
+                          ("Left back", [(-1, 0.5, 0.6), (-1, 1, 0.6), (-1, 1, 1.4), (-1, 0.5, 1.4)])):
+        plane(scene, name, corners, red)
+    light_object(scene, "Sun", "SUN", (0.0, 0.0, 3.0), rotation=(0.0, math.radians(-55), 0.0), energy=4.0,
+                 angle=0.1)
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.25), diffuse("Pink", (0.8, 0.4, 0.5)),
+                location=(0.3, 0.0, 0.25), smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
@@ -407,6 +453,8 @@ SCENES = {
     "caustic": make_caustic,
     "many_lights": make_many_lights,
     "area_mirror": make_area_mirror,
+    "point_light": make_point_light,
+    "sun_window": make_sun_window,
 }
 
 

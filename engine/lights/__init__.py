@@ -30,8 +30,9 @@ from .parallelograms import Parallelograms
 from .polygons import Polygons
 from .selection import LightTree, PowerSelection
 from .spheres import Spheres
+from .distant import DistantLights
+from .points import PointLights
 from .triangles import Triangles
-from .world import WorldLight
 
 # Shadow-ray end points are pulled off the light by this relative amount (as the
 # triangle spawn offset) so the ray never reports the light itself as occluder.
@@ -110,10 +111,10 @@ class LightSampler:
     """All emitters of a scene.  solid_angle: sample each light by solid angle where stable
     (else by area, as eq. 2.11); spatial: pick lights with the light tree (else by power);
     lamps_hittable: rays can reach Area lights (the geometry tests them); world: the constant
-    background is a light too (index `world_index`, picked with probability `world_share`,
-    the other lights share the rest)."""
+    background is a light too.  Point lights are local lights; sun lights and the world are
+    lights at infinity (engine/lights/distant.py), numbered after the local ones."""
 
-    WORLD_SHARE = (0.1, 0.9)          # bounds of the world's selection probability beside lamps
+    DISTANT_SHARE = (0.1, 0.9)        # bounds of the suns' and world's selection probability beside lamps
 
     def __init__(self, scene, solid_angle: bool = True, spatial: bool = True, lamps_hittable: bool = False,
                  world: bool = False):
@@ -172,6 +173,11 @@ class LightSampler:
             self.kinds.append(("sph", Spheres(*stack(sph, 2)), sph))
         if poly.count:
             self.kinds.append(("poly", Polygons([c for part in poly.parts for c in part]), poly))
+        if scene.points:
+            pts = PointLights(scene.points)
+            gather_pts = _Gather()
+            gather_pts.add(scene.points, pts.radiance_rows.T, False)
+            self.kinds.append(("pt", pts, gather_pts))
         base, start = {}, 0
         for name, kind, gather in self.kinds:
             base[name] = start
@@ -202,6 +208,8 @@ class LightSampler:
         for light, ref in zip(scene.lights, light_ref):
             if ref is not None:
                 self.bsdf_reachable[glob(ref)] = lamps_hittable and light.visible_diffuse
+        if scene.points:                                           # shadow rays only
+            self.bsdf_reachable[base["pt"]:base["pt"] + len(scene.points)] = False
 
         # Per light: area, the report's power (area x mean radiance) and bounds for the tree.
         area = np.concatenate([k.area for _, k, _ in self.kinds]) if self.kinds else np.zeros(0)
@@ -210,6 +218,10 @@ class LightSampler:
         self.report_power = area * mean_le
         sides = np.where(self.one_sided, 1.0, 2.0)
         self.power = np.pi * area * mean_le * sides               # emitted flux
+        if scene.points:                                           # flux 4 pi I (the report: flux / pi)
+            span = slice(base["pt"], base["pt"] + len(scene.points))
+            self.power[span] = self.kinds[-1][1].flux
+            self.report_power[span] = self.power[span] / np.pi
         self.count = int((self.report_power > 0).sum())
         self.total_power = float(self.report_power.sum())
         if spatial and self.count_all > 1:
@@ -218,17 +230,22 @@ class LightSampler:
         else:
             self.selection = PowerSelection(self.report_power if self.count_all else np.ones(0))
         self.uses_tree = isinstance(self.selection, LightTree)
-        self.world, self.world_index, self.world_share = None, None, 0.0
-        if world and max(scene.background) > 0:
-            self.world = WorldLight(scene.background, scene_radius(scene))
-            self.world_index = self.count_all
-            lamps = float(self.power.sum())
-            self.world_share = 1.0 if lamps <= 0 else float(np.clip(
-                self.world.power / (self.world.power + lamps), *self.WORLD_SHARE))
-            self.radiance = np.concatenate([self.radiance, self.world.radiance[:, None]], axis=1)
-            self.one_sided = np.append(self.one_sided, False)
-            self.bsdf_reachable = np.append(self.bsdf_reachable, True)
-            self.count += 1
+        # Lights at infinity (suns, and the world under the mis / solid-angle estimators) are
+        # picked with probability `distant_share`, the lamps and emissive surfaces share the rest.
+        self.distant, self.distant_share = None, 0.0
+        if scene.suns or (world and max(scene.background) > 0):
+            self.distant = DistantLights(scene.suns, scene.background if world else (0.0, 0.0, 0.0),
+                                         scene_radius(scene))
+            lamps, far = float(self.power.sum()), float(self.distant.power.sum())
+            self.distant_share = 1.0 if lamps <= 0 else float(np.clip(far / (far + lamps), *self.DISTANT_SHARE))
+            self.radiance = np.concatenate([self.radiance, self.distant.radiance], axis=1)
+            self.one_sided = np.append(self.one_sided, np.zeros(self.distant.count, bool))
+            reach = np.zeros(self.distant.count, bool)
+            if self.distant.world_slot is not None:
+                reach[self.distant.world_slot] = True              # escaping bounce rays reach the world
+            self.bsdf_reachable = np.append(self.bsdf_reachable, reach)
+            self.count += int((self.distant.power > 0).sum())
+        self.world = None if self.distant is None or self.distant.world_slot is None else self.distant
 
     def _bounds(self):
         """(centre (K,3), radius, normal axis (K,3), cos of the normal cone) of every light."""
@@ -236,7 +253,7 @@ class LightSampler:
         for name, kind, gather in self.kinds:
             center.append(kind.center.T)
             radius.append(kind.radius)
-            if name == "sph":
+            if name in ("sph", "pt"):
                 axis.append(np.tile([0.0, 0.0, 1.0], (kind.count, 1)))
                 cos_o.append(np.full(kind.count, -1.0))              # normals in every direction
             else:
@@ -249,11 +266,11 @@ class LightSampler:
     def sample(self, x, n, u_pick, u1, u2) -> LightSample:
         """One light sample per receiver x with facing normal n (rows)."""
         m = len(u_pick)
-        q = self.world_share
-        to_world = u_pick < q
-        light = np.full(m, -1 if self.world_index is None else self.world_index, dtype=np.int64)
+        q = self.distant_share
+        far = u_pick < q
+        light = np.empty(m, dtype=np.int64)
         point, normal, pdf = np.empty((3, m)), np.empty((3, m)), np.zeros(m)
-        local = np.flatnonzero(~to_world) if q > 0 else None
+        local = np.flatnonzero(~far) if q > 0 else None
         if local is None or len(local) == m:
             point, normal, pdf, light = self._sample_local(x, n, u_pick if q == 0 else (u_pick - q) / (1 - q), u1, u2)
         elif len(local):
@@ -265,11 +282,11 @@ class LightSampler:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):     # unused samples (pdf 0)
             distance = np.sqrt(dot(w, w))
             direction = w / distance
-        if q > 0 and to_world.any():
-            sky = np.flatnonzero(to_world)
+        if q > 0 and far.any():
+            sky = np.flatnonzero(far)
             normal = np.array(normal)                 # a kind may hand back a broadcast view
-            d, pd = self.world.sample(n.take(sky, axis=1), u1.take(sky), u2.take(sky))
-            direction[:, sky], pdf[sky], distance[sky] = d, q * pd, np.inf
+            d, pd, slot = self.distant.sample(n.take(sky, axis=1), u_pick.take(sky) / q, u1.take(sky), u2.take(sky))
+            direction[:, sky], pdf[sky], distance[sky], light[sky] = d, q * pd, np.inf, self.count_all + slot
             point[:, sky], normal[:, sky] = x.take(sky, axis=1) + d, -d
         return LightSample(point, direction, distance, normal, self.radiance.take(light, axis=1), pdf, light,
                            LIGHT_OFFSET * max_abs3(point), self.one_sided.take(light))
@@ -304,12 +321,12 @@ class LightSampler:
                 if len(sel):
                     pdf[sel] = kind.pdf(x.take(sel, axis=1), self.local.take(light.take(sel)),
                                         point.take(sel, axis=1), self.solid_angle)
-        return pdf * self.selection.pmf(x, n, light) * (1.0 - self.world_share)
+        return pdf * self.selection.pmf(x, n, light) * (1.0 - self.distant_share)
 
     def world_pdf(self, n, d) -> np.ndarray:
         """Density with which `sample` at a receiver with facing normal n produces the world
         direction d (MIS for a bounce ray that escapes)."""
-        return self.world_share * self.world.pdf(n, d)
+        return self.distant_share * self.distant.world_pdf(n, d)
 
     def kind_names(self) -> list[str]:
         return [kind.kind for _, kind, _ in self.kinds]

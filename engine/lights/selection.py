@@ -138,7 +138,7 @@ class LightTree:
             table = np.vstack([rows(0.5 * (box_lo + box_hi)), rows(box_lo), rows(box_hi), rows(node_axis),
                                0.5 * np.linalg.norm(box_hi - box_lo, axis=1), np.cos(node_theta),
                                node_power / max(p.sum(), 1e-300), np.maximum.reduceat(r, start) ** 2])
-            self.levels.append(dict(table=table.astype(np.float32), power=table[14].astype(np.float32),
+            self.levels.append(dict(table=table.astype(np.float32), power=table[14].copy(), empty=empty,
                                     oriented=bool((node_theta < np.pi).any())))
 
     def _left_probability(self, x, n, level, left):
@@ -150,10 +150,12 @@ class LightTree:
                               b[15], nodes["oriented"])
         i_left, i_right = imp(left), imp(left + 1)
         total = i_left + i_right
-        p_left, p_right = nodes["power"].take(left), nodes["power"].take(left + 1)
-        by_power = p_left / np.maximum(p_left + p_right, TINY)
+        p_left, p_right = nodes["power"].take(left), nodes["power"].take(left + 1)   # float64
+        by_power = np.where(p_left + p_right > 0.0, p_left / np.maximum(p_left + p_right, 1e-300), 0.5)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(total > 0.0, i_left / total, by_power).astype(np.float64)
+            p = np.where(total > 0.0, i_left / total, by_power).astype(np.float64)
+        # Never walk into an empty child (the tree is complete over a Morton order of K lights).
+        return np.where(nodes["empty"].take(left + 1), 1.0, np.where(nodes["empty"].take(left), 0.0, p))
 
     def _tree_sample(self, x, n, u):
         node = np.zeros(len(u), dtype=np.int64)

@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import bridge
 from .camera import export_camera
-from .lights import export_area_light
+from .lights import export_area_light, export_point_light, export_sun_light
 from .materials import MaterialTable
 from .mesh import bounding_sphere, has_smooth_faces, mesh_arrays, sphere_fit, transform_points, uniform_scale
 from .unsupported import object_warnings, scene_warnings
@@ -79,7 +79,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     out_res = (width, height) if crop is None else (int(crop[2] - crop[0]), int(crop[3] - crop[1]))
 
     warnings.extend(scene_warnings(scene, getattr(depsgraph, "view_layer", None)))
-    meshes, spheres, lights = [], [], []
+    meshes, spheres, lights, points, suns = [], [], [], [], []
     cache = {}
     flagged = set()
     n_instances = n_triangles = 0
@@ -94,17 +94,23 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             flagged.add(ob.name)
             warnings.extend(object_warnings(ob, ob.name))
         if otype == "LIGHT":
-            if ob.data.type == "AREA":
+            kind = ob.data.type
+            if kind in ("AREA", "POINT", "SUN"):
                 matrix = finite_matrix(inst, ob)
                 try:
-                    lights.append(export_area_light(ob, matrix, version, AreaLight=sm.AreaLight,
-                                                    warnings=warnings))
+                    if kind == "AREA":
+                        lights.append(export_area_light(ob, matrix, version, AreaLight=sm.AreaLight,
+                                                        warnings=warnings))
+                    elif kind == "POINT":
+                        points.append(export_point_light(ob, matrix, PointLight=sm.PointLight))
+                    else:
+                        suns.append(export_sun_light(ob, matrix, version, SunLight=sm.SunLight))
                 except ValueError as exc:
                     raise ExportError(str(exc)) from None
             elif ob.name not in skipped:
                 skipped.add(ob.name)
-                warnings.append(f"Light '{ob.name}': {ob.data.type.lower()} lights are not supported "
-                                "(use an area light or an emissive mesh); ignored")
+                warnings.append(f"Light '{ob.name}': {ob.data.type.lower()} lights are not supported yet "
+                                "(use a point, sun or area light, or an emissive mesh); ignored")
             continue
         if otype in SKIPPED_TYPES:
             if ob.name not in skipped:
@@ -179,7 +185,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     materials = table.materials or [sm.Material(name="(unused)")]
     background = export_world(scene.world, warnings)
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
-                      background=background, resolution=out_res, name=name or scene.name, lights=lights)
+                      background=background, resolution=out_res, name=name or scene.name, lights=lights,
+                      points=points, suns=suns)
     info = dict(export_seconds=time.perf_counter() - t0, objects=n_instances, triangles=n_triangles,
                 spheres=len(spheres), meshes_shared=len(cache), materials=len(materials))
     return ExportResult(scene=result, warnings=warnings, info=info)

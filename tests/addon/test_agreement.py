@@ -21,7 +21,8 @@ DEPTH = 8
 K = 4
 TAU = {"cornell": 0.05, "mirror_glass": 0.05, "principled": 0.05, "diffuse_room": 0.02,
        "suzanne_5k": 0.02, "suzanne_100k": 0.02, "area_light": 0.02, "nested_glass": 0.05,
-       "near_lamp": 0.02, "many_lights": 0.02, "caustic": 0.05, "area_mirror": 0.05}
+       "near_lamp": 0.02, "many_lights": 0.02, "caustic": 0.05, "area_mirror": 0.05,
+       "point_light": 0.05, "sun_window": 0.05}
 _cache = {}
 
 
@@ -40,7 +41,9 @@ def ours(scene, first_seed=1000):
     "nested_glass",
     # light-sampling stress scenes (issue 9); area_mirror needs area lights that mirror and glass
     # rays can reach (AreaLight.visible_glossy / visible_transmission, the mis / solid-angle estimators)
-    "near_lamp", "caustic", "many_lights", "area_mirror"])
+    "near_lamp", "caustic", "many_lights", "area_mirror",
+    # point and sun lights (issue 12)
+    "point_light", "sun_window"])
 def test_agrees_with_cycles(samples, name):
     ref = reference(samples, name)
     exported = export_blend(samples[name], RES)
@@ -88,3 +91,16 @@ def test_comparison_passes_renderer_against_itself(samples):
     result = compare_runs(ours(scene, 3000), ours(scene, 4000), tau=0.0)
     print(f"self: {result.summary()}")
     assert result.passed, result.summary()
+
+
+@pytest.mark.parametrize("name, how", [("point_light", "intensity_x2"), ("sun_window", "irradiance_x0.8")])
+def test_comparison_catches_wrong_light_units(samples, name, how):
+    """Controls for the point and sun exports: a point light twice too strong, a sun 20 % too weak."""
+    scene = copy.deepcopy(export_blend(samples[name], RES).scene)
+    if how == "intensity_x2":
+        scene.points[0].intensity = tuple(2 * i for i in scene.points[0].intensity)
+    else:
+        scene.suns[0].irradiance = tuple(0.8 * e for e in scene.suns[0].irradiance)
+    result = compare_runs(ours(scene, first_seed=5000), reference(samples, name), tau=TAU[name])
+    print(f"{name} {how}: {result.summary()}")
+    assert not result.passed

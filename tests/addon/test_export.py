@@ -326,12 +326,30 @@ def test_area_light_visibility_pre_30_cycles_visibility():
                                              visible_glossy=False, visible_transmission=True)
 
 
-def test_point_light_is_ignored_with_warning(scene):
-    ob = bpy.data.objects.new("Bulb", bpy.data.lights.new("Bulb", "POINT"))
+def test_point_and_sun_lights_are_exported_in_cycles_units(scene):
+    import math
+    bulb = bpy.data.lights.new("Bulb", "POINT")
+    bulb.energy, bulb.color, bulb.shadow_soft_size = 100.0, (1.0, 0.5, 0.25), 0.2
+    ob = bpy.data.objects.new("Bulb", bulb)
+    ob.location = (1.0, 2.0, 3.0)
     scene.collection.objects.link(ob)
+    sun = bpy.data.lights.new("Sun", "SUN")
+    sun.energy, sun.angle = 3.0, 0.5
+    sob = bpy.data.objects.new("Sun", sun)
+    sob.rotation_euler = (math.radians(90), 0, 0)          # local -Z points along +Y
+    scene.collection.objects.link(sob)
+    spot = bpy.data.objects.new("Spot", bpy.data.lights.new("Spot", "SPOT"))
+    scene.collection.objects.link(spot)
     res = export()
-    assert not res.scene.meshes
-    assert any("Light 'Bulb'" in w for w in res.warnings)
+    point = res.scene.points[0]
+    assert point.position == pytest.approx((1.0, 2.0, 3.0)) and point.radius == pytest.approx(0.2)
+    assert point.intensity == pytest.approx((100 / (4 * math.pi), 50 / (4 * math.pi), 25 / (4 * math.pi)))
+    s = res.scene.suns[0]
+    assert s.direction == pytest.approx((0.0, 1.0, 0.0), abs=1e-6) and s.angle == pytest.approx(0.5)
+    factor = 1.0 if bpy.app.version >= (4, 0, 0) else 0.5 * (1 + math.cos(0.25))
+    assert s.irradiance == pytest.approx((3.0 * factor,) * 3)
+    assert any("Light 'Spot'" in w and "spot" in w for w in res.warnings)
+    assert not any("Bulb" in w or "'Sun'" in w for w in res.warnings)
 
 
 def test_world_background(scene, ms):

@@ -291,3 +291,18 @@ def test_a_quad_made_of_two_triangles_is_one_parallelogram_light(tris):
     assert np.allclose(lights.kinds[0][1].normal[:, 0], winding / np.linalg.norm(winding))
     assert lights.area.tolist() == [2.0]
     assert LightSampler(scene, solid_angle=False, spatial=False).kind_names() == ["triangle"]
+
+
+def test_light_tree_pmf_stays_right_with_powers_across_40_decades():
+    """Powers from 1e-40 to 1 (float32 would underflow) and a tree with empty leaves: sample() and
+    pmf() agree and the pmf sums to 1."""
+    rng = np.random.default_rng(38)
+    k = 5                                                        # 8 leaves, 3 of them empty
+    centers = rng.uniform(-1, 1, (k, 3))
+    power = 10.0 ** rng.uniform(-40, 0, k)
+    tree = LightTree(centers, np.full(k, 0.1), np.tile([0, 0, 1.0], (k, 1)), np.full(k, -1.0), power, power)
+    x, nrm = np.array([3.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0])
+    pmf = tree.pmf(at(x, k), at(nrm, k), np.arange(k))
+    assert pmf.sum() == pytest.approx(1.0, abs=1e-12)
+    light, sampled = tree.sample(at(x, 20000), at(nrm, 20000), rng.random(20000))
+    assert np.allclose(sampled, pmf[light], rtol=1e-12)

@@ -43,6 +43,19 @@ def dependent_pairs(sample):
     return bad, total
 
 
+@pytest.mark.parametrize("n", [1, 2, 4, 16])
+def test_the_two_numbers_of_a_pair_are_independent_over_pixels(n):
+    """E[(x - 1/2)(y - 1/2)] = 0 over many pixels' first n points (a shared scramble bit once put
+    x and y of 1 and 2 spp in the same half: z = +650), and every quadrant is equally likely."""
+    pixels = 20000
+    seeds = np.repeat(pixel_seeds(7, np.arange(pixels), np.zeros(pixels)), n)
+    x, y = sample_2d(np.tile(np.arange(n), pixels), seeds, 3, n)
+    c = (x - 0.5) * (y - 0.5)
+    assert abs(c.mean()) < 4 * c.std() / np.sqrt(len(c)), c.mean()
+    quadrant = np.bincount((x < 0.5) * 2 + (y < 0.5), minlength=4) / len(x)
+    assert np.abs(quadrant - 0.25).max() < 0.02
+
+
 def test_dimension_pairs_are_independent():
     bad, total = dependent_pairs(lambda pixel, d: points(pixel, d, 4096))
     assert bad <= 3, (bad, total)          # about total / 1000 expected
