@@ -288,7 +288,8 @@ class SubprocessWorkers:
             worker.in_flight.remove(unit)
         self._feed(worker)
         if kind == "error":
-            return unit, None, WorkerError(f"{worker.name} failed on tile {unit.tile.index}:\n{event[2]}")
+            where = f"tile {unit.tile.index}" if hasattr(unit, "tile") else repr(unit)
+            return unit, None, WorkerError(f"{worker.name} failed on {where}:\n{event[2]}")
         return unit, event[2], None
 
     def _died(self, worker, code):
