@@ -158,6 +158,11 @@ def cmd_study(args) -> int:
     return 0
 
 
+def cmd_worker(args) -> int:
+    from .service import worker_main
+    return worker_main(args.parent_pid)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog=PROG, description="TNCG15 MC tracer")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
@@ -183,6 +188,9 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--full", action="store_true", help="the committed figures (about 5 minutes on 2 cores)")
     st.add_argument("--out", default="docs", help="directory for the markdown and the plots")
     st.set_defaults(func=cmd_study)
+    w = sub.add_parser("worker", help="a render worker process (engine/service.py; started by the add-on)")
+    w.add_argument("parent_pid", type=positive_int)
+    w.set_defaults(func=cmd_worker)
     return parser
 
 

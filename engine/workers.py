@@ -14,7 +14,6 @@ runs, so the image does not depend on the pool.
 from __future__ import annotations
 
 import ctypes
-import multiprocessing
 import os
 import queue
 import signal
@@ -103,6 +102,9 @@ class ProcessWorkers:
 
     def __init__(self, session, count: int):
         global _FORKED_SESSION
+        # imported here: importing multiprocessing aliases sys.modules["__mp_main__"] to __main__, and in
+        # Blender 3.4 that stale module crashes addon_utils.disable_all when Blender quits
+        import multiprocessing
         ctx = multiprocessing.get_context("fork")
         self.tasks = ctx.Queue()
         self.results = ctx.Queue()

@@ -17,15 +17,19 @@ bl_info = {
 
 if "bpy" in locals():                     # "Reload Scripts": reload sub-modules too
     import importlib
-    for _name in ("bridge", "properties", "ui", "engine"):
+    for _name in ("bridge", "worker_python", "properties", "ui", "engine"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
 import bpy  # noqa: E402
 
+from . import worker_python  # noqa: E402
+
+NUMPY_PROBLEM = worker_python.ensure_numpy()      # before anything imports numpy (Blender 3.4)
+
 from . import bridge, properties, ui, engine  # noqa: E402,F401
 
-_modules = (properties, engine, ui)
+_modules = (worker_python, properties, engine, ui)
 
 
 def register():

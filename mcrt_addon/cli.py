@@ -172,21 +172,21 @@ def render_in(args, blend, outputs, stop, private):
     set_exr_output(scene, rendered)
     if stop.requested():
         return stop.report_exit()
-    engine_module.LAST_RENDER.clear()
     engine_module.STOP_REQUESTS.append(stop.requested)
     t0 = time.perf_counter()
     try:
-        bpy.ops.render.render(write_still=True)
+        with engine_module.capture_reports() as reports:
+            bpy.ops.render.render(write_still=True)
     except RuntimeError as exc:
         # Blender's own refusals ("Cannot render, no camera") arrive as "Error: ...\n"
-        msg = engine_module.LAST_RENDER.get("error") or str(exc).strip().removeprefix("Error: ")
+        msg = (reports[-1].error if reports else None) or str(exc).strip().removeprefix("Error: ")
         return error(msg, 1)
     finally:
         engine_module.STOP_REQUESTS.remove(stop.requested)
     wall = time.perf_counter() - t0
-    last = dict(engine_module.LAST_RENDER)
-    if args.engine == "TNCG15_MC" and last.get("error"):
-        return error(last["error"], 1)
+    last = reports[-1] if reports else engine_module.RenderReport()
+    if args.engine == "TNCG15_MC" and last.error:
+        return error(last.error, 1)
     if not os.path.isfile(rendered):
         return error("no image was written", 1) if not stop.requested() else stop.report_exit()
     stats = render_stats(args, scene, last, wall)
@@ -214,12 +214,12 @@ def render_stats(args, scene, last, wall):
     import bpy
     stats = {}
     if args.engine == "TNCG15_MC":
-        stats.update(last.get("stats") or {})
-        stats["export"] = last.get("export")
-        stats["warnings"] = last.get("warnings")
-        stats["cancelled"] = last.get("cancelled")
+        stats.update(last.stats or {})
+        stats["export"] = last.export
+        stats["warnings"] = last.warnings
+        stats["cancelled"] = last.cancelled
         stats.setdefault("render_seconds", wall)
-        for w in last.get("warnings") or []:
+        for w in last.warnings or []:
             print(f"warning: {w}", file=sys.stderr)
     else:
         stats.update(engine="CYCLES", render_seconds=wall, samples=scene.cycles.samples,

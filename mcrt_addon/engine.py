@@ -1,23 +1,53 @@
-"""The RenderEngine: export the evaluated depsgraph, run the tracer, stream tiles into Blender.
+"""The RenderEngine: export the evaluated depsgraph, render it in worker processes, stream tiles
+into Blender.
+
+The tracer runs in worker processes (tracer/service.py) of a Python chosen by worker_python.py:
+Blender's own process only exports the scene and writes tiles, so Embree works even in Blender 3.4
+(whose Embree 3 clashes with embreex in one process), Esc stops within a bounce, and a worker that
+crashes is reported by name while Blender carries on.  When no worker Python exists at all the
+tracer runs on threads in Blender's process, and the stats line says so.
 
 Errors reach the user through ``self.report({'ERROR'}, ...)`` (and ``error_set``), never as a
-traceback or a silent black image.  The user's data is only read.
+traceback or a silent black image.  The user's data is only read.  Each render's outcome is a
+RenderReport on the engine instance, handed to REPORT_LISTENERS (the command-line renderer, tests).
 """
-import math
+import contextlib
 import time
 import traceback
+from dataclasses import dataclass, field
 
 import bpy
-import numpy as np
 
-from . import bridge
-from .export import ExportCancelled, export_scene
-from .export.util import ExportError
+from . import bridge, worker_python
 
-# Statistics of the most recent render in this process (read by the command-line renderer and tests).
-LAST_RENDER = {}
 # Stop requests besides Esc: callables polled with test_break() (the command line's SIGINT/SIGTERM).
 STOP_REQUESTS = []
+# Callables given the RenderReport of every render that finishes (see capture_reports).
+REPORT_LISTENERS = []
+
+
+@dataclass
+class RenderReport:
+    """What one render did: its error or warnings, the tracer's stats, the export summary."""
+    error: str = None
+    warnings: list = field(default_factory=list)
+    stats: dict = field(default_factory=dict)
+    cancelled: bool = False
+    export: dict = None
+    resolution: tuple = None
+    crop: tuple = None
+    wall_seconds: float = None
+
+
+@contextlib.contextmanager
+def capture_reports():
+    """``with capture_reports() as reports: bpy.ops.render.render()`` -> reports[-1]."""
+    reports = []
+    REPORT_LISTENERS.append(reports.append)
+    try:
+        yield reports
+    finally:
+        REPORT_LISTENERS.remove(reports.append)
 
 
 def border_rect(render, width, height):
@@ -37,6 +67,7 @@ def border_rect(render, width, height):
 
 def to_rgba_bottom_up(pixels):
     """Tracer tile (h, w, 3), row 0 = top -> flat float32 RGBA, row 0 = bottom (Blender's order)."""
+    import numpy as np
     h, w = pixels.shape[:2]
     rgba = np.empty((h, w, 4), np.float32)
     rgba[..., :3] = pixels[::-1]
@@ -65,6 +96,7 @@ def resolve_accelerator(name, version=None):
     if name == "auto":
         return "octree", None
     if name == "embree":
+        from .export.util import ExportError
         raise ExportError("Accelerator 'Embree' cannot run inside Blender "
                           f"{'.'.join(map(str, version[:2]))}: embreex clashes with Blender's own "
                           "Embree 3 library (the process would crash). Choose Auto, Octree or Brute Force")
@@ -93,34 +125,60 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
 
     # ------------------------------------------------------------------------------------------
     def render(self, depsgraph):
-        LAST_RENDER.clear()
-        LAST_RENDER.update(error=None, warnings=[], stats={}, cancelled=False)
+        self.last = RenderReport()
+        self.tiles_written = 0
         try:
             self._render(depsgraph)
-        except ExportCancelled:
-            LAST_RENDER["cancelled"] = True
-        except ExportError as exc:
-            self._fail(str(exc))
-        except ImportError as exc:
-            self._fail(str(exc))
         except Exception as exc:                     # noqa: BLE001 - shown to the user, traceback to console
-            scene_error = None
+            message = self._readable(exc)
+            if message is None:
+                traceback.print_exc()
+                message = f"TNCG15 MC internal error: {type(exc).__name__}: {exc}"
+            if message != "cancelled":
+                self._fail(message)
+        finally:
+            if self.last.cancelled and not self.tiles_written:
+                self._blank_result()
+            for listener in list(REPORT_LISTENERS):
+                listener(self.last)
+
+    def _blank_result(self):
+        """A render cancelled before its first tile still hands Blender a (black) result: without
+        one, bpy 5.0 crashes writing the still (render.render(write_still=True))."""
+        try:
+            result = self.begin_result(0, 0, int(self.resolution_x), int(self.resolution_y))
+            self.end_result(result)
+        except (RuntimeError, ReferenceError):
+            pass
+
+    def _readable(self, exc):
+        """The message of an error the user can act on, "cancelled", or None (a bug: traceback)."""
+        if isinstance(exc, ImportError):
+            return str(exc)
+        try:
+            from .export import ExportCancelled
+            from .export.util import ExportError
+        except ImportError:
+            return None
+        if isinstance(exc, ExportCancelled):
+            self.last.cancelled = True
+            return "cancelled"
+        if isinstance(exc, ExportError):
+            return str(exc)
+        for module, name in (("scene", "SceneError"), ("service", "WorkerError")):
             try:
-                scene_error = bridge.scene_module().SceneError
+                if isinstance(exc, getattr(bridge.module(module), name)):
+                    return str(exc)
             except ImportError:
                 pass
-            if scene_error is not None and isinstance(exc, scene_error):
-                self._fail(str(exc))
-            else:
-                traceback.print_exc()
-                self._fail(f"TNCG15 MC internal error: {type(exc).__name__}: {exc}")
+        return None
 
     def _cancel_requested(self):
         """Esc in the render window, or a stop request (polled by the tracer between batches, ~0.1 s)."""
         return self.test_break() or any(stop() for stop in STOP_REQUESTS)
 
     def _fail(self, message):
-        LAST_RENDER["error"] = message
+        self.last.error = message
         self.report({"ERROR"}, message)
         try:
             self.error_set(message)
@@ -129,33 +187,49 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         self.update_stats("", f"TNCG15 MC | Error: {message}")
 
     def _render(self, depsgraph):
+        from . import NUMPY_PROBLEM
+        if NUMPY_PROBLEM:
+            raise ImportError(NUMPY_PROBLEM)
+        import numpy as np
+        from .export import export_scene
+
         t_start = time.perf_counter()
         scene = depsgraph.scene
-        width, height = int(self.resolution_x), int(self.resolution_y)
-        crop = border_rect(scene.render, width, height)
-        self.update_stats("", "TNCG15 MC | Exporting scene")
-        camera = self.camera_override if self.camera_override is not None else scene.camera
-        exported = export_scene(depsgraph, resolution=(width, height), camera=camera, crop=crop,
-                                test_break=self._cancel_requested)
-        if abs(scene.render.pixel_aspect_x - scene.render.pixel_aspect_y) > 1e-6:
-            exported.warnings.append("non-square pixel aspect is ignored")
         settings = scene.tncg15.to_settings(bridge.settings_class())
-        settings.accelerator, note = resolve_accelerator(settings.accelerator)
-        if note:
-            exported.warnings.append(note)
-        settings.validate()
-        warnings = list(exported.warnings) + list(exported.scene.validate())
-        bridge.module("memory").check_memory(exported.scene, settings)     # refused before allocating
-        render = bridge.render_function()
+        pool, no_workers = self._start_workers(settings)     # their imports overlap the export
+        try:
+            width, height = int(self.resolution_x), int(self.resolution_y)
+            crop = border_rect(scene.render, width, height)
+            self.update_stats("", "TNCG15 MC | Exporting scene")
+            camera = self.camera_override if self.camera_override is not None else scene.camera
+            exported = export_scene(depsgraph, resolution=(width, height), camera=camera, crop=crop,
+                                    test_break=self._cancel_requested)
+            if abs(scene.render.pixel_aspect_x - scene.render.pixel_aspect_y) > 1e-6:
+                exported.warnings.append("non-square pixel aspect is ignored")
+            if pool is None:
+                settings.accelerator, note = resolve_accelerator(settings.accelerator)
+                if note:
+                    exported.warnings.append(note)
+            settings.validate()
+            warnings = list(exported.warnings) + list(exported.scene.validate())
+            bridge.module("memory").check_memory(exported.scene, settings)     # refused before allocating
+        except BaseException:
+            if pool is not None:
+                pool.close()
+            raise
         out_w, out_h = exported.scene.resolution
-        LAST_RENDER.update(export=exported.info, resolution=(out_w, out_h), crop=crop)
+        self.last.export, self.last.resolution, self.last.crop = exported.info, (out_w, out_h), crop
 
         n_bad = [0]
+        first_tile = []
 
         def on_tile(x0, y0, x1, y1, pixels):
+            if not first_tile:
+                first_tile.append(time.perf_counter() - t_start)
             # tracer rows count from the top; Blender's result rows from the bottom
             flat, bad = to_rgba_bottom_up(np.asarray(pixels, dtype=np.float32))
             n_bad[0] += bad
+            self.tiles_written += 1
             result = self.begin_result(x0, out_h - y1, x1 - x0, y1 - y0)
             try:
                 write_rect(result.layers[0].passes["Combined"], flat)
@@ -173,25 +247,46 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             print(*args)
 
         self.update_stats("", "TNCG15 MC | Rendering")
-        result = render(exported.scene, settings, on_tile=on_tile, should_cancel=self._cancel_requested,
-                        on_progress=on_progress, log=log)
+        if pool is not None:
+            result = bridge.module("service").render_in_workers(
+                exported.scene, settings, workers=pool, on_tile=on_tile, should_cancel=self._cancel_requested,
+                on_progress=on_progress, log=log)
+        else:
+            warnings.append(f"no render worker processes ({no_workers}): the tracer ran on threads inside Blender")
+            result = bridge.render_function()(exported.scene, settings, on_tile=on_tile,
+                                               should_cancel=self._cancel_requested, on_progress=on_progress, log=log)
         # the tracer validates the scene again and returns the same warnings: report each once
         warnings = list(dict.fromkeys(warnings + list(getattr(result, "warnings", []) or [])))
         if n_bad[0]:
             warnings.append(f"{n_bad[0]} pixels had NaN/infinite values and were set to black")
         stats = dict(getattr(result, "stats", {}) or {})
-        LAST_RENDER.update(stats=stats, warnings=warnings, cancelled=bool(getattr(result, "cancelled", False)),
-                           wall_seconds=time.perf_counter() - t_start)
+        stats["first_tile_seconds"] = first_tile[0] if first_tile else None
+        if pool is None:
+            stats["parallelism"] = f"threads in Blender ({no_workers})"
+        self.last.stats, self.last.warnings = stats, warnings
+        self.last.cancelled = bool(getattr(result, "cancelled", False))
+        self.last.wall_seconds = time.perf_counter() - t_start
         for w in warnings:
             self.report({"WARNING"}, w)
         self.update_progress(1.0)
         self.update_stats("", stats_line(self._summary(stats, result), stats))
 
+    def _start_workers(self, settings):
+        """The worker pool (started, not yet given the scene), or (None, why) without a worker Python."""
+        python, why = worker_python.worker_python(worker_python.preferred_python())
+        if python is None:
+            if worker_python.preferred_python():
+                raise bridge.module("service").WorkerError(f"TNCG15 MC: {why}")
+            return None, why
+        service = bridge.module("service")
+        return service.SubprocessWorkers(python, settings.resolved_threads(), worker_python.extra_paths()), None
+
     @staticmethod
     def _summary(stats, result):
         if getattr(result, "cancelled", False):
             return "Cancelled"
-        parts = [f"{stats.get('samples', '?')} samples"]
+        parts = [f"{stats.get('samples', '?')} samples", f"{stats.get('accelerator', '?')}",
+                 str(stats.get("parallelism", ""))]
         seconds = stats.get("render_seconds")
         rays = stats.get("rays")
         if seconds and isinstance(rays, dict) and seconds > 0:

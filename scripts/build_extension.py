@@ -10,9 +10,11 @@
    as the sub-package ``tracer/`` (the add-on imports it relatively; see mcrt_addon/bridge.py);
 3. builds and validates the zip with Blender's own blender_ext.py (shipped in the bpy wheel, or
    from a Blender 4.2+ binary: ``blender --command extension build``);
-4. also writes dist/tncg15_mc-<version>-legacy.zip: a folder tncg15_mc/ with the same files (no
-   wheels) for "Install Add-on" in Blender 3.4 (which then uses the tracer's octree; embreex
-   cannot run next to Debian's Embree 3, see mcrt_addon/engine.py).
+4. also writes dist/tncg15_mc-<version>-legacy.zip for "Install Add-on" in Blender 3.4: a folder
+   tncg15_mc/ with the same files and, for Linux x64 (CPython 3.11), the wheels unpacked:
+   vendor/numpy/ (numpy 1.26.4: Blender's own process imports it when its Python has none, as
+   Debian's Blender 3.4) and vendor/worker/ (embreex, OpenImageIO: only the render worker
+   processes import them, so embreex never meets Blender 3.4's Embree 3; mcrt_addon/worker_python.py).
 """
 import argparse
 import glob
@@ -34,6 +36,8 @@ PLATFORM_TAGS = {                      # Blender platform -> pip --platform
     "macos-x64": "macosx_10_15_x86_64",
 }
 EXCLUDED_DEPS = ("numpy",)
+LEGACY_NUMPY = "numpy==1.26.4"          # the venv's; cp311 manylinux2014 wheels
+LEGACY_PLATFORMS = ("manylinux_2_28_x86_64", "manylinux2014_x86_64", "manylinux_2_17_x86_64")
 IGNORE = shutil.ignore_patterns("__pycache__", "*.pyc", "*.pyo")
 
 
@@ -117,8 +121,38 @@ def version_of_manifest():
         return re.search(r'^version\s*=\s*"([^"]+)"', fh.read(), re.M).group(1)
 
 
-def legacy_zip(stage_dir, path):
+def legacy_wheels(wheels_dir, offline):
+    """numpy, embreex and OpenImageIO for CPython 3.11 on Linux x64, in wheels_dir/legacy/."""
+    legacy_dir = os.path.join(wheels_dir, "legacy")
+    os.makedirs(legacy_dir, exist_ok=True)
+    if not offline:
+        cmd = [sys.executable, "-m", "pip", "download", LEGACY_NUMPY, *PACKAGES, "--dest", legacy_dir,
+               "--only-binary=:all:", "--python-version", "3.11", "--implementation", "cp", "--quiet"]
+        for tag in LEGACY_PLATFORMS:
+            cmd += ["--platform", tag]
+        print("+", " ".join(cmd))
+        subprocess.run(cmd, check=True)
+    found = {}
+    for pkg in ("numpy", "embreex", "openimageio"):
+        names = sorted(glob.glob(os.path.join(legacy_dir, f"{pkg}-*.whl")) +
+                       glob.glob(os.path.join(legacy_dir, f"{pkg.replace('openimageio', 'OpenImageIO')}-*.whl")))
+        if pkg == "numpy":
+            names = [n for n in names if os.path.basename(n).startswith(LEGACY_NUMPY.replace("==", "-"))]
+        if not names:
+            raise SystemExit(f"error: no {pkg} wheel in {legacy_dir} (run without --no-download)")
+        found[pkg] = names[-1]
+    return found
+
+
+def legacy_zip(stage_dir, path, vendor=None):
+    """vendor: {"numpy": wheel, "embreex": wheel, ...}, unpacked into vendor/numpy and vendor/worker."""
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for pkg, wheel in (vendor or {}).items():
+            target = "numpy" if pkg == "numpy" else "worker"
+            with zipfile.ZipFile(wheel) as whl:
+                for info in whl.infolist():
+                    if not info.is_dir():
+                        zf.writestr(f"tncg15_mc/vendor/{target}/{info.filename}", whl.read(info))
         for root, _dirs, files in os.walk(stage_dir):
             rel_root = os.path.relpath(root, stage_dir)
             if rel_root.split(os.sep)[0] == "wheels":
@@ -157,7 +191,7 @@ def main(argv=None):
             print("+", " ".join(os.path.relpath(c, REPO) if c.startswith(REPO) else c for c in cmd))
             subprocess.run(cmd, check=True)
         legacy = os.path.join(args.output_dir, f"tncg15_mc-{version}-legacy.zip")
-        legacy_zip(stage_dir, legacy)
+        legacy_zip(stage_dir, legacy, legacy_wheels(args.wheels_dir, args.no_download))
     print(f"extension (Blender 4.2+): {out_zip} ({os.path.getsize(out_zip) / 1e6:.1f} MB)")
     print(f"legacy add-on (Blender 3.4): {legacy} ({os.path.getsize(legacy) / 1e6:.2f} MB)")
     return 0

@@ -19,6 +19,20 @@ from mcrt_addon.export import export_scene  # noqa: E402
 from mcrt_addon.reference import setup_cycles_reference  # noqa: E402
 
 
+REPORTS = []                                     # every render's RenderReport (mcrt_addon/engine.py)
+if REPORTS.append not in engine_module.REPORT_LISTENERS:
+    engine_module.REPORT_LISTENERS.append(REPORTS.append)
+
+
+def last_report():
+    """The RenderReport of the latest render (an empty one when none ran since forget_reports)."""
+    return REPORTS[-1] if REPORTS else engine_module.RenderReport()
+
+
+def forget_reports():
+    REPORTS.clear()
+
+
 def read_exr(path):
     import OpenImageIO as oiio
     buf = oiio.ImageBuf(path)

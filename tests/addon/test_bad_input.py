@@ -4,7 +4,7 @@ renders without a single NaN/infinite sample.
 
 Each case builds a tiny scene, saves it, fingerprints the data, renders it with
 bpy.ops.render.render (engine TNCG15_MC) and checks the message that reached Blender's reports
-(printed by Blender in background mode), LAST_RENDER, the fingerprint and the saved file.
+(printed by Blender in background mode), the RenderReport, the fingerprint and the saved file.
 ``bpy.data.is_dirty`` is not usable for this: in the bpy module it is True even right after
 saving or opening a file.
 """
@@ -18,9 +18,8 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from mcrt_addon import engine as engine_module
 from mcrt_addon.cli import set_exr_output
-from rendering import open_blend, read_exr
+from rendering import forget_reports, last_report, open_blend, read_exr
 
 NAN = float("nan")
 NO_LIGHT = "the scene has no emitters and a black background: the image will be black"
@@ -108,7 +107,7 @@ def render_checked(scene, tmp_path, capfd, name="case"):
     blend = str(tmp_path / f"{name}.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend, check_existing=False)
     before, saved = fingerprint(), file_state(blend)
-    engine_module.LAST_RENDER.clear()
+    forget_reports()
     capfd.readouterr()
     exc = None
     try:
@@ -121,7 +120,7 @@ def render_checked(scene, tmp_path, capfd, name="case"):
     assert file_state(blend) == saved, "the render touched the saved .blend"
     assert "Traceback" not in output and "internal error" not in output, output
     image = read_exr(out) if exc is None and os.path.isfile(out) else None
-    return Outcome(engine_module.LAST_RENDER.get("error"), engine_module.LAST_RENDER.get("warnings"),
+    return Outcome(last_report().error, last_report().warnings,
                    output, image, exc)
 
 
@@ -211,13 +210,13 @@ def test_non_planar_quad_renders_as_two_triangles(empty_scene, make_samples_modu
     o = render_checked(empty_scene, tmp_path, capfd)
     assert o.error is None and o.exc is None
     assert not [w for w in o.warnings if "Warped" in w], o.warnings
-    assert engine_module.LAST_RENDER["export"]["triangles"] == 6
+    assert last_report().export["triangles"] == 6
     img = o.image
     assert img is not None and np.isfinite(img).all()
     assert img.max() > 5.0                                         # the warped lamp is seen
     red = (img[..., 0] > 3 * img[..., 1]) & (img[..., 0] > 0.01)
     assert red.sum() >= 4                                          # the warped red quad is lit
-    assert engine_module.LAST_RENDER["stats"]["nonfinite_samples"] == 0
+    assert last_report().stats["nonfinite_samples"] == 0
 
 
 @pytest.mark.parametrize("emissive", [False, True])
@@ -315,12 +314,12 @@ def test_every_sample_scene_renders_without_nonfinite_samples(samples, make_samp
         scene.render.engine = "TNCG15_MC"
         out = os.path.join(os.path.dirname(path), f"{name}_nan_check.exr")
         set_exr_output(scene, out)
-        engine_module.LAST_RENDER.clear()
+        forget_reports()
         bpy.ops.render.render(write_still=True)
-        last = engine_module.LAST_RENDER
-        assert last["error"] is None, (name, last["error"])
-        assert last["stats"]["nonfinite_samples"] == 0, name
-        assert not [w for w in last["warnings"] if "NaN" in w], (name, last["warnings"])
+        last = last_report()
+        assert last.error is None, (name, last.error)
+        assert last.stats["nonfinite_samples"] == 0, name
+        assert not [w for w in last.warnings if "NaN" in w], (name, last.warnings)
         img = read_exr(out)
         assert img.shape == (32, 32, 3), name
         assert np.isfinite(img).all(), name

@@ -1,12 +1,19 @@
-"""A real Blender binary (Debian's Blender 3.4.1, `apt-get install blender`) renders a sample .blend
-with TNCG15 MC from the command line, loading the add-on the way the README tells a user to:
+"""A real Blender binary (Debian's Blender 3.4.1, `apt-get install blender`, whose Python has no
+numpy) renders a sample .blend with TNCG15 MC:
+
+* from the legacy zip alone, installed the way a user does (Preferences > Add-ons > Install:
+  addon_install + addon_enable), without PYTHONPATH: the zip's numpy serves the exporter, the
+  render workers run Blender's Python with the zip's embreex, so the stats say Embree;
+* from the repository the way the README tells a developer to:
 
   PYTHONPATH=<repo>:<venv site-packages> blender -b --python-use-system-env FILE.blend \\
       --python-expr "import mcrt_addon; mcrt_addon.register()" -E TNCG15_MC -o OUT_#### -F OPEN_EXR -f 1
 """
+import json
 import os
 import shutil
 import subprocess
+import sys
 import sysconfig
 
 import numpy as np
@@ -32,6 +39,61 @@ def blend34(tmp_path_factory):
                 "--", "--outdir", str(out), "--only", "cornell", "--resolution", "24", "24")
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     return out / "cornell.blend"
+
+
+INSTALL_AND_RENDER = r'''
+import json, sys, time, bpy
+zip_path, blend, out, stats_path = sys.argv[sys.argv.index("--") + 1:]
+t0 = time.perf_counter()
+bpy.ops.preferences.addon_install(filepath=zip_path)
+bpy.ops.preferences.addon_enable(module="tncg15_mc")
+enabled = time.perf_counter() - t0
+bpy.ops.wm.open_mainfile(filepath=blend)
+import tncg15_mc.engine as engine
+sc = bpy.context.scene
+sc.render.engine = "TNCG15_MC"
+sc.tncg15.samples = 4
+sc.render.image_settings.file_format = "OPEN_EXR"
+sc.render.filepath = out
+with engine.capture_reports() as reports:
+    bpy.ops.render.render(write_still=True)
+r = reports[-1]
+json.dump({"error": r.error, "warnings": r.warnings, "stats": r.stats, "enable_seconds": enabled,
+           "numpy": sys.modules["numpy"].__file__, "embreex_in_blender": "embreex" in sys.modules},
+          open(stats_path, "w"), default=str)
+'''
+
+
+@pytest.fixture(scope="module")
+def legacy_zip(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dist")
+    r = subprocess.run([sys.executable, os.path.join(REPO, "scripts", "build_extension.py"), "--output-dir",
+                        str(out)], capture_output=True, text=True, timeout=900, cwd=REPO)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    return next(p for p in out.iterdir() if p.name.endswith("-legacy.zip"))
+
+
+def test_legacy_zip_alone_renders_with_embree_in_blender34(legacy_zip, blend34, tmp_path):
+    script = tmp_path / "install.py"
+    script.write_text(INSTALL_AND_RENDER)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env.update(BLENDER_USER_SCRIPTS=str(tmp_path / "scripts"), BLENDER_USER_CONFIG=str(tmp_path / "config"))
+    stats_path, out = tmp_path / "stats.json", tmp_path / "legacy.exr"
+    r = blender("-b", "--factory-startup", "--python", str(script), "--", str(legacy_zip), str(blend34),
+                str(out), str(stats_path), env=env, timeout=300)
+    log = r.stdout[-3000:] + r.stderr[-3000:]
+    assert r.returncode == 0 and stats_path.exists(), log
+    assert "Traceback" not in r.stdout + r.stderr, log
+    report = json.loads(stats_path.read_text())
+    assert report["error"] is None, report["error"]
+    stats = report["stats"]
+    assert stats["accelerator"] == "embree", stats
+    assert "worker process" in stats["parallelism"], stats["parallelism"]
+    assert "/vendor/numpy/" in report["numpy"] and not report["embreex_in_blender"]
+    img = read_exr(str(out))
+    assert img.shape == (24, 24, 3) and np.isfinite(img).all() and img.mean() > 0.02
+    print(f"Blender 3.4 from the legacy zip: enable {report['enable_seconds']:.2f} s, first tile "
+          f"{stats['first_tile_seconds']:.2f} s, render {stats['render_seconds']:.2f} s, {stats['parallelism']}")
 
 
 def user_env():

@@ -127,7 +127,7 @@ def test_stop_signal_writes_the_finished_tiles(workdir, signum, code):
                        "--resolution", "128", "128", "--threads", "2")
     proc = subprocess.Popen(command, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     seen = b""
-    while b"effect plan" not in seen:
+    while b"work units on" not in seen:
         chunk = os.read(proc.stdout.fileno(), 4096)
         assert chunk, seen[-2000:]
         seen += chunk

@@ -85,4 +85,7 @@ def test_legacy_zip_is_a_3x_addon_folder(built):
         init = zf.read("tncg15_mc/__init__.py").decode()
     assert "bl_info" in init
     assert {"tncg15_mc/engine.py", "tncg15_mc/tracer/render.py", "tncg15_mc/export/mesh.py"} <= names
-    assert not any(n.endswith(".whl") for n in names)
+    assert not any(n.endswith(".whl") for n in names)            # wheels unpacked: importable as they are
+    assert "tncg15_mc/vendor/numpy/numpy/__init__.py" in names
+    assert "tncg15_mc/vendor/worker/embreex/__init__.py" in names
+    assert not any(n.startswith("tncg15_mc/vendor/numpy/embreex") for n in names)   # never in Blender's process

@@ -1,0 +1,105 @@
+"""Which Python runs the render workers, and what it needs on its path.
+
+The tracer never runs inside Blender's interpreter: it runs in worker processes
+(tracer/service.py) of a Python that has numpy and embreex.  That is
+
+* the interpreter set in the add-on's Preferences ("Python for render workers"), when set;
+* in the ``bpy`` module (Blender as a Python package): the Python running it, ``sys.executable``;
+* in a Blender binary: Blender's own Python (``<prefix>/bin/pythonX.Y``; Blender 2.91+ also gives it
+  as ``sys.executable``), with the wheels the add-on bundles (the legacy zip's ``vendor/``, the
+  extension's installed wheels) on its path.  embreex then loads in the worker, away from the
+  Embree 3 that Debian's Blender 3.4 links: that is what makes Embree work there.
+
+``vendor/numpy`` (legacy zip only) is also what Blender's own process imports when its Python has
+no numpy (Debian's Blender 3.4): the exporter needs numpy, never embreex (``vendor/worker``).
+"""
+import os
+import sys
+
+import bpy
+from bpy.props import StringProperty
+
+ADDON_DIR = os.path.dirname(os.path.abspath(__file__))
+VENDOR_NUMPY = os.path.join(ADDON_DIR, "vendor", "numpy")
+VENDOR_WORKER = os.path.join(ADDON_DIR, "vendor", "worker")
+INSTALL_HINT = ("install numpy for Blender's Python (e.g. apt-get install python3-numpy), or use the "
+                "add-on's legacy zip for Linux x64, which bundles it")
+
+
+def ensure_numpy():
+    """Make numpy importable in Blender's process (bundled copy as a last resort); the message
+    saying what to install, or None."""
+    try:
+        import numpy  # noqa: F401
+        return None
+    except ImportError:
+        pass
+    if os.path.isdir(VENDOR_NUMPY) and VENDOR_NUMPY not in sys.path:
+        sys.path.append(VENDOR_NUMPY)
+        try:
+            import numpy  # noqa: F401,F811
+            return None
+        except ImportError as exc:
+            sys.path.remove(VENDOR_NUMPY)
+            return f"TNCG15 MC: the bundled numpy does not load here ({exc}): {INSTALL_HINT}"
+    return f"TNCG15 MC needs numpy in Blender's Python: {INSTALL_HINT}"
+
+
+def in_bpy_module() -> bool:
+    return not getattr(bpy.app, "binary_path", "")
+
+
+def candidates():
+    if in_bpy_module():
+        return [sys.executable]
+    version = f"python{sys.version_info[0]}.{sys.version_info[1]}"
+    return [os.path.join(sys.base_prefix, "bin", version), os.path.join(sys.prefix, "bin", version),
+            os.path.join(sys.base_prefix, "bin", "python3"), sys.executable]
+
+
+def worker_python(preferred: str = ""):
+    """(path, None), or (None, why) when no interpreter is there."""
+    if preferred:
+        path = bpy.path.abspath(preferred)
+        if os.path.isfile(path) and os.access(path, os.X_OK):
+            return path, None
+        return None, f"'Python for render workers' in the add-on's Preferences is not an executable file: {path}"
+    for path in candidates():
+        if path and os.path.isfile(path) and os.access(path, os.X_OK):
+            return path, None
+    return None, "no Python interpreter found next to Blender"
+
+
+def extra_paths():
+    """Bundled packages for the worker: numpy when Blender's own process uses the bundled copy
+    (same numpy on both ends of the pipe), embreex and OpenImageIO always when bundled."""
+    paths = [VENDOR_NUMPY] if VENDOR_NUMPY in sys.path else []
+    return paths + ([VENDOR_WORKER] if os.path.isdir(VENDOR_WORKER) else [])
+
+
+def preferred_python(context=None) -> str:
+    context = context or bpy.context
+    addon = context.preferences.addons.get(__package__)
+    return getattr(addon.preferences, "worker_python", "") if addon and addon.preferences else ""
+
+
+class TNCG15Preferences(bpy.types.AddonPreferences):
+    bl_idname = __package__
+
+    worker_python: StringProperty(
+        name="Python for render workers", subtype="FILE_PATH", default="",
+        description="A Python with numpy and embreex that runs the tracer's worker processes "
+                    "(empty: Blender's own Python with the bundled wheels)")
+
+    def draw(self, context):
+        self.layout.prop(self, "worker_python")
+        path, why = worker_python(self.worker_python)
+        self.layout.label(text=f"Workers run: {path}" if path else why)
+
+
+def register():
+    bpy.utils.register_class(TNCG15Preferences)
+
+
+def unregister():
+    bpy.utils.unregister_class(TNCG15Preferences)

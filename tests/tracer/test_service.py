@@ -1,0 +1,92 @@
+"""Worker processes (engine/service.py): real processes of this Python, the same image as render(),
+a killed worker reported by name with its units rendered elsewhere, Esc within a second."""
+import os
+import signal
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from engine import RenderSettings, render
+from engine.default_scene import cornell_scene
+from engine.service import SubprocessWorkers, WorkerError, render_in_workers
+
+QUIET = dict(log=lambda *a: None)
+
+
+def worker_pids(pool):
+    return [w.proc.pid for w in pool.workers]
+
+
+def test_worker_processes_render_the_image_of_render():
+    settings = RenderSettings(samples=8, tile_size=16, seed=5)
+    ref = render(cornell_scene((48, 32)), settings, **QUIET)
+    pool = SubprocessWorkers(sys.executable, 2, **QUIET)
+    result = render_in_workers(cornell_scene((48, 32)), RenderSettings(samples=8, tile_size=16, seed=5),
+                               workers=pool, **QUIET)
+    assert np.array_equal(result.image, ref.image)
+    assert result.stats["accelerator"] == ref.stats["accelerator"]
+    assert result.stats["units_done"] == result.stats["units"] and not result.cancelled
+    assert "2 worker process" in result.stats["parallelism"]
+    assert all(w.proc.poll() is not None for w in pool.workers)          # closed: none left
+
+
+def test_a_killed_worker_is_reported_by_name_and_its_units_render_elsewhere():
+    settings = RenderSettings(samples=32, tile_size=16, seed=2)
+    ref = render(cornell_scene((64, 64)), settings, **QUIET)
+    pool = SubprocessWorkers(sys.executable, 2, **QUIET)
+    victim = pool.workers[0]
+    tiles = []
+
+    def on_tile(*args):
+        tiles.append(args[:4])
+        if len(tiles) == 1:
+            os.kill(victim.proc.pid, signal.SIGKILL)
+
+    result = render_in_workers(cornell_scene((64, 64)), RenderSettings(samples=32, tile_size=16, seed=2),
+                               workers=pool, on_tile=on_tile, **QUIET)
+    assert np.array_equal(result.image, ref.image)
+    expected = f"render worker 1 (pid {victim.proc.pid}) died: killed by SIGKILL"
+    assert [r for r in result.stats["worker_reports"] if r.startswith(expected)], result.stats["worker_reports"]
+    assert any(expected in w for w in result.warnings)
+
+
+def test_cancel_returns_within_a_second_and_keeps_finished_units():
+    tiles, state = [], {}
+
+    def should_cancel():
+        if tiles and "at" not in state:
+            state["at"] = time.perf_counter()
+        return "at" in state
+
+    result = render_in_workers(cornell_scene((128, 128)), RenderSettings(samples=256, tile_size=32, threads=2),
+                               on_tile=lambda *a: tiles.append(a[:4]), should_cancel=should_cancel, **QUIET)
+    assert result.cancelled and time.perf_counter() - state["at"] < 1.0
+    assert 0 < result.stats["units_done"] < result.stats["units"]
+
+
+def test_a_python_without_numpy_is_one_message_naming_what_to_install(tmp_path):
+    fake = tmp_path / "python"
+    fake.write_text("#!/bin/sh\necho \"ModuleNotFoundError: No module named 'numpy'\" >&2\nexit 1\n")
+    fake.chmod(0o755)
+    with pytest.raises(WorkerError) as err:
+        render_in_workers(cornell_scene((8, 8)), RenderSettings(samples=1, threads=1), python=str(fake), **QUIET)
+    message = str(err.value)
+    assert "has no numpy" in message and "pip install numpy embreex" in message and "\n" not in message
+
+
+def test_an_error_in_a_unit_names_the_worker(monkeypatch):
+    scene = cornell_scene((16, 16))
+    pool = SubprocessWorkers(sys.executable, 1, **QUIET)
+    pool.prepare(scene, RenderSettings(samples=1, threads=1))
+    from engine.service import encode
+    pool.workers[0].send(encode(("unit", "not a unit")))
+    pool.workers[0].in_flight.append("not a unit")
+    deadline = time.time() + 20
+    item = None
+    while item is None and time.time() < deadline:
+        item = pool.next_result(0.1)
+    pool.close()
+    assert item is not None and isinstance(item[2], WorkerError)
+    assert str(item[2]).startswith(f"render worker 1 (pid {pool.workers[0].proc.pid}) failed")
