@@ -121,7 +121,7 @@ def cmd_render(args) -> int:
         return stop.report_exit()
     log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     result = render(scene, settings, on_progress=None if args.quiet else progress_bar(),
-                    should_cancel=stop.requested, log=log)
+                    should_cancel=stop.requested, log=log, cluster=args.cluster)
     stats = result.stats
     bad_pixels = int((~np.isfinite(result.image)).any(axis=-1).sum())
     if bad_pixels:
@@ -170,6 +170,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
     r.add_argument("--stats-json", metavar="PATH")
     r.add_argument("--quiet", action="store_true")
+    r.add_argument("--cluster", metavar="ADDRESS",
+                   help="render the work units on a Dask cluster: its scheduler's tcp://HOST:PORT, or 'local' "
+                        "to start a LocalCluster here (README: Rendering on several machines)")
     add_settings_arguments(r)
     r.set_defaults(func=cmd_render)
     b = sub.add_parser("bench", help="rays/s, Embree share and thread speed-up on the built-in scene")
