@@ -27,6 +27,7 @@ from __future__ import annotations
 import collections
 import pickle
 import queue
+import re
 import signal
 import threading
 import time
@@ -156,14 +157,29 @@ def start_local_cluster(workers: int):
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if threading.current_thread() is threading.main_thread() \
         else None
     try:
-        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        # No dashboard, and the scheduler's HTTP endpoint on a free port of this machine only.
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                            dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
 
 
+ADDRESS = re.compile(r"^(?:(tcp|tls)://)?(\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
+
+
+def scheduler_address(address: str) -> str:
+    """`tcp://HOST:PORT` (or tls://); a bare HOST:PORT means tcp.  ClusterError otherwise."""
+    match = ADDRESS.match(address.strip())
+    if not match or not 0 < int(match.group(3)) < 65536:
+        raise ClusterError(f"not a Dask scheduler address: {address!r} (expected tcp://HOST:PORT, e.g. "
+                           f"tcp://192.168.1.10:8786, or 'local')")
+    return f"{match.group(1) or 'tcp'}://{match.group(2)}:{match.group(3)}"
+
+
 def connect(address: str, timeout: float = CONNECT_SECONDS):
     """A distributed Client for `address`; ClusterError (one line naming it) when unreachable."""
+    address = scheduler_address(address)
     try:
         from distributed import Client
     except ImportError as exc:
