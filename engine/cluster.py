@@ -342,3 +342,77 @@ class DaskWorkers:
                 self.local_cluster.close(timeout=10)
             except Exception:
                 pass
+
+
+# -- a cluster of real processes on this machine (benchmark, tests) --------------------------------
+
+class ProcessCluster:
+    """`dask scheduler` plus `dask worker` processes on 127.0.0.1, as one would start them by hand,
+    each in its own process group; close() kills them all.  The scheduler runs without this
+    project on its path (it needs none); workers get `pythonpath` (default: this repository)."""
+
+    def __init__(self, directory, workers: int = 2, timeout: float = 60):
+        import json
+        import os
+        import subprocess
+        import sys
+        from pathlib import Path
+        self.directory, self.procs, self.timeout = Path(directory), [], timeout
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self.bin = Path(sys.executable).parent
+        self.repo = Path(__file__).resolve().parent.parent
+        self._subprocess, self._os = subprocess, os
+        info = self.directory / "scheduler.json"
+        try:
+            self._spawn(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                         "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(info)], "scheduler", None)
+            deadline = time.monotonic() + timeout
+            while not (info.exists() and info.stat().st_size):
+                if time.monotonic() > deadline or self.procs[0].poll() is not None:
+                    raise ClusterError(f"dask scheduler did not start: see {self.directory / 'scheduler.log'}")
+                time.sleep(0.05)
+            time.sleep(0.05)
+            self.address = json.loads(info.read_text())["address"]
+            self.client = connect(self.address, timeout=10)
+            for i in range(workers):
+                self.add_worker(f"w{i + 1}")
+        except BaseException:
+            self.close()
+            raise
+
+    def _spawn(self, args, name, pythonpath):
+        env = {k: v for k, v in self._os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+        if pythonpath:
+            env["PYTHONPATH"] = str(pythonpath)
+        with open(self.directory / f"{name}.log", "ab") as log:
+            proc = self._subprocess.Popen([str(self.bin / "dask"), *map(str, args)], stdout=log,
+                                          stderr=self._subprocess.STDOUT, cwd=self.directory, env=env,
+                                          start_new_session=True)
+        self.procs.append(proc)
+        return proc
+
+    def add_worker(self, name, pythonpath=None, nanny: bool = True):
+        """One one-thread worker process (under a nanny that restarts it, unless nanny=False)."""
+        before = len(self.client.scheduler_info()["workers"])
+        proc = self._spawn(["worker", self.address, "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1",
+                            "--name", name] + (["--nworkers", "1"] if nanny else ["--no-nanny"]),
+                           name, pythonpath or self.repo)
+        self.client.wait_for_workers(before + 1, timeout=self.timeout)
+        return proc
+
+    def stop(self, proc):
+        try:
+            self._os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait(timeout=10)
+
+    def close(self):
+        client = getattr(self, "client", None)
+        if client is not None:
+            try:
+                client.close(timeout=5)
+            except Exception:
+                pass
+        for proc in self.procs:
+            self.stop(proc)

@@ -19,12 +19,11 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 from engine import RenderSettings, render                     # noqa: E402
-from engine.cluster import ClusterError, running_units        # noqa: E402
+from engine.cluster import ClusterError, ProcessCluster, running_units  # noqa: E402
 from engine.default_scene import cornell_scene                # noqa: E402
 from engine.session import ENGINE_VERSION                     # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
-BIN = Path(sys.executable).parent
 SILENT = dict(log=lambda *a: None)
 
 
@@ -35,37 +34,8 @@ def _env(pythonpath=None):
     return env
 
 
-class Cluster:
-    """A scheduler (without this project on its path: it needs none) and workers, each in its
-    own process group, all killed at the end."""
-
-    def __init__(self, tmp: Path):
-        self.tmp, self.procs = tmp, []
-        tmp.mkdir(parents=True, exist_ok=True)
-        info = tmp / "scheduler.json"
-        self._spawn([BIN / "dask", "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                     "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(info)], "scheduler", None)
-        deadline = time.monotonic() + 30
-        while not (info.exists() and info.stat().st_size):
-            assert time.monotonic() < deadline, (tmp / "scheduler.log").read_text()
-            time.sleep(0.05)
-        time.sleep(0.05)
-        self.address = json.loads(info.read_text())["address"]
-        self.client = distributed.Client(self.address, timeout="10s", set_as_default=False)
-
-    def _spawn(self, argv, name, pythonpath):
-        log = open(self.tmp / f"{name}.log", "ab")
-        self.procs.append(subprocess.Popen([str(a) for a in argv], stdout=log, stderr=subprocess.STDOUT,
-                                           cwd=self.tmp, env=_env(pythonpath), start_new_session=True))
-        return self.procs[-1]
-
-    def add_worker(self, name, pythonpath=REPO, nanny=True):
-        before = len(self.client.scheduler_info()["workers"])
-        proc = self._spawn([BIN / "dask", "worker", self.address, "--nthreads", "1", "--no-dashboard",
-                            "--host", "127.0.0.1", "--name", name]
-                           + (["--nworkers", "1"] if nanny else ["--no-nanny"]), name, pythonpath)
-        self.client.wait_for_workers(before + 1, timeout=30)
-        return proc
+class Cluster(ProcessCluster):
+    """The engine's process cluster (each process in its own group, all SIGKILLed at the end)."""
 
     def worker_pids(self) -> dict:
         return self.client.run(os.getpid)
@@ -74,27 +44,11 @@ class Cluster:
         found = self.client.run(running_units, prefix="tncg15")
         return [k for keys in found.values() for k in keys]
 
-    def stop(self, proc=None):
-        for p in [proc] if proc is not None else self.procs:
-            try:
-                os.killpg(p.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            p.wait(timeout=10)
-
-    def close(self):
-        try:
-            self.client.close(timeout=5)
-        finally:
-            self.stop()
-
 
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory):
-    c = Cluster(tmp_path_factory.mktemp("dask"))
+    c = Cluster(tmp_path_factory.mktemp("dask"), workers=2)
     try:
-        c.add_worker("w1")
-        c.add_worker("w2")
         yield c
     finally:
         c.close()
@@ -182,7 +136,7 @@ def other_engine(tmp: Path, version: str) -> Path:
 def test_a_worker_of_another_engine_version_is_refused(cluster, tmp_path):
     """Alone it refuses the render with a message; next to good workers it gets no units."""
     old = other_engine(tmp_path, "0.0.9")
-    lonely = Cluster(tmp_path / "lonely")
+    lonely = Cluster(tmp_path / "lonely", workers=0)
     try:
         lonely.add_worker("old", pythonpath=old, nanny=False)
         with pytest.raises(ClusterError, match=r"worker tcp://127\.0\.0\.1:\d+ runs engine 0\.0\.9, this is "
