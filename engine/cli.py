@@ -121,7 +121,7 @@ def cmd_render(args) -> int:
         return stop.report_exit()
     log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     result = render(scene, settings, on_progress=None if args.quiet else progress_bar(),
-                    should_cancel=stop.requested, log=log)
+                    should_cancel=stop.requested, log=log, cluster=args.cluster)
     stats = result.stats
     bad_pixels = int((~np.isfinite(result.image)).any(axis=-1).sum())
     if bad_pixels:
@@ -150,6 +150,13 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_bench_cluster(args) -> int:
+    from .bench import run_bench_cluster
+    run_bench_cluster(resolution=tuple(args.resolution), samples=args.samples, workers=args.workers,
+                      repeats=args.repeats)
+    return 0
+
+
 def cmd_study(args) -> int:
     from .study import run_study
     mode = "full" if args.full else "quick"
@@ -175,6 +182,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
     r.add_argument("--stats-json", metavar="PATH")
     r.add_argument("--quiet", action="store_true")
+    r.add_argument("--cluster", metavar="ADDRESS",
+                   help="render the work units on a Dask cluster: its scheduler's tcp://HOST:PORT, or 'local' "
+                        "to start a LocalCluster here (README: Rendering on several machines)")
     add_settings_arguments(r)
     r.set_defaults(func=cmd_render)
     b = sub.add_parser("bench", help="rays/s, Embree share and thread speed-up on the built-in scene")
@@ -182,6 +192,14 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar=("W", "H"))
     b.add_argument("--samples", type=positive_int, default=64)
     b.set_defaults(func=cmd_bench)
+    bc = sub.add_parser("bench-cluster", help="the same render on the local pool and on a Dask cluster of "
+                                              "worker processes started here: the time ratio")
+    bc.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, default=(256, 256),
+                    metavar=("W", "H"))
+    bc.add_argument("--samples", type=positive_int, default=64)
+    bc.add_argument("--workers", type=bounded_int(1, 256), default=os.cpu_count() or 1)
+    bc.add_argument("--repeats", type=bounded_int(1, 100), default=3)
+    bc.set_defaults(func=cmd_bench_cluster)
     st = sub.add_parser("study", help="error and time for every knob (docs/accuracy-vs-time.md)")
     group = st.add_mutually_exclusive_group()
     group.add_argument("--quick", action="store_true", help="small and fast (CI); the default")

@@ -25,7 +25,7 @@ def render(scene, settings: RenderSettings | None = None, on_tile=None, should_c
     width, height = scene.resolution
     if cluster:
         from .cluster import DaskWorkers
-        workers = DaskWorkers(session, cluster)
+        workers = DaskWorkers(session, cluster, log=log)
     else:
         parallelism = choose_parallelism(settings.parallelism, threads) if threads > 1 else "threads"
         workers = make_workers(parallelism, session, threads)

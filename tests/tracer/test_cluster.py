@@ -1,0 +1,203 @@
+"""Rendering on a Dask cluster (engine/cluster.py) with real `dask scheduler` / `dask worker`
+processes on 127.0.0.1: the same image as the local pool bit for bit, a SIGKILLed worker, a
+cancelled render, an unreachable scheduler, a worker of another engine version, Ctrl-C."""
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from engine import RenderSettings, render                     # noqa: E402
+from engine.cluster import ClusterError, ProcessCluster, running_units  # noqa: E402
+from engine.default_scene import cornell_scene                # noqa: E402
+from engine.session import ENGINE_VERSION                     # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+SILENT = dict(log=lambda *a: None)
+
+
+def _env(pythonpath=None):
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    if pythonpath:
+        env["PYTHONPATH"] = str(pythonpath)
+    return env
+
+
+class Cluster(ProcessCluster):
+    """The engine's process cluster (each process in its own group, all SIGKILLed at the end)."""
+
+    def worker_pids(self) -> dict:
+        return self.client.run(os.getpid)
+
+    def running(self) -> list:
+        found = self.client.run(running_units, prefix="tncg15")
+        return [k for keys in found.values() for k in keys]
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    c = Cluster(tmp_path_factory.mktemp("dask"), workers=2)
+    try:
+        yield c
+    finally:
+        c.close()
+
+
+SCENE = dict(resolution=(96, 64))
+SETTINGS = dict(samples=24, tile_size=32, seed=11)
+
+
+def test_cluster_render_is_bit_for_bit_the_local_one(cluster):
+    """Determinism: 1 worker, 2 local processes and the 2-worker cluster give the same image."""
+    one = render(cornell_scene(**SCENE), RenderSettings(threads=1, **SETTINGS), **SILENT)
+    two = render(cornell_scene(**SCENE), RenderSettings(threads=2, parallelism="processes", **SETTINGS), **SILENT)
+    dask = render(cornell_scene(**SCENE), RenderSettings(threads=2, **SETTINGS), cluster=cluster.address, **SILENT)
+    assert dask.stats["parallelism"] == f"dask {cluster.address} (2 workers)"
+    assert dask.stats["units_done"] == dask.stats["units"] > 2
+    assert np.array_equal(one.image, two.image)
+    assert np.array_equal(dask.image, one.image)
+    assert np.array_equal(dask.variance, one.variance)
+    assert dask.image.mean() > 0.05
+    assert cluster.running() == []
+
+
+def test_a_worker_killed_mid_render_changes_nothing(cluster):
+    scene, settings = cornell_scene((128, 128)), RenderSettings(samples=64, tile_size=32, seed=4)
+    reference = render(scene, settings, **SILENT)
+    pids = cluster.worker_pids()
+    victim = sorted(pids.values())[0]
+    killed = []
+
+    def kill_once(*tile):
+        if not killed:
+            os.kill(victim, signal.SIGKILL)
+            killed.append(time.monotonic())
+
+    result = render(cornell_scene((128, 128)), settings, cluster=cluster.address, on_tile=kill_once, **SILENT)
+    assert killed and result.stats["units_done"] == result.stats["units"] >= 16
+    assert not result.cancelled
+    assert np.array_equal(result.image, reference.image)
+    with pytest.raises(ProcessLookupError):
+        os.kill(victim, 0)
+    cluster.client.wait_for_workers(2, timeout=30)                   # the nanny restarted it
+
+
+def test_a_cancelled_render_leaves_no_unit_running(cluster):
+    progress = []
+    result = render(cornell_scene((128, 128)), RenderSettings(samples=256, tile_size=32, seed=2),
+                    cluster=cluster.address, on_progress=lambda f, m: progress.append(f),
+                    should_cancel=lambda: len(progress) >= 1, progressive="passes", **SILENT)
+    assert result.cancelled and 1 <= result.stats["units_done"] < result.stats["units"]
+    assert result.image.mean() > 0                                   # the finished unit is kept
+    assert cluster.running() == []                                   # close() waited for the workers
+
+
+def test_unreachable_scheduler_is_one_line_within_10_s(tmp_path):
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]                                    # closed again: nobody listens
+    start = time.monotonic()
+    proc = subprocess.run([sys.executable, "-m", "engine", "render", "--resolution", "16", "16", "--quiet",
+                           "-o", str(tmp_path / "a.exr"), "--cluster", f"tcp://127.0.0.1:{port}"],
+                          cwd=REPO, env=_env(REPO), capture_output=True, text=True, timeout=60)
+    assert time.monotonic() - start < 10
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"tcp://127.0.0.1:{port}" in lines[0] and lines[0].startswith("python -m engine: error:")
+    assert not (tmp_path / "a.exr").exists()
+
+
+def test_a_bad_address_is_one_line():
+    with pytest.raises(ClusterError, match="not a Dask scheduler address"):
+        render(cornell_scene((16, 16)), RenderSettings(samples=1), cluster="http//nowhere", **SILENT)
+
+
+def other_engine(tmp: Path, version: str) -> Path:
+    """A copy of the engine package that calls itself `version`."""
+    shutil.copytree(REPO / "engine", tmp / "engine", ignore=shutil.ignore_patterns("__pycache__"))
+    session = tmp / "engine" / "session.py"
+    text = session.read_text()
+    assert f'ENGINE_VERSION = "{ENGINE_VERSION}"' in text
+    session.write_text(text.replace(f'ENGINE_VERSION = "{ENGINE_VERSION}"', f'ENGINE_VERSION = "{version}"'))
+    return tmp
+
+
+def test_a_worker_of_another_engine_version_is_refused(cluster, tmp_path):
+    """Alone it refuses the render with a message; next to good workers it gets no units."""
+    old = other_engine(tmp_path, "0.0.9")
+    lonely = Cluster(tmp_path / "lonely", workers=0)
+    try:
+        lonely.add_worker("old", pythonpath=old, nanny=False)
+        with pytest.raises(ClusterError, match=r"worker tcp://127\.0\.0\.1:\d+ runs engine 0\.0\.9, this is "
+                                                + ENGINE_VERSION.replace(".", r"\.")):
+            render(cornell_scene((16, 16)), RenderSettings(samples=1), cluster=lonely.address, **SILENT)
+    finally:
+        lonely.close()
+    proc = cluster.add_worker("old", pythonpath=old, nanny=False)
+    try:
+        messages = []
+        result = render(cornell_scene(**SCENE), RenderSettings(**SETTINGS), cluster=cluster.address,
+                        log=messages.append)
+        assert any("runs engine 0.0.9" in m and "refused" in m for m in messages)
+        assert result.stats["parallelism"] == f"dask {cluster.address} (2 workers)"
+        assert np.array_equal(result.image, render(cornell_scene(**SCENE), RenderSettings(**SETTINGS), **SILENT).image)
+    finally:
+        cluster.stop(proc)
+
+
+def test_a_unit_checks_the_engine_version_on_the_worker():
+    from engine.cluster import render_unit_task
+    with pytest.raises(RuntimeError, match=f"runs engine {ENGINE_VERSION}, this is 9.9.9: refused"):
+        render_unit_task(b"", "key", 0, "9.9.9")
+
+
+def test_ctrl_c_stops_like_esc_and_writes_the_finished_work(cluster, tmp_path):
+    out = tmp_path / "stopped.exr"
+    proc = subprocess.Popen([sys.executable, "-m", "engine", "render", "--resolution", "128", "128",
+                             "--samples", "256", "--tile-size", "32", "-o", str(out), "--cluster", cluster.address],
+                            cwd=REPO, env=_env(REPO), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    seen = threading.Event()
+    err = []
+
+    def read():
+        for chunk in iter(lambda: proc.stderr.read1(4096), b""):
+            err.append(chunk)
+            if re.search(rb"unit [1-9]\d*/", b"".join(err)):      # a unit merged: stop now
+                seen.set()
+
+    threading.Thread(target=read, daemon=True).start()
+    try:
+        assert seen.wait(60), b"".join(err).decode()
+        proc.send_signal(signal.SIGINT)
+        stdout = proc.stdout.read()
+        proc.wait(timeout=60)
+    finally:
+        proc.kill()
+    text = b"".join(err).decode()
+    assert proc.returncode == 130, text
+    assert "stopped by SIGINT" in text and out.exists()
+    assert "stopped early" in stdout.decode()
+    assert cluster.running() == []
+
+
+def test_cli_local_cluster_matches_the_local_pool(tmp_path):
+    """`--cluster local` starts a LocalCluster here (spawned workers re-import engine.__main__)."""
+    args = [sys.executable, "-m", "engine", "render", "--resolution", "48", "32", "--samples", "8", "--quiet"]
+    for name, extra in (("pool", []), ("local", ["--cluster", "local"])):
+        subprocess.run(args + ["-o", str(tmp_path / f"{name}.exr"), "--stats-json", str(tmp_path / f"{name}.json")]
+                       + extra, cwd=REPO, env=_env(REPO), check=True, timeout=120)
+    assert json.loads((tmp_path / "local.json").read_text())["parallelism"].startswith("dask local (")
+    import OpenImageIO as oiio
+    pool, local = (np.asarray(oiio.ImageBuf(str(tmp_path / f"{n}.exr")).get_pixels(oiio.FLOAT)) for n in ("pool", "local"))
+    assert pool.mean() > 0 and np.array_equal(pool, local)
