@@ -416,3 +416,19 @@ class ProcessCluster:
                 pass
         for proc in self.procs:
             self.stop(proc)
+
+
+def render_on_cluster(scene, settings, address: str, on_tile=None, should_cancel=None, on_progress=None,
+                      log=print, progressive: str = "tiles"):
+    """Render on a Dask cluster from a process that does not trace (the Blender add-on): the scene
+    is validated, planned and cut into units here, without geometry; the workers build it."""
+    from .effects import plan_effects
+    from .service import RemoteSession
+    settings.validate()
+    warnings = scene.validate()
+    facts = dict(warnings=warnings, accelerator="embree", accelerator_reason=f"on the Dask cluster {address}",
+                 plan=plan_effects(scene, settings, "embree"), build_seconds=0.0, setup_seconds=0.0)
+    session = RemoteSession(scene, settings, facts, progressive)
+    workers = DaskWorkers(session, address, log=log)
+    log(f"{settings.samples} spp, {len(session.units)} work units on {workers.describe}")
+    return session.run(workers, on_tile=on_tile, should_cancel=should_cancel, on_progress=on_progress)

@@ -47,6 +47,9 @@ def build_parser():
                    help="direct-light estimator (TNCG15 MC only)")
     r.add_argument("--sampler", choices=SAMPLER_CHOICES, type=str.lower,
                    help="random-number pattern (TNCG15 MC only)")
+    r.add_argument("--cluster", metavar="ADDRESS",
+                   help="render on a Dask cluster: its scheduler's tcp://HOST:PORT, or 'local' (TNCG15 MC only; "
+                        "as the add-on's Render cluster preference)")
     r.add_argument("--nested-dielectrics", action="store_true",
                    help="track nested glass media (TNCG15 MC only; Cycles has no such model)")
     r.add_argument("--threads", type=setting_int("threads"))
@@ -124,6 +127,8 @@ def render_file(args):
     """Checks everything it can before Blender opens the file; renders into a private temporary
     directory (Blender's temp files and its EXR), then writes each output atomically."""
     output = bridge.module("output")
+    if getattr(args, "cluster", None):
+        os.environ["TNCG15_CLUSTER"] = args.cluster      # read by worker_python.render_cluster()
     blend = os.path.abspath(args.file)
     problem = blend_problem(blend)
     if problem:

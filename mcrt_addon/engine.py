@@ -196,7 +196,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         t_start = time.perf_counter()
         scene = depsgraph.scene
         settings = scene.tncg15.to_settings(bridge.settings_class())
-        pool, no_workers = self._start_workers(settings)     # their imports overlap the export
+        cluster = worker_python.render_cluster()
+        pool, no_workers = (None, None) if cluster else self._start_workers(settings)   # imports overlap the export
         try:
             width, height = int(self.resolution_x), int(self.resolution_y)
             crop = border_rect(scene.render, width, height)
@@ -206,7 +207,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
                                     test_break=self._cancel_requested)
             if abs(scene.render.pixel_aspect_x - scene.render.pixel_aspect_y) > 1e-6:
                 exported.warnings.append("non-square pixel aspect is ignored")
-            if pool is None:
+            if pool is None and not cluster:
                 settings.accelerator, note = resolve_accelerator(settings.accelerator)
                 if note:
                     exported.warnings.append(note)
@@ -247,7 +248,11 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             print(*args)
 
         self.update_stats("", "TNCG15 MC | Rendering")
-        if pool is not None:
+        if cluster:
+            result = bridge.module("cluster").render_on_cluster(
+                exported.scene, settings, cluster, on_tile=on_tile, should_cancel=self._cancel_requested,
+                on_progress=on_progress, log=log)
+        elif pool is not None:
             result = bridge.module("service").render_in_workers(
                 exported.scene, settings, workers=pool, on_tile=on_tile, should_cancel=self._cancel_requested,
                 on_progress=on_progress, log=log)
@@ -261,7 +266,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             warnings.append(f"{n_bad[0]} pixels had NaN/infinite values and were set to black")
         stats = dict(getattr(result, "stats", {}) or {})
         stats["first_tile_seconds"] = first_tile[0] if first_tile else None
-        if pool is None:
+        if pool is None and not cluster:
             stats["parallelism"] = f"threads in Blender ({no_workers})"
         self.last.stats, self.last.warnings = stats, warnings
         self.last.cancelled = bool(getattr(result, "cancelled", False))

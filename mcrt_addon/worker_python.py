@@ -77,6 +77,16 @@ def extra_paths():
     return paths + ([VENDOR_WORKER] if os.path.isdir(VENDOR_WORKER) else [])
 
 
+def render_cluster(context=None) -> str:
+    """The Dask scheduler address set in the add-on's Preferences ('' = none); the add-on CLI's
+    --cluster sets it for one run through TNCG15_CLUSTER."""
+    if os.environ.get("TNCG15_CLUSTER"):
+        return os.environ["TNCG15_CLUSTER"]
+    context = context or bpy.context
+    addon = context.preferences.addons.get(__package__)
+    return getattr(addon.preferences, "render_cluster", "") if addon and addon.preferences else ""
+
+
 def preferred_python(context=None) -> str:
     context = context or bpy.context
     addon = context.preferences.addons.get(__package__)
@@ -90,9 +100,14 @@ class TNCG15Preferences(bpy.types.AddonPreferences):
         name="Python for render workers", subtype="FILE_PATH", default="",
         description="A Python with numpy and embreex that runs the tracer's worker processes "
                     "(empty: Blender's own Python with the bundled wheels)")
+    render_cluster: StringProperty(
+        name="Render cluster", default="",
+        description="Dask scheduler address (tcp://HOST:8786) whose workers render the work units; empty: "
+                    "worker processes on this machine.  Blender's Python needs dask and distributed")
 
     def draw(self, context):
         self.layout.prop(self, "worker_python")
+        self.layout.prop(self, "render_cluster")
         path, why = worker_python(self.worker_python)
         self.layout.label(text=f"Workers run: {path}" if path else why)
 

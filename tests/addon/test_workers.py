@@ -86,3 +86,21 @@ def test_workers_die_with_a_killed_command_line(command, tmp_path):
     while any(alive(w) for w in workers) and time.time() < deadline:
         time.sleep(0.05)
     assert not [w for w in workers if alive(w)], "orphaned render workers"
+
+
+def test_addon_cli_renders_on_a_dask_cluster_pixel_identical(tmp_path):
+    """--cluster (the add-on's Render cluster preference) sends the work units to Dask workers:
+    the same image as the local worker processes."""
+    from engine.film import read_image
+    blend = os.path.join(REPO, "sample_blends", "cornell.blend")
+    images = {}
+    for name, extra in (("local", []), ("dask", ["--cluster", "local"])):
+        out = tmp_path / f"{name}.exr"
+        r = subprocess.run([sys.executable, "-m", "mcrt_addon", "render", blend, "-o", str(out), "--samples", "8",
+                            "--resolution", "48", "32", "--seed", "4", "--stats-json", str(tmp_path / f"{name}.json"),
+                            *extra], cwd=REPO, capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr[-2000:]
+        images[name] = read_image(str(out))
+    import json
+    assert json.load(open(tmp_path / "dask.json"))["parallelism"].startswith("dask")
+    assert np.array_equal(images["local"], images["dask"])
