@@ -346,6 +346,17 @@ class DaskWorkers:
 
 # -- a cluster of real processes on this machine (benchmark, tests) --------------------------------
 
+# Dask settings for render workers: the statistical profiler samples every running thread's stack
+# every 10 ms (holding the GIL the NumPy bounce needs) and the monitors tick often; off or slower,
+# a unit renders about 6 % faster (bench-cluster: +26 % -> +19 % against the local pool).
+RENDER_WORKER_CONFIG = {
+    "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
+    "DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL": "1s",
+    "DASK_DISTRIBUTED__WORKER__MEMORY__MONITOR_INTERVAL": "1s",
+    "DASK_DISTRIBUTED__ADMIN__SYSTEM_MONITOR__INTERVAL": "2s",
+}
+
+
 class ProcessCluster:
     """`dask scheduler` plus `dask worker` processes on 127.0.0.1, as one would start them by hand,
     each in its own process group; close() kills them all.  The scheduler runs without this
@@ -382,6 +393,7 @@ class ProcessCluster:
 
     def _spawn(self, args, name, pythonpath):
         env = {k: v for k, v in self._os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+        env.update(RENDER_WORKER_CONFIG)
         if pythonpath:
             env["PYTHONPATH"] = str(pythonpath)
         with open(self.directory / f"{name}.log", "ab") as log:
