@@ -276,6 +276,14 @@ class AreaLight:
             raise SceneError(f"Light '{self.name}': area light has zero area")
 
 
+def check_vector(owner: str, label: str, value, non_negative: bool = False) -> np.ndarray:
+    """The 3 finite (and, if asked, non-negative) numbers of `value`, or a SceneError naming them."""
+    v = np.asarray(value, dtype=np.float64)
+    if v.shape != (3,) or not np.isfinite(v).all() or (non_negative and (v < 0).any()):
+        raise SceneError(f"{owner}: {label} must be 3 finite {'non-negative ' if non_negative else ''}numbers")
+    return v
+
+
 @dataclass
 class PointLight:
     """A Blender point light as Cycles has it: intensity I = power x colour / (4 pi) [W/sr] from
@@ -288,12 +296,8 @@ class PointLight:
     radius: float = 0.0
 
     def validate(self) -> None:
-        p = np.asarray(self.position, dtype=np.float64)
-        i = np.asarray(self.intensity, dtype=np.float64)
-        if p.shape != (3,) or not np.isfinite(p).all():
-            raise SceneError(f"Light '{self.name}': position must be 3 finite numbers")
-        if i.shape != (3,) or not np.isfinite(i).all() or (i < 0).any():
-            raise SceneError(f"Light '{self.name}': intensity must be 3 finite non-negative numbers")
+        check_vector(f"Light '{self.name}'", "position", self.position)
+        check_vector(f"Light '{self.name}'", "intensity", self.intensity, non_negative=True)
         if not (math.isfinite(self.radius) and self.radius >= 0):
             raise SceneError(f"Light '{self.name}': radius must be 0 or more, got {self.radius!r}")
 
@@ -309,12 +313,10 @@ class SunLight:
     angle: float = 0.0
 
     def validate(self) -> None:
-        d = np.asarray(self.direction, dtype=np.float64)
-        e = np.asarray(self.irradiance, dtype=np.float64)
-        if d.shape != (3,) or not np.isfinite(d).all() or not np.linalg.norm(d) > 0:
-            raise SceneError(f"Light '{self.name}': direction must be 3 finite numbers, not all 0")
-        if e.shape != (3,) or not np.isfinite(e).all() or (e < 0).any():
-            raise SceneError(f"Light '{self.name}': irradiance must be 3 finite non-negative numbers")
+        direction = check_vector(f"Light '{self.name}'", "direction", self.direction)
+        if not np.linalg.norm(direction) > 0:
+            raise SceneError(f"Light '{self.name}': direction must not be 0")
+        check_vector(f"Light '{self.name}'", "irradiance", self.irradiance, non_negative=True)
         if not (math.isfinite(self.angle) and 0 <= self.angle < math.pi):
             raise SceneError(f"Light '{self.name}': angle must be in [0, pi), got {self.angle!r}")
 
