@@ -278,8 +278,8 @@ class LightSampler:
                                                 (u_pick.take(local) - q) / (1.0 - q), u1.take(local), u2.take(local))
             point[:, local], normal[:, local], pdf[local], light[local] = p, nrm, pd, lt
         pdf = pdf * (1.0 - q)
-        w = point - x
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):     # unused samples (pdf 0)
+            w = point - x
             distance = np.sqrt(dot(w, w))
             direction = w / distance
         if q > 0 and far.any():
