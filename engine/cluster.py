@@ -348,7 +348,8 @@ class DaskWorkers:
 
 # Dask settings for render workers: the statistical profiler samples every running thread's stack
 # every 10 ms (holding the GIL the NumPy bounce needs) and the monitors tick often; off or slower,
-# a unit renders about 6 % faster (bench-cluster: +26 % -> +19 % against the local pool).
+# a unit renders a few per cent faster (bench-cluster against the local pool: +19 % to +35 % across
+# runs on this 2-core machine, about +26 % without them).
 RENDER_WORKER_CONFIG = {
     "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
     "DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL": "1s",
