@@ -11,31 +11,9 @@ import numpy as np
 import pytest
 
 from conftest import REPO
+from file_safety import alive, children
 from mcrt_addon import engine as engine_module
 from rendering import last_report, open_blend, render_operator
-
-
-def children(pid):
-    """Pids whose parent is `pid` (from /proc)."""
-    found = []
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                with open(f"/proc/{entry}/stat") as fh:
-                    fields = fh.read().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[1]) == pid and fields[0] != "Z":
-                found.append(int(entry))
-    return found
-
-
-def alive(pid):
-    try:
-        with open(f"/proc/{pid}/stat") as fh:
-            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
 
 
 def test_a_worker_crash_in_blender_is_reported_by_name_and_the_render_completes(samples, monkeypatch):

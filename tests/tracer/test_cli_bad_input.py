@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from engine.film import read_image
-from file_safety import OLD_OUTPUT, assert_one_line, snapshot
+from file_safety import OLD_OUTPUT, alive, assert_one_line, children, snapshot
 from engine.memory import check_memory, estimate_bytes
 from engine.scene import SceneError
 from engine.settings import RenderSettings
@@ -230,19 +230,6 @@ def start_render(tmp_path, *extra):
         assert chunk, f"the render ended early: {seen[-2000:]!r}"
         seen += chunk
     return proc
-
-
-def children(pid):
-    with open(f"/proc/{pid}/task/{pid}/children") as fh:
-        return [int(c) for c in fh.read().split()]
-
-
-def alive(pid):
-    try:
-        with open(f"/proc/{pid}/stat") as fh:
-            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False
 
 
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
