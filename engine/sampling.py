@@ -93,3 +93,14 @@ def uniform_sphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
     c, s = unit_circle(u2)
     return np.stack([r * c, r * s, z])
+
+
+def uniform_cone(u1: np.ndarray, u2: np.ndarray, axis: np.ndarray, one_minus_cos_max: np.ndarray):
+    """Direction rows uniform over the cone of directions within theta_max of the unit rows
+    `axis` (pdf 1 / (2 pi (1 - cos theta_max))), and the cosine of each to its axis.  The caller
+    passes 1 - cos theta_max in a form without cancellation for narrow cones."""
+    cos_t = 1.0 - u1 * one_minus_cos_max
+    sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
+    t1, t2 = orthonormal_basis(axis)
+    c, s = unit_circle(u2)
+    return cos_t * axis + sin_t * (c * t1 + s * t2), cos_t

@@ -39,7 +39,7 @@ import time
 import traceback
 from types import SimpleNamespace
 
-from .session import RenderSession, SessionFilm, make_tiles, make_units, tile_size_for
+from .session import RenderSession
 from .settings import RenderSettings
 
 TRACER_BASE = __package__                 # "engine", "tracer" or "<add-on package>.tracer"
@@ -360,19 +360,13 @@ class RemoteSession(RenderSession):
 
     def __init__(self, scene, settings: RenderSettings, facts: dict, progressive: str = "tiles"):
         settings.validate()
-        self.scene, self.settings, self.progressive = scene, settings, progressive
+        self.scene, self.settings = scene, settings
         self.warnings = list(facts["warnings"])
         self.accelerator, self.accelerator_reason = facts["accelerator"], facts["accelerator_reason"]
         self.plan = facts["plan"]
         self.geometry = SimpleNamespace(build_seconds=facts["build_seconds"])
         self.setup_seconds = facts["setup_seconds"]
-        width, height = scene.resolution
-        self.tile_size = tile_size_for(width, height, settings.tile_size)
-        self.tiles = make_tiles(width, height, self.tile_size)
-        self.units = make_units(self.tiles, settings.samples, progressive)
-        self.film = SessionFilm(width, height, self.units)
-        from .geometry import Counters
-        self.totals = Counters()
+        self.cut_frame(progressive)
 
     def render_unit(self, unit, cancel=None):
         raise RuntimeError("a RemoteSession renders its units in worker processes")

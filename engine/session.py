@@ -185,14 +185,19 @@ class RenderSession:
         self.plan.describe_light_kinds(self.lights)
         self.tracer = PathTracer(self.geometry, self.lights, scene.materials, self.plan, settings,
                                  scene.background)
-        width, height = scene.resolution
-        self.tile_size = tile_size_for(width, height, settings.tile_size)
+        self.cut_frame(progressive)
+        self.setup_seconds = time.perf_counter() - start
+
+    def cut_frame(self, progressive: str) -> None:
+        """Tiles, work units, an empty film and counters: the same on every machine for the same
+        scene and settings (a unit is found by its index anywhere)."""
+        width, height = self.scene.resolution
+        self.tile_size = tile_size_for(width, height, self.settings.tile_size)
         self.tiles = make_tiles(width, height, self.tile_size)
-        self.units = make_units(self.tiles, settings.samples, progressive)
+        self.units = make_units(self.tiles, self.settings.samples, progressive)
         self.progressive = progressive
         self.film = SessionFilm(width, height, self.units)
         self.totals = Counters()
-        self.setup_seconds = time.perf_counter() - start
 
     # -- one unit -------------------------------------------------------------------------
     def render_unit(self, unit: WorkUnit, cancel=None) -> UnitResult | None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling import cosine_directions, orthonormal_basis, unit_circle
+from ..sampling import cosine_directions, uniform_cone
 from ..vec import dot, rows
 
 
@@ -28,7 +28,7 @@ class DistantLights:
         d = np.array([s.direction for s in suns], dtype=np.float64).reshape(-1, 3)
         self.axis = rows(-d / np.linalg.norm(d, axis=1)[:, None])          # towards each sun
         half = np.array([0.5 * s.angle for s in suns], dtype=np.float64)
-        self.cos_max = np.cos(half)
+        self.one_minus_cos = 2.0 * np.sin(0.5 * half) ** 2             # 1 - cos(half), no cancellation
         self.delta = half < 1e-6
         sin2 = np.where(self.delta, 1.0, np.sin(half) ** 2)
         radiance = [np.where(self.delta[:, None], irradiance, irradiance / (np.pi * sin2)[:, None])]
@@ -59,14 +59,9 @@ class DistantLights:
         sun = np.flatnonzero(~world)
         if len(sun):
             j = slot.take(sun)
-            cos_max = self.cos_max.take(j)
-            cos_t = 1.0 - u1.take(sun) * (1.0 - cos_max)                     # uniform in the cone
-            sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
-            axis = self.axis.take(j, axis=1)
-            t1, t2 = orthonormal_basis(axis)
-            c, s = unit_circle(u2.take(sun))
-            direction[:, sun] = cos_t * axis + sin_t * (c * t1 + s * t2)
-            pdf[sun] = np.where(self.delta.take(j), 1.0, 1.0 / (2.0 * np.pi * np.maximum(1.0 - cos_max, 1e-300)))
+            one_minus = self.one_minus_cos.take(j)
+            direction[:, sun], _ = uniform_cone(u1.take(sun), u2.take(sun), self.axis.take(j, axis=1), one_minus)
+            pdf[sun] = np.where(self.delta.take(j), 1.0, 1.0 / (2.0 * np.pi * np.maximum(one_minus, 1e-300)))
         return direction, pdf * self.prob.take(slot), slot
 
     def world_pdf(self, n, d):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling import orthonormal_basis, unit_circle
+from ..sampling import uniform_cone
 from ..vec import dot, gather, rows
 
 
@@ -39,11 +39,7 @@ class PointLights:
             tan_b = r / d
         cos_b = 1.0 / np.sqrt(1.0 + tan_b * tan_b)
         one_minus = tan_b * tan_b * cos_b * cos_b / (1.0 + cos_b)         # 1 - cos beta, no cancellation
-        cos_t = 1.0 - u1 * one_minus
-        sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
-        t1, t2 = orthonormal_basis(np.broadcast_to(axis, x.shape))
-        cs, sn = unit_circle(u2)
-        w = cos_t * axis + sin_t * (cs * t1 + sn * t2)
+        w, cos_t = uniform_cone(u1, u2, axis, one_minus)
         with np.errstate(divide="ignore", invalid="ignore"):
             point = x + (d / cos_t) * w                                   # on the disk's plane
             pdf = np.where(r > 0, 1.0 / (2.0 * np.pi * one_minus), d2)
