@@ -125,8 +125,9 @@ def power_heuristic(n_f, p_f, n_g, p_g):
 
 
 class PathTracer:
-    def __init__(self, geometry, lights, materials, plan, settings, background):
+    def __init__(self, geometry, lights, materials, plan, settings, background, textures=None):
         self.geometry = geometry
+        self.textures = textures          # engine/textures.py HitTextures, or None (no textures)
         self.lights = lights
         self.mats = MaterialTable(materials)
         self.plan = plan
@@ -141,6 +142,8 @@ class PathTracer:
         self.final_rays = settings.estimator == "mis" and (self.mis or not self.use_nee)
         self.has_background = bool(self.background.max() > 0)
         self.world_nee = self.use_nee and lights.world is not None       # shadow rays sample the world
+        if textures is not None:         # a textured colour scatters whatever its unlinked value
+            self.mats.group = np.where(textures.has_color, self.mats.kind, self.mats.group).astype(np.int8)
         self.material_group = self.mats.group
         self.light_of_kind = {TRIANGLE: lights.triangle_light, SPHERE: lights.sphere_light,
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
@@ -210,6 +213,8 @@ class PathTracer:
         diffuse = slice(bounds[0], bounds[1])
         facing = surf.normal * np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)   # towards the ray
         color = self.mats.color.take(surf.material, axis=1)
+        if self.textures is not None:
+            color = self.textures.color(color, surf.material, hits.kind, hits.prim, hits.u, hits.v)
         dim = 1 + DIMS_PER_BOUNCE * p.bounce[:alive]                        # this hit's dimensions
         u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
         if self.use_nee and bounds[1] > bounds[0]:
@@ -265,6 +270,9 @@ class PathTracer:
         mat = surf.material
         lit = np.flatnonzero(self.mats.is_emissive.take(mat[:surfaces]))
         parts = [(lit, self.mats.emission.take(mat.take(lit), axis=1))] if len(lit) else []
+        if parts and self.textures is not None:
+            parts[0] = (lit, self.textures.emission(parts[0][1], mat.take(lit), hits.kind.take(lit),
+                                                    hits.prim.take(lit), hits.u.take(lit), hits.v.take(lit)))
         for (group, kind), (a, b) in hits.runs.items():
             if group == PASS:
                 lamps, prim = self.geometry.lights, hits.prim[a:b]
@@ -386,6 +394,8 @@ class PathTracer:
         off_x = np.repeat(offset, ns) if ns > 1 else offset
         u_pick, u1, u2 = u if u is not None else (rng.random(k), rng.random(k), rng.random(k))
         ls = self.lights.sample(x, nx, u_pick, u1, u2)
+        if self.textures is not None:                   # textured emitters: Le at the sampled point
+            ls.radiance = self.textures.light_radiance(ls.radiance, ls.light, ls.point)
         w = ls.direction
         cos_x = dot(nx, w)
         cos_ly = dot(ls.normal, w)
