@@ -92,3 +92,18 @@ def test_image_file_is_sent_as_a_path_and_read_as_blender_reads_it(empty_scene, 
     blender = blender.reshape(3, 5, image.channels)[:, :, :3]
     np.testing.assert_allclose(loaded[:, :, :3], blender, atol=1e-6)
     assert not np.allclose(loaded[::-1, :, :3], blender, atol=1e-6)   # negative control: unflipped rows
+
+
+def test_an_image_used_by_two_materials_is_exported_once(empty_scene, make_samples_module):
+    ms = make_samples_module
+    ms.camera(empty_scene)
+    image = ms.packed_image("Shared", 2, 2, lambda x, y: (0.2 * x, 0.5, 0.7 * y))
+    for k, (kind, socket) in enumerate((("ShaderNodeBsdfDiffuse", "Color"), ("ShaderNodeEmission", "Color"))):
+        mat = ms.image_material(f"User {k}", kind, socket, image, **({"Strength": 3.0} if k else {}))
+        ob = ms.plane(empty_scene, f"Card {k}", [(k, 0, 0), (k + 1, 0, 0), (k + 1, 0, 1), (k, 0, 1)], mat)
+        ms.set_uvs(ob, {"UVMap": [(0, 0), (1, 0), (1, 1), (0, 1)]})
+    scene = export().scene
+    assert [t.name for t in scene.textures] == ["Shared"]
+    users = {m.name: m for m in scene.materials}
+    assert users["User 0"].color_texture.texture == 0 and users["User 1"].emission_texture.texture == 0
+    assert users["User 1"].emission_texture.scale == (3.0, 3.0, 3.0)

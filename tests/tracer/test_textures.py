@@ -215,3 +215,20 @@ def test_textured_emitter_control_mean_radiance_is_caught(monkeypatch):
     z = (a.mean() - b.mean()) / np.sqrt(a.var(ddof=1) / len(a) + b.var(ddof=1) / len(b) + 1e-30)
     print(f"mean radiance: textured {a.mean():.5f} two quads {b.mean():.5f} z={z:+.2f}")
     assert abs(z) > 4.5
+
+
+def test_octree_and_brute_force_read_the_same_texels_as_embree():
+    """The UVs come from the accelerator's barycentrics: every mode renders the same picture."""
+    checker = (np.indices((8, 8)).sum(axis=0) % 2)[:, :, None].repeat(3, axis=2).astype(np.float32)
+    scene = texture_scene([ImageTexture("Checker", pixels=checker, colorspace="Non-Color")],
+                          TextureSlot(0, "Closest", "REPEAT"))
+    scene.resolution = (24, 24)
+    images = {a: render(copy.deepcopy(scene), RenderSettings(samples=4, seed=2, accelerator=a),
+                        log=lambda *x: None).image for a in ("embree", "octree", "brute")}
+    mean = images["embree"].mean()
+    for a in ("octree", "brute"):
+        assert np.abs(images[a] - images["embree"]).mean() < 0.01 * mean, a
+    flipped = copy.deepcopy(scene)
+    flipped.textures[0].pixels = checker[::-1].copy()              # negative control: the other parity
+    other = render(flipped, RenderSettings(samples=4, seed=2, accelerator="octree"), log=lambda *x: None).image
+    assert np.abs(other - images["embree"]).mean() > 0.1 * mean
