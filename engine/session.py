@@ -181,7 +181,7 @@ class RenderSession:
         for w in self.warnings:
             log(f"warning: {w}")
         self.geometry = SceneGeometry(scene, self.accelerator, self.plan)
-        textures, lit = load_textures(scene, self.plan, log)    # engine/textures.py
+        textures, lit = load_textures(scene, self.plan, log, self.warnings)    # engine/textures.py
         self.lights = LightSampler(lit, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
                                    lamps_hittable=self.plan.area_lights, world=self.plan.world_light)
         self.plan.describe_light_kinds(self.lights)

@@ -365,14 +365,17 @@ class LoadedTextures:
         return HitTextures(self.textures, self.scene, geometry.triangles, geometry.triangle_material, lights)
 
 
-def load_textures(scene, plan, log=print):
+def load_textures(scene, plan, log=print, warnings=None):
     """(LoadedTextures or None, the scene the lights are built from): images are read here, once
-    per render session (worker), only when the effect plan has `textures` on."""
+    per render session (worker), only when the effect plan has `textures` on.  Images that cannot
+    be read are logged and added to `warnings` (a worker sends them to Blender)."""
     if not plan.enabled.get("textures"):
         return None, scene
     textures = TextureSet(scene)
     for warning in textures.warnings:
         log(f"warning: {warning}")
+        if warnings is not None:
+            warnings.append(warning)
     if not (textures.has_color.any() or textures.has_emission.any()):
         return None, scene
     return LoadedTextures(textures, scene), with_texture_means(scene, textures)

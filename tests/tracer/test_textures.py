@@ -232,3 +232,15 @@ def test_octree_and_brute_force_read_the_same_texels_as_embree():
     flipped.textures[0].pixels = checker[::-1].copy()              # negative control: the other parity
     other = render(flipped, RenderSettings(samples=4, seed=2, accelerator="octree"), log=lambda *x: None).image
     assert np.abs(other - images["embree"]).mean() > 0.1 * mean
+
+
+def test_unreadable_image_file_warns_and_renders_the_unlinked_colour(tmp_path):
+    bad = tmp_path / "broken.png"
+    bad.write_bytes(b"not a png at all")
+    scene = texture_scene([ImageTexture("Broken", path=str(bad))], TextureSlot(0))
+    logs = []
+    result = render(scene, RenderSettings(samples=1), log=logs.append)
+    warning = [line for line in logs if "broken.png" in line]
+    assert warning and "Material 'Textured'" in warning[0] and "image 'Broken'" in warning[0], logs
+    assert np.isfinite(result.image).all()
+    assert any("broken.png" in w for w in result.warnings)          # what a worker sends to Blender
