@@ -139,6 +139,7 @@ class LoadedTexture:
     pixels: np.ndarray             # (H, W, C) float32, bottom row first
     decode_after: bool             # 8-bit sRGB: decode after interpolation
     mean: np.ndarray               # (3,) mean linear colour
+    decoded: np.ndarray | None = None   # 8-bit sRGB: the texels decoded (Closest reads these)
 
 
 class TextureSet:
@@ -177,11 +178,15 @@ class TextureSet:
             pixels = srgb_to_linear(pixels).astype(np.float32)
         col = rgb(pixels.reshape(-1, pixels.shape[2]).astype(np.float64))
         mean = (srgb_to_linear(col) if decode_after else col).mean(axis=0)
-        return LoadedTexture(np.ascontiguousarray(pixels), decode_after, mean)
+        decoded = srgb_to_linear(pixels).astype(np.float32) if decode_after else None
+        return LoadedTexture(np.ascontiguousarray(pixels), decode_after, mean, decoded)
 
     def evaluate(self, slot: TextureSlot, u, v) -> np.ndarray:
         """Linear colour rows (3, N) of `slot` at texture coordinates (u, v), times its scale."""
         tex = self.loaded[slot.texture]
+        if tex.decode_after and slot.interpolation == "Closest":      # decode(texel): decoded once
+            return rgb(lookup(tex.decoded, u, v, "Closest", slot.extension)).T * \
+                np.asarray(slot.scale, dtype=np.float64)[:, None]
         value = rgb(lookup(tex.pixels, u, v, slot.interpolation, slot.extension))
         if tex.decode_after:
             value = srgb_to_linear(value)
@@ -209,20 +214,32 @@ def triangle_uvs(scene) -> np.ndarray:
 
 
 def interpolate_uv(tri_uv, prim, b1, b2):
-    """(u, v) at barycentrics (b1, b2) of vertices 1 and 2 of triangles `prim` (Embree's u, v)."""
-    c = tri_uv[prim]
+    """(u, v) at barycentrics (b1, b2) of vertices 1 and 2 of triangles `prim` (Embree's u, v);
+    tri_uv: corner UVs (T, 3, 2), or as rows (6, T) (u0 v0 u1 v1 u2 v2, faster to gather)."""
+    c = tri_uv.take(prim, axis=1) if tri_uv.ndim == 2 else tri_uv[prim].reshape(-1, 6).T
     b0 = 1.0 - b1 - b2
-    uv = b0[:, None] * c[:, 0] + b1[:, None] * c[:, 1] + b2[:, None] * c[:, 2]
-    return uv[:, 0], uv[:, 1]
+    return b0 * c[0] + b1 * c[2] + b2 * c[4], b0 * c[1] + b1 * c[3] + b2 * c[5]
 
 
-def barycentrics(tri, point):
-    """Barycentrics (b1, b2) of points (N, 3) in triangles (N, 3, 3) (projected onto their plane)."""
-    e1, e2, w = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], point - tri[:, 0]
-    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
-    w1, w2 = (w * e1).sum(1), (w * e2).sum(1)
-    det = np.maximum(d11 * d22 - d12 * d12, 1e-300)
-    return (d22 * w1 - d12 * w2) / det, (d11 * w2 - d12 * w1) / det
+class Barycentrics:
+    """Barycentrics (b1, b2) of points in a fixed set of triangles (projected onto their plane),
+    with the per-triangle terms computed once: w = p - v0, b = Gram(e1, e2)^-1 (w.e1, w.e2)."""
+
+    def __init__(self, tri):
+        tri = np.asarray(tri, dtype=np.float64).reshape(-1, 3, 3)
+        e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+        inv = 1.0 / np.maximum(d11 * d22 - d12 * d12, 1e-300)
+        self.v0, self.e1, self.e2 = tri[:, 0].T.copy(), e1.T.copy(), e2.T.copy()      # rows (3, K)
+        self.d11, self.d12, self.d22 = d11 * inv, d12 * inv, d22 * inv
+
+    def __call__(self, k, point):
+        """(b1, b2) of points (rows (3, N)) in triangles k (N,) of the set."""
+        w = point - self.v0.take(k, axis=1)
+        w1 = (w * self.e1.take(k, axis=1)).sum(axis=0)
+        w2 = (w * self.e2.take(k, axis=1)).sum(axis=0)
+        d12 = self.d12.take(k)
+        return self.d22.take(k) * w1 - d12 * w2, self.d11.take(k) * w2 - d12 * w1
 
 
 def textured_materials(scene):
@@ -292,21 +309,24 @@ class HitTextures:
 
     def __init__(self, textures: TextureSet, scene, triangles, triangle_material, lights=None):
         self.textures = textures
-        self.tri_uv = triangle_uvs(scene)
+        self.tri_uv = np.ascontiguousarray(triangle_uvs(scene).reshape(-1, 6).T)     # rows (6, T)
         self.triangles = triangles                    # (T, 3, 3)
         self.triangle_material = triangle_material
         self.has_color, self.has_emission = textures.has_color, textures.has_emission
         self.light_a = self.light_b = None
         if lights is not None and self.has_emission.any() and len(lights.triangle_light):
-            # Each light's triangles (a parallelogram light is a pair), for light samples.
+            # Each light's triangles (a parallelogram light is a pair), for light samples: numbers k
+            # into `emitting` (the textured emitters' triangles, whose barycentric terms are kept).
             total = len(lights.radiance[0])
             tl = lights.triangle_light
-            tt = np.flatnonzero((tl >= 0) & self.has_emission.take(triangle_material))
+            self.emitting = np.flatnonzero((tl >= 0) & self.has_emission.take(triangle_material))
+            k = np.arange(len(self.emitting))
             self.light_a = np.full(total, -1, np.int64)
             self.light_b = np.full(total, -1, np.int64)
-            self.light_a[tl[tt[::-1]]] = tt[::-1]              # first triangle of each light
-            self.light_b[tl[tt]] = tt                          # last one
+            self.light_a[tl[self.emitting[::-1]]] = k[::-1]      # first triangle of each light
+            self.light_b[tl[self.emitting]] = k                  # last one
             self.light_b[self.light_b == self.light_a] = -1
+            self.barycentrics = Barycentrics(triangles[self.emitting])
 
     def _apply(self, values, slots, which, material, kind, prim, b1, b2):
         from .geometry import TRIANGLE
@@ -340,13 +360,14 @@ class HitTextures:
             return radiance
         a = a.take(sel)
         b = self.light_b.take(light.take(sel))
-        p = point[:, sel].T
-        b1, b2 = barycentrics(self.triangles[a], p)
+        p = point if len(sel) == point.shape[1] else point.take(sel, axis=1)
+        b1, b2 = self.barycentrics(a, p)
         other = (b >= 0) & ((b1 < 0) | (b2 < 0) | (b1 + b2 > 1))    # the pair's second triangle
-        tri = np.where(other, b, a)
+        k = np.where(other, b, a)
         if other.any():
             o = np.flatnonzero(other)
-            b1[o], b2[o] = barycentrics(self.triangles[tri[o]], p[o])
+            b1[o], b2[o] = self.barycentrics(k.take(o), p.take(o, axis=1))
+        tri = self.emitting.take(k)
         material = self.triangle_material.take(tri)
         from .geometry import TRIANGLE
         le = self.emission(radiance[:, sel], material, np.full(len(sel), TRIANGLE, np.int8), tri, b1, b2)

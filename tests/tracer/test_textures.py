@@ -84,6 +84,11 @@ def test_8bit_srgb_is_interpolated_then_decoded_and_float_decoded_first():
         assert value[:, 0] == pytest.approx([expected] * 3)
     scene = texture_scene([ImageTexture("ramp", pixels=two, colorspace="Non-Color")], slot)
     assert TextureSet(scene).evaluate(slot, np.array([0.5]), np.array([0.5]))[:, 0] == pytest.approx([0.5] * 3)
+    grey = np.array([[[0.2], [0.7]]], np.float32)
+    closest = TextureSlot(0, "Closest", "EXTEND", scale=(1, 2, 3))
+    scene = texture_scene([ImageTexture("grey", pixels=grey, colorspace="sRGB")], closest)
+    value = TextureSet(scene).evaluate(closest, np.array([0.2, 0.9]), np.array([0.5, 0.5]))
+    assert value == pytest.approx(np.outer([1, 2, 3], srgb_to_linear([0.2, 0.7])))
 
 
 def test_missing_image_warns_with_material_and_image_and_renders_the_unlinked_colour(tmp_path):
