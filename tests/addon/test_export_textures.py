@@ -107,3 +107,26 @@ def test_an_image_used_by_two_materials_is_exported_once(empty_scene, make_sampl
     users = {m.name: m for m in scene.materials}
     assert users["User 0"].color_texture.texture == 0 and users["User 1"].emission_texture.texture == 0
     assert users["User 1"].emission_texture.scale == (3.0, 3.0, 3.0)
+
+
+def test_principled_emission_colour_texture_and_uv_warnings(empty_scene, make_samples_module):
+    ms = make_samples_module
+    ms.camera(empty_scene)
+    image = ms.packed_image("Glow", 2, 1, lambda x, y: (x, 0.5, 0.25))
+    socket = "Emission Color" if bpy.app.version >= (4, 0, 0) else "Emission"
+    mat = ms.image_material("Glowing", "ShaderNodeBsdfPrincipled", socket, image, uv_map="Missing",
+                            **{"Emission Strength": 5.0})
+    ob = ms.plane(empty_scene, "Sign", [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)], mat)
+    ms.set_uvs(ob, {"UVMap": [(0, 0), (1, 0), (1, 1), (0, 1)]})
+    result = export()
+    glowing = by_name(result.scene.materials, "Glowing")
+    assert glowing.emission_texture is not None and glowing.emission_texture.scale == (5.0, 5.0, 5.0)
+    assert any("Object 'Sign': no UV map 'Missing'" in w for w in result.warnings), result.warnings
+    assert np.array_equal(result.scene.meshes[0].uvs, np.zeros((2, 3, 2)))
+    # a Mapping node between the UVs and the image is not modelled: a warning naming it
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    tex = next(n for n in nodes if n.bl_idname == "ShaderNodeTexImage")
+    mapping = nodes.new("ShaderNodeMapping")
+    links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+    warnings = export().warnings
+    assert any("Material 'Glowing'" in w and "Mapping" in w and "not modelled" in w for w in warnings), warnings

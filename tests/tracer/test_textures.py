@@ -249,3 +249,24 @@ def test_unreadable_image_file_warns_and_renders_the_unlinked_colour(tmp_path):
     assert warning and "Material 'Textured'" in warning[0] and "image 'Broken'" in warning[0], logs
     assert np.isfinite(result.image).all()
     assert any("broken.png" in w for w in result.warnings)          # what a worker sends to Blender
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["materials"][0].update(color_texture={"texture": "Nope"}),
+     "Material 'Textured': color_texture: unknown texture 'Nope'"),
+    (lambda d: d["materials"][0].update(color_texture=7), "Material 'Textured': color_texture: must be a JSON object"),
+    (lambda d: d["textures"][0].pop("pixels"), "Image 'Packed': path is missing"),
+    (lambda d: d["textures"][0].update(pixels="@gone"), "Image 'Packed': pixels: array 'gone' not found"),
+    (lambda d: d["materials"][0]["color_texture"].update(interpolation="Cubic"),
+     "Material 'Textured': unknown texture interpolation 'Cubic'"),
+])
+def test_bad_texture_fields_in_scene_files_are_one_line(tmp_path, edit, message):
+    import json
+    scene = texture_scene([ImageTexture("Packed", pixels=np.ones((2, 2, 3), np.float32))], TextureSlot(0))
+    path = tmp_path / "scene.json"
+    save_scene(scene, str(path))
+    data = json.loads(path.read_text())
+    edit(data)
+    path.write_text(json.dumps(data))
+    with pytest.raises(SceneError, match=message.replace("(", r"\(")):
+        load_scene(str(path)).validate()
