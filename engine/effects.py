@@ -50,7 +50,8 @@ class EffectPlan:
         how = {"parallelogram": "spherical rectangles (area where grazing or not rectangular)",
                "triangle": "spherical triangles (area where grazing or tiny)",
                "sphere": "cones from outside, area from inside", "polygon": "area (disks, ellipses)",
-               "point": "the cone of the disk they show (a delta light without a radius)"}
+               "point": "the cone of the disk they show (a delta light without a radius; spot lights "
+                         "weight it by their cone's falloff)"}
         counts = {}
         for _, kind, _ in lights.kinds:
             counts[kind.kind] = counts.get(kind.kind, 0) + kind.count

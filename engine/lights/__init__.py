@@ -107,6 +107,23 @@ class _Gather:
         return np.arange(self.count - n, self.count)
 
 
+class SpotFalloff:
+    """Scales the radiance of light samples from spot lights (global light numbers `first` ...
+    of the point-light kind) by their cone's falloff towards the receiver."""
+
+    def __init__(self, points, first: int):
+        self.points, self.first = points, first
+
+    def falloff(self, light, direction, radiance):
+        local = light - self.first
+        sel = np.flatnonzero((local >= 0) & (local < self.points.count))
+        if not len(sel):
+            return radiance
+        radiance = np.array(radiance)
+        radiance[:, sel] *= self.points.spot_factor(local.take(sel), -direction.take(sel, axis=1))
+        return radiance
+
+
 class LightSampler:
     """All emitters of a scene.  solid_angle: sample each light by solid angle where stable
     (else by area, as eq. 2.11); spatial: pick lights with the light tree (else by power);
@@ -182,6 +199,7 @@ class LightSampler:
         for name, kind, gather in self.kinds:
             base[name] = start
             start += kind.count
+        self.spots = SpotFalloff(self.kinds[-1][1], base["pt"]) if scene.points and len(pts.spots) else None
         self.count_all = start
         self.kind_of = np.concatenate([np.full(k.count, i) for i, (_, k, _) in enumerate(self.kinds)]
                                       ) if self.kinds else np.zeros(0, np.int64)
@@ -288,7 +306,10 @@ class LightSampler:
             d, pd, slot = self.distant.sample(n.take(sky, axis=1), u_pick.take(sky) / q, u1.take(sky), u2.take(sky))
             direction[:, sky], pdf[sky], distance[sky], light[sky] = d, q * pd, np.inf, self.count_all + slot
             point[:, sky], normal[:, sky] = x.take(sky, axis=1) + d, -d
-        return LightSample(point, direction, distance, normal, self.radiance.take(light, axis=1), pdf, light,
+        radiance = self.radiance.take(light, axis=1)
+        if self.spots is not None:                                 # spot lights: the cone's falloff
+            radiance = self.spots.falloff(light, direction, radiance)
+        return LightSample(point, direction, distance, normal, radiance, pdf, light,
                            LIGHT_OFFSET * max_abs3(point), self.one_sided.take(light))
 
     def _sample_local(self, x, n, u_pick, u1, u2):

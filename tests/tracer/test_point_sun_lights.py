@@ -33,6 +33,39 @@ def test_point_light_irradiance(estimator, radius):
     assert mean == pytest.approx(i / (math.pi * (h * h + radius * radius)), rel=1e-4, abs=4 * se)
 
 
+# A spot of size 120 degrees and blend 0.5 pointing straight down from 2 m above the floor, its
+# falloff a(theta) measured by rendering that floor with Cycles (direct light, 1024 spp):
+# {falloff model: [(horizontal offset of the floor point, a)]}.
+SPOT_MEASURED = {
+    "smoothstep": [(0.98, 0.9990), (2.18, 0.7879), (2.66, 0.3569), (3.62, 0.0)],        # Cycles 5.0.1
+    "cosine-smoothstep": [(0.98, 0.8963), (2.18, 0.5325), (2.66, 0.2146), (3.62, 0.0)],  # Cycles 3.4.1
+}
+
+
+@pytest.mark.parametrize("estimator", ["report", "mis"])
+@pytest.mark.parametrize("falloff", sorted(SPOT_MEASURED))
+def test_spot_light_falloff_matches_cycles(estimator, falloff):
+    """L = I a(theta) cos(theta) / (pi d^2) on a white floor, with a(theta) as Cycles renders it."""
+    i, h = 5.0, 2.0
+    for offset, a in SPOT_MEASURED[falloff]:
+        spot = PointLight("Spot", (offset, 0.0, h), (i, i, i), 0.0, spot_size=math.radians(120), spot_blend=0.5,
+                          spot_direction=(0.0, 0.0, -1.0), spot_falloff=falloff)
+        mean, se = floor_radiance(white_floor(points=[spot]), estimator, spp=64)
+        d2 = h * h + offset * offset
+        expected = i * a * (h / math.sqrt(d2)) / (math.pi * d2)
+        assert mean == pytest.approx(expected, rel=0.004, abs=4 * se + 1e-12), (offset, a)
+
+
+def test_a_spot_light_lights_only_its_cone_and_keeps_the_point_lights_power_on_its_axis():
+    i, h = 5.0, 2.0
+    down = PointLight("Spot", (0, 0, h), (i, i, i), 0.5, spot_size=math.radians(40), spot_direction=(0, 0, -1))
+    away = PointLight("Spot", (0, 0, h), (i, i, i), 0.5, spot_size=math.radians(40), spot_direction=(0, 1, 0.2))
+    bulb = PointLight("Bulb", (0, 0, h), (i, i, i), 0.5)
+    assert floor_radiance(white_floor(points=[down]), "mis")[0] == pytest.approx(
+        floor_radiance(white_floor(points=[bulb]), "mis")[0], rel=1e-9)
+    assert floor_radiance(white_floor(points=[away]), "mis")[0] == 0.0
+
+
 @pytest.mark.parametrize("estimator", ESTIMATORS)
 @pytest.mark.parametrize("angle", [0.0, 0.5])
 def test_sun_irradiance(estimator, angle):
