@@ -16,7 +16,7 @@ import numpy as np
 from .scene import DIFFUSE, GLASS, MIRROR
 
 EFFECTS = ("triangles", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass", "emission",
-           "world_light", "direct_light", "solid_angle", "light_tree", "mis")
+           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -126,6 +126,15 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
+
+    round_lamps = [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
+    specular = mirror or glass
+    set_effect("seen_lamps", round_lamps and specular and not report,
+               f"lamps {_names(round_lamps)} seen in mirrors and through glass (Cycles' light visibility)"
+               if round_lamps and specular and not report else
+               "no point/spot light with a radius and no sun with an angle" if not round_lamps else
+               "no mirror or glass: point, spot and sun lights are reached by shadow rays only" if not specular else
+               "report estimator: point, spot and sun lights are reached by shadow rays only")
 
     sky = max(scene.background) > 0
     world = bool(sky and diffuse and settings.shadow_rays > 0 and not report)

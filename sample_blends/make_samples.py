@@ -21,7 +21,7 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
   point_light    the room lit by a point light of radius 10 cm
   sun_window     a sun shining through a window in the left wall
   spot_light     the room lit by a spot light (30 degrees, blend 0.3) aimed at the floor and back
-                 wall, and a dim point light
+                 wall, and a dim point light; both are seen in a mirror ball
   sky_lit        an open scene: a floor with a box, a ball and a low wall under a uniform sky (the
                  world colour is the only light)
   nested_glass   glass inside glass: a "water" sphere (IOR 1.33) inside a glass cube (IOR 1.5),
@@ -464,7 +464,9 @@ def make_spot_light(scene, res):
     mesh_object(scene, "Box", lambda bm: cube(bm, 1.0), bpy.data.materials["White"], location=(0.2, 0.4, 0.3),
                 rotation=(0, 0, math.radians(-15)), scale=(0.35, 0.35, 0.6))
     mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.22), diffuse("Pink", (0.8, 0.4, 0.5)),
-                location=(-0.35, -0.2, 0.22), smooth=True)
+                location=(-0.5, -0.25, 0.22), smooth=True)
+    mesh_object(scene, "Mirror ball", lambda bm: uv_sphere(bm, 0.18), mirror("Mirror", (0.9, 0.9, 0.9)),
+                location=(-0.1, 0.05, 0.18), smooth=True)
     camera(scene)
     black_world(scene)
     settings(scene, res)

@@ -32,6 +32,7 @@ from .selection import LightTree, PowerSelection
 from .spheres import Spheres
 from .distant import DistantLights
 from .points import PointLights
+from .seen import SeenLamps
 from .triangles import Triangles
 
 # Shadow-ray end points are pulled off the light by this relative amount (as the
@@ -264,6 +265,7 @@ class LightSampler:
             self.bsdf_reachable = np.append(self.bsdf_reachable, reach)
             self.count += int((self.distant.power > 0).sum())
         self.world = None if self.distant is None or self.distant.world_slot is None else self.distant
+        self.seen = SeenLamps.of(scene)        # round lamps and suns that mirror and glass rays meet
 
     def _bounds(self):
         """(centre (K,3), radius, normal axis (K,3), cos of the normal cone) of every light."""

@@ -84,3 +84,44 @@ def test_a_point_light_behind_a_wall_casts_a_shadow_and_a_bright_one_does_not_fa
     with pytest.raises(Exception, match="Bulb"):
         render(white_floor(points=[PointLight("Bulb", (0, 0, 2.0), (5.0, -1.0, 5.0), 0.1)]), RenderSettings(samples=1),
                log=lambda *a: None)
+
+
+def mirror_facing(lens=2000.0, **lights):
+    """A mirror (reflectance 1) in the plane y = 2 and a camera at the origin looking at it along
+    +y: the reflected rays run back along -y past the origin."""
+    from engine.scene import MIRROR
+    mats = [Material("Mirror", MIRROR, (1.0, 1.0, 1.0))]
+    mirror = Quad("Mirror", np.array([(-5, 2, -5), (5, 2, -5), (5, 2, 5), (-5, 2, 5)], float), 0)
+    cam = Camera.look_at((0, 0, 0), (0, 1, 0), up=(0, 0, 1), lens=lens)
+    return Scene(cam, mats, quads=[mirror], resolution=(4, 4), **lights)
+
+
+def mirror_radiance(scene, estimator="mis"):
+    result = render(scene, RenderSettings(samples=16, max_depth=2, estimator=estimator), log=lambda *a: None)
+    return result.image[..., 0].mean(), result.stats["effects"]["seen_lamps"]
+
+
+@pytest.mark.parametrize("falloff", ["smoothstep", "cosine-smoothstep"])
+def test_point_spot_and_sun_lights_are_seen_in_a_mirror_as_cycles_shows_them(falloff):
+    """Cycles (5.0, measured) shows a point light of radius r in a mirror with radiance I / (pi r^2),
+    a sun of angle theta with E / (pi sin^2(theta / 2)); camera rays do not see them."""
+    i, r = 5.0, 0.3
+    behind = (0.0, -1.0, 0.0)                   # on the reflected rays' way, behind the camera
+    bulb = PointLight("Bulb", behind, (i, i, i), r)
+    assert mirror_radiance(mirror_facing(points=[bulb])) == (pytest.approx(i / (math.pi * r * r), rel=1e-6), True)
+    spot = dict(spot_size=math.radians(60), spot_blend=0.0, spot_falloff=falloff)
+    facing = PointLight("Spot", behind, (i, i, i), r, spot_direction=(0, 1, 0), **spot)
+    away = PointLight("Spot", behind, (i, i, i), r, spot_direction=(0, -1, 0), **spot)
+    assert mirror_radiance(mirror_facing(points=[facing]))[0] == pytest.approx(i / (math.pi * r * r), rel=1e-4)
+    assert mirror_radiance(mirror_facing(points=[away]))[0] == 0.0
+    e, angle = 3.0, math.radians(20)
+    sun = SunLight("Sun", (0.0, 1.0, 0.0), (e, e, e), angle)          # shining along +y, seen along -y
+    assert mirror_radiance(mirror_facing(suns=[sun]))[0] == pytest.approx(e / (math.pi * math.sin(angle / 2) ** 2),
+                                                                          rel=1e-6)
+    # not seen: by the camera directly, by the report's estimator, outside the sun's disk
+    direct = mirror_facing(points=[bulb])
+    direct.camera = Camera.look_at((0, 0, 0), (0, -1, 0), up=(0, 0, 1), lens=2000.0)    # at the lamp itself
+    assert mirror_radiance(direct)[0] == 0.0
+    assert mirror_radiance(mirror_facing(points=[bulb]), "report") == (0.0, False)
+    tilted = SunLight("Sun", (math.sin(0.2), math.cos(0.2), 0.0), (e, e, e), angle)   # 11.5 deg off
+    assert mirror_radiance(mirror_facing(suns=[tilted]))[0] == 0.0
