@@ -127,12 +127,14 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
 
-    round_lamps = [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
+    round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
+                   if light.visible_glossy or light.visible_transmission]
     specular = mirror or glass
     set_effect("seen_lamps", round_lamps and specular and not report,
                f"lamps {_names(round_lamps)} seen in mirrors and through glass (Cycles' light visibility)"
                if round_lamps and specular and not report else
-               "no point/spot light with a radius and no sun with an angle" if not round_lamps else
+               "no point/spot light with a radius and no sun with an angle seen by glossy or transmission rays"
+               if not round_lamps else
                "no mirror or glass: point, spot and sun lights are reached by shadow rays only" if not specular else
                "report estimator: point, spot and sun lights are reached by shadow rays only")
 

@@ -270,7 +270,8 @@ class PathTracer:
             return
         tmax = np.full(len(p.pixel), np.inf)
         tmax[hits.index] = hits.t
-        le = self.seen_lamps.radiance(p.o.take(rays, axis=1), p.d.take(rays, axis=1), tmax.take(rays))
+        le = self.seen_lamps.radiance(p.o.take(rays, axis=1), p.d.take(rays, axis=1), tmax.take(rays),
+                                      p.ray_kind.take(rays) == TRANSMISSION_RAY)
         p.radiance[:, rays] += p.beta.take(rays, axis=1) * le
 
     def emission(self, p, surf, hits, surfaces):

@@ -292,7 +292,9 @@ class PointLight:
     """A Blender point or spot light as Cycles has it: intensity I = power x colour / (4 pi)
     [W/sr] from `position`; with a radius it is a disk of that radius facing each receiver, of
     radiance I / (pi r^2) (measured against Cycles 3.4 and 5.0: irradiance I / (d^2 + r^2) on its
-    axis).  It casts no shadow and is reached by shadow rays only.
+    axis).  It casts no shadow; it lights diffuse surfaces through shadow rays and, with a radius,
+    is seen in mirrors and through glass (engine/lights/seen.py).  The visibility flags are Cycles'
+    ray visibility of the light object (camera rays never see it, as in Cycles).
 
     A spot light (`spot_size` > 0, the cone's full angle in radians as Blender's Spot Size, up to
     pi) emits I x a(theta) at the angle theta to `spot_direction`: a = 0 outside the cone, and
@@ -310,6 +312,9 @@ class PointLight:
     spot_blend: float = 0.0
     spot_direction: tuple = (0.0, 0.0, -1.0)
     spot_falloff: str = "smoothstep"
+    lights_diffuse: bool = True         # Cycles' ray visibility: Diffuse off lights no diffuse surface
+    visible_glossy: bool = True         # seen in mirrors (engine/lights/seen.py)
+    visible_transmission: bool = True   # seen through glass
 
     @property
     def is_spot(self) -> bool:
@@ -337,11 +342,16 @@ class PointLight:
 class SunLight:
     """A Blender sun light: light arriving from directions within `angle` (its angular
     diameter, radians) about -`direction` (the direction the light travels), with irradiance
-    `irradiance` [W/m^2] on a surface facing it.  Reached by shadow rays only."""
+    `irradiance` [W/m^2] on a surface facing it.  Lights diffuse surfaces through shadow rays; with
+    an angle it is seen in mirrors and through glass (engine/lights/seen.py).  The visibility flags
+    are Cycles' ray visibility of the light object, as for PointLight."""
     name: str
     direction: tuple
     irradiance: tuple
     angle: float = 0.0
+    lights_diffuse: bool = True
+    visible_glossy: bool = True
+    visible_transmission: bool = True
 
     def validate(self) -> None:
         direction = check_vector(f"Light '{self.name}'", "direction", self.direction)

@@ -191,16 +191,18 @@ class LightSampler:
             self.kinds.append(("sph", Spheres(*stack(sph, 2)), sph))
         if poly.count:
             self.kinds.append(("poly", Polygons([c for part in poly.parts for c in part]), poly))
-        if scene.points:
-            pts = PointLights(scene.points)
+        points = [p for p in scene.points if p.lights_diffuse]        # Diffuse visibility off: no light
+        suns = [s for s in scene.suns if s.lights_diffuse]
+        if points:
+            pts = PointLights(points)
             gather_pts = _Gather()
-            gather_pts.add(scene.points, pts.radiance_rows.T, False)
+            gather_pts.add(points, pts.radiance_rows.T, False)
             self.kinds.append(("pt", pts, gather_pts))
         base, start = {}, 0
         for name, kind, gather in self.kinds:
             base[name] = start
             start += kind.count
-        self.spots = SpotFalloff(self.kinds[-1][1], base["pt"]) if scene.points and len(pts.spots) else None
+        self.spots = SpotFalloff(self.kinds[-1][1], base["pt"]) if points and len(pts.spots) else None
         self.count_all = start
         self.kind_of = np.concatenate([np.full(k.count, i) for i, (_, k, _) in enumerate(self.kinds)]
                                       ) if self.kinds else np.zeros(0, np.int64)
@@ -227,8 +229,8 @@ class LightSampler:
         for light, ref in zip(scene.lights, light_ref):
             if ref is not None:
                 self.bsdf_reachable[glob(ref)] = lamps_hittable and light.visible_diffuse
-        if scene.points:                                           # shadow rays only
-            self.bsdf_reachable[base["pt"]:base["pt"] + len(scene.points)] = False
+        if points:                                                 # shadow rays only
+            self.bsdf_reachable[base["pt"]:base["pt"] + len(points)] = False
 
         # Per light: area, the report's power (area x mean radiance) and bounds for the tree.
         area = np.concatenate([k.area for _, k, _ in self.kinds]) if self.kinds else np.zeros(0)
@@ -237,8 +239,8 @@ class LightSampler:
         self.report_power = area * mean_le
         sides = np.where(self.one_sided, 1.0, 2.0)
         self.power = np.pi * area * mean_le * sides               # emitted flux
-        if scene.points:                                           # flux 4 pi I (the report: flux / pi)
-            span = slice(base["pt"], base["pt"] + len(scene.points))
+        if points:                                                 # flux 4 pi I (the report: flux / pi)
+            span = slice(base["pt"], base["pt"] + len(points))
             self.power[span] = self.kinds[-1][1].flux
             self.report_power[span] = self.power[span] / np.pi
         self.count = int((self.report_power > 0).sum())
@@ -252,8 +254,8 @@ class LightSampler:
         # Lights at infinity (suns, and the world under the mis / solid-angle estimators) are
         # picked with probability `distant_share`, the lamps and emissive surfaces share the rest.
         self.distant, self.distant_share = None, 0.0
-        if scene.suns or (world and max(scene.background) > 0):
-            self.distant = DistantLights(scene.suns, scene.background if world else (0.0, 0.0, 0.0),
+        if suns or (world and max(scene.background) > 0):
+            self.distant = DistantLights(suns, scene.background if world else (0.0, 0.0, 0.0),
                                          scene_radius(scene))
             lamps, far = float(self.power.sum()), float(self.distant.power.sum())
             self.distant_share = 1.0 if lamps <= 0 else float(np.clip(far / (far + lamps), *self.DISTANT_SHARE))

@@ -24,18 +24,23 @@ from .points import PointLights
 
 
 class SeenLamps:
-    """Emission of the round lamps and suns that rays reach, for glossy and transmission rays."""
+    """Emission of the round lamps and suns that rays reach, for glossy and transmission rays
+    (each lamp for the kinds its visibility flags allow)."""
 
     def __init__(self, scene):
-        bulbs = [i for i, p in enumerate(scene.points) if p.radius > 0 and max(p.intensity) > 0]
+        def shown(light):
+            return light.visible_glossy or light.visible_transmission
+        bulbs = [i for i, p in enumerate(scene.points) if p.radius > 0 and max(p.intensity) > 0 and shown(p)]
+        suns = [s for s in scene.suns if s.angle > 2e-6 and max(s.irradiance) > 0 and shown(s)]   # not delta
         self.points = PointLights(scene.points) if bulbs else None
         self.bulbs = np.array(bulbs, dtype=np.int64)
-        suns = [s for s in scene.suns if s.angle > 0 and max(s.irradiance) > 0]
         self.suns = DistantLights(suns, (0.0, 0.0, 0.0), 1.0) if suns else None
         if self.suns is not None:
             self.cos_half = 1.0 - self.suns.one_minus_cos
-            self.suns_seen = np.flatnonzero(~self.suns.delta)
-        self.names = [scene.points[i].name for i in bulbs] + [s.name for s in suns]
+        lights = [scene.points[i] for i in bulbs] + suns
+        self.visible = {"glossy": np.array([light.visible_glossy for light in lights], dtype=bool),
+                        "transmission": np.array([light.visible_transmission for light in lights], dtype=bool)}
+        self.names = [light.name for light in lights]
 
     @classmethod
     def of(cls, scene):
@@ -43,32 +48,27 @@ class SeenLamps:
         seen = cls(scene)
         return seen if seen.names else None
 
-    def radiance(self, o, d, tmax) -> np.ndarray:
+    def radiance(self, o, d, tmax, transmission) -> np.ndarray:
         """(3, N) emission along the rays (rows o, unit rows d) before distance tmax (inf: the
-        ray escapes, and suns in its direction count too)."""
+        ray escapes, and suns in its direction count too); `transmission` (N,) bool: the ray
+        left through glass (else it was reflected)."""
         total = np.zeros(o.shape)
-        if self.points is not None:
-            for j in self.bulbs:
-                c, r = self.points.center[:, j], float(self.points.radius[j])
-                outside = dot(o - c[:, None], o - c[:, None]) > r * r
-                t = intersect_sphere(o, d, c, r, tmax)
-                hit = np.flatnonzero(outside & (t < tmax))
-                if len(hit):
-                    le = self.points.radiance_rows[:, j:j + 1]
-                    emitted = o.take(hit, axis=1) - c[:, None]          # from the light to the origin
-                    emitted = emitted / np.sqrt(dot(emitted, emitted))
-                    factor = self.points.spot_factor(np.full(len(hit), j), emitted)
-                    total[:, hit] += le * factor
+        visible = np.where(transmission[None, :], self.visible["transmission"][:, None],
+                           self.visible["glossy"][:, None])               # (lights, N)
+        for slot, j in enumerate(self.bulbs):
+            c, r = self.points.center[:, j], float(self.points.radius[j])
+            outside = dot(o - c[:, None], o - c[:, None]) > r * r
+            t = intersect_sphere(o, d, c, r, tmax)
+            hit = np.flatnonzero(visible[slot] & outside & (t < tmax))
+            if len(hit):
+                emitted = o.take(hit, axis=1) - c[:, None]               # from the light to the origin
+                emitted = emitted / np.sqrt(dot(emitted, emitted))
+                factor = self.points.spot_factor(np.full(len(hit), j), emitted)
+                total[:, hit] += self.points.radiance_rows[:, j:j + 1] * factor
         if self.suns is not None:
-            escaped = np.flatnonzero(np.isinf(tmax))
-            if len(escaped):
-                de = d.take(escaped, axis=1)
-                for k in self.suns_seen:
-                    inside = dot(de, self.suns.axis[:, k:k + 1]) >= self.cos_half[k]
-                    total[:, escaped[inside]] += self.suns.radiance[:, k:k + 1]
+            escaped = np.isinf(tmax)
+            for k in range(self.suns.count):
+                inside = np.flatnonzero(visible[len(self.bulbs) + k] & escaped
+                                        & (dot(d, self.suns.axis[:, k:k + 1]) >= self.cos_half[k]))
+                total[:, inside] += self.suns.radiance[:, k:k + 1]
         return total
-
-    def describe(self) -> str:
-        shown = ", ".join(f"'{n}'" for n in self.names[:3]) + (" ..." if len(self.names) > 3 else "")
-        return f"lamps {shown} seen in mirrors and through glass (Cycles' default light visibility)"
-

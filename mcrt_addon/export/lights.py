@@ -83,6 +83,13 @@ def area_light_visibility(ob):
                 visible_transmission=mis and _object_flag(ob, "transmission"))
 
 
+def lamp_visibility(ob):
+    """Cycles' ray visibility of a point, spot or sun light object -> the light's flags (camera
+    and diffuse rays never meet these lamps in the tracer: see engine/lights/seen.py)."""
+    flags = area_light_visibility(ob)
+    return {key: flags[key] for key in ("lights_diffuse", "visible_glossy", "visible_transmission")}
+
+
 def export_area_light(ob, matrix, version, *, AreaLight, warnings):
     light = ob.data
     local, area = area_light_polygon(light)
@@ -128,7 +135,7 @@ def export_point_light(ob, matrix, version, *, PointLight):
                     spot_falloff="smoothstep" if version >= (4, 0, 0) else "cosine-smoothstep")
     # Cycles takes the radius as it is, whatever the object's scale.
     return PointLight(name=ob.name, position=tuple(float(v) for v in m[:3, 3]),
-                      intensity=intensity, radius=radius, **spot)
+                      intensity=intensity, radius=radius, **spot, **lamp_visibility(ob))
 
 
 def export_sun_light(ob, matrix, version, *, SunLight):
@@ -140,4 +147,4 @@ def export_sun_light(ob, matrix, version, *, SunLight):
     if not np.linalg.norm(down) > 0:
         raise ValueError(f"Light '{ob.name}': sun has a zero scale, so no direction")
     return SunLight(name=ob.name, direction=tuple(float(v) for v in down / np.linalg.norm(down)),
-                    irradiance=irradiance, angle=angle)
+                    irradiance=irradiance, angle=angle, **lamp_visibility(ob))

@@ -342,6 +342,7 @@ def test_point_and_sun_lights_are_exported_in_cycles_units(scene):
     spot_light.spot_size, spot_light.spot_blend = math.radians(50), 0.25
     spot = bpy.data.objects.new("Spot", spot_light)
     spot.rotation_euler = (math.radians(90), 0, 0)         # the cone along +Y
+    spot.visible_glossy = False                             # Object > Visibility > Ray Visibility
     scene.collection.objects.link(spot)
     res = export()
     point = next(p for p in res.scene.points if p.name == "Bulb")
@@ -356,6 +357,8 @@ def test_point_and_sun_lights_are_exported_in_cycles_units(scene):
     assert cone.spot_size == pytest.approx(math.radians(50)) and cone.spot_blend == pytest.approx(0.25)
     assert cone.spot_direction == pytest.approx((0.0, 1.0, 0.0), abs=1e-6)
     assert cone.spot_falloff == ("smoothstep" if bpy.app.version >= (4, 0, 0) else "cosine-smoothstep")
+    assert (cone.visible_glossy, cone.visible_transmission, cone.lights_diffuse) == (False, True, True)
+    assert (point.visible_glossy, s.visible_glossy) == (True, True)
     assert not res.warnings
 
 

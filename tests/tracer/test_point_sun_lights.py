@@ -125,3 +125,18 @@ def test_point_spot_and_sun_lights_are_seen_in_a_mirror_as_cycles_shows_them(fal
     assert mirror_radiance(mirror_facing(points=[bulb]), "report") == (0.0, False)
     tilted = SunLight("Sun", (math.sin(0.2), math.cos(0.2), 0.0), (e, e, e), angle)   # 11.5 deg off
     assert mirror_radiance(mirror_facing(suns=[tilted]))[0] == 0.0
+
+
+def test_light_visibility_flags_as_cycles_ray_visibility():
+    """Diffuse visibility off: the lamp lights no diffuse surface; Glossy off: no mirror shows it."""
+    i, r = 5.0, 0.3
+    lit = floor_radiance(white_floor(points=[PointLight("Bulb", (0, 0, 2.0), (i, i, i), r)]), "mis", spp=16)[0]
+    unlit = floor_radiance(white_floor(points=[PointLight("Bulb", (0, 0, 2.0), (i, i, i), r, lights_diffuse=False)]),
+                           "mis", spp=16)[0]
+    assert lit > 0.1 and unlit == 0.0
+    hidden = PointLight("Bulb", (0.0, -1.0, 0.0), (i, i, i), r, visible_glossy=False)
+    assert mirror_radiance(mirror_facing(points=[hidden])) == (0.0, True)     # glass would still show it
+    hidden.visible_transmission = False
+    assert mirror_radiance(mirror_facing(points=[hidden])) == (0.0, False)
+    sun = SunLight("Sun", (0.0, 1.0, 0.0), (3.0, 3.0, 3.0), 0.3, visible_glossy=False, visible_transmission=True)
+    assert mirror_radiance(mirror_facing(suns=[sun])) == (0.0, True)     # seen through glass only: none here
