@@ -17,7 +17,7 @@ from .scene import DIFFUSE, GLASS, MIRROR
 from .textures import textured_materials
 
 EFFECTS = ("triangles", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass", "emission",
-           "world_light", "direct_light", "solid_angle", "light_tree", "mis", "textures")
+           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -51,7 +51,8 @@ class EffectPlan:
         how = {"parallelogram": "spherical rectangles (area where grazing or not rectangular)",
                "triangle": "spherical triangles (area where grazing or tiny)",
                "sphere": "cones from outside, area from inside", "polygon": "area (disks, ellipses)",
-               "point": "the cone of the disk they show (a delta light without a radius)"}
+               "point": "the cone of the disk they show (a delta light without a radius; spot lights "
+                         "weight it by their cone's falloff)"}
         counts = {}
         for _, kind, _ in lights.kinds:
             counts[kind.kind] = counts.get(kind.kind, 0) + kind.count
@@ -126,6 +127,17 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
+
+    round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
+                   if light.visible_glossy or light.visible_transmission]
+    specular = mirror or glass
+    set_effect("seen_lamps", round_lamps and specular and not report,
+               f"lamps {_names(round_lamps)} seen in mirrors and through glass (Cycles' light visibility)"
+               if round_lamps and specular and not report else
+               "no point/spot light with a radius and no sun with an angle seen by glossy or transmission rays"
+               if not round_lamps else
+               "no mirror or glass: point, spot and sun lights are reached by shadow rays only" if not specular else
+               "report estimator: point, spot and sun lights are reached by shadow rays only")
 
     sky = max(scene.background) > 0
     world = bool(sky and diffuse and settings.shadow_rays > 0 and not report)

@@ -145,6 +145,7 @@ class PathTracer:
         if textures is not None:         # a textured colour scatters whatever its unlinked value
             self.mats.group = np.where(textures.has_color, self.mats.kind, self.mats.group).astype(np.int8)
         self.material_group = self.mats.group
+        self.seen_lamps = lights.seen if plan.enabled.get("seen_lamps") else None
         self.light_of_kind = {TRIANGLE: lights.triangle_light, SPHERE: lights.sphere_light,
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
 
@@ -195,7 +196,10 @@ class PathTracer:
                                           light_group=PASS, ray_kind=p.ray_kind,
                                           forced_group=None if final is None or not final.any()
                                           else np.where(final, BLACK, -1))
-        # 2. Misses: the background.
+        # 2. Round lamps and suns met by mirror and glass rays (engine/lights/seen.py).
+        if self.seen_lamps is not None:
+            self.lamps_seen(p, hits)
+        # Misses: the background.
         if len(hits.miss):
             finished.append(self.misses(p, hits.miss))
         p = p.take(hits.index)
@@ -262,6 +266,18 @@ class PathTracer:
                                                       p_world)
             radiance += p.beta.take(miss, axis=1) * self.background[:, None] * weight
         return p.pixel.take(miss), radiance
+
+    def lamps_seen(self, p, hits):
+        """Emission of point, spot and sun lights reached by glossy and transmission rays before
+        their hit (weight 1: only a specular bounce sends such rays, and shadow rays could not)."""
+        rays = np.flatnonzero((p.ray_kind == GLOSSY_RAY) | (p.ray_kind == TRANSMISSION_RAY))
+        if not len(rays):
+            return
+        tmax = np.full(len(p.pixel), np.inf)
+        tmax[hits.index] = hits.t
+        le = self.seen_lamps.radiance(p.o.take(rays, axis=1), p.d.take(rays, axis=1), tmax.take(rays),
+                                      p.ray_kind.take(rays) == TRANSMISSION_RAY)
+        p.radiance[:, rays] += p.beta.take(rays, axis=1) * le
 
     def emission(self, p, surf, hits, surfaces):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after

@@ -1,4 +1,4 @@
-"""Scene-file fields of image textures (format version 3; engine/scene_io.py):
+"""Scene-file fields of image textures (format version 4; engine/scene_io.py):
 
     "textures": [{"name": "Checker", "path": "checker.png", "colorspace": "sRGB"},
                  {"name": "Packed", "pixels": "@texture1_pixels", "colorspace": "sRGB", "is_float": false}],
