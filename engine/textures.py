@@ -13,8 +13,8 @@ Colour), looked up through per-corner UVs as Cycles does.
   images are decoded on load.  Non-Color / Linear images are used as they are.
 * Lookup (Cycles' kernel image interpolation, CPU): Closest reads texel floor(u W); Linear reads
   the 4 texels around u W - 0.5 and blends them bilinearly.  REPEAT wraps texel indices, EXTEND
-  clamps them, CLIP returns 0 outside [0, 1]^2 and reads 0 for texels beyond the border, MIRROR
-  reflects them.
+  clamps them, CLIP reads 0 for texels beyond the border (Closest: 0 outside [0, 1)^2; Linear fades
+  to 0 over the half texel outside, as Cycles 3.4-5.0 do), MIRROR reflects them.
 """
 from __future__ import annotations
 
@@ -100,8 +100,6 @@ def lookup(pixels, u, v, interpolation="Linear", extension="REPEAT"):
         y0, y1 = _wrap(iy, h, extension), _wrap(iy + 1, h, extension)
         out = ((1 - ty) * ((1 - tx) * _read(pixels, x0, y0) + tx * _read(pixels, x1, y0))
                + ty * ((1 - tx) * _read(pixels, x0, y1) + tx * _read(pixels, x1, y1)))
-    if extension == "CLIP":
-        out[(u < 0) | (u > 1) | (v < 0) | (v > 1)] = 0.0
     return out
 
 

@@ -52,7 +52,9 @@ def test_wrap_modes_linear_at_the_border():
     assert at(0.0, 0.25, "Linear", "EXTEND")[0] == pytest.approx(0.0)
     grey = np.full((2, 4, 1), 0.8, np.float32)
     assert at(0.0, 0.25, "Linear", "CLIP", grey)[0] == pytest.approx(0.4)    # outside texels read 0
-    assert at(1.01, 0.25, "Linear", "CLIP", grey)[0] == 0.0                  # outside [0, 1]: 0
+    # Cycles: the border texels fade out over the half texel beyond [0, 1] (x = 1.05 * 4 - 0.5 = 3.7)
+    assert at(1.05, 0.25, "Linear", "CLIP", grey)[0] == pytest.approx(0.3 * 0.8)
+    assert at(1.13, 0.25, "Linear", "CLIP", grey)[0] == 0.0                  # a full half texel out
     assert at(0.5, 0.25, "Linear", "CLIP", grey)[0] == pytest.approx(0.8)
 
 
