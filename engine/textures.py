@@ -112,7 +112,8 @@ def rgb(values):
 
 # -- loading -------------------------------------------------------------------------------------
 def read_image(path: str):
-    """(pixels (H, W, C) float32 with row 0 at the bottom, is_float) via OpenImageIO; raises OSError."""
+    """(pixels (H, W, C) float32 with row 0 at the bottom, is_float: not 8-bit) via OpenImageIO;
+    raises OSError."""
     try:
         import OpenImageIO as oiio
     except ImportError as exc:
@@ -125,7 +126,9 @@ def read_image(path: str):
         data = inp.read_image(0, 0, 0, spec.nchannels, "float")
         if data is None:
             raise OSError(inp.geterror() or "cannot read")
-        is_float = spec.format.basetype in (oiio.FLOAT, oiio.HALF, oiio.DOUBLE)
+        # Cycles keeps only 8-bit images as stored bytes (decoded after interpolation); 16-bit and
+        # float images become floats, decoded on load.
+        is_float = spec.format.basetype not in (oiio.UINT8, oiio.INT8)
     finally:
         inp.close()
     pixels = np.asarray(data, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)

@@ -133,6 +133,13 @@ def test_image_files_are_read_bottom_row_first(tmp_path):
     pixels, is_float = read_image(path)
     assert is_float and pixels.shape == (2, 3, 3)
     assert pixels[1, :, 0].tolist() == [1.0] * 3 and pixels[0, :, 0].tolist() == [0.0] * 3
+    for fmt, floating in (("uint8", False), ("uint16", True)):     # Cycles: only 8-bit stays bytes
+        buf = oiio.ImageBuf(oiio.ImageSpec(3, 2, 3, fmt))
+        buf.set_pixels(oiio.ROI(), top_first)
+        png = str(tmp_path / f"rows_{fmt}.png")
+        assert buf.write(png)
+        pixels, is_float = read_image(png)
+        assert is_float == floating and pixels[1, :, 0].tolist() == [1.0] * 3
 
 
 def test_effect_plan_reports_textures_only_where_there_are_some():
