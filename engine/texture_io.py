@@ -8,7 +8,7 @@
     "meshes": [{..., "uvs": "@mesh0_uvs"}]          # (3 T, 2) corner UVs, 3 rows per triangle
 
 A relative "path" is relative to the scene file's directory.  "pixels" (height, width, channels)
-have row 0 at the bottom (v = 0), as Blender's.
+have row 0 at the bottom (v = 0), as Blender's; uint8 arrays are bytes (value / 255).
 """
 from __future__ import annotations
 
@@ -38,7 +38,8 @@ def read_textures(top: Fields, arrays: dict, base_dir: str) -> list:
                     raise SceneError(f"{f.owner}: pixels: array '{value[1:]}' not found in the NPZ file")
                 value = arrays[value[1:]]
             try:
-                pixels = np.asarray(value, dtype=np.float32)
+                pixels = np.asarray(value)
+                pixels = pixels if pixels.dtype == np.uint8 else pixels.astype(np.float32)
             except (TypeError, ValueError):
                 f.fail("pixels", "a (height, width, channels) array of numbers", value)
             if pixels.ndim == 2:
@@ -84,7 +85,8 @@ def textures_json(scene, arrays: dict) -> list:
     for i, t in enumerate(scene.textures):
         entry = {"name": t.name, "colorspace": t.colorspace, "is_float": bool(t.is_float)}
         if t.pixels is not None:
-            arrays[f"texture{i}_pixels"] = np.asarray(t.pixels, dtype=np.float32)
+            px = np.asarray(t.pixels)
+            arrays[f"texture{i}_pixels"] = px if px.dtype == np.uint8 else px.astype(np.float32)
             entry["pixels"] = f"@texture{i}_pixels"
         else:
             entry["path"] = t.path

@@ -30,8 +30,8 @@ LINEAR_SPACES = ("Non-Color", "Linear", "Linear Rec.709", "Raw", "Linear CIE-XYZ
 
 @dataclass
 class ImageTexture:
-    """One image.  `path`: a file for OpenImageIO; or `pixels` (H, W, C) float32, row 0 = bottom,
-    values as stored (`is_float` False: 8-bit values / 255)."""
+    """One image.  `path`: a file for OpenImageIO; or `pixels` (H, W, C), row 0 = bottom, values as
+    stored: uint8 bytes (8-bit images, 4x smaller to send to the workers) or float32 (`is_float`)."""
     name: str
     path: str = ""
     pixels: np.ndarray | None = None
@@ -52,6 +52,14 @@ class TextureSlot:
     scale: tuple = (1.0, 1.0, 1.0)     # multiplies the colour (emission strength)
     node: str = ""                     # the node's name, for messages
     uv_map: str = ""                   # the UV map the exporter read ("": the active render one)
+
+
+def as_float(pixels) -> np.ndarray:
+    """Pixels as float32: uint8 bytes / 255, anything else as it is."""
+    pixels = np.asarray(pixels)
+    if pixels.dtype == np.uint8:
+        return pixels.astype(np.float32) * np.float32(1.0 / 255.0)
+    return pixels.astype(np.float32)
 
 
 def srgb_to_linear(c):
@@ -163,7 +171,7 @@ class TextureSet:
 
     def _load(self, tex: ImageTexture, scene):
         if tex.pixels is not None:
-            pixels, is_float = np.asarray(tex.pixels, dtype=np.float32), tex.is_float
+            pixels, is_float = as_float(tex.pixels), tex.is_float
         else:
             if not tex.path or not os.path.isfile(tex.path):
                 return None                     # Scene.validate warned already (validate_textures)
@@ -263,7 +271,9 @@ def validate_textures(scene) -> list[str]:
     for tex in scene.textures:
         if tex.pixels is not None:
             px = np.asarray(tex.pixels)
-            if px.ndim not in (2, 3) or px.shape[0] == 0 or px.shape[1] == 0 or not np.isfinite(px).all():
+            numeric = px.dtype.kind in "uif"
+            if (not numeric or px.ndim not in (2, 3) or px.shape[0] == 0 or px.shape[1] == 0
+                    or not np.isfinite(px).all()):
                 raise SceneError(f"Image '{tex.name}': pixels must be a finite (height, width, channels) array")
             check_magnitude(f"Image '{tex.name}'", "pixel value", px)
         elif not tex.path or not os.path.isfile(tex.path):

@@ -100,8 +100,11 @@ class ImageTable:
         pixels = np.empty(width * height * channels, np.float32)
         image.pixels.foreach_get(pixels)                     # bottom row first, as the tracer keeps them
         is_float = bool(image.is_float)
+        pixels = pixels.reshape(height, width, channels)
+        if not is_float:                       # bytes / 255: sent as bytes again (a quarter of the size)
+            pixels = np.rint(pixels * 255.0).astype(np.uint8)
         # Blender holds float buffers in linear space already; byte buffers as stored.
-        return self.ImageTexture(name=image.name, pixels=pixels.reshape(height, width, channels),
+        return self.ImageTexture(name=image.name, pixels=pixels,
                                  colorspace="Linear" if is_float else self._space(mat, node, image, space),
                                  is_float=is_float)
 

@@ -23,6 +23,7 @@ def test_textured_sample_exports_images_slots_and_uvs(samples):
     result = export_blend(samples["textured"], (32, 32))
     scene = result.scene
     assert not [w for w in result.warnings if "image" in w or "UV" in w], result.warnings
+    assert all(t.pixels.dtype == np.uint8 for t in scene.textures)                  # 8-bit: sent as bytes
     images = {t.name: (t.pixels.shape, t.colorspace) for t in scene.textures}        # packed: sent as pixels
     assert images == {"Checker": ((16, 16, 4), "sRGB"), "Tiles": ((2, 4, 4), "Non-Color"),
                       "Lamp colours": ((2, 2, 4), "sRGB")}

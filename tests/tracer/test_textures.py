@@ -118,6 +118,9 @@ def test_bad_texture_data_is_a_scene_error_naming_it():
     with pytest.raises(SceneError, match="Material 'Textured': unknown texture extension 'WRAP'"):
         texture_scene([ImageTexture("a", pixels=np.zeros((1, 1, 3), np.float32))],
                       TextureSlot(0, "Linear", "WRAP")).validate()
+    for bad in (np.full((2, 2, 3), np.nan, np.float32), np.zeros((0, 2, 3)), np.array([["a"]])):
+        with pytest.raises(SceneError, match="Image 'a': pixels must be a finite"):
+            texture_scene([ImageTexture("a", pixels=bad)], TextureSlot(0)).validate()
     scene = texture_scene([ImageTexture("a", pixels=np.zeros((1, 1, 3), np.float32))], TextureSlot(0))
     scene.meshes[0].uvs = np.zeros((2, 2, 2))
     with pytest.raises(SceneError, match="Object 'Card': UVs must be 3 finite"):
@@ -158,14 +161,18 @@ def test_scene_file_round_trip_keeps_textures_and_uvs(tmp_path):
     rgb = (np.indices((4, 4)).sum(axis=0) % 2)[:, :, None] * np.array([200, 50, 20], np.uint8)
     assert oiio.ImageBuf(np.ascontiguousarray(rgb.astype(np.uint8))).write(str(png))
     scene = texture_scene([ImageTexture("Packed", pixels=np.random.default_rng(1).random((3, 5, 3), np.float32)),
-                           ImageTexture("File", path="tex.png")], TextureSlot(1, "Closest", "CLIP"),
+                           ImageTexture("File", path="tex.png"),
+                           ImageTexture("Bytes", pixels=np.arange(24, dtype=np.uint8).reshape(2, 3, 4))],
+                          TextureSlot(1, "Closest", "CLIP"),
                           emission=(0, 0, 0), emission_texture=TextureSlot(0, "Linear", "MIRROR", (2, 2, 2)))
     scene.textures[1].path = str(png)
     path = str(tmp_path / "scene.json")
     save_scene(scene, path)
     again = load_scene(path)
-    assert [t.name for t in again.textures] == ["Packed", "File"]
+    assert [t.name for t in again.textures] == ["Packed", "File", "Bytes"]
     assert np.array_equal(again.textures[0].pixels, scene.textures[0].pixels)
+    assert again.textures[2].pixels.dtype == np.uint8 and np.array_equal(again.textures[2].pixels,
+                                                                         scene.textures[2].pixels)
     assert again.textures[1].path == str(png)
     assert again.materials[0].color_texture == scene.materials[0].color_texture
     assert again.materials[0].emission_texture == scene.materials[0].emission_texture
