@@ -27,6 +27,9 @@ lights), direct light, scatter, roulette, compaction.
   Cycles) do; with `nested_dielectrics` each path keeps a stack of the media it is in,
   so glass inside glass or water in a glass refracts with the ratio of the two IORs
   (the report's §4 future work);
+* image textures (engine/textures.py): the colour and emission of textured materials at triangle
+  hits, and the radiance of light samples on textured emitters, are read from the texture at the
+  UV interpolated with the hit's barycentrics (pdfs and MIS weights depend on geometry only);
 * Russian roulette (report 2.4) with survival probability min(1, max throughput),
   survivors divided by it; a zero throughput always terminates, without a division.
 """
