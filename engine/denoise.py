@@ -66,6 +66,32 @@ def denoise_result(result) -> None:
     result.stats["denoise_seconds"] = time.perf_counter() - start
 
 
+def denoise_in_subprocess(python: str, image, albedo=None, normal=None, extra_paths=(), timeout: float = 300.0):
+    """denoise() in a process of `python` (`python -m <tracer>.denoise`); raises
+    DenoiserUnavailable with its one-line reason, or RuntimeError when the process fails."""
+    import os
+    import subprocess
+    import tempfile
+    from .service import TRACER_DIR, worker_environment
+    with tempfile.TemporaryDirectory(prefix="tncg15-denoise-") as tmp:
+        src, dst = os.path.join(tmp, "in.npz"), os.path.join(tmp, "out.npz")
+        data = {"image": np.asarray(image, dtype=np.float32)}
+        if albedo is not None:
+            data["albedo"] = np.asarray(albedo, dtype=np.float32)
+        if normal is not None:
+            data["normal"] = np.asarray(normal, dtype=np.float32)
+        np.savez(src, **data)
+        proc = subprocess.run([python, "-m", os.path.basename(TRACER_DIR) + ".denoise", src, dst],
+                              env=worker_environment(extra_paths), capture_output=True, text=True, timeout=timeout)
+        if proc.returncode != 0 or not os.path.isfile(dst):
+            tail = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+            raise RuntimeError(f"the denoiser process ({python}) failed: {tail}")
+        with np.load(dst) as out:
+            if "error" in out:
+                raise DenoiserUnavailable(str(out["error"]))
+            return np.array(out["image"])
+
+
 def main(argv=None) -> int:
     """`python -m engine.denoise IN.npz OUT.npz`: IN has image (and albedo, normal); OUT gets image,
     or error (one line).  The add-on's route to OIDN in a process of its own."""

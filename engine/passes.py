@@ -169,12 +169,18 @@ def write_multilayer_exr(path: str, image, passes: dict, attributes=()) -> None:
 
 
 def read_multilayer_exr(path: str) -> dict:
-    """{channel name: (H, W) float32} of an EXR file."""
+    """{channel name: (H, W) float32} of an EXR file, single-part (ours, Blender 3.x) or multi-part
+    (Blender 5.0 writes one part per pass)."""
     import OpenImageIO as oiio
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
         raise OSError(f"cannot read '{path}': {oiio.geterror()}")
-    names = list(inp.spec().channelnames)
-    pixels = np.asarray(inp.read_image("float"), dtype=np.float32)
+    out, part = {}, 0
+    while inp.seek_subimage(part, 0):
+        names = list(inp.spec().channelnames)
+        pixels = np.asarray(inp.read_image(part, 0, 0, len(names), "float"), dtype=np.float32)
+        pixels = pixels.reshape(pixels.shape[0], pixels.shape[1], -1)
+        out.update({name: pixels[..., i] for i, name in enumerate(names)})
+        part += 1
     inp.close()
-    return {name: pixels[..., i] for i, name in enumerate(names)}
+    return out
