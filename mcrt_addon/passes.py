@@ -87,3 +87,42 @@ def write_frame(engine, width, height, image, passes: dict) -> list:
     finally:
         engine.end_result(result)
     return written
+
+
+def apply_pass_options(scene, passes, denoise) -> None:
+    """The command line's --passes/--denoise as the view layer's toggles and the Denoise option."""
+    for view_layer in scene.view_layers:
+        view_layer.use_pass_z = "depth" in passes
+        view_layer.tncg15.denoising_store_passes = "albedo" in passes or "normal" in passes
+        view_layer.tncg15.pass_sample_count = "samples" in passes
+        view_layer.tncg15.pass_variance = "variance" in passes
+    scene.tncg15.use_denoising = bool(denoise)
+
+
+def set_multilayer_output(scene) -> None:
+    """Blender writes every pass: OpenEXR MultiLayer (a media type in 5.0), 32-bit float."""
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):
+        settings.media_type = "MULTI_LAYER_IMAGE"
+    settings.file_format = "OPEN_EXR_MULTILAYER"
+    settings.color_depth = "32"
+    settings.exr_codec = "ZIP"
+
+
+def passes_from_channels(channels, wanted) -> tuple:
+    """Blender's multi-layer EXR channels ({'ViewLayer.Depth.Z': (H, W)}) -> (image (H, W, 3),
+    {tracer pass name: (H, W, c)}) for the passes in `wanted` (and 'noisy' when present)."""
+    import numpy as np
+
+    def layer(blender, chans):
+        found = [channels.get(f"ViewLayer.{blender}.{c}") for c in chans]
+        return None if any(f is None for f in found) else np.stack(found, axis=-1)
+    image = layer("Combined", "RGB")
+    out = {}
+    for name in ORDER:
+        blender, n, chan_id, _ = BLENDER_PASSES[name]
+        if name in wanted or name == "noisy":
+            pixels = layer(blender, chan_id[:3] if name == "noisy" else chan_id)
+            if pixels is not None:
+                out[name] = pixels
+    return image, out

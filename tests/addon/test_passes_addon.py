@@ -114,3 +114,27 @@ def test_denoise_in_blender(samples):
     assert not np.array_equal(noisy, combined)
     # the denoised image is smoother: less energy in pixel-to-pixel differences
     assert np.abs(np.diff(combined, axis=1)).mean() < 0.7 * np.abs(np.diff(noisy, axis=1)).mean()
+
+
+def test_addon_cli_writes_the_same_layers_as_the_tracer_cli(samples, tmp_path):
+    """python -m mcrt_addon render --passes ...: Blender's multi-part EXR rewritten with the layers
+    python -m engine render writes (engine/passes.py exr_channels), values as Blender filled them."""
+    import subprocess
+    import sys
+    from engine.passes import exr_channels, read_multilayer_exr
+    repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = tmp_path / "passes.exr"
+    proc = subprocess.run([sys.executable, "-m", "mcrt_addon", "render", samples["cornell"], "-o", str(out),
+                           "--resolution", "40", "32", "--samples", "4", "--seed", "5", "--max-depth", "3",
+                           "--passes", "depth,samples,normal"], cwd=repo, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    ch = read_multilayer_exr(out)
+    assert sorted(ch) == sorted(exr_channels(("normal", "depth", "samples")))
+    assert np.all(ch["ViewLayer.Debug Sample Count.X"] == 4.0)
+    z = ch["ViewLayer.Depth.Z"]
+    assert np.isfinite(z).all() and 1.0 < np.median(z) < 20.0
+    proc = subprocess.run([sys.executable, "-m", "mcrt_addon", "render", samples["cornell"], "-o",
+                           str(tmp_path / "x.png"), "--passes", "depth"], cwd=repo, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 2 and "need an .exr output" in proc.stderr and "Traceback" not in proc.stderr
