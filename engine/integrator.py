@@ -176,7 +176,7 @@ class PathTracer:
                 pixel, sample, o, d = samples.take(room)
                 fresh = len(pixel)
                 new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis,
-                                  features is not None)
+                                  features is not None and features.surface)
                 paths = new if paths is None else paths.extend(new)
             if paths is None or len(paths.pixel) == 0:
                 return True
@@ -201,7 +201,7 @@ class PathTracer:
         # 2. Misses: the background.
         if len(hits.miss):
             finished.append(self.misses(p, hits.miss))
-            if features is not None:
+            if features is not None and features.surface:
                 self.miss_features(p, hits.miss, features)
         p = p.take(hits.index)
         surf = self.geometry.surface(p.o, p.d, hits)
@@ -328,6 +328,8 @@ class PathTracer:
         first = np.flatnonzero(p.bounce[:surfaces] == 0)
         if len(first):
             features.add_depth(p.pixel.take(first), surf.point.take(first, axis=1))
+        if not features.surface:                 # depth only
+            return
         idx = np.flatnonzero(p.f_open[:surfaces])
         if not len(idx):
             return

@@ -66,8 +66,9 @@ def camera_frame(camera):
 class TileFeatures:
     """Per-sample first-hit features of one work unit, summed per pixel of its tile."""
 
-    def __init__(self, pixels: int, camera):
+    def __init__(self, pixels: int, camera, surface: bool = True):
         self.n = pixels
+        self.surface = surface          # albedo or normal asked for: paths carry their specular tints
         self.position, self.axes = camera_frame(camera)
         self.albedo = np.zeros((pixels, 3))
         self.normal = np.zeros((pixels, 3))

@@ -229,7 +229,8 @@ class RenderSession:
                 radiance[:, bad] = 0.0
             film.add(pixel, radiance)
 
-        features = TileFeatures(tile.pixels, self.scene.camera) if self.plan.passes else None
+        features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
+                    if self.plan.passes else None)
         if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler, features):
             return None
         return UnitResult(unit, film.sum, film.sum_sq, film.count, counters, time.perf_counter() - start,

@@ -189,3 +189,21 @@ def test_cli_denoise_writes_noisy_and_combined(tmp_path):
     ch = read_multilayer_exr(out)
     assert "ViewLayer.Noisy Image.R" in ch and "ViewLayer.Denoising Albedo.R" in ch
     assert not np.array_equal(ch["ViewLayer.Noisy Image.R"], ch["ViewLayer.Combined.R"])
+
+
+def test_depth_alone_carries_no_surface_state(monkeypatch):
+    """Blender's view layers have Z on by default: depth alone adds no per-path arrays."""
+    import engine.integrator
+    seen = []
+    original = engine.integrator.Paths.start.__func__
+
+    def start(cls, *args, **kwargs):
+        paths = original(cls, *args, **kwargs)
+        seen.append(paths.f_thru is None and paths.f_open is None)
+        return paths
+    monkeypatch.setattr(engine.integrator.Paths, "start", classmethod(start))
+    r = render(cornell_scene((16, 16)), RenderSettings(samples=2, threads=1, passes=("depth",)), **SILENT)
+    assert seen and all(seen) and "depth" in r.passes
+    seen.clear()
+    render(cornell_scene((16, 16)), RenderSettings(samples=2, threads=1, passes=("albedo",)), **SILENT)
+    assert seen and not any(seen)
