@@ -298,7 +298,7 @@ class RenderSession:
             "nonfinite_samples": self.totals.nonfinite_samples,
             "seconds_in_intersection": self.totals.seconds_in_intersection,
             "seconds_in_accelerator": self.totals.seconds_in_accelerator,
-            "cancelled": cancelled, "warnings": list(self.warnings),
+            "cancelled": cancelled, "warnings": list(self.warnings), "passes": list(s.passes),
         }
         return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled,
                             pass_images(self.film, s.passes))
