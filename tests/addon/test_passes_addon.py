@@ -138,3 +138,20 @@ def test_addon_cli_writes_the_same_layers_as_the_tracer_cli(samples, tmp_path):
                            str(tmp_path / "x.png"), "--passes", "depth"], cwd=repo, capture_output=True, text=True,
                           timeout=600)
     assert proc.returncode == 2 and "need an .exr output" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_denoise_unavailable_is_a_warning_not_a_failure(samples, monkeypatch):
+    """No OIDN for the worker Python: the render stays (undenoised) with one warning naming the fix."""
+    from mcrt_addon import bridge
+    denoise = bridge.module("denoise")
+
+    def unavailable(*a, **k):
+        raise denoise.DenoiserUnavailable("Denoise needs Intel Open Image Denoise: 'pip install pyoidn' for /x/python")
+    monkeypatch.setattr(denoise, "denoise_in_subprocess", unavailable)
+    scene = open_blend(samples["cornell"], RES)
+    setup(scene, denoise=True, data=False)
+    ch = render_multilayer(scene)
+    report = last_report()
+    assert report.error is None and not report.stats.get("denoised")
+    assert any("Denoise skipped" in w and "pip install pyoidn" in w for w in report.warnings), report.warnings
+    assert layer(ch, "Combined", "RGB").mean() > 0.02

@@ -207,3 +207,16 @@ def test_depth_alone_carries_no_surface_state(monkeypatch):
     seen.clear()
     render(cornell_scene((16, 16)), RenderSettings(samples=2, threads=1, passes=("albedo",)), **SILENT)
     assert seen and not any(seen)
+
+
+def test_cli_denoise_without_pyoidn_is_one_line(tmp_path):
+    """A pyoidn that cannot load: --denoise is refused before rendering, one line, exit 2."""
+    fake = tmp_path / "fake" / "pyoidn"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("raise ImportError('libOpenImageDenoise.so.2: cannot open shared object')\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path / "fake"), ROOT]))
+    proc = subprocess.run([sys.executable, "-m", "engine", "render", "-o", str(tmp_path / "d.exr"), "--denoise"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "pip install pyoidn" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert not (tmp_path / "d.exr").exists()
