@@ -313,17 +313,18 @@ class PathTracer:
 
     # -- render passes (engine/passes.py) ------------------------------------------------
     def miss_features(self, p, miss, features):
-        """A path still without a feature hit that leaves the scene: the background's colour
-        (clipped to [0, 1]) times its specular tints is its albedo; its normal stays 0."""
+        """A path still without a feature hit that leaves the scene: the background's radiance
+        times its specular tints is its albedo (Cycles: film_write_emission_or_background_pass);
+        its normal stays 0."""
         idx = miss[p.f_open.take(miss)]
         if len(idx) and self.has_background:
-            features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * np.clip(self.background, 0.0, 1.0)[:, None])
+            features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * self.background[:, None])
 
     def surface_features(self, p, surf, facing, color, bounds, features):
         """Cycles' denoising features (film_write_denoising_features_surface): at the first diffuse
         (or black) hit write albedo = specular tints x colour and the facing normal, then stop;
         at mirrors and glass multiply the tints by the colour and look further.  Emission seen
-        on the way adds its colour clipped to [0, 1].  Depth: every camera ray's first surface."""
+        on the way adds its radiance (unclipped, as Cycles).  Depth: every camera ray's first surface."""
         surfaces = bounds[PASS]
         first = np.flatnonzero(p.bounce[:surfaces] == 0)
         if len(first):
@@ -338,7 +339,7 @@ class PathTracer:
         emissive = self.mats.is_emissive.take(mat)
         if emissive.any():
             e = np.flatnonzero(emissive)
-            features.add_albedo(pix.take(e), thru.take(e, axis=1) * np.clip(self.mats.emission.take(mat.take(e), axis=1), 0.0, 1.0))
+            features.add_albedo(pix.take(e), thru.take(e, axis=1) * self.mats.emission.take(mat.take(e), axis=1))
         stop = (group == 0) | (group == BLACK)
         diffuse = np.flatnonzero(group == 0)
         if len(diffuse):

@@ -7,9 +7,11 @@ Passes (``--passes albedo,normal,depth,samples,variance``; Blender's names, as C
   albedo    ``Denoising Albedo`` (R, G, B): the first non-specular hit's diffuse colour times the
             tints of the mirror/glass bounces before it, as Cycles' denoising albedo
             (film_write_denoising_features_surface); emission and the background seen before it add
-            their colour, clipped to [0, 1] for the denoiser.  Averaged over all samples.
-  normal    ``Denoising Normal`` (X, Y, Z): that hit's normal (facing the ray) in camera space
-            (x right, y up, z towards the viewer, as Cycles); 0 for the background.  Averaged.
+            their radiance, unclipped as in Cycles (the denoiser clips to [0, 1]).  Averaged over all
+            samples.
+  normal    ``Denoising Normal`` (X, Y, Z): that hit's normal (facing the ray) in Cycles' camera
+            space: x right, y up, z along the view direction (so a wall facing the camera is
+            (0, 0, -1)); 0 for the background.  Averaged.
   depth     ``Depth`` (Z): distance of the camera ray's first hit along the camera's view axis
             (Blender's Z), averaged over the samples that hit something; 1e10 where none did.
             (Cycles writes the first sample's Z only.)
@@ -85,9 +87,10 @@ class TileFeatures:
             self._sum(self.albedo, pixel, albedo)
 
     def add_normal(self, pixel, normal) -> None:
-        """World-space unit normals, rows (3, N), stored in camera space (axes^T n)."""
+        """World-space unit normals, rows (3, N), stored in Cycles' camera space: (right, up,
+        view direction) . n, the view direction being -back (Cycles' cameras look down +z)."""
         if len(pixel):
-            a = self.axes
+            a = self.axes * np.array([1.0, 1.0, -1.0])
             cam = np.stack([a[0, i] * normal[0] + a[1, i] * normal[1] + a[2, i] * normal[2] for i in range(3)])
             self._sum(self.normal, pixel, cam)
 

@@ -28,13 +28,14 @@ def plane_seen_from(camera, color=(0.2, 0.5, 0.7), background=(0, 0, 0)):
 
 
 def test_diffuse_plane_albedo_normal_depth_closed_form():
-    """Straight down from height 2 with a wide lens: albedo = colour, camera-space normal (0, 0, 1),
+    """Straight down from height 2 with a wide lens: albedo = colour, camera-space normal (0, 0, -1)
+    (Cycles' camera space: z along the view),
     Z = 2 in every pixel although the rays' lengths differ by up to 60 % (Z is along the axis)."""
     cam = Camera.look_at((0.3, -0.2, 2.0), (0.3, -0.2, 0.0), up=(0, 1, 0), lens=12.0)
     r = render(plane_seen_from(cam), RenderSettings(samples=4, passes=ALL, threads=1), **SILENT)
     p = r.passes
     assert np.allclose(p["albedo"], (0.2, 0.5, 0.7), atol=1e-6)
-    assert np.allclose(p["normal"], (0.0, 0.0, 1.0), atol=1e-6)
+    assert np.allclose(p["normal"], (0.0, 0.0, -1.0), atol=1e-6)
     assert np.allclose(p["depth"], 2.0, atol=1e-6)
     assert np.array_equal(p["samples"][..., 0], np.full((8, 12), 4.0))
     # negative control: the ray length (what a wrong Z would be) differs by far more than the tolerance
@@ -47,7 +48,7 @@ def test_oblique_camera_normal_and_depth_in_camera_space():
     pixel's hits is along the view axis (checked against the ray geometry by hand)."""
     cam = Camera.look_at((0.0, -3.0, 2.0), (0.0, 0.0, 0.0), lens=35.0)
     r = render(plane_seen_from(cam), RenderSettings(samples=8, passes=("normal", "depth"), threads=1), **SILENT)
-    axes = np.asarray(cam.matrix)[:3, :3]
+    axes = np.asarray(cam.matrix)[:3, :3] * np.array([1.0, 1.0, -1.0])     # right, up, view direction
     expected_normal = axes.T @ np.array([0.0, 0.0, 1.0])
     assert np.allclose(r.passes["normal"], expected_normal, atol=1e-6)
     # the centre ray hits the look-at point, at distance |(0, -3, 2)| along the axis
@@ -59,19 +60,20 @@ def test_oblique_camera_normal_and_depth_in_camera_space():
 
 def test_features_through_a_mirror_and_the_background():
     """Camera straight down on a mirror floor (tint 0.5) under a diffuse ceiling: the albedo is
-    0.5 x the ceiling's colour and the normal the ceiling's (facing the reflected ray: camera z
-    -1), as Cycles' denoising features through perfect specular; Z is the mirror's.  Without the
-    ceiling: albedo = the background clipped to 1, normal 0, Z 1e10 where nothing is hit."""
+    0.5 x the ceiling's colour and the normal the ceiling's (facing the reflected ray, which goes
+    back towards the camera: camera z +1), as Cycles' denoising features through perfect specular;
+    Z is the mirror's.  Without the ceiling: albedo = 0.5 x the background (unclipped, as Cycles),
+    normal 0, Z 1e10 where nothing is hit."""
     mats = [Material("Mirror", MIRROR, (0.5, 0.5, 0.5)), Material("Ceiling", DIFFUSE, (0.2, 0.4, 0.6))]
     cam = Camera.look_at((0, 0, 1.0), (0, 0, 0), up=(0, 1, 0), lens=30.0)
     scene = Scene(cam, mats, quads=[big_quad("Floor", 0.0, 0), big_quad("Ceiling", 3.0, 1)], resolution=(8, 8))
     p = render(scene, RenderSettings(samples=4, passes=ALL, threads=1), **SILENT).passes
     assert np.allclose(p["albedo"], (0.1, 0.2, 0.3), atol=1e-6)
-    assert np.allclose(p["normal"], (0.0, 0.0, -1.0), atol=1e-6)
+    assert np.allclose(p["normal"], (0.0, 0.0, 1.0), atol=1e-6)
     assert np.allclose(p["depth"], 1.0, atol=1e-6)
     sky = Scene(cam, mats[:1], quads=[big_quad("Floor", 0.0, 0)], background=(0.3, 2.0, 0.0), resolution=(8, 8))
     p = render(sky, RenderSettings(samples=4, passes=ALL, threads=1), **SILENT).passes
-    assert np.allclose(p["albedo"], (0.15, 0.5, 0.0), atol=1e-6)
+    assert np.allclose(p["albedo"], (0.15, 1.0, 0.0), atol=1e-6)
     assert np.allclose(p["normal"], 0.0)
     up = Camera.look_at((0, 0, 1.0), (0, 0, 5.0), up=(0, 1, 0), lens=30.0)
     p = render(Scene(up, mats[:1], quads=[big_quad("Floor", 0.0, 0)], resolution=(8, 8)),
