@@ -16,7 +16,7 @@ import numpy as np
 from .scene import DIFFUSE, GLASS, MIRROR
 
 EFFECTS = ("triangles", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass", "emission",
-           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis")
+           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -166,6 +166,11 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if nee and settings.estimator != "mis" else
                "no emitter that bounce rays can reach" if nee else
                "no direct light: BSDF sampling alone (weight 1)")
+    from .passes import TRACED
+    features = [n for n in TRACED if n in tuple(getattr(settings, "passes", ()) or ())]
+    set_effect("passes", features,
+               f"first-hit {', '.join(features)} recorded per sample (engine/passes.py)" if features else
+               "no albedo, normal or depth pass: no feature tracking")
     return plan
 
 
