@@ -17,7 +17,7 @@ from .scene import DIFFUSE, GLASS, MIRROR
 from .textures import textured_materials
 
 EFFECTS = ("triangles", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass", "emission",
-           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "textures")
+           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes", "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -167,6 +167,11 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if nee and settings.estimator != "mis" else
                "no emitter that bounce rays can reach" if nee else
                "no direct light: BSDF sampling alone (weight 1)")
+    from .passes import TRACED
+    features = [n for n in TRACED if n in tuple(getattr(settings, "passes", ()) or ())]
+    set_effect("passes", features,
+               f"first-hit {', '.join(features)} recorded per sample (engine/passes.py)" if features else
+               "no albedo, normal or depth pass: no feature tracking")
     colored, glowing = textured_materials(scene)
     set_effect("textures", colored or glowing,
                "; ".join(part for part in (

@@ -197,3 +197,27 @@ def test_blender_binary_cycles_reference_runs(blend34, tmp_path):
     assert r.returncode == 0 and out.exists(), r.stdout[-3000:] + r.stderr[-3000:]
     img = read_exr(str(out))
     assert np.isfinite(img).all() and img.mean() > 0.02
+
+
+def test_blender34_fills_passes_and_denoises(blend34, tmp_path):
+    """Blender 3.4: the registered passes (Z, Denoising Data, Sample Count, Variance) land in its
+    multi-layer EXR, and Denoise runs OIDN in a process of the worker Python (never in Blender's,
+    where OIDN aborts 3.4) and keeps the Noisy Image pass."""
+    from engine.passes import read_multilayer_exr
+    expr = ("import bpy, mcrt_addon; mcrt_addon.register(); sc = bpy.context.scene; sc.tncg15.samples = 4; "
+            "sc.tncg15.use_denoising = True; vl = sc.view_layers[0]; vl.use_pass_z = True; "
+            "vl.tncg15.denoising_store_passes = True; vl.tncg15.pass_sample_count = True; "
+            "vl.tncg15.pass_variance = True")
+    r = blender("-b", "--python-use-system-env", str(blend34), "--python-expr", expr, "-E", "TNCG15_MC",
+                "-o", str(tmp_path / "ml_####"), "-F", "OPEN_EXR_MULTILAYER", "-f", "1", env=user_env())
+    out = tmp_path / "ml_0001.exr"
+    assert r.returncode == 0 and out.exists(), r.stdout[-3000:] + r.stderr[-3000:]
+    assert "Denoise skipped" not in r.stdout + r.stderr, r.stdout[-2000:]
+    ch = read_multilayer_exr(out)
+    for name in ("Combined.R", "Depth.Z", "Denoising Albedo.R", "Denoising Normal.Z", "Debug Sample Count.X",
+                 "Variance.G", "Noisy Image.R"):
+        assert f"ViewLayer.{name}" in ch, sorted(ch)
+    assert np.all(ch["ViewLayer.Debug Sample Count.X"] == 4.0)
+    albedo = ch["ViewLayer.Denoising Albedo.G"]
+    assert albedo.min() >= 0.0 and np.median(albedo) <= 1.0 and np.isfinite(albedo).all()
+    assert not np.array_equal(ch["ViewLayer.Noisy Image.R"], ch["ViewLayer.Combined.R"])

@@ -286,3 +286,20 @@ def test_bad_texture_fields_in_scene_files_are_one_line(tmp_path, edit, message)
     path.write_text(json.dumps(data))
     with pytest.raises(SceneError, match=message.replace("(", r"\(")):
         load_scene(str(path)).validate()
+
+
+def test_albedo_pass_reads_textured_colour_and_emission():
+    """The denoising albedo (engine/passes.py) of a textured surface is the texel, not the unlinked
+    colour: a card whose left half (u < 0.5) is texel 0 and right half texel 1."""
+    pixels = np.array([[[0.9, 0.1, 0.1], [0.1, 0.1, 0.9]]], np.float32)
+    for role in ("color_texture", "emission_texture"):
+        slot = TextureSlot(0, "Closest", "EXTEND")
+        scene = texture_scene([ImageTexture("Two", pixels=pixels, colorspace="Non-Color", is_float=True)],
+                              slot if role == "color_texture" else None)
+        scene.background = (0.0, 0.0, 0.0)
+        if role == "emission_texture":
+            scene.materials[0] = Material("Textured", color=(0, 0, 0), emission_texture=slot)
+        scene.camera = Camera.look_at((0.5, -3, 0.5), (0.5, 0, 0.5), lens=300.0)        # the card fills the view
+        albedo = render(scene, RenderSettings(samples=4, passes=("albedo",)), log=lambda *x: None).passes["albedo"]
+        left, right = albedo[:, :3].mean(axis=(0, 1)), albedo[:, -3:].mean(axis=(0, 1))
+        assert left == pytest.approx(pixels[0, 0], abs=1e-6) and right == pytest.approx(pixels[0, 1], abs=1e-6), role
