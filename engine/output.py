@@ -170,12 +170,16 @@ def replaced_atomically(output: Output):
     _fsync_directory(directory)
 
 
-def write_image(output: Output, image: np.ndarray) -> None:
-    """EXR (linear float) or PNG (sRGB), checked by reading the written file back."""
+def write_image(output: Output, image: np.ndarray, metadata=()) -> None:
+    """EXR (linear float, with `metadata` as header attributes) or PNG (sRGB), checked by reading the
+    written file back."""
     from .film import read_image, write_exr, write_png
     image = np.asarray(image)
     with replaced_atomically(output) as tmp:
-        (write_exr if output.kind == "exr" else write_png)(tmp, image)
+        if output.kind == "exr":
+            write_exr(tmp, image, metadata)
+        else:
+            write_png(tmp, image)
         if read_image(tmp).shape[:2] != image.shape[:2]:
             raise OSError(f"the written image does not read back as {image.shape[1]}x{image.shape[0]}")
 

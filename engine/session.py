@@ -88,6 +88,7 @@ class RenderResult:
     stats: dict
     warnings: list = field(default_factory=list)
     cancelled: bool = False
+    film: "SessionFilm | None" = None     # sums, half buffers, samples per pixel (engine/estimate.py)
 
 
 def tile_size_for(width: int, height: int, size: int) -> int:
@@ -327,8 +328,9 @@ class RenderSession:
         error = self.film.estimated_rel_error()
         target = s.noise_target or DEFAULT_TARGET
         spp = self.film.samples_per_pixel
-        return {"estimated_rel_error": error, "target_rel_error": target,
-                "seconds_to_target": seconds_to_target(seconds, error, target),
+        finite = (lambda x: float(x) if np.isfinite(x) else None)        # JSON has no NaN
+        return {"estimated_rel_error": finite(error), "target_rel_error": target,
+                "seconds_to_target": finite(seconds_to_target(seconds, error, target)),
                 "error_estimate": "half buffers" if self.film.count_a.any() else "sample variance",
                 "time_limit": s.time_limit, "noise_target": s.noise_target, "min_samples": s.min_samples,
                 "adaptive": s.adaptive and s.noise_target > 0,
@@ -355,4 +357,5 @@ class RenderSession:
             "cancelled": cancelled, "warnings": list(self.warnings),
         }
         stats.update(self.error_stats(seconds))
-        return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled)
+        return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled,
+                            film=self.film)

@@ -101,6 +101,10 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
     error, stopped_by, passes = None, "samples", 0
     start = clock()
     try:
+        if not getattr(workers, "passes", True):
+            from .scene import SceneError
+            raise SceneError(f"the time limit and the noise target do not work on {workers.describe} yet "
+                             "(it takes the units of a frame once)")
         for first, stop in schedule:
             units = []
             for tile in session.tiles:
