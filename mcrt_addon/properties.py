@@ -55,6 +55,8 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
                              "target may stop it (0 = automatic)", default=0, min=0, soft_max=4096)
     time_limit: FloatProperty(name="Time Limit", description="Stop rendering after this many seconds "
                               "(0 = no limit)", default=0.0, min=0.0, soft_max=3600.0, precision=1)
+    estimate_text: bpy.props.StringProperty(name="Estimate", description="The last Estimate Render Time",
+                                            default="", options={"SKIP_SAVE"})
     sampler: EnumProperty(name="Pattern", description="Where the random numbers of each pixel come from",
                           items=SAMPLER_ITEMS, default="SOBOL")
     seed: IntProperty(name="Seed", description="Random seed; the same seed gives the same image",

@@ -53,6 +53,8 @@ class RENDER_PT_tncg15_sampling(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.prop(props, "seed")
         layout.prop(props, "sampler")
         layout.operator("tncg15.estimate_render_time", icon="TIME")
+        if props.estimate_text:
+            layout.label(text=props.estimate_text)
 
 
 class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):
