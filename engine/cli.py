@@ -229,6 +229,11 @@ def cmd_bench_cluster(args) -> int:
 def cmd_study(args) -> int:
     from .study import run_study
     mode = "full" if args.full else "quick"
+    if args.stopping:
+        from .study_stopping import run_stopping_study
+        command = f"python -m engine study --stopping --{mode}" + (f" --out {args.out}" if args.out != "docs" else "")
+        run_stopping_study(mode, args.out, command, log=lambda msg: print(msg, file=sys.stderr))
+        return 0
     command = f"python -m engine study --{mode}" + (f" --out {args.out}" if args.out != "docs" else "")
     run_study(mode, args.out, command, log=lambda msg: print(msg, file=sys.stderr))
     return 0
@@ -282,6 +287,9 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--quick", action="store_true", help="small and fast (CI); the default")
     group.add_argument("--full", action="store_true", help="the committed figures (about 5 minutes on 2 cores)")
     st.add_argument("--out", default="docs", help="directory for the markdown and the plots")
+    st.add_argument("--stopping", action="store_true",
+                    help="only the stopping-rule rows: estimate calibration, adaptive vs uniform "
+                         "(docs/accuracy-stopping.md)")
     st.set_defaults(func=cmd_study)
     w = sub.add_parser("worker", help="a render worker process (engine/service.py; started by the add-on)")
     w.add_argument("parent_pid", type=positive_int)

@@ -17,7 +17,9 @@ film's fixed per-tile order, so with a fixed seed and no time limit the samples 
 and the image, are the same for any number or kind of workers.
 
 Pass sizes: the first pass is max(min_samples, FIRST_PASS) samples, each later one half of the
-samples so far (at least FIRST_PASS), so there are about log1.5(samples) passes.
+samples so far (at least FIRST_PASS), so there are about log1.5(samples) passes.  Under a time
+limit a pass is cut to the samples that fit in the time left at the rate measured so far (units
+cancelled at the limit are lost work: up to a third of the render with uncut passes).
 """
 from __future__ import annotations
 
@@ -105,7 +107,17 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
             from .scene import SceneError
             raise SceneError(f"the time limit and the noise target do not work on {workers.describe} yet "
                              "(it takes the units of a frame once)")
+        done_samples = 0
         for first, stop in schedule:
+            first = done_samples
+            if first >= s.samples:
+                break
+            if s.time_limit > 0 and passes:
+                stop = fit_pass(first, stop, session.film.count, clock() - start, s.time_limit)
+                if stop <= first:
+                    timed_out = True
+                    break
+            done_samples = stop
             units = []
             for tile in session.tiles:
                 mask = state.tile_mask(tile)
@@ -165,6 +177,17 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
     result = session.result(clock() - start, cancelled, getattr(workers, "describe", "local"))
     result.stats.update({"stopped_by": stopped_by, "passes": passes})
     return result
+
+
+def fit_pass(first: int, stop: int, count: np.ndarray, elapsed: float, limit: float) -> int:
+    """The end of a pass cut so that it ends by the time limit, at the pixel-sample rate so far
+    (the pass covers at most every pixel: a conservative cost for adaptive passes)."""
+    rendered = float(count.sum())
+    if rendered <= 0 or elapsed <= 0:
+        return stop
+    per_pass_sample = elapsed / rendered * count.size          # seconds per sample of every pixel
+    fits = int((limit - elapsed) / per_pass_sample * 0.9)      # 10 % margin for the tail of a pass
+    return min(stop, first + fits) if fits >= 1 else first
 
 
 def progress_message(samples: int, cap: int, error: float, seconds: float, target: float) -> str:
