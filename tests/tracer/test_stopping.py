@@ -236,3 +236,9 @@ def test_settings_refuse_bad_stopping_values():
     for bad in (dict(noise_target=float("nan")), dict(time_limit=-1.0), dict(noise_target=True)):
         with pytest.raises(SceneError, match="must be a number"):
             RenderSettings(**bad).validate()
+
+
+def test_progress_line_reads_like_the_issue():
+    from engine.stopping import progress_message
+    assert progress_message(48, 256, 0.021, 3.4, 0.01) == "Sample 48/256 · est. error 2.1 % · 3.4 s · ≈ 12 s to 1 %"
+    assert progress_message(256, 256, 0.009, 5.0, 0.01) == "Sample 256/256 · est. error 0.9 % · 5.0 s"
