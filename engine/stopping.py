@@ -101,6 +101,7 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
     chunk_of = {t.index: 0 for t in session.tiles}
     cancelled = timed_out = False
     error, stopped_by, passes = None, "samples", 0
+    pass_log = []                     # (pixel-samples added, seconds) per finished pass
     start = clock()
     try:
         if not getattr(workers, "passes", True):
@@ -131,6 +132,7 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
                 break
             session.units.extend(units)
             session.film.units_total = len(session.units)
+            pass_start, samples_before = clock(), float(session.film.count.sum())
             workers.start(units)
             passes += 1
             done = 0
@@ -158,6 +160,7 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
                         on_tile(tile.x0, tile.y0, tile.x1, tile.y1, session.film.mean(tile))
             if error is not None or cancelled or timed_out:
                 break
+            pass_log.append((float(session.film.count.sum()) - samples_before, clock() - pass_start))
             state.update()
             elapsed = clock() - start
             if on_progress is not None:
@@ -175,7 +178,7 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
         raise error
     stopped_by = "cancelled" if cancelled else "time limit" if timed_out else stopped_by
     result = session.result(clock() - start, cancelled, getattr(workers, "describe", "local"))
-    result.stats.update({"stopped_by": stopped_by, "passes": passes})
+    result.stats.update({"stopped_by": stopped_by, "passes": passes, "pass_log": pass_log})
     return result
 
 
