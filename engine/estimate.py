@@ -11,8 +11,11 @@ replays the real render's pass schedule on 8x8 blocks (U_b = mean of u_p over th
 * the render stops after the first pass whose image error sqrt(sum_b w_b U_b / s_b) (w_b: the
   block's share of the pixels) is at or below the target, or at the samples cap;
 
-and prices the pixel-samples it used at the pilot's seconds per pixel-sample (passes after the
-first: the first pays the workers' warm-up).  At 16 spp the pilot misses much of the rare bright
+and prices each replayed pass as b (N + TAIL_PATHS H): N pixel-samples in H unit halves (one
+per tile with active blocks and half buffer), each of which ends with a tail of few paths that costs
+about as much as TAIL_PATHS more paths (measured on the near-lamp room: 5.0 us per pixel-sample in
+passes of 9k paths per unit half, 2.6 us at 233k: b = 2.5 us, TAIL_PATHS ~ 8.9k).  b comes from the
+pilot's passes after the first (the first pays the workers' warm-up).  At 16 spp the pilot misses much of the rare bright
 paths' variance (the Cornell box's caustics: E reads 15 % low, the samples 30 % low); 32 halves that.  Setup (scene
 preparation, worker start) is reported apart, as `setup_seconds`.
 """
@@ -26,6 +29,7 @@ from .error_estimate import BLOCK, REL_FLOOR, box3
 from .stopping import effective_min_samples, pass_schedule
 
 PILOT_SAMPLES = 32
+TAIL_PATHS = 8192
 
 
 def block_unit_variance(mean: np.ndarray, var: np.ndarray, count: np.ndarray, block: int = BLOCK):
@@ -43,9 +47,12 @@ def block_unit_variance(mean: np.ndarray, var: np.ndarray, count: np.ndarray, bl
     return sums / np.maximum(pixels, 1), pixels
 
 
-def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float) -> dict:
-    """The pass schedule of engine/stopping.py played on blocks; pixel-samples, error, stop."""
+def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, tile_of_block=None) -> dict:
+    """The pass schedule of engine/stopping.py played on blocks; pixel-samples, error, stop, and the
+    cost units sum over passes of (N + TAIL_PATHS H) (module doc)."""
     weights = pixels / pixels.sum()
+    tile_of_block = np.zeros(len(unit_var), dtype=int) if tile_of_block is None else tile_of_block
+    work = 0.0
     samples = np.zeros(len(unit_var))
     active = np.ones(len(unit_var), dtype=bool)
     minimum = effective_min_samples(settings)
@@ -54,6 +61,8 @@ def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float) ->
         if not active.any():
             stopped_by = "noise target"
             break
+        work += float(np.sum(pixels[active])) * (stop - samples[active].max(initial=0)) \
+            + TAIL_PATHS * 2 * len(np.unique(tile_of_block[active]))
         samples[active] = stop
         block_err2 = unit_var / samples
         error = float(np.sqrt(np.sum(weights * block_err2)))
@@ -63,22 +72,31 @@ def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float) ->
         if settings.adaptive:
             active &= ~((block_err2 <= target * target) & (samples >= minimum))
     return {"pixel_samples": float(np.sum(pixels * samples)), "mean_samples": float(np.sum(weights * samples)),
-            "error": error, "stopped_by": stopped_by}
+            "error": error, "stopped_by": stopped_by, "work": work}
 
 
-def predict(film, seconds: float, settings, target: float, pass_log=()) -> dict:
-    """The prediction from a pilot's film (SessionFilm), its render seconds and its passes
-    [(pixel-samples, seconds)]: the rate of the passes after the first (which pays the workers'
-    warm-up), else of the whole pilot."""
+def tiles_of_blocks(shape, tile_size: int, block: int = BLOCK) -> np.ndarray:
+    """The tile index (engine/session.make_tiles order) of each block, flattened as the blocks."""
+    h, w = shape
+    bh, bw = -(-h // block), -(-w // block)
+    by, bx = np.meshgrid(np.arange(bh), np.arange(bw), indexing="ij")
+    tiles_x = -(-w // tile_size)
+    return ((by * block // tile_size) * tiles_x + bx * block // tile_size).ravel()
+
+
+def predict(film, seconds: float, settings, target: float, pass_log=(), tile_size: int = 64,
+            halves_per_pass: int = 0) -> dict:
+    """The prediction from a uniform pilot's film (SessionFilm), its render seconds, its passes
+    [(pixel-samples, seconds)] and unit halves per pass: b from the passes after the first,
+    else from the whole pilot."""
     unit_var, pixels = block_unit_variance(film.mean().astype(np.float64), film.half_buffer_variance(),
                                            film.samples_per_pixel)
-    played = replay(unit_var, pixels, settings, target)
-    later = list(pass_log)[1:]
-    if later and sum(n for n, _ in later) > 0:
-        per_sample = sum(t for _, t in later) / sum(n for n, _ in later)
-    else:
-        per_sample = seconds / max(float(film.samples_per_pixel.sum()), 1.0)
-    played["seconds"] = played["pixel_samples"] * per_sample
+    played = replay(unit_var, pixels, settings, target, tiles_of_blocks(film.count.shape, tile_size))
+    log = list(pass_log)
+    later = log[1:] or log
+    work = sum(n + TAIL_PATHS * halves_per_pass for n, _ in later)
+    b = sum(t for _, t in later) / work if work > 0 else seconds / max(float(film.count.sum()), 1.0)
+    played["seconds"] = played["work"] * b
     played["reachable"] = played["stopped_by"] == "noise target"
     return played
 
@@ -94,7 +112,10 @@ def estimate(scene, settings, target: float, render, pilot_samples: int = PILOT_
     if result.cancelled or result.film is None:
         raise RuntimeError("the pilot render was cancelled")
     seconds = result.stats["render_seconds"]
-    out = predict(result.film, seconds, real, target, result.stats.get("pass_log", ()))
+    st = result.stats
+    passes = max(st.get("passes") or 1, 1)
+    out = predict(result.film, seconds, real, target, st.get("pass_log", ()), st["tile_size"],
+                  2 * st["units"] // passes)
     out.update({"target_rel_error": target, "pilot_samples": pilot.samples, "pilot_seconds": seconds,
                 "pilot_rel_error": result.stats.get("estimated_rel_error"),
                 "setup_seconds": result.stats.get("setup_seconds"), "samples_cap": settings.samples,
