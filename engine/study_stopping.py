@@ -38,9 +38,9 @@ class StoppingMode:
     adaptive_scenes: tuple          # (scene, noise target)
 
 
-QUICK = StoppingMode("quick", (24, 24), 512, 3, (16, 64), ("cornell",), (("caustic", 0.2),))
+QUICK = StoppingMode("quick", (16, 16), 256, 2, (16,), ("cornell",), (("caustic", 0.3),))
 FULL = StoppingMode("full", (64, 64), 4096, 4, (16, 64, 256), ("cornell", "near_lamp", "caustic"),
-                    (("caustic", 0.12), ("near_lamp", 0.04)))
+                    (("caustic", 0.08), ("near_lamp", 0.04)))
 
 
 def rel_mse(image, ref):
