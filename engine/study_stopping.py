@@ -38,7 +38,7 @@ class StoppingMode:
     adaptive_scenes: tuple          # (scene, noise target)
 
 
-QUICK = StoppingMode("quick", (16, 16), 256, 2, (16,), ("cornell",), (("caustic", 0.3),))
+QUICK = StoppingMode("quick", (16, 16), 256, 2, (16,), ("cornell",), (("caustic", 0.15),))
 FULL = StoppingMode("full", (64, 64), 4096, 4, (16, 64, 256), ("cornell", "near_lamp", "caustic"),
                     (("caustic", 0.08), ("near_lamp", 0.04)))
 
