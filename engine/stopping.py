@@ -199,5 +199,6 @@ def progress_message(samples: int, cap: int, error: float, seconds: float, targe
     text = f"Sample {samples}/{cap} · est. error {error * 100:.1f} % · {seconds:.1f} s"
     if np.isfinite(error) and error > target:
         remaining = seconds_to_target(seconds, error, target) - seconds
-        text += f" · ≈ {remaining:.0f} s to {target * 100:g} %"
+        text += f" · ≈ {remaining:.0f} s to {target * 100:g} %" if remaining >= 9.5 else \
+            f" · ≈ {remaining:.1f} s to {target * 100:g} %"
     return text

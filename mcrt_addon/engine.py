@@ -293,7 +293,10 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
     def _summary(stats, result):
         if getattr(result, "cancelled", False):
             return "Cancelled"
-        parts = [f"{stats.get('samples', '?')} samples", f"{stats.get('accelerator', '?')}",
+        spp = stats.get("samples_per_pixel")
+        done = (f"{spp['mean']:.0f} of {stats.get('samples', '?')} samples (stopped by {stats['stopped_by']})"
+                if isinstance(spp, dict) and "stopped_by" in stats else f"{stats.get('samples', '?')} samples")
+        parts = [done, f"{stats.get('accelerator', '?')}",
                  str(stats.get("parallelism", ""))]
         seconds = stats.get("render_seconds")
         rays = stats.get("rays")

@@ -59,3 +59,23 @@ def test_cli_estimate_bad_input_one_line(tmp_path, args, fragment):
     r = run_cli("estimate", f"{REPO}/sample_blends/cornell.blend", *args)
     assert r.returncode == 2 and fragment in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_blender34_binary_shows_the_error_in_the_stats_line(tmp_path):
+    """Debian's Blender 3.4 from the repository (as test_blender34.py): the noise target set on the
+    scene stops the render, and the stats line carries the estimate."""
+    import test_blender34 as b34
+    if b34.BLENDER is None:
+        pytest.skip("no `blender` binary")
+    out = tmp_path / "b34"
+    r = b34.blender("-b", "--factory-startup", "--python", f"{REPO}/sample_blends/make_samples.py", "--",
+                    "--outdir", str(out), "--only", "cornell", "--resolution", "24", "24")
+    assert r.returncode == 0, r.stderr[-2000:]
+    r = b34.blender("-b", "--python-use-system-env", str(out / "cornell.blend"), "--python-expr",
+                    "import bpy, mcrt_addon; mcrt_addon.register(); p = bpy.context.scene.tncg15; "
+                    "p.samples = 512; p.use_noise_target = True; p.noise_target = 0.2",
+                    "-E", "TNCG15_MC", "-o", str(tmp_path / "out_####"), "-F", "OPEN_EXR", "-f", "1",
+                    env=b34.user_env())
+    assert r.returncode == 0 and (tmp_path / "out_0001.exr").exists(), r.stdout[-3000:] + r.stderr[-3000:]
+    assert "Sample 8/512 · est. error" in r.stdout
+    assert "(stopped by noise target)" in r.stdout and "Traceback" not in r.stdout + r.stderr
