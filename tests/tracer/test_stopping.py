@@ -118,6 +118,31 @@ def test_noise_target_stops_when_the_estimate_reaches_it():
     json.dumps(st)                                   # stats stay plain JSON
 
 
+def test_noise_target_is_reached_in_the_actual_error():
+    """Six seeds of the Cornell box (24x24) stopped by the adaptive noise target 0.2: their actual E
+    (RMS over the seeds, against the mean of the other seeds' renders, that reference's variance
+    removed) is within 25 % of the target; a render stopped at half the samples it took (control:
+    the first pass only) is not."""
+    target, k = 0.2, 6
+    runs = [render(scene(size=24), RenderSettings(samples=4096, noise_target=target, seed=s), **QUIET)
+            for s in range(k)]
+    assert all(r.stats["stopped_by"] == "noise target" for r in runs)
+    images = np.array([r.image.astype(np.float64) for r in runs])
+    rel = []
+    for i in range(k):
+        ref = (images.sum(0) - images[i]) / (k - 1)
+        rel.append(np.mean((images[i] - ref) ** 2 / (ref * ref + 0.01)))
+    actual = np.sqrt(np.mean(rel) / (1 + 1 / (k - 1)))
+    print(f"actual E {actual:.3f} at noise target {target}")
+    assert actual <= 1.25 * target, actual
+    first = [render(scene(size=24), RenderSettings(samples=8, seed=s), **QUIET).image.astype(np.float64)
+             for s in range(k)]
+    first = np.array(first)
+    rel = [np.mean((first[i] - (first.sum(0) - first[i]) / (k - 1)) ** 2 /
+                   (((first.sum(0) - first[i]) / (k - 1)) ** 2 + 0.01)) for i in range(k)]
+    assert np.sqrt(np.mean(rel) / (1 + 1 / (k - 1))) > 1.25 * target
+
+
 def test_adaptive_sampling_is_deterministic_and_really_adaptive():
     """Same seed, no time limit: identical image and sample counts on 1 thread and on 2 processes;
     the counts differ between pixels (blocks stopped), unlike uniform sampling (control)."""
