@@ -176,10 +176,12 @@ def write_image(output: Output, image: np.ndarray, metadata=()) -> None:
     from .film import read_image, write_exr, write_png
     image = np.asarray(image)
     with replaced_atomically(output) as tmp:
-        if output.kind == "exr":
+        if output.kind != "exr":
+            write_png(tmp, image)
+        elif metadata:
             write_exr(tmp, image, metadata)
         else:
-            write_png(tmp, image)
+            write_exr(tmp, image)
         if read_image(tmp).shape[:2] != image.shape[:2]:
             raise OSError(f"the written image does not read back as {image.shape[1]}x{image.shape[0]}")
 

@@ -43,7 +43,7 @@ def test_cli_noise_target_stats_and_exr_metadata(tmp_path):
 
 def test_cli_estimate_prints_a_prediction(tmp_path):
     r = run_cli("estimate", f"{REPO}/sample_blends/cornell.blend", "--noise-target", "0.05",
-                "--resolution", "32", "32", "--json")
+                "--resolution", "32", "32", "--samples", "1024", "--json")
     assert r.returncode == 0, r.stderr
     lines = r.stdout.strip().splitlines()
     assert "to 5 %" in lines[-2] or "cap of" in lines[-2]
