@@ -265,7 +265,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("scene", nargs="?", help="scene .json (default: a built-in scene, see --builtin)")
     e.add_argument("--builtin", choices=("cornell", "near_lamp", "caustic", "many_lights"))
     e.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
-    e.add_argument("--pilot-samples", type=bounded_int(2, 4096), default=32)
+    e.add_argument("--pilot-samples", type=bounded_int(2, 4096), default=64)
     e.add_argument("--json", action="store_true", help="also print the prediction as JSON")
     add_settings_arguments(e)
     e.set_defaults(func=cmd_estimate)

@@ -70,7 +70,7 @@ def build_parser():
     es.add_argument("--threads", type=setting_int("threads"))
     es.add_argument("--seed", type=setting_int("seed"))
     es.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
-    es.add_argument("--pilot-samples", type=bounded_int(2, 4096), default=32)
+    es.add_argument("--pilot-samples", type=bounded_int(2, 4096), default=64)
     es.add_argument("--json", action="store_true", help="also print the prediction as JSON")
     b = sub.add_parser("bench-export", help="time the exporter on a large mesh (prints figures)")
     b.add_argument("--triangles", type=bounded_int(1, 100_000_000), default=1_000_000)

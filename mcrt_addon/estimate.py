@@ -11,7 +11,7 @@ from . import bridge, worker_python
 DEFAULT_TARGET = 0.01
 
 
-def estimate_scene(scene, depsgraph, target=None, pilot_samples=32, log=None):
+def estimate_scene(scene, depsgraph, target=None, pilot_samples=64, log=None):
     """The prediction dict of engine/estimate.py for `scene` as it would render now."""
     from .engine import border_rect, resolve_accelerator
     from .export import export_scene

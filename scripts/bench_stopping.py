@@ -4,7 +4,7 @@
 
 * Time limit: the built-in Cornell box at 256x256 with a sample cap it never reaches and
   --time-limit T: render seconds and the overshoot past T (target: T + 0.5 s).
-* Estimate: `estimate` (32-spp pilot) against the real render to the same noise target on the
+* Estimate: `estimate` (64-spp pilot) against the real render to the same noise target on the
   built-in scenes: predicted and real render seconds and mean samples (target: within +-30 %).
 The load average is printed with the figures: on a shared machine they are noisy.
 """

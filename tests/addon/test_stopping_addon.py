@@ -48,7 +48,7 @@ def test_cli_estimate_prints_a_prediction(tmp_path):
     lines = r.stdout.strip().splitlines()
     assert "to 5 %" in lines[-2] or "cap of" in lines[-2]
     e = json.loads(lines[-1])
-    assert e["seconds"] > 0 and e["pilot_samples"] == 32 and e["resolution"] == [32, 32]
+    assert e["seconds"] > 0 and e["pilot_samples"] == 64 and e["resolution"] == [32, 32]
 
 
 @pytest.mark.parametrize("args,fragment", [
