@@ -61,6 +61,7 @@ def test_cli_estimate_bad_input_one_line(tmp_path, args, fragment):
     assert len(r.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow          # two Blender 3.4 starts: `make test-all`
 def test_blender34_binary_shows_the_error_in_the_stats_line(tmp_path):
     """Debian's Blender 3.4 from the repository (as test_blender34.py): the noise target set on the
     scene stops the render, and the stats line carries the estimate."""

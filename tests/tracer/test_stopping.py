@@ -118,6 +118,7 @@ def test_noise_target_stops_when_the_estimate_reaches_it():
     json.dumps(st)                                   # stats stay plain JSON
 
 
+@pytest.mark.slow          # about 10 s idle, 25 s under load: `make test-all`
 def test_noise_target_is_reached_in_the_actual_error():
     """Six seeds of the Cornell box (24x24) stopped by the adaptive noise target 0.2: their actual E
     (RMS over the seeds, against the mean of the other seeds' renders, that reference's variance
