@@ -32,6 +32,7 @@ from .geometry import Counters, SceneGeometry
 from .integrator import PathTracer
 from .lights import LightSampler
 from .masked_samples import MaskedTileSamples, unpack_mask
+from .passes import FrameFeatures, TileFeatures, pass_images, traced
 from .qmc import RandomSampler, SobolSampler
 from .settings import RenderSettings
 
@@ -79,6 +80,7 @@ class UnitResult:
     engine_version: str = ENGINE_VERSION
     sum_a: np.ndarray | None = None      # half buffer A (unit.halves): sums and counts of [start, mid)
     count_a: np.ndarray | None = None
+    features: dict | None = None # engine/passes.py TileFeatures.sums(), when a traced pass is on
 
 
 @dataclass
@@ -88,6 +90,7 @@ class RenderResult:
     stats: dict
     warnings: list = field(default_factory=list)
     cancelled: bool = False
+    passes: dict = field(default_factory=dict)    # engine/passes.py pass_images(): name -> (H, W, C)
     film: "SessionFilm | None" = None     # sums, half buffers, samples per pixel (engine/estimate.py)
 
 
@@ -139,6 +142,7 @@ class SessionFilm:
         self.pending = {}                       # (tile index, chunk) -> UnitResult
         self.units_total = len(units)
         self.units_added = 0
+        self.features = None                    # FrameFeatures when a traced pass is on
 
     def add(self, result: UnitResult) -> list[Tile]:
         """Merge a unit's result; returns the tiles whose pixels changed."""
@@ -156,6 +160,8 @@ class SessionFilm:
             if r.sum_a is not None:
                 self.sum_a[t.y0:t.y1, t.x0:t.x1] += r.sum_a.reshape(h, w, 3)
                 self.count_a[t.y0:t.y1, t.x0:t.x1] += r.count_a.reshape(h, w)
+            if self.features is not None and r.features is not None:
+                self.features.add(t, r.features)
             self.units_added += 1
             self.next_chunk[t.index] = key[1] + 1
             key = (t.index, key[1] + 1)
@@ -230,6 +236,8 @@ class RenderSession:
         self.units = make_units(self.tiles, self.settings.samples, progressive)
         self.progressive = progressive
         self.film = SessionFilm(width, height, self.units)
+        if traced(self.settings.passes):
+            self.film.features = FrameFeatures(width, height)
         self.totals = Counters()
 
     # -- one unit -------------------------------------------------------------------------
@@ -242,6 +250,8 @@ class RenderSession:
         rng = np.random.default_rng([s.seed, tile.index, unit.start])
         sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.samples, s.shadow_rays)
                    if s.sampler == "sobol" else RandomSampler(rng))
+        features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
+                    if self.plan.passes else None)
         films = []
         mid = unit.start + (unit.stop - unit.start) // 2 if unit.halves else unit.start
         for first, stop in ((unit.start, mid), (mid, unit.stop)):     # half A, then B (or all)
@@ -265,14 +275,15 @@ class RenderSession:
                     radiance[:, bad] = 0.0
                 film.add(pixel, radiance)
 
-            if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler):
+            if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler, features):
                 return None
         a, b = films
         seconds = time.perf_counter() - start
+        sums = None if features is None else features.sums()
         if not unit.halves:
-            return UnitResult(unit, b.sum, b.sum_sq, b.count, counters, seconds)
+            return UnitResult(unit, b.sum, b.sum_sq, b.count, counters, seconds, features=sums)
         return UnitResult(unit, a.sum + b.sum, a.sum_sq + b.sum_sq, a.count + b.count, counters, seconds,
-                          sum_a=a.sum, count_a=a.count)
+                          sum_a=a.sum, count_a=a.count, features=sums)
 
     # -- the whole frame --------------------------------------------------------------------
     def add(self, result: UnitResult) -> list[Tile]:
@@ -354,8 +365,8 @@ class RenderSession:
             "nonfinite_samples": self.totals.nonfinite_samples,
             "seconds_in_intersection": self.totals.seconds_in_intersection,
             "seconds_in_accelerator": self.totals.seconds_in_accelerator,
-            "cancelled": cancelled, "warnings": list(self.warnings),
+            "cancelled": cancelled, "warnings": list(self.warnings), "passes": list(s.passes),
         }
         stats.update(self.error_stats(seconds))
         return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled,
-                            film=self.film)
+                            pass_images(self.film, s.passes), film=self.film)

@@ -55,6 +55,8 @@ class RenderSettings:
     def stopping_rules(self) -> bool:
         """True when the frame renders in passes (engine/stopping.py)."""
         return self.time_limit > 0 or self.noise_target > 0
+    passes: tuple = ()            # engine/passes.py PASSES: extra render passes (albedo, normal, depth, ...)
+    denoise: bool = False         # OIDN on the result, guided by albedo and normal (engine/denoise.py)
 
     def resolved_threads(self) -> int:
         return self.threads if self.threads > 0 else (os.cpu_count() or 1)
@@ -78,6 +80,10 @@ class RenderSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0.0 <= value <= high:
                 raise SceneError(f"{name.replace('_', ' ')} must be a number from 0 (off) to {high:g}, got {value!r}")
+        from .passes import PASSES
+        bad = [p for p in self.passes if p not in PASSES]
+        if bad:
+            raise SceneError(f"unknown pass '{bad[0]}' (known: {', '.join(PASSES)})")
         if self.parallelism not in ("auto", "threads", "processes"):
             raise SceneError(f"unknown parallelism '{self.parallelism}' (expected auto, threads or processes)")
 
