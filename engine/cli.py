@@ -162,7 +162,7 @@ def write_render_image(output, result, args) -> None:
     """-o: a multi-layer EXR when passes or the denoiser are on (engine/passes.py), else as before."""
     from .output import write_multilayer
     if output.kind == "exr" and (args.passes or args.denoise):
-        write_multilayer(output, result.image, result.passes)
+        write_multilayer(output, result.image, result.passes, error_metadata(result.stats))
     else:
         write_image(output, result.image, error_metadata(result.stats))
 

@@ -291,7 +291,8 @@ def write_outputs(outputs, image, stats, passes=None):
         if target.kind == "json":
             output.write_text(target, json.dumps(stats, indent=2, default=_json_default))
         elif passes is not None and target.option == "-o":
-            output.write_multilayer(target, image, passes)       # the layers of python -m engine render
+            output.write_multilayer(target, image, passes,       # the layers of python -m engine render
+                                    bridge.module("cli").error_metadata(stats))
         else:
             output.write_image(target, image, bridge.module("cli").error_metadata(stats))
 

@@ -244,6 +244,11 @@ def test_cli_noise_target_writes_error_keys_and_exr_metadata(tmp_path):
     spec = oiio.ImageInput.open(str(out)).spec()
     assert abs(spec.getattribute("tncg15:estimated_rel_error") - st["estimated_rel_error"]) < 1e-6
     assert spec.getattribute("tncg15:seconds_to_target") > 0
+    layered = tmp_path / "layers.exr"                 # the multi-layer EXR of --passes carries them too
+    p = run("render", "--resolution", "24", "24", "--samples", "64", "--noise-target", "0.2", "-o", str(layered),
+            "--passes", "samples", "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert oiio.ImageInput.open(str(layered)).spec().getattribute("tncg15:estimated_rel_error") > 0
 
 
 @pytest.mark.parametrize("args,fragment", [
