@@ -249,8 +249,11 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
 
         def on_progress(fraction, message):
             self.update_progress(min(max(float(fraction), 0.0), 1.0))
-            self.update_stats("", stats_line(f"{message} | {settings.samples} spp | "
-                                              f"{time.perf_counter() - t_render:.1f} s"))
+            if message.startswith("Sample "):     # the stopping rules' line: samples, error, time
+                self.update_stats("", stats_line(message))
+            else:
+                self.update_stats("", stats_line(f"{message} | {settings.samples} spp | "
+                                                  f"{time.perf_counter() - t_render:.1f} s"))
 
         def log(*args):
             print(*args)
@@ -323,7 +326,10 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
     def _summary(stats, result):
         if getattr(result, "cancelled", False):
             return "Cancelled"
-        parts = [f"{stats.get('samples', '?')} samples", f"{stats.get('accelerator', '?')}",
+        spp = stats.get("samples_per_pixel")
+        done = (f"{spp['mean']:.0f} of {stats.get('samples', '?')} samples (stopped by {stats['stopped_by']})"
+                if isinstance(spp, dict) and "stopped_by" in stats else f"{stats.get('samples', '?')} samples")
+        parts = [done, f"{stats.get('accelerator', '?')}",
                  str(stats.get("parallelism", ""))]
         seconds = stats.get("render_seconds")
         rays = stats.get("rays")
@@ -332,6 +338,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             parts.append(f"{total / seconds / 1e6:.2f} M rays/s")
         if seconds is not None:
             parts.append(f"{seconds:.2f} s")
+        if isinstance(stats.get("estimated_rel_error"), float):
+            parts.append(f"est. error {stats['estimated_rel_error'] * 100:.1f} %")
         return "Done: " + ", ".join(parts)
 
 
