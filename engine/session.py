@@ -152,22 +152,34 @@ class SessionFilm:
         changed = []
         key = (unit.tile.index, self.next_chunk.get(unit.tile.index, 0))
         while key in self.pending:
-            r = self.pending.pop(key)
-            t = r.unit.tile
-            h, w = t.y1 - t.y0, t.x1 - t.x0
-            self.sum[t.y0:t.y1, t.x0:t.x1] += r.sum.reshape(h, w, 3)
-            self.sum_sq[t.y0:t.y1, t.x0:t.x1] += r.sum_sq.reshape(h, w, 3)
-            self.count[t.y0:t.y1, t.x0:t.x1] += r.count.reshape(h, w)
-            if r.sum_a is not None:
-                self.sum_a[t.y0:t.y1, t.x0:t.x1] += r.sum_a.reshape(h, w, 3)
-                self.count_a[t.y0:t.y1, t.x0:t.x1] += r.count_a.reshape(h, w)
-            if self.features is not None and r.features is not None:
-                self.features.add(t, r.features)
-            self.units_added += 1
-            self.next_chunk[t.index] = key[1] + 1
+            t = self._merge(self.pending.pop(key))
             key = (t.index, key[1] + 1)
             changed = [t]
         return changed
+
+    def flush(self) -> list[Tile]:
+        """Merge the results still waiting for an earlier chunk of their tile that will not come
+        (a cancelled render: the work finished is kept, in chunk order); the tiles changed."""
+        changed = {}
+        for key in sorted(self.pending):
+            t = self._merge(self.pending.pop(key))
+            changed[t.index] = t
+        return list(changed.values())
+
+    def _merge(self, r: UnitResult) -> Tile:
+        t = r.unit.tile
+        h, w = t.y1 - t.y0, t.x1 - t.x0
+        self.sum[t.y0:t.y1, t.x0:t.x1] += r.sum.reshape(h, w, 3)
+        self.sum_sq[t.y0:t.y1, t.x0:t.x1] += r.sum_sq.reshape(h, w, 3)
+        self.count[t.y0:t.y1, t.x0:t.x1] += r.count.reshape(h, w)
+        if r.sum_a is not None:
+            self.sum_a[t.y0:t.y1, t.x0:t.x1] += r.sum_a.reshape(h, w, 3)
+            self.count_a[t.y0:t.y1, t.x0:t.x1] += r.count_a.reshape(h, w)
+        if self.features is not None and r.features is not None:
+            self.features.add(t, r.features)
+        self.units_added += 1
+        self.next_chunk[t.index] = max(self.next_chunk.get(t.index, 0), r.unit.chunk + 1)
+        return t
 
     def mean(self, tile: Tile | None = None) -> np.ndarray:
         s = (slice(None), slice(None)) if tile is None else (slice(tile.y0, tile.y1), slice(tile.x0, tile.x1))
@@ -332,6 +344,10 @@ class RenderSession:
             workers.close()
         if error is not None:
             raise error
+        if cancelled:                                      # keep every unit that finished
+            for tile in self.film.flush():
+                if on_tile is not None:
+                    on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
         return self.result(time.perf_counter() - start, cancelled, getattr(workers, "describe", "local"))
 
     def error_stats(self, seconds: float) -> dict:

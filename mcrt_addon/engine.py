@@ -246,14 +246,22 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
                 self.end_result(result)
 
         t_render = time.perf_counter()
+        printed = [None]                 # when the last progress line went to the terminal
 
         def on_progress(fraction, message):
-            self.update_progress(min(max(float(fraction), 0.0), 1.0))
+            fraction = min(max(float(fraction), 0.0), 1.0)
+            self.update_progress(fraction)
             if message.startswith("Sample "):     # the stopping rules' line: samples, error, time
-                self.update_stats("", stats_line(message))
+                line = stats_line(message)
             else:
-                self.update_stats("", stats_line(f"{message} | {settings.samples} spp | "
-                                                  f"{time.perf_counter() - t_render:.1f} s"))
+                line = stats_line(f"{message} | {settings.samples} spp | {time.perf_counter() - t_render:.1f} s")
+            self.update_stats("", line)
+            # In the background (blender -b, python -m mcrt_addon render) nobody sees the stats:
+            # a progress line on the terminal, as Cycles prints its own, at most one a second.
+            now = time.perf_counter()
+            if bpy.app.background and (printed[0] is None or now - printed[0] >= 1.0 or fraction >= 1.0):
+                printed[0] = now
+                print(f"{fraction * 100:5.1f}% {line}", flush=True)
 
         def log(*args):
             print(*args)
