@@ -28,6 +28,9 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  through a second UV map (Closest, Extend) and a lamp with a textured emission colour
   nested_glass   glass inside glass: a "water" sphere (IOR 1.33) inside a glass cube (IOR 1.5),
                  and a glass sphere resting on the cube's top face
+  smooth         smooth shading: a shade-smooth Suzanne (Subdivision level 2) and a low-poly 12 x 6
+                 shade-smooth UV sphere (too coarse for the implicit-sphere test: a triangle mesh with
+                 interpolated normals, shadow terminator included), diffuse, in the Cornell room
 Light-sampling stress scenes (issue 9; plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -552,6 +555,24 @@ def make_textured(scene, res):
     settings(scene, res)
 
 
+def make_smooth(scene, res):
+    """Smooth shading (issue 12 item 3): interpolated vertex normals on a subdivided Suzanne and on
+    a coarse UV sphere, both Shade Smooth; lit by the ceiling lamp."""
+    room(scene)
+
+    def monkey(bm):
+        bmesh.ops.create_monkey(bm)
+    ob = mesh_object(scene, "Suzanne", monkey, diffuse("Clay", (0.75, 0.6, 0.45)), location=(-0.3, 0.15, 0.9),
+                     rotation=(0, 0, math.radians(-25)), scale=(0.5, 0.5, 0.5), smooth=True)
+    mod = ob.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels = mod.render_levels = 2
+    mesh_object(scene, "LowPolyBall", lambda bm: uv_sphere(bm, 0.3, segments=12, rings=6),
+                diffuse("Pink", (0.8, 0.4, 0.5)), location=(0.45, -0.25, 0.3), smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
 def make_sky_lit(scene, res):
     """No room and no lamp: a large floor, a box, a ball and a low wall under a light-blue sky of
     strength 1 (the world is the only light; the camera sees some sky above the horizon)."""
@@ -585,6 +606,7 @@ SCENES = {
     "spot_light": make_spot_light,
     "sky_lit": make_sky_lit,
     "textured": make_textured,
+    "smooth": make_smooth,
 }
 
 
