@@ -28,9 +28,10 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  through a second UV map (Closest, Extend) and a lamp with a textured emission colour
   nested_glass   glass inside glass: a "water" sphere (IOR 1.33) inside a glass cube (IOR 1.5),
                  and a glass sphere resting on the cube's top face
-  smooth         smooth shading: a shade-smooth Suzanne (Subdivision level 2) and a low-poly 12 x 6
-                 shade-smooth UV sphere (too coarse for the implicit-sphere test: a triangle mesh with
-                 interpolated normals, shadow terminator included), diffuse, in the Cornell room
+  smooth         smooth shading: a shade-smooth diffuse Suzanne (Subdivision level 2), a diffuse and
+                 a mirror low-poly 12 x 6 shade-smooth UV sphere (too coarse for the implicit-sphere
+                 test: triangle meshes with interpolated normals; the diffuse one shows the shadow
+                 terminator, the mirror one the valid-reflection normal), in the Cornell room
 Light-sampling stress scenes (issue 9; plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -567,7 +568,10 @@ def make_smooth(scene, res):
     mod = ob.modifiers.new("Subdivision", "SUBSURF")
     mod.levels = mod.render_levels = 2
     mesh_object(scene, "LowPolyBall", lambda bm: uv_sphere(bm, 0.3, segments=12, rings=6),
-                diffuse("Pink", (0.8, 0.4, 0.5)), location=(0.45, -0.25, 0.3), smooth=True)
+                diffuse("Pink", (0.8, 0.4, 0.5)), location=(0.55, 0.1, 0.3), smooth=True)
+    mesh_object(scene, "LowPolyMirror", lambda bm: uv_sphere(bm, 0.25, segments=12, rings=6),
+                mirror("Mirror", (0.9, 0.9, 0.9)), location=(0.0, -0.4, 0.25), rotation=(0, 0, math.radians(10)),
+                smooth=True)
     camera(scene)
     black_world(scene)
     settings(scene, res)
