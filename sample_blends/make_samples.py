@@ -275,7 +275,7 @@ def make_suzanne(scene, res, level):
 
     ob = mesh_object(scene, "Suzanne", monkey,
                      diffuse("Clay", (0.75, 0.6, 0.45)), location=(0, 0, 0.8),
-                     rotation=(0, 0, math.radians(-20)), scale=(0.6, 0.6, 0.6), smooth=False)  # flat: the tracer has no shading normals
+                     rotation=(0, 0, math.radians(-20)), scale=(0.6, 0.6, 0.6), smooth=False)  # flat (the `smooth` scene has shading normals)
     mod = ob.modifiers.new("Subdivision", "SUBSURF")
     mod.levels = mod.render_levels = level
     camera(scene)
