@@ -287,3 +287,17 @@ def test_terminator_offset_brightens_the_coarse_sphere_terminator():
     diff = lifted.image[..., 1].sum() - plain.image[..., 1].sum()
     se = np.sqrt(lifted.variance[..., 1].sum() + plain.variance[..., 1].sum())
     assert diff > 5 * se, (diff, se)
+
+
+def test_worker_processes_get_the_normals():
+    """The scene goes to `python -m engine worker` processes pickled: their image of a smooth mirror
+    ball is render()'s (normals, smooth flags and terminator offsets arrive), not the flat one's."""
+    import sys
+    from engine.service import SubprocessWorkers, render_in_workers
+    settings = RenderSettings(samples=4, tile_size=8, seed=3)
+    ref = render(box_room(True, 2), settings, **SILENT)
+    pool = SubprocessWorkers(sys.executable, 2, **SILENT)
+    remote = render_in_workers(box_room(True, 2), settings, workers=pool, **SILENT)
+    flat = render(box_room(False, 2), settings, **SILENT)
+    assert np.array_equal(remote.image, ref.image)
+    assert not np.array_equal(remote.image, flat.image)
