@@ -35,13 +35,17 @@ import numpy as np
 from .vec import dot
 
 
-def interpolate(corners: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def interpolate(corners: np.ndarray, u: np.ndarray, v: np.ndarray, fallback=None) -> np.ndarray:
     """Unit Phong normals (rows (3, M)) from the corner normals (M, 3, 3) of the hit triangles and
-    the barycentrics u, v of corners 1 and 2.  A hit exactly at a corner returns its normal."""
+    the barycentrics u, v of corners 1 and 2.  A hit exactly at a corner returns its normal.  Where
+    the corners cancel (opposite normals: a zero sum) the `fallback` rows (the geometric normal)."""
     w0 = 1.0 - u - v
     n = (w0[:, None] * corners[:, 0] + u[:, None] * corners[:, 1] + v[:, None] * corners[:, 2]).T
     length = np.sqrt(dot(n, n))
-    return n / np.maximum(length, 1e-300)
+    n = n / np.maximum(length, 1e-300)
+    if fallback is not None:
+        n = np.where(length > 1e-9, n, fallback)
+    return n
 
 
 class SmoothNormals:
@@ -94,7 +98,8 @@ class SmoothNormals:
         row = self.index.take(prim)
         smooth = np.flatnonzero(row >= 0)
         if len(smooth):
-            out[:, smooth] = interpolate(self.corners.take(row.take(smooth), axis=0), u.take(smooth), v.take(smooth))
+            out[:, smooth] = interpolate(self.corners.take(row.take(smooth), axis=0), u.take(smooth), v.take(smooth),
+                                         out[:, smooth])
         return out
 
 

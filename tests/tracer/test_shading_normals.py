@@ -75,6 +75,11 @@ def test_hit_at_a_vertex_returns_its_normal():
         assert np.array_equal(n, corners[0, k]), (k, n)
     mid = interpolate(corners, np.array([0.5]), np.array([0.0]))[:, 0]
     assert np.allclose(mid, (corners[0, 0] + corners[0, 1]) / np.linalg.norm(corners[0, 0] + corners[0, 1]))
+    # corners that cancel (opposite normals) at the hit: the geometric normal, never 0 or NaN
+    opposite = np.array([[[0, 0, 1], [0, 0, -1], [0, 0, 1]]], float)
+    geometric = np.array([[0.0], [0.6], [0.8]])
+    n = interpolate(opposite, np.array([0.5]), np.array([0.0]), geometric)
+    assert np.array_equal(n, geometric)
 
 
 @pytest.mark.parametrize("accelerator", ["octree", "brute"])
