@@ -155,7 +155,7 @@ def load_scene(path: str) -> Scene:
         normals = m.array("normals", arrays, 3, integer=False) if "normals" in m else None
         smooth = m.array("smooth", arrays, None, integer=True) if "smooth" in m else None
         if smooth is not None and ((smooth < 0) | (smooth > 1)).any():
-            m.fail("smooth", "a list of 0 (flat) or 1 (smooth) per triangle", "other integers")
+            m.fail("smooth", "a list of 0 (flat) or 1 (smooth) per triangle", smooth.tolist())
         meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids, uvs,
                                    normals=normals, smooth=None if smooth is None else smooth.astype(bool),
                                    terminator_offset=m.number("terminator_offset", 0.1)))

@@ -306,3 +306,22 @@ def test_worker_processes_get_the_normals():
     flat = render(box_room(False, 2), settings, **SILENT)
     assert np.array_equal(remote.image, ref.image)
     assert not np.array_equal(remote.image, flat.image)
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("normals", [[0, 0, 1]] * 4, "Object 'Tri': 4 normals for 1 triangles"),
+    ("normals", [[0, 0, "up"]] * 3, "Object 'Tri': normals"),
+    ("smooth", [2], "Object 'Tri': smooth"),
+])
+def test_bad_normals_in_a_scene_file_are_one_line_naming_the_object(tmp_path, field, value, message):
+    import json
+    from engine.scene import SceneError
+    mesh = {"name": "Tri", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2]],
+            "normals": [[0, 0, 1]] * 3}
+    mesh[field] = value
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps({"format": "tncg15-scene", "version": 4, "materials": [{"name": "m"}],
+                                "camera": {"look_at": {"position": [0, 0, 2], "target": [0, 0, 0], "up": [0, 1, 0]}},
+                                "meshes": [mesh]}))
+    with pytest.raises(SceneError, match=message):
+        load_scene(str(path)).validate()
