@@ -239,7 +239,7 @@ class PathTracer:
         dim = 1 + DIMS_PER_BOUNCE * p.bounce[:alive]                        # this hit's dimensions
         u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
         if features is not None:
-            self.surface_features(p, surf, facing, color, bounds, features, hits)
+            self.surface_features(p, surf, shade, color, bounds, features, hits)   # Cycles: the shading normal
         if self.use_nee and bounds[1] > bounds[0]:
             p.radiance[:, diffuse] += p.beta[:, diffuse] * self.direct_light(
                 surf.point[:, diffuse], shade[:, diffuse], color[:, diffuse], surf.offset[diffuse], None, counters,

@@ -325,3 +325,15 @@ def test_bad_normals_in_a_scene_file_are_one_line_naming_the_object(tmp_path, fi
                                 "meshes": [mesh]}))
     with pytest.raises(SceneError, match=message):
         load_scene(str(path)).validate()
+
+
+def test_normal_pass_is_the_shading_normal():
+    """Cycles' Denoising Normal is the closure's (shading) normal: on the floor with shading normals
+    tilted 30 degrees it is that normal in camera space, not the geometric (0, 0, 1)."""
+    scene = tilted_floor(30.0)
+    r = render(scene, RenderSettings(samples=2, passes=("normal",), threads=1), **SILENT)
+    axes = np.asarray(scene.camera.matrix)[:3, :3] * np.array([1.0, 1.0, -1.0])
+    t = np.radians(30.0)
+    assert np.allclose(r.passes["normal"], axes.T @ np.array([np.sin(t), 0.0, np.cos(t)]), atol=1e-6)
+    assert not np.allclose(axes.T @ np.array([0.0, 0.0, 1.0]), axes.T @ np.array([np.sin(t), 0.0, np.cos(t)]),
+                           atol=0.1)                                     # control: the flat answer differs
