@@ -146,10 +146,10 @@ def test_scene_file_round_trip_keeps_normals(tmp_path):
     assert np.array_equal(back.meshes[0].smooth, scene.meshes[0].smooth)
     assert back.meshes[0].terminator_offset == 0.25
     import json
-    assert json.loads((tmp_path / "s.json").read_text())["version"] == 4
+    assert json.loads((tmp_path / "s.json").read_text())["version"] == 5
     flat = box_room(False)
     save_scene(flat, str(tmp_path / "f.json"))
-    assert json.loads((tmp_path / "f.json").read_text())["version"] == 3      # older readers still read it
+    assert json.loads((tmp_path / "f.json").read_text())["version"] == 4      # older readers still read it
     assert load_scene(str(tmp_path / "f.json")).meshes[0].normals is None
 
 
