@@ -14,10 +14,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .scene import DIFFUSE, GLASS, MIRROR
+from .shading_normals import has_smooth
 from .textures import textured_materials
 
-EFFECTS = ("triangles", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass", "emission",
-           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes", "textures")
+EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
+           "emission", "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes",
+           "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -78,6 +80,12 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     set_effect("triangles", n_tri > 0,
                f"{n_tri} triangles in {_names(meshes)}: {ACCELERATOR_KERNEL.get(accelerator, accelerator)}"
                if n_tri else "no triangle meshes: triangle kernel skipped")
+    smooth = [m for m in meshes if has_smooth([m])]
+    n_smooth = has_smooth(smooth)
+    set_effect("smooth_normals", n_smooth > 0,
+               f"{n_smooth} smooth-shaded triangles in {_names(smooth)}: corner normals interpolated at "
+               "hits for shading, geometric normal for offsets and side tests"
+               if n_smooth else "no smooth-shaded faces: flat (geometric) normals, nothing interpolated")
     set_effect("spheres", bool(scene.spheres),
                f"{len(scene.spheres)} implicit sphere(s) {_names(scene.spheres)}: sphere kernel"
                if scene.spheres else "no implicit spheres: sphere kernel skipped")

@@ -18,6 +18,7 @@ import numpy as np
 from .accel import build_accelerator
 from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
+from .shading_normals import SmoothNormals, has_smooth
 from .shapes.spheres import intersect_sphere, surface_point
 from .vec import aos, max_abs3, rows
 
@@ -37,6 +38,11 @@ class SurfaceHits:
     normal: np.ndarray     # (3, M) unit geometric normal (winding / outward)
     material: np.ndarray   # (M,) material index
     offset: np.ndarray     # (M,) distance along the normal that clears the surface
+    shading: np.ndarray | None = None   # (3, M) unit shading normal (smooth triangles); else `normal`
+
+    def __post_init__(self):
+        if self.shading is None:
+            self.shading = self.normal
 
 
 @dataclass
@@ -115,6 +121,9 @@ class SceneGeometry:
         self.has_quads = kernel("quads", self.quads.count)
         self.has_lights = plan is not None and bool(plan.enabled.get("area_lights"))
         self.lights = LightPolygons(scene.lights if self.has_lights else [])
+        # Smooth shading: interpolated corner normals, only when the plan says a scene has them.
+        self.smooth = (SmoothNormals(scene.meshes) if self.has_triangles and kernel("smooth_normals",
+                       has_smooth(scene.meshes)) else None)
 
         # Material of (kind, prim) as one lookup: primitive_material[kind_base[kind] + prim];
         # light polygons have no material (slot 0: the caller groups them by kind).
@@ -237,11 +246,13 @@ class SceneGeometry:
 
     def surface(self, o, d, hits: HitSet) -> SurfaceHits:
         """Shading data for the hit rays; rows o and d already in hits.index order."""
-        parts = []
+        parts, shading = [], []
         for (_, k), (a, b) in hits.runs.items():             # in index order (nearest_hits)
             prim = hits.prim[a:b]
             if k == TRIANGLE:
                 pt, nrm, off = self._triangle_surface(prim, hits.u[a:b], hits.v[a:b])
+                if self.smooth is not None:
+                    shading.append((len(parts), self.smooth.shading(prim, hits.u[a:b], hits.v[a:b], nrm)))
             elif k == SPHERE:
                 pt, nrm, off = surface_point(o[:, a:b], d[:, a:b], hits.t[a:b],
                                              self.sphere_center.take(prim, axis=1), self.sphere_radius.take(prim))
@@ -252,14 +263,34 @@ class SceneGeometry:
             parts.append((pt, nrm, off))
         if len(parts) == 1:
             pt, nrm, off = parts[0]
-            return SurfaceHits(pt, nrm, hits.material, off)
+            return SurfaceHits(pt, nrm, hits.material, off, shading[0][1] if shading else None)
         if not parts:
             empty = np.zeros((3, 0))
             return SurfaceHits(empty, empty, hits.material, np.zeros(0))
         points, normals, offsets = zip(*parts)
         point, normal, offset = (np.concatenate(points, axis=1), np.concatenate(normals, axis=1),
                                  np.concatenate(offsets))
+        if shading:                         # the smooth normals replace those triangles' columns
+            per_part = list(normals)
+            for i, nrm_s in shading:
+                per_part[i] = nrm_s
+            return SurfaceHits(point, normal, hits.material, offset, np.concatenate(per_part, axis=1))
         return SurfaceHits(point, normal, hits.material, offset)
+
+    def terminator_lift(self, hits: HitSet, span: slice, facing):
+        """Shadow-terminator lift of the hits in `span` (engine/shading_normals.py): (lift rows,
+        cutoff) for their shadow rays, or None when none of them is on a smooth triangle."""
+        if self.smooth is None:
+            return None
+        tri = np.flatnonzero(hits.kind[span] == TRIANGLE)
+        if not len(tri):
+            return None
+        m = span.stop - span.start
+        lift, cutoff = np.zeros((3, m)), np.zeros(m)
+        lift[:, tri], cutoff[tri] = self.smooth.terminator_lift(
+            hits.prim[span].take(tri), hits.u[span].take(tri), hits.v[span].take(tri),
+            facing[:, span].take(tri, axis=1), self.triangles)
+        return (lift, cutoff) if (cutoff > 0.0).any() else None
 
     def _triangle_surface(self, prim, u, v):
         """(point, normal, offset) of triangle hits."""

@@ -44,6 +44,7 @@ from .geometry import LIGHT, QUAD, SPHERE, TRIANGLE
 from .qmc import RandomSampler
 from .sampling import cosine_directions
 from .scene import DIFFUSE, GLASS, MIRROR
+from .shading_normals import ensure_valid_reflection, terminator_amount
 from .vec import dot, max3, rows
 
 KIND_CODE = {DIFFUSE: 0, MIRROR: 1, GLASS: 2}
@@ -226,21 +227,29 @@ class PathTracer:
         passing = self.pass_through(p.take(np.arange(through.start, through.stop)), surf, through)
         # 5. Direct light at diffuse hits (eq. 2.11).
         diffuse = slice(bounds[0], bounds[1])
-        facing = surf.normal * np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)   # towards the ray
+        towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
+        facing = surf.normal * towards                                      # towards the ray
+        # Smooth shading: the shading normal on the geometric normal's side of the ray (shading
+        # only; offsets and side tests keep `facing`).  Flat-only scenes: the same array.
+        smooth = surf.shading is not surf.normal
+        shade = surf.shading * towards if smooth else facing
         color = self.mats.color.take(surf.material, axis=1)
         if self.textures is not None:
             color = self.textures.color(color, surf.material, hits.kind, hits.prim, hits.u, hits.v)
         dim = 1 + DIMS_PER_BOUNCE * p.bounce[:alive]                        # this hit's dimensions
         u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
         if features is not None:
-            self.surface_features(p, surf, facing, color, bounds, features, hits)
+            self.surface_features(p, surf, shade, color, bounds, features, hits)   # Cycles: the shading normal
         if self.use_nee and bounds[1] > bounds[0]:
             p.radiance[:, diffuse] += p.beta[:, diffuse] * self.direct_light(
-                surf.point[:, diffuse], facing[:, diffuse], color[:, diffuse], surf.offset[diffuse], None, counters,
-                u=self.light_uniforms(sampler, p.pixel[diffuse], p.sample[diffuse], dim[diffuse], u_choice[diffuse]))
+                surf.point[:, diffuse], shade[:, diffuse], color[:, diffuse], surf.offset[diffuse], None, counters,
+                u=self.light_uniforms(sampler, p.pixel[diffuse], p.sample[diffuse], dim[diffuse], u_choice[diffuse]),
+                geometric=facing[:, diffuse] if smooth else None,
+                lift=self.geometry.terminator_lift(hits, diffuse, facing) if smooth else None)
         # 6. Scatter: the next direction and throughput of every scattering path.
         u_bsdf = sampler.pair(p.pixel[diffuse], p.sample[diffuse], dim[diffuse] + (BSDF_UV - 1))
-        new_d, side, beta = self.scatter(p, surf, facing, color, bounds, u_bsdf, u_choice)
+        new_d, side, beta = self.scatter(p, surf, facing, color, bounds, u_bsdf, u_choice,
+                                         shade=shade if smooth else None)
         # 7. Russian roulette and the depth limit.
         keep, beta = self.roulette(beta, p.bounce[:alive], p.specular[:alive], u_rr)
         # 8. Compaction: hand finished paths to the film, keep the rest.
@@ -406,9 +415,16 @@ class PathTracer:
         pick, _ = sampler.pair(pixel, sample, dim + (LIGHT_PICK - 1), light=True)
         return pick, u1, u2
 
-    def scatter(self, p, surf, facing, color, bounds, u_bsdf, u_choice):
+    def scatter(self, p, surf, facing, color, bounds, u_bsdf, u_choice, shade=None):
         """New directions, the side to leave on (+1 facing, -1 through) and throughputs of the
-        diffuse, mirror and glass paths (groups 0-2); updates their specular/MIS state."""
+        diffuse, mirror and glass paths (groups 0-2); updates their specular/MIS state.
+
+        shade: shading normals facing the ray (smooth shading) or None (flat: `facing`).  Then
+        diffuse bounces are sampled about it, mirror and glass use it bent so that the mirror
+        direction clears the geometric surface (ensure_valid_reflection), and a direction on the
+        wrong side of the geometric surface ends the path (engine/shading_normals.py)."""
+        smooth = shade is not None
+        shade = facing if shade is None else shade
         alive = bounds[BLACK]
         diffuse, mirror, glass = (slice(bounds[0], bounds[1]), slice(bounds[1], bounds[2]),
                                   slice(bounds[2], bounds[3]))
@@ -417,25 +433,36 @@ class PathTracer:
         side = np.ones(alive)
         d = p.d
         if n_diffuse:
-            new_d[:, diffuse] = cosine_directions(u_bsdf[0], u_bsdf[1], facing[:, diffuse])   # eq. 2.13b
+            new_d[:, diffuse] = cosine_directions(u_bsdf[0], u_bsdf[1], shade[:, diffuse])   # eq. 2.13b
             p.specular[diffuse] = False
             p.ray_kind[diffuse] = DIFFUSE_RAY
             if self.mis:
                 p.prev_p[:, diffuse] = surf.point[:, diffuse]
-                p.prev_n[:, diffuse] = facing[:, diffuse]
-                p.prev_pdf[diffuse] = dot(new_d[:, diffuse], facing[:, diffuse]) * (1.0 / np.pi)
+                p.prev_n[:, diffuse] = shade[:, diffuse]
+                p.prev_pdf[diffuse] = dot(new_d[:, diffuse], shade[:, diffuse]) * (1.0 / np.pi)
+        if smooth and bounds[3] > bounds[1]:     # mirror and glass: Cycles' valid-reflection normal
+            specular = slice(bounds[1], bounds[3])
+            shade = shade.copy()
+            shade[:, specular] = ensure_valid_reflection(facing[:, specular], -d[:, specular], shade[:, specular])
         if bounds[2] > bounds[1]:
-            new_d[:, mirror] = reflect(d[:, mirror], facing[:, mirror])   # eq. 2.20
+            new_d[:, mirror] = reflect(d[:, mirror], shade[:, mirror])   # eq. 2.20
             p.specular[mirror] = True
             p.ray_kind[mirror] = GLOSSY_RAY
         if bounds[3] > bounds[2]:
             stack = None if p.media is None else (p.media[glass], p.depth[glass])   # views: updated in place
+            cos_in = dot(d[:, glass], surf.normal[:, glass])            # its sign: entering or leaving
+            if smooth:
+                cos_in = np.copysign(np.abs(dot(d[:, glass], shade[:, glass])), cos_in)
             new_d[:, glass], side[glass] = self.scatter_glass(
-                d[:, glass], surf.normal[:, glass], facing[:, glass], dot(d[:, glass], surf.normal[:, glass]),
+                d[:, glass], surf.normal[:, glass], shade[:, glass], cos_in,
                 self.mats.ior.take(surf.material[glass]), None, stack, u=u_choice[glass])
             p.specular[glass] = True
             p.ray_kind[glass] = np.where(side[glass] > 0.0, GLOSSY_RAY, TRANSMISSION_RAY)
         beta = p.beta[:, :alive] * color[:, :alive]  # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
+        if smooth:                          # below the geometric surface (or not through it): ends
+            wrong = dot(new_d, facing[:, :alive]) * side <= 0.0
+            if wrong.any():
+                beta = np.where(wrong, 0.0, beta)
         return new_d, side, beta
 
     def roulette(self, beta, bounce, specular, u):
@@ -453,13 +480,18 @@ class PathTracer:
         return keep, beta
 
     # -- direct light, eq. 2.11 ---------------------------------------------------------
-    def direct_light(self, point, normal, albedo, offset, rng, counters, u=None) -> np.ndarray:
+    def direct_light(self, point, normal, albedo, offset, rng, counters, u=None, geometric=None,
+                     lift=None) -> np.ndarray:
         """<L_direct> with N_s shadow rays per point, divided by N_s: rows (3, M).
 
         point, normal (facing the viewer) and albedo are rows (3, M); offset (M,).  Each
         sample adds Le f cos(theta_x) V / p_l (eq. 2.11 written per unit solid angle: with
         p_l = P(k) d^2 / (A cos(theta_y)) it is the report's Le f G V A / P(k)), times the
-        MIS weight under `mis`.  u: (pick, u1, u2) per shadow ray, else drawn from rng."""
+        MIS weight under `mis`.  u: (pick, u1, u2) per shadow ray, else drawn from rng.
+        geometric: the geometric normals (facing the viewer) when `normal` is a shading normal
+        (smooth shading): shadow rays start off the geometric surface and directions below it
+        count 0 (no light leaks, engine/shading_normals.py).  lift: (lift rows, cutoff) per point,
+        the shadow-terminator geometry offset of smooth triangles (Cycles' shadow_ray_offset)."""
         ns = self.settings.shadow_rays
         m = point.shape[1]
         k = m * ns
@@ -467,6 +499,7 @@ class PathTracer:
         x = np.repeat(point, ns, axis=1) if ns > 1 else point
         nx = np.repeat(normal, ns, axis=1) if ns > 1 else normal
         off_x = np.repeat(offset, ns) if ns > 1 else offset
+        ng = nx if geometric is None else (np.repeat(geometric, ns, axis=1) if ns > 1 else geometric)
         u_pick, u1, u2 = u if u is not None else (rng.random(k), rng.random(k), rng.random(k))
         ls = self.lights.sample(x, nx, u_pick, u1, u2)
         if self.textures is not None:                   # textured emitters: Le at the sampled point
@@ -477,6 +510,17 @@ class PathTracer:
         ok = (cos_x > 0.0) & (cos_ly != 0.0) & (ls.pdf > 0.0) & (ls.distance > 0.0)
         if self.lights.any_one_sided:                   # front side only: emits towards -w
             ok &= ~(ls.one_sided & (cos_ly >= 0.0))
+        amount = None
+        if geometric is not None:
+            # Below the geometric surface: no light, unless the shadow-terminator lift moves the
+            # shadow ray's origin up onto the smooth surface (Cycles: it is then traced from there).
+            ng_w = dot(ng, w)
+            if lift is not None:
+                s_vec, cutoff = (np.repeat(lift[0], ns, axis=1), np.repeat(lift[1], ns)) if ns > 1 else lift
+                amount = terminator_amount(cos_x, ng_w, cutoff)
+                ok &= (ng_w > 0.0) | (amount > 0.0)
+            else:
+                ok &= ng_w > 0.0
         valid = np.flatnonzero(ok)
         everything = len(valid) == k
 
@@ -484,7 +528,9 @@ class PathTracer:
             return a if everything else a.take(valid, axis=axis)
         weight = np.zeros(k)
         if len(valid):
-            origin = pick(x, 1) + pick(off_x) * pick(nx, 1)
+            origin = pick(x, 1) + pick(off_x) * pick(ng, 1)
+            if amount is not None:                  # grazing light on a smooth triangle: lifted origin
+                origin = origin + pick(amount) * pick(s_vec, 1)
             # End point pulled off the light towards x, so the light never occludes itself;
             # the world is at infinity: its shadow rays run to t = inf.
             pull = np.copysign(1.0, pick(cos_ly)) * pick(ls.offset)

@@ -6,18 +6,22 @@ The figures are upper bounds per unit, measured loosely on this tracer:
   of a PNG (float64 temporaries): about 120 bytes;
 * per worker: its tile film (sum, sum of squares, count in float64) twice (the copy sent back),
   and the wavefront of 32,768 paths with their temporaries: about 64 MB;
-* per triangle: float64 and float32 copies and the acceleration structure: about 256 bytes.
+* per triangle: float64 and float32 copies and the acceleration structure: about 256 bytes;
+* per smooth-shaded triangle: its 3 corner normals in the scene and in the geometry's table
+  (float64) and the table's index: about 160 bytes more.
 """
 from __future__ import annotations
 
 import os
 
 from .scene import SceneError
+from .shading_normals import has_smooth
 
 BYTES_PER_PIXEL = 120
 BYTES_PER_TILE_PIXEL = 2 * 7 * 8
 BYTES_PER_WORKER = 64 << 20
 BYTES_PER_TRIANGLE = 256
+BYTES_PER_SMOOTH_TRIANGLE = 160
 
 
 def estimate_bytes(scene, settings) -> int:
@@ -26,7 +30,7 @@ def estimate_bytes(scene, settings) -> int:
     tile = min(settings.tile_size, width) * min(settings.tile_size, height)
     triangles = sum(len(m.triangles) for m in scene.meshes)
     return (width * height * BYTES_PER_PIXEL + workers * (tile * BYTES_PER_TILE_PIXEL + BYTES_PER_WORKER)
-            + triangles * BYTES_PER_TRIANGLE)
+            + triangles * BYTES_PER_TRIANGLE + has_smooth(scene.meshes) * BYTES_PER_SMOOTH_TRIANGLE)
 
 
 def available_bytes() -> int | None:

@@ -140,12 +140,20 @@ class Camera:
 
 @dataclass
 class TriangleMesh:
-    """Indexed triangles in world space with one material index per triangle."""
+    """Indexed triangles in world space with one material index per triangle.
+
+    Smooth shading (engine/shading_normals.py): `normals` holds one shading normal per corner,
+    (T, 3, 3) in the order of each triangle's vertices (Blender's split normals, world space);
+    `smooth` (T,) flags the triangles that use them (None: all).  Without `normals` every
+    triangle is flat (its geometric normal)."""
     name: str
     vertices: np.ndarray          # (V, 3) float64
     triangles: np.ndarray         # (T, 3) int
     material_ids: np.ndarray      # (T,) int, indices into Scene.materials
     uvs: np.ndarray | None = None  # (T, 3, 2) corner UVs (one UV map), only where textures need them
+    normals: np.ndarray | None = None     # (T, 3, 3) corner normals of smooth triangles
+    smooth: np.ndarray | None = None      # (T,) bool: shaded smooth (None: every triangle)
+    terminator_offset: float = 0.1        # Cycles' Shadow Terminator > Geometry Offset (0: off)
 
     def validate(self, n_materials: int, emissive: np.ndarray | None = None) -> int:
         """Check the mesh; drop degenerate triangles.  Returns how many were dropped.
@@ -190,12 +198,57 @@ class TriangleMesh:
                 raise SceneError(f"{owner}: UVs must be 3 finite (u, v) pairs per triangle "
                                  f"({len(self.triangles)} triangles, {uvs.size // 2} UV pairs)")
             self.uvs = uvs.reshape(-1, 3, 2)
+        if self.normals is not None:
+            self._check_normal_shapes(owner)
+        if not (isinstance(self.terminator_offset, (int, float)) and 0.0 <= self.terminator_offset <= 1.0):
+            raise SceneError(f"{owner}: shadow terminator geometry offset must be from 0 to 1, "
+                             f"got {self.terminator_offset!r}")
         if dropped:
             self.triangles = self.triangles[keep]
             self.material_ids = self.material_ids[keep]
             if self.uvs is not None:
                 self.uvs = self.uvs[keep]
+            if self.normals is not None:
+                self.normals = self.normals[keep]
+                self.smooth = None if self.smooth is None else self.smooth[keep]
         return dropped
+
+    def _check_normal_shapes(self, owner: str) -> None:
+        try:
+            normals = np.asarray(self.normals, dtype=np.float64)
+            smooth = None if self.smooth is None else np.asarray(self.smooth)
+        except (TypeError, ValueError, OverflowError):
+            raise SceneError(f"{owner}: normals must be numbers") from None
+        t = len(self.triangles)
+        if normals.size != t * 9:
+            raise SceneError(f"{owner}: {normals.size // 3 if normals.size % 3 == 0 else normals.size} "
+                             f"normals for {t} triangles (need 3 per triangle, one per corner)")
+        if smooth is not None and (smooth.shape != (t,) or smooth.dtype.kind not in "bi"):
+            raise SceneError(f"{owner}: smooth flags must be {t} booleans (one per triangle)")
+        self.normals = normals.reshape(t, 3, 3)
+        self.smooth = None if smooth is None else smooth.astype(bool)
+
+    def validate_normals(self) -> str | None:
+        """Normalise the corner normals; bad ones (NaN, infinite, zero length) become the
+        triangle's geometric normal.  Returns a warning naming the object, or None.
+        Call after validate() (shapes checked, degenerate triangles dropped)."""
+        if self.normals is None:
+            return None
+        n = self.normals
+        with np.errstate(invalid="ignore", over="ignore"):
+            length = np.sqrt((n * n).sum(axis=2))
+            bad = ~(np.isfinite(length) & (length > 1e-12))
+            n = n / np.where(bad, 1.0, length)[..., None]
+        if bad.any():
+            v = self.vertices[self.triangles]
+            g = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+            g /= np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
+            n = np.where(bad[..., None], g[:, None, :], n)
+        self.normals = n
+        if not bad.any():
+            return None
+        return (f"Object '{self.name}': {int(bad.sum())} of {bad.size} shading normals are zero, NaN or "
+                "infinite; those corners use the face (geometric) normal")
 
 
 @dataclass
@@ -416,6 +469,9 @@ class Scene:
             dropped = mesh.validate(n, emissive)
             if dropped:
                 warnings.append(f"Object '{mesh.name}': {dropped} degenerate triangle(s) dropped")
+            bad_normals = mesh.validate_normals()
+            if bad_normals:
+                warnings.append(bad_normals)
         for sphere in self.spheres:
             sphere.validate(n)
         for quad in self.quads:

@@ -7,7 +7,9 @@
                 "shift_x": 0, "shift_y": 0},
      "materials": [{"name": "White", "kind": "diffuse", "color": [..], "ior": 1.5, "emission": [..]}],
      "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
-                 "material": "White"  or  "material_ids": [..] or "@key"}],
+                 "material": "White"  or  "material_ids": [..] or "@key",
+                 "normals": [[..] x 3T] or "@key", "smooth": [0/1 x T] or "@key",  (optional)
+                 "terminator_offset": 0.1}],                                         (optional)
      "spheres": [{"name": "Ball", "center": [..], "radius": 0.3, "material": "Glass"}],
      "quads": [{"name": "Light", "corners": [[..] x4], "material": "Light"}],
      "lights": [{"name": "Lamp", "vertices": [[..] x N], "radiance": [r, g, b], "two_sided": false,
@@ -19,7 +21,10 @@
      "suns": [{"name": "Sun", "direction": [..], "irradiance": [r, g, b], "angle": 0.01}]}
 
 "version" is FORMAT_VERSION (2: Area lights; 3: point, spot and sun lights; 4: image textures,
-engine/texture_io.py); files of a newer version are refused.
+engine/texture_io.py; 5: smooth shading, a mesh's "normals": one shading normal per triangle
+corner, 3 rows per triangle, "smooth": which triangles use them (all when absent),
+"terminator_offset": Cycles' shadow terminator geometry offset); files of a newer version are
+refused.  A scene without smooth meshes is written as version 4, which older readers still read.
 
 A value "@key" names an array in the NPZ file with the JSON's name and suffix .npz.
 """
@@ -36,7 +41,8 @@ from .scene_fields import Fields, is_integer
 from .texture_io import read_slot, read_textures, slot_json, textures_json
 
 FORMAT = "tncg15-scene"
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
+SMOOTH_VERSION = 5                  # the first version with mesh normals; scenes without them: 4
 LIGHT_FLAGS = ("two_sided", "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
                "lights_diffuse")
 LAMP_FLAGS = ("lights_diffuse", "visible_glossy", "visible_transmission")     # point, spot and sun lights
@@ -146,7 +152,13 @@ def load_scene(path: str) -> Scene:
         ids = (m.array("material_ids", arrays, None, integer=True) if "material_ids" in m
                else np.full(len(tris), _material_index(m, names)))
         uvs = m.array("uvs", arrays, 2, integer=False) if "uvs" in m else None
-        meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids, uvs))
+        normals = m.array("normals", arrays, 3, integer=False) if "normals" in m else None
+        smooth = m.array("smooth", arrays, None, integer=True) if "smooth" in m else None
+        if smooth is not None and ((smooth < 0) | (smooth > 1)).any():
+            m.fail("smooth", "a list of 0 (flat) or 1 (smooth) per triangle", smooth.tolist())
+        meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids, uvs,
+                                   normals=normals, smooth=None if smooth is None else smooth.astype(bool),
+                                   terminator_offset=m.number("terminator_offset", 0.1)))
     spheres = []
     for i, entry in enumerate(top.objects("spheres")):
         s, sphere_name = _named(entry, "Object", f"sphere{i}")
@@ -192,9 +204,17 @@ def save_scene(scene: Scene, path: str) -> None:
         if mesh.uvs is not None:
             arrays[f"mesh{i}_uvs"] = np.asarray(mesh.uvs, dtype=np.float64).reshape(-1, 2)
             meshes[-1]["uvs"] = f"@mesh{i}_uvs"
+        if mesh.normals is not None:
+            arrays[f"mesh{i}_normals"] = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3)
+            meshes[-1]["normals"] = f"@mesh{i}_normals"
+            meshes[-1]["terminator_offset"] = float(mesh.terminator_offset)
+            if mesh.smooth is not None:
+                arrays[f"mesh{i}_smooth"] = np.asarray(mesh.smooth, dtype=np.int8)
+                meshes[-1]["smooth"] = f"@mesh{i}_smooth"
     cam = scene.camera
     data = {
-        "format": FORMAT, "version": FORMAT_VERSION, "name": scene.name,
+        "format": FORMAT, "name": scene.name,
+        "version": SMOOTH_VERSION if any(m.normals is not None for m in scene.meshes) else SMOOTH_VERSION - 1,
         "resolution": list(scene.resolution), "background": list(scene.background),
         "camera": None if cam is None else {
             "name": cam.name, "matrix": np.asarray(cam.matrix).tolist(), "lens": cam.lens,

@@ -28,6 +28,10 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  through a second UV map (Closest, Extend) and a lamp with a textured emission colour
   nested_glass   glass inside glass: a "water" sphere (IOR 1.33) inside a glass cube (IOR 1.5),
                  and a glass sphere resting on the cube's top face
+  smooth         smooth shading: a shade-smooth diffuse Suzanne (Subdivision level 2), a diffuse and
+                 a mirror low-poly 12 x 6 shade-smooth UV sphere (too coarse for the implicit-sphere
+                 test: triangle meshes with interpolated normals; the diffuse one shows the shadow
+                 terminator, the mirror one the valid-reflection normal), in the Cornell room
 Light-sampling stress scenes (issue 9; plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -271,7 +275,7 @@ def make_suzanne(scene, res, level):
 
     ob = mesh_object(scene, "Suzanne", monkey,
                      diffuse("Clay", (0.75, 0.6, 0.45)), location=(0, 0, 0.8),
-                     rotation=(0, 0, math.radians(-20)), scale=(0.6, 0.6, 0.6), smooth=False)  # flat: the tracer has no shading normals
+                     rotation=(0, 0, math.radians(-20)), scale=(0.6, 0.6, 0.6), smooth=False)  # flat (the `smooth` scene has shading normals)
     mod = ob.modifiers.new("Subdivision", "SUBSURF")
     mod.levels = mod.render_levels = level
     camera(scene)
@@ -552,6 +556,27 @@ def make_textured(scene, res):
     settings(scene, res)
 
 
+def make_smooth(scene, res):
+    """Smooth shading (issue 12 item 3): interpolated vertex normals on a subdivided Suzanne and on
+    a coarse UV sphere, both Shade Smooth; lit by the ceiling lamp."""
+    room(scene)
+
+    def monkey(bm):
+        bmesh.ops.create_monkey(bm)
+    ob = mesh_object(scene, "Suzanne", monkey, diffuse("Clay", (0.75, 0.6, 0.45)), location=(-0.3, 0.15, 0.9),
+                     rotation=(0, 0, math.radians(-25)), scale=(0.5, 0.5, 0.5), smooth=True)
+    mod = ob.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels = mod.render_levels = 2
+    mesh_object(scene, "LowPolyBall", lambda bm: uv_sphere(bm, 0.3, segments=12, rings=6),
+                diffuse("Pink", (0.8, 0.4, 0.5)), location=(0.55, 0.1, 0.3), smooth=True)
+    mesh_object(scene, "LowPolyMirror", lambda bm: uv_sphere(bm, 0.25, segments=12, rings=6),
+                mirror("Mirror", (0.9, 0.9, 0.9)), location=(0.0, -0.4, 0.25), rotation=(0, 0, math.radians(10)),
+                smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
 def make_sky_lit(scene, res):
     """No room and no lamp: a large floor, a box, a ball and a low wall under a light-blue sky of
     strength 1 (the world is the only light; the camera sees some sky above the horizon)."""
@@ -585,6 +610,7 @@ SCENES = {
     "spot_light": make_spot_light,
     "sky_lit": make_sky_lit,
     "textured": make_textured,
+    "smooth": make_smooth,
 }
 
 

@@ -15,8 +15,8 @@ from .camera import export_camera
 from .images import ImageTable
 from .lights import export_area_light, export_point_light, export_sun_light
 from .materials import MaterialTable
-from .mesh import (bounding_sphere, corner_uvs, has_smooth_faces, mesh_arrays, sphere_fit, transform_points,
-                   uniform_scale)
+from .mesh import (bounding_sphere, corner_uvs, mesh_arrays, mesh_normals, sphere_fit, terminator_offsets,
+                   transform_normals, transform_points, uniform_scale)
 from .unsupported import object_warnings, scene_warnings
 from .util import ExportError
 from .world import export_world
@@ -87,7 +87,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     flagged = set()
     n_instances = n_triangles = 0
     skipped = set()
-    smooth_checked = set()
+    terminator_warned = set()
     for n, inst in enumerate(depsgraph.object_instances):
         if test_break is not None and n % 512 == 0 and test_break():
             raise ExportCancelled()
@@ -131,11 +131,11 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         arrays = cache.get((key, uv_map)) if key is not None else None
         if arrays is None:
             if otype == "MESH":
-                arrays = mesh_arrays(ob.data) + (corner_uvs(ob.data, uv_map, label, warnings),)
+                arrays = mesh_arrays(ob.data) + (corner_uvs(ob.data, uv_map, label, warnings), mesh_normals(ob.data))
             else:
                 me = ob.to_mesh()
                 try:
-                    arrays = (mesh_arrays(me) + (corner_uvs(me, uv_map, label, warnings),)
+                    arrays = (mesh_arrays(me) + (corner_uvs(me, uv_map, label, warnings), mesh_normals(me))
                               if me is not None else None)
                 finally:
                     ob.to_mesh_clear()
@@ -143,7 +143,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                     continue
             if key is not None:
                 cache[(key, uv_map)] = arrays
-        verts, tris, slots, uvs = arrays
+        verts, tris, slots, uvs, shading = arrays
         if len(tris) == 0:
             if otype == "MESH" and ob.name not in skipped:
                 skipped.add(ob.name)
@@ -170,11 +170,6 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                                          radius=fit[1] * scale, material_id=int(mat_ids[0])))
                 n_instances += 1
                 continue
-        if key is not None and key not in smooth_checked:
-            smooth_checked.add(key)
-            if has_smooth_faces(ob.data):
-                warnings.append(f"Object '{label}': smooth shading is not supported; rendered with flat "
-                                "(geometric) normals, unlike Cycles")
         world_verts = transform_points(verts, matrix)
         emissive = np.array([max(table.materials[i].emission) > 0 for i in slot_ids])[np.clip(slots, 0, len(slot_ids) - 1)]
         if emissive.any():
@@ -185,8 +180,19 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         tri_idx = tris[:, ::-1] if mirrored else tris
         if uvs is not None and mirrored:
             uvs = uvs[:, ::-1]
+        normals = smooth = None
+        terminator = 0.1
+        if shading is not None:                     # smooth faces: corner normals in world space
+            normals = transform_normals(shading[0], matrix)
+            normals, smooth = (normals[:, ::-1], shading[1]) if mirrored else (normals, shading[1])
+            terminator, unmodelled = terminator_offsets(ob)
+            if unmodelled and ob.name not in terminator_warned:
+                terminator_warned.add(ob.name)
+                warnings.append(f"Object '{ob.name}': shadow terminator {' and '.join(unmodelled)} not "
+                                "supported (only the geometry offset); ignored")
         meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
-                                      material_ids=mat_ids, uvs=uvs))
+                                      material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
+                                      terminator_offset=terminator))
         n_instances += 1
         n_triangles += len(tris)
 

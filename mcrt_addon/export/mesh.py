@@ -39,14 +39,63 @@ def corner_uvs(me, uv_map, label, warnings):
     return uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)
 
 
-def has_smooth_faces(me):
-    """True when any face is smooth-shaded (Cycles then interpolates vertex normals)."""
+def mesh_normals(me):
+    """Smooth shading of a mesh whose loop triangles are computed (mesh_arrays): (corner normals
+    float32 (T, 3, 3), smooth (T,) bool or None when every face is smooth), or None when no face
+    is smooth (flat shading: nothing to read).
+
+    The corner normals are Blender's split normals, as Cycles uses them: vertex normals on smooth
+    faces, custom normals where the mesh has them, sharp edges split.  Blender 4.1+ computes them
+    on demand; 3.4-4.0 need calc_normals_split() first (it fills the evaluated mesh's runtime
+    normals layer, as calc_loop_triangles() fills its triangles; the user's data is untouched).
+    One foreach_get each, no Python loop over vertices."""
     n = len(me.polygons)
-    if n == 0:
-        return False
+    nt = len(me.loop_triangles)
+    if n == 0 or nt == 0:
+        return None
     flags = np.empty(n, dtype=bool)
     me.polygons.foreach_get("use_smooth", flags)
-    return bool(flags.any())
+    if not flags.any():
+        return None
+    if hasattr(me, "calc_normals_split"):            # Blender < 4.1
+        me.calc_normals_split()
+    corners = np.empty(nt * 9, np.float32)
+    me.loop_triangles.foreach_get("split_normals", corners)
+    smooth = None
+    if not flags.all():
+        poly = np.empty(nt, np.int32)
+        me.loop_triangles.foreach_get("polygon_index", poly)
+        smooth = flags[poly]
+    return corners.reshape(nt, 3, 3), smooth
+
+
+def transform_normals(normals, matrix):
+    """Corner normals (..., 3) to world space: the inverse transpose of the 3x3 part (unnormalised;
+    the scene normalises them and replaces bad ones)."""
+    m = np.asarray(matrix, dtype=np.float64)[:3, :3]
+    try:
+        inv = np.linalg.inv(m)
+    except np.linalg.LinAlgError:
+        inv = np.linalg.pinv(m)
+    return normals.astype(np.float64) @ inv          # rows: n^T M^-1 = (M^-T n)^T
+
+
+def terminator_offsets(ob):
+    """(Shadow Terminator > Geometry Offset, [names of the other, unmodelled offsets that are not 0])
+    of an object, read from the original: on the Object in 4.x/5.0, on ob.cycles in 3.x."""
+    original = ob.original if getattr(ob, "original", None) is not None else ob
+    holders = [original, getattr(original, "cycles", None)]
+    geometry, others = 0.1, []
+    for holder in holders:
+        if holder is not None and hasattr(holder, "shadow_terminator_geometry_offset"):
+            geometry = float(holder.shadow_terminator_geometry_offset)
+            for attr, label in (("shadow_terminator_shading_offset", "shading offset"),
+                                ("shadow_terminator_offset", "shading offset"),
+                                ("shadow_terminator_normal_offset", "normal offset")):
+                if float(getattr(holder, attr, 0.0) or 0.0) != 0.0:
+                    others.append(label)
+            break
+    return min(max(geometry, 0.0), 1.0), others
 
 
 def transform_points(points, matrix):

@@ -474,3 +474,63 @@ def test_unmodelled_blender_features_are_named_in_a_warning(scene, ms, feature, 
         scene.render.film_transparent = True
     warnings = export().warnings
     assert any(expected in w for w in warnings), warnings
+
+
+# ----------------------------------------------------------------------------------- smooth shading
+def ellipsoid_normals(points, centre, radii):
+    """True outward normals of the ellipsoid ((p - c) / r)^2 = 1 at `points`."""
+    g = (points - centre) / np.asarray(radii) ** 2
+    return g / np.linalg.norm(g, axis=-1, keepdims=True)
+
+
+@pytest.mark.parametrize("scale", [(1.0, 1.0, 1.0), (2.0, 1.0, 0.5), (-1.5, 1.0, 1.0)])
+def test_smooth_mesh_exports_world_space_corner_normals(scene, ms, scale):
+    """A Shade Smooth UV sphere (as a mesh: implicit spheres off) under a rotation and a uniform,
+    non-uniform or mirroring scale: the exported corner normals are the world-space normals of the
+    ellipsoid (inverse transpose), in the corners' order after a mirror flips the winding, and on
+    the outside (same side as the geometric normal)."""
+    ob = add(ms, scene, "Ball", lambda bm: ms.uv_sphere(bm, 1.0, 48, 24), location=(1, 2, 3), scale=scale,
+             rotation=(0.3, 0.2, 0.1), smooth=True)
+    ob.tncg15.implicit_sphere = "NEVER"
+    mesh = export().scene.meshes[0]
+    assert mesh.normals is not None and mesh.normals.shape == (len(mesh.triangles), 3, 3) and mesh.smooth is None
+    corners = mesh.vertices[mesh.triangles]                                   # (T, 3, 3) world positions
+    m = np.array(ob.matrix_world)
+    local = (corners - m[:3, 3]) @ np.linalg.inv(m[:3, :3]).T
+    world_true = ellipsoid_normals(local, 0, 1) @ np.linalg.inv(m[:3, :3])   # n^T M^-1
+    world_true /= np.linalg.norm(world_true, axis=-1, keepdims=True)
+    n = mesh.normals / np.linalg.norm(mesh.normals, axis=-1, keepdims=True)
+    assert np.einsum("tki,tki->tk", n, world_true).min() > 0.9999
+    assert (np.einsum("tki,ti->tk", n, normals(mesh)) > 0).all()
+
+
+def test_flat_mesh_exports_no_normals_and_mixed_mesh_flags_its_smooth_faces(scene, ms):
+    ob = add(ms, scene, "Box", lambda bm: ms.cube(bm, 1.0))
+    assert export().scene.meshes[0].normals is None
+    ob.data.polygons[0].use_smooth = True                                     # 1 of 6 faces
+    mesh = export().scene.meshes[0]
+    assert mesh.normals is not None and mesh.smooth is not None and int(mesh.smooth.sum()) == 2
+    assert export().warnings == []                                            # no "not supported" warning
+
+
+def test_custom_split_normals_are_exported(scene, ms):
+    """Custom normals (Blender's per-corner normals) reach the scene: a quad whose corners all
+    point along (1, 0, 1)."""
+    ob = add(ms, scene, "Plane", lambda bm: ms.quad(bm, [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), smooth=True)
+    if hasattr(ob.data, "use_auto_smooth"):
+        ob.data.use_auto_smooth = True                                        # Blender < 4.1
+    target = np.array([1.0, 0.0, 1.0]) / np.sqrt(2)
+    ob.data.normals_split_custom_set([tuple(target)] * len(ob.data.loops))
+    mesh = export().scene.meshes[0]
+    n = mesh.normals.reshape(-1, 3)
+    np.testing.assert_allclose(n / np.linalg.norm(n, axis=1, keepdims=True), np.tile(target, (len(n), 1)), atol=1e-3)
+
+
+def test_shadow_terminator_offsets_are_exported_and_the_rest_named(scene, ms):
+    ob = add(ms, scene, "Ball", lambda bm: ms.uv_sphere(bm, 1.0, 12, 6), smooth=True)
+    ob.shadow_terminator_geometry_offset = 0.4
+    result = export()
+    assert result.scene.meshes[0].terminator_offset == pytest.approx(0.4)
+    assert not any("terminator" in w for w in result.warnings)
+    ob.shadow_terminator_shading_offset = 0.2
+    assert any("Object 'Ball': shadow terminator shading offset" in w for w in export().warnings)

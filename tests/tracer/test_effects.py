@@ -37,8 +37,8 @@ def test_diffuse_only_scene_never_runs_sphere_or_refraction_code(spies):
     result = render(diffuse_box_scene(), RenderSettings(samples=4, parallelism="threads"), log=lambda *a: None)
     assert sphere.calls == 0 and refract.calls == 0
     fx = result.stats["effects"]
-    assert fx == {"spheres": False, "quads": True, "triangles": True, "area_lights": False, "diffuse": True,
-                  "seen_lamps": False, "world_light": False,
+    assert fx == {"spheres": False, "quads": True, "triangles": True, "smooth_normals": False,
+                  "area_lights": False, "diffuse": True, "seen_lamps": False, "world_light": False,
                   "mirror": False, "glass": False, "emission": True, "direct_light": True, "solid_angle": True,
                   "light_tree": False, "mis": True, "passes": False, "textures": False}
     assert "never evaluated" in result.stats["effects_reason"]["glass"]
