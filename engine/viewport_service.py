@@ -221,6 +221,7 @@ class ViewportWorkers:
         self.target = 1
         self.error = None
         self.facts = None
+        self.builds = 0                          # sessions the workers built (a new view builds none)
         self.on_frame = on_frame
         self.started = time.perf_counter()
         self.gen_started = self.started
@@ -288,6 +289,7 @@ class ViewportWorkers:
                     self.error = message[2]
                 elif message[0] == "ready":
                     self.facts = message[2]
+                    self.builds += 1
             if self.on_frame is not None:
                 try:
                     self.on_frame()

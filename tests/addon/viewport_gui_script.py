@@ -17,7 +17,7 @@ import traceback
 import bpy
 
 zip_path, blend, outdir = sys.argv[sys.argv.index("--") + 1:][:3]
-SAMPLES = 16                     # viewport
+SAMPLES = 8                      # viewport
 F12_SAMPLES = 64
 out = {"steps": [], "ticks": []}
 
