@@ -284,7 +284,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         self.last.stats, self.last.warnings = stats, warnings
         self.last.cancelled = bool(getattr(result, "cancelled", False))
         self.last.wall_seconds = time.perf_counter() - t_start
-        for w in warnings:
+        for w in warnings if not self.is_preview else ():      # the preview scene's own quirks
             self.report({"WARNING"}, w)
         self.update_progress(1.0)
         self.update_stats("", stats_line(self._summary(stats, result), stats))

@@ -258,7 +258,7 @@ def view_draw(engine, context, depsgraph):
             return
         version, rgba, samples, noise, level, error = st.workers.snapshot()
         st.drawn_version = version
-        if rgba is not None and version != st.texture_version:
+        if rgba is not None and version != st.texture_version and not bpy.app.background:
             st.texture = upload(rgba)
             st.texture_version = version
         if st.texture is not None and st.message is None:
