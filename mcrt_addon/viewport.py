@@ -155,6 +155,8 @@ class ViewportState:
         self.started = time.perf_counter()
         self.exports = 0
         self.last_export_seconds = None
+        self.draw_seconds = []                # view_draw durations (UI thread), the last 200
+        self.upload_seconds = []              # texture uploads among them
         ACTIVE.add(self)
 
     def start_workers(self, count):
@@ -242,6 +244,7 @@ def view_draw(engine, context, depsgraph):
     if st is None:
         return
     scene = depsgraph.scene
+    t0 = time.perf_counter()
     try:
         if st.scene_sent:
             key = view_key(context, scene)
@@ -259,13 +262,16 @@ def view_draw(engine, context, depsgraph):
         version, rgba, samples, noise, level, error = st.workers.snapshot()
         st.drawn_version = version
         if rgba is not None and version != st.texture_version and not bpy.app.background:
+            t_upload = time.perf_counter()
             st.texture = upload(rgba)
             st.texture_version = version
+            st.upload_seconds = (st.upload_seconds + [time.perf_counter() - t_upload])[-200:]
         if st.texture is not None and st.message is None:
             region = context.region
             x0, y0, x1, y1 = st.border if st.border is not None else (0, 0, region.width, region.height)
             draw_texture(engine, scene, st.texture, x0, y0, x1 - x0, y1 - y0)
         engine.update_stats("", header_text(st, samples, noise, level, error))
+        st.draw_seconds = (st.draw_seconds + [time.perf_counter() - t0])[-200:]
     except Exception as exc:                 # noqa: BLE001 - drawing must never raise into Blender
         engine.update_stats("", f"TNCG15 MC | Error: {type(exc).__name__}: {exc}")
 

@@ -34,10 +34,13 @@ def finish(error=None):
     bpy.ops.wm.quit_blender()
 
 
-bpy.ops.preferences.addon_install(filepath=zip_path)
-bpy.ops.preferences.addon_enable(module="tncg15_mc")
-bpy.ops.wm.open_mainfile(filepath=blend)
-viewport = sys.modules["tncg15_mc.viewport"]
+try:
+    bpy.ops.preferences.addon_install(filepath=zip_path)
+    bpy.ops.preferences.addon_enable(module="tncg15_mc")
+    bpy.ops.wm.open_mainfile(filepath=blend)
+    viewport = sys.modules["tncg15_mc.viewport"]
+except Exception:                                    # noqa: BLE001 - reported, and Blender quits
+    finish(traceback.format_exc())
 
 
 def view3d():
@@ -107,6 +110,9 @@ def steps():
     out["ticks"].clear()
     last_tick[0] = time.perf_counter()
     bpy.app.timers.register(tick, first_interval=0.02)
+    yield 2.0                                       # the timer in Solid mode: the baseline
+    out["ticks_solid"] = list(out["ticks"])
+    out["ticks"].clear()
     t_rendered = time.perf_counter()
     space.shading.type = "RENDERED"
     log("RENDERED")
@@ -137,6 +143,8 @@ def steps():
     yield 0.3                                       # one more redraw of the final film
     out["before"] = screenshot("viewport.png")
     out["ticks_while_rendering"] = list(out["ticks"])
+    out["draw_seconds"], out["upload_seconds"] = list(st.draw_seconds), list(st.upload_seconds)
+    out["export_seconds"] = st.last_export_seconds
     out["exports_before_move"] = st.exports
     # move the light: the viewport must show it within 2 s
     light = next(ob for ob in scene.objects if ob.type == "LIGHT")
@@ -158,6 +166,21 @@ def steps():
         shots.append([time.perf_counter() - t_move, screenshot(f"moved_{len(shots):02d}.png")])
     out["moved_shots"] = shots
     out["exports_after_move"] = st.exports
+    # a render border in camera view: only its pixels are rendered and drawn
+    r = scene.render
+    r.use_border = True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.3, 0.7
+    t_border = time.perf_counter()
+    while not (st.border is not None and st.workers.converged() and st.drawn_version == st.workers.snapshot()[0]):
+        if time.perf_counter() - t_border > 20:
+            raise RuntimeError(f"border render stuck: {st.message} {st.workers.snapshot()[2:]}")
+        yield 0.05
+    yield 0.3
+    win, area, region = view3d()
+    dx, dy = region.x - area.x, region.y - area.y
+    out["border"] = [st.border[0] + dx, st.border[1] + dy, st.border[2] + dx, st.border[3] + dy]
+    out["border_resolution"] = list(st.resolution)
+    out["border_shot"] = screenshot("border.png")
     # leave Rendered mode: the engine is freed and its workers stop
     space.shading.type = "SOLID"
     t_solid = time.perf_counter()
