@@ -314,6 +314,10 @@ def draw_texture(engine, scene, texture, x, y, width, height):
 
 
 def free(engine):
-    st = getattr(engine, "viewport_state", None)
+    """RenderEngine.__del__ (leaving Rendered mode, closing the viewport): stop the workers."""
+    try:
+        st = getattr(engine, "viewport_state", None)
+    except ReferenceError:
+        return
     if st is not None:
         st.close()

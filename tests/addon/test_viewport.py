@@ -191,3 +191,22 @@ def test_material_preview_renders_with_tncg15(addon):
     px = np.array(mat.preview.image_pixels_float[:]).reshape(size[1], size[0], 4)
     centre = px[size[1] // 2 - 10:size[1] // 2 + 10, size[0] // 2 - 10:size[0] // 2 + 10, :3].mean(axis=(0, 1))
     assert centre[0] > 2 * centre[1] and centre[0] > 2 * centre[2], centre     # the red material shows
+
+
+def test_a_scene_without_camera_renders_in_a_perspective_viewport(point_light):
+    from mcrt_addon import viewport
+    scene = point_light
+    engine = stub_engine()
+    ctx = stub_context(scene)                   # the view where the camera was
+    bpy.data.objects.remove(scene.camera)
+    bpy.context.view_layer.update()
+    viewport.view_update(engine, ctx, bpy.context.evaluated_depsgraph_get())
+    st = engine.viewport_state
+    try:
+        assert st.message is None and st.exports == 1, st.message
+        deadline = time.perf_counter() + 60
+        while st.workers.snapshot()[1] is None and time.perf_counter() < deadline:
+            time.sleep(0.05)
+        assert st.workers.snapshot()[1] is not None
+    finally:
+        viewport.free(engine)
