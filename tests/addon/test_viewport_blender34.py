@@ -122,7 +122,7 @@ def test_moving_the_light_restarts_and_shows_within_two_seconds(gui_run):
 def test_ui_stays_responsive_while_the_viewport_renders(gui_run):
     ticks, solid = gui_run["ticks_while_rendering"], gui_run["ticks_solid"]
     span = sum(ticks)
-    assert span > 2.0 and len(ticks) > span / 0.02 * 0.3, (len(ticks), span)
+    assert span > 1.0 and len(ticks) > span / 0.02 * 0.3, (len(ticks), span)
     assert max(ticks) < 1.0, max(ticks)
     draws = gui_run["draw_seconds"]
     print(f"UI timer (20 ms) while rendering: {len(ticks)} ticks in {span:.1f} s, longest gap "
@@ -138,16 +138,16 @@ def test_leaving_rendered_mode_stops_the_workers(gui_run):
 
 
 def test_render_border_in_camera_view_is_respected(gui_run):
-    """Render border 0.25-0.75 x 0.3-0.7 of the camera frame: the viewport renders those pixels
-    only (at their size) and draws them in place; the rest of the frame shows the theme's
-    background, where the full render showed the lit room."""
+    """Render border 0.25-0.75 x 0.3-0.7 of the camera frame (the light moved back): the viewport
+    renders those pixels only (at their size) and draws them in place, as the full view showed
+    them; the rest of the frame shows the theme's background, where the full view showed the room."""
     r = gui_run
     fx0, fy0, fx1, fy1 = r["frame"]
     bx0, by0, bx1, by1 = r["border"]
     assert abs(bx0 - (fx0 + 0.25 * (fx1 - fx0))) <= 1 and abs(bx1 - (fx0 + 0.75 * (fx1 - fx0))) <= 1, r["border"]
     assert abs(by0 - (fy0 + 0.3 * (fy1 - fy0))) <= 1 and abs(by1 - (fy0 + 0.7 * (fy1 - fy0))) <= 1, r["border"]
     assert tuple(r["border_resolution"]) == (bx1 - bx0, by1 - by0)
-    shot, full = read_png(r["border_shot"]), read_png(r["moved_shots"][-1][1])
+    shot, full = read_png(r["border_shot"]), read_png(r["before"])      # the light is back
     h = shot.shape[0]
     inside = (slice(h - by1 + 2, h - by0 - 2), slice(bx0 + 2, bx1 - 2))
     assert worst_block_difference(shot[inside], full[inside]) < 0.15
