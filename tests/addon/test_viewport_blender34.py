@@ -8,12 +8,13 @@ legacy zip installed as a user installs it (tests/addon/viewport_gui_script.py d
   test then FAILS against the F12 render (negative control: the comparison can fail);
 * a 20 ms timer keeps firing while the viewport renders (the UI is not blocked);
 * a render border (camera view) renders and draws only its pixels;
-* leaving Rendered mode stops the viewport's worker processes.
+* leaving Rendered mode, or quitting Blender while it renders, stops the viewport's worker processes.
 """
 import json
 import os
 import shutil
 import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -132,9 +133,16 @@ def test_ui_stays_responsive_while_the_viewport_renders(gui_run):
     assert max(draws) < 0.2, draws
 
 
-def test_leaving_rendered_mode_stops_the_workers(gui_run):
+def test_leaving_rendered_mode_or_quitting_stops_the_workers(gui_run):
+    from tests.file_safety import alive
     assert gui_run["pids"], gui_run
     assert gui_run["workers_alive_after_solid"] == [], gui_run["workers_alive_after_solid"]
+    pids = gui_run["pids_at_quit"]                  # Blender quit while the viewport rendered
+    assert pids and set(pids).isdisjoint(gui_run["pids"]), pids
+    deadline = time.monotonic() + 5
+    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(alive(p) for p in pids), [p for p in pids if alive(p)]
 
 
 def test_render_border_in_camera_view_is_respected(gui_run):

@@ -195,6 +195,12 @@ def steps():
         yield 0.1
     out["workers_alive_after_solid"] = [p for p in out["pids"] if os.path.exists(f"/proc/{p}")
                                         and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"]
+    # Rendered again, then Blender quits while the viewport renders: the test checks these die too
+    space.shading.type = "RENDERED"
+    t_again = time.perf_counter()
+    while (state() is None or state().workers is None) and time.perf_counter() - t_again < 10:
+        yield 0.05
+    out["pids_at_quit"] = state().workers.pids if state() is not None and state().workers else []
     out["done"] = True
 
 
