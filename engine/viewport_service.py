@@ -192,17 +192,19 @@ class ViewportFilm:
         return rgba
 
     def relative_error(self):
-        """Per-pixel noise: the RMS standard error of the pixel means (sample variance / n over all
-        pixels and channels) relative to the image's mean, or None below two full-resolution samples."""
+        """Per-pixel noise: the RMS standard error of the pixel means (sample variance / n) relative
+        to the mean, over the pixels that received light (a black background would otherwise inflate
+        it by 1/sqrt(lit fraction)); None below two full-resolution samples."""
         if self.sum is None or self.level < 1 or self.samples < 2:
             return None
         n = self.samples
         mean = self.sum / n
         var_of_mean = np.maximum(self.sum_sq / n - mean * mean, 0.0) / (n - 1)
-        m = float(mean.mean())
+        lit = mean.sum(axis=-1) > 0
+        m = float(mean[lit].mean()) if lit.any() else 0.0
         if not m > 0:
             return None
-        return float(np.sqrt(var_of_mean.mean())) / m
+        return float(np.sqrt(var_of_mean[lit].mean())) / m
 
 
 class ViewportWorkers:

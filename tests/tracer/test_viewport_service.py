@@ -103,3 +103,12 @@ def test_noise_estimate_is_the_standard_error_of_the_pixel_means():
     assert not film.add(1, 0, 5, 5, x[:25], x[:25] ** 2, 1), "a coarse frame never replaces a finer film"
     expected = sd / np.sqrt(n)
     assert abs(film.relative_error() / expected - 1) < 0.05, (film.relative_error(), expected)
+    # a black background (half the frame) changes nothing
+    film2 = ViewportFilm()
+    film2.reset(1)
+    rng = np.random.default_rng(1)
+    for _ in range(n):
+        x = 1.0 + sd * rng.standard_normal((pixels, 3))
+        x2 = np.concatenate([x, np.zeros_like(x)])
+        assert film2.add(1, 1, 50, 20, x2, x2 * x2, 1)
+    assert film2.relative_error() == pytest.approx(film.relative_error(), rel=1e-9)
