@@ -1,6 +1,7 @@
 """The 3D viewport's Rendered mode in a real Blender window: Debian's Blender 3.4 under Xvfb with the
 legacy zip installed as a user installs it (tests/addon/viewport_gui_script.py drives Blender).
 
+* a material preview renders with TNCG15 MC (bl_use_preview, 16 spp);
 * the viewport shows a coarse pass first, then accumulates to Max Samples;
 * the camera frame of the final viewport screenshot agrees block by block with an F12 render of
   the same camera (sRGB PNGs decoded to linear; Blender colour-manages both);
@@ -162,3 +163,11 @@ def test_render_border_in_camera_view_is_respected(gui_run):
     above = (slice(int(h - fy1) + 2, h - by1 - 2), slice(int(fx0) + 2, int(fx1) - 2))   # frame above the border
     assert shot[above].std() < 0.03 and full[above].mean() > 3 * shot[above].mean(), \
         (shot[above].std(), shot[above].mean(), full[above].mean())
+
+
+def test_material_preview_renders_with_tncg15_in_blender34(gui_run):
+    p = gui_run["preview"]
+    assert p["reports"] >= 1 and p["error"] is None and p["samples"] == 16 and p["size"] == [128, 128], p
+    r, g, b, _ = p["centre"]                         # the pink ball (0.8, 0.4, 0.5) in the middle
+    assert r > g + 0.05 and r > b + 0.03, p["centre"]
+    print(f"material preview in Blender 3.4: {gui_run['preview_seconds']:.2f} s (worker start included)")

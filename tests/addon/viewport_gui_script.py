@@ -2,7 +2,7 @@
 
     blender --factory-startup -p 0 0 W H --python viewport_gui_script.py -- ADDON_ZIP BLEND OUTDIR
 
-Installs the add-on as a user does, renders the scene with F12 (PNG), switches the 3D viewport to
+Installs the add-on as a user does, renders a material preview, renders the scene with F12 (PNG), switches the 3D viewport to
 Rendered through the scene camera, waits for the viewport to reach its samples, screenshots the
 viewport area, moves the light and screenshots until the picture changes, leaves Rendered mode and
 checks that the viewport workers are gone.  A 20 ms timer records the UI's responsiveness.
@@ -86,6 +86,23 @@ def tick():
 def steps():
     scene = bpy.context.scene
     scene.render.engine = "TNCG15_MC"
+    # a material preview (bl_use_preview): Blender renders it with TNCG15 MC on a job thread
+    engine_module = sys.modules["tncg15_mc.engine"]
+    reports = []
+    engine_module.REPORT_LISTENERS.append(reports.append)
+    mat = bpy.data.materials["Pink"]
+    t = time.perf_counter()
+    mat.asset_generate_preview()
+    while not reports and time.perf_counter() - t < 20:
+        yield 0.05
+    out["preview_seconds"] = time.perf_counter() - t
+    yield 0.3
+    engine_module.REPORT_LISTENERS.remove(reports.append)
+    w, h = mat.preview.image_size
+    centre = (h // 2) * w + w // 2
+    out["preview"] = {"reports": len(reports), "error": reports[0].error if reports else "no render",
+                      "samples": reports[0].stats.get("samples") if reports else None, "size": [w, h],
+                      "centre": list(mat.preview.image_pixels_float[4 * centre:4 * centre + 4])}
     scene.tncg15.samples = F12_SAMPLES
     scene.tncg15.viewport_samples = SAMPLES
     scene.render.image_settings.file_format = "PNG"
