@@ -216,7 +216,7 @@ def export(engine, st, context, depsgraph):
     scene = depsgraph.scene
     camera, resolution, border = view_camera(context, scene)
     if camera is None:
-        st.message, st.scene_sent = resolution, False
+        st.message, st.scene_sent, st.key = resolution, False, view_key(context, scene)
         return
     props = scene.tncg15
     settings = props.to_settings(bridge.settings_class())
@@ -246,7 +246,12 @@ def view_draw(engine, context, depsgraph):
     scene = depsgraph.scene
     t0 = time.perf_counter()
     try:
-        if st.scene_sent:
+        if not st.scene_sent:
+            key = view_key(context, scene)
+            if key != st.key:                # e.g. orthographic -> perspective: export again
+                st.key = key
+                engine.tag_update()
+        else:
             key = view_key(context, scene)
             if key != st.key:
                 camera, resolution, border = view_camera(context, scene)

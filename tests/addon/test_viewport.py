@@ -98,9 +98,10 @@ def test_depsgraph_updates_are_sorted_into_view_and_scene_changes(point_light):
 
 
 def stub_engine():
-    stats = []
+    stats, updates = [], []
     return SimpleNamespace(_readable=lambda exc: None, update_stats=lambda a, b: stats.append(b),
-                           bind_display_space_shader=None, unbind_display_space_shader=None, stats=stats)
+                           bind_display_space_shader=None, unbind_display_space_shader=None, stats=stats,
+                           tag_update=lambda: updates.append(1), updates=updates)
 
 
 def stub_context(scene, width=40, height=30, lens=None):
@@ -208,5 +209,29 @@ def test_a_scene_without_camera_renders_in_a_perspective_viewport(point_light):
         while st.workers.snapshot()[1] is None and time.perf_counter() < deadline:
             time.sleep(0.05)
         assert st.workers.snapshot()[1] is not None
+    finally:
+        viewport.free(engine)
+
+
+def test_an_orthographic_view_says_so_and_a_perspective_view_renders_again(point_light):
+    from mcrt_addon import viewport
+    scene = point_light
+    engine = stub_engine()
+    persp = stub_context(scene)
+    ortho = stub_context(scene)
+    P = persp.region_data.window_matrix.copy()
+    P[3][2], P[3][3] = 0.0, 1.0                 # an orthographic projection's last row
+    ortho.region_data.window_matrix = P
+    bpy.context.view_layer.update()
+    viewport.view_update(engine, ortho, bpy.context.evaluated_depsgraph_get())
+    try:
+        viewport.view_draw(engine, ortho, bpy.context.evaluated_depsgraph_get())
+        assert "orthographic" in engine.stats[-1] and engine.viewport_state.exports == 0, engine.stats
+        viewport.view_draw(engine, persp, bpy.context.evaluated_depsgraph_get())   # Numpad 5
+        assert engine.updates == [1], "view_draw must ask for a view_update (export) once"
+        viewport.view_draw(engine, persp, bpy.context.evaluated_depsgraph_get())
+        assert engine.updates == [1]
+        viewport.view_update(engine, persp, bpy.context.evaluated_depsgraph_get())  # what Blender does next
+        assert engine.viewport_state.exports == 1 and engine.viewport_state.message is None
     finally:
         viewport.free(engine)
