@@ -235,3 +235,26 @@ def test_an_orthographic_view_says_so_and_a_perspective_view_renders_again(point
         assert engine.viewport_state.exports == 1 and engine.viewport_state.message is None
     finally:
         viewport.free(engine)
+
+
+def test_viewport_settings_sit_under_sampling_as_in_cycles(addon):
+    panel = bpy.types.RENDER_PT_tncg15_sampling_viewport
+    assert panel.bl_parent_id == "RENDER_PT_tncg15_sampling" and panel.bl_label == "Viewport"
+    drawn = []
+
+    class Layout:
+        use_property_split = use_property_decorate = None
+
+        def column(self, **kw):
+            return self
+
+        def prop(self, data, name, **kw):
+            drawn.append((name, kw.get("text")))
+
+    panel.draw(SimpleNamespace(layout=Layout()), SimpleNamespace(scene=bpy.context.scene))
+    assert drawn == [("viewport_samples", "Max Samples")]
+    assert bpy.context.scene.tncg15.viewport_samples == 32
+    assert "TNCG15_MC" in bpy.types.MATERIAL_PT_preview.COMPAT_ENGINES      # the preview panel shows
+    assert bpy.types.RenderEngine.bl_rna.properties["bl_use_preview"] is not None
+    from mcrt_addon.engine import TNCG15RenderEngine
+    assert TNCG15RenderEngine.bl_use_preview
