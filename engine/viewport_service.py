@@ -230,7 +230,9 @@ class ViewportWorkers:
         self.first_frame_seconds = None          # of the current generation, coarse or not
         self.stderr_tail: list = []
         self.closed = False
+        self.outboxes = {p.pid: queue.Queue() for p in self.procs}
         for p in self.procs:
+            threading.Thread(target=self._write, args=(p,), daemon=True).start()
             self._send(p, ("hello", TRACER_BASE))
             threading.Thread(target=self._read, args=(p,), daemon=True).start()
             threading.Thread(target=self._read_stderr, args=(p,), daemon=True).start()
@@ -239,13 +241,26 @@ class ViewportWorkers:
     def pids(self):
         return [p.pid for p in self.procs]
 
-    def _send(self, proc, message) -> bool:
+    def _send(self, proc, message):
+        """Queue a message: a writer thread pickles and writes it, so the caller (Blender's UI
+        thread) never waits for a busy worker's pipe or for pickling a big scene."""
+        self.outboxes[proc.pid].put(message)
+
+    def _write(self, proc):
+        outbox = self.outboxes[proc.pid]
+        while True:
+            message = outbox.get()
+            if message is None:
+                break
+            try:
+                proc.stdin.write(encode(message))
+                proc.stdin.flush()
+            except (BrokenPipeError, OSError, ValueError):
+                break
         try:
-            proc.stdin.write(encode(message))
-            proc.stdin.flush()
-            return True
-        except (BrokenPipeError, OSError, ValueError):
-            return False
+            proc.stdin.close()
+        except (OSError, ValueError):
+            pass
 
     def _next_gen(self):
         with self.lock:
@@ -334,10 +349,7 @@ class ViewportWorkers:
             return
         self.closed = True
         for p in self.procs:
-            try:
-                p.stdin.close()
-            except OSError:
-                pass
+            self.outboxes[p.pid].put(None)           # the writer closes stdin: EOF ends the worker
         deadline = time.perf_counter() + 1.0
         for p in self.procs:
             try:

@@ -222,8 +222,7 @@ def export(engine, st, context, depsgraph):
     settings = props.to_settings(bridge.settings_class())
     t0 = time.perf_counter()
     exported = export_scene(depsgraph, resolution=resolution, view_camera=camera, mesh_cache=st.mesh_cache)
-    exported.scene.validate()
-    settings.validate()
+    settings.validate()                      # the scene is validated by the workers (errors come back)
     st.last_export_seconds = time.perf_counter() - t0
     st.exports += 1
     if st.workers is None:
