@@ -67,6 +67,25 @@ def add_settings_arguments(p):
     p.add_argument("--threads", type=setting_int("threads"), default=0, help="0 = all cores")
     p.add_argument("--seed", type=setting_int("seed"), default=0)
     p.add_argument("--tile-size", type=setting_int("tile_size"), default=defaults.tile_size)
+    add_pass_arguments(p)
+
+
+def add_pass_arguments(p):
+    """--passes and --denoise (engine/passes.py, engine/denoise.py), shared with mcrt_addon/cli.py."""
+    p.add_argument("--passes", type=pass_list, default=(), metavar="LIST",
+                   help="extra passes in the EXR, comma-separated: albedo,normal,depth,samples,variance "
+                        "(layers named as Blender's: README, Render passes)")
+    p.add_argument("--denoise", action="store_true",
+                   help="denoise with Intel Open Image Denoise (pyoidn), guided by the albedo and normal passes; "
+                        "the raw image is kept in the EXR as 'Noisy Image'")
+
+
+def pass_list(text):
+    from .passes import PassError, parse_passes
+    try:
+        return parse_passes(text)
+    except PassError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def settings_from_args(args) -> RenderSettings:
@@ -75,7 +94,35 @@ def settings_from_args(args) -> RenderSettings:
                           nested_dielectrics=args.nested_dielectrics, estimator=args.estimator,
                           sampler=args.sampler,
                           threads=args.threads, seed=args.seed, tile_size=args.tile_size,
-                          accelerator=args.accelerator)
+                          accelerator=args.accelerator, passes=traced_passes(args), denoise=args.denoise)
+
+
+def traced_passes(args) -> tuple:
+    """The passes to render: those asked for, plus albedo and normal for the denoiser."""
+    from .passes import PASSES
+    wanted = set(args.passes) | ({"albedo", "normal"} if args.denoise else set())
+    return tuple(p for p in PASSES if p in wanted)
+
+
+def check_pass_outputs(args, outputs) -> None:
+    """Passes are layers of an EXR: refused (one line) when -o is not an .exr; the denoiser must
+    import before anything is rendered."""
+    if (args.passes or args.denoise) and outputs and outputs[0].kind != "exr":
+        raise OutputError(f"-o '{outputs[0].path}': --passes/--denoise need an .exr output (layers)")
+    if args.denoise:
+        from .denoise import available
+        problem = available()
+        if problem:
+            raise OutputError(problem)
+
+
+def write_render_image(output, result, args) -> None:
+    """-o: a multi-layer EXR when passes or the denoiser are on (engine/passes.py), else as before."""
+    from .output import write_multilayer
+    if output.kind == "exr" and (args.passes or args.denoise):
+        write_multilayer(output, result.image, result.passes)
+    else:
+        write_image(output, result.image)
 
 
 def progress_bar(stream=sys.stderr):
@@ -115,6 +162,7 @@ def cmd_render(args) -> int:
         scene.resolution = tuple(args.resolution)
     settings = settings_from_args(args)
     settings.validate()
+    check_pass_outputs(args, outputs)
     scene.validate()
     check_memory(scene, settings)
     if stop.requested():
@@ -122,6 +170,9 @@ def cmd_render(args) -> int:
     log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     result = render(scene, settings, on_progress=None if args.quiet else progress_bar(),
                     should_cancel=stop.requested, log=log, cluster=args.cluster)
+    if args.denoise and not result.cancelled:
+        from .denoise import denoise_result
+        denoise_result(result)
     stats = result.stats
     bad_pixels = int((~np.isfinite(result.image)).any(axis=-1).sum())
     if bad_pixels:
@@ -130,6 +181,8 @@ def cmd_render(args) -> int:
         for output in outputs:
             if output.kind == "json":
                 write_text(output, json.dumps(stats, indent=1))
+            elif output.option == "-o":
+                write_render_image(output, result, args)
             else:
                 write_image(output, result.image)
     except OutputError as exc:

@@ -16,7 +16,7 @@ import numpy as np
 from .scene import DIFFUSE, GLASS, MIRROR
 
 EFFECTS = ("triangles", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass", "emission",
-           "world_light", "direct_light", "solid_angle", "light_tree", "mis")
+           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -50,7 +50,8 @@ class EffectPlan:
         how = {"parallelogram": "spherical rectangles (area where grazing or not rectangular)",
                "triangle": "spherical triangles (area where grazing or tiny)",
                "sphere": "cones from outside, area from inside", "polygon": "area (disks, ellipses)",
-               "point": "the cone of the disk they show (a delta light without a radius)"}
+               "point": "the cone of the disk they show (a delta light without a radius; spot lights "
+                         "weight it by their cone's falloff)"}
         counts = {}
         for _, kind, _ in lights.kinds:
             counts[kind.kind] = counts.get(kind.kind, 0) + kind.count
@@ -126,6 +127,17 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
 
+    round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
+                   if light.visible_glossy or light.visible_transmission]
+    specular = mirror or glass
+    set_effect("seen_lamps", round_lamps and specular and not report,
+               f"lamps {_names(round_lamps)} seen in mirrors and through glass (Cycles' light visibility)"
+               if round_lamps and specular and not report else
+               "no point/spot light with a radius and no sun with an angle seen by glossy or transmission rays"
+               if not round_lamps else
+               "no mirror or glass: point, spot and sun lights are reached by shadow rays only" if not specular else
+               "report estimator: point, spot and sun lights are reached by shadow rays only")
+
     sky = max(scene.background) > 0
     world = bool(sky and diffuse and settings.shadow_rays > 0 and not report)
     set_effect("world_light", world,
@@ -154,6 +166,11 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if nee and settings.estimator != "mis" else
                "no emitter that bounce rays can reach" if nee else
                "no direct light: BSDF sampling alone (weight 1)")
+    from .passes import TRACED
+    features = [n for n in TRACED if n in tuple(getattr(settings, "passes", ()) or ())]
+    set_effect("passes", features,
+               f"first-hit {', '.join(features)} recorded per sample (engine/passes.py)" if features else
+               "no albedo, normal or depth pass: no feature tracking")
     return plan
 
 

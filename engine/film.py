@@ -44,7 +44,7 @@ def linear_to_srgb(image: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
 
 
-def _write_checked(path: str, pixels: np.ndarray, pixel_type: str, attributes=()) -> None:
+def _write_checked(path: str, pixels: np.ndarray, pixel_type: str, attributes=(), channel_names=None) -> None:
     """One image through OpenImageIO, every step checked: a full disk or a failed write raises
     OSError instead of leaving a truncated file behind a success (OIIO's PNG writer reports
     short writes only through geterror())."""
@@ -55,6 +55,8 @@ def _write_checked(path: str, pixels: np.ndarray, pixel_type: str, attributes=()
     if out is None:
         raise OSError(f"no image writer for '{path}': {oiio.geterror()}")
     spec = oiio.ImageSpec(w, h, c, pixel_type)
+    if channel_names is not None:
+        spec.channelnames = tuple(channel_names)
     for name, value in attributes:
         spec.attribute(name, value)
     if not out.open(str(path), spec):

@@ -66,7 +66,7 @@ class MaterialTable:
         self.group = np.where(color.max(axis=1) > 0.0, self.kind, BLACK).astype(np.int8)
 
 
-VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n")
+VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n", "f_thru")
 CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = 0, 1, 2, 3   # LightPolygons.RAY_KINDS
 # Dimension pairs of the sampler (engine/qmc.py): 0 is the camera jitter (engine/camera.py);
 # the hit after bounce b uses DIMS_PER_BOUNCE pairs from 1 + DIMS_PER_BOUNCE b on.
@@ -92,16 +92,19 @@ class Paths:
     prev_pdf: np.ndarray | None = None  # MIS: (N,) cosine pdf of the ray's direction there
     media: np.ndarray | None = None   # nested dielectrics: (N, MEDIUM_STACK_DEPTH) IOR stack
     depth: np.ndarray | None = None   # nested dielectrics: (N,) stack height
+    f_thru: np.ndarray | None = None  # passes: (3, N) tints of the specular bounces before the feature hit
+    f_open: np.ndarray | None = None  # passes: (N,) still looking for its first non-specular hit
 
     @classmethod
-    def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool) -> "Paths":
+    def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool, features: bool = False) -> "Paths":
         n = len(pixel)
         return cls(pixel, sample, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
                    np.zeros(n, dtype=np.int8), np.zeros(n, dtype=np.int32),
                    np.zeros((3, n)) if mis else None, np.zeros((3, n)) if mis else None,
                    np.ones(n) if mis else None,
                    np.ones((n, MEDIUM_STACK_DEPTH)) if nested else None,
-                   np.zeros(n, dtype=np.int64) if nested else None)
+                   np.zeros(n, dtype=np.int64) if nested else None,
+                   np.ones((3, n)) if features else None, np.ones(n, dtype=bool) if features else None)
 
     def _fields(self):
         return [(f.name, 1 if f.name in VECTOR_FIELDS else 0) for f in fields(self)
@@ -142,11 +145,12 @@ class PathTracer:
         self.has_background = bool(self.background.max() > 0)
         self.world_nee = self.use_nee and lights.world is not None       # shadow rays sample the world
         self.material_group = self.mats.group
+        self.seen_lamps = lights.seen if plan.enabled.get("seen_lamps") else None
         self.light_of_kind = {TRIANGLE: lights.triangle_light, SPHERE: lights.sphere_light,
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
 
     # -- the wavefront -----------------------------------------------------------------
-    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None) -> None:
+    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None) -> None:
         """Trace every camera sample of `samples` (a camera.TileSamples) to completion.
 
         The wavefront holds up to WAVEFRONT_SIZE paths that advance one bounce per
@@ -157,7 +161,9 @@ class PathTracer:
         `on_finished(pixel, L)`.  Returns False as soon as `cancel` is set (checked every
         bounce): the caller drops the whole unit (engine/session.py), since a partial one
         would keep only its short paths and darken its tile.  Uniform numbers come from
-        `sampler` (engine/qmc.py; default: independent ones from `rng`).
+        `sampler` (engine/qmc.py; default: independent ones from `rng`).  `features`: an
+        engine/passes.py TileFeatures that gets each sample's first-hit albedo, normal and depth
+        (None: no feature work at all).
         """
         sampler = sampler or RandomSampler(rng)
         paths = None
@@ -170,15 +176,16 @@ class PathTracer:
             if samples.remaining and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
                 pixel, sample, o, d = samples.take(room)
                 fresh = len(pixel)
-                new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis)
+                new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis,
+                                  features is not None and features.surface)
                 paths = new if paths is None else paths.extend(new)
             if paths is None or len(paths.pixel) == 0:
                 return True
             counters.rays["camera"] += fresh
             counters.rays["extension"] += len(paths.pixel) - fresh
-            paths = self.bounce(paths, sampler, counters, on_finished)
+            paths = self.bounce(paths, sampler, counters, on_finished, features)
 
-    def bounce(self, p: "Paths", sampler, counters, on_finished) -> "Paths":
+    def bounce(self, p: "Paths", sampler, counters, on_finished, features=None) -> "Paths":
         """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
         finished = []                                   # (pixel, radiance) of paths that end
         # 1. Intersect.  Hits sorted by how their surface scatters, 0 diffuse, 1 mirror,
@@ -192,9 +199,14 @@ class PathTracer:
                                           light_group=PASS, ray_kind=p.ray_kind,
                                           forced_group=None if final is None or not final.any()
                                           else np.where(final, BLACK, -1))
-        # 2. Misses: the background.
+        # 2. Round lamps and suns met by mirror and glass rays (engine/lights/seen.py).
+        if self.seen_lamps is not None:
+            self.lamps_seen(p, hits)
+        # Misses: the background.
         if len(hits.miss):
             finished.append(self.misses(p, hits.miss))
+            if features is not None and features.surface:
+                self.miss_features(p, hits.miss, features)
         p = p.take(hits.index)
         surf = self.geometry.surface(p.o, p.d, hits)
         bounds = [start for start, _ in hits.groups] + [hits.groups[-1][1]]
@@ -212,6 +224,8 @@ class PathTracer:
         color = self.mats.color.take(surf.material, axis=1)
         dim = 1 + DIMS_PER_BOUNCE * p.bounce[:alive]                        # this hit's dimensions
         u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
+        if features is not None:
+            self.surface_features(p, surf, facing, color, bounds, features)
         if self.use_nee and bounds[1] > bounds[0]:
             p.radiance[:, diffuse] += p.beta[:, diffuse] * self.direct_light(
                 surf.point[:, diffuse], facing[:, diffuse], color[:, diffuse], surf.offset[diffuse], None, counters,
@@ -258,6 +272,18 @@ class PathTracer:
             radiance += p.beta.take(miss, axis=1) * self.background[:, None] * weight
         return p.pixel.take(miss), radiance
 
+    def lamps_seen(self, p, hits):
+        """Emission of point, spot and sun lights reached by glossy and transmission rays before
+        their hit (weight 1: only a specular bounce sends such rays, and shadow rays could not)."""
+        rays = np.flatnonzero((p.ray_kind == GLOSSY_RAY) | (p.ray_kind == TRANSMISSION_RAY))
+        if not len(rays):
+            return
+        tmax = np.full(len(p.pixel), np.inf)
+        tmax[hits.index] = hits.t
+        le = self.seen_lamps.radiance(p.o.take(rays, axis=1), p.d.take(rays, axis=1), tmax.take(rays),
+                                      p.ray_kind.take(rays) == TRANSMISSION_RAY)
+        p.radiance[:, rays] += p.beta.take(rays, axis=1) * le
+
     def emission(self, p, surf, hits, surfaces):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
         the camera or a specular bounce or without shadow rays; after a diffuse bounce 0 under
@@ -300,6 +326,47 @@ class PathTracer:
                                          surf.point.take(h, axis=1))
         weight[sel] = power_heuristic(1.0, p.prev_pdf.take(hit), float(self.settings.shadow_rays), p_light)
         return weight
+
+    # -- render passes (engine/passes.py) ------------------------------------------------
+    def miss_features(self, p, miss, features):
+        """A path still without a feature hit that leaves the scene: the background's radiance
+        times its specular tints is its albedo (Cycles: film_write_emission_or_background_pass);
+        its normal stays 0."""
+        idx = miss[p.f_open.take(miss)]
+        if len(idx) and self.has_background:
+            features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * self.background[:, None])
+
+    def surface_features(self, p, surf, facing, color, bounds, features):
+        """Cycles' denoising features (film_write_denoising_features_surface): at the first diffuse
+        (or black) hit write albedo = specular tints x colour and the facing normal, then stop;
+        at mirrors and glass multiply the tints by the colour and look further.  Emission seen
+        on the way adds its radiance (unclipped, as Cycles).  Depth: every camera ray's first surface."""
+        surfaces = bounds[PASS]
+        first = np.flatnonzero(p.bounce[:surfaces] == 0)
+        if len(first):
+            features.add_depth(p.pixel.take(first), surf.point.take(first, axis=1))
+        if not features.surface:                 # depth only
+            return
+        idx = np.flatnonzero(p.f_open[:surfaces])
+        if not len(idx):
+            return
+        group = np.searchsorted(np.asarray(bounds), idx, side="right") - 1
+        mat, pix, thru = surf.material.take(idx), p.pixel.take(idx), p.f_thru.take(idx, axis=1)
+        emissive = self.mats.is_emissive.take(mat)
+        if emissive.any():
+            e = np.flatnonzero(emissive)
+            features.add_albedo(pix.take(e), thru.take(e, axis=1) * self.mats.emission.take(mat.take(e), axis=1))
+        stop = (group == 0) | (group == BLACK)
+        diffuse = np.flatnonzero(group == 0)
+        if len(diffuse):
+            features.add_albedo(pix.take(diffuse), thru.take(diffuse, axis=1) * color.take(idx.take(diffuse), axis=1))
+        normal = np.flatnonzero(stop & ~(emissive & (group == BLACK)))     # emitters only: normal 0, as Cycles
+        if len(normal):
+            features.add_normal(pix.take(normal), facing.take(idx.take(normal), axis=1))
+        p.f_open[idx[stop]] = False
+        spec = np.flatnonzero(~stop)
+        if len(spec):
+            p.f_thru[:, idx[spec]] = thru.take(spec, axis=1) * color.take(idx.take(spec), axis=1)
 
     def pass_through(self, through: "Paths", surf, span):
         """Paths that reached an Area light continue behind it, direction and state unchanged."""

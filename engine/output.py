@@ -184,3 +184,13 @@ def write_text(output: Output, text: str) -> None:
     with replaced_atomically(output) as tmp:
         with open(tmp, "w", encoding="utf-8") as fh:
             fh.write(text)
+
+
+def write_multilayer(output: Output, image: np.ndarray, passes: dict) -> None:
+    """A multi-layer EXR (Combined and the passes, Blender's channel names: engine/passes.py),
+    atomically and checked as write_image."""
+    from .passes import exr_channels, read_multilayer_exr, write_multilayer_exr
+    with replaced_atomically(output) as tmp:
+        write_multilayer_exr(tmp, image, passes)
+        if sorted(read_multilayer_exr(tmp)) != sorted(exr_channels(passes)):
+            raise OSError("the written EXR does not read back with its channels")

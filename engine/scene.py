@@ -284,33 +284,74 @@ def check_vector(owner: str, label: str, value, non_negative: bool = False) -> n
     return v
 
 
+SPOT_FALLOFFS = ("smoothstep", "cosine-smoothstep")
+
+
 @dataclass
 class PointLight:
-    """A Blender point light as Cycles has it: intensity I = power x colour / (4 pi) [W/sr] from
-    `position`; with a radius it is a disk of that radius facing each receiver, of radiance
-    I / (pi r^2) (measured against Cycles 3.4 and 5.0: irradiance I / (d^2 + r^2) on its axis).
-    It casts no shadow and is reached by shadow rays only."""
+    """A Blender point or spot light as Cycles has it: intensity I = power x colour / (4 pi)
+    [W/sr] from `position`; with a radius it is a disk of that radius facing each receiver, of
+    radiance I / (pi r^2) (measured against Cycles 3.4 and 5.0: irradiance I / (d^2 + r^2) on its
+    axis).  It casts no shadow; it lights diffuse surfaces through shadow rays and, with a radius,
+    is seen in mirrors and through glass (engine/lights/seen.py).  The visibility flags are Cycles'
+    ray visibility of the light object (camera rays never see it, as in Cycles).
+
+    A spot light (`spot_size` > 0, the cone's full angle in radians as Blender's Spot Size, up to
+    pi) emits I x a(theta) at the angle theta to `spot_direction`: a = 0 outside the cone, and
+    inside, with c = cos theta, c0 = cos(spot_size / 2) and the blend width w = (1 - c0) x
+    spot_blend (measured against Cycles, within 0.2 % over the cone):
+      "smoothstep" (Cycles 4.0 and later):       a = smoothstep(0, 1, (c - c0) / w)
+      "cosine-smoothstep" (Cycles 3.x):          a = c x smoothstep(0, 1, (c - c0) / w)
+    (w = 0: a hard edge).  The spot's power is not concentrated into the cone: a spot of the same
+    power is exactly as bright as the point light on its axis, as in Cycles."""
     name: str
     position: tuple
     intensity: tuple
     radius: float = 0.0
+    spot_size: float = 0.0
+    spot_blend: float = 0.0
+    spot_direction: tuple = (0.0, 0.0, -1.0)
+    spot_falloff: str = "smoothstep"
+    lights_diffuse: bool = True         # Cycles' ray visibility: Diffuse off lights no diffuse surface
+    visible_glossy: bool = True         # seen in mirrors (engine/lights/seen.py)
+    visible_transmission: bool = True   # seen through glass
+
+    @property
+    def is_spot(self) -> bool:
+        return self.spot_size > 0.0
 
     def validate(self) -> None:
-        check_vector(f"Light '{self.name}'", "position", self.position)
-        check_vector(f"Light '{self.name}'", "intensity", self.intensity, non_negative=True)
+        owner = f"Light '{self.name}'"
+        check_vector(owner, "position", self.position)
+        check_vector(owner, "intensity", self.intensity, non_negative=True)
         if not (math.isfinite(self.radius) and self.radius >= 0):
-            raise SceneError(f"Light '{self.name}': radius must be 0 or more, got {self.radius!r}")
+            raise SceneError(f"{owner}: radius must be 0 or more, got {self.radius!r}")
+        if not (math.isfinite(self.spot_size) and 0 <= self.spot_size <= math.pi):
+            raise SceneError(f"{owner}: spot size must be in [0, pi] radians (0: a point light), "
+                             f"got {self.spot_size!r}")
+        if not (math.isfinite(self.spot_blend) and 0 <= self.spot_blend <= 1):
+            raise SceneError(f"{owner}: spot blend must be in [0, 1], got {self.spot_blend!r}")
+        if not np.linalg.norm(check_vector(owner, "spot direction", self.spot_direction)) > 0:
+            raise SceneError(f"{owner}: spot direction must not be 0")
+        if self.spot_falloff not in SPOT_FALLOFFS:
+            raise SceneError(f"{owner}: spot falloff must be one of {', '.join(SPOT_FALLOFFS)}, "
+                             f"got {self.spot_falloff!r}")
 
 
 @dataclass
 class SunLight:
     """A Blender sun light: light arriving from directions within `angle` (its angular
     diameter, radians) about -`direction` (the direction the light travels), with irradiance
-    `irradiance` [W/m^2] on a surface facing it.  Reached by shadow rays only."""
+    `irradiance` [W/m^2] on a surface facing it.  Lights diffuse surfaces through shadow rays; with
+    an angle it is seen in mirrors and through glass (engine/lights/seen.py).  The visibility flags
+    are Cycles' ray visibility of the light object, as for PointLight."""
     name: str
     direction: tuple
     irradiance: tuple
     angle: float = 0.0
+    lights_diffuse: bool = True
+    visible_glossy: bool = True
+    visible_transmission: bool = True
 
     def validate(self) -> None:
         direction = check_vector(f"Light '{self.name}'", "direction", self.direction)

@@ -12,9 +12,14 @@
      "quads": [{"name": "Light", "corners": [[..] x4], "material": "Light"}],
      "lights": [{"name": "Lamp", "vertices": [[..] x N], "radiance": [r, g, b], "two_sided": false,
                  "visible_camera": false, "visible_diffuse": true, "visible_glossy": true,
-                 "visible_transmission": true, "lights_diffuse": true}]}
+                 "visible_transmission": true, "lights_diffuse": true}],
+     "points": [{"name": "Bulb", "position": [..], "intensity": [r, g, b], "radius": 0.1,
+                 "spot_size": 0.0, "spot_blend": 0.0, "spot_direction": [0, 0, -1],
+                 "spot_falloff": "smoothstep"}],
+     "suns": [{"name": "Sun", "direction": [..], "irradiance": [r, g, b], "angle": 0.01}]}
 
-"version" is FORMAT_VERSION (2: Area lights); files of a newer version are refused.
+"version" is FORMAT_VERSION (2: Area lights; 3: point, spot and sun lights); files of a newer
+version are refused.
 
 A value "@key" names an array in the NPZ file with the JSON's name and suffix .npz.
 """
@@ -25,13 +30,27 @@ import os
 
 import numpy as np
 
-from .scene import AreaLight, Camera, Material, Quad, Scene, SceneError, Sphere, TriangleMesh
+from .scene import (AreaLight, Camera, Material, PointLight, Quad, Scene, SceneError, Sphere, SunLight,
+                    TriangleMesh)
 from .scene_fields import Fields, is_integer
 
 FORMAT = "tncg15-scene"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 LIGHT_FLAGS = ("two_sided", "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
                "lights_diffuse")
+LAMP_FLAGS = ("lights_diffuse", "visible_glossy", "visible_transmission")     # point, spot and sun lights
+
+
+def _flags(fields, keys) -> dict:
+    """The booleans of `keys` that an entry sets."""
+    flags = {}
+    for key in keys:
+        if key in fields:
+            value = fields.get(key)
+            if not isinstance(value, bool):
+                fields.fail(key, "true or false", value)
+            flags[key] = value
+    return flags
 
 
 def _material_index(fields, names):
@@ -134,18 +153,25 @@ def load_scene(path: str) -> Scene:
     lights = []
     for i, entry in enumerate(top.objects("lights")):
         f, light_name = _named(entry, "Light", f"light{i}")
-        flags = {}
-        for key in LIGHT_FLAGS:
-            if key in f:
-                value = f.get(key)
-                if not isinstance(value, bool):
-                    f.fail(key, "true or false", value)
-                flags[key] = value
         lights.append(AreaLight(light_name, f.array("vertices", arrays, 3, integer=False),
-                                f.numbers("radiance", 3), **flags))
+                                f.numbers("radiance", 3), **_flags(f, LIGHT_FLAGS)))
+    points = []
+    for i, entry in enumerate(top.objects("points")):
+        f, light_name = _named(entry, "Light", f"point{i}")
+        points.append(PointLight(light_name, f.numbers("position", 3), f.numbers("intensity", 3),
+                                 f.number("radius", 0.0), spot_size=f.number("spot_size", 0.0),
+                                 spot_blend=f.number("spot_blend", 0.0),
+                                 spot_direction=f.numbers("spot_direction", 3, (0.0, 0.0, -1.0)),
+                                 spot_falloff=f.text("spot_falloff", "smoothstep"), **_flags(f, LAMP_FLAGS)))
+    suns = []
+    for i, entry in enumerate(top.objects("suns")):
+        f, light_name = _named(entry, "Light", f"sun{i}")
+        suns.append(SunLight(light_name, f.numbers("direction", 3), f.numbers("irradiance", 3),
+                             f.number("angle", 0.0), **_flags(f, LAMP_FLAGS)))
     return Scene(camera, materials, meshes, spheres, quads,
                  background=top.numbers("background", 3, (0.0, 0.0, 0.0)),
-                 resolution=top.integers("resolution", 2, (256, 256)), name=name, lights=lights)
+                 resolution=top.integers("resolution", 2, (256, 256)), name=name, lights=lights,
+                 points=points, suns=suns)
 
 
 def save_scene(scene: Scene, path: str) -> None:
@@ -176,6 +202,14 @@ def save_scene(scene: Scene, path: str) -> None:
         "lights": [dict({"name": light.name, "vertices": np.asarray(light.vertices).tolist(),
                          "radiance": [float(c) for c in light.radiance]},
                         **{key: bool(getattr(light, key)) for key in LIGHT_FLAGS}) for light in scene.lights],
+        "points": [{"name": p.name, "position": [float(v) for v in p.position],
+                    "intensity": [float(v) for v in p.intensity], "radius": float(p.radius),
+                    "spot_size": float(p.spot_size), "spot_blend": float(p.spot_blend),
+                    "spot_direction": [float(v) for v in p.spot_direction], "spot_falloff": p.spot_falloff,
+                    **{key: bool(getattr(p, key)) for key in LAMP_FLAGS}} for p in scene.points],
+        "suns": [{"name": sun.name, "direction": [float(v) for v in sun.direction],
+                  "irradiance": [float(v) for v in sun.irradiance], "angle": float(sun.angle),
+                  **{key: bool(getattr(sun, key)) for key in LAMP_FLAGS}} for sun in scene.suns],
     }
     with open(path, "w") as fh:
         json.dump(data, fh, indent=1)

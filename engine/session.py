@@ -31,6 +31,7 @@ from .film import TileFilm
 from .geometry import Counters, SceneGeometry
 from .integrator import PathTracer
 from .lights import LightSampler
+from .passes import FrameFeatures, TileFeatures, pass_images, traced
 from .qmc import RandomSampler, SobolSampler
 from .settings import RenderSettings
 
@@ -73,6 +74,7 @@ class UnitResult:
     counters: Counters
     seconds: float
     engine_version: str = ENGINE_VERSION
+    features: dict | None = None # engine/passes.py TileFeatures.sums(), when a traced pass is on
 
 
 @dataclass
@@ -82,6 +84,7 @@ class RenderResult:
     stats: dict
     warnings: list = field(default_factory=list)
     cancelled: bool = False
+    passes: dict = field(default_factory=dict)    # engine/passes.py pass_images(): name -> (H, W, C)
 
 
 def tile_size_for(width: int, height: int, size: int) -> int:
@@ -129,6 +132,7 @@ class SessionFilm:
         self.pending = {}                       # (tile index, chunk) -> UnitResult
         self.units_total = len(units)
         self.units_added = 0
+        self.features = None                    # FrameFeatures when a traced pass is on
 
     def add(self, result: UnitResult) -> list[Tile]:
         """Merge a unit's result; returns the tiles whose pixels changed."""
@@ -143,6 +147,8 @@ class SessionFilm:
             self.sum[t.y0:t.y1, t.x0:t.x1] += r.sum.reshape(h, w, 3)
             self.sum_sq[t.y0:t.y1, t.x0:t.x1] += r.sum_sq.reshape(h, w, 3)
             self.count[t.y0:t.y1, t.x0:t.x1] += r.count.reshape(h, w)
+            if self.features is not None and r.features is not None:
+                self.features.add(t, r.features)
             self.units_added += 1
             self.next_chunk[t.index] = key[1] + 1
             key = (t.index, key[1] + 1)
@@ -197,6 +203,8 @@ class RenderSession:
         self.units = make_units(self.tiles, self.settings.samples, progressive)
         self.progressive = progressive
         self.film = SessionFilm(width, height, self.units)
+        if traced(self.settings.passes):
+            self.film.features = FrameFeatures(width, height)
         self.totals = Counters()
 
     # -- one unit -------------------------------------------------------------------------
@@ -221,9 +229,12 @@ class RenderSession:
                 radiance[:, bad] = 0.0
             film.add(pixel, radiance)
 
-        if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler):
+        features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
+                    if self.plan.passes else None)
+        if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler, features):
             return None
-        return UnitResult(unit, film.sum, film.sum_sq, film.count, counters, time.perf_counter() - start)
+        return UnitResult(unit, film.sum, film.sum_sq, film.count, counters, time.perf_counter() - start,
+                          features=None if features is None else features.sums())
 
     # -- the whole frame --------------------------------------------------------------------
     def add(self, result: UnitResult) -> list[Tile]:
@@ -287,6 +298,7 @@ class RenderSession:
             "nonfinite_samples": self.totals.nonfinite_samples,
             "seconds_in_intersection": self.totals.seconds_in_intersection,
             "seconds_in_accelerator": self.totals.seconds_in_accelerator,
-            "cancelled": cancelled, "warnings": list(self.warnings),
+            "cancelled": cancelled, "warnings": list(self.warnings), "passes": list(s.passes),
         }
-        return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled)
+        return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled,
+                            pass_images(self.film, s.passes))

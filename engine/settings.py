@@ -42,6 +42,8 @@ class RenderSettings:
     tile_size: int = 64
     accelerator: str = "auto"
     parallelism: str = "auto"     # threads | processes (forked, Linux, outside Blender) | auto
+    passes: tuple = ()            # engine/passes.py PASSES: extra render passes (albedo, normal, depth, ...)
+    denoise: bool = False         # OIDN on the result, guided by albedo and normal (engine/denoise.py)
 
     def resolved_threads(self) -> int:
         return self.threads if self.threads > 0 else (os.cpu_count() or 1)
@@ -61,6 +63,10 @@ class RenderSettings:
             raise SceneError(f"unknown sampler '{self.sampler}' (expected one of {', '.join(SAMPLERS)})")
         if self.accelerator not in ACCELERATORS:
             raise SceneError(f"unknown accelerator '{self.accelerator}' (expected one of {', '.join(ACCELERATORS)})")
+        from .passes import PASSES
+        bad = [p for p in self.passes if p not in PASSES]
+        if bad:
+            raise SceneError(f"unknown pass '{bad[0]}' (known: {', '.join(PASSES)})")
         if self.parallelism not in ("auto", "threads", "processes"):
             raise SceneError(f"unknown parallelism '{self.parallelism}' (expected auto, threads or processes)")
 

@@ -210,9 +210,35 @@ class Study:
         for fresnel in ("schlick", "exact"):                        # Schlick vs exact
             self.add("fresnel", f"{fresnel} (vs exact reference)", scene, replace(self.base, fresnel=fresnel),
                      ref_exact, extra={"fresnel": fresnel})
+        self.denoise_table(scene, ref)
         self.accelerator_table()
         self.estimators_table()
         self.cycles_table()
+
+    def denoise_table(self, scene, ref):
+        """OIDN (engine/denoise.py) on a base-spp render, guided by its albedo and normal passes,
+        against raw renders of base and 16x base spp; time = tracing + denoising."""
+        from .denoise import available, denoise_result
+        problem = available()
+        if problem:
+            self.notes.append(f"Denoising rows skipped: {problem}")
+            return
+        base = self.mode.base_spp
+        passes = replace(self.base, passes=("albedo", "normal"))
+        for spp, denoised in ((base, False), (base, True), (16 * base, False)):
+            images, seconds = [], []
+            for i in range(self.mode.runs):
+                result = render(scene, replace(passes, samples=spp, seed=1000 + i), log=lambda *a: None)
+                t = result.stats["render_seconds"]
+                if denoised:
+                    denoise_result(result)
+                    t += result.stats["denoise_seconds"]
+                images.append(result.image.astype(np.float64))
+                seconds.append(t)
+            label = f"{spp} spp" + (" + OIDN denoise" if denoised else " raw")
+            row = error_row("denoise", label, images, seconds, *ref, extra={"spp": spp, "denoised": denoised})
+            self.rows.append(row)
+            self.log(f"  denoise    {label:28s} {row.t:8.3f} s  RMSE {row.rmse:.4g}  relMSE {np.mean(row.rel_mse):.3g}")
 
     def estimators_table(self):
         """The report's estimator against solid-angle light sampling, MIS and the Sobol' sampler

@@ -19,6 +19,7 @@ TABLE_TITLES = {
     "fresnel": "Schlick against exact Fresnel (reference: exact Fresnel)",
     "estimators": "Estimators — the report's area sampling against solid-angle light sampling and MIS",
     "cycles": "Against Cycles on sample_blends/cornell.blend (reference: Cycles, high spp)",
+    "denoise": "Denoising — OIDN on a low-spp render against a raw render of 16× the samples",
 }
 
 
@@ -154,7 +155,7 @@ def write_markdown(study, path, fig_rel, command, seconds):
         "",
     ]
     out += [f"- {n}" for n in study.notes] + [""]
-    for table in ("3.1", "3.2", "3.2b", "3.3", "3.4", "3.6", "fresnel", "estimators", "cycles"):
+    for table in ("3.1", "3.2", "3.2b", "3.3", "3.4", "3.6", "fresnel", "denoise", "estimators", "cycles"):
         rs = by(table)
         if not rs:
             continue
@@ -166,6 +167,8 @@ def write_markdown(study, path, fig_rel, command, seconds):
             out += [f"Speed-up 1 → {rs[-1].extra['threads']} threads: **{rs[0].t / rs[-1].t:.2f}×**.", ""]
         if table == "cycles":
             out += cycles_summary(rs) + [""]
+        if table == "denoise":
+            out += denoise_summary(rs) + [""]
         if table == "estimators":
             out += estimators_summary(rs, os.path.join(os.path.dirname(path), "estimators.json")) + [""]
         if table == "fresnel" and getattr(study, "fresnel_bias", None):
@@ -182,6 +185,19 @@ def write_markdown(study, path, fig_rel, command, seconds):
         out.append("")
     with open(path, "w") as fh:
         fh.write("\n".join(out))
+
+
+def denoise_summary(rows):
+    """One line: the denoised low-spp row against the raw high-spp row (relMSE and time ratios)."""
+    den = next((r for r in rows if r.extra.get("denoised")), None)
+    high = max((r for r in rows if not r.extra.get("denoised")), key=lambda r: r.extra["spp"], default=None)
+    if den is None or high is None:
+        return []
+    return [f"{den.label}: relMSE {np.mean(den.rel_mse):.3g} in {den.t:.3f} s against {high.label}: relMSE "
+            f"{np.mean(high.rel_mse):.3g} in {high.t:.3f} s, i.e. **{np.mean(den.rel_mse) / np.mean(high.rel_mse):.2f}×** "
+            f"the error in **{den.t / high.t:.2f}×** the time; RMSE {den.rmse:.4g} against {high.rmse:.4g}. "
+            "The denoised image is biased (bias² column): its error does not fall with more time the way "
+            "the raw rows' does (relMSE weights dark pixels, RMSE bright ones: the lamp's edges)."]
 
 
 def cycles_summary(rows):

@@ -59,6 +59,7 @@ def build_parser():
                    help="frame to render (default: the file's current frame)")
     r.add_argument("--stats-json", help="write render statistics (JSON) here")
     r.add_argument("--png", help="also write an sRGB PNG of the render here")
+    cli.add_pass_arguments(r)               # --passes, --denoise (TNCG15 MC only)
     b = sub.add_parser("bench-export", help="time the exporter on a large mesh (prints figures)")
     b.add_argument("--triangles", type=bounded_int(1, 100_000_000), default=1_000_000)
     b.add_argument("--instances", type=bounded_int(1, 1_000_000), default=100)
@@ -137,6 +138,9 @@ def render_file(args):
         outputs = output.check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
                                         ("--stats-json", args.stats_json, "json")],
                                        inputs=[blend], base_dir=os.path.dirname(blend))
+        if (args.passes or args.denoise) and args.engine != "TNCG15_MC":
+            raise output.OutputError("--passes/--denoise are for --engine TNCG15_MC")
+        bridge.module("cli").check_pass_outputs(args, outputs)
     except output.OutputError as exc:
         return error(exc)
     stop = bridge.module("stop").StopRequest(PROG).install()
@@ -175,6 +179,11 @@ def render_in(args, blend, outputs, stop, private):
         scene.render.engine = "TNCG15_MC"
     rendered = os.path.join(private, "render.exr")
     set_exr_output(scene, rendered)
+    layered = bool(args.passes or args.denoise) and args.engine == "TNCG15_MC"
+    if layered:
+        from mcrt_addon.passes import apply_pass_options, set_multilayer_output
+        apply_pass_options(scene, args.passes, args.denoise)
+        set_multilayer_output(scene)
     if stop.requested():
         return stop.report_exit()
     engine_module.STOP_REQUESTS.append(stop.requested)
@@ -198,7 +207,12 @@ def render_in(args, blend, outputs, stop, private):
     stats["file"] = blend
     stats["output"] = [o.path for o in outputs if o.kind != "json"]
     try:
-        write_outputs(outputs, bridge.module("film").read_image(rendered)[..., :3], stats)
+        if layered:
+            from mcrt_addon.passes import passes_from_channels
+            image, passes = passes_from_channels(bridge.module("passes").read_multilayer_exr(rendered), args.passes)
+            write_outputs(outputs, image, stats, passes)
+        else:
+            write_outputs(outputs, bridge.module("film").read_image(rendered)[..., :3], stats)
     except (bridge.module("output").OutputError, OSError) as exc:
         return error(exc, 1)
     print(f"{args.engine}: wrote {', '.join(o.path for o in outputs)} in {wall:.2f} s "
@@ -206,11 +220,13 @@ def render_in(args, blend, outputs, stop, private):
     return stop.report_exit()
 
 
-def write_outputs(outputs, image, stats):
+def write_outputs(outputs, image, stats, passes=None):
     output = bridge.module("output")
     for target in outputs:
         if target.kind == "json":
             output.write_text(target, json.dumps(stats, indent=2, default=_json_default))
+        elif passes is not None and target.option == "-o":
+            output.write_multilayer(target, image, passes)       # the layers of python -m engine render
         else:
             output.write_image(target, image)
 

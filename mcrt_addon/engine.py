@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import bpy
 
 from . import bridge, viewport, worker_python
+from . import passes as addon_passes
 
 # Stop requests besides Esc: callables polled with test_break() (the command line's SIGINT/SIGTERM).
 STOP_REQUESTS = []
@@ -38,6 +39,7 @@ class RenderReport:
     resolution: tuple = None
     crop: tuple = None
     wall_seconds: float = None
+    passes: list = field(default_factory=list)     # Blender pass names written at the end
 
 
 @contextlib.contextmanager
@@ -134,6 +136,10 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
     def view_draw(self, context, depsgraph):
         viewport.view_draw(self, context, depsgraph)
 
+    def update_render_passes(self, scene=None, renderlayer=None):
+        """Combined and the enabled passes (mcrt_addon/passes.py), as Render Layers sockets."""
+        addon_passes.register_passes(self, scene, renderlayer)
+
     # ------------------------------------------------------------------------------------------
     def render(self, depsgraph):
         self.last = RenderReport()
@@ -207,8 +213,11 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         t_start = time.perf_counter()
         scene = depsgraph.scene
         settings = scene.tncg15.to_settings(bridge.settings_class())
-        if self.is_preview:                 # material preview: cheap, one worker, cancelled often
+        wanted = addon_passes.enabled_passes(scene, depsgraph.view_layer)
+        settings.passes = tuple(p for p in wanted if p != "noisy")
+        if self.is_preview:                 # material preview: cheap, one worker, no passes, cancelled often
             settings.samples, settings.threads = min(settings.samples, PREVIEW_SAMPLES), 1
+            wanted, settings.passes = (), ()
         cluster = None if self.is_preview else worker_python.render_cluster()
         pool, no_workers = (None, None) if cluster else self._start_workers(settings)   # imports overlap the export
         try:
@@ -273,6 +282,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             warnings.append(f"no render worker processes ({no_workers}): the tracer ran on threads inside Blender")
             result = bridge.render_function()(exported.scene, settings, on_tile=on_tile,
                                                should_cancel=self._cancel_requested, on_progress=on_progress, log=log)
+        if not getattr(result, "cancelled", False) and wanted:
+            self._write_passes(result, wanted, out_w, out_h, pool, warnings)
         # the tracer validates the scene again and returns the same warnings: report each once
         warnings = list(dict.fromkeys(warnings + list(getattr(result, "warnings", []) or [])))
         if n_bad[0]:
@@ -288,6 +299,29 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             self.report({"WARNING"}, w)
         self.update_progress(1.0)
         self.update_stats("", stats_line(self._summary(stats, result), stats))
+
+    def _write_passes(self, result, wanted, width, height, pool, warnings):
+        """Denoise (in a process of the worker Python) when asked, then the whole frame: Combined
+        and every pass Blender made a slot for."""
+        import numpy as np
+        passes = dict(getattr(result, "passes", {}) or {})
+        image = np.asarray(result.image, dtype=np.float32)
+        if "noisy" in wanted:
+            self.update_stats("", "TNCG15 MC | Denoising")
+            python = getattr(pool, "python", None) or worker_python.worker_python(worker_python.preferred_python())[0]
+            t0 = time.perf_counter()
+            try:
+                if python is None:
+                    raise RuntimeError("no worker Python to run it in")
+                denoised = bridge.module("denoise").denoise_in_subprocess(
+                    python, image, passes.get("albedo"), passes.get("normal"), worker_python.extra_paths())
+            except Exception as exc:                 # noqa: BLE001 - the render stays, undenoised
+                warnings.append(f"Denoise skipped: {exc}")
+            else:
+                passes["noisy"], image = image, denoised
+                result.stats["denoised"] = True
+                result.stats["denoise_seconds"] = time.perf_counter() - t0
+        self.last.passes = addon_passes.write_frame(self, width, height, image, passes)
 
     def _start_workers(self, settings):
         """The worker pool (started, not yet given the scene), or (None, why) without a worker Python."""

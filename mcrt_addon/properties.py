@@ -68,6 +68,9 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
                               items=ACCELERATOR_ITEMS, default="AUTO")
     tile_size: IntProperty(name="Tile Size", description="Tile edge in pixels", default=64, min=8,
                            soft_max=1024)
+    use_denoising: BoolProperty(name="Denoise", description="Denoise the final render with Intel Open Image "
+                                "Denoise (pyoidn in the worker Python), guided by the Denoising Albedo and "
+                                "Normal passes; the raw image is kept as the Noisy Image pass", default=False)
 
     def to_settings(self, settings_cls):
         """The tracer's RenderSettings for these values (the class is passed in: the tracer loads lazily)."""
@@ -80,12 +83,22 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
             tile_size=self.tile_size, accelerator=self.accelerator.lower())
 
 
+class TNCG15ViewLayerSettings(bpy.types.PropertyGroup):
+    """Pass toggles as Cycles' view layer has them (Depth is Blender's own use_pass_z)."""
+    denoising_store_passes: BoolProperty(name="Denoising Data", description="Denoising Albedo and Denoising "
+                                         "Normal passes (first non-specular hit, as Cycles)", default=False)
+    pass_sample_count: BoolProperty(name="Sample Count", description="Camera samples per pixel "
+                                    "(Debug Sample Count pass)", default=False)
+    pass_variance: BoolProperty(name="Variance", description="Variance of each pixel's mean "
+                                "(sample variance / samples)", default=False)
+
+
 class TNCG15ObjectSettings(bpy.types.PropertyGroup):
     implicit_sphere: EnumProperty(name="Implicit Sphere", items=SPHERE_ITEMS, default="AUTO",
                                   description="Render this mesh as an exact (implicit) sphere")
 
 
-classes = (TNCG15RenderSettings, TNCG15ObjectSettings)
+classes = (TNCG15RenderSettings, TNCG15ViewLayerSettings, TNCG15ObjectSettings)
 
 
 def register():
@@ -93,9 +106,11 @@ def register():
         bpy.utils.register_class(cls)
     bpy.types.Scene.tncg15 = PointerProperty(type=TNCG15RenderSettings, name="TNCG15 MC")
     bpy.types.Object.tncg15 = PointerProperty(type=TNCG15ObjectSettings, name="TNCG15 MC")
+    bpy.types.ViewLayer.tncg15 = PointerProperty(type=TNCG15ViewLayerSettings, name="TNCG15 MC")
 
 
 def unregister():
+    del bpy.types.ViewLayer.tncg15
     del bpy.types.Object.tncg15
     del bpy.types.Scene.tncg15
     for cls in reversed(classes):

@@ -74,6 +74,44 @@ class RENDER_PT_tncg15_performance(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.prop(props, "tile_size")
 
 
+class RENDER_PT_tncg15_denoise(TNCG15ButtonsPanel, bpy.types.Panel):
+    bl_label = "Denoising"
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.tncg15, "use_denoising", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.active = context.scene.tncg15.use_denoising
+        layout.label(text="Intel Open Image Denoise, guided by albedo and normal")
+
+
+class VIEWLAYER_PT_tncg15_passes(bpy.types.Panel):
+    """View Layer > Passes, as Cycles: Z (Blender's), Denoising Data, Sample Count, Variance."""
+    bl_label = "Passes"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "view_layer"
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        view_layer = context.view_layer
+        col = layout.column(heading="Include", align=True)
+        col.prop(view_layer, "use_pass_combined")
+        col.prop(view_layer, "use_pass_z")
+        col.prop(view_layer.tncg15, "denoising_store_passes")
+        col.prop(view_layer.tncg15, "pass_sample_count")
+        col.prop(view_layer.tncg15, "pass_variance")
+
+
 class OBJECT_PT_tncg15(bpy.types.Panel):
     bl_label = "TNCG15 MC"
     bl_space_type = "PROPERTIES"
@@ -94,7 +132,7 @@ class OBJECT_PT_tncg15(bpy.types.Panel):
 
 
 classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_light_paths, RENDER_PT_tncg15_performance,
-           OBJECT_PT_tncg15)
+           RENDER_PT_tncg15_denoise, VIEWLAYER_PT_tncg15_passes, OBJECT_PT_tncg15)
 
 _lent = []   # panels we added our engine id to, so unregister removes exactly those
 

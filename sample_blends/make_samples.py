@@ -20,6 +20,10 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
   area_light     a diffuse room lit by a Blender Area light (exporter checks; one-sided in Cycles)
   point_light    the room lit by a point light of radius 10 cm
   sun_window     a sun shining through a window in the left wall
+  spot_light     the room lit by a spot light (30 degrees, blend 0.3) aimed at the floor and back
+                 wall, and a dim point light; both are seen in a mirror ball
+  sky_lit        an open scene: a floor with a box, a ball and a low wall under a uniform sky (the
+                 world colour is the only light)
   nested_glass   glass inside glass: a "water" sphere (IOR 1.33) inside a glass cube (IOR 1.5),
                  and a glass sphere resting on the cube's top face
 Light-sampling stress scenes (issue 9; plain ceiling, the lamps are two-sided emissive meshes, as
@@ -164,6 +168,15 @@ def camera(scene, lens=50.0, location=(0.0, -3.9, 1.0), target=(0.0, 0.0, 1.0)):
     scene.collection.objects.link(cam)
     scene.camera = cam
     return cam
+
+
+def world_colour(scene, rgb, strength=1.0):
+    """A constant world: a Background node of colour `rgb` and `strength`."""
+    black_world(scene)
+    bg = next(n for n in scene.world.node_tree.nodes if n.type == "BACKGROUND")
+    bg.inputs["Color"].default_value = (*rgb, 1.0)
+    bg.inputs["Strength"].default_value = strength
+    scene.world.color = rgb
 
 
 def black_world(scene):
@@ -440,6 +453,40 @@ def make_sun_window(scene, res):
     settings(scene, res)
 
 
+def make_spot_light(scene, res):
+    """The room lit by a spot light from the ceiling's front-left corner aimed at the floor and
+    back wall (its cone's edge and blend cross both), and a dim point light for the shadows."""
+    room(scene, ceiling_light=False)
+    light_object(scene, "Spot", "SPOT", (-0.6, -0.6, 1.9), rotation=(math.radians(35), 0.0, math.radians(-35)),
+                 energy=150.0, spot_size=math.radians(30), spot_blend=0.3, shadow_soft_size=0.05,
+                 color=(1.0, 0.95, 0.85))
+    light_object(scene, "Bulb", "POINT", (0.6, 0.2, 1.7), energy=8.0, shadow_soft_size=0.1, color=(0.8, 0.9, 1.0))
+    mesh_object(scene, "Box", lambda bm: cube(bm, 1.0), bpy.data.materials["White"], location=(0.2, 0.4, 0.3),
+                rotation=(0, 0, math.radians(-15)), scale=(0.35, 0.35, 0.6))
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.22), diffuse("Pink", (0.8, 0.4, 0.5)),
+                location=(-0.5, -0.25, 0.22), smooth=True)
+    mesh_object(scene, "Mirror ball", lambda bm: uv_sphere(bm, 0.18), mirror("Mirror", (0.9, 0.9, 0.9)),
+                location=(-0.1, 0.05, 0.18), smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_sky_lit(scene, res):
+    """No room and no lamp: a large floor, a box, a ball and a low wall under a light-blue sky of
+    strength 1 (the world is the only light; the camera sees some sky above the horizon)."""
+    white, red = diffuse("White", (0.73, 0.73, 0.73)), diffuse("Red", (0.65, 0.05, 0.05))
+    plane(scene, "Floor", [(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)], white)
+    mesh_object(scene, "Box", lambda bm: cube(bm, 1.0), red, location=(0.4, 0.5, 0.35),
+                rotation=(0, 0, math.radians(25)), scale=(0.5, 0.5, 0.7))
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.3), diffuse("Pink", (0.8, 0.4, 0.5)),
+                location=(-0.5, -0.1, 0.3), smooth=True)
+    plane(scene, "Wall", [(-1.5, 1.2, 0), (1.5, 1.2, 0), (1.5, 1.2, 0.9), (-1.5, 1.2, 0.9)], white)
+    camera(scene, lens=35.0, location=(0.0, -3.5, 1.3), target=(0.0, 0.3, 0.5))
+    world_colour(scene, (0.55, 0.7, 1.0), 1.0)
+    settings(scene, res)
+
+
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
@@ -455,6 +502,8 @@ SCENES = {
     "area_mirror": make_area_mirror,
     "point_light": make_point_light,
     "sun_window": make_sun_window,
+    "spot_light": make_spot_light,
+    "sky_lit": make_sky_lit,
 }
 
 

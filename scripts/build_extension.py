@@ -29,6 +29,10 @@ import zipfile
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGES = ["embreex==4.4.0.post1", "OpenImageIO==3.0.21.0"]
+# --with-denoiser: Intel Open Image Denoise for the Denoise option (engine/denoise.py; run by the
+# worker Python).  pyoidn's wheel (py3-none-manylinux2014_x86_64, about 88 MB) exists for Linux x64.
+DENOISER = ["pyoidn==2.5.1.0"]
+DENOISER_DEPS = ("pyoidn", "cffi", "pycparser")
 PLATFORM_TAGS = {                      # Blender platform -> pip --platform
     "linux-x64": "manylinux_2_28_x86_64",
     "windows-x64": "win_amd64",
@@ -57,6 +61,8 @@ def download_wheels(platforms, wheels_dir, offline):
         cmd = [sys.executable, "-m", "pip", "download", *PACKAGES, "--dest", wheels_dir, "--only-binary=:all:",
                "--python-version", "3.11", "--implementation", "cp", "--platform", PLATFORM_TAGS[platform],
                "--quiet"]
+        if DENOISER[0] in PACKAGES:           # pyoidn's wheel is tagged manylinux2014
+            cmd += ["--platform", "manylinux2014_x86_64", "--platform", "manylinux_2_17_x86_64"]
         print("+", " ".join(cmd))
         subprocess.run(cmd, check=True)
     for path in glob.glob(os.path.join(wheels_dir, "*.whl")):
@@ -133,7 +139,7 @@ def legacy_wheels(wheels_dir, offline):
         print("+", " ".join(cmd))
         subprocess.run(cmd, check=True)
     found = {}
-    for pkg in ("numpy", "embreex", "openimageio"):
+    for pkg in ("numpy", "embreex", "openimageio") + (DENOISER_DEPS if DENOISER[0] in PACKAGES else ()):
         names = sorted(glob.glob(os.path.join(legacy_dir, f"{pkg}-*.whl")) +
                        glob.glob(os.path.join(legacy_dir, f"{pkg.replace('openimageio', 'OpenImageIO')}-*.whl")))
         if pkg == "numpy":
@@ -170,7 +176,13 @@ def main(argv=None):
     parser.add_argument("--no-download", action="store_true", help="use the wheels already in ./wheels/")
     parser.add_argument("--output-dir", default=os.path.join(REPO, "dist"))
     parser.add_argument("--wheels-dir", default=os.path.join(REPO, "wheels"))
+    parser.add_argument("--with-denoiser", action="store_true",
+                        help="also bundle pyoidn (OIDN, about 88 MB; Linux x64 only) for the Denoise option")
     args = parser.parse_args(argv)
+    if args.with_denoiser:
+        if args.platform != ["linux-x64"]:
+            parser.error("--with-denoiser: pyoidn has a wheel for linux-x64 only")
+        PACKAGES.extend(p for p in DENOISER if p not in PACKAGES)
 
     check_tracer_imports()
     wheels = download_wheels(args.platform, args.wheels_dir, args.no_download)

@@ -32,6 +32,7 @@ from .selection import LightTree, PowerSelection
 from .spheres import Spheres
 from .distant import DistantLights
 from .points import PointLights
+from .seen import SeenLamps
 from .triangles import Triangles
 
 # Shadow-ray end points are pulled off the light by this relative amount (as the
@@ -107,6 +108,23 @@ class _Gather:
         return np.arange(self.count - n, self.count)
 
 
+class SpotFalloff:
+    """Scales the radiance of light samples from spot lights (global light numbers `first` ...
+    of the point-light kind) by their cone's falloff towards the receiver."""
+
+    def __init__(self, points, first: int):
+        self.points, self.first = points, first
+
+    def falloff(self, light, direction, radiance):
+        local = light - self.first
+        sel = np.flatnonzero((local >= 0) & (local < self.points.count))
+        if not len(sel):
+            return radiance
+        radiance = np.array(radiance)
+        radiance[:, sel] *= self.points.spot_factor(local.take(sel), -direction.take(sel, axis=1))
+        return radiance
+
+
 class LightSampler:
     """All emitters of a scene.  solid_angle: sample each light by solid angle where stable
     (else by area, as eq. 2.11); spatial: pick lights with the light tree (else by power);
@@ -173,15 +191,18 @@ class LightSampler:
             self.kinds.append(("sph", Spheres(*stack(sph, 2)), sph))
         if poly.count:
             self.kinds.append(("poly", Polygons([c for part in poly.parts for c in part]), poly))
-        if scene.points:
-            pts = PointLights(scene.points)
+        points = [p for p in scene.points if p.lights_diffuse]        # Diffuse visibility off: no light
+        suns = [s for s in scene.suns if s.lights_diffuse]
+        if points:
+            pts = PointLights(points)
             gather_pts = _Gather()
-            gather_pts.add(scene.points, pts.radiance_rows.T, False)
+            gather_pts.add(points, pts.radiance_rows.T, False)
             self.kinds.append(("pt", pts, gather_pts))
         base, start = {}, 0
         for name, kind, gather in self.kinds:
             base[name] = start
             start += kind.count
+        self.spots = SpotFalloff(self.kinds[-1][1], base["pt"]) if points and len(pts.spots) else None
         self.count_all = start
         self.kind_of = np.concatenate([np.full(k.count, i) for i, (_, k, _) in enumerate(self.kinds)]
                                       ) if self.kinds else np.zeros(0, np.int64)
@@ -208,8 +229,8 @@ class LightSampler:
         for light, ref in zip(scene.lights, light_ref):
             if ref is not None:
                 self.bsdf_reachable[glob(ref)] = lamps_hittable and light.visible_diffuse
-        if scene.points:                                           # shadow rays only
-            self.bsdf_reachable[base["pt"]:base["pt"] + len(scene.points)] = False
+        if points:                                                 # shadow rays only
+            self.bsdf_reachable[base["pt"]:base["pt"] + len(points)] = False
 
         # Per light: area, the report's power (area x mean radiance) and bounds for the tree.
         area = np.concatenate([k.area for _, k, _ in self.kinds]) if self.kinds else np.zeros(0)
@@ -218,8 +239,8 @@ class LightSampler:
         self.report_power = area * mean_le
         sides = np.where(self.one_sided, 1.0, 2.0)
         self.power = np.pi * area * mean_le * sides               # emitted flux
-        if scene.points:                                           # flux 4 pi I (the report: flux / pi)
-            span = slice(base["pt"], base["pt"] + len(scene.points))
+        if points:                                                 # flux 4 pi I (the report: flux / pi)
+            span = slice(base["pt"], base["pt"] + len(points))
             self.power[span] = self.kinds[-1][1].flux
             self.report_power[span] = self.power[span] / np.pi
         self.count = int((self.report_power > 0).sum())
@@ -233,8 +254,8 @@ class LightSampler:
         # Lights at infinity (suns, and the world under the mis / solid-angle estimators) are
         # picked with probability `distant_share`, the lamps and emissive surfaces share the rest.
         self.distant, self.distant_share = None, 0.0
-        if scene.suns or (world and max(scene.background) > 0):
-            self.distant = DistantLights(scene.suns, scene.background if world else (0.0, 0.0, 0.0),
+        if suns or (world and max(scene.background) > 0):
+            self.distant = DistantLights(suns, scene.background if world else (0.0, 0.0, 0.0),
                                          scene_radius(scene))
             lamps, far = float(self.power.sum()), float(self.distant.power.sum())
             self.distant_share = 1.0 if lamps <= 0 else float(np.clip(far / (far + lamps), *self.DISTANT_SHARE))
@@ -246,6 +267,7 @@ class LightSampler:
             self.bsdf_reachable = np.append(self.bsdf_reachable, reach)
             self.count += int((self.distant.power > 0).sum())
         self.world = None if self.distant is None or self.distant.world_slot is None else self.distant
+        self.seen = SeenLamps.of(scene)        # round lamps and suns that mirror and glass rays meet
 
     def _bounds(self):
         """(centre (K,3), radius, normal axis (K,3), cos of the normal cone) of every light."""
@@ -288,7 +310,10 @@ class LightSampler:
             d, pd, slot = self.distant.sample(n.take(sky, axis=1), u_pick.take(sky) / q, u1.take(sky), u2.take(sky))
             direction[:, sky], pdf[sky], distance[sky], light[sky] = d, q * pd, np.inf, self.count_all + slot
             point[:, sky], normal[:, sky] = x.take(sky, axis=1) + d, -d
-        return LightSample(point, direction, distance, normal, self.radiance.take(light, axis=1), pdf, light,
+        radiance = self.radiance.take(light, axis=1)
+        if self.spots is not None:                                 # spot lights: the cone's falloff
+            radiance = self.spots.falloff(light, direction, radiance)
+        return LightSample(point, direction, distance, normal, radiance, pdf, light,
                            LIGHT_OFFSET * max_abs3(point), self.one_sided.take(light))
 
     def _sample_local(self, x, n, u_pick, u1, u2):

@@ -100,22 +100,22 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             warnings.extend(object_warnings(ob, ob.name))
         if otype == "LIGHT":
             kind = ob.data.type
-            if kind in ("AREA", "POINT", "SUN"):
+            if kind in ("AREA", "POINT", "SPOT", "SUN"):
                 matrix = finite_matrix(inst, ob)
                 try:
                     if kind == "AREA":
                         lights.append(export_area_light(ob, matrix, version, AreaLight=sm.AreaLight,
                                                         warnings=warnings))
-                    elif kind == "POINT":
-                        points.append(export_point_light(ob, matrix, PointLight=sm.PointLight))
+                    elif kind in ("POINT", "SPOT"):
+                        points.append(export_point_light(ob, matrix, version, PointLight=sm.PointLight))
                     else:
                         suns.append(export_sun_light(ob, matrix, version, SunLight=sm.SunLight))
                 except ValueError as exc:
                     raise ExportError(str(exc)) from None
             elif ob.name not in skipped:
                 skipped.add(ob.name)
-                warnings.append(f"Light '{ob.name}': {ob.data.type.lower()} lights are not supported yet "
-                                "(use a point, sun or area light, or an emissive mesh); ignored")
+                warnings.append(f"Light '{ob.name}': {ob.data.type.lower()} lights are not supported "
+                                "(use a point, spot, sun or area light, or an emissive mesh); ignored")
             continue
         if otype in SKIPPED_TYPES:
             if ob.name not in skipped:

@@ -83,6 +83,13 @@ def area_light_visibility(ob):
                 visible_transmission=mis and _object_flag(ob, "transmission"))
 
 
+def lamp_visibility(ob):
+    """Cycles' ray visibility of a point, spot or sun light object -> the light's flags (camera
+    and diffuse rays never meet these lamps in the tracer: see engine/lights/seen.py)."""
+    flags = area_light_visibility(ob)
+    return {key: flags[key] for key in ("lights_diffuse", "visible_glossy", "visible_transmission")}
+
+
 def export_area_light(ob, matrix, version, *, AreaLight, warnings):
     light = ob.data
     local, area = area_light_polygon(light)
@@ -109,15 +116,26 @@ def _power(light):
     return float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
 
 
-def export_point_light(ob, matrix, *, PointLight):
+def export_point_light(ob, matrix, version, *, PointLight):
+    """A point or spot light (the spot's cone about the object's -Z axis, its falloff as the
+    Cycles of this Blender version has it: see engine/scene.py PointLight)."""
     light = ob.data
     intensity = tuple(float(c) * _power(light) / (4.0 * math.pi) for c in light.color)
     radius = float(getattr(light, "shadow_soft_size", 0.0))
     if not math.isfinite(radius) or radius < 0:
         raise ValueError(f"Light '{ob.name}': radius must be 0 or more, got {radius!r}")
+    m = np.asarray(matrix, dtype=np.float64)
+    spot = {}
+    if light.type == "SPOT":
+        axis = -m[:3, 2]
+        if not np.linalg.norm(axis) > 0:
+            raise ValueError(f"Light '{ob.name}': spot has a zero scale, so no direction")
+        spot = dict(spot_size=min(float(light.spot_size), math.pi), spot_blend=float(light.spot_blend),
+                    spot_direction=tuple(float(v) for v in axis / np.linalg.norm(axis)),
+                    spot_falloff="smoothstep" if version >= (4, 0, 0) else "cosine-smoothstep")
     # Cycles takes the radius as it is, whatever the object's scale.
-    return PointLight(name=ob.name, position=tuple(float(v) for v in np.asarray(matrix)[:3, 3]),
-                      intensity=intensity, radius=radius)
+    return PointLight(name=ob.name, position=tuple(float(v) for v in m[:3, 3]),
+                      intensity=intensity, radius=radius, **spot, **lamp_visibility(ob))
 
 
 def export_sun_light(ob, matrix, version, *, SunLight):
@@ -129,4 +147,4 @@ def export_sun_light(ob, matrix, version, *, SunLight):
     if not np.linalg.norm(down) > 0:
         raise ValueError(f"Light '{ob.name}': sun has a zero scale, so no direction")
     return SunLight(name=ob.name, direction=tuple(float(v) for v in down / np.linalg.norm(down)),
-                    irradiance=irradiance, angle=angle)
+                    irradiance=irradiance, angle=angle, **lamp_visibility(ob))

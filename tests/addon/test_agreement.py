@@ -22,7 +22,7 @@ K = 4
 TAU = {"cornell": 0.05, "mirror_glass": 0.05, "principled": 0.05, "diffuse_room": 0.02,
        "suzanne_5k": 0.02, "suzanne_100k": 0.02, "area_light": 0.02, "nested_glass": 0.05,
        "near_lamp": 0.02, "many_lights": 0.02, "caustic": 0.05, "area_mirror": 0.05,
-       "point_light": 0.05, "sun_window": 0.05}
+       "point_light": 0.05, "sun_window": 0.05, "spot_light": 0.05, "sky_lit": 0.05}
 _cache = {}
 
 
@@ -42,8 +42,8 @@ def ours(scene, first_seed=1000):
     # light-sampling stress scenes (issue 9); area_mirror needs area lights that mirror and glass
     # rays can reach (AreaLight.visible_glossy / visible_transmission, the mis / solid-angle estimators)
     "near_lamp", "caustic", "many_lights", "area_mirror",
-    # point and sun lights (issue 12)
-    "point_light", "sun_window"])
+    # point, spot and sun lights, the world as the only light (issue 12)
+    "point_light", "sun_window", "spot_light", "sky_lit"])
 def test_agrees_with_cycles(samples, name):
     ref = reference(samples, name)
     exported = export_blend(samples[name], RES)
@@ -93,14 +93,26 @@ def test_comparison_passes_renderer_against_itself(samples):
     assert result.passed, result.summary()
 
 
-@pytest.mark.parametrize("name, how", [("point_light", "intensity_x2"), ("sun_window", "irradiance_x0.8")])
+@pytest.mark.parametrize("name, how", [("point_light", "intensity_x2"), ("sun_window", "irradiance_x0.8"),
+                                       ("spot_light", "cone_x1.25"), ("spot_light", "no_spot_falloff"),
+                                       ("sky_lit", "world_x1.2")])
 def test_comparison_catches_wrong_light_units(samples, name, how):
-    """Controls for the point and sun exports: a point light twice too strong, a sun 20 % too weak."""
+    """Controls for the light exports: a point light twice too strong, a sun 20 % too weak, a spot
+    cone 25 % too wide, a spot without its falloff (the point light it is), a world 20 % too bright."""
     scene = copy.deepcopy(export_blend(samples[name], RES).scene)
+    spot = next((p for p in scene.points if p.is_spot), None)
     if how == "intensity_x2":
         scene.points[0].intensity = tuple(2 * i for i in scene.points[0].intensity)
-    else:
+    elif how == "irradiance_x0.8":
         scene.suns[0].irradiance = tuple(0.8 * e for e in scene.suns[0].irradiance)
+    elif how == "cone_x1.25":
+        spot.spot_size *= 1.25
+    elif how == "no_spot_falloff":
+        spot.spot_size = 0.0
+    elif how == "world_x1.2":
+        scene.background = tuple(1.2 * c for c in scene.background)
+    else:
+        raise ValueError(how)
     result = compare_runs(ours(scene, first_seed=5000), reference(samples, name), tau=TAU[name])
     print(f"{name} {how}: {result.summary()}")
     assert not result.passed

@@ -96,6 +96,71 @@ def test_legacy_zip_alone_renders_with_embree_in_blender34(legacy_zip, blend34, 
           f"{stats['first_tile_seconds']:.2f} s, render {stats['render_seconds']:.2f} s, {stats['parallelism']}")
 
 
+INSTALL_AND_CANCEL = r'''
+import json, os, sys, time, bpy
+zip_path, blend, out, stats_path = sys.argv[sys.argv.index("--") + 1:]
+bpy.ops.preferences.addon_install(filepath=zip_path)
+bpy.ops.preferences.addon_enable(module="tncg15_mc")
+bpy.ops.wm.open_mainfile(filepath=blend)
+import tncg15_mc.engine as engine
+sc = bpy.context.scene
+sc.render.engine = "TNCG15_MC"
+sc.render.resolution_x = sc.render.resolution_y = 96
+sc.tncg15.samples = 1024
+sc.render.image_settings.file_format = "OPEN_EXR"
+sc.render.filepath = out
+state = {"cancel_at": None}
+def fake_break(self):      # Esc cannot be pressed in -b: "pressed" once the first tile is in
+    if state["cancel_at"] is None and getattr(self, "tiles_written", 0) > 0:
+        state["cancel_at"] = time.perf_counter()
+    return state["cancel_at"] is not None
+engine.TNCG15RenderEngine._cancel_requested = fake_break
+with engine.capture_reports() as reports:
+    t0 = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    stopped = time.perf_counter()
+r = reports[-1]
+json.dump({"cancelled": r.cancelled, "error": r.error, "stats": r.stats, "pid": os.getpid(),
+           "stop_seconds": None if state["cancel_at"] is None else stopped - state["cancel_at"],
+           "render_seconds": stopped - t0}, open(stats_path, "w"), default=str)
+'''
+
+
+def workers_of(pid):
+    """Pids of render workers started by process `pid` (`python -m engine worker PID`) still alive."""
+    found = []
+    for entry in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{entry}/cmdline", "rb") as fh:
+                argv = fh.read().split(b"\0")
+        except OSError:
+            continue
+        if b"worker" in argv and argv[argv.index(b"worker") + 1:argv.index(b"worker") + 2] == [str(pid).encode()]:
+            found.append(int(entry))
+    return found
+
+
+def test_esc_stops_a_blender34_render_within_a_second(legacy_zip, blend34, tmp_path):
+    """Issue 10: Esc is fast in Blender 3.4 too (worker processes with Embree, legacy zip): the
+    render stops within a second of the request and no worker process outlives it."""
+    script = tmp_path / "cancel.py"
+    script.write_text(INSTALL_AND_CANCEL)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env.update(BLENDER_USER_SCRIPTS=str(tmp_path / "scripts"), BLENDER_USER_CONFIG=str(tmp_path / "config"))
+    stats_path = tmp_path / "stats.json"
+    proc = subprocess.Popen([BLENDER, "-b", "--factory-startup", "--python", str(script), "--", str(legacy_zip),
+                             str(blend34), str(tmp_path / "cancel.exr"), str(stats_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    log = proc.communicate(timeout=300)[0]
+    assert proc.returncode == 0 and stats_path.exists(), log[-3000:]
+    report = json.loads(stats_path.read_text())
+    assert report["error"] is None and report["cancelled"] is True, report
+    assert report["stats"]["accelerator"] == "embree"
+    assert report["stop_seconds"] is not None and report["stop_seconds"] < 1.0, report
+    assert workers_of(report["pid"]) == []
+    print(f"Blender 3.4: Esc after the first tile stopped the render in {report['stop_seconds']:.3f} s")
+
+
 def user_env():
     site = sysconfig.get_paths()["purelib"]          # the venv's site-packages (numpy, embreex)
     return dict(os.environ, PYTHONPATH=os.pathsep.join([REPO, site]))
@@ -125,3 +190,27 @@ def test_blender_binary_cycles_reference_runs(blend34, tmp_path):
     assert r.returncode == 0 and out.exists(), r.stdout[-3000:] + r.stderr[-3000:]
     img = read_exr(str(out))
     assert np.isfinite(img).all() and img.mean() > 0.02
+
+
+def test_blender34_fills_passes_and_denoises(blend34, tmp_path):
+    """Blender 3.4: the registered passes (Z, Denoising Data, Sample Count, Variance) land in its
+    multi-layer EXR, and Denoise runs OIDN in a process of the worker Python (never in Blender's,
+    where OIDN aborts 3.4) and keeps the Noisy Image pass."""
+    from engine.passes import read_multilayer_exr
+    expr = ("import bpy, mcrt_addon; mcrt_addon.register(); sc = bpy.context.scene; sc.tncg15.samples = 4; "
+            "sc.tncg15.use_denoising = True; vl = sc.view_layers[0]; vl.use_pass_z = True; "
+            "vl.tncg15.denoising_store_passes = True; vl.tncg15.pass_sample_count = True; "
+            "vl.tncg15.pass_variance = True")
+    r = blender("-b", "--python-use-system-env", str(blend34), "--python-expr", expr, "-E", "TNCG15_MC",
+                "-o", str(tmp_path / "ml_####"), "-F", "OPEN_EXR_MULTILAYER", "-f", "1", env=user_env())
+    out = tmp_path / "ml_0001.exr"
+    assert r.returncode == 0 and out.exists(), r.stdout[-3000:] + r.stderr[-3000:]
+    assert "Denoise skipped" not in r.stdout + r.stderr, r.stdout[-2000:]
+    ch = read_multilayer_exr(out)
+    for name in ("Combined.R", "Depth.Z", "Denoising Albedo.R", "Denoising Normal.Z", "Debug Sample Count.X",
+                 "Variance.G", "Noisy Image.R"):
+        assert f"ViewLayer.{name}" in ch, sorted(ch)
+    assert np.all(ch["ViewLayer.Debug Sample Count.X"] == 4.0)
+    albedo = ch["ViewLayer.Denoising Albedo.G"]
+    assert albedo.min() >= 0.0 and np.median(albedo) <= 1.0 and np.isfinite(albedo).all()
+    assert not np.array_equal(ch["ViewLayer.Noisy Image.R"], ch["ViewLayer.Combined.R"])

@@ -338,18 +338,28 @@ def test_point_and_sun_lights_are_exported_in_cycles_units(scene):
     sob = bpy.data.objects.new("Sun", sun)
     sob.rotation_euler = (math.radians(90), 0, 0)          # local -Z points along +Y
     scene.collection.objects.link(sob)
-    spot = bpy.data.objects.new("Spot", bpy.data.lights.new("Spot", "SPOT"))
+    spot_light = bpy.data.lights.new("Spot", "SPOT")
+    spot_light.spot_size, spot_light.spot_blend = math.radians(50), 0.25
+    spot = bpy.data.objects.new("Spot", spot_light)
+    spot.rotation_euler = (math.radians(90), 0, 0)         # the cone along +Y
+    spot.visible_glossy = False                             # Object > Visibility > Ray Visibility
     scene.collection.objects.link(spot)
     res = export()
-    point = res.scene.points[0]
+    point = next(p for p in res.scene.points if p.name == "Bulb")
+    assert not point.is_spot
     assert point.position == pytest.approx((1.0, 2.0, 3.0)) and point.radius == pytest.approx(0.2)
     assert point.intensity == pytest.approx((100 / (4 * math.pi), 50 / (4 * math.pi), 25 / (4 * math.pi)))
     s = res.scene.suns[0]
     assert s.direction == pytest.approx((0.0, 1.0, 0.0), abs=1e-6) and s.angle == pytest.approx(0.5)
     factor = 1.0 if bpy.app.version >= (4, 0, 0) else 0.5 * (1 + math.cos(0.25))
     assert s.irradiance == pytest.approx((3.0 * factor,) * 3)
-    assert any("Light 'Spot'" in w and "spot" in w for w in res.warnings)
-    assert not any("Bulb" in w or "'Sun'" in w for w in res.warnings)
+    cone = next(p for p in res.scene.points if p.name == "Spot")
+    assert cone.spot_size == pytest.approx(math.radians(50)) and cone.spot_blend == pytest.approx(0.25)
+    assert cone.spot_direction == pytest.approx((0.0, 1.0, 0.0), abs=1e-6)
+    assert cone.spot_falloff == ("smoothstep" if bpy.app.version >= (4, 0, 0) else "cosine-smoothstep")
+    assert (cone.visible_glossy, cone.visible_transmission, cone.lights_diffuse) == (False, True, True)
+    assert (point.visible_glossy, s.visible_glossy) == (True, True)
+    assert not res.warnings
 
 
 def test_world_background(scene, ms):

@@ -203,3 +203,20 @@ def test_sky_and_lamp_estimators_agree(depth):
                                                                    **kw}), **SILENT)
         z, z_crit = block_test(other, base, block=4)
         assert z < z_crit, (kw, depth, z, z_crit)
+
+
+@pytest.mark.parametrize("estimator", ["report", "solid-angle", "mis"])
+def test_white_furnace_open_box_in_a_white_world(estimator):
+    """An open box (five faces, albedo 1, concave: it sees itself) under a white world of radiance
+    1: every pixel, box or sky, is 1 (issue 12's furnace with a white world, hard-cases.md T1)."""
+    mats = [Material("White", DIFFUSE, (1.0, 1.0, 1.0))]
+    c = np.array([(x, y, z) for z in (0, 1) for y in (0, 1) for x in (0, 1)], float) - (0.5, 0.5, 0.0)
+    faces = [(0, 1, 3, 2), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]      # no top: open
+    quads = [Quad(f"Face{i}", c[list(f)], 0) for i, f in enumerate(faces)]
+    cam = Camera.look_at((0.6, -1.6, 1.9), (0.0, 0.0, 0.3), up=(0, 0, 1), lens=25.0)
+    scene = Scene(cam, mats, quads=quads, background=(1.0, 1.0, 1.0), resolution=(12, 12))
+    result = render(scene, settings(samples=256, max_depth=64, estimator=estimator, seed=5), **SILENT)
+    se = np.sqrt(result.variance[..., 0].sum()) / result.image[..., 0].size
+    assert result.stats["nonfinite_samples"] == 0
+    assert abs(result.image[..., 0].mean() - 1.0) < max(4 * se, 1e-9), (result.image.mean(), se)
+    assert np.all(np.abs(result.image - 1.0) < 8 * np.sqrt(result.variance) + 1e-9)

@@ -83,6 +83,24 @@ def test_scene_file_round_trip_keeps_area_lights_and_their_visibility(tmp_path):
     assert np.array_equal(a.image, b.image)
 
 
+def test_scene_file_round_trip_keeps_point_spot_and_sun_lights(tmp_path):
+    from engine.scene import PointLight, SunLight
+    scene = cornell_scene((16, 16))
+    scene.points = [PointLight("Bulb", (0.1, 0.2, 1.5), (2.0, 1.0, 0.5), 0.05),
+                    PointLight("Spot", (0.0, 0.0, 1.8), (9.0, 9.0, 9.0), 0.02, spot_size=0.9, spot_blend=0.3,
+                               spot_direction=(0.1, 0.0, -1.0), spot_falloff="cosine-smoothstep",
+                               visible_glossy=False)]
+    scene.suns = [SunLight("Sun", (0.3, 0.2, -1.0), (1.0, 0.9, 0.8), 0.05, lights_diffuse=False,
+                           visible_transmission=False)]
+    path = str(tmp_path / "lamps.json")
+    save_scene(scene, path)
+    again = load_scene(path)
+    assert again.points == scene.points and again.suns == scene.suns
+    a = render(scene, RenderSettings(samples=2, seed=3), log=lambda *a: None)
+    b = render(again, RenderSettings(samples=2, seed=3), log=lambda *a: None)
+    assert np.array_equal(a.image, b.image)
+
+
 def test_scene_file_of_a_newer_format_is_refused(tmp_path):
     path = tmp_path / "future.json"
     path.write_text(json.dumps({"format": "tncg15-scene", "version": 99, "materials": [{"name": "m"}]}))

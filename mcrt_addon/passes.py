@@ -1,0 +1,128 @@
+"""Render passes in Blender: which are on (the view layer's toggles, as Cycles has them), their
+registration (`update_render_passes`) and writing them into the render result.
+
+Names, channels and types are Cycles' (``list_render_passes``), so the compositor's Render Layers
+node and Denoise node know them; the tracer's names are in engine/passes.py (the same table,
+kept equal by tests/addon/test_passes_addon.py).  Kept free of numpy and the tracer so that
+`update_render_passes`, which Blender calls very often, stays cheap.
+
+  tracer pass   Blender pass           channels  toggle
+  depth         Depth                  Z         View Layer > Passes > Data > Z (use_pass_z)
+  albedo        Denoising Albedo       RGB       Denoising Data (view_layer.tncg15), or Denoise
+  normal        Denoising Normal       XYZ       Denoising Data, or Denoise
+  samples       Debug Sample Count     X         Sample Count (view_layer.tncg15)
+  variance      Variance               RGB       Variance (view_layer.tncg15)
+  noisy         Noisy Image            RGBA      Denoise (scene.tncg15.use_denoising)
+"""
+BLENDER_PASSES = {
+    "albedo": ("Denoising Albedo", 3, "RGB", "COLOR"),
+    "normal": ("Denoising Normal", 3, "XYZ", "VECTOR"),
+    "depth": ("Depth", 1, "Z", "VALUE"),
+    "samples": ("Debug Sample Count", 1, "X", "VALUE"),
+    "variance": ("Variance", 3, "RGB", "COLOR"),
+    "noisy": ("Noisy Image", 4, "RGBA", "COLOR"),
+}
+ORDER = ("albedo", "normal", "depth", "samples", "variance", "noisy")
+
+
+def enabled_passes(scene, view_layer) -> tuple:
+    """Tracer pass names switched on for this view layer (and 'noisy' with Denoise)."""
+    on = set()
+    props = getattr(view_layer, "tncg15", None)
+    denoise = bool(getattr(getattr(scene, "tncg15", None), "use_denoising", False))
+    if getattr(view_layer, "use_pass_z", False):
+        on.add("depth")
+    if denoise or (props is not None and props.denoising_store_passes):
+        on.update(("albedo", "normal"))
+    if props is not None and props.pass_sample_count:
+        on.add("samples")
+    if props is not None and props.pass_variance:
+        on.add("variance")
+    if denoise:
+        on.add("noisy")
+    return tuple(p for p in ORDER if p in on)
+
+
+def register_passes(engine, scene, view_layer) -> None:
+    """RenderEngine.update_render_passes: Combined and every enabled pass."""
+    engine.register_pass(scene, view_layer, "Combined", 4, "RGBA", "COLOR")
+    for name in enabled_passes(scene, view_layer):
+        pass_name, channels, chan_id, kind = BLENDER_PASSES[name]
+        engine.register_pass(scene, view_layer, pass_name, channels, chan_id, kind)
+
+
+def write_pass(render_pass, pixels) -> None:
+    """(h, w, c) float pixels, row 0 = top -> the pass (row 0 = bottom, render_pass.channels
+    channels: padded with 1 (alpha) or cut).  Flat buffer in 4.x/5.0, (N, c) in 3.x."""
+    import numpy as np
+    h, w = pixels.shape[:2]
+    c = render_pass.channels
+    src = np.asarray(pixels, dtype=np.float32).reshape(h, w, -1)[::-1]
+    out = np.ones((h, w, c), np.float32)
+    k = min(c, src.shape[2])
+    out[..., :k] = src[..., :k]
+    out[~np.isfinite(out)] = 0.0
+    try:
+        render_pass.rect.foreach_set(out.ravel())
+    except (TypeError, AttributeError):
+        try:
+            render_pass.rect.foreach_set(out.reshape(-1, c))
+        except (TypeError, AttributeError):
+            render_pass.rect = out.reshape(-1, c).tolist()
+
+
+def write_frame(engine, width, height, image, passes: dict) -> list:
+    """One full-frame result: Combined = image, plus each pass Blender has a slot for; returns the
+    Blender names written."""
+    written = []
+    result = engine.begin_result(0, 0, width, height)
+    try:
+        slots = {p.name: p for p in result.layers[0].passes}
+        write_pass(slots["Combined"], image)
+        written.append("Combined")
+        for name in ORDER:
+            if name in passes and BLENDER_PASSES[name][0] in slots:
+                write_pass(slots[BLENDER_PASSES[name][0]], passes[name])
+                written.append(BLENDER_PASSES[name][0])
+    finally:
+        engine.end_result(result)
+    return written
+
+
+def apply_pass_options(scene, passes, denoise) -> None:
+    """The command line's --passes/--denoise as the view layer's toggles and the Denoise option."""
+    for view_layer in scene.view_layers:
+        view_layer.use_pass_z = "depth" in passes
+        view_layer.tncg15.denoising_store_passes = "albedo" in passes or "normal" in passes
+        view_layer.tncg15.pass_sample_count = "samples" in passes
+        view_layer.tncg15.pass_variance = "variance" in passes
+    scene.tncg15.use_denoising = bool(denoise)
+
+
+def set_multilayer_output(scene) -> None:
+    """Blender writes every pass: OpenEXR MultiLayer (a media type in 5.0), 32-bit float."""
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):
+        settings.media_type = "MULTI_LAYER_IMAGE"
+    settings.file_format = "OPEN_EXR_MULTILAYER"
+    settings.color_depth = "32"
+    settings.exr_codec = "ZIP"
+
+
+def passes_from_channels(channels, wanted) -> tuple:
+    """Blender's multi-layer EXR channels ({'ViewLayer.Depth.Z': (H, W)}) -> (image (H, W, 3),
+    {tracer pass name: (H, W, c)}) for the passes in `wanted` (and 'noisy' when present)."""
+    import numpy as np
+
+    def layer(blender, chans):
+        found = [channels.get(f"ViewLayer.{blender}.{c}") for c in chans]
+        return None if any(f is None for f in found) else np.stack(found, axis=-1)
+    image = layer("Combined", "RGB")
+    out = {}
+    for name in ORDER:
+        blender, n, chan_id, _ = BLENDER_PASSES[name]
+        if name in wanted or name == "noisy":
+            pixels = layer(blender, chan_id[:3] if name == "noisy" else chan_id)
+            if pixels is not None:
+                out[name] = pixels
+    return image, out
