@@ -14,9 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .scene import DIFFUSE, GLASS, MIRROR
+from .textures import textured_materials
 
 EFFECTS = ("triangles", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass", "emission",
-           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes")
+           "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes", "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -106,8 +107,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                "report estimator: Area lights are reached by shadow rays only (eq. 2.11)" if report else
                "Area lights invisible to every ray kind: reached by shadow rays only")
 
-    diffuse = users(lambda m: m.kind == DIFFUSE and max(m.color) > 0)
-    mirror = users(lambda m: m.kind == MIRROR and max(m.color) > 0)
+    diffuse = users(lambda m: m.kind == DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
+    mirror = users(lambda m: m.kind == MIRROR and (max(m.color) > 0 or m.color_texture is not None))
     glass = users(lambda m: m.kind == GLASS)
     surface_emitters = users(lambda m: m.is_emissive)
     bulbs = [p for p in scene.points if max(p.intensity) > 0]
@@ -171,6 +172,13 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     set_effect("passes", features,
                f"first-hit {', '.join(features)} recorded per sample (engine/passes.py)" if features else
                "no albedo, normal or depth pass: no feature tracking")
+    colored, glowing = textured_materials(scene)
+    set_effect("textures", colored or glowing,
+               "; ".join(part for part in (
+                   f"image textures on the colour of {_names(colored)}" if colored else "",
+                   f"on the emission of {_names(glowing)} (light samples read the texture)" if glowing else "")
+                   if part) + ": texture lookups at triangle hits (UVs interpolated)"
+               if colored or glowing else "no image textures: no UVs, no texture lookups")
     return plan
 
 

@@ -27,6 +27,9 @@ lights), direct light, scatter, roulette, compaction.
   Cycles) do; with `nested_dielectrics` each path keeps a stack of the media it is in,
   so glass inside glass or water in a glass refracts with the ratio of the two IORs
   (the report's §4 future work);
+* image textures (engine/textures.py): the colour and emission of textured materials at triangle
+  hits, and the radiance of light samples on textured emitters, are read from the texture at the
+  UV interpolated with the hit's barycentrics (pdfs and MIS weights depend on geometry only);
 * Russian roulette (report 2.4) with survival probability min(1, max throughput),
   survivors divided by it; a zero throughput always terminates, without a division.
 """
@@ -128,8 +131,9 @@ def power_heuristic(n_f, p_f, n_g, p_g):
 
 
 class PathTracer:
-    def __init__(self, geometry, lights, materials, plan, settings, background):
+    def __init__(self, geometry, lights, materials, plan, settings, background, textures=None):
         self.geometry = geometry
+        self.textures = textures          # engine/textures.py HitTextures, or None (no textures)
         self.lights = lights
         self.mats = MaterialTable(materials)
         self.plan = plan
@@ -144,6 +148,8 @@ class PathTracer:
         self.final_rays = settings.estimator == "mis" and (self.mis or not self.use_nee)
         self.has_background = bool(self.background.max() > 0)
         self.world_nee = self.use_nee and lights.world is not None       # shadow rays sample the world
+        if textures is not None:         # a textured colour scatters whatever its unlinked value
+            self.mats.group = np.where(textures.has_color, self.mats.kind, self.mats.group).astype(np.int8)
         self.material_group = self.mats.group
         self.seen_lamps = lights.seen if plan.enabled.get("seen_lamps") else None
         self.light_of_kind = {TRIANGLE: lights.triangle_light, SPHERE: lights.sphere_light,
@@ -222,10 +228,12 @@ class PathTracer:
         diffuse = slice(bounds[0], bounds[1])
         facing = surf.normal * np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)   # towards the ray
         color = self.mats.color.take(surf.material, axis=1)
+        if self.textures is not None:
+            color = self.textures.color(color, surf.material, hits.kind, hits.prim, hits.u, hits.v)
         dim = 1 + DIMS_PER_BOUNCE * p.bounce[:alive]                        # this hit's dimensions
         u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
         if features is not None:
-            self.surface_features(p, surf, facing, color, bounds, features)
+            self.surface_features(p, surf, facing, color, bounds, features, hits)
         if self.use_nee and bounds[1] > bounds[0]:
             p.radiance[:, diffuse] += p.beta[:, diffuse] * self.direct_light(
                 surf.point[:, diffuse], facing[:, diffuse], color[:, diffuse], surf.offset[diffuse], None, counters,
@@ -291,6 +299,9 @@ class PathTracer:
         mat = surf.material
         lit = np.flatnonzero(self.mats.is_emissive.take(mat[:surfaces]))
         parts = [(lit, self.mats.emission.take(mat.take(lit), axis=1))] if len(lit) else []
+        if parts and self.textures is not None:
+            parts[0] = (lit, self.textures.emission(parts[0][1], mat.take(lit), hits.kind.take(lit),
+                                                    hits.prim.take(lit), hits.u.take(lit), hits.v.take(lit)))
         for (group, kind), (a, b) in hits.runs.items():
             if group == PASS:
                 lamps, prim = self.geometry.lights, hits.prim[a:b]
@@ -336,7 +347,7 @@ class PathTracer:
         if len(idx) and self.has_background:
             features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * self.background[:, None])
 
-    def surface_features(self, p, surf, facing, color, bounds, features):
+    def surface_features(self, p, surf, facing, color, bounds, features, hits=None):
         """Cycles' denoising features (film_write_denoising_features_surface): at the first diffuse
         (or black) hit write albedo = specular tints x colour and the facing normal, then stop;
         at mirrors and glass multiply the tints by the colour and look further.  Emission seen
@@ -355,7 +366,12 @@ class PathTracer:
         emissive = self.mats.is_emissive.take(mat)
         if emissive.any():
             e = np.flatnonzero(emissive)
-            features.add_albedo(pix.take(e), thru.take(e, axis=1) * self.mats.emission.take(mat.take(e), axis=1))
+            le = self.mats.emission.take(mat.take(e), axis=1)
+            if self.textures is not None and hits is not None:         # textured emitters: per hit
+                h = idx.take(e)
+                le = self.textures.emission(le, mat.take(e), hits.kind.take(h), hits.prim.take(h), hits.u.take(h),
+                                            hits.v.take(h))
+            features.add_albedo(pix.take(e), thru.take(e, axis=1) * le)
         stop = (group == 0) | (group == BLACK)
         diffuse = np.flatnonzero(group == 0)
         if len(diffuse):
@@ -453,6 +469,8 @@ class PathTracer:
         off_x = np.repeat(offset, ns) if ns > 1 else offset
         u_pick, u1, u2 = u if u is not None else (rng.random(k), rng.random(k), rng.random(k))
         ls = self.lights.sample(x, nx, u_pick, u1, u2)
+        if self.textures is not None:                   # textured emitters: Le at the sampled point
+            ls.radiance = self.textures.light_radiance(ls.radiance, ls.light, ls.point)
         w = ls.direction
         cos_x = dot(nx, w)
         cos_ly = dot(ls.normal, w)

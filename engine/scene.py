@@ -60,10 +60,14 @@ class Material:
     color: tuple = (0.8, 0.8, 0.8)
     ior: float = 1.5
     emission: tuple = (0.0, 0.0, 0.0)
+    # Image textures (engine/textures.py TextureSlot): replace `color` / give the emission per hit
+    # (`emission` is then the unlinked value; the light sampler uses the texture's mean).
+    color_texture: object = None
+    emission_texture: object = None
 
     @property
     def is_emissive(self) -> bool:
-        return max(self.emission) > 0.0
+        return max(self.emission) > 0.0 or self.emission_texture is not None
 
     def validate(self) -> None:
         if self.kind not in MATERIAL_KINDS:
@@ -141,6 +145,7 @@ class TriangleMesh:
     vertices: np.ndarray          # (V, 3) float64
     triangles: np.ndarray         # (T, 3) int
     material_ids: np.ndarray      # (T,) int, indices into Scene.materials
+    uvs: np.ndarray | None = None  # (T, 3, 2) corner UVs (one UV map), only where textures need them
 
     def validate(self, n_materials: int, emissive: np.ndarray | None = None) -> int:
         """Check the mesh; drop degenerate triangles.  Returns how many were dropped.
@@ -179,9 +184,17 @@ class TriangleMesh:
             lit = emissive[self.material_ids]
             if lit.any() and not (lit & keep).any():
                 raise SceneError(f"Object '{self.name}': emitter has zero area")
+        if self.uvs is not None:
+            uvs = np.asarray(self.uvs, dtype=np.float64)
+            if uvs.size != len(self.triangles) * 6 or not np.isfinite(uvs).all():
+                raise SceneError(f"{owner}: UVs must be 3 finite (u, v) pairs per triangle "
+                                 f"({len(self.triangles)} triangles, {uvs.size // 2} UV pairs)")
+            self.uvs = uvs.reshape(-1, 3, 2)
         if dropped:
             self.triangles = self.triangles[keep]
             self.material_ids = self.material_ids[keep]
+            if self.uvs is not None:
+                self.uvs = self.uvs[keep]
         return dropped
 
 
@@ -375,6 +388,7 @@ class Scene:
     lights: list = field(default_factory=list)      # AreaLight: light-only emitters
     points: list = field(default_factory=list)      # PointLight
     suns: list = field(default_factory=list)        # SunLight
+    textures: list = field(default_factory=list)    # engine/textures.py ImageTexture
 
     def validate(self) -> list[str]:
         """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""
@@ -408,6 +422,8 @@ class Scene:
             quad.validate(n)
         for light in [*self.lights, *self.points, *self.suns]:
             light.validate()
+        from .textures import validate_textures
+        warnings += validate_textures(self)
         if not self.has_light():
             warnings.append("the scene has no emitters and a black background: the image will be black")
         return warnings

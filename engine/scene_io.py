@@ -18,8 +18,8 @@
                  "spot_falloff": "smoothstep"}],
      "suns": [{"name": "Sun", "direction": [..], "irradiance": [r, g, b], "angle": 0.01}]}
 
-"version" is FORMAT_VERSION (2: Area lights; 3: point, spot and sun lights); files of a newer
-version are refused.
+"version" is FORMAT_VERSION (2: Area lights; 3: point, spot and sun lights; 4: image textures,
+engine/texture_io.py); files of a newer version are refused.
 
 A value "@key" names an array in the NPZ file with the JSON's name and suffix .npz.
 """
@@ -33,9 +33,10 @@ import numpy as np
 from .scene import (AreaLight, Camera, Material, PointLight, Quad, Scene, SceneError, Sphere, SunLight,
                     TriangleMesh)
 from .scene_fields import Fields, is_integer
+from .texture_io import read_slot, read_textures, slot_json, textures_json
 
 FORMAT = "tncg15-scene"
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 LIGHT_FLAGS = ("two_sided", "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
                "lights_diffuse")
 LAMP_FLAGS = ("lights_diffuse", "visible_glossy", "visible_transmission")     # point, spot and sun lights
@@ -126,12 +127,15 @@ def load_scene(path: str) -> Scene:
     top.owner = f"Scene '{name}'"
     arrays = _read_npz(os.path.splitext(path)[0] + ".npz")
 
+    textures = read_textures(top, arrays, os.path.dirname(os.path.abspath(path)))
     materials = []
     for i, entry in enumerate(top.objects("materials")):
         m, material_name = _named(entry, "Material", f"#{i}", required=True)
         materials.append(Material(name=material_name, kind=m.text("kind", "diffuse"),
                                   color=m.numbers("color", 3, (0.8, 0.8, 0.8)), ior=m.number("ior", 1.5),
-                                  emission=m.numbers("emission", 3, (0.0, 0.0, 0.0))))
+                                  emission=m.numbers("emission", 3, (0.0, 0.0, 0.0)),
+                                  color_texture=read_slot(m, "color_texture", textures),
+                                  emission_texture=read_slot(m, "emission_texture", textures)))
     names = [m.name for m in materials]
     cam = top.get("camera", None)
     camera = None if cam is None else _camera(cam)
@@ -141,7 +145,8 @@ def load_scene(path: str) -> Scene:
         tris = m.array("triangles", arrays, 3, integer=True)
         ids = (m.array("material_ids", arrays, None, integer=True) if "material_ids" in m
                else np.full(len(tris), _material_index(m, names)))
-        meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids))
+        uvs = m.array("uvs", arrays, 2, integer=False) if "uvs" in m else None
+        meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids, uvs))
     spheres = []
     for i, entry in enumerate(top.objects("spheres")):
         s, sphere_name = _named(entry, "Object", f"sphere{i}")
@@ -171,7 +176,7 @@ def load_scene(path: str) -> Scene:
     return Scene(camera, materials, meshes, spheres, quads,
                  background=top.numbers("background", 3, (0.0, 0.0, 0.0)),
                  resolution=top.integers("resolution", 2, (256, 256)), name=name, lights=lights,
-                 points=points, suns=suns)
+                 points=points, suns=suns, textures=textures)
 
 
 def save_scene(scene: Scene, path: str) -> None:
@@ -184,6 +189,9 @@ def save_scene(scene: Scene, path: str) -> None:
         arrays[f"mesh{i}_material_ids"] = np.asarray(mesh.material_ids, dtype=np.int64)
         meshes.append({"name": mesh.name, "vertices": f"@mesh{i}_vertices",
                        "triangles": f"@mesh{i}_triangles", "material_ids": f"@mesh{i}_material_ids"})
+        if mesh.uvs is not None:
+            arrays[f"mesh{i}_uvs"] = np.asarray(mesh.uvs, dtype=np.float64).reshape(-1, 2)
+            meshes[-1]["uvs"] = f"@mesh{i}_uvs"
     cam = scene.camera
     data = {
         "format": FORMAT, "version": FORMAT_VERSION, "name": scene.name,
@@ -192,8 +200,12 @@ def save_scene(scene: Scene, path: str) -> None:
             "name": cam.name, "matrix": np.asarray(cam.matrix).tolist(), "lens": cam.lens,
             "sensor_width": cam.sensor_width, "sensor_height": cam.sensor_height,
             "sensor_fit": cam.sensor_fit, "shift_x": cam.shift_x, "shift_y": cam.shift_y},
-        "materials": [{"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
-                       "emission": list(m.emission)} for m in scene.materials],
+        "textures": textures_json(scene, arrays),
+        "materials": [dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
+                            "emission": list(m.emission)},
+                           **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
+                                                                     ("emission_texture", m.emission_texture))
+                              if slot is not None}) for m in scene.materials],
         "meshes": meshes,
         "spheres": [{"name": s.name, "center": list(s.center), "radius": s.radius,
                      "material": s.material_id} for s in scene.spheres],

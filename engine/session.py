@@ -34,6 +34,7 @@ from .lights import LightSampler
 from .passes import FrameFeatures, TileFeatures, pass_images, traced
 from .qmc import RandomSampler, SobolSampler
 from .settings import RenderSettings
+from .textures import load_textures
 
 ENGINE_NAME = "TNCG15 MC"
 ENGINE_VERSION = "0.2.0"          # workers of another version are refused (engine/cluster.py)
@@ -186,11 +187,12 @@ class RenderSession:
         for w in self.warnings:
             log(f"warning: {w}")
         self.geometry = SceneGeometry(scene, self.accelerator, self.plan)
-        self.lights = LightSampler(scene, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
+        textures, lit = load_textures(scene, self.plan, log, self.warnings)    # engine/textures.py
+        self.lights = LightSampler(lit, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
                                    lamps_hittable=self.plan.area_lights, world=self.plan.world_light)
         self.plan.describe_light_kinds(self.lights)
-        self.tracer = PathTracer(self.geometry, self.lights, scene.materials, self.plan, settings,
-                                 scene.background)
+        self.tracer = PathTracer(self.geometry, self.lights, lit.materials, self.plan, settings,
+                                 scene.background, textures=textures and textures.bind(self.geometry, self.lights))
         self.cut_frame(progressive)
         self.setup_seconds = time.perf_counter() - start
 

@@ -24,6 +24,8 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  wall, and a dim point light; both are seen in a mirror ball
   sky_lit        an open scene: a floor with a box, a ball and a low wall under a uniform sky (the
                  world colour is the only light)
+  textured       image textures packed in the file: a checker floor (Repeat), a tiled back wall
+                 through a second UV map (Closest, Extend) and a lamp with a textured emission colour
   nested_glass   glass inside glass: a "water" sphere (IOR 1.33) inside a glass cube (IOR 1.5),
                  and a glass sphere resting on the cube's top face
 Light-sampling stress scenes (issue 9; plain ceiling, the lamps are two-sided emissive meshes, as
@@ -472,6 +474,84 @@ def make_spot_light(scene, res):
     settings(scene, res)
 
 
+def packed_image(name, width, height, texel, colorspace="sRGB"):
+    """A generated image of texel(x, y) -> (r, g, b) (y = 0: the bottom row), packed into the .blend
+    (a PNG inside the file: the scene needs no external file)."""
+    img = bpy.data.images.new(name, width, height)
+    pixels = []
+    for y in range(height):
+        for x in range(width):
+            pixels.extend((*texel(x, y), 1.0))
+    img.pixels.foreach_set(pixels)
+    img.pack()
+    img.colorspace_settings.name = colorspace
+    return img
+
+
+def image_material(name, kind, socket_name, image, interpolation="Linear", extension="REPEAT", uv_map=None, **kw):
+    """A node_material whose input `socket_name` is fed by an Image Texture node (through a UV Map
+    node reading `uv_map` when given)."""
+    mat = node_material(name, kind, **kw)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    shader = next(n for n in nodes if n.bl_idname == kind)
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image, tex.interpolation, tex.extension = image, interpolation, extension
+    links.new(tex.outputs["Color"], shader.inputs[socket_name])
+    if uv_map is not None:
+        uv = nodes.new("ShaderNodeUVMap")
+        uv.uv_map = uv_map
+        links.new(uv.outputs["UV"], tex.inputs["Vector"])
+    return mat
+
+
+def set_uvs(ob, layers):
+    """UV maps {name: [uv of each corner of the one quad face]}; the first is the active render map."""
+    me = ob.data
+    for name, uvs in layers.items():
+        layer = me.uv_layers.new(name=name)
+        for loop, uv in zip(layer.data, uvs):
+            loop.uv = uv
+    me.uv_layers[0].active_render = True
+
+
+def make_textured(scene, res):
+    """The Cornell room with image textures (all packed in the file):
+    * the floor: Diffuse Color <- a 16 x 16 sRGB checker of 4 x 4 squares, Linear, Repeat, its UVs
+      running 0..2 across (two repeats): light squares, and dark ones red in the near half (v < 0.5)
+      and blue in the far half, so that a flip in V shows;
+    * the back wall: Principled Base Color <- a 4 x 2 Non-Color image, Closest, Extend, through a UV Map
+      node reading the second UV map "Second" (u from -0.25 to 1.25: the edge texels extend);
+    * the lamp: Emission Color <- a 2 x 2 sRGB warm / cool checker, Closest (strength 12)."""
+    room(scene)
+    light, dark_near, dark_far = (0.85, 0.85, 0.85), (0.75, 0.12, 0.08), (0.1, 0.2, 0.75)
+    checker = packed_image("Checker", 16, 16, lambda x, y: light if (x // 4 + y // 4) % 2 else
+                           (dark_near if y < 8 else dark_far))
+    floor = bpy.data.objects["Floor"]
+    floor.data.materials[0] = image_material("Checker floor", "ShaderNodeBsdfDiffuse", "Color", checker,
+                                             Roughness=0.0)
+    set_uvs(floor, {"UVMap": [(0, 0), (2, 0), (2, 1), (0, 1)]})
+    stripes = [(0.7, 0.7, 0.2), (0.2, 0.6, 0.6), (0.6, 0.3, 0.6), (0.8, 0.8, 0.8),
+               (0.3, 0.3, 0.3), (0.7, 0.4, 0.1), (0.1, 0.5, 0.2), (0.5, 0.5, 0.7)]
+    tiles = packed_image("Tiles", 4, 2, lambda x, y: stripes[y * 4 + x], colorspace="Non-Color")
+    back = bpy.data.objects["Back"]
+    back.data.materials[0] = image_material("Tiled wall", "ShaderNodeBsdfPrincipled", "Base Color", tiles,
+                                            interpolation="Closest", extension="EXTEND", uv_map="Second",
+                                            Roughness=0.5, **{"Specular IOR Level": 0.0, "Specular": 0.0})
+    set_uvs(back, {"UVMap": [(0, 0), (0, 1), (1, 1), (1, 0)],             # the wrong map: rotated
+                   "Second": [(-0.25, 0), (1.25, 0), (1.25, 1), (-0.25, 1)]})
+    warm_cool = packed_image("Lamp colours", 2, 2, lambda x, y: (1.0, 0.75, 0.45) if (x + y) % 2 else
+                             (0.55, 0.8, 1.0))
+    lamp = bpy.data.objects["Lamp"]
+    lamp.data.materials[0] = image_material("Textured lamp", "ShaderNodeEmission", "Color", warm_cool,
+                                            interpolation="Closest", Strength=12.0)
+    set_uvs(lamp, {"UVMap": [(0, 0), (0, 1), (1, 1), (1, 0)]})
+    mesh_object(scene, "Box", lambda bm: cube(bm, 1.0), bpy.data.materials["White"], location=(0.35, 0.3, 0.302),
+                rotation=(0, 0, math.radians(20)), scale=(0.3, 0.3, 0.6))
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
 def make_sky_lit(scene, res):
     """No room and no lamp: a large floor, a box, a ball and a low wall under a light-blue sky of
     strength 1 (the world is the only light; the camera sees some sky above the horizon)."""
@@ -504,6 +584,7 @@ SCENES = {
     "sun_window": make_sun_window,
     "spot_light": make_spot_light,
     "sky_lit": make_sky_lit,
+    "textured": make_textured,
 }
 
 

@@ -12,9 +12,11 @@ import numpy as np
 
 from .. import bridge
 from .camera import export_camera
+from .images import ImageTable
 from .lights import export_area_light, export_point_light, export_sun_light
 from .materials import MaterialTable
-from .mesh import bounding_sphere, has_smooth_faces, mesh_arrays, sphere_fit, transform_points, uniform_scale
+from .mesh import (bounding_sphere, corner_uvs, has_smooth_faces, mesh_arrays, sphere_fit, transform_points,
+                   uniform_scale)
 from .unsupported import object_warnings, scene_warnings
 from .util import ExportError
 from .world import export_world
@@ -64,14 +66,15 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     crop: optional border (x0, y0, x1, y1) in full-frame pixels, y from the bottom; the exported
           scene then has the crop's resolution and a camera that sees exactly those pixels.
     view_camera: a tracer Camera to use instead of the scene's (the 3D viewport's view).
-    mesh_cache: a dict kept across exports (the viewport): mesh arrays by (object, mesh) name, so a
+    mesh_cache: a dict kept across exports (the viewport): mesh arrays by (object, mesh, UV map), so a
           transform or material edit does not read meshes again (mcrt_addon/viewport.py empties it).
     Raises ExportError (user-facing message) or ExportCancelled.
     """
     t0 = time.perf_counter()
     sm = bridge.scene_module()
     warnings = []
-    table = MaterialTable(sm.Material, (sm.DIFFUSE, sm.MIRROR, sm.GLASS), warnings)
+    images = ImageTable(bridge.module("textures"), warnings)
+    table = MaterialTable(sm.Material, (sm.DIFFUSE, sm.MIRROR, sm.GLASS), warnings, images)
     scene = depsgraph.scene
     version = tuple(bpy.app.version)
 
@@ -128,35 +131,37 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         label = instance_label(inst, ob)
 
         key = ob.data.as_pointer() if (otype == "MESH" and ob.data is not None) else None
-        arrays = cache.get(key) if key is not None else None
-        kept = (ob.name, ob.data.name) if (mesh_cache is not None and key is not None) else None
+        slot_ids = np.asarray(table.slot_indices(ob), dtype=np.int64)
+        uv_map = table.uv_map(slot_ids)                 # None: no textured material, no UVs
+        arrays = cache.get((key, uv_map)) if key is not None else None
+        kept = (ob.name, ob.data.name, uv_map) if (mesh_cache is not None and key is not None) else None
         if arrays is None and kept is not None:
             arrays = mesh_cache.get(kept)
         if arrays is None:
             if otype == "MESH":
-                arrays = mesh_arrays(ob.data)
+                arrays = mesh_arrays(ob.data) + (corner_uvs(ob.data, uv_map, label, warnings),)
             else:
                 me = ob.to_mesh()
                 try:
-                    arrays = mesh_arrays(me) if me is not None else None
+                    arrays = (mesh_arrays(me) + (corner_uvs(me, uv_map, label, warnings),)
+                              if me is not None else None)
                 finally:
                     ob.to_mesh_clear()
                 if arrays is None:
                     continue
             if key is not None:
-                cache[key] = arrays
+                cache[(key, uv_map)] = arrays
             if kept is not None:
                 mesh_cache[kept] = arrays
-        verts, tris, slots = arrays
+        verts, tris, slots, uvs = arrays
         if len(tris) == 0:
             if otype == "MESH" and ob.name not in skipped:
                 skipped.add(ob.name)
                 warnings.append(f"Object '{ob.name}': mesh has no faces; skipped")
             continue
-        slot_ids = np.asarray(table.slot_indices(ob), dtype=np.int64)
         mat_ids = slot_ids[np.clip(slots, 0, len(slot_ids) - 1)]
 
-        mode = _sphere_mode(ob) if otype == "MESH" else "NEVER"
+        mode = _sphere_mode(ob) if otype == "MESH" and uv_map is None else "NEVER"   # spheres have no UVs
         if mode != "NEVER":
             fit = sphere_fit(verts, tris, slots)
             scale = uniform_scale(matrix)
@@ -186,9 +191,12 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             v = world_verts[tris[emissive]]
             if not np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum() > 0:
                 raise ExportError(f"Object '{label}': emitter has zero area")
-        tri_idx = tris if np.linalg.det(matrix[:3, :3]) > 0 else tris[:, ::-1]
+        mirrored = np.linalg.det(matrix[:3, :3]) <= 0
+        tri_idx = tris[:, ::-1] if mirrored else tris
+        if uvs is not None and mirrored:
+            uvs = uvs[:, ::-1]
         meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
-                                      material_ids=mat_ids))
+                                      material_ids=mat_ids, uvs=uvs))
         n_instances += 1
         n_triangles += len(tris)
 
@@ -196,7 +204,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     background = export_world(scene.world, warnings)
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
                       background=background, resolution=out_res, name=name or scene.name, lights=lights,
-                      points=points, suns=suns)
+                      points=points, suns=suns, textures=images.textures)
     info = dict(export_seconds=time.perf_counter() - t0, objects=n_instances, triangles=n_triangles,
-                spheres=len(spheres), meshes_shared=len(cache), materials=len(materials))
+                spheres=len(spheres), meshes_shared=len(cache), materials=len(materials),
+                textures=len(images.textures))
     return ExportResult(scene=result, warnings=warnings, info=info)

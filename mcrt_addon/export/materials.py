@@ -5,6 +5,7 @@ Supported: Diffuse BSDF, Glossy BSDF (roughness 0 -> mirror), Glass BSDF, Emissi
 socket names of 3.x and 4.x/5.0).  Anything else becomes diffuse with a warning naming the material
 and the node.  Node trees are read from ``material.original`` (evaluated copies can lack them).
 """
+from .images import image_node
 from .util import linked_from, socket, uses_nodes
 
 DEFAULT_GREY = (0.8, 0.8, 0.8)   # Cycles' surface for objects without material
@@ -28,8 +29,10 @@ def _clamp01(rgb):
 class MaterialTable:
     """Collects the tracer materials; one entry per Blender material (shared by all users)."""
 
-    def __init__(self, Material, kinds, warnings):
+    def __init__(self, Material, kinds, warnings, images=None):
         self.Material = Material
+        self.images = images            # images.ImageTable: Image Texture nodes (None: not read)
+        self._slots = {}                # the material being converted: role -> TextureSlot
         self.DIFFUSE, self.MIRROR, self.GLASS = kinds
         self.materials = []
         self.warnings = warnings
@@ -52,13 +55,30 @@ class MaterialTable:
         original = bl_material.original if bl_material.original is not None else bl_material
         key = original.name_full
         if key not in self._index:
-            self._index[key] = self.add(self.convert(original))
+            self._slots = {}
+            material = self.convert(original)
+            material.color_texture = self._slots.get("color")
+            material.emission_texture = self._slots.get("emission")
+            self._index[key] = self.add(material)
         return self._index[key]
 
     def slot_indices(self, ob):
         """Tracer material index for every material slot of ``ob`` (at least one entry)."""
         slots = [self.index(slot.material) for slot in ob.material_slots]
         return slots or [self.default_index()]
+
+    def uv_map(self, slot_ids):
+        """The UV map a mesh with these material slots needs: '' for the active render one, the
+        name a UV Map node gives, or None when no material of the mesh has a texture."""
+        names = [slot.uv_map for i in slot_ids for slot in (self.materials[i].color_texture,
+                                                            self.materials[i].emission_texture)
+                 if slot is not None]
+        if not names:
+            return None
+        if len(set(names)) > 1:
+            self.warnings.append(f"Materials of one mesh read UV maps {sorted(set(names))}: only "
+                                 f"'{names[0] or 'the active render map'}' is used")
+        return names[0]
 
     # --- conversion -----------------------------------------------------------------------------
     def warn(self, mat, node, text):
@@ -91,14 +111,28 @@ class MaterialTable:
             return M(name=mat.name, kind=self.DIFFUSE, color=DEFAULT_GREY)
         return handler(mat, node)
 
-    def _color(self, mat, node, *names, default=(0.8, 0.8, 0.8)):
+    def _color(self, mat, node, *names, default=(0.8, 0.8, 0.8), role="color"):
         sock = socket(node, *names)
         if sock is None:
             return default
-        if sock.is_linked:
+        image = image_node(sock) if self.images is not None and sock.is_linked else None
+        if image is not None:
+            slot = self.images.slot(mat, image)
+            if slot is not None:
+                self._slots[role] = slot
+        elif sock.is_linked:
             self.warn(mat, node, f"input '{sock.name}' is linked (textures are not supported); "
                                  f"its unlinked value is used")
         return _rgb(sock.default_value)
+
+    def _emission_strength(self, strength):
+        """A textured emission colour: radiance = texture x strength (none at strength 0)."""
+        slot = self._slots.get("emission")
+        if slot is not None:
+            if strength > 0:
+                slot.scale = (float(strength),) * 3
+            else:
+                del self._slots["emission"]
 
     def _float(self, mat, node, *names, default=0.0):
         sock = socket(node, *names)
@@ -130,8 +164,9 @@ class MaterialTable:
         return self.Material(name=mat.name, kind=self.GLASS, color=color, ior=max(ior, 1e-3))
 
     def _emission(self, mat, node):
-        color = self._color(mat, node, "Color", default=(1.0, 1.0, 1.0))
+        color = self._color(mat, node, "Color", default=(1.0, 1.0, 1.0), role="emission")
         strength = self._float(mat, node, "Strength", default=1.0)
+        self._emission_strength(strength)
         radiance = tuple(max(c * strength, 0.0) for c in color)
         return self.Material(name=mat.name, kind=self.DIFFUSE, color=(0.0, 0.0, 0.0), emission=radiance)
 
@@ -143,8 +178,9 @@ class MaterialTable:
         ior = self._float(mat, node, "IOR", default=1.45)
         # 3.x: 'Emission' colour (default black) x 'Emission Strength' (default 1);
         # 4.x/5.0: 'Emission Color' (default white) x 'Emission Strength' (default 0).
-        e_color = self._color(mat, node, "Emission Color", "Emission", default=(0.0, 0.0, 0.0))
+        e_color = self._color(mat, node, "Emission Color", "Emission", default=(0.0, 0.0, 0.0), role="emission")
         e_strength = self._float(mat, node, "Emission Strength", default=1.0)
+        self._emission_strength(e_strength)
         emission = tuple(max(c * e_strength, 0.0) for c in e_color)
         alpha = self._float(mat, node, "Alpha", default=1.0)
         if alpha < 1:

@@ -16,6 +16,29 @@ def mesh_arrays(me):
     return verts.reshape(nv, 3), tris.reshape(nt, 3), mats
 
 
+def corner_uvs(me, uv_map, label, warnings):
+    """Per-triangle corner UVs float32 (T, 3, 2) of the UV map `uv_map` ('' = the active render
+    map), read with foreach_get (loop_triangles' loops index the UV layer); None when `uv_map` is
+    None (no texture needs UVs) or the mesh has no such map (with a warning: UVs are then 0)."""
+    if uv_map is None:
+        return None
+    layers = me.uv_layers
+    layer = layers.get(uv_map) if uv_map else next((lay for lay in layers if lay.active_render), None)
+    nt = len(me.loop_triangles)
+    if layer is None:
+        what = f"UV map '{uv_map}'" if uv_map else "UV map"
+        warnings.append(f"Object '{label}': no {what}; its textures are read at UV (0, 0)")
+        return np.zeros((nt, 3, 2), np.float32)
+    loops = np.empty(nt * 3, np.int32)
+    me.loop_triangles.foreach_get("loops", loops)
+    uv = np.empty(len(me.loops) * 2, np.float32)
+    if hasattr(layer, "uv"):                              # 3.5+: a FLOAT2 corner attribute
+        layer.uv.foreach_get("vector", uv)
+    else:                                                 # 3.4
+        layer.data.foreach_get("uv", uv)
+    return uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)
+
+
 def has_smooth_faces(me):
     """True when any face is smooth-shaded (Cycles then interpolates vertex normals)."""
     n = len(me.polygons)

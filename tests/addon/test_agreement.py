@@ -22,7 +22,7 @@ K = 4
 TAU = {"cornell": 0.05, "mirror_glass": 0.05, "principled": 0.05, "diffuse_room": 0.02,
        "suzanne_5k": 0.02, "suzanne_100k": 0.02, "area_light": 0.02, "nested_glass": 0.05,
        "near_lamp": 0.02, "many_lights": 0.02, "caustic": 0.05, "area_mirror": 0.05,
-       "point_light": 0.05, "sun_window": 0.05, "spot_light": 0.05, "sky_lit": 0.05}
+       "point_light": 0.05, "sun_window": 0.05, "spot_light": 0.05, "sky_lit": 0.05, "textured": 0.02}
 _cache = {}
 
 
@@ -43,7 +43,9 @@ def ours(scene, first_seed=1000):
     # rays can reach (AreaLight.visible_glossy / visible_transmission, the mis / solid-angle estimators)
     "near_lamp", "caustic", "many_lights", "area_mirror",
     # point, spot and sun lights, the world as the only light (issue 12)
-    "point_light", "sun_window", "spot_light", "sky_lit"])
+    "point_light", "sun_window", "spot_light", "sky_lit",
+    # image textures (issue 12 item 4): colour, base colour through a second UV map, emission colour
+    "textured"])
 def test_agrees_with_cycles(samples, name):
     ref = reference(samples, name)
     exported = export_blend(samples[name], RES)
@@ -115,4 +117,15 @@ def test_comparison_catches_wrong_light_units(samples, name, how):
         raise ValueError(how)
     result = compare_runs(ours(scene, first_seed=5000), reference(samples, name), tau=TAU[name])
     print(f"{name} {how}: {result.summary()}")
+    assert not result.passed
+
+
+def test_comparison_catches_texture_flipped_in_v(samples):
+    """Control for the texture export: every image of the textured scene flipped in V (rows reversed)."""
+    scene = copy.deepcopy(export_blend(samples["textured"], RES).scene)
+    assert scene.textures and all(t.pixels is not None for t in scene.textures)   # packed: sent as pixels
+    for texture in scene.textures:
+        texture.pixels = texture.pixels[::-1].copy()
+    result = compare_runs(ours(scene, first_seed=6000), reference(samples, "textured"), tau=TAU["textured"])
+    print(f"textured flipped in V: {result.summary()}")
     assert not result.passed

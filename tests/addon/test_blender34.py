@@ -36,7 +36,7 @@ def blender(*args, env=None, timeout=600):
 def blend34(tmp_path_factory):
     out = tmp_path_factory.mktemp("b34")
     r = blender("-b", "--factory-startup", "--python", os.path.join(REPO, "sample_blends", "make_samples.py"),
-                "--", "--outdir", str(out), "--only", "cornell", "--resolution", "24", "24")
+                "--", "--outdir", str(out), "--only", "cornell", "textured", "--resolution", "24", "24")
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     return out / "cornell.blend"
 
@@ -73,7 +73,10 @@ def legacy_zip(tmp_path_factory):
     return next(p for p in out.iterdir() if p.name.endswith("-legacy.zip"))
 
 
-def test_legacy_zip_alone_renders_with_embree_in_blender34(legacy_zip, blend34, tmp_path):
+@pytest.mark.parametrize("name", ["cornell", "textured"])
+def test_legacy_zip_alone_renders_with_embree_in_blender34(legacy_zip, blend34, tmp_path, name):
+    """textured: the exporter reads packed images and UVs with the zip's numpy in Blender 3.4."""
+    blend34 = blend34.parent / f"{name}.blend"
     script = tmp_path / "install.py"
     script.write_text(INSTALL_AND_RENDER)
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
@@ -92,6 +95,10 @@ def test_legacy_zip_alone_renders_with_embree_in_blender34(legacy_zip, blend34, 
     assert "/vendor/numpy/" in report["numpy"] and not report["embreex_in_blender"]
     img = read_exr(str(out))
     assert img.shape == (24, 24, 3) and np.isfinite(img).all() and img.mean() > 0.02
+    if name == "textured":
+        assert not [w for w in report["warnings"] if "image" in w or "UV" in w], report["warnings"]
+        near_floor = img[-3:, 6:18]                  # the checker's near half: red and white squares
+        assert near_floor[..., 0].mean() > 1.5 * near_floor[..., 2].mean(), near_floor.mean(axis=(0, 1))
     print(f"Blender 3.4 from the legacy zip: enable {report['enable_seconds']:.2f} s, first tile "
           f"{stats['first_tile_seconds']:.2f} s, render {stats['render_seconds']:.2f} s, {stats['parallelism']}")
 

@@ -40,7 +40,7 @@ def test_diffuse_only_scene_never_runs_sphere_or_refraction_code(spies):
     assert fx == {"spheres": False, "quads": True, "triangles": True, "area_lights": False, "diffuse": True,
                   "seen_lamps": False, "world_light": False,
                   "mirror": False, "glass": False, "emission": True, "direct_light": True, "solid_angle": True,
-                  "light_tree": False, "mis": True, "passes": False}
+                  "light_tree": False, "mis": True, "passes": False, "textures": False}
     assert "never evaluated" in result.stats["effects_reason"]["glass"]
     assert EXPECTED_KEYS <= set(result.stats)
     assert set(result.stats["rays"]) == {"camera", "extension", "shadow"}
