@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup render test test-all bench bench-estimators study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-estimators study extension samples clean
 
 setup: $(STAMP)
 
@@ -21,6 +21,10 @@ render: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest -q -m "not slow" tests
+
+# Tests marked slow (kept out of `make test` so it stays under about 5 minutes); .ci/run runs both.
+test-slow: $(STAMP)
+	$(PY) -m pytest -q -m slow tests
 
 test-all: $(STAMP)
 	$(PY) -m pytest -q tests

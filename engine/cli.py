@@ -67,7 +67,49 @@ def add_settings_arguments(p):
     p.add_argument("--threads", type=setting_int("threads"), default=0, help="0 = all cores")
     p.add_argument("--seed", type=setting_int("seed"), default=0)
     p.add_argument("--tile-size", type=setting_int("tile_size"), default=defaults.tile_size)
+    add_stopping_arguments(p)
     add_pass_arguments(p)
+
+
+def nonnegative_float(high: float):
+    """An argparse type: a number from 0 to high (one-line error otherwise)."""
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not 0.0 <= value <= high:
+            raise argparse.ArgumentTypeError(f"must be from 0 to {high:g}, got {text}")
+        return value
+    return parse
+
+
+def add_stopping_arguments(p, defaults=True):
+    """The stopping rules (engine/stopping.py, README: Stopping rules); both command lines."""
+    d = RenderSettings() if defaults else None
+    p.add_argument("--time-limit", type=nonnegative_float(1e9), default=d and d.time_limit, metavar="SECONDS",
+                   help="stop rendering after this many seconds (0 = no limit)")
+    p.add_argument("--noise-target", type=nonnegative_float(1.0), default=d and d.noise_target, metavar="REL",
+                   help="stop when the estimated relative error of the image reaches REL, e.g. 0.01 (0 = off)")
+    p.add_argument("--min-samples", type=setting_int("min_samples"), default=d and d.min_samples, metavar="N",
+                   help="samples every pixel gets before the noise target may stop it (0 = auto)")
+    p.add_argument("--no-adaptive", action="store_true",
+                   help="with --noise-target: keep sampling every pixel (no adaptive sampling)")
+
+
+def stopping_kwargs(args) -> dict:
+    return dict(time_limit=args.time_limit, noise_target=args.noise_target, min_samples=args.min_samples,
+                adaptive=not args.no_adaptive)
+
+
+def error_metadata(stats) -> list:
+    """EXR header attributes of the error estimate (README: Stopping rules)."""
+    out = []
+    for key in ("estimated_rel_error", "seconds_to_target", "target_rel_error"):
+        value = stats.get(key)
+        if isinstance(value, (int, float)) and value == value:
+            out.append((f"tncg15:{key}", float(value)))
+    return out
 
 
 def add_pass_arguments(p):
@@ -89,7 +131,7 @@ def pass_list(text):
 
 
 def settings_from_args(args) -> RenderSettings:
-    return RenderSettings(samples=args.samples, shadow_rays=args.shadow_rays, max_depth=args.max_depth,
+    return RenderSettings(**stopping_kwargs(args), samples=args.samples, shadow_rays=args.shadow_rays, max_depth=args.max_depth,
                           russian_roulette=not args.no_russian_roulette, fresnel=args.fresnel,
                           nested_dielectrics=args.nested_dielectrics, estimator=args.estimator,
                           sampler=args.sampler,
@@ -120,9 +162,9 @@ def write_render_image(output, result, args) -> None:
     """-o: a multi-layer EXR when passes or the denoiser are on (engine/passes.py), else as before."""
     from .output import write_multilayer
     if output.kind == "exr" and (args.passes or args.denoise):
-        write_multilayer(output, result.image, result.passes)
+        write_multilayer(output, result.image, result.passes, error_metadata(result.stats))
     else:
-        write_image(output, result.image)
+        write_image(output, result.image, error_metadata(result.stats))
 
 
 def progress_bar(stream=sys.stderr):
@@ -184,7 +226,7 @@ def cmd_render(args) -> int:
             elif output.option == "-o":
                 write_render_image(output, result, args)
             else:
-                write_image(output, result.image)
+                write_image(output, result.image, error_metadata(stats))
     except OutputError as exc:
         sys.stderr.write(f"{PROG}: error: {exc}\n")
         return 1
@@ -194,7 +236,34 @@ def cmd_render(args) -> int:
           f"{', '.join(k for k, v in stats['effects'].items() if v)}, "
           f"non-finite samples: {stats['nonfinite_samples']}"
           + (" (stopped early: finished tiles only)" if result.cancelled else ""))
+    if stats["estimated_rel_error"] is not None:
+        print(f"estimated relative error {stats['estimated_rel_error'] * 100:.2f} % "
+          f"({stats['error_estimate']}), mean {stats['samples_per_pixel']['mean']:.1f} spp"
+          + (f", stopped by {stats['stopped_by']}" if "stopped_by" in stats else ""))
     return stop.report_exit()
+
+
+def cmd_estimate(args) -> int:
+    from .default_scene import BUILTIN_SCENES
+    from .estimate import describe, estimate
+    from .render import render
+    from .scene_io import load_scene
+    if args.scene and args.builtin:
+        raise SceneError("give a scene file or --builtin, not both")
+    if args.noise_target <= 0:
+        raise SceneError("estimate needs --noise-target REL (e.g. 0.01)")
+    scene = load_scene(args.scene) if args.scene else BUILTIN_SCENES[args.builtin or "cornell"]()
+    if args.resolution:
+        scene.resolution = tuple(args.resolution)
+    settings = settings_from_args(args)
+    settings.validate()
+    scene.validate()
+    result = estimate(scene, settings, args.noise_target, render, pilot_samples=args.pilot_samples,
+                      log=lambda *a: None)
+    print(describe(result))
+    if args.json:
+        print(json.dumps(result))
+    return 0
 
 
 def cmd_bench(args) -> int:
@@ -213,6 +282,11 @@ def cmd_bench_cluster(args) -> int:
 def cmd_study(args) -> int:
     from .study import run_study
     mode = "full" if args.full else "quick"
+    if args.stopping:
+        from .study_stopping import run_stopping_study
+        command = f"python -m engine study --stopping --{mode}" + (f" --out {args.out}" if args.out != "docs" else "")
+        run_stopping_study(mode, args.out, command, log=lambda msg: print(msg, file=sys.stderr))
+        return 0
     command = f"python -m engine study --{mode}" + (f" --out {args.out}" if args.out != "docs" else "")
     run_study(mode, args.out, command, log=lambda msg: print(msg, file=sys.stderr))
     return 0
@@ -240,6 +314,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "to start a LocalCluster here (README: Rendering on several machines)")
     add_settings_arguments(r)
     r.set_defaults(func=cmd_render)
+    e = sub.add_parser("estimate", help="predict the render time to reach --noise-target from a short pilot render")
+    e.add_argument("scene", nargs="?", help="scene .json (default: a built-in scene, see --builtin)")
+    e.add_argument("--builtin", choices=("cornell", "near_lamp", "caustic", "many_lights"))
+    e.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
+    e.add_argument("--pilot-samples", type=bounded_int(2, 4096), default=64)
+    e.add_argument("--json", action="store_true", help="also print the prediction as JSON")
+    add_settings_arguments(e)
+    e.set_defaults(func=cmd_estimate)
     b = sub.add_parser("bench", help="rays/s, Embree share and thread speed-up on the built-in scene")
     b.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, default=(256, 256),
                    metavar=("W", "H"))
@@ -258,6 +340,9 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--quick", action="store_true", help="small and fast (CI); the default")
     group.add_argument("--full", action="store_true", help="the committed figures (about 5 minutes on 2 cores)")
     st.add_argument("--out", default="docs", help="directory for the markdown and the plots")
+    st.add_argument("--stopping", action="store_true",
+                    help="only the stopping-rule rows: estimate calibration, adaptive vs uniform "
+                         "(docs/accuracy-stopping.md)")
     st.set_defaults(func=cmd_study)
     w = sub.add_parser("worker", help="a render worker process (engine/service.py; started by the add-on)")
     w.add_argument("parent_pid", type=positive_int)

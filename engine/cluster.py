@@ -194,6 +194,7 @@ def connect(address: str, timeout: float = CONNECT_SECONDS):
 
 class DaskWorkers:
     """The worker-pool interface of engine/workers.py over a Dask cluster."""
+    passes = False              # start() takes a frame's units once: no stopping rules (engine/stopping.py)
 
     def __init__(self, session, address: str, log=None):
         self.session, self.address = session, address

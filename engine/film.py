@@ -69,8 +69,9 @@ def _write_checked(path: str, pixels: np.ndarray, pixel_type: str, attributes=()
         raise OSError(error.strip().splitlines()[0] if error else "image write failed")
 
 
-def write_exr(path: str, image: np.ndarray) -> None:
-    _write_checked(path, np.asarray(image, dtype=np.float32), "float", [("compression", "zip")])
+def write_exr(path: str, image: np.ndarray, metadata=()) -> None:
+    """metadata: (name, value) header attributes, e.g. the error estimate (engine/cli.py)."""
+    _write_checked(path, np.asarray(image, dtype=np.float32), "float", [("compression", "zip"), *metadata])
 
 
 def write_png(path: str, image: np.ndarray) -> None:

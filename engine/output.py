@@ -170,12 +170,18 @@ def replaced_atomically(output: Output):
     _fsync_directory(directory)
 
 
-def write_image(output: Output, image: np.ndarray) -> None:
-    """EXR (linear float) or PNG (sRGB), checked by reading the written file back."""
+def write_image(output: Output, image: np.ndarray, metadata=()) -> None:
+    """EXR (linear float, with `metadata` as header attributes) or PNG (sRGB), checked by reading the
+    written file back."""
     from .film import read_image, write_exr, write_png
     image = np.asarray(image)
     with replaced_atomically(output) as tmp:
-        (write_exr if output.kind == "exr" else write_png)(tmp, image)
+        if output.kind != "exr":
+            write_png(tmp, image)
+        elif metadata:
+            write_exr(tmp, image, metadata)
+        else:
+            write_exr(tmp, image)
         if read_image(tmp).shape[:2] != image.shape[:2]:
             raise OSError(f"the written image does not read back as {image.shape[1]}x{image.shape[0]}")
 
@@ -186,11 +192,11 @@ def write_text(output: Output, text: str) -> None:
             fh.write(text)
 
 
-def write_multilayer(output: Output, image: np.ndarray, passes: dict) -> None:
+def write_multilayer(output: Output, image: np.ndarray, passes: dict, metadata=()) -> None:
     """A multi-layer EXR (Combined and the passes, Blender's channel names: engine/passes.py),
     atomically and checked as write_image."""
     from .passes import exr_channels, read_multilayer_exr, write_multilayer_exr
     with replaced_atomically(output) as tmp:
-        write_multilayer_exr(tmp, image, passes)
+        write_multilayer_exr(tmp, image, passes, metadata)
         if sorted(read_multilayer_exr(tmp)) != sorted(exr_channels(passes)):
             raise OSError("the written EXR does not read back with its channels")

@@ -31,6 +31,7 @@ from .film import TileFilm
 from .geometry import Counters, SceneGeometry
 from .integrator import PathTracer
 from .lights import LightSampler
+from .masked_samples import MaskedTileSamples, unpack_mask
 from .passes import FrameFeatures, TileFeatures, pass_images, traced
 from .qmc import RandomSampler, SobolSampler
 from .settings import RenderSettings
@@ -38,6 +39,7 @@ from .textures import load_textures
 
 ENGINE_NAME = "TNCG15 MC"
 ENGINE_VERSION = "0.2.0"          # workers of another version are refused (engine/cluster.py)
+DEFAULT_TARGET = 0.01            # the error seconds_to_target aims at without a noise target
 MIN_TILES = 4                     # so that both cores of a small frame have work
 UNIT_PATHS = 1 << 18              # camera samples per work unit, about: each unit ends with a tail of
                                   # a few paths, so units much smaller than this cost time (1 << 16: +25 %)
@@ -64,6 +66,8 @@ class WorkUnit:
     chunk: int
     start: int
     stop: int
+    mask: bytes | None = None    # packed active pixels of the tile (adaptive sampling); None = all
+    halves: bool = False         # render [start, mid) and [mid, stop) apart: the half buffers
 
 
 @dataclass
@@ -75,6 +79,8 @@ class UnitResult:
     counters: Counters
     seconds: float
     engine_version: str = ENGINE_VERSION
+    sum_a: np.ndarray | None = None      # half buffer A (unit.halves): sums and counts of [start, mid)
+    count_a: np.ndarray | None = None
     features: dict | None = None # engine/passes.py TileFeatures.sums(), when a traced pass is on
 
 
@@ -86,6 +92,7 @@ class RenderResult:
     warnings: list = field(default_factory=list)
     cancelled: bool = False
     passes: dict = field(default_factory=dict)    # engine/passes.py pass_images(): name -> (H, W, C)
+    film: "SessionFilm | None" = None     # sums, half buffers, samples per pixel (engine/estimate.py)
 
 
 def tile_size_for(width: int, height: int, size: int) -> int:
@@ -129,6 +136,9 @@ class SessionFilm:
         self.sum = np.zeros((height, width, 3))
         self.sum_sq = np.zeros((height, width, 3))
         self.count = np.zeros((height, width))
+        # Half buffer A of the stopping rules' passes (engine/error_estimate.py); B = total - A.
+        self.sum_a = np.zeros((height, width, 3))
+        self.count_a = np.zeros((height, width))
         self.next_chunk = {}                    # tile index -> next chunk to add
         self.pending = {}                       # (tile index, chunk) -> UnitResult
         self.units_total = len(units)
@@ -142,19 +152,34 @@ class SessionFilm:
         changed = []
         key = (unit.tile.index, self.next_chunk.get(unit.tile.index, 0))
         while key in self.pending:
-            r = self.pending.pop(key)
-            t = r.unit.tile
-            h, w = t.y1 - t.y0, t.x1 - t.x0
-            self.sum[t.y0:t.y1, t.x0:t.x1] += r.sum.reshape(h, w, 3)
-            self.sum_sq[t.y0:t.y1, t.x0:t.x1] += r.sum_sq.reshape(h, w, 3)
-            self.count[t.y0:t.y1, t.x0:t.x1] += r.count.reshape(h, w)
-            if self.features is not None and r.features is not None:
-                self.features.add(t, r.features)
-            self.units_added += 1
-            self.next_chunk[t.index] = key[1] + 1
+            t = self._merge(self.pending.pop(key))
             key = (t.index, key[1] + 1)
             changed = [t]
         return changed
+
+    def flush(self) -> list[Tile]:
+        """Merge the results still waiting for an earlier chunk of their tile that will not come
+        (a cancelled render: the work finished is kept, in chunk order); the tiles changed."""
+        changed = {}
+        for key in sorted(self.pending):
+            t = self._merge(self.pending.pop(key))
+            changed[t.index] = t
+        return list(changed.values())
+
+    def _merge(self, r: UnitResult) -> Tile:
+        t = r.unit.tile
+        h, w = t.y1 - t.y0, t.x1 - t.x0
+        self.sum[t.y0:t.y1, t.x0:t.x1] += r.sum.reshape(h, w, 3)
+        self.sum_sq[t.y0:t.y1, t.x0:t.x1] += r.sum_sq.reshape(h, w, 3)
+        self.count[t.y0:t.y1, t.x0:t.x1] += r.count.reshape(h, w)
+        if r.sum_a is not None:
+            self.sum_a[t.y0:t.y1, t.x0:t.x1] += r.sum_a.reshape(h, w, 3)
+            self.count_a[t.y0:t.y1, t.x0:t.x1] += r.count_a.reshape(h, w)
+        if self.features is not None and r.features is not None:
+            self.features.add(t, r.features)
+        self.units_added += 1
+        self.next_chunk[t.index] = max(self.next_chunk.get(t.index, 0), r.unit.chunk + 1)
+        return t
 
     def mean(self, tile: Tile | None = None) -> np.ndarray:
         s = (slice(None), slice(None)) if tile is None else (slice(tile.y0, tile.y1), slice(tile.x0, tile.x1))
@@ -167,6 +192,26 @@ class SessionFilm:
         n = np.maximum(self.count, 2)[..., None]
         mean = self.sum / n
         return (np.maximum(self.sum_sq / n - mean * mean, 0.0) / (n - 1)).astype(np.float32)
+
+    @property
+    def samples_per_pixel(self) -> np.ndarray:
+        """(H, W) camera samples each pixel got (they differ under adaptive sampling)."""
+        return self.count
+
+    def half_buffer_variance(self) -> np.ndarray:
+        """(H, W, 3) variance of each pixel mean from the half buffers (engine/error_estimate.py);
+        where a pixel has no two halves (renders without stopping rules), the sample variance."""
+        from .error_estimate import half_buffer_variance
+        var = half_buffer_variance(self.sum, self.count, self.sum_a, self.count_a)
+        missing = np.isnan(var)
+        if missing.any():
+            var[missing] = self.variance_of_mean()[missing]
+        return var
+
+    def estimated_rel_error(self) -> float:
+        """The image's estimated relative error E (README: Stopping rules)."""
+        from .error_estimate import image_rel_error
+        return image_rel_error(self.mean().astype(np.float64), self.half_buffer_variance())
 
 
 class RenderSession:
@@ -216,27 +261,43 @@ class RenderSession:
         start = time.perf_counter()
         width, height = self.scene.resolution
         counters = Counters()
-        film = TileFilm(tile.x1 - tile.x0, tile.y1 - tile.y0)
         rng = np.random.default_rng([s.seed, tile.index, unit.start])
         sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.samples, s.shadow_rays)
                    if s.sampler == "sobol" else RandomSampler(rng))
-        samples = TileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1, tile.y1,
-                              unit.stop, sampler, first=unit.start)
-
-        def finished(pixel, radiance):
-            bad = ~np.isfinite(radiance).all(axis=0)
-            if bad.any():
-                # Counted before the guard, never hidden silently.
-                counters.nonfinite_samples += int(bad.sum())
-                radiance[:, bad] = 0.0
-            film.add(pixel, radiance)
-
         features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
                     if self.plan.passes else None)
-        if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler, features):
-            return None
-        return UnitResult(unit, film.sum, film.sum_sq, film.count, counters, time.perf_counter() - start,
-                          features=None if features is None else features.sums())
+        films = []
+        mid = unit.start + (unit.stop - unit.start) // 2 if unit.halves else unit.start
+        for first, stop in ((unit.start, mid), (mid, unit.stop)):     # half A, then B (or all)
+            if stop <= first:
+                films.append(TileFilm(tile.x1 - tile.x0, tile.y1 - tile.y0))
+                continue
+            if unit.mask is None:
+                samples = TileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1, tile.y1,
+                                      stop, sampler, first=first)
+            else:
+                samples = MaskedTileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1,
+                                            tile.y1, stop, sampler, unpack_mask(unit.mask, tile.pixels), first)
+            film = TileFilm(tile.x1 - tile.x0, tile.y1 - tile.y0)
+            films.append(film)
+
+            def finished(pixel, radiance, film=film):
+                bad = ~np.isfinite(radiance).all(axis=0)
+                if bad.any():
+                    # Counted before the guard, never hidden silently.
+                    counters.nonfinite_samples += int(bad.sum())
+                    radiance[:, bad] = 0.0
+                film.add(pixel, radiance)
+
+            if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler, features):
+                return None
+        a, b = films
+        seconds = time.perf_counter() - start
+        sums = None if features is None else features.sums()
+        if not unit.halves:
+            return UnitResult(unit, b.sum, b.sum_sq, b.count, counters, seconds, features=sums)
+        return UnitResult(unit, a.sum + b.sum, a.sum_sq + b.sum_sq, a.count + b.count, counters, seconds,
+                          sum_a=a.sum, count_a=a.count, features=sums)
 
     # -- the whole frame --------------------------------------------------------------------
     def add(self, result: UnitResult) -> list[Tile]:
@@ -248,6 +309,9 @@ class RenderSession:
         engine/workers.py, engine/cluster.py).  Callbacks run on the calling thread: on_tile(x0, y0,
         x1, y1, pixels) after each merge, should_cancel() polled about every 0.1 s,
         on_progress(fraction, message)."""
+        if self.settings.stopping_rules():
+            from .stopping import run_passes
+            return run_passes(self, workers, on_tile, should_cancel, on_progress)
         cancelled, error, done = False, None, 0
         start = time.perf_counter()
         try:
@@ -280,7 +344,26 @@ class RenderSession:
             workers.close()
         if error is not None:
             raise error
+        if cancelled:                                      # keep every unit that finished
+            for tile in self.film.flush():
+                if on_tile is not None:
+                    on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
         return self.result(time.perf_counter() - start, cancelled, getattr(workers, "describe", "local"))
+
+    def error_stats(self, seconds: float) -> dict:
+        """estimated_rel_error and seconds_to_target (README: Stopping rules)."""
+        from .error_estimate import seconds_to_target
+        s = self.settings
+        error = self.film.estimated_rel_error()
+        target = s.noise_target or DEFAULT_TARGET
+        spp = self.film.samples_per_pixel
+        finite = (lambda x: float(x) if np.isfinite(x) else None)        # JSON has no NaN
+        return {"estimated_rel_error": finite(error), "target_rel_error": target,
+                "seconds_to_target": finite(seconds_to_target(seconds, error, target)),
+                "error_estimate": "half buffers" if self.film.count_a.any() else "sample variance",
+                "time_limit": s.time_limit, "noise_target": s.noise_target, "min_samples": s.min_samples,
+                "adaptive": s.adaptive and s.noise_target > 0,
+                "samples_per_pixel": {"min": float(spp.min()), "mean": float(spp.mean()), "max": float(spp.max())}}
 
     def result(self, seconds: float, cancelled: bool = False, workers: str = "local") -> RenderResult:
         s, geo = self.settings, self.geometry
@@ -302,5 +385,6 @@ class RenderSession:
             "seconds_in_accelerator": self.totals.seconds_in_accelerator,
             "cancelled": cancelled, "warnings": list(self.warnings), "passes": list(s.passes),
         }
+        stats.update(self.error_stats(seconds))
         return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled,
-                            pass_images(self.film, s.passes))
+                            pass_images(self.film, s.passes), film=self.film)

@@ -23,6 +23,7 @@ INT_LIMITS = {
     "threads": (0, 1024),
     "seed": (0, INT32_MAX),
     "tile_size": (8, 16384),
+    "min_samples": (0, INT32_MAX),
 }
 
 
@@ -42,6 +43,18 @@ class RenderSettings:
     tile_size: int = 64
     accelerator: str = "auto"
     parallelism: str = "auto"     # threads | processes (forked, Linux, outside Blender) | auto
+    # Stopping rules (engine/stopping.py): the render stops at whichever comes first of `samples`,
+    # the time limit and the noise target; 0 = off.  min_samples: every pixel gets at least these
+    # (0 = auto) before the noise target may stop it; adaptive: with a noise target, blocks whose
+    # estimated error reached it get no more samples.
+    time_limit: float = 0.0       # seconds of rendering
+    noise_target: float = 0.0     # estimated relative error of the image (README: Stopping rules)
+    min_samples: int = 0
+    adaptive: bool = True
+
+    def stopping_rules(self) -> bool:
+        """True when the frame renders in passes (engine/stopping.py)."""
+        return self.time_limit > 0 or self.noise_target > 0
     passes: tuple = ()            # engine/passes.py PASSES: extra render passes (albedo, normal, depth, ...)
     denoise: bool = False         # OIDN on the result, guided by albedo and normal (engine/denoise.py)
 
@@ -63,6 +76,10 @@ class RenderSettings:
             raise SceneError(f"unknown sampler '{self.sampler}' (expected one of {', '.join(SAMPLERS)})")
         if self.accelerator not in ACCELERATORS:
             raise SceneError(f"unknown accelerator '{self.accelerator}' (expected one of {', '.join(ACCELERATORS)})")
+        for name, high in (("time_limit", 1e9), ("noise_target", 1.0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0.0 <= value <= high:
+                raise SceneError(f"{name.replace('_', ' ')} must be a number from 0 (off) to {high:g}, got {value!r}")
         from .passes import PASSES
         bad = [p for p in self.passes if p not in PASSES]
         if bad:

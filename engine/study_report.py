@@ -155,6 +155,7 @@ def write_markdown(study, path, fig_rel, command, seconds):
         "",
     ]
     out += [f"- {n}" for n in study.notes] + [""]
+    out += ["The stopping rules (noise target, time limit, adaptive against uniform sampling at equal time and equal error, the calibration of the error estimate) have their own rows: [accuracy-stopping.md](accuracy-stopping.md) (`python -m engine study --stopping --full`).", ""]
     for table in ("3.1", "3.2", "3.2b", "3.3", "3.4", "3.6", "fresnel", "denoise", "estimators", "cycles"):
         rs = by(table)
         if not rs:

@@ -120,10 +120,9 @@ class ProcessWorkers:
             _FORKED_SESSION = None
 
     def start(self, units):
+        """May be called again with more units (the passes of engine/stopping.py)."""
         for unit in units:
             self.tasks.put(unit)
-        for _ in self.procs:
-            self.tasks.put(None)
 
     def next_result(self, timeout: float):
         try:
@@ -141,6 +140,8 @@ class ProcessWorkers:
 
     def close(self):
         self.cancel_event.set()
+        for _ in self.procs:
+            self.tasks.put(None)                 # the end of the units
         for p in self.procs:
             p.join(timeout=5)
             if p.is_alive():

@@ -60,6 +60,19 @@ def build_parser():
     r.add_argument("--stats-json", help="write render statistics (JSON) here")
     r.add_argument("--png", help="also write an sRGB PNG of the render here")
     cli.add_pass_arguments(r)               # --passes, --denoise (TNCG15 MC only)
+    cli.add_stopping_arguments(r, defaults=False)
+    es = sub.add_parser("estimate", help="predict the render time to reach --noise-target from a short pilot render")
+    es.add_argument("file", help=".blend file")
+    es.add_argument("--noise-target", type=cli.nonnegative_float(1.0), required=True, metavar="REL",
+                    help="the estimated relative error to reach, e.g. 0.01")
+    es.add_argument("--samples", type=setting_int("samples"), help="the cap of the real render")
+    es.add_argument("--min-samples", type=setting_int("min_samples"))
+    es.add_argument("--no-adaptive", action="store_true")
+    es.add_argument("--threads", type=setting_int("threads"))
+    es.add_argument("--seed", type=setting_int("seed"))
+    es.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
+    es.add_argument("--pilot-samples", type=bounded_int(2, 4096), default=64)
+    es.add_argument("--json", action="store_true", help="also print the prediction as JSON")
     b = sub.add_parser("bench-export", help="time the exporter on a large mesh (prints figures)")
     b.add_argument("--triangles", type=bounded_int(1, 100_000_000), default=1_000_000)
     b.add_argument("--instances", type=bounded_int(1, 1_000_000), default=100)
@@ -91,6 +104,16 @@ def apply_tncg15_settings(props, args):
         props.threads = args.threads
     if args.seed is not None:
         props.seed = args.seed
+    if getattr(args, "noise_target", None) is not None:
+        props.use_noise_target = args.noise_target > 0
+        if args.noise_target > 0:
+            props.noise_target = args.noise_target
+    if getattr(args, "min_samples", None) is not None:
+        props.min_samples = args.min_samples
+    if getattr(args, "time_limit", None) is not None:
+        props.time_limit = args.time_limit
+    if getattr(args, "no_adaptive", False):
+        props.adaptive = False
 
 
 def set_exr_output(scene, path):
@@ -220,15 +243,58 @@ def render_in(args, blend, outputs, stop, private):
     return stop.report_exit()
 
 
+def estimate_file(args):
+    """`estimate FILE.blend --noise-target REL`: a pilot render and the predicted time."""
+    blend = os.path.abspath(args.file)
+    problem = blend_problem(blend)
+    if problem:
+        return error(problem)
+    if args.noise_target <= 0:
+        return error("--noise-target must be above 0, e.g. 0.01")
+    private = tempfile.mkdtemp(prefix="tncg15-")
+    try:
+        import bpy
+        import mcrt_addon
+        from mcrt_addon.estimate import estimate_scene
+        bpy.context.preferences.filepaths.temporary_directory = private
+        ensure_registered(mcrt_addon)
+        try:
+            bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
+        except RuntimeError as exc:
+            return error(str(exc).strip().removeprefix("Error: ").splitlines()[0])
+        ensure_registered(mcrt_addon)
+        scene = bpy.context.scene
+        if args.resolution:
+            scene.render.resolution_x, scene.render.resolution_y = args.resolution
+            scene.render.resolution_percentage = 100
+        args.time_limit, args.max_depth, args.shadow_rays = None, None, None
+        args.accelerator = args.fresnel = args.estimator = args.sampler = None
+        apply_tncg15_settings(scene.tncg15, args)
+        if scene.camera is None:
+            return error(f"scene '{scene.name}' has no camera")
+        try:
+            result = estimate_scene(scene, bpy.context.evaluated_depsgraph_get(), args.noise_target,
+                                    pilot_samples=args.pilot_samples)
+        except Exception as exc:          # noqa: BLE001 - export and worker problems: one line
+            return error(str(exc).strip().splitlines()[0], 1)
+        print(bridge.module("estimate").describe(result))
+        if args.json:
+            print(json.dumps(result, default=_json_default))
+        return 0
+    finally:
+        shutil.rmtree(private, ignore_errors=True)
+
+
 def write_outputs(outputs, image, stats, passes=None):
     output = bridge.module("output")
     for target in outputs:
         if target.kind == "json":
             output.write_text(target, json.dumps(stats, indent=2, default=_json_default))
         elif passes is not None and target.option == "-o":
-            output.write_multilayer(target, image, passes)       # the layers of python -m engine render
+            output.write_multilayer(target, image, passes,       # the layers of python -m engine render
+                                    bridge.module("cli").error_metadata(stats))
         else:
-            output.write_image(target, image)
+            output.write_image(target, image, bridge.module("cli").error_metadata(stats))
 
 
 def render_stats(args, scene, last, wall):
@@ -277,6 +343,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.command == "render":
         return render_file(args)
+    if args.command == "estimate":
+        return estimate_file(args)
     if args.command == "bench-estimators":
         from .bench_estimators import bench_estimators, check_arguments
         check_arguments(parser, args)

@@ -260,11 +260,22 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
                 self.end_result(result)
 
         t_render = time.perf_counter()
+        printed = [None]                 # when the last progress line went to the terminal
 
         def on_progress(fraction, message):
-            self.update_progress(min(max(float(fraction), 0.0), 1.0))
-            self.update_stats("", stats_line(f"{message} | {settings.samples} spp | "
-                                              f"{time.perf_counter() - t_render:.1f} s"))
+            fraction = min(max(float(fraction), 0.0), 1.0)
+            self.update_progress(fraction)
+            if message.startswith("Sample "):     # the stopping rules' line: samples, error, time
+                line = stats_line(message)
+            else:
+                line = stats_line(f"{message} | {settings.samples} spp | {time.perf_counter() - t_render:.1f} s")
+            self.update_stats("", line)
+            # In the background (blender -b, python -m mcrt_addon render) nobody sees the stats:
+            # a progress line on the terminal, as Cycles prints its own, at most one a second.
+            now = time.perf_counter()
+            if bpy.app.background and (printed[0] is None or now - printed[0] >= 1.0 or fraction >= 1.0):
+                printed[0] = now
+                print(f"{fraction * 100:5.1f}% {line}", flush=True)
 
         def log(*args):
             print(*args)
@@ -337,7 +348,10 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
     def _summary(stats, result):
         if getattr(result, "cancelled", False):
             return "Cancelled"
-        parts = [f"{stats.get('samples', '?')} samples", f"{stats.get('accelerator', '?')}",
+        spp = stats.get("samples_per_pixel")
+        done = (f"{spp['mean']:.0f} of {stats.get('samples', '?')} samples (stopped by {stats['stopped_by']})"
+                if isinstance(spp, dict) and "stopped_by" in stats else f"{stats.get('samples', '?')} samples")
+        parts = [done, f"{stats.get('accelerator', '?')}",
                  str(stats.get("parallelism", ""))]
         seconds = stats.get("render_seconds")
         rays = stats.get("rays")
@@ -346,6 +360,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             parts.append(f"{total / seconds / 1e6:.2f} M rays/s")
         if seconds is not None:
             parts.append(f"{seconds:.2f} s")
+        if isinstance(stats.get("estimated_rel_error"), float):
+            parts.append(f"est. error {stats['estimated_rel_error'] * 100:.1f} %")
         return "Done: " + ", ".join(parts)
 
 

@@ -4,7 +4,7 @@ Mirrors Cycles' ``properties.py``: plain PropertyGroups, no behaviour except con
 scene settings into the tracer's ``RenderSettings``.
 """
 import bpy
-from bpy.props import BoolProperty, EnumProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
 FRESNEL_ITEMS = (
     ("SCHLICK", "Schlick", "Schlick's approximation (report eq. 2.17)"),
@@ -45,6 +45,20 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
                                   "Rendered mode accumulates", default=32, min=1, soft_max=4096)
     shadow_rays: IntProperty(name="Shadow Rays", description="Light samples per diffuse hit",
                              default=1, min=0, soft_max=64)
+    # Stopping rules, laid out as Cycles' Noise Threshold, Min Samples, Time Limit (README: Stopping rules)
+    use_noise_target: BoolProperty(name="Noise Target", description="Stop when the estimated relative error "
+                                   "of the image reaches the target", default=False)
+    noise_target: FloatProperty(name="Noise Target", description="Estimated relative error (RMS over the "
+                                "pixels, relative to the pixel values) at which the render stops",
+                                default=0.01, min=0.0001, max=1.0, precision=4, step=0.1)
+    adaptive: BoolProperty(name="Adaptive Sampling", description="With a noise target: blocks of 8x8 pixels "
+                           "whose error reached it get no more samples", default=True)
+    min_samples: IntProperty(name="Min Samples", description="Samples every pixel gets before the noise "
+                             "target may stop it (0 = automatic)", default=0, min=0, soft_max=4096)
+    time_limit: FloatProperty(name="Time Limit", description="Stop rendering after this many seconds "
+                              "(0 = no limit)", default=0.0, min=0.0, soft_max=3600.0, precision=1)
+    estimate_text: bpy.props.StringProperty(name="Estimate", description="The last Estimate Render Time",
+                                            default="", options={"SKIP_SAVE"})
     sampler: EnumProperty(name="Pattern", description="Where the random numbers of each pixel come from",
                           items=SAMPLER_ITEMS, default="SOBOL")
     seed: IntProperty(name="Seed", description="Random seed; the same seed gives the same image",
@@ -80,7 +94,9 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
             fresnel=self.fresnel.lower(), nested_dielectrics=self.nested_dielectrics,
             estimator=self.estimator.lower().replace("_", "-"), sampler=self.sampler.lower(),
             threads=self.threads, seed=self.seed,
-            tile_size=self.tile_size, accelerator=self.accelerator.lower())
+            tile_size=self.tile_size, accelerator=self.accelerator.lower(),
+            noise_target=self.noise_target if self.use_noise_target else 0.0, adaptive=self.adaptive,
+            min_samples=min(self.min_samples, self.samples), time_limit=self.time_limit)
 
 
 class TNCG15ViewLayerSettings(bpy.types.PropertyGroup):

@@ -34,11 +34,27 @@ class RENDER_PT_tncg15_sampling(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         props = context.scene.tncg15
+        heading = layout.column(align=True, heading="Noise Target")
+        row = heading.row(align=True)
+        row.prop(props, "use_noise_target", text="")
+        sub = row.row()
+        sub.active = props.use_noise_target
+        sub.prop(props, "noise_target", text="")
         col = layout.column(align=True)
-        col.prop(props, "samples")
-        col.prop(props, "shadow_rays")
+        col.prop(props, "samples", text="Max Samples" if props.use_noise_target else "Samples")
+        sub = col.column(align=True)
+        sub.active = props.use_noise_target
+        sub.prop(props, "min_samples")
+        col.prop(props, "time_limit")
+        sub = layout.column()
+        sub.active = props.use_noise_target
+        sub.prop(props, "adaptive")
+        layout.prop(props, "shadow_rays")
         layout.prop(props, "seed")
         layout.prop(props, "sampler")
+        layout.operator("tncg15.estimate_render_time", icon="TIME")
+        if props.estimate_text:
+            layout.label(text=props.estimate_text)
 
 
 class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):

@@ -127,11 +127,10 @@ def test_stop_signal_writes_the_finished_tiles(workdir, signum, code):
                        "--resolution", "128", "128", "--threads", "2")
     proc = subprocess.Popen(command, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     seen = b""
-    while b"work units on" not in seen:
+    while b"% TNCG15 MC" not in seen:                    # the first progress line: a unit finished
         chunk = os.read(proc.stdout.fileno(), 4096)
         assert chunk, seen[-2000:]
         seen += chunk
-    time.sleep(1.0)
     proc.send_signal(signum)
     out, _ = proc.communicate(timeout=60)
     out = (seen + out).decode()

@@ -98,3 +98,20 @@ def test_progressive_passes_refine_the_whole_frame_first():
     first = session.units[:len(session.tiles)]
     assert sorted(u.tile.index for u in first) == list(range(len(session.tiles)))
     assert all(u.chunk == 0 for u in first)
+
+
+def test_a_cancelled_render_keeps_units_that_finished_out_of_order(monkeypatch):
+    """Chunk 1 of a tile done, chunk 0 cancelled: the merge in order would wait for chunk 0
+    forever; a cancelled render keeps chunk 1 (finished work is never thrown away)."""
+    import engine.session
+    from engine.session import RenderSession
+    monkeypatch.setattr(engine.session, "UNIT_PATHS", 2048)
+    session = RenderSession(cornell_scene((32, 32)), RenderSettings(samples=32, tile_size=16, seed=2),
+                            log=lambda *a: None)
+    tile0 = [u for u in session.units if u.tile.index == 0]
+    assert len(tile0) >= 2 and tile0[1].chunk == 1
+    assert session.add(session.render_unit(tile0[1])) == []            # waits for chunk 0
+    assert not session.film.count.any()
+    assert [t.index for t in session.film.flush()] == [0]
+    assert session.film.count[:16, :16].min() == tile0[1].stop - tile0[1].start
+    assert session.film.mean()[:16, :16].mean() > 0 and session.film.flush() == []

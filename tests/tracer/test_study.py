@@ -31,3 +31,18 @@ def test_quick_study_writes_tables_plots_and_sane_errors(tmp_path):
     assert abs(unbiased.rel_bias2) < 4 * unbiased.rel_bias2_se + 1e-3
     assert np.isfinite(unbiased.time_to_target())
     assert by_label["16 spp"].rmse < by_label["1 spp"].rmse
+
+
+def test_quick_stopping_study_writes_both_tables(tmp_path):
+    import json
+    from engine.study_stopping import run_stopping_study
+    study = run_stopping_study("quick", str(tmp_path), "python -m engine study --stopping --quick",
+                               log=lambda *a: None)
+    text = (tmp_path / "accuracy-stopping.md").read_text()
+    assert "## Calibration of the estimated relative error" in text and "## Adaptive against uniform" in text
+    rows = json.loads((tmp_path / "accuracy-stopping.json").read_text())
+    assert len(rows["calibration"]) == 1 and len(rows["adaptive"]) == 1
+    cal = study.calibration_rows[0]
+    assert cal["estimated"] > 0 and cal["actual"] > 0
+    adaptive = study.adaptive_rows[0]
+    assert adaptive["equal_error"]["adaptive"]["spp"] < adaptive["equal_error"]["uniform"]["spp"]
