@@ -18,11 +18,12 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import bridge, worker_python
+from . import bridge, viewport, worker_python
 from . import passes as addon_passes
 
 # Stop requests besides Esc: callables polled with test_break() (the command line's SIGINT/SIGTERM).
 STOP_REQUESTS = []
+PREVIEW_SAMPLES = 16                # spp of material / world previews at most
 # Callables given the RenderReport of every render that finishes (see capture_reports).
 REPORT_LISTENERS = []
 
@@ -117,13 +118,23 @@ def stats_line(message, stats=None):
 class TNCG15RenderEngine(bpy.types.RenderEngine):
     bl_idname = "TNCG15_MC"
     bl_label = "TNCG15 MC"
-    bl_use_preview = False
+    bl_use_preview = True                   # material / world previews: few samples (PREVIEW_SAMPLES)
     bl_use_shading_nodes_custom = False     # read Cycles' shader nodes
     bl_use_postprocess = True
     bl_use_eevee_viewport = True            # Material Preview in the viewport uses EEVEE
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)   # required from Blender 4.4 on; harmless on 3.4
+
+    def __del__(self):
+        viewport.free(self)                 # leaving Rendered mode: stop the viewport's workers
+
+    # -- the 3D viewport's Rendered mode (mcrt_addon/viewport.py) ------------------------------
+    def view_update(self, context, depsgraph):
+        viewport.view_update(self, context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        viewport.view_draw(self, context, depsgraph)
 
     def update_render_passes(self, scene=None, renderlayer=None):
         """Combined and the enabled passes (mcrt_addon/passes.py), as Render Layers sockets."""
@@ -204,7 +215,10 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         settings = scene.tncg15.to_settings(bridge.settings_class())
         wanted = addon_passes.enabled_passes(scene, depsgraph.view_layer)
         settings.passes = tuple(p for p in wanted if p != "noisy")
-        cluster = worker_python.render_cluster()
+        if self.is_preview:                 # material preview: cheap, one worker, no passes, cancelled often
+            settings.samples, settings.threads = min(settings.samples, PREVIEW_SAMPLES), 1
+            wanted, settings.passes = (), ()
+        cluster = None if self.is_preview else worker_python.render_cluster()
         pool, no_workers = (None, None) if cluster else self._start_workers(settings)   # imports overlap the export
         try:
             width, height = int(self.resolution_x), int(self.resolution_y)
@@ -292,7 +306,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         self.last.stats, self.last.warnings = stats, warnings
         self.last.cancelled = bool(getattr(result, "cancelled", False))
         self.last.wall_seconds = time.perf_counter() - t_start
-        for w in warnings:
+        for w in warnings if not self.is_preview else ():      # the preview scene's own quirks
             self.report({"WARNING"}, w)
         self.update_progress(1.0)
         self.update_stats("", stats_line(self._summary(stats, result), stats))

@@ -41,6 +41,8 @@ SPHERE_ITEMS = (
 class TNCG15RenderSettings(bpy.types.PropertyGroup):
     samples: IntProperty(name="Samples", description="Camera rays per pixel",
                          default=16, min=1, soft_max=4096)
+    viewport_samples: IntProperty(name="Max Samples", description="Samples per pixel the 3D viewport's "
+                                  "Rendered mode accumulates", default=32, min=1, soft_max=4096)
     shadow_rays: IntProperty(name="Shadow Rays", description="Light samples per diffuse hit",
                              default=1, min=0, soft_max=64)
     # Stopping rules, laid out as Cycles' Noise Threshold, Min Samples, Time Limit (README: Stopping rules)

@@ -58,12 +58,16 @@ def finite_matrix(inst, ob):
     return matrix
 
 
-def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=None, name=None):
+def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=None, name=None,
+                 view_camera=None, mesh_cache=None):
     """Build the tracer Scene.
 
     resolution: full-frame (width, height) in pixels (after the resolution percentage).
     crop: optional border (x0, y0, x1, y1) in full-frame pixels, y from the bottom; the exported
           scene then has the crop's resolution and a camera that sees exactly those pixels.
+    view_camera: a tracer Camera to use instead of the scene's (the 3D viewport's view).
+    mesh_cache: a dict kept across exports (the viewport): mesh arrays by (object, mesh, UV map), so a
+          transform or material edit does not read meshes again (mcrt_addon/viewport.py empties it).
     Raises ExportError (user-facing message) or ExportCancelled.
     """
     t0 = time.perf_counter()
@@ -78,7 +82,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     if cam_obj is not None:
         cam_obj = cam_obj.evaluated_get(depsgraph)
     width, height = int(resolution[0]), int(resolution[1])
-    cam = export_camera(cam_obj, (width, height), crop, Camera=sm.Camera, warnings=warnings)
+    cam = view_camera if view_camera is not None else \
+        export_camera(cam_obj, (width, height), crop, Camera=sm.Camera, warnings=warnings)
     out_res = (width, height) if crop is None else (int(crop[2] - crop[0]), int(crop[3] - crop[1]))
 
     warnings.extend(scene_warnings(scene, getattr(depsgraph, "view_layer", None)))
@@ -129,6 +134,9 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         slot_ids = np.asarray(table.slot_indices(ob), dtype=np.int64)
         uv_map = table.uv_map(slot_ids)                 # None: no textured material, no UVs
         arrays = cache.get((key, uv_map)) if key is not None else None
+        kept = (ob.name, ob.data.name, uv_map) if (mesh_cache is not None and key is not None) else None
+        if arrays is None and kept is not None:
+            arrays = mesh_cache.get(kept)
         if arrays is None:
             if otype == "MESH":
                 arrays = mesh_arrays(ob.data) + (corner_uvs(ob.data, uv_map, label, warnings), mesh_normals(ob.data))
@@ -143,6 +151,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                     continue
             if key is not None:
                 cache[(key, uv_map)] = arrays
+            if kept is not None:
+                mesh_cache[kept] = arrays
         verts, tris, slots, uvs, shading = arrays
         if len(tris) == 0:
             if otype == "MESH" and ob.name not in skipped:

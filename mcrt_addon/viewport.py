@@ -1,0 +1,327 @@
+"""The 3D viewport's Rendered mode: export on depsgraph updates, render in worker processes, draw.
+
+Blender calls ``view_update`` and ``view_draw`` on its UI thread, so both only read Blender data
+and hand it on: the rendering runs in viewport worker processes (tracer/viewport_service.py),
+whose frames reader threads merge into a film; a ``bpy.app.timers`` poller on the UI thread tags
+the Rendered viewports for redraw whenever a new frame is there (no Blender object is touched
+from another thread, and the engine is not kept alive by us, so Blender frees it and ``__del__``
+stops the workers).
+
+* ``view_update``: depsgraph updates sorted by ID type (cluster-and-viewport.md §B1): camera
+  objects and camera data change the view only; anything else re-exports the scene, reading
+  meshes again only for objects and meshes whose geometry changed (a mesh cache across exports).
+* ``view_draw``: the view (region size, view and projection matrices, render border) is compared
+  with the last one; a change sends only the new camera to the workers (no BVH rebuild).  The
+  latest film is uploaded as a half-float texture when it changed and drawn with
+  ``gpu_extras.presets.draw_texture_2d`` between ``bind_display_space_shader`` and
+  ``unbind_display_space_shader`` (as Cycles): the film is scene-linear and Blender applies the
+  view transform, look, exposure and gamma.  The header shows samples and the noise estimate.
+"""
+import time
+import weakref
+
+import bpy
+
+from . import bridge, worker_python
+
+MAX_HALF = 65000.0              # half floats overflow above 65504
+POLL_SECONDS = 0.05             # redraw poller
+ACTIVE = weakref.WeakSet()      # the ViewportStates of live Rendered viewports (tests, diagnostics)
+
+
+# -- the view as a tracer camera -------------------------------------------------------------------
+def camera_from_matrices(window_matrix, view_matrix, lens=50.0):
+    """Tracer camera parameters (dict) of a perspective projection: sensor and shift such that
+    the tracer's pinhole (engine/camera.py) sees what the viewport's projection shows.
+
+    For Blender's projection P, x_ndc = (P00 x + P02 z) / -z, so at distance L the frame spans
+    x in L (±1 + P02) / P00: sensor width 2L / P00, centre L P02 / P00 (shift_x = P02 / 2), and
+    likewise y with P11, P12 (shift in units of the sensor width: P12 P00 / (2 P11))."""
+    import numpy as np
+    P = np.array(window_matrix, dtype=np.float64).reshape(4, 4)
+    V = np.array(view_matrix, dtype=np.float64).reshape(4, 4)
+    if abs(P[3, 3]) > 1e-9 or abs(P[3, 2] + 1.0) > 1e-6:
+        return None                          # orthographic
+    return dict(matrix=np.linalg.inv(V), lens=lens, sensor_width=2.0 * lens / P[0, 0],
+                sensor_height=2.0 * lens / P[1, 1], sensor_fit="HORIZONTAL",
+                shift_x=P[0, 2] / 2.0, shift_y=P[1, 2] * P[0, 0] / (2.0 * P[1, 1]))
+
+
+def camera_frame_rect(scene, region, rv3d):
+    """The scene camera's frame in region pixels (x0, y0, x1, y1) when looking through it, else None."""
+    from bpy_extras.view3d_utils import location_3d_to_region_2d
+    cam = scene.camera
+    if rv3d is None or rv3d.view_perspective != "CAMERA" or cam is None or cam.type != "CAMERA":
+        return None
+    pts = [location_3d_to_region_2d(region, rv3d, cam.matrix_world @ c) for c in cam.data.view_frame(scene=scene)]
+    if any(p is None for p in pts):
+        return None
+    xs, ys = [p.x for p in pts], [p.y for p in pts]
+    return min(xs), min(ys), max(xs), max(ys)
+
+
+def viewport_border(context, scene):
+    """The part of the region to render (x0, y0, x1, y1), pixels from the bottom left, or None
+    for all of it: the scene's render border in camera view (as Cycles), else the viewport's own
+    render border (View > Clipping Region > Render Region)."""
+    region, rv3d, space = context.region, context.region_data, context.space_data
+    w, h = region.width, region.height
+    frame = camera_frame_rect(scene, region, rv3d)
+    if frame is not None:
+        if not scene.render.use_border:
+            return None
+        r = scene.render
+        fx0, fy0, fx1, fy1 = frame
+        box = (fx0 + r.border_min_x * (fx1 - fx0), fy0 + r.border_min_y * (fy1 - fy0),
+               fx0 + r.border_max_x * (fx1 - fx0), fy0 + r.border_max_y * (fy1 - fy0))
+    elif space is not None and getattr(space, "use_render_border", False):
+        box = (space.render_border_min_x * w, space.render_border_min_y * h,
+               space.render_border_max_x * w, space.render_border_max_y * h)
+    else:
+        return None
+    x0, y0 = max(0, int(round(box[0]))), max(0, int(round(box[1])))
+    x1, y1 = min(w, int(round(box[2]))), min(h, int(round(box[3])))
+    if x1 - x0 < 1 or y1 - y0 < 1:
+        return (0, 0, 0, 0)
+    return x0, y0, x1, y1
+
+
+def view_key(context, scene):
+    rv3d, region = context.region_data, context.region
+    return (tuple(map(tuple, rv3d.window_matrix)), tuple(map(tuple, rv3d.view_matrix)),
+            region.width, region.height, viewport_border(context, scene))
+
+
+def view_camera(context, scene):
+    """(tracer Camera, resolution, border) of the viewport, or (None, message, None)."""
+    from .export.camera import crop_params
+    params = camera_from_matrices(context.region_data.window_matrix, context.region_data.view_matrix)
+    if params is None:
+        return None, "orthographic views are not supported: switch to a perspective view (Numpad 5)", None
+    w, h = context.region.width, context.region.height
+    border = viewport_border(context, scene)
+    if border == (0, 0, 0, 0):
+        return None, "the render border is empty", None
+    matrix = params.pop("matrix")
+    if border is not None:
+        params = crop_params(params, w, h, border)
+        w, h = border[2] - border[0], border[3] - border[1]
+    return bridge.scene_module().Camera(matrix=matrix, name="Viewport", **params), (w, h), border
+
+
+# -- depsgraph updates -----------------------------------------------------------------------------
+def classify(updates):
+    """("none" | "view" | "scene", names of objects and meshes whose geometry changed).
+
+    By ID type first (§B1): cameras (object or data) change the view only; a Mesh or an Object
+    with its geometry flag invalidates its cached arrays; everything else (transforms of other
+    objects, materials, node trees, worlds, lights, the scene's settings) re-exports."""
+    kind, geometry = "none", set()
+    for u in updates:
+        id_ = u.id
+        if isinstance(id_, bpy.types.Camera) or (isinstance(id_, bpy.types.Object) and id_.type == "CAMERA"):
+            kind = "view" if kind == "none" else kind
+            continue
+        kind = "scene"
+        if isinstance(id_, bpy.types.Mesh) and u.is_updated_geometry:
+            geometry.add(id_.name)
+        elif isinstance(id_, bpy.types.Object) and u.is_updated_geometry:
+            geometry.add(id_.name)
+    return kind, geometry
+
+
+def forget_meshes(cache, names):
+    """Drop cached arrays of these objects or meshes (their geometry changed)."""
+    for key in [k for k in cache if k[0] in names or k[1] in names]:
+        del cache[key]
+
+
+# -- the state shared with the poller --------------------------------------------------------------
+class ViewportState:
+    """Plain Python (never a Blender object): the workers, mesh cache, view and texture."""
+
+    def __init__(self):
+        self.workers = None
+        self.mesh_cache = {}
+        self.key = None
+        self.message = "Starting"
+        self.resolution = None
+        self.border = None
+        self.scene_sent = False
+        self.texture = None
+        self.texture_version = -1
+        self.drawn_version = -1
+        self.closed = False
+        self.started = time.perf_counter()
+        self.exports = 0
+        self.last_export_seconds = None
+        self.draw_seconds = []                # view_draw durations (UI thread), the last 200
+        self.upload_seconds = []              # texture uploads among them
+        ACTIVE.add(self)
+
+    def start_workers(self, count):
+        python, why = worker_python.worker_python(worker_python.preferred_python())
+        if python is None:
+            raise RuntimeError(f"the viewport needs render worker processes: {why}")
+        service = bridge.module("viewport_service")
+        self.workers = service.ViewportWorkers(python, count, worker_python.extra_paths())
+        bpy.app.timers.register(self.poll, first_interval=POLL_SECONDS)
+
+    def poll(self):
+        """UI thread, every POLL_SECONDS: redraw Rendered viewports when a new frame arrived."""
+        if self.closed:
+            return None
+        version = self.workers.snapshot()[0] if self.workers is not None else -1
+        if version != self.drawn_version:
+            tag_rendered_viewports()
+        return POLL_SECONDS
+
+    def close(self):
+        self.closed = True
+        if self.workers is not None:
+            self.workers.close()
+        self.texture = None
+
+
+def tag_rendered_viewports():
+    wm = bpy.context.window_manager
+    for window in (wm.windows if wm is not None else ()):
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D" and area.spaces.active.shading.type == "RENDERED":
+                area.tag_redraw()
+
+
+# -- the callbacks (bodies of RenderEngine.view_update / view_draw) --------------------------------
+def view_update(engine, context, depsgraph):
+    from . import NUMPY_PROBLEM
+    st = getattr(engine, "viewport_state", None)
+    if st is None:
+        st = engine.viewport_state = ViewportState()
+    try:
+        if NUMPY_PROBLEM:
+            raise ImportError(NUMPY_PROBLEM)
+        scene = depsgraph.scene
+        kind, geometry = classify(depsgraph.updates)
+        forget_meshes(st.mesh_cache, geometry)
+        if st.scene_sent and kind != "scene":
+            return                           # the view is compared in view_draw
+        export(engine, st, context, depsgraph)
+    except Exception as exc:                 # noqa: BLE001 - in the header, never a traceback
+        st.message = "Error: " + (engine._readable(exc) or f"{type(exc).__name__}: {exc}")
+        st.scene_sent = False
+
+
+def export(engine, st, context, depsgraph):
+    from .export import export_scene
+    scene = depsgraph.scene
+    camera, resolution, border = view_camera(context, scene)
+    if camera is None:
+        st.message, st.scene_sent, st.key = resolution, False, view_key(context, scene)
+        return
+    props = scene.tncg15
+    settings = props.to_settings(bridge.settings_class())
+    t0 = time.perf_counter()
+    exported = export_scene(depsgraph, resolution=resolution, view_camera=camera, mesh_cache=st.mesh_cache)
+    settings.validate()                      # the scene is validated by the workers (errors come back)
+    st.last_export_seconds = time.perf_counter() - t0
+    st.exports += 1
+    if st.workers is None:
+        st.start_workers(viewport_worker_count(settings))
+    st.workers.set_scene(exported.scene, settings, max(1, int(props.viewport_samples)))
+    st.key, st.resolution, st.border = view_key(context, scene), resolution, border
+    st.scene_sent, st.message = True, None
+
+
+def viewport_worker_count(settings):
+    """Threads setting, or all cores but one (left to Blender's UI and drawing), at least one."""
+    import os
+    return settings.threads if settings.threads > 0 else max(1, (os.cpu_count() or 1) - 1)
+
+
+def view_draw(engine, context, depsgraph):
+    st = getattr(engine, "viewport_state", None)
+    if st is None:
+        return
+    scene = depsgraph.scene
+    t0 = time.perf_counter()
+    try:
+        if not st.scene_sent:
+            key = view_key(context, scene)
+            if key != st.key:                # e.g. orthographic -> perspective: export again
+                st.key = key
+                engine.tag_update()
+        else:
+            key = view_key(context, scene)
+            if key != st.key:
+                camera, resolution, border = view_camera(context, scene)
+                if camera is None:
+                    st.message = resolution
+                else:
+                    st.workers.set_view(camera, resolution)
+                    st.resolution, st.border, st.message = resolution, border, None
+                st.key = key
+        if st.workers is None:
+            engine.update_stats("", f"TNCG15 MC | {st.message or 'Starting'}")
+            return
+        version, rgba, samples, noise, level, error = st.workers.snapshot()
+        st.drawn_version = version
+        if rgba is not None and version != st.texture_version and not bpy.app.background:
+            t_upload = time.perf_counter()
+            st.texture = upload(rgba)
+            st.texture_version = version
+            st.upload_seconds = (st.upload_seconds + [time.perf_counter() - t_upload])[-200:]
+        if st.texture is not None and st.message is None:
+            region = context.region
+            x0, y0, x1, y1 = st.border if st.border is not None else (0, 0, region.width, region.height)
+            draw_texture(engine, scene, st.texture, x0, y0, x1 - x0, y1 - y0)
+        engine.update_stats("", header_text(st, samples, noise, level, error))
+        st.draw_seconds = (st.draw_seconds + [time.perf_counter() - t0])[-200:]
+    except Exception as exc:                 # noqa: BLE001 - drawing must never raise into Blender
+        engine.update_stats("", f"TNCG15 MC | Error: {type(exc).__name__}: {exc}")
+
+
+def header_text(st, samples, noise, level, error):
+    if error:
+        return f"TNCG15 MC | Error: {error}"
+    if st.message:
+        return f"TNCG15 MC | {st.message}"
+    target = st.workers.target
+    if level < 0:
+        return "TNCG15 MC | Preparing scene"
+    if level == 0:
+        return f"Sample 0/{target} | Coarse pass"
+    text = f"Sample {samples}/{target}"
+    if noise is not None:
+        text += f" | Noise ±{100 * noise:.1f} %"
+    return text
+
+
+# -- drawing ---------------------------------------------------------------------------------------
+def upload(rgba):
+    """(h, w, 4) float32 linear RGBA, row 0 at the bottom -> a half-float GPUTexture."""
+    import gpu
+    import numpy as np
+    h, w = rgba.shape[:2]
+    data = np.ascontiguousarray(np.clip(rgba, 0.0, MAX_HALF), dtype=np.float32).ravel()
+    buffer = gpu.types.Buffer("FLOAT", data.size, data)
+    return gpu.types.GPUTexture((w, h), format="RGBA16F", data=buffer)
+
+
+def draw_texture(engine, scene, texture, x, y, width, height):
+    import gpu
+    from gpu_extras.presets import draw_texture_2d
+    gpu.state.blend_set("ALPHA_PREMULT")
+    engine.bind_display_space_shader(scene)
+    draw_texture_2d(texture, (x, y), width, height)
+    engine.unbind_display_space_shader()
+    gpu.state.blend_set("NONE")
+
+
+def free(engine):
+    """RenderEngine.__del__ (leaving Rendered mode, closing the viewport): stop the workers."""
+    try:
+        st = getattr(engine, "viewport_state", None)
+    except ReferenceError:
+        return
+    if st is not None:
+        st.close()

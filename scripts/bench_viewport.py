@@ -1,0 +1,120 @@
+"""Viewport restart latencies in a big scene, through the bpy 5.0 module (prints figures; no targets).
+
+    .venv/bin/python scripts/bench_viewport.py [--triangles 1000000] [--size 320 240]
+
+A room with one mesh of about N triangles and a point light; the viewport's view_update /
+view_draw bodies are called as Blender calls them (mcrt_addon/viewport.py, stub engine and
+context, the depsgraph of a depsgraph_update_post handler).  For entering Rendered mode, moving the
+camera (view_draw: a new camera only), moving the light (re-export without reading the mesh,
+workers rebuild) and editing the mesh (the mesh read again) it prints the time spent on Blender's
+UI thread, the meshes read, and the time until the workers' first frame of the change.
+"""
+import argparse
+import os
+import sys
+import time
+from types import SimpleNamespace
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(HERE))
+
+import bpy  # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--triangles", type=int, default=1_000_000)
+    ap.add_argument("--size", type=int, nargs=2, default=(320, 240))
+    args = ap.parse_args()
+    import mcrt_addon
+    from mcrt_addon.cli import ensure_registered
+    ensure_registered(mcrt_addon)
+    import mcrt_addon.export as export
+    from mcrt_addon import viewport
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "TNCG15_MC"
+    scene.tncg15.viewport_samples = 4
+    n = max(1, int((args.triangles / 2) ** 0.5))
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=n, y_subdivisions=n, size=4.0)
+    grid = bpy.context.object
+    grid.data.name = "Grid"
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    cam.location, cam.rotation_euler = (0.0, -6.0, 3.0), (1.1, 0.0, 0.0)
+    scene.camera = cam
+    light = bpy.data.objects.new("Bulb", bpy.data.lights.new("Bulb", "POINT"))
+    light.data.energy = 500.0
+    light.location = (0.0, 0.0, 2.0)
+    scene.collection.objects.link(light)
+    bpy.context.view_layer.update()
+    tris = sum(len(p.vertices) - 2 for p in grid.data.polygons)
+    w, h = args.size
+
+    reads = []
+    original = export.mesh_arrays
+    export.mesh_arrays = lambda me: reads.append(me.name) or original(me)
+    engine = SimpleNamespace(_readable=lambda exc: None, update_stats=lambda a, b: None, tag_update=lambda: None)
+
+    def context():
+        dg = bpy.context.evaluated_depsgraph_get()
+        return SimpleNamespace(region=SimpleNamespace(width=w, height=h), space_data=None,
+                               region_data=SimpleNamespace(window_matrix=cam.calc_matrix_camera(dg, x=w, y=h),
+                                                           view_matrix=cam.matrix_world.inverted(),
+                                                           view_perspective="PERSP"))
+
+    def first_frame(st, timeout=300):
+        t = time.perf_counter()
+        while st.workers.first_frame_seconds is None and time.perf_counter() - t < timeout:
+            time.sleep(0.002)
+        return st.workers.first_frame_seconds
+
+    def row(what, ui, st, n_reads):
+        print(f"{what:<34} UI thread {1000 * ui:8.1f} ms   meshes read {n_reads}   first frame after "
+              f"{1000 * first_frame(st):8.1f} ms")
+
+    print(f"{tris:,} triangles, viewport {w}x{h}, {viewport.viewport_worker_count(scene.tncg15.to_settings(__import__('engine.settings', fromlist=['x']).RenderSettings))} worker(s), "
+          f"load {os.getloadavg()[0]:.2f}")
+    ctx = context()
+    t = time.perf_counter()
+    viewport.view_update(engine, ctx, bpy.context.evaluated_depsgraph_get())
+    st = engine.viewport_state
+    row("enter Rendered (export)", time.perf_counter() - t, st, len(reads))
+    try:
+        while not st.workers.converged():
+            time.sleep(0.01)
+        # the camera moves: view_draw sends only a camera
+        cam.location.x += 0.3
+        bpy.context.view_layer.update()
+        ctx = context()
+        n0 = len(reads)
+        t = time.perf_counter()
+        viewport.view_draw(engine, ctx, bpy.context.evaluated_depsgraph_get())
+        row("move the camera (view_draw)", time.perf_counter() - t, st, len(reads) - n0)
+        timings = {}
+
+        def handler(scene_, dg):
+            t0 = time.perf_counter()
+            viewport.view_update(engine, ctx, dg)
+            timings["ui"] = time.perf_counter() - t0
+
+        bpy.app.handlers.depsgraph_update_post.append(handler)
+        try:
+            for what, edit in (("move the light (re-export)", lambda: setattr(light, "location", (1.0, 0.0, 2.0))),
+                               ("edit the mesh (read again)", lambda: (grid.data.vertices[0].co.__setitem__(2, 0.1),
+                                                                        grid.data.update()))):
+                while not st.workers.converged():
+                    time.sleep(0.01)
+                n0 = len(reads)
+                edit()
+                bpy.context.view_layer.update()
+                row(what, timings["ui"], st, len(reads) - n0)
+        finally:
+            bpy.app.handlers.depsgraph_update_post.remove(handler)
+    finally:
+        viewport.free(engine)
+
+
+if __name__ == "__main__":
+    main()

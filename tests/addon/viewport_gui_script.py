@@ -1,0 +1,236 @@
+"""Run inside a Blender with a window (Debian's 3.4 under Xvfb; tests/addon/test_viewport_blender34.py):
+
+    blender --factory-startup -p 0 0 W H --python viewport_gui_script.py -- ADDON_ZIP BLEND OUTDIR
+
+Installs the add-on as a user does, renders a material preview, renders the scene with F12 (PNG), switches the 3D viewport to
+Rendered through the scene camera, waits for the viewport to reach its samples, screenshots the
+viewport area, moves the light and screenshots until the picture changes, leaves Rendered mode and
+checks that the viewport workers are gone.  A 20 ms timer records the UI's responsiveness.
+Everything measured goes to OUTDIR/viewport.json; images are analysed by the test.
+"""
+import json
+import os
+import sys
+import time
+import traceback
+
+import bpy
+
+zip_path, blend, outdir = sys.argv[sys.argv.index("--") + 1:][:3]
+SAMPLES = 8                      # viewport (at 4 the 8-bit screenshot clips noisy pixels: ~2 % darker)
+F12_SAMPLES = 64
+out = {"steps": [], "ticks": []}
+
+
+def log(msg):
+    out["steps"].append(f"{time.perf_counter():.3f} {msg}")
+    print("[viewport-test]", msg, flush=True)
+
+
+def finish(error=None):
+    out["error"] = error
+    with open(os.path.join(outdir, "viewport.json"), "w") as fh:
+        json.dump(out, fh, indent=1)
+    bpy.ops.wm.quit_blender()
+
+
+try:
+    bpy.ops.preferences.addon_install(filepath=zip_path)
+    bpy.ops.preferences.addon_enable(module="tncg15_mc")
+    bpy.ops.wm.open_mainfile(filepath=blend)
+    viewport = sys.modules["tncg15_mc.viewport"]
+except Exception:                                    # noqa: BLE001 - reported, and Blender quits
+    finish(traceback.format_exc())
+
+
+def view3d():
+    win = bpy.context.window_manager.windows[0]
+    areas = [a for a in win.screen.areas if a.type == "VIEW_3D"]
+    area = max(areas, key=lambda a: a.width * a.height)
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    return win, area, region
+
+
+def screenshot(name):
+    win, area, region = view3d()
+    path = os.path.join(outdir, name)
+    with bpy.context.temp_override(window=win, screen=win.screen, area=area, region=region):
+        bpy.ops.screen.screenshot_area(filepath=path)
+    return path
+
+
+def frame_in_area():
+    """The camera frame in area pixels (x0, y0, x1, y1) from the bottom left."""
+    win, area, region = view3d()
+    space = area.spaces.active
+    rect = viewport.camera_frame_rect(bpy.context.scene, region, space.region_3d)
+    dx, dy = region.x - area.x, region.y - area.y
+    return [rect[0] + dx, rect[1] + dy, rect[2] + dx, rect[3] + dy], [area.width, area.height]
+
+
+def state():
+    states = [s for s in viewport.ACTIVE if not s.closed]
+    return states[0] if states else None
+
+
+last_tick = [time.perf_counter()]
+
+
+def tick():
+    now = time.perf_counter()
+    out["ticks"].append(now - last_tick[0])
+    last_tick[0] = now
+    return None if out.get("done") else 0.02
+
+
+def steps():
+    scene = bpy.context.scene
+    scene.render.engine = "TNCG15_MC"
+    # a material preview (bl_use_preview): Blender renders it with TNCG15 MC on a job thread
+    engine_module = sys.modules["tncg15_mc.engine"]
+    reports = []
+    engine_module.REPORT_LISTENERS.append(reports.append)
+    mat = bpy.data.materials["Pink"]
+    t = time.perf_counter()
+    mat.asset_generate_preview()
+    while not reports and time.perf_counter() - t < 20:
+        yield 0.05
+    out["preview_seconds"] = time.perf_counter() - t
+    yield 0.3
+    engine_module.REPORT_LISTENERS.remove(reports.append)
+    w, h = mat.preview.image_size
+    centre = (h // 2) * w + w // 2
+    out["preview"] = {"reports": len(reports), "error": reports[0].error if reports else "no render",
+                      "samples": reports[0].stats.get("samples") if reports else None, "size": [w, h],
+                      "centre": list(mat.preview.image_pixels_float[4 * centre:4 * centre + 4])}
+    scene.tncg15.samples = F12_SAMPLES
+    scene.tncg15.viewport_samples = SAMPLES
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = os.path.join(outdir, "f12.png")
+    t = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    log(f"F12 render {time.perf_counter() - t:.2f} s")
+    yield 0.1
+    win, area, region = view3d()
+    space = area.spaces.active
+    space.overlay.show_overlays = False
+    space.show_gizmo = False
+    for attr in ("show_region_header", "show_region_toolbar", "show_region_ui", "show_region_tool_header"):
+        if hasattr(space, attr):
+            setattr(space, attr, False)
+    space.region_3d.view_perspective = "CAMERA"
+    yield 0.2
+    win, area, region = view3d()
+    with bpy.context.temp_override(window=win, screen=win.screen, area=area, region=region):
+        bpy.ops.view3d.view_center_camera()
+    yield 0.2
+    out["ticks"].clear()
+    last_tick[0] = time.perf_counter()
+    bpy.app.timers.register(tick, first_interval=0.02)
+    yield 1.0                                       # the timer in Solid mode: the baseline
+    out["ticks_solid"] = list(out["ticks"])
+    out["ticks"].clear()
+    t_rendered = time.perf_counter()
+    space.shading.type = "RENDERED"
+    log("RENDERED")
+    while state() is None or state().workers is None:
+        if time.perf_counter() - t_rendered > 20:
+            raise RuntimeError("the viewport never started: " + str(state() and state().message))
+        yield 0.05
+    st = state()
+    out["pids"] = st.workers.pids
+    first = None
+    while True:
+        version, rgba, samples, noise, level, error = st.workers.snapshot()
+        if error or st.message:
+            raise RuntimeError(f"viewport error: {error or st.message}")
+        if first is None and rgba is not None:
+            first = time.perf_counter() - t_rendered
+            out["first_frame_seconds"] = first
+            out["first_frame_level"] = level
+        if st.workers.converged() and st.drawn_version == version:
+            break
+        if time.perf_counter() - t_rendered > 40:
+            raise RuntimeError(f"viewport stuck at {samples} samples (level {level})")
+        yield 0.05
+    out["converged_seconds"] = time.perf_counter() - t_rendered
+    out["noise"] = noise
+    out["viewport_resolution"] = list(st.resolution)
+    out["frame"], out["area_size"] = frame_in_area()
+    yield 0.3                                       # one more redraw of the final film
+    out["before"] = screenshot("viewport.png")
+    out["ticks_while_rendering"] = list(out["ticks"])
+    out["draw_seconds"], out["upload_seconds"] = list(st.draw_seconds), list(st.upload_seconds)
+    out["export_seconds"] = st.last_export_seconds
+    out["exports_before_move"] = st.exports
+    # move the light: the viewport must show it within 2 s
+    light = next(ob for ob in scene.objects if ob.type == "LIGHT")
+    gen = st.workers.gen
+    t_move = time.perf_counter()
+    light.location.x -= 0.6
+    light.location.z -= 0.5
+    out["moved"] = light.name
+    while time.perf_counter() - t_move < 2.0:
+        yield 0.005
+        if "restart_seconds" not in out and st.workers.gen != gen:
+            out["restart_seconds"] = time.perf_counter() - t_move       # re-exported, workers told
+        if st.workers.gen != gen and st.workers.first_frame_seconds is not None:
+            out["first_new_frame_seconds"] = time.perf_counter() - t_move
+            break
+    shots = []
+    while time.perf_counter() - t_move < 2.5:
+        yield 0.1
+        shots.append([time.perf_counter() - t_move, screenshot(f"moved_{len(shots):02d}.png")])
+    out["moved_shots"] = shots
+    out["exports_after_move"] = st.exports
+    # the light back where it was, and a render border in camera view: only its pixels are
+    # rendered and drawn, and they show what the full view showed there
+    light.location.x += 0.6
+    light.location.z += 0.5
+    r = scene.render
+    r.use_border = True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.3, 0.7
+    t_border = time.perf_counter()
+    while not (st.border is not None and st.workers.converged() and st.drawn_version == st.workers.snapshot()[0]):
+        if time.perf_counter() - t_border > 20:
+            raise RuntimeError(f"border render stuck: {st.message} {st.workers.snapshot()[2:]}")
+        yield 0.05
+    yield 0.3
+    win, area, region = view3d()
+    dx, dy = region.x - area.x, region.y - area.y
+    out["border"] = [st.border[0] + dx, st.border[1] + dy, st.border[2] + dx, st.border[3] + dy]
+    out["border_resolution"] = list(st.resolution)
+    out["border_shot"] = screenshot("border.png")
+    # leave Rendered mode: the engine is freed and its workers stop
+    space.shading.type = "SOLID"
+    t_solid = time.perf_counter()
+    yield 0.5
+    import gc
+    gc.collect()
+    while any(os.path.exists(f"/proc/{p}") and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
+              for p in out["pids"]) and time.perf_counter() - t_solid < 5:
+        yield 0.1
+    out["workers_alive_after_solid"] = [p for p in out["pids"] if os.path.exists(f"/proc/{p}")
+                                        and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"]
+    # Rendered again, then Blender quits while the viewport renders: the test checks these die too
+    space.shading.type = "RENDERED"
+    t_again = time.perf_counter()
+    while (state() is None or state().workers is None) and time.perf_counter() - t_again < 10:
+        yield 0.05
+    out["pids_at_quit"] = state().workers.pids if state() is not None and state().workers else []
+    out["done"] = True
+
+
+def driver(gen=steps()):
+    try:
+        delay = next(gen)
+    except StopIteration:
+        finish()
+        return None
+    except Exception:                                # noqa: BLE001
+        finish(traceback.format_exc())
+        return None
+    return delay
+
+
+bpy.app.timers.register(driver, first_interval=1.0)

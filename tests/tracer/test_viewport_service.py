@@ -1,0 +1,114 @@
+"""Viewport worker processes (engine/viewport_service.py): coarse pass first, interleaved samples
+that add up to a final render's image, restarts on a new view without a rebuild, the noise
+estimate, shutdown without orphans."""
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from engine.default_scene import cornell_scene
+from engine.render import render
+from engine.settings import RenderSettings
+from engine.viewport_service import ViewportFilm, ViewportWorkers, coarse_resolution
+from tests.file_safety import alive
+
+SETTINGS = RenderSettings(max_depth=3, seed=5, accelerator="embree")
+
+
+def wait(workers, until, timeout=60.0):
+    deadline = time.perf_counter() + timeout
+    while time.perf_counter() < deadline:
+        snap = workers.snapshot()
+        assert snap[5] is None, snap[5]
+        if until(snap):
+            return snap
+        time.sleep(0.01)
+    raise AssertionError(f"timed out: {workers.snapshot()[2:5]}")
+
+
+@pytest.fixture
+def workers():
+    w = ViewportWorkers(sys.executable, 2)
+    yield w
+    w.close()
+    assert not any(alive(p) for p in w.pids)
+
+
+def test_coarse_first_then_the_final_render_image(workers):
+    scene = cornell_scene((40, 30))
+    frames = []
+    workers.on_frame = lambda: frames.append(workers.snapshot()[4])
+    workers.set_scene(scene, SETTINGS, 8)
+    version, rgba, samples, noise, level, _ = wait(workers, lambda s: s[4] == 1 and s[2] >= 8)
+    levels = [level for level in frames if level >= 0]            # -1: "ready" before any frame
+    assert levels[0] == 0 and levels[-1] == 1, "the first frame must be the coarse pass"
+    assert samples == 8 and rgba.shape == (30, 40, 4)
+    # two workers' interleaved sample numbers 0..7 = the final render with 8 samples (Sobol': a
+    # sample number is the same random numbers anywhere); row 0 of the film is the bottom
+    final = render(scene, replace(SETTINGS, samples=8, threads=1), log=lambda *a: None).image
+    np.testing.assert_allclose(rgba[::-1, :, :3], final, rtol=1e-4, atol=1e-5)
+    assert (rgba[..., 3] == 1).all()
+    time.sleep(0.3)
+    assert workers.snapshot()[0] == version, "workers must stop at the target"
+
+
+def test_a_new_view_restarts_without_rebuilding(workers):
+    scene = cornell_scene((32, 32))
+    workers.set_scene(scene, SETTINGS, 4)
+    wait(workers, lambda s: s[4] == 1 and s[2] >= 4)
+    time.sleep(0.1)
+    builds = workers.builds
+    assert builds == 2, "one session per worker"
+    narrow = replace(scene.camera, lens=scene.camera.lens * 2)
+    shapes = []
+    workers.on_frame = lambda: shapes.append((time.perf_counter(), workers.snapshot()[1]))
+    t0 = time.perf_counter()
+    workers.set_view(narrow, (24, 16))
+    wait(workers, lambda s: s[1] is not None)
+    first_time, coarse = next((t, img) for t, img in shapes if img is not None)
+    first = first_time - t0
+    assert coarse.shape[:2] == coarse_resolution((24, 16))[::-1]
+    _, rgba, *_ = wait(workers, lambda s: s[4] == 1 and s[2] >= 4)
+    assert rgba.shape[:2] == (16, 24) and workers.builds == builds
+    expected = render(replace(scene, camera=narrow, resolution=(24, 16)), replace(SETTINGS, samples=4, threads=1),
+                      log=lambda *a: None).image
+    np.testing.assert_allclose(rgba[::-1, :, :3], expected, rtol=1e-4, atol=1e-5)
+    print(f"view change: first (coarse) frame after {1000 * first:.0f} ms")
+
+
+def test_scene_errors_are_reported_not_raised(workers):
+    bad = cornell_scene((16, 16))
+    bad.camera = replace(bad.camera, lens=-1.0)
+    workers.set_scene(bad, SETTINGS, 2)
+    deadline = time.perf_counter() + 30
+    while workers.snapshot()[5] is None and time.perf_counter() < deadline:
+        time.sleep(0.01)
+    error = workers.snapshot()[5]
+    assert error and "lens" in error.lower() and "Traceback" not in error, error
+    workers.set_scene(cornell_scene((16, 16)), SETTINGS, 2)       # recovers on the next scene
+    wait(workers, lambda s: s[4] == 1 and s[2] >= 2)
+
+
+def test_noise_estimate_is_the_standard_error_of_the_pixel_means():
+    rng = np.random.default_rng(1)
+    film = ViewportFilm()
+    film.reset(1)
+    n, pixels, sd = 64, 500, 0.3
+    for _ in range(n):
+        x = 1.0 + sd * rng.standard_normal((pixels, 3))
+        assert film.add(1, 1, 25, 20, x, x * x, 1)
+    assert not film.add(0, 1, 25, 20, x, x * x, 1), "frames of an older view are dropped"
+    assert not film.add(1, 0, 5, 5, x[:25], x[:25] ** 2, 1), "a coarse frame never replaces a finer film"
+    expected = sd / np.sqrt(n)
+    assert abs(film.relative_error() / expected - 1) < 0.05, (film.relative_error(), expected)
+    # a black background (half the frame) changes nothing
+    film2 = ViewportFilm()
+    film2.reset(1)
+    rng = np.random.default_rng(1)
+    for _ in range(n):
+        x = 1.0 + sd * rng.standard_normal((pixels, 3))
+        x2 = np.concatenate([x, np.zeros_like(x)])
+        assert film2.add(1, 1, 50, 20, x2, x2 * x2, 1)
+    assert film2.relative_error() == pytest.approx(film.relative_error(), rel=1e-9)
