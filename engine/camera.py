@@ -78,6 +78,11 @@ class TileSamples:
         serial = np.arange(self.taken, self.taken + count)
         pixel, sample = serial % self.pixels, serial // self.pixels
         self.taken += count
+        return self.rays(pixel, sample)
+
+    def rays(self, pixel, sample):
+        """(pixel, sample, origins, directions): the jittered camera rays of these tile pixels'
+        samples (jitter from dimension pair 0 of the sampler)."""
         jx, jy = self.sampler.pair(pixel, sample, 0)
         sx = (pixel % self.tile_width + self.x0) + jx
         sy = (pixel // self.tile_width + self.y0) + jy

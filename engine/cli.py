@@ -187,16 +187,10 @@ def scene_inputs(path):
     return [path, os.path.splitext(path)[0] + ".npz"] if path else []
 
 
-def cmd_render(args) -> int:
+def scene_and_settings(args):
+    """The scene (a file or --builtin, at --resolution) and the validated settings of a command."""
     from .default_scene import BUILTIN_SCENES
-    from .memory import check_memory
-    from .render import render
     from .scene_io import load_scene
-
-    stop = StopRequest(PROG).install()
-    outputs = check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
-                             ("--stats-json", args.stats_json, "json")], inputs=scene_inputs(args.scene),
-                            base_dir=os.path.dirname(os.path.abspath(args.scene)) if args.scene else None)
     if args.scene and args.builtin:
         raise SceneError("give a scene file or --builtin, not both")
     scene = load_scene(args.scene) if args.scene else BUILTIN_SCENES[args.builtin or "cornell"]()
@@ -204,6 +198,18 @@ def cmd_render(args) -> int:
         scene.resolution = tuple(args.resolution)
     settings = settings_from_args(args)
     settings.validate()
+    return scene, settings
+
+
+def cmd_render(args) -> int:
+    from .memory import check_memory
+    from .render import render
+
+    stop = StopRequest(PROG).install()
+    outputs = check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
+                             ("--stats-json", args.stats_json, "json")], inputs=scene_inputs(args.scene),
+                            base_dir=os.path.dirname(os.path.abspath(args.scene)) if args.scene else None)
+    scene, settings = scene_and_settings(args)
     check_pass_outputs(args, outputs)
     scene.validate()
     check_memory(scene, settings)
@@ -244,19 +250,11 @@ def cmd_render(args) -> int:
 
 
 def cmd_estimate(args) -> int:
-    from .default_scene import BUILTIN_SCENES
     from .estimate import describe, estimate
     from .render import render
-    from .scene_io import load_scene
-    if args.scene and args.builtin:
-        raise SceneError("give a scene file or --builtin, not both")
     if args.noise_target <= 0:
         raise SceneError("estimate needs --noise-target REL (e.g. 0.01)")
-    scene = load_scene(args.scene) if args.scene else BUILTIN_SCENES[args.builtin or "cornell"]()
-    if args.resolution:
-        scene.resolution = tuple(args.resolution)
-    settings = settings_from_args(args)
-    settings.validate()
+    scene, settings = scene_and_settings(args)
     scene.validate()
     result = estimate(scene, settings, args.noise_target, render, pilot_samples=args.pilot_samples,
                       log=lambda *a: None)

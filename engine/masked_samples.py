@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera import camera_rays
+from .camera import TileSamples
 
 
 def pack_mask(active: np.ndarray) -> bytes:
@@ -47,8 +47,6 @@ class MaskedTileSamples:
         pixel = self.active[serial % n]
         sample = serial // n + self.first
         self.taken += count
-        jx, jy = self.sampler.pair(pixel, sample, 0)
-        sx = (pixel % self.tile_width + self.x0) + jx
-        sy = (pixel // self.tile_width + self.y0) + jy
-        origins, directions = camera_rays(self.camera, self.width, self.height, sx, sy)
-        return pixel, sample.astype(np.int64), origins, directions
+        return self.rays(pixel, sample)
+
+    rays = TileSamples.rays

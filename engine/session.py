@@ -214,6 +214,20 @@ class SessionFilm:
         return image_rel_error(self.mean().astype(np.float64), self.half_buffer_variance())
 
 
+def next_outcome(workers, timeout: float):
+    """(came, result, error) of the next unit from `workers` (engine/workers.py interface): came
+    is False when none finished within `timeout`; result is None for a cancelled or failed unit;
+    a failed unit cancels the others (its error is raised once they have stopped)."""
+    item = workers.next_result(timeout=timeout)
+    if item is None:
+        return False, None, None
+    _, result, exc = item
+    if exc is not None:
+        workers.cancel()
+        return True, None, exc
+    return True, result, None
+
+
 class RenderSession:
     """Scene preparation (validation, effect plan, BVH, lights) once; units rendered on demand."""
 
@@ -304,6 +318,12 @@ class RenderSession:
         self.totals.merge(result.counters)
         return self.film.add(result)
 
+    def add_and_show(self, result: UnitResult, on_tile=None) -> None:
+        """Merge a unit's result and hand every tile it changed to on_tile(x0, y0, x1, y1, pixels)."""
+        for tile in self.add(result):
+            if on_tile is not None:
+                on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
+
     def run(self, workers, on_tile=None, should_cancel=None, on_progress=None) -> RenderResult:
         """Render every unit on `workers` (start(units), next_result(timeout), cancel(), close():
         engine/workers.py, engine/cluster.py).  Callbacks run on the calling thread: on_tile(x0, y0,
@@ -320,20 +340,14 @@ class RenderSession:
                 if should_cancel is not None and not cancelled and should_cancel():
                     cancelled = True
                     workers.cancel()
-                item = workers.next_result(timeout=0.1)
-                if item is None:
+                came, result, exc = next_outcome(workers, 0.1)
+                if not came:
                     continue
-                unit, result, exc = item
                 done += 1
-                if exc is not None:
-                    error = error or exc
-                    workers.cancel()
+                error = error or exc
+                if result is None:                         # failed, or cancelled: dropped whole
                     continue
-                if result is None:                         # cancelled: dropped whole
-                    continue
-                for tile in self.add(result):
-                    if on_tile is not None:
-                        on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
+                self.add_and_show(result, on_tile)
                 if on_progress is not None:
                     elapsed = max(time.perf_counter() - start, 1e-9)
                     rate = sum(self.totals.rays.values()) / elapsed / 1e6

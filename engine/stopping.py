@@ -93,7 +93,7 @@ class PassState:
 
 def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=None, clock=time.perf_counter):
     """RenderSession.run under stopping rules; the same callbacks.  `clock` is replaceable (tests)."""
-    from .session import WorkUnit
+    from .session import WorkUnit, next_outcome
     s = session.settings
     state = PassState(session)
     schedule = pass_schedule(s.samples, effective_min_samples(s))
@@ -144,20 +144,13 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
                     elif s.time_limit > 0 and clock() - start >= s.time_limit:
                         timed_out = True
                         workers.cancel()
-                item = workers.next_result(timeout=0.05)
-                if item is None:
+                came, result, exc = next_outcome(workers, 0.05)
+                if not came:
                     continue
-                unit, result, exc = item
                 done += 1
-                if exc is not None:
-                    error = error or exc
-                    workers.cancel()
-                    continue
-                if result is None:
-                    continue
-                for tile in session.add(result):
-                    if on_tile is not None:
-                        on_tile(tile.x0, tile.y0, tile.x1, tile.y1, session.film.mean(tile))
+                error = error or exc
+                if result is not None:
+                    session.add_and_show(result, on_tile)
             if error is not None or cancelled or timed_out:
                 break
             pass_log.append((float(session.film.count.sum()) - samples_before, clock() - pass_start))

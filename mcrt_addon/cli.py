@@ -174,19 +174,29 @@ def render_file(args):
         shutil.rmtree(private, ignore_errors=True)
 
 
-def render_in(args, blend, outputs, stop, private):
+def open_blend(blend, private):
+    """Open `blend` in Blender with the add-on registered and Blender's temporary files in
+    `private`; None, or the one-line reason it could not be opened."""
     import bpy
     import mcrt_addon
-    from mcrt_addon import engine as engine_module
-    from mcrt_addon.reference import setup_cycles_reference
-
     bpy.context.preferences.filepaths.temporary_directory = private
     ensure_registered(mcrt_addon)
     try:
         bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
     except RuntimeError as exc:
-        return error(str(exc).strip().removeprefix("Error: ").splitlines()[0])
+        return str(exc).strip().removeprefix("Error: ").splitlines()[0]
     ensure_registered(mcrt_addon)
+    return None
+
+
+def render_in(args, blend, outputs, stop, private):
+    import bpy
+    from mcrt_addon import engine as engine_module
+    from mcrt_addon.reference import setup_cycles_reference
+
+    problem = open_blend(blend, private)
+    if problem:
+        return error(problem)
     scene = bpy.context.scene
     if args.frame is not None:
         scene.frame_set(args.frame)
@@ -254,15 +264,10 @@ def estimate_file(args):
     private = tempfile.mkdtemp(prefix="tncg15-")
     try:
         import bpy
-        import mcrt_addon
         from mcrt_addon.estimate import estimate_scene
-        bpy.context.preferences.filepaths.temporary_directory = private
-        ensure_registered(mcrt_addon)
-        try:
-            bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
-        except RuntimeError as exc:
-            return error(str(exc).strip().removeprefix("Error: ").splitlines()[0])
-        ensure_registered(mcrt_addon)
+        problem = open_blend(blend, private)
+        if problem:
+            return error(problem)
         scene = bpy.context.scene
         if args.resolution:
             scene.render.resolution_x, scene.render.resolution_y = args.resolution

@@ -367,12 +367,4 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
 
 classes = (TNCG15RenderEngine,)
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

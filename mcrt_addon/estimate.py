@@ -58,12 +58,4 @@ class TNCG15_OT_estimate_render_time(bpy.types.Operator):
 
 classes = (TNCG15_OT_estimate_render_time,)
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

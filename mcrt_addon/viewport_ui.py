@@ -17,12 +17,4 @@ class RENDER_PT_tncg15_sampling_viewport(TNCG15ButtonsPanel, bpy.types.Panel):
 
 classes = (RENDER_PT_tncg15_sampling_viewport,)
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)
