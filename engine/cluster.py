@@ -355,8 +355,8 @@ class DaskWorkers:
 
 # Dask settings for render workers: the statistical profiler samples every running thread's stack
 # every 10 ms (holding the GIL the NumPy bounce needs) and the monitors tick often; off or slower,
-# a unit renders a few per cent faster (bench-cluster against the local pool: +19 % to +35 % across
-# runs on this 2-core machine, about +26 % without them).
+# a unit renders a few per cent faster (bench-cluster against the local pool: +5 % to +7 % with
+# them, README "Rendering on several machines").
 RENDER_WORKER_CONFIG = {
     "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
     "DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL": "1s",
