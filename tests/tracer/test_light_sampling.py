@@ -19,7 +19,7 @@ from engine.scene import Camera, Material, Quad, Scene, Sphere, TriangleMesh
 from .test_sampling import ALPHA, pooled_chi2
 
 N = 200_000
-N_CONFIGS = 19                      # Sidak correction over the chi-square configurations below
+N_CONFIGS = 23                      # Sidak correction over the chi-square configurations below
 ALPHA_EACH = 1.0 - (1.0 - ALPHA) ** (1.0 / N_CONFIGS)
 
 
@@ -158,6 +158,54 @@ def test_sphere_cone_chi2(distance):
     p, _ = pooled_chi2(np.bincount(cells, minlength=kz * kp), np.full(kz * kp, N / (kz * kp)))
     assert p > ALPHA_EACH
     assert np.allclose(pdf, 1.0 / (2 * np.pi * (1.0 - cos_max)), rtol=1e-6)
+
+
+def cone_chi2(w, axis, one_minus_cos_max, kz=10, kp=8):
+    """p-value of unit rows-of-directions w (N, 3) being uniform in the cone about `axis`."""
+    one_minus = (1.0 - w @ axis) / one_minus_cos_max
+    t1 = np.cross(axis, [0.3, 0.5, 0.8])
+    t1 /= np.linalg.norm(t1)
+    phi = np.arctan2(w @ np.cross(axis, t1), w @ t1) % (2 * np.pi)
+    assert one_minus.max() <= 1.0 + 1e-6
+    cells = (np.minimum((one_minus * kz).astype(int), kz - 1) * kp
+             + np.minimum((phi / (2 * np.pi) * kp).astype(int), kp - 1))
+    return pooled_chi2(np.bincount(cells, minlength=kz * kp), np.full(kz * kp, len(w) / (kz * kp)))[0]
+
+
+@pytest.mark.parametrize("distance", [0.05, 1.0, 200.0])
+def test_point_light_disk_cone_chi2(distance):
+    """Point and spot lights of radius r: directions uniform in the cone of the disk facing the
+    receiver (half-angle atan(r / d)), points on that disk, pdf 1 / (2 pi (1 - cos))."""
+    from engine.lights.points import PointLights
+    from engine.scene import PointLight
+    centre, r = np.array([0.2, -0.1, 0.4]), 0.1
+    lights = PointLights([PointLight("Bulb", tuple(centre), (1.0, 1.0, 1.0), r)])
+    axis = np.array([2.0, -1.0, 2.0]) / 3.0
+    x = centre - distance * axis
+    rng = np.random.default_rng(7)
+    point, normal, pdf = lights.sample(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N), True)
+    assert np.abs((point.T - centre) @ axis).max() < 1e-9 * max(distance, 1.0)       # on the facing disk
+    assert np.linalg.norm(point.T - centre, axis=1).max() <= r * (1 + 1e-9)
+    w = point.T - x
+    w /= np.linalg.norm(w, axis=1)[:, None]
+    one_minus_max = 1.0 - distance / np.hypot(distance, r)
+    assert cone_chi2(w, axis, one_minus_max) > ALPHA_EACH
+    assert np.allclose(pdf, 1.0 / (2 * np.pi * one_minus_max), rtol=1e-6)
+
+
+@pytest.mark.parametrize("angle", [1e-3, 0.1])
+def test_sun_cone_chi2(angle):
+    """A sun of angular diameter `angle`: directions uniform in the cone of half-angle angle / 2."""
+    from engine.lights.distant import DistantLights
+    from engine.scene import SunLight
+    travel = np.array([1.0, 2.0, -2.0]) / 3.0
+    suns = DistantLights([SunLight("Sun", tuple(travel), (1.0, 1.0, 1.0), angle)], (0.0, 0.0, 0.0), 1.0)
+    rng = np.random.default_rng(8)
+    n = at((0.0, 0.0, 1.0), N)
+    d, pdf, slot = suns.sample(n, rng.random(N), rng.random(N), rng.random(N))
+    one_minus_max = 1.0 - np.cos(angle / 2)
+    assert cone_chi2(d.T, -travel, one_minus_max) > ALPHA_EACH
+    assert np.allclose(pdf, 1.0 / (2 * np.pi * one_minus_max), rtol=1e-6) and (slot == 0).all()
 
 
 def test_chi2_rejects_the_area_sampler_as_a_solid_angle_sampler():
