@@ -1,4 +1,5 @@
-"""Panels, laid out as Cycles lays out its render properties: Sampling, Light Paths, Performance,
+"""Panels, laid out as Cycles lays out its render properties: Sampling (Viewport, Render, Lights,
+Advanced), Light Paths, Performance, Denoising, View Layer passes,
 plus an object panel for the implicit-sphere option.  Also lends our engine id to Blender's generic
 panels (output, dimensions, camera, light, material and world surface) the way the RenderEngine
 documentation template does."""
@@ -27,12 +28,37 @@ class TNCG15ButtonsPanel:
 
 
 class RENDER_PT_tncg15_sampling(TNCG15ButtonsPanel, bpy.types.Panel):
+    """Sampling, with Cycles' sub-panels: Viewport, Render, Lights, Advanced."""
     bl_label = "Sampling"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        pass
+
+
+class TNCG15SamplingChild(TNCG15ButtonsPanel):
+    bl_parent_id = "RENDER_PT_tncg15_sampling"
+
+
+def split(layout):
+    """The layout with labels on the left and no animation decorators (Cycles' property style)."""
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    return layout
+
+
+class RENDER_PT_tncg15_sampling_viewport(TNCG15SamplingChild, bpy.types.Panel):
+    bl_label = "Viewport"
+
+    def draw(self, context):
+        split(self.layout).column(align=True).prop(context.scene.tncg15, "viewport_samples", text="Max Samples")
+
+
+class RENDER_PT_tncg15_sampling_render(TNCG15SamplingChild, bpy.types.Panel):
+    """Render: the stopping rules (README: Stopping rules) and the render-time estimate."""
+    bl_label = "Render"
+
+    def draw(self, context):
+        layout = split(self.layout)
         props = context.scene.tncg15
         heading = layout.column(align=True, heading="Noise Target")
         row = heading.row(align=True)
@@ -49,12 +75,29 @@ class RENDER_PT_tncg15_sampling(TNCG15ButtonsPanel, bpy.types.Panel):
         sub = layout.column()
         sub.active = props.use_noise_target
         sub.prop(props, "adaptive")
-        layout.prop(props, "shadow_rays")
-        layout.prop(props, "seed")
-        layout.prop(props, "sampler")
         layout.operator("tncg15.estimate_render_time", icon="TIME")
         if props.estimate_text:
             layout.label(text=props.estimate_text)
+
+
+class RENDER_PT_tncg15_sampling_lights(TNCG15SamplingChild, bpy.types.Panel):
+    """Lights: how many shadow rays each diffuse hit sends (eq. 2.11)."""
+    bl_label = "Lights"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        split(self.layout).prop(context.scene.tncg15, "shadow_rays")
+
+
+class RENDER_PT_tncg15_sampling_advanced(TNCG15SamplingChild, bpy.types.Panel):
+    bl_label = "Advanced"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = split(self.layout)
+        props = context.scene.tncg15
+        layout.prop(props, "sampler")
+        layout.prop(props, "seed")
 
 
 class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):
@@ -147,7 +190,8 @@ class OBJECT_PT_tncg15(bpy.types.Panel):
         layout.prop(context.object.tncg15, "implicit_sphere")
 
 
-classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_light_paths, RENDER_PT_tncg15_performance,
+classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_sampling_viewport, RENDER_PT_tncg15_sampling_render,
+           RENDER_PT_tncg15_sampling_lights, RENDER_PT_tncg15_sampling_advanced, RENDER_PT_tncg15_light_paths, RENDER_PT_tncg15_performance,
            RENDER_PT_tncg15_denoise, VIEWLAYER_PT_tncg15_passes, OBJECT_PT_tncg15)
 
 _lent = []   # panels we added our engine id to, so unregister removes exactly those

@@ -81,3 +81,50 @@ def test_panels_registered_and_polled(empty_scene):
     # generic panels (e.g. output / dimensions) are lent our engine id
     lent = [p.__name__ for p in bpy.types.Panel.__subclasses__() if "TNCG15_MC" in getattr(p, "COMPAT_ENGINES", ())]
     assert any(n.startswith("RENDER_PT_format") or n.startswith("RENDER_PT_output") for n in lent), lent
+
+
+class RecordingLayout:
+    """Stands in for a UILayout: records the properties and operators drawn."""
+
+    def __init__(self, seen):
+        self.seen = seen
+
+    def __getattr__(self, name):                    # use_property_split, active, ...: accepted
+        return None
+
+    def __setattr__(self, name, value):
+        if name == "seen":
+            object.__setattr__(self, name, value)
+
+    def column(self, **kw):
+        return self
+
+    row = column
+
+    def prop(self, data, name, **kw):
+        self.seen.append(name)
+
+    def operator(self, name, **kw):
+        self.seen.append(name)
+
+    def label(self, **kw):
+        pass
+
+
+def test_sampling_panel_has_cycles_sub_panels_and_draws_every_setting_once(empty_scene):
+    """Render Properties > Sampling as Cycles: Viewport, Render, Lights, Advanced sub-panels (in that
+    order of registration, which is the order Blender shows them)."""
+    import mcrt_addon.ui as ui
+    children = [c for c in ui.classes if getattr(c, "bl_parent_id", "") == "RENDER_PT_tncg15_sampling"]
+    assert [c.bl_label for c in children] == ["Viewport", "Render", "Lights", "Advanced"]
+
+    class Ctx:
+        engine = "TNCG15_MC"
+        scene = empty_scene
+    seen = []
+    from types import SimpleNamespace
+    for cls in children:
+        cls.draw(SimpleNamespace(layout=RecordingLayout(seen)), Ctx)
+    assert sorted(seen) == sorted(["viewport_samples", "use_noise_target", "noise_target", "samples", "min_samples",
+                                   "time_limit", "adaptive", "tncg15.estimate_render_time", "shadow_rays",
+                                   "sampler", "seed"])
