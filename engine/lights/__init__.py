@@ -116,11 +116,11 @@ class SpotFalloff:
         self.points, self.first = points, first
 
     def falloff(self, light, direction, radiance):
+        """`radiance` (the caller's own copy) scaled in place where the light is a spot."""
         local = light - self.first
         sel = np.flatnonzero((local >= 0) & (local < self.points.count))
         if not len(sel):
             return radiance
-        radiance = np.array(radiance)
         radiance[:, sel] *= self.points.spot_factor(local.take(sel), -direction.take(sel, axis=1))
         return radiance
 

@@ -57,11 +57,12 @@ class SeenLamps:
                            self.visible["glossy"][:, None])               # (lights, N)
         for slot, j in enumerate(self.bulbs):
             c, r = self.points.center[:, j], float(self.points.radius[j])
-            outside = dot(o - c[:, None], o - c[:, None]) > r * r
+            away = o - c[:, None]                                        # from the light to the origins
+            outside = dot(away, away) > r * r
             t = intersect_sphere(o, d, c, r, tmax)
             hit = np.flatnonzero(visible[slot] & outside & (t < tmax))
             if len(hit):
-                emitted = o.take(hit, axis=1) - c[:, None]               # from the light to the origin
+                emitted = away.take(hit, axis=1)
                 emitted = emitted / np.sqrt(dot(emitted, emitted))
                 factor = self.points.spot_factor(np.full(len(hit), j), emitted)
                 total[:, hit] += self.points.radiance_rows[:, j:j + 1] * factor
