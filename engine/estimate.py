@@ -27,7 +27,7 @@ import dataclasses
 
 import numpy as np
 
-from .error_estimate import BLOCK, REL_FLOOR, box3
+from .error_estimate import BLOCK, rel_terms
 from .stopping import effective_min_samples, pass_schedule
 
 PILOT_SAMPLES = 64
@@ -36,8 +36,7 @@ TAIL_PATHS = 8192
 
 def block_unit_variance(mean: np.ndarray, var: np.ndarray, count: np.ndarray, block: int = BLOCK):
     """(U_b, pixels_b) per block: the mean relative variance of one sample, and the pixel count."""
-    smooth = box3(np.nan_to_num(mean))
-    u = np.mean(var / (smooth * smooth + REL_FLOOR), axis=-1) * count
+    u = rel_terms(mean, var) * count
     u = np.where(np.isfinite(u), u, 0.0)
     h, w = u.shape
     bh, bw = -(-h // block), -(-w // block)
