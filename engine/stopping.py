@@ -23,6 +23,7 @@ cancelled at the limit are lost work: up to a third of the render with uncut pas
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -30,7 +31,8 @@ import numpy as np
 from .error_estimate import BLOCK, block_rel_errors, half_buffer_variance, seconds_to_target
 from .masked_samples import pack_mask
 
-FIRST_PASS = 8             # samples of the first pass (auto min samples)
+FIRST_PASS = 8             # samples of the first pass at least
+AUTO_MIN_SAMPLES_CAP = 128  # automatic min samples at most (Cycles' guess at T = 0.001)
 
 
 def pass_schedule(samples: int, min_samples: int = 0) -> list[tuple[int, int]]:
@@ -45,7 +47,18 @@ def pass_schedule(samples: int, min_samples: int = 0) -> list[tuple[int, int]]:
 
 
 def effective_min_samples(settings) -> int:
-    return min(settings.samples, settings.min_samples or FIRST_PASS)
+    """Min samples; 0 is automatic: FIRST_PASS, and with a noise target T Cycles' guess
+    ceil(16 / T^0.3) (T = 0.1 -> 32, 0.01 -> 64; at most 128).  Heavy-tailed noise (caustics) hides
+    from a pixel's first samples: a block that has not met its rare bright paths reads converged.
+    Measured on the caustic room at 96x96, target 12 %, 20 seeds, adaptive: min 8 stopped at a mean
+    of 37 spp with an actual E of 16.9 % RMS over the seeds (1.41x the target), min 32 at 72 spp with
+    13.7 % (1.14x), min 64 at 134 spp with 12.1 %."""
+    if settings.min_samples:
+        return min(settings.samples, settings.min_samples)
+    auto = FIRST_PASS
+    if settings.noise_target > 0:
+        auto = max(FIRST_PASS, min(AUTO_MIN_SAMPLES_CAP, math.ceil(16.0 / settings.noise_target ** 0.3)))
+    return min(settings.samples, auto)
 
 
 class PassState:

@@ -1,5 +1,6 @@
 """The stopping rules in Blender: Sampling panel properties, the estimate operator, both CLI verbs."""
 import json
+import re
 
 import bpy
 import pytest
@@ -48,7 +49,8 @@ def test_cli_estimate_prints_a_prediction(tmp_path):
     lines = r.stdout.strip().splitlines()
     assert "to 5 %" in lines[-2] or "cap of" in lines[-2]
     e = json.loads(lines[-1])
-    assert e["seconds"] > 0 and e["pilot_samples"] == 64 and e["resolution"] == [32, 32]
+    # the pilot is the real render's passes up to the first pass end at or past 64 samples
+    assert e["seconds"] > 0 and 64 <= e["pilot_samples"] < 96 and e["resolution"] == [32, 32]
 
 
 @pytest.mark.parametrize("args,fragment", [
@@ -78,5 +80,5 @@ def test_blender34_binary_shows_the_error_in_the_stats_line(tmp_path):
                     "-E", "TNCG15_MC", "-o", str(tmp_path / "out_####"), "-F", "OPEN_EXR", "-f", "1",
                     env=b34.user_env())
     assert r.returncode == 0 and (tmp_path / "out_0001.exr").exists(), r.stdout[-3000:] + r.stderr[-3000:]
-    assert "Sample 8/512 · est. error" in r.stdout
+    assert re.search(r"Sample \d+/512 · est\. error", r.stdout), r.stdout[-3000:]
     assert "(stopped by noise target)" in r.stdout and "Traceback" not in r.stdout + r.stderr
