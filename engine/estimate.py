@@ -34,31 +34,43 @@ PILOT_SAMPLES = 64
 TAIL_PATHS = 8192
 
 
-def block_unit_variance(mean: np.ndarray, var: np.ndarray, count: np.ndarray, block: int = BLOCK):
-    """(U_b, pixels_b) per block: the mean relative variance of one sample, and the pixel count."""
-    u = rel_terms(mean, var) * count
-    u = np.where(np.isfinite(u), u, 0.0)
-    h, w = u.shape
+def block_sums(values: np.ndarray, block: int = BLOCK):
+    """(sum over each block, pixels in each block, max over each block), blocks flattened."""
+    h, w = values.shape
     bh, bw = -(-h // block), -(-w // block)
     padded = np.zeros((bh * block, bw * block))
     inside = np.zeros_like(padded)
-    padded[:h, :w], inside[:h, :w] = u, 1.0
-    sums = padded.reshape(bh, block, bw, block).sum(axis=(1, 3)).ravel()
-    pixels = inside.reshape(bh, block, bw, block).sum(axis=(1, 3)).ravel()
+    padded[:h, :w], inside[:h, :w] = values, 1.0
+    tiles = padded.reshape(bh, block, bw, block)
+    return (tiles.sum(axis=(1, 3)).ravel(), inside.reshape(bh, block, bw, block).sum(axis=(1, 3)).ravel(),
+            tiles.max(axis=(1, 3)).ravel())
+
+
+def block_unit_variance(mean: np.ndarray, var: np.ndarray, count: np.ndarray, block: int = BLOCK):
+    """(U_b, pixels_b) per block: the mean relative variance of one sample, and the pixel count."""
+    u = rel_terms(mean, var) * count
+    sums, pixels, _ = block_sums(np.where(np.isfinite(u), u, 0.0), block)
     return sums / np.maximum(pixels, 1), pixels
 
 
-def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, tile_of_block=None) -> dict:
+def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, tile_of_block=None,
+           samples=None, done: int = 0) -> dict:
     """The pass schedule of engine/stopping.py played on blocks; pixel-samples, error, stop, and the
-    cost units sum over passes of (N + TAIL_PATHS H) (module doc)."""
+    cost units sum over passes of (N + TAIL_PATHS H) (module doc).  From the start, or, with
+    `samples` (each block's samples so far) and `done` (the pass end the pilot reached), from there
+    on: the blocks still active are those that got the pilot's last pass."""
     weights = pixels / pixels.sum()
     tile_of_block = np.zeros(len(unit_var), dtype=int) if tile_of_block is None else tile_of_block
     work = 0.0
-    samples = np.zeros(len(unit_var))
-    active = np.ones(len(unit_var), dtype=bool)
+    samples = np.zeros(len(unit_var)) if samples is None else np.asarray(samples, dtype=float).copy()
+    active = samples >= done
     minimum = effective_min_samples(settings)
     error, stopped_by = float("nan"), "samples"
+    if done > 0 and settings.adaptive:         # the decision the real render takes after that pass
+        active &= ~((unit_var / samples <= target * target) & (samples >= minimum))
     for _, stop in pass_schedule(settings.samples, minimum):
+        if stop <= done:
+            continue
         if not active.any():
             stopped_by = "noise target"
             break
@@ -85,19 +97,31 @@ def tiles_of_blocks(shape, tile_size: int, block: int = BLOCK) -> np.ndarray:
     return ((by * block // tile_size) * tiles_x + bx * block // tile_size).ravel()
 
 
+def pilot_stop(settings, pilot_samples: int) -> int:
+    """The first pass end of the real render's schedule at or after `pilot_samples` (or its cap), so
+    that the pilot's passes are the real render's first passes."""
+    for _, stop in pass_schedule(settings.samples, effective_min_samples(settings)):
+        if stop >= pilot_samples:
+            return stop
+    return settings.samples
+
+
 def predict(film, seconds: float, settings, target: float, pass_log=(), tile_size: int = 64,
-            halves_per_pass: int = 0) -> dict:
-    """The prediction from a uniform pilot's film (SessionFilm), its render seconds, its passes
-    [(pixel-samples, seconds)] and unit halves per pass: b from the passes after the first,
-    else from the whole pilot."""
-    unit_var, pixels = block_unit_variance(film.mean().astype(np.float64), film.half_buffer_variance(),
-                                           film.samples_per_pixel)
-    played = replay(unit_var, pixels, settings, target, tiles_of_blocks(film.count.shape, tile_size))
+            halves_per_pass: int = 0, done: int = 0) -> dict:
+    """The prediction from a pilot's film (SessionFilm), its render seconds, its passes
+    [(pixel-samples, seconds)] and unit halves per pass: b from the passes after the first, else from
+    the whole pilot.  `done` > 0: the pilot was the real render's first passes up to that pass end
+    (its seconds are part of the prediction, the replay goes on from its blocks); 0: a uniform pilot
+    that the replay starts over."""
+    count = film.samples_per_pixel
+    unit_var, pixels = block_unit_variance(film.mean().astype(np.float64), film.half_buffer_variance(), count)
+    samples = block_sums(count)[2] if done else None
+    played = replay(unit_var, pixels, settings, target, tiles_of_blocks(film.count.shape, tile_size), samples, done)
     log = list(pass_log)
     later = log[1:] or log
     work = sum(n + TAIL_PATHS * halves_per_pass for n, _ in later)
     b = sum(t for _, t in later) / work if work > 0 else seconds / max(float(film.count.sum()), 1.0)
-    played["seconds"] = played["work"] * b
+    played["seconds"] = played["work"] * b + (seconds if done else 0.0)
     played["reachable"] = played["stopped_by"] == "noise target"
     return played
 
@@ -105,18 +129,24 @@ def predict(film, seconds: float, settings, target: float, pass_log=(), tile_siz
 def estimate(scene, settings, target: float, render, pilot_samples: int = PILOT_SAMPLES, **render_kwargs) -> dict:
     """Render the pilot with `render(scene, settings, **render_kwargs)` (engine.render.render or
     engine.service.render_in_workers) and predict the real render under `settings` with noise
-    target `target` (the settings' own time limit is ignored)."""
+    target `target` (the settings' own time limit is ignored).  The pilot is the real render's own
+    first passes (module doc): when it reaches the target, it is the prediction."""
     real = dataclasses.replace(settings, noise_target=target, time_limit=0.0)
-    pilot = dataclasses.replace(settings, samples=min(settings.samples, pilot_samples), noise_target=1e-9,
-                                adaptive=False, time_limit=0.0)
+    done = pilot_stop(real, pilot_samples)
+    pilot = dataclasses.replace(real, samples=done, sample_net=real.sample_net or real.samples)
     result = render(scene, pilot, **render_kwargs)
     if result.cancelled or result.film is None:
         raise RuntimeError("the pilot render was cancelled")
     seconds = result.stats["render_seconds"]
     st = result.stats
     passes = max(st.get("passes") or 1, 1)
-    out = predict(result.film, seconds, real, target, st.get("pass_log", ()), st["tile_size"],
-                  2 * st["units"] // passes)
+    if st.get("stopped_by") == "noise target":
+        spp = result.film.samples_per_pixel
+        out = {"pixel_samples": float(spp.sum()), "mean_samples": float(spp.mean()), "stopped_by": "noise target",
+               "error": st["estimated_rel_error"], "work": 0.0, "seconds": seconds, "reachable": True}
+    else:
+        out = predict(result.film, seconds, real, target, st.get("pass_log", ()), st["tile_size"],
+                      2 * st["units"] // passes, done=done)
     out.update({"target_rel_error": target, "pilot_samples": pilot.samples, "pilot_seconds": seconds,
                 "pilot_rel_error": result.stats.get("estimated_rel_error"),
                 "setup_seconds": result.stats.get("setup_seconds"), "samples_cap": settings.samples,

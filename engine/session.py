@@ -276,7 +276,8 @@ class RenderSession:
         width, height = self.scene.resolution
         counters = Counters()
         rng = np.random.default_rng([s.seed, tile.index, unit.start])
-        sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.samples, s.shadow_rays)
+        sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.sample_net or s.samples,
+                                s.shadow_rays)
                    if s.sampler == "sobol" else RandomSampler(rng))
         features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
                     if self.plan.passes else None)

@@ -24,6 +24,7 @@ INT_LIMITS = {
     "seed": (0, INT32_MAX),
     "tile_size": (8, 16384),
     "min_samples": (0, INT32_MAX),
+    "sample_net": (0, INT32_MAX),
 }
 
 
@@ -38,6 +39,10 @@ class RenderSettings:
     nested_dielectrics: bool = False  # medium stack: glass in glass refracts by the IOR ratio
     estimator: str = "mis"        # ESTIMATORS: how direct light is estimated
     sampler: str = "sobol"        # SAMPLERS: where the uniform numbers come from
+    # The size of each pixel's Sobol' net (engine/qmc.py: sample i depends on it); 0 = samples.
+    # Estimate Render Time's pilot (engine/estimate.py) renders the real render's first passes with
+    # the real render's nets, and so the very samples that render starts with.
+    sample_net: int = 0
     threads: int = 0              # 0 = all cores
     seed: int = 0
     tile_size: int = 64
