@@ -1,10 +1,13 @@
 """Estimate render time: a short pilot render predicts the time to reach a noise target.
 
-The pilot renders the scene at its resolution with `pilot_samples` (64) samples per pixel, uniformly,
-in the passes of the stopping rules (engine/stopping.py), so every pixel has two half buffers.
-From it, per pixel p, u_p = n_p * Var[m_p] / (R_p^2 + 0.01) (engine/error_estimate.py) is the
-relative variance of one sample: after s samples the pixel's term is u_p / s.  The prediction
-replays the real render's pass schedule on 8x8 blocks (U_b = mean of u_p over the block):
+The pilot is the real render's own beginning: the real settings (noise target, min samples,
+adaptive, the sample cap's Sobol' nets via `sample_net`) stopped at the first pass end of the real
+pass schedule (engine/stopping.py) at or past `pilot_samples` (64).  Its passes, and its adaptive
+decisions, are therefore exactly those the real render takes first; if it reaches the target, it
+is the prediction.  Otherwise, per pixel p, u_p = n_p * Var[m_p] / (R_p^2 + 0.01)
+(engine/error_estimate.py) is the relative variance of one sample: after s samples the pixel's
+term is u_p / s.  The prediction replays the rest of the pass schedule on 8x8 blocks
+(U_b = mean of u_p over the block), from each block's samples so far:
 
 * every active block gets the pass's samples; with adaptive sampling a block whose error
   sqrt(U_b / s_b) is at or below the target (after min samples) stops;
@@ -15,11 +18,21 @@ and prices each replayed pass as b (N + TAIL_PATHS H): N pixel-samples in H unit
 per tile with active blocks and half buffer), each of which ends with a tail of few paths that costs
 about as much as TAIL_PATHS more paths (measured on the near-lamp room: 5.0 us per pixel-sample in
 passes of 9k paths per unit half, 2.6 us at 233k: b = 2.5 us, TAIL_PATHS ~ 8.9k).  b comes from the
-pilot's passes after the first (the first pays the workers' warm-up).  At 16 spp the pilot misses much of the rare bright
-paths' variance (the Cornell box's caustics: E reads 15 % low, the samples 30 % low); at 32 the
-predicted samples were 0.79 of the real render's on the Cornell box at 96x96, at 64 0.94 (near-lamp
-room: 0.81, 0.99): 64 it is.  Setup (scene
-preparation, worker start) is reported apart, as `setup_seconds`.
+pilot's passes after the first (the first pays the workers' warm-up); the pilot's own seconds are
+part of the predicted time.  Setup (scene preparation, worker start) is reported apart, as
+`setup_seconds`.
+
+The replay assumes each block's error keeps falling as 1/s, the expectation for an unbiased
+estimate.  Where it does (96x96, predicted / real mean spp: Cornell box 728/744, near-lamp room
+791/809, many lights 935/957) the replay follows the real render pass by pass.  Heavy-tailed
+noise does not: on the caustic room the blocks still active after the pilot are those that met a
+rare caustic path, and their estimates then fall as about s^-1.4 to s^-2 until the next one (the
+path's contribution is diluted, few new ones come): the real render stops earlier than the
+replay, 1.4-1.8x fewer samples over 6 seeds.  Fitting that exponent from the pilot's passes
+(clamped to 1-2) fixed the caustic room but predicted 0.70x on the Cornell box (whose early passes
+also fall faster than 1/s); splitting off outlier pixels as decaying events predicted 0.2-0.8x.
+Neither is used: the replay stays the expectation, and on heavy-tailed scenes it is closer to the
+time at which the actual error (not the estimate) reaches the target.
 """
 from __future__ import annotations
 

@@ -244,6 +244,24 @@ def test_predicted_samples_match_a_real_render_within_30_percent():
     assert 0.7 <= ratio <= 1.3, (predicted, real.stats["samples_per_pixel"])
 
 
+def test_a_pilot_that_reaches_the_target_is_the_real_render():
+    """The pilot is the real render's first passes, with the real render's Sobol' nets: where the
+    real render ends inside it, the prediction is that render, sample for sample.  Control: the
+    same passes with the pilot's own cap as the net size (no sample_net) are another render."""
+    from dataclasses import replace
+    from engine.estimate import estimate
+    sc = scene("cornell", 32)
+    settings = RenderSettings(samples=4096, noise_target=0.25)
+    predicted = estimate(sc, settings, 0.25, render, **QUIET)
+    real = render(sc, settings, **QUIET)
+    assert real.stats["samples_per_pixel"]["max"] < predicted["pilot_samples"]
+    assert predicted["mean_samples"] == real.stats["samples_per_pixel"]["mean"]
+    assert predicted["error"] == real.stats["estimated_rel_error"]
+    assert predicted["seconds"] == predicted["pilot_seconds"]
+    other_nets = render(sc, replace(settings, samples=predicted["pilot_samples"]), **QUIET)
+    assert other_nets.stats["estimated_rel_error"] != real.stats["estimated_rel_error"]
+
+
 # -- command line -------------------------------------------------------------------------------------
 def run(*args):
     return subprocess.run([sys.executable, "-m", "engine", *args], cwd=ROOT, capture_output=True, text=True)
