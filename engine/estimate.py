@@ -14,13 +14,17 @@ term is u_p / s.  The prediction replays the rest of the pass schedule on 8x8 bl
 * the render stops after the first pass whose image error sqrt(sum_b w_b U_b / s_b) (w_b: the
   block's share of the pixels) is at or below the target, or at the samples cap;
 
-and prices each replayed pass as b (N + TAIL_PATHS H): N pixel-samples in H unit halves (one
-per tile with active blocks and half buffer), each of which ends with a tail of few paths that costs
-about as much as TAIL_PATHS more paths (measured on the near-lamp room: 5.0 us per pixel-sample in
-passes of 9k paths per unit half, 2.6 us at 233k: b = 2.5 us, TAIL_PATHS ~ 8.9k).  b comes from the
-pilot's passes after the first (the first pays the workers' warm-up); the pilot's own seconds are
-part of the predicted time.  Setup (scene preparation, worker start) is reported apart, as
-`setup_seconds`.
+and prices each replayed pass by its units (one per tile with active blocks, in tile order): a unit
+of N pixel-samples costs b (N + 2 TAIL_PATHS), each of its two halves ending with a tail of few
+paths that costs about as much as TAIL_PATHS more paths (measured on the near-lamp room: 5.0 us per
+pixel-sample in passes of 9k paths per unit half, 2.6 us at 233k: TAIL_PATHS ~ 8.9k), and the pass
+lasts c times the makespan of its units on the workers, each taking the next unit when free: when
+few tiles are left active, a worker idles (measured on the near-lamp room at 96x96, 4 tiles on 2
+workers: 0.9 us per pixel-sample while all tiles ran, 1.2-1.3 us in the last passes; pricing
+pixel-samples alone predicted 0.76x the time).  b (seconds per unit of work) and c (wall seconds per
+makespan second) come from the pilot's passes after the first (the first pays the workers'
+warm-up); the pilot's own seconds are part of the predicted time.  Setup (scene preparation, worker
+start) is reported apart, as `setup_seconds`.
 
 The replay assumes each block's error keeps falling as 1/s, the expectation for an unbiased
 estimate.  Where it does (96x96, predicted / real mean spp: Cornell box 728/744, near-lamp room
@@ -69,12 +73,12 @@ def block_unit_variance(mean: np.ndarray, var: np.ndarray, count: np.ndarray, bl
 def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, tile_of_block=None,
            samples=None, done: int = 0) -> dict:
     """The pass schedule of engine/stopping.py played on blocks; pixel-samples, error, stop, and the
-    cost units sum over passes of (N + TAIL_PATHS H) (module doc).  From the start, or, with
+    units of work of each pass (unit_works).  From the start, or, with
     `samples` (each block's samples so far) and `done` (the pass end the pilot reached), from there
     on: the blocks still active are those that got the pilot's last pass."""
     weights = pixels / pixels.sum()
     tile_of_block = np.zeros(len(unit_var), dtype=int) if tile_of_block is None else tile_of_block
-    work = 0.0
+    work, pass_units = 0.0, []
     samples = np.zeros(len(unit_var)) if samples is None else np.asarray(samples, dtype=float).copy()
     active = samples >= done
     minimum = effective_min_samples(settings)
@@ -87,8 +91,9 @@ def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, ti
         if not active.any():
             stopped_by = "noise target"
             break
-        work += float(np.sum(pixels[active])) * (stop - samples[active].max(initial=0)) \
-            + TAIL_PATHS * 2 * len(np.unique(tile_of_block[active]))
+        units = unit_works(pixels * (stop - samples) * active, tile_of_block)
+        pass_units.append(units)
+        work += sum(w for _, w in units)
         samples[active] = stop
         block_err2 = unit_var / samples
         error = float(np.sqrt(np.sum(weights * block_err2)))
@@ -98,7 +103,38 @@ def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, ti
         if settings.adaptive:
             active &= ~((block_err2 <= target * target) & (samples >= minimum))
     return {"pixel_samples": float(np.sum(pixels * samples)), "mean_samples": float(np.sum(weights * samples)),
-            "error": error, "stopped_by": stopped_by, "work": work}
+            "error": error, "stopped_by": stopped_by, "work": work, "pass_units": pass_units}
+
+
+def unit_works(block_samples: np.ndarray, tile_of_block: np.ndarray) -> list:
+    """[(tile, work)] of the units of a pass in dispatch (tile) order, one per tile with samples to
+    render; work: pixel-samples + the tails of the unit's two halves."""
+    per_tile = np.bincount(tile_of_block, weights=block_samples)
+    return [(tile, float(w) + 2 * TAIL_PATHS) for tile, w in enumerate(per_tile) if w > 0]
+
+
+def tile_costs(units, fallback: float):
+    """b(tile): a tile's unit seconds per unit of work over the pilot's units [(tile, pixel-samples,
+    seconds)]; the mean over all units for a tile without any, `fallback` without units.  Per tile,
+    because the blocks that stay active are the costly ones: on the near-lamp room a pixel-sample
+    cost 1.3-1.4 us in the first passes and 1.6 in the last."""
+    seconds, work = {}, {}
+    for tile, n, t in units:
+        seconds[tile] = seconds.get(tile, 0.0) + t
+        work[tile] = work.get(tile, 0.0) + n + 2 * TAIL_PATHS
+    total = sum(work.values())
+    mean = sum(seconds.values()) / total if total > 0 else fallback
+    return lambda tile: seconds[tile] / work[tile] if work.get(tile) else mean
+
+
+def makespan(costs, workers: int) -> float:
+    """When the last of `costs` (seconds, in dispatch order) ends on `workers` workers that each take
+    the next unit as soon as they are free (engine/workers.py)."""
+    free = [0.0] * max(workers, 1)
+    for c in costs:
+        i = free.index(min(free))
+        free[i] += c
+    return max(free)
 
 
 def tiles_of_blocks(shape, tile_size: int, block: int = BLOCK) -> np.ndarray:
@@ -119,22 +155,25 @@ def pilot_stop(settings, pilot_samples: int) -> int:
     return settings.samples
 
 
-def predict(film, seconds: float, settings, target: float, pass_log=(), tile_size: int = 64,
-            halves_per_pass: int = 0, done: int = 0) -> dict:
-    """The prediction from a pilot's film (SessionFilm), its render seconds, its passes
-    [(pixel-samples, seconds)] and unit halves per pass: b from the passes after the first, else from
-    the whole pilot.  `done` > 0: the pilot was the real render's first passes up to that pass end
-    (its seconds are part of the prediction, the replay goes on from its blocks); 0: a uniform pilot
-    that the replay starts over."""
+def predict(film, seconds: float, settings, target: float, pass_log, tile_size: int, workers: int,
+            done: int) -> dict:
+    """The prediction from a pilot that was the real render's first passes up to the pass end
+    `done`: its film (SessionFilm), render seconds and passes [(pixel-samples, seconds, [(unit
+    pixel-samples, unit seconds)])].  From the pilot's passes after the first (all, if it had one):
+    b, the seconds of a unit per unit of work (unit_works), and c, a pass's wall seconds per second
+    of its makespan on `workers`; each replayed pass then costs c * makespan(b * its units)."""
     count = film.samples_per_pixel
     unit_var, pixels = block_unit_variance(film.mean().astype(np.float64), film.half_buffer_variance(), count)
-    samples = block_sums(count)[2] if done else None
-    played = replay(unit_var, pixels, settings, target, tiles_of_blocks(film.count.shape, tile_size), samples, done)
-    log = list(pass_log)
-    later = log[1:] or log
-    work = sum(n + TAIL_PATHS * halves_per_pass for n, _ in later)
-    b = sum(t for _, t in later) / work if work > 0 else seconds / max(float(film.count.sum()), 1.0)
-    played["seconds"] = played["work"] * b + (seconds if done else 0.0)
+    played = replay(unit_var, pixels, settings, target, tiles_of_blocks(film.count.shape, tile_size),
+                    block_sums(count)[2], done)
+    later = list(pass_log)[1:] or list(pass_log)
+    units = [u for _, _, pass_units in later for u in pass_units]
+    b = tile_costs(units, seconds / max(float(count.sum()), 1.0))
+    spans = sum(makespan([b(tile) * (n + 2 * TAIL_PATHS) for tile, n, _ in pass_units], workers)
+                for _, _, pass_units in later)
+    c = sum(t for _, t, _ in later) / spans if spans > 0 else 1.0
+    played["seconds"] = seconds + sum(c * makespan([b(tile) * w for tile, w in pass_units], workers)
+                                      for pass_units in played["pass_units"])
     played["reachable"] = played["stopped_by"] == "noise target"
     return played
 
@@ -152,14 +191,12 @@ def estimate(scene, settings, target: float, render, pilot_samples: int = PILOT_
         raise RuntimeError("the pilot render was cancelled")
     seconds = result.stats["render_seconds"]
     st = result.stats
-    passes = max(st.get("passes") or 1, 1)
     if st.get("stopped_by") == "noise target":
         spp = result.film.samples_per_pixel
         out = {"pixel_samples": float(spp.sum()), "mean_samples": float(spp.mean()), "stopped_by": "noise target",
                "error": st["estimated_rel_error"], "work": 0.0, "seconds": seconds, "reachable": True}
     else:
-        out = predict(result.film, seconds, real, target, st.get("pass_log", ()), st["tile_size"],
-                      2 * st["units"] // passes, done=done)
+        out = predict(result.film, seconds, real, target, st["pass_log"], st["tile_size"], st["threads"], done)
     out.update({"target_rel_error": target, "pilot_samples": pilot.samples, "pilot_seconds": seconds,
                 "pilot_rel_error": result.stats.get("estimated_rel_error"),
                 "setup_seconds": result.stats.get("setup_seconds"), "samples_cap": settings.samples,

@@ -116,7 +116,8 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
     chunk_of = {t.index: 0 for t in session.tiles}
     cancelled = timed_out = False
     error, stopped_by, passes = None, "samples", 0
-    pass_log = []                     # (pixel-samples added, seconds) per finished pass
+    # per finished pass: (pixel-samples added, seconds, [(tile, unit pixel-samples, unit seconds)])
+    pass_log = []
     start = clock()
     try:
         if not getattr(workers, "passes", True):
@@ -150,7 +151,7 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
             pass_start, samples_before = clock(), float(session.film.count.sum())
             workers.start(units)
             passes += 1
-            done = 0
+            done, unit_log = 0, []
             while done < len(units):
                 if not (cancelled or timed_out):
                     if should_cancel is not None and should_cancel():
@@ -165,10 +166,13 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
                 done += 1
                 error = error or exc
                 if result is not None:
+                    unit_log.append((result.unit.index, result.unit.tile.index, float(result.count.sum()),
+                                     result.seconds))
                     session.add_and_show(result, on_tile)
             if error is not None or cancelled or timed_out:
                 break
-            pass_log.append((float(session.film.count.sum()) - samples_before, clock() - pass_start))
+            pass_log.append((float(session.film.count.sum()) - samples_before, clock() - pass_start,
+                             [u[1:] for u in sorted(unit_log)]))      # in dispatch order
             state.update()
             elapsed = clock() - start
             if on_progress is not None:

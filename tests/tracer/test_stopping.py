@@ -14,7 +14,7 @@ import pytest
 from engine import RenderSettings, render
 from engine.default_scene import BUILTIN_SCENES
 from engine.error_estimate import half_buffer_variance, image_rel_error
-from engine.estimate import predict, replay
+from engine.estimate import TAIL_PATHS, replay
 from engine.session import RenderSession
 from engine.stopping import effective_min_samples, pass_schedule, run_passes
 from engine.workers import ThreadWorkers
@@ -229,6 +229,20 @@ def test_replay_uniform_matches_the_closed_form():
     assert played["stopped_by"] == "noise target"
     adaptive = replay(unit_var, np.ones(4), RenderSettings(samples=10_000, noise_target=0.02), 0.02)
     assert adaptive["pixel_samples"] < played["pixel_samples"]
+
+
+def test_a_pass_lasts_its_makespan_on_the_workers():
+    """Units go to the next free worker in dispatch order: a long unit last keeps one worker busy
+    after the other idles (the adaptive passes' last tiles), one first does not; the per-tile cost
+    falls back to the mean over the pilot's units for a tile it never rendered."""
+    from engine.estimate import makespan, tile_costs
+    assert makespan([3, 1, 1, 1], 2) == 3
+    assert makespan([1, 1, 1, 3], 2) == 4
+    assert makespan([1, 1, 1, 3], 1) == 6
+    b = tile_costs([(0, 1000.0, 2.0), (1, 3000.0, 2.0)], fallback=9.0)
+    assert b(0) > b(1) and b(0) * (1000 + 2 * TAIL_PATHS) == pytest.approx(2.0)
+    assert b(7) == pytest.approx(4.0 / (4000 + 4 * TAIL_PATHS))
+    assert tile_costs([], fallback=9.0)(0) == 9.0
 
 
 def test_predicted_samples_match_a_real_render_within_30_percent():
