@@ -54,7 +54,7 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
     adaptive: BoolProperty(name="Adaptive Sampling", description="With a noise target: blocks of 8x8 pixels "
                            "whose error reached it get no more samples", default=True)
     min_samples: IntProperty(name="Min Samples", description="Samples every pixel gets before the noise "
-                             "target may stop it (0 = automatic)", default=0, min=0, soft_max=4096)
+                             "target may stop it (0 = automatic: 16 / Noise Target^0.3, as Cycles)", default=0, min=0, soft_max=4096)
     time_limit: FloatProperty(name="Time Limit", description="Stop rendering after this many seconds "
                               "(0 = no limit)", default=0.0, min=0.0, soft_max=3600.0, precision=1)
     estimate_text: bpy.props.StringProperty(name="Estimate", description="The last Estimate Render Time",
