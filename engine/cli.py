@@ -92,7 +92,8 @@ def add_stopping_arguments(p, defaults=True):
     p.add_argument("--noise-target", type=nonnegative_float(1.0), default=d and d.noise_target, metavar="REL",
                    help="stop when the estimated relative error of the image reaches REL, e.g. 0.01 (0 = off)")
     p.add_argument("--min-samples", type=setting_int("min_samples"), default=d and d.min_samples, metavar="N",
-                   help="samples every pixel gets before the noise target may stop it (0 = automatic: ceil(16 / target^0.3) as Cycles, at most 128; 8 without a target)")
+                   help="samples every pixel gets before the noise target may stop it (0 = automatic: "
+                   "ceil(16 / target^0.3) as Cycles, at most 128; 8 without a target)")
     p.add_argument("--no-adaptive", action="store_true",
                    help="with --noise-target: keep sampling every pixel (no adaptive sampling)")
 
