@@ -228,6 +228,27 @@ def next_outcome(workers, timeout: float):
     return True, result, None
 
 
+def await_units(workers, count: int, on_result, interrupt=None, poll: float = 0.1):
+    """Wait for the outcomes of `count` started units, handing each finished UnitResult to
+    on_result(result).  interrupt() is polled between waits until it returns a reason to stop
+    (e.g. "cancelled"); then the workers are cancelled and the other units drain, dropped whole.
+    Returns (that reason or None, the first unit error or None)."""
+    reason, error, done = None, None, 0
+    while done < count:
+        if reason is None and interrupt is not None:
+            reason = interrupt() or None
+            if reason is not None:
+                workers.cancel()
+        came, result, exc = next_outcome(workers, poll)
+        if not came:
+            continue
+        done += 1
+        error = error or exc
+        if result is not None:
+            on_result(result)
+    return reason, error
+
+
 class RenderSession:
     """Scene preparation (validation, effect plan, BVH, lights) once; units rendered on demand."""
 
@@ -333,28 +354,21 @@ class RenderSession:
         if self.settings.stopping_rules():
             from .stopping import run_passes
             return run_passes(self, workers, on_tile, should_cancel, on_progress)
-        cancelled, error, done = False, None, 0
         start = time.perf_counter()
+
+        def merge(result):
+            self.add_and_show(result, on_tile)
+            if on_progress is not None:
+                elapsed = max(time.perf_counter() - start, 1e-9)
+                rate = sum(self.totals.rays.values()) / elapsed / 1e6
+                on_progress(self.film.units_added / len(self.units),
+                            f"unit {self.film.units_added}/{len(self.units)} · {rate:.2f} M rays/s · "
+                            f"effects: {self.plan.summary()}")
         try:
             workers.start(self.units)
-            while done < len(self.units):
-                if should_cancel is not None and not cancelled and should_cancel():
-                    cancelled = True
-                    workers.cancel()
-                came, result, exc = next_outcome(workers, 0.1)
-                if not came:
-                    continue
-                done += 1
-                error = error or exc
-                if result is None:                         # failed, or cancelled: dropped whole
-                    continue
-                self.add_and_show(result, on_tile)
-                if on_progress is not None:
-                    elapsed = max(time.perf_counter() - start, 1e-9)
-                    rate = sum(self.totals.rays.values()) / elapsed / 1e6
-                    on_progress(self.film.units_added / len(self.units),
-                                f"unit {self.film.units_added}/{len(self.units)} · {rate:.2f} M rays/s · "
-                                f"effects: {self.plan.summary()}")
+            interrupt = None if should_cancel is None else (lambda: "cancelled" if should_cancel() else None)
+            reason, error = await_units(workers, len(self.units), merge, interrupt)
+            cancelled = reason is not None
         finally:
             workers.close()
         if error is not None:

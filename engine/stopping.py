@@ -108,7 +108,7 @@ class PassState:
 
 def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=None, clock=time.perf_counter):
     """RenderSession.run under stopping rules; the same callbacks.  `clock` is replaceable (tests)."""
-    from .session import WorkUnit, next_outcome
+    from .session import WorkUnit, await_units
     s = session.settings
     state = PassState(session)
     schedule = pass_schedule(s.samples, effective_min_samples(s))
@@ -151,24 +151,20 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
             pass_start, samples_before = clock(), float(session.film.count.sum())
             workers.start(units)
             passes += 1
-            done, unit_log = 0, []
-            while done < len(units):
-                if not (cancelled or timed_out):
-                    if should_cancel is not None and should_cancel():
-                        cancelled = True
-                        workers.cancel()
-                    elif s.time_limit > 0 and clock() - start >= s.time_limit:
-                        timed_out = True
-                        workers.cancel()
-                came, result, exc = next_outcome(workers, 0.05)
-                if not came:
-                    continue
-                done += 1
-                error = error or exc
-                if result is not None:
-                    unit_log.append((result.unit.index, result.unit.tile.index, float(result.count.sum()),
-                                     result.seconds))
-                    session.add_and_show(result, on_tile)
+            unit_log = []
+
+            def merge(result):
+                unit_log.append((result.unit.index, result.unit.tile.index, float(result.count.sum()),
+                                 result.seconds))
+                session.add_and_show(result, on_tile)
+
+            def interrupt():
+                if should_cancel is not None and should_cancel():
+                    return "cancelled"
+                return "time limit" if s.time_limit > 0 and clock() - start >= s.time_limit else None
+            reason, exc = await_units(workers, len(units), merge, interrupt, poll=0.05)
+            error = error or exc
+            cancelled, timed_out = reason == "cancelled", reason == "time limit"
             if error is not None or cancelled or timed_out:
                 break
             pass_log.append((float(session.film.count.sum()) - samples_before, clock() - pass_start,
