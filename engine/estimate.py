@@ -78,7 +78,7 @@ def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, ti
     on: the blocks still active are those that got the pilot's last pass."""
     weights = pixels / pixels.sum()
     tile_of_block = np.zeros(len(unit_var), dtype=int) if tile_of_block is None else tile_of_block
-    work, pass_units = 0.0, []
+    pass_units = []
     samples = np.zeros(len(unit_var)) if samples is None else np.asarray(samples, dtype=float).copy()
     active = samples >= done
     minimum = effective_min_samples(settings)
@@ -93,7 +93,6 @@ def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, ti
             break
         units = unit_works(pixels * (stop - samples) * active, tile_of_block)
         pass_units.append(units)
-        work += sum(w for _, w in units)
         samples[active] = stop
         block_err2 = unit_var / samples
         error = float(np.sqrt(np.sum(weights * block_err2)))
@@ -103,7 +102,7 @@ def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, ti
         if settings.adaptive:
             active &= ~((block_err2 <= target * target) & (samples >= minimum))
     return {"pixel_samples": float(np.sum(pixels * samples)), "mean_samples": float(np.sum(weights * samples)),
-            "error": error, "stopped_by": stopped_by, "work": work, "pass_units": pass_units}
+            "error": error, "stopped_by": stopped_by, "pass_units": pass_units}
 
 
 def unit_works(block_samples: np.ndarray, tile_of_block: np.ndarray) -> list:
@@ -158,8 +157,8 @@ def pilot_stop(settings, pilot_samples: int) -> int:
 def predict(film, seconds: float, settings, target: float, pass_log, tile_size: int, workers: int,
             done: int) -> dict:
     """The prediction from a pilot that was the real render's first passes up to the pass end
-    `done`: its film (SessionFilm), render seconds and passes [(pixel-samples, seconds, [(unit
-    pixel-samples, unit seconds)])].  From the pilot's passes after the first (all, if it had one):
+    `done`: its film (SessionFilm), render seconds and passes [(pixel-samples, seconds, [(tile,
+    unit pixel-samples, unit seconds)])] (engine/stopping.py run_passes).  From the pilot's passes after the first (all, if it had one):
     b, the seconds of a unit per unit of work (unit_works), and c, a pass's wall seconds per second
     of its makespan on `workers`; each replayed pass then costs c * makespan(b * its units)."""
     count = film.samples_per_pixel
@@ -194,7 +193,7 @@ def estimate(scene, settings, target: float, render, pilot_samples: int = PILOT_
     if st.get("stopped_by") == "noise target":
         spp = result.film.samples_per_pixel
         out = {"pixel_samples": float(spp.sum()), "mean_samples": float(spp.mean()), "stopped_by": "noise target",
-               "error": st["estimated_rel_error"], "work": 0.0, "seconds": seconds, "reachable": True}
+               "error": st["estimated_rel_error"], "seconds": seconds, "reachable": True}
     else:
         out = predict(result.film, seconds, real, target, st["pass_log"], st["tile_size"], st["threads"], done)
     out.update({"target_rel_error": target, "pilot_samples": pilot.samples, "pilot_seconds": seconds,
