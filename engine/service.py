@@ -45,7 +45,7 @@ from .settings import RenderSettings
 TRACER_BASE = __package__                 # "engine", "tracer" or "<add-on package>.tracer"
 TRACER_DIR = os.path.dirname(os.path.abspath(__file__))
 HEADER = struct.Struct("<Q")
-IN_FLIGHT = 2                             # units queued per worker, so none waits for the next
+IN_FLIGHT = 2                             # units queued per worker, so none waits for the next (_feed)
 START_TIMEOUT = 120.0                     # seconds for imports + scene + BVH before a worker is given up
 
 
@@ -257,11 +257,20 @@ class SubprocessWorkers:
     # -- the pool interface ---------------------------------------------------------------------
     def start(self, units):
         self.pending.extend(units)
+        for w in self.workers:                  # every worker its first unit before any takes a second
+            self._feed(w, limit=1)
         for w in self.workers:
             self._feed(w)
 
-    def _feed(self, worker):
-        while worker.alive and not self.cancelled and self.pending and len(worker.in_flight) < IN_FLIGHT:
+    def _feed(self, worker, limit: int = IN_FLIGHT):
+        """Send `worker` units until it has `limit` in flight.  A second unit is queued only while
+        more units than live workers are pending: a queued unit waits for its worker even when
+        another is idle, and a pass of few units (adaptive passes: one per tile still active) then
+        ended when the worker holding two big ones did.  Measured on caustic.blend at 96x96 (4
+        tiles, 2 workers): a pass lasted 1.36x the longest worker's share under greedy dispatch."""
+        alive = sum(w.alive for w in self.workers)
+        while (worker.alive and not self.cancelled and self.pending and len(worker.in_flight) < limit
+               and (not worker.in_flight or len(self.pending) > alive)):
             unit = self.pending.popleft()
             worker.in_flight.append(unit)
             if not worker.send(encode(("unit", unit))):

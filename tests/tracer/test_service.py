@@ -1,5 +1,6 @@
 """Worker processes (engine/service.py): real processes of this Python, the same image as render(),
 a killed worker reported by name with its units rendered elsewhere, Esc within a second."""
+import collections
 import os
 import signal
 import sys
@@ -90,3 +91,39 @@ def test_an_error_in_a_unit_names_the_worker(monkeypatch):
     pool.close()
     assert item is not None and isinstance(item[2], WorkerError)
     assert str(item[2]).startswith(f"render worker 1 (pid {pool.workers[0].proc.pid}) failed")
+
+
+class _QueueOnlyWorker:
+    """A worker for the dispatch tests: it only records the units it is sent."""
+
+    def __init__(self):
+        self.alive, self.in_flight = True, []
+
+    def send(self, data):
+        return True
+
+
+def _dispatch_pool(workers: int):
+    pool = SubprocessWorkers.__new__(SubprocessWorkers)         # no processes: only the dispatch
+    pool.workers = [_QueueOnlyWorker() for _ in range(workers)]
+    pool.pending, pool.cancelled = collections.deque(), False
+    return pool
+
+
+def test_a_pass_of_few_units_gives_every_worker_one_before_any_gets_a_second():
+    # An adaptive pass at 96x96 is 4 units (one per tile) on 2 workers; with two queued per worker
+    # the first worker held the two biggest and the pass lasted 1.36x the greedy schedule.
+    pool = _dispatch_pool(2)
+    pool.start(["t0", "t1", "t2", "t3"])
+    assert [w.in_flight for w in pool.workers] == [["t0"], ["t1"]]
+    second = pool.workers[1]
+    second.in_flight.remove("t1")                  # the worker that finishes first takes the next
+    pool._feed(second)
+    assert second.in_flight == ["t2"] and list(pool.pending) == ["t3"]
+
+
+def test_a_pass_of_many_units_keeps_a_second_unit_queued_per_worker():
+    pool = _dispatch_pool(2)
+    pool.start([f"t{i}" for i in range(8)])
+    assert [len(w.in_flight) for w in pool.workers] == [2, 2]
+    assert sorted(pool.workers[0].in_flight + pool.workers[1].in_flight) == ["t0", "t1", "t2", "t3"]
