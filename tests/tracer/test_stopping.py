@@ -231,6 +231,32 @@ def test_replay_uniform_matches_the_closed_form():
     assert adaptive["pixel_samples"] < played["pixel_samples"]
 
 
+def test_replayed_blocks_fall_with_their_past_and_future_variance():
+    """From the pilot's s0 samples at variance U, the samples to come at F: error^2 after s samples
+    is (s0 U + (s - s0) F) / s^2, so a block that met a firefly (U > F) stops before U / T^2."""
+    settings = RenderSettings(samples=8192, noise_target=0.05, adaptive=False)
+    ends = [stop for _, stop in pass_schedule(8192, effective_min_samples(settings)) if stop > 64]
+    unit_var, pixels, s0 = np.array([10.0]), np.ones(1), np.array([64.0])
+    own = replay(unit_var, pixels, settings, 0.05, samples=s0, done=64)
+    assert own["mean_samples"] == min(e for e in ends if 10.0 / e <= 0.0025)            # 1/s: 4000
+    pooled = replay(unit_var, pixels, settings, 0.05, samples=s0, done=64, future_var=np.array([1.0]))
+    assert pooled["mean_samples"] == min(e for e in ends if (64 * 10.0 + (e - 64) * 1.0) / e ** 2 <= 0.0025)
+    assert pooled["mean_samples"] < own["mean_samples"]
+
+
+def test_future_variance_shares_a_block_with_its_neighbours():
+    """F = (U + the 3x3 neighbourhood's pixel-weighted mean of U) / 2: a firefly's block keeps half
+    its U and lends the rest to its neighbours, weighted by their pixels at the image's edge."""
+    from engine.estimate import future_unit_variance, neighbourhood_mean
+    unit_var = np.zeros(9)
+    unit_var[4] = 90.0                                     # the centre of 3x3 blocks
+    future = future_unit_variance(unit_var, np.ones(9), (3, 3)).reshape(3, 3)
+    assert future[1, 1] == pytest.approx(0.5 * (90 + 10))
+    assert future[0, 0] == pytest.approx(0.5 * 90 / 4) and future[0, 1] == pytest.approx(0.5 * 90 / 6)
+    pixels = np.array([64.0, 16.0])                        # a full block and a 2x8 one at the edge
+    assert neighbourhood_mean(np.array([1.0, 6.0]), pixels, (1, 2)) == pytest.approx([2.0, 2.0])
+
+
 def test_a_pass_lasts_its_makespan_on_the_workers():
     """Units go to the next free worker in dispatch order: a long unit last keeps one worker busy
     after the other idles (the adaptive passes' last tiles), one first does not; the per-tile cost
