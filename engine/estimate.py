@@ -9,9 +9,10 @@ is the prediction.  Otherwise, per pixel p, u_p = n_p * Var[m_p] / (R_p^2 + 0.01
 term is u_p / s.  The prediction replays the rest of the pass schedule on 8x8 blocks
 (U_b = mean of u_p over the block), from each block's samples so far:
 
-* every active block gets the pass's samples; with adaptive sampling a block whose error
-  sqrt(U_b / s_b) is at or below the target (after min samples) stops;
-* the render stops after the first pass whose image error sqrt(sum_b w_b U_b / s_b) (w_b: the
+* every active block gets the pass's samples; with adaptive sampling a block whose error e_b
+  (sqrt(U_b / s_b), with the samples to come at F_b below) is at or below the target (after min
+  samples) stops;
+* the render stops after the first pass whose image error sqrt(sum_b w_b e_b^2) (w_b: the
   block's share of the pixels) is at or below the target, or at the samples cap;
 
 and prices each replayed pass by its units (one per tile with active blocks, in tile order): a unit
@@ -22,8 +23,9 @@ lasts c times the makespan of its units on the workers, each taking the next uni
 few tiles are left active, a worker idles (measured on the near-lamp room at 96x96, 4 tiles on 2
 workers: 0.9 us per pixel-sample while all tiles ran, 1.2-1.3 us in the last passes; pricing
 pixel-samples alone predicted 0.76x the time).  b (seconds per unit of work) and c (wall seconds per
-makespan second) come from the pilot's passes after the first (the first pays the workers'
-warm-up); the pilot's own seconds are part of the predicted time.  Setup (scene preparation, worker
+makespan second; 1.01 measured over whole renders since the workers take units greedily, see
+engine/service.py SubprocessWorkers._feed) come from the pilot's passes after the first (the first
+pays the workers' warm-up); the pilot's own seconds are part of the predicted time.  Setup (scene preparation, worker
 start) is reported apart, as `setup_seconds`.
 
 Heavy-tailed noise (caustics, small lamps seen in mirrors): a block's U from the pilot is a
