@@ -25,8 +25,8 @@ workers: 0.9 us per pixel-sample while all tiles ran, 1.2-1.3 us in the last pas
 pixel-samples alone predicted 0.76x the time).  b (seconds per unit of work) and c (wall seconds per
 makespan second; 1.01 measured over whole renders since the workers take units greedily, see
 engine/service.py SubprocessWorkers._feed) come from the pilot's passes after the first (the first
-pays the workers' warm-up); the pilot's own seconds are part of the predicted time.  Setup (scene preparation, worker
-start) is reported apart, as `setup_seconds`.
+pays the workers' warm-up); the pilot's own seconds are part of the predicted time.  Setup (scene
+preparation, worker start) is reported apart, as `setup_seconds`.
 
 Heavy-tailed noise (caustics, small lamps seen in mirrors): a block's U from the pilot is a
 sample of a skewed estimate.  Most blocks have not yet met their rare bright paths (U too small),
