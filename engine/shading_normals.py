@@ -103,6 +103,21 @@ class SmoothNormals:
         return out
 
 
+def tangent_plane_bound(p, corners, normals, sign: float) -> np.ndarray:
+    """The smallest over the corners i of max(sign n_i.(v_i - p) + e_i, 0), e_i = max(0, sign
+    n_i.(v_j - v_i) over the other corners j): how far the corners' tangent planes (normals times
+    `sign`) let the lift go (Cycles' shadow_ray_smooth_surface_offset)."""
+    bound = None
+    for i, (vi, ni) in enumerate(zip(corners, normals)):
+        edge = 0.0
+        for j, vj in enumerate(corners):
+            if j != i:
+                edge = np.maximum(edge, sign * dot(vj - vi, ni))
+        gi = np.maximum(sign * dot(vi - p, ni) + edge, 0.0)
+        bound = gi if bound is None else np.minimum(bound, gi)
+    return bound
+
+
 def smooth_surface_offset(V, N, u, v, ng) -> np.ndarray:
     """Cycles' shadow_ray_smooth_surface_offset, vectorised: the lift (rows (3, M)) from the flat
     triangle at barycentrics (u, v) of corners 1 and 2 to a parabolic approximation of the smooth
@@ -119,22 +134,10 @@ def smooth_surface_offset(V, N, u, v, ng) -> np.ndarray:
     c = dot(n1 - n0, v1 - v0)
     h = a * w0 * (w0 - 1.0) + (a + b + c) * w0 * w1 + b * w1 * (w1 - 1.0)   # parabolic approximation
     front = dot(n, ng) > 0.0
-    # Front: the corners' tangent planes bound the lift from above (local linear envelope).
-    f0 = np.maximum(np.maximum(dot(v1 - v0, n0), dot(v2 - v0, n0)), 0.0)
-    f1 = np.maximum(np.maximum(dot(v0 - v1, n1), dot(v2 - v1, n1)), 0.0)
-    f2 = np.maximum(np.maximum(dot(v0 - v2, n2), dot(v1 - v2, n2)), 0.0)
-    f0 = np.maximum(dot(v0 - p, n0) + f0, 0.0)
-    f1 = np.maximum(dot(v1 - p, n1) + f1, 0.0)
-    f2 = np.maximum(dot(v2 - p, n2) + f2, 0.0)
-    h_front = np.maximum(np.minimum(np.minimum(f0, f1), f2), h * 0.5)
-    # Back (normals flipped against the side the ray leaves from).
-    b0 = np.maximum(np.maximum(dot(v0 - v1, n0), dot(v0 - v2, n0)), 0.0)
-    b1 = np.maximum(np.maximum(dot(v1 - v0, n1), dot(v1 - v2, n1)), 0.0)
-    b2 = np.maximum(np.maximum(dot(v2 - v0, n2), dot(v2 - v1, n2)), 0.0)
-    b0 = np.maximum(dot(p - v0, n0) + b0, 0.0)
-    b1 = np.maximum(dot(p - v1, n1) + b1, 0.0)
-    b2 = np.maximum(dot(p - v2, n2) + b2, 0.0)
-    h_back = np.minimum(-np.minimum(np.minimum(b0, b1), b2), h * 0.5)
+    # Front: the corners' tangent planes bound the lift from above (local linear envelope); back:
+    # the same with the normals flipped against the side the ray leaves from.
+    h_front = np.maximum(tangent_plane_bound(p, (v0, v1, v2), (n0, n1, n2), 1.0), h * 0.5)
+    h_back = np.minimum(-tangent_plane_bound(p, (v0, v1, v2), (n0, n1, n2), -1.0), h * 0.5)
     return n * np.where(front, h_front, h_back)
 
 
