@@ -146,17 +146,10 @@ class RENDER_PT_tncg15_denoise(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.label(text="Intel Open Image Denoise, guided by albedo and normal")
 
 
-class VIEWLAYER_PT_tncg15_passes(bpy.types.Panel):
+class VIEWLAYER_PT_tncg15_passes(TNCG15ButtonsPanel, bpy.types.Panel):
     """View Layer > Passes, as Cycles: Z (Blender's), Denoising Data, Sample Count, Variance."""
     bl_label = "Passes"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
     bl_context = "view_layer"
-    COMPAT_ENGINES = {ENGINE_ID}
-
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES
 
     def draw(self, context):
         layout = self.layout
@@ -171,17 +164,13 @@ class VIEWLAYER_PT_tncg15_passes(bpy.types.Panel):
         col.prop(view_layer.tncg15, "pass_variance")
 
 
-class OBJECT_PT_tncg15(bpy.types.Panel):
+class OBJECT_PT_tncg15(TNCG15ButtonsPanel, bpy.types.Panel):
     bl_label = "TNCG15 MC"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
     bl_context = "object"
-    COMPAT_ENGINES = {ENGINE_ID}
 
     @classmethod
     def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES and context.object is not None \
-            and context.object.type == "MESH"
+        return super().poll(context) and context.object is not None and context.object.type == "MESH"
 
     def draw(self, context):
         layout = self.layout
