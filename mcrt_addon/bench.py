@@ -44,7 +44,7 @@ def _camera(bpy, scene):
 def bench_export(n_triangles=1_000_000, n_instances=100):
     import bpy
     import mcrt_addon
-    from mcrt_addon.cli import ensure_registered
+    from mcrt_addon.headless import ensure_registered
     from mcrt_addon.export import export_scene
     from mcrt_addon.export.mesh import mesh_arrays
 

@@ -19,7 +19,7 @@ directory, or a path to a .blend):
 Each renderer gets one untimed warm-up render per scene (Cycles 1 spp, TNCG15 MC the full sample
 count); the estimators' runs are interleaved.  Times are wall-clock seconds of the render
 alone: ``bpy.ops.render.render`` for Cycles (scene sync and BVH build included, EXR write of the
-small image included), ``engine.render.render`` for TNCG15 MC (BVH build included, the Blender
+small image included), ``engine.rendering.render`` for TNCG15 MC (BVH build included, the Blender
 export excluded).  With --repeats K, errors and times are the means over K seeds.
 
 Metrics against the reference R (x = the render; means over pixels and the 3 channels):
@@ -116,7 +116,7 @@ def write_png(path, image):
 def open_blend(path, resolution):
     import bpy
     import mcrt_addon
-    from mcrt_addon.cli import ensure_registered
+    from mcrt_addon.headless import ensure_registered
     ensure_registered(mcrt_addon)
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
     scene = bpy.context.scene
@@ -129,7 +129,7 @@ def open_blend(path, resolution):
 def render_cycles(scene, *, samples, max_depth, seed, threads):
     """One Cycles render with the fair reference settings: (image, wall seconds, process CPU seconds)."""
     import bpy
-    from mcrt_addon.cli import set_exr_output
+    from mcrt_addon.headless import set_exr_output
     from mcrt_addon.reference import setup_cycles_reference
     setup_cycles_reference(scene, samples=samples, max_depth=max_depth, seed=seed, threads=threads)
     fd, path = tempfile.mkstemp(suffix=".exr")

@@ -2,8 +2,7 @@
 
 * In the repository (and with PYTHONPATH=<repo>) the tracer is the top-level package ``engine``.
 * In the extension / legacy zip built by ``scripts/build_extension.py`` a copy of it is shipped
-  inside the add-on as the sub-package ``tracer`` (``engine/`` would clash with ``engine.py``,
-  the RenderEngine module), imported relatively: ``<addon package>.tracer``.
+  inside the add-on as the sub-package ``tracer``, imported relatively: ``<addon package>.tracer``.
 
 The tracer is imported lazily (at render time), so the add-on registers even when embreex is
 missing and the user gets a readable error instead of a failed registration.
@@ -27,9 +26,9 @@ def tracer_base() -> str:
             continue
         if hasattr(module, "__path__"):
             try:
-                importlib.import_module(base + ".scene")
+                importlib.import_module(base + ".scene.model")
             except ImportError as exc:
-                errors.append(f"{base}.scene: {exc}")
+                errors.append(f"{base}.scene.model: {exc}")
                 continue
             _base = base
             return base
@@ -43,13 +42,13 @@ def module(name: str):
 
 
 def scene_module():
-    return module("scene")
+    return module("scene.model")
 
 
 def settings_class():
-    return module("settings").RenderSettings
+    return module("core.settings").RenderSettings
 
 
 def render_function():
-    """``engine.render.render``; raises ImportError with a clear message when it does not exist yet."""
-    return module("render").render
+    """``engine.api.render``; raises ImportError with a clear message when it does not exist yet."""
+    return module("api").render

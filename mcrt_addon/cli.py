@@ -18,6 +18,7 @@ import tempfile
 import time
 
 from . import bridge
+from .headless import ensure_registered, set_exr_output
 
 ESTIMATOR_CHOICES = ("report", "solid-angle", "mis")
 SAMPLER_CHOICES = ("sobol", "random")
@@ -28,7 +29,7 @@ BLEND_MAGIC = (b"BLENDER", b"\x1f\x8b", b"\x28\xb5\x2f\xfd")   # plain, gzip, zs
 
 
 def build_parser():
-    cli = bridge.module("cli")             # the tracer's: one-line errors, the shared integer limits
+    cli = bridge.module("cli.main")             # the tracer's: one-line errors, the shared integer limits
     setting_int, bounded_int = cli.setting_int, cli.bounded_int
     parser = cli.OneLineParser(prog=PROG, description="TNCG15 MC headless tools (bpy module)")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=cli.OneLineParser)
@@ -116,18 +117,6 @@ def apply_tncg15_settings(props, args):
         props.adaptive = False
 
 
-def set_exr_output(scene, path):
-    settings = scene.render.image_settings
-    settings.file_format = "OPEN_EXR"
-    settings.color_depth = "32"
-    settings.color_mode = "RGB"
-    settings.exr_codec = "ZIP"
-    scene.render.filepath = path
-    scene.render.use_file_extension = False
-    scene.render.use_compositing = False
-    scene.render.use_sequencer = False
-
-
 def error(message, code=2):
     print(f"{PROG}: error: {message}", file=sys.stderr)
     return code
@@ -150,7 +139,7 @@ def blend_problem(path):
 def render_file(args):
     """Checks everything it can before Blender opens the file; renders into a private temporary
     directory (Blender's temp files and its EXR), then writes each output atomically."""
-    output = bridge.module("output")
+    output = bridge.module("film.output")
     if getattr(args, "cluster", None):
         os.environ["TNCG15_CLUSTER"] = args.cluster      # read by worker_python.render_cluster()
     blend = os.path.abspath(args.file)
@@ -163,10 +152,10 @@ def render_file(args):
                                        inputs=[blend], base_dir=os.path.dirname(blend))
         if (args.passes or args.denoise) and args.engine != "TNCG15_MC":
             raise output.OutputError("--passes/--denoise are for --engine TNCG15_MC")
-        bridge.module("cli").check_pass_outputs(args, outputs)
+        bridge.module("cli.main").check_pass_outputs(args, outputs)
     except output.OutputError as exc:
         return error(exc)
-    stop = bridge.module("stop").StopRequest(PROG).install()
+    stop = bridge.module("cli.signals").StopRequest(PROG).install()
     private = tempfile.mkdtemp(prefix="tncg15-")       # 0700; Blender's quit.blend would land here
     try:
         return render_in(args, blend, outputs, stop, private)
@@ -191,7 +180,7 @@ def open_blend(blend, private):
 
 def render_in(args, blend, outputs, stop, private):
     import bpy
-    from mcrt_addon import engine as engine_module
+    from mcrt_addon import render_engine as engine_module
     from mcrt_addon.reference import setup_cycles_reference
 
     problem = open_blend(blend, private)
@@ -242,11 +231,11 @@ def render_in(args, blend, outputs, stop, private):
     try:
         if layered:
             from mcrt_addon.passes import passes_from_channels
-            image, passes = passes_from_channels(bridge.module("passes").read_multilayer_exr(rendered), args.passes)
+            image, passes = passes_from_channels(bridge.module("film.passes").read_multilayer_exr(rendered), args.passes)
             write_outputs(outputs, image, stats, passes)
         else:
-            write_outputs(outputs, bridge.module("film").read_image(rendered)[..., :3], stats)
-    except (bridge.module("output").OutputError, OSError) as exc:
+            write_outputs(outputs, bridge.module("film.image_files").read_image(rendered)[..., :3], stats)
+    except (bridge.module("film.output").OutputError, OSError) as exc:
         return error(exc, 1)
     print(f"{args.engine}: wrote {', '.join(o.path for o in outputs)} in {wall:.2f} s "
           f"(render {stats['render_seconds']:.2f} s)")
@@ -282,7 +271,7 @@ def estimate_file(args):
                                     pilot_samples=args.pilot_samples)
         except Exception as exc:          # noqa: BLE001 - export and worker problems: one line
             return error(str(exc).strip().splitlines()[0], 1)
-        print(bridge.module("estimate").describe(result))
+        print(bridge.module("rendering.estimate").describe(result))
         if args.json:
             print(json.dumps(result, default=_json_default))
         return 0
@@ -291,15 +280,15 @@ def estimate_file(args):
 
 
 def write_outputs(outputs, image, stats, passes=None):
-    output = bridge.module("output")
+    output = bridge.module("film.output")
     for target in outputs:
         if target.kind == "json":
             output.write_text(target, json.dumps(stats, indent=2, default=_json_default))
         elif passes is not None and target.option == "-o":
             output.write_multilayer(target, image, passes,       # the layers of python -m engine render
-                                    bridge.module("cli").error_metadata(stats))
+                                    bridge.module("cli.main").error_metadata(stats))
         else:
-            output.write_image(target, image, bridge.module("cli").error_metadata(stats))
+            output.write_image(target, image, bridge.module("cli.main").error_metadata(stats))
 
 
 def render_stats(args, scene, last, wall):
@@ -335,12 +324,6 @@ def _json_default(value):
     if isinstance(value, (set, tuple)):
         return list(value)
     return str(value)
-
-
-def ensure_registered(mcrt_addon):
-    import bpy
-    if not (hasattr(bpy.types.Scene, "tncg15") and mcrt_addon.engine.TNCG15RenderEngine.is_registered):
-        mcrt_addon.register()
 
 
 def main(argv=None):

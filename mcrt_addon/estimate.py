@@ -2,7 +2,7 @@
 
 Both export the scene as F12 would (full frame, render border), render a short pilot on the same
 kind of workers a render uses (worker processes, else threads in Blender) and predict the time to
-reach the noise target (the panel's, or 1 % when it is off) with engine/estimate.py.
+reach the noise target (the panel's, or 1 % when it is off) with engine/rendering/estimate.py.
 """
 import bpy
 
@@ -12,8 +12,8 @@ DEFAULT_TARGET = 0.01
 
 
 def estimate_scene(scene, depsgraph, target=None, pilot_samples=64, log=None):
-    """The prediction dict of engine/estimate.py for `scene` as it would render now."""
-    from .engine import border_rect, resolve_accelerator
+    """The prediction dict of engine/rendering/estimate.py for `scene` as it would render now."""
+    from .render_engine import border_rect, resolve_accelerator
     from .export import export_scene
     log = log or (lambda *a: None)
     settings = scene.tncg15.to_settings(bridge.settings_class())
@@ -22,10 +22,10 @@ def estimate_scene(scene, depsgraph, target=None, pilot_samples=64, log=None):
     width, height = int(scene.render.resolution_x * pct), int(scene.render.resolution_y * pct)
     exported = export_scene(depsgraph, resolution=(width, height), camera=scene.camera,
                             crop=border_rect(scene.render, width, height))
-    estimate = bridge.module("estimate").estimate
+    estimate = bridge.module("rendering.estimate").estimate
     python, _ = worker_python.worker_python(worker_python.preferred_python())
     if python is not None:
-        service = bridge.module("service")
+        service = bridge.module("pools.processes")
 
         def render(scene_, settings_, **kw):
             pool = service.SubprocessWorkers(python, settings_.resolved_threads(), worker_python.extra_paths(),
@@ -50,7 +50,7 @@ class TNCG15_OT_estimate_render_time(bpy.types.Operator):
         except Exception as exc:          # noqa: BLE001 - shown to the user as one line
             self.report({"ERROR"}, f"TNCG15 MC: estimate failed: {str(exc).strip().splitlines()[0]}")
             return {"CANCELLED"}
-        text = bridge.module("estimate").describe(result)
+        text = bridge.module("rendering.estimate").describe(result)
         context.scene.tncg15.estimate_text = text
         self.report({"INFO"}, f"TNCG15 MC: {text}")
         return {"FINISHED"}

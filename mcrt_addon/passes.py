@@ -2,7 +2,7 @@
 registration (`update_render_passes`) and writing them into the render result.
 
 Names, channels and types are Cycles' (``list_render_passes``), so the compositor's Render Layers
-node and Denoise node know them; the tracer's names are in engine/passes.py (the same table,
+node and Denoise node know them; the tracer's names are in engine/film/passes.py (the same table,
 kept equal by tests/addon/test_passes_addon.py).  Kept free of numpy and the tracer so that
 `update_render_passes`, which Blender calls very often, stays cheap.
 

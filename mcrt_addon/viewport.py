@@ -1,7 +1,7 @@
 """The 3D viewport's Rendered mode: export on depsgraph updates, render in worker processes, draw.
 
 Blender calls ``view_update`` and ``view_draw`` on its UI thread, so both only read Blender data
-and hand it on: the rendering runs in viewport worker processes (tracer/viewport_service.py),
+and hand it on: the rendering runs in viewport worker processes (tracer/pools/viewport.py),
 whose frames reader threads merge into a film; a ``bpy.app.timers`` poller on the UI thread tags
 the Rendered viewports for redraw whenever a new frame is there (no Blender object is touched
 from another thread, and the engine is not kept alive by us, so Blender frees it and ``__del__``
@@ -32,7 +32,7 @@ ACTIVE = weakref.WeakSet()      # the ViewportStates of live Rendered viewports 
 # -- the view as a tracer camera -------------------------------------------------------------------
 def camera_from_matrices(window_matrix, view_matrix, lens=50.0):
     """Tracer camera parameters (dict) of a perspective projection: sensor and shift such that
-    the tracer's pinhole (engine/camera.py) sees what the viewport's projection shows.
+    the tracer's pinhole (engine/scene/camera_rays.py) sees what the viewport's projection shows.
 
     For Blender's projection P, x_ndc = (P00 x + P02 z) / -z, so at distance L the frame spans
     x in L (±1 + P02) / P00: sensor width 2L / P00, centre L P02 / P00 (shift_x = P02 / 2), and
@@ -163,7 +163,7 @@ class ViewportState:
         python, why = worker_python.worker_python(worker_python.preferred_python())
         if python is None:
             raise RuntimeError(f"the viewport needs render worker processes: {why}")
-        service = bridge.module("viewport_service")
+        service = bridge.module("pools.viewport")
         self.workers = service.ViewportWorkers(python, count, worker_python.extra_paths())
         bpy.app.timers.register(self.poll, first_interval=POLL_SECONDS)
 
@@ -193,13 +193,12 @@ def tag_rendered_viewports():
 
 # -- the callbacks (bodies of RenderEngine.view_update / view_draw) --------------------------------
 def view_update(engine, context, depsgraph):
-    from . import NUMPY_PROBLEM
     st = getattr(engine, "viewport_state", None)
     if st is None:
         st = engine.viewport_state = ViewportState()
     try:
-        if NUMPY_PROBLEM:
-            raise ImportError(NUMPY_PROBLEM)
+        if worker_python.NUMPY_PROBLEM:
+            raise ImportError(worker_python.NUMPY_PROBLEM)
         scene = depsgraph.scene
         kind, geometry = classify(depsgraph.updates)
         forget_meshes(st.mesh_cache, geometry)

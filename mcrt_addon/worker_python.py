@@ -1,7 +1,7 @@
 """Which Python runs the render workers, and what it needs on its path.
 
 The tracer never runs inside Blender's interpreter: it runs in worker processes
-(tracer/service.py) of a Python that has numpy and embreex.  That is
+(tracer/pools/processes.py) of a Python that has numpy and embreex.  That is
 
 * the interpreter set in the add-on's Preferences ("Python for render workers"), when set;
 * in the ``bpy`` module (Blender as a Python package): the Python running it, ``sys.executable``;
@@ -26,9 +26,18 @@ INSTALL_HINT = ("install numpy for Blender's Python (e.g. apt-get install python
                 "add-on's legacy zip for Linux x64, which bundles it")
 
 
+NUMPY_PROBLEM = None      # what ensure_numpy() found: the message saying what to install, or None
+
+
 def ensure_numpy():
-    """Make numpy importable in Blender's process (bundled copy as a last resort); the message
-    saying what to install, or None."""
+    """Make numpy importable in Blender's process (bundled copy as a last resort); sets and
+    returns NUMPY_PROBLEM."""
+    global NUMPY_PROBLEM
+    NUMPY_PROBLEM = _numpy_problem()
+    return NUMPY_PROBLEM
+
+
+def _numpy_problem():
     try:
         import numpy  # noqa: F401
         return None

@@ -21,10 +21,10 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from engine.default_scene import BUILTIN_SCENES  # noqa: E402
-from engine.estimate import estimate  # noqa: E402
-from engine.render import render  # noqa: E402
-from engine.settings import RenderSettings  # noqa: E402
+from engine.scene.builtin import BUILTIN_SCENES  # noqa: E402
+from engine.rendering.estimate import estimate  # noqa: E402
+from engine.api import render  # noqa: E402
+from engine.core.settings import RenderSettings  # noqa: E402
 
 QUIET = dict(log=lambda *a: None)
 TARGETS = {"cornell": 0.05, "near_lamp": 0.03, "caustic": 0.12}

@@ -27,7 +27,7 @@ def main():
     ap.add_argument("--size", type=int, nargs=2, default=(320, 240))
     args = ap.parse_args()
     import mcrt_addon
-    from mcrt_addon.cli import ensure_registered
+    from mcrt_addon.headless import ensure_registered
     ensure_registered(mcrt_addon)
     import mcrt_addon.export as export
     from mcrt_addon import viewport
@@ -74,7 +74,7 @@ def main():
         print(f"{what:<34} UI thread {1000 * ui:8.1f} ms   meshes read {n_reads}   first frame after "
               f"{1000 * first_frame(st):8.1f} ms")
 
-    print(f"{tris:,} triangles, viewport {w}x{h}, {viewport.viewport_worker_count(scene.tncg15.to_settings(__import__('engine.settings', fromlist=['x']).RenderSettings))} worker(s), "
+    print(f"{tris:,} triangles, viewport {w}x{h}, {viewport.viewport_worker_count(scene.tncg15.to_settings(__import__('engine.core.settings', fromlist=['x']).RenderSettings))} worker(s), "
           f"load {os.getloadavg()[0]:.2f}")
     ctx = context()
     t = time.perf_counter()

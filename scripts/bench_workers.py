@@ -22,7 +22,7 @@ zip_path, blend, out, stats_path, size, samples = sys.argv[sys.argv.index("--") 
 bpy.ops.preferences.addon_install(filepath=zip_path)
 bpy.ops.preferences.addon_enable(module="tncg15_mc")
 bpy.ops.wm.open_mainfile(filepath=blend)
-import tncg15_mc.engine as engine
+import tncg15_mc.render_engine as engine
 sc = bpy.context.scene
 sc.render.engine = "TNCG15_MC"
 sc.render.resolution_x = sc.render.resolution_y = int(size)

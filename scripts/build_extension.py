@@ -29,7 +29,7 @@ import zipfile
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGES = ["embreex==4.4.0.post1", "OpenImageIO==3.0.21.0"]
-# --with-denoiser: Intel Open Image Denoise for the Denoise option (engine/denoise.py; run by the
+# --with-denoiser: Intel Open Image Denoise for the Denoise option (engine/film/denoise.py; run by the
 # worker Python).  pyoidn's wheel (py3-none-manylinux2014_x86_64, about 88 MB) exists for Linux x64.
 DENOISER = ["pyoidn==2.5.1.0"]
 DENOISER_DEPS = ("pyoidn", "cffi", "pycparser")

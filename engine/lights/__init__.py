@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..vec import dot, max_abs3, rows
+from ..core.vec import dot, max_abs3, rows
 from .parallelograms import Parallelograms
 from .polygons import Polygons
 from .selection import LightTree, PowerSelection

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling import cosine_directions, uniform_cone
-from ..vec import dot, rows
+from ..sampling.warps import cosine_directions, uniform_cone
+from ..core.vec import dot, rows
 
 
 class DistantLights:

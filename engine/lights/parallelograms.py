@@ -13,14 +13,14 @@ A light is v0 + s e1 + t e2, s, t in [0, 1].  Two ways to draw a point y on it:
 `use_solid_angle` is the one predicate both `sample` and `pdf` consult, so the pdf of a
 BSDF-sampled direction is the density the light sampler really has there.  Where the
 spherical map loses precision (x almost in the light's plane, or a vanishing Omega) it
-falls back to area sampling, which is exact there.  All vectors are rows (engine/vec.py);
+falls back to area sampling, which is exact there.  All vectors are rows (engine/core/vec.py);
 `idx` picks each ray's light within this kind.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..vec import cross, dot, gather, rows
+from ..core.vec import cross, dot, gather, rows
 
 OMEGA_MIN = 1e-6          # sr: below this area sampling is as good and cheaper
 GRAZING = 1e-5            # |plane distance| / distance to the centre below which x is "in the plane"

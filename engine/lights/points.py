@@ -8,7 +8,7 @@ radiance / density = I / d^2.  Point lights are reached by shadow rays only (not
 rays), so their shadow rays always have MIS weight 1.
 
 Spot lights are point lights whose radiance is scaled by the cone's falloff a(theta) in the
-direction of the receiver (engine/scene.py PointLight; Cycles evaluates it for the direction from
+direction of the receiver (engine/scene/model.py PointLight; Cycles evaluates it for the direction from
 the sampled point to the receiver, as `spot_factor` does).  Their samples are drawn as the point
 light's: the falloff only scales what a sample carries.
 """
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling import uniform_cone
-from ..vec import dot, gather, rows
+from ..sampling.warps import uniform_cone
+from ..core.vec import dot, gather, rows
 
 
 class PointLights:

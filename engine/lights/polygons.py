@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling import ONE_MINUS_EPSILON, uniform_triangle
-from ..vec import rows
+from ..sampling.warps import ONE_MINUS_EPSILON, uniform_triangle
+from ..core.vec import rows
 from .parallelograms import area_pdf
 
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..shapes.spheres import intersect_sphere
-from ..vec import dot
+from ..geometry.shapes.spheres import intersect_sphere
+from ..core.vec import dot
 from .distant import DistantLights
 from .points import PointLights
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..vec import dot, rows
+from ..core.vec import dot, rows
 
 DEFENSIVE = 0.05
 TINY = np.float32(1e-30)          # floor of the squared distance in the (float32) importance

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling import orthonormal_basis, uniform_sphere, unit_circle
-from ..vec import dot, rows
+from ..sampling.warps import orthonormal_basis, uniform_sphere, unit_circle
+from ..core.vec import dot, rows
 from .parallelograms import area_pdf
 
 OUTSIDE = 1.0 + 1e-6          # |x - c|^2 > r^2 * OUTSIDE: sampled by cone

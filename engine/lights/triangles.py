@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling import uniform_triangle
-from ..vec import cross, dot, normalize, rows
+from ..sampling.warps import uniform_triangle
+from ..core.vec import cross, dot, normalize, rows
 from .parallelograms import GRAZING, OMEGA_MIN, area_pdf
 
 

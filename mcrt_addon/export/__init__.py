@@ -73,7 +73,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     t0 = time.perf_counter()
     sm = bridge.scene_module()
     warnings = []
-    images = ImageTable(bridge.module("textures"), warnings)
+    images = ImageTable(bridge.module("scene.textures"), warnings)
     table = MaterialTable(sm.Material, (sm.DIFFUSE, sm.MIRROR, sm.GLASS), warnings, images)
     scene = depsgraph.scene
     version = tuple(bpy.app.version)

@@ -1,4 +1,4 @@
-"""Image Texture nodes -> tracer textures (engine/textures.py).
+"""Image Texture nodes -> tracer textures (engine/materials/textures.py).
 
 An image is exported once per render however many materials use it (`ImageTable`):
 * a file on disk: its absolute path; the render worker reads it with OpenImageIO;

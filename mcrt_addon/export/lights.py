@@ -118,7 +118,7 @@ def _power(light):
 
 def export_point_light(ob, matrix, version, *, PointLight):
     """A point or spot light (the spot's cone about the object's -Z axis, its falloff as the
-    Cycles of this Blender version has it: see engine/scene.py PointLight)."""
+    Cycles of this Blender version has it: see engine/scene/model.py PointLight)."""
     light = ob.data
     intensity = tuple(float(c) * _power(light) / (4.0 * math.pi) for c in light.color)
     radius = float(getattr(light, "shadow_soft_size", 0.0))

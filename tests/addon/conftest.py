@@ -17,7 +17,7 @@ import bpy  # noqa: E402  (requirements.txt installs the bpy module: a missing o
 @pytest.fixture(scope="session")
 def addon():
     import mcrt_addon
-    from mcrt_addon.cli import ensure_registered
+    from mcrt_addon.headless import ensure_registered
     ensure_registered(mcrt_addon)
     return mcrt_addon
 

@@ -13,13 +13,13 @@ import bpy  # noqa: E402
 
 import mcrt_addon  # noqa: E402
 from mcrt_addon import bridge  # noqa: E402
-from mcrt_addon import engine as engine_module  # noqa: E402
-from mcrt_addon.cli import ensure_registered, set_exr_output  # noqa: E402
+from mcrt_addon import render_engine as engine_module  # noqa: E402
+from mcrt_addon.headless import ensure_registered, set_exr_output  # noqa: E402
 from mcrt_addon.export import export_scene  # noqa: E402
 from mcrt_addon.reference import setup_cycles_reference  # noqa: E402
 
 
-REPORTS = []                                     # every render's RenderReport (mcrt_addon/engine.py)
+REPORTS = []                                     # every render's RenderReport (mcrt_addon/render_engine.py)
 if REPORTS.append not in engine_module.REPORT_LISTENERS:
     engine_module.REPORT_LISTENERS.append(REPORTS.append)
 

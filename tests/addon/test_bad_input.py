@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from mcrt_addon.cli import set_exr_output
+from mcrt_addon.headless import set_exr_output
 from rendering import forget_reports, last_report, open_blend, read_exr
 
 NAN = float("nan")

@@ -49,7 +49,7 @@ bpy.ops.preferences.addon_install(filepath=zip_path)
 bpy.ops.preferences.addon_enable(module="tncg15_mc")
 enabled = time.perf_counter() - t0
 bpy.ops.wm.open_mainfile(filepath=blend)
-import tncg15_mc.engine as engine
+import tncg15_mc.render_engine as engine
 sc = bpy.context.scene
 sc.render.engine = "TNCG15_MC"
 sc.tncg15.samples = 4
@@ -109,7 +109,7 @@ zip_path, blend, out, stats_path = sys.argv[sys.argv.index("--") + 1:]
 bpy.ops.preferences.addon_install(filepath=zip_path)
 bpy.ops.preferences.addon_enable(module="tncg15_mc")
 bpy.ops.wm.open_mainfile(filepath=blend)
-import tncg15_mc.engine as engine
+import tncg15_mc.render_engine as engine
 sc = bpy.context.scene
 sc.render.engine = "TNCG15_MC"
 sc.render.resolution_x = sc.render.resolution_y = 96
@@ -203,7 +203,7 @@ def test_blender34_fills_passes_and_denoises(blend34, tmp_path):
     """Blender 3.4: the registered passes (Z, Denoising Data, Sample Count, Variance) land in its
     multi-layer EXR, and Denoise runs OIDN in a process of the worker Python (never in Blender's,
     where OIDN aborts 3.4) and keeps the Noisy Image pass."""
-    from engine.passes import read_multilayer_exr
+    from engine.film.passes import read_multilayer_exr
     expr = ("import bpy, mcrt_addon; mcrt_addon.register(); sc = bpy.context.scene; sc.tncg15.samples = 4; "
             "sc.tncg15.use_denoising = True; vl = sc.view_layers[0]; vl.use_pass_z = True; "
             "vl.tncg15.denoising_store_passes = True; vl.tncg15.pass_sample_count = True; "

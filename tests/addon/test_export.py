@@ -73,7 +73,7 @@ def test_camera_matches_blender_projection(scene, res, fit, shift):
     np.testing.assert_allclose(py, ys, atol=1e-3)
     # the tracer's own camera model agrees with this reference
     from mcrt_addon import bridge
-    camera_rays = bridge.module("camera").camera_rays
+    camera_rays = bridge.module("scene.camera_rays").camera_rays
     _, dirs = camera_rays(cam, res[0], res[1], xs.ravel(), ys.ravel())
     np.testing.assert_allclose(dirs.T.reshape(d.shape), d, atol=1e-9)
 

@@ -3,9 +3,9 @@ import bpy
 import numpy as np
 import pytest
 
-from engine.effects import plan_effects
-from engine.settings import RenderSettings
-from engine.textures import TextureSet
+from engine.integrators.effects import plan_effects
+from engine.core.settings import RenderSettings
+from engine.materials.textures import TextureSet
 from mcrt_addon.export import export_scene
 from rendering import export_blend
 

@@ -25,7 +25,7 @@ sc.render.resolution_x = sc.render.resolution_y = 24
 sc.render.image_settings.file_format = "OPEN_EXR"
 sc.render.filepath = out
 bpy.ops.render.render(write_still=True)
-tracers = [m for m in sys.modules if m.endswith(".tracer.render")]
+tracers = [m for m in sys.modules if m.endswith(".tracer.api")]
 print("TRACER", tracers)
 '''
 
@@ -44,8 +44,8 @@ def test_extension_zip_contents(built):
     with zipfile.ZipFile(built["extension"]) as zf:
         names = set(zf.namelist())
         manifest = zf.read("blender_manifest.toml").decode()
-    assert {"blender_manifest.toml", "__init__.py", "engine.py", "properties.py", "ui.py",
-            "export/__init__.py", "tracer/__init__.py", "tracer/render.py", "tracer/scene.py"} <= names
+    assert {"blender_manifest.toml", "__init__.py", "render_engine.py", "properties.py", "ui.py",
+            "export/__init__.py", "tracer/__init__.py", "tracer/api.py", "tracer/scene/model.py"} <= names
     wheels = [n for n in names if n.startswith("wheels/") and n.endswith(".whl")]
     assert any("embreex" in w for w in wheels) and any("openimageio" in w.lower() for w in wheels)
     assert not any(os.path.basename(w).startswith("numpy") for w in wheels)
@@ -72,7 +72,7 @@ def test_extension_installs_and_renders_in_blender_5(built, samples, tmp_path):
     r = subprocess.run([sys.executable, str(script), str(built["extension"]), samples["cornell"], str(out)],
                        capture_output=True, text=True, timeout=600, env=env, cwd=str(tmp_path))
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    assert "bl_ext.user_default.tncg15_mc.tracer.render" in r.stdout
+    assert "bl_ext.user_default.tncg15_mc.tracer.api" in r.stdout
     site = tmp_path / "user" / "extensions" / ".local" / "lib" / "python3.11" / "site-packages"
     assert (site / "embreex").is_dir(), "the embreex wheel was not installed by Blender"
     img = read_exr(str(out))
@@ -84,7 +84,7 @@ def test_legacy_zip_is_a_3x_addon_folder(built):
         names = set(zf.namelist())
         init = zf.read("tncg15_mc/__init__.py").decode()
     assert "bl_info" in init
-    assert {"tncg15_mc/engine.py", "tncg15_mc/tracer/render.py", "tncg15_mc/export/mesh.py"} <= names
+    assert {"tncg15_mc/render_engine.py", "tncg15_mc/tracer/api.py", "tncg15_mc/export/mesh.py"} <= names
     assert not any(n.endswith(".whl") for n in names)            # wheels unpacked: importable as they are
     assert "tncg15_mc/vendor/numpy/numpy/__init__.py" in names
     assert "tncg15_mc/vendor/worker/embreex/__init__.py" in names

@@ -38,7 +38,7 @@ def render_multilayer(scene):
     scene.render.use_file_extension = False
     scene.render.use_compositing = False
     bpy.ops.render.render(write_still=True)
-    from engine.passes import read_multilayer_exr
+    from engine.film.passes import read_multilayer_exr
     channels = read_multilayer_exr(path)
     os.remove(path)
     return channels
@@ -49,7 +49,7 @@ def layer(channels, name, chans):
 
 
 def test_addon_names_are_the_tracers():
-    from engine.passes import BLENDER_NAME, CHANNELS
+    from engine.film.passes import BLENDER_NAME, CHANNELS
     for name, (blender, n, chan_id, _) in addon_passes.BLENDER_PASSES.items():
         assert BLENDER_NAME[name] == blender
         assert CHANNELS[name] == chan_id[:n] or (name == "noisy" and chan_id == "RGBA")
@@ -118,10 +118,10 @@ def test_denoise_in_blender(samples):
 
 def test_addon_cli_writes_the_same_layers_as_the_tracer_cli(samples, tmp_path):
     """python -m mcrt_addon render --passes ...: Blender's multi-part EXR rewritten with the layers
-    python -m engine render writes (engine/passes.py exr_channels), values as Blender filled them."""
+    python -m engine render writes (engine/film/passes.py exr_channels), values as Blender filled them."""
     import subprocess
     import sys
-    from engine.passes import exr_channels, read_multilayer_exr
+    from engine.film.passes import exr_channels, read_multilayer_exr
     repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     out = tmp_path / "passes.exr"
     proc = subprocess.run([sys.executable, "-m", "mcrt_addon", "render", samples["cornell"], "-o", str(out),
@@ -143,7 +143,7 @@ def test_addon_cli_writes_the_same_layers_as_the_tracer_cli(samples, tmp_path):
 def test_denoise_unavailable_is_a_warning_not_a_failure(samples, monkeypatch):
     """No OIDN for the worker Python: the render stays (undenoised) with one warning naming the fix."""
     from mcrt_addon import bridge
-    denoise = bridge.module("denoise")
+    denoise = bridge.module("film.denoise")
 
     def unavailable(*a, **k):
         raise denoise.DenoiserUnavailable("Denoise needs Intel Open Image Denoise: 'pip install pyoidn' for /x/python")

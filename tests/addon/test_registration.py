@@ -34,7 +34,7 @@ def test_register_unregister_register(addon):
 
 
 def test_engine_class_flags(addon):
-    cls = mcrt_addon.engine.TNCG15RenderEngine
+    cls = mcrt_addon.render_engine.TNCG15RenderEngine
     assert cls.bl_idname == "TNCG15_MC" and cls.bl_label == "TNCG15 MC"
     assert cls.bl_use_shading_nodes_custom is False   # Cycles shader nodes stay visible
 

@@ -3,7 +3,7 @@ import bpy
 import numpy as np
 import pytest
 
-from mcrt_addon import engine as engine_module
+from mcrt_addon import render_engine as engine_module
 from rendering import export_blend, last_report, open_blend, render_operator, tncg15_runs
 
 
@@ -166,7 +166,7 @@ def test_animation_renders_each_frame_with_its_transforms(empty_scene, make_samp
     empty_scene.render.resolution_x = empty_scene.render.resolution_y = 24
     empty_scene.frame_start, empty_scene.frame_end = 1, 2
     set_props(empty_scene, samples=2, depth=0)
-    from mcrt_addon.cli import set_exr_output
+    from mcrt_addon.headless import set_exr_output
     set_exr_output(empty_scene, str(tmp_path / "f_####.exr"))
     empty_scene.render.use_file_extension = True
     bpy.ops.render.render(animation=True)

@@ -35,7 +35,7 @@ def point_light(addon, make_samples_module, tmp_path):
 
 
 def test_view_camera_sees_what_the_exporter_camera_sees(point_light):
-    from engine.scene import Camera
+    from engine.scene.model import Camera
     from mcrt_addon.export.camera import export_camera, pixel_directions
     from mcrt_addon.viewport import camera_from_matrices
     scene = point_light
@@ -177,7 +177,7 @@ def test_view_update_reports_problems_in_the_header(point_light):
 
 
 def test_material_preview_renders_with_tncg15(addon):
-    import mcrt_addon.engine as engine_module
+    import mcrt_addon.render_engine as engine_module
     bpy.ops.wm.read_factory_settings(use_empty=False)
     bpy.context.scene.render.engine = "TNCG15_MC"
     mat = bpy.data.materials.new("Red")
@@ -256,5 +256,5 @@ def test_viewport_settings_sit_under_sampling_as_in_cycles(addon):
     assert bpy.context.scene.tncg15.viewport_samples == 32
     assert "TNCG15_MC" in bpy.types.MATERIAL_PT_preview.COMPAT_ENGINES      # the preview panel shows
     assert bpy.types.RenderEngine.bl_rna.properties["bl_use_preview"] is not None
-    from mcrt_addon.engine import TNCG15RenderEngine
+    from mcrt_addon.render_engine import TNCG15RenderEngine
     assert TNCG15RenderEngine.bl_use_preview

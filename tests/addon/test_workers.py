@@ -12,7 +12,7 @@ import pytest
 
 from conftest import REPO
 from file_safety import alive, children
-from mcrt_addon import engine as engine_module
+from mcrt_addon import render_engine as engine_module
 from rendering import last_report, open_blend, render_operator
 
 
@@ -69,7 +69,7 @@ def test_workers_die_with_a_killed_command_line(command, tmp_path):
 def test_addon_cli_renders_on_a_dask_cluster_pixel_identical(tmp_path):
     """--cluster (the add-on's Render cluster preference) sends the work units to Dask workers:
     the same image as the local worker processes."""
-    from engine.film import read_image
+    from engine.film.image_files import read_image
     blend = os.path.join(REPO, "sample_blends", "cornell.blend")
     images = {}
     for name, extra in (("local", []), ("dask", ["--cluster", "local"])):

@@ -87,7 +87,7 @@ def steps():
     scene = bpy.context.scene
     scene.render.engine = "TNCG15_MC"
     # a material preview (bl_use_preview): Blender renders it with TNCG15 MC on a job thread
-    engine_module = sys.modules["tncg15_mc.engine"]
+    engine_module = sys.modules["tncg15_mc.render_engine"]
     reports = []
     engine_module.REPORT_LISTENERS.append(reports.append)
     mat = bpy.data.materials["Pink"]

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.default_scene import torus
-from engine.geometry import Counters, SceneGeometry
-from engine.scene import (DIFFUSE, GLASS, MIRROR, Camera, Material, Quad, Scene, SceneError, Sphere,
-                          TriangleMesh)
+from engine.scene.builtin import torus
+from engine.geometry.scene_geometry import Counters, SceneGeometry
+from engine.scene.model import DIFFUSE, GLASS, MIRROR, Camera, Material, Quad, Scene, Sphere, TriangleMesh
+from engine.core.errors import SceneError
 
 SCENES_PER_RUN = 1000
 

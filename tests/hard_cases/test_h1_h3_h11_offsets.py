@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from engine.geometry import NONE, Counters, SceneGeometry
-from engine.sampling import cosine_hemisphere, to_world
-from engine.scene import Camera, Material, Scene, Sphere, TriangleMesh
-from engine.vec import rows
+from engine.geometry.scene_geometry import NONE, Counters, SceneGeometry
+from engine.sampling.warps import cosine_hemisphere, to_world
+from engine.scene.model import Camera, Material, Scene, Sphere, TriangleMesh
+from engine.core.vec import rows
 
 
 def plane_mesh(center, normal, size, name="Plane"):

@@ -3,13 +3,13 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.accel.brute import BruteForceAccelerator
-from engine.accel.embree import EmbreeAccelerator
-from engine.accel.octree import OctreeAccelerator
-from engine.geometry import NONE, QUAD, Counters, SceneGeometry
-from engine.sampling import orthonormal_basis
-from engine.scene import DIFFUSE, GLASS, Camera, Material, Quad, Scene, Sphere, TriangleMesh
-from engine.vec import rows
+from engine.geometry.accel.brute import BruteForceAccelerator
+from engine.geometry.accel.embree import EmbreeAccelerator
+from engine.geometry.accel.octree import OctreeAccelerator
+from engine.geometry.scene_geometry import NONE, QUAD, Counters, SceneGeometry
+from engine.sampling.warps import orthonormal_basis
+from engine.scene.model import DIFFUSE, GLASS, Camera, Material, Quad, Scene, Sphere, TriangleMesh
+from engine.core.vec import rows
 
 SILENT = dict(log=lambda *a: None)
 
@@ -141,7 +141,7 @@ def test_h10_huge_ground_sphere_has_no_shadow_acne():
 
 
 def test_h12_sphere_pole_frame_is_orthonormal():
-    from engine.shapes.spheres import intersect_sphere, surface_point
+    from engine.geometry.shapes.spheres import intersect_sphere, surface_point
     o = np.array([[0, 0, -5.0], [0, 0, 5.0]])
     d = np.array([[0, 0, 1.0], [0, 0, -1.0]])
     t = intersect_sphere(rows(o), rows(d), np.zeros(3), 1.0)
@@ -178,7 +178,7 @@ def test_h15_unoccluded_light_has_visibility_exactly_one(as_mesh):
         kw["meshes"] = [TriangleMesh("Light", corners, np.array([[0, 1, 2], [0, 2, 3]]), [1, 1])]
     else:
         kw["quads"].append(Quad("Light", corners, 1))
-    from engine.session import RenderSession as Renderer
+    from engine.rendering.session import RenderSession as Renderer
     scene = Scene(Camera.look_at((0, 0, 0.5), (0, 0, 0), up=(0, 1, 0)), mats, **kw)
     renderer = Renderer(scene, RenderSettings(shadow_rays=1), **SILENT)
     geo, lights, tracer = renderer.geometry, renderer.lights, renderer.tracer

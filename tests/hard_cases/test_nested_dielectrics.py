@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.scene import DIFFUSE, GLASS, Camera, Material, Quad, Scene, Sphere
+from engine.scene.model import DIFFUSE, GLASS, Camera, Material, Quad, Scene, Sphere
 
 SILENT = dict(log=lambda *a: None)
 
@@ -57,7 +57,7 @@ class AlwaysRefract:
 
 
 def test_water_in_glass_refracts_by_the_ior_ratio_and_the_stack_pushes_and_pops():
-    from engine.session import RenderSession as Renderer
+    from engine.rendering.session import RenderSession as Renderer
     scene = lens_scene(1.33)
     tracer = Renderer(scene, RenderSettings(nested_dielectrics=True, fresnel="exact"), **SILENT).tracer
     theta = np.radians(30.0)

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from engine.bsdf import fresnel_exact, fresnel_schlick, reflect, refract, refract_cos
+from engine.materials.bsdf import fresnel_exact, fresnel_schlick, reflect, refract, refract_cos
 
 
 def fresnel(model, theta_deg, eta):

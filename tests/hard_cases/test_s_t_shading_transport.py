@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.default_scene import cornell_scene
-from engine.scene import DIFFUSE, GLASS, MIRROR, Camera, Material, Quad, Scene, SceneError, Sphere
+from engine.scene.builtin import cornell_scene
+from engine.scene.model import DIFFUSE, GLASS, MIRROR, Camera, Material, Quad, Scene, Sphere
+from engine.core.errors import SceneError
 
 SILENT = dict(log=lambda *a: None)
 
@@ -136,9 +137,9 @@ def test_t6_box_filter_pixel_value_is_the_covered_fraction():
 def test_t1_every_shadow_ray_inside_an_emitting_sphere_weighs_exactly_rho_le(estimator):
     """Two points on a sphere's inside: cos cos / r^2 = 1/(4 R^2), so V G / p(y) = pi and each
     next-event sample is exactly rho * Le.  A self-occluded shadow ray would give 0."""
-    from engine.geometry import Counters
-    from engine.session import RenderSession as Renderer
-    from engine.shapes.spheres import surface_point
+    from engine.geometry.scene_geometry import Counters
+    from engine.rendering.session import RenderSession as Renderer
+    from engine.geometry.shapes.spheres import surface_point
     rho, le, radius = 0.7, 2.0, 3.0
     mats = [Material("Shell", DIFFUSE, (rho,) * 3, emission=(le,) * 3)]
     scene = Scene(Camera.look_at((0, 0, 0), (0, 1, 0)), mats, spheres=[Sphere("Shell", (1e3, 2e3, -5e2), radius, 0)])
@@ -158,7 +159,7 @@ def test_t1_every_shadow_ray_inside_an_emitting_sphere_weighs_exactly_rho_le(est
 
 
 def test_s8_back_facing_area_light_gives_exactly_zero():
-    from engine.scene import AreaLight
+    from engine.scene.model import AreaLight
     mats = [Material("Floor", DIFFUSE, (0.8, 0.8, 0.8))]
     floor = Quad("Floor", np.array([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)], float), 0)
     facing_up = np.array([(-0.5, -0.5, 1), (0.5, -0.5, 1), (0.5, 0.5, 1), (-0.5, 0.5, 1)], float)
@@ -188,7 +189,7 @@ def _uv_sphere_mesh(center, radius, n_u, n_v, material):
     a, b = i * n_u + j, i * n_u + (j + 1) % n_u
     c, d = (i + 1) * n_u + (j + 1) % n_u, (i + 1) * n_u + j
     f = np.concatenate([np.stack([a.ravel(), d.ravel(), c.ravel()], 1), np.stack([a.ravel(), c.ravel(), b.ravel()], 1)])
-    from engine.scene import TriangleMesh
+    from engine.scene.model import TriangleMesh
     return TriangleMesh("Ball (mesh)", v, f, np.full(len(f), material))
 
 

@@ -3,12 +3,12 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.accel import ACCELERATOR_CLASSES, choose_accelerator
-from engine.accel.brute import BruteForceAccelerator
-from engine.accel.embree import EmbreeAccelerator
-from engine.accel.octree import OctreeAccelerator
-from engine.default_scene import cornell_scene, torus
-from engine.geometry import SceneGeometry
+from engine.geometry.accel import ACCELERATOR_CLASSES, choose_accelerator
+from engine.geometry.accel.brute import BruteForceAccelerator
+from engine.geometry.accel.embree import EmbreeAccelerator
+from engine.geometry.accel.octree import OctreeAccelerator
+from engine.scene.builtin import cornell_scene, torus
+from engine.geometry.scene_geometry import SceneGeometry
 
 from .scenes import diffuse_box_scene
 

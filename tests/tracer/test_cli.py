@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from engine.film import read_image
+from engine.film.image_files import read_image
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 

@@ -13,11 +13,11 @@ import time
 import numpy as np
 import pytest
 
-from engine.film import read_image
+from engine.film.image_files import read_image
 from file_safety import OLD_OUTPUT, alive, assert_one_line, children, snapshot
-from engine.memory import check_memory, estimate_bytes
-from engine.scene import SceneError
-from engine.settings import RenderSettings
+from engine.rendering.memory import check_memory, estimate_bytes
+from engine.core.errors import SceneError
+from engine.core.settings import RenderSettings
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -206,7 +206,7 @@ def test_disk_full_is_one_line_and_leaves_the_old_file(tiny_disk):
 
 
 def test_memory_estimate_refuses_before_allocating():
-    from engine.default_scene import cornell_scene
+    from engine.scene.builtin import cornell_scene
     scene = cornell_scene((16384, 16384))
     settings = RenderSettings(threads=2)
     need = estimate_bytes(scene, settings)

@@ -1,4 +1,4 @@
-"""Rendering on a Dask cluster (engine/cluster.py) with real `dask scheduler` / `dask worker`
+"""Rendering on a Dask cluster (engine/pools/dask_cluster.py) with real `dask scheduler` / `dask worker`
 processes on 127.0.0.1: the same image as the local pool bit for bit, a SIGKILLed worker, a
 cancelled render, an unreachable scheduler, a worker of another engine version, Ctrl-C."""
 import json
@@ -19,9 +19,9 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 from engine import RenderSettings, render                     # noqa: E402
-from engine.cluster import ClusterError, ProcessCluster, running_units  # noqa: E402
-from engine.default_scene import cornell_scene                # noqa: E402
-from engine.session import ENGINE_VERSION                     # noqa: E402
+from engine.pools.dask_cluster import ClusterError, ProcessCluster, running_units  # noqa: E402
+from engine.scene.builtin import cornell_scene  # noqa: E402
+from engine.core.version import ENGINE_VERSION  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 SILENT = dict(log=lambda *a: None)
@@ -154,7 +154,7 @@ def test_a_bad_address_is_one_line():
 def other_engine(tmp: Path, version: str) -> Path:
     """A copy of the engine package that calls itself `version`."""
     shutil.copytree(REPO / "engine", tmp / "engine", ignore=shutil.ignore_patterns("__pycache__"))
-    session = tmp / "engine" / "session.py"
+    session = tmp / "engine" / "core" / "version.py"
     text = session.read_text()
     assert f'ENGINE_VERSION = "{ENGINE_VERSION}"' in text
     session.write_text(text.replace(f'ENGINE_VERSION = "{ENGINE_VERSION}"', f'ENGINE_VERSION = "{version}"'))
@@ -185,7 +185,7 @@ def test_a_worker_of_another_engine_version_is_refused(cluster, tmp_path):
 
 
 def test_a_unit_checks_the_engine_version_on_the_worker():
-    from engine.cluster import render_unit_task
+    from engine.pools.dask_cluster import render_unit_task
     with pytest.raises(RuntimeError, match=f"runs engine {ENGINE_VERSION}, this is 9.9.9: refused"):
         render_unit_task(b"", "key", 0, "9.9.9")
 

@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
-import engine.geometry
-import engine.integrator
+import engine.geometry.scene_geometry
+import engine.integrators.path_tracer
 from engine import RenderSettings, render
-from engine.effects import plan_effects
-from engine.scene import GLASS, Material, Sphere
+from engine.integrators.effects import plan_effects
+from engine.scene.model import GLASS, Material, Sphere
 
 from .scenes import diffuse_box_scene
 
@@ -25,10 +25,10 @@ class CallCounter:
 
 @pytest.fixture
 def spies(monkeypatch):
-    sphere = CallCounter(engine.geometry.intersect_sphere)
-    refract = CallCounter(engine.integrator.refract_cos)
-    monkeypatch.setattr(engine.geometry, "intersect_sphere", sphere)
-    monkeypatch.setattr(engine.integrator, "refract_cos", refract)
+    sphere = CallCounter(engine.geometry.scene_geometry.intersect_sphere)
+    refract = CallCounter(engine.integrators.path_tracer.refract_cos)
+    monkeypatch.setattr(engine.geometry.scene_geometry, "intersect_sphere", sphere)
+    monkeypatch.setattr(engine.integrators.path_tracer, "refract_cos", refract)
     return sphere, refract
 
 

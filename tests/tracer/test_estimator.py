@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.scene import DIFFUSE, GLASS, MIRROR
+from engine.scene.model import DIFFUSE, GLASS, MIRROR
 
 from .scenes import (camera_inside_sphere_scene, diffuse_box_scene, floor_under_square_light,
                      form_factor_square, object_in_uniform_background)
@@ -104,7 +104,7 @@ def test_image_is_identical_across_thread_counts():
 
 
 def _floor_under_area_light(facing_down=True, two_sided=False):
-    from engine.scene import AreaLight
+    from engine.scene.model import AreaLight
     scene = floor_under_square_light(albedo=0.8)
     light_quad = scene.quads.pop()          # replace the emissive quad by a light-only AreaLight
     corners = light_quad.corners if facing_down else light_quad.corners[::-1]
@@ -128,7 +128,7 @@ def test_one_sided_area_light_matches_form_factor_and_is_dark_behind():
 
 
 def test_area_light_is_invisible_to_camera_and_casts_no_shadow():
-    from engine.scene import AreaLight, Camera
+    from engine.scene.model import AreaLight, Camera
     scene = _floor_under_area_light(True)
     # Camera above the light looking down through it at the floor.
     scene.camera = Camera.look_at((0, 0, 3.0), (0, 0, 0), up=(0, 1, 0), lens=20000.0)

@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from engine.accel.embree import EmbreeAccelerator
-from engine.geometry import NONE, QUAD, SPHERE, TRIANGLE, Counters, SceneGeometry
-from engine.scene import Camera, Material, Quad, Scene, Sphere, TriangleMesh
-from engine.shapes.quads import QuadSet
-from engine.shapes.spheres import intersect_sphere, surface_point
-from engine.vec import rows
+from engine.geometry.accel.embree import EmbreeAccelerator
+from engine.geometry.scene_geometry import NONE, QUAD, SPHERE, TRIANGLE, Counters, SceneGeometry
+from engine.scene.model import Camera, Material, Quad, Scene, Sphere, TriangleMesh
+from engine.geometry.shapes.quads import QuadSet
+from engine.geometry.shapes.spheres import intersect_sphere, surface_point
+from engine.core.vec import rows
 
 
 def unit(v):

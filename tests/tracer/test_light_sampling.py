@@ -14,7 +14,7 @@ from engine.lights.parallelograms import Parallelograms
 from engine.lights.selection import LightTree
 from engine.lights.spheres import Spheres
 from engine.lights.triangles import Triangles
-from engine.scene import Camera, Material, Quad, Scene, Sphere, TriangleMesh
+from engine.scene.model import Camera, Material, Quad, Scene, Sphere, TriangleMesh
 
 from .test_sampling import ALPHA, pooled_chi2
 
@@ -177,7 +177,7 @@ def test_point_light_disk_cone_chi2(distance):
     """Point and spot lights of radius r: directions uniform in the cone of the disk facing the
     receiver (half-angle atan(r / d)), points on that disk, pdf 1 / (2 pi (1 - cos))."""
     from engine.lights.points import PointLights
-    from engine.scene import PointLight
+    from engine.scene.model import PointLight
     centre, r = np.array([0.2, -0.1, 0.4]), 0.1
     lights = PointLights([PointLight("Bulb", tuple(centre), (1.0, 1.0, 1.0), r)])
     axis = np.array([2.0, -1.0, 2.0]) / 3.0
@@ -197,7 +197,7 @@ def test_point_light_disk_cone_chi2(distance):
 def test_sun_cone_chi2(angle):
     """A sun of angular diameter `angle`: directions uniform in the cone of half-angle angle / 2."""
     from engine.lights.distant import DistantLights
-    from engine.scene import SunLight
+    from engine.scene.model import SunLight
     travel = np.array([1.0, 2.0, -2.0]) / 3.0
     suns = DistantLights([SunLight("Sun", tuple(travel), (1.0, 1.0, 1.0), angle)], (0.0, 0.0, 0.0), 1.0)
     rng = np.random.default_rng(8)
@@ -227,7 +227,7 @@ def test_chi2_rejects_the_area_sampler_as_a_solid_angle_sampler():
 
 def _mixed_scene():
     """A rectangle, a non-rectangular parallelogram, emissive triangles, a sphere and a disk light."""
-    from engine.scene import AreaLight
+    from engine.scene.model import AreaLight
     mats = [Material("Warm", emission=(3.0, 2.0, 1.0), color=(0, 0, 0)),
             Material("Cold", emission=(0.5, 0.7, 2.0), color=(0.5, 0.5, 0.5))]
     rect = Quad("Rect", np.array([[0, 0, 2], [1, 0, 2], [1, 1, 2], [0, 1, 2]], float), 0)

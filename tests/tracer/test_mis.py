@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-import engine.integrator
+import engine.integrators.path_tracer
 from engine import RenderSettings, render
-from engine.scene import DIFFUSE, MIRROR, AreaLight, Camera, Material, Quad, Scene
+from engine.scene.model import DIFFUSE, MIRROR, AreaLight, Camera, Material, Quad, Scene
 
 from .scenes import emitting_box, floor_under_square_light, form_factor_square, near_lamp_box
 
@@ -56,12 +56,12 @@ def test_light_bsdf_and_mis_estimators_converge_to_the_same_image(light_only, ca
 
 def test_a_wrong_mis_weight_is_caught(light_only, monkeypatch):
     """Control: the balance heuristic on the emission side only (weights no longer sum to 1)."""
-    right = engine.integrator.PathTracer.emission_weight
+    right = engine.integrators.path_tracer.PathTracer.emission_weight
 
     def balance_on_bsdf_side(self, p, surf, hits, idx):
         w = right(self, p, surf, hits, idx)
         return np.sqrt(w) / (np.sqrt(w) + np.sqrt(np.maximum(1.0 - w, 0.0)))
-    monkeypatch.setattr(engine.integrator.PathTracer, "emission_weight", balance_on_bsdf_side)
+    monkeypatch.setattr(engine.integrators.path_tracer.PathTracer, "emission_weight", balance_on_bsdf_side)
     wrong = render(near_lamp_box(), settings(estimator="mis", samples=2048, seed=2), **SILENT)
     z, z_crit = block_test(wrong, light_only)
     assert z > z_crit, (z, z_crit)

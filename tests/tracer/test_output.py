@@ -1,13 +1,13 @@
-"""engine/output.py in-process: a write that fails half-way leaves the old file and no temporary;
+"""engine/film/output.py in-process: a write that fails half-way leaves the old file and no temporary;
 a successful one replaces the target whole (works without root, unlike the tmpfs test)."""
 import os
 
 import numpy as np
 import pytest
 
-from engine import film
-from engine.film import read_image
-from engine.output import Output, OutputError, check_outputs, write_image, write_text
+from engine.film import image_files as film
+from engine.film.image_files import read_image
+from engine.film.output import Output, OutputError, check_outputs, write_image, write_text
 from file_safety import OLD_OUTPUT
 
 

@@ -1,5 +1,5 @@
-"""Render passes (engine/passes.py) against closed forms, their EXR layers, determinism, and the
-denoiser (engine/denoise.py)."""
+"""Render passes (engine/film/passes.py) against closed forms, their EXR layers, determinism, and the
+denoiser (engine/film/denoise.py)."""
 import os
 import subprocess
 import sys
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.default_scene import cornell_scene
-from engine.passes import NO_DEPTH, exr_channels, parse_passes, PassError, read_multilayer_exr
-from engine.scene import DIFFUSE, MIRROR, Camera, Material, Quad, Scene
+from engine.scene.builtin import cornell_scene
+from engine.film.passes import NO_DEPTH, exr_channels, parse_passes, PassError, read_multilayer_exr
+from engine.scene.model import DIFFUSE, MIRROR, Camera, Material, Quad, Scene
 
 SILENT = dict(log=lambda *a: None)
 ALL = ("albedo", "normal", "depth", "samples", "variance")
@@ -91,11 +91,11 @@ def test_sample_count_and_variance_are_the_films():
 
 def test_passes_off_cost_nothing(monkeypatch):
     """No traced pass: the plan's `passes` is off and no feature object is ever made."""
-    import engine.session
+    import engine.rendering.session
 
     def forbidden(*a, **k):
         raise AssertionError("feature tracking ran with the passes off")
-    monkeypatch.setattr(engine.session, "TileFeatures", forbidden)
+    monkeypatch.setattr(engine.rendering.session, "TileFeatures", forbidden)
     r = render(cornell_scene((16, 16)), RenderSettings(samples=2, threads=1), **SILENT)
     assert r.passes == {} and r.stats["effects"]["passes"] is False
     with pytest.raises(AssertionError):
@@ -103,13 +103,14 @@ def test_passes_off_cost_nothing(monkeypatch):
 
 
 def test_passes_are_identical_whatever_the_workers(monkeypatch):
-    import engine.session
-    monkeypatch.setattr(engine.session, "UNIT_PATHS", 2048)          # several units per tile
+    import engine.rendering.session
+    import engine.rendering.units
+    monkeypatch.setattr(engine.rendering.units, "UNIT_PATHS", 2048)          # several units per tile
     scene = cornell_scene((48, 32))
     one = render(scene, RenderSettings(samples=16, tile_size=16, threads=1, seed=3, passes=ALL), **SILENT)
     two = render(scene, RenderSettings(samples=16, tile_size=16, threads=2, seed=3, passes=ALL,
                                        parallelism="processes"), **SILENT)
-    session = engine.session.RenderSession(scene, RenderSettings(samples=16, tile_size=16, seed=3, passes=ALL),
+    session = engine.rendering.session.RenderSession(scene, RenderSettings(samples=16, tile_size=16, seed=3, passes=ALL),
                                            **SILENT)
     for unit in reversed(session.units):
         session.add(session.render_unit(unit))
@@ -162,7 +163,7 @@ def test_cli_refuses_passes_without_exr_and_unknown_names(tmp_path):
 
 
 def rel_mse(image, reference):
-    """The study's metric (engine/study.py): mean((I - R)^2 / (R^2 + 0.01))."""
+    """The study's metric (engine/studies/accuracy.py): mean((I - R)^2 / (R^2 + 0.01))."""
     i, r = np.asarray(image, float), np.asarray(reference, float)
     return float(np.mean((i - r) ** 2 / (r * r + 1e-2)))
 
@@ -171,7 +172,7 @@ def test_denoiser_reduces_the_error_of_a_low_sample_render():
     """4 spp denoised with albedo and normal: relMSE against a 256-spp reference at most a quarter
     of the raw 4-spp image's (measured: about 1/20).  The raw image is kept as 'noisy'."""
     pytest.importorskip("pyoidn", reason="pyoidn (requirements.txt) is not installed")
-    from engine.denoise import denoise_result
+    from engine.film.denoise import denoise_result
     scene = cornell_scene((64, 64))
     reference = render(scene, RenderSettings(samples=256, seed=1), **SILENT).image
     low = render(scene, RenderSettings(samples=4, seed=2, passes=("albedo", "normal")), **SILENT)
@@ -195,15 +196,15 @@ def test_cli_denoise_writes_noisy_and_combined(tmp_path):
 
 def test_depth_alone_carries_no_surface_state(monkeypatch):
     """Blender's view layers have Z on by default: depth alone adds no per-path arrays."""
-    import engine.integrator
+    import engine.integrators.path_tracer
     seen = []
-    original = engine.integrator.Paths.start.__func__
+    original = engine.integrators.path_tracer.Paths.start.__func__
 
     def start(cls, *args, **kwargs):
         paths = original(cls, *args, **kwargs)
         seen.append(paths.f_thru is None and paths.f_open is None)
         return paths
-    monkeypatch.setattr(engine.integrator.Paths, "start", classmethod(start))
+    monkeypatch.setattr(engine.integrators.path_tracer.Paths, "start", classmethod(start))
     r = render(cornell_scene((16, 16)), RenderSettings(samples=2, threads=1, passes=("depth",)), **SILENT)
     assert seen and all(seen) and "depth" in r.passes
     seen.clear()

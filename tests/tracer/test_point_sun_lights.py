@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.scene import DIFFUSE, Camera, Material, PointLight, Quad, Scene, SunLight
+from engine.scene.model import DIFFUSE, Camera, Material, PointLight, Quad, Scene, SunLight
 
 ESTIMATORS = ["report", "solid-angle", "mis"]
 
@@ -89,7 +89,7 @@ def test_a_point_light_behind_a_wall_casts_a_shadow_and_a_bright_one_does_not_fa
 def mirror_facing(lens=2000.0, **lights):
     """A mirror (reflectance 1) in the plane y = 2 and a camera at the origin looking at it along
     +y: the reflected rays run back along -y past the origin."""
-    from engine.scene import MIRROR
+    from engine.scene.model import MIRROR
     mats = [Material("Mirror", MIRROR, (1.0, 1.0, 1.0))]
     mirror = Quad("Mirror", np.array([(-5, 2, -5), (5, 2, -5), (5, 2, 5), (-5, 2, 5)], float), 0)
     cam = Camera.look_at((0, 0, 0), (0, 1, 0), up=(0, 0, 1), lens=lens)

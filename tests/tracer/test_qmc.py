@@ -1,11 +1,11 @@
-"""The Sobol' sampler (engine/qmc.py): nets per dimension pair, independent pairs, unbiased
+"""The Sobol' sampler (engine/sampling/qmc.py): nets per dimension pair, independent pairs, unbiased
 renders, and random numbers that depend on (seed, pixel, sample, dimension) only."""
 import numpy as np
 import pytest
 from scipy.stats import chi2_contingency
 
 from engine import RenderSettings, render
-from engine.qmc import owen_scramble, pixel_seeds, reverse_bits, sample_2d
+from engine.sampling.qmc import owen_scramble, pixel_seeds, reverse_bits, sample_2d
 
 from .scenes import diffuse_box_scene, near_lamp_box
 

@@ -2,7 +2,7 @@
 import numpy as np
 
 from engine import RenderSettings, render
-from engine.default_scene import cornell_scene
+from engine.scene.builtin import cornell_scene
 
 from .scenes import camera_inside_sphere_scene
 
@@ -50,7 +50,7 @@ class CancelAfter:
 def test_a_cancelled_unit_is_dropped_whole():
     """Cancel after 3 bounces: the unit returns nothing (a partial unit would keep only the paths
     that Russian roulette ended early, about 2.4 in the white furnace instead of 5)."""
-    from engine.session import RenderSession
+    from engine.rendering.session import RenderSession
     scene = camera_inside_sphere_scene(albedo=0.8, emission=1.0, resolution=(64, 64))
     session = RenderSession(scene, RenderSettings(samples=64, threads=1, seed=5, max_depth=400), log=lambda *a: None)
     cancel = CancelAfter(3)
@@ -78,9 +78,10 @@ def test_a_cancelled_render_keeps_unbiased_finished_units():
 def test_units_in_any_order_give_the_same_image_bit_for_bit(monkeypatch):
     """Units rendered by hand in reverse order, merged into a fresh film: the same image as a
     normal render, whatever order the units finish in."""
-    import engine.session
-    from engine.session import RenderSession
-    monkeypatch.setattr(engine.session, "UNIT_PATHS", 2048)       # 8 samples of a 16 x 16 tile per unit
+    import engine.rendering.session
+    import engine.rendering.units
+    from engine.rendering.session import RenderSession
+    monkeypatch.setattr(engine.rendering.units, "UNIT_PATHS", 2048)       # 8 samples of a 16 x 16 tile per unit
     scene = cornell_scene((48, 32))
     settings = RenderSettings(samples=40, tile_size=16, threads=2, seed=9)
     reference = render(scene, settings, log=lambda *a: None)
@@ -92,7 +93,7 @@ def test_units_in_any_order_give_the_same_image_bit_for_bit(monkeypatch):
 
 
 def test_progressive_passes_refine_the_whole_frame_first():
-    from engine.session import RenderSession
+    from engine.rendering.session import RenderSession
     session = RenderSession(cornell_scene((64, 64)), RenderSettings(samples=64, tile_size=16), log=lambda *a: None,
                             progressive="passes")
     first = session.units[:len(session.tiles)]
@@ -103,9 +104,10 @@ def test_progressive_passes_refine_the_whole_frame_first():
 def test_a_cancelled_render_keeps_units_that_finished_out_of_order(monkeypatch):
     """Chunk 1 of a tile done, chunk 0 cancelled: the merge in order would wait for chunk 0
     forever; a cancelled render keeps chunk 1 (finished work is never thrown away)."""
-    import engine.session
-    from engine.session import RenderSession
-    monkeypatch.setattr(engine.session, "UNIT_PATHS", 2048)
+    import engine.rendering.session
+    import engine.rendering.units
+    from engine.rendering.session import RenderSession
+    monkeypatch.setattr(engine.rendering.units, "UNIT_PATHS", 2048)
     session = RenderSession(cornell_scene((32, 32)), RenderSettings(samples=32, tile_size=16, seed=2),
                             log=lambda *a: None)
     tile0 = [u for u in session.units if u.tile.index == 0]

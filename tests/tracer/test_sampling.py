@@ -4,8 +4,9 @@ import pytest
 from scipy import stats
 
 from engine.lights import LightSampler
-from engine.sampling import cosine_directions, cosine_hemisphere, orthonormal_basis, to_world, uniform_triangle
-from engine.scene import Camera, Material, Quad, Scene, Sphere, TriangleMesh
+from engine.sampling.warps import (cosine_directions, cosine_hemisphere, orthonormal_basis, to_world,
+    uniform_triangle)
+from engine.scene.model import Camera, Material, Quad, Scene, Sphere, TriangleMesh
 
 ALPHA = 0.01
 

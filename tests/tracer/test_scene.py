@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.camera import camera_rays
-from engine.default_scene import cornell_scene
-from engine.scene import Camera, Material, Quad, Scene, SceneError, Sphere, TriangleMesh
-from engine.scene_io import load_scene, save_scene
+from engine.scene.camera_rays import camera_rays
+from engine.scene.builtin import cornell_scene
+from engine.scene.model import Camera, Material, Quad, Scene, Sphere, TriangleMesh
+from engine.core.errors import SceneError
+from engine.scene.files import load_scene, save_scene
 
 
 def base_scene(**kw):
@@ -65,7 +66,7 @@ def test_scene_file_round_trip(tmp_path):
 
 
 def test_scene_file_round_trip_keeps_area_lights_and_their_visibility(tmp_path):
-    from engine.scene import AreaLight
+    from engine.scene.model import AreaLight
     scene = cornell_scene((16, 16))
     disk = np.stack([0.2 * np.cos(np.linspace(0, -2 * np.pi, 12, endpoint=False)),
                      0.2 * np.sin(np.linspace(0, -2 * np.pi, 12, endpoint=False)), np.full(12, 1.9)], axis=1)
@@ -84,7 +85,7 @@ def test_scene_file_round_trip_keeps_area_lights_and_their_visibility(tmp_path):
 
 
 def test_scene_file_round_trip_keeps_point_spot_and_sun_lights(tmp_path):
-    from engine.scene import PointLight, SunLight
+    from engine.scene.model import PointLight, SunLight
     scene = cornell_scene((16, 16))
     scene.points = [PointLight("Bulb", (0.1, 0.2, 1.5), (2.0, 1.0, 0.5), 0.05),
                     PointLight("Spot", (0.0, 0.0, 1.8), (9.0, 9.0, 9.0), 0.02, spot_size=0.9, spot_blend=0.3,

@@ -1,4 +1,4 @@
-"""Worker processes (engine/service.py): real processes of this Python, the same image as render(),
+"""Worker processes (engine/pools/processes.py): real processes of this Python, the same image as render(),
 a killed worker reported by name with its units rendered elsewhere, Esc within a second."""
 import collections
 import os
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.default_scene import cornell_scene
-from engine.service import SubprocessWorkers, WorkerError, render_in_workers
+from engine.scene.builtin import cornell_scene
+from engine.pools.processes import SubprocessWorkers, WorkerError, render_in_workers
 
 QUIET = dict(log=lambda *a: None)
 
@@ -81,7 +81,7 @@ def test_an_error_in_a_unit_names_the_worker(monkeypatch):
     scene = cornell_scene((16, 16))
     pool = SubprocessWorkers(sys.executable, 1, **QUIET)
     pool.prepare(scene, RenderSettings(samples=1, threads=1))
-    from engine.service import encode
+    from engine.pools.processes import encode
     pool.workers[0].send(encode(("unit", "not a unit")))
     pool.workers[0].in_flight.append("not a unit")
     deadline = time.time() + 20

@@ -4,14 +4,14 @@ below the geometric horizon, the shadow terminator) handled as Cycles does."""
 import numpy as np
 import pytest
 
-import engine.shading_normals
+import engine.geometry.shading_normals
 from engine import RenderSettings, render
-from engine.geometry import Counters, SceneGeometry
-from engine.scene import DIFFUSE, MIRROR, Camera, Material, Quad, Scene, TriangleMesh
-from engine.scene_io import load_scene, save_scene
-from engine.shading_normals import (ensure_valid_reflection, interpolate, smooth_surface_offset,
-                                    terminator_amount)
-from engine.vec import dot, rows
+from engine.geometry.scene_geometry import Counters, SceneGeometry
+from engine.scene.model import DIFFUSE, MIRROR, Camera, Material, Quad, Scene, TriangleMesh
+from engine.scene.files import load_scene, save_scene
+from engine.geometry.shading_normals import (ensure_valid_reflection, interpolate, smooth_surface_offset,
+    terminator_amount)
+from engine.core.vec import dot, rows
 
 SILENT = dict(log=lambda *a: None)
 
@@ -120,9 +120,9 @@ def box_room(smooth_ball: bool, ball_material=0):
 def test_flat_scene_never_interpolates(monkeypatch):
     calls = []
     for name in ("interpolate", "ensure_valid_reflection"):
-        original = getattr(engine.shading_normals, name)
-        monkeypatch.setattr(engine.shading_normals, name, lambda *a, _o=original, _n=name: calls.append(_n) or _o(*a))
-    monkeypatch.setattr("engine.integrator.ensure_valid_reflection",
+        original = getattr(engine.geometry.shading_normals, name)
+        monkeypatch.setattr(engine.geometry.shading_normals, name, lambda *a, _o=original, _n=name: calls.append(_n) or _o(*a))
+    monkeypatch.setattr("engine.integrators.path_tracer.ensure_valid_reflection",
                         lambda *a: calls.append("reflect") or ensure_valid_reflection(*a))
     flat = render(box_room(False, 2), RenderSettings(samples=2, parallelism="threads"), **SILENT)
     assert flat.stats["effects"]["smooth_normals"] is False and calls == []
@@ -176,7 +176,7 @@ def test_bad_normals_fall_back_to_the_geometric_normal_with_a_warning():
     ("abc", "normals must be numbers"),
 ])
 def test_wrongly_shaped_normals_are_one_clear_error(normals, message):
-    from engine.scene import SceneError
+    from engine.core.errors import SceneError
     scene = box_room(True)
     scene.meshes[0].normals = normals
     with pytest.raises(SceneError, match=message):
@@ -298,7 +298,7 @@ def test_worker_processes_get_the_normals():
     """The scene goes to `python -m engine worker` processes pickled: their image of a smooth mirror
     ball is render()'s (normals, smooth flags and terminator offsets arrive), not the flat one's."""
     import sys
-    from engine.service import SubprocessWorkers, render_in_workers
+    from engine.pools.processes import SubprocessWorkers, render_in_workers
     settings = RenderSettings(samples=4, tile_size=8, seed=3)
     ref = render(box_room(True, 2), settings, **SILENT)
     pool = SubprocessWorkers(sys.executable, 2, **SILENT)
@@ -315,7 +315,7 @@ def test_worker_processes_get_the_normals():
 ])
 def test_bad_normals_in_a_scene_file_are_one_line_naming_the_object(tmp_path, field, value, message):
     import json
-    from engine.scene import SceneError
+    from engine.core.errors import SceneError
     mesh = {"name": "Tri", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2]],
             "normals": [[0, 0, 1]] * 3}
     mesh[field] = value

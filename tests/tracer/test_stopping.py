@@ -1,5 +1,5 @@
-"""Stopping rules (engine/stopping.py), the half-buffer error estimate (engine/error_estimate.py)
-and the time prediction (engine/estimate.py).
+"""Stopping rules (engine/rendering/stopping.py), the half-buffer error estimate (engine/film/error_estimate.py)
+and the time prediction (engine/rendering/estimate.py).
 
 Statistical checks use fixed seeds; each has a negative control that a wrong implementation fails.
 """
@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.default_scene import BUILTIN_SCENES
-from engine.error_estimate import half_buffer_variance, image_rel_error
-from engine.estimate import TAIL_PATHS, replay
-from engine.session import RenderSession
-from engine.stopping import effective_min_samples, pass_schedule, run_passes
-from engine.workers import ThreadWorkers
+from engine.scene.builtin import BUILTIN_SCENES
+from engine.film.error_estimate import half_buffer_variance, image_rel_error
+from engine.rendering.estimate import TAIL_PATHS, replay
+from engine.rendering.session import RenderSession
+from engine.rendering.stopping import effective_min_samples, pass_schedule, run_passes
+from engine.pools.local import ThreadWorkers
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 QUIET = dict(log=lambda *a: None)
@@ -247,7 +247,7 @@ def test_replayed_blocks_fall_with_their_past_and_future_variance():
 def test_future_variance_shares_a_block_with_its_neighbours():
     """F = (U + the 3x3 neighbourhood's pixel-weighted mean of U) / 2: a firefly's block keeps half
     its U and lends the rest to its neighbours, weighted by their pixels at the image's edge."""
-    from engine.estimate import future_unit_variance, neighbourhood_mean
+    from engine.rendering.estimate import future_unit_variance, neighbourhood_mean
     unit_var = np.zeros(9)
     unit_var[4] = 90.0                                     # the centre of 3x3 blocks
     future = future_unit_variance(unit_var, np.ones(9), (3, 3)).reshape(3, 3)
@@ -261,7 +261,7 @@ def test_a_pass_lasts_its_makespan_on_the_workers():
     """Units go to the next free worker in dispatch order: a long unit last keeps one worker busy
     after the other idles (the adaptive passes' last tiles), one first does not; the per-tile cost
     falls back to the mean over the pilot's units for a tile it never rendered."""
-    from engine.estimate import makespan, tile_costs
+    from engine.rendering.estimate import makespan, tile_costs
     assert makespan([3, 1, 1, 1], 2) == 3
     assert makespan([1, 1, 1, 3], 2) == 4
     assert makespan([1, 1, 1, 3], 1) == 6
@@ -274,7 +274,7 @@ def test_a_pass_lasts_its_makespan_on_the_workers():
 def test_predicted_samples_match_a_real_render_within_30_percent():
     """Timing-free half of the estimate check (the time is in scripts/bench_stopping.py): the
     pilot's predicted mean samples per pixel against the real render's, on the Cornell box."""
-    from engine.estimate import estimate
+    from engine.rendering.estimate import estimate
     sc = scene("cornell", 48)
     settings = RenderSettings(samples=2048, noise_target=0.06)
     predicted = estimate(sc, settings, 0.06, render, pilot_samples=32, **QUIET)
@@ -289,7 +289,7 @@ def test_a_pilot_that_reaches_the_target_is_the_real_render():
     real render ends inside it, the prediction is that render, sample for sample.  Control: the
     same passes with the pilot's own cap as the net size (no sample_net) are another render."""
     from dataclasses import replace
-    from engine.estimate import estimate
+    from engine.rendering.estimate import estimate
     sc = scene("cornell", 32)
     settings = RenderSettings(samples=4096, noise_target=0.25)
     predicted = estimate(sc, settings, 0.25, render, **QUIET)
@@ -338,13 +338,13 @@ def test_cli_bad_stopping_arguments_give_one_line(tmp_path, args, fragment):
 
 
 def test_settings_refuse_bad_stopping_values():
-    from engine.scene import SceneError
+    from engine.core.errors import SceneError
     for bad in (dict(noise_target=float("nan")), dict(time_limit=-1.0), dict(noise_target=True)):
         with pytest.raises(SceneError, match="must be a number"):
             RenderSettings(**bad).validate()
 
 
 def test_progress_line_reads_like_the_issue():
-    from engine.stopping import progress_message
+    from engine.rendering.stopping import progress_message
     assert progress_message(48, 256, 0.021, 3.4, 0.01) == "Sample 48/256 · est. error 2.1 % · 3.4 s · ≈ 12 s to 1 %"
     assert progress_message(256, 256, 0.009, 5.0, 0.01) == "Sample 256/256 · est. error 0.9 % · 5.0 s"

@@ -4,7 +4,7 @@ import os
 
 import numpy as np
 
-from engine.study import run_study
+from engine.studies.accuracy import run_study
 
 
 def test_quick_study_writes_tables_plots_and_sane_errors(tmp_path):
@@ -35,7 +35,7 @@ def test_quick_study_writes_tables_plots_and_sane_errors(tmp_path):
 
 def test_quick_stopping_study_writes_both_tables(tmp_path):
     import json
-    from engine.study_stopping import run_stopping_study
+    from engine.studies.stopping import run_stopping_study
     study = run_stopping_study("quick", str(tmp_path), "python -m engine study --stopping --quick",
                                log=lambda *a: None)
     text = (tmp_path / "accuracy-stopping.md").read_text()

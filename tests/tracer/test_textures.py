@@ -1,4 +1,4 @@
-"""Image textures (engine/textures.py): lookups against hand-computed texels, the wrap modes, the
+"""Image textures (engine/materials/textures.py): lookups against hand-computed texels, the wrap modes, the
 sRGB decode, missing images, scene files, and textured emitters sampled as lights."""
 import copy
 
@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.effects import plan_effects
-from engine.scene import Camera, Material, Quad, Scene, SceneError, TriangleMesh
-from engine.scene_io import load_scene, save_scene
-from engine.textures import ImageTexture, TextureSet, TextureSlot, lookup, read_image, srgb_to_linear
+from engine.integrators.effects import plan_effects
+from engine.scene.model import Camera, Material, Quad, Scene, TriangleMesh
+from engine.core.errors import SceneError
+from engine.scene.files import load_scene, save_scene
+from engine.scene.textures import ImageTexture, TextureSlot
+from engine.materials.textures import TextureSet, lookup, read_image, srgb_to_linear
 
 # A 4 x 2 image, texel (x, y) = 10 y + x (row 0 = the bottom row, v = 0).
 GRID = (10.0 * np.arange(2)[:, None] + np.arange(4)[None, :])[:, :, None].astype(np.float32)
@@ -229,7 +231,7 @@ def test_textured_emitter_equals_the_same_light_made_of_two_quads(estimator, sha
 
 def test_textured_emitter_control_mean_radiance_is_caught(monkeypatch):
     """Negative control: light samples that use the texture's mean radiance instead of the texel."""
-    from engine.textures import HitTextures
+    from engine.materials.textures import HitTextures
     monkeypatch.setattr(HitTextures, "light_radiance", lambda self, radiance, light, point: radiance)
     a = run_means(lamp_scene(True), range(1, 7), estimator="solid-angle")
     b = run_means(lamp_scene(False), range(101, 107), estimator="solid-angle")
@@ -289,7 +291,7 @@ def test_bad_texture_fields_in_scene_files_are_one_line(tmp_path, edit, message)
 
 
 def test_albedo_pass_reads_textured_colour_and_emission():
-    """The denoising albedo (engine/passes.py) of a textured surface is the texel, not the unlinked
+    """The denoising albedo (engine/film/passes.py) of a textured surface is the texel, not the unlinked
     colour: a card whose left half (u < 0.5) is texel 0 and right half texel 1."""
     pixels = np.array([[[0.9, 0.1, 0.1], [0.1, 0.1, 0.9]]], np.float32)
     for role in ("color_texture", "emission_texture"):

@@ -1,4 +1,4 @@
-"""Viewport worker processes (engine/viewport_service.py): coarse pass first, interleaved samples
+"""Viewport worker processes (engine/pools/viewport.py): coarse pass first, interleaved samples
 that add up to a final render's image, restarts on a new view without a rebuild, the noise
 estimate, shutdown without orphans."""
 import sys
@@ -8,10 +8,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from engine.default_scene import cornell_scene
-from engine.render import render
-from engine.settings import RenderSettings
-from engine.viewport_service import ViewportFilm, ViewportWorkers, coarse_resolution
+from engine.scene.builtin import cornell_scene
+from engine.api import render
+from engine.core.settings import RenderSettings
+from engine.pools.viewport import ViewportFilm, ViewportWorkers, coarse_resolution
 from tests.file_safety import alive
 
 SETTINGS = RenderSettings(max_depth=3, seed=5, accelerator="embree")

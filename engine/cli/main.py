@@ -1,0 +1,369 @@
+"""Command line: `python -m engine render ...` and `python -m engine bench ...`."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+from ..core.errors import SceneError
+from ..film.output import OutputError, check_outputs, write_image, write_text
+from ..core.settings import (ACCELERATORS, ESTIMATORS, FRESNEL_MODELS, INT32_MAX, INT_LIMITS, SAMPLERS,
+    RenderSettings)
+from .signals import StopRequest
+
+PROG = "python -m engine"
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """Bad arguments: one line on stderr, exit code 2."""
+
+    def error(self, message):
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise SystemExit(2)
+
+
+def bounded_int(low: int, high: int):
+    """An argparse type: an integer from low to high (one-line error otherwise)."""
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must be from {low} to {high:,}, got {value}")
+        return value
+    return parse
+
+
+def setting_int(name):
+    return bounded_int(*INT_LIMITS[name])
+
+
+positive_int = bounded_int(1, INT32_MAX)
+MAX_RESOLUTION = 65536
+
+
+def add_settings_arguments(p):
+    defaults = RenderSettings()
+    p.add_argument("--samples", type=setting_int("samples"), default=defaults.samples,
+                   help="camera rays per pixel")
+    p.add_argument("--shadow-rays", type=setting_int("shadow_rays"), default=defaults.shadow_rays,
+                   help="shadow rays per diffuse hit (eq. 2.11)")
+    p.add_argument("--max-depth", type=setting_int("max_depth"), default=defaults.max_depth,
+                   help="bounces after the camera hit (0 = direct light only)")
+    p.add_argument("--no-russian-roulette", action="store_true", help="disable Russian roulette")
+    p.add_argument("--fresnel", choices=FRESNEL_MODELS, default=defaults.fresnel)
+    p.add_argument("--estimator", choices=ESTIMATORS, default=defaults.estimator,
+                   help="direct light: mis (solid-angle light samples and BSDF samples combined by MIS), "
+                        "solid-angle (light samples only), report (eq. 2.11: area sampling, pdf 1/A)")
+    p.add_argument("--sampler", choices=SAMPLERS, default=defaults.sampler,
+                   help="sobol: Owen-scrambled Sobol' points per pixel; random: independent uniforms")
+    p.add_argument("--nested-dielectrics", action="store_true",
+                   help="track nested glass media (glass in glass refracts by the IOR ratio)")
+    p.add_argument("--accelerator", choices=ACCELERATORS, default=defaults.accelerator)
+    p.add_argument("--threads", type=setting_int("threads"), default=0, help="0 = all cores")
+    p.add_argument("--seed", type=setting_int("seed"), default=0)
+    p.add_argument("--tile-size", type=setting_int("tile_size"), default=defaults.tile_size)
+    add_stopping_arguments(p)
+    add_pass_arguments(p)
+
+
+def nonnegative_float(high: float):
+    """An argparse type: a number from 0 to high (one-line error otherwise)."""
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not 0.0 <= value <= high:
+            raise argparse.ArgumentTypeError(f"must be from 0 to {high:g}, got {text}")
+        return value
+    return parse
+
+
+def add_stopping_arguments(p, defaults=True):
+    """The stopping rules (engine/rendering/stopping.py, README: Stopping rules); both command lines."""
+    d = RenderSettings() if defaults else None
+    p.add_argument("--time-limit", type=nonnegative_float(1e9), default=d and d.time_limit, metavar="SECONDS",
+                   help="stop rendering after this many seconds (0 = no limit)")
+    p.add_argument("--noise-target", type=nonnegative_float(1.0), default=d and d.noise_target, metavar="REL",
+                   help="stop when the estimated relative error of the image reaches REL, e.g. 0.01 (0 = off)")
+    p.add_argument("--min-samples", type=setting_int("min_samples"), default=d and d.min_samples, metavar="N",
+                   help="samples every pixel gets before the noise target may stop it (0 = automatic: "
+                   "ceil(16 / target^0.3) as Cycles, at most 128; 8 without a target)")
+    p.add_argument("--no-adaptive", action="store_true",
+                   help="with --noise-target: keep sampling every pixel (no adaptive sampling)")
+
+
+def stopping_kwargs(args) -> dict:
+    return dict(time_limit=args.time_limit, noise_target=args.noise_target, min_samples=args.min_samples,
+                adaptive=not args.no_adaptive)
+
+
+def error_metadata(stats) -> list:
+    """EXR header attributes of the error estimate (README: Stopping rules)."""
+    out = []
+    for key in ("estimated_rel_error", "seconds_to_target", "target_rel_error"):
+        value = stats.get(key)
+        if isinstance(value, (int, float)) and value == value:
+            out.append((f"tncg15:{key}", float(value)))
+    return out
+
+
+def add_pass_arguments(p):
+    """--passes and --denoise (engine/film/passes.py, engine/film/denoise.py), shared with mcrt_addon/cli.py."""
+    p.add_argument("--passes", type=pass_list, default=(), metavar="LIST",
+                   help="extra passes in the EXR, comma-separated: albedo,normal,depth,samples,variance "
+                        "(layers named as Blender's: README, Render passes)")
+    p.add_argument("--denoise", action="store_true",
+                   help="denoise with Intel Open Image Denoise (pyoidn), guided by the albedo and normal passes; "
+                        "the raw image is kept in the EXR as 'Noisy Image'")
+
+
+def pass_list(text):
+    from ..film.passes import PassError, parse_passes
+    try:
+        return parse_passes(text)
+    except PassError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def settings_from_args(args) -> RenderSettings:
+    return RenderSettings(**stopping_kwargs(args), samples=args.samples, shadow_rays=args.shadow_rays, max_depth=args.max_depth,
+                          russian_roulette=not args.no_russian_roulette, fresnel=args.fresnel,
+                          nested_dielectrics=args.nested_dielectrics, estimator=args.estimator,
+                          sampler=args.sampler,
+                          threads=args.threads, seed=args.seed, tile_size=args.tile_size,
+                          accelerator=args.accelerator, passes=traced_passes(args), denoise=args.denoise)
+
+
+def traced_passes(args) -> tuple:
+    """The passes to render: those asked for, plus albedo and normal for the denoiser."""
+    from ..core.settings import PASSES
+    wanted = set(args.passes) | ({"albedo", "normal"} if args.denoise else set())
+    return tuple(p for p in PASSES if p in wanted)
+
+
+def check_pass_outputs(args, outputs) -> None:
+    """Passes are layers of an EXR: refused (one line) when -o is not an .exr; the denoiser must
+    import before anything is rendered."""
+    if (args.passes or args.denoise) and outputs and outputs[0].kind != "exr":
+        raise OutputError(f"-o '{outputs[0].path}': --passes/--denoise need an .exr output (layers)")
+    if args.denoise:
+        from ..film.denoise import available
+        problem = available()
+        if problem:
+            raise OutputError(problem)
+
+
+def write_render_image(output, result, args) -> None:
+    """-o: a multi-layer EXR when passes or the denoiser are on (engine/film/passes.py), else as before."""
+    from ..film.output import write_multilayer
+    if output.kind == "exr" and (args.passes or args.denoise):
+        write_multilayer(output, result.image, result.passes, error_metadata(result.stats))
+    else:
+        write_image(output, result.image, error_metadata(result.stats))
+
+
+def progress_bar(stream=sys.stderr):
+    start = time.perf_counter()
+
+    def show(fraction, message):
+        width = 30
+        filled = int(round(fraction * width))
+        elapsed = time.perf_counter() - start
+        stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {fraction * 100:5.1f}%  "
+                     f"{message}  {elapsed:6.1f}s")
+        if fraction >= 1.0:
+            stream.write("\n")
+        stream.flush()
+    return show
+
+
+def scene_inputs(path):
+    """The files a render reads: never to be written."""
+    return [path, os.path.splitext(path)[0] + ".npz"] if path else []
+
+
+def scene_and_settings(args):
+    """The scene (a file or --builtin, at --resolution) and the validated settings of a command."""
+    from ..scene.builtin import BUILTIN_SCENES
+    from ..scene.files import load_scene
+    if args.scene and args.builtin:
+        raise SceneError("give a scene file or --builtin, not both")
+    scene = load_scene(args.scene) if args.scene else BUILTIN_SCENES[args.builtin or "cornell"]()
+    if args.resolution:
+        scene.resolution = tuple(args.resolution)
+    settings = settings_from_args(args)
+    settings.validate()
+    return scene, settings
+
+
+def cmd_render(args) -> int:
+    from ..rendering.memory import check_memory
+    from ..api import render
+
+    stop = StopRequest(PROG).install()
+    outputs = check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
+                             ("--stats-json", args.stats_json, "json")], inputs=scene_inputs(args.scene),
+                            base_dir=os.path.dirname(os.path.abspath(args.scene)) if args.scene else None)
+    scene, settings = scene_and_settings(args)
+    check_pass_outputs(args, outputs)
+    scene.validate()
+    check_memory(scene, settings)
+    if stop.requested():
+        return stop.report_exit()
+    log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    result = render(scene, settings, on_progress=None if args.quiet else progress_bar(),
+                    should_cancel=stop.requested, log=log, cluster=args.cluster)
+    if args.denoise and not result.cancelled:
+        from ..film.denoise import denoise_result
+        denoise_result(result)
+    stats = result.stats
+    bad_pixels = int((~np.isfinite(result.image)).any(axis=-1).sum())
+    if bad_pixels:
+        log(f"warning: {bad_pixels} pixels are not finite (the values overflow float32)")
+    try:
+        for output in outputs:
+            if output.kind == "json":
+                write_text(output, json.dumps(stats, indent=1))
+            elif output.option == "-o":
+                write_render_image(output, result, args)
+            else:
+                write_image(output, result.image, error_metadata(stats))
+    except OutputError as exc:
+        sys.stderr.write(f"{PROG}: error: {exc}\n")
+        return 1
+    rays = sum(stats["rays"].values())
+    print(f"wrote {', '.join(o.path for o in outputs)}: {stats['render_seconds']:.2f} s, "
+          f"{rays / 1e6:.2f} M rays ({stats['rays_per_second'] / 1e6:.2f} M rays/s), effects: "
+          f"{', '.join(k for k, v in stats['effects'].items() if v)}, "
+          f"non-finite samples: {stats['nonfinite_samples']}"
+          + (" (stopped early: finished tiles only)" if result.cancelled else ""))
+    if stats["estimated_rel_error"] is not None:
+        print(f"estimated relative error {stats['estimated_rel_error'] * 100:.2f} % "
+          f"({stats['error_estimate']}), mean {stats['samples_per_pixel']['mean']:.1f} spp"
+          + (f", stopped by {stats['stopped_by']}" if "stopped_by" in stats else ""))
+    return stop.report_exit()
+
+
+def cmd_estimate(args) -> int:
+    from ..rendering.estimate import describe, estimate
+    from ..api import render
+    if args.noise_target <= 0:
+        raise SceneError("estimate needs --noise-target REL (e.g. 0.01)")
+    scene, settings = scene_and_settings(args)
+    scene.validate()
+    result = estimate(scene, settings, args.noise_target, render, pilot_samples=args.pilot_samples,
+                      log=lambda *a: None)
+    print(describe(result))
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from .bench import run_bench
+    run_bench(resolution=tuple(args.resolution), samples=args.samples)
+    return 0
+
+
+def cmd_bench_cluster(args) -> int:
+    from .bench import run_bench_cluster
+    run_bench_cluster(resolution=tuple(args.resolution), samples=args.samples, workers=args.workers,
+                      repeats=args.repeats)
+    return 0
+
+
+def cmd_study(args) -> int:
+    from ..studies.accuracy import run_study
+    mode = "full" if args.full else "quick"
+    if args.stopping:
+        from ..studies.stopping import run_stopping_study
+        command = f"python -m engine study --stopping --{mode}" + (f" --out {args.out}" if args.out != "docs" else "")
+        run_stopping_study(mode, args.out, command, log=lambda msg: print(msg, file=sys.stderr))
+        return 0
+    command = f"python -m engine study --{mode}" + (f" --out {args.out}" if args.out != "docs" else "")
+    run_study(mode, args.out, command, log=lambda msg: print(msg, file=sys.stderr))
+    return 0
+
+
+def cmd_worker(args) -> int:
+    from ..pools.processes import worker_main
+    return worker_main(args.parent_pid)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = OneLineParser(prog=PROG, description="TNCG15 MC tracer")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
+    r = sub.add_parser("render", help="render a scene file (or the built-in Cornell scene)")
+    r.add_argument("scene", nargs="?", help="scene .json (default: a built-in scene, see --builtin)")
+    r.add_argument("--builtin", choices=("cornell", "near_lamp", "caustic", "many_lights"),
+                   help="built-in scene (engine/scene/builtin.py; default cornell)")
+    r.add_argument("-o", "--output", required=True, help="output image (.exr linear or .png sRGB)")
+    r.add_argument("--png", help="also write an sRGB PNG here")
+    r.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
+    r.add_argument("--stats-json", metavar="PATH")
+    r.add_argument("--quiet", action="store_true")
+    r.add_argument("--cluster", metavar="ADDRESS",
+                   help="render the work units on a Dask cluster: its scheduler's tcp://HOST:PORT, or 'local' "
+                        "to start a LocalCluster here (README: Rendering on several machines)")
+    add_settings_arguments(r)
+    r.set_defaults(func=cmd_render)
+    e = sub.add_parser("estimate", help="predict the render time to reach --noise-target from a short pilot render")
+    e.add_argument("scene", nargs="?", help="scene .json (default: a built-in scene, see --builtin)")
+    e.add_argument("--builtin", choices=("cornell", "near_lamp", "caustic", "many_lights"))
+    e.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
+    e.add_argument("--pilot-samples", type=bounded_int(2, 4096), default=64)
+    e.add_argument("--json", action="store_true", help="also print the prediction as JSON")
+    add_settings_arguments(e)
+    e.set_defaults(func=cmd_estimate)
+    b = sub.add_parser("bench", help="rays/s, Embree share and thread speed-up on the built-in scene")
+    b.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, default=(256, 256),
+                   metavar=("W", "H"))
+    b.add_argument("--samples", type=positive_int, default=64)
+    b.set_defaults(func=cmd_bench)
+    bc = sub.add_parser("bench-cluster", help="the same render on the local pool and on a Dask cluster of "
+                                              "worker processes started here: the time ratio")
+    bc.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, default=(256, 256),
+                    metavar=("W", "H"))
+    bc.add_argument("--samples", type=positive_int, default=64)
+    bc.add_argument("--workers", type=bounded_int(1, 256), default=os.cpu_count() or 1)
+    bc.add_argument("--repeats", type=bounded_int(1, 100), default=3)
+    bc.set_defaults(func=cmd_bench_cluster)
+    st = sub.add_parser("study", help="error and time for every knob (docs/accuracy-vs-time.md)")
+    group = st.add_mutually_exclusive_group()
+    group.add_argument("--quick", action="store_true", help="small and fast (CI); the default")
+    group.add_argument("--full", action="store_true", help="the committed figures (about 5 minutes on 2 cores)")
+    st.add_argument("--out", default="docs", help="directory for the markdown and the plots")
+    st.add_argument("--stopping", action="store_true",
+                    help="only the stopping-rule rows: estimate calibration, adaptive vs uniform "
+                         "(docs/accuracy-stopping.md)")
+    st.set_defaults(func=cmd_study)
+    w = sub.add_parser("worker", help="a render worker process (engine/pools/processes.py; started by the add-on)")
+    w.add_argument("parent_pid", type=positive_int)
+    w.set_defaults(func=cmd_worker)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (SceneError, OutputError) as exc:
+        sys.stderr.write(f"{PROG}: error: {exc}\n")
+        return 2
+    except MemoryError:
+        sys.stderr.write(f"{PROG}: error: out of memory (lower the resolution or the threads)\n")
+        return 1
+    except OSError as exc:
+        sys.stderr.write(f"{PROG}: error: {exc}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write(f"{PROG}: interrupted\n")
+        return 130

@@ -1,0 +1,302 @@
+"""All primitives of a scene behind one nearest-hit and one shadow-ray query.
+
+Triangles go to the accelerator (Embree, or the octree / brute force); spheres, quads and
+the polygons of Blender Area lights are analytic.  Rays and surface vectors are rows, (3, N)
+arrays (engine/core/vec.py).  A kernel runs only if the effect plan switches it on (the plan is
+the one place that decides; it says why).  Area lights are tested by nearest-hit queries
+only (they cast no shadow) and only for the ray kinds they are visible to.  The nearest hit
+is merged with `<` on arrays whose misses are +inf, so a NaN distance can never win
+(np.argmin would pick it: hard case H7).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .accel import build_accelerator
+from .shapes.light_polygons import LightPolygons
+from .shapes.quads import QuadSet
+from .shading_normals import SmoothNormals, has_smooth
+from .shapes.spheres import intersect_sphere, surface_point
+from ..core.vec import aos, max_abs3, rows
+
+NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
+KINDS = (TRIANGLE, SPHERE, QUAD, LIGHT)
+
+# Spawn offset for Embree triangles, relative to the largest coordinate of the hit
+# point or its triangle: about 16 float32 ulps, which covers rounding the origin to
+# float32 for Embree plus Embree's own float32 plane test (hard cases H1-H3).
+TRIANGLE_OFFSET = 2.0 ** -20
+
+
+@dataclass
+class SurfaceHits:
+    """Shading data for the rays that hit something."""
+    point: np.ndarray      # (3, M) float64, on the surface
+    normal: np.ndarray     # (3, M) unit geometric normal (winding / outward)
+    material: np.ndarray   # (M,) material index
+    offset: np.ndarray     # (M,) distance along the normal that clears the surface
+    shading: np.ndarray | None = None   # (3, M) unit shading normal (smooth triangles); else `normal`
+
+    def __post_init__(self):
+        if self.shading is None:
+            self.shading = self.normal
+
+
+@dataclass
+class HitSet:
+    """Nearest hits of a batch, compacted and sorted by (group, primitive kind).
+
+    ``index`` lists the rays that hit, ordered so that every (group, kind) pair forms
+    one contiguous run (``runs[(group, kind)] = (start, stop)``) and every group one
+    contiguous range (``groups[g] = (start, stop)``); ``miss`` lists the rays that hit
+    nothing.  Groups are whatever the caller maps materials to (the integrator: how
+    the surface scatters), so shading works on slices after a single sort.
+    """
+    index: np.ndarray
+    miss: np.ndarray
+    t: np.ndarray
+    kind: np.ndarray
+    prim: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    material: np.ndarray
+    runs: dict
+    groups: list
+
+
+def check_rows(o, d) -> None:
+    if o.ndim != 2 or o.shape[0] != 3 or d.shape != o.shape:
+        raise ValueError(f"rays must be (3, N) rows (engine/core/vec.py), got {o.shape} and {d.shape}")
+
+
+class Counters:
+    """Per-worker ray counts and time spent inside intersection kernels (all of them, and
+    the triangle accelerator's call alone: Embree, octree or brute force)."""
+
+    def __init__(self):
+        self.rays = {"camera": 0, "extension": 0, "shadow": 0}
+        self.seconds_in_intersection = 0.0
+        self.seconds_in_accelerator = 0.0
+        self.nonfinite_samples = 0
+
+    def merge(self, other: "Counters") -> None:
+        for key, value in other.rays.items():
+            self.rays[key] += value
+        self.seconds_in_intersection += other.seconds_in_intersection
+        self.seconds_in_accelerator += other.seconds_in_accelerator
+        self.nonfinite_samples += other.nonfinite_samples
+
+
+class SceneGeometry:
+    def __init__(self, scene, accelerator: str = "embree", plan=None):
+        """plan: the effect plan (engine/integrators/effects.py) that switches kernels on; None = every
+        kernel whose primitives the scene has (tests of geometry alone)."""
+        tris, tri_mats = [], []
+        for mesh in scene.meshes:
+            if len(mesh.triangles):
+                tris.append(mesh.vertices[mesh.triangles])
+                tri_mats.append(mesh.material_ids)
+        self.triangles = np.concatenate(tris) if tris else np.zeros((0, 3, 3))
+        self.triangle_material = np.concatenate(tri_mats) if tri_mats else np.zeros(0, np.int64)
+        v0, v1, v2 = self.triangles[:, 0], self.triangles[:, 1], self.triangles[:, 2]
+        normal = np.cross(v1 - v0, v2 - v0)
+        normal = normal / np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+        self.tri_v0, self.tri_e1, self.tri_e2, self.tri_normal = (rows(a) for a in (v0, v1 - v0, v2 - v0, normal))
+        self.tri_scale = np.abs(self.triangles).max(axis=(1, 2)) if len(self.triangles) else np.zeros(0)
+
+        self.sphere_center = rows([s.center for s in scene.spheres])      # (3, S)
+        self.sphere_radius = np.array([s.radius for s in scene.spheres], dtype=np.float64)
+        self.sphere_material = np.array([s.material_id for s in scene.spheres], dtype=np.int64)
+
+        self.quads = QuadSet(np.array([q.corners for q in scene.quads]).reshape(-1, 4, 3))
+        self.quad_material = np.array([q.material_id for q in scene.quads], dtype=np.int64)
+
+        def kernel(name, present):
+            return bool(present) if plan is None else bool(plan.enabled[name])
+        self.has_triangles = kernel("triangles", len(self.triangles))
+        self.has_spheres = kernel("spheres", len(self.sphere_radius))
+        self.has_quads = kernel("quads", self.quads.count)
+        self.has_lights = plan is not None and bool(plan.enabled.get("area_lights"))
+        self.lights = LightPolygons(scene.lights if self.has_lights else [])
+        # Smooth shading: interpolated corner normals, only when the plan says a scene has them.
+        self.smooth = (SmoothNormals(scene.meshes) if self.has_triangles and kernel("smooth_normals",
+                       has_smooth(scene.meshes)) else None)
+
+        # Material of (kind, prim) as one lookup: primitive_material[kind_base[kind] + prim];
+        # light polygons have no material (slot 0: the caller groups them by kind).
+        self.primitive_material = np.concatenate([
+            np.zeros(1, np.int64), self.triangle_material.astype(np.int64),
+            self.sphere_material, self.quad_material, np.zeros(self.lights.count, np.int64)])
+        n_tri, n_sph, n_quad = len(self.triangle_material), len(self.sphere_material), len(self.quad_material)
+        self.kind_base = np.array([1, 1, 1 + n_tri, 1 + n_tri + n_sph, 1 + n_tri + n_sph + n_quad],
+                                  dtype=np.int64)                   # a miss (prim -1) -> slot 0
+        start = time.perf_counter()
+        self.accelerator = build_accelerator(accelerator, self.triangles) if self.has_triangles else None
+        self.build_seconds = time.perf_counter() - start
+
+    # -- queries -----------------------------------------------------------------
+    def intersect(self, o, d, counters: Counters, tmax=None, ray_kind=None):
+        """Nearest hit of each ray (rows o, d): (t, kind, prim, u, v); t = +inf and kind =
+        NONE on a miss.  ray_kind (N,) int8 (LightPolygons.RAY_KINDS) selects which Area
+        lights each ray can see; None: all of them."""
+        check_rows(o, d)
+        n = o.shape[1]
+        start = time.perf_counter()
+        t = np.full(n, np.inf) if tmax is None else np.asarray(tmax, dtype=np.float64).copy()
+        kind = np.zeros(n, dtype=np.int8)
+        prim = np.full(n, -1, dtype=np.int64)
+        u = v = np.zeros(n)
+        if self.has_triangles:
+            dtype = self.accelerator.ray_dtype
+            o_aos, d_aos = aos(o, dtype), aos(d, dtype)
+            t0 = time.perf_counter()                        # the accelerator call only
+            tt, tp, u, v = self.accelerator.intersect(o_aos, d_aos, t)
+            counters.seconds_in_accelerator += time.perf_counter() - t0
+            closer = tt < t
+            t = np.where(closer, tt, t)
+            kind = closer.astype(np.int8)                   # TRIANGLE where closer
+            prim = np.where(closer, tp, prim)
+        for k in range(len(self.sphere_radius)) if self.has_spheres else ():
+            ts = intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], t)
+            closer = ts < t
+            t = np.where(closer, ts, t)
+            kind = np.where(closer, np.int8(SPHERE), kind)
+            prim = np.where(closer, k, prim)
+        for k in range(self.quads.count) if self.has_quads else ():
+            tq = self.quads.intersect_one(k, o, d, t)
+            closer = tq < t
+            t = np.where(closer, tq, t)
+            kind = np.where(closer, np.int8(QUAD), kind)
+            prim = np.where(closer, k, prim)
+        for k in range(self.lights.count):
+            sees = self.lights.rays_that_see(k, ray_kind)
+            if sees is None:
+                tl = self.lights.intersect_one(k, o, d, t)
+            elif len(sees):
+                tl = np.full(n, np.inf)
+                tl[sees] = self.lights.intersect_one(k, o.take(sees, axis=1), d.take(sees, axis=1), t.take(sees))
+            else:
+                continue
+            closer = tl < t
+            t = np.where(closer, tl, t)
+            kind = np.where(closer, np.int8(LIGHT), kind)
+            prim = np.where(closer, k, prim)
+        kind[~np.isfinite(t)] = NONE
+        if tmax is not None:
+            t[kind == NONE] = np.inf
+        counters.seconds_in_intersection += time.perf_counter() - start
+        return t, kind, prim, u, v
+
+    def nearest_hits(self, o, d, counters: Counters, material_group=None,
+                     n_groups: int = 1, light_group: int = 0, ray_kind=None, forced_group=None) -> HitSet:
+        """Nearest hits sorted by (material_group[material], kind); see HitSet.
+
+        `material_group` maps material ids to 0 .. n_groups-1 (default: one group); rays with
+        forced_group >= 0 go to that group instead; hits on Area lights form group `light_group`."""
+        t, kind, prim, u, v = self.intersect(o, d, counters, ray_kind=ray_kind)
+        material = self.primitive_material.take(prim + self.kind_base.take(kind))   # misses: ignored
+        group = (np.zeros(len(kind), np.int8) if material_group is None
+                 else material_group.take(material).astype(np.int8))
+        if forced_group is not None:
+            group = np.where(forced_group >= 0, forced_group, group).astype(np.int8)
+        if self.lights.count:
+            group = np.where(kind == LIGHT, np.int8(light_group), group)
+        kinds = len(KINDS)
+        key = np.where(kind == NONE, 0, 1 + group * kinds + (kind - 1)).astype(np.int8)
+        order = np.argsort(key, kind="stable")
+        bounds = np.searchsorted(key.take(order), np.arange(2 + n_groups * kinds))
+        first = bounds[1]
+        miss, index = order[:first], order[first:]
+        runs = {}
+        for g in range(n_groups):
+            for k in KINDS:
+                slot = 1 + g * kinds + (k - 1)
+                if bounds[slot + 1] > bounds[slot]:
+                    runs[(g, k)] = (bounds[slot] - first, bounds[slot + 1] - first)
+        groups = [(bounds[1 + g * kinds] - first, bounds[1 + (g + 1) * kinds] - first) for g in range(n_groups)]
+        return HitSet(index, miss, t.take(index), kind.take(index), prim.take(index),
+                      u.take(index), v.take(index), material.take(index), runs, groups)
+
+    def occluded(self, o, d, tmax, counters: Counters):
+        """True where something lies on the segment (0, tmax) of the ray (rows o, d)."""
+        check_rows(o, d)
+        start = time.perf_counter()
+        blocked = np.zeros(o.shape[1], dtype=bool)
+        if self.has_triangles:
+            dtype = self.accelerator.ray_dtype
+            o_aos, d_aos = aos(o, dtype), aos(d, dtype)
+            t0 = time.perf_counter()
+            blocked |= self.accelerator.occluded(o_aos, d_aos, tmax)
+            counters.seconds_in_accelerator += time.perf_counter() - t0
+        if self.has_spheres or self.has_quads:
+            rest = np.flatnonzero(~blocked)
+            if len(rest) < len(blocked):
+                o, d, tmax = o.take(rest, axis=1), d.take(rest, axis=1), tmax.take(rest)
+            hit = np.zeros(len(rest), dtype=bool)
+            for k in range(len(self.sphere_radius)):
+                hit |= intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], tmax) < tmax
+            for k in range(self.quads.count):
+                hit |= self.quads.intersect_one(k, o, d, tmax) < tmax
+            blocked[rest] = hit
+        counters.seconds_in_intersection += time.perf_counter() - start
+        return blocked
+
+    def surface(self, o, d, hits: HitSet) -> SurfaceHits:
+        """Shading data for the hit rays; rows o and d already in hits.index order."""
+        parts, shading = [], []
+        for (_, k), (a, b) in hits.runs.items():             # in index order (nearest_hits)
+            prim = hits.prim[a:b]
+            if k == TRIANGLE:
+                pt, nrm, off = self._triangle_surface(prim, hits.u[a:b], hits.v[a:b])
+                if self.smooth is not None:
+                    shading.append((len(parts), self.smooth.shading(prim, hits.u[a:b], hits.v[a:b], nrm)))
+            elif k == SPHERE:
+                pt, nrm, off = surface_point(o[:, a:b], d[:, a:b], hits.t[a:b],
+                                             self.sphere_center.take(prim, axis=1), self.sphere_radius.take(prim))
+            elif k == LIGHT:
+                pt, nrm, off = self.lights.surface(o[:, a:b], d[:, a:b], hits.t[a:b], prim)
+            else:
+                pt, nrm, off = self.quads.surface(o[:, a:b], d[:, a:b], hits.t[a:b], prim)
+            parts.append((pt, nrm, off))
+        if len(parts) == 1:
+            pt, nrm, off = parts[0]
+            return SurfaceHits(pt, nrm, hits.material, off, shading[0][1] if shading else None)
+        if not parts:
+            empty = np.zeros((3, 0))
+            return SurfaceHits(empty, empty, hits.material, np.zeros(0))
+        points, normals, offsets = zip(*parts)
+        point, normal, offset = (np.concatenate(points, axis=1), np.concatenate(normals, axis=1),
+                                 np.concatenate(offsets))
+        if shading:                         # the smooth normals replace those triangles' columns
+            per_part = list(normals)
+            for i, nrm_s in shading:
+                per_part[i] = nrm_s
+            return SurfaceHits(point, normal, hits.material, offset, np.concatenate(per_part, axis=1))
+        return SurfaceHits(point, normal, hits.material, offset)
+
+    def terminator_lift(self, hits: HitSet, span: slice, facing):
+        """Shadow-terminator lift of the hits in `span` (engine/geometry/shading_normals.py): (lift rows,
+        cutoff) for their shadow rays, or None when none of them is on a smooth triangle."""
+        if self.smooth is None:
+            return None
+        tri = np.flatnonzero(hits.kind[span] == TRIANGLE)
+        if not len(tri):
+            return None
+        m = span.stop - span.start
+        lift, cutoff = np.zeros((3, m)), np.zeros(m)
+        lift[:, tri], cutoff[tri] = self.smooth.terminator_lift(
+            hits.prim[span].take(tri), hits.u[span].take(tri), hits.v[span].take(tri),
+            facing[:, span].take(tri, axis=1), self.triangles)
+        return (lift, cutoff) if (cutoff > 0.0).any() else None
+
+    def _triangle_surface(self, prim, u, v):
+        """(point, normal, offset) of triangle hits."""
+        # Barycentric interpolation in float64 puts the point on the triangle's plane
+        # (pbrt): the float32 error of o + t d would be along the ray instead.
+        point = (self.tri_v0.take(prim, axis=1) + u * self.tri_e1.take(prim, axis=1)
+                 + v * self.tri_e2.take(prim, axis=1))
+        offset = TRIANGLE_OFFSET * np.maximum(max_abs3(point), self.tri_scale.take(prim))
+        return point, self.tri_normal.take(prim, axis=1), offset

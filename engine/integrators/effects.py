@@ -1,0 +1,198 @@
+"""The effect plan: which kernels and which parts of the estimator a scene needs, and why.
+
+Decided once from the scene and the settings before tracing; it is the one place that
+switches work on.  The geometry builds only the intersection kernels the plan enables
+(a scene without spheres never runs the sphere test), the integrator runs only the stages
+it enables (a diffuse-only scene never evaluates Fresnel or refraction; no MIS weights where
+only one strategy can reach a light), and the light sampler builds the light tree only for
+more than one light.  `describe()` prints every decision with its reason.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..scene.model import DIFFUSE, GLASS, MIRROR
+from ..geometry.shading_normals import has_smooth
+from ..materials.textures import textured_materials
+
+EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
+           "emission", "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes",
+           "textures")
+ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
+                      "brute": "brute-force kernel (every triangle)"}
+
+
+@dataclass
+class EffectPlan:
+    enabled: dict = field(default_factory=dict)
+    reason: dict = field(default_factory=dict)
+
+    def __getattr__(self, name):
+        try:
+            return self.__dict__["enabled"][name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def summary(self) -> str:
+        on = [name for name in EFFECTS if self.enabled[name]]
+        return ", ".join(on) if on else "nothing"
+
+    def describe(self) -> str:
+        lines = []
+        for name in EFFECTS:
+            mark = "on " if self.enabled[name] else "off"
+            lines.append(f"  {mark} {name:12s} {self.reason[name]}")
+        return "\n".join(lines)
+
+    def describe_light_kinds(self, lights) -> None:
+        """Add to the solid-angle reason how each kind of light in `lights` is sampled."""
+        if not self.enabled["solid_angle"]:
+            return
+        how = {"parallelogram": "spherical rectangles (area where grazing or not rectangular)",
+               "triangle": "spherical triangles (area where grazing or tiny)",
+               "sphere": "cones from outside, area from inside", "polygon": "area (disks, ellipses)",
+               "point": "the cone of the disk they show (a delta light without a radius; spot lights "
+                         "weight it by their cone's falloff)"}
+        counts = {}
+        for _, kind, _ in lights.kinds:
+            counts[kind.kind] = counts.get(kind.kind, 0) + kind.count
+        self.reason["solid_angle"] += ": " + "; ".join(f"{n} {k} light(s) by {how[k]}" for k, n in counts.items())
+
+
+def _names(objects, limit=3) -> str:
+    names = [f"'{o.name}'" for o in objects[:limit]]
+    more = f" and {len(objects) - limit} more" if len(objects) > limit else ""
+    return ", ".join(names) + more
+
+
+def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
+    plan = EffectPlan()
+    mats = scene.materials
+
+    def set_effect(name, on, why):
+        plan.enabled[name] = bool(on)
+        plan.reason[name] = why
+
+    meshes = [m for m in scene.meshes if len(m.triangles)]
+    n_tri = sum(len(m.triangles) for m in meshes)
+    set_effect("triangles", n_tri > 0,
+               f"{n_tri} triangles in {_names(meshes)}: {ACCELERATOR_KERNEL.get(accelerator, accelerator)}"
+               if n_tri else "no triangle meshes: triangle kernel skipped")
+    smooth = [m for m in meshes if has_smooth([m])]
+    n_smooth = has_smooth(smooth)
+    set_effect("smooth_normals", n_smooth > 0,
+               f"{n_smooth} smooth-shaded triangles in {_names(smooth)}: corner normals interpolated at "
+               "hits for shading, geometric normal for offsets and side tests"
+               if n_smooth else "no smooth-shaded faces: flat (geometric) normals, nothing interpolated")
+    set_effect("spheres", bool(scene.spheres),
+               f"{len(scene.spheres)} implicit sphere(s) {_names(scene.spheres)}: sphere kernel"
+               if scene.spheres else "no implicit spheres: sphere kernel skipped")
+    set_effect("quads", bool(scene.quads),
+               f"{len(scene.quads)} quad(s) {_names(scene.quads)}: quad kernel"
+               if scene.quads else "no quads: quad kernel skipped")
+
+    # Materials actually used by some primitive.
+    used = set()
+    for mesh in meshes:
+        used.update(np.unique(mesh.material_ids).tolist())
+    used.update(s.material_id for s in scene.spheres)
+    used.update(q.material_id for q in scene.quads)
+    used_mats = [mats[i] for i in sorted(used)]
+
+    def users(predicate):
+        return [m for m in used_mats if predicate(m)]
+
+    report = settings.estimator == "report"
+    lamps = [light for light in scene.lights if max(light.radiance) > 0]
+    seen_lamps = [light for light in lamps if any(
+        getattr(light, f"visible_{k}") for k in ("camera", "diffuse", "glossy", "transmission"))]
+    set_effect("area_lights", lamps and not report and seen_lamps,
+               f"Area light(s) {_names(seen_lamps)} reached by rays (Cycles' ray visibility), light kernel"
+               if lamps and not report and seen_lamps else
+               "no Area lights: light kernel skipped" if not lamps else
+               "report estimator: Area lights are reached by shadow rays only (eq. 2.11)" if report else
+               "Area lights invisible to every ray kind: reached by shadow rays only")
+
+    diffuse = users(lambda m: m.kind == DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
+    mirror = users(lambda m: m.kind == MIRROR and (max(m.color) > 0 or m.color_texture is not None))
+    glass = users(lambda m: m.kind == GLASS)
+    surface_emitters = users(lambda m: m.is_emissive)
+    bulbs = [p for p in scene.points if max(p.intensity) > 0]
+    suns = [s for s in scene.suns if max(s.irradiance) > 0]
+    emitters = surface_emitters + lamps + bulbs + suns
+    set_effect("diffuse", diffuse,
+               f"diffuse materials {_names(diffuse)}: cosine bounces (eq. 2.13-2.14)"
+               if diffuse else "no diffuse material: no diffuse bounces")
+    set_effect("mirror", mirror,
+               f"mirror materials {_names(mirror)}: perfect reflection (eq. 2.20)"
+               if mirror else "no mirror material: reflection path skipped")
+    set_effect("glass", glass,
+               f"glass materials {_names(glass)}: {settings.fresnel} Fresnel and refraction (eq. 2.17, 2.24)"
+               + ("; nested media tracked" if settings.nested_dielectrics else "")
+               if glass else "no glass material: Fresnel and refraction never evaluated")
+    set_effect("emission", emitters,
+               f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
+               + (" (background light only)" if max(scene.background) > 0 else ""))
+
+    round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
+                   if light.visible_glossy or light.visible_transmission]
+    specular = mirror or glass
+    set_effect("seen_lamps", round_lamps and specular and not report,
+               f"lamps {_names(round_lamps)} seen in mirrors and through glass (Cycles' light visibility)"
+               if round_lamps and specular and not report else
+               "no point/spot light with a radius and no sun with an angle seen by glossy or transmission rays"
+               if not round_lamps else
+               "no mirror or glass: point, spot and sun lights are reached by shadow rays only" if not specular else
+               "report estimator: point, spot and sun lights are reached by shadow rays only")
+
+    sky = max(scene.background) > 0
+    world = bool(sky and diffuse and settings.shadow_rays > 0 and not report)
+    set_effect("world_light", world,
+               "the background is sampled as a light (cosine directions, shadow rays to infinity)" if world else
+               "black background" if not sky else "report estimator: the background is found by bounce rays"
+               if report else "no diffuse surface or no shadow rays: the background is found by bounce rays")
+    nee = bool(diffuse and (emitters or world) and settings.shadow_rays > 0)
+    set_effect("direct_light", nee,
+               f"{settings.shadow_rays} shadow ray(s) per diffuse hit (eq. 2.11)" if nee else
+               "no diffuse surface to light" if not diffuse else "no emitters" if not emitters else
+               "0 shadow rays: emitters found by BSDF sampling alone")
+    set_effect("solid_angle", nee and not report,
+               "lights sampled by solid angle where stable" if nee and not report else
+               "report estimator: lights sampled by area (pdf 1/A, eq. 2.11)" if nee else "no direct light")
+    n_lights = n_emissive_primitives(scene) + len(lamps) + len(bulbs)
+    set_effect("light_tree", nee and not report and n_lights > 1,
+               f"{n_lights} lights: picked by a light tree (importance at the shading point)"
+               if nee and not report and n_lights > 1 else
+               "report estimator: lights picked by power" if nee and report and n_lights > 1 else
+               "one light: no light selection" if nee else "no direct light")
+    reachable = bool(surface_emitters) or plan.enabled["area_lights"] or world
+    mis = nee and settings.estimator == "mis" and reachable
+    set_effect("mis", mis,
+               "light and cosine BSDF samples weighted by the power heuristic (Veach & Guibas 1995)" if mis else
+               f"{settings.estimator} estimator: emission after a diffuse bounce is left to the shadow rays"
+               if nee and settings.estimator != "mis" else
+               "no emitter that bounce rays can reach" if nee else
+               "no direct light: BSDF sampling alone (weight 1)")
+    from ..film.passes import TRACED
+    features = [n for n in TRACED if n in tuple(getattr(settings, "passes", ()) or ())]
+    set_effect("passes", features,
+               f"first-hit {', '.join(features)} recorded per sample (engine/film/passes.py)" if features else
+               "no albedo, normal or depth pass: no feature tracking")
+    colored, glowing = textured_materials(scene)
+    set_effect("textures", colored or glowing,
+               "; ".join(part for part in (
+                   f"image textures on the colour of {_names(colored)}" if colored else "",
+                   f"on the emission of {_names(glowing)} (light samples read the texture)" if glowing else "")
+                   if part) + ": texture lookups at triangle hits (UVs interpolated)"
+               if colored or glowing else "no image textures: no UVs, no texture lookups")
+    return plan
+
+
+def n_emissive_primitives(scene) -> int:
+    emissive = np.array([m.is_emissive for m in scene.materials])
+    n = sum(int(emissive[np.asarray(m.material_ids, dtype=np.int64)].sum()) for m in scene.meshes
+            if len(m.triangles))
+    return n + sum(bool(emissive[q.material_id]) for q in scene.quads) + \
+        sum(bool(emissive[s.material_id]) for s in scene.spheres)

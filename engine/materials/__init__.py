@@ -1,0 +1,1 @@
+"""How surfaces scatter: BSDFs, Fresnel, and image textures evaluated at hits."""

@@ -1,0 +1,341 @@
+"""Image textures: Blender's Image Texture node on a colour input (Base Colour / Color / Emission
+Colour), looked up through per-corner UVs as Cycles does.
+
+* `ImageTexture` is one Blender image (loaded once per worker, shared by every material that uses
+  it): a file read with OpenImageIO, or pixels sent by the exporter (packed or generated images).
+  Pixels are kept as Blender holds them: row 0 is the BOTTOM row (v = 0), OpenImageIO's top-first
+  rows are flipped on load.
+* `TextureSlot` is one use of an image by a material input: interpolation (Closest / Linear),
+  extension (REPEAT / EXTEND / CLIP / MIRROR) and a scale (the emission strength).
+* Colour space: sRGB images are decoded to linear with the sRGB transfer function
+  (IEC 61966-2-1): c <= 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055)^2.4.  As in Cycles, 8-bit
+  sRGB images are interpolated in sRGB and decoded afterwards (Cycles' "compress as sRGB"); float
+  images are decoded on load.  Non-Color / Linear images are used as they are.
+* Lookup (Cycles' kernel image interpolation, CPU): Closest reads texel floor(u W); Linear reads
+  the 4 texels around u W - 0.5 and blends them bilinearly.  REPEAT wraps texel indices, EXTEND
+  clamps them, CLIP reads 0 for texels beyond the border (Closest: 0 outside [0, 1)^2; Linear fades
+  to 0 over the half texel outside, as Cycles 3.4-5.0 do), MIRROR reflects them.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene.textures import ImageTexture, TextureSlot, missing_message
+
+
+def as_float(pixels) -> np.ndarray:
+    """Pixels as float32: uint8 bytes / 255, anything else as it is."""
+    pixels = np.asarray(pixels)
+    if pixels.dtype == np.uint8:
+        return pixels.astype(np.float32) * np.float32(1.0 / 255.0)
+    return pixels.astype(np.float32)
+
+
+def srgb_to_linear(c):
+    """The sRGB electro-optical transfer function (IEC 61966-2-1), as Cycles' color_srgb_to_linear."""
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c * (1.0 / 12.92), np.power(np.maximum(c + 0.055, 0.0) / 1.055, 2.4))
+
+
+# -- lookup --------------------------------------------------------------------------------------
+def _wrap(i, n, extension):
+    """Texel indices wrapped by the extension mode; CLIP: -1 marks texels outside (read as 0)."""
+    if extension == "REPEAT":
+        return np.mod(i, n)
+    if extension == "MIRROR":
+        period = np.mod(i, 2 * n)
+        return np.where(period < n, period, 2 * n - 1 - period)
+    if extension == "CLIP":
+        return np.where((i >= 0) & (i < n), i, -1)
+    return np.clip(i, 0, n - 1)                     # EXTEND
+
+
+def _read(pixels, ix, iy):
+    """Texels (N, C) at wrapped indices; index -1 (CLIP outside) reads 0."""
+    h, w = pixels.shape[:2]
+    out = pixels[np.clip(iy, 0, h - 1), np.clip(ix, 0, w - 1)].astype(np.float64)
+    outside = (ix < 0) | (iy < 0)
+    if outside.any():
+        out[outside] = 0.0
+    return out
+
+
+def lookup(pixels, u, v, interpolation="Linear", extension="REPEAT"):
+    """Texture values (N, C) at texture coordinates (u, v) (N,), as stored (no colour decoding)."""
+    h, w = pixels.shape[:2]
+    u = np.asarray(u, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    if interpolation == "Closest":
+        ix, iy = np.floor(u * w).astype(np.int64), np.floor(v * h).astype(np.int64)
+        out = _read(pixels, _wrap(ix, w, extension), _wrap(iy, h, extension))
+    else:
+        x, y = u * w - 0.5, v * h - 0.5
+        fx, fy = np.floor(x), np.floor(y)
+        tx, ty = (x - fx)[:, None], (y - fy)[:, None]
+        ix, iy = fx.astype(np.int64), fy.astype(np.int64)
+        x0, x1 = _wrap(ix, w, extension), _wrap(ix + 1, w, extension)
+        y0, y1 = _wrap(iy, h, extension), _wrap(iy + 1, h, extension)
+        out = ((1 - ty) * ((1 - tx) * _read(pixels, x0, y0) + tx * _read(pixels, x1, y0))
+               + ty * ((1 - tx) * _read(pixels, x0, y1) + tx * _read(pixels, x1, y1)))
+    return out
+
+
+def rgb(values):
+    """(N, C) texel values -> (N, 3) colour: grey for 1-2 channels, alpha dropped."""
+    if values.shape[1] >= 3:
+        return values[:, :3]
+    return np.repeat(values[:, :1], 3, axis=1)
+
+
+# -- loading -------------------------------------------------------------------------------------
+def read_image(path: str):
+    """(pixels (H, W, C) float32 with row 0 at the bottom, is_float: not 8-bit) via OpenImageIO;
+    raises OSError."""
+    try:
+        import OpenImageIO as oiio
+    except ImportError as exc:
+        raise OSError(f"OpenImageIO is not available ({exc})") from None
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise OSError(oiio.geterror() or "cannot open")
+    try:
+        spec = inp.spec()
+        data = inp.read_image(0, 0, 0, spec.nchannels, "float")
+        if data is None:
+            raise OSError(inp.geterror() or "cannot read")
+        # Cycles keeps only 8-bit images as stored bytes (decoded after interpolation); 16-bit and
+        # float images become floats, decoded on load.
+        is_float = spec.format.basetype not in (oiio.UINT8, oiio.INT8)
+    finally:
+        inp.close()
+    pixels = np.asarray(data, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    return np.ascontiguousarray(pixels[::-1]), is_float
+
+
+@dataclass
+class LoadedTexture:
+    pixels: np.ndarray             # (H, W, C) float32, bottom row first
+    decode_after: bool             # 8-bit sRGB: decode after interpolation
+    mean: np.ndarray               # (3,) mean linear colour
+    decoded: np.ndarray | None = None   # 8-bit sRGB: the texels decoded (Closest reads these)
+
+
+class TextureSet:
+    """Every texture of a scene, loaded once, and the materials' slots as lookups.
+
+    A texture that cannot be read gives one warning naming the image and the materials that use
+    it; those materials render with their unlinked colour."""
+
+    def __init__(self, scene):
+        self.warnings: list[str] = []
+        self.loaded: list[LoadedTexture | None] = [self._load(t, scene) for t in scene.textures]
+        mats = scene.materials
+        self.color = [self._usable(m.color_texture) for m in mats]
+        self.emission = [self._usable(m.emission_texture) for m in mats]
+        self.has_color = np.array([s is not None for s in self.color], dtype=bool)
+        self.has_emission = np.array([s is not None for s in self.emission], dtype=bool)
+
+    def _usable(self, slot):
+        return slot if slot is not None and self.loaded[slot.texture] is not None else None
+
+    def _load(self, tex: ImageTexture, scene):
+        if tex.pixels is not None:
+            pixels, is_float = as_float(tex.pixels), tex.is_float
+        else:
+            if not tex.path or not os.path.isfile(tex.path):
+                return None                     # Scene.validate warned already (validate_textures)
+            try:
+                pixels, is_float = read_image(tex.path)
+            except (OSError, RuntimeError, ValueError) as exc:
+                self.warnings.append(missing_message(scene, tex, str(exc)))
+                return None
+        if pixels.ndim == 2:
+            pixels = pixels[:, :, None]
+        decode_after = tex.is_srgb and not is_float
+        if tex.is_srgb and is_float:
+            pixels = srgb_to_linear(pixels).astype(np.float32)
+        col = rgb(pixels.reshape(-1, pixels.shape[2]).astype(np.float64))
+        mean = (srgb_to_linear(col) if decode_after else col).mean(axis=0)
+        decoded = srgb_to_linear(pixels).astype(np.float32) if decode_after else None
+        return LoadedTexture(np.ascontiguousarray(pixels), decode_after, mean, decoded)
+
+    def evaluate(self, slot: TextureSlot, u, v) -> np.ndarray:
+        """Linear colour rows (3, N) of `slot` at texture coordinates (u, v), times its scale."""
+        tex = self.loaded[slot.texture]
+        if tex.decode_after and slot.interpolation == "Closest":      # decode(texel): decoded once
+            return rgb(lookup(tex.decoded, u, v, "Closest", slot.extension)).T * \
+                np.asarray(slot.scale, dtype=np.float64)[:, None]
+        value = rgb(lookup(tex.pixels, u, v, slot.interpolation, slot.extension))
+        if tex.decode_after:
+            value = srgb_to_linear(value)
+        return value.T * np.asarray(slot.scale, dtype=np.float64)[:, None]
+
+    def mean(self, slot: TextureSlot) -> np.ndarray:
+        return self.loaded[slot.texture].mean * np.asarray(slot.scale, dtype=np.float64)
+
+
+# -- UVs at hits ---------------------------------------------------------------------------------
+def triangle_uvs(scene) -> np.ndarray:
+    """Corner UVs (T, 3, 2) of every triangle in SceneGeometry's order (zeros for meshes without)."""
+    parts = [np.asarray(m.uvs, dtype=np.float64).reshape(-1, 3, 2) if m.uvs is not None
+             else np.zeros((len(m.triangles), 3, 2)) for m in scene.meshes if len(m.triangles)]
+    return np.concatenate(parts) if parts else np.zeros((0, 3, 2))
+
+
+def interpolate_uv(tri_uv, prim, b1, b2):
+    """(u, v) at barycentrics (b1, b2) of vertices 1 and 2 of triangles `prim` (Embree's u, v);
+    tri_uv: corner UVs (T, 3, 2), or as rows (6, T) (u0 v0 u1 v1 u2 v2, faster to gather)."""
+    c = tri_uv.take(prim, axis=1) if tri_uv.ndim == 2 else tri_uv[prim].reshape(-1, 6).T
+    b0 = 1.0 - b1 - b2
+    return b0 * c[0] + b1 * c[2] + b2 * c[4], b0 * c[1] + b1 * c[3] + b2 * c[5]
+
+
+class Barycentrics:
+    """Barycentrics (b1, b2) of points in a fixed set of triangles (projected onto their plane),
+    with the per-triangle terms computed once: w = p - v0, b = Gram(e1, e2)^-1 (w.e1, w.e2)."""
+
+    def __init__(self, tri):
+        tri = np.asarray(tri, dtype=np.float64).reshape(-1, 3, 3)
+        e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+        inv = 1.0 / np.maximum(d11 * d22 - d12 * d12, 1e-300)
+        self.v0, self.e1, self.e2 = tri[:, 0].T.copy(), e1.T.copy(), e2.T.copy()      # rows (3, K)
+        self.d11, self.d12, self.d22 = d11 * inv, d12 * inv, d22 * inv
+
+    def __call__(self, k, point):
+        """(b1, b2) of points (rows (3, N)) in triangles k (N,) of the set."""
+        w = point - self.v0.take(k, axis=1)
+        w1 = (w * self.e1.take(k, axis=1)).sum(axis=0)
+        w2 = (w * self.e2.take(k, axis=1)).sum(axis=0)
+        d12 = self.d12.take(k)
+        return self.d22.take(k) * w1 - d12 * w2, self.d11.take(k) * w2 - d12 * w1
+
+
+def textured_materials(scene):
+    """(materials with a colour texture, materials with an emission texture) used by a mesh."""
+    used = set()
+    for mesh in scene.meshes:
+        if len(mesh.triangles):
+            used.update(np.unique(np.asarray(mesh.material_ids)).tolist())
+    mats = [scene.materials[i] for i in sorted(used)]
+    return ([m for m in mats if m.color_texture is not None],
+            [m for m in mats if m.emission_texture is not None])
+
+
+def with_texture_means(scene, textures: TextureSet):
+    """The scene with every textured emitter's `emission` set to its texture's mean radiance (x
+    strength): the light sampler picks lights by that power, the radiance of each light sample
+    and emission hit comes from the texture itself (HitTextures), so the estimate stays unbiased
+    and the pdfs, which depend on geometry only, stay those of MIS."""
+    import dataclasses
+    if not textures.has_emission.any():
+        return scene
+    mats = [dataclasses.replace(m, emission=tuple(float(c) for c in textures.mean(slot)))
+            if slot is not None else m for m, slot in zip(scene.materials, textures.emission)]
+    return dataclasses.replace(scene, materials=mats)
+
+
+class HitTextures:
+    """Texture lookups at triangle hits and light samples (the integrator's view of TextureSet).
+
+    Colours and emission of hits on textured materials are replaced by the texture at the hit's
+    UV, interpolated from the corner UVs with Embree's barycentrics (b1, b2) (any accelerator: the
+    octree and brute force return the same barycentrics).  Spheres and quads have no UVs: they
+    keep the unlinked colour."""
+
+    def __init__(self, textures: TextureSet, scene, triangles, triangle_material, lights=None):
+        self.textures = textures
+        self.tri_uv = np.ascontiguousarray(triangle_uvs(scene).reshape(-1, 6).T)     # rows (6, T)
+        self.triangles = triangles                    # (T, 3, 3)
+        self.triangle_material = triangle_material
+        self.has_color, self.has_emission = textures.has_color, textures.has_emission
+        self.light_a = self.light_b = None
+        if lights is not None and self.has_emission.any() and len(lights.triangle_light):
+            # Each light's triangles (a parallelogram light is a pair), for light samples: numbers k
+            # into `emitting` (the textured emitters' triangles, whose barycentric terms are kept).
+            total = len(lights.radiance[0])
+            tl = lights.triangle_light
+            self.emitting = np.flatnonzero((tl >= 0) & self.has_emission.take(triangle_material))
+            k = np.arange(len(self.emitting))
+            self.light_a = np.full(total, -1, np.int64)
+            self.light_b = np.full(total, -1, np.int64)
+            self.light_a[tl[self.emitting[::-1]]] = k[::-1]      # first triangle of each light
+            self.light_b[tl[self.emitting]] = k                  # last one
+            self.light_b[self.light_b == self.light_a] = -1
+            self.barycentrics = Barycentrics(triangles[self.emitting])
+
+    def _apply(self, values, slots, which, material, kind, prim, b1, b2):
+        from ..geometry.scene_geometry import TRIANGLE
+        sel = np.flatnonzero(which.take(material) & (kind == TRIANGLE))
+        if not len(sel):
+            return values
+        values = np.array(values, dtype=np.float64)
+        mat = material.take(sel)
+        u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
+        for m in np.unique(mat):
+            mine = np.flatnonzero(mat == m)
+            values[:, sel.take(mine)] = self.textures.evaluate(slots[m], u.take(mine), v.take(mine))
+        return values
+
+    def color(self, color, material, kind, prim, b1, b2):
+        """Colour rows (3, N) with textured hits replaced by the texture (Base Colour / Color)."""
+        return self._apply(color, self.textures.color, self.has_color, material, kind, prim, b1, b2)
+
+    def emission(self, le, material, kind, prim, b1, b2):
+        """Emitted radiance rows (3, N) with textured hits replaced by texture x strength."""
+        return self._apply(le, self.textures.emission, self.has_emission, material, kind, prim, b1, b2)
+
+    def light_radiance(self, radiance, light, point):
+        """Radiance rows of light samples: textured emitters evaluated at the sampled point."""
+        if self.light_a is None:
+            return radiance
+        ok = light < len(self.light_a)
+        a = np.where(ok, self.light_a.take(np.minimum(light, len(self.light_a) - 1)), -1)
+        sel = np.flatnonzero(a >= 0)
+        if not len(sel):
+            return radiance
+        a = a.take(sel)
+        b = self.light_b.take(light.take(sel))
+        p = point if len(sel) == point.shape[1] else point.take(sel, axis=1)
+        b1, b2 = self.barycentrics(a, p)
+        other = (b >= 0) & ((b1 < 0) | (b2 < 0) | (b1 + b2 > 1))    # the pair's second triangle
+        k = np.where(other, b, a)
+        if other.any():
+            o = np.flatnonzero(other)
+            b1[o], b2[o] = self.barycentrics(k.take(o), p.take(o, axis=1))
+        tri = self.emitting.take(k)
+        material = self.triangle_material.take(tri)
+        from ..geometry.scene_geometry import TRIANGLE
+        le = self.emission(radiance[:, sel], material, np.full(len(sel), TRIANGLE, np.int8), tri, b1, b2)
+        radiance = np.array(radiance, dtype=np.float64)
+        radiance[:, sel] = le
+        return radiance
+
+
+class LoadedTextures:
+    """A scene's TextureSet, to be bound to the geometry and lights once they are built."""
+
+    def __init__(self, textures: TextureSet, scene):
+        self.textures, self.scene = textures, scene
+
+    def bind(self, geometry, lights) -> HitTextures:
+        return HitTextures(self.textures, self.scene, geometry.triangles, geometry.triangle_material, lights)
+
+
+def load_textures(scene, plan, log=print, warnings=None):
+    """(LoadedTextures or None, the scene the lights are built from): images are read here, once
+    per render session (worker), only when the effect plan has `textures` on.  Images that cannot
+    be read are logged and added to `warnings` (a worker sends them to Blender)."""
+    if not plan.enabled.get("textures"):
+        return None, scene
+    textures = TextureSet(scene)
+    for warning in textures.warnings:
+        log(f"warning: {warning}")
+        if warnings is not None:
+            warnings.append(warning)
+    if not (textures.has_color.any() or textures.has_emission.any()):
+        return None, scene
+    return LoadedTextures(textures, scene), with_texture_means(scene, textures)

@@ -1,0 +1,102 @@
+"""The frame as work: tiles, the work units that render sample ranges of a tile, and the wait
+for their outcomes.  Units depend on the frame only, never on the workers, so images stay
+identical whatever renders them."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+MIN_TILES = 4                     # so that both cores of a small frame have work
+UNIT_PATHS = 1 << 18              # camera samples per work unit, about: each unit ends with a tail of
+                                  # a few paths, so units much smaller than this cost time (1 << 16: +25 %)
+
+
+@dataclass(frozen=True)
+class Tile:
+    index: int
+    x0: int
+    y0: int
+    x1: int
+    y1: int
+
+    @property
+    def pixels(self) -> int:
+        return (self.x1 - self.x0) * (self.y1 - self.y0)
+
+
+@dataclass(frozen=True)
+class WorkUnit:
+    """Samples start .. stop-1 of every pixel of one tile; `chunk` numbers it within the tile."""
+    index: int
+    tile: Tile
+    chunk: int
+    start: int
+    stop: int
+    mask: bytes | None = None    # packed active pixels of the tile (adaptive sampling); None = all
+    halves: bool = False         # render [start, mid) and [mid, stop) apart: the half buffers
+
+
+def tile_size_for(width: int, height: int, size: int) -> int:
+    """The tile edge used: `size`, halved (not below 16) until the frame has MIN_TILES tiles.
+    It depends on the frame only, never on the workers, so images stay identical whatever
+    the number of workers."""
+    while size > 16 and -(-width // size) * -(-height // size) < MIN_TILES:
+        size = max(16, size // 2)
+    return size
+
+
+def make_tiles(width: int, height: int, size: int) -> list[Tile]:
+    tiles = []
+    for y0 in range(0, height, size):
+        for x0 in range(0, width, size):
+            tiles.append(Tile(len(tiles), x0, y0, min(x0 + size, width), min(y0 + size, height)))
+    return tiles
+
+
+def make_units(tiles, samples: int, order: str = "tiles") -> list[WorkUnit]:
+    """Each tile's samples in chunks of about UNIT_PATHS camera samples.  order "tiles": a tile's
+    chunks one after the other (the frame fills tile by tile); "passes": chunk 0 of every tile,
+    then chunk 1, ... (the whole frame refines)."""
+    per_tile = []
+    for tile in tiles:
+        step = max(1, min(samples, -(-UNIT_PATHS // tile.pixels)))
+        per_tile.append([(tile, c, s, min(s + step, samples)) for c, s in enumerate(range(0, samples, step))])
+    if order == "passes":
+        chunks = [units[d] for d in range(max(map(len, per_tile))) for units in per_tile if d < len(units)]
+    else:
+        chunks = [u for units in per_tile for u in units]
+    return [WorkUnit(i, tile, c, start, stop) for i, (tile, c, start, stop) in enumerate(chunks)]
+
+
+def next_outcome(workers, timeout: float):
+    """(came, result, error) of the next unit from `workers` (engine/workers.py interface): came
+    is False when none finished within `timeout`; result is None for a cancelled or failed unit;
+    a failed unit cancels the others (its error is raised once they have stopped)."""
+    item = workers.next_result(timeout=timeout)
+    if item is None:
+        return False, None, None
+    _, result, exc = item
+    if exc is not None:
+        workers.cancel()
+        return True, None, exc
+    return True, result, None
+
+
+def await_units(workers, count: int, on_result, interrupt=None, poll: float = 0.1):
+    """Wait for the outcomes of `count` started units, handing each finished UnitResult to
+    on_result(result).  interrupt() is polled between waits until it returns a reason to stop
+    (e.g. "cancelled"); then the workers are cancelled and the other units drain, dropped whole.
+    Returns (that reason or None, the first unit error or None)."""
+    reason, error, done = None, None, 0
+    while done < count:
+        if reason is None and interrupt is not None:
+            reason = interrupt() or None
+            if reason is not None:
+                workers.cancel()
+        came, result, exc = next_outcome(workers, poll)
+        if not came:
+            continue
+        done += 1
+        error = error or exc
+        if result is not None:
+            on_result(result)
+    return reason, error

@@ -1,0 +1,90 @@
+"""Primary rays of a Blender perspective camera, pixel centres as Cycles (+0.5)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.vec import normalize
+
+
+def view_plane(camera, width: int, height: int):
+    """Size of the image plane at distance 1 and the extent that shift is measured in.
+
+    Blender's sensor fit: AUTO applies sensor_width to the larger image side;
+    HORIZONTAL fits sensor_width to the width, VERTICAL sensor_height to the height.
+    Shift is a fraction of the fitted side.
+    """
+    fit = camera.sensor_fit
+    if fit == "AUTO":
+        fit = "HORIZONTAL" if width >= height else "VERTICAL"
+        sensor = camera.sensor_width
+    else:
+        sensor = camera.sensor_width if fit == "HORIZONTAL" else camera.sensor_height
+    extent = sensor / camera.lens
+    if fit == "HORIZONTAL":
+        plane_w, plane_h = extent, extent * height / width
+    else:
+        plane_w, plane_h = extent * width / height, extent
+    return plane_w, plane_h, extent
+
+
+def camera_rays(camera, width: int, height: int, sx: np.ndarray, sy: np.ndarray):
+    """Rays through raster positions (sx, sy): x to the right, y down from the top edge.
+
+    Returns (origins, unit directions) in world space, as rows (3, N) (engine/core/vec.py).
+    """
+    plane_w, plane_h, extent = view_plane(camera, width, height)
+    x = (sx / width - 0.5) * plane_w + camera.shift_x * extent
+    y = (0.5 - sy / height) * plane_h + camera.shift_y * extent
+    m = np.asarray(camera.matrix, dtype=np.float64)
+    axes = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)  # drop object scale
+    # Per component, not a matmul: that wakes OpenBLAS's thread pool, whose spinning
+    # threads steal the other core from a second render worker.
+    directions = np.empty((3, len(x)))
+    for i in range(3):
+        directions[i] = x * axes[i, 0] + y * axes[i, 1] - axes[i, 2]
+    directions = normalize(directions)
+    origins = np.repeat(m[:3, 3:4], len(x), axis=1)
+    return origins, directions
+
+
+class TileSamples:
+    """The camera samples of one image tile, handed out in chunks (report 2.3).
+
+    Sample i of the tile belongs to pixel i mod (tile pixels): the first pass covers
+    every pixel once, then the second, ... up to pass `spp`, from pass `first` on.  Each sample is a
+    jittered sub-pixel position (box filter), from dimension pair 0 of `sampler`
+    (engine/sampling/qmc.py) when its chunk is taken.
+    """
+
+    def __init__(self, camera, width: int, height: int, x0: int, y0: int, x1: int, y1: int,
+                 spp: int, sampler, first: int = 0):
+        """Samples first .. spp-1 of every pixel (a work unit's sample range)."""
+        self.camera, self.width, self.height = camera, width, height
+        self.tile_width = x1 - x0
+        self.pixels = self.tile_width * (y1 - y0)
+        self.x0, self.y0 = x0, y0
+        self.total = self.pixels * spp
+        self.taken = self.pixels * first
+        self.sampler = sampler
+
+    @property
+    def remaining(self) -> int:
+        return self.total - self.taken
+
+    def take(self, count: int):
+        """(pixel index within the tile, sample index within the pixel, origins, directions)
+        of the next `count` samples."""
+        count = min(count, self.remaining)
+        serial = np.arange(self.taken, self.taken + count)
+        pixel, sample = serial % self.pixels, serial // self.pixels
+        self.taken += count
+        return self.rays(pixel, sample)
+
+    def rays(self, pixel, sample):
+        """(pixel, sample, origins, directions): the jittered camera rays of these tile pixels'
+        samples (jitter from dimension pair 0 of the sampler)."""
+        jx, jy = self.sampler.pair(pixel, sample, 0)
+        sx = (pixel % self.tile_width + self.x0) + jx
+        sy = (pixel // self.tile_width + self.y0) + jy
+        origins, directions = camera_rays(self.camera, self.width, self.height, sx, sy)
+        return pixel, sample.astype(np.int64), origins, directions

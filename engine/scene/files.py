@@ -1,0 +1,249 @@
+"""Scene files: JSON for the description, an optional NPZ beside it for large arrays.
+
+    {"format": "tncg15-scene", "version": 1, "name": "...", "resolution": [w, h],
+     "background": [r, g, b],
+     "camera": {"matrix": [[...4x4...]]  or  "look_at": {"position": [...], "target": [...], "up": [...]},
+                "lens": 50, "sensor_width": 36, "sensor_height": 24, "sensor_fit": "AUTO",
+                "shift_x": 0, "shift_y": 0},
+     "materials": [{"name": "White", "kind": "diffuse", "color": [..], "ior": 1.5, "emission": [..]}],
+     "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
+                 "material": "White"  or  "material_ids": [..] or "@key",
+                 "normals": [[..] x 3T] or "@key", "smooth": [0/1 x T] or "@key",  (optional)
+                 "terminator_offset": 0.1}],                                         (optional)
+     "spheres": [{"name": "Ball", "center": [..], "radius": 0.3, "material": "Glass"}],
+     "quads": [{"name": "Light", "corners": [[..] x4], "material": "Light"}],
+     "lights": [{"name": "Lamp", "vertices": [[..] x N], "radiance": [r, g, b], "two_sided": false,
+                 "visible_camera": false, "visible_diffuse": true, "visible_glossy": true,
+                 "visible_transmission": true, "lights_diffuse": true}],
+     "points": [{"name": "Bulb", "position": [..], "intensity": [r, g, b], "radius": 0.1,
+                 "spot_size": 0.0, "spot_blend": 0.0, "spot_direction": [0, 0, -1],
+                 "spot_falloff": "smoothstep"}],
+     "suns": [{"name": "Sun", "direction": [..], "irradiance": [r, g, b], "angle": 0.01}]}
+
+"version" is FORMAT_VERSION (2: Area lights; 3: point, spot and sun lights; 4: image textures,
+engine/scene/texture_fields.py; 5: smooth shading, a mesh's "normals": one shading normal per triangle
+corner, 3 rows per triangle, "smooth": which triangles use them (all when absent),
+"terminator_offset": Cycles' shadow terminator geometry offset); files of a newer version are
+refused.  A scene without smooth meshes is written as version 4, which older readers still read.
+
+A value "@key" names an array in the NPZ file with the JSON's name and suffix .npz.
+"""
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from .model import AreaLight, Camera, Material, PointLight, Quad, Scene, Sphere, SunLight, TriangleMesh
+from ..core.errors import SceneError
+from .fields import Fields, is_integer
+from .texture_fields import read_slot, read_textures, slot_json, textures_json
+
+FORMAT = "tncg15-scene"
+FORMAT_VERSION = 5
+SMOOTH_VERSION = 5                  # the first version with mesh normals; scenes without them: 4
+LIGHT_FLAGS = ("two_sided", "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
+               "lights_diffuse")
+LAMP_FLAGS = ("lights_diffuse", "visible_glossy", "visible_transmission")     # point, spot and sun lights
+
+
+def _flags(fields, keys) -> dict:
+    """The booleans of `keys` that an entry sets."""
+    flags = {}
+    for key in keys:
+        if key in fields:
+            value = fields.get(key)
+            if not isinstance(value, bool):
+                fields.fail(key, "true or false", value)
+            flags[key] = value
+    return flags
+
+
+def _material_index(fields, names):
+    ref = fields.get("material", 0)
+    if is_integer(ref):
+        if not 0 <= ref < len(names):
+            raise SceneError(f"{fields.owner}: material index {ref} out of range")
+        return int(ref)
+    if not isinstance(ref, str):
+        fields.fail("material", "a material name or index", ref)
+    if ref not in names:
+        raise SceneError(f"{fields.owner}: unknown material '{ref}'")
+    return names.index(ref)
+
+
+def _read_json(path: str):
+    try:
+        with open(path, encoding="utf-8") as fh:
+            return json.load(fh)
+    except OSError as exc:
+        raise SceneError(f"cannot read scene '{path}': {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise SceneError(f"scene '{path}' is not a text (JSON) file") from None
+    except json.JSONDecodeError as exc:
+        raise SceneError(f"scene '{path}' is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise SceneError(f"scene '{path}' is nested too deeply to be a scene file") from None
+
+
+def _read_npz(path: str) -> dict:
+    """Every array of the NPZ beside the scene, read now so a corrupt file is one clear error."""
+    if not os.path.exists(path):
+        return {}
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            return {name: np.asarray(npz[name]) for name in npz.files}
+    except Exception as exc:                       # noqa: BLE001 - zip, zlib, format and pickle errors
+        raise SceneError(f"cannot read arrays '{path}': {type(exc).__name__}: {exc}") from None
+
+
+def _camera(entry) -> Camera:
+    fields, name = _named(entry, "Camera", "Camera")
+    optics = {"name": name}
+    for key in ("lens", "sensor_width", "sensor_height", "shift_x", "shift_y"):
+        if key in fields:
+            optics[key] = fields.number(key)
+    if "sensor_fit" in fields:
+        optics["sensor_fit"] = fields.text("sensor_fit")
+    if "look_at" in fields:
+        la = Fields(fields.get("look_at"), f"{fields.owner}: look_at")
+        return Camera.look_at(la.numbers("position", 3), la.numbers("target", 3),
+                              la.numbers("up", 3, (0.0, 0.0, 1.0)), **optics)
+    return Camera(matrix=fields.matrix("matrix", 4, 4), **optics)
+
+
+def _named(entry, kind: str, default: str, required: bool = False):
+    """Fields of one list entry, named in messages by its "name" ("Object 'Floor'")."""
+    fields = Fields(entry, f"{kind} {default}" if required else f"{kind} '{default}'")
+    name = fields.text("name") if required else fields.text("name", default)
+    fields.owner = f"{kind} '{name}'"
+    return fields, name
+
+
+def load_scene(path: str) -> Scene:
+    data = _read_json(path)
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise SceneError(f"scene '{path}' is not a {FORMAT} file (missing \"format\": \"{FORMAT}\")")
+    top = Fields(data, f"Scene '{os.path.basename(path)}'")
+    version = top.get("version", 1)
+    if not (isinstance(version, int) and 1 <= version <= FORMAT_VERSION):
+        raise SceneError(f"scene '{path}' has format version {version!r}; this engine reads 1 to {FORMAT_VERSION}")
+    name = top.text("name", os.path.basename(path))
+    top.owner = f"Scene '{name}'"
+    arrays = _read_npz(os.path.splitext(path)[0] + ".npz")
+
+    textures = read_textures(top, arrays, os.path.dirname(os.path.abspath(path)))
+    materials = []
+    for i, entry in enumerate(top.objects("materials")):
+        m, material_name = _named(entry, "Material", f"#{i}", required=True)
+        materials.append(Material(name=material_name, kind=m.text("kind", "diffuse"),
+                                  color=m.numbers("color", 3, (0.8, 0.8, 0.8)), ior=m.number("ior", 1.5),
+                                  emission=m.numbers("emission", 3, (0.0, 0.0, 0.0)),
+                                  color_texture=read_slot(m, "color_texture", textures),
+                                  emission_texture=read_slot(m, "emission_texture", textures)))
+    names = [m.name for m in materials]
+    cam = top.get("camera", None)
+    camera = None if cam is None else _camera(cam)
+    meshes = []
+    for i, entry in enumerate(top.objects("meshes")):
+        m, mesh_name = _named(entry, "Object", f"mesh{i}")
+        tris = m.array("triangles", arrays, 3, integer=True)
+        ids = (m.array("material_ids", arrays, None, integer=True) if "material_ids" in m
+               else np.full(len(tris), _material_index(m, names)))
+        uvs = m.array("uvs", arrays, 2, integer=False) if "uvs" in m else None
+        normals = m.array("normals", arrays, 3, integer=False) if "normals" in m else None
+        smooth = m.array("smooth", arrays, None, integer=True) if "smooth" in m else None
+        if smooth is not None and ((smooth < 0) | (smooth > 1)).any():
+            m.fail("smooth", "a list of 0 (flat) or 1 (smooth) per triangle", smooth.tolist())
+        meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids, uvs,
+                                   normals=normals, smooth=None if smooth is None else smooth.astype(bool),
+                                   terminator_offset=m.number("terminator_offset", 0.1)))
+    spheres = []
+    for i, entry in enumerate(top.objects("spheres")):
+        s, sphere_name = _named(entry, "Object", f"sphere{i}")
+        spheres.append(Sphere(sphere_name, s.numbers("center", 3), s.number("radius"), _material_index(s, names)))
+    quads = []
+    for i, entry in enumerate(top.objects("quads")):
+        q, quad_name = _named(entry, "Object", f"quad{i}")
+        quads.append(Quad(quad_name, q.matrix("corners", 4, 3), _material_index(q, names)))
+    lights = []
+    for i, entry in enumerate(top.objects("lights")):
+        f, light_name = _named(entry, "Light", f"light{i}")
+        lights.append(AreaLight(light_name, f.array("vertices", arrays, 3, integer=False),
+                                f.numbers("radiance", 3), **_flags(f, LIGHT_FLAGS)))
+    points = []
+    for i, entry in enumerate(top.objects("points")):
+        f, light_name = _named(entry, "Light", f"point{i}")
+        points.append(PointLight(light_name, f.numbers("position", 3), f.numbers("intensity", 3),
+                                 f.number("radius", 0.0), spot_size=f.number("spot_size", 0.0),
+                                 spot_blend=f.number("spot_blend", 0.0),
+                                 spot_direction=f.numbers("spot_direction", 3, (0.0, 0.0, -1.0)),
+                                 spot_falloff=f.text("spot_falloff", "smoothstep"), **_flags(f, LAMP_FLAGS)))
+    suns = []
+    for i, entry in enumerate(top.objects("suns")):
+        f, light_name = _named(entry, "Light", f"sun{i}")
+        suns.append(SunLight(light_name, f.numbers("direction", 3), f.numbers("irradiance", 3),
+                             f.number("angle", 0.0), **_flags(f, LAMP_FLAGS)))
+    return Scene(camera, materials, meshes, spheres, quads,
+                 background=top.numbers("background", 3, (0.0, 0.0, 0.0)),
+                 resolution=top.integers("resolution", 2, (256, 256)), name=name, lights=lights,
+                 points=points, suns=suns, textures=textures)
+
+
+def save_scene(scene: Scene, path: str) -> None:
+    """Write JSON plus an NPZ with the mesh arrays."""
+    arrays = {}
+    meshes = []
+    for i, mesh in enumerate(scene.meshes):
+        arrays[f"mesh{i}_vertices"] = np.asarray(mesh.vertices, dtype=np.float64)
+        arrays[f"mesh{i}_triangles"] = np.asarray(mesh.triangles, dtype=np.int64)
+        arrays[f"mesh{i}_material_ids"] = np.asarray(mesh.material_ids, dtype=np.int64)
+        meshes.append({"name": mesh.name, "vertices": f"@mesh{i}_vertices",
+                       "triangles": f"@mesh{i}_triangles", "material_ids": f"@mesh{i}_material_ids"})
+        if mesh.uvs is not None:
+            arrays[f"mesh{i}_uvs"] = np.asarray(mesh.uvs, dtype=np.float64).reshape(-1, 2)
+            meshes[-1]["uvs"] = f"@mesh{i}_uvs"
+        if mesh.normals is not None:
+            arrays[f"mesh{i}_normals"] = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3)
+            meshes[-1]["normals"] = f"@mesh{i}_normals"
+            meshes[-1]["terminator_offset"] = float(mesh.terminator_offset)
+            if mesh.smooth is not None:
+                arrays[f"mesh{i}_smooth"] = np.asarray(mesh.smooth, dtype=np.int8)
+                meshes[-1]["smooth"] = f"@mesh{i}_smooth"
+    cam = scene.camera
+    data = {
+        "format": FORMAT, "name": scene.name,
+        "version": SMOOTH_VERSION if any(m.normals is not None for m in scene.meshes) else SMOOTH_VERSION - 1,
+        "resolution": list(scene.resolution), "background": list(scene.background),
+        "camera": None if cam is None else {
+            "name": cam.name, "matrix": np.asarray(cam.matrix).tolist(), "lens": cam.lens,
+            "sensor_width": cam.sensor_width, "sensor_height": cam.sensor_height,
+            "sensor_fit": cam.sensor_fit, "shift_x": cam.shift_x, "shift_y": cam.shift_y},
+        "textures": textures_json(scene, arrays),
+        "materials": [dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
+                            "emission": list(m.emission)},
+                           **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
+                                                                     ("emission_texture", m.emission_texture))
+                              if slot is not None}) for m in scene.materials],
+        "meshes": meshes,
+        "spheres": [{"name": s.name, "center": list(s.center), "radius": s.radius,
+                     "material": s.material_id} for s in scene.spheres],
+        "quads": [{"name": q.name, "corners": np.asarray(q.corners).tolist(), "material": q.material_id}
+                  for q in scene.quads],
+        "lights": [dict({"name": light.name, "vertices": np.asarray(light.vertices).tolist(),
+                         "radiance": [float(c) for c in light.radiance]},
+                        **{key: bool(getattr(light, key)) for key in LIGHT_FLAGS}) for light in scene.lights],
+        "points": [{"name": p.name, "position": [float(v) for v in p.position],
+                    "intensity": [float(v) for v in p.intensity], "radius": float(p.radius),
+                    "spot_size": float(p.spot_size), "spot_blend": float(p.spot_blend),
+                    "spot_direction": [float(v) for v in p.spot_direction], "spot_falloff": p.spot_falloff,
+                    **{key: bool(getattr(p, key)) for key in LAMP_FLAGS}} for p in scene.points],
+        "suns": [{"name": sun.name, "direction": [float(v) for v in sun.direction],
+                  "irradiance": [float(v) for v in sun.irradiance], "angle": float(sun.angle),
+                  **{key: bool(getattr(sun, key)) for key in LAMP_FLAGS}} for sun in scene.suns],
+    }
+    with open(path, "w") as fh:
+        json.dump(data, fh, indent=1)
+    if arrays:
+        np.savez_compressed(os.path.splitext(path)[0] + ".npz", **arrays)

@@ -1,0 +1,462 @@
+"""Scene model: camera, materials and primitives the tracer renders.
+
+Everything here is plain NumPy data with no behaviour beyond validation, so the
+Blender exporter, the scene file reader and the built-in scenes all build the
+same objects.  Units are Blender's: metres, millimetres for lens and sensor.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.errors import SceneError
+from .checks import LENS_RANGE, check_magnitude, check_resolution, check_vector
+
+# Material kinds: how a surface scatters (emission is independent of kind).
+DIFFUSE = "diffuse"
+MIRROR = "mirror"
+GLASS = "glass"
+MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS)
+
+
+@dataclass
+class Material:
+    """A surface: Lambertian, perfect mirror or smooth glass, optionally emitting.
+
+    ``color`` is the diffuse albedo (diffuse), the reflectance (mirror) or the tint of
+    both reflection and transmission (glass, as Cycles' Glass BSDF).  ``emission`` is
+    radiance (colour x strength), emitted from both sides as Cycles mesh lights do.
+    A pure emitter (Cycles' Emission shader) is a diffuse material with colour 0.
+    """
+    name: str
+    kind: str = DIFFUSE
+    color: tuple = (0.8, 0.8, 0.8)
+    ior: float = 1.5
+    emission: tuple = (0.0, 0.0, 0.0)
+    # Image textures (engine/materials/textures.py TextureSlot): replace `color` / give the emission per hit
+    # (`emission` is then the unlinked value; the light sampler uses the texture's mean).
+    color_texture: object = None
+    emission_texture: object = None
+
+    @property
+    def is_emissive(self) -> bool:
+        return max(self.emission) > 0.0 or self.emission_texture is not None
+
+    def validate(self) -> None:
+        if self.kind not in MATERIAL_KINDS:
+            raise SceneError(f"Material '{self.name}': unknown kind '{self.kind}' "
+                             f"(expected one of {', '.join(MATERIAL_KINDS)})")
+        for label, value in (("color", self.color), ("emission", self.emission)):
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.shape != (3,) or not np.isfinite(arr).all() or (arr < 0).any():
+                raise SceneError(f"Material '{self.name}': {label} must be 3 finite "
+                                 f"non-negative numbers, got {value!r}")
+            check_magnitude(f"Material '{self.name}'", label, arr)
+        if not (math.isfinite(self.ior) and 0 < self.ior <= 1e6):
+            raise SceneError(f"Material '{self.name}': IOR must be positive (at most 1e6), got {self.ior!r}")
+
+
+SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
+
+
+@dataclass
+class Camera:
+    """A Blender perspective camera.
+
+    ``matrix`` is the 4x4 camera-to-world matrix (Blender's ``matrix_world``): the camera
+    looks down its local -Z axis with +Y up.  Lens and sensor are in millimetres; shift is
+    in units of the fitted sensor side, as in Blender.
+    """
+    matrix: np.ndarray
+    lens: float = 50.0
+    sensor_width: float = 36.0
+    sensor_height: float = 24.0
+    sensor_fit: str = "AUTO"
+    shift_x: float = 0.0
+    shift_y: float = 0.0
+    name: str = "Camera"
+
+    @staticmethod
+    def look_at(position, target, up=(0.0, 0.0, 1.0), **kwargs) -> "Camera":
+        with np.errstate(all="ignore"):        # position == target or up along the view: NaN, refused by validate()
+            position = np.asarray(position, dtype=np.float64)
+            back = position - np.asarray(target, dtype=np.float64)
+            back /= np.linalg.norm(back)
+            right = np.cross(np.asarray(up, dtype=np.float64), back)
+            right /= np.linalg.norm(right)
+            true_up = np.cross(back, right)
+        matrix = np.eye(4)
+        matrix[:3, 0], matrix[:3, 1], matrix[:3, 2], matrix[:3, 3] = right, true_up, back, position
+        return Camera(matrix=matrix, **kwargs)
+
+    def validate(self) -> None:
+        m = np.asarray(self.matrix, dtype=np.float64)
+        if m.shape != (4, 4) or not np.isfinite(m).all():
+            raise SceneError(f"Camera '{self.name}': transform must be a finite 4x4 matrix")
+        if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+            raise SceneError(f"Camera '{self.name}': transform is singular (zero scale)")
+        for label, value in (("lens", self.lens), ("sensor width", self.sensor_width),
+                             ("sensor height", self.sensor_height)):
+            if not (math.isfinite(value) and value > 0):
+                raise SceneError(f"Camera '{self.name}': {label} must be positive, got {value!r}")
+            check_magnitude(f"Camera '{self.name}'", label, value)
+        if not LENS_RANGE[0] <= self.lens <= LENS_RANGE[1]:
+            raise SceneError(f"Camera '{self.name}': lens must be from {LENS_RANGE[0]:g} to "
+                             f"{LENS_RANGE[1]:g} mm, got {self.lens!r}")
+        if self.sensor_fit not in SENSOR_FITS:
+            raise SceneError(f"Camera '{self.name}': unknown sensor fit '{self.sensor_fit}'")
+        if not (math.isfinite(self.shift_x) and math.isfinite(self.shift_y)):
+            raise SceneError(f"Camera '{self.name}': shift must be finite")
+        check_magnitude(f"Camera '{self.name}'", "shift", (self.shift_x, self.shift_y))
+        check_magnitude(f"Camera '{self.name}'", "location", m[:3, 3])
+
+
+@dataclass
+class TriangleMesh:
+    """Indexed triangles in world space with one material index per triangle.
+
+    Smooth shading (engine/geometry/shading_normals.py): `normals` holds one shading normal per corner,
+    (T, 3, 3) in the order of each triangle's vertices (Blender's split normals, world space);
+    `smooth` (T,) flags the triangles that use them (None: all).  Without `normals` every
+    triangle is flat (its geometric normal)."""
+    name: str
+    vertices: np.ndarray          # (V, 3) float64
+    triangles: np.ndarray         # (T, 3) int
+    material_ids: np.ndarray      # (T,) int, indices into Scene.materials
+    uvs: np.ndarray | None = None  # (T, 3, 2) corner UVs (one UV map), only where textures need them
+    normals: np.ndarray | None = None     # (T, 3, 3) corner normals of smooth triangles
+    smooth: np.ndarray | None = None      # (T,) bool: shaded smooth (None: every triangle)
+    terminator_offset: float = 0.1        # Cycles' Shadow Terminator > Geometry Offset (0: off)
+
+    def validate(self, n_materials: int, emissive: np.ndarray | None = None) -> int:
+        """Check the mesh; drop degenerate triangles.  Returns how many were dropped.
+
+        ``emissive`` flags emissive materials: an emitter whose triangles all have
+        zero area is an error (it would emit nothing), not a silent drop.
+        """
+        owner = f"Object '{self.name}'"
+        try:
+            vertices = np.ascontiguousarray(self.vertices, dtype=np.float64)
+            triangles = np.ascontiguousarray(self.triangles, dtype=np.int64)
+            ids = np.asarray(self.material_ids, dtype=np.int64)
+        except (TypeError, ValueError, OverflowError):
+            raise SceneError(f"{owner}: vertices, triangles and material ids must be numbers") from None
+        if vertices.size % 3 or triangles.size % 3:
+            raise SceneError(f"{owner}: vertices and triangles must be rows of 3 values")
+        self.vertices, self.triangles = vertices.reshape(-1, 3), triangles.reshape(-1, 3)
+        if ids.ndim > 1 or (ids.ndim == 1 and len(ids) not in (1, len(self.triangles))):
+            raise SceneError(f"{owner}: {ids.size} material ids for {len(self.triangles)} triangles "
+                             "(need one per triangle)")
+        self.material_ids = np.broadcast_to(ids, (len(self.triangles),)).copy()
+        if not np.isfinite(self.vertices).all():
+            bad = int((~np.isfinite(self.vertices).all(axis=1)).sum())
+            raise SceneError(f"{owner}: {bad} vertices have NaN or infinite coordinates")
+        check_magnitude(owner, "vertex coordinate", self.vertices)
+        if len(self.triangles) and (self.triangles.min() < 0 or self.triangles.max() >= len(self.vertices)):
+            raise SceneError(f"Object '{self.name}': triangle indices out of range")
+        if len(self.material_ids) and (self.material_ids.min() < 0 or self.material_ids.max() >= n_materials):
+            raise SceneError(f"Object '{self.name}': material index out of range")
+        v = self.vertices[self.triangles]
+        doubled_area = np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+        scale = np.abs(v).max(axis=(1, 2)) + 1e-300
+        keep = doubled_area > (scale * 1e-12) ** 2 * 16  # area ~ 0 relative to float64 resolution
+        dropped = int((~keep).sum())
+        if emissive is not None and len(self.material_ids):
+            lit = emissive[self.material_ids]
+            if lit.any() and not (lit & keep).any():
+                raise SceneError(f"Object '{self.name}': emitter has zero area")
+        if self.uvs is not None:
+            uvs = np.asarray(self.uvs, dtype=np.float64)
+            if uvs.size != len(self.triangles) * 6 or not np.isfinite(uvs).all():
+                raise SceneError(f"{owner}: UVs must be 3 finite (u, v) pairs per triangle "
+                                 f"({len(self.triangles)} triangles, {uvs.size // 2} UV pairs)")
+            self.uvs = uvs.reshape(-1, 3, 2)
+        if self.normals is not None:
+            self._check_normal_shapes(owner)
+        if not (isinstance(self.terminator_offset, (int, float)) and 0.0 <= self.terminator_offset <= 1.0):
+            raise SceneError(f"{owner}: shadow terminator geometry offset must be from 0 to 1, "
+                             f"got {self.terminator_offset!r}")
+        if dropped:
+            self.triangles = self.triangles[keep]
+            self.material_ids = self.material_ids[keep]
+            if self.uvs is not None:
+                self.uvs = self.uvs[keep]
+            if self.normals is not None:
+                self.normals = self.normals[keep]
+                self.smooth = None if self.smooth is None else self.smooth[keep]
+        return dropped
+
+    def _check_normal_shapes(self, owner: str) -> None:
+        try:
+            normals = np.asarray(self.normals, dtype=np.float64)
+            smooth = None if self.smooth is None else np.asarray(self.smooth)
+        except (TypeError, ValueError, OverflowError):
+            raise SceneError(f"{owner}: normals must be numbers") from None
+        t = len(self.triangles)
+        if normals.size != t * 9:
+            raise SceneError(f"{owner}: {normals.size // 3 if normals.size % 3 == 0 else normals.size} "
+                             f"normals for {t} triangles (need 3 per triangle, one per corner)")
+        if smooth is not None and (smooth.shape != (t,) or smooth.dtype.kind not in "bi"):
+            raise SceneError(f"{owner}: smooth flags must be {t} booleans (one per triangle)")
+        self.normals = normals.reshape(t, 3, 3)
+        self.smooth = None if smooth is None else smooth.astype(bool)
+
+    def validate_normals(self) -> str | None:
+        """Normalise the corner normals; bad ones (NaN, infinite, zero length) become the
+        triangle's geometric normal.  Returns a warning naming the object, or None.
+        Call after validate() (shapes checked, degenerate triangles dropped)."""
+        if self.normals is None:
+            return None
+        n = self.normals
+        with np.errstate(invalid="ignore", over="ignore"):
+            length = np.sqrt((n * n).sum(axis=2))
+            bad = ~(np.isfinite(length) & (length > 1e-12))
+            n = n / np.where(bad, 1.0, length)[..., None]
+        if bad.any():
+            v = self.vertices[self.triangles]
+            g = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+            g /= np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
+            n = np.where(bad[..., None], g[:, None, :], n)
+        self.normals = n
+        if not bad.any():
+            return None
+        return (f"Object '{self.name}': {int(bad.sum())} of {bad.size} shading normals are zero, NaN or "
+                "infinite; those corners use the face (geometric) normal")
+
+
+@dataclass
+class Sphere:
+    """An implicit sphere (report eq. 2.2)."""
+    name: str
+    center: tuple
+    radius: float
+    material_id: int
+
+    def validate(self, n_materials: int) -> None:
+        c = np.asarray(self.center, dtype=np.float64)
+        if c.shape != (3,) or not np.isfinite(c).all():
+            raise SceneError(f"Object '{self.name}': sphere centre must be 3 finite numbers")
+        if not (math.isfinite(self.radius) and self.radius > 0):
+            raise SceneError(f"Object '{self.name}': sphere radius must be positive, got {self.radius!r}")
+        check_magnitude(f"Object '{self.name}'", "sphere centre coordinate", c)
+        check_magnitude(f"Object '{self.name}'", "sphere radius", self.radius)
+        if not 0 <= self.material_id < n_materials:
+            raise SceneError(f"Object '{self.name}': material index out of range")
+
+
+@dataclass
+class Quad:
+    """A planar convex quadrilateral v00, v10, v11, v01 in counter-clockwise order (report 2.2.2)."""
+    name: str
+    corners: np.ndarray           # (4, 3): v00, v10, v11, v01
+    material_id: int
+
+    def validate(self, n_materials: int) -> None:
+        q = np.asarray(self.corners, dtype=np.float64)
+        if q.shape != (4, 3) or not np.isfinite(q).all():
+            raise SceneError(f"Object '{self.name}': quad needs 4 finite corners")
+        check_magnitude(f"Object '{self.name}'", "quad corner coordinate", q)
+        self.corners = q
+        e1, e3 = q[1] - q[0], q[3] - q[0]
+        normal = np.cross(e1, e3)
+        size = max(np.linalg.norm(e1), np.linalg.norm(e3), np.linalg.norm(q[2] - q[0]))
+        if np.linalg.norm(normal) <= 1e-12 * size * size or size == 0:
+            raise SceneError(f"Object '{self.name}': quad is degenerate (zero area)")
+        normal /= np.linalg.norm(normal)
+        if abs(np.dot(q[2] - q[0], normal)) > 1e-6 * size:
+            raise SceneError(f"Object '{self.name}': quad is not planar")
+        # Convex and counter-clockwise: every corner turns the same way about the normal.
+        for i in range(4):
+            a, b, c = q[i], q[(i + 1) % 4], q[(i + 2) % 4]
+            if np.dot(np.cross(b - a, c - b), normal) <= 0:
+                raise SceneError(f"Object '{self.name}': quad is not convex or its corners are not in order")
+        if not 0 <= self.material_id < n_materials:
+            raise SceneError(f"Object '{self.name}': material index out of range")
+
+
+@dataclass
+class AreaLight:
+    """A light-only emitter, as a Blender Area light in Cycles: a planar convex polygon that
+    emits `radiance` from its front side only (the side its normal faces; the normal follows
+    the counter-clockwise order of `vertices`), or from both sides with `two_sided`.
+
+    As in Cycles it casts no shadow (shadow rays pass through it).  Under the `mis` and
+    `solid-angle` estimators rays of the kinds marked visible reach it (Cycles' ray
+    visibility: camera, diffuse, glossy = mirror and glass reflection, transmission =
+    glass refraction), add its emission and go on through it; under the report's
+    estimator it is reached by shadow rays only (eq. 2.11).
+    """
+    name: str
+    vertices: np.ndarray          # (N, 3), N >= 3, in order around the polygon
+    radiance: tuple
+    two_sided: bool = False
+    visible_camera: bool = False
+    visible_diffuse: bool = True
+    visible_glossy: bool = True
+    visible_transmission: bool = True
+    lights_diffuse: bool = True   # lights diffuse surfaces at all (Cycles: Diffuse visibility off: no)
+
+    def triangles(self) -> np.ndarray:
+        v = np.asarray(self.vertices, dtype=np.float64)
+        return np.stack([np.repeat(v[:1], len(v) - 2, axis=0), v[1:-1], v[2:]], axis=1)
+
+    def validate(self) -> None:
+        v = np.asarray(self.vertices, dtype=np.float64)
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) < 3 or not np.isfinite(v).all():
+            raise SceneError(f"Light '{self.name}': needs at least 3 finite corners")
+        le = np.asarray(self.radiance, dtype=np.float64)
+        if le.shape != (3,) or not np.isfinite(le).all() or (le < 0).any():
+            raise SceneError(f"Light '{self.name}': radiance must be 3 finite non-negative numbers")
+        check_magnitude(f"Light '{self.name}'", "radiance", le)
+        check_magnitude(f"Light '{self.name}'", "corner coordinate", v)
+        t = self.triangles()
+        area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
+        if not area > 0:
+            raise SceneError(f"Light '{self.name}': area light has zero area")
+
+
+SPOT_FALLOFFS = ("smoothstep", "cosine-smoothstep")
+
+
+@dataclass
+class PointLight:
+    """A Blender point or spot light as Cycles has it: intensity I = power x colour / (4 pi)
+    [W/sr] from `position`; with a radius it is a disk of that radius facing each receiver, of
+    radiance I / (pi r^2) (measured against Cycles 3.4 and 5.0: irradiance I / (d^2 + r^2) on its
+    axis).  It casts no shadow; it lights diffuse surfaces through shadow rays and, with a radius,
+    is seen in mirrors and through glass (engine/lights/seen.py).  The visibility flags are Cycles'
+    ray visibility of the light object (camera rays never see it, as in Cycles).
+
+    A spot light (`spot_size` > 0, the cone's full angle in radians as Blender's Spot Size, up to
+    pi) emits I x a(theta) at the angle theta to `spot_direction`: a = 0 outside the cone, and
+    inside, with c = cos theta, c0 = cos(spot_size / 2) and the blend width w = (1 - c0) x
+    spot_blend (measured against Cycles, within 0.2 % over the cone):
+      "smoothstep" (Cycles 4.0 and later):       a = smoothstep(0, 1, (c - c0) / w)
+      "cosine-smoothstep" (Cycles 3.x):          a = c x smoothstep(0, 1, (c - c0) / w)
+    (w = 0: a hard edge).  The spot's power is not concentrated into the cone: a spot of the same
+    power is exactly as bright as the point light on its axis, as in Cycles."""
+    name: str
+    position: tuple
+    intensity: tuple
+    radius: float = 0.0
+    spot_size: float = 0.0
+    spot_blend: float = 0.0
+    spot_direction: tuple = (0.0, 0.0, -1.0)
+    spot_falloff: str = "smoothstep"
+    lights_diffuse: bool = True         # Cycles' ray visibility: Diffuse off lights no diffuse surface
+    visible_glossy: bool = True         # seen in mirrors (engine/lights/seen.py)
+    visible_transmission: bool = True   # seen through glass
+
+    @property
+    def is_spot(self) -> bool:
+        return self.spot_size > 0.0
+
+    def validate(self) -> None:
+        owner = f"Light '{self.name}'"
+        check_vector(owner, "position", self.position)
+        check_vector(owner, "intensity", self.intensity, non_negative=True)
+        if not (math.isfinite(self.radius) and self.radius >= 0):
+            raise SceneError(f"{owner}: radius must be 0 or more, got {self.radius!r}")
+        if not (math.isfinite(self.spot_size) and 0 <= self.spot_size <= math.pi):
+            raise SceneError(f"{owner}: spot size must be in [0, pi] radians (0: a point light), "
+                             f"got {self.spot_size!r}")
+        if not (math.isfinite(self.spot_blend) and 0 <= self.spot_blend <= 1):
+            raise SceneError(f"{owner}: spot blend must be in [0, 1], got {self.spot_blend!r}")
+        if not np.linalg.norm(check_vector(owner, "spot direction", self.spot_direction)) > 0:
+            raise SceneError(f"{owner}: spot direction must not be 0")
+        if self.spot_falloff not in SPOT_FALLOFFS:
+            raise SceneError(f"{owner}: spot falloff must be one of {', '.join(SPOT_FALLOFFS)}, "
+                             f"got {self.spot_falloff!r}")
+
+
+@dataclass
+class SunLight:
+    """A Blender sun light: light arriving from directions within `angle` (its angular
+    diameter, radians) about -`direction` (the direction the light travels), with irradiance
+    `irradiance` [W/m^2] on a surface facing it.  Lights diffuse surfaces through shadow rays; with
+    an angle it is seen in mirrors and through glass (engine/lights/seen.py).  The visibility flags
+    are Cycles' ray visibility of the light object, as for PointLight."""
+    name: str
+    direction: tuple
+    irradiance: tuple
+    angle: float = 0.0
+    lights_diffuse: bool = True
+    visible_glossy: bool = True
+    visible_transmission: bool = True
+
+    def validate(self) -> None:
+        direction = check_vector(f"Light '{self.name}'", "direction", self.direction)
+        if not np.linalg.norm(direction) > 0:
+            raise SceneError(f"Light '{self.name}': direction must not be 0")
+        check_vector(f"Light '{self.name}'", "irradiance", self.irradiance, non_negative=True)
+        if not (math.isfinite(self.angle) and 0 <= self.angle < math.pi):
+            raise SceneError(f"Light '{self.name}': angle must be in [0, pi), got {self.angle!r}")
+
+
+@dataclass
+class Scene:
+    camera: Camera | None
+    materials: list = field(default_factory=list)
+    meshes: list = field(default_factory=list)
+    spheres: list = field(default_factory=list)
+    quads: list = field(default_factory=list)
+    background: tuple = (0.0, 0.0, 0.0)
+    resolution: tuple = (256, 256)
+    name: str = "scene"
+    lights: list = field(default_factory=list)      # AreaLight: light-only emitters
+    points: list = field(default_factory=list)      # PointLight
+    suns: list = field(default_factory=list)        # SunLight
+    textures: list = field(default_factory=list)    # engine/materials/textures.py ImageTexture
+
+    def validate(self) -> list[str]:
+        """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""
+        warnings: list[str] = []
+        if self.camera is None:
+            raise SceneError(f"Scene '{self.name}': no camera")
+        self.camera.validate()
+        w, h = check_resolution(self.name, self.resolution)
+        if w <= 0 or h <= 0:
+            raise SceneError(f"Scene '{self.name}': resolution must be positive, got {w}x{h}")
+        if w * h > 16384 * 16384:
+            raise SceneError(f"Scene '{self.name}': resolution {w}x{h} is too large "
+                             f"(at most {16384 * 16384:,} pixels)")
+        if not self.materials:
+            raise SceneError(f"Scene '{self.name}': no materials")
+        for material in self.materials:
+            material.validate()
+        bg = np.asarray(self.background, dtype=np.float64)
+        if bg.shape != (3,) or not np.isfinite(bg).all() or (bg < 0).any():
+            raise SceneError(f"Scene '{self.name}': background must be 3 finite non-negative numbers")
+        check_magnitude(f"Scene '{self.name}'", "background", bg)
+        n = len(self.materials)
+        emissive = np.array([m.is_emissive for m in self.materials])
+        for mesh in self.meshes:
+            dropped = mesh.validate(n, emissive)
+            if dropped:
+                warnings.append(f"Object '{mesh.name}': {dropped} degenerate triangle(s) dropped")
+            bad_normals = mesh.validate_normals()
+            if bad_normals:
+                warnings.append(bad_normals)
+        for sphere in self.spheres:
+            sphere.validate(n)
+        for quad in self.quads:
+            quad.validate(n)
+        for light in [*self.lights, *self.points, *self.suns]:
+            light.validate()
+        from .textures import validate_textures
+        warnings += validate_textures(self)
+        if not self.has_light():
+            warnings.append("the scene has no emitters and a black background: the image will be black")
+        return warnings
+
+    def has_light(self) -> bool:
+        if (max(self.background) > 0 or any(max(light.radiance) > 0 for light in self.lights)
+                or any(max(p.intensity) > 0 for p in self.points) or any(max(s.irradiance) > 0 for s in self.suns)):
+            return True
+        emissive = {i for i, m in enumerate(self.materials) if m.is_emissive}
+        return (any(s.material_id in emissive for s in self.spheres)
+                or any(q.material_id in emissive for q in self.quads)
+                or any(len(m.material_ids) and np.isin(m.material_ids, list(emissive)).any()
+                       for m in self.meshes))
