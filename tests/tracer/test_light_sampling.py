@@ -16,7 +16,7 @@ from engine.lights.spheres import Spheres
 from engine.lights.triangles import Triangles
 from engine.scene.model import Camera, Material, Quad, Scene, Sphere, TriangleMesh
 
-from .test_sampling import ALPHA, pooled_chi2
+from tests.chi_square import ALPHA, pooled_chi2
 
 N = 200_000
 N_CONFIGS = 23                      # Sidak correction over the chi-square configurations below

@@ -7,29 +7,22 @@ from engine.lights import LightSampler
 from engine.sampling.warps import (cosine_directions, cosine_hemisphere, orthonormal_basis, to_world,
     uniform_triangle)
 from engine.scene.model import Camera, Material, Quad, Scene, Sphere, TriangleMesh
+from tests.chi_square import ALPHA, pooled_chi2, sphere_chi2
 
-ALPHA = 0.01
 
-
-def pooled_chi2(observed, expected):
-    """Pool cells with expected < 5 (Mitsuba/pbrt), return (chi2 p-value, dof)."""
-    order = np.argsort(expected)
-    obs, exp = observed[order].astype(float), expected[order].astype(float)
-    pooled_o, pooled_e, acc_o, acc_e = [], [], 0.0, 0.0
-    for o, e in zip(obs, exp):
-        acc_o += o
-        acc_e += e
-        if acc_e >= 5:
-            pooled_o.append(acc_o)
-            pooled_e.append(acc_e)
-            acc_o = acc_e = 0.0
-    if acc_e > 0:
-        pooled_o[-1] += acc_o
-        pooled_e[-1] += acc_e
-    pooled_o, pooled_e = np.array(pooled_o), np.array(pooled_e)
-    chi2 = ((pooled_o - pooled_e) ** 2 / pooled_e).sum()
-    dof = len(pooled_o) - 1
-    return stats.chi2.sf(chi2, dof), dof
+def test_sphere_chi2_accepts_cosine_sampling_and_rejects_uniform():
+    """The shared harness (tests/chi_square.py) on a sampler with a closed-form density, and its
+    control: the same density against uniform hemisphere sampling."""
+    def cosine(u):
+        return cosine_hemisphere(u[0], u[1])
+    def uniform(u):
+        z = u[0]
+        r = np.sqrt(1 - z * z)
+        return np.stack([r * np.cos(2 * np.pi * u[1]), r * np.sin(2 * np.pi * u[1]), z])
+    def cos_pdf(d):
+        return np.maximum(d[2], 0.0) / np.pi
+    assert sphere_chi2(cosine, cos_pdf, seed=3)[0] > ALPHA
+    assert sphere_chi2(uniform, cos_pdf, seed=3)[0] < 1e-6
 
 
 def cosine_cells(z_bins, phi_bins, n):
