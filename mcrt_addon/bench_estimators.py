@@ -1,4 +1,4 @@
-"""Light-sampling estimators against Cycles (issue 9): time, error and efficiency per scene.
+"""Light-sampling estimators against Cycles: time, error and efficiency per scene (docs/accuracy.md).
 
   python -m mcrt_addon bench-estimators [--scenes cornell near_lamp caustic many_lights]
          [--resolution 96 96] [--samples 256] [--reference-samples 4096] [--max-depth 12]
@@ -19,7 +19,7 @@ directory, or a path to a .blend):
 Each renderer gets one untimed warm-up render per scene (Cycles 1 spp, TNCG15 MC the full sample
 count); the estimators' runs are interleaved.  Times are wall-clock seconds of the render
 alone: ``bpy.ops.render.render`` for Cycles (scene sync and BVH build included, EXR write of the
-small image included), ``engine.rendering.render`` for TNCG15 MC (BVH build included, the Blender
+small image included), ``engine.api.render`` for TNCG15 MC (BVH build included, the Blender
 export excluded).  With --repeats K, errors and times are the means over K seeds.
 
 Metrics against the reference R (x = the render; means over pixels and the 3 channels):
@@ -48,7 +48,7 @@ import numpy as np
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEFAULT_SCENES = ("cornell", "near_lamp", "caustic", "many_lights")
 # An estimator, optionally with "/random": independent random numbers instead of the default
-# Sobol' sampler ("report/random" is the report's estimator as it was before issue 9).
+# Sobol' sampler ("report/random" is the report's estimator as first written: area sampling, no MIS).
 ESTIMATORS = ("report/random", "report", "solid-angle", "mis/random", "mis")
 DEFAULT_ESTIMATORS = ("report/random", "solid-angle", "mis/random", "mis")
 REFERENCE_SEED = 4242

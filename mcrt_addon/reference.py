@@ -1,4 +1,4 @@
-"""A fair Cycles reference (hard-cases.md 2d): what TNCG15 MC computes, without Cycles' speed-ups.
+"""A fair Cycles reference (docs/hard-cases.md §2d, C1-C10): what TNCG15 MC computes, without Cycles' speed-ups.
 
 Box filter of width 1 px (pixels independent, as the tracer's jittered box), no clamping, no
 denoising, no adaptive sampling, Filter Glossy 0, light threshold 0, caustics on, every bounce

@@ -1,4 +1,4 @@
-"""Benchmarks of the stopping rules (figures, not timed tests; README: Stopping rules).
+"""Benchmarks of the stopping rules (figures, not timed tests; docs/performance.md, docs/accuracy.md).
 
   .venv/bin/python scripts/bench_stopping.py [--time-limits 2 5 10] [--estimate-scenes cornell near_lamp caustic]
                                              [--blends cornell caustic ...] [--blend-target 0.05]

@@ -1,4 +1,4 @@
-"""Prints (does not assert) the worker-process figures of issue 10: the sample Cornell box at
+"""Prints (does not assert) the worker-process figures (docs/performance.md): the sample Cornell box at
 256x256, 64 spp, rendered through Blender (bpy 5.0: python -m mcrt_addon render) on 1 and 2
 worker processes, and in Debian's Blender 3.4 from the legacy zip (installed as a user does).
 

@@ -6,7 +6,7 @@ and the add-on.
 `denoise()` raises DenoiserUnavailable with one line saying what to install.  In Blender the
 denoiser runs in a separate process of the worker Python (`python -m engine.film.denoise IN OUT`), never
 in Blender's own: in Debian's Blender 3.4 loading OIDN next to Blender's libraries aborts the
-process (shared/reference/cluster-and-viewport.md B6).
+process (docs/cluster-and-viewport.md B6).
 """
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ squares: a single firefly in one half shows as a large difference, and a pixel d
 converged just because its few samples agree (the sample variance of a pixel that has not yet met
 its rare bright paths is small, and so is this one; averaging over a block, below, helps both).
 
-The relative error of an image (README: "Stopping rules"), matching the study's relMSE
+The relative error of an image (docs/user-guide.md, "Stopping rules"), matching the study's relMSE
 (engine/studies/accuracy.py: mean((I - R)^2 / (R^2 + 0.01))):
 
     relative error E = sqrt( mean over pixels p and channels c of Var[m_pc] / (m_pc^2 + 0.01) )
@@ -61,12 +61,9 @@ def rel_terms(mean: np.ndarray, var: np.ndarray) -> np.ndarray:
     Not the pixel's own mean: that is correlated with its variance estimate (a pixel that met a bright
     path has a large mean and a large variance, one that did not has both small), which made E 35 %
     too small on the Cornell box at 64 spp.  Not the 3x3 box mean either (used until 2026-12): its
-    ninth share of the pixel's own firefly still inflates R exactly where the variance is, and on the
-    caustic room E read 0.30 of the actual error at 16 spp, 0.67 at 64.  The neighbours' samples are
-    independent of the pixel's, so the ratio is not biased by that correlation: measured against
-    dividing by the 32768-spp reference (8 seeds, 64x64; the reference's own ratio in brackets)
-    1.10 (1.00), 1.05 (1.01), 1.03 (1.02) on the caustic room at 16/64/256 spp, 1.07 (1.04), 1.04
-    (1.05), 1.05 (1.07) on the Cornell box."""
+    ninth share of the pixel's own firefly still inflates R exactly where the variance is.  The
+    neighbours' samples are independent of the pixel's, so the ratio is not biased by that
+    correlation (measured: docs/accuracy.md, "The error estimate")."""
     r = neighbour_mean(np.nan_to_num(mean))
     return np.mean(var / (r * r + REL_FLOOR), axis=-1)
 

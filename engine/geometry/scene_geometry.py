@@ -6,7 +6,7 @@ arrays (engine/core/vec.py).  A kernel runs only if the effect plan switches it 
 the one place that decides; it says why).  Area lights are tested by nearest-hit queries
 only (they cast no shadow) and only for the ray kinds they are visible to.  The nearest hit
 is merged with `<` on arrays whose misses are +inf, so a NaN distance can never win
-(np.argmin would pick it: hard case H7).
+(np.argmin would pick it: docs/hard-cases.md H7).
 """
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ KINDS = (TRIANGLE, SPHERE, QUAD, LIGHT)
 
 # Spawn offset for Embree triangles, relative to the largest coordinate of the hit
 # point or its triangle: about 16 float32 ulps, which covers rounding the origin to
-# float32 for Embree plus Embree's own float32 plane test (hard cases H1-H3).
+# float32 for Embree plus Embree's own float32 plane test (docs/hard-cases.md H1-H3).
 TRIANGLE_OFFSET = 2.0 ** -20
 
 

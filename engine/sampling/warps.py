@@ -15,7 +15,7 @@ def orthonormal_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Tangent and bitangent rows for unit normal rows n (3, N): Duff et al. 2017.
 
     Uses copysign so a normal with z = 0 or -0.0 (every Cornell wall) is safe;
-    np.sign would give 0 there and a NaN basis (hard case S2).
+    np.sign would give 0 there and a NaN basis (docs/hard-cases.md S2).
     """
     x, y, z = n[0], n[1], n[2]
     sign = np.copysign(1.0, z)
@@ -53,7 +53,7 @@ def cosine_hemisphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
 
     The report draws theta = acos(r^(1/(1+n))) with n = 1, i.e. cos(theta) = sqrt(r).
     Written as z = sqrt(1 - u1) with u1 clamped below 1 it never returns z = 0, so
-    the pdf is always positive and f*cos/pdf is exactly the albedo (hard case S1).
+    the pdf is always positive and f*cos/pdf is exactly the albedo (docs/hard-cases.md S1).
     """
     return np.stack(_cosine_local(u1, u2))
 

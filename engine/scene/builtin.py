@@ -90,7 +90,7 @@ def room(name, meshes, quads, spheres, resolution, materials=None) -> Scene:
 def cornell_scene(resolution=(256, 256), light_radiance: float = 12.0) -> Scene:
     h = 0.3                                     # half size of the square ceiling light
     # The ceiling has a hole that the light fills, flush: a two-sided emitter just under a
-    # ceiling would light it from millimetres away (heavy-tailed 1/r^2 samples, hard case S9).
+    # ceiling would light it from millimetres away (heavy-tailed 1/r^2 samples, docs/hard-cases.md S9).
     meshes = room_walls(ceiling_hole=h) + [torus("Torus", (0.25, 0.45, 0.12), 0.3, 0.12, 50, 50, BLUE)]
     spheres = [Sphere("Mirror ball", (-0.45, 0.25, 0.35), 0.35, MIRROR_MAT),
                Sphere("Glass ball", (0.4, -0.35, 0.3), 0.3, GLASS_MAT)]

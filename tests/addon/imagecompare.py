@@ -1,4 +1,4 @@
-"""Noise-aware comparison of two renderers (hard-cases.md 3.5, region-mean test).
+"""Noise-aware comparison of two renderers (docs/hard-cases.md §3.5, region-mean test).
 
 Each renderer is run K times with independent seeds.  Pixels are independent in both renderers
 (box filter of width 1), so the variance of a block mean is the block average of the per-pixel

@@ -1,4 +1,4 @@
-"""TNCG15 MC agrees with Cycles on every sample scene (hard-cases.md 3.5 region-mean test), and the
+"""TNCG15 MC agrees with Cycles on every sample scene (docs/hard-cases.md §3.5 region-mean test), and the
 comparison catches a wrong light strength, a wrong field of view and mis-mapped materials.
 
 Both renderers render the same .blend at 64x64, 32 spp, max depth 8, K = 4 independent seeds each
@@ -40,14 +40,14 @@ def ours(scene, first_seed=1000):
 @pytest.mark.parametrize("name", [
     "cornell", "diffuse_room", "mirror_glass", "principled", "suzanne_5k", "suzanne_100k", "area_light",
     "nested_glass",
-    # light-sampling stress scenes (issue 9); area_mirror needs area lights that mirror and glass
+    # light-sampling stress scenes; area_mirror needs area lights that mirror and glass
     # rays can reach (AreaLight.visible_glossy / visible_transmission, the mis / solid-angle estimators)
     "near_lamp", "caustic", "many_lights", "area_mirror",
-    # point, spot and sun lights, the world as the only light (issue 12)
+    # point, spot and sun lights, the world as the only light
     "point_light", "sun_window", "spot_light", "sky_lit",
-    # image textures (issue 12 item 4): colour, base colour through a second UV map, emission colour
+    # image textures: colour, base colour through a second UV map, emission colour
     "textured",
-    # smooth shading (issue 12): interpolated normals, a coarse smooth sphere's shadow terminator
+    # smooth shading: interpolated normals, a coarse smooth sphere's shadow terminator
     "smooth"])
 def test_agrees_with_cycles(samples, name):
     ref = reference(samples, name)
@@ -143,7 +143,7 @@ def flat_shaded(scene):
 
 
 def test_comparison_catches_flat_normals(samples):
-    """Control for smooth shading: the smooth scene rendered with flat normals (as before issue 12)
+    """Control for smooth shading: the smooth scene rendered with flat normals (as before smooth shading)
     must fail the comparison (the low-poly mirror ball reflects other parts of the room; measured
     z = -6.9 for the image mean, 12 of 193 regions failed).  Leaving out only the shadow-terminator
     offset is not detectable at 64 x 64 (z = -1.6): tests/tracer/test_shading_normals.py checks it."""

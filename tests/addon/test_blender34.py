@@ -148,7 +148,7 @@ def workers_of(pid):
 
 
 def test_esc_stops_a_blender34_render_within_a_second(legacy_zip, blend34, tmp_path):
-    """Issue 10: Esc is fast in Blender 3.4 too (worker processes with Embree, legacy zip): the
+    """Esc is fast in Blender 3.4 too (worker processes with Embree, legacy zip): the
     render stops within a second of the request and no worker process outlives it."""
     script = tmp_path / "cancel.py"
     script.write_text(INSTALL_AND_CANCEL)

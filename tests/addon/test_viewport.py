@@ -1,6 +1,6 @@
 """What the bpy 5.0 module can test of the viewport (it runs in background mode: Blender never
 draws a 3D viewport, never calls view_update / view_draw itself, and every gpu drawing call raises
-SystemError; cluster-and-viewport.md §B3).  Tested here with Blender's own data instead:
+SystemError; docs/cluster-and-viewport.md §B3).  Tested here with Blender's own data instead:
 
 * the viewport camera built from a projection and view matrix (Blender's calc_matrix_camera)
   sees exactly what the exporter's camera sees (pixel directions, shift included);

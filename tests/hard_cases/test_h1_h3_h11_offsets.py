@@ -1,4 +1,4 @@
-"""Secondary rays never re-hit their own surface and never skip a thin gap (H1-H3, H11)."""
+"""Secondary rays never re-hit their own surface and never skip a thin gap (docs/hard-cases.md H1-H3, H11)."""
 import numpy as np
 import pytest
 

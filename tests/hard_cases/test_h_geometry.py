@@ -1,4 +1,4 @@
-"""Hard cases H3-H15 of ../shared/reference/hard-cases.md: leaks, seams, spheres, lights."""
+"""Hard cases H3-H15 of docs/hard-cases.md: leaks, seams, spheres, lights."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""Fresnel and Snell against reference numbers (hard cases S4-S6)."""
+"""Fresnel and Snell against reference numbers (docs/hard-cases.md S4-S6)."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""Hard cases S3, S7-S9 and T2, T4-T6 of ../shared/reference/hard-cases.md."""
+"""Hard cases S3, S7-S9 and T2, T4-T6 of docs/hard-cases.md."""
 import numpy as np
 import pytest
 

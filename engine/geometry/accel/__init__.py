@@ -30,10 +30,9 @@ except ImportError as exc:  # embreex has wheels for few platforms
 ACCELERATOR_CLASSES = {"embree": EmbreeAccelerator, "octree": OctreeAccelerator,
                        "brute": BruteForceAccelerator}
 
-# Measured on this project's 2-core machine (32,768 random rays, random triangles;
-# docs/accuracy-vs-time.md): Embree is faster than both others at every size, 7x
-# faster than brute force already at 2 triangles.  Without Embree, brute force and
-# the octree tie up to about 12 triangles and the octree wins from 16 on.
+# Embree is faster than both others at every size; without Embree, brute force and the
+# octree tie up to about 12 triangles and the octree wins above (measured:
+# docs/performance.md, "Accelerators").
 BRUTE_FORCE_MAX_TRIANGLES = 12
 
 

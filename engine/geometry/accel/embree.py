@@ -14,7 +14,7 @@ class EmbreeAccelerator:
     name = "embree"
 
     def __init__(self, triangles: np.ndarray):
-        # RTC_SCENE_FLAG_ROBUST: no cracks along shared edges (hard case H4).
+        # RTC_SCENE_FLAG_ROBUST: no cracks along shared edges (docs/hard-cases.md H4).
         self.scene = rtcore_scene.EmbreeScene(robust=True)
         self.count = len(triangles)
         if self.count:
@@ -24,7 +24,7 @@ class EmbreeAccelerator:
             self.scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
 
     def _tfar(self, tmax: np.ndarray) -> np.ndarray:
-        # A fresh array: embreex overwrites `dists` in place (hard-cases §1).
+        # A fresh array: embreex overwrites `dists` in place (docs/hard-cases.md §1).
         return np.minimum(tmax, FLOAT32_FAR).astype(np.float32)
 
     def intersect(self, origins, directions, tmax):

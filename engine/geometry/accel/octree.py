@@ -3,14 +3,14 @@
 Build: the scene box is split recursively into eight children; a triangle is stored in
 the smallest node that contains it whole (it stays in a node when it straddles that
 node's mid-planes), until a node holds few triangles or reaches the depth limit
-(coincident triangles cannot recurse forever: hard case H14).
+(coincident triangles cannot recurse forever: docs/hard-cases.md H14).
 
 Traversal: iterative, with an explicit stack, front to back.  Rays are grouped by the
 signs of their direction (octant); for a group, visiting children in the order
 i XOR octant is front to back for every ray in it, so a hit found in a near child
 prunes farther children through `t_entry < t_best`.  The slab test is NaN-tolerant
 (np.fmin/np.fmax ignore the NaN of 0 x inf for origins on a slab plane with a zero
-direction component: hard case H13) and pads the exit distance as pbrt does.
+direction component: docs/hard-cases.md H13) and pads the exit distance as pbrt does.
 """
 from __future__ import annotations
 

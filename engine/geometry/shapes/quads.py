@@ -3,7 +3,7 @@
 The quad V00, V10, V11, V01 is split along the diagonal V10-V01 into T = (V00, V10, V01)
 and T' = (V11, V01, V10).  A ray is first tested against T with barycentric
 coordinates alpha, beta (eq. 2.7-2.8); only when alpha + beta > 1 is T' tested, without
-its own alpha' + beta' <= 1 check, so the diagonal can never open a crack (hard case H8).
+its own alpha' + beta' <= 1 check, so the diagonal can never open a crack (docs/hard-cases.md H8).
 The distance t comes from the quad's plane, the same for both halves.
 """
 from __future__ import annotations

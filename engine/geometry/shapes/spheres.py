@@ -4,7 +4,7 @@ The quadratic (eq. 2.3-2.5) is solved in the numerically stable form of Ray Trac
 Gems ch. 7 (also pbrt-v4's Sphere): the discriminant is formed from the squared
 distance between the centre and the ray's line, r^2 - |v|^2 = (r + |v|)(r - |v|), and the
 second root comes from t0 * t1 = C / A.  This keeps a 1e-3 sphere at 1e4 units exact
-to ~1e-9 r where the textbook form misclassifies rays at 1.001 r (hard cases H9-H10).
+to ~1e-9 r where the textbook form misclassifies rays at 1.001 r (docs/hard-cases.md H9-H10).
 """
 from __future__ import annotations
 
