@@ -32,7 +32,8 @@ PYTHONPATH.  Uses the standard library, NumPy and OpenImageIO only.
 What is hashed: the raw float32 bytes of each channel (OpenImageIO, every subimage), never
 the file bytes (the EXR header carries a date and the render's own timing).  What is
 volatile, found by recording the matrix twice (see VOLATILE_KEY below): every timing
-(``*_seconds``, ``seconds_*``, ``rays_per_second``) and the EXR header's ``DateTime`` and
+(``*_seconds``, ``seconds_*``, ``rays_per_second``, the seconds of each pass and unit in the
+stopping rules' ``pass_log``) and the EXR header's ``DateTime`` and
 ``tncg15:seconds_to_target``; they are kept in the JSON under ``volatile`` for reference but not
 compared.  Paths and addresses that depend on where the run happens are rewritten, not dropped:
 the temporary output directory to ``<out>``, the repository to ``<repo>``, the interpreter to
@@ -74,7 +75,8 @@ BUILTINS = ("cornell", "near_lamp", "caustic", "many_lights")
 ALL_PASSES = "albedo,normal,depth,samples,variance"
 
 # Stats keys removed before comparing (at any depth): they are clocks, or rates and predictions
-# computed from clocks.  Determined by recording the whole matrix twice.
+# computed from clocks.  Determined by recording the whole matrix twice; also the seconds inside
+# the stopping rules' pass_log (strip_pass_log).
 VOLATILE_KEY = re.compile(r"(^|_)seconds($|_)|per_second|^(pid|pids|hostname|host|date|time|timestamp)$")
 # EXR/PNG header attributes not compared: the write date and the timing-derived prediction.
 VOLATILE_ATTRIBUTE = re.compile(r"^(DateTime|tncg15:seconds_to_target)$")
@@ -280,6 +282,25 @@ def normalise(value, replacements):
     return value
 
 
+def strip_pass_log(log, path, volatile):
+    """The stopping rules' pass_log (engine/stopping.py): per pass (pixel-samples, seconds,
+    [(tile, pixel-samples, seconds) per unit]); the samples are kept, the seconds are volatile.
+    Anything of another shape is kept whole (and so compared)."""
+    def is_number(x):
+        return isinstance(x, (int, float)) and not isinstance(x, bool)
+    ok = isinstance(log, list) and all(
+        isinstance(p, list) and len(p) == 3 and is_number(p[0]) and is_number(p[1]) and isinstance(p[2], list)
+        and all(isinstance(u, list) and len(u) == 3 and all(map(is_number, u)) for u in p[2]) for p in log)
+    if not ok:
+        return log
+    kept = []
+    for i, (samples, seconds, units) in enumerate(log):
+        volatile[f"{path}[{i}].seconds"] = seconds
+        volatile[f"{path}[{i}].unit_seconds"] = [u[2] for u in units]
+        kept.append([samples, [u[:2] for u in units]])
+    return kept
+
+
 def split_volatile(stats):
     """(stats without the volatile keys, the volatile keys as {dotted.key: value})."""
     volatile = {}
@@ -291,6 +312,8 @@ def split_volatile(stats):
                 key = f"{path}.{k}" if path else k
                 if VOLATILE_KEY.search(str(k)):
                     volatile[key] = v
+                elif k == "pass_log":
+                    kept[k] = strip_pass_log(v, key, volatile)
                 else:
                     kept[k] = walk(v, key)
             return kept
