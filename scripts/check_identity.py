@@ -166,6 +166,9 @@ def build_cases(repo=REPO) -> list:
     cases.append(engine_case("shadow-rays-4", "near_lamp", "--shadow-rays", "4"))
     cases.append(engine_case("tile-16-t2", "cornell", "--tile-size", "16", threads=2))
     cases.append(engine_case("png", "cornell", png=True))
+    # Not square: a transposed width and height would show.
+    cases.append(engine_case("wide-t2", "cornell", size=(64, 24), threads=2))
+    cases.append(engine_case("tall", "caustic", size=(24, 56)))
     # One tile of 16x16 pixels whose 1100 samples are two work units (1024 + 76): the film adds
     # sample chunks of a pixel, in whatever order the workers return them.
     for threads, extra in ((1, ()), (2, ()), (2, ("--cluster", "local"))):
@@ -204,6 +207,8 @@ def build_cases(repo=REPO) -> list:
         cases.append(addon_case("noise-target-no-adaptive", blend("sky_lit"), "--noise-target", "0.3",
                                 "--no-adaptive", samples=64, threads=2))
         cases.append(addon_case("png", blend("smooth"), png=True))
+        cases.append(addon_case("wide-t2", blend("cornell"), size=(64, 24), threads=2))
+        cases.append(addon_case("tall", blend("textured"), size=(24, 56)))
         cases.append(addon_case("denoise-t2", blend("cornell"), "--denoise", threads=2, needs="pyoidn"))
     return cases
 
