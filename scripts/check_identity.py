@@ -494,7 +494,7 @@ def compare_records(old, new, names, out=sys.stdout) -> int:
     for name in names:
         a, b = old["cases"].get(name), new["cases"].get(name)
         if a is None or b is None:
-            rows.append((name, "-", "-", "missing in " + ("baseline" if a is None else "new run"), ""))
+            rows.append((name, "-", "-", "", "missing in " + ("the baseline" if a is None else "the new run")))
             bad += 1
             continue
         if a["status"] != "ok" or b["status"] != "ok":
@@ -522,8 +522,13 @@ def compare_records(old, new, names, out=sys.stdout) -> int:
             diff = "; ".join(p for p in parts if p)
             if only:
                 diff += ("; " if diff else "") + "channels " + ", ".join(("+" if k not in pa else "-") + k for k in only)
-        rows.append((name, "yes" if same_pixels else "NO", "yes" if not keys else "NO", diff,
-                     ", ".join(keys[:12]) + (f" (+{len(keys) - 12} more)" if len(keys) > 12 else "")))
+        notes = ", ".join(keys[:12]) + (f" (+{len(keys) - 12} more)" if len(keys) > 12 else "")
+        if not same_pixels:
+            changed_here = [k for k in changed if k in pa and k in pb]
+            if changed_here:
+                notes += ("; " if notes else "") + "pixels differ in " + ", ".join(changed_here[:6]) + (
+                    f" (+{len(changed_here) - 6} more)" if len(changed_here) > 6 else "")
+        rows.append((name, "yes" if same_pixels else "NO", "yes" if not keys else "NO", diff, notes))
         bad += (not same_pixels) or bool(keys)
     width = max([len(r[0]) for r in rows] + [4])
     out.write(f"{'case':{width}s}  pixels  stats  max|diff|  stats keys that differ / notes\n")
