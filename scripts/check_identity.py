@@ -547,12 +547,13 @@ def case_names(data, cases_wanted, patterns):
 
 # -- command line ---------------------------------------------------------------------------------
 def main(argv=None) -> int:
+    only_help = "only the cases whose name matches (fnmatch, or a substring); repeatable"
+    # --only before or after the mode (a subparser's values replace the main parser's: two dests).
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--only", action="append", default=None, metavar="PATTERN",
-                        help="only the cases whose name matches (fnmatch, or a substring); repeatable")
-    parser = argparse.ArgumentParser(prog="check_identity.py", parents=[common],
-                                     description=__doc__.split("\n\n")[0],
+    common.add_argument("--only", action="append", dest="only_after", default=[], metavar="PATTERN", help=only_help)
+    parser = argparse.ArgumentParser(prog="check_identity.py", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--only", action="append", default=None, metavar="PATTERN", help=only_help)
     parser.add_argument("--list", action="store_true", help="print the cases and their command lines")
     sub = parser.add_subparsers(dest="mode")
     run_options = argparse.ArgumentParser(add_help=False)
@@ -571,6 +572,7 @@ def main(argv=None) -> int:
     dif.add_argument("old", metavar="OLD.json")
     dif.add_argument("new", metavar="NEW.json")
     args = parser.parse_args(argv)
+    args.only = (args.only or []) + getattr(args, "only_after", [])
 
     repo = os.path.abspath(getattr(args, "repo", REPO))
     cases = select(build_cases(repo), args.only)
