@@ -434,11 +434,26 @@ def run_case(case, python, repo, work, images_dir, optional, timeout) -> dict:
     return record
 
 
+IMAGES_MARK = ".check_identity-images"
+
+
+def fresh_images_dir(path):
+    """An empty images directory: made, or emptied if this script made it (its mark file is
+    there); any other directory with files in it is refused, never emptied."""
+    if os.path.isdir(path) and os.listdir(path):
+        if not os.path.isfile(os.path.join(path, IMAGES_MARK)):
+            raise SystemExit(f"check_identity: {path} has files that are not this script's images; "
+                             "give another --images DIR")
+        shutil.rmtree(path)
+    os.makedirs(path, exist_ok=True)
+    with open(os.path.join(path, IMAGES_MARK), "w") as fh:
+        fh.write("images of scripts/check_identity.py; emptied by its next run\n")
+
+
 def run_matrix(cases, python, repo, out_path, images_dir, timeout, log) -> dict:
     info = probe(python, repo)
     if images_dir:
-        shutil.rmtree(images_dir, ignore_errors=True)
-        os.makedirs(images_dir)
+        fresh_images_dir(images_dir)
     result = {
         "tool": "scripts/check_identity.py", "format": FORMAT,
         "created": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
@@ -603,6 +618,9 @@ def main(argv=None) -> int:
         return 0
 
     old = load_json(args.baseline)
+    if args.out and os.path.abspath(args.out) == os.path.abspath(args.baseline):
+        print("check_identity: --out must not be the baseline itself", file=sys.stderr)
+        return 2
     if args.out:
         images = None if args.images == "none" else os.path.abspath(args.images or os.path.splitext(args.out)[0] + ".images")
     else:
