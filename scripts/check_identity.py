@@ -85,6 +85,59 @@ IGNORED_ATTRIBUTE = re.compile(r"^(oiio:|openexr:lineOrder$|compression$|Softwar
 ADDRESS = re.compile(r"tcp://[^\s,)'\"]+")
 
 
+def scene_file_json() -> dict:
+    """A small scene in the documented file format (engine/scene_io.py, version 5), so that
+    ``python -m engine render SCENE.json`` (the reader) is in the matrix too: a room of flat and
+    smooth meshes open to the sky, glass in glass (different IORs: --nested-dielectrics changes it), a mirror
+    ball, an emissive quad, an Area light, a spot light and a sun, on a grey background."""
+    def box(x0, x1, y0, y1, z0, z1):
+        v = [[x, y, z] for z in (z0, z1) for y in (y0, y1) for x in (x0, x1)]
+        t = [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+             [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]]
+        return v, t
+    room_v, room_t = box(-1.0, 1.0, -1.0, 1.0, 0.0, 2.0)
+    room_t = room_t[:2] + room_t[4:]            # no ceiling: the sun and the background come in
+    block_v, block_t = box(0.25, 0.75, 0.2, 0.7, 0.0, 0.6)
+    # A smooth-shaded octahedron: one shading normal per triangle corner (the vertex direction).
+    c, r = (-0.45, 0.45, 0.35), 0.3
+    dirs = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+    octa_v = [[c[i] + r * d[i] for i in range(3)] for d in dirs]
+    octa_t = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    octa_n = [dirs[i] for tri in octa_t for i in tri]
+    return {
+        "format": "tncg15-scene", "version": 5, "name": "check_identity", "resolution": [40, 40],
+        "background": [0.05, 0.06, 0.08],
+        "camera": {"look_at": {"position": [0.0, -0.95, 1.0], "target": [0.0, 0.3, 0.6], "up": [0, 0, 1]},
+                   "lens": 24},
+        "materials": [
+            {"name": "White", "kind": "diffuse", "color": [0.75, 0.75, 0.75]},
+            {"name": "Red", "kind": "diffuse", "color": [0.7, 0.15, 0.1]},
+            {"name": "Glass", "kind": "glass", "color": [1, 1, 1], "ior": 1.5},
+            {"name": "Water", "kind": "glass", "color": [0.9, 0.95, 1.0], "ior": 1.33},
+            {"name": "Mirror", "kind": "mirror", "color": [0.9, 0.9, 0.9]},
+            {"name": "Lamp", "kind": "diffuse", "color": [0, 0, 0], "emission": [6, 5.5, 5]}],
+        "meshes": [
+            {"name": "Room", "vertices": room_v, "triangles": room_t, "material": "White"},
+            {"name": "Block", "vertices": block_v, "triangles": block_t, "material": "Red"},
+            {"name": "Gem", "vertices": octa_v, "triangles": octa_t, "material": "White", "normals": octa_n,
+             "smooth": [1, 1, 1, 1, 0, 0, 0, 0]}],
+        "spheres": [
+            {"name": "Outer glass", "center": [0.1, 0.2, 0.3], "radius": 0.3, "material": "Glass"},
+            {"name": "Inner water", "center": [0.1, 0.2, 0.3], "radius": 0.15, "material": "Water"},
+            {"name": "Mirror ball", "center": [0.55, 0.45, 0.85], "radius": 0.15, "material": "Mirror"}],
+        "quads": [{"name": "Ceiling lamp", "corners": [[-0.25, 0.0, 1.99], [0.25, 0.0, 1.99], [0.25, 0.5, 1.99],
+                                                      [-0.25, 0.5, 1.99]], "material": "Lamp"}],
+        "lights": [{"name": "Area", "vertices": [[-0.95, -0.2, 0.6], [-0.95, 0.2, 0.6], [-0.95, 0.2, 1.0],
+                                                 [-0.95, -0.2, 1.0]], "radiance": [2.0, 2.5, 3.0]}],
+        "points": [{"name": "Spot", "position": [0.6, -0.6, 1.8], "intensity": [3, 3, 2.5], "radius": 0.05,
+                    "spot_size": 0.9, "spot_blend": 0.3, "spot_direction": [-0.3, 0.5, -1.0]}],
+        "suns": [{"name": "Sun", "direction": [0.3, 0.2, -1.0], "irradiance": [0.5, 0.5, 0.45], "angle": 0.05}],
+    }
+
+
+SCENE_FILE = "<scene>"          # in a case's arguments: the path of scene_file_json() written for the run
+
+
 @dataclass
 class Case:
     name: str
@@ -94,9 +147,10 @@ class Case:
     needs: str | None = None    # an importable module the case needs (else: skipped)
     note: str = ""
 
-    def command(self, python: str, out_dir: str) -> list:
+    def command(self, python: str, out_dir: str, scene_file: str = SCENE_FILE) -> list:
         module = "engine" if self.cli == "engine" else "mcrt_addon"
-        cmd = [python, "-m", module, "render", *map(str, self.args), "-o", os.path.join(out_dir, "image.exr"),
+        args = [scene_file if a == SCENE_FILE else str(a) for a in self.args]
+        cmd = [python, "-m", module, "render", *args, "-o", os.path.join(out_dir, "image.exr"),
                "--stats-json", os.path.join(out_dir, "stats.json")]
         if self.png:
             cmd += ["--png", os.path.join(out_dir, "image.png")]
@@ -175,6 +229,11 @@ def build_cases(repo=REPO) -> list:
         label = "cluster" if extra else f"t{threads}"
         cases.append(engine_case(f"chunks-{label}", "cornell", *extra, threads=threads, size=(16, 16),
                                  samples=1100))
+    # The scene file reader (scene_file_json), on one and two workers, with nested dielectrics.
+    for name, extra, threads in (("t1", (), 1), ("t2", (), 2), ("nested-dielectrics", ("--nested-dielectrics",), 1),
+                                 ("passes-all-t2", ("--passes", ALL_PASSES), 2)):
+        cases.append(Case(f"engine/scene-file/{name}", "engine",
+                          [SCENE_FILE, *size_args(), "--threads", threads, "--quiet", *extra]))
     cases.append(engine_case("denoise", "cornell", "--denoise", needs="pyoidn"))
     cases.append(engine_case("denoise-passes-t2", "cornell", "--denoise", "--passes", ALL_PASSES, threads=2,
                              needs="pyoidn"))
@@ -393,8 +452,10 @@ def git_info(repo) -> dict:
 def run_case(case, python, repo, work, images_dir, optional, timeout) -> dict:
     out_dir = os.path.join(work, case.name.replace("/", "__"))
     os.makedirs(out_dir)
-    cmd = case.command(python, out_dir)
-    record = {"cli": case.cli, "command": [("<python>" if a == python else a.replace(out_dir, "<out>")) for a in cmd]}
+    scene_file = os.path.join(work, "scene.json")
+    cmd = case.command(python, out_dir, scene_file)
+    record = {"cli": case.cli, "command": [("<python>" if a == python else SCENE_FILE if a == scene_file
+                                            else a.replace(out_dir, "<out>")) for a in cmd]}
     if case.note:
         record["note"] = case.note
     if case.needs and not optional.get(case.needs):
@@ -466,7 +527,10 @@ def run_matrix(cases, python, repo, out_path, images_dir, timeout, log) -> dict:
     }
     start = time.perf_counter()
     work = tempfile.mkdtemp(prefix="check-identity-")
+    result["scene_file"] = scene_file_json()
     try:
+        with open(os.path.join(work, "scene.json"), "w") as fh:
+            json.dump(result["scene_file"], fh, indent=1)
         for i, case in enumerate(cases, 1):
             record = run_case(case, python, repo, work, images_dir, info["optional"], timeout)
             result["cases"][case.name] = record
