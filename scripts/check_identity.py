@@ -617,11 +617,12 @@ def compare_records(old, new, names, out=sys.stdout) -> int:
     return 1 if bad else 0
 
 
-def case_names(data, cases_wanted, patterns):
-    """The names to compare: the selected cases of the matrix, plus recorded ones it no longer has."""
-    names = [c.name for c in cases_wanted]
-    extra = [c.name for c in select([Case(n, "", []) for n in data["cases"]], patterns) if c.name not in names]
-    return names + extra
+def case_names(old, new, cases_wanted, patterns):
+    """The names to compare, in the matrix's order: the selected cases either record has, then
+    selected recorded ones the matrix no longer has."""
+    recorded = list(old["cases"]) + [n for n in new["cases"] if n not in old["cases"]]
+    names = [c.name for c in cases_wanted if c.name in recorded]
+    return names + [c.name for c in select([Case(n, "", []) for n in recorded], patterns) if c.name not in names]
 
 
 # -- command line ---------------------------------------------------------------------------------
@@ -671,7 +672,7 @@ def main(argv=None) -> int:
 
     if args.mode == "diff":
         old, new = load_json(args.old), load_json(args.new)
-        return compare_records(old, new, case_names(old, cases, args.only))
+        return compare_records(old, new, case_names(old, new, cases, args.only))
 
     python = args.python
     if args.mode == "record":
@@ -694,7 +695,7 @@ def main(argv=None) -> int:
         new["_dir"] = os.path.dirname(os.path.abspath(args.out)) if args.out else None
         if not args.out and images:
             new["images"], new["_dir"] = images, ""
-        code = compare_records(old, new, case_names(old, cases, args.only))
+        code = compare_records(old, new, case_names(old, new, cases, args.only))
         if args.out:
             write_json(args.out, {k: v for k, v in new.items() if not k.startswith("_")})
             log(f"wrote {args.out}")
