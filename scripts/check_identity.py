@@ -39,10 +39,27 @@ compared.  Paths and addresses that depend on where the run happens are rewritte
 the temporary output directory to ``<out>``, the repository to ``<repo>``, the interpreter to
 ``<python>``, ``tcp://host:port`` to ``tcp://<address>``.
 
+The matrix (``--list``; build_cases): 40x40 pixels, 8 spp, seed 7 unless a case says otherwise.
+engine/<builtin>/...: the four built-in scenes on 1 thread, 2 forked processes and a Dask
+LocalCluster; each estimator, the random sampler, nested dielectrics, both Fresnel models, every
+accelerator (brute force and the octree on tiny images), no Russian roulette, each pass alone and
+all together (1, 2 workers, cluster), the noise target (adaptive, min samples, not adaptive),
+max depth, shadow rays, tile size, PNG output, non-square frames, a tile's samples in two units,
+the denoiser.  engine/scene-file/...: a scene file written by the script (scene_file_json).
+addon/<blend>/...: every sample_blends/*.blend on 1 and 2 worker processes, and the add-on's own
+options on a few of them (cluster, estimators, sampler, Fresnel, nested dielectrics,
+accelerators, passes, noise target, PNG, denoise, non-square).  About 90 s on 2 cores.
+
 Not in the matrix: ``--time-limit`` (where the render stops depends on the clock) and the
 ``threads`` pool with more than one thread (no command line chooses it: --threads N > 1 forks
 processes outside Blender).  ``--denoise`` cases run only where pyoidn imports (else
 recorded as skipped).
+
+The record (JSON): the run (git commit, interpreter, where engine and mcrt_addon imported from,
+the total seconds) and per case: ``command`` (as run), ``status`` (ok, failed: ..., skipped: ...),
+``seconds``, ``pixels.channels`` ({"exr:<channel>": {shape, sha256}}), ``header`` (the EXR
+attributes compared), ``stats`` (the compared stats), ``volatile`` (what was left out, with its
+values), ``image`` (the kept EXR, relative to ``images``).
 """
 from __future__ import annotations
 
@@ -60,7 +77,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -300,7 +317,8 @@ def read_layers(path: str, prefix: str) -> tuple[dict, dict]:
             for c, name in enumerate(spec.channelnames):
                 layers[tag + name] = np.ascontiguousarray(pixels[..., c])
             for attr in spec.extra_attribs:
-                attributes[tag + attr.name] = attr.value if isinstance(attr.value, (int, float, str)) else str(attr.value)
+                value = attr.value
+                attributes[tag + attr.name] = value if isinstance(value, (int, float, str)) else str(value)
             sub += 1
     finally:
         inp.close()
@@ -427,7 +445,8 @@ def probe(python, repo) -> dict:
     code = ("import json, importlib.util as u, engine, mcrt_addon; "
             "print(json.dumps({'engine': engine.__file__, 'mcrt_addon': mcrt_addon.__file__, "
             "'optional': {m: u.find_spec(m) is not None for m in ('pyoidn',)}}))")
-    proc = subprocess.run([python, "-c", code], cwd=repo, env=environment(repo), capture_output=True, text=True)
+    proc = subprocess.run([python, "-c", code], cwd=repo, env=environment(repo), check=False, capture_output=True,
+                          text=True)
     if proc.returncode != 0:
         raise SystemExit(f"check_identity: {python} cannot import engine and mcrt_addon from {repo}:\n{proc.stderr}")
     info = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -436,14 +455,14 @@ def probe(python, repo) -> dict:
             raise SystemExit(f"check_identity: {pkg} imports from {info[pkg]}, not from {repo}")
     if info["optional"].get("pyoidn"):      # importable is not enough: the native library must load
         ok = subprocess.run([python, "-c", "import pyoidn"], cwd=repo, env=environment(repo),
-                            capture_output=True).returncode == 0
+                            check=False, capture_output=True).returncode == 0
         info["optional"]["pyoidn"] = ok
     return info
 
 
 def git_info(repo) -> dict:
     def git(*args):
-        proc = subprocess.run(["git", "-C", repo, *args], capture_output=True, text=True)
+        proc = subprocess.run(["git", "-C", repo, *args], check=False, capture_output=True, text=True)
         return proc.stdout.strip() if proc.returncode == 0 else None
     return {"commit": git("rev-parse", "HEAD"), "branch": git("rev-parse", "--abbrev-ref", "HEAD"),
             "dirty": bool(git("status", "--porcelain", "--untracked-files=no"))}
@@ -463,7 +482,8 @@ def run_case(case, python, repo, work, images_dir, optional, timeout) -> dict:
         return record
     start = time.perf_counter()
     try:
-        proc = subprocess.run(cmd, cwd=repo, env=environment(repo), capture_output=True, text=True, timeout=timeout)
+        proc = subprocess.run(cmd, cwd=repo, env=environment(repo), check=False, capture_output=True, text=True,
+                              timeout=timeout)
     except subprocess.TimeoutExpired:
         record.update(status=f"failed: timed out after {timeout:g} s", seconds=time.perf_counter() - start)
         return record
@@ -583,7 +603,8 @@ def compare_records(old, new, names, out=sys.stdout) -> int:
             continue
         pa, pb = a["pixels"]["channels"], b["pixels"]["channels"]
         same_pixels = pa == pb
-        keys = differing_keys(a["stats"], b["stats"]) + [f"header:{k}" for k in differing_keys(a["header"], b["header"])]
+        keys = differing_keys(a["stats"], b["stats"])
+        keys += [f"header:{k}" for k in differing_keys(a["header"], b["header"])]
         diff = ""
         if not same_pixels:
             changed = sorted(k for k in set(pa) | set(pb) if pa.get(k) != pb.get(k))
@@ -600,7 +621,8 @@ def compare_records(old, new, names, out=sys.stdout) -> int:
             only = [k for k in changed if k not in pa or k not in pb]
             diff = "; ".join(p for p in parts if p)
             if only:
-                diff += ("; " if diff else "") + "channels " + ", ".join(("+" if k not in pa else "-") + k for k in only)
+                diff += ("; " if diff else "") + "channels " + ", ".join(("+" if k not in pa else "-") + k
+                                                                          for k in only)
         notes = ", ".join(keys[:12]) + (f" (+{len(keys) - 12} more)" if len(keys) > 12 else "")
         if not same_pixels:
             changed_here = [k for k in changed if k in pa and k in pb]
@@ -675,9 +697,12 @@ def main(argv=None) -> int:
         return compare_records(old, new, case_names(old, new, cases, args.only))
 
     python = args.python
+
+    def images_for(out):
+        return None if args.images == "none" else os.path.abspath(args.images or os.path.splitext(out)[0] + ".images")
     if args.mode == "record":
         out = args.out
-        images = None if args.images == "none" else os.path.abspath(args.images or os.path.splitext(out)[0] + ".images")
+        images = images_for(out)
         write_json(out, run_matrix(cases, python, repo, out, images, args.timeout, log))
         log(f"wrote {out}" + (f" and {images}/" if images else ""))
         return 0
