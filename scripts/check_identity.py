@@ -636,6 +636,12 @@ def compare_records(old, new, names, out=sys.stdout) -> int:
     for name, px, st, diff, keys in rows:
         out.write(f"{name:{width}s}  {px:6s}  {st:5s}  {diff or '':9s}  {keys}\n")
     out.write(f"\n{len(rows)} cases, {bad} differ{'' if bad else ' (all identical)'}\n")
+    notes = {"matrix": "the two records were made with other matrix settings (size, samples, seed)",
+             "scene_file": "the two records rendered different scene files (scene_file_json): "
+                           "the engine/scene-file cases cannot agree"}
+    for key, note in notes.items():
+        if old.get(key) != new.get(key):
+            out.write(f"note: {note}\n")
     return 1 if bad else 0
 
 
@@ -711,22 +717,21 @@ def main(argv=None) -> int:
     if args.out and os.path.abspath(args.out) == os.path.abspath(args.baseline):
         print("check_identity: --out must not be the baseline itself", file=sys.stderr)
         return 2
-    if args.out:
-        images = None if args.images == "none" else os.path.abspath(args.images or os.path.splitext(args.out)[0] + ".images")
-    else:
-        images = None if args.images == "none" else tempfile.mkdtemp(prefix="check-identity-images-")
+    # The new images: kept with --out or --images, else in a temporary directory for the table only.
+    scratch = not (args.out or args.images)
+    images = tempfile.mkdtemp(prefix="check-identity-images-") if scratch else images_for(args.out)
     try:
         new = run_matrix(cases, python, repo, args.out, images, args.timeout, log)
-        new["_dir"] = os.path.dirname(os.path.abspath(args.out)) if args.out else None
-        if not args.out and images:
-            new["images"], new["_dir"] = images, ""
+        new["_dir"] = os.path.dirname(os.path.abspath(args.out)) if args.out else ""
+        if images and not args.out:
+            new["images"] = images                      # absolute
         code = compare_records(old, new, case_names(old, new, cases, args.only))
         if args.out:
             write_json(args.out, {k: v for k, v in new.items() if not k.startswith("_")})
             log(f"wrote {args.out}")
         return code
     finally:
-        if not args.out and images:
+        if scratch:
             shutil.rmtree(images, ignore_errors=True)
 
 
