@@ -464,8 +464,10 @@ def git_info(repo) -> dict:
     def git(*args):
         proc = subprocess.run(["git", "-C", repo, *args], check=False, capture_output=True, text=True)
         return proc.stdout.strip() if proc.returncode == 0 else None
+    # The tree ids say which code was rendered even when the commit also holds other changes.
     return {"commit": git("rev-parse", "HEAD"), "branch": git("rev-parse", "--abbrev-ref", "HEAD"),
-            "dirty": bool(git("status", "--porcelain", "--untracked-files=no"))}
+            "dirty": bool(git("status", "--porcelain", "--untracked-files=no")),
+            "trees": {d: git("rev-parse", f"HEAD:{d}") for d in ("engine", "mcrt_addon", "sample_blends")}}
 
 
 def run_case(case, python, repo, work, images_dir, optional, timeout) -> dict:
