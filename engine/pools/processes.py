@@ -90,7 +90,14 @@ class SubprocessPool(Pool):
         self.python, self.log = python, log
         self.events: queue.Queue = queue.Queue()
         env = worker_environment(extra_paths)
-        self.workers = [_Worker(i + 1, python, env, self.events) for i in range(max(1, count))]
+        self.workers = []
+        try:
+            for i in range(max(1, count)):
+                self.workers.append(_Worker(i + 1, python, env, self.events))
+        except OSError as exc:                  # no such interpreter, not executable
+            close_all(self.workers, CLOSE_SECONDS)
+            raise WorkerError(f"TNCG15 MC: cannot start render workers with {python}: "
+                              f"{exc.strerror or exc}") from None
         self.describe = f"{len(self.workers)} worker process(es) ({python})"
         self.pending: collections.deque = collections.deque()
         self.retried: set = set()

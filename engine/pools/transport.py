@@ -161,9 +161,10 @@ class WorkerProcess:
         self.closed = False
         self.outbox: queue.Queue = queue.Queue()
         self.outbox.put(("hello", TRACER_BASE, ENGINE_VERSION))
+        self.stderr_reader = threading.Thread(target=self._read_stderr, daemon=True, name=self.name + " stderr")
+        self.stderr_reader.start()
         threading.Thread(target=self._write, daemon=True, name=self.name + " stdin").start()
         threading.Thread(target=self._read, daemon=True, name=self.name).start()
-        threading.Thread(target=self._read_stderr, daemon=True, name=self.name + " stderr").start()
 
     def send(self, message) -> None:
         """Queue a message (any picklable object, or bytes from encode())."""
@@ -203,6 +204,7 @@ class WorkerProcess:
             code = self.proc.wait(timeout=5)
         except subprocess.TimeoutExpired:
             code = None
+        self.stderr_reader.join(timeout=2)      # its last lines say why (why())
         self.on_exit(self, code)
 
     def _read_stderr(self):
