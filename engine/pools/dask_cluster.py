@@ -9,7 +9,7 @@ DaskPool is a pool of engine/pools/protocol.py whose units run as Dask tasks on 
   copy only).  Each worker process prepares the scene (engine/rendering/session.py PreparedScene:
   validation, BVH, lights) once per render and keeps it in a small per-process cache; prepare()
   has one worker do so first and return its facts (accelerator, effect plan, warnings).
-* A unit task carries only the scene task, the unit and the client's engine version.  A
+* A unit task carries only the scene task, the unit (as plain values) and the client's engine version.  A
   worker of another engine version refuses the unit with a message; workers are also asked their
   version when the render starts and those that differ get no units.
 * The task function travels by value through a small trampoline that imports the engine on the
@@ -135,9 +135,22 @@ def prepare_task(blob: bytes, key: str, client_version: str):
     return worker_scene(key, blob).facts()
 
 
-def render_unit_task(blob: bytes, key: str, unit, client_version: str):
+def plain_unit(unit) -> tuple:
+    """A work unit as plain Python values: the scheduler unpickles every task and has no copy of
+    the engine, so a unit travels as (index, tile fields, chunk, start, stop, mask, halves)."""
+    t = unit.tile
+    return (unit.index, (t.index, t.x0, t.y0, t.x1, t.y1), unit.chunk, unit.start, unit.stop, unit.mask, unit.halves)
+
+
+def unit_from_plain(fields):
+    from ..rendering.units import Tile, WorkUnit
+    index, tile, chunk, start, stop, mask, halves = fields
+    return WorkUnit(index, Tile(*tile), chunk, start, stop, mask, halves)
+
+
+def render_unit_task(blob: bytes, key: str, unit: tuple, client_version: str):
     check_version(client_version)
-    return worker_scene(key, blob).render_unit(unit, TaskCancelled())
+    return worker_scene(key, blob).render_unit(unit_from_plain(unit), TaskCancelled())
 
 
 def engine_version() -> str:
@@ -290,7 +303,7 @@ class DaskPool(Pool):
         for unit in units:
             key = f"{self.unit_prefix}-{unit.index}"
             future = self.client.submit(call, f"{__name__}:render_unit_task", self.payload, self.payload.key,
-                                        unit, ENGINE_VERSION, key=key, pure=False,
+                                        plain_unit(unit), ENGINE_VERSION, key=key, pure=False,
                                         retries=UNIT_RETRIES, **self.restrict)
             self.futures.append(future)
             self.unit_of[key] = unit
