@@ -105,14 +105,12 @@ def viewport_worker_main(parent_pid: int) -> int:
                         _, gen, scene, settings, target, index, count = m
                         prepared = None
                         prepared = PreparedScene(scene, settings, log=log_to_stderr)
-                        prepared.full_resolution = tuple(scene.resolution)
                         job = ViewJob(gen, scene.resolution, target, index, count)
                         send(("ready", gen, prepared.facts()))
                     elif m[0] == "view" and prepared is not None:
                         _, gen, camera, resolution = m
                         camera.validate()
                         prepared.scene.camera = camera
-                        prepared.full_resolution = tuple(resolution)
                         job = ViewJob(gen, resolution, job.target, job.index, job.count)
                 except Exception as exc:        # noqa: BLE001 - shown in the viewport's header
                     prepared, job = None, None

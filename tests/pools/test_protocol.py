@@ -51,7 +51,8 @@ def test_the_stopping_rules_give_the_same_image_on_every_pool(spec):
     assert one.film.samples_per_pixel.min() < one.film.samples_per_pixel.max()
 
 
-def test_auto_forks_outside_blender_and_one_worker_is_a_thread():
+def test_auto_forks_outside_blender_and_one_worker_is_a_thread(monkeypatch):
+    monkeypatch.delitem(sys.modules, "bpy", raising=False)        # the add-on's tests import it
     two, one = make_pool("auto", 2, **QUIET), make_pool("auto", 1, **QUIET)
     try:
         assert (two.describe, one.describe) == ("processes" if sys.platform.startswith("linux") else "threads",
@@ -59,6 +60,10 @@ def test_auto_forks_outside_blender_and_one_worker_is_a_thread():
     finally:
         two.close()
         one.close()
+    monkeypatch.setitem(sys.modules, "bpy", object())              # inside Blender: never forked
+    inside = make_pool("auto", 2, **QUIET)
+    inside.close()
+    assert inside.describe == "threads"
 
 
 @pytest.mark.parametrize("spec", ["thread", "", "dask", "processes:4", "workers-python", "viewport:x"])

@@ -13,7 +13,7 @@ import pytest
 
 from engine import RenderSettings, render
 from engine.scene.builtin import BUILTIN_SCENES
-from engine.film.error_estimate import half_buffer_variance, image_rel_error
+from engine.film.error_estimate import half_buffer_variance
 from engine.rendering.estimate import TAIL_PATHS, replay
 from engine.rendering.frame import Frame
 from engine.rendering.stopping import effective_min_samples, round_schedule, run_rounds
