@@ -1,37 +1,47 @@
-"""Render a scene on this machine: the one-call entry point over engine/rendering/session.py.
+"""Render a scene: the one entry point, `render(scene, settings, pool)`.
 
-`render(scene, settings)` prepares a RenderSession and runs its work units on local worker
-threads or forked processes (engine/pools/local.py), or on a Dask cluster when `cluster` is given
-(engine/pools/dask_cluster.py).  Random numbers depend on (seed, pixel, sample, dimension), never on the
-workers, so the image for a given seed is identical whatever runs it.
+The frame side (tiles, units, the ordered merge, the film, the result: engine/rendering/frame.py)
+runs here; the pool (engine/pools/protocol.py, made by engine/pools/spec.py make_pool) has its
+workers build the tracer side (engine/rendering/session.py PreparedScene) and trace the units:
+this process's threads, forked processes, worker processes of another Python, a Dask cluster.
+Random numbers depend on (seed, pixel, sample, dimension), never on the workers, so the image for
+a given seed is identical whatever pool renders it.
 """
 from __future__ import annotations
 
 from .core.allocator import tune_malloc
-from .core.version import ENGINE_NAME
-from .rendering.session import RenderResult, RenderSession
 from .core.settings import RenderSettings
-from .pools.local import choose_parallelism, make_workers
+from .core.version import ENGINE_NAME
+from .pools.spec import make_pool
+from .rendering.frame import Frame, RenderResult
+
+__all__ = ["render", "make_pool", "RenderResult"]
 
 
-def render(scene, settings: RenderSettings | None = None, on_tile=None, should_cancel=None,
-           on_progress=None, log=print, progressive: str = "tiles", cluster: str | None = None) -> RenderResult:
-    """Render `scene`; see RenderSession.run for the callbacks.  cluster: a Dask scheduler
-    address ("tcp://host:port", or "local" for a LocalCluster on this machine)."""
+def render(scene, settings: RenderSettings | None = None, pool=None, on_tile=None, should_cancel=None,
+           on_progress=None, log=print, progressive: str = "tiles") -> RenderResult:
+    """Render `scene` on `pool` (default: the local pool of settings.parallelism and threads) and
+    close the pool.  Callbacks (engine/rendering/frame.py Frame.run): on_tile(x0, y0, x1, y1, pixels),
+    should_cancel(), on_progress(fraction, message); progressive: "tiles" or "frame"."""
     settings = settings or RenderSettings()
+    settings.validate()
     tune_malloc()                      # keep the bounce temporaries off mmap (engine/core/allocator.py)
-    session = RenderSession(scene, settings, log=log, progressive=progressive)
     threads = settings.resolved_threads()
-    width, height = scene.resolution
-    if cluster:
-        from .pools.dask_cluster import DaskWorkers
-        workers = DaskWorkers(session, cluster, log=log)
-    else:
-        parallelism = choose_parallelism(settings.parallelism, threads) if threads > 1 else "threads"
-        workers = make_workers(parallelism, session, threads)
+    if pool is None:                   # one thread is always this process's own
+        pool = make_pool(settings.parallelism if threads > 1 else "threads", threads, log=log)
+    try:
+        facts = pool.prepare(scene, settings)
+        frame = Frame(scene, settings, facts, progressive)
+    except BaseException:
+        pool.close()
+        raise
+    width, height = frame.resolution
     log(f"{ENGINE_NAME}: {width}x{height}, {settings.samples} spp, {settings.shadow_rays} shadow ray(s), "
-        f"estimator {settings.estimator}, max depth {settings.max_depth}, {len(session.units)} work units on "
-        f"{workers.describe} ({threads} thread(s) here), accelerator {session.accelerator} "
-        f"({session.accelerator_reason})")
-    log("effect plan:\n" + session.plan.describe())
-    return session.run(workers, on_tile=on_tile, should_cancel=should_cancel, on_progress=on_progress)
+        f"estimator {settings.estimator}, max depth {settings.max_depth}, {len(frame.units)} work units on "
+        f"{pool.describe} ({threads} thread(s) here), accelerator {facts.accelerator} "
+        f"({facts.accelerator_reason})")
+    log("effect plan:\n" + facts.plan.describe())
+    result = frame.run(pool, on_tile=on_tile, should_cancel=should_cancel, on_progress=on_progress)
+    result.stats.update(pool.stats())
+    result.warnings = list(result.warnings) + list(pool.warnings())
+    return result

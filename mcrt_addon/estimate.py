@@ -13,7 +13,7 @@ DEFAULT_TARGET = 0.01
 
 def estimate_scene(scene, depsgraph, target=None, pilot_samples=64, log=None):
     """The prediction dict of engine/rendering/estimate.py for `scene` as it would render now."""
-    from .render_engine import border_rect, resolve_accelerator
+    from .render_engine import border_rect, resolve_accelerator, start_worker_pool
     from .export import export_scene
     log = log or (lambda *a: None)
     settings = scene.tncg15.to_settings(bridge.settings_class())
@@ -25,18 +25,12 @@ def estimate_scene(scene, depsgraph, target=None, pilot_samples=64, log=None):
     estimate = bridge.module("rendering.estimate").estimate
     python, _ = worker_python.worker_python(worker_python.preferred_python())
     if python is not None:
-        service = bridge.module("pools.processes")
-
-        def render(scene_, settings_, **kw):
-            pool = service.SubprocessWorkers(python, settings_.resolved_threads(), worker_python.extra_paths(),
-                                             log=log)
-            return service.render_in_workers(scene_, settings_, workers=pool, log=log, **kw)
-    else:
+        pool = start_worker_pool(python, settings, log=log)
+    else:                                   # threads in Blender's process
+        pool = None
         settings.accelerator, _ = resolve_accelerator(settings.accelerator)
-
-        def render(scene_, settings_, **kw):
-            return bridge.render_function()(scene_, settings_, log=log, **kw)
-    return estimate(exported.scene, settings, target, render, pilot_samples=pilot_samples)
+    return estimate(exported.scene, settings, target, bridge.render_function(), pilot_samples=pilot_samples,
+                    pool=pool, log=log)
 
 
 class TNCG15_OT_estimate_render_time(bpy.types.Operator):

@@ -1,7 +1,8 @@
 """The RenderEngine: export the evaluated depsgraph, render it in worker processes, stream tiles
 into Blender.
 
-The tracer runs in worker processes (tracer/pools/processes.py) of a Python chosen by worker_python.py:
+The tracer runs in worker processes (tracer/pools/processes.py) of a Python chosen by worker_python.py,
+through the tracer's one entry point (tracer/api.py render with a pool from make_pool):
 Blender's own process only exports the scene and writes tiles, so Embree works even in Blender 3.4
 (whose Embree 3 clashes with embreex in one process), Esc stops within a bounce, and a worker that
 crashes is reported by name while Blender carries on.  When no worker Python exists at all the
@@ -281,26 +282,20 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
 
         self.update_stats("", "TNCG15 MC | Rendering")
         if cluster:
-            result = bridge.module("pools.dask_cluster").render_on_cluster(
-                exported.scene, settings, cluster, on_tile=on_tile, should_cancel=self._cancel_requested,
-                on_progress=on_progress, log=log)
-        elif pool is not None:
-            result = bridge.module("pools.processes").render_in_workers(
-                exported.scene, settings, workers=pool, on_tile=on_tile, should_cancel=self._cancel_requested,
-                on_progress=on_progress, log=log)
-        else:
+            pool = bridge.module("api").make_pool(f"dask:{cluster}", settings.resolved_threads(), log=log)
+        elif pool is None:
             warnings.append(f"no render worker processes ({no_workers}): the tracer ran on threads inside Blender")
-            result = bridge.render_function()(exported.scene, settings, on_tile=on_tile,
-                                               should_cancel=self._cancel_requested, on_progress=on_progress, log=log)
+        result = bridge.render_function()(exported.scene, settings, pool=pool, on_tile=on_tile,
+                                           should_cancel=self._cancel_requested, on_progress=on_progress, log=log)
         if not getattr(result, "cancelled", False) and wanted:
-            self._write_passes(result, wanted, out_w, out_h, pool, warnings)
+            self._write_passes(result, wanted, out_w, out_h, warnings)
         # the tracer validates the scene again and returns the same warnings: report each once
         warnings = list(dict.fromkeys(warnings + list(getattr(result, "warnings", []) or [])))
         if n_bad[0]:
             warnings.append(f"{n_bad[0]} pixels had NaN/infinite values and were set to black")
         stats = dict(getattr(result, "stats", {}) or {})
         stats["first_tile_seconds"] = first_tile[0] if first_tile else None
-        if pool is None and not cluster:
+        if no_workers is not None:
             stats["parallelism"] = f"threads in Blender ({no_workers})"
         self.last.stats, self.last.warnings = stats, warnings
         self.last.cancelled = bool(getattr(result, "cancelled", False))
@@ -310,7 +305,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         self.update_progress(1.0)
         self.update_stats("", stats_line(self._summary(stats, result), stats))
 
-    def _write_passes(self, result, wanted, width, height, pool, warnings):
+    def _write_passes(self, result, wanted, width, height, warnings):
         """Denoise (in a process of the worker Python) when asked, then the whole frame: Combined
         and every pass Blender made a slot for."""
         import numpy as np
@@ -318,7 +313,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         image = np.asarray(result.image, dtype=np.float32)
         if "noisy" in wanted:
             self.update_stats("", "TNCG15 MC | Denoising")
-            python = getattr(pool, "python", None) or worker_python.worker_python(worker_python.preferred_python())[0]
+            python = worker_python.worker_python(worker_python.preferred_python())[0]
             t0 = time.perf_counter()
             try:
                 if python is None:
@@ -340,8 +335,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             if worker_python.preferred_python():
                 raise bridge.module("pools.processes").WorkerError(f"TNCG15 MC: {why}")
             return None, why
-        service = bridge.module("pools.processes")
-        return service.SubprocessWorkers(python, settings.resolved_threads(), worker_python.extra_paths()), None
+        return start_worker_pool(python, settings), None
 
     @staticmethod
     def _summary(stats, result):
@@ -362,6 +356,13 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         if isinstance(stats.get("estimated_rel_error"), float):
             parts.append(f"est. error {stats['estimated_rel_error'] * 100:.1f} %")
         return "Done: " + ", ".join(parts)
+
+
+def start_worker_pool(python, settings, log=print):
+    """The tracer's worker-process pool (tracer/pools/spec.py "workers:PYTHON"): started now, given
+    the scene when the render prepares it."""
+    return bridge.module("api").make_pool(f"workers:{python}", settings.resolved_threads(), log=log,
+                                          extra_paths=worker_python.extra_paths())
 
 
 classes = (TNCG15RenderEngine,)

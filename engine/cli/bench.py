@@ -58,13 +58,16 @@ def run_bench(resolution=(256, 256), samples=64) -> dict:
     return rows
 
 
-def _timed(resolution, samples, repeats, **kwargs):
-    """Best of `repeats`: (wall seconds of the render() call, its stats)."""
+def _timed(resolution, samples, repeats, cluster=None):
+    """Best of `repeats`: (wall seconds of the render() call, its stats); on the Dask scheduler at
+    `cluster` when given (the pool is made inside the timed call, as the command line does)."""
+    from ..pools.spec import make_pool
     best = None
     for _ in range(repeats):
         start = time.perf_counter()
-        stats = render(cornell_scene(resolution), RenderSettings(samples=samples), log=lambda *a: None,
-                       **kwargs).stats
+        settings = RenderSettings(samples=samples)
+        pool = make_pool(f"dask:{cluster}", settings.resolved_threads(), log=lambda *a: None) if cluster else None
+        stats = render(cornell_scene(resolution), settings, pool=pool, log=lambda *a: None).stats
         wall = time.perf_counter() - start
         if best is None or wall < best[0]:
             best = (wall, stats)

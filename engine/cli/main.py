@@ -205,7 +205,7 @@ def scene_and_settings(args):
 
 def cmd_render(args) -> int:
     from ..rendering.memory import check_memory
-    from ..api import render
+    from ..api import make_pool, render
 
     stop = StopRequest(PROG).install()
     outputs = check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
@@ -218,8 +218,9 @@ def cmd_render(args) -> int:
     if stop.requested():
         return stop.report_exit()
     log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    result = render(scene, settings, on_progress=None if args.quiet else progress_bar(),
-                    should_cancel=stop.requested, log=log, cluster=args.cluster)
+    pool = make_pool(f"dask:{args.cluster}", settings.resolved_threads(), log=log) if args.cluster else None
+    result = render(scene, settings, pool=pool, on_progress=None if args.quiet else progress_bar(),
+                    should_cancel=stop.requested, log=log)
     if args.denoise and not result.cancelled:
         from ..film.denoise import denoise_result
         denoise_result(result)

@@ -1,8 +1,8 @@
 """The error estimate of a rendered image, from two independent half buffers (as Cycles).
 
-Every pass of the stopping rules (engine/rendering/stopping.py) renders each pixel's sample range in two
-halves, A and B, kept apart in the film (SessionFilm.sum_a / count_a).  With n_a and n_b samples
-and half means m_a and m_b, the pixel mean m = (n_a m_a + n_b m_b) / n has variance sigma^2 / n
+Every round of the stopping rules (engine/rendering/stopping.py) renders each pixel's sample range in two
+halves, A and B, kept apart in the film (engine/rendering/frame.py FrameFilm.sum_a / count_a).  With
+n_a and n_b samples and half means m_a and m_b, the pixel mean m = (n_a m_a + n_b m_b) / n has variance sigma^2 / n
 and m_a - m_b has variance sigma^2 (1/n_a + 1/n_b), so
 
     Var[m] ~ (m_a - m_b)^2 n_a n_b / n^2          (= (m_a - m_b)^2 / 4 for equal halves)

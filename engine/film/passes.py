@@ -108,7 +108,7 @@ class TileFeatures:
 
 
 class FrameFeatures:
-    """The frame's feature sums, merged tile by tile (by SessionFilm, in chunk order)."""
+    """The frame's feature sums, merged tile by tile (by FrameFilm, in chunk order)."""
 
     def __init__(self, width: int, height: int):
         self.albedo = np.zeros((height, width, 3))
@@ -126,7 +126,7 @@ class FrameFeatures:
 
 
 def pass_images(film, passes) -> dict:
-    """{pass name: (H, W, channels) float32} from a SessionFilm (count, variance_of_mean, features)."""
+    """{pass name: (H, W, channels) float32} from a FrameFilm (count, variance_of_mean, features)."""
     out = {}
     count = film.count
     n = np.maximum(count, 1)[..., None]

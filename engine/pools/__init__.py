@@ -1,1 +1,1 @@
-"""Who renders the work units: threads and forked processes, worker processes of another Python, a Dask cluster, viewport workers."""
+"""Who renders the work units: the Pool protocol (protocol.py) and make_pool (spec.py) over threads and forked processes (local.py), worker processes of another Python (processes.py), a Dask cluster (dask_cluster.py); the viewport workers (viewport.py); one worker transport (transport.py)."""

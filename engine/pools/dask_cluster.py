@@ -1,14 +1,15 @@
-"""Render work units on a Dask cluster: `render(..., cluster="tcp://host:8786")`.
+"""Render work units on a Dask cluster: `render(..., pool=make_pool("dask:tcp://host:8786"))`.
 
-DaskWorkers is a worker pool with the interface of engine/pools/local.py (start, next_result, cancel,
-close, describe) whose units run as Dask tasks on plain `dask scheduler` / `dask worker` processes:
+DaskPool is a pool of engine/pools/protocol.py whose units run as Dask tasks on plain
+`dask scheduler` / `dask worker` processes:
 
 * The scene travels once, pickled, inside one task ("tncg15-scene-<id>") that every unit depends on.
   It is a task, not scattered data, so when the worker holding it dies the scheduler recomputes it
   elsewhere (scattered data would be lost with its last holder: the Active Memory Manager keeps one
-  copy only).  Each worker process prepares the RenderSession (validation, BVH, lights) once per
-  render and keeps it in a small per-process cache.
-* A unit task carries only the scene task, the unit number and the client's engine version.  A
+  copy only).  Each worker process prepares the scene (engine/rendering/session.py PreparedScene:
+  validation, BVH, lights) once per render and keeps it in a small per-process cache; prepare()
+  has one worker do so first and return its facts (accelerator, effect plan, warnings).
+* A unit task carries only the scene task, the unit (as plain values) and the client's engine version.  A
   worker of another engine version refuses the unit with a message; workers are also asked their
   version when the render starts and those that differ get no units.
 * The task function travels by value through a small trampoline that imports the engine on the
@@ -19,7 +20,7 @@ close, describe) whose units run as Dask tasks on plain `dask scheduler` / `dask
   one the local pool renders.
 * cancel(): the futures are cancelled and a running unit sees its task cancelled on the worker
   (checked once per bounce) and stops; close() waits until no unit of this render runs anywhere.
-* `cluster="local"` starts a LocalCluster on this machine for trying it out (a few seconds to
+* "dask:local" starts a LocalCluster on this machine for trying it out (a few seconds to
   start; the project's own process pool stays the default).
 """
 from __future__ import annotations
@@ -36,6 +37,7 @@ import uuid
 from ..core.errors import SceneError
 from ..core.paths import TRACER_DIR
 from ..core.version import ENGINE_VERSION
+from .protocol import Pool
 
 CONNECT_SECONDS = 5        # scheduler unreachable: one line within this (the issue asks for 10 s)
 WORKERS_SECONDS = 10       # a scheduler without workers
@@ -63,35 +65,35 @@ def call(target: str, *args):
 call.__module__ = "__main__"
 call.__qualname__ = call.__name__ = "tncg15_call"
 
-_SESSIONS: collections.OrderedDict = collections.OrderedDict()   # payload key -> RenderSession
-_SESSIONS_KEPT = 2
-_SESSIONS_LOCK = threading.Lock()
+_PREPARED: collections.OrderedDict = collections.OrderedDict()   # payload key -> PreparedScene
+_PREPARED_KEPT = 2
+_PREPARED_LOCK = threading.Lock()
 
 
 def hold_payload(blob: bytes) -> bytes:
-    """The scene task: its result is the pickled (scene, settings, progressive order)."""
+    """The scene task: its result is the pickled (scene, settings)."""
     return blob
 
 
-def worker_session(key: str, blob: bytes):
-    """This process's RenderSession for payload `key`, prepared on first use."""
-    with _SESSIONS_LOCK:
-        session = _SESSIONS.get(key)
-        if session is None:
+def worker_scene(key: str, blob: bytes):
+    """This process's PreparedScene for payload `key`, prepared on first use."""
+    with _PREPARED_LOCK:
+        prepared = _PREPARED.get(key)
+        if prepared is None:
             from ..core.allocator import tune_malloc
-            from ..rendering.session import RenderSession
+            from ..rendering.session import PreparedScene
             tune_malloc()
-            scene, settings, progressive = pickle.loads(blob)
-            session = RenderSession(scene, settings, log=lambda *a: None, progressive=progressive)
-            _SESSIONS[key] = session
-            while len(_SESSIONS) > _SESSIONS_KEPT:
-                _SESSIONS.popitem(last=False)
-        return session
+            scene, settings = pickle.loads(blob)
+            prepared = PreparedScene(scene, settings, log=lambda *a: None)
+            _PREPARED[key] = prepared
+            while len(_PREPARED) > _PREPARED_KEPT:
+                _PREPARED.popitem(last=False)
+        return prepared
 
 
-def forget_session(key: str) -> bool:
-    with _SESSIONS_LOCK:
-        return _SESSIONS.pop(key, None) is not None
+def forget_scene(key: str) -> bool:
+    with _PREPARED_LOCK:
+        return _PREPARED.pop(key, None) is not None
 
 
 class TaskCancelled:
@@ -121,12 +123,34 @@ def worker_address() -> str:
         return "a worker"
 
 
-def render_unit_task(blob: bytes, key: str, unit_index: int, client_version: str):
+def check_version(client_version: str) -> None:
     if client_version != ENGINE_VERSION:
         raise RuntimeError(f"worker {worker_address()} runs engine {ENGINE_VERSION}, this is "
                            f"{client_version}: refused")
-    session = worker_session(key, blob)
-    return session.render_unit(session.units[unit_index], TaskCancelled())
+
+
+def prepare_task(blob: bytes, key: str, client_version: str):
+    """The TracerFacts of the scene, prepared on this worker (and kept for its units)."""
+    check_version(client_version)
+    return worker_scene(key, blob).facts()
+
+
+def plain_unit(unit) -> tuple:
+    """A work unit as plain Python values: the scheduler unpickles every task and has no copy of
+    the engine, so a unit travels as (index, tile fields, chunk, start, stop, mask, halves)."""
+    t = unit.tile
+    return (unit.index, (t.index, t.x0, t.y0, t.x1, t.y1), unit.chunk, unit.start, unit.stop, unit.mask, unit.halves)
+
+
+def unit_from_plain(fields):
+    from ..rendering.units import Tile, WorkUnit
+    index, tile, chunk, start, stop, mask, halves = fields
+    return WorkUnit(index, Tile(*tile), chunk, start, stop, mask, halves)
+
+
+def render_unit_task(blob: bytes, key: str, unit: tuple, client_version: str):
+    check_version(client_version)
+    return worker_scene(key, blob).render_unit(unit_from_plain(unit), TaskCancelled())
 
 
 def engine_version() -> str:
@@ -193,12 +217,13 @@ def connect(address: str, timeout: float = CONNECT_SECONDS):
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
 
 
-class DaskWorkers:
-    """The worker-pool interface of engine/pools/local.py over a Dask cluster."""
-    passes = False              # start() takes a frame's units once: no stopping rules (engine/rendering/stopping.py)
+class DaskPool(Pool):
+    """The pool of engine/pools/protocol.py over a Dask cluster: its scheduler's `address`, or
+    "local" for a LocalCluster of `workers` one-thread processes started here."""
+    takes_rounds = False        # start() takes a frame's units once: no stopping rules (engine/rendering/stopping.py)
 
-    def __init__(self, session, address: str, log=None):
-        self.session, self.address = session, address
+    def __init__(self, address: str, workers: int = 1, log=None):
+        self.address = address
         self.log = log or (lambda *a: None)
         self.local_cluster = None
         self.futures, self.unit_of = [], {}
@@ -215,7 +240,7 @@ class DaskWorkers:
         self.unit_prefix = f"{KEY_PREFIX}-unit-{self.render_id}"
         if address == "local":
             _quiet_distributed_logs()
-            self.local_cluster = start_local_cluster(session.settings.resolved_threads())
+            self.local_cluster = start_local_cluster(max(1, workers))
             from distributed import Client
             self.client = Client(self.local_cluster, set_as_default=False)
         else:
@@ -253,17 +278,32 @@ class DaskWorkers:
             self.log(f"warning: {message}")
         return None if not refused else good
 
-    # -- pool interface -----------------------------------------------------------------------------
-    def start(self, units):
-        s = self.session
-        blob = pickle.dumps((s.scene, s.settings, s.progressive), protocol=pickle.HIGHEST_PROTOCOL)
+    # -- the pool protocol ---------------------------------------------------------------------
+    def prepare(self, scene, settings):
+        """The scene task, and one worker's facts of the prepared scene."""
+        blob = pickle.dumps((scene, settings), protocol=pickle.HIGHEST_PROTOCOL)
         payload_key = f"{KEY_PREFIX}-scene-{self.render_id}"
         self.payload = self.client.submit(call, f"{__name__}:hold_payload", blob, key=payload_key, pure=False,
                                           **self.restrict)
+        facts = self.client.submit(call, f"{__name__}:prepare_task", self.payload, payload_key, ENGINE_VERSION,
+                                   key=f"{KEY_PREFIX}-facts-{self.render_id}", pure=False, **self.restrict)
+        try:
+            facts = facts.result()
+        except SceneError:
+            raise
+        except Exception as exc:
+            text = " ".join(str(exc).split()) or type(exc).__name__
+            raise ClusterError(text if "runs engine" in text else
+                               f"the Dask cluster {self.address} could not prepare the scene: {text}") from None
+        for w in facts.warnings:
+            self.log(f"warning: {w}")
+        return facts
+
+    def start(self, units):
         for unit in units:
             key = f"{self.unit_prefix}-{unit.index}"
-            future = self.client.submit(call, f"{__name__}:render_unit_task", self.payload, payload_key,
-                                        unit.index, ENGINE_VERSION, key=key, pure=False,
+            future = self.client.submit(call, f"{__name__}:render_unit_task", self.payload, self.payload.key,
+                                        plain_unit(unit), ENGINE_VERSION, key=key, pure=False,
                                         retries=UNIT_RETRIES, **self.restrict)
             self.futures.append(future)
             self.unit_of[key] = unit
@@ -333,7 +373,7 @@ class DaskWorkers:
                 while self.running() and time.monotonic() < deadline:
                     time.sleep(0.05)
             if self.payload is not None:
-                self.client.run(call, f"{__name__}:forget_session", self.payload.key, on_error="ignore")
+                self.client.run(call, f"{__name__}:forget_scene", self.payload.key, on_error="ignore")
         except Exception:
             pass                                   # the cluster went away: nothing left to stop
         finally:
@@ -437,19 +477,3 @@ class ProcessCluster:
                 pass
         for proc in self.procs:
             self.stop(proc)
-
-
-def render_on_cluster(scene, settings, address: str, on_tile=None, should_cancel=None, on_progress=None,
-                      log=print, progressive: str = "tiles"):
-    """Render on a Dask cluster from a process that does not trace (the Blender add-on): the scene
-    is validated, planned and cut into units here, without geometry; the workers build it."""
-    from ..integrators.effects import plan_effects
-    from .processes import RemoteSession
-    settings.validate()
-    warnings = scene.validate()
-    facts = dict(warnings=warnings, accelerator="embree", accelerator_reason=f"on the Dask cluster {address}",
-                 plan=plan_effects(scene, settings, "embree"), build_seconds=0.0, setup_seconds=0.0)
-    session = RemoteSession(scene, settings, facts, progressive)
-    workers = DaskWorkers(session, address, log=log)
-    log(f"{settings.samples} spp, {len(session.units)} work units on {workers.describe}")
-    return session.run(workers, on_tile=on_tile, should_cancel=should_cancel, on_progress=on_progress)

@@ -1,208 +1,103 @@
 """Render worker processes that any Python can host: the tracer outside Blender's interpreter.
 
-A worker is ``python -m <tracer package> worker <parent pid>`` (engine/cli/main.py) with the tracer's
-parent directory (and any bundled wheels) on PYTHONPATH.  It speaks length-prefixed pickle frames
-on stdin / stdout (the tracer's own prints go to stderr):
+A worker is ``python -m <tracer package> worker <parent pid>`` (engine/cli/main.py) spoken to over
+the transport of engine/pools/transport.py (framed pickles, the hello with the engine version,
+the stderr tail, close and kill, death with the parent).  After the hello:
 
-    parent -> worker   ("hello", parent_base)                 plain strings: how to read what follows
-                       ("session", scene, settings, progressive)   once: the worker builds a RenderSession
-                       ("unit", WorkUnit)                      any number
-    worker -> parent   ("ready", facts)                        accelerator, effect plan, build time
-                       ("result", unit, UnitResult | None)     None: cancelled, dropped whole
+    parent -> worker   ("prepare", scene, settings)          once: the worker builds a PreparedScene
+                       ("unit", WorkUnit)                     any number
+    worker -> parent   ("ready", TracerFacts)                 accelerator, effect plan, build time
+                       ("result", unit, UnitResult | None)    None: cancelled, dropped whole
                        ("error", unit, traceback text)
 
 SIGUSR1 cancels: the event passed to render_unit is set, so a busy worker stops within a bounce and
-answers every unit left with None.  EOF on stdin ends the worker; it also dies with its parent
-(prctl PDEATHSIG, engine/pools/local.py).  Classes travel by module name: the parent imports the tracer
-as, say, ``tncg15_mc.tracer`` and the worker as ``tracer``, so each side maps the other's package
-name onto its own when it unpickles.
+answers every unit left with None.  EOF on stdin ends the worker.
 
-`SubprocessWorkers` is the pool (the engine/pools/local.py interface): it starts the workers before the
-scene exists (their imports overlap the export), sends the scene once to each, keeps two units in
-flight per worker, re-queues the units of a worker that dies (once per unit) and reports it by name.
-`RemoteSession` is a RenderSession without geometry: tiles, units and the film here, the facts of
-the preparation (accelerator, effect plan) from the workers.
+`SubprocessPool` is the pool (engine/pools/protocol.py): it starts the workers when it is made,
+before the scene exists (their imports overlap the export), sends the scene once to each in
+prepare(), keeps two units in flight per worker, re-queues the units of a worker that dies (once
+per unit) and reports it by name.
 """
 from __future__ import annotations
 
 import collections
-import io
 import os
-import pickle
 import queue
 import signal
-import struct
-import subprocess
 import sys
 import threading
 import time
 import traceback
-from types import SimpleNamespace
 
-from ..rendering.session import RenderSession
-from ..core.settings import RenderSettings
-from ..core.paths import TRACER_BASE, TRACER_DIR, worker_environment
+from ..core.paths import TRACER_DIR, worker_environment
+from .protocol import Pool
+from .transport import REFUSED, WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr
 
-HEADER = struct.Struct("<Q")
 IN_FLIGHT = 2                             # units queued per worker, so none waits for the next (_feed)
 START_TIMEOUT = 120.0                     # seconds for imports + scene + BVH before a worker is given up
+CLOSE_SECONDS = 2.0                       # EOF, then SIGKILL
 
 
 class WorkerError(RuntimeError):
     """A worker could not start or died; the message names it and says why."""
 
 
-# -- frames ---------------------------------------------------------------------------------------
-class _Remap(pickle.Unpickler):
-    def __init__(self, data: bytes, foreign: str, own: str):
-        super().__init__(io.BytesIO(data))
-        self.foreign, self.own = foreign, own
-
-    def find_class(self, module, name):
-        if self.foreign != self.own and (module == self.foreign or module.startswith(self.foreign + ".")):
-            module = self.own + module[len(self.foreign):]
-        return super().find_class(module, name)
-
-
-def encode(obj) -> bytes:
-    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
-    return HEADER.pack(len(data)) + data
-
-
-def read_frame(stream) -> bytes | None:
-    """One frame's bytes, or None at end of stream."""
-    head = stream.read(HEADER.size)
-    if len(head) < HEADER.size:
-        return None
-    size = HEADER.unpack(head)[0]
-    data = stream.read(size)
-    if len(data) < size:
-        return None
-    return data
-
-
-def decode(data: bytes, foreign: str, own: str = TRACER_BASE):
-    return _Remap(data, foreign, own).load()
-
-
 # -- the worker -----------------------------------------------------------------------------------
 def worker_main(parent_pid: int) -> int:
-    """`python -m engine worker PARENT_PID`: serve one render session on stdin / stdout."""
+    """`python -m engine worker PARENT_PID`: prepare one scene, render the units sent."""
+    from ..core.allocator import tune_malloc
+    from ..rendering.session import PreparedScene
     cancel = threading.Event()
     signal.signal(signal.SIGUSR1, lambda *_: cancel.set())
-    from .local import die_with_parent
-    die_with_parent(parent_pid)
-    out = os.fdopen(os.dup(1), "wb")          # the protocol; prints of the tracer go to stderr
-    os.dup2(2, 1)
-    sys.stdout = sys.stderr
-    inp = sys.stdin.buffer
-
-    def send(obj):
-        out.write(encode(obj))
-        out.flush()
-
-    hello = read_frame(inp)
-    if hello is None:
+    end = WorkerEnd(parent_pid)
+    if not end.handshake():
+        return REFUSED if end.foreign is not None else 0
+    message = end.receive()
+    if message is None:
         return 0
-    _, foreign = pickle.loads(hello)
-    data = read_frame(inp)
-    if data is None:
-        return 0
-    _, scene, settings, progressive = decode(data, foreign)
-    from ..core.allocator import tune_malloc
+    _, scene, settings = message
     tune_malloc()
-    session = RenderSession(scene, settings, log=lambda msg: print(msg, file=sys.stderr), progressive=progressive)
-    send(("ready", {"pid": os.getpid(), "accelerator": session.accelerator,
-                    "accelerator_reason": session.accelerator_reason, "plan": session.plan,
-                    "build_seconds": session.geometry.build_seconds, "setup_seconds": session.setup_seconds,
-                    "warnings": list(session.warnings), "python": sys.version.split()[0]}))
+    prepared = PreparedScene(scene, settings, log=log_to_stderr)
+    end.send(("ready", prepared.facts()))
     while True:
-        data = read_frame(inp)
-        if data is None:
+        message = end.receive()
+        if message is None:
             return 0
-        _, unit = decode(data, foreign)
+        _, unit = message
         try:
-            send(("result", unit, session.render_unit(unit, cancel)))
+            end.send(("result", unit, prepared.render_unit(unit, cancel)))
         except Exception:                       # noqa: BLE001 - the parent reports it with the unit
-            send(("error", unit, traceback.format_exc()))
+            end.send(("error", unit, traceback.format_exc()))
 
 
 # -- the parent side ------------------------------------------------------------------------------
+class _Worker(WorkerProcess):
+    """A render worker and the units it holds."""
 
-
-def describe_exit(code) -> str:
-    if code is None:
-        return "stopped answering"
-    if code < 0:
-        try:
-            return f"killed by {signal.Signals(-code).name}"
-        except ValueError:
-            return f"killed by signal {-code}"
-    return f"exited with code {code}"
-
-
-class _Worker:
     def __init__(self, number: int, python: str, env: dict, events: queue.Queue):
-        self.number, self.events = number, events
-        self.proc = subprocess.Popen([python, "-m", os.path.basename(TRACER_DIR), "worker", str(os.getpid())],
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     env=env, close_fds=True)
-        self.name = f"render worker {number} (pid {self.proc.pid})"
+        self.number = number
         self.in_flight: list = []
         self.alive, self.ready = True, False
-        self.stderr_tail = collections.deque(maxlen=30)
-        self.lock = threading.Lock()
-        threading.Thread(target=self._read_stdout, daemon=True, name=self.name).start()
-        threading.Thread(target=self._read_stderr, daemon=True, name=self.name + " stderr").start()
-
-    def send(self, data: bytes) -> bool:
-        try:
-            with self.lock:
-                self.proc.stdin.write(data)
-                self.proc.stdin.flush()
-            return True
-        except (BrokenPipeError, OSError, ValueError):
-            return False
-
-    def _read_stdout(self):
-        stream = self.proc.stdout
-        try:
-            while True:
-                data = read_frame(stream)
-                if data is None:
-                    break
-                self.events.put((self, decode(data, os.path.basename(TRACER_DIR))))
-        except Exception:                       # noqa: BLE001 - a frame we cannot read: the worker is lost
-            self.stderr_tail.append(traceback.format_exc())
-        try:
-            code = self.proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            code = None
-        self.events.put((self, ("died", code)))
-
-    def _read_stderr(self):
-        for raw in iter(self.proc.stderr.readline, b""):
-            line = raw.decode("utf-8", "replace").rstrip()
-            self.stderr_tail.append(line)
-            if line.startswith("warning:"):
-                continue                        # the parent reports the session's warnings once
-            print(f"[{self.name}] {line}", file=sys.stderr)
-
-    def why(self, code) -> str:
-        tail = [line for line in self.stderr_tail if line.strip()]
-        last = tail[-1] if tail else ""
-        return describe_exit(code) + (f": {last}" if last else "")
+        super().__init__(python, [os.path.basename(TRACER_DIR), "worker"], env, f"render worker {number}",
+                         on_message=lambda w, m: events.put((w, m)),
+                         on_exit=lambda w, code: events.put((w, ("died", code))))
 
 
-class SubprocessWorkers:
-    """The pool of engine/pools/local.py over worker processes: start them (`SubprocessWorkers(python,
-    count)`), `prepare(scene, settings, progressive)` once, then RenderSession.run drives it."""
+class SubprocessPool(Pool):
+    """Worker processes of `python` (`count` of them, started here)."""
 
     def __init__(self, python: str, count: int, extra_paths=(), log=print):
         self.python, self.log = python, log
         self.events: queue.Queue = queue.Queue()
         env = worker_environment(extra_paths)
-        self.workers = [_Worker(i + 1, python, env, self.events) for i in range(max(1, count))]
+        self.workers = []
+        try:
+            for i in range(max(1, count)):
+                self.workers.append(_Worker(i + 1, python, env, self.events))
+        except OSError as exc:                  # no such interpreter, not executable
+            close_all(self.workers, CLOSE_SECONDS)
+            raise WorkerError(f"TNCG15 MC: cannot start render workers with {python}: "
+                              f"{exc.strerror or exc}") from None
         self.describe = f"{len(self.workers)} worker process(es) ({python})"
         self.pending: collections.deque = collections.deque()
         self.retried: set = set()
@@ -211,16 +106,15 @@ class SubprocessWorkers:
         self.facts = None
         self.ready_seconds = None
         self._started = time.perf_counter()
-        self._session = None
         self._early: list = []                  # events seen while waiting for "ready"
+        self._closing = False
 
     # -- preparation ----------------------------------------------------------------------------
-    def prepare(self, scene, settings: RenderSettings, progressive: str = "tiles", timeout: float = START_TIMEOUT):
+    def prepare(self, scene, settings, timeout: float = START_TIMEOUT):
         """Send the scene to every worker; wait for the first to be ready and return its facts."""
-        payload = encode(("hello", TRACER_BASE)) + encode(("session", scene, settings, progressive))
+        payload = encode(("prepare", scene, settings))
         for w in self.workers:
-            if not w.send(payload):
-                w.alive = False
+            w.send(payload)
         deadline = time.perf_counter() + timeout
         while self.facts is None:
             try:
@@ -240,9 +134,11 @@ class SubprocessWorkers:
                     raise WorkerError(start_failure(self.python, worker))
             else:
                 self._early.append((worker, event))
+        for w in self.facts.warnings:
+            self.log(f"warning: {w}")
         return self.facts
 
-    # -- the pool interface ---------------------------------------------------------------------
+    # -- the pool protocol ----------------------------------------------------------------------
     def start(self, units):
         self.pending.extend(units)
         for w in self.workers:                  # every worker its first unit before any takes a second
@@ -253,16 +149,15 @@ class SubprocessWorkers:
     def _feed(self, worker, limit: int = IN_FLIGHT):
         """Send `worker` units until it has `limit` in flight.  A second unit is queued only while
         more units than live workers are pending: a queued unit waits for its worker even when
-        another is idle, and a pass of few units (adaptive passes: one per tile still active) then
+        another is idle, and a round of few units (adaptive rounds: one per tile still active) then
         ended when the worker holding two big ones did.  Measured on caustic.blend at 96x96 (4
-        tiles, 2 workers): a pass lasted 1.36x the longest worker's share under greedy dispatch."""
+        tiles, 2 workers): a round lasted 1.36x the longest worker's share under greedy dispatch."""
         alive = sum(w.alive for w in self.workers)
         while (worker.alive and not self.cancelled and self.pending and len(worker.in_flight) < limit
                and (not worker.in_flight or len(self.pending) > alive)):
             unit = self.pending.popleft()
             worker.in_flight.append(unit)
-            if not worker.send(encode(("unit", unit))):
-                break                            # it died: the "died" event re-queues its units
+            worker.send(("unit", unit))         # if it died, its "died" event re-queues the unit
 
     def next_result(self, timeout: float):
         if self.cancelled and self.pending:
@@ -311,33 +206,25 @@ class SubprocessWorkers:
             self._feed(w)
         return None
 
-    _closing = False
-
     def cancel(self):
         if self.cancelled:
             return
         self.cancelled = True
         for w in self.workers:
             if w.alive:
-                try:
-                    w.proc.send_signal(signal.SIGUSR1)
-                except OSError:
-                    pass
+                w.signal(signal.SIGUSR1)
 
     def close(self):
         self._closing = True
-        for w in self.workers:
-            try:
-                w.proc.stdin.close()
-            except OSError:
-                pass
-        deadline = time.perf_counter() + 2.0
-        for w in self.workers:
-            try:
-                w.proc.wait(timeout=max(0.0, deadline - time.perf_counter()))
-            except subprocess.TimeoutExpired:
-                w.proc.kill()
-                w.proc.wait()
+        close_all(self.workers, CLOSE_SECONDS)
+
+    def stats(self) -> dict:
+        return {"workers_ready_seconds": self.ready_seconds, "worker_python": self.python,
+                "worker_python_version": self.facts.python if self.facts is not None else None,
+                "worker_reports": list(self.reports)}
+
+    def warnings(self) -> list:
+        return list(self.reports)
 
 
 def start_failure(python: str, worker) -> str:
@@ -351,46 +238,5 @@ def start_failure(python: str, worker) -> str:
     return f"TNCG15 MC: {worker.name} could not start: {worker.why(worker.proc.poll())}"
 
 
-class RemoteSession(RenderSession):
-    """A RenderSession whose units render elsewhere: the scene is validated and cut into units here
-    (identically to the workers' sessions); accelerator and effect plan come from a worker."""
-
-    def __init__(self, scene, settings: RenderSettings, facts: dict, progressive: str = "tiles"):
-        settings.validate()
-        self.scene, self.settings = scene, settings
-        self.warnings = list(facts["warnings"])
-        self.accelerator, self.accelerator_reason = facts["accelerator"], facts["accelerator_reason"]
-        self.plan = facts["plan"]
-        self.geometry = SimpleNamespace(build_seconds=facts["build_seconds"])
-        self.setup_seconds = facts["setup_seconds"]
-        self.cut_frame(progressive)
-
-    def render_unit(self, unit, cancel=None):
-        raise RuntimeError("a RemoteSession renders its units in worker processes")
-
-
-def render_in_workers(scene, settings: RenderSettings, python: str | None = None, workers=None,
-                      on_tile=None, should_cancel=None, on_progress=None, log=print, progressive: str = "tiles"):
-    """Render `scene` on worker processes (started here unless `workers`, a SubprocessWorkers that
-    is not prepared yet, is given).  The RenderResult's stats add the workers and the start time."""
-    settings = settings or RenderSettings()
-    if workers is None:
-        workers = SubprocessWorkers(python or sys.executable, settings.resolved_threads(), log=log)
-    try:
-        facts = workers.prepare(scene, settings, progressive)
-    except BaseException:
-        workers.close()
-        raise
-    session = RemoteSession(scene, settings, facts, progressive)
-    for w in session.warnings:
-        log(f"warning: {w}")
-    width, height = scene.resolution
-    log(f"{session.settings.samples} spp, {width}x{height}, {len(session.units)} work units on {workers.describe}, "
-        f"accelerator {session.accelerator} ({session.accelerator_reason})")
-    result = session.run(workers, on_tile=on_tile, should_cancel=should_cancel, on_progress=on_progress)
-    result.stats["workers_ready_seconds"] = workers.ready_seconds
-    result.stats["worker_python"] = workers.python
-    result.stats["worker_python_version"] = facts.get("python")
-    result.stats["worker_reports"] = list(workers.reports)
-    result.warnings = list(result.warnings) + list(workers.reports)
-    return result
+if __name__ == "__main__":
+    sys.exit(worker_main(int(sys.argv[1])))

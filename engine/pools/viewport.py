@@ -1,11 +1,11 @@
 """Progressive viewport rendering in worker processes: interruptible passes over the whole frame.
 
 A viewport worker is ``python -m <tracer package>.pools.viewport PARENT_PID`` (started by
-`ViewportWorkers`, never by Blender's UI thread blocking on it).  It keeps one RenderSession (BVH,
-lights, effect plan) and renders passes of the current view until a message changes it:
+`ViewportWorkers`, never by Blender's UI thread blocking on it), spoken to over the transport of
+engine/pools/transport.py.  It keeps one PreparedScene (engine/rendering/session.py: BVH, lights,
+effect plan) and renders passes of the current view until a message changes it:
 
-    parent -> worker   ("hello", parent_base)
-                       ("scene", gen, scene, settings, target, index, count)   rebuild the session
+    parent -> worker   ("scene", gen, scene, settings, target, index, count)   prepare the scene again
                        ("view", gen, camera, resolution)                       new camera only: no rebuild
     worker -> parent   ("ready", gen, facts)
                        ("frame", gen, level, width, height, sum, sum_sq, samples)   level 0: coarse
@@ -18,15 +18,14 @@ worker `index` of `count` renders sample numbers index, index + count, ... of th
 per pass, until `target` samples exist.  With the Sobol' sampler a sample number gives the same
 random numbers whatever the worker, so the merged image is the image of a final render of that
 view with `target` samples.  The parent sums the frames of the current generation
-(`ViewportFilm`); frames of an older generation are dropped.
+(`ViewportFilm`, over the film of engine/film/accumulator.py); frames of an older generation are
+dropped.  The viewport's passes are one sample of the whole frame each (render passes, the
+stopping rules' rounds and the pools' units are other things).
 """
 from __future__ import annotations
 
 import os
-import pickle
 import queue
-import signal
-import subprocess
 import sys
 import threading
 import time
@@ -35,17 +34,18 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..core.paths import TRACER_BASE, TRACER_DIR, worker_environment
-from .processes import decode, encode, read_frame
+from ..core.paths import TRACER_DIR, worker_environment
+from ..film.accumulator import Film
+from .transport import WorkerEnd, WorkerProcess, close_all, log_to_stderr
 
 COARSE = 4                      # coarse pass: 1/COARSE of the resolution in each direction
 
 
 # -- the worker -----------------------------------------------------------------------------------
-def pass_unit(session, level: int, number: int):
+def pass_unit(prepared, number: int):
     """The work unit of one pass: the whole frame as one tile, sample `number` (one sample)."""
     from ..rendering.units import Tile, WorkUnit
-    width, height = session.scene.resolution
+    width, height = prepared.scene.resolution
     return WorkUnit(number, Tile(0, 0, 0, width, height), number, number, number + 1)
 
 
@@ -68,37 +68,26 @@ class ViewJob:
 
 
 def viewport_worker_main(parent_pid: int) -> int:
-    from ..rendering.session import RenderSession
-    from .local import die_with_parent
-    die_with_parent(parent_pid)
-    out = os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)
-    sys.stdout = sys.stderr
-    inp = sys.stdin.buffer
-    hello = read_frame(inp)
-    if hello is None:
+    from ..rendering.session import PreparedScene
+    end = WorkerEnd(parent_pid)
+    if not end.handshake():
         return 0
-    _, foreign = pickle.loads(hello)
     inbox: queue.Queue = queue.Queue()
     interrupt = threading.Event()
 
     def read():
         while True:
-            data = read_frame(inp)
-            inbox.put(("quit",) if data is None else decode(data, foreign))
+            message = end.receive()
+            inbox.put(("quit",) if message is None else message)
             interrupt.set()
-            if data is None:
+            if message is None:
                 return
 
     threading.Thread(target=read, daemon=True).start()
-
-    def send(obj):
-        out.write(encode(obj))
-        out.flush()
-
-    session, job = None, None
+    send = end.send
+    prepared, job = None, None
     while True:
-        idle = session is None or job is None or job.level == 1 and job.next_sample() is None
+        idle = prepared is None or job is None or job.level == 1 and job.next_sample() is None
         try:
             message = inbox.get(block=idle)
         except queue.Empty:
@@ -114,20 +103,17 @@ def viewport_worker_main(parent_pid: int) -> int:
                 try:
                     if m[0] == "scene":
                         _, gen, scene, settings, target, index, count = m
-                        session = None
-                        session = RenderSession(scene, settings, log=lambda msg: print(msg, file=sys.stderr))
-                        session.full_resolution = tuple(scene.resolution)
+                        prepared = None
+                        prepared = PreparedScene(scene, settings, log=log_to_stderr)
                         job = ViewJob(gen, scene.resolution, target, index, count)
-                        send(("ready", gen, {"accelerator": session.accelerator, "warnings": list(session.warnings),
-                                             "build_seconds": session.geometry.build_seconds}))
-                    elif m[0] == "view" and session is not None:
+                        send(("ready", gen, prepared.facts()))
+                    elif m[0] == "view" and prepared is not None:
                         _, gen, camera, resolution = m
                         camera.validate()
-                        session.scene.camera = camera
-                        session.full_resolution = tuple(resolution)
+                        prepared.scene.camera = camera
                         job = ViewJob(gen, resolution, job.target, job.index, job.count)
                 except Exception as exc:        # noqa: BLE001 - shown in the viewport's header
-                    session, job = None, None
+                    prepared, job = None, None
                     send(("error", m[1], str(exc) if type(exc).__name__ == "SceneError"
                           else f"{type(exc).__name__}: {exc}"))
                     print(traceback.format_exc(), file=sys.stderr)
@@ -136,9 +122,9 @@ def viewport_worker_main(parent_pid: int) -> int:
             resolution, number = coarse_resolution(job.resolution), job.index
         else:
             resolution, number = job.resolution, job.next_sample()
-        session.scene.resolution = tuple(resolution)
+        prepared.scene.resolution = tuple(resolution)
         try:
-            result = session.render_unit(pass_unit(session, job.level, number), interrupt)
+            result = prepared.render_unit(pass_unit(prepared, number), interrupt)
         except Exception as exc:                # noqa: BLE001
             send(("error", job.gen, f"{type(exc).__name__}: {exc}"))
             print(traceback.format_exc(), file=sys.stderr)
@@ -147,8 +133,7 @@ def viewport_worker_main(parent_pid: int) -> int:
         if result is None:                      # interrupted by a message
             continue
         w, h = resolution
-        send(("frame", job.gen, job.level, w, h, result.sum.astype(np.float32), result.sum_sq.astype(np.float32),
-              1))
+        send(("frame", job.gen, job.level, w, h, result.sum.astype(np.float32), result.sum_sq.astype(np.float32), 1))
         if job.level == 0:
             job.level = 1
         else:
@@ -160,108 +145,78 @@ class ViewportFilm:
     """The sums of the current generation: a coarse image until the first full-resolution pass."""
 
     def __init__(self):
-        self.gen, self.level, self.size = -1, -1, None
-        self.sum = self.sum_sq = None
+        self.gen, self.level, self.film = -1, -1, None
         self.samples = 0
         self.version = 0
 
     def reset(self, gen):
-        self.gen, self.level, self.size, self.sum, self.sum_sq, self.samples = gen, -1, None, None, None, 0
+        self.gen, self.level, self.film, self.samples = gen, -1, None, 0
+
+    @property
+    def size(self):
+        return None if self.film is None else (self.film.width, self.film.height)
 
     def add(self, gen, level, width, height, s, s2, samples) -> bool:
         """Merge a worker's frame; False when it belongs to an older view or a finer level exists."""
         if gen != self.gen or level < self.level:
             return False
         if level > self.level or (width, height) != self.size:
-            self.level, self.size, self.samples = level, (width, height), 0
-            self.sum = np.zeros((height * width, 3))
-            self.sum_sq = np.zeros((height * width, 3))
-        self.sum += s
-        self.sum_sq += s2
+            self.level, self.film, self.samples = level, Film(width, height), 0
+        self.film.add_sums(0, 0, s.reshape(height, width, 3), s2.reshape(height, width, 3), samples)
         self.samples += samples
         self.version += 1
         return True
 
     def image(self):
         """(height, width, 4) float32 linear RGBA, row 0 = BOTTOM (Blender's order), or None."""
-        if self.sum is None:
+        if self.film is None:
             return None
-        w, h = self.size
-        rgba = np.ones((h, w, 4), np.float32)
-        rgba[..., :3] = (self.sum / self.samples).reshape(h, w, 3)[::-1]
+        rgba = np.ones((self.film.height, self.film.width, 4), np.float32)
+        rgba[..., :3] = self.film.mean()[::-1]
         rgba[~np.isfinite(rgba)] = 0.0
         return rgba
 
     def relative_error(self):
-        """Per-pixel noise: the RMS standard error of the pixel means (sample variance / n) relative
-        to the mean, over the pixels that received light (a black background would otherwise inflate
-        it by 1/sqrt(lit fraction)); None below two full-resolution samples."""
-        if self.sum is None or self.level < 1 or self.samples < 2:
+        """Per-pixel noise: the RMS standard error of the pixel means (the film's variance of the
+        mean) relative to the mean, over the pixels that received light (a black background would
+        otherwise inflate it by 1/sqrt(lit fraction)); None below two full-resolution samples."""
+        if self.film is None or self.level < 1 or self.samples < 2:
             return None
-        n = self.samples
-        mean = self.sum / n
-        var_of_mean = np.maximum(self.sum_sq / n - mean * mean, 0.0) / (n - 1)
+        mean = self.film.mean()
         lit = mean.sum(axis=-1) > 0
         m = float(mean[lit].mean()) if lit.any() else 0.0
         if not m > 0:
             return None
-        return float(np.sqrt(var_of_mean[lit].mean())) / m
+        return float(np.sqrt(self.film.variance_of_mean()[lit].mean())) / m
 
 
 class ViewportWorkers:
     """Viewport worker processes of `python`: `set_scene` / `set_view` restart accumulation;
     frames are merged on reader threads and `on_frame()` is called after each (any thread)."""
 
+    CLOSE_SECONDS = 1.0          # EOF, then SIGKILL
+
     def __init__(self, python: str, count: int = 1, extra_paths=(), on_frame=None):
         env = worker_environment(extra_paths)
-        module = os.path.basename(TRACER_DIR) + ".pools.viewport"
-        self.procs = [subprocess.Popen([python, "-m", module, str(os.getpid())], stdin=subprocess.PIPE,
-                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, close_fds=True)
-                      for _ in range(max(1, count))]
+        module = [os.path.basename(TRACER_DIR) + ".pools.viewport"]
         self.lock = threading.Lock()
         self.film = ViewportFilm()
         self.gen = 0
         self.target = 1
         self.error = None
         self.facts = None
-        self.builds = 0                          # sessions the workers built (a new view builds none)
+        self.builds = 0                          # scenes the workers prepared (a new view prepares none)
         self.on_frame = on_frame
         self.started = time.perf_counter()
         self.gen_started = self.started
         self.first_frame_seconds = None          # of the current generation, coarse or not
-        self.stderr_tail: list = []
         self.closed = False
-        self.outboxes = {p.pid: queue.Queue() for p in self.procs}
-        for p in self.procs:
-            threading.Thread(target=self._write, args=(p,), daemon=True).start()
-            self._send(p, ("hello", TRACER_BASE))
-            threading.Thread(target=self._read, args=(p,), daemon=True).start()
-            threading.Thread(target=self._read_stderr, args=(p,), daemon=True).start()
+        self.procs = [WorkerProcess(python, module, env, "viewport worker", self._message, self._exited,
+                                    tail_lines=20) for _ in range(max(1, count))]
 
     @property
     def pids(self):
         return [p.pid for p in self.procs]
-
-    def _send(self, proc, message):
-        """Queue a message: a writer thread pickles and writes it, so the caller (Blender's UI
-        thread) never waits for a busy worker's pipe or for pickling a big scene."""
-        self.outboxes[proc.pid].put(message)
-
-    def _write(self, proc):
-        outbox = self.outboxes[proc.pid]
-        while True:
-            message = outbox.get()
-            if message is None:
-                break
-            try:
-                proc.stdin.write(encode(message))
-                proc.stdin.flush()
-            except (BrokenPipeError, OSError, ValueError):
-                break
-        try:
-            proc.stdin.close()
-        except (OSError, ValueError):
-            pass
 
     def _next_gen(self):
         with self.lock:
@@ -273,65 +228,49 @@ class ViewportWorkers:
             return self.gen
 
     def set_scene(self, scene, settings, target: int):
-        """A new scene (geometry, materials, lights or settings changed): every worker rebuilds."""
+        """A new scene (geometry, materials, lights or settings changed): every worker prepares it."""
         self.target = int(target)
         settings = replace(settings, samples=max(int(target), 1))
         gen = self._next_gen()
         for i, p in enumerate(self.procs):
-            self._send(p, ("scene", gen, scene, settings, self.target, i, len(self.procs)))
+            p.send(("scene", gen, scene, settings, self.target, i, len(self.procs)))
 
     def set_view(self, camera, resolution):
-        """Only the camera (or the viewport's size) changed: no rebuild in the workers."""
+        """Only the camera (or the viewport's size) changed: the workers prepare nothing again."""
         gen = self._next_gen()
         for p in self.procs:
-            self._send(p, ("view", gen, camera, tuple(resolution)))
+            p.send(("view", gen, camera, tuple(resolution)))
 
-    def _read(self, proc):
-        foreign = os.path.basename(TRACER_DIR)
-        while True:
+    def _message(self, worker, message):
+        with self.lock:
+            if message[0] == "frame":
+                if not self.film.add(*message[1:]):
+                    return
+                if self.first_frame_seconds is None:
+                    self.first_frame_seconds = time.perf_counter() - self.gen_started
+            elif message[0] == "error" and message[1] == self.gen:
+                self.error = message[2]
+            elif message[0] == "ready":
+                self.facts = message[2]
+                self.builds += 1
+        self._notify()
+
+    def _exited(self, worker, code):
+        if self.closed:
+            return
+        with self.lock:
+            tail = [line for line in worker.stderr_tail if line.strip()]
+            self.error = (f"viewport render worker (pid {worker.pid}) stopped"
+                          + (f" (exit code {code})" if code is not None else "")
+                          + (f": {tail[-1]}" if tail else ""))
+        self._notify()
+
+    def _notify(self):
+        if self.on_frame is not None:
             try:
-                data = read_frame(proc.stdout)
-            except (OSError, ValueError):
-                data = None
-            if data is None:
-                break
-            message = decode(data, foreign)
-            with self.lock:
-                if message[0] == "frame":
-                    if self.film.add(*message[1:]):
-                        if self.first_frame_seconds is None:
-                            self.first_frame_seconds = time.perf_counter() - self.gen_started
-                    else:
-                        continue
-                elif message[0] == "error" and message[1] == self.gen:
-                    self.error = message[2]
-                elif message[0] == "ready":
-                    self.facts = message[2]
-                    self.builds += 1
-            if self.on_frame is not None:
-                try:
-                    self.on_frame()
-                except Exception:               # noqa: BLE001 - a redraw request must not kill the reader
-                    pass
-        code = proc.poll()
-        if not self.closed:
-            with self.lock:
-                tail = [line for line in self.stderr_tail if line.strip()]
-                self.error = (f"viewport render worker (pid {proc.pid}) stopped"
-                              + (f" (exit code {code})" if code is not None else "")
-                              + (f": {tail[-1]}" if tail else ""))
-            if self.on_frame is not None:
-                try:
-                    self.on_frame()
-                except Exception:               # noqa: BLE001
-                    pass
-
-    def _read_stderr(self, proc):
-        for raw in iter(proc.stderr.readline, b""):
-            line = raw.decode("utf-8", "replace").rstrip()
-            self.stderr_tail = (self.stderr_tail + [line])[-20:]
-            if not line.startswith("warning:"):
-                print(f"[viewport worker {proc.pid}] {line}", file=sys.stderr)
+                self.on_frame()
+            except Exception:               # noqa: BLE001 - a redraw request must not kill the reader
+                pass
 
     def snapshot(self):
         """(version, rgba or None, samples, relative error or None, level, error message)."""
@@ -349,15 +288,7 @@ class ViewportWorkers:
         if self.closed:
             return
         self.closed = True
-        for p in self.procs:
-            self.outboxes[p.pid].put(None)           # the writer closes stdin: EOF ends the worker
-        deadline = time.perf_counter() + 1.0
-        for p in self.procs:
-            try:
-                p.wait(timeout=max(0.0, deadline - time.perf_counter()))
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        close_all(self.procs, self.CLOSE_SECONDS)
 
 
 if __name__ == "__main__":

@@ -1,1 +1,1 @@
-"""A frame as work: tiles and work units, the render session (a scene prepared once, units rendered and merged), stopping rules, the render-time estimate, the memory check."""
+"""A frame as work: tiles and work units, the frame side (frame.py: the ordered merge, the film, the result), the tracer side (session.py: a scene prepared once, units traced), stopping rules, the render-time estimate, the memory check."""

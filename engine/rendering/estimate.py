@@ -1,30 +1,30 @@
 """Estimate render time: a short pilot render predicts the time to reach a noise target.
 
 The pilot is the real render's own beginning: the real settings (noise target, min samples,
-adaptive, the sample cap's Sobol' nets via `sample_net`) stopped at the first pass end of the real
-pass schedule (engine/rendering/stopping.py) at or past `pilot_samples` (64).  Its passes, and its adaptive
+adaptive, the sample cap's Sobol' nets via `sample_net`) stopped at the first round end of the real
+round schedule (engine/rendering/stopping.py) at or past `pilot_samples` (64).  Its rounds, and its adaptive
 decisions, are therefore exactly those the real render takes first; if it reaches the target, it
 is the prediction.  Otherwise, per pixel p, u_p = n_p * Var[m_p] / (R_p^2 + 0.01)
 (engine/film/error_estimate.py) is the relative variance of one sample: after s samples the pixel's
-term is u_p / s.  The prediction replays the rest of the pass schedule on 8x8 blocks
+term is u_p / s.  The prediction replays the rest of the round schedule on 8x8 blocks
 (U_b = mean of u_p over the block), from each block's samples so far:
 
-* every active block gets the pass's samples; with adaptive sampling a block whose error e_b
+* every active block gets the round's samples; with adaptive sampling a block whose error e_b
   (sqrt(U_b / s_b), with the samples to come at F_b below) is at or below the target (after min
   samples) stops;
-* the render stops after the first pass whose image error sqrt(sum_b w_b e_b^2) (w_b: the
+* the render stops after the first round whose image error sqrt(sum_b w_b e_b^2) (w_b: the
   block's share of the pixels) is at or below the target, or at the samples cap;
 
-and prices each replayed pass by its units (one per tile with active blocks, in tile order): a unit
+and prices each replayed round by its units (one per tile with active blocks, in tile order): a unit
 of N pixel-samples costs b (N + 2 TAIL_PATHS), each of its two halves ending with a tail of few
 paths that costs about as much as TAIL_PATHS more paths (measured on the near-lamp room: 5.0 us per
-pixel-sample in passes of 9k paths per unit half, 2.6 us at 233k: TAIL_PATHS ~ 8.9k), and the pass
+pixel-sample in rounds of 9k paths per unit half, 2.6 us at 233k: TAIL_PATHS ~ 8.9k), and the round
 lasts c times the makespan of its units on the workers, each taking the next unit when free: when
 few tiles are left active, a worker idles (measured on the near-lamp room at 96x96, 4 tiles on 2
-workers: 0.9 us per pixel-sample while all tiles ran, 1.2-1.3 us in the last passes; pricing
+workers: 0.9 us per pixel-sample while all tiles ran, 1.2-1.3 us in the last rounds; pricing
 pixel-samples alone predicted 0.76x the time).  b (seconds per unit of work) and c (wall seconds per
 makespan second; 1.01 measured over whole renders since the workers take units greedily, see
-engine/pools/processes.py SubprocessWorkers._feed) come from the pilot's passes after the first (the first
+engine/pools/processes.py SubprocessPool._feed) come from the pilot's rounds after the first (the first
 pays the workers' warm-up); the pilot's own seconds are part of the predicted time.  Setup (scene
 preparation, worker start) is reported apart, as `setup_seconds`.
 
@@ -60,7 +60,7 @@ import dataclasses
 import numpy as np
 
 from ..film.error_estimate import BLOCK, rel_terms
-from .stopping import effective_min_samples, pass_schedule
+from .stopping import effective_min_samples, round_schedule
 
 PILOT_SAMPLES = 64
 TAIL_PATHS = 8192
@@ -105,31 +105,31 @@ def future_unit_variance(unit_var: np.ndarray, pixels: np.ndarray, block_shape) 
 
 def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, tile_of_block=None,
            samples=None, done: int = 0, future_var=None) -> dict:
-    """The pass schedule of engine/rendering/stopping.py played on blocks; pixel-samples, error, stop, and the
-    units of work of each pass (unit_works).  From the start, or, with
-    `samples` (each block's samples so far) and `done` (the pass end the pilot reached), from there
-    on: the blocks still active are those that got the pilot's last pass.  A block's error^2 after
+    """The round schedule of engine/rendering/stopping.py played on blocks; pixel-samples, error, stop, and the
+    units of work of each round (unit_works).  From the start, or, with
+    `samples` (each block's samples so far) and `done` (the round end the pilot reached), from there
+    on: the blocks still active are those that got the pilot's last round.  A block's error^2 after
     s samples is (s0 U + (s - s0) F) / s^2: its s0 samples so far at their relative variance U
     (`unit_var`), the ones to come at F (`future_var`, U unless given)."""
     weights = pixels / pixels.sum()
     tile_of_block = np.zeros(len(unit_var), dtype=int) if tile_of_block is None else tile_of_block
     future_var = unit_var if future_var is None else future_var
-    pass_units = []
+    round_units = []
     samples = np.zeros(len(unit_var)) if samples is None else np.asarray(samples, dtype=float).copy()
     start = samples.copy()
     active = samples >= done
     minimum = effective_min_samples(settings)
     error, stopped_by = float("nan"), "samples"
-    if done > 0 and settings.adaptive:         # the decision the real render takes after that pass
+    if done > 0 and settings.adaptive:         # the decision the real render takes after that round
         active &= ~((unit_var / samples <= target * target) & (samples >= minimum))
-    for _, stop in pass_schedule(settings.samples, minimum):
+    for _, stop in round_schedule(settings.samples, minimum):
         if stop <= done:
             continue
         if not active.any():
             stopped_by = "noise target"
             break
         units = unit_works(pixels * (stop - samples) * active, tile_of_block)
-        pass_units.append(units)
+        round_units.append(units)
         samples[active] = stop
         block_err2 = (start * unit_var + (samples - start) * future_var) / (samples * samples)
         error = float(np.sqrt(np.sum(weights * block_err2)))
@@ -139,11 +139,11 @@ def replay(unit_var: np.ndarray, pixels: np.ndarray, settings, target: float, ti
         if settings.adaptive:
             active &= ~((block_err2 <= target * target) & (samples >= minimum))
     return {"pixel_samples": float(np.sum(pixels * samples)), "mean_samples": float(np.sum(weights * samples)),
-            "error": error, "stopped_by": stopped_by, "pass_units": pass_units}
+            "error": error, "stopped_by": stopped_by, "round_units": round_units}
 
 
 def unit_works(block_samples: np.ndarray, tile_of_block: np.ndarray) -> list:
-    """[(tile, work)] of the units of a pass in dispatch (tile) order, one per tile with samples to
+    """[(tile, work)] of the units of a round in dispatch (tile) order, one per tile with samples to
     render; work: pixel-samples + the tails of the unit's two halves."""
     per_tile = np.bincount(tile_of_block, weights=block_samples)
     return [(tile, float(w) + 2 * TAIL_PATHS) for tile, w in enumerate(per_tile) if w > 0]
@@ -153,7 +153,7 @@ def tile_costs(units, fallback: float):
     """b(tile): a tile's unit seconds per unit of work over the pilot's units [(tile, pixel-samples,
     seconds)]; the mean over all units for a tile without any, `fallback` without units.  Per tile,
     because the blocks that stay active are the costly ones: on the near-lamp room a pixel-sample
-    cost 1.3-1.4 us in the first passes and 1.6 in the last."""
+    cost 1.3-1.4 us in the first rounds and 1.6 in the last."""
     seconds, work = {}, {}
     for tile, n, t in units:
         seconds[tile] = seconds.get(tile, 0.0) + t
@@ -174,7 +174,7 @@ def makespan(costs, workers: int) -> float:
 
 
 def tiles_of_blocks(shape, tile_size: int, block: int = BLOCK) -> np.ndarray:
-    """The tile index (engine/session.make_tiles order) of each block, flattened as the blocks."""
+    """The tile index (engine/rendering/units.py make_tiles order) of each block, flattened as the blocks."""
     h, w = shape
     bh, bw = -(-h // block), -(-w // block)
     by, bx = np.meshgrid(np.arange(bh), np.arange(bw), indexing="ij")
@@ -183,44 +183,44 @@ def tiles_of_blocks(shape, tile_size: int, block: int = BLOCK) -> np.ndarray:
 
 
 def pilot_stop(settings, pilot_samples: int) -> int:
-    """The first pass end of the real render's schedule at or after `pilot_samples` (or its cap), so
-    that the pilot's passes are the real render's first passes."""
-    for _, stop in pass_schedule(settings.samples, effective_min_samples(settings)):
+    """The first round end of the real render's schedule at or after `pilot_samples` (or its cap), so
+    that the pilot's rounds are the real render's first rounds."""
+    for _, stop in round_schedule(settings.samples, effective_min_samples(settings)):
         if stop >= pilot_samples:
             return stop
     return settings.samples
 
 
-def predict(film, seconds: float, settings, target: float, pass_log, tile_size: int, workers: int,
+def predict(film, seconds: float, settings, target: float, round_log, tile_size: int, workers: int,
             done: int) -> dict:
-    """The prediction from a pilot that was the real render's first passes up to the pass end
-    `done`: its film (SessionFilm), render seconds and passes [(pixel-samples, seconds, [(tile,
-    unit pixel-samples, unit seconds)])] (engine/rendering/stopping.py run_passes).  From the pilot's passes after the first (all, if it had one):
-    b, the seconds of a unit per unit of work (unit_works), and c, a pass's wall seconds per second
-    of its makespan on `workers`; each replayed pass then costs c * makespan(b * its units)."""
+    """The prediction from a pilot that was the real render's first rounds up to the round end
+    `done`: its film (FrameFilm), render seconds and rounds [(pixel-samples, seconds, [(tile,
+    unit pixel-samples, unit seconds)])] (engine/rendering/stopping.py run_rounds).  From the pilot's rounds after the first (all, if it had one):
+    b, the seconds of a unit per unit of work (unit_works), and c, a round's wall seconds per second
+    of its makespan on `workers`; each replayed round then costs c * makespan(b * its units)."""
     count = film.samples_per_pixel
     unit_var, pixels = block_unit_variance(film.mean().astype(np.float64), film.half_buffer_variance(), count)
     h, w = count.shape
     future = future_unit_variance(unit_var, pixels, (-(-h // BLOCK), -(-w // BLOCK)))
     played = replay(unit_var, pixels, settings, target, tiles_of_blocks(film.count.shape, tile_size),
                     block_sums(count)[2], done, future)
-    later = list(pass_log)[1:] or list(pass_log)
-    units = [u for _, _, pass_units in later for u in pass_units]
+    later = list(round_log)[1:] or list(round_log)
+    units = [u for _, _, round_units in later for u in round_units]
     b = tile_costs(units, seconds / max(float(count.sum()), 1.0))
-    spans = sum(makespan([b(tile) * (n + 2 * TAIL_PATHS) for tile, n, _ in pass_units], workers)
-                for _, _, pass_units in later)
+    spans = sum(makespan([b(tile) * (n + 2 * TAIL_PATHS) for tile, n, _ in round_units], workers)
+                for _, _, round_units in later)
     c = sum(t for _, t, _ in later) / spans if spans > 0 else 1.0
-    played["seconds"] = seconds + sum(c * makespan([b(tile) * w for tile, w in pass_units], workers)
-                                      for pass_units in played["pass_units"])
+    played["seconds"] = seconds + sum(c * makespan([b(tile) * w for tile, w in round_units], workers)
+                                      for round_units in played["round_units"])
     played["reachable"] = played["stopped_by"] == "noise target"
     return played
 
 
 def estimate(scene, settings, target: float, render, pilot_samples: int = PILOT_SAMPLES, **render_kwargs) -> dict:
-    """Render the pilot with `render(scene, settings, **render_kwargs)` (engine.rendering.render or
-    engine.service.render_in_workers) and predict the real render under `settings` with noise
+    """Render the pilot with `render(scene, settings, **render_kwargs)` (engine/api.py render, with any
+    pool) and predict the real render under `settings` with noise
     target `target` (the settings' own time limit is ignored).  The pilot is the real render's own
-    first passes (module doc): when it reaches the target, it is the prediction."""
+    first rounds (module doc): when it reaches the target, it is the prediction."""
     real = dataclasses.replace(settings, noise_target=target, time_limit=0.0)
     done = pilot_stop(real, pilot_samples)
     pilot = dataclasses.replace(real, samples=done, sample_net=real.sample_net or real.samples)
@@ -234,7 +234,7 @@ def estimate(scene, settings, target: float, render, pilot_samples: int = PILOT_
         out = {"pixel_samples": float(spp.sum()), "mean_samples": float(spp.mean()), "stopped_by": "noise target",
                "error": st["estimated_rel_error"], "seconds": seconds, "reachable": True}
     else:
-        out = predict(result.film, seconds, real, target, st["pass_log"], st["tile_size"], st["threads"], done)
+        out = predict(result.film, seconds, real, target, st["round_log"], st["tile_size"], st["threads"], done)
     out.update({"target_rel_error": target, "pilot_samples": pilot.samples, "pilot_seconds": seconds,
                 "pilot_rel_error": result.stats.get("estimated_rel_error"),
                 "setup_seconds": result.stats.get("setup_seconds"), "samples_cap": settings.samples,

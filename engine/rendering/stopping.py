@@ -1,25 +1,29 @@
-"""Stopping rules and adaptive sampling: the frame rendered in passes of sample ranges.
+"""Stopping rules and adaptive sampling: the frame rendered in rounds of sample ranges.
 
-Used by RenderSession.run when a time limit or a noise target is set (settings.stopping_rules()).
-Pass k renders samples [start_k, stop_k) of every pixel that is still active, one work unit per
-tile that has active pixels, each unit in two halves whose sums the film keeps apart (the half
-buffers of engine/film/error_estimate.py).  After each pass, once all of its units are merged:
+Used by Frame.run (engine/rendering/frame.py) when a time limit or a noise target is set
+(settings.stopping_rules()).  Round k renders samples [start_k, stop_k) of every pixel that is
+still active, one work unit per tile that has active pixels, each unit in two halves whose sums
+the film keeps apart (the half buffers of engine/film/error_estimate.py).  After each round, once
+all of its units are merged:
 
 * the image's estimated relative error E is computed; the render stops when E <= noise target and
   every pixel has at least `min_samples` (the noise target), or when the samples run out;
 * with adaptive sampling, blocks of BLOCK x BLOCK pixels whose own error is at or below the
-  target (after min_samples) get no more samples; the next pass renders the others;
+  target (after min_samples) get no more samples; the next round renders the others;
 * the time limit cancels the units in flight when it expires (they are dropped whole, as Esc);
   the image keeps every finished unit.
 
-Decisions are made only between passes, on the film after the whole pass is merged in the
+Decisions are made only between rounds, on the film after the whole round is merged in the
 film's fixed per-tile order, so with a fixed seed and no time limit the samples each pixel gets,
-and the image, are the same for any number or kind of workers.
+and the image, are the same for any number or kind of workers.  A pool takes rounds when its
+`takes_rounds` is true (engine/pools/protocol.py): it accepts start() again with more units.
 
-Pass sizes: the first pass is max(min_samples, FIRST_PASS) samples, each later one half of the
-samples so far (at least FIRST_PASS), so there are about log1.5(samples) passes.  Under a time
-limit a pass is cut to the samples that fit in the time left at the rate measured so far (units
-cancelled at the limit are lost work: up to a third of the render with uncut passes).
+Round sizes: the first round is max(min_samples, FIRST_ROUND) samples, each later one half of the
+samples so far (at least FIRST_ROUND), so there are about log1.5(samples) rounds.  Under a time
+limit a round is cut to the samples that fit in the time left at the rate measured so far (units
+cancelled at the limit are lost work: up to a third of the render with uncut rounds).
+
+The stats gain `stopped_by`, `rounds` (the rounds rendered) and `round_log`.
 """
 from __future__ import annotations
 
@@ -31,23 +35,23 @@ import numpy as np
 from ..film.error_estimate import BLOCK, block_rel_errors, half_buffer_variance, seconds_to_target
 from .masked_samples import pack_mask
 
-FIRST_PASS = 8             # samples of the first pass at least
+FIRST_ROUND = 8            # samples of the first round at least
 AUTO_MIN_SAMPLES_CAP = 128  # automatic min samples at most (Cycles' guess at T = 0.001)
 
 
-def pass_schedule(samples: int, min_samples: int = 0) -> list[tuple[int, int]]:
-    """[(start, stop)] sample ranges of the passes, covering 0 .. samples."""
+def round_schedule(samples: int, min_samples: int = 0) -> list[tuple[int, int]]:
+    """[(start, stop)] sample ranges of the rounds, covering 0 .. samples."""
     ranges, done = [], 0
-    first = min(samples, max(FIRST_PASS, min_samples))
+    first = min(samples, max(FIRST_ROUND, min_samples))
     while done < samples:
-        size = first if not ranges else max(FIRST_PASS, done // 2)
+        size = first if not ranges else max(FIRST_ROUND, done // 2)
         ranges.append((done, min(samples, done + size)))
         done = ranges[-1][1]
     return ranges
 
 
 def effective_min_samples(settings) -> int:
-    """Min samples; 0 is automatic: FIRST_PASS, and with a noise target T Cycles' guess
+    """Min samples; 0 is automatic: FIRST_ROUND, and with a noise target T Cycles' guess
     ceil(16 / T^0.3) (T = 0.1 -> 32, 0.01 -> 64; at most 128).  Heavy-tailed noise (caustics) hides
     from a pixel's first samples: a block that has not met its rare bright paths reads converged.
     Measured on the caustic room at 96x96, target 12 %, 20 seeds, adaptive: min 8 stopped at a mean
@@ -57,24 +61,24 @@ def effective_min_samples(settings) -> int:
     no min samples makes heavy-tailed noise safe, it only makes an early stop less likely."""
     if settings.min_samples:
         return min(settings.samples, settings.min_samples)
-    auto = FIRST_PASS
+    auto = FIRST_ROUND
     if settings.noise_target > 0:
-        auto = max(FIRST_PASS, min(AUTO_MIN_SAMPLES_CAP, math.ceil(16.0 / settings.noise_target ** 0.3)))
+        auto = max(FIRST_ROUND, min(AUTO_MIN_SAMPLES_CAP, math.ceil(16.0 / settings.noise_target ** 0.3)))
     return min(settings.samples, auto)
 
 
-class PassState:
-    """What the passes decide from the film: the error, the active blocks, the stop reason."""
+class RoundState:
+    """What the rounds decide from the film: the error, the active blocks, the stop reason."""
 
-    def __init__(self, session):
-        self.session = session
-        h, w = session.film.count.shape
+    def __init__(self, frame):
+        self.frame = frame
+        h, w = frame.film.count.shape
         self.block_shape = (-(-h // BLOCK), -(-w // BLOCK))
         self.active_blocks = np.ones(self.block_shape, dtype=bool)
         self.error = float("nan")
 
     def update(self) -> None:
-        film, s = self.session.film, self.session.settings
+        film, s = self.frame.film, self.frame.settings
         mean = film.mean().astype(np.float64)
         var = half_buffer_variance(film.sum, film.count, film.sum_a, film.count_a)
         from ..film.error_estimate import image_rel_error
@@ -91,7 +95,7 @@ class PassState:
             self.active_blocks &= ~done
 
     def reached_target(self) -> bool:
-        s, film = self.session.settings, self.session.film
+        s, film = self.frame.settings, self.frame.film
         return (s.noise_target > 0 and np.isfinite(self.error) and self.error <= s.noise_target
                 and film.count.min() >= effective_min_samples(s))
 
@@ -106,69 +110,69 @@ class PassState:
         return None if active.all() else pack_mask(active)
 
 
-def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=None, clock=time.perf_counter):
-    """RenderSession.run under stopping rules; the same callbacks.  `clock` is replaceable (tests)."""
+def run_rounds(frame, pool, on_tile=None, should_cancel=None, on_progress=None, clock=time.perf_counter):
+    """Frame.run under stopping rules; the same callbacks.  `clock` is replaceable (tests)."""
     from .units import WorkUnit, await_units
-    s = session.settings
-    state = PassState(session)
-    schedule = pass_schedule(s.samples, effective_min_samples(s))
-    session.units, session.film.units_total = [], 0
-    chunk_of = {t.index: 0 for t in session.tiles}
+    s = frame.settings
+    state = RoundState(frame)
+    schedule = round_schedule(s.samples, effective_min_samples(s))
+    frame.units, frame.film.units_total = [], 0
+    chunk_of = {t.index: 0 for t in frame.tiles}
     cancelled = timed_out = False
-    error, stopped_by, passes = None, "samples", 0
-    # per finished pass: (pixel-samples added, seconds, [(tile, unit pixel-samples, unit seconds)])
-    pass_log = []
+    error, stopped_by, rounds = None, "samples", 0
+    # per finished round: (pixel-samples added, seconds, [(tile, unit pixel-samples, unit seconds)])
+    round_log = []
     start = clock()
     try:
-        if not getattr(workers, "passes", True):
+        if not pool.takes_rounds:
             from ..core.errors import SceneError
-            raise SceneError(f"the time limit and the noise target do not work on {workers.describe} yet "
+            raise SceneError(f"the time limit and the noise target do not work on {pool.describe} yet "
                              "(it takes the units of a frame once)")
         done_samples = 0
         for first, stop in schedule:
             first = done_samples
             if first >= s.samples:
                 break
-            if s.time_limit > 0 and passes:
-                stop = fit_pass(first, stop, session.film.count, clock() - start, s.time_limit)
+            if s.time_limit > 0 and rounds:
+                stop = fit_round(first, stop, frame.film.count, clock() - start, s.time_limit)
                 if stop <= first:
                     timed_out = True
                     break
             done_samples = stop
             units = []
-            for tile in session.tiles:
+            for tile in frame.tiles:
                 mask = state.tile_mask(tile)
                 if mask is False:
                     continue
-                units.append(WorkUnit(len(session.units) + len(units), tile, chunk_of[tile.index], first, stop,
+                units.append(WorkUnit(len(frame.units) + len(units), tile, chunk_of[tile.index], first, stop,
                                       mask=mask, halves=True))
                 chunk_of[tile.index] += 1
             if not units:
                 stopped_by = "noise target"
                 break
-            session.units.extend(units)
-            session.film.units_total = len(session.units)
-            pass_start, samples_before = clock(), float(session.film.count.sum())
-            workers.start(units)
-            passes += 1
+            frame.units.extend(units)
+            frame.film.units_total = len(frame.units)
+            round_start, samples_before = clock(), float(frame.film.count.sum())
+            pool.start(units)
+            rounds += 1
             unit_log = []
 
             def merge(result):
                 unit_log.append((result.unit.index, result.unit.tile.index, float(result.count.sum()),
                                  result.seconds))
-                session.add_and_show(result, on_tile)
+                frame.add_and_show(result, on_tile)
 
             def interrupt():
                 if should_cancel is not None and should_cancel():
                     return "cancelled"
                 return "time limit" if s.time_limit > 0 and clock() - start >= s.time_limit else None
-            reason, exc = await_units(workers, len(units), merge, interrupt, poll=0.05)
+            reason, exc = await_units(pool, len(units), merge, interrupt, poll=0.05)
             error = error or exc
             cancelled, timed_out = reason == "cancelled", reason == "time limit"
             if error is not None or cancelled or timed_out:
                 break
-            pass_log.append((float(session.film.count.sum()) - samples_before, clock() - pass_start,
-                             [u[1:] for u in sorted(unit_log)]))      # in dispatch order
+            round_log.append((float(frame.film.count.sum()) - samples_before, clock() - round_start,
+                              [u[1:] for u in sorted(unit_log)]))      # in dispatch order
             state.update()
             elapsed = clock() - start
             if on_progress is not None:
@@ -181,23 +185,23 @@ def run_passes(session, workers, on_tile=None, should_cancel=None, on_progress=N
                 timed_out = True
                 break
     finally:
-        workers.close()
+        pool.close()
     if error is not None:
         raise error
     stopped_by = "cancelled" if cancelled else "time limit" if timed_out else stopped_by
-    result = session.result(clock() - start, cancelled, getattr(workers, "describe", "local"))
-    result.stats.update({"stopped_by": stopped_by, "passes": passes, "pass_log": pass_log})
+    result = frame.result(clock() - start, cancelled, pool.describe)
+    result.stats.update({"stopped_by": stopped_by, "rounds": rounds, "round_log": round_log})
     return result
 
 
-def fit_pass(first: int, stop: int, count: np.ndarray, elapsed: float, limit: float) -> int:
-    """The end of a pass cut so that it ends by the time limit, at the pixel-sample rate so far
-    (the pass covers at most every pixel: a conservative cost for adaptive passes)."""
+def fit_round(first: int, stop: int, count: np.ndarray, elapsed: float, limit: float) -> int:
+    """The end of a round cut so that it ends by the time limit, at the pixel-sample rate so far
+    (the round covers at most every pixel: a conservative cost for adaptive rounds)."""
     rendered = float(count.sum())
     if rendered <= 0 or elapsed <= 0:
         return stop
-    per_pass_sample = elapsed / rendered * count.size          # seconds per sample of every pixel
-    fits = int((limit - elapsed) / per_pass_sample * 0.9)      # 10 % margin for the tail of a pass
+    per_sample = elapsed / rendered * count.size               # seconds per sample of every pixel
+    fits = int((limit - elapsed) / per_sample * 0.9)           # 10 % margin for the tail of a round
     return min(stop, first + fits) if fits >= 1 else first
 
 

@@ -52,15 +52,20 @@ def make_tiles(width: int, height: int, size: int) -> list[Tile]:
     return tiles
 
 
+ORDERS = ("tiles", "frame")        # the progressive orders of make_units
+
+
 def make_units(tiles, samples: int, order: str = "tiles") -> list[WorkUnit]:
     """Each tile's samples in chunks of about UNIT_PATHS camera samples.  order "tiles": a tile's
-    chunks one after the other (the frame fills tile by tile); "passes": chunk 0 of every tile,
+    chunks one after the other (the frame fills tile by tile); "frame": chunk 0 of every tile,
     then chunk 1, ... (the whole frame refines)."""
+    if order not in ORDERS:
+        raise ValueError(f"progressive order {order!r}: expected one of {', '.join(ORDERS)}")
     per_tile = []
     for tile in tiles:
         step = max(1, min(samples, -(-UNIT_PATHS // tile.pixels)))
         per_tile.append([(tile, c, s, min(s + step, samples)) for c, s in enumerate(range(0, samples, step))])
-    if order == "passes":
+    if order == "frame":
         chunks = [units[d] for d in range(max(map(len, per_tile))) for units in per_tile if d < len(units)]
     else:
         chunks = [u for units in per_tile for u in units]
@@ -68,7 +73,7 @@ def make_units(tiles, samples: int, order: str = "tiles") -> list[WorkUnit]:
 
 
 def next_outcome(workers, timeout: float):
-    """(came, result, error) of the next unit from `workers` (engine/workers.py interface): came
+    """(came, result, error) of the next unit from `workers` (engine/pools/protocol.py Pool): came
     is False when none finished within `timeout`; result is None for a cancelled or failed unit;
     a failed unit cancels the others (its error is raised once they have stopped)."""
     item = workers.next_result(timeout=timeout)

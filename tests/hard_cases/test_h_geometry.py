@@ -178,7 +178,7 @@ def test_h15_unoccluded_light_has_visibility_exactly_one(as_mesh):
         kw["meshes"] = [TriangleMesh("Light", corners, np.array([[0, 1, 2], [0, 2, 3]]), [1, 1])]
     else:
         kw["quads"].append(Quad("Light", corners, 1))
-    from engine.rendering.session import RenderSession as Renderer
+    from engine.rendering.session import PreparedScene as Renderer
     scene = Scene(Camera.look_at((0, 0, 0.5), (0, 0, 0), up=(0, 1, 0)), mats, **kw)
     renderer = Renderer(scene, RenderSettings(shadow_rays=1), **SILENT)
     geo, lights, tracer = renderer.geometry, renderer.lights, renderer.tracer

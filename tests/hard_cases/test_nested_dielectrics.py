@@ -57,7 +57,7 @@ class AlwaysRefract:
 
 
 def test_water_in_glass_refracts_by_the_ior_ratio_and_the_stack_pushes_and_pops():
-    from engine.rendering.session import RenderSession as Renderer
+    from engine.rendering.session import PreparedScene as Renderer
     scene = lens_scene(1.33)
     tracer = Renderer(scene, RenderSettings(nested_dielectrics=True, fresnel="exact"), **SILENT).tracer
     theta = np.radians(30.0)

@@ -138,7 +138,7 @@ def test_t1_every_shadow_ray_inside_an_emitting_sphere_weighs_exactly_rho_le(est
     """Two points on a sphere's inside: cos cos / r^2 = 1/(4 R^2), so V G / p(y) = pi and each
     next-event sample is exactly rho * Le.  A self-occluded shadow ray would give 0."""
     from engine.geometry.scene_geometry import Counters
-    from engine.rendering.session import RenderSession as Renderer
+    from engine.rendering.session import PreparedScene as Renderer
     from engine.geometry.shapes.spheres import surface_point
     rho, le, radius = 0.7, 2.0, 3.0
     mats = [Material("Shell", DIFFUSE, (rho,) * 3, emission=(le,) * 3)]

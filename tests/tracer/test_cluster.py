@@ -20,11 +20,17 @@ distributed = pytest.importorskip("distributed")
 
 from engine import RenderSettings, render                     # noqa: E402
 from engine.pools.dask_cluster import ClusterError, ProcessCluster, running_units  # noqa: E402
+from engine.pools.spec import make_pool  # noqa: E402
 from engine.scene.builtin import cornell_scene  # noqa: E402
 from engine.core.version import ENGINE_VERSION  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 SILENT = dict(log=lambda *a: None)
+
+
+def dask(address, workers=2, log=SILENT["log"]):
+    """The pool of the Dask scheduler at `address` (engine/pools/spec.py)."""
+    return make_pool(f"dask:{address}", workers, log=log)
 
 
 def _env(pythonpath=None):
@@ -62,13 +68,16 @@ def test_cluster_render_is_bit_for_bit_the_local_one(cluster):
     """Determinism: 1 worker, 2 local processes and the 2-worker cluster give the same image."""
     one = render(cornell_scene(**SCENE), RenderSettings(threads=1, **SETTINGS), **SILENT)
     two = render(cornell_scene(**SCENE), RenderSettings(threads=2, parallelism="processes", **SETTINGS), **SILENT)
-    dask = render(cornell_scene(**SCENE), RenderSettings(threads=2, **SETTINGS), cluster=cluster.address, **SILENT)
-    assert dask.stats["parallelism"] == f"dask {cluster.address} (2 workers)"
-    assert dask.stats["units_done"] == dask.stats["units"] > 2
+    on_dask = render(cornell_scene(**SCENE), RenderSettings(threads=2, **SETTINGS), pool=dask(cluster.address),
+                     **SILENT)
+    assert on_dask.stats["parallelism"] == f"dask {cluster.address} (2 workers)"
+    assert on_dask.stats["units_done"] == on_dask.stats["units"] > 2
+    assert on_dask.stats["accelerator_reason"] == one.stats["accelerator_reason"]     # a worker's own
+    assert on_dask.stats["effects_reason"] == one.stats["effects_reason"]
     assert np.array_equal(one.image, two.image)
-    assert np.array_equal(dask.image, one.image)
-    assert np.array_equal(dask.variance, one.variance)
-    assert dask.image.mean() > 0.05
+    assert np.array_equal(on_dask.image, one.image)
+    assert np.array_equal(on_dask.variance, one.variance)
+    assert on_dask.image.mean() > 0.05
     assert cluster.running() == []
 
 
@@ -93,7 +102,7 @@ def test_units_queue_on_the_scheduler_for_the_next_free_worker(cluster):
             seen.append(cluster.client.run_on_scheduler(unit_placement))
 
     result = render(cornell_scene((128, 128)), RenderSettings(samples=64, tile_size=32, seed=3),
-                    cluster=cluster.address, on_tile=look, **SILENT)
+                    pool=dask(cluster.address), on_tile=look, **SILENT)
     assert result.stats["units_done"] == result.stats["units"] >= 16
     units = seen[0]
     assert units and all(rootish for _, rootish, _ in units)
@@ -112,7 +121,7 @@ def test_a_worker_killed_mid_render_changes_nothing(cluster):
             os.kill(victim, signal.SIGKILL)
             killed.append(time.monotonic())
 
-    result = render(cornell_scene((128, 128)), settings, cluster=cluster.address, on_tile=kill_once, **SILENT)
+    result = render(cornell_scene((128, 128)), settings, pool=dask(cluster.address), on_tile=kill_once, **SILENT)
     assert killed and result.stats["units_done"] == result.stats["units"] >= 16
     assert not result.cancelled
     assert np.array_equal(result.image, reference.image)
@@ -124,8 +133,8 @@ def test_a_worker_killed_mid_render_changes_nothing(cluster):
 def test_a_cancelled_render_leaves_no_unit_running(cluster):
     progress = []
     result = render(cornell_scene((128, 128)), RenderSettings(samples=256, tile_size=32, seed=2),
-                    cluster=cluster.address, on_progress=lambda f, m: progress.append(f),
-                    should_cancel=lambda: len(progress) >= 1, progressive="passes", **SILENT)
+                    pool=dask(cluster.address), on_progress=lambda f, m: progress.append(f),
+                    should_cancel=lambda: len(progress) >= 1, progressive="frame", **SILENT)
     assert result.cancelled and 1 <= result.stats["units_done"] < result.stats["units"]
     assert result.image.mean() > 0                                   # the finished unit is kept
     assert cluster.running() == []                                   # close() waited for the workers
@@ -148,7 +157,7 @@ def test_unreachable_scheduler_is_one_line_within_10_s(tmp_path):
 
 def test_a_bad_address_is_one_line():
     with pytest.raises(ClusterError, match="not a Dask scheduler address"):
-        render(cornell_scene((16, 16)), RenderSettings(samples=1), cluster="http//nowhere", **SILENT)
+        dask("http//nowhere")
 
 
 def other_engine(tmp: Path, version: str) -> Path:
@@ -169,14 +178,14 @@ def test_a_worker_of_another_engine_version_is_refused(cluster, tmp_path):
         lonely.add_worker("old", pythonpath=old, nanny=False)
         with pytest.raises(ClusterError, match=r"worker tcp://127\.0\.0\.1:\d+ runs engine 0\.0\.9, this is "
                                                 + ENGINE_VERSION.replace(".", r"\.")):
-            render(cornell_scene((16, 16)), RenderSettings(samples=1), cluster=lonely.address, **SILENT)
+            render(cornell_scene((16, 16)), RenderSettings(samples=1), pool=dask(lonely.address), **SILENT)
     finally:
         lonely.close()
     proc = cluster.add_worker("old", pythonpath=old, nanny=False)
     try:
         messages = []
-        result = render(cornell_scene(**SCENE), RenderSettings(**SETTINGS), cluster=cluster.address,
-                        log=messages.append)
+        result = render(cornell_scene(**SCENE), RenderSettings(**SETTINGS),
+                        pool=dask(cluster.address, log=messages.append), log=messages.append)
         assert any("runs engine 0.0.9" in m and "refused" in m for m in messages)
         assert result.stats["parallelism"] == f"dask {cluster.address} (2 workers)"
         assert np.array_equal(result.image, render(cornell_scene(**SCENE), RenderSettings(**SETTINGS), **SILENT).image)
@@ -229,3 +238,22 @@ def test_cli_local_cluster_matches_the_local_pool(tmp_path):
     import OpenImageIO as oiio
     pool, local = (np.asarray(oiio.ImageBuf(str(tmp_path / f"{n}.exr")).get_pixels(oiio.FLOAT)) for n in ("pool", "local"))
     assert pool.mean() > 0 and np.array_equal(pool, local)
+
+
+def test_the_dask_pool_follows_the_pool_protocol(cluster):
+    """The conformance checks of tests/pools/conformance.py, as for the local pools."""
+    from tests.pools.conformance import SCENE_SIZE, SETTINGS as PROTOCOL_SETTINGS
+    from tests.pools.conformance import check_cancel_answers_every_unit, check_renders_a_frame
+    reference = render(cornell_scene(SCENE_SIZE), RenderSettings(threads=1, **PROTOCOL_SETTINGS), **SILENT).image
+    check_renders_a_frame(dask(cluster.address), reference)
+    check_cancel_answers_every_unit(dask(cluster.address))
+    assert cluster.running() == []
+
+
+def test_the_stopping_rules_are_refused_on_dask_in_one_line(cluster):
+    """A Dask pool takes a frame's units once (takes_rounds is False): a noise target is refused."""
+    from engine.core.errors import SceneError
+    with pytest.raises(SceneError, match="do not work on dask") as err:
+        render(cornell_scene((16, 16)), RenderSettings(samples=16, noise_target=0.5), pool=dask(cluster.address),
+               **SILENT)
+    assert "\n" not in str(err.value) and cluster.running() == []

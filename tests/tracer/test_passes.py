@@ -110,11 +110,13 @@ def test_passes_are_identical_whatever_the_workers(monkeypatch):
     one = render(scene, RenderSettings(samples=16, tile_size=16, threads=1, seed=3, passes=ALL), **SILENT)
     two = render(scene, RenderSettings(samples=16, tile_size=16, threads=2, seed=3, passes=ALL,
                                        parallelism="processes"), **SILENT)
-    session = engine.rendering.session.RenderSession(scene, RenderSettings(samples=16, tile_size=16, seed=3, passes=ALL),
-                                           **SILENT)
-    for unit in reversed(session.units):
-        session.add(session.render_unit(unit))
-    rev = session.result(1.0).passes
+    from engine.rendering.frame import Frame
+    settings = RenderSettings(samples=16, tile_size=16, seed=3, passes=ALL)
+    prepared = engine.rendering.session.PreparedScene(scene, settings, **SILENT)
+    frame = Frame(scene, settings, prepared.facts())
+    for unit in reversed(frame.units):
+        frame.add(prepared.render_unit(unit))
+    rev = frame.result(1.0).passes
     for name in ALL:
         assert np.array_equal(one.passes[name], two.passes[name]), name
         assert np.array_equal(one.passes[name], rev[name]), name

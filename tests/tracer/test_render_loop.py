@@ -2,9 +2,17 @@
 import numpy as np
 
 from engine import RenderSettings, render
+from engine.rendering.frame import Frame
+from engine.rendering.session import PreparedScene
 from engine.scene.builtin import cornell_scene
 
 from .scenes import camera_inside_sphere_scene
+
+
+def prepare(scene, settings, progressive="tiles"):
+    """The two sides of a render by hand: the tracer side and the frame side."""
+    prepared = PreparedScene(scene, settings, log=lambda *a: None)
+    return prepared, Frame(scene, settings, prepared.facts(), progressive)
 
 
 def test_tiles_cover_the_image_and_match_the_result():
@@ -50,16 +58,16 @@ class CancelAfter:
 def test_a_cancelled_unit_is_dropped_whole():
     """Cancel after 3 bounces: the unit returns nothing (a partial unit would keep only the paths
     that Russian roulette ended early, about 2.4 in the white furnace instead of 5)."""
-    from engine.rendering.session import RenderSession
     scene = camera_inside_sphere_scene(albedo=0.8, emission=1.0, resolution=(64, 64))
-    session = RenderSession(scene, RenderSettings(samples=64, threads=1, seed=5, max_depth=400), log=lambda *a: None)
+    settings = RenderSettings(samples=64, threads=1, seed=5, max_depth=400)
+    prepared, frame = prepare(scene, settings)
     cancel = CancelAfter(3)
-    assert session.render_unit(session.units[0], cancel) is None
+    assert prepared.render_unit(frame.units[0], cancel) is None
     assert cancel.looks == 4                                  # stopped at the first look after 3 bounces
-    finished = session.render_unit(session.units[0])
+    finished = prepared.render_unit(frame.units[0])
     n = finished.count.sum()
-    mean = finished.sum[:, 0].sum() / n
-    se = np.sqrt((finished.sum_sq[:, 0].sum() / n - mean ** 2) / n)
+    mean = finished.sum[..., 0].sum() / n
+    se = np.sqrt((finished.sum_sq[..., 0].sum() / n - mean ** 2) / n)
     assert abs(mean - 5.0) < 4 * se
 
 
@@ -78,42 +86,35 @@ def test_a_cancelled_render_keeps_unbiased_finished_units():
 def test_units_in_any_order_give_the_same_image_bit_for_bit(monkeypatch):
     """Units rendered by hand in reverse order, merged into a fresh film: the same image as a
     normal render, whatever order the units finish in."""
-    import engine.rendering.session
     import engine.rendering.units
-    from engine.rendering.session import RenderSession
     monkeypatch.setattr(engine.rendering.units, "UNIT_PATHS", 2048)       # 8 samples of a 16 x 16 tile per unit
     scene = cornell_scene((48, 32))
     settings = RenderSettings(samples=40, tile_size=16, threads=2, seed=9)
     reference = render(scene, settings, log=lambda *a: None)
-    session = RenderSession(scene, settings, log=lambda *a: None)
-    assert len(session.units) > len(session.tiles)          # several sample chunks per tile
-    for unit in reversed(session.units):
-        session.add(session.render_unit(unit))
-    assert np.array_equal(session.film.mean(), reference.image)
+    prepared, frame = prepare(scene, settings)
+    assert len(frame.units) > len(frame.tiles)              # several sample chunks per tile
+    for unit in reversed(frame.units):
+        frame.add(prepared.render_unit(unit))
+    assert np.array_equal(frame.film.mean(), reference.image)
 
 
-def test_progressive_passes_refine_the_whole_frame_first():
-    from engine.rendering.session import RenderSession
-    session = RenderSession(cornell_scene((64, 64)), RenderSettings(samples=64, tile_size=16), log=lambda *a: None,
-                            progressive="passes")
-    first = session.units[:len(session.tiles)]
-    assert sorted(u.tile.index for u in first) == list(range(len(session.tiles)))
+def test_progressive_order_frame_refines_the_whole_frame_first():
+    _, frame = prepare(cornell_scene((64, 64)), RenderSettings(samples=64, tile_size=16), progressive="frame")
+    first = frame.units[:len(frame.tiles)]
+    assert sorted(u.tile.index for u in first) == list(range(len(frame.tiles)))
     assert all(u.chunk == 0 for u in first)
 
 
 def test_a_cancelled_render_keeps_units_that_finished_out_of_order(monkeypatch):
     """Chunk 1 of a tile done, chunk 0 cancelled: the merge in order would wait for chunk 0
     forever; a cancelled render keeps chunk 1 (finished work is never thrown away)."""
-    import engine.rendering.session
     import engine.rendering.units
-    from engine.rendering.session import RenderSession
     monkeypatch.setattr(engine.rendering.units, "UNIT_PATHS", 2048)
-    session = RenderSession(cornell_scene((32, 32)), RenderSettings(samples=32, tile_size=16, seed=2),
-                            log=lambda *a: None)
-    tile0 = [u for u in session.units if u.tile.index == 0]
+    prepared, frame = prepare(cornell_scene((32, 32)), RenderSettings(samples=32, tile_size=16, seed=2))
+    tile0 = [u for u in frame.units if u.tile.index == 0]
     assert len(tile0) >= 2 and tile0[1].chunk == 1
-    assert session.add(session.render_unit(tile0[1])) == []            # waits for chunk 0
-    assert not session.film.count.any()
-    assert [t.index for t in session.film.flush()] == [0]
-    assert session.film.count[:16, :16].min() == tile0[1].stop - tile0[1].start
-    assert session.film.mean()[:16, :16].mean() > 0 and session.film.flush() == []
+    assert frame.add(prepared.render_unit(tile0[1])) == []             # waits for chunk 0
+    assert not frame.film.count.any()
+    assert [t.index for t in frame.film.flush()] == [0]
+    assert frame.film.count[:16, :16].min() == tile0[1].stop - tile0[1].start
+    assert frame.film.mean()[:16, :16].mean() > 0 and frame.film.flush() == []

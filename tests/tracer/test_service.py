@@ -1,5 +1,6 @@
-"""Worker processes (engine/pools/processes.py): real processes of this Python, the same image as render(),
-a killed worker reported by name with its units rendered elsewhere, Esc within a second."""
+"""Worker processes (engine/pools/processes.py, make_pool("workers")): real processes of this Python,
+the same image as the local pool, a killed worker reported by name with its units rendered
+elsewhere, Esc within a second."""
 import collections
 import os
 import signal
@@ -11,21 +12,21 @@ import pytest
 
 from engine import RenderSettings, render
 from engine.scene.builtin import cornell_scene
-from engine.pools.processes import SubprocessWorkers, WorkerError, render_in_workers
+from engine.pools.processes import SubprocessPool, WorkerError
+from engine.pools.spec import make_pool
 
 QUIET = dict(log=lambda *a: None)
 
 
 def worker_pids(pool):
-    return [w.proc.pid for w in pool.workers]
+    return [w.pid for w in pool.workers]
 
 
 def test_worker_processes_render_the_image_of_render():
     settings = RenderSettings(samples=8, tile_size=16, seed=5)
     ref = render(cornell_scene((48, 32)), settings, **QUIET)
-    pool = SubprocessWorkers(sys.executable, 2, **QUIET)
-    result = render_in_workers(cornell_scene((48, 32)), RenderSettings(samples=8, tile_size=16, seed=5),
-                               workers=pool, **QUIET)
+    pool = make_pool("workers", 2, **QUIET)
+    result = render(cornell_scene((48, 32)), RenderSettings(samples=8, tile_size=16, seed=5), pool=pool, **QUIET)
     assert np.array_equal(result.image, ref.image)
     assert result.stats["accelerator"] == ref.stats["accelerator"]
     assert result.stats["units_done"] == result.stats["units"] and not result.cancelled
@@ -36,7 +37,7 @@ def test_worker_processes_render_the_image_of_render():
 def test_a_killed_worker_is_reported_by_name_and_its_units_render_elsewhere():
     settings = RenderSettings(samples=32, tile_size=16, seed=2)
     ref = render(cornell_scene((64, 64)), settings, **QUIET)
-    pool = SubprocessWorkers(sys.executable, 2, **QUIET)
+    pool = make_pool(f"workers:{sys.executable}", 2, **QUIET)
     victim = pool.workers[0]
     tiles = []
 
@@ -45,8 +46,8 @@ def test_a_killed_worker_is_reported_by_name_and_its_units_render_elsewhere():
         if len(tiles) == 1:
             os.kill(victim.proc.pid, signal.SIGKILL)
 
-    result = render_in_workers(cornell_scene((64, 64)), RenderSettings(samples=32, tile_size=16, seed=2),
-                               workers=pool, on_tile=on_tile, **QUIET)
+    result = render(cornell_scene((64, 64)), RenderSettings(samples=32, tile_size=16, seed=2), pool=pool,
+                    on_tile=on_tile, **QUIET)
     assert np.array_equal(result.image, ref.image)
     expected = f"render worker 1 (pid {victim.proc.pid}) died: killed by SIGKILL"
     assert [r for r in result.stats["worker_reports"] if r.startswith(expected)], result.stats["worker_reports"]
@@ -61,8 +62,9 @@ def test_cancel_returns_within_a_second_and_keeps_finished_units():
             state["at"] = time.perf_counter()
         return "at" in state
 
-    result = render_in_workers(cornell_scene((128, 128)), RenderSettings(samples=256, tile_size=32, threads=2),
-                               on_tile=lambda *a: tiles.append(a[:4]), should_cancel=should_cancel, **QUIET)
+    result = render(cornell_scene((128, 128)), RenderSettings(samples=256, tile_size=32, threads=2),
+                    pool=make_pool("workers", 2, **QUIET), on_tile=lambda *a: tiles.append(a[:4]),
+                    should_cancel=should_cancel, **QUIET)
     assert result.cancelled and time.perf_counter() - state["at"] < 1.0
     assert 0 < result.stats["units_done"] < result.stats["units"]
 
@@ -72,17 +74,17 @@ def test_a_python_without_numpy_is_one_message_naming_what_to_install(tmp_path):
     fake.write_text("#!/bin/sh\necho \"ModuleNotFoundError: No module named 'numpy'\" >&2\nexit 1\n")
     fake.chmod(0o755)
     with pytest.raises(WorkerError) as err:
-        render_in_workers(cornell_scene((8, 8)), RenderSettings(samples=1, threads=1), python=str(fake), **QUIET)
+        render(cornell_scene((8, 8)), RenderSettings(samples=1, threads=1), pool=make_pool(f"workers:{fake}", 1, **QUIET),
+               **QUIET)
     message = str(err.value)
     assert "has no numpy" in message and "pip install numpy embreex" in message and "\n" not in message
 
 
 def test_an_error_in_a_unit_names_the_worker(monkeypatch):
     scene = cornell_scene((16, 16))
-    pool = SubprocessWorkers(sys.executable, 1, **QUIET)
+    pool = SubprocessPool(sys.executable, 1, **QUIET)
     pool.prepare(scene, RenderSettings(samples=1, threads=1))
-    from engine.pools.processes import encode
-    pool.workers[0].send(encode(("unit", "not a unit")))
+    pool.workers[0].send(("unit", "not a unit"))
     pool.workers[0].in_flight.append("not a unit")
     deadline = time.time() + 20
     item = None
@@ -90,7 +92,7 @@ def test_an_error_in_a_unit_names_the_worker(monkeypatch):
         item = pool.next_result(0.1)
     pool.close()
     assert item is not None and isinstance(item[2], WorkerError)
-    assert str(item[2]).startswith(f"render worker 1 (pid {pool.workers[0].proc.pid}) failed")
+    assert str(item[2]).startswith(f"render worker 1 (pid {pool.workers[0].pid}) failed")
 
 
 class _QueueOnlyWorker:
@@ -104,15 +106,15 @@ class _QueueOnlyWorker:
 
 
 def _dispatch_pool(workers: int):
-    pool = SubprocessWorkers.__new__(SubprocessWorkers)         # no processes: only the dispatch
+    pool = SubprocessPool.__new__(SubprocessPool)               # no processes: only the dispatch
     pool.workers = [_QueueOnlyWorker() for _ in range(workers)]
     pool.pending, pool.cancelled = collections.deque(), False
     return pool
 
 
-def test_a_pass_of_few_units_gives_every_worker_one_before_any_gets_a_second():
-    # An adaptive pass at 96x96 is 4 units (one per tile) on 2 workers; with two queued per worker
-    # the first worker held the two biggest and the pass lasted 1.36x the greedy schedule.
+def test_a_round_of_few_units_gives_every_worker_one_before_any_gets_a_second():
+    # An adaptive round at 96x96 is 4 units (one per tile) on 2 workers; with two queued per worker
+    # the first worker held the two biggest and the round lasted 1.36x the greedy schedule.
     pool = _dispatch_pool(2)
     pool.start(["t0", "t1", "t2", "t3"])
     assert [w.in_flight for w in pool.workers] == [["t0"], ["t1"]]
@@ -122,7 +124,7 @@ def test_a_pass_of_few_units_gives_every_worker_one_before_any_gets_a_second():
     assert second.in_flight == ["t2"] and list(pool.pending) == ["t3"]
 
 
-def test_a_pass_of_many_units_keeps_a_second_unit_queued_per_worker():
+def test_a_round_of_many_units_keeps_a_second_unit_queued_per_worker():
     pool = _dispatch_pool(2)
     pool.start([f"t{i}" for i in range(8)])
     assert [len(w.in_flight) for w in pool.workers] == [2, 2]

@@ -297,12 +297,10 @@ def test_terminator_offset_brightens_the_coarse_sphere_terminator():
 def test_worker_processes_get_the_normals():
     """The scene goes to `python -m engine worker` processes pickled: their image of a smooth mirror
     ball is render()'s (normals, smooth flags and terminator offsets arrive), not the flat one's."""
-    import sys
-    from engine.pools.processes import SubprocessWorkers, render_in_workers
+    from engine.pools.spec import make_pool
     settings = RenderSettings(samples=4, tile_size=8, seed=3)
     ref = render(box_room(True, 2), settings, **SILENT)
-    pool = SubprocessWorkers(sys.executable, 2, **SILENT)
-    remote = render_in_workers(box_room(True, 2), settings, workers=pool, **SILENT)
+    remote = render(box_room(True, 2), settings, pool=make_pool("workers", 2, **SILENT), **SILENT)
     flat = render(box_room(False, 2), settings, **SILENT)
     assert np.array_equal(remote.image, ref.image)
     assert not np.array_equal(remote.image, flat.image)

@@ -13,11 +13,11 @@ import pytest
 
 from engine import RenderSettings, render
 from engine.scene.builtin import BUILTIN_SCENES
-from engine.film.error_estimate import half_buffer_variance, image_rel_error
+from engine.film.error_estimate import half_buffer_variance
 from engine.rendering.estimate import TAIL_PATHS, replay
-from engine.rendering.session import RenderSession
-from engine.rendering.stopping import effective_min_samples, pass_schedule, run_passes
-from engine.pools.local import ThreadWorkers
+from engine.rendering.frame import Frame
+from engine.rendering.stopping import effective_min_samples, round_schedule, run_rounds
+from engine.pools.local import ThreadPool
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 QUIET = dict(log=lambda *a: None)
@@ -29,10 +29,10 @@ def scene(name="cornell", size=32):
     return s
 
 
-# -- the pass schedule and the half buffers -------------------------------------------------------
+# -- the round schedule and the half buffers -------------------------------------------------------
 @pytest.mark.parametrize("samples,minimum", [(1, 0), (7, 0), (8, 0), (100, 0), (1000, 37), (5, 64)])
-def test_pass_schedule_covers_the_samples_once(samples, minimum):
-    ranges = pass_schedule(samples, minimum)
+def test_round_schedule_covers_the_samples_once(samples, minimum):
+    ranges = round_schedule(samples, minimum)
     assert ranges[0][0] == 0 and ranges[-1][1] == samples
     assert all(a[1] == b[0] for a, b in zip(ranges, ranges[1:]))
     assert ranges[0][1] == min(samples, max(8, minimum))
@@ -130,8 +130,8 @@ def test_noise_target_stops_when_the_estimate_reaches_it():
     assert st["stopped_by"] == "noise target"
     assert st["estimated_rel_error"] <= 0.15
     assert st["samples_per_pixel"]["max"] < 4096
-    # stopped at the first pass end below the target: one pass less was above it
-    assert st["passes"] >= 2
+    # stopped at the first round end below the target: one round less was above it
+    assert st["rounds"] >= 2 and st["passes"] == []
     json.dumps(st)                                   # stats stay plain JSON
 
 
@@ -140,7 +140,7 @@ def test_noise_target_is_reached_in_the_actual_error():
     """Six seeds of the Cornell box (24x24) stopped by the adaptive noise target 0.2: their actual E
     (RMS over the seeds, against the mean of the other seeds' renders, that reference's variance
     removed) is within 25 % of the target; a render stopped at half the samples it took (control:
-    the first pass only) is not."""
+    the first round only) is not."""
     target, k = 0.2, 6
     runs = [render(scene(size=24), RenderSettings(samples=4096, noise_target=target, seed=s), **QUIET)
             for s in range(k)]
@@ -192,26 +192,27 @@ def test_adaptive_pixels_get_the_same_samples_as_in_a_full_tile():
 class FakeClock:
     """Time advances one second per merged unit: the rules see a slow render, the test runs fast."""
 
-    def __init__(self, session):
-        self.session = session
+    def __init__(self, frame):
+        self.frame = frame
 
     def __call__(self):
-        return float(self.session.film.units_added)
+        return float(self.frame.film.units_added)
 
 
 def test_time_limit_stops_the_render_with_a_fake_clock():
     settings = RenderSettings(samples=1024, time_limit=6.0, threads=1, tile_size=16)
-    session = RenderSession(scene(), settings, **QUIET)           # 32x32: 4 tiles, 4 units a pass
-    result = run_passes(session, ThreadWorkers(session, 1), clock=FakeClock(session))
+    pool = ThreadPool(1, **QUIET)
+    frame = Frame(scene(), settings, pool.prepare(scene(), settings))      # 32x32: 4 tiles, 4 units a round
+    result = run_rounds(frame, pool, clock=FakeClock(frame))
     st = result.stats
     assert st["stopped_by"] == "time limit"
-    # 6 "seconds" = 6 units: pass 1 (4 units) done, pass 2 cancelled after at most 3 of its units
-    assert st["passes"] == 2 and 6 <= session.film.units_added <= 7
+    # 6 "seconds" = 6 units: round 1 (4 units) done, round 2 cancelled after at most 3 of its units
+    assert st["rounds"] == 2 and 6 <= frame.film.units_added <= 7
     assert st["samples_per_pixel"]["max"] <= 16 and st["render_seconds"] <= 7.0
 
 
-def test_no_rules_no_passes():
-    """Without a time limit or noise target the frame renders as before (one unit list, no passes),
+def test_no_rules_no_rounds():
+    """Without a time limit or noise target the frame renders as before (one unit list, no rounds),
     with the sample-variance estimate in the stats."""
     r = render(scene(), RenderSettings(samples=8), **QUIET)
     assert "stopped_by" not in r.stats and r.stats["error_estimate"] == "sample variance"
@@ -220,11 +221,11 @@ def test_no_rules_no_passes():
 
 # -- the prediction ---------------------------------------------------------------------------------
 def test_replay_uniform_matches_the_closed_form():
-    """Unit variances U: uniform sampling needs s = mean(U) / T^2 samples, rounded up to a pass end."""
+    """Unit variances U: uniform sampling needs s = mean(U) / T^2 samples, rounded up to a round end."""
     settings = RenderSettings(samples=10_000, noise_target=0.02, adaptive=False)
     unit_var = np.array([1.0, 4.0, 0.25, 2.75])           # mean 2 -> 20,000 samples > cap
     played = replay(unit_var, np.ones(4), settings, 0.02)   # 2 / 0.0004 = 5000 samples
-    ends = [stop for _, stop in pass_schedule(10_000, effective_min_samples(settings))]
+    ends = [stop for _, stop in round_schedule(10_000, effective_min_samples(settings))]
     assert played["mean_samples"] == min(e for e in ends if e >= 5000)
     assert played["stopped_by"] == "noise target"
     adaptive = replay(unit_var, np.ones(4), RenderSettings(samples=10_000, noise_target=0.02), 0.02)
@@ -235,7 +236,7 @@ def test_replayed_blocks_fall_with_their_past_and_future_variance():
     """From the pilot's s0 samples at variance U, the samples to come at F: error^2 after s samples
     is (s0 U + (s - s0) F) / s^2, so a block that met a firefly (U > F) stops before U / T^2."""
     settings = RenderSettings(samples=8192, noise_target=0.05, adaptive=False)
-    ends = [stop for _, stop in pass_schedule(8192, effective_min_samples(settings)) if stop > 64]
+    ends = [stop for _, stop in round_schedule(8192, effective_min_samples(settings)) if stop > 64]
     unit_var, pixels, s0 = np.array([10.0]), np.ones(1), np.array([64.0])
     own = replay(unit_var, pixels, settings, 0.05, samples=s0, done=64)
     assert own["mean_samples"] == min(e for e in ends if 10.0 / e <= 0.0025)            # 1/s: 4000
@@ -257,9 +258,9 @@ def test_future_variance_shares_a_block_with_its_neighbours():
     assert neighbourhood_mean(np.array([1.0, 6.0]), pixels, (1, 2)) == pytest.approx([2.0, 2.0])
 
 
-def test_a_pass_lasts_its_makespan_on_the_workers():
+def test_a_round_lasts_its_makespan_on_the_workers():
     """Units go to the next free worker in dispatch order: a long unit last keeps one worker busy
-    after the other idles (the adaptive passes' last tiles), one first does not; the per-tile cost
+    after the other idles (the adaptive rounds' last tiles), one first does not; the per-tile cost
     falls back to the mean over the pilot's units for a tile it never rendered."""
     from engine.rendering.estimate import makespan, tile_costs
     assert makespan([3, 1, 1, 1], 2) == 3
@@ -285,9 +286,9 @@ def test_predicted_samples_match_a_real_render_within_30_percent():
 
 
 def test_a_pilot_that_reaches_the_target_is_the_real_render():
-    """The pilot is the real render's first passes, with the real render's Sobol' nets: where the
+    """The pilot is the real render's first rounds, with the real render's Sobol' nets: where the
     real render ends inside it, the prediction is that render, sample for sample.  Control: the
-    same passes with the pilot's own cap as the net size (no sample_net) are another render."""
+    same rounds with the pilot's own cap as the net size (no sample_net) are another render."""
     from dataclasses import replace
     from engine.rendering.estimate import estimate
     sc = scene("cornell", 32)

@@ -1,0 +1,54 @@
+"""The film: per-pixel radiance sums, sums of squares and sample counts over a grid of pixels.
+
+One accumulator for every grid the renderer keeps: a work unit's tile (samples go in), the frame
+(tiles go in, engine/rendering/frame.py) and the viewport (whole frames go in,
+engine/pools/viewport.py).  The pixel mean and the variance of the pixel mean are computed here
+only.  Pixels use a box filter (every sample counts fully in the pixel it falls in).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class Film:
+    """sum, sum_sq: (height, width, 3); count: (height, width) samples per pixel."""
+
+    def __init__(self, width: int, height: int):
+        self.width, self.height = width, height
+        self.sum = np.zeros((height, width, 3))
+        self.sum_sq = np.zeros((height, width, 3))
+        self.count = np.zeros((height, width))
+
+    def add_samples(self, pixel: np.ndarray, radiance: np.ndarray) -> None:
+        """Samples' radiance as rows (3, N) (engine/core/vec.py) into their pixels (flat indices)."""
+        n = self.width * self.height
+        count, total, squares = self.count.reshape(n), self.sum.reshape(n, 3), self.sum_sq.reshape(n, 3)
+        count += np.bincount(pixel, minlength=n)
+        for c in range(3):
+            total[:, c] += np.bincount(pixel, weights=radiance[c], minlength=n)
+            squares[:, c] += np.bincount(pixel, weights=radiance[c] * radiance[c], minlength=n)
+
+    def add_sums(self, x0: int, y0: int, total: np.ndarray, squares: np.ndarray, count) -> None:
+        """Another film's sums (h, w, 3) into the pixels from (x0, y0); `count` (h, w) or a number."""
+        h, w = total.shape[:2]
+        self.sum[y0:y0 + h, x0:x0 + w] += total
+        self.sum_sq[y0:y0 + h, x0:x0 + w] += squares
+        self.count[y0:y0 + h, x0:x0 + w] += count
+
+    @staticmethod
+    def _region(tile):
+        return (slice(None), slice(None)) if tile is None else (slice(tile.y0, tile.y1), slice(tile.x0, tile.x1))
+
+    def mean(self, tile=None) -> np.ndarray:
+        """(h, w, 3) float32 pixel means of the whole film or of `tile` (x0, y0, x1, y1); 0 without samples."""
+        s = self._region(tile)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            m = self.sum[s] / self.count[s][..., None]
+        return np.nan_to_num(m).astype(np.float32)
+
+    def variance_of_mean(self) -> np.ndarray:
+        """(h, w, 3) float32 variance of each pixel mean: the sample variance / n (unbiased, n - 1
+        in the denominator), at least 2 samples counted."""
+        n = np.maximum(self.count, 2)[..., None]
+        mean = self.sum / n
+        return (np.maximum(self.sum_sq / n - mean * mean, 0.0) / (n - 1)).astype(np.float32)

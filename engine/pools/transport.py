@@ -1,0 +1,252 @@
+"""The worker transport: a tracer process of any Python, started and spoken to over its pipes.
+
+Used by the render worker processes (engine/pools/processes.py) and the viewport workers
+(engine/pools/viewport.py).  A worker is ``python -m MODULE [ARGS] PARENT_PID`` with the tracer's parent
+directory (and any bundled wheels) on PYTHONPATH (engine/core/paths.py worker_environment).
+
+* Frames: a little-endian 8-byte length, then a pickle.  The worker's stdout carries only frames
+  (the tracer's own prints go to stderr); stdin carries the parent's frames; EOF ends the worker.
+* Handshake: the parent's first frame is ("hello", its tracer package, its engine version); the
+  worker answers ("hello", its engine version, its Python version, its pid), and a worker of
+  another engine version refuses (one line on stderr, exit code 3).
+* Package names: the parent may import the tracer as, say, ``tncg15_mc.tracer`` and the worker as
+  ``tracer``; each side maps the other's package name onto its own when it unpickles.
+* Stderr: the last lines are kept for the message when a worker dies; lines that are not warnings
+  (the parent reports those once) are echoed with the worker's name.
+* Close: EOF on stdin, then SIGKILL after a grace period.  A worker dies with its parent (Linux
+  prctl PDEATHSIG) and ignores SIGINT (a terminal's Ctrl-C reaches the whole process group: the
+  parent decides).
+"""
+from __future__ import annotations
+
+import collections
+import ctypes
+import io
+import os
+import pickle
+import queue
+import signal
+import struct
+import subprocess
+import sys
+import threading
+import traceback
+
+from ..core.paths import TRACER_BASE, TRACER_DIR
+from ..core.version import ENGINE_VERSION
+
+HEADER = struct.Struct("<Q")
+PR_SET_PDEATHSIG = 1
+REFUSED = 3                       # the worker's exit code when the engine versions differ
+
+
+# -- frames ---------------------------------------------------------------------------------------
+class _Remap(pickle.Unpickler):
+    def __init__(self, data: bytes, foreign: str, own: str):
+        super().__init__(io.BytesIO(data))
+        self.foreign, self.own = foreign, own
+
+    def find_class(self, module, name):
+        if self.foreign != self.own and (module == self.foreign or module.startswith(self.foreign + ".")):
+            module = self.own + module[len(self.foreign):]
+        return super().find_class(module, name)
+
+
+def encode(obj) -> bytes:
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    return HEADER.pack(len(data)) + data
+
+
+def read_frame(stream) -> bytes | None:
+    """One frame's bytes, or None at end of stream."""
+    head = stream.read(HEADER.size)
+    if len(head) < HEADER.size:
+        return None
+    size = HEADER.unpack(head)[0]
+    data = stream.read(size)
+    if len(data) < size:
+        return None
+    return data
+
+
+def decode(data: bytes, foreign: str, own: str = TRACER_BASE):
+    return _Remap(data, foreign, own).load()
+
+
+# -- the worker's end -----------------------------------------------------------------------------
+def die_with_parent(parent_pid: int) -> None:
+    """In a worker (a forked one too): SIGKILL when the parent dies (Linux prctl), so a killed render
+    leaves no orphan; ignore SIGINT (a terminal's Ctrl-C reaches the whole group: the parent decides)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent_pid:          # the parent died before prctl took effect
+        os._exit(1)
+
+
+class WorkerEnd:
+    """The pipes as the worker sees them: receive() the parent's messages, send() its own."""
+
+    def __init__(self, parent_pid: int):
+        die_with_parent(parent_pid)
+        self.out = os.fdopen(os.dup(1), "wb")       # the frames; prints of the tracer go to stderr
+        os.dup2(2, 1)
+        sys.stdout = sys.stderr
+        self.inp = sys.stdin.buffer
+        self.foreign = None
+        self.lock = threading.Lock()
+
+    def handshake(self) -> bool:
+        """Read the parent's hello and answer it; False at EOF or when the engine versions differ."""
+        data = read_frame(self.inp)
+        if data is None:
+            return False
+        _, self.foreign, version = pickle.loads(data)
+        self.send(("hello", ENGINE_VERSION, sys.version.split()[0], os.getpid()))
+        if version != ENGINE_VERSION:
+            print(f"this worker runs engine {ENGINE_VERSION}, the parent {version}: refused", file=sys.stderr)
+            return False
+        return True
+
+    def receive(self):
+        """The parent's next message, or None at EOF."""
+        data = read_frame(self.inp)
+        return None if data is None else decode(data, self.foreign)
+
+    def send(self, message) -> None:
+        with self.lock:
+            self.out.write(encode(message))
+            self.out.flush()
+
+
+def log_to_stderr(message) -> None:
+    """A worker's log: stderr, which the parent shows (warnings excepted, see WorkerProcess)."""
+    print(message, file=sys.stderr)
+
+
+# -- the parent's end -----------------------------------------------------------------------------
+def describe_exit(code) -> str:
+    if code is None:
+        return "stopped answering"
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exited with code {code}"
+
+
+class WorkerProcess:
+    """One worker process, `python -m MODULE [ARGS...] PARENT_PID` (`module`: the list MODULE,
+    ARGS...), named `label (pid N)`.
+
+    send() queues a message (or pre-encoded frame bytes): a writer thread pickles and writes it,
+    so the caller (Blender's UI thread) never waits for a busy worker's pipe or for pickling a big
+    scene.  A reader thread checks the worker's hello and hands every later message to
+    on_message(worker, message); when the worker's stdout ends, on_exit(worker, exit code or None).
+    Both run on the reader thread."""
+
+    def __init__(self, python: str, module: list, env: dict, label: str, on_message, on_exit,
+                 tail_lines: int = 30):
+        self.proc = subprocess.Popen([python, "-m", *module, str(os.getpid())], stdin=subprocess.PIPE,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, close_fds=True)
+        self.pid = self.proc.pid
+        self.name = f"{label} (pid {self.pid})"
+        self.on_message, self.on_exit = on_message, on_exit
+        self.stderr_tail = collections.deque(maxlen=tail_lines)
+        self.version = self.python_version = None       # from the worker's hello
+        self.closed = False
+        self.outbox: queue.Queue = queue.Queue()
+        self.outbox.put(("hello", TRACER_BASE, ENGINE_VERSION))
+        self.stderr_reader = threading.Thread(target=self._read_stderr, daemon=True, name=self.name + " stderr")
+        self.stderr_reader.start()
+        threading.Thread(target=self._write, daemon=True, name=self.name + " stdin").start()
+        threading.Thread(target=self._read, daemon=True, name=self.name).start()
+
+    def send(self, message) -> None:
+        """Queue a message (any picklable object, or bytes from encode())."""
+        if not self.closed:
+            self.outbox.put(message)
+
+    def _write(self):
+        while True:
+            message = self.outbox.get()
+            if message is None:
+                break
+            try:
+                self.proc.stdin.write(message if isinstance(message, bytes) else encode(message))
+                self.proc.stdin.flush()
+            except (BrokenPipeError, OSError, ValueError):
+                break                                   # it died: the reader reports it
+        try:
+            self.proc.stdin.close()
+        except (OSError, ValueError):
+            pass
+
+    def _read(self):
+        foreign = os.path.basename(TRACER_DIR)
+        stream = self.proc.stdout
+        try:
+            data = read_frame(stream)
+            if data is not None:
+                _, self.version, self.python_version, _ = decode(data, foreign)
+                while True:
+                    data = read_frame(stream)
+                    if data is None:
+                        break
+                    self.on_message(self, decode(data, foreign))
+        except Exception:                       # noqa: BLE001 - a frame we cannot read: the worker is lost
+            self.stderr_tail.append(traceback.format_exc())
+        try:
+            code = self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            code = None
+        self.stderr_reader.join(timeout=2)      # its last lines say why (why())
+        self.on_exit(self, code)
+
+    def _read_stderr(self):
+        for raw in iter(self.proc.stderr.readline, b""):
+            line = raw.decode("utf-8", "replace").rstrip()
+            self.stderr_tail.append(line)
+            if line.startswith("warning:"):
+                continue                        # the parent reports the session's warnings once
+            print(f"[{self.name}] {line}", file=sys.stderr)
+
+    def why(self, code) -> str:
+        """How it ended, with its last line on stderr: "killed by SIGKILL: ..."."""
+        tail = [line for line in self.stderr_tail if line.strip()]
+        last = tail[-1] if tail else ""
+        return describe_exit(code) + (f": {last}" if last else "")
+
+    def signal(self, number) -> None:
+        try:
+            self.proc.send_signal(number)
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        """EOF after the messages already queued (the worker ends); see wait()."""
+        if not self.closed:
+            self.closed = True
+            self.outbox.put(None)
+
+    def wait(self, timeout: float) -> None:
+        """Wait for the end of the process; SIGKILL after `timeout` seconds."""
+        try:
+            self.proc.wait(timeout=max(0.0, timeout))
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
+
+def close_all(workers, grace: float) -> None:
+    """EOF to every worker, then SIGKILL to those still running after `grace` seconds in all."""
+    import time
+    for w in workers:
+        w.close()
+    deadline = time.perf_counter() + grace
+    for w in workers:
+        w.wait(deadline - time.perf_counter())

@@ -1,0 +1,211 @@
+"""The frame side of a render: tiles, work units, the ordered merge, the film and the result.
+
+It runs where the render was asked for (the command line, Blender) and never needs the geometry:
+the units are traced by a pool (engine/pools/protocol.py) whose workers each hold the tracer side,
+a PreparedScene (engine/rendering/session.py); what the frame side reports of the preparation
+(accelerator, effect plan, warnings) comes from the pool as TracerFacts.  Tiles and units depend
+on the scene's resolution and the settings only, never on the workers, and the film adds each
+tile's units in chunk order, so the image is the same bit for bit whatever renders it.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.version import ENGINE_NAME, ENGINE_VERSION
+from ..film.accumulator import Film
+from ..film.passes import FrameFeatures, pass_images, traced
+from ..geometry.scene_geometry import Counters
+from .units import Tile, await_units, make_tiles, make_units, tile_size_for
+
+DEFAULT_TARGET = 0.01            # the error seconds_to_target aims at without a noise target
+
+
+@dataclass
+class RenderResult:
+    image: np.ndarray
+    variance: np.ndarray
+    stats: dict
+    warnings: list = field(default_factory=list)
+    cancelled: bool = False
+    passes: dict = field(default_factory=dict)    # engine/film/passes.py pass_images(): name -> (H, W, C)
+    film: "FrameFilm | None" = None       # sums, half buffers, samples per pixel (engine/rendering/estimate.py)
+
+
+class FrameFilm(Film):
+    """The frame's film, merged from unit results: each tile's units in chunk order (results that
+    arrive early wait), so floating-point sums never depend on arrival order.  Besides the sums it
+    keeps half buffer A of the stopping rules' rounds (engine/film/error_estimate.py; B = total - A)
+    and the traced passes' features."""
+
+    def __init__(self, width: int, height: int, units):
+        super().__init__(width, height)
+        self.sum_a = np.zeros((height, width, 3))
+        self.count_a = np.zeros((height, width))
+        self.next_chunk = {}                    # tile index -> next chunk to add
+        self.pending = {}                       # (tile index, chunk) -> UnitResult
+        self.units_total = len(units)
+        self.units_added = 0
+        self.features = None                    # FrameFeatures when a traced pass is on
+
+    def add(self, result) -> list[Tile]:
+        """Merge a unit's result; returns the tiles whose pixels changed."""
+        unit = result.unit
+        self.pending[(unit.tile.index, unit.chunk)] = result
+        changed = []
+        key = (unit.tile.index, self.next_chunk.get(unit.tile.index, 0))
+        while key in self.pending:
+            t = self._merge(self.pending.pop(key))
+            key = (t.index, key[1] + 1)
+            changed = [t]
+        return changed
+
+    def flush(self) -> list[Tile]:
+        """Merge the results still waiting for an earlier chunk of their tile that will not come
+        (a cancelled render: the work finished is kept, in chunk order); the tiles changed."""
+        changed = {}
+        for key in sorted(self.pending):
+            t = self._merge(self.pending.pop(key))
+            changed[t.index] = t
+        return list(changed.values())
+
+    def _merge(self, r) -> Tile:
+        t = r.unit.tile
+        h, w = t.y1 - t.y0, t.x1 - t.x0
+        self.add_sums(t.x0, t.y0, r.sum.reshape(h, w, 3), r.sum_sq.reshape(h, w, 3), r.count.reshape(h, w))
+        if r.sum_a is not None:
+            self.sum_a[t.y0:t.y1, t.x0:t.x1] += r.sum_a.reshape(h, w, 3)
+            self.count_a[t.y0:t.y1, t.x0:t.x1] += r.count_a.reshape(h, w)
+        if self.features is not None and r.features is not None:
+            self.features.add(t, r.features)
+        self.units_added += 1
+        self.next_chunk[t.index] = max(self.next_chunk.get(t.index, 0), r.unit.chunk + 1)
+        return t
+
+    @property
+    def samples_per_pixel(self) -> np.ndarray:
+        """(H, W) camera samples each pixel got (they differ under adaptive sampling)."""
+        return self.count
+
+    def half_buffer_variance(self) -> np.ndarray:
+        """(H, W, 3) variance of each pixel mean from the half buffers (engine/film/error_estimate.py);
+        where a pixel has no two halves (renders without stopping rules), the sample variance."""
+        from ..film.error_estimate import half_buffer_variance
+        var = half_buffer_variance(self.sum, self.count, self.sum_a, self.count_a)
+        missing = np.isnan(var)
+        if missing.any():
+            var[missing] = self.variance_of_mean()[missing]
+        return var
+
+    def estimated_rel_error(self) -> float:
+        """The image's estimated relative error E (README: Stopping rules)."""
+        from ..film.error_estimate import image_rel_error
+        return image_rel_error(self.mean().astype(np.float64), self.half_buffer_variance())
+
+
+class Frame:
+    """Tiles, work units, the film and the counters of one render of `scene` under `settings`;
+    `facts` (engine/rendering/session.py TracerFacts) tell what the tracer side prepared.
+    progressive: the order of the units, "tiles" (tile by tile) or "frame" (the whole frame
+    refines: engine/rendering/units.py make_units)."""
+
+    def __init__(self, scene, settings, facts, progressive: str = "tiles"):
+        settings.validate()
+        self.settings, self.facts, self.progressive = settings, facts, progressive
+        self.resolution = width, height = tuple(scene.resolution)
+        self.warnings = list(facts.warnings)
+        self.tile_size = tile_size_for(width, height, settings.tile_size)
+        self.tiles = make_tiles(width, height, self.tile_size)
+        self.units = make_units(self.tiles, settings.samples, progressive)
+        self.film = FrameFilm(width, height, self.units)
+        if traced(settings.passes):
+            self.film.features = FrameFeatures(width, height)
+        self.totals = Counters()
+
+    @property
+    def plan(self):
+        return self.facts.plan
+
+    def add(self, result) -> list[Tile]:
+        self.totals.merge(result.counters)
+        return self.film.add(result)
+
+    def add_and_show(self, result, on_tile=None) -> None:
+        """Merge a unit's result and hand every tile it changed to on_tile(x0, y0, x1, y1, pixels)."""
+        for tile in self.add(result):
+            if on_tile is not None:
+                on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
+
+    def run(self, pool, on_tile=None, should_cancel=None, on_progress=None):
+        """Render every unit on `pool` (engine/pools/protocol.py; prepared for this scene) and close
+        it.  Callbacks run on the calling thread: on_tile(x0, y0, x1, y1, pixels) after each merge,
+        should_cancel() polled about every 0.1 s, on_progress(fraction, message)."""
+        if self.settings.stopping_rules():
+            from .stopping import run_rounds
+            return run_rounds(self, pool, on_tile, should_cancel, on_progress)
+        start = time.perf_counter()
+
+        def merge(result):
+            self.add_and_show(result, on_tile)
+            if on_progress is not None:
+                elapsed = max(time.perf_counter() - start, 1e-9)
+                rate = sum(self.totals.rays.values()) / elapsed / 1e6
+                on_progress(self.film.units_added / len(self.units),
+                            f"unit {self.film.units_added}/{len(self.units)} · {rate:.2f} M rays/s · "
+                            f"effects: {self.plan.summary()}")
+        try:
+            pool.start(self.units)
+            interrupt = None if should_cancel is None else (lambda: "cancelled" if should_cancel() else None)
+            reason, error = await_units(pool, len(self.units), merge, interrupt)
+            cancelled = reason is not None
+        finally:
+            pool.close()
+        if error is not None:
+            raise error
+        if cancelled:                                      # keep every unit that finished
+            for tile in self.film.flush():
+                if on_tile is not None:
+                    on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
+        return self.result(time.perf_counter() - start, cancelled, pool.describe)
+
+    def error_stats(self, seconds: float) -> dict:
+        """estimated_rel_error and seconds_to_target (README: Stopping rules)."""
+        from ..film.error_estimate import seconds_to_target
+        s = self.settings
+        error = self.film.estimated_rel_error()
+        target = s.noise_target or DEFAULT_TARGET
+        spp = self.film.samples_per_pixel
+        finite = (lambda x: float(x) if np.isfinite(x) else None)        # JSON has no NaN
+        return {"estimated_rel_error": finite(error), "target_rel_error": target,
+                "seconds_to_target": finite(seconds_to_target(seconds, error, target)),
+                "error_estimate": "half buffers" if self.film.count_a.any() else "sample variance",
+                "time_limit": s.time_limit, "noise_target": s.noise_target, "min_samples": s.min_samples,
+                "adaptive": s.adaptive and s.noise_target > 0,
+                "samples_per_pixel": {"min": float(spp.min()), "mean": float(spp.mean()), "max": float(spp.max())}}
+
+    def result(self, seconds: float, cancelled: bool = False, workers: str = "local") -> RenderResult:
+        """The image, its variance, the passes and the stats; `workers`: the pool's describe."""
+        s, facts = self.settings, self.facts
+        width, height = self.resolution
+        rays = dict(self.totals.rays)
+        stats = {
+            "engine": ENGINE_NAME, "engine_version": ENGINE_VERSION,
+            "render_seconds": seconds, "setup_seconds": facts.setup_seconds, "build_seconds": facts.build_seconds,
+            "samples": s.samples, "shadow_rays": s.shadow_rays, "max_depth": s.max_depth,
+            "russian_roulette": s.russian_roulette, "fresnel": s.fresnel, "estimator": s.estimator,
+            "sampler": s.sampler, "seed": s.seed, "resolution": [width, height], "threads": s.resolved_threads(),
+            "tile_size": self.tile_size, "units": len(self.units), "units_done": self.film.units_added,
+            "progressive": self.progressive, "parallelism": workers,
+            "accelerator": facts.accelerator, "accelerator_reason": facts.accelerator_reason,
+            "rays": rays, "rays_per_second": sum(rays.values()) / seconds if seconds > 0 else 0.0,
+            "effects": dict(self.plan.enabled), "effects_reason": dict(self.plan.reason),
+            "nonfinite_samples": self.totals.nonfinite_samples,
+            "seconds_in_intersection": self.totals.seconds_in_intersection,
+            "seconds_in_accelerator": self.totals.seconds_in_accelerator,
+            "cancelled": cancelled, "warnings": list(self.warnings), "passes": list(s.passes),
+        }
+        stats.update(self.error_stats(seconds))
+        return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled,
+                            pass_images(self.film, s.passes), film=self.film)
