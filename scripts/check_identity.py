@@ -394,7 +394,7 @@ def split_volatile(stats):
                 key = f"{path}.{k}" if path else k
                 if VOLATILE_KEY.search(str(k)):
                     volatile[key] = v
-                elif k == "pass_log":
+                elif k in ("pass_log", "round_log"):       # round_log: the same log, renamed
                     kept[k] = strip_pass_log(v, key, volatile)
                 else:
                     kept[k] = walk(v, key)
@@ -590,7 +590,24 @@ def image_path(data, record, key="image"):
 
 
 # -- comparing ------------------------------------------------------------------------------------
-def compare_records(old, new, names, out=sys.stdout) -> int:
+def rename_stats(record, renames):
+    """The record with its cases' top-level stats keys renamed (OLD -> NEW): an intended rename
+    of a stats key is then compared under its new name."""
+    if not renames:
+        return record
+    record = json.loads(json.dumps(record))
+    for case in record["cases"].values():
+        stats = case.get("stats")
+        if isinstance(stats, dict):
+            case["stats"] = {renames.get(k, k): v for k, v in stats.items()}
+    return record
+
+
+def compare_records(old, new, names, out=sys.stdout, renames=None, accepted=()) -> int:
+    """The table; exit code 1 if anything differs.  renames {OLD: NEW}: stats keys renamed on
+    purpose; accepted: fnmatch patterns of stats keys whose change is intended (listed in the
+    row's notes as 'accepted', not counted as a difference).  Pixels are never accepted."""
+    old = rename_stats(old, renames or {})
     rows, bad = [], 0
     for name in names:
         a, b = old["cases"].get(name), new["cases"].get(name)
@@ -607,6 +624,8 @@ def compare_records(old, new, names, out=sys.stdout) -> int:
         same_pixels = pa == pb
         keys = differing_keys(a["stats"], b["stats"])
         keys += [f"header:{k}" for k in differing_keys(a["header"], b["header"])]
+        allowed = [k for k in keys if any(fnmatch.fnmatchcase(k.lstrip("+-"), pat) for pat in accepted)]
+        keys = [k for k in keys if k not in allowed]
         diff = ""
         if not same_pixels:
             changed = sorted(k for k in set(pa) | set(pb) if pa.get(k) != pb.get(k))
@@ -626,6 +645,8 @@ def compare_records(old, new, names, out=sys.stdout) -> int:
                 diff += ("; " if diff else "") + "channels " + ", ".join(("+" if k not in pa else "-") + k
                                                                           for k in only)
         notes = ", ".join(keys[:12]) + (f" (+{len(keys) - 12} more)" if len(keys) > 12 else "")
+        if allowed:
+            notes += ("; " if notes else "") + "accepted: " + ", ".join(allowed)
         if not same_pixels:
             changed_here = [k for k in changed if k in pa and k in pb]
             if changed_here:
@@ -675,14 +696,27 @@ def main(argv=None) -> int:
     run_options.add_argument("--quiet", action="store_true", help="no progress lines")
     rec = sub.add_parser("record", parents=[common, run_options], help="render the matrix, write the JSON")
     rec.add_argument("--out", required=True, metavar="FILE.json")
-    cmp_ = sub.add_parser("compare", parents=[common, run_options], help="render the matrix, compare with a record")
+    intended = argparse.ArgumentParser(add_help=False)     # compare and diff: intended stats changes
+    intended.add_argument("--renamed", action="append", default=[], metavar="OLD=NEW",
+                          help="a stats key renamed on purpose: the baseline's OLD is compared as NEW; repeatable")
+    intended.add_argument("--accept", action="append", default=[], metavar="KEY",
+                          help="a stats key (fnmatch pattern of the dotted key) whose change is intended: "
+                               "listed, not counted; repeatable.  Pixels are never accepted")
+    cmp_ = sub.add_parser("compare", parents=[common, run_options, intended],
+                          help="render the matrix, compare with a record")
     cmp_.add_argument("--baseline", required=True, metavar="FILE.json")
     cmp_.add_argument("--out", metavar="NEW.json", help="also write the new record here")
-    dif = sub.add_parser("diff", parents=[common], help="compare two records (no rendering)")
+    dif = sub.add_parser("diff", parents=[common, intended], help="compare two records (no rendering)")
     dif.add_argument("old", metavar="OLD.json")
     dif.add_argument("new", metavar="NEW.json")
     args = parser.parse_args(argv)
     args.only = (args.only or []) + getattr(args, "only_after", [])
+    renames = {}
+    for item in getattr(args, "renamed", []):
+        old_key, sep, new_key = item.partition("=")
+        if not sep or not old_key or not new_key:
+            parser.error(f"--renamed wants OLD=NEW, got {item!r}")
+        renames[old_key] = new_key
 
     repo = os.path.abspath(getattr(args, "repo", REPO))
     cases = select(build_cases(repo), args.only)
@@ -702,7 +736,7 @@ def main(argv=None) -> int:
 
     if args.mode == "diff":
         old, new = load_json(args.old), load_json(args.new)
-        return compare_records(old, new, case_names(old, new, cases, args.only))
+        return compare_records(old, new, case_names(old, new, cases, args.only), renames=renames, accepted=args.accept)
 
     python = args.python
 
@@ -727,7 +761,7 @@ def main(argv=None) -> int:
         new["_dir"] = os.path.dirname(os.path.abspath(args.out)) if args.out else ""
         if images and not args.out:
             new["images"] = images                      # absolute
-        code = compare_records(old, new, case_names(old, new, cases, args.only))
+        code = compare_records(old, new, case_names(old, new, cases, args.only), renames=renames, accepted=args.accept)
         if args.out:
             write_json(args.out, {k: v for k, v in new.items() if not k.startswith("_")})
             log(f"wrote {args.out}")
