@@ -5,7 +5,10 @@
   inside the add-on as the sub-package ``tracer``, imported relatively: ``<addon package>.tracer``.
 
 The tracer is imported lazily (at render time), so the add-on registers even when embreex is
-missing and the user gets a readable error instead of a failed registration.
+missing and the user gets a readable error instead of a failed registration.  The one part of it
+registration needs is the settings table (``core.settings``, standard library only; the tracer's
+``__init__`` imports nothing heavy): `settings_table` finds it without the check for numpy that
+`tracer_base` makes.
 """
 import importlib
 
@@ -43,6 +46,17 @@ def module(name: str):
 
 def scene_module():
     return module("scene.model")
+
+
+def settings_table():
+    """The tracer's settings table module (engine/core/settings.py) without importing numpy."""
+    errors = []
+    for base in (__package__ + ".tracer", "engine"):
+        try:
+            return importlib.import_module(base + ".core.settings")
+        except ImportError as exc:
+            errors.append(f"{base}.core.settings: {exc}")
+    raise ImportError("TNCG15 MC: the tracer's settings table was not found (" + "; ".join(errors) + ")")
 
 
 def settings_class():

@@ -1,14 +1,17 @@
 """Command line: render a .blend headless with TNCG15 MC or a fair Cycles reference, and the
 export benchmark.  Runs in the ``bpy`` module (Blender 5.0.1 as a Python package):
 
-  python -m mcrt_addon render FILE.blend -o OUT.exr|OUT.png [--png OUT.png] [--engine TNCG15_MC|CYCLES] [--samples N]
-         [--shadow-rays N] [--max-depth N] [--accelerator NAME] [--fresnel schlick|exact]
-         [--estimator report|solid-angle|mis] [--threads N] [--seed N] [--resolution W H]
-         [--frame F] [--stats-json PATH]
+  python -m mcrt_addon render FILE.blend -o OUT.exr|OUT.png [--png OUT.png] [--engine TNCG15_MC|CYCLES]
+         [--resolution W H] [--frame F] [--stats-json PATH] [--cluster ADDRESS] [settings...]
+  python -m mcrt_addon estimate FILE.blend --noise-target REL [--samples N] [--min-samples N] [--no-adaptive]
+         [--threads N] [--seed N] [--resolution W H] [--pilot-samples N] [--json]
   python -m mcrt_addon bench-export [--triangles N]
   python -m mcrt_addon bench-estimators [--scenes ...] [--resolution W H] [--samples N]
          [--reference-samples N] [--max-depth N] [--out docs/estimators.json]
          (light-sampling estimators vs Cycles; see mcrt_addon/bench_estimators.py)
+
+The settings (--samples, --max-depth, --noise-target, ...) are the rows of the settings table
+(engine/core/settings.py; listed in docs/settings.md); a flag not given keeps the file's value.
 """
 import json
 import os
@@ -17,11 +20,13 @@ import sys
 import tempfile
 import time
 
-from . import bridge
+from . import bridge, properties
 from .headless import ensure_registered, set_exr_output
 
-ESTIMATOR_CHOICES = ("report", "solid-angle", "mis")
-SAMPLER_CHOICES = ("sobol", "random")
+# The settings the Cycles reference render also takes (mcrt_addon/reference.py); the others are TNCG15 MC's.
+CYCLES_REFERENCE = ("samples", "max_depth", "seed", "threads")
+# The settings `estimate` takes besides --noise-target (the pilot render decides the others).
+ESTIMATE_SETTINGS = ("samples", "min_samples", "adaptive", "threads", "seed")
 PROG = "python -m mcrt_addon"
 MAX_FRAME = 1048574                    # Blender's MAXFRAME
 MAX_RESOLUTION = 65536                 # Blender's largest resolution_x / resolution_y
@@ -29,8 +34,10 @@ BLEND_MAGIC = (b"BLENDER", b"\x1f\x8b", b"\x28\xb5\x2f\xfd")   # plain, gzip, zs
 
 
 def build_parser():
-    cli = bridge.module("cli.main")             # the tracer's: one-line errors, the shared integer limits
-    setting_int, bounded_int = cli.setting_int, cli.bounded_int
+    cli = bridge.module("cli.main")             # the tracer's: one-line errors
+    args_of = bridge.module("cli.settings_args")   # the settings table's arguments
+    table = bridge.settings_table()
+    bounded_int = args_of.bounded_int
     parser = cli.OneLineParser(prog=PROG, description="TNCG15 MC headless tools (bpy module)")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=cli.OneLineParser)
     r = sub.add_parser("render", help="render a .blend file to a linear EXR")
@@ -39,38 +46,22 @@ def build_parser():
                    help="output image: .exr (linear, 32-bit float) or .png (sRGB); '//' = beside the .blend")
     r.add_argument("--engine", default="TNCG15_MC", choices=("TNCG15_MC", "CYCLES"),
                    type=str.upper)
-    r.add_argument("--samples", type=setting_int("samples"))
-    r.add_argument("--shadow-rays", type=setting_int("shadow_rays"))
-    r.add_argument("--max-depth", type=setting_int("max_depth"))
-    r.add_argument("--accelerator", choices=("auto", "embree", "octree", "brute"), type=str.lower)
-    r.add_argument("--fresnel", choices=("schlick", "exact"), type=str.lower)
-    r.add_argument("--estimator", choices=ESTIMATOR_CHOICES, type=str.lower,
-                   help="direct-light estimator (TNCG15 MC only)")
-    r.add_argument("--sampler", choices=SAMPLER_CHOICES, type=str.lower,
-                   help="random-number pattern (TNCG15 MC only)")
     r.add_argument("--cluster", metavar="ADDRESS",
                    help="render on a Dask cluster: its scheduler's tcp://HOST:PORT, or 'local' (TNCG15 MC only; "
                         "as the add-on's Render cluster preference)")
-    r.add_argument("--nested-dielectrics", action="store_true",
-                   help="track nested glass media (TNCG15 MC only; Cycles has no such model)")
-    r.add_argument("--threads", type=setting_int("threads"))
-    r.add_argument("--seed", type=setting_int("seed"))
     r.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
     r.add_argument("--frame", type=bounded_int(-MAX_FRAME, MAX_FRAME),
                    help="frame to render (default: the file's current frame)")
     r.add_argument("--stats-json", help="write render statistics (JSON) here")
     r.add_argument("--png", help="also write an sRGB PNG of the render here")
-    cli.add_pass_arguments(r)               # --passes, --denoise (TNCG15 MC only)
-    cli.add_stopping_arguments(r, defaults=False)
+    # A setting's flag not given keeps the .blend file's value.
+    args_of.add_setting_arguments(r, table.settings_for(table.ADDON_CLI), table_defaults=False, any_case=True,
+                                  note=lambda s: "" if s.name in CYCLES_REFERENCE else " (TNCG15 MC only)")
     es = sub.add_parser("estimate", help="predict the render time to reach --noise-target from a short pilot render")
     es.add_argument("file", help=".blend file")
-    es.add_argument("--noise-target", type=cli.nonnegative_float(1.0), required=True, metavar="REL",
-                    help="the estimated relative error to reach, e.g. 0.01")
-    es.add_argument("--samples", type=setting_int("samples"), help="the cap of the real render")
-    es.add_argument("--min-samples", type=setting_int("min_samples"))
-    es.add_argument("--no-adaptive", action="store_true")
-    es.add_argument("--threads", type=setting_int("threads"))
-    es.add_argument("--seed", type=setting_int("seed"))
+    es.add_argument("--noise-target", type=args_of.bounded_float(*table.SETTING["noise_target"].limits),
+                    required=True, metavar="REL", help="the estimated relative error to reach, e.g. 0.01")
+    args_of.add_setting_arguments(es, [table.SETTING[name] for name in ESTIMATE_SETTINGS], table_defaults=False)
     es.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
     es.add_argument("--pilot-samples", type=bounded_int(2, 4096), default=64)
     es.add_argument("--json", action="store_true", help="also print the prediction as JSON")
@@ -85,36 +76,12 @@ def build_parser():
 
 
 def apply_tncg15_settings(props, args):
-    if args.samples is not None:
-        props.samples = args.samples
-    if args.shadow_rays is not None:
-        props.shadow_rays = args.shadow_rays
-    if args.max_depth is not None:
-        props.max_depth = args.max_depth
-    if args.accelerator is not None:
-        props.accelerator = args.accelerator.upper()
-    if args.fresnel is not None:
-        props.fresnel = args.fresnel.upper()
-    if getattr(args, "estimator", None) is not None:
-        props.estimator = args.estimator.upper().replace("-", "_")   # REPORT, SOLID_ANGLE, MIS
-    if getattr(args, "sampler", None) is not None:
-        props.sampler = args.sampler.upper()
-    if getattr(args, "nested_dielectrics", False):
-        props.nested_dielectrics = True
-    if args.threads is not None:
-        props.threads = args.threads
-    if args.seed is not None:
-        props.seed = args.seed
-    if getattr(args, "noise_target", None) is not None:
-        props.use_noise_target = args.noise_target > 0
-        if args.noise_target > 0:
-            props.noise_target = args.noise_target
-    if getattr(args, "min_samples", None) is not None:
-        props.min_samples = args.min_samples
-    if getattr(args, "time_limit", None) is not None:
-        props.time_limit = args.time_limit
-    if getattr(args, "no_adaptive", False):
-        props.adaptive = False
+    """The settings given on the command line onto the scene's properties (mcrt_addon/properties.py);
+    the others keep the file's values.  --passes is the view layer's (mcrt_addon/passes.py)."""
+    table = bridge.settings_table()
+    given = bridge.module("cli.settings_args").setting_values(args, properties.SCENE_SETTINGS, given_only=True)
+    for name, value in given.items():
+        props.set_setting(table.SETTING[name], value)
 
 
 def error(message, code=2):
@@ -261,8 +228,6 @@ def estimate_file(args):
         if args.resolution:
             scene.render.resolution_x, scene.render.resolution_y = args.resolution
             scene.render.resolution_percentage = 100
-        args.time_limit, args.max_depth, args.shadow_rays = None, None, None
-        args.accelerator = args.fresnel = args.estimator = args.sampler = None
         apply_tncg15_settings(scene.tncg15, args)
         if scene.camera is None:
             return error(f"scene '{scene.name}' has no camera")

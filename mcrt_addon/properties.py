@@ -1,35 +1,26 @@
 """Render settings stored on the scene (``scene.tncg15``) and per-object options (``object.tncg15``).
 
 Mirrors Cycles' ``properties.py``: plain PropertyGroups, no behaviour except converting the
-scene settings into the tracer's ``RenderSettings``.
+scene settings into the tracer's ``RenderSettings`` and back.  The scene's properties are made
+from the tracer's settings table (engine/core/settings.py, read through bridge.py without numpy):
+one bpy property per row that Blender exposes, with the row's label, default and limits; a row
+whose 0 means off (noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.
 """
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-FRESNEL_ITEMS = (
-    ("SCHLICK", "Schlick", "Schlick's approximation (report eq. 2.17)"),
-    ("EXACT", "Exact", "Exact dielectric Fresnel, as Cycles uses"),
-)
-ESTIMATOR_ITEMS = (
-    ("MIS", "Multiple Importance", "Lights sampled by solid angle (spherical rectangles and triangles, "
-                                   "sphere cones) and picked by a light tree, combined with the BSDF "
-                                   "sample by multiple importance sampling, as Cycles"),
-    ("SOLID_ANGLE", "Light Sampling", "Lights sampled by solid angle and picked by a light tree; "
-                                      "emission found by diffuse bounces is left to the shadow rays"),
-    ("REPORT", "Report (Area)", "The report's estimator (eq. 2.11): a light picked by power, a point on "
-                                "it uniform by area (pdf 1/A); noisy near lights"),
-)
-SAMPLER_ITEMS = (
-    ("SOBOL", "Sobol", "Owen-scrambled Sobol' points per pixel, each dimension pair shuffled "
-                       "independently (lower noise, as Cycles' default pattern)"),
-    ("RANDOM", "Random", "Independent uniform random numbers (plain Monte Carlo)"),
-)
-ACCELERATOR_ITEMS = (
-    ("AUTO", "Auto", "Pick the fastest available accelerator"),
-    ("EMBREE", "Embree", "Intel Embree through embreex"),
-    ("OCTREE", "Octree", "The tracer's own octree (NumPy)"),
-    ("BRUTE", "Brute Force", "Test every primitive (reference, slow)"),
-)
+from . import bridge
+
+TABLE = bridge.settings_table()
+SCENE_SETTINGS = TABLE.settings_for(TABLE.BLENDER)
+
+
+def enum_items(setting) -> tuple:
+    """(identifier, label, description) of each choice: 'solid-angle' -> 'SOLID_ANGLE'."""
+    return tuple((c.identifier, c.label, c.description) for c in setting.choices)
+
+
+ACCELERATOR_ITEMS = enum_items(TABLE.SETTING["accelerator"])
 SPHERE_ITEMS = (
     ("AUTO", "Auto", "Render as an exact sphere when the mesh is a closed sphere "
                      "(all vertices equidistant from the centre, uniform scale)"),
@@ -38,65 +29,67 @@ SPHERE_ITEMS = (
 )
 
 
-class TNCG15RenderSettings(bpy.types.PropertyGroup):
-    samples: IntProperty(name="Samples", description="Camera rays per pixel",
-                         default=16, min=1, soft_max=4096)
-    viewport_samples: IntProperty(name="Max Samples", description="Samples per pixel the 3D viewport's "
-                                  "Rendered mode accumulates", default=32, min=1, soft_max=4096)
-    shadow_rays: IntProperty(name="Shadow Rays", description="Light samples per diffuse hit",
-                             default=1, min=0, soft_max=64)
-    # Stopping rules, laid out as Cycles' Noise Threshold, Min Samples, Time Limit (README: Stopping rules)
-    use_noise_target: BoolProperty(name="Noise Target", description="Stop when the estimated relative error "
-                                   "of the image reaches the target", default=False)
-    noise_target: FloatProperty(name="Noise Target", description="Estimated relative error (RMS over the "
-                                "pixels, relative to the pixel values) at which the render stops",
-                                default=0.01, min=0.0001, max=1.0, precision=4, step=0.1)
-    adaptive: BoolProperty(name="Adaptive Sampling", description="With a noise target: blocks of 8x8 pixels "
-                           "whose error reached it get no more samples", default=True)
-    min_samples: IntProperty(name="Min Samples", description="Samples every pixel gets before the noise "
-                             "target may stop it (0 = automatic: 16 / Noise Target^0.3, as Cycles)", default=0, min=0, soft_max=4096)
-    time_limit: FloatProperty(name="Time Limit", description="Stop rendering after this many seconds "
-                              "(0 = no limit)", default=0.0, min=0.0, soft_max=3600.0, precision=1)
-    estimate_text: bpy.props.StringProperty(name="Estimate", description="The last Estimate Render Time",
+def scene_property(s):
+    """The bpy property of one row of the table."""
+    common = dict(name=s.label, description=s.description or s.help, **s.bpy_options)
+    if s.kind == TABLE.INT:
+        return IntProperty(default=s.default, min=s.limits[0], max=s.limits[1], **common)
+    if s.kind == TABLE.FLOAT:
+        if s.off_toggle is not None:
+            low, default = s.off_toggle.on_min, s.off_toggle.on_default
+        else:
+            low, default = s.limits[0], s.default
+        return FloatProperty(default=default, min=low, max=s.limits[1], **common)
+    if s.kind == TABLE.BOOL:
+        return BoolProperty(default=s.default, **common)
+    if s.kind == TABLE.CHOICE:
+        return EnumProperty(items=enum_items(s), default=s.identifier(s.default), **common)
+    raise TypeError(f"setting {s.name}: no Blender property for a {s.kind} setting")
+
+
+def scene_properties() -> dict:
+    """The annotations of TNCG15RenderSettings: the table's rows, then Blender's own options."""
+    props = {}
+    for s in SCENE_SETTINGS:
+        if s.off_toggle is not None:
+            props[s.off_toggle.prop] = BoolProperty(name=s.label, description=s.off_toggle.description,
+                                                    default=False)
+        props[s.blender_prop] = scene_property(s)
+    props["viewport_samples"] = IntProperty(name="Max Samples", description="Samples per pixel the 3D viewport's "
+                                            "Rendered mode accumulates", default=32, min=1, soft_max=4096)
+    props["estimate_text"] = StringProperty(name="Estimate", description="The last Estimate Render Time",
                                             default="", options={"SKIP_SAVE"})
-    sampler: EnumProperty(name="Pattern", description="Where the random numbers of each pixel come from",
-                          items=SAMPLER_ITEMS, default="SOBOL")
-    seed: IntProperty(name="Seed", description="Random seed; the same seed gives the same image",
-                      default=0, min=0)
-    max_depth: IntProperty(name="Max Bounces", description="Bounces after the camera hit (0 = direct light only)",
-                           default=8, min=0, soft_max=128)
-    russian_roulette: BoolProperty(name="Russian Roulette", description="Terminate paths randomly "
-                                   "(unbiased) from the start depth on", default=True)
-    rr_start_depth: IntProperty(name="Start Depth", description="First bounce at which Russian roulette applies",
-                                default=3, min=0, soft_max=64)
-    fresnel: EnumProperty(name="Fresnel", description="Fresnel model for glass", items=FRESNEL_ITEMS,
-                          default="SCHLICK")
-    estimator: EnumProperty(name="Estimator", description="How direct light is estimated",
-                            items=ESTIMATOR_ITEMS, default="MIS")
-    nested_dielectrics: BoolProperty(name="Nested Dielectrics", description="Track the media a path is "
-                                     "inside, so glass inside glass refracts by the ratio of the two IORs "
-                                     "(off: every glass surface is against air, as Cycles)", default=False)
-    threads: IntProperty(name="Threads", description="Worker threads (0 = all cores)", default=0, min=0,
-                         soft_max=256)
-    accelerator: EnumProperty(name="Accelerator", description="Ray-intersection acceleration structure",
-                              items=ACCELERATOR_ITEMS, default="AUTO")
-    tile_size: IntProperty(name="Tile Size", description="Tile edge in pixels", default=64, min=8,
-                           soft_max=1024)
-    use_denoising: BoolProperty(name="Denoise", description="Denoise the final render with Intel Open Image "
-                                "Denoise (pyoidn in the worker Python), guided by the Denoising Albedo and "
-                                "Normal passes; the raw image is kept as the Noisy Image pass", default=False)
+    return props
+
+
+class TNCG15RenderSettings(bpy.types.PropertyGroup):
+    # Built from the table (a dict, not written annotations: the same in Python 3.10 and 3.11+).
+    __annotations__ = scene_properties()
+
+    def setting(self, s):
+        """The value of one row (engine/core/settings.py) in the tracer's terms."""
+        value = getattr(self, s.blender_prop)
+        if s.off_toggle is not None and not getattr(self, s.off_toggle.prop):
+            return s.default                        # off
+        if s.kind == TABLE.CHOICE:
+            return s.value_of(value)                # 'SOLID_ANGLE' -> 'solid-angle'
+        return value
+
+    def set_setting(self, s, value):
+        """One row's value (the tracer's terms) onto these properties; the inverse of `setting`."""
+        if s.off_toggle is not None:
+            setattr(self, s.off_toggle.prop, value != s.default)
+            if value == s.default:
+                return                              # off: the value the user last chose stays
+        if s.kind == TABLE.CHOICE:
+            value = s.identifier(value)
+        setattr(self, s.blender_prop, value)
 
     def to_settings(self, settings_cls):
         """The tracer's RenderSettings for these values (the class is passed in: the tracer loads lazily)."""
-        return settings_cls(
-            samples=self.samples, shadow_rays=self.shadow_rays, max_depth=self.max_depth,
-            russian_roulette=self.russian_roulette, rr_start_depth=self.rr_start_depth,
-            fresnel=self.fresnel.lower(), nested_dielectrics=self.nested_dielectrics,
-            estimator=self.estimator.lower().replace("_", "-"), sampler=self.sampler.lower(),
-            threads=self.threads, seed=self.seed,
-            tile_size=self.tile_size, accelerator=self.accelerator.lower(),
-            noise_target=self.noise_target if self.use_noise_target else 0.0, adaptive=self.adaptive,
-            min_samples=min(self.min_samples, self.samples), time_limit=self.time_limit)
+        settings = settings_cls(**{s.name: self.setting(s) for s in SCENE_SETTINGS})
+        settings.min_samples = min(settings.min_samples, settings.samples)    # the panel lets Min exceed Max
+        return settings
 
 
 class TNCG15ViewLayerSettings(bpy.types.PropertyGroup):

@@ -2,7 +2,10 @@
 Advanced), Light Paths, Performance, Denoising, View Layer passes,
 plus an object panel for the implicit-sphere option.  Also lends our engine id to Blender's generic
 panels (output, dimensions, camera, light, material and world surface) the way the RenderEngine
-documentation template does."""
+documentation template does.
+
+The scene properties drawn here are the rows of the settings table (engine/core/settings.py), by
+name; a row's `panel` says which panel draws it (tests/core/test_settings_table.py checks)."""
 import bpy
 
 ENGINE_ID = "TNCG15_MC"

@@ -11,8 +11,8 @@ import numpy as np
 
 from ..core.errors import SceneError
 from ..film.output import OutputError, check_outputs, write_image, write_text
-from ..core.settings import (ACCELERATORS, ESTIMATORS, FRESNEL_MODELS, INT32_MAX, INT_LIMITS, SAMPLERS,
-    RenderSettings)
+from ..core.settings import ENGINE_CLI, INT32_MAX, PASSES, RenderSettings, settings_for
+from .settings_args import add_setting_arguments, bounded_int, setting_values
 from .signals import StopRequest
 
 PROG = "python -m engine"
@@ -26,82 +26,13 @@ class OneLineParser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-def bounded_int(low: int, high: int):
-    """An argparse type: an integer from low to high (one-line error otherwise)."""
-    def parse(text):
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"must be from {low} to {high:,}, got {value}")
-        return value
-    return parse
-
-
-def setting_int(name):
-    return bounded_int(*INT_LIMITS[name])
-
-
 positive_int = bounded_int(1, INT32_MAX)
 MAX_RESOLUTION = 65536
 
 
 def add_settings_arguments(p):
-    defaults = RenderSettings()
-    p.add_argument("--samples", type=setting_int("samples"), default=defaults.samples,
-                   help="camera rays per pixel")
-    p.add_argument("--shadow-rays", type=setting_int("shadow_rays"), default=defaults.shadow_rays,
-                   help="shadow rays per diffuse hit (eq. 2.11)")
-    p.add_argument("--max-depth", type=setting_int("max_depth"), default=defaults.max_depth,
-                   help="bounces after the camera hit (0 = direct light only)")
-    p.add_argument("--no-russian-roulette", action="store_true", help="disable Russian roulette")
-    p.add_argument("--fresnel", choices=FRESNEL_MODELS, default=defaults.fresnel)
-    p.add_argument("--estimator", choices=ESTIMATORS, default=defaults.estimator,
-                   help="direct light: mis (solid-angle light samples and BSDF samples combined by MIS), "
-                        "solid-angle (light samples only), report (eq. 2.11: area sampling, pdf 1/A)")
-    p.add_argument("--sampler", choices=SAMPLERS, default=defaults.sampler,
-                   help="sobol: Owen-scrambled Sobol' points per pixel; random: independent uniforms")
-    p.add_argument("--nested-dielectrics", action="store_true",
-                   help="track nested glass media (glass in glass refracts by the IOR ratio)")
-    p.add_argument("--accelerator", choices=ACCELERATORS, default=defaults.accelerator)
-    p.add_argument("--threads", type=setting_int("threads"), default=0, help="0 = all cores")
-    p.add_argument("--seed", type=setting_int("seed"), default=0)
-    p.add_argument("--tile-size", type=setting_int("tile_size"), default=defaults.tile_size)
-    add_stopping_arguments(p)
-    add_pass_arguments(p)
-
-
-def nonnegative_float(high: float):
-    """An argparse type: a number from 0 to high (one-line error otherwise)."""
-    def parse(text):
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not 0.0 <= value <= high:
-            raise argparse.ArgumentTypeError(f"must be from 0 to {high:g}, got {text}")
-        return value
-    return parse
-
-
-def add_stopping_arguments(p, defaults=True):
-    """The stopping rules (engine/rendering/stopping.py, README: Stopping rules); both command lines."""
-    d = RenderSettings() if defaults else None
-    p.add_argument("--time-limit", type=nonnegative_float(1e9), default=d and d.time_limit, metavar="SECONDS",
-                   help="stop rendering after this many seconds (0 = no limit)")
-    p.add_argument("--noise-target", type=nonnegative_float(1.0), default=d and d.noise_target, metavar="REL",
-                   help="stop when the estimated relative error of the image reaches REL, e.g. 0.01 (0 = off)")
-    p.add_argument("--min-samples", type=setting_int("min_samples"), default=d and d.min_samples, metavar="N",
-                   help="samples every pixel gets before the noise target may stop it (0 = automatic: "
-                   "ceil(16 / target^0.3) as Cycles, at most 128; 8 without a target)")
-    p.add_argument("--no-adaptive", action="store_true",
-                   help="with --noise-target: keep sampling every pixel (no adaptive sampling)")
-
-
-def stopping_kwargs(args) -> dict:
-    return dict(time_limit=args.time_limit, noise_target=args.noise_target, min_samples=args.min_samples,
-                adaptive=not args.no_adaptive)
+    """Every setting of the table that this command line exposes (engine/cli/settings_args.py)."""
+    add_setting_arguments(p, settings_for(ENGINE_CLI))
 
 
 def error_metadata(stats) -> list:
@@ -114,36 +45,15 @@ def error_metadata(stats) -> list:
     return out
 
 
-def add_pass_arguments(p):
-    """--passes and --denoise (engine/film/passes.py, engine/film/denoise.py), shared with mcrt_addon/cli.py."""
-    p.add_argument("--passes", type=pass_list, default=(), metavar="LIST",
-                   help="extra passes in the EXR, comma-separated: albedo,normal,depth,samples,variance "
-                        "(layers named as Blender's: README, Render passes)")
-    p.add_argument("--denoise", action="store_true",
-                   help="denoise with Intel Open Image Denoise (pyoidn), guided by the albedo and normal passes; "
-                        "the raw image is kept in the EXR as 'Noisy Image'")
-
-
-def pass_list(text):
-    from ..film.passes import PassError, parse_passes
-    try:
-        return parse_passes(text)
-    except PassError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
 def settings_from_args(args) -> RenderSettings:
-    return RenderSettings(**stopping_kwargs(args), samples=args.samples, shadow_rays=args.shadow_rays, max_depth=args.max_depth,
-                          russian_roulette=not args.no_russian_roulette, fresnel=args.fresnel,
-                          nested_dielectrics=args.nested_dielectrics, estimator=args.estimator,
-                          sampler=args.sampler,
-                          threads=args.threads, seed=args.seed, tile_size=args.tile_size,
-                          accelerator=args.accelerator, passes=traced_passes(args), denoise=args.denoise)
+    """The settings of a command: the table's flags, and the passes the denoiser needs."""
+    values = setting_values(args, settings_for(ENGINE_CLI))
+    values["passes"] = traced_passes(args)
+    return RenderSettings(**values)
 
 
 def traced_passes(args) -> tuple:
     """The passes to render: those asked for, plus albedo and normal for the denoiser."""
-    from ..core.settings import PASSES
     wanted = set(args.passes) | ({"albedo", "normal"} if args.denoise else set())
     return tuple(p for p in PASSES if p in wanted)
 

@@ -1,98 +1,294 @@
-"""Render settings: every knob the study, the CLI and the Blender panels expose."""
+"""Render settings: one table of rows (SETTINGS), and what is made from it.
+
+Every knob of a render is one `Setting` row below.  From the rows are made:
+
+* `RenderSettings` (the dataclass the tracer reads): one field per row, in table order, and its
+  `validate()` (the row's limits or choices);
+* both command lines' arguments and their conversion to settings (engine/cli/settings_args.py,
+  used by engine/cli/main.py and mcrt_addon/cli.py);
+* the Blender PropertyGroup ``scene.tncg15`` and its `to_settings` (mcrt_addon/properties.py);
+* the settings the render stats list (`stats_of`, engine/rendering/session.py);
+* the user guide's settings reference docs/settings.md (scripts/settings_doc.py).
+
+tests/core/test_settings_table.py checks that every row reaches every front end it declares with
+the same default and limits.  This module imports only the standard library (and errors.py): the
+Blender add-on reads the table at registration, before it knows whether numpy is there.
+"""
 from __future__ import annotations
 
 import numbers
 import os
-from dataclasses import dataclass, asdict
+from dataclasses import asdict, dataclass, field
 
 from .errors import SceneError
 
-FRESNEL_MODELS = ("schlick", "exact")
-ACCELERATORS = ("auto", "embree", "octree", "brute")
-# report: eq. 2.11 as written (area sampling, pdf 1/A, power pmf, no MIS);
-# solid-angle: solid-angle light sampling and a spatial light pmf, emission after diffuse dropped;
-# mis: solid-angle light sampling combined with the cosine BSDF sample by MIS (power heuristic).
-ESTIMATORS = ("mis", "solid-angle", "report")
-# sobol: Owen-scrambled Sobol' points per pixel (engine/sampling/qmc.py); random: independent uniforms.
-SAMPLERS = ("sobol", "random")
-# Render passes besides Combined (engine/film/passes.py says what each is).
-PASSES = ("albedo", "normal", "depth", "samples", "variance")
 INT32_MAX = 2**31 - 1
-# Allowed range of every integer knob, checked by validate() and by both command lines.
-INT_LIMITS = {
-    "samples": (1, INT32_MAX),
-    "shadow_rays": (0, 1024),
-    "max_depth": (0, INT32_MAX - 1),
-    "rr_start_depth": (0, INT32_MAX),
-    "threads": (0, 1024),
-    "seed": (0, INT32_MAX),
-    "tile_size": (8, 16384),
-    "min_samples": (0, INT32_MAX),
-    "sample_net": (0, INT32_MAX),
-}
+
+# Kinds of setting (`Setting.kind`) and the Python type of their RenderSettings field.
+INT, FLOAT, BOOL, CHOICE, CHOICES = "int", "float", "bool", "choice", "choices"
+FIELD_TYPES = {INT: int, FLOAT: float, BOOL: bool, CHOICE: str, CHOICES: tuple}
+
+# The front ends a row can reach (`Setting.fronts`).
+ENGINE_CLI = "engine-cli"        # python -m engine render|estimate (engine/cli/main.py)
+ADDON_CLI = "addon-cli"          # python -m mcrt_addon render (mcrt_addon/cli.py)
+BLENDER = "blender"              # scene.tncg15 and the Render Properties panels (mcrt_addon/)
+EVERY_FRONT = frozenset((ENGINE_CLI, ADDON_CLI, BLENDER))
+INTERNAL = frozenset()           # set by the tracer itself (or by Python callers) only
+
+# How the render stats list a setting (`Setting.stats`).
+STATS_AS_SET = "as set"          # under its name, the value of the setting (stats_of)
+STATS_RESOLVED = "as resolved"   # under its name, what the render made of it (engine/rendering/session.py)
 
 
-@dataclass
+@dataclass(frozen=True)
+class Choice:
+    """One value of a CHOICE / CHOICES setting."""
+    value: str                   # the tracer's and both command lines' name
+    label: str                   # Blender's menu entry
+    description: str = ""        # Blender's tooltip
+
+    @property
+    def identifier(self) -> str:
+        """Blender's enum identifier: 'solid-angle' -> 'SOLID_ANGLE'."""
+        return self.value.upper().replace("-", "_")
+
+
+@dataclass(frozen=True)
+class OffToggle:
+    """In Blender a setting whose 0 means off is a checkbox beside its value (Cycles' Noise
+    Threshold): the value property then starts at `on_default` and cannot go below `on_min`."""
+    prop: str                    # the checkbox's property name
+    description: str
+    on_default: float
+    on_min: float
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One row of the settings table."""
+    name: str                    # the RenderSettings field
+    kind: str                    # INT, FLOAT, BOOL, CHOICE or CHOICES (a tuple of choices)
+    default: object
+    help: str                    # the command lines' help (and docs/settings.md)
+    limits: tuple = None         # (low, high), both allowed: INT and FLOAT
+    choices: tuple = ()          # Choice rows: CHOICE and CHOICES
+    fronts: frozenset = EVERY_FRONT
+    flag: str = None             # both command lines; a BOOL's flag flips its default (--no-... when on)
+    metavar: str = None
+    label: str = None            # Blender's label
+    description: str = None      # Blender's tooltip (default: the help)
+    prop: str = None             # Blender's property name where it is not `name`
+    bpy_options: dict = field(default_factory=dict)   # more keywords of the bpy property (soft_max, ...)
+    off_toggle: OffToggle = None
+    panel: str = None            # where Blender draws it (docs; checked against mcrt_addon/ui.py)
+    noun: str = None             # the validation message's name of a choice (default: the name)
+    stats: str = None            # STATS_AS_SET, STATS_RESOLVED or None (not in the stats)
+
+    @property
+    def values(self) -> tuple:
+        return tuple(c.value for c in self.choices)
+
+    @property
+    def blender_prop(self) -> str:
+        return self.prop or self.name
+
+    def identifier(self, value: str) -> str:
+        """A CHOICE's value as Blender's enum identifier: 'solid-angle' -> 'SOLID_ANGLE'."""
+        return next(c.identifier for c in self.choices if c.value == value)
+
+    def value_of(self, identifier: str) -> str:
+        """The inverse of `identifier`."""
+        return next(c.value for c in self.choices if c.identifier == identifier)
+
+    @property
+    def dest(self) -> str:
+        """The argparse attribute of the flag."""
+        return self.flag[2:].replace("-", "_")
+
+    def check(self, value) -> None:
+        """Raises SceneError naming the setting when `value` is not allowed."""
+        words = self.name.replace("_", " ")
+        if self.kind == INT:
+            low, high = self.limits
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not low <= value <= high:
+                raise SceneError(f"{words} must be an integer from {low} to {high:,}, got {value!r}")
+        elif self.kind == FLOAT:
+            low, high = self.limits
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not low <= value <= high:
+                low_text = f"{low:g} (off)" if low == 0 else f"{low:g}"
+                raise SceneError(f"{words} must be a number from {low_text} to {high:g}, got {value!r}")
+        elif self.kind == CHOICE:
+            if value not in self.values:
+                raise SceneError(f"unknown {self.noun or words} '{value}' (expected one of "
+                                 f"{', '.join(self.values)})")
+        elif self.kind == CHOICES:
+            bad = [v for v in value if v not in self.values]
+            if bad:
+                raise SceneError(f"unknown {self.noun or words} '{bad[0]}' (known: {', '.join(self.values)})")
+
+    def parse_choices(self, text) -> tuple:
+        """A CHOICES setting from text: 'normal,albedo' -> ('albedo', 'normal') in table order;
+        '' or None -> (); SceneError for an unknown name."""
+        if not text:
+            return ()
+        names = [n.strip().lower() for n in str(text).split(",") if n.strip()]
+        self.check(names)
+        return tuple(v for v in self.values if v in names)
+
+
+def plain(*values: str) -> tuple:
+    """Choices that have no Blender menu of their own."""
+    return tuple(Choice(v, v) for v in values)
+
+
+STOPPING = "engine/rendering/stopping.py"
+SETTINGS = (
+    Setting("samples", INT, 16, "camera rays per pixel", limits=(1, INT32_MAX), flag="--samples",
+            label="Samples", description="Camera rays per pixel", bpy_options={"soft_max": 4096},
+            panel="Sampling > Render", stats=STATS_AS_SET),
+    Setting("shadow_rays", INT, 1, "shadow rays per diffuse hit (N_s in eq. 2.11)", limits=(0, 1024),
+            flag="--shadow-rays", label="Shadow Rays", description="Light samples per diffuse hit",
+            bpy_options={"soft_max": 64}, panel="Sampling > Lights", stats=STATS_AS_SET),
+    Setting("max_depth", INT, 8, "bounces after the camera hit (0 = direct light only; report 3.4)",
+            limits=(0, INT32_MAX - 1), flag="--max-depth", label="Max Bounces",
+            description="Bounces after the camera hit (0 = direct light only)", bpy_options={"soft_max": 128},
+            panel="Light Paths", stats=STATS_AS_SET),
+    Setting("russian_roulette", BOOL, True, "disable Russian roulette (report 2.4)", flag="--no-russian-roulette",
+            label="Russian Roulette", description="Terminate paths randomly (unbiased) from the start depth on",
+            panel="Light Paths", stats=STATS_AS_SET),
+    Setting("rr_start_depth", INT, 3, "first bounce at which Russian roulette applies", limits=(0, INT32_MAX),
+            flag="--rr-start-depth", label="Start Depth",
+            description="First bounce at which Russian roulette applies", bpy_options={"soft_max": 64},
+            panel="Light Paths"),
+    Setting("fresnel", CHOICE, "schlick", "Fresnel model for glass: Schlick's approximation (eq. 2.17) or "
+            "exact dielectric Fresnel as Cycles", flag="--fresnel", noun="Fresnel model", label="Fresnel",
+            description="Fresnel model for glass", panel="Light Paths", stats=STATS_AS_SET,
+            choices=(Choice("schlick", "Schlick", "Schlick's approximation (report eq. 2.17)"),
+                     Choice("exact", "Exact", "Exact dielectric Fresnel, as Cycles uses"))),
+    Setting("nested_dielectrics", BOOL, False, "track nested glass media (glass in glass refracts by the IOR "
+            "ratio; Cycles has no such model)", flag="--nested-dielectrics", label="Nested Dielectrics",
+            description="Track the media a path is inside, so glass inside glass refracts by the ratio of the "
+            "two IORs (off: every glass surface is against air, as Cycles)", panel="Light Paths"),
+    Setting("estimator", CHOICE, "mis", "direct light: mis (solid-angle light samples and BSDF samples "
+            "combined by MIS), solid-angle (light samples only), report (eq. 2.11: area sampling, pdf 1/A)",
+            flag="--estimator", label="Estimator", description="How direct light is estimated",
+            panel="Light Paths", stats=STATS_AS_SET,
+            choices=(Choice("mis", "Multiple Importance", "Lights sampled by solid angle (spherical rectangles "
+                            "and triangles, sphere cones) and picked by a light tree, combined with the BSDF "
+                            "sample by multiple importance sampling, as Cycles"),
+                     Choice("solid-angle", "Light Sampling", "Lights sampled by solid angle and picked by a "
+                            "light tree; emission found by diffuse bounces is left to the shadow rays"),
+                     Choice("report", "Report (Area)", "The report's estimator (eq. 2.11): a light picked by "
+                            "power, a point on it uniform by area (pdf 1/A); noisy near lights"))),
+    Setting("sampler", CHOICE, "sobol", "sobol: Owen-scrambled Sobol' points per pixel "
+            "(engine/sampling/qmc.py); random: independent uniforms", flag="--sampler", label="Pattern",
+            description="Where the random numbers of each pixel come from", panel="Sampling > Advanced",
+            stats=STATS_AS_SET,
+            choices=(Choice("sobol", "Sobol", "Owen-scrambled Sobol' points per pixel, each dimension pair "
+                            "shuffled independently (lower noise, as Cycles' default pattern)"),
+                     Choice("random", "Random", "Independent uniform random numbers (plain Monte Carlo)"))),
+    Setting("sample_net", INT, 0, "the size of each pixel's Sobol' net (engine/sampling/qmc.py: sample i "
+            "depends on it); 0 = samples.  Estimate Render Time's pilot (engine/rendering/estimate.py) "
+            "renders the real render's first passes with the real render's nets, and so the very samples "
+            "that render starts with", limits=(0, INT32_MAX), fronts=INTERNAL),
+    Setting("threads", INT, 0, "worker threads or processes (0 = all cores)", limits=(0, 1024), flag="--threads",
+            label="Threads", description="Worker threads (0 = all cores)", bpy_options={"soft_max": 256},
+            panel="Performance", stats=STATS_RESOLVED),
+    Setting("seed", INT, 0, "random seed; the same seed gives the same image", limits=(0, INT32_MAX),
+            flag="--seed", label="Seed", description="Random seed; the same seed gives the same image",
+            panel="Sampling > Advanced", stats=STATS_AS_SET),
+    Setting("tile_size", INT, 64, "tile edge in pixels", limits=(8, 16384), flag="--tile-size",
+            label="Tile Size", description="Tile edge in pixels", bpy_options={"soft_max": 1024},
+            panel="Performance", stats=STATS_RESOLVED),
+    Setting("accelerator", CHOICE, "auto", "ray-intersection acceleration structure", flag="--accelerator",
+            label="Accelerator", panel="Performance", stats=STATS_RESOLVED,
+            description="Ray-intersection acceleration structure",
+            choices=(Choice("auto", "Auto", "Pick the fastest available accelerator"),
+                     Choice("embree", "Embree", "Intel Embree through embreex"),
+                     Choice("octree", "Octree", "The tracer's own octree (NumPy)"),
+                     Choice("brute", "Brute Force", "Test every primitive (reference, slow)"))),
+    Setting("parallelism", CHOICE, "auto", "how several workers run: threads, processes (forked, Linux, "
+            "outside Blender) or auto (engine/pools/local.py)", fronts=INTERNAL, stats=STATS_RESOLVED,
+            choices=plain("auto", "threads", "processes")),
+    # Stopping rules (engine/rendering/stopping.py): the render stops at whichever comes first of
+    # `samples`, the time limit and the noise target.
+    Setting("time_limit", FLOAT, 0.0, "stop rendering after this many seconds (0 = no limit)",
+            limits=(0.0, 1e9), flag="--time-limit", metavar="SECONDS", label="Time Limit",
+            description="Stop rendering after this many seconds (0 = no limit)",
+            bpy_options={"soft_max": 3600.0, "precision": 1}, panel="Sampling > Render", stats=STATS_AS_SET),
+    Setting("noise_target", FLOAT, 0.0, "stop when the estimated relative error of the image reaches REL, "
+            "e.g. 0.01 (0 = off)", limits=(0.0, 1.0), flag="--noise-target", metavar="REL", label="Noise Target",
+            description="Estimated relative error (RMS over the pixels, relative to the pixel values) at which "
+            "the render stops", bpy_options={"precision": 4, "step": 0.1}, panel="Sampling > Render",
+            off_toggle=OffToggle("use_noise_target", "Stop when the estimated relative error of the image "
+                                 "reaches the target", on_default=0.01, on_min=0.0001),
+            stats=STATS_AS_SET),
+    Setting("min_samples", INT, 0, "samples every pixel gets before the noise target may stop it (0 = automatic: "
+            "ceil(16 / target^0.3) as Cycles, at most 128; 8 without a target)", limits=(0, INT32_MAX),
+            flag="--min-samples", metavar="N", label="Min Samples",
+            description="Samples every pixel gets before the noise target may stop it (0 = automatic: "
+            "16 / Noise Target^0.3, as Cycles)", bpy_options={"soft_max": 4096}, panel="Sampling > Render",
+            stats=STATS_AS_SET),
+    Setting("adaptive", BOOL, True, "with --noise-target: keep sampling every pixel (no adaptive sampling)",
+            flag="--no-adaptive", label="Adaptive Sampling", description="With a noise target: blocks of 8x8 "
+            "pixels whose error reached it get no more samples", panel="Sampling > Render", stats=STATS_RESOLVED),
+    Setting("passes", CHOICES, (), "extra passes in the EXR, comma-separated: albedo,normal,depth,samples,"
+            "variance (engine/film/passes.py; layers named as Blender's)", flag="--passes", metavar="LIST",
+            fronts=frozenset((ENGINE_CLI, ADDON_CLI)), noun="pass", stats=STATS_AS_SET,
+            panel="View Layer > Passes (mcrt_addon/passes.py)",
+            choices=plain("albedo", "normal", "depth", "samples", "variance")),
+    Setting("denoise", BOOL, False, "denoise with Intel Open Image Denoise (pyoidn), guided by the albedo and "
+            "normal passes; the raw image is kept in the EXR as 'Noisy Image' (engine/film/denoise.py)",
+            flag="--denoise", label="Denoise", prop="use_denoising", panel="Denoising",
+            description="Denoise the final render with Intel Open Image Denoise (pyoidn in the worker Python), "
+            "guided by the Denoising Albedo and Normal passes; the raw image is kept as the Noisy Image pass"),
+)
+SETTING = {s.name: s for s in SETTINGS}
+
+FRESNEL_MODELS = SETTING["fresnel"].values
+ESTIMATORS = SETTING["estimator"].values
+SAMPLERS = SETTING["sampler"].values
+ACCELERATORS = SETTING["accelerator"].values
+PASSES = SETTING["passes"].values           # render passes besides Combined (engine/film/passes.py)
+INT_LIMITS = {s.name: s.limits for s in SETTINGS if s.kind == INT}
+
+
+def settings_for(front: str) -> tuple:
+    """The rows a front end (ENGINE_CLI, ADDON_CLI, BLENDER) exposes, in table order."""
+    return tuple(s for s in SETTINGS if front in s.fronts)
+
+
+def _fields_from_table(cls):
+    """One dataclass field per row of SETTINGS, in table order, with the row's default."""
+    clash = [s.name for s in SETTINGS if s.name in vars(cls)]
+    assert not clash, f"setting names clash with RenderSettings attributes: {clash}"
+    cls.__annotations__ = {s.name: FIELD_TYPES[s.kind] for s in SETTINGS}
+    for s in SETTINGS:
+        setattr(cls, s.name, s.default)
+    return dataclass(cls)
+
+
+@_fields_from_table
 class RenderSettings:
-    samples: int = 16             # camera rays per pixel (report 2.3)
-    shadow_rays: int = 1          # N_s in eq. 2.11
-    max_depth: int = 8            # bounces after the camera hit; 0 = direct light only (report 3.4)
-    russian_roulette: bool = True  # report 2.4
-    rr_start_depth: int = 3       # roulette only from this bounce on
-    fresnel: str = "schlick"      # eq. 2.17, or exact dielectric Fresnel as Cycles
-    nested_dielectrics: bool = False  # medium stack: glass in glass refracts by the IOR ratio
-    estimator: str = "mis"        # ESTIMATORS: how direct light is estimated
-    sampler: str = "sobol"        # SAMPLERS: where the uniform numbers come from
-    # The size of each pixel's Sobol' net (engine/sampling/qmc.py: sample i depends on it); 0 = samples.
-    # Estimate Render Time's pilot (engine/rendering/estimate.py) renders the real render's first passes with
-    # the real render's nets, and so the very samples that render starts with.
-    sample_net: int = 0
-    threads: int = 0              # 0 = all cores
-    seed: int = 0
-    tile_size: int = 64
-    accelerator: str = "auto"
-    parallelism: str = "auto"     # threads | processes (forked, Linux, outside Blender) | auto
-    # Stopping rules (engine/rendering/stopping.py): the render stops at whichever comes first of `samples`,
-    # the time limit and the noise target; 0 = off.  min_samples: every pixel gets at least these
-    # (0 = auto) before the noise target may stop it; adaptive: with a noise target, blocks whose
-    # estimated error reached it get no more samples.
-    time_limit: float = 0.0       # seconds of rendering
-    noise_target: float = 0.0     # estimated relative error of the image (README: Stopping rules)
-    min_samples: int = 0
-    adaptive: bool = True
+    """Every knob of a render: the fields are the rows of SETTINGS (see there for each one)."""
 
     def stopping_rules(self) -> bool:
         """True when the frame renders in passes (engine/rendering/stopping.py)."""
         return self.time_limit > 0 or self.noise_target > 0
-    passes: tuple = ()            # engine/film/passes.py PASSES: extra render passes (albedo, normal, depth, ...)
-    denoise: bool = False         # OIDN on the result, guided by albedo and normal (engine/film/denoise.py)
 
     def resolved_threads(self) -> int:
         return self.threads if self.threads > 0 else (os.cpu_count() or 1)
 
     def validate(self) -> None:
-        for name, (low, high) in INT_LIMITS.items():
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not low <= value <= high:
-                raise SceneError(f"{name.replace('_', ' ')} must be an integer from {low} to {high:,}, "
-                                 f"got {value!r}")
-        if self.fresnel not in FRESNEL_MODELS:
-            raise SceneError(f"unknown Fresnel model '{self.fresnel}' (expected schlick or exact)")
-        if self.estimator not in ESTIMATORS:
-            raise SceneError(f"unknown estimator '{self.estimator}' (expected one of {', '.join(ESTIMATORS)})")
-        if self.sampler not in SAMPLERS:
-            raise SceneError(f"unknown sampler '{self.sampler}' (expected one of {', '.join(SAMPLERS)})")
-        if self.accelerator not in ACCELERATORS:
-            raise SceneError(f"unknown accelerator '{self.accelerator}' (expected one of {', '.join(ACCELERATORS)})")
-        for name, high in (("time_limit", 1e9), ("noise_target", 1.0)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0.0 <= value <= high:
-                raise SceneError(f"{name.replace('_', ' ')} must be a number from 0 (off) to {high:g}, got {value!r}")
-        bad = [p for p in self.passes if p not in PASSES]
-        if bad:
-            raise SceneError(f"unknown pass '{bad[0]}' (known: {', '.join(PASSES)})")
-        if self.parallelism not in ("auto", "threads", "processes"):
-            raise SceneError(f"unknown parallelism '{self.parallelism}' (expected auto, threads or processes)")
+        """SceneError naming the first setting (in table order) outside its limits or choices."""
+        for s in SETTINGS:
+            s.check(getattr(self, s.name))
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+
+def stats_of(settings) -> dict:
+    """The settings the render stats list as set (rows with stats=STATS_AS_SET); JSON types."""
+    return {s.name: list(getattr(settings, s.name)) if s.kind == CHOICES else getattr(settings, s.name)
+            for s in SETTINGS if s.stats == STATS_AS_SET}

@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.settings import PASSES
+from ..core.errors import SceneError
+from ..core.settings import PASSES, SETTING
 
 TRACED = ("albedo", "normal", "depth")
 NOISY = "noisy"                 # with --denoise: the image before denoising (Cycles' "Noisy Image")
@@ -47,13 +48,10 @@ class PassError(ValueError):
 
 def parse_passes(text) -> tuple:
     """'albedo,normal' -> ('albedo', 'normal') in PASSES order; '' or None -> ()."""
-    if not text:
-        return ()
-    names = [n.strip().lower() for n in str(text).split(",") if n.strip()]
-    unknown = [n for n in names if n not in PASSES]
-    if unknown:
-        raise PassError(f"unknown pass '{unknown[0]}' (known: {', '.join(PASSES)})")
-    return tuple(n for n in PASSES if n in names)
+    try:
+        return SETTING["passes"].parse_choices(text)
+    except SceneError as exc:
+        raise PassError(str(exc)) from None
 
 
 def traced(passes) -> bool:

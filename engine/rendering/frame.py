@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.settings import stats_of
 from ..core.version import ENGINE_NAME, ENGINE_VERSION
 from ..film.accumulator import Film
 from ..film.passes import FrameFeatures, pass_images, traced
@@ -181,7 +182,6 @@ class Frame:
         return {"estimated_rel_error": finite(error), "target_rel_error": target,
                 "seconds_to_target": finite(seconds_to_target(seconds, error, target)),
                 "error_estimate": "half buffers" if self.film.count_a.any() else "sample variance",
-                "time_limit": s.time_limit, "noise_target": s.noise_target, "min_samples": s.min_samples,
                 "adaptive": s.adaptive and s.noise_target > 0,
                 "samples_per_pixel": {"min": float(spp.min()), "mean": float(spp.mean()), "max": float(spp.max())}}
 
@@ -193,9 +193,7 @@ class Frame:
         stats = {
             "engine": ENGINE_NAME, "engine_version": ENGINE_VERSION,
             "render_seconds": seconds, "setup_seconds": facts.setup_seconds, "build_seconds": facts.build_seconds,
-            "samples": s.samples, "shadow_rays": s.shadow_rays, "max_depth": s.max_depth,
-            "russian_roulette": s.russian_roulette, "fresnel": s.fresnel, "estimator": s.estimator,
-            "sampler": s.sampler, "seed": s.seed, "resolution": [width, height], "threads": s.resolved_threads(),
+            **stats_of(s), "resolution": [width, height], "threads": s.resolved_threads(),
             "tile_size": self.tile_size, "units": len(self.units), "units_done": self.film.units_added,
             "progressive": self.progressive, "parallelism": workers,
             "accelerator": facts.accelerator, "accelerator_reason": facts.accelerator_reason,
@@ -204,7 +202,7 @@ class Frame:
             "nonfinite_samples": self.totals.nonfinite_samples,
             "seconds_in_intersection": self.totals.seconds_in_intersection,
             "seconds_in_accelerator": self.totals.seconds_in_accelerator,
-            "cancelled": cancelled, "warnings": list(self.warnings), "passes": list(s.passes),
+            "cancelled": cancelled, "warnings": list(self.warnings),
         }
         stats.update(self.error_stats(seconds))
         return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled,

@@ -25,7 +25,7 @@ sc.render.resolution_x = sc.render.resolution_y = 24
 sc.render.image_settings.file_format = "OPEN_EXR"
 sc.render.filepath = out
 bpy.ops.render.render(write_still=True)
-tracers = [m for m in sys.modules if m.endswith(".tracer.api")]
+tracers = [m for m in sys.modules if m.endswith(".tracer.scene.model")]
 print("TRACER", tracers)
 '''
 
@@ -72,7 +72,7 @@ def test_extension_installs_and_renders_in_blender_5(built, samples, tmp_path):
     r = subprocess.run([sys.executable, str(script), str(built["extension"]), samples["cornell"], str(out)],
                        capture_output=True, text=True, timeout=600, env=env, cwd=str(tmp_path))
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    assert "bl_ext.user_default.tncg15_mc.tracer.api" in r.stdout
+    assert "bl_ext.user_default.tncg15_mc.tracer.scene.model" in r.stdout
     site = tmp_path / "user" / "extensions" / ".local" / "lib" / "python3.11" / "site-packages"
     assert (site / "embreex").is_dir(), "the embreex wheel was not installed by Blender"
     img = read_exr(str(out))

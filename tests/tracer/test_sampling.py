@@ -1,7 +1,6 @@
 """Sampling routines: chi-square goodness of fit (hard-cases §3.1) and edge cases."""
 import numpy as np
 import pytest
-from scipy import stats
 
 from engine.lights import LightSampler
 from engine.sampling.warps import (cosine_directions, cosine_hemisphere, orthonormal_basis, to_world,
