@@ -431,11 +431,15 @@ class PathTracer:
             s = self.bsdfs[g].sample(si[span], u_lobe[span], u_dir[g])
             new_d[:, span], value[:, span], flags[span] = s.wi, s.value, s.flags
             if self.mis and self.mats.non_delta[g]:          # MIS: the vertex and pdf of non-delta samples
-                local = np.flatnonzero((s.flags & BSDFFlags.DELTA) == 0)
-                sampled = span.start + local
+                delta = (s.flags & BSDFFlags.DELTA) != 0
+                if delta.any():                 # a BSDF with delta lobes too: its non-delta samples
+                    local = np.flatnonzero(~delta)
+                    sampled = span.start + local
+                else:                           # slices, no copies
+                    local, sampled = slice(None), span
                 p.prev_p[:, sampled] = point[:, sampled]
                 p.prev_n[:, sampled] = si.n[:, sampled]
-                p.prev_bsdf_pdf[sampled] = s.pdf.take(local)
+                p.prev_bsdf_pdf[sampled] = s.pdf[local]
         transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
         p.prev_delta[:alive] = (flags & BSDFFlags.DELTA) != 0
         p.ray_kind[:alive] = np.where(transmitted, TRANSMISSION_RAY,
