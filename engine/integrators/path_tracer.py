@@ -534,15 +534,14 @@ class PathTracer:
             counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
             cos, pdf = pick(cos_x), pick(ls.pdf)
-            wi = pick(w, 1)
 
-            def hits():                             # the hit of each valid ray
+            def at_valid():                         # the hit of each valid ray
                 return si if everything and ns == 1 else si.take(valid // ns)
-            if albedo is not None:
+            if albedo is not None:                  # Lambertian: f = rho / pi comes in after the mean
                 sample = cos / pdf                                              # cos V / p_l
-                p_b = bsdf.pdf(hits(), wi) if self.mis else None
+                p_b = bsdf.pdf(at_valid(), pick(w, 1)) if self.mis else None
             else:
-                f_cos[:, valid], p_b = bsdf.eval(hits(), wi)
+                f_cos[:, valid], p_b = bsdf.eval(at_valid(), pick(w, 1))
                 sample = 1.0 / pdf                                              # V / p_l
             if self.mis:                            # lights a BSDF sample cannot reach: weight 1
                 p_bsdf = np.where(pick(self.lights.bsdf_reachable.take(ls.light)), p_b, 0.0)

@@ -25,7 +25,7 @@ side only (no lobe today transmits diffusely or glossily).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from enum import IntFlag
 
 import numpy as np
@@ -80,9 +80,10 @@ class ShadingPoint:
 
     def take(self, index: np.ndarray) -> "ShadingPoint":
         """The hits `index` (copies; no medium stack: for evaluating directions only)."""
-        columns = {f.name: getattr(self, f.name).take(index, axis=1)
-                   for f in fields(self) if f.name in ("wo", "n", "ng", "normal", "color")}
-        return ShadingPoint(**columns, material=self.material.take(index), smooth=self.smooth)
+        def cols(a):
+            return a.take(index, axis=1)
+        return ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
+                            self.material.take(index), self.smooth)
 
     def __len__(self) -> int:
         return self.wo.shape[1]
