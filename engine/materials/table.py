@@ -26,6 +26,8 @@ KIND_CODE = {kind: group for group, (kind, _) in enumerate(SCATTERING)}
 ABSORB = len(SCATTERING)            # black surfaces: absorb everything
 PASS_THROUGH = ABSORB + 1           # Area lights: emission, then the ray goes on
 N_SCATTER_GROUPS = PASS_THROUGH + 1
+# Material kinds whose BSDF has a non-delta lobe: their hits take shadow rays (engine/integrators/effects.py).
+NON_DELTA_KINDS = frozenset(kind for kind, bsdf in SCATTERING if has_non_delta(bsdf.flags))
 
 
 class MaterialTable:
