@@ -15,6 +15,7 @@ import numpy as np
 
 from ..scene.model import DIFFUSE, GLASS, MIRROR
 from ..geometry.shading_normals import has_smooth
+from ..materials.table import NON_DELTA_KINDS
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
@@ -118,6 +119,7 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     diffuse = users(lambda m: m.kind == DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
     mirror = users(lambda m: m.kind == MIRROR and (max(m.color) > 0 or m.color_texture is not None))
     glass = users(lambda m: m.kind == GLASS)
+    lit = users(lambda m: m.kind in NON_DELTA_KINDS and (max(m.color) > 0 or m.color_texture is not None))
     surface_emitters = users(lambda m: m.is_emissive)
     bulbs = [p for p in scene.points if max(p.intensity) > 0]
     suns = [s for s in scene.suns if max(s.irradiance) > 0]
@@ -148,15 +150,15 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                "report estimator: point, spot and sun lights are reached by shadow rays only")
 
     sky = max(scene.background) > 0
-    world = bool(sky and diffuse and settings.shadow_rays > 0 and not report)
+    world = bool(sky and lit and settings.shadow_rays > 0 and not report)
     set_effect("world_light", world,
                "the background is sampled as a light (cosine directions, shadow rays to infinity)" if world else
                "black background" if not sky else "report estimator: the background is found by bounce rays"
                if report else "no diffuse surface or no shadow rays: the background is found by bounce rays")
-    nee = bool(diffuse and (emitters or world) and settings.shadow_rays > 0)
+    nee = bool(lit and (emitters or world) and settings.shadow_rays > 0)     # hits with a non-delta BSDF
     set_effect("direct_light", nee,
                f"{settings.shadow_rays} shadow ray(s) per diffuse hit (eq. 2.11)" if nee else
-               "no diffuse surface to light" if not diffuse else "no emitters" if not emitters else
+               "no diffuse surface to light" if not lit else "no emitters" if not emitters else
                "0 shadow rays: emitters found by BSDF sampling alone")
     set_effect("solid_angle", nee and not report,
                "lights sampled by solid angle where stable" if nee and not report else

@@ -7,26 +7,32 @@ camera paths (path regeneration), so the wavefront stays full.  One bounce runs 
 named stages (`bounce`): intersect, misses, emission, pass-through (Blender Area
 lights), direct light, scatter, roulette, compaction.
 
-* Direct light at diffuse hits: N_s shadow rays (eq. 2.11).  Under the `report`
-  estimator a light is picked by power and a point on it by area (pdf 1/A); otherwise
-  the light tree picks by importance at the shading point and the light is sampled by
-  solid angle where stable (engine/lights).
-* Emission reached by a ray counts with weight 1 after the camera or a mirror/glass
-  bounce, and when no shadow rays run.  After a diffuse bounce: `report` and
+* Every surface scatters through its BSDF (engine/materials/protocol.py; which one: the
+  material table, engine/materials/table.py): hits are sorted into scatter groups, one per BSDF,
+  then the absorbing surfaces and the Area lights that rays pass through; each group is one
+  slice of the wavefront.
+* Direct light at hits whose BSDF has a non-delta lobe (today: diffuse): N_s shadow rays
+  (eq. 2.11).  Under the `report` estimator a light is picked by power and a point on it by
+  area (pdf 1/A); otherwise the light tree picks by importance at the shading point and the
+  light is sampled by solid angle where stable (engine/lights).
+* Emission reached by a ray counts with weight 1 after the camera or a delta (mirror/glass)
+  bounce, and when no shadow rays run.  After a non-delta bounce: `report` and
   `solid-angle` drop it (the shadow rays account for it: light is never counted
   twice); `mis` weights it, and the shadow-ray samples, by the power heuristic
   (Veach & Guibas 1995, beta = 2) with the multi-sample counts N_s light samples and
   one BSDF sample (Veach's thesis ch. 9):
       w_light = (N_s p_l)^2 / ((N_s p_l)^2 + p_b^2),  w_bsdf = p_b^2 / (p_b^2 + (N_s p_l)^2)
-  with p_l = P(k | x, n) p_w(x -> y) from the light sampler and p_b = cos/pi.
-* diffuse: a cosine-weighted bounce whose weight f cos / pdf is the albedo (eq. 2.13-2.14);
-* mirror: perfect reflection, weight = colour (eq. 2.15-2.16, 2.20);
-* glass: Fresnel (eq. 2.17, Schlick or exact) picks reflection or refraction
-  (eq. 2.21-2.24) stochastically, weight = tint; total internal reflection has R = 1.
-  By default every glass surface separates its IOR from air, as the report (and
-  Cycles) do; with `nested_dielectrics` each path keeps a stack of the media it is in,
-  so glass inside glass or water in a glass refracts with the ratio of the two IORs
-  (the report's §4 future work);
+  with p_l = P(k | x, n) p_w(x -> y) from the light sampler and p_b the BSDF's pdf (Lambert:
+  cos/pi).  The path state keeps, for this, the previous bounce's BSDF pdf and whether its lobe
+  was a delta.
+* The BSDFs: diffuse, a cosine-weighted bounce whose weight f cos / pdf is the albedo
+  (eq. 2.13-2.14, engine/materials/lambert.py); mirror, perfect reflection, weight = colour
+  (eq. 2.15-2.16, 2.20, engine/materials/mirror.py); glass, Fresnel (eq. 2.17, Schlick or exact)
+  picks reflection or refraction (eq. 2.21-2.24) stochastically, weight = tint
+  (engine/materials/glass.py).  By default every glass surface separates its IOR from air, as
+  the report (and Cycles) do; with `nested_dielectrics` each path keeps a stack of the media it
+  is in (engine/materials/media.py), so glass inside glass or water in a glass refracts with the
+  ratio of the two IORs (the report's §4 future work);
 * image textures (engine/materials/textures.py): the colour and emission of textured materials at triangle
   hits, and the radiance of light samples on textured emitters, are read from the texture at the
   UV interpolated with the hit's barycentrics (pdfs and MIS weights depend on geometry only);
@@ -39,42 +45,24 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..materials.bsdf import FRESNEL, reflect, refract, refract_cos
+from ..core.vec import dot, max3
 from ..geometry.scene_geometry import LIGHT, QUAD, SPHERE, TRIANGLE
+from ..geometry.shading_normals import terminator_amount
+from ..materials.media import MEDIUM_STACK_DEPTH, MediumStack
+from ..materials.protocol import BSDFFlags, ShadingPoint
+from ..materials.table import ABSORB, N_SCATTER_GROUPS, PASS_THROUGH, MaterialTable
 from ..sampling.qmc import RandomSampler
-from ..sampling.warps import cosine_directions
-from ..scene.model import DIFFUSE, GLASS, MIRROR
-from ..geometry.shading_normals import ensure_valid_reflection, terminator_amount
-from ..core.vec import dot, max3, rows
 
-KIND_CODE = {DIFFUSE: 0, MIRROR: 1, GLASS: 2}
-BLACK = 3                       # surfaces that absorb everything
-PASS = 4                        # Area lights: emission, then the ray goes on
-N_GROUPS = 5
 WAVEFRONT_SIZE = 1 << 15       # paths advanced together; 32768 measured fastest here
-MEDIUM_STACK_DEPTH = 4          # nested dielectrics: media a path can be inside at once
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
-
-
-class MaterialTable:
-    """Materials as arrays indexed by material id; colours as rows (3, M)."""
-
-    def __init__(self, materials):
-        self.kind = np.array([KIND_CODE[m.kind] for m in materials], dtype=np.int8)
-        color = np.array([m.color for m in materials], dtype=np.float64).reshape(-1, 3)
-        emission = np.array([m.emission for m in materials], dtype=np.float64).reshape(-1, 3)
-        self.color, self.emission = rows(color), rows(emission)
-        self.ior = np.array([m.ior for m in materials], dtype=np.float64)
-        self.is_emissive = emission.max(axis=1) > 0
-        # Scattering group: the kind, or BLACK for surfaces that absorb everything.
-        self.group = np.where(color.max(axis=1) > 0.0, self.kind, BLACK).astype(np.int8)
 
 
 VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n", "f_thru")
 CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = 0, 1, 2, 3   # LightPolygons.RAY_KINDS
 # Dimension pairs of the sampler (engine/sampling/qmc.py): 0 is the camera jitter (engine/scene/camera_rays.py);
 # the hit after bounce b uses DIMS_PER_BOUNCE pairs from 1 + DIMS_PER_BOUNCE b on.
-# CHOICES: (light pick with one shadow ray, or the Fresnel choice at glass; roulette).
+# BSDF_UV: the direction of a non-delta lobe; CHOICES: (light pick with one shadow ray, or the
+# lobe choice of the BSDF: Fresnel at glass; roulette).
 LIGHT_UV, BSDF_UV, CHOICES, LIGHT_PICK = 1, 2, 3, 4          # LIGHT_PICK: with several shadow rays
 DIMS_PER_BOUNCE = 4
 
@@ -88,16 +76,16 @@ class Paths:
     d: np.ndarray               # (3, N) unit ray directions
     beta: np.ndarray            # (3, N) path throughput
     radiance: np.ndarray        # (3, N) radiance L gathered so far
-    specular: np.ndarray        # (N,) camera ray or after a mirror/glass bounce: emission weight 1
+    prev_delta: np.ndarray      # (N,) camera ray, or the last bounce took a delta lobe: emission weight 1
     ray_kind: np.ndarray        # (N,) int8 CAMERA_RAY .. TRANSMISSION_RAY (Area lights' visibility)
     bounce: np.ndarray          # (N,) bounces made so far (0: camera ray)
-    prev_p: np.ndarray | None = None    # MIS: (3, N) the diffuse vertex that sampled the ray
-    prev_n: np.ndarray | None = None    # MIS: (3, N) its facing normal (the light tree's input)
-    prev_pdf: np.ndarray | None = None  # MIS: (N,) cosine pdf of the ray's direction there
+    prev_p: np.ndarray | None = None    # MIS: (3, N) the last non-delta vertex, which sampled the ray
+    prev_n: np.ndarray | None = None    # MIS: (3, N) its shading normal facing the ray (the light tree's input)
+    prev_bsdf_pdf: np.ndarray | None = None   # MIS: (N,) its BSDF's pdf of the ray's direction
     media: np.ndarray | None = None   # nested dielectrics: (N, MEDIUM_STACK_DEPTH) IOR stack
     depth: np.ndarray | None = None   # nested dielectrics: (N,) stack height
-    f_thru: np.ndarray | None = None  # passes: (3, N) tints of the specular bounces before the feature hit
-    f_open: np.ndarray | None = None  # passes: (N,) still looking for its first non-specular hit
+    f_thru: np.ndarray | None = None  # passes: (3, N) tints of the delta bounces before the feature hit
+    f_open: np.ndarray | None = None  # passes: (N,) still looking for its first non-delta hit
 
     @classmethod
     def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool, features: bool = False) -> "Paths":
@@ -136,29 +124,30 @@ class PathTracer:
         self.geometry = geometry
         self.textures = textures          # engine/materials/textures.py HitTextures, or None (no textures)
         self.lights = lights
-        self.mats = MaterialTable(materials)
+        self.mats = MaterialTable(materials, settings, None if textures is None else textures.has_color)
+        self.bsdfs = self.mats.bsdfs             # bsdfs[g] scatters scatter group g (engine/materials/table.py)
         self.plan = plan
         self.settings = settings
         self.background = np.asarray(background, dtype=np.float64)
-        self.fresnel = FRESNEL[settings.fresnel]
         self.use_nee = bool(plan.direct_light and lights.count > 0)
         self.mis = bool(plan.mis and self.use_nee)
-        # Under `mis` a diffuse vertex at the depth limit still traces its BSDF ray for the
+        # Under `mis` a non-delta vertex at the depth limit still traces its BSDF ray for the
         # emission it reaches (weighted by MIS, or 1 without shadow rays), so every estimator
         # counts the same paths: light reached by up to max_depth + 1 segments.
         self.final_rays = settings.estimator == "mis" and (self.mis or not self.use_nee)
         self.has_background = bool(self.background.max() > 0)
         self.world_nee = self.use_nee and lights.world is not None       # shadow rays sample the world
-        if textures is not None:         # a textured colour scatters whatever its unlinked value
-            self.mats.group = np.where(textures.has_color, self.mats.kind, self.mats.group).astype(np.int8)
-        self.material_group = self.mats.group
+        self.scatter_group = self.mats.scatter_group      # of each material id
+        # Where the denoising features stop looking (surface_features): non-delta BSDFs and absorbers.
+        self.feature_stops = np.array(self.mats.non_delta + [True])
         self.seen_lamps = lights.seen if plan.enabled.get("seen_lamps") else None
         self.light_of_kind = {TRIANGLE: lights.triangle_light, SPHERE: lights.sphere_light,
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
 
     # -- the wavefront -----------------------------------------------------------------
-    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None) -> None:
-        """Trace every camera sample of `samples` (a camera.TileSamples) to completion.
+    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None) -> bool:
+        """Trace every camera sample of `samples` (a camera.TileSamples) to completion: True when
+        all are traced, False when cancelled.
 
         The wavefront holds up to WAVEFRONT_SIZE paths that advance one bounce per
         iteration; whenever paths end and there is room, new camera paths join it, so
@@ -166,8 +155,9 @@ class PathTracer:
         a full wavefront, not for the few paths left at depth 8.  Each path carries its
         pixel, throughput beta and radiance L; a finished path is handed to
         `on_finished(pixel, L)`.  Returns False as soon as `cancel` is set (checked every
-        bounce): the caller drops the whole unit (engine/rendering/session.py), since a partial one
-        would keep only its short paths and darken its tile.  Uniform numbers come from
+        bounce; the paths in flight are dropped): the caller drops the whole unit
+        (engine/rendering/session.py), since a partial one would keep only its short paths and
+        darken its tile.  Uniform numbers come from
         `sampler` (engine/sampling/qmc.py; default: independent ones from `rng`).  `features`: an
         engine/film/passes.py TileFeatures that gets each sample's first-hit albedo, normal and depth
         (None: no feature work at all).
@@ -195,17 +185,17 @@ class PathTracer:
     def bounce(self, p: "Paths", sampler, counters, on_finished, features=None) -> "Paths":
         """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
         finished = []                                   # (pixel, radiance) of paths that end
-        # 1. Intersect.  Hits sorted by how their surface scatters, 0 diffuse, 1 mirror,
-        # 2 glass, 3 black (absorbs), 4 Area light (passed through), then by primitive kind:
-        # every group is one slice.
-        # Under MIS a diffuse vertex at the depth limit still traces its BSDF ray: that ray only
+        # 1. Intersect.  Hits sorted by scatter group (engine/materials/table.py: one per BSDF,
+        # 0 diffuse, 1 mirror, 2 glass, then ABSORB and PASS_THROUGH, the Area lights), then by
+        # primitive kind: every group is one slice.
+        # Under MIS a non-delta vertex at the depth limit still traces its BSDF ray: that ray only
         # collects the MIS-weighted emission it reaches (the other half of that vertex's direct
-        # light), then ends: its surface counts as black (as Cycles' terminate-on-next-surface).
+        # light), then ends: its surface absorbs (as Cycles' terminate-on-next-surface).
         final = p.bounce > self.settings.max_depth if self.final_rays else None
-        hits = self.geometry.nearest_hits(p.o, p.d, counters, self.material_group, N_GROUPS,
-                                          light_group=PASS, ray_kind=p.ray_kind,
+        hits = self.geometry.nearest_hits(p.o, p.d, counters, self.scatter_group, N_SCATTER_GROUPS,
+                                          light_group=PASS_THROUGH, ray_kind=p.ray_kind,
                                           forced_group=None if final is None or not final.any()
-                                          else np.where(final, BLACK, -1))
+                                          else np.where(final, ABSORB, -1))
         # 2. Round lamps and suns met by mirror and glass rays (engine/lights/seen.py).
         if self.seen_lamps is not None:
             self.lamps_seen(p, hits)
@@ -217,16 +207,16 @@ class PathTracer:
         p = p.take(hits.index)
         surf = self.geometry.surface(p.o, p.d, hits)
         bounds = [start for start, _ in hits.groups] + [hits.groups[-1][1]]
-        alive = bounds[BLACK]                 # diffuse, mirror and glass paths scatter on
-        surfaces = bounds[PASS]               # black surfaces end the path here
-        through = slice(bounds[PASS], bounds[PASS + 1])
-        # 3. Emission found by the ray (surfaces and Area lights), MIS-weighted after diffuse.
+        alive = bounds[ABSORB]                # the paths at a BSDF scatter on
+        surfaces = bounds[PASS_THROUGH]       # absorbing surfaces end the path here
+        through = slice(bounds[PASS_THROUGH], bounds[PASS_THROUGH + 1])
+        spans = [slice(bounds[g], bounds[g + 1]) for g in range(ABSORB)]      # the hits of bsdfs[g]
+        # 3. Emission found by the ray (surfaces and Area lights), MIS-weighted after non-delta bounces.
         if self.plan.emission:
             self.emission(p, surf, hits, surfaces)
         # 4. Area lights: the ray goes on through them, as it was.
         passing = self.pass_through(p.take(np.arange(through.start, through.stop)), surf, through)
-        # 5. Direct light at diffuse hits (eq. 2.11).
-        diffuse = slice(bounds[0], bounds[1])
+        # 5. Direct light at hits with a non-delta BSDF (eq. 2.11).
         towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
         facing = surf.normal * towards                                      # towards the ray
         # Smooth shading: the shading normal on the geometric normal's side of the ray (shading
@@ -240,18 +230,22 @@ class PathTracer:
         u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
         if features is not None:
             self.surface_features(p, surf, shade, color, bounds, features, hits)   # Cycles: the shading normal
-        if self.use_nee and bounds[1] > bounds[0]:
-            p.radiance[:, diffuse] += p.beta[:, diffuse] * self.direct_light(
-                surf.point[:, diffuse], shade[:, diffuse], color[:, diffuse], surf.offset[diffuse], None, counters,
-                u=self.light_uniforms(sampler, p.pixel[diffuse], p.sample[diffuse], dim[diffuse], u_choice[diffuse]),
-                geometric=facing[:, diffuse] if smooth else None,
-                lift=self.geometry.terminator_lift(hits, diffuse, facing) if smooth else None)
-        # 6. Scatter: the next direction and throughput of every scattering path.
-        u_bsdf = sampler.pair(p.pixel[diffuse], p.sample[diffuse], dim[diffuse] + (BSDF_UV - 1))
-        new_d, side, beta = self.scatter(p, surf, facing, color, bounds, u_bsdf, u_choice,
-                                         shade=shade if smooth else None)
+        si = ShadingPoint(-p.d[:, :alive], shade[:, :alive], facing[:, :alive], surf.normal[:, :alive],
+                          color[:, :alive], surf.material[:alive], smooth,
+                          None if p.media is None else MediumStack(p.media, p.depth)[:alive])
+        for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
+            if self.use_nee and non_delta and span.stop > span.start:
+                p.radiance[:, span] += p.beta[:, span] * self.direct_light(
+                    bsdf, si[span], surf.point[:, span], surf.offset[span], None, counters,
+                    u=self.light_uniforms(sampler, p.pixel[span], p.sample[span], dim[span], u_choice[span]),
+                    lift=self.geometry.terminator_lift(hits, span, facing) if smooth else None)
+        # 6. Scatter: the next direction and throughput of every scattering path (non-delta lobes
+        # draw their direction from the BSDF_UV pair, delta lobes need none).
+        u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1)) if non_delta else None
+                  for span, non_delta in zip(spans, self.mats.non_delta)]
+        new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf)
         # 7. Russian roulette and the depth limit.
-        keep, beta = self.roulette(beta, p.bounce[:alive], p.specular[:alive], u_rr)
+        keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
         # 8. Compaction: hand finished paths to the film, keep the rest.
         ended = np.flatnonzero(~keep)
         finished += [(p.pixel.take(ended), p.radiance.take(ended, axis=1)),
@@ -271,27 +265,27 @@ class PathTracer:
     # -- stages ------------------------------------------------------------------------
     def misses(self, p, miss):
         """Rays that leave the scene reach the background, with weight 1 (the report), unless
-        the world is a light (shadow rays sample it): then a ray sampled at a diffuse vertex
+        the world is a light (shadow rays sample it): then a ray sampled at a non-delta vertex
         (the final MIS rays beyond the depth limit included) counts with its MIS weight, or 0
         without MIS."""
         radiance = p.radiance.take(miss, axis=1)
         if self.has_background:
             weight = np.ones(len(miss))
             if self.world_nee:
-                specular = p.specular.take(miss)
-                weight[~specular] = 0.0
+                delta = p.prev_delta.take(miss)
+                weight[~delta] = 0.0
                 if self.mis:
-                    diffuse = np.flatnonzero(~specular)
-                    m = miss.take(diffuse)
+                    sampled = np.flatnonzero(~delta)
+                    m = miss.take(sampled)
                     p_world = self.lights.world_pdf(p.prev_n.take(m, axis=1), p.d.take(m, axis=1))
-                    weight[diffuse] = power_heuristic(1.0, p.prev_pdf.take(m), float(self.settings.shadow_rays),
+                    weight[sampled] = power_heuristic(1.0, p.prev_bsdf_pdf.take(m), float(self.settings.shadow_rays),
                                                       p_world)
             radiance += p.beta.take(miss, axis=1) * self.background[:, None] * weight
         return p.pixel.take(miss), radiance
 
     def lamps_seen(self, p, hits):
         """Emission of point, spot and sun lights reached by glossy and transmission rays before
-        their hit (weight 1: only a specular bounce sends such rays, and shadow rays could not)."""
+        their hit (weight 1: only a delta bounce sends such rays today, and shadow rays could not)."""
         rays = np.flatnonzero((p.ray_kind == GLOSSY_RAY) | (p.ray_kind == TRANSMISSION_RAY))
         if not len(rays):
             return
@@ -303,7 +297,7 @@ class PathTracer:
 
     def emission(self, p, surf, hits, surfaces):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
-        the camera or a specular bounce or without shadow rays; after a diffuse bounce 0 under
+        the camera or a delta bounce or without shadow rays; after a non-delta bounce 0 under
         `report`/`solid-angle`, the power-heuristic weight under `mis`."""
         mat = surf.material
         lit = np.flatnonzero(self.mats.is_emissive.take(mat[:surfaces]))
@@ -312,7 +306,7 @@ class PathTracer:
             parts[0] = (lit, self.textures.emission(parts[0][1], mat.take(lit), hits.kind.take(lit),
                                                     hits.prim.take(lit), hits.u.take(lit), hits.v.take(lit)))
         for (group, kind), (a, b) in hits.runs.items():
-            if group == PASS:
+            if group == PASS_THROUGH:
                 lamps, prim = self.geometry.lights, hits.prim[a:b]
                 front = lamps.two_sided.take(prim) | (dot(p.d[:, a:b], surf.normal[:, a:b]) < 0.0)
                 idx = np.arange(a, b)[front]
@@ -323,13 +317,13 @@ class PathTracer:
             p.radiance[:, idx] += p.beta.take(idx, axis=1) * le * weight
 
     def emission_weight(self, p, surf, hits, idx):
-        specular = p.specular.take(idx)
-        if not self.use_nee or specular.all():
+        delta = p.prev_delta.take(idx)
+        if not self.use_nee or delta.all():
             return 1.0
         if not self.mis:
-            return specular.astype(np.float64)
+            return delta.astype(np.float64)
         weight = np.ones(len(idx))
-        sel = np.flatnonzero(~specular)
+        sel = np.flatnonzero(~delta)
         hit = idx.take(sel)
         kind, prim = hits.kind.take(hit), hits.prim.take(hit)
         light = np.full(len(hit), -1, dtype=np.int64)
@@ -344,24 +338,25 @@ class PathTracer:
             h = hit.take(j)
             p_light[j] = self.lights.pdf(p.prev_p.take(h, axis=1), p.prev_n.take(h, axis=1), light.take(j),
                                          surf.point.take(h, axis=1))
-        weight[sel] = power_heuristic(1.0, p.prev_pdf.take(hit), float(self.settings.shadow_rays), p_light)
+        weight[sel] = power_heuristic(1.0, p.prev_bsdf_pdf.take(hit), float(self.settings.shadow_rays), p_light)
         return weight
 
     # -- render passes (engine/film/passes.py) ------------------------------------------------
     def miss_features(self, p, miss, features):
         """A path still without a feature hit that leaves the scene: the background's radiance
-        times its specular tints is its albedo (Cycles: film_write_emission_or_background_pass);
+        times its delta-bounce tints is its albedo (Cycles: film_write_emission_or_background_pass);
         its normal stays 0."""
         idx = miss[p.f_open.take(miss)]
         if len(idx) and self.has_background:
             features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * self.background[:, None])
 
     def surface_features(self, p, surf, facing, color, bounds, features, hits=None):
-        """Cycles' denoising features (film_write_denoising_features_surface): at the first diffuse
-        (or black) hit write albedo = specular tints x colour and the facing normal, then stop;
-        at mirrors and glass multiply the tints by the colour and look further.  Emission seen
-        on the way adds its radiance (unclipped, as Cycles).  Depth: every camera ray's first surface."""
-        surfaces = bounds[PASS]
+        """Cycles' denoising features (film_write_denoising_features_surface): at the first hit with
+        a non-delta BSDF (diffuse) or an absorbing one write albedo = the delta-bounce tints x
+        colour and the facing normal, then stop; at delta BSDFs (mirrors, glass) multiply the tints
+        by the colour and look further.  Emission seen on the way adds its radiance (unclipped, as
+        Cycles).  Depth: every camera ray's first surface."""
+        surfaces = bounds[PASS_THROUGH]
         first = np.flatnonzero(p.bounce[:surfaces] == 0)
         if len(first):
             features.add_depth(p.pixel.take(first), surf.point.take(first, axis=1))
@@ -381,17 +376,19 @@ class PathTracer:
                 le = self.textures.emission(le, mat.take(e), hits.kind.take(h), hits.prim.take(h), hits.u.take(h),
                                             hits.v.take(h))
             features.add_albedo(pix.take(e), thru.take(e, axis=1) * le)
-        stop = (group == 0) | (group == BLACK)
-        diffuse = np.flatnonzero(group == 0)
-        if len(diffuse):
-            features.add_albedo(pix.take(diffuse), thru.take(diffuse, axis=1) * color.take(idx.take(diffuse), axis=1))
-        normal = np.flatnonzero(stop & ~(emissive & (group == BLACK)))     # emitters only: normal 0, as Cycles
+        stop = self.feature_stops.take(group)
+        absorbs = group == ABSORB
+        scatters = np.flatnonzero(stop & ~absorbs)
+        if len(scatters):
+            features.add_albedo(pix.take(scatters),
+                                thru.take(scatters, axis=1) * color.take(idx.take(scatters), axis=1))
+        normal = np.flatnonzero(stop & ~(emissive & absorbs))     # emitters only: normal 0, as Cycles
         if len(normal):
             features.add_normal(pix.take(normal), facing.take(idx.take(normal), axis=1))
         p.f_open[idx[stop]] = False
-        spec = np.flatnonzero(~stop)
-        if len(spec):
-            p.f_thru[:, idx[spec]] = thru.take(spec, axis=1) * color.take(idx.take(spec), axis=1)
+        delta = np.flatnonzero(~stop)
+        if len(delta):
+            p.f_thru[:, idx[delta]] = thru.take(delta, axis=1) * color.take(idx.take(delta), axis=1)
 
     def pass_through(self, through: "Paths", surf, span):
         """Paths that reached an Area light continue behind it, direction and state unchanged."""
@@ -415,63 +412,53 @@ class PathTracer:
         pick, _ = sampler.pair(pixel, sample, dim + (LIGHT_PICK - 1), light=True)
         return pick, u1, u2
 
-    def scatter(self, p, surf, facing, color, bounds, u_bsdf, u_choice, shade=None):
+    def scatter(self, p, point, si, spans, u_lobe, u_dir):
         """New directions, the side to leave on (+1 facing, -1 through) and throughputs of the
-        diffuse, mirror and glass paths (groups 0-2); updates their specular/MIS state.
+        paths at a BSDF (the first len(si) of `p`): bsdfs[g].sample on the hits spans[g], with the
+        lobe uniforms u_lobe and the direction pairs u_dir[g] (None for delta-only BSDFs); updates
+        the paths' ray kinds and their delta / MIS state (point: the hit points).
 
-        shade: shading normals facing the ray (smooth shading) or None (flat: `facing`).  Then
-        diffuse bounces are sampled about it, mirror and glass use it bent so that the mirror
-        direction clears the geometric surface (ensure_valid_reflection), and a direction on the
-        wrong side of the geometric surface ends the path (engine/geometry/shading_normals.py)."""
-        smooth = shade is not None
-        shade = facing if shade is None else shade
-        alive = bounds[BLACK]
-        diffuse, mirror, glass = (slice(bounds[0], bounds[1]), slice(bounds[1], bounds[2]),
-                                  slice(bounds[2], bounds[3]))
-        n_diffuse = bounds[1] - bounds[0]
+        Under smooth shading a direction on the wrong side of the geometric surface for its lobe
+        (a reflection below it, a transmission not through it) ends the path
+        (engine/geometry/shading_normals.py)."""
+        alive = len(si)
         new_d = np.empty((3, alive))
-        side = np.ones(alive)
-        d = p.d
-        if n_diffuse:
-            new_d[:, diffuse] = cosine_directions(u_bsdf[0], u_bsdf[1], shade[:, diffuse])   # eq. 2.13b
-            p.specular[diffuse] = False
-            p.ray_kind[diffuse] = DIFFUSE_RAY
-            if self.mis:
-                p.prev_p[:, diffuse] = surf.point[:, diffuse]
-                p.prev_n[:, diffuse] = shade[:, diffuse]
-                p.prev_pdf[diffuse] = dot(new_d[:, diffuse], shade[:, diffuse]) * (1.0 / np.pi)
-        if smooth and bounds[3] > bounds[1]:     # mirror and glass: Cycles' valid-reflection normal
-            specular = slice(bounds[1], bounds[3])
-            shade = shade.copy()
-            shade[:, specular] = ensure_valid_reflection(facing[:, specular], -d[:, specular], shade[:, specular])
-        if bounds[2] > bounds[1]:
-            new_d[:, mirror] = reflect(d[:, mirror], shade[:, mirror])   # eq. 2.20
-            p.specular[mirror] = True
-            p.ray_kind[mirror] = GLOSSY_RAY
-        if bounds[3] > bounds[2]:
-            stack = None if p.media is None else (p.media[glass], p.depth[glass])   # views: updated in place
-            cos_in = dot(d[:, glass], surf.normal[:, glass])            # its sign: entering or leaving
-            if smooth:
-                cos_in = np.copysign(np.abs(dot(d[:, glass], shade[:, glass])), cos_in)
-            new_d[:, glass], side[glass] = self.scatter_glass(
-                d[:, glass], surf.normal[:, glass], shade[:, glass], cos_in,
-                self.mats.ior.take(surf.material[glass]), None, stack, u=u_choice[glass])
-            p.specular[glass] = True
-            p.ray_kind[glass] = np.where(side[glass] > 0.0, GLOSSY_RAY, TRANSMISSION_RAY)
-        beta = p.beta[:, :alive] * color[:, :alive]  # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
-        if smooth:                          # below the geometric surface (or not through it): ends
-            wrong = dot(new_d, facing[:, :alive]) * side <= 0.0
+        value = np.empty((3, alive))
+        flags = np.empty(alive, dtype=np.int8)
+        for g, span in enumerate(spans):
+            if span.stop == span.start:
+                continue
+            s = self.bsdfs[g].sample(si[span], u_lobe[span], u_dir[g])
+            new_d[:, span], value[:, span], flags[span] = s.wi, s.value, s.flags
+            if self.mis and self.mats.non_delta[g]:          # MIS: the vertex and pdf of non-delta samples
+                delta = (s.flags & BSDFFlags.DELTA) != 0
+                if delta.any():                 # a BSDF with delta lobes too: its non-delta samples
+                    local = np.flatnonzero(~delta)
+                    sampled = span.start + local
+                else:                           # slices, no copies
+                    local, sampled = slice(None), span
+                p.prev_p[:, sampled] = point[:, sampled]
+                p.prev_n[:, sampled] = si.n[:, sampled]
+                p.prev_bsdf_pdf[sampled] = s.pdf[local]
+        transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
+        p.prev_delta[:alive] = (flags & BSDFFlags.DELTA) != 0
+        p.ray_kind[:alive] = np.where(transmitted, TRANSMISSION_RAY,
+                                      np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
+        side = np.where(transmitted, -1.0, 1.0)
+        beta = p.beta[:, :alive] * value             # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
+        if si.smooth:                       # below the geometric surface (or not through it): ends
+            wrong = dot(new_d, si.ng) * side <= 0.0
             if wrong.any():
                 beta = np.where(wrong, 0.0, beta)
         return new_d, side, beta
 
-    def roulette(self, beta, bounce, specular, u):
+    def roulette(self, beta, bounce, delta, u):
         """Which paths go on (report 2.4) and their throughput after the survival division.
-        Under `mis` a diffuse bounce at the depth limit goes on for its emission (see `bounce`)."""
+        Under `mis` a non-delta bounce at the depth limit goes on for its emission (see `bounce`)."""
         s = self.settings
         within = bounce < s.max_depth
         if self.final_rays:
-            within |= (bounce == s.max_depth) & ~specular
+            within |= (bounce == s.max_depth) & ~delta
         keep = (max3(beta) > 0.0) & within
         if s.russian_roulette:
             survive_p = np.where(bounce + 1 >= s.rr_start_depth, np.minimum(max3(beta), 1.0), 1.0)
@@ -480,26 +467,30 @@ class PathTracer:
         return keep, beta
 
     # -- direct light, eq. 2.11 ---------------------------------------------------------
-    def direct_light(self, point, normal, albedo, offset, rng, counters, u=None, geometric=None,
-                     lift=None) -> np.ndarray:
+    def direct_light(self, bsdf, si, point, offset, rng, counters, u=None, lift=None) -> np.ndarray:
         """<L_direct> with N_s shadow rays per point, divided by N_s: rows (3, M).
 
-        point, normal (facing the viewer) and albedo are rows (3, M); offset (M,).  Each
-        sample adds Le f cos(theta_x) V / p_l (eq. 2.11 written per unit solid angle: with
+        bsdf: the BSDF of the M hits `si` (an engine/materials/protocol.py ShadingPoint), whose
+        shading normals si.n face the viewer; point rows (3, M), offset (M,).  Each sample adds
+        Le f cos(theta_x) V / p_l (eq. 2.11 written per unit solid angle: with
         p_l = P(k) d^2 / (A cos(theta_y)) it is the report's Le f G V A / P(k)), times the
-        MIS weight under `mis`.  u: (pick, u1, u2) per shadow ray, else drawn from rng.
-        geometric: the geometric normals (facing the viewer) when `normal` is a shading normal
-        (smooth shading): shadow rays start off the geometric surface and directions below it
-        count 0 (no light leaks, engine/geometry/shading_normals.py).  lift: (lift rows, cutoff) per point,
-        the shadow-terminator geometry offset of smooth triangles (Cycles' shadow_ray_offset)."""
+        MIS weight under `mis` (p_b = bsdf.pdf).  A Lambertian BSDF (f = rho / pi everywhere,
+        bsdf.lambert_albedo) has its f multiplied in after the mean over the shadow rays, as the
+        report writes it; any other has f cos = bsdf.eval per shadow ray.  Light comes from the
+        viewer's side only (the lobes of today reflect).  u: (pick, u1, u2) per shadow ray, else
+        drawn from rng.  Smooth shading (si.smooth): shadow rays start off the geometric surface
+        si.ng and directions below it count 0 (no light leaks, engine/geometry/shading_normals.py).
+        lift: (lift rows, cutoff) per point, the shadow-terminator geometry offset of smooth
+        triangles (Cycles' shadow_ray_offset)."""
         ns = self.settings.shadow_rays
         m = point.shape[1]
         k = m * ns
+        albedo = bsdf.lambert_albedo(si)
         # Shadow ray j of point i is column i * ns + j.
         x = np.repeat(point, ns, axis=1) if ns > 1 else point
-        nx = np.repeat(normal, ns, axis=1) if ns > 1 else normal
+        nx = np.repeat(si.n, ns, axis=1) if ns > 1 else si.n
         off_x = np.repeat(offset, ns) if ns > 1 else offset
-        ng = nx if geometric is None else (np.repeat(geometric, ns, axis=1) if ns > 1 else geometric)
+        ng = nx if not si.smooth else (np.repeat(si.ng, ns, axis=1) if ns > 1 else si.ng)
         u_pick, u1, u2 = u if u is not None else (rng.random(k), rng.random(k), rng.random(k))
         ls = self.lights.sample(x, nx, u_pick, u1, u2)
         if self.textures is not None:                   # textured emitters: Le at the sampled point
@@ -511,7 +502,7 @@ class PathTracer:
         if self.lights.any_one_sided:                   # front side only: emits towards -w
             ok &= ~(ls.one_sided & (cos_ly >= 0.0))
         amount = None
-        if geometric is not None:
+        if si.smooth:
             # Below the geometric surface: no light, unless the shadow-terminator lift moves the
             # shadow ray's origin up onto the smooth surface (Cycles: it is then traced from there).
             ng_w = dot(ng, w)
@@ -527,6 +518,7 @@ class PathTracer:
         def pick(a, axis=0):                          # the valid samples (no copy if all are)
             return a if everything else a.take(valid, axis=axis)
         weight = np.zeros(k)
+        f_cos = None if albedo is not None else np.zeros((3, k))
         if len(valid):
             origin = pick(x, 1) + pick(off_x) * pick(ng, 1)
             if amount is not None:                  # grazing light on a smooth triangle: lifted origin
@@ -542,47 +534,21 @@ class PathTracer:
             counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
             cos, pdf = pick(cos_x), pick(ls.pdf)
-            sample = cos / pdf                                                  # cos V / p_l
-            if self.mis:                            # lights a diffuse bounce cannot reach: weight 1
-                p_bsdf = np.where(pick(self.lights.bsdf_reachable.take(ls.light)), cos * (1.0 / np.pi), 0.0)
+
+            def at_valid():                         # the hit of each valid ray
+                return si if everything and ns == 1 else si.take(valid // ns)
+            if albedo is not None:                  # Lambertian: f = rho / pi comes in after the mean
+                sample = cos / pdf                                              # cos V / p_l
+                p_b = bsdf.pdf(at_valid(), pick(w, 1)) if self.mis else None
+            else:
+                f_cos[:, valid], p_b = bsdf.eval(at_valid(), pick(w, 1))
+                sample = 1.0 / pdf                                              # V / p_l
+            if self.mis:                            # lights a BSDF sample cannot reach: weight 1
+                p_bsdf = np.where(pick(self.lights.bsdf_reachable.take(ls.light)), p_b, 0.0)
                 sample *= power_heuristic(float(ns), pdf, 1.0, p_bsdf)
             weight[valid] = np.where(blocked, 0.0, sample)
-        contrib = ls.radiance * weight
+        contrib = ls.radiance * weight if albedo is not None else ls.radiance * weight * f_cos
         mean = contrib.reshape(3, m, ns).sum(axis=2) / ns if ns > 1 else contrib
+        if albedo is None:
+            return mean
         return mean * albedo * (1.0 / np.pi)                            # f_r = colour / pi (eq. 2.13a)
-
-    # -- glass, report 2.5.4 ----------------------------------------------------------
-    def scatter_glass(self, d, normal, facing, cos_in, ior, rng, stack=None, u=None):
-        """Reflect or refract at glass (direction rows); returns (directions, side).
-        `stack` = (media, depth) views of the paths' medium stacks (nested dielectrics),
-        updated in place."""
-        cos_i = np.abs(cos_in)
-        entering = cos_in < 0.0
-        n = len(cos_in)
-        if stack is None:
-            eta = np.where(entering, 1.0 / ior, ior)       # n1 / n2, air on the other side
-        else:
-            media, depth = stack
-            path = np.arange(n)
-            current = np.where(depth > 0, media[path, np.maximum(depth - 1, 0)], 1.0)
-            below = np.where(depth > 1, media[path, np.maximum(depth - 2, 0)], 1.0)
-            # Entering: from the medium the path is in.  Leaving: into the one below it.
-            eta = np.where(entering, current / ior, ior / below)
-        cos_t, tir = refract_cos(cos_i, eta)
-        fresnel = self.fresnel(cos_i, cos_t, eta, tir)
-        reflected = (u if u is not None else rng.random(n)) < fresnel
-        out = np.empty_like(d)
-        sel = np.flatnonzero(reflected)
-        if len(sel):
-            out[:, sel] = reflect(d.take(sel, axis=1), facing.take(sel, axis=1))
-        through = np.flatnonzero(~reflected)
-        if len(through):
-            out[:, through] = refract(d.take(through, axis=1), facing.take(through, axis=1), cos_i.take(through),
-                                      cos_t.take(through), eta.take(through))
-        if stack is not None:
-            push = through[entering[through] & (depth[through] < MEDIUM_STACK_DEPTH)]
-            media[push, depth[push]] = ior[push]
-            depth[push] += 1
-            pop = through[~entering[through] & (depth[through] > 0)]
-            depth[pop] -= 1
-        return out, np.where(reflected, 1.0, -1.0)

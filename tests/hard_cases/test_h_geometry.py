@@ -197,5 +197,8 @@ def test_h15_unoccluded_light_has_visibility_exactly_one(as_mesh):
     length = np.linalg.norm(seg, axis=1)
     blocked = geo.occluded(rows(origin), rows(seg / length[:, None]), length * (1 - 2 ** -20), counters)
     assert len(blocked) == n and blocked.sum() == 0
-    direct = tracer.direct_light(rows(pts), rows(normal), np.ones((3, n)), offset, rng, counters)
+    from engine.materials.protocol import ShadingPoint
+    up = rows(normal)                                     # flat diffuse hits seen from above
+    hit = ShadingPoint(up, up, up, up, np.ones((3, n)), np.zeros(n, dtype=np.int64))
+    direct = tracer.direct_light(tracer.bsdfs[0], hit, rows(pts), offset, rng, counters)
     assert direct.shape == (3, n) and np.isfinite(direct).all() and (direct > 0).all()

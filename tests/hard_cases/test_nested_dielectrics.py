@@ -50,32 +50,29 @@ def test_without_nested_dielectrics_the_inner_sphere_is_a_lens():
     assert abs(m1 - m0) > 5 * np.hypot(s0, s1), (m0, m1, s0, s1)
 
 
-class AlwaysRefract:
-    """Stands in for the generator: uniforms of 0.999 choose refraction whenever F < 0.999."""
-    def random(self, n):
-        return np.full(n, 0.999)
+ALWAYS_REFRACT = np.array([0.999])     # a lobe uniform of 0.999 refracts whenever F < 0.999
 
 
 def test_water_in_glass_refracts_by_the_ior_ratio_and_the_stack_pushes_and_pops():
-    from engine.rendering.session import PreparedScene as Renderer
-    scene = lens_scene(1.33)
-    tracer = Renderer(scene, RenderSettings(nested_dielectrics=True, fresnel="exact"), **SILENT).tracer
+    from engine.materials.glass import SmoothGlass
+    from engine.materials.media import MediumStack
+    from engine.materials.protocol import BSDFFlags, ShadingPoint
+    water = SmoothGlass([Material("Water", GLASS, (1, 1, 1), ior=1.33)],
+                        RenderSettings(nested_dielectrics=True, fresnel="exact"))
     theta = np.radians(30.0)
-    d = np.array([[np.sin(theta), 0.0, -np.cos(theta)]])
-    n_out = np.array([[0.0, 0.0, 1.0]])                  # water surface normal, ray comes from above
-    media = np.array([[1.5, 1.0, 1.0, 1.0]])             # the path is inside the glass (1.5)
-    depth = np.array([1])
-    out, side = tracer.scatter_glass(d.T, n_out.T, n_out.T, d @ n_out[0], np.array([1.33]), AlwaysRefract(),
-                                     (media, depth))
-    out = out.T                                          # rows -> (N, 3)
-    sin_t = np.hypot(out[0, 0], out[0, 1])
-    assert side[0] == -1.0
+    d = np.array([[np.sin(theta)], [0.0], [-np.cos(theta)]])   # rows: the ray comes from above
+    n_out = np.array([[0.0], [0.0], [1.0]])                    # water surface normal
+    stack = MediumStack(np.array([[1.5, 1.0, 1.0, 1.0]]), np.array([1]))   # the path is inside the glass
+    tint = np.ones((3, 1))
+    entering = ShadingPoint(-d, n_out, n_out, n_out, tint, np.zeros(1, dtype=np.int64), media=stack)
+    s = water.sample(entering, ALWAYS_REFRACT, None)
+    sin_t = np.hypot(s.wi[0, 0], s.wi[1, 0])
+    assert s.flags[0] == BSDFFlags.DELTA | BSDFFlags.TRANSMISSION
     assert 1.5 * np.sin(theta) == pytest.approx(1.33 * sin_t, abs=1e-12)   # Snell with n1 = glass
-    assert depth[0] == 2 and media[0, 1] == 1.33                            # pushed: now in water
+    assert stack.depth[0] == 2 and stack.media[0, 1] == 1.33                # pushed: now in water
     # Leaving the water again (hitting its surface from inside): back into glass, popped.
-    back = np.array([[np.sin(theta), 0.0, np.cos(theta)]])
-    out2, side2 = tracer.scatter_glass(back.T, n_out.T, -n_out.T, back @ n_out[0], np.array([1.33]),
-                                       AlwaysRefract(), (media, depth))
-    out2 = out2.T
-    assert 1.33 * np.sin(theta) == pytest.approx(1.5 * np.hypot(out2[0, 0], out2[0, 1]), abs=1e-12)
-    assert depth[0] == 1 and side2[0] == -1.0
+    back = np.array([[np.sin(theta)], [0.0], [np.cos(theta)]])
+    leaving = ShadingPoint(-back, -n_out, -n_out, n_out, tint, np.zeros(1, dtype=np.int64), media=stack)
+    s2 = water.sample(leaving, ALWAYS_REFRACT, None)
+    assert 1.33 * np.sin(theta) == pytest.approx(1.5 * np.hypot(s2.wi[0, 0], s2.wi[1, 0]), abs=1e-12)
+    assert stack.depth[0] == 1 and s2.flags[0] & BSDFFlags.TRANSMISSION

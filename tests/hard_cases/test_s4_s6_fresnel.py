@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from engine.materials.bsdf import fresnel_exact, fresnel_schlick, reflect, refract, refract_cos
+from engine.materials.fresnel import fresnel_exact, fresnel_schlick
+from engine.materials.specular import reflect, refract, refract_cos
 
 
 def fresnel(model, theta_deg, eta):

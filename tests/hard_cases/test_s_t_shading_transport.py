@@ -140,6 +140,7 @@ def test_t1_every_shadow_ray_inside_an_emitting_sphere_weighs_exactly_rho_le(est
     from engine.geometry.scene_geometry import Counters
     from engine.rendering.session import PreparedScene as Renderer
     from engine.geometry.shapes.spheres import surface_point
+    from engine.materials.protocol import ShadingPoint
     rho, le, radius = 0.7, 2.0, 3.0
     mats = [Material("Shell", DIFFUSE, (rho,) * 3, emission=(le,) * 3)]
     scene = Scene(Camera.look_at((0, 0, 0), (0, 1, 0)), mats, spheres=[Sphere("Shell", (1e3, 2e3, -5e2), radius, 0)])
@@ -152,7 +153,9 @@ def test_t1_every_shadow_ray_inside_an_emitting_sphere_weighs_exactly_rho_le(est
     o = np.tile(centre, (n, 1))
     t = np.full(n, radius)
     point, normal, offset = surface_point(o.T, dirs.T, t, np.tile(centre, (n, 1)).T, np.full(n, radius))
-    direct = tracer.direct_light(point, -normal, np.full((3, n), rho), offset, rng, Counters())
+    inward = -normal                                      # the shell's inside faces its centre
+    hit = ShadingPoint(inward, inward, inward, normal, np.full((3, n), rho), np.zeros(n, dtype=np.int64))
+    direct = tracer.direct_light(tracer.bsdfs[0], hit, point, offset, rng, Counters())
     assert direct.shape == (3, n)
     # Samples landing (almost) on the shading point itself carry cos -> 0 and are dropped: none here.
     assert np.allclose(direct, rho * le / np.pi * np.pi, rtol=1e-6)

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import engine.geometry.scene_geometry
-import engine.integrators.path_tracer
+import engine.materials.glass
 from engine import RenderSettings, render
 from engine.integrators.effects import plan_effects
 from engine.scene.model import GLASS, Material, Sphere
@@ -26,9 +26,9 @@ class CallCounter:
 @pytest.fixture
 def spies(monkeypatch):
     sphere = CallCounter(engine.geometry.scene_geometry.intersect_sphere)
-    refract = CallCounter(engine.integrators.path_tracer.refract_cos)
+    refract = CallCounter(engine.materials.glass.refract_cos)
     monkeypatch.setattr(engine.geometry.scene_geometry, "intersect_sphere", sphere)
-    monkeypatch.setattr(engine.integrators.path_tracer, "refract_cos", refract)
+    monkeypatch.setattr(engine.materials.glass, "refract_cos", refract)
     return sphere, refract
 
 

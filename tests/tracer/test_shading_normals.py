@@ -122,7 +122,7 @@ def test_flat_scene_never_interpolates(monkeypatch):
     for name in ("interpolate", "ensure_valid_reflection"):
         original = getattr(engine.geometry.shading_normals, name)
         monkeypatch.setattr(engine.geometry.shading_normals, name, lambda *a, _o=original, _n=name: calls.append(_n) or _o(*a))
-    monkeypatch.setattr("engine.integrators.path_tracer.ensure_valid_reflection",
+    monkeypatch.setattr("engine.materials.specular.ensure_valid_reflection",
                         lambda *a: calls.append("reflect") or ensure_valid_reflection(*a))
     flat = render(box_room(False, 2), RenderSettings(samples=2, parallelism="threads"), **SILENT)
     assert flat.stats["effects"]["smooth_normals"] is False and calls == []

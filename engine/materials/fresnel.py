@@ -1,43 +1,16 @@
-"""Scattering at perfect mirrors and smooth glass (report 2.5.3, 2.5.4).
+"""Fresnel reflectance of a smooth dielectric interface (report 2.5.4): the fraction R of light
+it reflects, T = 1 - R, for the cosines of the incident and the refracted ray (cos_t and the
+total-internal-reflection mask from Snell's law, engine/materials/specular.py).
 
-Directions are unit vector rows (3, N) (engine/core/vec.py); ``normal`` always faces the incoming ray
-(dot(d, n) <= 0), so cos_i = -dot(d, n) >= 0.
+``eta`` = n1 / n2, the IOR the light comes from over the one it goes into.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..core.vec import dot, normalize
-
 # Interfaces closer to index-matched than this pass light straight through, as
 # Cycles does (hard case S5): Schlick would otherwise reflect 99 % at grazing angles.
 INDEX_MATCHED = 1e-4
-
-
-
-
-def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Mirror direction r = i - 2 (i . n) n (eq. 2.20c)."""
-    return d - 2.0 * dot(d, n) * n
-
-
-def refract_cos(cos_i: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """cos(theta_t) by Snell's law (eq. 2.21) and the total-internal-reflection mask.
-
-    eta = n1 / n2.  Where sin^2(theta_t) >= 1 the ray is totally reflected; cos_t is
-    returned as 0 there instead of the NaN of a negative square root (hard case S4).
-    """
-    sin2_t = eta * eta * np.maximum(0.0, 1.0 - cos_i * cos_i)
-    tir = sin2_t >= 1.0
-    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
-    return cos_t, tir
-
-
-def refract(d: np.ndarray, n: np.ndarray, cos_i: np.ndarray, cos_t: np.ndarray,
-            eta: np.ndarray) -> np.ndarray:
-    """Transmitted direction t = eta i + (eta cos_i - cos_t) n (eq. 2.22-2.24)."""
-    t = eta * d + (eta * cos_i - cos_t) * n
-    return normalize(t)
 
 
 def fresnel_schlick(cos_i: np.ndarray, cos_t: np.ndarray, eta: np.ndarray,
@@ -67,4 +40,4 @@ def fresnel_exact(cos_i: np.ndarray, cos_t: np.ndarray, eta: np.ndarray,
     return np.where(np.abs(eta - 1.0) < INDEX_MATCHED, 0.0, np.clip(r, 0.0, 1.0))
 
 
-FRESNEL = {"schlick": fresnel_schlick, "exact": fresnel_exact}
+FRESNEL = {"schlick": fresnel_schlick, "exact": fresnel_exact}     # RenderSettings.fresnel

@@ -1,0 +1,136 @@
+"""The BSDF protocol: how a surface scatters light, vectorised over the hits of a wavefront.
+
+In the spirit of pbrt-v4's BxDF (f / Sample_f / PDF / Flags) and Mitsuba 3's BSDF
+(sample / eval / pdf), written for NumPy: every method takes the hits of one scatter group at
+once, directions and colours as rows (3, N) (engine/core/vec.py).
+
+* `sample(si, u_lobe, u)` draws an incident direction wi for the outgoing direction si.wo and
+  returns a `BSDFSample`: wi, value = f cos / pdf (the throughput weight), pdf, and the flags of
+  the lobe it took.
+* `eval(si, wi)` returns (f cos, pdf) for given directions; `pdf(si, wi)` the pdf alone.  Delta
+  lobes (perfect mirror and glass) contribute nothing to either: their f is a Dirac delta that
+  no given direction meets, so eval returns 0 and pdf 0 for them.
+* `lambert_albedo(si)`: the albedo rho of a BSDF whose f = rho / pi for every pair of directions,
+  else None.  The direct-light stage then averages its N_s shadow rays before multiplying by
+  f (eq. 2.11 with eq. 2.13a, as the report writes the estimator); other BSDFs are weighed per
+  shadow ray through `eval`.
+
+Directions point away from the surface (wo towards the viewer, wi towards the light), as in
+pbrt and Mitsuba.  The cosine in f cos is the one with the shading normal si.n.
+
+The integrator keeps two rules for every BSDF (engine/integrators/path_tracer.py): a sampled
+direction must leave on the side of the geometric surface its flags say (REFLECTION: the
+viewer's side, TRANSMISSION: the other), and light reaches non-delta lobes from the viewer's
+side only (no lobe today transmits diffusely or glossily).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntFlag
+
+import numpy as np
+
+
+class BSDFFlags(IntFlag):
+    """What a lobe does (pbrt-v4's BxDFFlags): the side it sends light to and its shape."""
+    NONE = 0
+    REFLECTION = 1          # wi on the viewer's side
+    TRANSMISSION = 2        # wi through the surface
+    DIFFUSE = 4             # f spread over the hemisphere (Lambert)
+    GLOSSY = 8              # f peaked about a direction (microfacets: none yet)
+    DELTA = 16              # f a Dirac delta: one direction (perfect mirror, smooth glass)
+
+
+NON_DELTA = BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
+
+
+def has_non_delta(flags: BSDFFlags) -> bool:
+    """Whether a BSDF with these lobes can be met by a given direction: it takes light samples
+    and MIS, and its sample needs the 2D direction uniforms."""
+    return bool(flags & NON_DELTA)
+
+
+@dataclass
+class ShadingPoint:
+    """Hits of one scatter group as a BSDF sees them (rows (3, N); Mitsuba's SurfaceInteraction).
+
+    wo: unit directions towards the viewer (minus the ray directions).
+    n: unit shading normals on the viewer's side of the geometric surface (flat: `ng` itself).
+    ng: unit geometric normals on the viewer's side (dot(wo, ng) >= 0).
+    normal: the geometric normals as the surface is oriented (outwards): which side is inside.
+    color: the colour of each hit (textured or not): albedo, reflectance or tint.
+    material: material ids (a BSDF takes its per-material parameters, such as the IOR, by them).
+    smooth: n is an interpolated shading normal (else n is ng).
+    media: the paths' nested-dielectric medium stacks (engine/materials/media.py), or None.
+    """
+    wo: np.ndarray
+    n: np.ndarray
+    ng: np.ndarray
+    normal: np.ndarray
+    color: np.ndarray
+    material: np.ndarray
+    smooth: bool = False
+    media: object = None
+
+    def __getitem__(self, span: slice) -> "ShadingPoint":
+        """The hits in `span` (views: a medium stack updated through them updates the paths')."""
+        media = None if self.media is None else self.media[span]
+        return ShadingPoint(self.wo[:, span], self.n[:, span], self.ng[:, span], self.normal[:, span],
+                            self.color[:, span], self.material[span], self.smooth, media)
+
+    def take(self, index: np.ndarray) -> "ShadingPoint":
+        """The hits `index` (copies; no medium stack: for evaluating directions only)."""
+        def cols(a):
+            return a.take(index, axis=1)
+        return ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
+                            self.material.take(index), self.smooth)
+
+    def __len__(self) -> int:
+        return self.wo.shape[1]
+
+
+@dataclass
+class BSDFSample:
+    """One sampled direction per hit (pbrt's BSDFSample).
+
+    wi: (3, N) unit incident directions; value: (3, N) f cos / pdf, the factor the path
+    throughput is multiplied by; pdf: (N,) the density of wi per unit solid angle for non-delta
+    lobes, the probability of the lobe taken for delta lobes; flags: (N,) the BSDFFlags of the
+    lobe each sample took."""
+    wi: np.ndarray
+    value: np.ndarray
+    pdf: np.ndarray
+    flags: np.ndarray
+
+
+class BSDF:
+    """A way of scattering, for every material of one kind (one row of the material table,
+    engine/materials/table.py).  Subclasses set `flags` (the union of their lobes) and are made
+    from the scene's materials and the render settings: `cls(materials, settings)`."""
+    flags: BSDFFlags = BSDFFlags.NONE
+
+    def __init__(self, materials, settings):
+        pass
+
+    def sample(self, si: ShadingPoint, u_lobe: np.ndarray, u) -> BSDFSample:
+        """Sample wi for each hit.  u_lobe (N,): a uniform for choosing among lobes (Fresnel at
+        glass); u: the pair (u1, u2) of (N,) uniforms for the direction, or None for BSDFs
+        without a non-delta lobe (their directions need none)."""
+        raise NotImplementedError
+
+    def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(f cos (3, N), pdf (N,)) for the directions wi (3, N); 0 for delta lobes."""
+        raise NotImplementedError
+
+    def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+        """The density (N,) with which `sample` draws wi, per unit solid angle; 0 for delta lobes."""
+        raise NotImplementedError
+
+    def lambert_albedo(self, si: ShadingPoint) -> np.ndarray | None:
+        """rho (3, N) if f = rho / pi for every pair of directions, else None (see above)."""
+        return None
+
+
+def delta_eval(si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """eval of a BSDF with delta lobes only: no given direction meets them."""
+    return np.zeros(wi.shape), np.zeros(wi.shape[1])

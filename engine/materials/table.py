@@ -1,0 +1,52 @@
+"""The material table: the scene's materials as arrays, and the BSDF of each material kind.
+
+Hits are sorted by their scatter group before shading (engine/geometry/scene_geometry.py
+nearest_hits), so that each BSDF scatters one contiguous slice of the wavefront.  The scatter
+groups are, in this order: one per row of `SCATTERING` (the BSDF of a material kind), then
+ABSORB (surfaces that absorb everything: the path ends there) and PASS_THROUGH (Blender Area
+lights: their emission counts, then the ray goes on through them).
+
+A new BSDF is one class (engine/materials/protocol.py) and one row here, for a material kind of
+the scene model (engine/scene/model.py).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.vec import rows
+from ..scene.model import DIFFUSE, GLASS, MIRROR
+from .glass import SmoothGlass
+from .lambert import Lambertian
+from .mirror import PerfectMirror
+from .protocol import has_non_delta
+
+# (material kind, its BSDF); the row is the kind's scatter group.
+SCATTERING = ((DIFFUSE, Lambertian), (MIRROR, PerfectMirror), (GLASS, SmoothGlass))
+KIND_CODE = {kind: group for group, (kind, _) in enumerate(SCATTERING)}
+ABSORB = len(SCATTERING)            # black surfaces: absorb everything
+PASS_THROUGH = ABSORB + 1           # Area lights: emission, then the ray goes on
+N_SCATTER_GROUPS = PASS_THROUGH + 1
+# Material kinds whose BSDF has a non-delta lobe: their hits take shadow rays (engine/integrators/effects.py).
+NON_DELTA_KINDS = frozenset(kind for kind, bsdf in SCATTERING if has_non_delta(bsdf.flags))
+
+
+class MaterialTable:
+    """Materials as arrays indexed by material id (colours as rows (3, M)), and the BSDFs.
+
+    bsdfs[g] scatters the hits of scatter group g < ABSORB; scatter_group[m] is the group of
+    material m: its kind's, or ABSORB where its colour is black (a textured colour scatters
+    whatever its unlinked value: `textured_color`, a bool per material, or None)."""
+
+    def __init__(self, materials, settings, textured_color=None):
+        self.kind = np.array([KIND_CODE[m.kind] for m in materials], dtype=np.int8)
+        color = np.array([m.color for m in materials], dtype=np.float64).reshape(-1, 3)
+        emission = np.array([m.emission for m in materials], dtype=np.float64).reshape(-1, 3)
+        self.color, self.emission = rows(color), rows(emission)
+        self.is_emissive = emission.max(axis=1) > 0
+        scatters = color.max(axis=1) > 0.0
+        if textured_color is not None:
+            scatters = scatters | textured_color
+        self.scatter_group = np.where(scatters, self.kind, ABSORB).astype(np.int8)
+        self.bsdfs = [bsdf(materials, settings) for _, bsdf in SCATTERING]
+        # Groups whose BSDF has a lobe that given directions meet (light samples, MIS, 2D uniforms).
+        self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]
