@@ -56,8 +56,8 @@ class EffectPlan:
                "point": "the cone of the disk they show (a delta light without a radius; spot lights "
                          "weight it by their cone's falloff)"}
         counts = {}
-        for _, kind, _ in lights.kinds:
-            counts[kind.kind] = counts.get(kind.kind, 0) + kind.count
+        for kind in lights.local.kinds:
+            counts[kind.name] = counts.get(kind.name, 0) + kind.count
         self.reason["solid_angle"] += ": " + "; ".join(f"{n} {k} light(s) by {how[k]}" for k, n in counts.items())
 
 
