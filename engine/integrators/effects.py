@@ -4,7 +4,7 @@ Decided once from the scene and the settings before tracing; it is the one place
 switches work on.  The geometry builds only the intersection kernels the plan enables
 (a scene without spheres never runs the sphere test), the integrator runs only the stages
 it enables (a diffuse-only scene never evaluates Fresnel or refraction; no MIS weights where
-only one strategy can reach a light), and the light sampler builds the light tree only for
+only one strategy can reach a light), and the light set builds the light tree only for
 more than one light.  `describe()` prints every decision with its reason.
 """
 from __future__ import annotations

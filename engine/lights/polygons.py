@@ -1,8 +1,8 @@
 """Planar convex polygon emitters (Blender disk and ellipse Area lights, quads that are not
 parallelograms), sampled uniformly by area: a fan triangle is picked in proportion to its
 area, then a point uniform in it, so the density is 1/A over the whole polygon and
-p_w = d^2 / (A |cos theta_y|).  Unbiased and stable everywhere; solid-angle sampling is not
-worth it for these rare shapes (the issue allows area sampling here).
+p_w = d^2 / (A |cos theta_y|), whatever `solid_angle` asks.  Unbiased and stable everywhere;
+solid-angle sampling is not worth it for these rare shapes.
 """
 from __future__ import annotations
 
