@@ -72,7 +72,7 @@ class LightGroup:
     def sample(self, x, n, u_pick, u1, u2, solid_angle: bool):
         """(LiSample with pdf P(k | x, n) p_w, light numbers in the set) for u_pick in the group's
         interval (rescaled to [0, 1) to pick the light)."""
-        light, pmf = self.selection.sample(x, n, (u_pick - self.lo) / self.share)
+        light, pmf = self.selection.sample(x, n, u_pick if self.share == 1.0 else (u_pick - self.lo) / self.share)
         if len(self.kinds) == 1:
             s = self.kinds[0].sample_li(x, light, u1, u2, n, solid_angle)
         else:
@@ -84,7 +84,7 @@ class LightGroup:
                                                       u1.take(sel), u2.take(sel), n.take(sel, axis=1), solid_angle)))
             s = _gather_samples(len(u_pick), parts)
         s.pdf = s.pdf * pmf
-        return s, light + self.first
+        return s, (light + self.first if self.first else light)
 
     def pdf(self, x, n, light, point, solid_angle: bool):
         """P(k | x, n) p_w of the directions from x to `point` on lights `light` (set numbers)."""

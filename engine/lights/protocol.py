@@ -72,7 +72,7 @@ class LightKind(Protocol):
     engine/lights/emitting_surface.py and writes only sample_li, pdf_li, sample_area, normal_at and
     bounds); let SceneEmitters (engine/lights/emitters.py) gather the scene's emitters of that kind
     and build it; add its name to the effect plan's description (engine/integrators/effects.py);
-    and add an instance to the conformance test's list (tests/lights/test_protocol.py), which
+    and add an instance to EVERY_KIND in tests/lights/kinds.py: tests/lights/test_protocol.py then
     checks every method below against the others.
     """
 
