@@ -4,7 +4,7 @@ Decided once from the scene and the settings before tracing; it is the one place
 switches work on.  The geometry builds only the intersection kernels the plan enables
 (a scene without spheres never runs the sphere test), the integrator runs only the stages
 it enables (a diffuse-only scene never evaluates Fresnel or refraction; no MIS weights where
-only one strategy can reach a light), and the light sampler builds the light tree only for
+only one strategy can reach a light), and the light set builds the light tree only for
 more than one light.  `describe()` prints every decision with its reason.
 """
 from __future__ import annotations
@@ -57,8 +57,8 @@ class EffectPlan:
                "point": "the cone of the disk they show (a delta light without a radius; spot lights "
                          "weight it by their cone's falloff)"}
         counts = {}
-        for _, kind, _ in lights.kinds:
-            counts[kind.kind] = counts.get(kind.kind, 0) + kind.count
+        for kind in lights.local.kinds:
+            counts[kind.name] = counts.get(kind.name, 0) + kind.count
         self.reason["solid_angle"] += ": " + "; ".join(f"{n} {k} light(s) by {how[k]}" for k, n in counts.items())
 
 

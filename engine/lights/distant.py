@@ -6,10 +6,12 @@ sun receives the irradiance E; a sun of angle 0 is a delta light (one direction,
 The world: directions cosine-distributed about the receiver's normal, p_w = cos theta / pi, so
 a diffuse receiver under an unoccluded sky gets a zero-variance estimate.
 
-All of them are picked by flux (a sun's E through the scene's cross-section, the world's through
-a sphere around the scene).  Shadow rays to them run to t = inf; a bounce ray that escapes
-reaches the world (the integrator's misses stage weighs that by MIS); suns are reached by
-shadow rays only.
+The light set picks among them by flux (power(): a sun's E through the scene's cross-section, the
+world's radiance through a sphere around the scene), apart from the lamps and emissive surfaces
+(engine/lights/light_set.py).  Shadow rays to them run to t = inf; a bounce ray that escapes
+reaches the world (`reached_by_escaping_rays`; the integrator's misses stage weighs that by MIS);
+suns are reached by shadow rays only.  Neither emits rays yet (sample_le): a photon pass needs a
+disk over the scene's bounds for them, as pbrt-v4's DistantLight::SampleLe.
 """
 from __future__ import annotations
 
@@ -17,53 +19,92 @@ import numpy as np
 
 from ..sampling.warps import cosine_directions, uniform_cone
 from ..core.vec import dot, rows
+from .protocol import infinite_sample
 
 
-class DistantLights:
-    kind = "distant"
+class SunLights:
+    name = "sun"
+    at_infinity = True
+    reached_by_escaping_rays = False
+    first = 0
 
-    def __init__(self, suns, background, scene_radius: float):
+    def __init__(self, suns, scene_radius: float):
+        """suns: engine/scene/model.py SunLight; scene_radius: of a sphere that holds the scene."""
         r2 = max(scene_radius, 1e-300) ** 2
         irradiance = np.array([s.irradiance for s in suns], dtype=np.float64).reshape(-1, 3)
         d = np.array([s.direction for s in suns], dtype=np.float64).reshape(-1, 3)
+        self.count = len(suns)
         self.axis = rows(-d / np.linalg.norm(d, axis=1)[:, None])          # towards each sun
         half = np.array([0.5 * s.angle for s in suns], dtype=np.float64)
         self.one_minus_cos = 2.0 * np.sin(0.5 * half) ** 2             # 1 - cos(half), no cancellation
+        self.cos_half = 1.0 - self.one_minus_cos
         self.delta = half < 1e-6
         sin2 = np.where(self.delta, 1.0, np.sin(half) ** 2)
-        radiance = [np.where(self.delta[:, None], irradiance, irradiance / (np.pi * sin2)[:, None])]
-        power = [np.pi * r2 * irradiance.mean(axis=1)]
-        self.world_slot = None
-        if max(background) > 0:
-            self.world_slot = len(suns)
-            radiance.append(np.asarray(background, dtype=np.float64)[None, :])
-            power.append(np.array([np.pi * float(np.mean(background)) * 4.0 * np.pi * r2]))
-        self.radiance = rows(np.concatenate(radiance))
-        self.power = np.concatenate(power)
-        self.count = len(self.power)
-        total = self.power.sum()
-        self.prob = self.power / total if total > 0 else np.full(self.count, 1.0 / max(self.count, 1))
-        self.cdf = np.cumsum(self.prob)
+        self.radiance = rows(np.where(self.delta[:, None], irradiance, irradiance / (np.pi * sin2)[:, None]))
+        self.one_sided = np.zeros(self.count, dtype=bool)
+        self.flux = np.pi * r2 * irradiance.mean(axis=1)
 
-    def sample(self, n, u_pick, u1, u2):
-        """(unit directions, P(j) p_w, slot j) for receivers with facing normals n (rows); a delta
-        sun's 'density' is 1 (its radiance is the irradiance E)."""
-        m = len(u_pick)
-        slot = np.minimum(np.searchsorted(self.cdf, u_pick * self.cdf[-1], side="right"), self.count - 1)
-        direction, pdf = np.empty((3, m)), np.empty(m)
-        world = np.zeros(m, dtype=bool) if self.world_slot is None else slot == self.world_slot
-        if world.any():
-            w = np.flatnonzero(world)
-            direction[:, w] = cosine_directions(u1.take(w), u2.take(w), n.take(w, axis=1))
-            pdf[w] = np.maximum(dot(direction[:, w], n.take(w, axis=1)), 0.0) * (1.0 / np.pi)
-        sun = np.flatnonzero(~world)
-        if len(sun):
-            j = slot.take(sun)
-            one_minus = self.one_minus_cos.take(j)
-            direction[:, sun], _ = uniform_cone(u1.take(sun), u2.take(sun), self.axis.take(j, axis=1), one_minus)
-            pdf[sun] = np.where(self.delta.take(j), 1.0, 1.0 / (2.0 * np.pi * np.maximum(one_minus, 1e-300)))
-        return direction, pdf * self.prob.take(slot), slot
+    def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
+        """Uniform in the sun's cone; a delta sun's 'density' is 1 (its radiance is the irradiance E)."""
+        direction, _ = uniform_cone(u1, u2, self.axis.take(idx, axis=1), self.one_minus_cos.take(idx))
+        return infinite_sample(x, direction, self.radiance.take(idx, axis=1), self.pdf_li(x, idx, None))
 
-    def world_pdf(self, n, d):
-        """P(world) p_w of direction d at receivers with facing normals n."""
-        return self.prob[self.world_slot] * np.maximum(dot(d, n), 0.0) * (1.0 / np.pi)
+    def pdf_li(self, x, idx, point, n=None, direction=None, solid_angle: bool = True):
+        one_minus = self.one_minus_cos.take(idx)
+        return np.where(self.delta.take(idx), 1.0, 1.0 / (2.0 * np.pi * np.maximum(one_minus, 1e-300)))
+
+    def le(self, idx, point, direction):
+        """E / (pi sin^2 alpha) for directions inside the sun's disk; 0 for a delta sun."""
+        inside = ~self.delta.take(idx) & (dot(direction, self.axis.take(idx, axis=1)) >= self.cos_half.take(idx))
+        return np.where(inside, self.radiance.take(idx, axis=1), 0.0)
+
+    def power(self):
+        return self.flux
+
+    def report_power(self):
+        return self.flux / np.pi
+
+    def bounds(self):
+        return None
+
+    def sample_le(self, idx, u1, u2, u3, u4):
+        raise NotImplementedError("sun lights emit no rays yet (a photon pass needs a disk over the scene)")
+
+
+class WorldLight:
+    name = "world"
+    at_infinity = True
+    reached_by_escaping_rays = True
+    first = 0
+    count = 1
+
+    def __init__(self, background, scene_radius: float):
+        r2 = max(scene_radius, 1e-300) ** 2
+        self.radiance = rows(np.asarray(background, dtype=np.float64)[None, :])
+        self.one_sided = np.zeros(1, dtype=bool)
+        self.flux = np.array([np.pi * float(np.mean(background)) * 4.0 * np.pi * r2])
+
+    def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
+        """Cosine-distributed about the receivers' facing normals n."""
+        direction = cosine_directions(u1, u2, n)
+        return infinite_sample(x, direction, self.radiance.take(idx, axis=1), self.pdf_li(x, idx, None, n, direction))
+
+    def pdf_li(self, x, idx, point, n=None, direction=None, solid_angle: bool = True, pmf=1.0):
+        """cos theta / pi about n.  pmf: a probability to multiply in before the 1 / pi (the order of
+        LightSet.world_pdf, kept so that its MIS weights do not change in the last bit)."""
+        return pmf * np.maximum(dot(direction, n), 0.0) * (1.0 / np.pi)
+
+    def le(self, idx, point, direction):
+        return self.radiance.take(idx, axis=1)
+
+    def power(self):
+        return self.flux
+
+    def report_power(self):
+        return self.flux / np.pi
+
+    def bounds(self):
+        return None
+
+    def sample_le(self, idx, u1, u2, u3, u4):
+        raise NotImplementedError("the world light emits no rays yet (a photon pass needs a disk over the scene)")

@@ -10,8 +10,8 @@ A light is v0 + s e1 + t e2, s, t in [0, 1].  Two ways to draw a point y on it:
   p_w = 1 / Omega.  Omega comes from the edge-plane normals in the arcsin form (no
   cancellation against 2 pi; light-sampling.md section 2).
 
-`use_solid_angle` is the one predicate both `sample` and `pdf` consult, so the pdf of a
-BSDF-sampled direction is the density the light sampler really has there.  Where the
+`use` (of `_frame`) is the one predicate both `sample_li` and `pdf_li` consult, so the pdf of a
+BSDF-sampled direction is the density the light set really has there.  Where the
 spherical map loses precision (x almost in the light's plane, or a vanishing Omega) it
 falls back to area sampling, which is exact there.  All vectors are rows (engine/core/vec.py);
 `idx` picks each ray's light within this kind.
@@ -21,18 +21,22 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.vec import cross, dot, gather, rows
+from .emitting_surface import EmittingSurface
+from .protocol import LightBounds
 
 OMEGA_MIN = 1e-6          # sr: below this area sampling is as good and cheaper
 GRAZING = 1e-5            # |plane distance| / distance to the centre below which x is "in the plane"
 RECTANGLE_TOLERANCE = 1e-9
 
 
-class Parallelograms:
-    kind = "parallelogram"
+class Parallelograms(EmittingSurface):
+    name = "parallelogram"
 
-    def __init__(self, v0, e1, e2):
+    def __init__(self, v0, e1, e2, radiance=None, one_sided=None):
+        """Corners v0 and edges e1, e2 ((K, 3) each); radiance, one_sided: as EmittingSurface."""
         v0, e1, e2 = (np.asarray(a, dtype=np.float64).reshape(-1, 3) for a in (v0, e1, e2))
         self.count = len(v0)
+        self._set_emission(radiance, one_sided)
         n = np.cross(e1, e2)
         self.area = np.linalg.norm(n, axis=1)
         len1, len2 = np.linalg.norm(e1, axis=1), np.linalg.norm(e2, axis=1)
@@ -51,7 +55,7 @@ class Parallelograms:
     # -- the spherical rectangle ---------------------------------------------------------
     def _frame(self, x, idx):
         """Local coordinates of each light seen from x (Urena et al., section 3), its solid
-        angle and `use`: the predicate that sample() and pdf() share."""
+        angle and `use`: the predicate that sample_li() and pdf_li() share."""
         ax, ay = gather(self.axis1, idx), gather(self.axis2, idx)
         az = gather(self.axis3, idx)
         rel = gather(self.v0, idx) - x
@@ -91,13 +95,13 @@ class Parallelograms:
         yv = np.clip(np.nan_to_num(yv), y0, y1)
         return x + xu * f["ax"] + yv * f["ay"] + z0 * f["az"]
 
-    # -- the interface every emitter kind offers ------------------------------------------
-    def sample(self, x, idx, u1, u2, solid_angle: bool):
-        """(point y, light normal, p_w of the direction x -> y) for rays x (rows), lights idx."""
+    # -- the light protocol (engine/lights/protocol.py) ----------------------------------
+    def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
+        """A point y on light idx and p_w of the direction x -> y, for receivers x (rows)."""
         m = x.shape[1]
         normal = np.broadcast_to(gather(self.normal, idx), (3, m))
         if not solid_angle:
-            return self._area_sample(x, idx, u1, u2, normal)
+            return self._li(x, idx, *self._area_sample(x, idx, u1, u2, normal))
         f = self._frame(x, idx)
         point = self._spherical_point(x, f, u1, u2)
         with np.errstate(divide="ignore"):
@@ -107,14 +111,17 @@ class Parallelograms:
             p, _, pd = self._area_sample(x.take(sel, axis=1), gather(idx, sel), u1.take(sel), u2.take(sel),
                                          normal.take(sel, axis=1))
             point[:, sel], pdf[sel] = p, pd
-        return point, normal, pdf
+        return self._li(x, idx, point, normal, pdf)
 
     def _area_sample(self, x, idx, u1, u2, normal):
-        point = gather(self.v0, idx) + u1 * gather(self.e1, idx) + u2 * gather(self.e2, idx)
+        point = self._area_point(idx, u1, u2)
         return point, normal, area_pdf(x, point, normal, gather(self.area, idx))
 
-    def pdf(self, x, idx, point, solid_angle: bool):
-        """p_w at x of the direction towards `point` on light idx (the density `sample` has)."""
+    def _area_point(self, idx, u1, u2):
+        return gather(self.v0, idx) + u1 * gather(self.e1, idx) + u2 * gather(self.e2, idx)
+
+    def pdf_li(self, x, idx, point, n=None, direction=None, solid_angle: bool = True):
+        """p_w at x of the direction towards `point` on light idx (the density `sample_li` has)."""
         pdf = area_pdf(x, point, gather(self.normal, idx), gather(self.area, idx))
         if solid_angle:
             f = self._frame(x, idx)
@@ -122,8 +129,17 @@ class Parallelograms:
         return pdf
 
     def solid_angle(self, x, idx):
-        """Omega of each light seen from x (for tests and the effect plan)."""
+        """Omega of each light seen from x (for tests)."""
         return self._frame(x, idx)["omega"]
+
+    def bounds(self):
+        return LightBounds(self.center, self.radius, self.normal, np.where(self.one_sided, 1.0, -1.0))
+
+    def sample_area(self, idx, u1, u2):
+        return self._area_point(idx, u1, u2), np.broadcast_to(gather(self.normal, idx), (3, len(u1)))
+
+    def normal_at(self, idx, point):
+        return gather(self.normal, idx)
 
 
 def area_pdf(x, point, normal, area):

@@ -11,27 +11,35 @@ Spot lights are point lights whose radiance is scaled by the cone's falloff a(th
 direction of the receiver (engine/scene/model.py PointLight; Cycles evaluates it for the direction from
 the sampled point to the receiver, as `spot_factor` does).  Their samples are drawn as the point
 light's: the falloff only scales what a sample carries.
+
+Rays leaving a point light (sample_le): directions uniform over the sphere, from a point uniform
+on the disk of radius r that faces the direction (the disk every receiver in that direction sees).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..sampling.warps import uniform_cone
+from ..sampling.warps import orthonormal_basis, uniform_cone, uniform_sphere, unit_circle
 from ..core.vec import dot, gather, rows
+from .protocol import LeSample, LightBounds, finite_sample
 
 
 class PointLights:
-    kind = "point"
+    name = "point"
+    at_infinity = False
+    first = 0
 
     def __init__(self, points):
+        """points: engine/scene/model.py PointLight (spot lights included)."""
         self.center = rows([p.position for p in points])
         self.radius = np.array([p.radius for p in points], dtype=np.float64)
         self.count = len(points)
-        self.area = np.pi * self.radius ** 2                       # of the disk: the power pmf's share
+        self.area = np.pi * self.radius ** 2                       # of the disk
         intensity = np.array([p.intensity for p in points], dtype=np.float64).reshape(-1, 3)
         disk = self.radius > 0
-        self.radiance_rows = rows(np.where(disk[:, None], intensity / np.maximum(self.area, 1e-300)[:, None],
-                                           intensity))
+        # The disk's radiance I / (pi r^2); without a radius the intensity I (the delta convention).
+        self.radiance = rows(np.where(disk[:, None], intensity / np.maximum(self.area, 1e-300)[:, None], intensity))
+        self.one_sided = np.zeros(self.count, dtype=bool)
         self.flux = 4.0 * np.pi * intensity.mean(axis=1)
         self.spots = np.flatnonzero([p.is_spot for p in points])
         if len(self.spots):
@@ -62,7 +70,10 @@ class PointLights:
             factor[sel] = np.where(self.spot_cosine.take(k), c * a, a)
         return factor
 
-    def sample(self, x, idx, u1, u2, solid_angle: bool = True):
+    # -- the light protocol (engine/lights/protocol.py) ----------------------------------
+    def _cone(self, x, idx):
+        """(centre, radius, unit axis x -> centre, distance, its square, 1 - cos beta) of the cone
+        of directions from x to the disk of radius r facing x."""
         c, r = gather(self.center, idx), gather(self.radius, idx)
         axis = c - x
         d2 = dot(axis, axis)
@@ -72,9 +83,61 @@ class PointLights:
             tan_b = r / d
         cos_b = 1.0 / np.sqrt(1.0 + tan_b * tan_b)
         one_minus = tan_b * tan_b * cos_b * cos_b / (1.0 + cos_b)         # 1 - cos beta, no cancellation
+        return c, r, axis, d, d2, one_minus
+
+    @staticmethod
+    def _cone_pdf(r, d2, one_minus):
+        """1 / (2 pi (1 - cos beta)); a delta light (r = 0): d^2, so radiance / pdf = I / d^2."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pdf = np.where(r > 0, 1.0 / (2.0 * np.pi * one_minus), d2)
+        return np.where(np.isfinite(pdf), pdf, 0.0)
+
+    def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
+        """A direction uniform in the cone of the disk, the point where it meets the disk's plane."""
+        c, r, axis, d, d2, one_minus = self._cone(x, idx)
         w, cos_t = uniform_cone(u1, u2, axis, one_minus)
         with np.errstate(divide="ignore", invalid="ignore"):
             point = x + (d / cos_t) * w                                   # on the disk's plane
-            pdf = np.where(r > 0, 1.0 / (2.0 * np.pi * one_minus), d2)
+        pdf = self._cone_pdf(r, d2, one_minus)
         point = np.where(r > 0, point, np.broadcast_to(c, x.shape))
-        return point, np.broadcast_to(-axis, x.shape).copy(), np.where(np.isfinite(pdf), pdf, 0.0)
+        s = finite_sample(x, point, np.broadcast_to(-axis, x.shape).copy(), self.radiance.take(idx, axis=1), pdf)
+        if len(self.spots):                                   # the cone's falloff towards the receiver
+            s.radiance *= self.spot_factor(idx, -s.direction)
+        return s
+
+    def pdf_li(self, x, idx, point, n=None, direction=None, solid_angle: bool = True):
+        _, r, _, _, d2, one_minus = self._cone(x, idx)
+        return self._cone_pdf(r, d2, one_minus)
+
+    def le(self, idx, point, direction):
+        """The disk's radiance (the intensity without a radius), times a spot's falloff for the
+        direction -`direction` the light emits into."""
+        radiance = self.radiance.take(idx, axis=1)
+        if len(self.spots):
+            radiance *= self.spot_factor(idx, -direction)
+        return radiance
+
+    def power(self):
+        """4 pi I (a spot light too: the cone does not concentrate its power, engine/scene/model.py)."""
+        return self.flux
+
+    def report_power(self):
+        return self.flux / np.pi
+
+    def bounds(self):
+        return LightBounds(self.center, self.radius, rows(np.tile([0.0, 0.0, 1.0], (self.count, 1))),
+                           np.full(self.count, -1.0))                  # emits in every direction
+
+    def sample_le(self, idx, u1, u2, u3, u4):
+        """Direction uniform over the sphere (u1, u2; pdf_dir 1 / 4 pi); origin uniform on the disk of
+        radius r facing it (u3, u4; pdf_pos 1 / (pi r^2); a point without a radius: the centre,
+        pdf_pos 1, radiance its intensity), so radiance / (pdf_pos pdf_dir) = 4 pi I x falloff."""
+        direction = uniform_sphere(u1, u2)
+        t1, t2 = orthonormal_basis(direction)
+        cphi, sphi = unit_circle(u4)
+        r = gather(self.radius, idx)
+        s = r * np.sqrt(u3)
+        origin = gather(self.center, idx) + s * (cphi * t1 + sphi * t2)
+        pdf_pos = np.broadcast_to(np.where(r > 0, 1.0 / np.maximum(np.pi * r * r, 1e-300), 1.0), (len(u1),)).copy()
+        return LeSample(origin, direction, direction, self.le(idx, origin, -direction), pdf_pos,
+                        np.full(len(u1), 1.0 / (4.0 * np.pi)))

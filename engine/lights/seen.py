@@ -19,7 +19,7 @@ import numpy as np
 
 from ..geometry.shapes.spheres import intersect_sphere
 from ..core.vec import dot
-from .distant import DistantLights
+from .distant import SunLights
 from .points import PointLights
 
 
@@ -34,9 +34,7 @@ class SeenLamps:
         suns = [s for s in scene.suns if s.angle > 2e-6 and max(s.irradiance) > 0 and shown(s)]   # not delta
         self.points = PointLights(scene.points) if bulbs else None
         self.bulbs = np.array(bulbs, dtype=np.int64)
-        self.suns = DistantLights(suns, (0.0, 0.0, 0.0), 1.0) if suns else None
-        if self.suns is not None:
-            self.cos_half = 1.0 - self.suns.one_minus_cos
+        self.suns = SunLights(suns, 1.0) if suns else None
         lights = [scene.points[i] for i in bulbs] + suns
         self.visible = {"glossy": np.array([light.visible_glossy for light in lights], dtype=bool),
                         "transmission": np.array([light.visible_transmission for light in lights], dtype=bool)}
@@ -64,12 +62,12 @@ class SeenLamps:
             if len(hit):
                 emitted = away.take(hit, axis=1)
                 emitted = emitted / np.sqrt(dot(emitted, emitted))
-                factor = self.points.spot_factor(np.full(len(hit), j), emitted)
-                total[:, hit] += self.points.radiance_rows[:, j:j + 1] * factor
+                # The falloff of the direction from the light to the ray's origin, as Cycles has it.
+                total[:, hit] += self.points.le(np.full(len(hit), j), None, -emitted)
         if self.suns is not None:
             escaped = np.isinf(tmax)
             for k in range(self.suns.count):
-                inside = np.flatnonzero(visible[len(self.bulbs) + k] & escaped
-                                        & (dot(d, self.suns.axis[:, k:k + 1]) >= self.cos_half[k]))
-                total[:, inside] += self.suns.radiance[:, k:k + 1]
+                rays = np.flatnonzero(visible[len(self.bulbs) + k] & escaped)
+                if len(rays):                                           # 0 outside the sun's disk
+                    total[:, rays] += self.suns.le(np.full(len(rays), k), None, d.take(rays, axis=1))
         return total

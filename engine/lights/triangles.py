@@ -7,7 +7,7 @@
 
 As pbrt-v4's `Triangle::Sample(ctx)`, the spherical map is used only where it is stable:
 Omega not vanishing and x not (almost) in the triangle's plane; elsewhere area sampling,
-which is exact there.  `sample` and `pdf` share that predicate.
+which is exact there.  `sample_li` and `pdf_li` share that predicate.
 """
 from __future__ import annotations
 
@@ -15,7 +15,9 @@ import numpy as np
 
 from ..sampling.warps import uniform_triangle
 from ..core.vec import cross, dot, normalize, rows
+from .emitting_surface import EmittingSurface
 from .parallelograms import GRAZING, OMEGA_MIN, area_pdf
+from .protocol import LightBounds
 
 
 def _unit(a):
@@ -32,12 +34,14 @@ def angle_between(a, b):
                     np.pi - 2.0 * np.arcsin(np.minimum(0.5 * plus, 1.0)))
 
 
-class Triangles:
-    kind = "triangle"
+class Triangles(EmittingSurface):
+    name = "triangle"
 
-    def __init__(self, a, b, c):
+    def __init__(self, a, b, c, radiance=None, one_sided=None):
+        """Corners a, b, c ((K, 3) each); radiance, one_sided: as EmittingSurface."""
         a, b, c = (np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in (a, b, c))
         self.count = len(a)
+        self._set_emission(radiance, one_sided)
         n = np.cross(b - a, c - a)
         doubled = np.linalg.norm(n, axis=1)
         self.area = 0.5 * doubled
@@ -76,11 +80,8 @@ class Triangles:
             w = z * B + np.sqrt(np.maximum(1.0 - z * z, 0.0)) * _unit(c_prime - dot(c_prime, B) * B)
         return w
 
-    def sample(self, x, idx, u1, u2, solid_angle: bool):
-        a = self.a.take(idx, axis=1)
-        e1, e2 = self.b.take(idx, axis=1) - a, self.c.take(idx, axis=1) - a
-        b1, b2 = uniform_triangle(u1, u2)
-        point = a + b1 * e1 + b2 * e2
+    def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
+        a, point = self._area_point(idx, u1, u2)
         normal = self.normal.take(idx, axis=1)
         pdf = area_pdf(x, point, normal, self.area.take(idx))
         if solid_angle:
@@ -98,9 +99,16 @@ class Triangles:
                 p = np.where(good, xs + np.where(good, t, 0.0) * w, point.take(sel, axis=1))
                 point[:, sel] = p
                 pdf[sel] = np.where(good, 1.0 / omega.take(sel), 0.0)    # a failed map: no sample
-        return point, normal, pdf
+        return self._li(x, idx, point, normal, pdf)
 
-    def pdf(self, x, idx, point, solid_angle: bool):
+    def _area_point(self, idx, u1, u2):
+        """(corner a of each light, a point uniform over its area)."""
+        a = self.a.take(idx, axis=1)
+        e1, e2 = self.b.take(idx, axis=1) - a, self.c.take(idx, axis=1) - a
+        b1, b2 = uniform_triangle(u1, u2)
+        return a, a + b1 * e1 + b2 * e2
+
+    def pdf_li(self, x, idx, point, n=None, direction=None, solid_angle: bool = True):
         normal = self.normal.take(idx, axis=1)
         pdf = area_pdf(x, point, normal, self.area.take(idx))
         if solid_angle:
@@ -111,3 +119,12 @@ class Triangles:
 
     def solid_angle(self, x, idx):
         return self._omega(*self._directions(x, idx))
+
+    def bounds(self):
+        return LightBounds(self.center, self.radius, self.normal, np.where(self.one_sided, 1.0, -1.0))
+
+    def sample_area(self, idx, u1, u2):
+        return self._area_point(idx, u1, u2)[1], self.normal.take(idx, axis=1)
+
+    def normal_at(self, idx, point):
+        return self.normal.take(idx, axis=1)

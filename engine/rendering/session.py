@@ -35,7 +35,7 @@ from ..integrators.effects import EffectPlan, plan_effects
 from ..film.accumulator import Film
 from ..geometry.scene_geometry import Counters, SceneGeometry
 from ..integrators.path_tracer import PathTracer
-from ..lights import LightSampler
+from ..lights import LightSet
 from .masked_samples import MaskedTileSamples, unpack_mask
 from ..film.passes import TileFeatures
 from ..sampling.qmc import RandomSampler, SobolSampler
@@ -92,8 +92,8 @@ class PreparedScene:
             log(f"warning: {w}")
         self.geometry = SceneGeometry(scene, self.accelerator, self.plan)
         textures, lit = load_textures(scene, self.plan, log, self.warnings)    # engine/materials/textures.py
-        self.lights = LightSampler(lit, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
-                                   lamps_hittable=self.plan.area_lights, world=self.plan.world_light)
+        self.lights = LightSet(lit, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
+                               lamps_hittable=self.plan.area_lights, world=self.plan.world_light)
         self.plan.describe_light_kinds(self.lights)
         self.tracer = PathTracer(self.geometry, self.lights, lit.materials, self.plan, settings,
                                  scene.background, textures=textures and textures.bind(self.geometry, self.lights))

@@ -9,7 +9,7 @@ light's size), off to the side, grazing, and both faces of the light.
 import numpy as np
 import pytest
 
-from engine.lights import LightSampler
+from engine.lights import LightSet
 from engine.lights.parallelograms import Parallelograms
 from engine.lights.selection import LightTree
 from engine.lights.spheres import Spheres
@@ -66,7 +66,8 @@ def test_spherical_rectangle_chi2(where):
     light = Parallelograms(RECT["v0"][None], RECT["e1"][None], RECT["e2"][None])
     x = np.array(RECT_CONFIGS[where])
     rng = np.random.default_rng(31)
-    point, _, pdf = light.sample(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N), True)
+    s = light.sample_li(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N))
+    point, pdf = s.point, s.pdf
     assert np.isfinite(point).all() and (pdf > 0).all()
     k = 8
     s = np.clip(((point.T - RECT["v0"]) @ RECT["e1"]) / (RECT["e1"] @ RECT["e1"]), 0, 1 - 1e-12)
@@ -114,7 +115,8 @@ def test_spherical_triangle_chi2(where):
     light = Triangles(a[None], b[None], c[None])
     x = np.array(TRI_CONFIGS[where])
     rng = np.random.default_rng(32)
-    point, _, pdf = light.sample(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N), True)
+    s = light.sample_li(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N))
+    point, pdf = s.point, s.pdf
     assert np.isfinite(point).all() and (pdf > 0).all()
     k = 6
     cells = subtriangles(a, b, c, k)
@@ -143,7 +145,8 @@ def test_sphere_cone_chi2(distance):
     axis = np.array([1.0, 2.0, 2.0]) / 3.0
     x = centre - distance * radius * axis
     rng = np.random.default_rng(33)
-    point, normal, pdf = light.sample(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N), True)
+    s = light.sample_li(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N))
+    point, normal, pdf = s.point, s.normal, s.pdf
     assert np.abs(np.linalg.norm(point.T - centre, axis=1) - radius).max() < 1e-9 * distance
     w = point.T - x
     w /= np.linalg.norm(w, axis=1)[:, None]
@@ -183,7 +186,8 @@ def test_point_light_disk_cone_chi2(distance):
     axis = np.array([2.0, -1.0, 2.0]) / 3.0
     x = centre - distance * axis
     rng = np.random.default_rng(7)
-    point, normal, pdf = lights.sample(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N), True)
+    s = lights.sample_li(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N))
+    point, pdf = s.point, s.pdf
     assert np.abs((point.T - centre) @ axis).max() < 1e-9 * max(distance, 1.0)       # on the facing disk
     assert np.linalg.norm(point.T - centre, axis=1).max() <= r * (1 + 1e-9)
     w = point.T - x
@@ -196,16 +200,16 @@ def test_point_light_disk_cone_chi2(distance):
 @pytest.mark.parametrize("angle", [1e-3, 0.1])
 def test_sun_cone_chi2(angle):
     """A sun of angular diameter `angle`: directions uniform in the cone of half-angle angle / 2."""
-    from engine.lights.distant import DistantLights
+    from engine.lights.distant import SunLights
     from engine.scene.model import SunLight
     travel = np.array([1.0, 2.0, -2.0]) / 3.0
-    suns = DistantLights([SunLight("Sun", tuple(travel), (1.0, 1.0, 1.0), angle)], (0.0, 0.0, 0.0), 1.0)
+    suns = SunLights([SunLight("Sun", tuple(travel), (1.0, 1.0, 1.0), angle)], 1.0)
     rng = np.random.default_rng(8)
-    n = at((0.0, 0.0, 1.0), N)
-    d, pdf, slot = suns.sample(n, rng.random(N), rng.random(N), rng.random(N))
+    s = suns.sample_li(at((0.0, 0.0, 0.0), N), np.zeros(N, int), rng.random(N), rng.random(N))
+    d, pdf = s.direction, s.pdf
     one_minus_max = 1.0 - np.cos(angle / 2)
     assert cone_chi2(d.T, -travel, one_minus_max) > ALPHA_EACH
-    assert np.allclose(pdf, 1.0 / (2 * np.pi * one_minus_max), rtol=1e-6) and (slot == 0).all()
+    assert np.allclose(pdf, 1.0 / (2 * np.pi * one_minus_max), rtol=1e-6) and np.isinf(s.distance).all()
 
 
 def test_chi2_rejects_the_area_sampler_as_a_solid_angle_sampler():
@@ -213,7 +217,7 @@ def test_chi2_rejects_the_area_sampler_as_a_solid_angle_sampler():
     light = Parallelograms(RECT["v0"][None], RECT["e1"][None], RECT["e2"][None])
     x = np.array(RECT_CONFIGS["near field 1e-3 below"])
     rng = np.random.default_rng(34)
-    point, _, _ = light.sample(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N), False)
+    point = light.sample_li(at(x, N), np.zeros(N, int), rng.random(N), rng.random(N), solid_angle=False).point
     k = 8
     s = np.clip(point[0] + 0.5, 0, 1 - 1e-12)
     t = np.clip((point[1] + 0.25) / 0.5, 0, 1 - 1e-12)
@@ -246,7 +250,7 @@ def _mixed_scene():
 def test_pdf_of_a_sampled_direction_equals_the_sampled_pdf(solid_angle):
     """sample() at (x, n) and pdf() of the same light and point agree (the MIS requirement),
     over every kind, the tree's pmf and both sides of the predicates."""
-    lights = LightSampler(_mixed_scene(), solid_angle=solid_angle, spatial=solid_angle)
+    lights = LightSet(_mixed_scene(), solid_angle=solid_angle, spatial=solid_angle)
     assert sorted(lights.kind_names()) == ["parallelogram", "polygon", "sphere", "triangle"]
     rng = np.random.default_rng(35)
     n = 50_000
@@ -276,7 +280,7 @@ def test_light_samples_integrate_cosine_to_lamberts_formula(where, kind):
     height = {"above": 0.4, "near field 1e-3": 1e-3, "near field 1e-2": 1e-2}[where]
     x = np.array([0.2, 0.1, -height])
     n = np.array([0.0, 0.0, 1.0])
-    lights = LightSampler(scene)
+    lights = LightSet(scene)
     assert lights.kind_names() == ["parallelogram" if kind == "rectangle" else "triangle"]
     rng = np.random.default_rng(36)
     s = lights.sample(at(x, N), at(n, N), rng.random(N), rng.random(N), rng.random(N))
@@ -333,12 +337,12 @@ def test_a_quad_made_of_two_triangles_is_one_parallelogram_light(tris):
     corners = np.array([[0, 0, 1], [2, 0, 1], [2, 1, 1], [0, 1, 1]], float)
     scene = Scene(None, [Material("L", emission=(1, 1, 1), color=(0, 0, 0))],
                   meshes=[TriangleMesh("L", corners, np.array(tris), [0, 0])])
-    lights = LightSampler(scene)
+    lights = LightSet(scene)
     assert lights.kind_names() == ["parallelogram"] and lights.triangle_light.tolist() == [0, 0]
     winding = np.cross(*(corners[tris[0][1:]] - corners[tris[0][0]]))
-    assert np.allclose(lights.kinds[0][1].normal[:, 0], winding / np.linalg.norm(winding))
+    assert np.allclose(lights.kinds[0].normal[:, 0], winding / np.linalg.norm(winding))
     assert lights.area.tolist() == [2.0]
-    assert LightSampler(scene, solid_angle=False, spatial=False).kind_names() == ["triangle"]
+    assert LightSet(scene, solid_angle=False, spatial=False).kind_names() == ["triangle"]
 
 
 def test_light_tree_pmf_stays_right_with_powers_across_40_decades():

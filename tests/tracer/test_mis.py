@@ -98,9 +98,9 @@ def report_second_moment(height, area=1.0):
 def test_report_second_moment_formula_matches_the_report_sampler():
     """The closed form above, checked against the report's light sampler itself at h = 1e-2
     (where 4M samples resolve the heavy tail to a few per cent)."""
-    from engine.lights import LightSampler
+    from engine.lights import LightSet
     h, n = 1e-2, 4_000_000
-    lights = LightSampler(floor_under_square_light(albedo=1.0, height=h), solid_angle=False, spatial=False)
+    lights = LightSet(floor_under_square_light(albedo=1.0, height=h), solid_angle=False, spatial=False)
     rng = np.random.default_rng(9)
     x, up = np.zeros((3, n)), np.tile([[0.0], [0.0], [1.0]], n)
     s = lights.sample(x, up, rng.random(n), rng.random(n), rng.random(n))

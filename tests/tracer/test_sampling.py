@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from engine.lights import LightSampler
+from engine.lights import LightSet
 from engine.sampling.warps import (cosine_directions, cosine_hemisphere, orthonormal_basis, to_world,
     uniform_triangle)
 from engine.scene.model import Camera, Material, Quad, Scene, Sphere, TriangleMesh
@@ -121,7 +121,7 @@ def area_density(x, s):
 @pytest.mark.parametrize("shape", ["parallelogram", "triangles"])
 def test_light_area_sampler_chi2(shape):
     """The report's estimator: points on a 2x1 light uniform over its area (pdf 1/A, eq. 2.11)."""
-    lights = LightSampler(_light_scene(shape), solid_angle=False, spatial=False)
+    lights = LightSet(_light_scene(shape), solid_angle=False, spatial=False)
     assert lights.kind_names() == (["parallelogram"] if shape == "parallelogram" else ["triangle"])
     rng = np.random.default_rng(13)
     n = 400_000
@@ -160,7 +160,7 @@ def test_lights_picked_by_power():
     scene = Scene(Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0)), mats,
                   quads=[Quad("Dim", q, 0), Quad("Bright", q + [5, 0, 0], 1)],
                   spheres=[Sphere("Zero", (9, 9, 9), 1.0, 0)])
-    lights = LightSampler(scene, solid_angle=False, spatial=False)
+    lights = LightSet(scene, solid_angle=False, spatial=False)
     rng = np.random.default_rng(15)
     n = 100_000
     x = np.tile([[20.0], [20.0], [20.0]], n)
