@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from file_safety import OLD_OUTPUT, assert_one_line, snapshot
+from tests.file_safety import OLD_OUTPUT, assert_one_line, snapshot
 from rendering import read_exr
 
 CORNELL = os.path.join(REPO, "sample_blends", "cornell.blend")

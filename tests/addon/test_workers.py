@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from file_safety import alive, children
+from tests.file_safety import alive, children
 from mcrt_addon import render_engine as engine_module
 from rendering import last_report, open_blend, render_operator
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from engine.film.image_files import read_image
-from file_safety import OLD_OUTPUT, alive, assert_one_line, children, snapshot
+from tests.file_safety import OLD_OUTPUT, alive, assert_one_line, children, snapshot
 from engine.rendering.memory import check_memory, estimate_bytes
 from engine.core.errors import SceneError
 from engine.core.settings import RenderSettings
