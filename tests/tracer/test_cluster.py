@@ -131,7 +131,10 @@ def test_a_cancelled_render_leaves_no_unit_running(cluster):
     assert cluster.running() == []                                   # close() waited for the workers
 
 
-def test_unreachable_scheduler_is_one_line_within_10_s(tmp_path):
+def test_unreachable_scheduler_is_one_line_before_dasks_own_timeout(tmp_path):
+    """Refused after CONNECT_SECONDS (5 s), not after distributed's default connect timeout of 30 s
+    (distributed.comm.timeouts.connect): 25 s leaves room for starting Python and importing Dask on a
+    loaded machine (9.8 s measured under a load of 13 on 2 cores, 5.5 s under 5)."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]                                    # closed again: nobody listens
@@ -139,7 +142,7 @@ def test_unreachable_scheduler_is_one_line_within_10_s(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "engine", "render", "--resolution", "16", "16", "--quiet",
                            "-o", str(tmp_path / "a.exr"), "--cluster", f"tcp://127.0.0.1:{port}"],
                           cwd=REPO, env=_env(REPO), capture_output=True, text=True, timeout=60)
-    assert time.monotonic() - start < 10
+    assert time.monotonic() - start < 25
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and f"tcp://127.0.0.1:{port}" in lines[0] and lines[0].startswith("python -m engine: error:")
