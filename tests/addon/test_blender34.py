@@ -13,7 +13,6 @@ import json
 import os
 import shutil
 import subprocess
-import sys
 import sysconfig
 
 import numpy as np
@@ -66,12 +65,8 @@ json.dump({"error": r.error, "warnings": r.warnings, "stats": r.stats, "enable_s
 
 
 @pytest.fixture(scope="module")
-def legacy_zip(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dist")
-    r = subprocess.run([sys.executable, os.path.join(REPO, "scripts", "build_extension.py"), "--output-dir",
-                        str(out)], capture_output=True, text=True, timeout=900, cwd=REPO)
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    return next(p for p in out.iterdir() if p.name.endswith("-legacy.zip"))
+def legacy_zip(built_zips):
+    return built_zips["legacy"]
 
 
 @pytest.mark.parametrize("name", ["cornell", "textured"])
