@@ -64,7 +64,14 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("name, args, fragment", CASES, ids=[c[0] for c in CASES])
+# Cases that check code both command lines share (the integer limits, engine/film/output.py) and that
+# tests/tracer/test_cli_bad_input.py checks faster on the tracer's command line: `make test-slow` here.
+SHARED = {"stats-is-the-output", "png-is-the-output", "output-jpg", "output-directory", "stats-unwritable",
+          "seed-negative", "seed-2^31", "samples-2^31", "resolution-huge"}
+
+
+@pytest.mark.parametrize("name, args, fragment", [
+    pytest.param(*case, id=case[0], marks=[pytest.mark.slow] if case[0] in SHARED else []) for case in CASES])
 def test_bad_input_is_one_line_and_touches_nothing(workdir, name, args, fragment):
     args = [a.replace("{dir}", str(workdir)) for a in args]
     blend = str(workdir / "scene.blend")

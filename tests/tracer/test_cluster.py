@@ -100,6 +100,7 @@ def test_units_queue_on_the_scheduler_for_the_next_free_worker(cluster):
     assert any(state == "queued" for _, _, state in units)          # still waiting for a free worker
 
 
+@pytest.mark.slow   # a killed worker's units rendered elsewhere: tests/tracer/test_service.py (worker processes)
 def test_a_worker_killed_mid_render_changes_nothing(cluster):
     scene, settings = cornell_scene((128, 128)), RenderSettings(samples=64, tile_size=32, seed=4)
     reference = render(scene, settings, **SILENT)
@@ -222,6 +223,7 @@ def test_ctrl_c_stops_like_esc_and_writes_the_finished_work(cluster, tmp_path):
     assert cluster.running() == []
 
 
+@pytest.mark.slow   # cluster = local pool, bit for bit: test_cluster_render_is_bit_for_bit_the_local_one, tests/addon/test_workers.py
 def test_cli_local_cluster_matches_the_local_pool(tmp_path):
     """`--cluster local` starts a LocalCluster here (spawned workers re-import engine.__main__)."""
     args = [sys.executable, "-m", "engine", "render", "--resolution", "48", "32", "--samples", "8", "--quiet"]

@@ -1,5 +1,6 @@
 """Tiles stream through the callback, progress is reported, cancel keeps what was rendered."""
 import numpy as np
+import pytest
 
 from engine import RenderSettings, render
 from engine.scene.builtin import cornell_scene
@@ -63,6 +64,7 @@ def test_a_cancelled_unit_is_dropped_whole():
     assert abs(mean - 5.0) < 4 * se
 
 
+@pytest.mark.slow   # statistical; the kept and dropped units: the two cancel tests above
 def test_a_cancelled_render_keeps_unbiased_finished_units():
     """The furnace again, cancelled part-way: every pixel that has samples averages 5."""
     units = []
