@@ -5,7 +5,7 @@ import pytest
 from engine import RenderSettings, render
 from engine.scene.builtin import cornell_scene
 
-from .scenes import camera_inside_sphere_scene
+from tests.scenes import camera_inside_sphere_scene
 
 
 def test_tiles_cover_the_image_and_match_the_result():
