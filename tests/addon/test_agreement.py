@@ -26,9 +26,9 @@ TAU = {"cornell": 0.05, "mirror_glass": 0.05, "principled": 0.05, "diffuse_room"
        "smooth": 0.02}
 _cache = {}
 # Scenes and controls in `make test-slow` only (.ci/run runs them): each one's subject has a faster test in
-# `make test` -- smooth: tests/tracer/test_shading_normals.py; textured: tests/tracer/test_textures.py;
-# spot_light: test_spot_light_falloff_matches_cycles (tests/tracer/test_point_sun_lights.py); many_lights:
-# tests/tracer/test_light_sampling.py; suzanne_100k: suzanne_5k here and tests/tracer/test_accelerators.py;
+# `make test` -- smooth: tests/geometry/test_shading_normals.py; textured: tests/materials/test_textures.py;
+# spot_light: test_spot_light_falloff_matches_cycles (tests/lights/test_point_sun_lights.py); many_lights:
+# tests/lights/test_light_sampling.py; suzanne_100k: suzanne_5k here and tests/geometry/test_accelerators.py;
 # the comparison's controls: glass_as_mirror, red_green_swapped and the light-unit controls stay.
 SLOW = {"smooth", "textured", "spot_light", "many_lights", "suzanne_100k", "light_x1.3", "fov_lens_x1.1",
         "mirror_as_diffuse"}
@@ -161,7 +161,7 @@ def test_comparison_catches_flat_normals(samples):
     """Control for smooth shading: the smooth scene rendered with flat normals (as before issue 12)
     must fail the comparison (the low-poly mirror ball reflects other parts of the room; measured
     z = -6.9 for the image mean, 12 of 193 regions failed).  Leaving out only the shadow-terminator
-    offset is not detectable at 64 x 64 (z = -1.6): tests/tracer/test_shading_normals.py checks it."""
+    offset is not detectable at 64 x 64 (z = -1.6): tests/geometry/test_shading_normals.py checks it."""
     scene = flat_shaded(export_blend(samples["smooth"], RES).scene)
     result = compare_runs(ours(scene, first_seed=7000), reference(samples, "smooth"), tau=TAU["smooth"])
     print(f"smooth normals_not_interpolated: {result.summary()}")

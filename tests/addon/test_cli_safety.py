@@ -65,7 +65,7 @@ CASES = [
 
 
 # Cases that check code both command lines share (the integer limits, engine/film/output.py) and that
-# tests/tracer/test_cli_bad_input.py checks faster on the tracer's command line: `make test-slow` here.
+# tests/cli/test_bad_input.py checks faster on the tracer's command line: `make test-slow` here.
 SHARED = {"stats-is-the-output", "png-is-the-output", "output-jpg", "output-directory", "stats-unwritable",
           "seed-negative", "seed-2^31", "samples-2^31", "resolution-huge"}
 

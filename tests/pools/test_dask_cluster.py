@@ -100,7 +100,7 @@ def test_units_queue_on_the_scheduler_for_the_next_free_worker(cluster):
     assert any(state == "queued" for _, _, state in units)          # still waiting for a free worker
 
 
-@pytest.mark.slow   # a killed worker's units rendered elsewhere: tests/tracer/test_service.py (worker processes)
+@pytest.mark.slow   # a killed worker's units rendered elsewhere: tests/pools/test_processes.py (worker processes)
 def test_a_worker_killed_mid_render_changes_nothing(cluster):
     scene, settings = cornell_scene((128, 128)), RenderSettings(samples=64, tile_size=32, seed=4)
     reference = render(scene, settings, **SILENT)

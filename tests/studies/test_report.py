@@ -1,5 +1,5 @@
 """engine/studies/report.py: the study's formatting and fits (the tables and plots themselves are
-written by tests/tracer/test_study.py's quick study)."""
+written by tests/studies/test_study.py's quick study)."""
 from types import SimpleNamespace
 
 import numpy as np
