@@ -131,25 +131,30 @@ def test_every_import_names_an_existing_module(repository):
     fail_on([str(e) for e in unresolved], "imports of modules that do not exist")
 
 
-def test_every_tracer_package_is_in_the_architecture_doc():
-    doc = os.path.join(ROOT, "docs", "architecture.md")
-    if not os.path.exists(doc):
-        pytest.skip("docs/architecture.md does not exist yet (it is being written on another branch)")
-    with open(doc, encoding="utf-8") as fh:
-        text = fh.read()
+def packages_missing_from(text, tracer_dir):
+    """The packages under ``tracer_dir`` that ``text`` does not name: as "engine/geometry/accel",
+    "geometry/accel/", "engine.geometry.accel", "`geometry/accel`", or (nested) "accel/" in a tree."""
     missing = []
-    for base, dirs, files in os.walk(os.path.join(ROOT, TRACER)):
-        dirs[:] = [d for d in dirs if d != "__pycache__"]
-        if base == os.path.join(ROOT, TRACER) or "__init__.py" not in files:
+    for base, dirs, files in os.walk(tracer_dir):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        if base == tracer_dir or "__init__.py" not in files:
             continue
-        rel = os.path.relpath(base, os.path.join(ROOT, TRACER)).replace(os.sep, "/")
-        # "engine/geometry/accel", "geometry/accel/", "engine.geometry.accel", or "accel/" in a tree
+        rel = os.path.relpath(base, tracer_dir).replace(os.sep, "/")
         forms = [re.escape(rel) + "/", re.escape("engine/" + rel) + r"\b",
                  re.escape("engine." + rel.replace("/", ".")) + r"\b", r"`" + re.escape(rel) + r"`"]
         if "/" in rel:
             forms.append(r"(?<![\w/.])" + re.escape(rel.rsplit("/", 1)[1]) + "/")
         if not any(re.search(f, text) for f in forms):
             missing.append(f"engine/{rel}/")
+    return missing
+
+
+def test_every_tracer_package_is_in_the_architecture_doc():
+    doc = os.path.join(ROOT, "docs", "architecture.md")
+    if not os.path.exists(doc):
+        pytest.skip("docs/architecture.md does not exist yet (it is being written on another branch)")
+    with open(doc, encoding="utf-8") as fh:
+        missing = packages_missing_from(fh.read(), os.path.join(ROOT, TRACER))
     assert not missing, f"packages of engine/ not in docs/architecture.md: {missing}"
 
 
@@ -323,3 +328,12 @@ def test_control_module_without_a_test_is_reported(tmp_path):
         "addon.bridge", "addon.ui", "eng.high.c"]
     (tmp_path / "tests" / "test_c.py").write_text("from eng.high.c import np\n")
     assert untested(str(tmp_path), str(tmp_path / "tests"), ["eng", "addon"]) == ["addon.bridge", "addon.ui"]
+
+
+def test_control_a_package_missing_from_the_doc_is_reported(tmp_path):
+    write_tree(tmp_path, {"eng/__init__.py": "", "eng/low/__init__.py": "", "eng/high/__init__.py": "",
+                          "eng/high/deep/__init__.py": "", "eng/high/notes/readme.txt": ""})
+    drawn = "| `engine/low/` | ... |\n| `engine/high/` | ..., `deep/` (...) |"
+    assert packages_missing_from(drawn, str(tmp_path / "eng")) == []
+    assert packages_missing_from(drawn.replace("`deep/`", "deep"), str(tmp_path / "eng")) == ["engine/high/deep/"]
+    assert packages_missing_from("engine.low only", str(tmp_path / "eng")) == ["engine/high/", "engine/high/deep/"]
