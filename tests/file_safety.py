@@ -1,4 +1,4 @@
-"""Helpers for the command-line safety tests (tests/tracer/test_cli_bad_input.py,
+"""Helpers for the command-line safety tests (tests/cli/test_bad_input.py,
 tests/addon/test_cli_safety.py): file snapshots and the one-line error check."""
 import hashlib
 import os

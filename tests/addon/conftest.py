@@ -1,6 +1,7 @@
 """Fixtures for the Blender add-on tests (bpy 5.0.1 module, in-process)."""
 import importlib.util
 import os
+import subprocess
 import sys
 
 import pytest
@@ -44,3 +45,15 @@ def empty_scene(addon):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return bpy.context.scene
 
+
+
+@pytest.fixture(scope="session")
+def built_zips(tmp_path_factory):
+    """{"extension": zip, "legacy": zip} from scripts/build_extension.py, built once per test run
+    (tests/addon/test_packaging.py, test_blender34.py and test_viewport_blender34.py read them)."""
+    out = tmp_path_factory.mktemp("dist")
+    r = subprocess.run([sys.executable, os.path.join(REPO, "scripts", "build_extension.py"), "--output-dir", str(out)],
+                       capture_output=True, text=True, timeout=900, cwd=REPO)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    zips = sorted(p for p in out.iterdir() if p.suffix == ".zip")
+    return {("legacy" if "legacy" in p.name else "extension"): p for p in zips}

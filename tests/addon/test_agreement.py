@@ -25,6 +25,17 @@ TAU = {"cornell": 0.05, "mirror_glass": 0.05, "principled": 0.05, "diffuse_room"
        "point_light": 0.05, "sun_window": 0.05, "spot_light": 0.05, "sky_lit": 0.05, "textured": 0.02,
        "smooth": 0.02}
 _cache = {}
+# Scenes and controls in `make test-slow` only (.ci/run runs them): each one's subject has a faster test in
+# `make test` -- smooth: tests/geometry/test_shading_normals.py; textured: tests/materials/test_textures.py;
+# spot_light: test_spot_light_falloff_matches_cycles (tests/lights/test_point_sun_lights.py); many_lights:
+# tests/lights/test_light_sampling.py; suzanne_100k: suzanne_5k here and tests/geometry/test_accelerators.py;
+# the comparison's controls: glass_as_mirror, red_green_swapped and the light-unit controls stay.
+SLOW = {"smooth", "textured", "spot_light", "many_lights", "suzanne_100k", "light_x1.3", "fov_lens_x1.1",
+        "mirror_as_diffuse"}
+
+
+def marked(*names):
+    return [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n for n in names]
 
 
 def reference(samples, name):
@@ -37,7 +48,7 @@ def ours(scene, first_seed=1000):
     return tncg15_runs(scene, SPP, DEPTH, seeds=range(first_seed, first_seed + K), fresnel="exact")
 
 
-@pytest.mark.parametrize("name", [
+@pytest.mark.parametrize("name", marked(
     "cornell", "diffuse_room", "mirror_glass", "principled", "suzanne_5k", "suzanne_100k", "area_light",
     "nested_glass",
     # light-sampling stress scenes; area_mirror needs area lights that mirror and glass
@@ -48,7 +59,7 @@ def ours(scene, first_seed=1000):
     # image textures: colour, base colour through a second UV map, emission colour
     "textured",
     # smooth shading: interpolated normals, a coarse smooth sphere's shadow terminator
-    "smooth"])
+    "smooth"))
 def test_agrees_with_cycles(samples, name):
     ref = reference(samples, name)
     exported = export_blend(samples[name], RES)
@@ -81,8 +92,8 @@ def perturbed(samples, how):
     return scene
 
 
-@pytest.mark.parametrize("how", ["light_x1.3", "fov_lens_x1.1", "mirror_as_diffuse", "glass_as_mirror",
-                                 "red_green_swapped"])
+@pytest.mark.parametrize("how", marked("light_x1.3", "fov_lens_x1.1", "mirror_as_diffuse", "glass_as_mirror",
+                                        "red_green_swapped"))
 def test_comparison_catches_wrong_export(samples, how):
     ref = reference(samples, "cornell")
     result = compare_runs(ours(perturbed(samples, how), first_seed=2000), ref, tau=TAU["cornell"])
@@ -90,6 +101,7 @@ def test_comparison_catches_wrong_export(samples, how):
     assert not result.passed, f"perturbation '{how}' was not detected: {result.summary()}"
 
 
+@pytest.mark.slow          # every test_agrees_with_cycles that passes shows the comparison accepts a right render
 def test_comparison_passes_renderer_against_itself(samples):
     """Sanity check of the statistics: two independent seed sets of the same renderer, tau = 0."""
     scene = export_blend(samples["cornell"], RES).scene
@@ -99,7 +111,8 @@ def test_comparison_passes_renderer_against_itself(samples):
 
 
 @pytest.mark.parametrize("name, how", [("point_light", "intensity_x2"), ("sun_window", "irradiance_x0.8"),
-                                       ("spot_light", "cone_x1.25"), ("spot_light", "no_spot_falloff"),
+                                       pytest.param("spot_light", "cone_x1.25", marks=pytest.mark.slow),
+                                       pytest.param("spot_light", "no_spot_falloff", marks=pytest.mark.slow),
                                        ("sky_lit", "world_x1.2")])
 def test_comparison_catches_wrong_light_units(samples, name, how):
     """Controls for the light exports: a point light twice too strong, a sun 20 % too weak, a spot
@@ -123,6 +136,7 @@ def test_comparison_catches_wrong_light_units(samples, name, how):
     assert not result.passed
 
 
+@pytest.mark.slow          # with the textured scene
 def test_comparison_catches_texture_flipped_in_v(samples):
     """Control for the texture export: every image of the textured scene flipped in V (rows reversed)."""
     scene = copy.deepcopy(export_blend(samples["textured"], RES).scene)
@@ -142,11 +156,12 @@ def flat_shaded(scene):
     return scene
 
 
+@pytest.mark.slow          # with the smooth scene
 def test_comparison_catches_flat_normals(samples):
     """Control for smooth shading: the smooth scene rendered with flat normals (as before smooth shading)
     must fail the comparison (the low-poly mirror ball reflects other parts of the room; measured
     z = -6.9 for the image mean, 12 of 193 regions failed).  Leaving out only the shadow-terminator
-    offset is not detectable at 64 x 64 (z = -1.6): tests/tracer/test_shading_normals.py checks it."""
+    offset is not detectable at 64 x 64 (z = -1.6): tests/geometry/test_shading_normals.py checks it."""
     scene = flat_shaded(export_blend(samples["smooth"], RES).scene)
     result = compare_runs(ours(scene, first_seed=7000), reference(samples, "smooth"), tau=TAU["smooth"])
     print(f"smooth normals_not_interpolated: {result.summary()}")

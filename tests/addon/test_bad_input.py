@@ -305,6 +305,7 @@ def test_cli_reports_one_line_and_leaves_the_file_alone(empty_scene, make_sample
 
 
 # ------------------------------------------------------------------ every sample scene is NaN-free
+@pytest.mark.slow   # also in `make test`: the sample scenes of tests/addon/test_agreement.py, fuzz scenes, T5
 def test_every_sample_scene_renders_without_nonfinite_samples(samples, make_samples_module):
     assert set(samples) == set(make_samples_module.SCENES)
     for name, path in samples.items():

@@ -13,7 +13,6 @@ import json
 import os
 import shutil
 import subprocess
-import sys
 import sysconfig
 
 import numpy as np
@@ -21,6 +20,7 @@ import pytest
 
 from conftest import REPO
 from rendering import read_exr
+from tests.load_tolerance import prompt_limit
 
 BLENDER = os.environ.get("BLENDER_BIN") or shutil.which("blender")
 # .ci/run installs Debian's blender: under CI a missing binary is a failure, not a skip.
@@ -65,12 +65,8 @@ json.dump({"error": r.error, "warnings": r.warnings, "stats": r.stats, "enable_s
 
 
 @pytest.fixture(scope="module")
-def legacy_zip(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dist")
-    r = subprocess.run([sys.executable, os.path.join(REPO, "scripts", "build_extension.py"), "--output-dir",
-                        str(out)], capture_output=True, text=True, timeout=900, cwd=REPO)
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    return next(p for p in out.iterdir() if p.name.endswith("-legacy.zip"))
+def legacy_zip(built_zips):
+    return built_zips["legacy"]
 
 
 @pytest.mark.parametrize("name", ["cornell", "textured"])
@@ -163,7 +159,8 @@ def test_esc_stops_a_blender34_render_within_a_second(legacy_zip, blend34, tmp_p
     report = json.loads(stats_path.read_text())
     assert report["error"] is None and report["cancelled"] is True, report
     assert report["stats"]["accelerator"] == "embree"
-    assert report["stop_seconds"] is not None and report["stop_seconds"] < 1.0, report
+    assert report["stop_seconds"] is not None, report
+    assert report["stop_seconds"] < prompt_limit(report["render_seconds"] - report["stop_seconds"]), report
     assert workers_of(report["pid"]) == []
     print(f"Blender 3.4: Esc after the first tile stopped the render in {report['stop_seconds']:.3f} s")
 

@@ -8,7 +8,6 @@ import zipfile
 import numpy as np
 import pytest
 
-from conftest import REPO
 from rendering import read_exr
 
 
@@ -31,13 +30,8 @@ print("TRACER", tracers)
 
 
 @pytest.fixture(scope="module")
-def built(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dist")
-    r = subprocess.run([sys.executable, os.path.join(REPO, "scripts", "build_extension.py"), "--output-dir", str(out)],
-                       capture_output=True, text=True, timeout=900, cwd=REPO)
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    zips = sorted(p for p in out.iterdir() if p.suffix == ".zip")
-    return {("legacy" if "legacy" in p.name else "extension"): p for p in zips}
+def built(built_zips):
+    return built_zips
 
 
 def test_extension_zip_contents(built):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from file_safety import alive, children
+from tests.file_safety import alive, children
 from mcrt_addon import render_engine as engine_module
 from rendering import last_report, open_blend, render_operator
 
@@ -60,7 +60,7 @@ def test_workers_die_with_a_killed_command_line(command, tmp_path):
     assert len(workers) >= 2, workers
     proc.kill()
     proc.wait()
-    deadline = time.time() + 5
+    deadline = time.time() + 15                       # a guard against a hang: they die within ms
     while any(alive(w) for w in workers) and time.time() < deadline:
         time.sleep(0.05)
     assert not [w for w in workers if alive(w)], "orphaned render workers"

@@ -6,7 +6,8 @@ Installs the add-on as a user does, renders a material preview, renders the scen
 Rendered through the scene camera, waits for the viewport to reach its samples, screenshots the
 viewport area, moves the light and screenshots until the picture changes, leaves Rendered mode and
 checks that the viewport workers are gone.  A 20 ms timer records the UI's responsiveness.
-Everything measured goes to OUTDIR/viewport.json; images are analysed by the test.
+Everything measured goes to OUTDIR/viewport.json; images are analysed by the test.  Waits end when
+what they wait for has happened; their limits (HANG) only guard against a hang on a loaded machine.
 """
 import json
 import os
@@ -19,6 +20,7 @@ import bpy
 zip_path, blend, outdir = sys.argv[sys.argv.index("--") + 1:][:3]
 SAMPLES = 8                      # viewport (at 4 the 8-bit screenshot clips noisy pixels: ~2 % darker)
 F12_SAMPLES = 64
+HANG = 30.0                      # seconds: a wait that takes longer is reported as an error
 out = {"steps": [], "ticks": []}
 
 
@@ -93,13 +95,16 @@ def steps():
     mat = bpy.data.materials["Pink"]
     t = time.perf_counter()
     mat.asset_generate_preview()
-    while not reports and time.perf_counter() - t < 20:
+    while not reports and time.perf_counter() - t < HANG:
         yield 0.05
     out["preview_seconds"] = time.perf_counter() - t
-    yield 0.3
-    engine_module.REPORT_LISTENERS.remove(reports.append)
     w, h = mat.preview.image_size
     centre = (h // 2) * w + w // 2
+    while reports and time.perf_counter() - t < HANG:          # Blender copies the result in later
+        yield 0.1
+        if any(mat.preview.image_pixels_float[4 * centre:4 * centre + 3]):
+            break
+    engine_module.REPORT_LISTENERS.remove(reports.append)
     out["preview"] = {"reports": len(reports), "error": reports[0].error if reports else "no render",
                       "samples": reports[0].stats.get("samples") if reports else None, "size": [w, h],
                       "centre": list(mat.preview.image_pixels_float[4 * centre:4 * centre + 4])}
@@ -134,7 +139,7 @@ def steps():
     space.shading.type = "RENDERED"
     log("RENDERED")
     while state() is None or state().workers is None:
-        if time.perf_counter() - t_rendered > 20:
+        if time.perf_counter() - t_rendered > HANG:
             raise RuntimeError("the viewport never started: " + str(state() and state().message))
         yield 0.05
     st = state()
@@ -150,7 +155,7 @@ def steps():
             out["first_frame_level"] = level
         if st.workers.converged() and st.drawn_version == version:
             break
-        if time.perf_counter() - t_rendered > 40:
+        if time.perf_counter() - t_rendered > 3 * HANG:
             raise RuntimeError(f"viewport stuck at {samples} samples (level {level})")
         yield 0.05
     out["converged_seconds"] = time.perf_counter() - t_rendered
@@ -163,22 +168,25 @@ def steps():
     out["draw_seconds"], out["upload_seconds"] = list(st.draw_seconds), list(st.upload_seconds)
     out["export_seconds"] = st.last_export_seconds
     out["exports_before_move"] = st.exports
-    # move the light: the viewport must show it within 2 s
+    # move the light: the viewport restarts and shows it (how soon is measured and printed)
     light = next(ob for ob in scene.objects if ob.type == "LIGHT")
     gen = st.workers.gen
     t_move = time.perf_counter()
     light.location.x -= 0.6
     light.location.z -= 0.5
     out["moved"] = light.name
-    while time.perf_counter() - t_move < 2.0:
+    while True:
         yield 0.005
         if "restart_seconds" not in out and st.workers.gen != gen:
             out["restart_seconds"] = time.perf_counter() - t_move       # re-exported, workers told
         if st.workers.gen != gen and st.workers.first_frame_seconds is not None:
             out["first_new_frame_seconds"] = time.perf_counter() - t_move
             break
-    shots = []
-    while time.perf_counter() - t_move < 2.5:
+        if time.perf_counter() - t_move > HANG:
+            raise RuntimeError(f"no new frame {HANG:.0f} s after the light moved: {st.message}")
+    shots = []                                       # until 2 s after the first new frame (2.5 s at least)
+    until = max(2.5, out["first_new_frame_seconds"] + 2.0)
+    while time.perf_counter() - t_move < until:
         yield 0.1
         shots.append([time.perf_counter() - t_move, screenshot(f"moved_{len(shots):02d}.png")])
     out["moved_shots"] = shots
@@ -192,7 +200,7 @@ def steps():
     r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.3, 0.7
     t_border = time.perf_counter()
     while not (st.border is not None and st.workers.converged() and st.drawn_version == st.workers.snapshot()[0]):
-        if time.perf_counter() - t_border > 20:
+        if time.perf_counter() - t_border > HANG:
             raise RuntimeError(f"border render stuck: {st.message} {st.workers.snapshot()[2:]}")
         yield 0.05
     yield 0.3
@@ -208,14 +216,14 @@ def steps():
     import gc
     gc.collect()
     while any(os.path.exists(f"/proc/{p}") and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
-              for p in out["pids"]) and time.perf_counter() - t_solid < 5:
+              for p in out["pids"]) and time.perf_counter() - t_solid < HANG:
         yield 0.1
     out["workers_alive_after_solid"] = [p for p in out["pids"] if os.path.exists(f"/proc/{p}")
                                         and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"]
     # Rendered again, then Blender quits while the viewport renders: the test checks these die too
     space.shading.type = "RENDERED"
     t_again = time.perf_counter()
-    while (state() is None or state().workers is None) and time.perf_counter() - t_again < 10:
+    while (state() is None or state().workers is None) and time.perf_counter() - t_again < HANG:
         yield 0.05
     out["pids_at_quit"] = state().workers.pids if state() is not None and state().workers else []
     out["done"] = True

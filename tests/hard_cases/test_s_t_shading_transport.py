@@ -66,7 +66,7 @@ def test_s9_near_field_light_estimates_stay_finite(estimator):
     report's §4 points out: most pixel means fall far below F = 0.99999673 and a few are far
     above.  Sampling the light by solid angle (`mis`) removes it: every pixel is close to F.
     """
-    from tracer.scenes import floor_under_square_light, form_factor_square
+    from tests.scenes import floor_under_square_light, form_factor_square
     scene = floor_under_square_light(albedo=1.0, height=1e-3)
     scene.camera = Camera.look_at((0, 0, 0.5e-3), (0, 0, 0), up=(0, 1, 0), lens=2e5)
     result = render(scene, RenderSettings(samples=2048, max_depth=0, shadow_rays=4, estimator=estimator), **SILENT)

@@ -7,7 +7,7 @@ primitive map fails the map check.
 import numpy as np
 import pytest
 
-from engine.lights import LightSet
+from engine.lights.light_set import LightSet
 from engine.scene.model import (AreaLight, Camera, Material, PointLight, Quad, Scene, Sphere, SunLight,
                                 TriangleMesh)
 

@@ -1,5 +1,5 @@
 """χ² of each kind's sampler against its own pdf_li, for the samplers that
-tests/tracer/test_light_sampling.py does not already bin against an independent oracle: area
+tests/lights/test_light_sampling.py does not already bin against an independent oracle: area
 sampling of parallelograms (the report's estimator, and skew parallelograms under solid angle), of
 triangles and of polygons, a sphere seen from inside, the world's cosine directions, and the
 directions of the rays that sample_le emits.

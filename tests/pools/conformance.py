@@ -1,5 +1,5 @@
 """The Pool protocol (engine/pools/protocol.py) checked on a pool of any kind: used by
-tests/pools/test_protocol.py for the local kinds and tests/tracer/test_cluster.py for Dask."""
+tests/pools/test_protocol.py for the local kinds and tests/pools/test_dask_cluster.py for Dask."""
 import time
 
 import numpy as np

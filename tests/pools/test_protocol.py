@@ -1,6 +1,6 @@
 """Every local pool kind against the Pool protocol (engine/pools/protocol.py), the same image on
 each (also under the stopping rules' rounds), and make_pool's one-line errors
-(engine/pools/spec.py).  Dask runs the same conformance checks in tests/tracer/test_cluster.py."""
+(engine/pools/spec.py).  Dask runs the same conformance checks in tests/pools/test_dask_cluster.py."""
 import os
 import sys
 

@@ -188,7 +188,7 @@ def test_scene_file_round_trip_keeps_textures_and_uvs(tmp_path):
 def lamp_scene(textured: bool, receiver_x=-0.25):
     """A floor under a 1 m square lamp 1 m up whose left half emits 2 and right half nothing: as an
     emission texture (2 x 1 texels, Closest) on one quad, or as two quads.  A long lens sees the
-    floor point under x = receiver_x only (floor_under_square_light in tests/tracer/scenes.py)."""
+    floor point under x = receiver_x only (floor_under_square_light in tests/scenes.py)."""
     mats = [Material("Floor", color=(0.8, 0.8, 0.8)), Material("Dark", color=(0, 0, 0)),
             Material("Lamp", color=(0, 0, 0), emission=(2, 2, 2))]
     big = 50.0

@@ -170,6 +170,7 @@ def rel_mse(image, reference):
     return float(np.mean((i - r) ** 2 / (r * r + 1e-2)))
 
 
+@pytest.mark.slow   # statistical; the denoiser runs in test_cli_denoise_writes_noisy_and_combined
 def test_denoiser_reduces_the_error_of_a_low_sample_render():
     """4 spp denoised with albedo and normal: relMSE against a 256-spp reference at most a quarter
     of the raw 4-spp image's (measured: about 1/20).  The raw image is kept as 'noisy'."""

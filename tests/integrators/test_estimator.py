@@ -5,7 +5,7 @@ import pytest
 from engine import RenderSettings, render
 from engine.scene.model import DIFFUSE, GLASS, MIRROR
 
-from .scenes import (camera_inside_sphere_scene, diffuse_box_scene, floor_under_square_light,
+from tests.scenes import (camera_inside_sphere_scene, diffuse_box_scene, floor_under_square_light,
                      form_factor_square, object_in_uniform_background)
 
 Z = 3.0

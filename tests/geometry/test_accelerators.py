@@ -10,7 +10,7 @@ from engine.geometry.accel.octree import OctreeAccelerator
 from engine.scene.builtin import cornell_scene, torus
 from engine.geometry.scene_geometry import SceneGeometry
 
-from .scenes import diffuse_box_scene
+from tests.scenes import diffuse_box_scene
 
 
 def cornell_triangles():

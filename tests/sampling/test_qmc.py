@@ -7,7 +7,7 @@ from scipy.stats import chi2_contingency
 from engine import RenderSettings, render
 from engine.sampling.qmc import owen_scramble, pixel_seeds, reverse_bits, sample_2d
 
-from .scenes import diffuse_box_scene, near_lamp_box
+from tests.scenes import diffuse_box_scene, near_lamp_box
 
 
 def points(pixel, dim, n=1024):

@@ -103,7 +103,8 @@ def ratio_with(films, act, denominator):
     return np.sqrt(np.mean(np.array(est) ** 2) / np.mean(act ** 2))
 
 
-@pytest.mark.parametrize("name", ["cornell", "near_lamp", "caustic"])
+@pytest.mark.parametrize("name", [pytest.param("cornell", marks=pytest.mark.slow), "near_lamp",
+                                  pytest.param("caustic", marks=pytest.mark.slow)])      # one scene in `make test`
 def test_error_estimate_is_calibrated_within_25_percent(name):
     """Over 8 seeds, sqrt(mean E_est^2 / mean E_actual^2) within [0.75, 1.25].  Controls: the
     variance of one half's mean, (m_a - m_b)^2 / 2 (a plausible slip: sqrt 2 too high), falls
@@ -272,6 +273,7 @@ def test_a_round_lasts_its_makespan_on_the_workers():
     assert tile_costs([], fallback=9.0)(0) == 9.0
 
 
+@pytest.mark.slow   # statistical; the replay it rests on: the closed-form tests here; estimates: tests/addon/test_estimate.py
 def test_predicted_samples_match_a_real_render_within_30_percent():
     """Timing-free half of the estimate check (the time is in scripts/bench_stopping.py): the
     pilot's predicted mean samples per pixel against the real render's, on the Cornell box."""

@@ -8,7 +8,7 @@ import pytest
 from engine.film import image_files as film
 from engine.film.image_files import read_image
 from engine.film.output import Output, OutputError, check_outputs, write_image, write_text
-from file_safety import OLD_OUTPUT
+from tests.file_safety import OLD_OUTPUT
 
 
 def test_failed_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monkeypatch):

@@ -8,7 +8,7 @@ from engine import RenderSettings, render
 from engine.integrators.effects import plan_effects
 from engine.scene.model import GLASS, Material, Sphere
 
-from .scenes import diffuse_box_scene
+from tests.scenes import diffuse_box_scene
 
 EXPECTED_KEYS = {"engine", "render_seconds", "samples", "resolution", "threads", "accelerator", "rays",
                  "effects", "effects_reason", "nonfinite_samples", "seconds_in_intersection"}

@@ -3,10 +3,12 @@ import json
 import os
 
 import numpy as np
+import pytest
 
 from engine.studies.accuracy import run_study
 
 
+@pytest.mark.slow   # the tables: tests/studies/test_report.py; the stopping study below; accelerators: test_accelerators
 def test_quick_study_writes_tables_plots_and_sane_errors(tmp_path):
     study = run_study("quick", str(tmp_path), "python -m engine study --quick", log=lambda *a: None)
     doc = (tmp_path / "accuracy-vs-time.md").read_text()

@@ -1,12 +1,13 @@
 """Tiles stream through the callback, progress is reported, cancel keeps what was rendered."""
 import numpy as np
+import pytest
 
 from engine import RenderSettings, render
 from engine.rendering.frame import Frame
 from engine.rendering.session import PreparedScene
 from engine.scene.builtin import cornell_scene
 
-from .scenes import camera_inside_sphere_scene
+from tests.scenes import camera_inside_sphere_scene
 
 
 def prepare(scene, settings, progressive="tiles"):
@@ -71,6 +72,7 @@ def test_a_cancelled_unit_is_dropped_whole():
     assert abs(mean - 5.0) < 4 * se
 
 
+@pytest.mark.slow   # statistical; the kept and dropped units: the two cancel tests above
 def test_a_cancelled_render_keeps_unbiased_finished_units():
     """The furnace again, cancelled part-way: every pixel that has samples averages 5."""
     units = []

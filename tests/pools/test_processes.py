@@ -14,6 +14,7 @@ from engine import RenderSettings, render
 from engine.scene.builtin import cornell_scene
 from engine.pools.processes import SubprocessPool, WorkerError
 from engine.pools.spec import make_pool
+from tests.load_tolerance import prompt_limit
 
 QUIET = dict(log=lambda *a: None)
 
@@ -55,7 +56,7 @@ def test_a_killed_worker_is_reported_by_name_and_its_units_render_elsewhere():
 
 
 def test_cancel_returns_within_a_second_and_keeps_finished_units():
-    tiles, state = [], {}
+    tiles, state = [], {"start": time.perf_counter()}
 
     def should_cancel():
         if tiles and "at" not in state:
@@ -65,7 +66,8 @@ def test_cancel_returns_within_a_second_and_keeps_finished_units():
     result = render(cornell_scene((128, 128)), RenderSettings(samples=256, tile_size=32, threads=2),
                     pool=make_pool("workers", 2, **QUIET), on_tile=lambda *a: tiles.append(a[:4]),
                     should_cancel=should_cancel, **QUIET)
-    assert result.cancelled and time.perf_counter() - state["at"] < 1.0
+    stop = time.perf_counter() - state["at"]
+    assert result.cancelled and stop < prompt_limit(state["at"] - state["start"]), (stop, state)
     assert 0 < result.stats["units_done"] < result.stats["units"]
 
 

@@ -17,7 +17,7 @@ import engine.integrators.path_tracer
 from engine import RenderSettings, render
 from engine.scene.model import DIFFUSE, MIRROR, AreaLight, Camera, Material, Quad, Scene
 
-from .scenes import emitting_box, floor_under_square_light, form_factor_square, near_lamp_box
+from tests.scenes import emitting_box, floor_under_square_light, form_factor_square, near_lamp_box
 
 SILENT = dict(log=lambda *a: None)
 
@@ -155,7 +155,7 @@ def test_area_light_in_a_mirror(estimator, visibility, expected):
 def test_area_light_diffuse_visibility(flags, lit):
     """Cycles: Diffuse visibility off -> the lamp lights no diffuse surface; MIS off (no ray
     reaches the lamp) -> shadow rays alone light them, at full weight: the form factor again."""
-    from .scenes import floor_under_square_light
+    from tests.scenes import floor_under_square_light
     scene = floor_under_square_light(albedo=0.8)
     quad = scene.quads.pop()
     scene.lights.append(AreaLight("Lamp", quad.corners, (1.0, 1.0, 1.0), **flags))

@@ -109,6 +109,7 @@ def test_units_queue_on_the_scheduler_for_the_next_free_worker(cluster):
     assert any(state == "queued" for _, _, state in units)          # still waiting for a free worker
 
 
+@pytest.mark.slow   # a killed worker's units rendered elsewhere: tests/pools/test_processes.py (worker processes)
 def test_a_worker_killed_mid_render_changes_nothing(cluster):
     scene, settings = cornell_scene((128, 128)), RenderSettings(samples=64, tile_size=32, seed=4)
     reference = render(scene, settings, **SILENT)
@@ -140,7 +141,10 @@ def test_a_cancelled_render_leaves_no_unit_running(cluster):
     assert cluster.running() == []                                   # close() waited for the workers
 
 
-def test_unreachable_scheduler_is_one_line_within_10_s(tmp_path):
+def test_unreachable_scheduler_is_one_line_before_dasks_own_timeout(tmp_path):
+    """Refused after CONNECT_SECONDS (5 s), not after distributed's default connect timeout of 30 s
+    (distributed.comm.timeouts.connect): 25 s leaves room for starting Python and importing Dask on a
+    loaded machine (9.8 s measured under a load of 13 on 2 cores, 5.5 s under 5)."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]                                    # closed again: nobody listens
@@ -148,7 +152,7 @@ def test_unreachable_scheduler_is_one_line_within_10_s(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "engine", "render", "--resolution", "16", "16", "--quiet",
                            "-o", str(tmp_path / "a.exr"), "--cluster", f"tcp://127.0.0.1:{port}"],
                           cwd=REPO, env=_env(REPO), capture_output=True, text=True, timeout=60)
-    assert time.monotonic() - start < 10
+    assert time.monotonic() - start < 25
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and f"tcp://127.0.0.1:{port}" in lines[0] and lines[0].startswith("python -m engine: error:")
@@ -228,6 +232,7 @@ def test_ctrl_c_stops_like_esc_and_writes_the_finished_work(cluster, tmp_path):
     assert cluster.running() == []
 
 
+@pytest.mark.slow   # cluster = local pool, bit for bit: test_cluster_render_is_bit_for_bit_the_local_one, tests/addon/test_workers.py
 def test_cli_local_cluster_matches_the_local_pool(tmp_path):
     """`--cluster local` starts a LocalCluster here (spawned workers re-import engine.__main__)."""
     args = [sys.executable, "-m", "engine", "render", "--resolution", "48", "32", "--samples", "8", "--quiet"]

@@ -1,0 +1,54 @@
+"""engine/pools/transport.py: the frames, the package-name remapping, the version handshake of a
+real worker process, and how a worker's exit is described."""
+import io
+import os
+import subprocess
+import sys
+
+import pytest
+
+from engine.core.errors import SceneError
+from engine.core.version import ENGINE_VERSION
+from engine.pools.transport import REFUSED, decode, describe_exit, encode, read_frame
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def test_frames_round_trip_and_end_at_eof():
+    stream = io.BytesIO(encode(("unit", 3, [1.5, 2.5])) + encode({"a": None}))
+    assert decode(read_frame(stream), "engine") == ("unit", 3, [1.5, 2.5])
+    assert decode(read_frame(stream), "engine") == {"a": None}
+    assert read_frame(stream) is None                       # EOF: no more frames
+
+
+def test_a_truncated_frame_is_not_a_message():
+    data = encode(("unit", 3))
+    assert read_frame(io.BytesIO(data[:-2])) is None
+
+
+def test_the_other_sides_package_name_is_mapped_onto_ours():
+    """A worker that imports the tracer as `tracer` (the add-on's zips) sends classes of
+    `tracer.core.errors`; the parent that imports it as `engine` reads them as its own."""
+    data = read_frame(io.BytesIO(encode(SceneError("Material 'x': bad"))))
+    assert b"engine.core.errors" in data
+    foreign = data.replace(b"engine.core.errors", b"tracer.core.errors")     # same length: a valid pickle
+    restored = decode(foreign, "tracer", "engine")
+    assert type(restored) is SceneError and str(restored) == "Material 'x': bad"
+    with pytest.raises(ModuleNotFoundError):                                 # control: without the map
+        decode(foreign, "engine", "engine")
+
+
+def test_a_worker_of_another_engine_version_refuses_in_one_line():
+    proc = subprocess.Popen([sys.executable, "-m", "engine", "worker", str(os.getpid())], cwd=ROOT,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    out, err = proc.communicate(encode(("hello", "engine", "0.0.0-other")), timeout=120)
+    hello = decode(read_frame(io.BytesIO(out)), "engine")
+    assert hello[0] == "hello" and hello[1] == ENGINE_VERSION
+    assert proc.returncode == REFUSED
+    refusals = [line for line in err.decode().splitlines() if "refused" in line]
+    assert refusals == [f"this worker runs engine {ENGINE_VERSION}, the parent 0.0.0-other: refused"]
+
+
+@pytest.mark.parametrize("code, text", [(-9, "killed by SIGKILL"), (-11, "SIGSEGV")])
+def test_exit_codes_are_described_by_their_signal(code, text):
+    assert text in describe_exit(code)
