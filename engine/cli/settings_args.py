@@ -15,30 +15,28 @@ from ..core.errors import SceneError
 from ..core.settings import BOOL, CHOICE, CHOICES, FLOAT, INT
 
 
-def bounded_int(low: int, high: int):
-    """An argparse type: an integer from low to high (one-line error otherwise)."""
+def _bounded(convert, noun: str, low, high, limits: str, shown):
+    """An argparse type: a value that `convert` reads, from low to high (one-line error otherwise);
+    `limits` is the range as the message shows it, shown(text, value) the value given."""
     def parse(text):
         try:
-            value = int(text)
+            value = convert(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+            raise argparse.ArgumentTypeError(f"not {noun}: {text!r}") from None
         if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"must be from {low} to {high:,}, got {value}")
+            raise argparse.ArgumentTypeError(f"must be from {limits}, got {shown(text, value)}")
         return value
     return parse
+
+
+def bounded_int(low: int, high: int):
+    """An argparse type: an integer from low to high."""
+    return _bounded(int, "an integer", low, high, f"{low} to {high:,}", lambda text, value: value)
 
 
 def bounded_float(low: float, high: float):
-    """An argparse type: a number from low to high (one-line error otherwise)."""
-    def parse(text):
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"must be from {low:g} to {high:g}, got {text}")
-        return value
-    return parse
+    """An argparse type: a number from low to high."""
+    return _bounded(float, "a number", low, high, f"{low:g} to {high:g}", lambda text, value: text)
 
 
 def choice_list(setting):

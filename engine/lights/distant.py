@@ -22,11 +22,30 @@ from ..core.vec import dot, rows
 from .protocol import infinite_sample
 
 
-class SunLights:
-    name = "sun"
+class DistantKind:
+    """What the lights at infinity share: selection by flux (`self.flux`, (K,)), no bounds for the
+    light tree, and no ray emission yet."""
     at_infinity = True
-    reached_by_escaping_rays = False
     first = 0
+
+    def power(self):
+        return self.flux
+
+    def report_power(self):
+        return self.flux / np.pi
+
+    def bounds(self):
+        return None
+
+    def sample_le(self, idx, u1, u2, u3, u4):
+        raise NotImplementedError(f"no ray emission (sample_le) for {self.description} yet: "
+                                  "a photon pass needs a disk over the scene")
+
+
+class SunLights(DistantKind):
+    name = "sun"
+    description = "sun lights"
+    reached_by_escaping_rays = False
 
     def __init__(self, suns, scene_radius: float):
         """suns: engine/scene/model.py SunLight; scene_radius: of a sphere that holds the scene."""
@@ -58,24 +77,11 @@ class SunLights:
         inside = ~self.delta.take(idx) & (dot(direction, self.axis.take(idx, axis=1)) >= self.cos_half.take(idx))
         return np.where(inside, self.radiance.take(idx, axis=1), 0.0)
 
-    def power(self):
-        return self.flux
 
-    def report_power(self):
-        return self.flux / np.pi
-
-    def bounds(self):
-        return None
-
-    def sample_le(self, idx, u1, u2, u3, u4):
-        raise NotImplementedError("sun lights emit no rays yet (a photon pass needs a disk over the scene)")
-
-
-class WorldLight:
+class WorldLight(DistantKind):
     name = "world"
-    at_infinity = True
+    description = "the world light"
     reached_by_escaping_rays = True
-    first = 0
     count = 1
 
     def __init__(self, background, scene_radius: float):
@@ -96,15 +102,3 @@ class WorldLight:
 
     def le(self, idx, point, direction):
         return self.radiance.take(idx, axis=1)
-
-    def power(self):
-        return self.flux
-
-    def report_power(self):
-        return self.flux / np.pi
-
-    def bounds(self):
-        return None
-
-    def sample_le(self, idx, u1, u2, u3, u4):
-        raise NotImplementedError("the world light emits no rays yet (a photon pass needs a disk over the scene)")
