@@ -144,46 +144,13 @@ def dataclass_problems(rows):
     return out
 
 
-def engine_cli_problems(rows):
-    from engine.cli.main import build_parser, settings_from_args
-    parser, base = build_parser(), ["render", "-o", "x.exr"]
-    name, out = "python -m engine", []
-    settings = settings_from_args(parse(parser, base))
-    for s in rows:
-        if ENGINE_CLI not in s.fronts:
-            continue
-        if s.flag is None:
-            out.append(f"{name}: {s.name} declares it but has no flag")
-            continue
-        if getattr(settings, s.name) != s.default:
-            out.append(f"{name}: {s.name} defaults to {getattr(settings, s.name)!r}, the row says {s.default!r}")
-        value = other_value(s)
-        args = parse(parser, base + flag_argv(s, value))
-        if args is None or not same(getattr(settings_from_args(args), s.name), value):
-            out.append(f"{name}: {' '.join(flag_argv(s, value))} does not make {s.name}={value!r}")
-        out += limit_problems(name, s, parser, base)
-    return out + undeclared_flag_problems(name, rows, ENGINE_CLI, parser, base)
-
-
-def addon_cli_problems(rows):
-    """Through apply_tncg15_settings onto a fresh scene and its to_settings (passes: the view layer)."""
-    from mcrt_addon.cli import apply_tncg15_settings, build_parser
-    from mcrt_addon.passes import apply_pass_options, enabled_passes
-    parser, base = build_parser(), ["render", "f.blend", "-o", "o.exr"]
-    name, out = "python -m mcrt_addon", []
-
-    def settings_after(args):
-        with fresh_scene() as scene:
-            apply_tncg15_settings(scene.tncg15, args)
-            result = scene.tncg15.to_settings(RenderSettings)
-            if args.passes:
-                apply_pass_options(scene, args.passes, args.denoise)
-                result.passes = tuple(p for p in enabled_passes(scene, scene.view_layers[0]) if p != "noisy")
-            return result
-
+def cli_problems(name, front, rows, parser, base, settings_after):
+    """Every row of `front` has a flag; no flags give the row's default; the flag makes another
+    value; the limits and choices offered are the row's; no flag without a row."""
+    out = []
     defaults = settings_after(parse(parser, base))
     for s in rows:
-        if ADDON_CLI not in s.fronts:
+        if front not in s.fronts:
             continue
         if s.flag is None:
             out.append(f"{name}: {s.name} declares it but has no flag")
@@ -195,7 +162,30 @@ def addon_cli_problems(rows):
         if args is None or not same(getattr(settings_after(args), s.name), value):
             out.append(f"{name}: {' '.join(flag_argv(s, value))} does not make {s.name}={value!r}")
         out += limit_problems(name, s, parser, base)
-    return out + undeclared_flag_problems(name, rows, ADDON_CLI, parser, base)
+    return out + undeclared_flag_problems(name, rows, front, parser, base)
+
+
+def engine_cli_problems(rows):
+    from engine.cli.main import build_parser, settings_from_args
+    return cli_problems("python -m engine", ENGINE_CLI, rows, build_parser(), ["render", "-o", "x.exr"],
+                        settings_from_args)
+
+
+def addon_cli_problems(rows):
+    """Through apply_tncg15_settings onto a fresh scene and its to_settings (passes: the view layer)."""
+    from mcrt_addon.cli import apply_tncg15_settings, build_parser
+    from mcrt_addon.passes import apply_pass_options, enabled_passes
+
+    def settings_after(args):
+        with fresh_scene() as scene:
+            apply_tncg15_settings(scene.tncg15, args)
+            result = scene.tncg15.to_settings(RenderSettings)
+            if args.passes:
+                apply_pass_options(scene, args.passes, args.denoise)
+                result.passes = tuple(p for p in enabled_passes(scene, scene.view_layers[0]) if p != "noisy")
+            return result
+    return cli_problems("python -m mcrt_addon", ADDON_CLI, rows, build_parser(), ["render", "f.blend", "-o", "o.exr"],
+                        settings_after)
 
 
 def blender_problems(rows):
