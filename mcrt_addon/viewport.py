@@ -7,7 +7,7 @@ the Rendered viewports for redraw whenever a new frame is there (no Blender obje
 from another thread, and the engine is not kept alive by us, so Blender frees it and ``__del__``
 stops the workers).
 
-* ``view_update``: depsgraph updates sorted by ID type (cluster-and-viewport.md §B1): camera
+* ``view_update``: depsgraph updates sorted by ID type (docs/cluster-and-viewport.md §B1): camera
   objects and camera data change the view only; anything else re-exports the scene, reading
   meshes again only for objects and meshes whose geometry changed (a mesh cache across exports).
 * ``view_draw``: the view (region size, view and projection matrices, render border) is compared
