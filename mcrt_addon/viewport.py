@@ -1,7 +1,7 @@
 """The 3D viewport's Rendered mode: export on depsgraph updates, render in worker processes, draw.
 
 Blender calls ``view_update`` and ``view_draw`` on its UI thread, so both only read Blender data
-and hand it on: the rendering runs in viewport worker processes (tracer/pools/viewport.py),
+and hand it on: the rendering runs in viewport worker processes (engine/pools/viewport.py),
 whose frames reader threads merge into a film; a ``bpy.app.timers`` poller on the UI thread tags
 the Rendered viewports for redraw whenever a new frame is there (no Blender object is touched
 from another thread, and the engine is not kept alive by us, so Blender frees it and ``__del__``

@@ -7,7 +7,7 @@ Every knob of a render is one `Setting` row below.  From the rows are made:
 * both command lines' arguments and their conversion to settings (engine/cli/settings_args.py,
   used by engine/cli/main.py and mcrt_addon/cli.py);
 * the Blender PropertyGroup ``scene.tncg15`` and its `to_settings` (mcrt_addon/properties.py);
-* the settings the render stats list (`stats_of`, engine/rendering/session.py);
+* the settings the render stats list (`stats_of`, engine/rendering/frame.py);
 * the user guide's settings reference docs/settings.md (scripts/settings_doc.py).
 
 tests/core/test_settings_table.py checks that every row reaches every front end it declares with
@@ -37,7 +37,7 @@ INTERNAL = frozenset()           # set by the tracer itself (or by Python caller
 
 # How the render stats list a setting (`Setting.stats`).
 STATS_AS_SET = "as set"          # under its name, the value of the setting (stats_of)
-STATS_RESOLVED = "as resolved"   # under its name, what the render made of it (engine/rendering/session.py)
+STATS_RESOLVED = "as resolved"   # under its name, what the render made of it (engine/rendering/frame.py)
 
 
 @dataclass(frozen=True)
