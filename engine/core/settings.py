@@ -189,7 +189,7 @@ SETTINGS = (
                      Choice("random", "Random", "Independent uniform random numbers (plain Monte Carlo)"))),
     Setting("sample_net", INT, 0, "the size of each pixel's Sobol' net (engine/sampling/qmc.py: sample i "
             "depends on it); 0 = samples.  Estimate Render Time's pilot (engine/rendering/estimate.py) "
-            "renders the real render's first passes with the real render's nets, and so the very samples "
+            "renders the real render's first rounds with the real render's nets, and so the very samples "
             "that render starts with", limits=(0, INT32_MAX), fronts=INTERNAL),
     Setting("threads", INT, 0, "worker threads or processes (0 = all cores)", limits=(0, 1024), flag="--threads",
             label="Threads", description="Worker threads (0 = all cores)", bpy_options={"soft_max": 256},
@@ -273,7 +273,7 @@ class RenderSettings:
     """Every knob of a render: the fields are the rows of SETTINGS (see there for each one)."""
 
     def stopping_rules(self) -> bool:
-        """True when the frame renders in passes (engine/rendering/stopping.py)."""
+        """True when the frame renders in rounds (engine/rendering/stopping.py)."""
         return self.time_limit > 0 or self.noise_target > 0
 
     def resolved_threads(self) -> int:
