@@ -1,4 +1,6 @@
-"""Command line: `python -m engine render ...` and `python -m engine bench ...`."""
+"""The tracer's command line, `python -m engine`: render, estimate, bench, bench-cluster, study and
+worker (docs/command-line.md).  The settings flags come from the settings table
+(engine/cli/settings_args.py); a render goes through engine/api.py render."""
 from __future__ import annotations
 
 import argparse
