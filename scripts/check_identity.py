@@ -366,8 +366,8 @@ def normalise(value, replacements):
 
 def strip_pass_log(log, path, volatile):
     """The stopping rules' round_log (pass_log before the rename; engine/rendering/stopping.py): per
-    round (pixel-samples, seconds, [(tile, pixel-samples, seconds) per unit]); the samples are kept, the seconds are volatile.
-    Anything of another shape is kept whole (and so compared)."""
+    round (pixel-samples, seconds, [(tile, pixel-samples, seconds) per unit]); the samples are
+    kept, the seconds are volatile.  Anything of another shape is kept whole (and so compared)."""
     def is_number(x):
         return isinstance(x, (int, float)) and not isinstance(x, bool)
     ok = isinstance(log, list) and all(
