@@ -5,7 +5,7 @@ export benchmark.  Runs in the ``bpy`` module (Blender 5.0.1 as a Python package
          [--resolution W H] [--frame F] [--stats-json PATH] [--cluster ADDRESS] [settings...]
   python -m mcrt_addon estimate FILE.blend --noise-target REL [--samples N] [--min-samples N] [--no-adaptive]
          [--threads N] [--seed N] [--resolution W H] [--pilot-samples N] [--json]
-  python -m mcrt_addon bench-export [--triangles N]
+  python -m mcrt_addon bench-export [--triangles N] [--instances N]
   python -m mcrt_addon bench-estimators [--scenes ...] [--resolution W H] [--samples N]
          [--reference-samples N] [--max-depth N] [--out docs/estimators.json]
          (light-sampling estimators vs Cycles; see mcrt_addon/bench_estimators.py)

@@ -1,8 +1,9 @@
 """The RenderEngine: export the evaluated depsgraph, render it in worker processes, stream tiles
 into Blender.
 
-The tracer runs in worker processes (tracer/pools/processes.py) of a Python chosen by worker_python.py,
-through the tracer's one entry point (tracer/api.py render with a pool from make_pool):
+The tracer runs in worker processes (engine/pools/processes.py) of a Python chosen by
+worker_python.py, through the tracer's one entry point (engine/api.py render with a pool from
+make_pool; in the built add-on the tracer package is `tracer`, bridge.py):
 Blender's own process only exports the scene and writes tiles, so Embree works even in Blender 3.4
 (whose Embree 3 clashes with embreex in one process), Esc stops within a bounce, and a worker that
 crashes is reported by name while Blender carries on.  When no worker Python exists at all the
@@ -359,7 +360,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
 
 
 def start_worker_pool(python, settings, log=print):
-    """The tracer's worker-process pool (tracer/pools/spec.py "workers:PYTHON"): started now, given
+    """The tracer's worker-process pool (engine/pools/spec.py "workers:PYTHON"): started now, given
     the scene when the render prepares it."""
     return bridge.module("api").make_pool(f"workers:{python}", settings.resolved_threads(), log=log,
                                           extra_paths=worker_python.extra_paths())

@@ -57,7 +57,7 @@ class RENDER_PT_tncg15_sampling_viewport(TNCG15SamplingChild, bpy.types.Panel):
 
 
 class RENDER_PT_tncg15_sampling_render(TNCG15SamplingChild, bpy.types.Panel):
-    """Render: the stopping rules (README: Stopping rules) and the render-time estimate."""
+    """Render: the stopping rules (docs/user-guide.md: Stopping rules) and the render-time estimate."""
     bl_label = "Render"
 
     def draw(self, context):

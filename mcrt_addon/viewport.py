@@ -1,13 +1,13 @@
 """The 3D viewport's Rendered mode: export on depsgraph updates, render in worker processes, draw.
 
 Blender calls ``view_update`` and ``view_draw`` on its UI thread, so both only read Blender data
-and hand it on: the rendering runs in viewport worker processes (tracer/pools/viewport.py),
+and hand it on: the rendering runs in viewport worker processes (engine/pools/viewport.py),
 whose frames reader threads merge into a film; a ``bpy.app.timers`` poller on the UI thread tags
 the Rendered viewports for redraw whenever a new frame is there (no Blender object is touched
 from another thread, and the engine is not kept alive by us, so Blender frees it and ``__del__``
 stops the workers).
 
-* ``view_update``: depsgraph updates sorted by ID type (cluster-and-viewport.md §B1): camera
+* ``view_update``: depsgraph updates sorted by ID type (docs/cluster-and-viewport.md §B1): camera
   objects and camera data change the view only; anything else re-exports the scene, reading
   meshes again only for objects and meshes whose geometry changed (a mesh cache across exports).
 * ``view_draw``: the view (region size, view and projection matrices, render border) is compared

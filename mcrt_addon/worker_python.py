@@ -1,7 +1,8 @@
 """Which Python runs the render workers, and what it needs on its path.
 
-The tracer never runs inside Blender's interpreter: it runs in worker processes
-(tracer/pools/processes.py) of a Python that has numpy and embreex.  That is
+The tracer renders in worker processes (engine/pools/processes.py) of a Python that has numpy
+and embreex, not in Blender's interpreter (only when there is no such Python at all does it run
+on threads in Blender's process: render_engine.py).  That Python is
 
 * the interpreter set in the add-on's Preferences ("Python for render workers"), when set;
 * in the ``bpy`` module (Blender as a Python package): the Python running it, ``sys.executable``;

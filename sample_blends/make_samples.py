@@ -1,4 +1,5 @@
-"""Generates the sample .blend files used by the add-on tests and the README.
+"""Generates the sample .blend files used by the add-on tests and the docs (docs/user-guide.md,
+"The sample scenes").
 
 Runs with the bpy module (Blender 5.0) or inside a Blender binary (Debian's 3.4 too):
 
@@ -32,7 +33,7 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  a mirror low-poly 12 x 6 shade-smooth UV sphere (too coarse for the implicit-sphere
                  test: triangle meshes with interpolated normals; the diffuse one shows the shadow
                  terminator, the mirror one the valid-reflection normal), in the Cornell room
-Light-sampling stress scenes (issue 9; plain ceiling, the lamps are two-sided emissive meshes, as
+Light-sampling stress scenes (plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
   caustic        a glass ball (r 0.35, IOR 1.5) resting on the floor, lit from behind and above by a
@@ -557,7 +558,7 @@ def make_textured(scene, res):
 
 
 def make_smooth(scene, res):
-    """Smooth shading (issue 12 item 3): interpolated vertex normals on a subdivided Suzanne and on
+    """Smooth shading: interpolated vertex normals on a subdivided Suzanne and on
     a coarse UV sphere, both Shade Smooth; lit by the ceiling lamp."""
     room(scene)
 

@@ -32,8 +32,8 @@ PYTHONPATH.  Uses the standard library, NumPy and OpenImageIO only.
 What is hashed: the raw float32 bytes of each channel (OpenImageIO, every subimage), never
 the file bytes (the EXR header carries a date and the render's own timing).  What is
 volatile, found by recording the matrix twice (see VOLATILE_KEY below): every timing
-(``*_seconds``, ``seconds_*``, ``rays_per_second``, the seconds of each pass and unit in the
-stopping rules' ``pass_log``) and the EXR header's ``DateTime`` and
+(``*_seconds``, ``seconds_*``, ``rays_per_second``, the seconds of each round and unit in the
+stopping rules' ``round_log``, formerly ``pass_log``) and the EXR header's ``DateTime`` and
 ``tncg15:seconds_to_target``; they are kept in the JSON under ``volatile`` for reference but not
 compared.  Paths and addresses that depend on where the run happens are rewritten, not dropped:
 the temporary output directory to ``<out>``, the repository to ``<repo>``, the interpreter to
@@ -45,7 +45,7 @@ LocalCluster; each estimator, the random sampler, nested dielectrics, both Fresn
 accelerator (brute force and the octree on tiny images), no Russian roulette, each pass alone and
 all together (1, 2 workers, cluster), the noise target (adaptive, min samples, not adaptive),
 max depth, shadow rays, tile size, PNG output, non-square frames, a tile's samples in two units,
-the denoiser.  engine/scene-file/...: a scene file written by the script (scene_file_json).
+the denoiser.  engine/scene-file/NAME: a scene file written by the script (scene_file_json).
 addon/<blend>/...: every sample_blends/*.blend on 1 and 2 worker processes, and the add-on's own
 options on a few of them (cluster, estimators, sampler, Fresnel, nested dielectrics,
 accelerators, passes, noise target, PNG, denoise, non-square).  About 90 s on 2 cores.
@@ -93,7 +93,7 @@ ALL_PASSES = "albedo,normal,depth,samples,variance"
 
 # Stats keys removed before comparing (at any depth): they are clocks, or rates and predictions
 # computed from clocks.  Determined by recording the whole matrix twice; also the seconds inside
-# the stopping rules' pass_log (strip_pass_log).
+# the stopping rules' round_log (strip_pass_log).
 VOLATILE_KEY = re.compile(r"(^|_)seconds($|_)|per_second|^(pid|pids|hostname|host|date|time|timestamp)$")
 # EXR/PNG header attributes not compared: the write date and the timing-derived prediction.
 VOLATILE_ATTRIBUTE = re.compile(r"^(DateTime|tncg15:seconds_to_target)$")
@@ -103,7 +103,7 @@ ADDRESS = re.compile(r"tcp://[^\s,)'\"]+")
 
 
 def scene_file_json() -> dict:
-    """A small scene in the documented file format (engine/scene_io.py, version 5), so that
+    """A small scene in the documented file format (engine/scene/files.py, version 5), so that
     ``python -m engine render SCENE.json`` (the reader) is in the matrix too: a room of flat and
     smooth meshes open to the sky, glass in glass (different IORs: --nested-dielectrics changes it), a mirror
     ball, an emissive quad, an Area light, a spot light and a sun, on a grey background."""
@@ -365,9 +365,9 @@ def normalise(value, replacements):
 
 
 def strip_pass_log(log, path, volatile):
-    """The stopping rules' pass_log (engine/stopping.py): per pass (pixel-samples, seconds,
-    [(tile, pixel-samples, seconds) per unit]); the samples are kept, the seconds are volatile.
-    Anything of another shape is kept whole (and so compared)."""
+    """The stopping rules' round_log (pass_log before the rename; engine/rendering/stopping.py): per
+    round (pixel-samples, seconds, [(tile, pixel-samples, seconds) per unit]); the samples are
+    kept, the seconds are volatile.  Anything of another shape is kept whole (and so compared)."""
     def is_number(x):
         return isinstance(x, (int, float)) and not isinstance(x, bool)
     ok = isinstance(log, list) and all(

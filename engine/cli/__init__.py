@@ -1,1 +1,1 @@
-"""The tracer's command line (python -m engine): render, estimate, bench, study, worker; signals."""
+"""The tracer's command line (python -m engine): render, estimate, bench, bench-cluster, study, worker; the settings arguments both command lines share; signals."""

@@ -1,4 +1,6 @@
-"""Command line: `python -m engine render ...` and `python -m engine bench ...`."""
+"""The tracer's command line, `python -m engine`: render, estimate, bench, bench-cluster, study and
+worker (docs/command-line.md).  The settings flags come from the settings table
+(engine/cli/settings_args.py); a render goes through engine/api.py render."""
 from __future__ import annotations
 
 import argparse
@@ -36,7 +38,7 @@ def add_settings_arguments(p):
 
 
 def error_metadata(stats) -> list:
-    """EXR header attributes of the error estimate (README: Stopping rules)."""
+    """EXR header attributes of the error estimate (docs/user-guide.md: Stopping rules)."""
     out = []
     for key in ("estimated_rel_error", "seconds_to_target", "target_rel_error"):
         value = stats.get(key)
@@ -222,7 +224,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true")
     r.add_argument("--cluster", metavar="ADDRESS",
                    help="render the work units on a Dask cluster: its scheduler's tcp://HOST:PORT, or 'local' "
-                        "to start a LocalCluster here (README: Rendering on several machines)")
+                        "to start a LocalCluster here (docs/command-line.md: Rendering on several machines)")
     add_settings_arguments(r)
     r.set_defaults(func=cmd_render)
     e = sub.add_parser("estimate", help="predict the render time to reach --noise-target from a short pilot render")

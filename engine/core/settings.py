@@ -7,7 +7,7 @@ Every knob of a render is one `Setting` row below.  From the rows are made:
 * both command lines' arguments and their conversion to settings (engine/cli/settings_args.py,
   used by engine/cli/main.py and mcrt_addon/cli.py);
 * the Blender PropertyGroup ``scene.tncg15`` and its `to_settings` (mcrt_addon/properties.py);
-* the settings the render stats list (`stats_of`, engine/rendering/session.py);
+* the settings the render stats list (`stats_of`, engine/rendering/frame.py);
 * the user guide's settings reference docs/settings.md (scripts/settings_doc.py).
 
 tests/core/test_settings_table.py checks that every row reaches every front end it declares with
@@ -37,7 +37,7 @@ INTERNAL = frozenset()           # set by the tracer itself (or by Python caller
 
 # How the render stats list a setting (`Setting.stats`).
 STATS_AS_SET = "as set"          # under its name, the value of the setting (stats_of)
-STATS_RESOLVED = "as resolved"   # under its name, what the render made of it (engine/rendering/session.py)
+STATS_RESOLVED = "as resolved"   # under its name, what the render made of it (engine/rendering/frame.py)
 
 
 @dataclass(frozen=True)
@@ -189,7 +189,7 @@ SETTINGS = (
                      Choice("random", "Random", "Independent uniform random numbers (plain Monte Carlo)"))),
     Setting("sample_net", INT, 0, "the size of each pixel's Sobol' net (engine/sampling/qmc.py: sample i "
             "depends on it); 0 = samples.  Estimate Render Time's pilot (engine/rendering/estimate.py) "
-            "renders the real render's first passes with the real render's nets, and so the very samples "
+            "renders the real render's first rounds with the real render's nets, and so the very samples "
             "that render starts with", limits=(0, INT32_MAX), fronts=INTERNAL),
     Setting("threads", INT, 0, "worker threads or processes (0 = all cores)", limits=(0, 1024), flag="--threads",
             label="Threads", description="Worker threads (0 = all cores)", bpy_options={"soft_max": 256},
@@ -273,7 +273,7 @@ class RenderSettings:
     """Every knob of a render: the fields are the rows of SETTINGS (see there for each one)."""
 
     def stopping_rules(self) -> bool:
-        """True when the frame renders in passes (engine/rendering/stopping.py)."""
+        """True when the frame renders in rounds (engine/rendering/stopping.py)."""
         return self.time_limit > 0 or self.noise_target > 0
 
     def resolved_threads(self) -> int:

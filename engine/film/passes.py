@@ -20,7 +20,8 @@ Passes (``--passes albedo,normal,depth,samples,variance``; Blender's names, as C
 
 Only albedo, normal and depth are traced (``TRACED``); when none of them is asked for the tracer
 does no extra work at all (effect plan entry ``passes``).  Sums go through the same ordered merge
-as the radiance (engine/rendering/session.py), so every pass is the same bit for bit whatever the workers.
+as the radiance (engine/rendering/frame.py FrameFilm), so every pass is the same bit for bit
+whatever the workers.
 """
 from __future__ import annotations
 

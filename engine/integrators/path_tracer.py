@@ -146,8 +146,8 @@ class PathTracer:
 
     # -- the wavefront -----------------------------------------------------------------
     def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None) -> bool:
-        """Trace every camera sample of `samples` (a camera.TileSamples) to completion: True when
-        all are traced, False when cancelled.
+        """Trace every camera sample of `samples` (engine/scene/camera_rays.py TileSamples) to
+        completion: True when all are traced, False when cancelled.
 
         The wavefront holds up to WAVEFRONT_SIZE paths that advance one bounce per
         iteration; whenever paths end and there is room, new camera paths join it, so

@@ -8,7 +8,7 @@ A light is v0 + s e1 + t e2, s, t in [0, 1].  Two ways to draw a point y on it:
   "An Area-Preserving Parametrization for Spherical Rectangles" (EGSR 2013), as Cycles'
   `area_light_rect_sample`: directions uniform over the rectangle's solid angle Omega,
   p_w = 1 / Omega.  Omega comes from the edge-plane normals in the arcsin form (no
-  cancellation against 2 pi; light-sampling.md section 2).
+  cancellation against 2 pi; docs/light-sampling.md §2).
 
 `use` (of `_frame`) is the one predicate both `sample_li` and `pdf_li` consult, so the pdf of a
 BSDF-sampled direction is the density the light set really has there.  Where the

@@ -6,7 +6,7 @@ theta_max, sin^2 theta_max = r^2 / |x - c|^2; they are drawn uniformly in it (pb
 written as sin^2 / (1 + cos) (no cancellation for far spheres).  The point on the sphere
 comes from the angle at the centre, without a ray-sphere test that could miss at the
 silhouette.  From inside or on the sphere: a point uniform over its area, p_A = 1/(4 pi r^2),
-p_w = d^2 / (A |cos theta_y|) (zero variance inside a uniform emitting sphere: hard case T1).
+p_w = d^2 / (A |cos theta_y|) (zero variance inside a uniform emitting sphere: docs/hard-cases.md T1).
 `sample_li` and `pdf_li` share the inside test.  As area sampling (the report's estimator),
 `solid_angle=False` always takes the area branch.
 """

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 # Interfaces closer to index-matched than this pass light straight through, as
-# Cycles does (hard case S5): Schlick would otherwise reflect 99 % at grazing angles.
+# Cycles does (docs/hard-cases.md S5): Schlick would otherwise reflect 99 % at grazing angles.
 INDEX_MATCHED = 1e-4
 
 
@@ -19,7 +19,7 @@ def fresnel_schlick(cos_i: np.ndarray, cos_t: np.ndarray, eta: np.ndarray,
 
     R0 = ((n1 - n2)/(n1 + n2))^2 depends only on the ratio eta = n1/n2.  The cosine is
     taken on the less dense side (cos_t when leaving glass), so R rises continuously
-    to 1 at the critical angle instead of jumping from 0.04 (hard case S4).
+    to 1 at the critical angle instead of jumping from 0.04 (docs/hard-cases.md S4).
     """
     r0 = ((eta - 1.0) / (eta + 1.0)) ** 2
     cos = np.where(eta > 1.0, cos_t, cos_i)

@@ -21,7 +21,7 @@ def refract_cos(cos_i: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndar
     """cos(theta_t) by Snell's law (eq. 2.21) and the total-internal-reflection mask.
 
     eta = n1 / n2.  Where sin^2(theta_t) >= 1 the ray is totally reflected; cos_t is
-    returned as 0 there instead of the NaN of a negative square root (hard case S4).
+    returned as 0 there instead of the NaN of a negative square root (docs/hard-cases.md S4).
     """
     sin2_t = eta * eta * np.maximum(0.0, 1.0 - cos_i * cos_i)
     tir = sin2_t >= 1.0

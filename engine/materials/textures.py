@@ -327,8 +327,9 @@ class LoadedTextures:
 
 def load_textures(scene, plan, log=print, warnings=None):
     """(LoadedTextures or None, the scene the lights are built from): images are read here, once
-    per render session (worker), only when the effect plan has `textures` on.  Images that cannot
-    be read are logged and added to `warnings` (a worker sends them to Blender)."""
+    per prepared scene (each worker's PreparedScene), only when the effect plan has `textures`
+    on.  Images that cannot be read are logged and added to `warnings` (a worker sends them to
+    Blender)."""
     if not plan.enabled.get("textures"):
         return None, scene
     textures = TextureSet(scene)

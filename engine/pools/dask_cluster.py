@@ -39,7 +39,7 @@ from ..core.paths import TRACER_DIR
 from ..core.version import ENGINE_VERSION
 from .protocol import Pool
 
-CONNECT_SECONDS = 5        # scheduler unreachable: one line within this (the issue asks for 10 s)
+CONNECT_SECONDS = 5        # scheduler unreachable: one line within this (docs/command-line.md: within 6 s)
 WORKERS_SECONDS = 10       # a scheduler without workers
 CANCEL_SECONDS = 10        # close() waits at most this for cancelled units to stop on the workers
 UNIT_RETRIES = 2           # exceptions; worker deaths are counted by the scheduler (allowed-failures)
@@ -234,8 +234,8 @@ class DaskPool(Pool):
         # Keys name two task groups (dask groups keys by their words before the hex id): the scene
         # task alone, and the units.  The units' group must not contain the scene task, or the
         # scheduler does not see them as "root-ish" and places them all next to the scene's data
-        # on the first worker, leaving work stealing to move them later (a worker idle for 1.3 s
-        # of a 3.9 s render here); queued on the scheduler, each goes to the next free worker.
+        # on the first worker, leaving work stealing to move them later (one worker idle for a third
+        # of the render: docs/performance.md); queued on the scheduler, each goes to the next free worker.
         self.render_id = uuid.uuid4().hex[:12]
         self.unit_prefix = f"{KEY_PREFIX}-unit-{self.render_id}"
         if address == "local":
@@ -396,8 +396,8 @@ class DaskPool(Pool):
 
 # Dask settings for render workers: the statistical profiler samples every running thread's stack
 # every 10 ms (holding the GIL the NumPy bounce needs) and the monitors tick often; off or slower,
-# a unit renders a few per cent faster (bench-cluster against the local pool: +5 % to +7 % with
-# them, README "Rendering on several machines").
+# a unit renders a few per cent faster (bench-cluster against the local pool: docs/performance.md,
+# "A Dask cluster against the local pool").
 RENDER_WORKER_CONFIG = {
     "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
     "DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL": "1s",

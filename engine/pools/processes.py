@@ -150,8 +150,8 @@ class SubprocessPool(Pool):
         """Send `worker` units until it has `limit` in flight.  A second unit is queued only while
         more units than live workers are pending: a queued unit waits for its worker even when
         another is idle, and a round of few units (adaptive rounds: one per tile still active) then
-        ended when the worker holding two big ones did.  Measured on caustic.blend at 96x96 (4
-        tiles, 2 workers): a round lasted 1.36x the longest worker's share under greedy dispatch."""
+        ended when the worker holding two big ones did (measured: docs/performance.md, "Worker
+        processes")."""
         alive = sum(w.alive for w in self.workers)
         while (worker.alive and not self.cancelled and self.pending and len(worker.in_flight) < limit
                and (not worker.in_flight or len(self.pending) > alive)):

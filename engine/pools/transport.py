@@ -212,7 +212,7 @@ class WorkerProcess:
             line = raw.decode("utf-8", "replace").rstrip()
             self.stderr_tail.append(line)
             if line.startswith("warning:"):
-                continue                        # the parent reports the session's warnings once
+                continue                        # the parent reports the prepared scene's warnings once
             print(f"[{self.name}] {line}", file=sys.stderr)
 
     def why(self, code) -> str:

@@ -17,13 +17,10 @@ term is u_p / s.  The prediction replays the rest of the round schedule on 8x8 b
 
 and prices each replayed round by its units (one per tile with active blocks, in tile order): a unit
 of N pixel-samples costs b (N + 2 TAIL_PATHS), each of its two halves ending with a tail of few
-paths that costs about as much as TAIL_PATHS more paths (measured on the near-lamp room: 5.0 us per
-pixel-sample in rounds of 9k paths per unit half, 2.6 us at 233k: TAIL_PATHS ~ 8.9k), and the round
-lasts c times the makespan of its units on the workers, each taking the next unit when free: when
-few tiles are left active, a worker idles (measured on the near-lamp room at 96x96, 4 tiles on 2
-workers: 0.9 us per pixel-sample while all tiles ran, 1.2-1.3 us in the last rounds; pricing
-pixel-samples alone predicted 0.76x the time).  b (seconds per unit of work) and c (wall seconds per
-makespan second; 1.01 measured over whole renders since the workers take units greedily, see
+paths that costs about as much as TAIL_PATHS more paths, and the round lasts c times the makespan
+of its units on the workers, each taking the next unit when free: when few tiles are left active, a
+worker idles (the measurements behind both: docs/performance.md, "Stopping rules").  b (seconds per
+unit of work) and c (wall seconds per makespan second; the workers take units greedily, see
 engine/pools/processes.py SubprocessPool._feed) come from the pilot's rounds after the first (the first
 pays the workers' warm-up); the pilot's own seconds are part of the predicted time.  Setup (scene
 preparation, worker start) is reported apart, as `setup_seconds`.
@@ -35,23 +32,9 @@ samples to come are replayed at F = (U + the 3x3 neighbourhood's mean U) / 2
 (future_unit_variance): the neighbours' 9x the samples tell how often such paths come.  A block
 whose error is then (s0 U + (s - s0) F) / s^2 after s samples falls faster than 1/s after a firefly
 (as measured on the caustic room: s^-1.4 to s^-2) and slower where the neighbours met some.
-Predicted / real mean samples, 96x96, noise target 5 %, 2 seeds each (4 on caustic.blend):
-
-  | F                          | caustic.blend | spot_light | 8 light-tailed .blend files |
-  |----------------------------|---------------|------------|-----------------------------|
-  | U (1/s, until 2026-12)     | 0.81-0.84     | 0.49-0.50  | 0.94-1.15                   |
-  | (U + 3x3 mean) / 2         | 0.92-0.97     | 0.69-0.76  | 1.00-1.17                   |
-  | 3x3 mean                   | 0.85-1.05     | 0.70-0.78  | 0.83-1.19                   |
-  | 5x5 mean                   | 0.86-0.93     | 1.13-1.20  | 0.81-1.25                   |
-  | 7x7 mean                   | 0.91-0.97     | 1.67-1.79  | 0.83-1.30                   |
-  | image mean                 | 0.96-1.00     | 4.1-4.4    | 0.84-1.30                   |
-
-(empirical-Bayes weights from the block's own sampling variance came out at 0.74-0.80 on
-caustic.blend: blocks that missed their fireflies also look certain).  On the built-in caustic room
-at target 12 %, 6 seeds: predicted / real time 0.94-1.27 (mean 1.09), was 0.98-1.45 (1.29).
-spot_light's walls light up through a mirror ball from small lamps: the paths that keep a quarter
-of its blocks running to the 8192-sample cap have a rate below one per pilot (590k paths), so no
-pilot of this length sees them; its samples stay under-predicted (0.69-0.76).
+The choice of F against the alternatives (3x3, 5x5, 7x7 and image means), and the predictions
+against real renders, are measured in docs/accuracy.md, "Estimate Render Time against the real
+render"; paths rarer than one per pilot (spot_light's) stay unseen by any pilot of this length.
 """
 from __future__ import annotations
 

@@ -101,7 +101,7 @@ class FrameFilm(Film):
         return var
 
     def estimated_rel_error(self) -> float:
-        """The image's estimated relative error E (README: Stopping rules)."""
+        """The image's estimated relative error E (docs/user-guide.md: Stopping rules)."""
         from ..film.error_estimate import image_rel_error
         return image_rel_error(self.mean().astype(np.float64), self.half_buffer_variance())
 
@@ -172,7 +172,7 @@ class Frame:
         return self.result(time.perf_counter() - start, cancelled, pool.describe)
 
     def error_stats(self, seconds: float) -> dict:
-        """estimated_rel_error and seconds_to_target (README: Stopping rules)."""
+        """estimated_rel_error and seconds_to_target (docs/user-guide.md: Stopping rules)."""
         from ..film.error_estimate import seconds_to_target
         s = self.settings
         error = self.film.estimated_rel_error()

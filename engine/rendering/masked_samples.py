@@ -1,8 +1,8 @@
 """Camera samples of some pixels of a tile only: what adaptive sampling hands the tracer.
 
-The same interface and sample numbering as camera.TileSamples (pass by pass over the pixels,
-jitter from dimension pair 0 of the sampler, which is keyed by the tile pixel and the sample
-number), so an active pixel's samples are exactly those it would get in a full tile: adaptive
+The same interface and sample numbering as engine/scene/camera_rays.py TileSamples (sample by
+sample over the pixels, jitter from dimension pair 0 of the sampler, which is keyed by the tile
+pixel and the sample number), so an active pixel's samples are exactly those it would get in a full tile: adaptive
 sampling changes how many samples a pixel gets, never which ones.
 """
 from __future__ import annotations

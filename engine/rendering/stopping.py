@@ -54,11 +54,8 @@ def effective_min_samples(settings) -> int:
     """Min samples; 0 is automatic: FIRST_ROUND, and with a noise target T Cycles' guess
     ceil(16 / T^0.3) (T = 0.1 -> 32, 0.01 -> 64; at most 128).  Heavy-tailed noise (caustics) hides
     from a pixel's first samples: a block that has not met its rare bright paths reads converged.
-    Measured on the caustic room at 96x96, target 12 %, 20 seeds, adaptive: min 8 stopped at a mean
-    of 37 spp with an actual E of 16.9 % RMS over the seeds (1.41x the target), min 32 at 72 spp with
-    13.7 % (1.14x), min 64 at 134 spp with 12.1 %.  At 48x48 the same 20-seed RMS is ruled by single
-    seeds' fireflies (0.155 / 0.128 / 0.124 for automatic / 8 / 64, at about the same 0.44 s):
-    no min samples makes heavy-tailed noise safe, it only makes an early stop less likely."""
+    No min samples makes heavy-tailed noise safe, it only makes an early stop less likely
+    (measured: docs/accuracy.md, "Min samples and heavy-tailed noise")."""
     if settings.min_samples:
         return min(settings.samples, settings.min_samples)
     auto = FIRST_ROUND

@@ -50,9 +50,9 @@ def camera_rays(camera, width: int, height: int, sx: np.ndarray, sy: np.ndarray)
 class TileSamples:
     """The camera samples of one image tile, handed out in chunks (report 2.3).
 
-    Sample i of the tile belongs to pixel i mod (tile pixels): the first pass covers
-    every pixel once, then the second, ... up to pass `spp`, from pass `first` on.  Each sample is a
-    jittered sub-pixel position (box filter), from dimension pair 0 of `sampler`
+    Sample i of the tile belongs to pixel i mod (tile pixels): the first sweep gives every pixel
+    its sample 0, the second its sample 1, ... up to sample `spp` - 1, from sample `first` on.
+    Each sample is a jittered sub-pixel position (box filter), from dimension pair 0 of `sampler`
     (engine/sampling/qmc.py) when its chunk is taken.
     """
 
