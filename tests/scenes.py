@@ -5,14 +5,14 @@ from engine.scene.model import DIFFUSE, GLASS, MIRROR, Camera, Material, Quad, S
 
 
 def camera_inside_sphere_scene(albedo=0.8, emission=1.0, resolution=(8, 8)):
-    """Camera at the centre of a closed sphere that is both diffuse and emitting (T1)."""
+    """Camera at the centre of a closed sphere that is both diffuse and emitting (docs/hard-cases.md T1)."""
     mats = [Material("Furnace", DIFFUSE, (albedo,) * 3, emission=(emission,) * 3)]
     cam = Camera.look_at((0, 0, 0), (0, 1, 0), lens=20.0)
     return Scene(cam, mats, spheres=[Sphere("Shell", (0, 0, 0), 1.0, 0)], resolution=resolution)
 
 
 def object_in_uniform_background(kind, color=1.0, resolution=(24, 24), ior=1.5):
-    """A sphere of one material filling most of the view, background radiance 1 (T3, S7)."""
+    """A sphere of one material filling most of the view, background radiance 1 (docs/hard-cases.md T3, S7)."""
     mats = [Material("Object", kind, (color,) * 3, ior=ior)]
     cam = Camera.look_at((0, -3, 0), (0, 0, 0), lens=50.0)
     return Scene(cam, mats, spheres=[Sphere("Ball", (0, 0, 0), 0.6, 0)], background=(1, 1, 1),
@@ -62,7 +62,7 @@ def diffuse_box_scene(resolution=(16, 16)):
 
 def near_lamp_box(resolution=(16, 16), gap=0.02, lamp_size=0.5, radiance=10.0, albedo=0.7):
     """A closed diffuse box (2 x 2 x 2) whose two-sided lamp quad hangs `gap` under the ceiling:
-    the ceiling above it is lit from `gap` away (the near-field case of issue 9).  The camera
+    the ceiling above it is lit from `gap` away (the near-field case, docs/hard-cases.md S9).  The camera
     looks up at the lamp's edge and the ceiling."""
     mats = [Material("White", DIFFUSE, (albedo,) * 3), Material("Lamp", DIFFUSE, (0, 0, 0), emission=(radiance,) * 3)]
     v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0],

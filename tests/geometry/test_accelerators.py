@@ -1,4 +1,4 @@
-"""Octree and brute force agree with each other and with Embree (hard cases H6, H13, H14)."""
+"""Octree and brute force agree with each other and with Embree (docs/hard-cases.md H6, H13, H14)."""
 import numpy as np
 import pytest
 

@@ -36,7 +36,7 @@ class TestSphere:
         assert np.allclose(t, 10.0 - np.sqrt(1 - offsets ** 2), rtol=1e-12)
 
     def test_grazing_tangent_rays(self):
-        # Rays at 0.999 r hit, at 1.001 r miss, for a tiny sphere far away (hard case H9).
+        # Rays at 0.999 r hit, at 1.001 r miss, for a tiny sphere far away (docs/hard-cases.md H9).
         c = np.array([0.0, 0.0, 1e4])
         r = 1e-3
         n = 1000
@@ -121,7 +121,7 @@ class TestEmbree:
         assert acc.occluded(o, d, np.array([0.5, 1.5])).tolist() == [False, True]
 
     def test_robust_shared_edge(self):
-        # Mitsuba's test10_embree_robust_flag (hard case H4): rays through a shared edge.
+        # Mitsuba's test10_embree_robust_flag (docs/hard-cases.md H4): rays through a shared edge.
         v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
         tri = v[np.array([[0, 1, 2], [0, 2, 3]])]
         acc = EmbreeAccelerator(tri)

@@ -1,4 +1,4 @@
-"""Smooth shading (issue 12 item 3): interpolated corner normals against closed forms, every
+"""Smooth shading: interpolated corner normals against closed forms, every
 accelerator, the effect plan, scene files, bad input, and the shading-normal artefacts (light
 below the geometric horizon, the shadow terminator) handled as Cycles does."""
 import numpy as np

@@ -1,4 +1,4 @@
-"""The report's estimator against analytic answers (hard-cases T1, S10, T3, S7, T4)."""
+"""The report's estimator against analytic answers (docs/hard-cases.md T1, S10, T3, S7, T4)."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""The three estimators against each other and against analytic answers (issue 9).
+"""The three estimators against each other and against analytic answers.
 
 * light-only (`solid-angle`), BSDF-only (`mis` with 0 shadow rays) and `mis` converge to the
   same image; a wrong MIS weight (the balance heuristic on the BSDF side only) does not;
@@ -208,7 +208,7 @@ def test_sky_and_lamp_estimators_agree(depth):
 @pytest.mark.parametrize("estimator", ["report", "solid-angle", "mis"])
 def test_white_furnace_open_box_in_a_white_world(estimator):
     """An open box (five faces, albedo 1, concave: it sees itself) under a white world of radiance
-    1: every pixel, box or sky, is 1 (issue 12's furnace with a white world, hard-cases.md T1)."""
+    1: every pixel, box or sky, is 1 (the furnace with a white world, docs/hard-cases.md T1)."""
     mats = [Material("White", DIFFUSE, (1.0, 1.0, 1.0))]
     c = np.array([(x, y, z) for z in (0, 1) for y in (0, 1) for x in (0, 1)], float) - (0.5, 0.5, 0.0)
     faces = [(0, 1, 3, 2), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]      # no top: open

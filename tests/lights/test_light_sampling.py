@@ -1,4 +1,4 @@
-"""Solid-angle light samplers, the light tree and their pdfs (light-sampling.md §2-§7).
+"""Solid-angle light samplers, the light tree and their pdfs (docs/light-sampling.md §2-§7).
 
 Chi-square tests bin the samples into cells that partition the light exactly; a cell's
 expected share is its solid angle over the light's (Van Oosterom-Strackee, independent of

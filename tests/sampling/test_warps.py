@@ -1,4 +1,4 @@
-"""Sampling routines: chi-square goodness of fit (hard-cases §3.1) and edge cases."""
+"""Sampling routines: chi-square goodness of fit (docs/hard-cases.md §3.1) and edge cases."""
 import numpy as np
 import pytest
 
@@ -74,7 +74,7 @@ def test_orthonormal_basis_is_orthonormal(normal):
 
 
 def test_cosine_sample_at_u_one_keeps_positive_pdf():
-    # Hard case S1: u -> 1 would give z = 0, pdf 0 and 0/0 downstream.
+    # docs/hard-cases.md S1: u -> 1 would give z = 0, pdf 0 and 0/0 downstream.
     u = np.array([np.nextafter(1.0, 0.0), 1.0, float(np.float32(1 - 2 ** -25))])
     d = cosine_hemisphere(u, np.full(3, 0.3)).T
     assert (d[:, 2] > 0).all()
