@@ -185,8 +185,8 @@ class Frame:
                 "adaptive": s.adaptive and s.noise_target > 0,
                 "samples_per_pixel": {"min": float(spp.min()), "mean": float(spp.mean()), "max": float(spp.max())}}
 
-    def result(self, seconds: float, cancelled: bool = False, workers: str = "local") -> RenderResult:
-        """The image, its variance, the passes and the stats; `workers`: the pool's describe."""
+    def result(self, seconds: float, cancelled: bool = False, pool: str = "local") -> RenderResult:
+        """The image, its variance, the passes and the stats; `pool`: the pool's describe."""
         s, facts = self.settings, self.facts
         width, height = self.resolution
         rays = dict(self.totals.rays)
@@ -195,7 +195,7 @@ class Frame:
             "render_seconds": seconds, "setup_seconds": facts.setup_seconds, "build_seconds": facts.build_seconds,
             **stats_of(s), "resolution": [width, height], "threads": s.resolved_threads(),
             "tile_size": self.tile_size, "units": len(self.units), "units_done": self.film.units_added,
-            "progressive": self.progressive, "parallelism": workers,
+            "progressive": self.progressive, "parallelism": pool,
             "accelerator": facts.accelerator, "accelerator_reason": facts.accelerator_reason,
             "rays": rays, "rays_per_second": sum(rays.values()) / seconds if seconds > 0 else 0.0,
             "effects": dict(self.plan.enabled), "effects_reason": dict(self.plan.reason),

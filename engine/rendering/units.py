@@ -72,32 +72,32 @@ def make_units(tiles, samples: int, order: str = "tiles") -> list[WorkUnit]:
     return [WorkUnit(i, tile, c, start, stop) for i, (tile, c, start, stop) in enumerate(chunks)]
 
 
-def next_outcome(workers, timeout: float):
-    """(came, result, error) of the next unit from `workers` (engine/pools/protocol.py Pool): came
+def next_outcome(pool, timeout: float):
+    """(came, result, error) of the next unit from `pool` (engine/pools/protocol.py Pool): came
     is False when none finished within `timeout`; result is None for a cancelled or failed unit;
     a failed unit cancels the others (its error is raised once they have stopped)."""
-    item = workers.next_result(timeout=timeout)
+    item = pool.next_result(timeout=timeout)
     if item is None:
         return False, None, None
     _, result, exc = item
     if exc is not None:
-        workers.cancel()
+        pool.cancel()
         return True, None, exc
     return True, result, None
 
 
-def await_units(workers, count: int, on_result, interrupt=None, poll: float = 0.1):
+def await_units(pool, count: int, on_result, interrupt=None, poll: float = 0.1):
     """Wait for the outcomes of `count` started units, handing each finished UnitResult to
     on_result(result).  interrupt() is polled between waits until it returns a reason to stop
-    (e.g. "cancelled"); then the workers are cancelled and the other units drain, dropped whole.
+    (e.g. "cancelled"); then the pool is cancelled and the other units drain, dropped whole.
     Returns (that reason or None, the first unit error or None)."""
     reason, error, done = None, None, 0
     while done < count:
         if reason is None and interrupt is not None:
             reason = interrupt() or None
             if reason is not None:
-                workers.cancel()
-        came, result, exc = next_outcome(workers, poll)
+                pool.cancel()
+        came, result, exc = next_outcome(pool, poll)
         if not came:
             continue
         done += 1
