@@ -21,10 +21,8 @@ add-on are available).
 """
 from __future__ import annotations
 
-import datetime
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile

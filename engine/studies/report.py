@@ -209,7 +209,7 @@ def cycles_summary(rows):
         if rs:
             curves[engine] = (np.log([r.t for r in rs]), np.log([np.mean(r.rel_mse) for r in rs]), rs)
     if len(curves) == 2:
-        (tc, ec, rc), (to, eo, ro) = curves["CYCLES"], curves["TNCG15_MC"]
+        (tc, ec, _), (to, eo, _) = curves["CYCLES"], curves["TNCG15_MC"]
         lo, hi = max(tc[0], to[0]), min(tc[-1], to[-1])
         if lo <= hi:
             t_mid = 0.5 * (lo + hi)
