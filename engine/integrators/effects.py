@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene.model import DIFFUSE, GLASS, MIRROR
+from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR
 from ..geometry.shading_normals import has_smooth
 from ..materials.table import NON_DELTA_KINDS
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
-           "emission", "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes",
+           "glossy", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes",
            "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
@@ -119,6 +119,7 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     diffuse = users(lambda m: m.kind == DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
     mirror = users(lambda m: m.kind == MIRROR and (max(m.color) > 0 or m.color_texture is not None))
     glass = users(lambda m: m.kind == GLASS)
+    glossy = users(lambda m: m.kind == GLOSSY and (max(m.color) > 0 or m.color_texture is not None))
     lit = users(lambda m: m.kind in NON_DELTA_KINDS and (max(m.color) > 0 or m.color_texture is not None))
     surface_emitters = users(lambda m: m.is_emissive)
     bulbs = [p for p in scene.points if max(p.intensity) > 0]
@@ -134,6 +135,10 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                f"glass materials {_names(glass)}: {settings.fresnel} Fresnel and refraction (eq. 2.17, 2.24)"
                + ("; nested media tracked" if settings.nested_dielectrics else "")
                if glass else "no glass material: Fresnel and refraction never evaluated")
+    set_effect("glossy", glossy,
+               f"glossy materials {_names(glossy)}: microfacet reflection sampled by visible normals, "
+               "light samples and MIS weighed by its eval and pdf (engine/materials/glossy.py)"
+               if glossy else "no glossy material: no microfacet lobe evaluated")
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
@@ -157,7 +162,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if report else "no diffuse surface or no shadow rays: the background is found by bounce rays")
     nee = bool(lit and (emitters or world) and settings.shadow_rays > 0)     # hits with a non-delta BSDF
     set_effect("direct_light", nee,
-               f"{settings.shadow_rays} shadow ray(s) per diffuse hit (eq. 2.11)" if nee else
+               f"{settings.shadow_rays} shadow ray(s) per {'diffuse or glossy' if glossy else 'diffuse'} hit (eq. 2.11)"
+               if nee else
                "no diffuse surface to light" if not lit else "no emitters" if not emitters else
                "0 shadow rays: emitters found by BSDF sampling alone")
     set_effect("solid_angle", nee and not report,

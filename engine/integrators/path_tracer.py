@@ -285,8 +285,14 @@ class PathTracer:
 
     def lamps_seen(self, p, hits):
         """Emission of point, spot and sun lights reached by glossy and transmission rays before
-        their hit (weight 1: only a delta bounce sends such rays today, and shadow rays could not)."""
-        rays = np.flatnonzero((p.ray_kind == GLOSSY_RAY) | (p.ray_kind == TRANSMISSION_RAY))
+        their hit, after a delta bounce (weight 1: shadow rays could not have found them there).
+        After a glossy (non-delta) bounce the shadow rays account for these lamps, which a BSDF
+        sample cannot reach in their MIS (LightSet.bsdf_reachable): the ray's lamp counts 0
+        then, unless there are no shadow rays."""
+        seen = (p.ray_kind == GLOSSY_RAY) | (p.ray_kind == TRANSMISSION_RAY)
+        if self.use_nee and self.mats.glossy:
+            seen &= p.prev_delta
+        rays = np.flatnonzero(seen)
         if not len(rays):
             return
         tmax = np.full(len(p.pixel), np.inf)

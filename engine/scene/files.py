@@ -35,7 +35,7 @@ import os
 
 import numpy as np
 
-from .model import AreaLight, Camera, Material, PointLight, Quad, Scene, Sphere, SunLight, TriangleMesh
+from .model import GLOSSY, AreaLight, Camera, Material, PointLight, Quad, Scene, Sphere, SunLight, TriangleMesh
 from ..core.errors import SceneError
 from .fields import Fields, is_integer
 from .texture_fields import read_slot, read_textures, slot_json, textures_json
@@ -58,6 +58,37 @@ def _flags(fields, keys) -> dict:
                 fields.fail(key, "true or false", value)
             flags[key] = value
     return flags
+
+
+def _glossy_fields(m) -> dict:
+    """The glossy kind's fields of a material entry (engine/scene/model.py Material), each only
+    if present: files without them load with the defaults."""
+    values = {}
+    for key in ("roughness", "anisotropy", "rotation"):
+        if key in m:
+            values[key] = m.number(key)
+    for key in ("tangent", "edge_tint", "conductor_ior", "conductor_k"):
+        if key in m:
+            values[key] = m.numbers(key, 3)
+    for key in ("distribution", "fresnel"):
+        if key in m:
+            values[key] = m.text(key)
+    if "multiscatter" in m:
+        value = m.get("multiscatter")
+        if not isinstance(value, bool):
+            m.fail("multiscatter", "true or false", value)
+        values["multiscatter"] = value
+    return values
+
+
+def _glossy_json(m) -> dict:
+    """The glossy fields of material m for the scene file (glossy materials only)."""
+    if m.kind != GLOSSY:
+        return {}
+    return {"roughness": m.roughness, "anisotropy": m.anisotropy, "rotation": m.rotation,
+            "tangent": list(m.tangent), "distribution": m.distribution, "fresnel": m.fresnel,
+            "multiscatter": bool(m.multiscatter), "edge_tint": list(m.edge_tint),
+            "conductor_ior": list(m.conductor_ior), "conductor_k": list(m.conductor_k)}
 
 
 def _material_index(fields, names):
@@ -141,7 +172,8 @@ def load_scene(path: str) -> Scene:
                                   color=m.numbers("color", 3, (0.8, 0.8, 0.8)), ior=m.number("ior", 1.5),
                                   emission=m.numbers("emission", 3, (0.0, 0.0, 0.0)),
                                   color_texture=read_slot(m, "color_texture", textures),
-                                  emission_texture=read_slot(m, "emission_texture", textures)))
+                                  emission_texture=read_slot(m, "emission_texture", textures),
+                                  **_glossy_fields(m)))
     names = [m.name for m in materials]
     cam = top.get("camera", None)
     camera = None if cam is None else _camera(cam)
@@ -222,7 +254,7 @@ def save_scene(scene: Scene, path: str) -> None:
             "sensor_fit": cam.sensor_fit, "shift_x": cam.shift_x, "shift_y": cam.shift_y},
         "textures": textures_json(scene, arrays),
         "materials": [dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
-                            "emission": list(m.emission)},
+                            "emission": list(m.emission)}, **_glossy_json(m),
                            **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
                                                                      ("emission_texture", m.emission_texture))
                               if slot is not None}) for m in scene.materials],

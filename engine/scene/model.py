@@ -18,15 +18,26 @@ from .checks import LENS_RANGE, check_magnitude, check_resolution, check_vector
 DIFFUSE = "diffuse"
 MIRROR = "mirror"
 GLASS = "glass"
-MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS)
+GLOSSY = "glossy"
+MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY)
+# The glossy kind's choices (engine/materials/microfacet.py, engine/materials/glossy.py).
+DISTRIBUTIONS = ("ggx", "beckmann")
+FRESNEL_KINDS = ("none", "dielectric", "conductor", "f82", "interpolated")
 
 
 @dataclass
 class Material:
-    """A surface: Lambertian, perfect mirror or smooth glass, optionally emitting.
+    """A surface: Lambertian, perfect mirror, smooth glass or rough (microfacet) reflection,
+    optionally emitting.
 
     ``color`` is the diffuse albedo (diffuse), the reflectance (mirror) or the tint of
-    both reflection and transmission (glass, as Cycles' Glass BSDF).  ``emission`` is
+    both reflection and transmission (glass, as Cycles' Glass BSDF); for glossy materials the
+    colour the Fresnel term uses (engine/materials/glossy.py: a tint, F0 or ignored by conductors).
+    Glossy only: ``roughness`` (alpha = roughness^2), ``anisotropy`` in [-1, 1] along ``tangent``
+    (a world direction made orthogonal to the normal) turned by ``rotation`` x 2 pi,
+    ``distribution`` (ggx, beckmann), ``fresnel`` (none, dielectric with ``ior``, conductor with
+    ``conductor_ior`` + i ``conductor_k``, f82 with ``edge_tint``, interpolated with ``ior``) and
+    ``multiscatter`` (GGX energy compensation, Cycles 4.x).  ``emission`` is
     radiance (colour x strength), emitted from both sides as Cycles mesh lights do.
     A pure emitter (Cycles' Emission shader) is a diffuse material with colour 0.
     """
@@ -39,6 +50,17 @@ class Material:
     # (`emission` is then the unlinked value; the light sampler uses the texture's mean).
     color_texture: object = None
     emission_texture: object = None
+    # Glossy only (defaults: Blender's Glossy BSDF node).
+    roughness: float = 0.5
+    anisotropy: float = 0.0
+    rotation: float = 0.0
+    tangent: tuple = (1.0, 0.0, 0.0)
+    distribution: str = "ggx"
+    fresnel: str = "none"
+    multiscatter: bool = True
+    edge_tint: tuple = (1.0, 1.0, 1.0)
+    conductor_ior: tuple = (0.18, 0.42, 1.37)        # gold-like defaults, n and k per channel
+    conductor_k: tuple = (3.42, 2.35, 1.77)
 
     @property
     def is_emissive(self) -> bool:
@@ -56,6 +78,31 @@ class Material:
             check_magnitude(f"Material '{self.name}'", label, arr)
         if not (math.isfinite(self.ior) and 0 < self.ior <= 1e6):
             raise SceneError(f"Material '{self.name}': IOR must be positive (at most 1e6), got {self.ior!r}")
+        if self.kind == GLOSSY:
+            self.validate_glossy()
+
+    def validate_glossy(self) -> None:
+        owner = f"Material '{self.name}'"
+        for label, value, low, high in (("roughness", self.roughness, 0.0, 1.0),
+                                        ("anisotropy", self.anisotropy, -1.0, 1.0)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and low <= value <= high):
+                raise SceneError(f"{owner}: {label} must be from {low:g} to {high:g}, got {value!r}")
+        if not (isinstance(self.rotation, (int, float)) and math.isfinite(self.rotation)):
+            raise SceneError(f"{owner}: rotation must be a finite number, got {self.rotation!r}")
+        if self.distribution not in DISTRIBUTIONS:
+            raise SceneError(f"{owner}: unknown distribution '{self.distribution}' "
+                             f"(expected one of {', '.join(DISTRIBUTIONS)})")
+        if self.fresnel not in FRESNEL_KINDS:
+            raise SceneError(f"{owner}: unknown fresnel '{self.fresnel}' (expected one of {', '.join(FRESNEL_KINDS)})")
+        for label, value in (("tangent", self.tangent), ("edge_tint", self.edge_tint),
+                             ("conductor_ior", self.conductor_ior), ("conductor_k", self.conductor_k)):
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.shape != (3,) or not np.isfinite(arr).all() or (label != "tangent" and (arr < 0).any()):
+                raise SceneError(f"{owner}: {label} must be 3 finite {'' if label == 'tangent' else 'non-negative '}"
+                                 f"numbers, got {value!r}")
+            check_magnitude(owner, label, arr)
+        if not np.any(np.asarray(self.tangent, dtype=np.float64)):
+            raise SceneError(f"{owner}: tangent must not be zero")
 
 
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
