@@ -1,11 +1,12 @@
 """The 3D viewport's Rendered mode: export on depsgraph updates, render in worker processes, draw.
 
 Blender calls ``view_update`` and ``view_draw`` on its UI thread, so both only read Blender data
-and hand it on: the rendering runs in viewport worker processes (engine/pools/viewport.py),
-whose frames reader threads merge into a film; a ``bpy.app.timers`` poller on the UI thread tags
-the Rendered viewports for redraw whenever a new frame is there (no Blender object is touched
-from another thread, and the engine is not kept alive by us, so Blender frees it and ``__del__``
-stops the workers).
+and hand it on: the tracer's progressive render (engine/pools/viewport.py ViewportRender) runs on
+a thread of its own over the pool that ``make_pool("viewport:PYTHON")`` makes (worker processes
+kept across views), merging the units into the film of a frame; a ``bpy.app.timers`` poller on
+the UI thread tags the Rendered viewports for redraw whenever the picture changed (no Blender
+object is touched from another thread, and the engine is not kept alive by us, so Blender frees
+it and ``__del__`` stops the workers).
 
 * ``view_update``: depsgraph updates sorted by ID type (docs/cluster-and-viewport.md §B1): camera
   objects and camera data change the view only; anything else re-exports the scene, reading
@@ -138,7 +139,8 @@ def forget_meshes(cache, names):
 
 # -- the state shared with the poller --------------------------------------------------------------
 class ViewportState:
-    """Plain Python (never a Blender object): the workers, mesh cache, view and texture."""
+    """Plain Python (never a Blender object): the progressive render (`workers`: its pool's
+    processes render), mesh cache, view and texture."""
 
     def __init__(self):
         self.workers = None
@@ -163,15 +165,16 @@ class ViewportState:
         python, why = worker_python.worker_python(worker_python.preferred_python())
         if python is None:
             raise RuntimeError(f"the viewport needs render worker processes: {why}")
-        service = bridge.module("pools.viewport")
-        self.workers = service.ViewportWorkers(python, count, worker_python.extra_paths())
+        pool = bridge.module("api").make_pool(f"viewport:{python}", count, log=lambda *a: None,
+                                              extra_paths=worker_python.extra_paths())
+        self.workers = bridge.module("pools.viewport").ViewportRender(pool)
         bpy.app.timers.register(self.poll, first_interval=POLL_SECONDS)
 
     def poll(self):
         """UI thread, every POLL_SECONDS: redraw Rendered viewports when a new frame arrived."""
         if self.closed:
             return None
-        version = self.workers.snapshot()[0] if self.workers is not None else -1
+        version = self.workers.version if self.workers is not None else -1
         if version != self.drawn_version:
             tag_rendered_viewports()
         return POLL_SECONDS

@@ -7,7 +7,9 @@ view_draw bodies are called as Blender calls them (mcrt_addon/viewport.py, stub 
 context, the depsgraph of a depsgraph_update_post handler).  For entering Rendered mode, moving the
 camera (view_draw: a new camera only), moving the light (re-export without reading the mesh,
 workers rebuild) and editing the mesh (the mesh read again) it prints the time spent on Blender's
-UI thread, the meshes read, and the time until the workers' first frame of the change.
+UI thread, the meshes read, and the time until the workers' first frame of the change; for
+entering Rendered mode also the time to the first full-resolution picture and the sample rate
+after it (samples of the whole frame per second, until --samples are there).
 """
 import argparse
 import os
@@ -25,6 +27,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--triangles", type=int, default=1_000_000)
     ap.add_argument("--size", type=int, nargs=2, default=(320, 240))
+    ap.add_argument("--samples", type=int, default=16, help="the viewport's max samples")
     args = ap.parse_args()
     import mcrt_addon
     from mcrt_addon.headless import ensure_registered
@@ -35,7 +38,7 @@ def main():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.render.engine = "TNCG15_MC"
-    scene.tncg15.viewport_samples = 4
+    scene.tncg15.viewport_samples = args.samples
     n = max(1, int((args.triangles / 2) ** 0.5))
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=n, y_subdivisions=n, size=4.0)
     grid = bpy.context.object
@@ -82,8 +85,18 @@ def main():
     st = engine.viewport_state
     row("enter Rendered (export)", time.perf_counter() - t, st, len(reads))
     try:
+        full, samples = None, []                     # (time, samples) of every full-resolution picture
         while not st.workers.converged():
-            time.sleep(0.01)
+            snap = st.workers.snapshot()
+            if snap[4] == 1 and (not samples or samples[-1][1] != snap[2]):
+                samples.append((time.perf_counter(), snap[2]))
+                full = full or samples[-1][0] - t
+            time.sleep(0.002)
+        end = time.perf_counter()
+        n0, t0 = samples[0][1], samples[0][0]
+        rate = (args.samples - n0) / max(end - t0, 1e-9)
+        print(f"{'':<34} first full-resolution picture after {1000 * full:8.1f} ms, then "
+              f"{rate:6.2f} samples/s ({n0} -> {args.samples} in {end - t0:.2f} s)")
         # the camera moves: view_draw sends only a camera
         cam.location.x += 0.3
         bpy.context.view_layer.update()

@@ -4,6 +4,8 @@
     processes            forked copies of this process (Linux, never inside Blender: ForkPool)
     auto                 processes where they can fork and there is more than one worker, else threads
     workers[:PYTHON]     worker processes of PYTHON (default: this one; engine/pools/processes.py)
+    viewport[:PYTHON]    worker processes of PYTHON kept across renders; a new camera prepares nothing
+                         again (the 3D viewport: engine/pools/viewport.py)
     dask:ADDRESS         a Dask cluster: tcp://HOST:PORT of its scheduler, or "local" for a
                          LocalCluster started here (engine/pools/dask_cluster.py)
 
@@ -16,7 +18,7 @@ import sys
 
 from ..core.errors import SceneError
 
-KINDS = "threads, processes, auto, workers[:PYTHON], dask:ADDRESS (tcp://HOST:PORT or local)"
+KINDS = "threads, processes, auto, workers[:PYTHON], viewport[:PYTHON], dask:ADDRESS (tcp://HOST:PORT or local)"
 
 
 class PoolSpecError(SceneError):
@@ -39,6 +41,9 @@ def make_pool(spec: str, workers: int = 1, log=print, extra_paths=()):
     if kind == "workers":
         from .processes import SubprocessPool
         return SubprocessPool(arg or sys.executable, workers, extra_paths, log=log)
+    if kind == "viewport":
+        from .viewport import ViewportPool
+        return ViewportPool(arg or sys.executable, workers, extra_paths, log=log)
     if kind == "dask" and arg:
         from .dask_cluster import DaskPool, scheduler_address
         return DaskPool(arg if arg == "local" else scheduler_address(arg), workers, log=log)

@@ -1,52 +1,58 @@
-"""Progressive viewport rendering in worker processes: interruptible passes over the whole frame.
+"""The viewport: a pool of worker processes kept across views, and its progressive render.
 
-A viewport worker is ``python -m <tracer package>.pools.viewport PARENT_PID`` (started by
-`ViewportWorkers`, never by Blender's UI thread blocking on it), spoken to over the transport of
-engine/pools/transport.py.  It keeps one PreparedScene (engine/rendering/session.py: BVH, lights,
-effect plan) and renders passes of the current view until a message changes it:
+`ViewportPool` (made by engine/pools/spec.py ``make_pool("viewport[:PYTHON]", n)``) is a pool of
+engine/pools/protocol.py whose workers, ``python -m <tracer package>.pools.viewport PARENT_PID``
+over the transport of engine/pools/transport.py, outlive a render: prepare() may be called again
+after every started unit was answered, and a scene that differs from the last one in its camera
+and resolution only (the same objects otherwise, as dataclasses.replace makes it) with the same
+settings is not prepared again: the workers get the new camera (no BVH rebuild).
 
-    parent -> worker   ("scene", gen, scene, settings, target, index, count)   prepare the scene again
-                       ("view", gen, camera, resolution)                       new camera only: no rebuild
-    worker -> parent   ("ready", gen, facts)
-                       ("frame", gen, level, width, height, sum, sum_sq, samples)   level 0: coarse
-                       ("error", gen, message)
+    parent -> worker   ("prepare", number, scene, settings)   build a PreparedScene
+                       ("view", camera, resolution)           the prepared scene's new camera
+                       ("unit", WorkUnit)                     trace it
+                       ("cancel",)                            the units before it stop within a bounce
+    worker -> parent   ("ready", number, TracerFacts) | ("failed", number, one line)
+                       ("result", unit, UnitResult | None)    None: cancelled
+                       ("error", unit, traceback text)
 
-Every message interrupts the pass in progress (the tracer polls its cancel event between
-batches), so an edit restarts accumulation within a bounce.  Pass 0 is a coarse pass at
-1/COARSE of the resolution (1 sample, large pixels, shown within a fraction of a second); then
-worker `index` of `count` renders sample numbers index, index + count, ... of the full frame, one
-per pass, until `target` samples exist.  With the Sobol' sampler a sample number gives the same
-random numbers whatever the worker, so the merged image is the image of a final render of that
-view with `target` samples.  The parent sums the frames of the current generation
-(`ViewportFilm`, over the film of engine/film/accumulator.py); frames of an older generation are
-dropped.  The viewport's passes are one sample of the whole frame each (render passes, the
-stopping rules' rounds and the pools' units are other things).
+A reader thread in the worker sets the cancel event as soon as ("cancel",) arrives, so the unit
+in progress stops within a bounce and the units queued before the cancel are answered None; the
+cancel clears when the worker reaches it in the stream, so the units after it render.
+
+`ViewportRender` is the progressive render the 3D viewport shows (mcrt_addon/viewport.py): on
+a thread of the parent it renders each view as two frames of the frame side
+(engine/rendering/frame.py Frame, one film each), a coarse one of 1 sample at 1/COARSE of the
+resolution, then the view itself in the "growing" order of engine/rendering/units.py (one sample
+of the whole frame, then units of 1, 2, 4, ... samples), until `target` samples.  A new scene or
+view cancels the frame in progress (engine/rendering/units.py await_units) and starts again.
+With the Sobol' sampler a sample number gives the same random numbers wherever it is traced, so
+the picture after `target` samples is the final render's image of that view with `target` samples.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import queue
 import sys
 import threading
 import time
 import traceback
-from dataclasses import replace
 
 import numpy as np
 
+from ..core.errors import SceneError
 from ..core.paths import TRACER_DIR, worker_environment
-from ..film.accumulator import Film
-from .transport import WorkerEnd, WorkerProcess, close_all, log_to_stderr
+from .protocol import Pool
+from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr
 
-COARSE = 4                      # coarse pass: 1/COARSE of the resolution in each direction
+COARSE = 4                      # the coarse frame: 1/COARSE of the resolution in each direction
+IN_FLIGHT = 2                   # units queued per worker, so none waits for the next
+START_TIMEOUT = 120.0           # seconds for imports + scene + BVH before the workers are given up
+CLOSE_SECONDS = 1.0             # EOF, then SIGKILL
 
 
-# -- the worker -----------------------------------------------------------------------------------
-def pass_unit(prepared, number: int):
-    """The work unit of one pass: the whole frame as one tile, sample `number` (one sample)."""
-    from ..rendering.units import Tile, WorkUnit
-    width, height = prepared.scene.resolution
-    return WorkUnit(number, Tile(0, 0, 0, width, height), number, number, number + 1)
+class WorkerError(SceneError):
+    """A viewport worker could not start, failed or died (one line, shown in the viewport's header)."""
 
 
 def coarse_resolution(resolution, factor: int = COARSE):
@@ -54,241 +60,380 @@ def coarse_resolution(resolution, factor: int = COARSE):
     return max(1, -(-w // factor)), max(1, -(-h // factor))
 
 
-class ViewJob:
-    """What the worker renders now: its generation, view, resolution and next pass."""
-
-    def __init__(self, gen, resolution, target, index, count):
-        self.gen, self.resolution, self.target, self.index, self.count = gen, tuple(resolution), target, index, count
-        self.level, self.passes = 0, 0
-
-    def next_sample(self):
-        """The next full-resolution sample number of this worker, or None when `target` is reached."""
-        number = self.passes * self.count + self.index
-        return number if number < self.target else None
+def one_line(exc) -> str:
+    return str(exc) if isinstance(exc, SceneError) else f"{type(exc).__name__}: {exc}"
 
 
+# -- the worker -----------------------------------------------------------------------------------
 def viewport_worker_main(parent_pid: int) -> int:
+    from ..core.allocator import tune_malloc
     from ..rendering.session import PreparedScene
     end = WorkerEnd(parent_pid)
     if not end.handshake():
         return 0
+    tune_malloc()
     inbox: queue.Queue = queue.Queue()
-    interrupt = threading.Event()
+    cancel = threading.Event()
+    lock = threading.Lock()
+    cancels = {"received": 0, "reached": 0}
 
     def read():
         while True:
             message = end.receive()
-            inbox.put(("quit",) if message is None else message)
-            interrupt.set()
+            if message is not None and message[0] == "cancel":
+                with lock:
+                    cancels["received"] += 1
+                    cancel.set()
+            inbox.put(message)
             if message is None:
                 return
 
     threading.Thread(target=read, daemon=True).start()
-    send = end.send
-    prepared, job = None, None
+    prepared = None
     while True:
-        idle = prepared is None or job is None or job.level == 1 and job.next_sample() is None
-        try:
-            message = inbox.get(block=idle)
-        except queue.Empty:
-            message = None
-        if message is not None:
-            interrupt.clear()
-            messages = [message]
-            while not inbox.empty():
-                messages.append(inbox.get_nowait())
-            for m in messages:
-                if m[0] == "quit":
-                    return 0
-                try:
-                    if m[0] == "scene":
-                        _, gen, scene, settings, target, index, count = m
-                        prepared = None
-                        prepared = PreparedScene(scene, settings, log=log_to_stderr)
-                        job = ViewJob(gen, scene.resolution, target, index, count)
-                        send(("ready", gen, prepared.facts()))
-                    elif m[0] == "view" and prepared is not None:
-                        _, gen, camera, resolution = m
-                        camera.validate()
-                        prepared.scene.camera = camera
-                        job = ViewJob(gen, resolution, job.target, job.index, job.count)
-                except Exception as exc:        # noqa: BLE001 - shown in the viewport's header
-                    prepared, job = None, None
-                    send(("error", m[1], str(exc) if type(exc).__name__ == "SceneError"
-                          else f"{type(exc).__name__}: {exc}"))
+        message = inbox.get()
+        if message is None:
+            return 0
+        kind = message[0]
+        if kind == "cancel":
+            with lock:
+                cancels["reached"] += 1
+                if cancels["reached"] == cancels["received"]:
+                    cancel.clear()
+        elif kind == "prepare":
+            _, number, scene, settings = message
+            prepared = None
+            try:
+                prepared = PreparedScene(scene, settings, log=log_to_stderr)
+                end.send(("ready", number, prepared.facts()))
+            except Exception as exc:            # noqa: BLE001 - one line for the viewport's header
+                end.send(("failed", number, one_line(exc)))
+                if not isinstance(exc, SceneError):
                     print(traceback.format_exc(), file=sys.stderr)
-            continue
-        if job.level == 0:
-            resolution, number = coarse_resolution(job.resolution), job.index
-        else:
-            resolution, number = job.resolution, job.next_sample()
-        prepared.scene.resolution = tuple(resolution)
-        try:
-            result = prepared.render_unit(pass_unit(prepared, number), interrupt)
-        except Exception as exc:                # noqa: BLE001
-            send(("error", job.gen, f"{type(exc).__name__}: {exc}"))
-            print(traceback.format_exc(), file=sys.stderr)
-            job = None
-            continue
-        if result is None:                      # interrupted by a message
-            continue
-        w, h = resolution
-        send(("frame", job.gen, job.level, w, h, result.sum.astype(np.float32), result.sum_sq.astype(np.float32), 1))
-        if job.level == 0:
-            job.level = 1
-        else:
-            job.passes += 1
+        elif kind == "view":
+            prepared.scene.camera, prepared.scene.resolution = message[1], tuple(message[2])
+        elif kind == "unit":
+            unit = message[1]
+            try:
+                end.send(("result", unit, prepared.render_unit(unit, cancel)))
+            except Exception:                   # noqa: BLE001 - the parent reports it with the unit
+                end.send(("error", unit, traceback.format_exc()))
 
 
-# -- the parent side ------------------------------------------------------------------------------
-class ViewportFilm:
-    """The sums of the current generation: a coarse image until the first full-resolution pass."""
-
-    def __init__(self):
-        self.gen, self.level, self.film = -1, -1, None
-        self.samples = 0
-        self.version = 0
-
-    def reset(self, gen):
-        self.gen, self.level, self.film, self.samples = gen, -1, None, 0
-
-    @property
-    def size(self):
-        return None if self.film is None else (self.film.width, self.film.height)
-
-    def add(self, gen, level, width, height, s, s2, samples) -> bool:
-        """Merge a worker's frame; False when it belongs to an older view or a finer level exists."""
-        if gen != self.gen or level < self.level:
-            return False
-        if level > self.level or (width, height) != self.size:
-            self.level, self.film, self.samples = level, Film(width, height), 0
-        self.film.add_sums(0, 0, s.reshape(height, width, 3), s2.reshape(height, width, 3), samples)
-        self.samples += samples
-        self.version += 1
-        return True
-
-    def image(self):
-        """(height, width, 4) float32 linear RGBA, row 0 = BOTTOM (Blender's order), or None."""
-        if self.film is None:
-            return None
-        rgba = np.ones((self.film.height, self.film.width, 4), np.float32)
-        rgba[..., :3] = self.film.mean()[::-1]
-        rgba[~np.isfinite(rgba)] = 0.0
-        return rgba
-
-    def relative_error(self):
-        """Per-pixel noise: the RMS standard error of the pixel means (the film's variance of the
-        mean) relative to the mean, over the pixels that received light (a black background would
-        otherwise inflate it by 1/sqrt(lit fraction)); None below two full-resolution samples."""
-        if self.film is None or self.level < 1 or self.samples < 2:
-            return None
-        mean = self.film.mean()
-        lit = mean.sum(axis=-1) > 0
-        m = float(mean[lit].mean()) if lit.any() else 0.0
-        if not m > 0:
-            return None
-        return float(np.sqrt(self.film.variance_of_mean()[lit].mean())) / m
+# -- the pool -------------------------------------------------------------------------------------
+class _Worker(WorkerProcess):
+    def __init__(self, number: int, python: str, env: dict, events: queue.Queue):
+        self.number = number
+        self.in_flight: list = []
+        self.alive, self.prepared = True, None          # the preparation number it is ready for
+        super().__init__(python, [os.path.basename(TRACER_DIR) + ".pools.viewport"], env,
+                         f"viewport worker {number}", on_message=lambda w, m: events.put((w, m)),
+                         on_exit=lambda w, code: events.put((w, ("died", code))), tail_lines=20)
 
 
-class ViewportWorkers:
-    """Viewport worker processes of `python`: `set_scene` / `set_view` restart accumulation;
-    frames are merged on reader threads and `on_frame()` is called after each (any thread)."""
+def same_but_the_view(scene, other) -> bool:
+    """`scene` is `other` with another camera or resolution only (every other field the same object)."""
+    if other is None or type(scene) is not type(other):
+        return False
+    return all(getattr(scene, f.name) is getattr(other, f.name) for f in dataclasses.fields(scene)
+               if f.name not in ("camera", "resolution"))
 
-    CLOSE_SECONDS = 1.0          # EOF, then SIGKILL
 
-    def __init__(self, python: str, count: int = 1, extra_paths=(), on_frame=None):
+class ViewportPool(Pool):
+    """`count` viewport worker processes of `python`, started here and kept until close()."""
+
+    takes_rounds = True
+
+    def __init__(self, python: str, count: int = 1, extra_paths=(), log=print):
+        self.python, self.log = python, log
+        self.events: queue.Queue = queue.Queue()
         env = worker_environment(extra_paths)
-        module = [os.path.basename(TRACER_DIR) + ".pools.viewport"]
+        self.workers = []
+        try:
+            for i in range(max(1, count)):
+                self.workers.append(_Worker(i + 1, python, env, self.events))
+        except OSError as exc:                          # no such interpreter, not executable
+            close_all(self.workers, CLOSE_SECONDS)
+            raise WorkerError(f"TNCG15 MC: cannot start viewport workers with {python}: "
+                              f"{exc.strerror or exc}") from None
+        self.describe = f"{len(self.workers)} viewport worker process(es) ({python})"
+        self.pending: list = []
+        self.cancelled = False
+        self.preparation = 0                            # number of the last scene sent
+        self.scene = self.settings = self.facts = None  # the scene prepared (its view: the last sent)
+        self.builds = 0                                 # scenes prepared, summed over the workers
+        self.reports: list[str] = []                    # workers that died, by name
+
+    # -- preparation ----------------------------------------------------------------------------
+    def prepare(self, scene, settings, timeout: float = START_TIMEOUT):
+        """The scene on every worker: its camera and resolution only when nothing else changed,
+        else the scene prepared again (waits for the first worker to be ready)."""
+        self.cancelled, self.pending = False, []
+        if self.facts is not None and settings == self.settings and same_but_the_view(scene, self.scene):
+            scene.camera.validate()
+            for w in self.workers:
+                w.send(("view", scene.camera, tuple(scene.resolution)))
+            self.scene = scene
+            return self.facts
+        self.preparation += 1
+        self.scene, self.settings, self.facts = scene, settings, None
+        payload = encode(("prepare", self.preparation, scene, settings))
+        for w in self.workers:
+            w.prepared = None
+            w.send(payload)
+        deadline = time.perf_counter() + timeout
+        failed = 0
+        while self.facts is None:
+            try:
+                worker, event = self.events.get(timeout=max(0.01, deadline - time.perf_counter()))
+            except queue.Empty:
+                raise WorkerError(f"viewport workers ({self.python}) did not start within {timeout:.0f} s") from None
+            self._event(worker, event)
+            if event[0] == "failed" and event[1] == self.preparation:
+                failed += 1
+                if failed == sum(w.alive for w in self.workers) or failed == len(self.workers):
+                    self.scene = None
+                    raise SceneError(event[2])
+            if not any(w.alive for w in self.workers):
+                raise WorkerError(self.reports[-1] + "; no viewport worker is left")
+        for w in self.facts.warnings:
+            self.log(f"warning: {w}")
+        return self.facts
+
+    def _event(self, worker, event):
+        """Bookkeeping of a worker's message: (unit, result, error) when it answers a unit."""
+        kind = event[0]
+        if kind == "ready":
+            if event[1] == self.preparation:
+                worker.prepared = self.preparation
+                self.builds += 1
+                if self.facts is None:
+                    self.facts = event[2]
+                self._feed(worker)
+            return None
+        if kind == "failed":
+            return None
+        if kind == "died":
+            worker.alive = False
+            message = f"{worker.name} died: {worker.why(event[1])}"
+            self.reports.append(message)
+            lost, worker.in_flight = worker.in_flight, []
+            self.pending[:0] = lost
+            for w in self.workers:
+                self._feed(w)
+            if not any(w.alive for w in self.workers) and self.pending:
+                return self.pending.pop(0), None, WorkerError(message + "; no viewport worker is left")
+            return None
+        unit = event[1]
+        if unit in worker.in_flight:
+            worker.in_flight.remove(unit)
+        self._feed(worker)
+        if kind == "error":
+            return unit, None, WorkerError(f"{worker.name} failed on tile {unit.tile.index}:\n{event[2]}")
+        return unit, event[2], None
+
+    def _feed(self, worker, limit: int = IN_FLIGHT):
+        while (worker.alive and worker.prepared == self.preparation and not self.cancelled and self.pending
+               and len(worker.in_flight) < limit):
+            unit = self.pending.pop(0)
+            worker.in_flight.append(unit)
+            worker.send(("unit", unit))
+
+    # -- the pool protocol ----------------------------------------------------------------------
+    def start(self, units):
+        self.pending.extend(units)
+        for w in self.workers:                          # every worker one unit before any takes two
+            self._feed(w, limit=1)
+        for w in self.workers:
+            self._feed(w)
+
+    def next_result(self, timeout: float):
+        if self.cancelled and self.pending:
+            return self.pending.pop(0), None, None      # never sent: answered as cancelled
+        if not any(w.alive for w in self.workers) and self.pending:
+            return self.pending.pop(0), None, WorkerError("no viewport worker is left: " + "; ".join(self.reports))
+        try:
+            worker, event = self.events.get(timeout=timeout)
+        except queue.Empty:
+            return None
+        return self._event(worker, event)
+
+    def cancel(self):
+        """Units in flight stop within a bounce (answered None); prepare() starts the next render."""
+        if not self.cancelled:
+            self.cancelled = True
+            for w in self.workers:
+                if w.alive and w.in_flight:
+                    w.send(("cancel",))
+
+    def close(self):
+        self.cancelled = True
+        close_all(self.workers, CLOSE_SECONDS)
+
+    def stats(self) -> dict:
+        return {"worker_python": self.python, "worker_pids": [w.pid for w in self.workers],
+                "scenes_prepared": self.builds, "worker_reports": list(self.reports)}
+
+    def warnings(self) -> list:
+        return list(self.reports)
+
+
+# -- the progressive render -----------------------------------------------------------------------
+def film_image(film):
+    """(height, width, 4) float32 linear RGBA of a film, row 0 = BOTTOM (Blender's order)."""
+    rgba = np.ones((film.height, film.width, 4), np.float32)
+    rgba[..., :3] = film.mean()[::-1]
+    rgba[~np.isfinite(rgba)] = 0.0
+    return rgba
+
+
+def relative_error(film):
+    """Per-pixel noise: the RMS standard error of the pixel means (the film's variance of the
+    mean) relative to the mean, over the pixels that received light (a black background would
+    otherwise inflate it by 1/sqrt(lit fraction)); None below two samples in some pixel."""
+    if film.count.min() < 2:
+        return None
+    mean = film.mean()
+    lit = mean.sum(axis=-1) > 0
+    m = float(mean[lit].mean()) if lit.any() else 0.0
+    if not m > 0:
+        return None
+    return float(np.sqrt(film.variance_of_mean()[lit].mean())) / m
+
+
+class ViewportRender:
+    """The progressive render of the current scene and view on `pool` (any Pool whose prepare()
+    may be called again: the viewport's), on a thread of its own.  set_scene / set_view restart
+    it; on_frame() is called (on that thread) after every merged unit."""
+
+    def __init__(self, pool, on_frame=None):
+        self.pool, self.on_frame = pool, on_frame
         self.lock = threading.Lock()
-        self.film = ViewportFilm()
-        self.gen = 0
+        self.wake = threading.Condition(self.lock)
+        self.gen = 0                              # the request number: a new scene or view
+        self.request = None                       # (gen, scene, settings, target)
         self.target = 1
+        self.frame, self.level = None, -1         # the frame shown and its level (0: coarse, 1: the view)
+        self.version = 0                          # changes whenever the picture does
         self.error = None
-        self.facts = None
-        self.builds = 0                          # scenes the workers prepared (a new view prepares none)
-        self.on_frame = on_frame
-        self.started = time.perf_counter()
-        self.gen_started = self.started
-        self.first_frame_seconds = None          # of the current generation, coarse or not
+        self.gen_started = time.perf_counter()
+        self.first_frame_seconds = None           # of the current request, coarse or not
         self.closed = False
-        self.procs = [WorkerProcess(python, module, env, "viewport worker", self._message, self._exited,
-                                    tail_lines=20) for _ in range(max(1, count))]
+        self.thread = threading.Thread(target=self._run, daemon=True, name="viewport render")
+        self.thread.start()
 
     @property
     def pids(self):
-        return [p.pid for p in self.procs]
+        return self.pool.stats().get("worker_pids", [])
 
-    def _next_gen(self):
-        with self.lock:
-            self.gen += 1
-            self.film.reset(self.gen)
-            self.error = None
-            self.gen_started = time.perf_counter()
-            self.first_frame_seconds = None
-            return self.gen
+    @property
+    def builds(self):
+        return self.pool.stats().get("scenes_prepared", 0)
 
     def set_scene(self, scene, settings, target: int):
-        """A new scene (geometry, materials, lights or settings changed): every worker prepares it."""
-        self.target = int(target)
-        settings = replace(settings, samples=max(int(target), 1))
-        gen = self._next_gen()
-        for i, p in enumerate(self.procs):
-            p.send(("scene", gen, scene, settings, self.target, i, len(self.procs)))
+        """A new scene (geometry, materials, lights or settings changed): prepared again."""
+        target = max(1, int(target))
+        self._ask(scene, dataclasses.replace(settings, samples=target), target)
 
     def set_view(self, camera, resolution):
         """Only the camera (or the viewport's size) changed: the workers prepare nothing again."""
-        gen = self._next_gen()
-        for p in self.procs:
-            p.send(("view", gen, camera, tuple(resolution)))
+        _, scene, settings, target = self.request
+        self._ask(dataclasses.replace(scene, camera=camera, resolution=tuple(resolution)), settings, target)
 
-    def _message(self, worker, message):
+    def _ask(self, scene, settings, target):
         with self.lock:
-            if message[0] == "frame":
-                if not self.film.add(*message[1:]):
+            self.gen += 1
+            self.request = (self.gen, scene, settings, target)
+            self.target = target
+            self.frame, self.level, self.error = None, -1, None
+            self.version += 1
+            self.gen_started, self.first_frame_seconds = time.perf_counter(), None
+            self.wake.notify()
+
+    def _run(self):
+        done = 0
+        while True:
+            with self.lock:
+                while not self.closed and (self.request is None or self.request[0] == done):
+                    self.wake.wait()
+                if self.closed:
                     return
-                if self.first_frame_seconds is None:
-                    self.first_frame_seconds = time.perf_counter() - self.gen_started
-            elif message[0] == "error" and message[1] == self.gen:
-                self.error = message[2]
-            elif message[0] == "ready":
-                self.facts = message[2]
-                self.builds += 1
-        self._notify()
+                request = self.request
+            gen, scene, settings, target = request
+            try:
+                w, h = scene.resolution
+                coarse = dataclasses.replace(scene, resolution=coarse_resolution((w, h)))
+                if self._frame(gen, 0, coarse, settings) and self.gen == gen:
+                    self._frame(gen, 1, scene, settings)
+            except Exception as exc:            # noqa: BLE001 - shown in the viewport's header
+                with self.lock:
+                    if gen == self.gen:
+                        self.error = one_line(exc)
+                        self.version += 1
+                self._notify()
+            done = gen
 
-    def _exited(self, worker, code):
-        if self.closed:
-            return
-        with self.lock:
-            tail = [line for line in worker.stderr_tail if line.strip()]
-            self.error = (f"viewport render worker (pid {worker.pid}) stopped"
-                          + (f" (exit code {code})" if code is not None else "")
-                          + (f": {tail[-1]}" if tail else ""))
-        self._notify()
+    def _frame(self, gen, level, scene, settings) -> bool:
+        """Render one frame of the request `gen` (level 0: 1 sample); False when a newer request came."""
+        from ..rendering.frame import Frame
+        from ..rendering.units import await_units
+        facts = self.pool.prepare(scene, settings)
+        if self.gen != gen:
+            return False
+        w, h = scene.resolution
+        shape = dataclasses.replace(settings, samples=1 if level == 0 else settings.samples,
+                                    tile_size=max(8, w, h), noise_target=0.0)
+        frame = Frame(scene, shape, facts, "growing")
+        self.pool.start(frame.units)
+
+        def merge(result):
+            with self.lock:
+                frame.add(result)
+                if gen == self.gen and level >= self.level and frame.film.count.min() > 0:   # all of it
+                    self.frame, self.level = frame, level
+                    self.version += 1
+                    if self.first_frame_seconds is None:
+                        self.first_frame_seconds = time.perf_counter() - self.gen_started
+            self._notify()
+
+        reason, error = await_units(self.pool, len(frame.units), merge,
+                                    lambda: "restart" if self.gen != gen or self.closed else None, poll=0.02)
+        if error is not None:
+            raise error
+        return reason is None
 
     def _notify(self):
         if self.on_frame is not None:
             try:
                 self.on_frame()
-            except Exception:               # noqa: BLE001 - a redraw request must not kill the reader
+            except Exception:                   # noqa: BLE001 - a redraw request must not stop the render
                 pass
 
     def snapshot(self):
-        """(version, rgba or None, samples, relative error or None, level, error message)."""
+        """(version, rgba or None, samples, relative error or None, level, error message);
+        samples: the fewest any pixel of the view has (0 for the coarse frame)."""
         with self.lock:
-            f = self.film
-            samples = f.samples if f.level >= 1 else 0
-            return f.version, f.image(), samples, f.relative_error(), f.level, self.error
+            frame, level = self.frame, self.level
+            if frame is None:
+                return self.version, None, 0, None, level, self.error
+            film = frame.film
+            samples = int(film.count.min()) if level == 1 else 0
+            return (self.version, film_image(film), samples, relative_error(film) if level == 1 else None,
+                    level, self.error)
 
     def converged(self) -> bool:
         with self.lock:
-            return self.film.level >= 1 and self.film.samples >= self.target
+            return self.level == 1 and self.frame.film.count.min() >= self.target
 
     def close(self):
-        """Stop every worker: EOF, then SIGKILL after a second.  Safe to call twice."""
-        if self.closed:
-            return
-        self.closed = True
-        close_all(self.procs, self.CLOSE_SECONDS)
+        """Stop the render and the pool's workers.  Safe to call twice."""
+        with self.lock:
+            if self.closed:
+                return
+            self.closed = True
+            self.wake.notify()
+        self.thread.join(timeout=5)
+        self.pool.close()
 
 
 if __name__ == "__main__":

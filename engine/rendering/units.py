@@ -52,20 +52,36 @@ def make_tiles(width: int, height: int, size: int) -> list[Tile]:
     return tiles
 
 
-ORDERS = ("tiles", "frame")        # the progressive orders of make_units
+ORDERS = ("tiles", "frame", "growing")        # the progressive orders of make_units
+
+
+def chunk_starts(samples: int, step: int, growing: bool) -> list[int]:
+    """Where a tile's chunks start: every `step` samples, or (growing) 0, 1, 2, 4, 8, ... with
+    chunks of at most `step` samples."""
+    if not growing:
+        return list(range(0, samples, step))
+    starts, s = [], 0
+    while s < samples:
+        starts.append(s)
+        s += min(max(s, 1), step)
+    return starts
 
 
 def make_units(tiles, samples: int, order: str = "tiles") -> list[WorkUnit]:
     """Each tile's samples in chunks of about UNIT_PATHS camera samples.  order "tiles": a tile's
     chunks one after the other (the frame fills tile by tile); "frame": chunk 0 of every tile,
-    then chunk 1, ... (the whole frame refines)."""
+    then chunk 1, ... (the whole frame refines); "growing": as "frame", with chunks of 1, 1, 2, 4,
+    ... samples up to that size (the viewport: a picture of the whole frame after one sample,
+    big units after that, engine/pools/viewport.py)."""
     if order not in ORDERS:
         raise ValueError(f"progressive order {order!r}: expected one of {', '.join(ORDERS)}")
     per_tile = []
     for tile in tiles:
         step = max(1, min(samples, -(-UNIT_PATHS // tile.pixels)))
-        per_tile.append([(tile, c, s, min(s + step, samples)) for c, s in enumerate(range(0, samples, step))])
-    if order == "frame":
+        starts = chunk_starts(samples, step, order == "growing")
+        per_tile.append([(tile, c, s, starts[c + 1] if c + 1 < len(starts) else samples)
+                         for c, s in enumerate(starts)])
+    if order in ("frame", "growing"):
         chunks = [units[d] for d in range(max(map(len, per_tile))) for units in per_tile if d < len(units)]
     else:
         chunks = [u for units in per_tile for u in units]

@@ -1,4 +1,4 @@
-"""Every local pool kind against the Pool protocol (engine/pools/protocol.py), the same image on
+"""Every local pool kind (the viewport's too) against the Pool protocol (engine/pools/protocol.py), the same image on
 each (also under the stopping rules' rounds), and make_pool's one-line errors
 (engine/pools/spec.py).  Dask runs the same conformance checks in tests/pools/test_dask_cluster.py."""
 import os
@@ -10,13 +10,14 @@ import pytest
 from engine import RenderSettings, render
 from engine.core.errors import SceneError
 from engine.pools.processes import SubprocessPool, WorkerError
+from engine.pools.viewport import ViewportPool
 from engine.pools.spec import PoolSpecError, make_pool
 from engine.scene.builtin import cornell_scene
 from tests.file_safety import alive
 from tests.pools.conformance import SCENE_SIZE, SETTINGS, check_cancel_answers_every_unit, check_renders_a_frame
 
 QUIET = dict(log=lambda *a: None)
-LOCAL_KINDS = ["threads", "processes", "workers"]
+LOCAL_KINDS = ["threads", "processes", "workers", "viewport"]
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +29,7 @@ def reference():
 def test_every_local_pool_renders_a_frame_by_the_protocol(spec, reference):
     pool = make_pool(spec, 2, **QUIET)
     check_renders_a_frame(pool, reference)
-    if isinstance(pool, SubprocessPool):
+    if isinstance(pool, (SubprocessPool, ViewportPool)):
         assert not any(alive(w.pid) for w in pool.workers), "workers left after close()"
 
 
@@ -66,13 +67,13 @@ def test_auto_forks_outside_blender_and_one_worker_is_a_thread(monkeypatch):
     assert inside.describe == "threads"
 
 
-@pytest.mark.parametrize("spec", ["thread", "", "dask", "processes:4", "workers-python", "viewport:x"])
+@pytest.mark.parametrize("spec", ["thread", "", "dask", "processes:4", "workers-python", "viewports"])
 def test_a_bad_spec_is_one_line_naming_the_kinds(spec):
     with pytest.raises(PoolSpecError) as err:
         make_pool(spec)
     message = str(err.value)
     assert isinstance(err.value, SceneError) and "\n" not in message
-    assert repr(spec) in message and "threads, processes, auto, workers[:PYTHON], dask:ADDRESS" in message
+    assert repr(spec) in message and "threads, processes, auto, workers[:PYTHON], viewport[:PYTHON], dask:ADDRESS" in message
 
 
 def test_a_bad_dask_address_is_one_line():
@@ -83,9 +84,10 @@ def test_a_bad_dask_address_is_one_line():
     assert "\n" not in str(err.value)
 
 
-def test_a_missing_worker_python_is_one_line(tmp_path):
+@pytest.mark.parametrize("kind", ["workers", "viewport"])
+def test_a_missing_worker_python_is_one_line(tmp_path, kind):
     missing = str(tmp_path / "no-python")
-    with pytest.raises(WorkerError) as err:
-        make_pool(f"workers:{missing}", 1, **QUIET)
+    with pytest.raises((WorkerError, SceneError)) as err:
+        make_pool(f"{kind}:{missing}", 1, **QUIET)
     assert missing in str(err.value) and "\n" not in str(err.value)
     assert not os.path.exists(missing)

@@ -1,6 +1,7 @@
-"""Viewport worker processes (engine/pools/viewport.py): coarse pass first, interleaved samples
-that add up to a final render's image, restarts on a new view without a rebuild, the noise
-estimate, shutdown without orphans."""
+"""The viewport (engine/pools/viewport.py): its pool keeps the workers and prepares only a new
+camera on a new view; its progressive render shows a coarse frame first, then samples of the whole
+frame that add up to a final render's image, restarts on a new view without a rebuild; the noise
+estimate; shutdown without orphans."""
 import sys
 import time
 from dataclasses import replace
@@ -11,7 +12,11 @@ import pytest
 from engine.scene.builtin import cornell_scene
 from engine.api import render
 from engine.core.settings import RenderSettings
-from engine.pools.viewport import ViewportFilm, ViewportWorkers, coarse_resolution
+from engine.film.accumulator import Film
+from engine.pools.spec import make_pool
+from engine.pools.viewport import ViewportRender, coarse_resolution, film_image, relative_error
+from engine.rendering.frame import Frame
+from tests.pools.conformance import drain
 from tests.file_safety import alive
 
 SETTINGS = RenderSettings(max_depth=3, seed=5, accelerator="embree")
@@ -30,7 +35,7 @@ def wait(workers, until, timeout=60.0):
 
 @pytest.fixture
 def workers():
-    w = ViewportWorkers(sys.executable, 2)
+    w = ViewportRender(make_pool(f"viewport:{sys.executable}", 2, log=lambda *a: None))
     yield w
     w.close()
     assert not any(alive(p) for p in w.pids)
@@ -93,22 +98,49 @@ def test_scene_errors_are_reported_not_raised(workers):
 
 def test_noise_estimate_is_the_standard_error_of_the_pixel_means():
     rng = np.random.default_rng(1)
-    film = ViewportFilm()
-    film.reset(1)
+    film = Film(25, 20)
     n, pixels, sd = 64, 500, 0.3
+    assert relative_error(film) is None, "no estimate below two samples"
     for _ in range(n):
         x = 1.0 + sd * rng.standard_normal((pixels, 3))
-        assert film.add(1, 1, 25, 20, x, x * x, 1)
-    assert not film.add(0, 1, 25, 20, x, x * x, 1), "frames of an older view are dropped"
-    assert not film.add(1, 0, 5, 5, x[:25], x[:25] ** 2, 1), "a coarse frame never replaces a finer film"
+        film.add_sums(0, 0, x.reshape(20, 25, 3), (x * x).reshape(20, 25, 3), 1)
     expected = sd / np.sqrt(n)
-    assert abs(film.relative_error() / expected - 1) < 0.05, (film.relative_error(), expected)
+    assert abs(relative_error(film) / expected - 1) < 0.05, (relative_error(film), expected)
+    assert np.array_equal(film_image(film)[::-1, :, :3], film.mean())
     # a black background (half the frame) changes nothing
-    film2 = ViewportFilm()
-    film2.reset(1)
+    film2 = Film(50, 20)
     rng = np.random.default_rng(1)
     for _ in range(n):
         x = 1.0 + sd * rng.standard_normal((pixels, 3))
-        x2 = np.concatenate([x, np.zeros_like(x)])
-        assert film2.add(1, 1, 50, 20, x2, x2 * x2, 1)
-    assert film2.relative_error() == pytest.approx(film.relative_error(), rel=1e-9)
+        x2 = np.concatenate([x.reshape(20, 25, 3), np.zeros((20, 25, 3))], axis=1)
+        film2.add_sums(0, 0, x2, x2 * x2, 1)
+    assert relative_error(film2) == pytest.approx(relative_error(film), rel=1e-9)
+
+
+def test_the_pool_prepares_a_new_view_without_a_rebuild_and_renders_after_a_cancel():
+    """The pool alone (engine/pools/protocol.py): a cancelled frame, then a new camera and size
+    prepared again (no new build), whose units merge into the final render of that view bit for bit."""
+    pool = make_pool("viewport", 2, log=lambda *a: None)
+    scene, settings = cornell_scene((48, 32)), replace(SETTINGS, samples=64, tile_size=16)
+    try:
+        facts = pool.prepare(scene, settings)
+        frame = Frame(scene, settings, facts)
+        pool.start(frame.units)
+        drain(pool, 1)
+        pool.cancel()
+        drain(pool, len(frame.units) - 1)
+        built = pool.stats()["scenes_prepared"]
+        view = replace(scene, camera=replace(scene.camera, lens=scene.camera.lens * 1.5), resolution=(40, 24))
+        assert pool.prepare(view, settings) is facts
+        frame = Frame(view, settings, facts)
+        pool.start(frame.units)
+        for unit, result, error in drain(pool, len(frame.units)):
+            assert error is None and result is not None, "units after a cancel render"
+            frame.add(result)
+        assert pool.stats()["scenes_prepared"] == built, "a new view builds nothing"
+        assert pool.prepare(replace(view, meshes=list(view.meshes)), settings) is not facts, \
+            "another scene is prepared again"
+    finally:
+        pool.close()
+    expected = render(view, replace(settings, threads=1), log=lambda *a: None).image
+    assert np.array_equal(frame.film.mean(), expected)

@@ -7,7 +7,7 @@ import pytest
 
 from engine import RenderSettings, render
 from engine.film.accumulator import Film
-from engine.pools.viewport import ViewportFilm
+from engine.pools.viewport import film_image, relative_error
 from engine.rendering.frame import Frame
 from engine.rendering.session import PreparedScene
 from engine.rendering.units import make_tiles, make_units
@@ -42,6 +42,22 @@ def test_the_progressive_orders_are_tiles_and_frame():
         make_units(tiles, 64, "passes")                    # the old name of "frame"
 
 
+def test_the_growing_order_refines_the_whole_frame_in_doubling_chunks():
+    """The viewport's order: chunk 0 of every tile is one sample, then 1, 2, 4, ... samples up to
+    the size of the "frame" order's chunks; every sample of every tile once, in order."""
+    tiles = make_tiles(32, 32, 16)                         # 256 pixels: "frame" chunks of 1024 samples
+    growing, by_frame = make_units(tiles, 2048, "growing"), make_units(tiles, 2048, "frame")
+    assert [u.tile.index for u in growing[:len(tiles)]] == list(range(len(tiles)))
+    for tile in tiles:
+        ranges = [(u.start, u.stop) for u in growing if u.tile == tile]
+        assert ranges[:12] == [(0, 1), (1, 2), (2, 4), (4, 8), (8, 16), (16, 32), (32, 64), (64, 128),
+                               (128, 256), (256, 512), (512, 1024), (1024, 2048)]
+        assert [u.chunk for u in growing if u.tile == tile] == list(range(len(ranges)))
+    assert max(u.stop - u.start for u in growing) == max(u.stop - u.start for u in by_frame)
+    assert [(u.start, u.stop) for u in make_units(tiles, 5, "growing")[::len(tiles)]] == [(0, 1), (1, 2), (2, 4),
+                                                                                            (4, 5)]
+
+
 def test_the_film_variance_is_the_sample_variance_over_n():
     """Film.variance_of_mean against numpy's var(ddof=1) / n of the same samples; a variance with
     ddof=0 (the biased one) differs (control)."""
@@ -66,13 +82,11 @@ def test_the_film_variance_is_the_sample_variance_over_n():
 def test_the_viewport_film_is_the_film_of_its_frames():
     """The viewport's noise figure is the film's variance of the mean (one formula for both)."""
     rng = np.random.default_rng(4)
-    viewport, film = ViewportFilm(), Film(5, 4)
-    viewport.reset(1)
+    film = Film(5, 4)
     for _ in range(6):
         s = rng.random((20, 3))
-        assert viewport.add(1, 1, 5, 4, s, s * s, 1)
         film.add_sums(0, 0, s.reshape(4, 5, 3), (s * s).reshape(4, 5, 3), 1)
     mean = film.mean()
     expected = np.sqrt(film.variance_of_mean().mean()) / mean.mean()
-    assert viewport.relative_error() == pytest.approx(expected, rel=1e-6)
-    assert np.array_equal(viewport.image()[::-1, :, :3], mean)
+    assert relative_error(film) == pytest.approx(expected, rel=1e-6)
+    assert np.array_equal(film_image(film)[::-1, :, :3], mean)
