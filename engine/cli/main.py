@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from ..core.errors import SceneError
+from ..core.errors import SceneError, WorkersLost
 from ..film.output import OutputError, check_outputs, write_image, write_text
 from ..core.settings import ENGINE_CLI, INT32_MAX, PASSES, RenderSettings, settings_for
 from .settings_args import add_setting_arguments, bounded_int, setting_values
@@ -129,8 +129,16 @@ def cmd_render(args) -> int:
         return stop.report_exit()
     log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     pool = make_pool(f"dask:{args.cluster}", settings.resolved_threads(), log=log) if args.cluster else None
-    result = render(scene, settings, pool=pool, on_progress=None if args.quiet else progress_bar(),
-                    should_cancel=stop.requested, log=log)
+    try:
+        result = render(scene, settings, pool=pool, on_progress=None if args.quiet else progress_bar(),
+                        should_cancel=stop.requested, log=log)
+    except WorkersLost as exc:                  # no worker left: one line, and the finished tiles written
+        if exc.result is None:
+            raise
+        sys.stderr.write(f"\n{PROG}: error: {exc} (writing the finished tiles)\n")
+        result, lost = exc.result, exc
+    else:
+        lost = None
     if args.denoise and not result.cancelled:
         from ..film.denoise import denoise_result
         denoise_result(result)
@@ -148,6 +156,9 @@ def cmd_render(args) -> int:
                 write_image(output, result.image, error_metadata(stats))
     except OutputError as exc:
         sys.stderr.write(f"{PROG}: error: {exc}\n")
+        return 1
+    if lost is not None:
+        print(f"wrote {', '.join(o.path for o in outputs)}: finished tiles only")
         return 1
     rays = sum(stats["rays"].values())
     print(f"wrote {', '.join(o.path for o in outputs)}: {stats['render_seconds']:.2f} s, "

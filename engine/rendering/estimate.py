@@ -24,7 +24,7 @@ few tiles are left active, a worker idles (measured on the near-lamp room at 96x
 workers: 0.9 us per pixel-sample while all tiles ran, 1.2-1.3 us in the last rounds; pricing
 pixel-samples alone predicted 0.76x the time).  b (seconds per unit of work) and c (wall seconds per
 makespan second; 1.01 measured over whole renders since the workers take units greedily, see
-engine/pools/processes.py SubprocessPool._feed) come from the pilot's rounds after the first (the first
+engine/pools/faults.py Dispatch.feed) come from the pilot's rounds after the first (the first
 pays the workers' warm-up); the pilot's own seconds are part of the predicted time.  Setup (scene
 preparation, worker start) is reported apart, as `setup_seconds`.
 
