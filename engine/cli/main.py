@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from ..core.errors import SceneError, WorkersLost
-from ..film.output import OutputError, check_outputs, write_image, write_text
+from ..film.output import OutputError, check_outputs, refuse_inputs, write_image, write_text
 from ..core.settings import ENGINE_CLI, INT32_MAX, PASSES, RenderSettings, settings_for
 from .settings_args import add_setting_arguments, bounded_int, setting_values
 from .signals import StopRequest
@@ -96,7 +96,7 @@ def progress_bar(stream=sys.stderr):
 
 def scene_inputs(path):
     """The files a render reads: never to be written."""
-    return [path, os.path.splitext(path)[0] + ".npz"] if path else []
+    return [(path, "the scene file"), (os.path.splitext(path)[0] + ".npz", "the scene's arrays (NPZ)")] if path else []
 
 
 def scene_and_settings(args):
@@ -122,6 +122,8 @@ def cmd_render(args) -> int:
                              ("--stats-json", args.stats_json, "json")], inputs=scene_inputs(args.scene),
                             base_dir=os.path.dirname(os.path.abspath(args.scene)) if args.scene else None)
     scene, settings = scene_and_settings(args)
+    refuse_inputs(outputs, [(t.path, f"the file of the scene's texture '{t.name}'")
+                            for t in scene.textures if getattr(t, "path", None)])
     check_pass_outputs(args, outputs)
     scene.validate()
     check_memory(scene, settings)
