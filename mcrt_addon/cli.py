@@ -116,7 +116,7 @@ def render_file(args):
     try:
         outputs = output.check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
                                         ("--stats-json", args.stats_json, "json")],
-                                       inputs=[blend], base_dir=os.path.dirname(blend))
+                                       inputs=[(blend, "the .blend rendered")], base_dir=os.path.dirname(blend))
         if (args.passes or args.denoise) and args.engine != "TNCG15_MC":
             raise output.OutputError("--passes/--denoise are for --engine TNCG15_MC")
         bridge.module("cli.main").check_pass_outputs(args, outputs)
@@ -145,6 +145,25 @@ def open_blend(blend, private):
     return None
 
 
+def files_read(blend):
+    """(absolute path, what it is) of every file a render of the open `blend` reads: the .blend, its
+    linked libraries, the files of its image textures (each tile of a UDIM image)."""
+    import bpy
+    files = [(blend, "the .blend rendered")]
+    for lib in bpy.data.libraries:
+        files.append((bpy.path.abspath(lib.filepath, library=lib.library), f"the library '{lib.name}' linked by the .blend"))
+    for image in bpy.data.images:
+        if not image.filepath or image.packed_file is not None or image.source not in ("FILE", "SEQUENCE", "TILED"):
+            continue
+        path = bpy.path.abspath(image.filepath, library=image.library)
+        what = f"the file of image texture '{image.name}'"
+        if image.source == "TILED" and "<UDIM>" in path:
+            files.extend((path.replace("<UDIM>", str(tile.number)), what) for tile in image.tiles)
+        else:
+            files.append((path, what))
+    return [(os.path.abspath(path), what) for path, what in files]
+
+
 def render_in(args, blend, outputs, stop, private):
     import bpy
     from mcrt_addon import render_engine as engine_module
@@ -153,6 +172,10 @@ def render_in(args, blend, outputs, stop, private):
     problem = open_blend(blend, private)
     if problem:
         return error(problem)
+    try:
+        bridge.module("film.output").refuse_inputs(outputs, files_read(blend))
+    except bridge.module("film.output").OutputError as exc:
+        return error(exc)
     scene = bpy.context.scene
     if args.frame is not None:
         scene.frame_set(args.frame)

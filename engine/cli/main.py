@@ -11,8 +11,8 @@ import time
 
 import numpy as np
 
-from ..core.errors import SceneError
-from ..film.output import OutputError, check_outputs, write_image, write_text
+from ..core.errors import SceneError, WorkersLost
+from ..film.output import OutputError, check_outputs, refuse_inputs, write_image, write_text
 from ..core.settings import ENGINE_CLI, INT32_MAX, PASSES, RenderSettings, settings_for
 from .settings_args import add_setting_arguments, bounded_int, setting_values
 from .signals import StopRequest
@@ -98,7 +98,7 @@ def progress_bar(stream=sys.stderr):
 
 def scene_inputs(path):
     """The files a render reads: never to be written."""
-    return [path, os.path.splitext(path)[0] + ".npz"] if path else []
+    return [(path, "the scene file"), (os.path.splitext(path)[0] + ".npz", "the scene's arrays (NPZ)")] if path else []
 
 
 def scene_and_settings(args):
@@ -124,6 +124,8 @@ def cmd_render(args) -> int:
                              ("--stats-json", args.stats_json, "json")], inputs=scene_inputs(args.scene),
                             base_dir=os.path.dirname(os.path.abspath(args.scene)) if args.scene else None)
     scene, settings = scene_and_settings(args)
+    refuse_inputs(outputs, [(t.path, f"the file of the scene's texture '{t.name}'")
+                            for t in scene.textures if getattr(t, "path", None)])
     check_pass_outputs(args, outputs)
     scene.validate()
     check_memory(scene, settings)
@@ -131,8 +133,16 @@ def cmd_render(args) -> int:
         return stop.report_exit()
     log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     pool = make_pool(f"dask:{args.cluster}", settings.resolved_threads(), log=log) if args.cluster else None
-    result = render(scene, settings, pool=pool, on_progress=None if args.quiet else progress_bar(),
-                    should_cancel=stop.requested, log=log)
+    try:
+        result = render(scene, settings, pool=pool, on_progress=None if args.quiet else progress_bar(),
+                        should_cancel=stop.requested, log=log)
+    except WorkersLost as exc:                  # no worker left: one line, and the finished tiles written
+        if exc.result is None:
+            raise
+        sys.stderr.write(f"\n{PROG}: error: {exc} (writing the finished tiles)\n")
+        result, lost = exc.result, exc
+    else:
+        lost = None
     if args.denoise and not result.cancelled:
         from ..film.denoise import denoise_result
         denoise_result(result)
@@ -150,6 +160,9 @@ def cmd_render(args) -> int:
                 write_image(output, result.image, error_metadata(stats))
     except OutputError as exc:
         sys.stderr.write(f"{PROG}: error: {exc}\n")
+        return 1
+    if lost is not None:
+        print(f"wrote {', '.join(o.path for o in outputs)}: finished tiles only")
         return 1
     rays = sum(stats["rays"].values())
     print(f"wrote {', '.join(o.path for o in outputs)}: {stats['render_seconds']:.2f} s, "

@@ -2,8 +2,9 @@
 
 Both command lines (``python -m engine render`` and ``python -m mcrt_addon render``) use this:
 
-* ``check_outputs()`` runs before any tracing.  A target is refused when it is an input file
-  (or the same file as another output), a directory, not a regular file, read-only, in a
+* ``check_outputs()`` runs before any tracing.  A target is refused when it is a file the render
+  reads (``refuse_inputs()``: the scene file and its NPZ, a scene file's textures, a .blend, its
+  linked libraries and image textures), the same file as another output, a directory, not a regular file, read-only, in a
   directory that cannot be made or written, or an image whose extension is not ``.exr``
   (linear float) or ``.png`` (sRGB 8-bit).  Missing directories are made here.
 * ``write_image()`` / ``write_text()`` write to a hidden temporary file beside the target,
@@ -93,9 +94,21 @@ def _check_target(output: Output) -> None:
         raise OutputError(f"{output.describe()}: is read-only")
 
 
+def refuse_inputs(outputs, inputs) -> None:
+    """One OutputError when an output is a file the render reads.  ``inputs``: paths, or (path,
+    what it is) pairs ("a library linked by the .blend"), named in the message."""
+    for output in outputs:
+        for source in inputs:
+            path, what = source if isinstance(source, tuple) else (source, None)
+            if path and _same_file(output.path, path):
+                raise OutputError(f"{output.describe()}: is an input file; refusing to overwrite it"
+                                  + (f" ({what})" if what else ""))
+
+
 def check_outputs(requested, inputs=(), base_dir: str | None = None) -> list[Output]:
     """``requested``: (option, path or None, kind) with kind "image" (by extension), "png" or
-    "json".  ``inputs``: files that must never be written.  ``base_dir``: what a Blender-style
+    "json".  ``inputs``: files that must never be written (see refuse_inputs; the inputs known only
+    once the scene is read, its textures or a .blend's libraries, are checked then).  ``base_dir``: what a Blender-style
     ``//`` prefix is relative to (the .blend's or the scene file's directory).  Returns the
     outputs to write."""
     outputs = []
@@ -107,9 +120,7 @@ def check_outputs(requested, inputs=(), base_dir: str | None = None) -> list[Out
         absolute = resolve_path(path, base_dir)
         if os.path.isdir(absolute):
             raise OutputError(f"{option} '{absolute}': is a directory")
-        for source in inputs:
-            if source and _same_file(absolute, source):
-                raise OutputError(f"{option} '{absolute}': is an input file; refusing to overwrite it")
+        refuse_inputs([Output(option, absolute, kind)], inputs)
         if kind in ("image", "png"):
             kind = image_kind(option, absolute, None if kind == "image" else "png")
         outputs.append(Output(option, absolute, kind))

@@ -36,7 +36,7 @@ import uuid
 
 from ..core.errors import SceneError
 from ..core.paths import TRACER_DIR
-from ..core.version import ENGINE_VERSION
+from ..core.version import BUILD_HASH, ENGINE_VERSION, short_build
 from .protocol import Pool
 
 CONNECT_SECONDS = 5        # scheduler unreachable: one line within this (docs/command-line.md: within 6 s)
@@ -123,10 +123,15 @@ def worker_address() -> str:
         return "a worker"
 
 
-def check_version(client_version: str) -> None:
-    if client_version != ENGINE_VERSION:
+def check_version(client_version) -> None:
+    """client_version: the client's (ENGINE_VERSION, BUILD_HASH) (or its version alone)."""
+    version, build = client_version if isinstance(client_version, tuple) else (client_version, None)
+    if version != ENGINE_VERSION:
         raise RuntimeError(f"worker {worker_address()} runs engine {ENGINE_VERSION}, this is "
-                           f"{client_version}: refused")
+                           f"{version}: refused")
+    if build != BUILD_HASH:
+        raise RuntimeError(f"worker {worker_address()} runs engine build {short_build(BUILD_HASH)}, this is "
+                           f"build {short_build(build)} (another checkout of the tracer): refused")
 
 
 def prepare_task(blob: bytes, key: str, client_version: str):
@@ -153,8 +158,9 @@ def render_unit_task(blob: bytes, key: str, unit: tuple, client_version: str):
     return worker_scene(key, blob).render_unit(unit_from_plain(unit), TaskCancelled())
 
 
-def engine_version() -> str:
-    return ENGINE_VERSION
+def engine_version() -> tuple:
+    """(ENGINE_VERSION, BUILD_HASH) of this worker's engine (a worker of an older engine: its version alone)."""
+    return ENGINE_VERSION, BUILD_HASH
 
 
 def running_units(dask_worker, prefix):
@@ -264,14 +270,19 @@ class DaskPool(Pool):
                                f"(start some: dask worker {self.address})") from None
         versions = self.client.run(call, f"{__name__}:engine_version", on_error="return")
         good, refused = [], []
-        for worker, version in sorted(versions.items()):
-            if version == ENGINE_VERSION:
-                good.append(worker)
-            elif isinstance(version, BaseException):
-                refused.append(f"worker {worker} cannot run the engine ({type(version).__name__}: {version}; "
+        for worker, identity in sorted(versions.items()):
+            if isinstance(identity, BaseException):
+                refused.append(f"worker {worker} cannot run the engine ({type(identity).__name__}: {identity}; "
                                f"is the project on its PYTHONPATH?)")
-            else:
+                continue
+            version, build = identity if isinstance(identity, tuple) else (identity, None)
+            if version != ENGINE_VERSION:
                 refused.append(f"worker {worker} runs engine {version}, this is {ENGINE_VERSION}: refused")
+            elif build != BUILD_HASH:
+                refused.append(f"worker {worker} runs engine build {short_build(build)}, this is build "
+                               f"{short_build(BUILD_HASH)} (another checkout of the tracer): refused")
+            else:
+                good.append(worker)
         if not good:
             raise ClusterError("; ".join(refused) or f"no usable worker at {self.address}")
         for message in refused:
@@ -285,7 +296,7 @@ class DaskPool(Pool):
         payload_key = f"{KEY_PREFIX}-scene-{self.render_id}"
         self.payload = self.client.submit(call, f"{__name__}:hold_payload", blob, key=payload_key, pure=False,
                                           **self.restrict)
-        facts = self.client.submit(call, f"{__name__}:prepare_task", self.payload, payload_key, ENGINE_VERSION,
+        facts = self.client.submit(call, f"{__name__}:prepare_task", self.payload, payload_key, (ENGINE_VERSION, BUILD_HASH),
                                    key=f"{KEY_PREFIX}-facts-{self.render_id}", pure=False, **self.restrict)
         try:
             facts = facts.result()
@@ -303,7 +314,7 @@ class DaskPool(Pool):
         for unit in units:
             key = f"{self.unit_prefix}-{unit.index}"
             future = self.client.submit(call, f"{__name__}:render_unit_task", self.payload, self.payload.key,
-                                        plain_unit(unit), ENGINE_VERSION, key=key, pure=False,
+                                        plain_unit(unit), (ENGINE_VERSION, BUILD_HASH), key=key, pure=False,
                                         retries=UNIT_RETRIES, **self.restrict)
             self.futures.append(future)
             self.unit_of[key] = unit

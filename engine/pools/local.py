@@ -11,14 +11,17 @@ from __future__ import annotations
 
 import os
 import queue
+import signal
 import sys
 import threading
+import time
 import traceback
 from concurrent.futures import ThreadPoolExecutor
 
 from ..rendering.session import PreparedScene
+from .faults import CANCEL_SECONDS, POLL, Dispatch, Worker
 from .protocol import Pool
-from .transport import die_with_parent
+from .transport import describe_exit, die_with_parent
 
 PARALLELISM = ("auto", "threads", "processes")
 
@@ -71,32 +74,81 @@ class ThreadPool(Pool):
 _FORKED_SCENE = None   # set just before fork; the children inherit it
 
 
-def _process_main(tasks, results, cancel_event, parent_pid):
+class SharedFlag:
+    """A cancel flag in shared memory without a lock: a worker killed while reading it (SIGKILL,
+    the OOM killer) leaves no lock held that would block the parent's set() (a multiprocessing
+    Event's would)."""
+
+    def __init__(self, ctx):
+        self.value = ctx.RawValue("b", 0)
+
+    def set(self):
+        self.value.value = 1
+
+    def is_set(self) -> bool:
+        return bool(self.value.value)
+
+
+def _process_main(conn, cancel_flag, parent_pid):
     die_with_parent(parent_pid)
     prepared = _FORKED_SCENE
     while True:
-        unit = tasks.get()
+        try:
+            unit = conn.recv()
+        except (EOFError, OSError):
+            return
         if unit is None:
             return
         try:
-            results.put((unit, prepared.render_unit(unit, cancel_event), None))
+            answer = (unit, prepared.render_unit(unit, cancel_flag), None)
         except BaseException:
-            results.put((unit, None, traceback.format_exc()))
+            answer = (unit, None, traceback.format_exc())
+        try:
+            conn.send(answer)
+        except (BrokenPipeError, OSError):
+            return
+
+
+class _Fork(Worker):
+    """A forked worker: its process and its own pipe (a worker killed mid-message breaks no other's)."""
+
+    def __init__(self, number, ctx, cancel_flag):
+        super().__init__()
+        self.conn, child = ctx.Pipe(duplex=True)
+        self.proc = ctx.Process(target=_process_main, args=(child, cancel_flag, os.getpid()), daemon=True)
+        self.proc.start()
+        child.close()
+        self.ready = True                        # it inherits the prepared scene
+        self.name = f"render worker {number} (pid {self.proc.pid})"
+
+    def send_unit(self, unit):
+        try:
+            self.conn.send(unit)
+        except (BrokenPipeError, OSError):
+            pass                                 # it died: its sentinel reports it
+
+    def kill(self):
+        try:
+            os.kill(self.proc.pid, signal.SIGKILL)
+        except OSError:
+            pass
 
 
 class ForkPool(Pool):
+    """Forked processes; faults as in engine/pools/faults.py (a dead or stopped worker's units
+    are rendered by the others)."""
+
     describe = "processes"
 
     def __init__(self, count: int, log=print):
         self.count, self.log = max(1, count), log
-        self.procs = []
+        self.workers: list[_Fork] = []
         # imported here: importing multiprocessing aliases sys.modules["__mp_main__"] to __main__, and in
         # Blender 3.4 that stale module crashes addon_utils.disable_all when Blender quits
         import multiprocessing
         self.ctx = multiprocessing.get_context("fork")
-        self.tasks = self.ctx.Queue()
-        self.results = self.ctx.Queue()
-        self.cancel_event = self.ctx.Event()
+        self.cancel_flag = SharedFlag(self.ctx)
+        self.dispatch = Dispatch(self.workers, log=log)
 
     def prepare(self, scene, settings):
         """Prepare the scene here, then fork the workers: each inherits it."""
@@ -104,38 +156,80 @@ class ForkPool(Pool):
         prepared = PreparedScene(scene, settings, log=self.log)
         _FORKED_SCENE = prepared
         try:
-            self.procs = [self.ctx.Process(target=_process_main, args=(self.tasks, self.results, self.cancel_event,
-                                                                          os.getpid()),
-                                           daemon=True) for _ in range(self.count)]
-            for p in self.procs:
-                p.start()
+            for i in range(self.count):
+                self.workers.append(_Fork(i + 1, self.ctx, self.cancel_flag))
         finally:
             _FORKED_SCENE = None
         return prepared.facts()
 
+    @property
+    def procs(self):
+        return [w.proc for w in self.workers]
+
     def start(self, units):
-        for unit in units:
-            self.tasks.put(unit)
+        self.dispatch.start(units)
 
     def next_result(self, timeout: float):
+        from multiprocessing.connection import wait
+        deadline = time.perf_counter() + timeout
+        while True:
+            answer = self.dispatch.check()
+            if answer is not None:
+                return answer
+            live = self.dispatch.alive()
+            if not live:
+                return None
+            waiting = {w.conn: w for w in live}
+            waiting.update({w.proc.sentinel: w for w in live})
+            ready = wait(list(waiting), timeout=max(0.0, min(POLL, deadline - time.perf_counter())))
+            for handle in ready:
+                worker = waiting[handle]
+                if not worker.alive:
+                    continue
+                answer = self._receive(worker)
+                if answer is not None:
+                    return answer
+            if time.perf_counter() >= deadline:
+                return None
+
+    def _receive(self, worker):
+        """The worker's next answer, or what its death means (engine/pools/faults.py)."""
         try:
-            unit, result, error = self.results.get(timeout=timeout)
-        except queue.Empty:
-            if not any(p.is_alive() for p in self.procs) and self.results.empty():
-                raise RuntimeError("TNCG15 MC: all render worker processes died") from None
+            if worker.conn.poll():
+                unit, result, error = worker.conn.recv()
+                if unit not in worker.in_flight:
+                    return None                  # already answered (given up after a cancel)
+                self.dispatch.finished(worker, unit)
+                if isinstance(error, str):
+                    error = RuntimeError(f"{worker.name} failed:\n{error}")
+                return unit, result, error
+        except (EOFError, OSError):
+            pass
+        if worker.proc.is_alive():
             return None
-        if isinstance(error, str):
-            error = RuntimeError(f"render worker failed:\n{error}")
-        return unit, result, error
+        worker.proc.join()
+        return self.dispatch.died(worker, describe_exit(worker.proc.exitcode))
 
     def cancel(self):
-        self.cancel_event.set()
+        self.cancel_flag.set()
+        self.dispatch.cancel()
 
     def close(self):
-        self.cancel_event.set()
-        for _ in self.procs:
-            self.tasks.put(None)                 # the end of the units
-        for p in self.procs:
-            p.join(timeout=5)
-            if p.is_alive():
-                p.terminate()
+        self.dispatch.closing = True
+        self.cancel_flag.set()
+        for w in self.workers:
+            if w.alive:
+                w.send_unit(None)                # the end of the units
+        end = time.perf_counter() + CANCEL_SECONDS     # then SIGKILL: a stopped worker never ends
+        for w in self.workers:
+            w.proc.join(timeout=max(0.0, end - time.perf_counter()))
+            if w.proc.is_alive():
+                w.kill()
+                w.proc.join()
+            w.conn.close()
+
+    def stats(self) -> dict:
+        return {"worker_reports": list(self.dispatch.reports)} if self.dispatch.reports else {}
+
+    def warnings(self) -> list:
+        return list(self.dispatch.reports)

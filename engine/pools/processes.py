@@ -15,12 +15,12 @@ answers every unit left with None.  EOF on stdin ends the worker.
 
 `SubprocessPool` is the pool (engine/pools/protocol.py): it starts the workers when it is made,
 before the scene exists (their imports overlap the export), sends the scene once to each in
-prepare(), keeps two units in flight per worker, re-queues the units of a worker that dies (once
-per unit) and reports it by name.
+prepare(), and dispatches the units with the fault model of engine/pools/faults.py: two units in
+flight per worker, a worker that dies or stops answering reported by name and its units rendered by
+the others.
 """
 from __future__ import annotations
 
-import collections
 import os
 import queue
 import signal
@@ -30,10 +30,10 @@ import time
 import traceback
 
 from ..core.paths import TRACER_DIR, worker_environment
+from .faults import POLL, Dispatch, Worker
 from .protocol import Pool
 from .transport import REFUSED, WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr
 
-IN_FLIGHT = 2                             # units queued per worker, so none waits for the next (_feed)
 START_TIMEOUT = 120.0                     # seconds for imports + scene + BVH before a worker is given up
 CLOSE_SECONDS = 2.0                       # EOF, then SIGKILL
 
@@ -71,20 +71,26 @@ def worker_main(parent_pid: int) -> int:
 
 
 # -- the parent side ------------------------------------------------------------------------------
-class _Worker(WorkerProcess):
-    """A render worker and the units it holds."""
+class _Worker(WorkerProcess, Worker):
+    """A render worker and the units it holds (engine/pools/faults.py)."""
 
     def __init__(self, number: int, python: str, env: dict, events: queue.Queue):
+        Worker.__init__(self)
         self.number = number
-        self.in_flight: list = []
-        self.alive, self.ready = True, False
-        super().__init__(python, [os.path.basename(TRACER_DIR), "worker"], env, f"render worker {number}",
-                         on_message=lambda w, m: events.put((w, m)),
-                         on_exit=lambda w, code: events.put((w, ("died", code))))
+        WorkerProcess.__init__(self, python, [os.path.basename(TRACER_DIR), "worker"], env, f"render worker {number}",
+                               on_message=lambda w, m: events.put((w, m)),
+                               on_exit=lambda w, code: events.put((w, ("died", code))))
+
+    def send_unit(self, unit):
+        self.send(("unit", unit))
+
+    def kill(self):
+        self.signal(signal.SIGKILL)
 
 
 class SubprocessPool(Pool):
-    """Worker processes of `python` (`count` of them, started here)."""
+    """Worker processes of `python` (`count` of them, started here); faults as in
+    engine/pools/faults.py."""
 
     def __init__(self, python: str, count: int, extra_paths=(), log=print):
         self.python, self.log = python, log
@@ -99,15 +105,12 @@ class SubprocessPool(Pool):
             raise WorkerError(f"TNCG15 MC: cannot start render workers with {python}: "
                               f"{exc.strerror or exc}") from None
         self.describe = f"{len(self.workers)} worker process(es) ({python})"
-        self.pending: collections.deque = collections.deque()
-        self.retried: set = set()
-        self.cancelled = False
-        self.reports: list[str] = []            # workers that died, by name
+        self.dispatch = Dispatch(self.workers, log=log, start_seconds=START_TIMEOUT)
+        self.reports = self.dispatch.reports    # workers that died, by name
         self.facts = None
         self.ready_seconds = None
         self._started = time.perf_counter()
         self._early: list = []                  # events seen while waiting for "ready"
-        self._closing = False
 
     # -- preparation ----------------------------------------------------------------------------
     def prepare(self, scene, settings, timeout: float = START_TIMEOUT):
@@ -123,7 +126,7 @@ class SubprocessPool(Pool):
                 self.close()
                 raise WorkerError(f"render workers ({self.python}) did not start within {timeout:.0f} s") from None
             if event[0] == "ready":
-                worker.ready = True
+                self.dispatch.became_ready(worker)
                 self.facts = event[1]
                 self.ready_seconds = time.perf_counter() - self._started
             elif event[0] == "died":
@@ -140,82 +143,53 @@ class SubprocessPool(Pool):
 
     # -- the pool protocol ----------------------------------------------------------------------
     def start(self, units):
-        self.pending.extend(units)
-        for w in self.workers:                  # every worker its first unit before any takes a second
-            self._feed(w, limit=1)
-        for w in self.workers:
-            self._feed(w)
-
-    def _feed(self, worker, limit: int = IN_FLIGHT):
-        """Send `worker` units until it has `limit` in flight.  A second unit is queued only while
-        more units than live workers are pending: a queued unit waits for its worker even when
-        another is idle, and a round of few units (adaptive rounds: one per tile still active) then
-        ended when the worker holding two big ones did (measured: docs/performance.md, "Worker
-        processes")."""
-        alive = sum(w.alive for w in self.workers)
-        while (worker.alive and not self.cancelled and self.pending and len(worker.in_flight) < limit
-               and (not worker.in_flight or len(self.pending) > alive)):
-            unit = self.pending.popleft()
-            worker.in_flight.append(unit)
-            worker.send(("unit", unit))         # if it died, its "died" event re-queues the unit
+        self.dispatch.start(units)
 
     def next_result(self, timeout: float):
-        if self.cancelled and self.pending:
-            return self.pending.popleft(), None, None      # never sent: dropped like a cancelled unit
-        if self._early:
-            worker, event = self._early.pop(0)
-        else:
-            try:
-                worker, event = self.events.get(timeout=timeout)
-            except queue.Empty:
-                return None
+        deadline = time.perf_counter() + timeout
+        while True:
+            answer = self.dispatch.check()
+            if answer is not None:
+                return answer
+            if self._early:
+                worker, event = self._early.pop(0)
+            else:
+                try:
+                    worker, event = self.events.get(timeout=max(0.0, min(POLL, deadline - time.perf_counter())))
+                except queue.Empty:
+                    if time.perf_counter() >= deadline:
+                        return None
+                    continue
+            answer = self._event(worker, event)
+            if answer is not None:
+                return answer
+
+    def _event(self, worker, event):
         kind = event[0]
         if kind == "ready":
-            worker.ready = True
+            self.dispatch.became_ready(worker)
             return None
         if kind == "died":
-            return self._died(worker, event[1])
+            return self.dispatch.died(worker, worker.why(event[1]))
         unit = event[1]
-        if unit in worker.in_flight:
-            worker.in_flight.remove(unit)
-        self._feed(worker)
+        if unit not in worker.in_flight:
+            return None                         # already answered (given up after a cancel)
+        self.dispatch.finished(worker, unit)
         if kind == "error":
             where = f"tile {unit.tile.index}" if hasattr(unit, "tile") else repr(unit)
             return unit, None, WorkerError(f"{worker.name} failed on {where}:\n{event[2]}")
         return unit, event[2], None
 
-    def _died(self, worker, code):
-        worker.alive = False
-        lost, worker.in_flight = worker.in_flight, []
-        if self.cancelled or self._closing:
-            self.pending.extend(lost)           # answered as cancelled by next_result
-            return None
-        message = f"{worker.name} died: {worker.why(code)}"
-        self.reports.append(message)
-        self.log(f"warning: {message}")
-        survivors = [w for w in self.workers if w.alive]
-        again = [u for u in lost if u.index not in self.retried]
-        if not survivors or len(again) < len(lost):
-            self.pending.extend(lost)
-            failed = self.pending.popleft() if self.pending else None
-            return failed, None, WorkerError(message + ("; no render worker is left" if not survivors else
-                                                        "; its unit had already been retried once"))
-        self.retried.update(u.index for u in again)
-        self.pending.extendleft(reversed(again))
-        for w in survivors:
-            self._feed(w)
-        return None
-
     def cancel(self):
-        if self.cancelled:
+        if self.dispatch.cancelled:
             return
-        self.cancelled = True
+        self.dispatch.cancel()
         for w in self.workers:
             if w.alive:
                 w.signal(signal.SIGUSR1)
 
     def close(self):
-        self._closing = True
+        self.dispatch.closing = True
         close_all(self.workers, CLOSE_SECONDS)
 
     def stats(self) -> dict:

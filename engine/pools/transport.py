@@ -6,9 +6,10 @@ directory (and any bundled wheels) on PYTHONPATH (engine/core/paths.py worker_en
 
 * Frames: a little-endian 8-byte length, then a pickle.  The worker's stdout carries only frames
   (the tracer's own prints go to stderr); stdin carries the parent's frames; EOF ends the worker.
-* Handshake: the parent's first frame is ("hello", its tracer package, its engine version); the
-  worker answers ("hello", its engine version, its Python version, its pid), and a worker of
-  another engine version refuses (one line on stderr, exit code 3).
+* Handshake: the parent's first frame is ("hello", its tracer package, its engine version, its
+  build hash); the worker answers ("hello", its engine version, its Python version, its pid, its
+  build hash), and a worker of another engine version or build (engine/core/version.py BUILD_HASH:
+  another checkout) refuses (one line on stderr naming both, exit code 3).
 * Package names: the parent may import the tracer as, say, ``tncg15_mc.tracer`` and the worker as
   ``tracer``; each side maps the other's package name onto its own when it unpickles.
 * Stderr: the last lines are kept for the message when a worker dies; lines that are not warnings
@@ -33,11 +34,11 @@ import threading
 import traceback
 
 from ..core.paths import TRACER_BASE, TRACER_DIR
-from ..core.version import ENGINE_VERSION
+from ..core.version import BUILD_HASH, ENGINE_VERSION, short_build
 
 HEADER = struct.Struct("<Q")
 PR_SET_PDEATHSIG = 1
-REFUSED = 3                       # the worker's exit code when the engine versions differ
+REFUSED = 3                       # the worker's exit code when the engine versions or builds differ
 
 
 # -- frames ---------------------------------------------------------------------------------------
@@ -100,14 +101,19 @@ class WorkerEnd:
         self.lock = threading.Lock()
 
     def handshake(self) -> bool:
-        """Read the parent's hello and answer it; False at EOF or when the engine versions differ."""
+        """Read the parent's hello and answer it; False at EOF or when the engine versions or builds differ."""
         data = read_frame(self.inp)
         if data is None:
             return False
-        _, self.foreign, version = pickle.loads(data)
-        self.send(("hello", ENGINE_VERSION, sys.version.split()[0], os.getpid()))
+        _, self.foreign, version, *build = pickle.loads(data)
+        build = build[0] if build else None
+        self.send(("hello", ENGINE_VERSION, sys.version.split()[0], os.getpid(), BUILD_HASH))
         if version != ENGINE_VERSION:
             print(f"this worker runs engine {ENGINE_VERSION}, the parent {version}: refused", file=sys.stderr)
+            return False
+        if build != BUILD_HASH:
+            print(f"this worker runs engine build {short_build(BUILD_HASH)}, the parent build {short_build(build)} "
+                  "(another checkout of the tracer): refused", file=sys.stderr)
             return False
         return True
 
@@ -160,7 +166,7 @@ class WorkerProcess:
         self.version = self.python_version = None       # from the worker's hello
         self.closed = False
         self.outbox: queue.Queue = queue.Queue()
-        self.outbox.put(("hello", TRACER_BASE, ENGINE_VERSION))
+        self.outbox.put(("hello", TRACER_BASE, ENGINE_VERSION, BUILD_HASH))
         self.stderr_reader = threading.Thread(target=self._read_stderr, daemon=True, name=self.name + " stderr")
         self.stderr_reader.start()
         threading.Thread(target=self._write, daemon=True, name=self.name + " stdin").start()
@@ -192,7 +198,7 @@ class WorkerProcess:
         try:
             data = read_frame(stream)
             if data is not None:
-                _, self.version, self.python_version, _ = decode(data, foreign)
+                _, self.version, self.python_version, _, *self.build = decode(data, foreign)
                 while True:
                     data = read_frame(stream)
                     if data is None:

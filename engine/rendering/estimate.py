@@ -21,7 +21,7 @@ paths that costs about as much as TAIL_PATHS more paths, and the round lasts c t
 of its units on the workers, each taking the next unit when free: when few tiles are left active, a
 worker idles (the measurements behind both: docs/performance.md, "Stopping rules").  b (seconds per
 unit of work) and c (wall seconds per makespan second; the workers take units greedily, see
-engine/pools/processes.py SubprocessPool._feed) come from the pilot's rounds after the first (the first
+engine/pools/faults.py Dispatch.feed) come from the pilot's rounds after the first (the first
 pays the workers' warm-up); the pilot's own seconds are part of the predicted time.  Setup (scene
 preparation, worker start) is reported apart, as `setup_seconds`.
 

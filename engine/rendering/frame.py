@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.errors import WorkersLost
 from ..core.settings import stats_of
 from ..core.version import ENGINE_NAME, ENGINE_VERSION
 from ..film.accumulator import Film
@@ -163,13 +164,17 @@ class Frame:
             cancelled = reason is not None
         finally:
             pool.close()
-        if error is not None:
+        if error is not None and not isinstance(error, WorkersLost):
             raise error
-        if cancelled:                                      # keep every unit that finished
+        if cancelled or error is not None:                 # keep every unit that finished
             for tile in self.film.flush():
                 if on_tile is not None:
                     on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
-        return self.result(time.perf_counter() - start, cancelled, pool.describe)
+        result = self.result(time.perf_counter() - start, cancelled or error is not None, pool.describe)
+        if error is not None:                              # no worker left: the finished units go with it
+            error.result = result
+            raise error
+        return result
 
     def error_stats(self, seconds: float) -> dict:
         """estimated_rel_error and seconds_to_target (docs/user-guide.md: Stopping rules)."""

@@ -43,8 +43,19 @@ def _sphere_mode(ob):
     return props.implicit_sphere if props is not None else "AUTO"
 
 
+def own_geometry(inst, ob) -> bool:
+    """Is this instance the evaluated mesh of a curve, text, metaball or NURBS surface object (its
+    original), which the depsgraph lists beside the object itself (Blender 3.0+)?  Then it is that
+    object's geometry, taken once (as Cycles takes only the instances whose data is a mesh)."""
+    original = getattr(ob, "original", None)
+    return (inst.is_instance and ob.type == "MESH" and original is not None and original.type in CONVERTIBLE_TYPES
+            and inst.parent is not None and inst.parent.original == original)
+
+
 def instance_label(inst, ob):
-    return ob.name if not inst.is_instance else f"{ob.name} (instanced by {inst.parent.name})"
+    if not inst.is_instance or own_geometry(inst, ob):
+        return ob.name
+    return f"{ob.name} (instanced by {inst.parent.name})"
 
 
 def finite_matrix(inst, ob):
@@ -93,6 +104,89 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     n_instances = n_triangles = 0
     skipped = set()
     terminator_warned = set()
+    def add_geometry(ob, otype, matrix, label, own=False):
+        """One evaluated geometry (a mesh, or a convertible object through to_mesh()) as a
+        triangle mesh or an implicit sphere; own: the evaluated mesh of a convertible object
+        (own_geometry: never an implicit sphere, not kept in mesh_cache, as a converted one)."""
+        nonlocal n_instances, n_triangles
+
+        key = ob.data.as_pointer() if (otype == "MESH" and ob.data is not None) else None
+        slot_ids = np.asarray(table.slot_indices(ob), dtype=np.int64)
+        uv_map = table.uv_map(slot_ids)                 # None: no textured material, no UVs
+        arrays = cache.get((key, uv_map)) if key is not None else None
+        kept = (ob.name, ob.data.name, uv_map) if (mesh_cache is not None and key is not None and not own) else None
+        if arrays is None and kept is not None:
+            arrays = mesh_cache.get(kept)
+        if arrays is None:
+            if otype == "MESH":
+                arrays = mesh_arrays(ob.data) + (corner_uvs(ob.data, uv_map, label, warnings), mesh_normals(ob.data))
+            else:
+                me = ob.to_mesh()
+                try:
+                    arrays = (mesh_arrays(me) + (corner_uvs(me, uv_map, label, warnings), mesh_normals(me))
+                              if me is not None else None)
+                finally:
+                    ob.to_mesh_clear()
+                if arrays is None:
+                    return
+            if key is not None:
+                cache[(key, uv_map)] = arrays
+            if kept is not None:
+                mesh_cache[kept] = arrays
+        verts, tris, slots, uvs, shading = arrays
+        if len(tris) == 0:
+            if otype == "MESH" and ob.name not in skipped:
+                skipped.add(ob.name)
+                warnings.append(f"Object '{ob.name}': mesh has no faces; skipped")
+            return
+        mat_ids = slot_ids[np.clip(slots, 0, len(slot_ids) - 1)]
+
+        mode = _sphere_mode(ob) if otype == "MESH" and uv_map is None and not own else "NEVER"   # spheres have no UVs
+        if mode != "NEVER":
+            fit = sphere_fit(verts, tris, slots)
+            scale = uniform_scale(matrix)
+            if mode == "ALWAYS" and (fit is None or scale is None):
+                if len(np.unique(mat_ids)) > 1:
+                    warnings.append(f"Object '{label}': implicit sphere uses the first material only")
+                if scale is None:
+                    warnings.append(f"Object '{label}': non-uniform scale; implicit sphere uses "
+                                    "the largest axis")
+                centre, radius = bounding_sphere(verts)
+                s = float(np.linalg.svd(matrix[:3, :3], compute_uv=False).max())
+                fit, scale = (centre, radius), s
+            if fit is not None and scale is not None:
+                centre = transform_points(fit[0][None, :], matrix)[0]
+                spheres.append(sm.Sphere(name=label, center=tuple(float(c) for c in centre),
+                                         radius=fit[1] * scale, material_id=int(mat_ids[0])))
+                n_instances += 1
+                return
+        world_verts = transform_points(verts, matrix)
+        emissive = np.array([max(table.materials[i].emission) > 0 for i in slot_ids])[np.clip(slots, 0, len(slot_ids) - 1)]
+        if emissive.any():
+            v = world_verts[tris[emissive]]
+            if not np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum() > 0:
+                raise ExportError(f"Object '{label}': emitter has zero area")
+        mirrored = np.linalg.det(matrix[:3, :3]) <= 0
+        tri_idx = tris[:, ::-1] if mirrored else tris
+        if uvs is not None and mirrored:
+            uvs = uvs[:, ::-1]
+        normals = smooth = None
+        terminator = 0.1
+        if shading is not None:                     # smooth faces: corner normals in world space
+            normals = transform_normals(shading[0], matrix)
+            normals, smooth = (normals[:, ::-1], shading[1]) if mirrored else (normals, shading[1])
+            terminator, unmodelled = terminator_offsets(ob)
+            if unmodelled and ob.name not in terminator_warned:
+                terminator_warned.add(ob.name)
+                warnings.append(f"Object '{ob.name}': shadow terminator {' and '.join(unmodelled)} not "
+                                "supported (only the geometry offset); ignored")
+        meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
+                                      material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
+                                      terminator_offset=terminator))
+        n_instances += 1
+        n_triangles += len(tris)
+
+    convertible, converted = [], []       # convertible objects; (name, matrix) of their evaluated meshes
     for n, inst in enumerate(depsgraph.object_instances):
         if test_break is not None and n % 512 == 0 and test_break():
             raise ExportCancelled()
@@ -127,85 +221,22 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             continue
         if otype != "MESH" and otype not in CONVERTIBLE_TYPES:
             continue
+        if not inst.is_instance and not inst.show_self:
+            continue                         # an instancer shown only by its instances (as in Cycles)
         matrix = finite_matrix(inst, ob)     # a copy: inst is transient
-        label = instance_label(inst, ob)
-
-        key = ob.data.as_pointer() if (otype == "MESH" and ob.data is not None) else None
-        slot_ids = np.asarray(table.slot_indices(ob), dtype=np.int64)
-        uv_map = table.uv_map(slot_ids)                 # None: no textured material, no UVs
-        arrays = cache.get((key, uv_map)) if key is not None else None
-        kept = (ob.name, ob.data.name, uv_map) if (mesh_cache is not None and key is not None) else None
-        if arrays is None and kept is not None:
-            arrays = mesh_cache.get(kept)
-        if arrays is None:
-            if otype == "MESH":
-                arrays = mesh_arrays(ob.data) + (corner_uvs(ob.data, uv_map, label, warnings), mesh_normals(ob.data))
-            else:
-                me = ob.to_mesh()
-                try:
-                    arrays = (mesh_arrays(me) + (corner_uvs(me, uv_map, label, warnings), mesh_normals(me))
-                              if me is not None else None)
-                finally:
-                    ob.to_mesh_clear()
-                if arrays is None:
-                    continue
-            if key is not None:
-                cache[(key, uv_map)] = arrays
-            if kept is not None:
-                mesh_cache[kept] = arrays
-        verts, tris, slots, uvs, shading = arrays
-        if len(tris) == 0:
-            if otype == "MESH" and ob.name not in skipped:
-                skipped.add(ob.name)
-                warnings.append(f"Object '{ob.name}': mesh has no faces; skipped")
+        if otype in CONVERTIBLE_TYPES:
+            # Blender 3.0+ lists the evaluated mesh of a curve, text, metaball or NURBS surface as an
+            # instance of its own (below): the object itself is converted only when none came
+            convertible.append((ob, otype, matrix, instance_label(inst, ob)))
             continue
-        mat_ids = slot_ids[np.clip(slots, 0, len(slot_ids) - 1)]
+        own = own_geometry(inst, ob)
+        if own:
+            converted.append((ob.original.name, matrix))
+        add_geometry(ob, otype, matrix, instance_label(inst, ob), own)
 
-        mode = _sphere_mode(ob) if otype == "MESH" and uv_map is None else "NEVER"   # spheres have no UVs
-        if mode != "NEVER":
-            fit = sphere_fit(verts, tris, slots)
-            scale = uniform_scale(matrix)
-            if mode == "ALWAYS" and (fit is None or scale is None):
-                if len(np.unique(mat_ids)) > 1:
-                    warnings.append(f"Object '{label}': implicit sphere uses the first material only")
-                if scale is None:
-                    warnings.append(f"Object '{label}': non-uniform scale; implicit sphere uses "
-                                    "the largest axis")
-                centre, radius = bounding_sphere(verts)
-                s = float(np.linalg.svd(matrix[:3, :3], compute_uv=False).max())
-                fit, scale = (centre, radius), s
-            if fit is not None and scale is not None:
-                centre = transform_points(fit[0][None, :], matrix)[0]
-                spheres.append(sm.Sphere(name=label, center=tuple(float(c) for c in centre),
-                                         radius=fit[1] * scale, material_id=int(mat_ids[0])))
-                n_instances += 1
-                continue
-        world_verts = transform_points(verts, matrix)
-        emissive = np.array([max(table.materials[i].emission) > 0 for i in slot_ids])[np.clip(slots, 0, len(slot_ids) - 1)]
-        if emissive.any():
-            v = world_verts[tris[emissive]]
-            if not np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum() > 0:
-                raise ExportError(f"Object '{label}': emitter has zero area")
-        mirrored = np.linalg.det(matrix[:3, :3]) <= 0
-        tri_idx = tris[:, ::-1] if mirrored else tris
-        if uvs is not None and mirrored:
-            uvs = uvs[:, ::-1]
-        normals = smooth = None
-        terminator = 0.1
-        if shading is not None:                     # smooth faces: corner normals in world space
-            normals = transform_normals(shading[0], matrix)
-            normals, smooth = (normals[:, ::-1], shading[1]) if mirrored else (normals, shading[1])
-            terminator, unmodelled = terminator_offsets(ob)
-            if unmodelled and ob.name not in terminator_warned:
-                terminator_warned.add(ob.name)
-                warnings.append(f"Object '{ob.name}': shadow terminator {' and '.join(unmodelled)} not "
-                                "supported (only the geometry offset); ignored")
-        meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
-                                      material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
-                                      terminator_offset=terminator))
-        n_instances += 1
-        n_triangles += len(tris)
-
+    for ob, otype, matrix, label in convertible:
+        if not any(name == ob.original.name and np.allclose(m, matrix) for name, m in converted):
+            add_geometry(ob, otype, matrix, label)
     materials = table.materials or [sm.Material(name="(unused)")]
     background = export_world(scene.world, warnings)
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],

@@ -255,3 +255,21 @@ def test_killed_render_leaves_no_worker(tmp_path):
         time.sleep(0.1)
     assert not any(map(alive, workers))
     assert not os.path.exists(tmp_path / "out.exr")
+
+
+@pytest.mark.parametrize("option", ["-o", "--png", "--stats-json"])
+def test_an_output_onto_a_texture_of_the_scene_file_is_refused(tmp_path, option):
+    from engine.film.image_files import write_png
+    from tests.scene.test_texture_fields import write_scene
+    (tmp_path / "images").mkdir()
+    write_png(str(tmp_path / "images" / "checker.png"), np.full((2, 2, 3), 0.5, np.float32))
+    scene = write_scene(tmp_path, [{"name": "Checker", "path": "images/checker.png"}], {"texture": "Checker"})
+    before = snapshot(tmp_path)
+    target = tmp_path / "images" / "checker.png"
+    output = [] if option == "-o" else ["-o", tmp_path / "out.exr"]
+    r = run("render", scene, *output, option, target, "--samples", "1")
+    assert_one_line(r, 2, f"{option} '{target}': is an input file; refusing to overwrite it "
+                          "(the file of the scene's texture 'Checker')")
+    assert snapshot(tmp_path) == before
+    control = run("render", scene, "-o", tmp_path / "out.exr", "--samples", "1")
+    assert control.returncode == 0, control.stderr           # the scene itself renders

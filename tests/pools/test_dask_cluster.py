@@ -197,6 +197,32 @@ def test_a_worker_of_another_engine_version_is_refused(cluster, tmp_path):
         cluster.stop(proc)
 
 
+def other_build(tmp: Path) -> Path:
+    """A copy of the engine of the same ENGINE_VERSION that differs by one comment: another checkout."""
+    copy = other_engine(tmp, ENGINE_VERSION)
+    version = copy / "engine" / "core" / "version.py"
+    version.write_text(version.read_text() + "# another checkout\n")
+    return copy
+
+
+def test_a_worker_of_another_build_of_the_same_version_is_refused(tmp_path):
+    from engine.core.version import BUILD_HASH
+    lonely = Cluster(tmp_path / "lonely", workers=0)
+    try:
+        lonely.add_worker("other", pythonpath=other_build(tmp_path), nanny=False)
+        with pytest.raises(ClusterError, match=r"worker tcp://127\.0\.0\.1:\d+ runs engine build [0-9a-f]{12}, "
+                                                f"this is build {BUILD_HASH[:12]} \\(another checkout"):
+            render(cornell_scene((16, 16)), RenderSettings(samples=1), pool=dask(lonely.address), **SILENT)
+    finally:
+        lonely.close()
+
+
+def test_a_unit_checks_the_engine_build_on_the_worker():
+    from engine.pools.dask_cluster import render_unit_task
+    with pytest.raises(RuntimeError, match="runs engine build [0-9a-f]{12}, this is build 0123456789ab"):
+        render_unit_task(b"", "key", 0, (ENGINE_VERSION, "0123456789abcdef"))
+
+
 def test_a_unit_checks_the_engine_version_on_the_worker():
     from engine.pools.dask_cluster import render_unit_task
     with pytest.raises(RuntimeError, match=f"runs engine {ENGINE_VERSION}, this is 9.9.9: refused"):

@@ -1,7 +1,6 @@
 """Worker processes (engine/pools/processes.py, make_pool("workers")): real processes of this Python,
 the same image as the local pool, a killed worker reported by name with its units rendered
 elsewhere, Esc within a second."""
-import collections
 import os
 import signal
 import sys
@@ -12,6 +11,7 @@ import pytest
 
 from engine import RenderSettings, render
 from engine.scene.builtin import cornell_scene
+from engine.pools.faults import Dispatch, Worker
 from engine.pools.processes import SubprocessPool, WorkerError
 from engine.pools.spec import make_pool
 from tests.load_tolerance import prompt_limit
@@ -97,21 +97,15 @@ def test_an_error_in_a_unit_names_the_worker(monkeypatch):
     assert str(item[2]).startswith(f"render worker 1 (pid {pool.workers[0].pid}) failed")
 
 
-class _QueueOnlyWorker:
-    """A worker for the dispatch tests: it only records the units it is sent."""
+class _QueueOnlyWorker(Worker):
+    """A worker for the dispatch tests (engine/pools/faults.py): it only records the units it is sent."""
 
-    def __init__(self):
-        self.alive, self.in_flight = True, []
-
-    def send(self, data):
-        return True
+    def send_unit(self, unit):
+        pass
 
 
 def _dispatch_pool(workers: int):
-    pool = SubprocessPool.__new__(SubprocessPool)               # no processes: only the dispatch
-    pool.workers = [_QueueOnlyWorker() for _ in range(workers)]
-    pool.pending, pool.cancelled = collections.deque(), False
-    return pool
+    return Dispatch([_QueueOnlyWorker() for _ in range(workers)], log=lambda *a: None)   # no processes
 
 
 def test_a_round_of_few_units_gives_every_worker_one_before_any_gets_a_second():
@@ -122,7 +116,7 @@ def test_a_round_of_few_units_gives_every_worker_one_before_any_gets_a_second():
     assert [w.in_flight for w in pool.workers] == [["t0"], ["t1"]]
     second = pool.workers[1]
     second.in_flight.remove("t1")                  # the worker that finishes first takes the next
-    pool._feed(second)
+    pool.feed(second)
     assert second.in_flight == ["t2"] and list(pool.pending) == ["t3"]
 
 

@@ -52,3 +52,19 @@ def test_a_worker_of_another_engine_version_refuses_in_one_line():
 @pytest.mark.parametrize("code, text", [(-9, "killed by SIGKILL"), (-11, "SIGSEGV")])
 def test_exit_codes_are_described_by_their_signal(code, text):
     assert text in describe_exit(code)
+
+
+def test_a_worker_process_of_another_build_is_refused_naming_both(tmp_path, monkeypatch):
+    """A worker whose engine differs by one comment (another checkout, the same ENGINE_VERSION)."""
+    from engine.core.version import BUILD_HASH
+    from engine.pools.processes import SubprocessPool, WorkerError
+    from engine.core.settings import RenderSettings as Settings
+    from engine.scene.builtin import cornell_scene
+    from tests.pools.test_dask_cluster import other_build
+    monkeypatch.chdir(other_build(tmp_path))     # `python -m engine` imports the copy in its directory
+    pool = SubprocessPool(sys.executable, 1, log=lambda *a: None)
+    with pytest.raises(WorkerError) as err:
+        pool.prepare(cornell_scene((8, 8)), Settings(samples=1))
+    message = str(err.value)
+    assert "\n" not in message and "refused" in message, message
+    assert f"the parent build {BUILD_HASH[:12]}" in message and "runs engine build" in message, message
