@@ -134,7 +134,7 @@ def test_with_no_worker_left_the_render_is_one_line_and_keeps_its_finished_units
     assert kept.image.shape == (SIZE[1], SIZE[0], 3) and kept.image.max() > 0
 
 
-# -- the command line, as the issue found it --------------------------------------------------------
+# -- the command line, killed and stopped by hand ------------------------------------------------------
 CLI = [sys.executable, "-m", "engine", "render", "--builtin", "cornell", "--resolution", "128", "128",
        "--samples", "64", "--threads", "2", "--quiet"]       # auto: forked processes
 
