@@ -13,13 +13,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR
+from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED, Principled
 from ..geometry.shading_normals import has_smooth
+from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
 from ..materials.table import NON_DELTA_KINDS
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
-           "glossy", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes",
+           "glossy", "principled", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes",
            "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
@@ -120,7 +121,9 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     mirror = users(lambda m: m.kind == MIRROR and (max(m.color) > 0 or m.color_texture is not None))
     glass = users(lambda m: m.kind == GLASS)
     glossy = users(lambda m: m.kind == GLOSSY and (max(m.color) > 0 or m.color_texture is not None))
-    lit = users(lambda m: m.kind in NON_DELTA_KINDS and (max(m.color) > 0 or m.color_texture is not None))
+    principled = users(lambda m: m.kind == PRINCIPLED)         # its specular layer reflects on a black base
+    lit = users(lambda m: m.kind in NON_DELTA_KINDS and (max(m.color) > 0 or m.color_texture is not None
+                                                         or m.kind == PRINCIPLED))
     surface_emitters = users(lambda m: m.is_emissive)
     bulbs = [p for p in scene.points if max(p.intensity) > 0]
     suns = [s for s in scene.suns if max(s.irradiance) > 0]
@@ -139,6 +142,10 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                f"glossy materials {_names(glossy)}: microfacet reflection sampled by visible normals, "
                "light samples and MIS weighed by its eval and pdf (engine/materials/glossy.py)"
                if glossy else "no glossy material: no microfacet lobe evaluated")
+    set_effect("principled", principled,
+               f"Principled BSDF v2 materials {_principled_lobes(principled)}: lobes picked by their albedo "
+               "estimates, eval and pdf summed over lobes (engine/materials/principled.py)"
+               if principled else "no Principled material: no Principled lobes evaluated")
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
@@ -162,7 +169,7 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if report else "no diffuse surface or no shadow rays: the background is found by bounce rays")
     nee = bool(lit and (emitters or world) and settings.shadow_rays > 0)     # hits with a non-delta BSDF
     set_effect("direct_light", nee,
-               f"{settings.shadow_rays} shadow ray(s) per {'diffuse or glossy' if glossy else 'diffuse'} hit (eq. 2.11)"
+               f"{settings.shadow_rays} shadow ray(s) per {'diffuse or glossy' if glossy or principled else 'diffuse'} hit (eq. 2.11)"
                if nee else
                "no diffuse surface to light" if not lit else "no emitters" if not emitters else
                "0 shadow rays: emitters found by BSDF sampling alone")
@@ -196,6 +203,22 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                    if part) + ": texture lookups at triangle hits (UVs interpolated)"
                if colored or glowing else "no image textures: no UVs, no texture lookups")
     return plan
+
+
+def _principled_lobes(materials) -> str:
+    """Each Principled material's name and the lobes it runs (engine/materials/principled.py)."""
+    parts = []
+    for m in materials[:3]:
+        p = m.principled or Principled()
+        lobes = ["metallic (GGX, F82 tint)"] if p.metallic > WEIGHT_CUTOFF else []
+        if 1.0 - p.metallic > WEIGHT_CUTOFF:
+            if specular_eta_f0(max(m.ior, 1e-5), max(p.specular_ior_level, 0.0))[0] != 1.0:
+                lobes.append("specular (GGX)")
+            rough = getattr(m, "diffuse_roughness", 0.0) >= DIFFUSE_ROUGHNESS_CUTOFF
+            lobes.append("diffuse (Oren-Nayar)" if rough else "diffuse (Lambert)")
+        parts.append(f"'{m.name}' {' + '.join(lobes)}")
+    more = f" and {len(materials) - 3} more" if len(materials) > 3 else ""
+    return ", ".join(parts) + more
 
 
 def n_emissive_primitives(scene) -> int:

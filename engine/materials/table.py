@@ -14,16 +14,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.vec import rows
-from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR
+from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED
 from .glass import SmoothGlass
 from .glossy import MicrofacetReflection
 from .lambert import Lambertian
 from .mirror import PerfectMirror
+from .principled import PrincipledV2
 from .protocol import has_non_delta
 
 # (material kind, its BSDF); the row is the kind's scatter group.
 SCATTERING = ((DIFFUSE, Lambertian), (MIRROR, PerfectMirror), (GLASS, SmoothGlass),
-              (GLOSSY, MicrofacetReflection))
+              (GLOSSY, MicrofacetReflection), (PRINCIPLED, PrincipledV2))
 KIND_CODE = {kind: group for group, (kind, _) in enumerate(SCATTERING)}
 ABSORB = len(SCATTERING)            # black surfaces: absorb everything
 PASS_THROUGH = ABSORB + 1           # Area lights: emission, then the ray goes on
@@ -48,9 +49,10 @@ class MaterialTable:
         scatters = color.max(axis=1) > 0.0
         if textured_color is not None:
             scatters = scatters | textured_color
+        scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED])     # its specular layer reflects on black
         self.scatter_group = np.where(scatters, self.kind, ABSORB).astype(np.int8)
         self.bsdfs = [bsdf(materials, settings) for _, bsdf in SCATTERING]
         # Groups whose BSDF has a lobe that given directions meet (light samples, MIS, 2D uniforms).
         self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]
         # Whether any material has a glossy (non-delta, non-Lambertian reflection) lobe.
-        self.glossy = bool(np.any(self.kind == KIND_CODE[GLOSSY]))
+        self.glossy = bool(np.any((self.kind == KIND_CODE[GLOSSY]) | (self.kind == KIND_CODE[PRINCIPLED])))

@@ -6,6 +6,8 @@
                 "lens": 50, "sensor_width": 36, "sensor_height": 24, "sensor_fit": "AUTO",
                 "shift_x": 0, "shift_y": 0},
      "materials": [{"name": "White", "kind": "diffuse", "color": [..], "ior": 1.5, "emission": [..]}],
+                   (kind "principled": the glossy keys and "principled": {"metallic": 0, "specular_ior_level":
+                   0.5, "specular_tint": [1, 1, 1]}, each key optional)
      "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
                  "material": "White"  or  "material_ids": [..] or "@key",
                  "normals": [[..] x 3T] or "@key", "smooth": [0/1 x T] or "@key",  (optional)
@@ -35,7 +37,7 @@ import os
 
 import numpy as np
 
-from .model import GLOSSY, AreaLight, Camera, Material, PointLight, Quad, Scene, Sphere, SunLight, TriangleMesh
+from .model import GLOSSY, PRINCIPLED, AreaLight, Camera, Material, PointLight, Principled, Quad, Scene, Sphere, SunLight, TriangleMesh
 from ..core.errors import SceneError
 from .fields import Fields, is_integer
 from .texture_fields import read_slot, read_textures, slot_json, textures_json
@@ -81,9 +83,29 @@ def _glossy_fields(m) -> dict:
     return values
 
 
+def _principled_fields(m) -> dict:
+    """A material entry's "principled" object (engine/scene/model.py Principled), if present;
+    each of its keys optional (the node's defaults)."""
+    if "principled" not in m:
+        return {}
+    p, default = Fields(m.get("principled"), f"{m.owner}: principled"), Principled()
+    return {"principled": Principled(metallic=p.number("metallic", default.metallic),
+                                     specular_ior_level=p.number("specular_ior_level", default.specular_ior_level),
+                                     specular_tint=p.numbers("specular_tint", 3, default.specular_tint))}
+
+
+def _principled_json(m) -> dict:
+    """The "principled" object of material m for the scene file (Principled materials only)."""
+    if m.kind != PRINCIPLED:
+        return {}
+    p = m.principled or Principled()
+    return {"principled": {"metallic": p.metallic, "specular_ior_level": p.specular_ior_level,
+                           "specular_tint": list(p.specular_tint)}}
+
+
 def _glossy_json(m) -> dict:
-    """The glossy fields of material m for the scene file (glossy materials only)."""
-    if m.kind != GLOSSY:
+    """The glossy fields of material m for the scene file (glossy and Principled materials only)."""
+    if m.kind not in (GLOSSY, PRINCIPLED):
         return {}
     return {"roughness": m.roughness, "anisotropy": m.anisotropy, "rotation": m.rotation,
             "tangent": list(m.tangent), "distribution": m.distribution, "fresnel": m.fresnel,
@@ -173,7 +195,7 @@ def load_scene(path: str) -> Scene:
                                   emission=m.numbers("emission", 3, (0.0, 0.0, 0.0)),
                                   color_texture=read_slot(m, "color_texture", textures),
                                   emission_texture=read_slot(m, "emission_texture", textures),
-                                  **_glossy_fields(m)))
+                                  **_glossy_fields(m), **_principled_fields(m)))
     names = [m.name for m in materials]
     cam = top.get("camera", None)
     camera = None if cam is None else _camera(cam)
@@ -254,7 +276,7 @@ def save_scene(scene: Scene, path: str) -> None:
             "sensor_fit": cam.sensor_fit, "shift_x": cam.shift_x, "shift_y": cam.shift_y},
         "textures": textures_json(scene, arrays),
         "materials": [dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
-                            "emission": list(m.emission)}, **_glossy_json(m),
+                            "emission": list(m.emission)}, **_glossy_json(m), **_principled_json(m),
                            **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
                                                                      ("emission_texture", m.emission_texture))
                               if slot is not None}) for m in scene.materials],

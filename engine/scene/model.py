@@ -19,10 +19,31 @@ DIFFUSE = "diffuse"
 MIRROR = "mirror"
 GLASS = "glass"
 GLOSSY = "glossy"
-MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY)
+PRINCIPLED = "principled"
+MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY, PRINCIPLED)
 # The glossy kind's choices (engine/materials/microfacet.py, engine/materials/glossy.py).
 DISTRIBUTIONS = ("ggx", "beckmann")
 FRESNEL_KINDS = ("none", "dielectric", "conductor", "f82", "interpolated")
+
+
+@dataclass
+class Principled:
+    """The Principled BSDF's own inputs (engine/materials/principled.py); the rest are Material's:
+    base colour = ``color``, ``roughness``, ``ior``, anisotropy / rotation / tangent, the diffuse
+    roughness and ``multiscatter`` (the node's distribution)."""
+    metallic: float = 0.0
+    specular_ior_level: float = 0.5
+    specular_tint: tuple = (1.0, 1.0, 1.0)
+
+    def validate(self, owner: str) -> None:
+        for label, value, high in (("metallic", self.metallic, 1.0), ("specular_ior_level", self.specular_ior_level, 1e6)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value <= high):
+                raise SceneError(f"{owner}: Principled {label} must be from 0 to {high:g}, got {value!r}")
+        arr = np.asarray(self.specular_tint, dtype=np.float64)
+        if arr.shape != (3,) or not np.isfinite(arr).all() or (arr < 0).any():
+            raise SceneError(f"{owner}: Principled specular_tint must be 3 finite non-negative numbers, "
+                             f"got {self.specular_tint!r}")
+        check_magnitude(owner, "specular_tint", arr)
 
 
 @dataclass
@@ -61,6 +82,8 @@ class Material:
     edge_tint: tuple = (1.0, 1.0, 1.0)
     conductor_ior: tuple = (0.18, 0.42, 1.37)        # gold-like defaults, n and k per channel
     conductor_k: tuple = (3.42, 2.35, 1.77)
+    # Principled only: its own inputs (None: the node's defaults).
+    principled: Principled | None = None
 
     @property
     def is_emissive(self) -> bool:
@@ -80,6 +103,11 @@ class Material:
             raise SceneError(f"Material '{self.name}': IOR must be positive (at most 1e6), got {self.ior!r}")
         if self.kind == GLOSSY:
             self.validate_glossy()
+        if self.kind == PRINCIPLED:
+            self.validate_glossy()
+            if self.principled is not None and not isinstance(self.principled, Principled):
+                raise SceneError(f"Material '{self.name}': principled must be a Principled, got {self.principled!r}")
+            (self.principled or Principled()).validate(f"Material '{self.name}'")
 
     def validate_glossy(self) -> None:
         owner = f"Material '{self.name}'"

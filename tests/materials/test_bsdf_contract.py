@@ -12,9 +12,10 @@ from engine.materials.glass import SmoothGlass
 from engine.materials.glossy import MicrofacetReflection
 from engine.materials.lambert import Lambertian
 from engine.materials.mirror import PerfectMirror
+from engine.materials.principled import PrincipledV2
 from engine.materials.protocol import BSDFFlags, ShadingPoint, has_non_delta
 from engine.materials.table import NON_DELTA_KINDS, SCATTERING, MaterialTable
-from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, Material
+from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED, Material
 
 N = 4000
 MATERIALS = [Material("Diffuse", DIFFUSE, (0.8, 0.5, 0.2)), Material("Mirror", MIRROR, (0.9, 0.9, 0.9)),
@@ -111,9 +112,9 @@ def make(cls, fresnel="exact"):
 def test_the_table_has_one_bsdf_per_material_kind_in_scatter_group_order():
     table = MaterialTable(MATERIALS, RenderSettings())
     assert [type(b) for b in table.bsdfs] == [cls for _, cls in SCATTERING] == [Lambertian, PerfectMirror, SmoothGlass,
-                                                                            MicrofacetReflection]
-    assert list(table.scatter_group) == [0, 1, 2] and table.non_delta == [True, False, False, True]
-    assert NON_DELTA_KINDS == {DIFFUSE, GLOSSY}                 # the kinds whose hits take shadow rays
+                                                                            MicrofacetReflection, PrincipledV2]
+    assert list(table.scatter_group) == [0, 1, 2] and table.non_delta == [True, False, False, True, True]
+    assert NON_DELTA_KINDS == {DIFFUSE, GLOSSY, PRINCIPLED}                 # the kinds whose hits take shadow rays
     black = MaterialTable([Material("Black", DIFFUSE, (0, 0, 0))], RenderSettings())
     assert list(black.scatter_group) == [len(SCATTERING)]                          # ABSORB
     textured = MaterialTable([Material("Black", DIFFUSE, (0, 0, 0))], RenderSettings(), np.array([True]))

@@ -1,0 +1,294 @@
+"""The Principled BSDF v2 (Blender 4.0+) as Cycles builds it from closures (its kernel/svm/closure.h,
+case CLOSURE_BSDF_PRINCIPLED_ID; kernel/closure/bsdf_microfacet.h and bsdf_util.h; a public source:
+blender/cycles src/kernel/), for the opaque case: no transmission, coat, sheen, subsurface or
+thin film.  Three lobes, in Cycles' layering order (metallic, then specular over diffuse):
+
+* metallic, weight `metallic`: GGX reflection with the F82-tint Fresnel, F0 = the base colour
+  (clamped to 1) and the edge tint = the specular tint (clamped to 1);
+* specular, weight (1 - metallic): GGX reflection with Cycles' generalized Schlick in its
+  "real Fresnel" mode: F = mix(F0 x tint, 1, s(h)), s(h) = (F_d(wo.h, eta) - F0) / (1 - F0)
+  clamped to [0, 1], F_d the dielectric Fresnel of eta; F0 = ((ior - 1) / (ior + 1))^2, and a
+  specular IOR level other than 0.5 scales F0 by 2 x level and takes eta from that F0
+  (ior_from_F0); eta = 1 (level 0) has no specular lobe;
+* diffuse, weight (1 - metallic) x (1 - max_c A_spec,c(wo)) x base colour: Lambert, or the
+  energy-preserving Oren-Nayar of engine/materials/oren_nayar.py where the diffuse roughness is
+  at least 1e-5 (Cycles' diffuse_roughness_is_almost_zero).
+
+Both microfacet lobes are those of engine/materials/glossy.py (alpha = roughness^2, anisotropy
+clamped to [0, 1] stretching alpha_x / a and alpha_y x a, a = sqrt(1 - 0.9 anisotropy), along the
+tangent turned by rotation; energy compensation where `multiscatter`, Cycles' "Multiscatter GGX",
+the node's default).
+
+The diffuse layer's weight follows Cycles' closure_layering_weight with bsdf_albedo: A_spec is not
+the specular lobe's exact albedo but Cycles' estimate of it (bsdf_microfacet_estimate_albedo times
+the darkening that microfacet_ggx_preserve_energy puts into the closure weight):
+
+    A_spec(mu) = (E(mu) + F_ms (1 - E(mu))) x mix(F0 x tint, 1, s(mu))     (multiscatter; else the mix alone)
+
+with E the GGX albedo table (engine/materials/albedo_tables.py) and s(mu) the mean of s(h) over
+visible normals whose reflection leaves above the surface (Cycles' table ggx_gen_schlick_ior_s,
+made by its app/cycles_precompute.cpp).  We compute s by our own Monte Carlo per material (its
+roughness and eta exactly, at 32 points of mu, `mu_points`), where Cycles reads a 16^3 table over
+roughness, mu and eta.  The estimate is not the lobe's albedo: at roughness >= 0.3 it exceeds it
+(0.184 against 0.174 at mu = 0.1 for the default material), so a white Principled dielectric
+reflects slightly less than 1 at grazing, as in Cycles; at low roughness and grazing it falls
+below it and the white surface reflects up to 1 % more than it receives (roughness 0.1, mu = 0.05),
+as Cycles' formula implies (docs/materials.md).
+
+Sampling picks a lobe with probability proportional to Cycles' sample_weight (the closure weight's
+average times the albedo estimate; for the metallic lobe Cycles estimates with the Schlick table,
+exponent 5, ignoring the F82 bend) and returns the sum over lobes as value and pdf (one-sample MIS
+over the closures, as Cycles' surface_shader_bsdf_eval_mis): eval and pdf are the sums of the
+weighted lobes, so light samples and MIS see exactly the density that `sample` draws from.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import lru_cache
+from types import SimpleNamespace
+
+import numpy as np
+
+from ..core.vec import dot
+from ..scene.model import PRINCIPLED
+from . import albedo_tables
+from .glossy import MicrofacetReflection, fresnel_dielectric, fresnel_dielectric_average
+from .microfacet import GGX, ggx_sample_vndf
+from .oren_nayar import EnergyPreservingOrenNayar
+from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+
+FLAGS = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
+WEIGHT_CUTOFF = 1e-5                # Cycles' CLOSURE_WEIGHT_CUTOFF: lobes below it are not set up
+DIFFUSE_ROUGHNESS_CUTOFF = 1e-5     # Cycles' diffuse_roughness_is_almost_zero
+MU_POINTS = 32                      # points of mu of our s(mu) tables, squared spacing (see mu_points)
+ESTIMATE_STRATA = 64                # our Monte Carlo of s(mu): 64 x 64 jittered samples per point
+
+
+def f0_from_ior(ior):
+    """Normal-incidence reflectance ((ior - 1) / (ior + 1))^2 (Cycles' F0_from_ior)."""
+    return ((np.asarray(ior, dtype=np.float64) - 1.0) / (np.asarray(ior, dtype=np.float64) + 1.0)) ** 2
+
+
+def ior_from_f0(f0):
+    """The IOR whose F0 is f0, f0 clamped to [0, 0.99] (Cycles' ior_from_F0)."""
+    r = np.sqrt(np.clip(f0, 0.0, 0.99))
+    return (1.0 + r) / (1.0 - r)
+
+
+def specular_eta_f0(ior: float, specular_ior_level: float) -> tuple[float, float]:
+    """(eta, F0) of the specular layer: the IOR's, or F0 x 2 level and its IOR (closure.h,
+    "Apply IOR adjustment")."""
+    eta = float(ior)
+    f0 = float(f0_from_ior(eta))
+    if specular_ior_level != 0.5:
+        f0 *= 2.0 * specular_ior_level
+        eta = float(ior_from_f0(f0))
+        if ior < 1.0:
+            eta = 1.0 / eta
+    return eta, f0
+
+
+def real_fresnel_s(cos: np.ndarray, eta) -> np.ndarray:
+    """s = (F_d(cos, eta) - F0) / (1 - F0) clamped to [0, 1]: where the dielectric Fresnel is
+    between its F0 and 1 (generalized_schlick_fresnel with a negative exponent)."""
+    f0 = f0_from_ior(eta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (fresnel_dielectric(cos, eta) - f0) / (1.0 - f0)
+    return np.clip(np.nan_to_num(s, nan=1.0), 0.0, 1.0)
+
+
+def mu_points() -> np.ndarray:
+    """The points of mu of the s(mu) tables: (j / 31)^2 clamped to at least 1e-4, read linearly in
+    sqrt(mu).  Cycles' tables have 16 points j / 15 read linearly in mu; near grazing that misses
+    the steep s(mu) of low roughness by up to 0.03 (a white surface of roughness 0.1 reflected
+    1.036 at mu = 0.03 with that grid); ours follows Cycles' formula to 0.002."""
+    return np.clip((np.arange(MU_POINTS) / (MU_POINTS - 1)) ** 2, 1e-4, 1.0)
+
+
+@lru_cache(maxsize=256)
+def interpolation_factor(roughness: float, eta: float | None) -> np.ndarray:
+    """s at mu_points() (MU_POINTS,): the mean over GGX visible normals (alpha = roughness^2) of the
+    Fresnel's interpolation factor s(h), 0 where the reflection leaves below the surface (as
+    Cycles' precompute_ggx_gen_schlick_s).  eta: the real-Fresnel factor of that IOR; None: the
+    Schlick factor (1 - wo.h)^5 (Cycles' ggx_gen_schlick_s at exponent 5)."""
+    alpha = max(roughness * roughness, 1e-8)
+    rng = np.random.default_rng(20240)
+    i = np.arange(ESTIMATE_STRATA * ESTIMATE_STRATA)
+    u1 = (i // ESTIMATE_STRATA + rng.random(i.size)) / ESTIMATE_STRATA
+    u2 = (i % ESTIMATE_STRATA + rng.random(i.size)) / ESTIMATE_STRATA
+    out = np.empty(MU_POINTS)
+    for j, mu in enumerate(mu_points()):
+        wo = np.stack([np.full(i.size, np.sqrt(1.0 - mu * mu)), np.zeros(i.size), np.full(i.size, mu)])
+        h = ggx_sample_vndf(wo, alpha, alpha, u1, u2)
+        cos = np.clip((wo * h).sum(axis=0), 0.0, 1.0)
+        above = (2.0 * cos * h[2] - wo[2]) > 0.0
+        s = (1.0 - cos) ** 5 if eta is None else real_fresnel_s(cos, np.full(i.size, eta))
+        out[j] = np.where(above, s, 0.0).mean()
+    return np.clip(out, 0.0, 1.0)
+
+
+class _SpecularLayer(MicrofacetReflection):
+    """The Principled BSDF's dielectric specular lobe: F = mix(F0 x tint, 1, s(h)) (hits' colour =
+    F0 x tint clamped to 1, set by PrincipledV2), at the per-material eta in `self.ior`."""
+
+    def _fresnel(self, si: ShadingPoint, cos: np.ndarray) -> np.ndarray:
+        s = real_fresnel_s(cos, self.ior.take(si.material))
+        return si.color + (1.0 - si.color) * s
+
+    def _fresnel_average(self, si: ShadingPoint) -> np.ndarray:
+        eta = self.ior.take(si.material)
+        f0 = f0_from_ior(eta)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.clip(np.nan_to_num((fresnel_dielectric_average(eta) - f0) / (1.0 - f0), nan=1.0), 0.0, 1.0)
+        return si.color + (1.0 - si.color) * s
+
+
+def _lobe_material(m, fresnel: str, ior: float, edge_tint) -> SimpleNamespace:
+    """The microfacet lobe's view of Principled material m (the fields glossy.py reads)."""
+    return SimpleNamespace(roughness=m.roughness, anisotropy=min(max(m.anisotropy, 0.0), 1.0), rotation=m.rotation,
+                           tangent=m.tangent, distribution=GGX, fresnel=fresnel, ior=ior,
+                           multiscatter=bool(m.multiscatter), edge_tint=edge_tint)
+
+
+def principled_alphas(roughness: float, anisotropy: float) -> tuple[float, float]:
+    """(alpha_x, alpha_y) of the Principled node (closure.h): alpha = roughness^2, anisotropy a
+    clamped to [0, 1]: aspect = sqrt(1 - 0.9 a), alpha_x = alpha / aspect, alpha_y = alpha x aspect."""
+    alpha = min(max(roughness, 0.0), 1.0) ** 2
+    a = min(max(anisotropy, 0.0), 1.0)
+    if a <= 0.0:
+        return alpha, alpha
+    aspect = np.sqrt(1.0 - 0.9 * a)
+    return alpha / aspect, alpha * aspect
+
+
+class PrincipledV2(BSDF):
+    """The Principled BSDF v2 of every material (engine/scene/model.py Principled): metallic,
+    specular and diffuse lobes, weighted and sampled as Cycles does (see the module)."""
+    flags = FLAGS
+
+    def __init__(self, materials, settings):
+        params = [getattr(m, "principled", None) for m in materials]
+        m_count = len(materials)
+        self.metallic = np.array([0.0 if p is None else min(max(p.metallic, 0.0), 1.0) for p in params])
+        tint = np.array([(1.0, 1.0, 1.0) if p is None else np.maximum(p.specular_tint, 0.0) for p in params],
+                        dtype=np.float64).reshape(m_count, 3)
+        eta_f0 = [specular_eta_f0(max(m.ior, 1e-5), 0.5 if p is None else max(p.specular_ior_level, 0.0))
+                  for m, p in zip(materials, params)]
+        self.eta = np.array([e for e, _ in eta_f0], dtype=np.float64).reshape(m_count)
+        self.has_specular = self.eta != 1.0
+        self.spec_f0 = np.clip(np.array([f for _, f in eta_f0]).reshape(m_count, 1) * tint, 0.0, 1.0).T.copy()
+        self.metal = MicrofacetReflection([_lobe_material(m, "f82", 1.0, tuple(np.minimum(t, 1.0)))
+                                           for m, t in zip(materials, tint)], settings)
+        self.specular = _SpecularLayer([_lobe_material(m, "dielectric", e, (1.0, 1.0, 1.0))
+                                        for m, (e, _) in zip(materials, eta_f0)], settings)
+        alphas = np.array([principled_alphas(m.roughness, m.anisotropy) for m in materials]).reshape(m_count, 2)
+        for lobe in (self.metal, self.specular):
+            lobe.ax, lobe.ay = alphas[:, 0].copy(), alphas[:, 1].copy()
+            lobe.roughness_of_table = np.sqrt(np.sqrt(lobe.ax * lobe.ay))
+        # Cycles' s(mu) tables, for the Principled materials only (every row of the material
+        # table is built for all materials, engine/materials/table.py).
+        rough = self.specular.roughness_of_table
+        own = [getattr(m, "kind", PRINCIPLED) == PRINCIPLED for m in materials]
+        none = np.zeros(MU_POINTS)
+        self.s_specular = np.array([interpolation_factor(float(r), float(e)) if mine and e != 1.0 else none
+                                    for r, e, mine in zip(rough, self.eta, own)]).reshape(m_count, MU_POINTS)
+        self.s_metal = np.array([interpolation_factor(float(r), None) if mine else none
+                                 for r, mine in zip(rough, own)]).reshape(m_count, MU_POINTS)
+        diffuse_roughness = [getattr(m, "diffuse_roughness", 0.0) for m in materials]
+        self.diffuse = EnergyPreservingOrenNayar(
+            materials, settings, roughness=[r if r >= DIFFUSE_ROUGHNESS_CUTOFF else 0.0 for r in diffuse_roughness])
+
+    # -- the layers at the hits ---------------------------------------------------------------
+    def _views(self, si: ShadingPoint):
+        """The ShadingPoints the three lobes see: the colour is F0 of the metal (the clamped base
+        colour), F0 x tint of the specular layer, the base colour of the diffuse."""
+        metal = replace(si, color=np.minimum(si.color, 1.0))
+        specular = replace(si, color=self.spec_f0.take(si.material, axis=1))
+        return metal, specular, si
+
+    def _darkening(self, lobe: MicrofacetReflection, si: ShadingPoint, cos_o: np.ndarray) -> np.ndarray:
+        """E + F_ms (1 - E) (3, N): what microfacet_ggx_preserve_energy multiplies the closure
+        weight by (its compensation times E); 1 where the material does not compensate."""
+        scale = lobe.compensation(si, cos_o)
+        if scale is None:
+            return np.ones((3, len(si)))
+        e = albedo_tables.albedo(lobe.roughness_of_table.take(si.material), np.clip(cos_o, 0.0, 1.0))
+        return np.where(lobe.compensate.take(si.material), scale * e, 1.0)
+
+    def layer_albedos(self, si: ShadingPoint):
+        """Cycles' albedo estimates (3, N) of the metallic and the specular lobe at wo (without
+        their weights): darkening x mix(F0, 1, s(mu)) (bsdf_albedo)."""
+        metal, specular, _ = self._views(si)
+        mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)
+        rows = si.material
+        s_metal = _read(self.s_metal, rows, mu)
+        s_spec = _read(self.s_specular, rows, mu)
+        a_metal = self._darkening(self.metal, metal, mu) * (metal.color + (1.0 - metal.color) * s_metal)
+        a_spec = self._darkening(self.specular, specular, mu) * (specular.color + (1.0 - specular.color) * s_spec)
+        return a_metal, np.where(self.has_specular.take(rows), a_spec, 0.0)
+
+    def lobe_weights(self, si: ShadingPoint):
+        """((w_metal, w_specular, w_diffuse) (N,) each: the lobes' scalar closure weights, and
+        their sampling probabilities (3, N)), as closure.h and the closures' sample_weight."""
+        rows = si.material
+        m = self.metallic.take(rows)
+        w_metal = np.where(m > WEIGHT_CUTOFF, m, 0.0)
+        w_rest = 1.0 - m
+        w_rest = np.where(w_rest > WEIGHT_CUTOFF, w_rest, 0.0)
+        a_metal, a_spec = self.layer_albedos(si)
+        w_spec = np.where(self.has_specular.take(rows), w_rest, 0.0)
+        w_diffuse = w_rest * np.clip(1.0 - a_spec.max(axis=0), 0.0, 1.0)
+        sample = np.stack([w_metal * a_metal.mean(axis=0), w_spec * a_spec.mean(axis=0),
+                           w_diffuse * np.abs(si.color).mean(axis=0)])
+        total = sample.sum(axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            prob = np.where(total > 0.0, sample / total, 0.0)
+        return (w_metal, w_spec, w_diffuse), prob
+
+    def _mixture(self, si: ShadingPoint, wi: np.ndarray, weights, prob):
+        """(f cos (3, N), pdf (N,)): the weighted lobes summed, each evaluated where it is set up."""
+        f_cos, pdf = np.zeros((3, len(si))), np.zeros(len(si))
+        for lobe, view, w, p in zip((self.metal, self.specular, self.diffuse), self._views(si), weights, prob):
+            idx = np.flatnonzero(w > 0.0)
+            if not len(idx):
+                continue
+            f_l, pdf_l = lobe.eval(view.take(idx), wi.take(idx, axis=1))
+            f_cos[:, idx] += w.take(idx) * f_l
+            pdf[idx] += p.take(idx) * pdf_l
+        return f_cos, pdf
+
+    # -- the protocol -------------------------------------------------------------------------
+    def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        weights, prob = self.lobe_weights(si)
+        return self._mixture(si, wi, weights, prob)
+
+    def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+        return self.eval(si, wi)[1]
+
+    def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+        weights, prob = self.lobe_weights(si)
+        cdf = np.cumsum(prob, axis=0)
+        choice = (np.asarray(u_lobe)[None, :] >= cdf[:2]).sum(axis=0)      # 0 metal, 1 specular, 2 diffuse
+        choice = np.where(prob.sum(axis=0) > 0.0, choice, 2)
+        wi = np.zeros((3, len(si)))
+        flags = np.zeros(len(si), dtype=np.int8)
+        for code, (lobe, view) in enumerate(zip((self.metal, self.specular, self.diffuse), self._views(si))):
+            idx = np.flatnonzero(choice == code)
+            if not len(idx):
+                continue
+            s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
+            wi[:, idx] = s.wi
+            flags[idx] = s.flags
+        f_cos, pdf = self._mixture(si, wi, weights, prob)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
+        return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
+
+
+def _read(table: np.ndarray, rows: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """table (M, MU_POINTS) at each hit's material row and mu (N,), linear in sqrt(mu)."""
+    x = np.sqrt(np.clip(mu, 0.0, 1.0)) * (MU_POINTS - 1)
+    j = np.minimum(x.astype(np.int64), MU_POINTS - 1)
+    k = np.minimum(j + 1, MU_POINTS - 1)
+    t = x - j
+    return (1.0 - t) * table[rows, j] + t * table[rows, k]
