@@ -19,10 +19,19 @@ DIFFUSE = "diffuse"
 MIRROR = "mirror"
 GLASS = "glass"
 GLOSSY = "glossy"
-MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY)
+PRINCIPLED = "principled"
+MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY, PRINCIPLED)
 # The glossy kind's choices (engine/materials/microfacet.py, engine/materials/glossy.py).
 DISTRIBUTIONS = ("ggx", "beckmann")
 FRESNEL_KINDS = ("none", "dielectric", "conductor", "f82", "interpolated")
+
+
+@dataclass
+class Principled:
+    """The Principled BSDF's own inputs (Blender 4.0+); its other inputs are Material fields."""
+    metallic: float = 0.0
+    specular_ior_level: float = 0.5
+    specular_tint: tuple = (1, 1, 1)
 
 
 @dataclass
@@ -61,6 +70,8 @@ class Material:
     edge_tint: tuple = (1.0, 1.0, 1.0)
     conductor_ior: tuple = (0.18, 0.42, 1.37)        # gold-like defaults, n and k per channel
     conductor_k: tuple = (3.42, 2.35, 1.77)
+    diffuse_roughness: float = 0.0       # Diffuse BSDF's Roughness (0: Lambertian)
+    principled: Principled | None = None
 
     @property
     def is_emissive(self) -> bool:
@@ -456,6 +467,7 @@ class Scene:
     points: list = field(default_factory=list)      # PointLight
     suns: list = field(default_factory=list)        # SunLight
     textures: list = field(default_factory=list)    # engine/materials/textures.py ImageTexture
+    cycles_version: tuple = (5, 0)                  # (major, minor) of the Blender that exported it
 
     def validate(self) -> list[str]:
         """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""
