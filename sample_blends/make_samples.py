@@ -33,6 +33,11 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  a mirror low-poly 12 x 6 shade-smooth UV sphere (too coarse for the implicit-sphere
                  test: triangle meshes with interpolated normals; the diffuse one shows the shadow
                  terminator, the mirror one the valid-reflection normal), in the Cornell room
+  glossy_plates  four Glossy BSDF plates (Multiscatter GGX, roughness 0.1, 0.25, 0.45, 0.7) tilted to
+                 reflect the ceiling lamp towards the camera, in the Cornell room
+  rough_diffuse  the diffuse_room with Diffuse BSDF Roughness 0.8 on every wall and box (Oren-Nayar)
+  principled_default  a cube with Blender's default material (Principled BSDF, all defaults) in the
+                 Cornell room
 Light-sampling stress scenes (plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -306,6 +311,47 @@ def make_diffuse_room(scene, res):
                 location=(0.4, -0.25, 0.3), rotation=(0, 0, math.radians(-17)), scale=(0.3, 0.3, 0.3))
     mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.2), diffuse("Pink", (0.8, 0.4, 0.5)),
                 location=(0.45, 0.5, 0.2), smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def glossy(name, rgb, roughness, distribution="MULTI_GGX"):
+    mat = node_material(name, "ShaderNodeBsdfGlossy", Color=(*rgb, 1.0), Roughness=roughness)
+    next(n for n in mat.node_tree.nodes if n.bl_idname != "ShaderNodeOutputMaterial").distribution = distribution
+    return mat
+
+
+GLOSSY_PLATE_ROUGHNESS = (0.1, 0.25, 0.45, 0.7)
+
+
+def make_glossy_plates(scene, res):
+    room(scene)
+    s = 0.17
+
+    def panel(bm):                      # a 0.34 m square in the XZ plane facing -Y (the camera)
+        quad(bm, [(-s, 0, -s), (s, 0, -s), (s, 0, s), (-s, 0, s)])
+    for k, roughness in enumerate(GLOSSY_PLATE_ROUGHNESS):
+        # tilted back by 48 degrees: the mirror direction of the view ray points at the ceiling lamp
+        mesh_object(scene, f"Plate{k}", panel, glossy(f"Glossy {roughness:g}", (0.9, 0.9, 0.9), roughness),
+                    location=(-0.6 + 0.4 * k, 0.2, 0.7), rotation=(math.radians(-48), 0, 0))
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_rough_diffuse(scene, res):
+    make_diffuse_room(scene, res)
+    for mat in bpy.data.materials:
+        node = next((n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfDiffuse"), None)
+        if node is not None:
+            node.inputs["Roughness"].default_value = 0.8
+
+
+def make_principled_default(scene, res):
+    room(scene)
+    mesh_object(scene, "Cube", lambda bm: cube(bm, 1.0), node_material("Material", "ShaderNodeBsdfPrincipled"),
+                location=(0.0, 0.2, 0.202), rotation=(0, 0, math.radians(30)), scale=(0.4, 0.4, 0.4))
     camera(scene)
     black_world(scene)
     settings(scene, res)
@@ -612,6 +658,9 @@ SCENES = {
     "sky_lit": make_sky_lit,
     "textured": make_textured,
     "smooth": make_smooth,
+    "glossy_plates": make_glossy_plates,
+    "rough_diffuse": make_rough_diffuse,
+    "principled_default": make_principled_default,
 }
 
 

@@ -82,6 +82,7 @@ class Material:
     edge_tint: tuple = (1.0, 1.0, 1.0)
     conductor_ior: tuple = (0.18, 0.42, 1.37)        # gold-like defaults, n and k per channel
     conductor_k: tuple = (3.42, 2.35, 1.77)
+    diffuse_roughness: float = 0.0       # Diffuse BSDF's Roughness (0: Lambertian)
     # Principled only: its own inputs (None: the node's defaults).
     principled: Principled | None = None
 
@@ -484,6 +485,7 @@ class Scene:
     points: list = field(default_factory=list)      # PointLight
     suns: list = field(default_factory=list)        # SunLight
     textures: list = field(default_factory=list)    # engine/materials/textures.py ImageTexture
+    cycles_version: tuple = (5, 0)                  # (major, minor) of the Blender that exported it
 
     def validate(self) -> list[str]:
         """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""

@@ -85,7 +85,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     sm = bridge.scene_module()
     warnings = []
     images = ImageTable(bridge.module("scene.textures"), warnings)
-    table = MaterialTable(sm.Material, (sm.DIFFUSE, sm.MIRROR, sm.GLASS), warnings, images)
+    table = MaterialTable(sm, warnings, images)
     scene = depsgraph.scene
     version = tuple(bpy.app.version)
 
@@ -111,7 +111,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         nonlocal n_instances, n_triangles
 
         key = ob.data.as_pointer() if (otype == "MESH" and ob.data is not None) else None
-        slot_ids = np.asarray(table.slot_indices(ob), dtype=np.int64)
+        slot_ids = np.asarray(table.slot_indices(ob, matrix), dtype=np.int64)
         uv_map = table.uv_map(slot_ids)                 # None: no textured material, no UVs
         arrays = cache.get((key, uv_map)) if key is not None else None
         kept = (ob.name, ob.data.name, uv_map) if (mesh_cache is not None and key is not None and not own) else None
@@ -241,7 +241,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     background = export_world(scene.world, warnings)
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
                       background=background, resolution=out_res, name=name or scene.name, lights=lights,
-                      points=points, suns=suns, textures=images.textures)
+                      points=points, suns=suns, textures=images.textures, cycles_version=version[:2])
     info = dict(export_seconds=time.perf_counter() - t0, objects=n_instances, triangles=n_triangles,
                 spheres=len(spheres), meshes_shared=len(cache), materials=len(materials),
                 textures=len(images.textures))

@@ -1,10 +1,15 @@
-"""Material export: Cycles node trees -> tracer Materials (diffuse, mirror, glass, emission).
+"""Material export: Cycles node trees -> tracer Materials (diffuse, mirror, glass, glossy, principled, emission).
 
-Supported: Diffuse BSDF, Glossy BSDF (roughness 0 -> mirror), Glass BSDF, Emission, Principled BSDF
-(Base Color, Metallic, Roughness, Transmission (Weight), IOR, Emission (Color) x Emission Strength;
-socket names of 3.x and 4.x/5.0).  Anything else becomes diffuse with a warning naming the material
-and the node.  Node trees are read from ``material.original`` (evaluated copies can lack them).
+Supported: Diffuse BSDF (Roughness -> diffuse_roughness), Glass BSDF, Emission; the microfacet nodes
+(Glossy / Anisotropic, Metallic, Principled v2 of 4.0+) in microfacet_nodes.py; Blender 3.4's
+Principled v1 (Base Color, Metallic, Roughness, Transmission, IOR, Emission x Emission Strength) as
+diffuse, mirror or glass.  Anything else becomes diffuse with a warning naming the material and
+the node.  Node trees are read from ``material.original`` (evaluated copies can lack them).
 """
+import bpy
+import numpy as np
+
+from . import microfacet_nodes
 from .images import image_node
 from .util import linked_from, socket, uses_nodes
 
@@ -26,17 +31,37 @@ def _clamp01(rgb):
     return tuple(min(max(c, 0.0), 1.0) for c in rgb)
 
 
+def _local_x(matrix):
+    """The unit world direction of an object's local X axis (rounded: a key), (1, 0, 0) without one."""
+    if matrix is None:
+        return (1.0, 0.0, 0.0)
+    x = np.asarray(matrix, dtype=np.float64)[:3, 0]
+    length = float(np.linalg.norm(x))
+    if not length > 0:
+        return (1.0, 0.0, 0.0)
+    return tuple(round(float(c) / length, 9) for c in x)
+
+
 class MaterialTable:
     """Collects the tracer materials; one entry per Blender material (shared by all users)."""
 
-    def __init__(self, Material, kinds, warnings, images=None):
-        self.Material = Material
+    def __init__(self, model, warnings, images=None, version=None):
+        """model: the tracer's scene model module (engine/scene/model.py: Material, Principled, kinds);
+        version: the Blender whose node vocabulary is read (default: the running one)."""
+        self.Material, self.Principled = model.Material, model.Principled
         self.images = images            # images.ImageTable: Image Texture nodes (None: not read)
         self._slots = {}                # the material being converted: role -> TextureSlot
-        self.DIFFUSE, self.MIRROR, self.GLASS = kinds
+        self.DIFFUSE, self.MIRROR, self.GLASS = model.DIFFUSE, model.MIRROR, model.GLASS
+        self.GLOSSY, self.PRINCIPLED = model.GLOSSY, model.PRINCIPLED
+        self.version = tuple(bpy.app.version if version is None else version)[:2]
         self.materials = []
         self.warnings = warnings
         self._index = {}
+        # Anisotropic materials take their tangent from the object (its local X axis): one tracer
+        # material per Blender material and tangent.
+        self.object_x = (1.0, 0.0, 0.0)     # the object being exported: its local X axis, world space
+        self.used_object_tangent = False    # set by the conversion when it used `object_x`
+        self._per_tangent = set()           # names of the Blender materials that use it
 
     def add(self, material):
         self.materials.append(material)
@@ -48,23 +73,32 @@ class MaterialTable:
                                                        color=DEFAULT_GREY))
         return self._index[None]
 
-    def index(self, bl_material):
-        """Tracer material index for a Blender material (None -> Cycles' default grey)."""
+    def index(self, bl_material, matrix=None):
+        """Tracer material index for a Blender material (None -> Cycles' default grey) on an object
+        with world matrix ``matrix`` (4x4; None: the identity)."""
         if bl_material is None:
             return self.default_index()
         original = bl_material.original if bl_material.original is not None else bl_material
+        self.object_x = _local_x(matrix)
         key = original.name_full
+        if key in self._per_tangent:
+            key = (key, self.object_x)
         if key not in self._index:
             self._slots = {}
+            self.used_object_tangent = False
             material = self.convert(original)
             material.color_texture = self._slots.get("color")
             material.emission_texture = self._slots.get("emission")
+            if self.used_object_tangent:
+                self._per_tangent.add(key)
+                key = (key, self.object_x)
             self._index[key] = self.add(material)
         return self._index[key]
 
-    def slot_indices(self, ob):
-        """Tracer material index for every material slot of ``ob`` (at least one entry)."""
-        slots = [self.index(slot.material) for slot in ob.material_slots]
+    def slot_indices(self, ob, matrix=None):
+        """Tracer material index for every material slot of ``ob`` (at least one entry); ``matrix``:
+        the instance's world matrix (anisotropic materials take their tangent from it)."""
+        slots = [self.index(slot.material, matrix) for slot in ob.material_slots]
         return slots or [self.default_index()]
 
     def uv_map(self, slot_ids):
@@ -102,6 +136,7 @@ class MaterialTable:
             "ShaderNodeBsdfDiffuse": self._diffuse,
             "ShaderNodeBsdfGlossy": self._glossy,
             "ShaderNodeBsdfAnisotropic": self._glossy,
+            "ShaderNodeBsdfMetallic": self._metallic,
             "ShaderNodeBsdfGlass": self._glass,
             "ShaderNodeEmission": self._emission,
             "ShaderNodeBsdfPrincipled": self._principled,
@@ -111,11 +146,15 @@ class MaterialTable:
             return M(name=mat.name, kind=self.DIFFUSE, color=DEFAULT_GREY)
         return handler(mat, node)
 
-    def _color(self, mat, node, *names, default=(0.8, 0.8, 0.8), role="color"):
+    def read_color(self, mat, node, *names, default=(0.8, 0.8, 0.8), role="color"):
+        """The unlinked value of the first socket of ``names``; an Image Texture node feeding it
+        becomes the material's texture slot ``role`` ("color", "emission"; None: textures are not
+        supported on this socket: warned, the unlinked value is used)."""
         sock = socket(node, *names)
         if sock is None:
             return default
-        image = image_node(sock) if self.images is not None and sock.is_linked else None
+        image = (image_node(sock) if self.images is not None and sock.is_linked and role is not None
+                 else None)
         if image is not None:
             slot = self.images.slot(mat, image)
             if slot is not None:
@@ -134,7 +173,7 @@ class MaterialTable:
             else:
                 del self._slots["emission"]
 
-    def _float(self, mat, node, *names, default=0.0):
+    def read_float(self, mat, node, *names, default=0.0):
         sock = socket(node, *names)
         if sock is None:
             return default
@@ -142,52 +181,61 @@ class MaterialTable:
             self.warn(mat, node, f"input '{sock.name}' is linked; its unlinked value is used")
         return float(sock.default_value)
 
+    def principled_emission(self, mat, node):
+        """Emitted radiance of a Principled BSDF: colour x strength (a textured colour: its slot)."""
+        # 3.x: 'Emission' colour (default black) x 'Emission Strength' (default 1);
+        # 4.x/5.0: 'Emission Color' (default white) x 'Emission Strength' (default 0).
+        e_color = self.read_color(mat, node, "Emission Color", "Emission", default=(0.0, 0.0, 0.0),
+                                  role="emission")
+        e_strength = self.read_float(mat, node, "Emission Strength", default=1.0)
+        self._emission_strength(e_strength)
+        return tuple(max(c * e_strength, 0.0) for c in e_color)
+
     def _diffuse(self, mat, node):
-        color = _clamp01(self._color(mat, node, "Color"))
-        if self._float(mat, node, "Roughness") > 0:
-            self.warn(mat, node, "Oren-Nayar roughness is ignored (Lambertian)")
-        return self.Material(name=mat.name, kind=self.DIFFUSE, color=color)
+        color = _clamp01(self.read_color(mat, node, "Color"))
+        roughness = min(max(self.read_float(mat, node, "Roughness"), 0.0), 1.0)
+        return self.Material(name=mat.name, kind=self.DIFFUSE, color=color, diffuse_roughness=roughness)
 
     def _glossy(self, mat, node):
-        color = _clamp01(self._color(mat, node, "Color"))
-        roughness = self._float(mat, node, "Roughness")
-        if roughness > 0:
-            self.warn(mat, node, f"roughness {roughness:g} is treated as 0 (perfect mirror)")
-        return self.Material(name=mat.name, kind=self.MIRROR, color=color)
+        return microfacet_nodes.glossy(self, mat, node)
+
+    def _metallic(self, mat, node):
+        return microfacet_nodes.metallic(self, mat, node)
+
+    def _principled(self, mat, node):
+        if self.version >= microfacet_nodes.PRINCIPLED_V2:
+            return microfacet_nodes.principled(self, mat, node)
+        return self._principled_v1(mat, node)
 
     def _glass(self, mat, node):
-        color = _clamp01(self._color(mat, node, "Color"))
-        roughness = self._float(mat, node, "Roughness")
+        color = _clamp01(self.read_color(mat, node, "Color"))
+        roughness = self.read_float(mat, node, "Roughness")
         if roughness > 0:
             self.warn(mat, node, f"roughness {roughness:g} is treated as 0 (smooth glass)")
-        ior = self._float(mat, node, "IOR", default=1.45)
+        ior = self.read_float(mat, node, "IOR", default=1.45)
         return self.Material(name=mat.name, kind=self.GLASS, color=color, ior=max(ior, 1e-3))
 
     def _emission(self, mat, node):
-        color = self._color(mat, node, "Color", default=(1.0, 1.0, 1.0), role="emission")
-        strength = self._float(mat, node, "Strength", default=1.0)
+        color = self.read_color(mat, node, "Color", default=(1.0, 1.0, 1.0), role="emission")
+        strength = self.read_float(mat, node, "Strength", default=1.0)
         self._emission_strength(strength)
         radiance = tuple(max(c * strength, 0.0) for c in color)
         return self.Material(name=mat.name, kind=self.DIFFUSE, color=(0.0, 0.0, 0.0), emission=radiance)
 
-    def _principled(self, mat, node):
-        base = _clamp01(self._color(mat, node, "Base Color"))
-        metallic = self._float(mat, node, "Metallic")
-        roughness = self._float(mat, node, "Roughness", default=0.5)
-        transmission = self._float(mat, node, "Transmission Weight", "Transmission")
-        ior = self._float(mat, node, "IOR", default=1.45)
-        # 3.x: 'Emission' colour (default black) x 'Emission Strength' (default 1);
-        # 4.x/5.0: 'Emission Color' (default white) x 'Emission Strength' (default 0).
-        e_color = self._color(mat, node, "Emission Color", "Emission", default=(0.0, 0.0, 0.0), role="emission")
-        e_strength = self._float(mat, node, "Emission Strength", default=1.0)
-        self._emission_strength(e_strength)
-        emission = tuple(max(c * e_strength, 0.0) for c in e_color)
-        alpha = self._float(mat, node, "Alpha", default=1.0)
+    def _principled_v1(self, mat, node):
+        """Blender 3.4's Principled BSDF (v1): diffuse, mirror or glass by its largest lobe."""
+        base = _clamp01(self.read_color(mat, node, "Base Color"))
+        metallic = self.read_float(mat, node, "Metallic")
+        roughness = self.read_float(mat, node, "Roughness", default=0.5)
+        transmission = self.read_float(mat, node, "Transmission Weight", "Transmission")
+        ior = self.read_float(mat, node, "IOR", default=1.45)
+        emission = self.principled_emission(mat, node)
+        alpha = self.read_float(mat, node, "Alpha", default=1.0)
         if alpha < 1:
             self.warn(mat, node, f"alpha {alpha:g} is not modelled (rendered opaque)")
         for names in (("Coat Weight", "Clearcoat"), ("Sheen Weight", "Sheen"),
                       ("Subsurface Weight", "Subsurface")):
-            value = self._float(mat, node, *names)
+            value = self.read_float(mat, node, *names)
             if value > 0:
                 self.warn(mat, node, f"'{names[0]}' {value:g} is not modelled")
         if transmission >= 0.5:
@@ -207,7 +255,7 @@ class MaterialTable:
         if metallic > 0 or transmission > 0:
             self.warn(mat, node, f"metallic {metallic:g} / transmission {transmission:g} "
                                  "approximated as diffuse")
-        specular = self._float(mat, node, "Specular IOR Level", "Specular", default=0.0)
+        specular = self.read_float(mat, node, "Specular IOR Level", "Specular", default=0.0)
         if specular > 0:
             self.warn(mat, node, f"specular layer (level {specular:g}) is not modelled: "
                                  "rendered as pure Lambertian (set it to 0 to match Cycles)")

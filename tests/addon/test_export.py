@@ -181,11 +181,13 @@ def test_material_mapping(scene, ms):
     assert g.kind == "glass" and g.ior == pytest.approx(1.33) and g.color == pytest.approx((1, 1, 0.9))
     e = material_of(sc, "Emi")
     assert e.kind == "diffuse" and e.color == (0, 0, 0) and e.emission == pytest.approx((4.0, 2.0, 1.0))
-    assert material_of(sc, "PMetal").kind == "mirror"
+    pm = material_of(sc, "PMetal")        # Blender 4.0+: the principled kind (test_export_materials.py)
+    assert pm.kind == "principled" and pm.principled.metallic == 1.0 and pm.roughness == 0.0
     pg = material_of(sc, "PGlass")
     assert pg.kind == "glass" and pg.ior == pytest.approx(1.45)
     pd = material_of(sc, "PDiff")
-    assert pd.kind == "diffuse" and pd.color == pytest.approx((0.3, 0.3, 0.3))
+    assert pd.kind == "principled" and pd.color == pytest.approx((0.3, 0.3, 0.3))
+    assert pd.principled.metallic == 0.0 and pd.principled.specular_ior_level == 0.0
     pe = material_of(sc, "PEmit")
     assert pe.emission == pytest.approx((5.0, 4.0, 3.0)) and pe.color == pytest.approx((0, 0, 0))
     assert res.warnings == [], res.warnings        # Specular IOR Level 0 in the samples: nothing to warn
@@ -198,17 +200,6 @@ def test_unsupported_node_warns_and_becomes_diffuse(scene, ms):
     t = material_of(res.scene, "Toony")
     assert t.kind == "diffuse"
     assert any("Material 'Toony'" in w and "ShaderNodeBsdfTranslucent" in w for w in res.warnings), res.warnings
-
-
-def test_rough_glossy_and_specular_warn(scene, ms):
-    m1 = ms.node_material("Rough", "ShaderNodeBsdfGlossy", Roughness=0.3)
-    m2 = ms.node_material("Spec", "ShaderNodeBsdfPrincipled", **{"Specular IOR Level": 0.5, "Specular": 0.5})
-    for k, m in enumerate((m1, m2)):
-        add(ms, scene, f"Q{k}", lambda bm: ms.quad(bm, [(0, 0, k), (1, 0, k), (1, 1, k), (0, 1, k)]), m)
-    res = export()
-    assert material_of(res.scene, "Rough").kind == "mirror"
-    assert any("'Rough'" in w and "roughness" in w for w in res.warnings)
-    assert any("'Spec'" in w and "specular" in w for w in res.warnings)
 
 
 def test_object_without_material_is_cycles_default_grey(scene, ms):
@@ -448,7 +439,7 @@ def test_zero_area_emitter_is_an_error_naming_the_object(scene, ms):
     ("holdout_collection", "Collection 'Held': holdout is not supported"),
     ("motion_blur", "Motion blur is not rendered"),
     ("film_transparent", "Film > Transparent is not supported"),
-    ("alpha", "Material 'Seethrough', node 'Principled BSDF': alpha 0.5 is not modelled"),
+    ("alpha", "Material 'Seethrough', node 'Principled BSDF': input 'Alpha' 0.5 is not modelled"),
     ("transparent_bsdf", "Material 'Glassless', node 'Transparent BSDF': ShaderNodeBsdfTransparent is not supported"),
     ("holdout_node", "Material 'Hole', node 'Holdout': ShaderNodeHoldout is not supported"),
 ])

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from engine.scene import textures as scene_textures
-from engine.scene.model import DIFFUSE, GLASS, MIRROR, Material
+from engine.scene import model
+from engine.scene.model import DIFFUSE, GLASS, MIRROR
 from mcrt_addon.export.images import ImageTable, image_node
 from mcrt_addon.export.materials import DEFAULT_GREY, MaterialTable
 from mcrt_addon.export.mesh import (bounding_sphere, is_closed, mesh_arrays, sphere_fit, transform_points,
@@ -100,7 +101,7 @@ def node_material(name, bsdf, **inputs):
 
 def test_material_table_converts_each_blender_material_once(empty_scene):
     warnings = []
-    table = MaterialTable(Material, (DIFFUSE, MIRROR, GLASS), warnings)
+    table = MaterialTable(model, warnings)
     red, _ = node_material("Red", "ShaderNodeBsdfDiffuse", Color=(0.8, 0.1, 0.1, 1))
     mirror, _ = node_material("Mirror", "ShaderNodeBsdfGlossy", Roughness=0.0)
     glass, _ = node_material("Glass", "ShaderNodeBsdfGlass", IOR=1.45)

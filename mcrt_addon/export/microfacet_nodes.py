@@ -1,0 +1,131 @@
+"""Microfacet shader nodes -> the glossy and principled material kinds (engine/scene/model.py).
+
+The node vocabulary of the running Blender (bpy.app.version; node ids and sockets as that Blender
+names them):
+
+* 3.4: Glossy BSDF (ShaderNodeBsdfGlossy: Color, Roughness; distribution SHARP / BECKMANN / GGX /
+  ASHIKHMIN_SHIRLEY / MULTI_GGX) and Anisotropic BSDF (ShaderNodeBsdfAnisotropic: also Anisotropy,
+  default 0.5, Rotation and Tangent); Principled BSDF v1 (materials.py keeps it Lambertian).
+* 4.0+ (also 5.0): one Glossy BSDF, ShaderNodeBsdfAnisotropic (ShaderNodeBsdfGlossy creates it):
+  Color, Roughness, Anisotropy (default 0), Rotation, Tangent; distribution BECKMANN / GGX /
+  ASHIKHMIN_SHIRLEY / MULTI_GGX; Principled BSDF v2 (Base Color, Metallic, Roughness, IOR,
+  Specular IOR Level, Specular Tint (a colour), Anisotropic, Anisotropic Rotation, Tangent, ...).
+* 4.3+: Metallic BSDF (ShaderNodeBsdfMetallic): Base Color and Edge Tint (fresnel_type F82) or IOR
+  and Extinction (PHYSICAL_CONDUCTOR), Roughness, Anisotropy, Rotation, Tangent, Thin Film;
+  distribution BECKMANN / GGX / MULTI_GGX; the Principled BSDF's Diffuse Roughness.
+
+Distributions: GGX and BECKMANN as named, MULTI_GGX is GGX with `multiscatter` (energy compensation),
+ASHIKHMIN_SHIRLEY is exported as GGX with a warning.  The Glossy BSDF at roughness 0 (or SHARP) is the
+perfect mirror it always was.  Tangent: the object's local X axis in world space (Cycles' default
+tangent, radial about the object's Z axis, and tangent inputs are not modelled: both are named in a
+warning when the material is anisotropic).
+"""
+from .util import socket
+
+DISTRIBUTIONS = {"GGX": ("ggx", False), "MULTI_GGX": ("ggx", True), "BECKMANN": ("beckmann", False)}
+PRINCIPLED_V2 = (4, 0)
+# Principled v2 inputs not modelled: warned (naming the socket) when above their "off" value.
+PRINCIPLED_UNMODELLED = ("Coat Weight", "Sheen Weight", "Subsurface Weight",
+                         "Thin Film Thickness")
+
+
+def _clamp(value, low, high):
+    return min(max(float(value), low), high)
+
+
+def _clamp01(rgb):
+    return tuple(_clamp(c, 0.0, 1.0) for c in rgb)
+
+
+def distribution(table, mat, node):
+    """(distribution, multiscatter) of the node's distribution menu."""
+    name = getattr(node, "distribution", "GGX")
+    if name in DISTRIBUTIONS:
+        return DISTRIBUTIONS[name]
+    table.warn(mat, node, f"distribution {name} is not modelled; rendered as GGX")
+    return "ggx", False
+
+
+def anisotropy_fields(table, mat, node, anisotropy_name, rotation_name):
+    """anisotropy, rotation and tangent of a node (the object's local X axis as the tangent)."""
+    anisotropy = _clamp(table.read_float(mat, node, anisotropy_name, default=0.0), -1.0, 1.0)
+    rotation = table.read_float(mat, node, rotation_name, default=0.0)
+    if anisotropy != 0.0:
+        table.used_object_tangent = True
+        tangent = socket(node, "Tangent")
+        if tangent is not None and tangent.is_linked:
+            table.warn(mat, node, "input 'Tangent' is linked (tangent inputs are not modelled); "
+                                  "the object's local X axis is the tangent")
+        else:
+            table.warn(mat, node, "Cycles' default tangent (radial about the object's Z axis) is not "
+                                  "modelled; the object's local X axis is the tangent")
+    return dict(anisotropy=anisotropy, rotation=rotation, tangent=table.object_x)
+
+
+def glossy(table, mat, node):
+    """Glossy BSDF (3.4's Glossy and Anisotropic, 4.0+'s Glossy): fresnel 'none', the colour a tint."""
+    color = _clamp01(table.read_color(mat, node, "Color"))
+    roughness = table.read_float(mat, node, "Roughness", default=0.5)
+    if roughness <= 0.0 or getattr(node, "distribution", "GGX") == "SHARP":
+        return table.Material(name=mat.name, kind=table.MIRROR, color=color)
+    dist, multiscatter = distribution(table, mat, node)
+    return table.Material(name=mat.name, kind=table.GLOSSY, color=color, roughness=min(roughness, 1.0),
+                          distribution=dist, multiscatter=multiscatter, fresnel="none",
+                          **anisotropy_fields(table, mat, node, "Anisotropy", "Rotation"))
+
+
+def metallic(table, mat, node):
+    """Metallic BSDF (4.3+): fresnel 'f82' (Base Color = F0, Edge Tint) or 'conductor' (IOR, Extinction)."""
+    roughness = _clamp(table.read_float(mat, node, "Roughness", default=0.5), 0.0, 1.0)
+    dist, multiscatter = distribution(table, mat, node)
+    fields = dict(name=mat.name, kind=table.GLOSSY, roughness=roughness, distribution=dist,
+                  multiscatter=multiscatter, **anisotropy_fields(table, mat, node, "Anisotropy", "Rotation"))
+    thin_film = table.read_float(mat, node, "Thin Film Thickness", default=0.0)
+    if thin_film > 0.0:
+        table.warn(mat, node, f"input 'Thin Film Thickness' {thin_film:g} is not modelled")
+    if getattr(node, "fresnel_type", "F82") == "PHYSICAL_CONDUCTOR":
+        n = tuple(max(c, 0.0) for c in table.read_color(mat, node, "IOR", role=None))
+        k = tuple(max(c, 0.0) for c in table.read_color(mat, node, "Extinction", role=None))
+        # the colour is not used by conductors (engine/materials/glossy.py); white keeps it scattering
+        return table.Material(color=(1.0, 1.0, 1.0), fresnel="conductor", conductor_ior=n, conductor_k=k,
+                              **fields)
+    color = _clamp01(table.read_color(mat, node, "Base Color"))
+    edge_tint = _clamp01(table.read_color(mat, node, "Edge Tint", role=None))
+    return table.Material(color=color, fresnel="f82", edge_tint=edge_tint, **fields)
+
+
+def principled(table, mat, node):
+    """Principled BSDF v2 (4.0+) -> the principled kind; transmission >= 0.5 stays today's smooth glass."""
+    base = _clamp01(table.read_color(mat, node, "Base Color"))
+    emission = table.principled_emission(mat, node)
+    roughness = _clamp(table.read_float(mat, node, "Roughness", default=0.5), 0.0, 1.0)
+    ior = max(table.read_float(mat, node, "IOR", default=1.5), 1e-3)
+    alpha = table.read_float(mat, node, "Alpha", default=1.0)
+    if alpha < 1:
+        table.warn(mat, node, f"input 'Alpha' {alpha:g} is not modelled (rendered opaque)")
+    for name in PRINCIPLED_UNMODELLED:
+        value = table.read_float(mat, node, name, default=0.0)
+        if value > 0:
+            table.warn(mat, node, f"input '{name}' {value:g} is not modelled")
+    transmission = table.read_float(mat, node, "Transmission Weight", default=0.0)
+    if 0 < transmission < 0.5:
+        table.warn(mat, node, f"input 'Transmission Weight' {transmission:g} is not modelled")
+    elif transmission >= 0.5:
+        metal = table.read_float(mat, node, "Metallic", default=0.0)
+        if transmission < 1 or metal > 0:
+            table.warn(mat, node, f"input 'Transmission Weight' {transmission:g} / 'Metallic' {metal:g} "
+                                  "approximated as smooth glass")
+        if roughness > 0:
+            table.warn(mat, node, f"roughness {roughness:g} is treated as 0 (smooth glass)")
+        return table.Material(name=mat.name, kind=table.GLASS, color=base, ior=ior, emission=emission)
+    dist, multiscatter = distribution(table, mat, node)
+    settings = table.Principled(
+        metallic=_clamp(table.read_float(mat, node, "Metallic", default=0.0), 0.0, 1.0),
+        specular_ior_level=max(table.read_float(mat, node, "Specular IOR Level", default=0.5), 0.0),
+        specular_tint=tuple(max(c, 0.0) for c in table.read_color(mat, node, "Specular Tint",
+                                                                   default=(1.0, 1.0, 1.0), role=None)))
+    diffuse_roughness = _clamp(table.read_float(mat, node, "Diffuse Roughness", default=0.0), 0.0, 1.0)
+    return table.Material(name=mat.name, kind=table.PRINCIPLED, color=base, emission=emission, ior=ior,
+                          roughness=roughness, distribution=dist, multiscatter=multiscatter,
+                          diffuse_roughness=diffuse_roughness, principled=settings,
+                          **anisotropy_fields(table, mat, node, "Anisotropic", "Anisotropic Rotation"))
