@@ -53,7 +53,7 @@ from ..core.vec import dot
 from ..scene.model import PRINCIPLED
 from . import albedo_tables
 from .glossy import MicrofacetReflection, fresnel_dielectric, fresnel_dielectric_average
-from .microfacet import GGX, ggx_sample_vndf
+from .microfacet import GGX, clamp_alpha, ggx_sample_vndf
 from .oren_nayar import EnergyPreservingOrenNayar
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
 
@@ -152,13 +152,15 @@ def _lobe_material(m, fresnel: str, ior: float, edge_tint) -> SimpleNamespace:
 
 def principled_alphas(roughness: float, anisotropy: float) -> tuple[float, float]:
     """(alpha_x, alpha_y) of the Principled node (closure.h): alpha = roughness^2, anisotropy a
-    clamped to [0, 1]: aspect = sqrt(1 - 0.9 a), alpha_x = alpha / aspect, alpha_y = alpha x aspect."""
+    clamped to [0, 1]: aspect = sqrt(1 - 0.9 a), alpha_x = alpha / aspect, alpha_y = alpha x aspect;
+    each floored as the Glossy node's (engine/materials/microfacet.py clamp_alpha): roughness 0 is
+    the narrowest lobe, never alpha 0 (a pdf of 0 would make a polished metal black)."""
     alpha = min(max(roughness, 0.0), 1.0) ** 2
     a = min(max(anisotropy, 0.0), 1.0)
     if a <= 0.0:
-        return alpha, alpha
+        return float(clamp_alpha(alpha)), float(clamp_alpha(alpha))
     aspect = np.sqrt(1.0 - 0.9 * a)
-    return alpha / aspect, alpha * aspect
+    return float(clamp_alpha(alpha / aspect)), float(clamp_alpha(alpha * aspect))
 
 
 class PrincipledV2(BSDF):

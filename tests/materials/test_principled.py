@@ -297,3 +297,23 @@ def test_render_light_only_and_mis_agree():
         assert result.stats["effects"]["principled"]
     z, z_crit = block_test(mis, light, block=4)
     assert z < z_crit, (z, z_crit)
+
+
+def test_a_polished_metal_reflects_its_base_colour():
+    """Roughness 0 is the narrowest lobe (alpha floored as the Glossy node's), not alpha 0: the
+    principled Cornell box's mirror ball rendered black with alpha 0 (pdf 0 for every sample)."""
+    from engine.core.settings import RenderSettings
+    from engine.materials.principled import PrincipledV2, principled_alphas
+    from engine.materials.protocol import ShadingPoint
+    from engine.scene.model import PRINCIPLED, Material, Principled
+    assert min(principled_alphas(0.0, 0.0)) > 0 and min(principled_alphas(0.0, 1.0)) > 0
+    m = Material("Polished", PRINCIPLED, (0.95, 0.95, 0.95), roughness=0.0,
+                 principled=Principled(metallic=1.0, specular_ior_level=0.0))
+    bsdf = PrincipledV2([m], RenderSettings())
+    n, rng = 4000, np.random.default_rng(8)
+    wo = np.tile([[0.6], [0.0], [0.8]], (1, n))
+    up = np.tile([[0.0], [0.0], [1.0]], (1, n))
+    si = ShadingPoint(wo, up, up, up, np.full((3, n), 0.95), np.zeros(n, dtype=np.int64))
+    s = bsdf.sample(si, rng.random(n), (rng.random(n), rng.random(n)))
+    assert (s.pdf > 0).all()
+    assert abs(s.value[0].mean() - 0.95) < 0.01
