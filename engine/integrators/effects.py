@@ -146,9 +146,14 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
                    if light.visible_glossy or light.visible_transmission]
     specular = mirror or glass
-    set_effect("seen_lamps", round_lamps and specular and not report,
+    # After a glossy bounce the shadow rays own these lamps (a BSDF sample cannot reach them in
+    # their MIS, engine/lights/seen.py): glossy rays see them only when no shadow rays run.
+    glossy_sees = bool(glossy) and settings.shadow_rays == 0
+    seen = round_lamps and (specular or glossy_sees) and not report
+    set_effect("seen_lamps", seen,
                f"lamps {_names(round_lamps)} seen in mirrors and through glass (Cycles' light visibility)"
-               if round_lamps and specular and not report else
+               + (" and, without shadow rays, in glossy reflections" if glossy_sees else "")
+               if seen else
                "no point/spot light with a radius and no sun with an angle seen by glossy or transmission rays"
                if not round_lamps else
                "no mirror or glass: point, spot and sun lights are reached by shadow rays only" if not specular else
