@@ -15,11 +15,12 @@ import numpy as np
 
 from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR
 from ..geometry.shading_normals import has_smooth
-from ..materials.table import NON_DELTA_KINDS
+from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
+from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, scatter_kind
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
-           "glossy", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes",
+           "glossy", "rough_diffuse", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes",
            "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
@@ -29,6 +30,7 @@ ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Pytho
 class EffectPlan:
     enabled: dict = field(default_factory=dict)
     reason: dict = field(default_factory=dict)
+    cycles_version: tuple = (5, 0)      # the scene's: the models that follow Cycles' versions use it
 
     def __getattr__(self, name):
         try:
@@ -139,6 +141,15 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                f"glossy materials {_names(glossy)}: microfacet reflection sampled by visible normals, "
                "light samples and MIS weighed by its eval and pdf (engine/materials/glossy.py)"
                if glossy else "no glossy material: no microfacet lobe evaluated")
+    rough = users(lambda m: scatter_kind(m) == ROUGH_DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
+    plan.cycles_version = tuple(getattr(scene, "cycles_version", (5, 0)))
+    version = ".".join(map(str, plan.cycles_version))
+    set_effect("rough_diffuse", rough,
+               (f"rough diffuse materials {_names(rough)}: energy-preserving Oren-Nayar (Cycles {version} is 4.3+)"
+                if plan.cycles_version >= ENERGY_PRESERVING_SINCE else
+                f"rough diffuse materials {_names(rough)}: Cycles 3.x's Oren-Nayar, single scattering "
+                f"(Cycles {version} is before 4.3)") + ", eval and pdf per light sample (engine/materials/oren_nayar.py)"
+               if rough else "no diffuse material with a roughness: every diffuse hit is Lambertian")
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
