@@ -63,15 +63,17 @@ def sphere_expected(pdf, z_bins: int, phi_bins: int, n: int, refine: int = 8) ->
     return n * (density * area).reshape(z_bins, refine, phi_bins, refine).sum(axis=(1, 3)).ravel()
 
 
-def sphere_chi2(sample, pdf, n: int = 200_000, z_bins: int = 24, phi_bins: int = 48, seed: int = 0):
+def sphere_chi2(sample, pdf, n: int = 200_000, z_bins: int = 24, phi_bins: int = 48, seed: int = 0,
+                refine: int = 8):
     """(p-value, dof) of the χ² test of `sample` against `pdf` over the sphere.
 
     sample(u) takes uniforms u of shape (2, n) and returns unit directions (3, n) (rows of
     zeros, or NaN, for samples that failed); pdf(d) returns the density per steradian at
-    unit directions d (3, M)."""
+    unit directions d (3, M); refine: the midpoint rule's sub-cells per cell side (steep
+    densities need more)."""
     u = np.random.default_rng(seed).random((2, n))
     d = np.asarray(sample(u), dtype=np.float64)
     ok = np.isfinite(d).all(axis=0) & (np.abs(d).sum(axis=0) > 0)
     observed = np.bincount(sphere_cells(d[:, ok], z_bins, phi_bins), minlength=z_bins * phi_bins)
-    expected = sphere_expected(pdf, z_bins, phi_bins, n)
+    expected = sphere_expected(pdf, z_bins, phi_bins, n, refine)
     return pooled_chi2(observed, expected)

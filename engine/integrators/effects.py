@@ -15,12 +15,14 @@ import numpy as np
 
 from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED, Principled
 from ..geometry.shading_normals import has_smooth
+from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
 from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
-from ..materials.table import NON_DELTA_KINDS
+from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, scatter_kind
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
-           "glossy", "principled", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle", "light_tree", "mis", "passes",
+           "glossy", "principled", "rough_diffuse", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
+           "light_tree", "mis", "passes",
            "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
@@ -30,6 +32,7 @@ ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Pytho
 class EffectPlan:
     enabled: dict = field(default_factory=dict)
     reason: dict = field(default_factory=dict)
+    cycles_version: tuple = (5, 0)      # the scene's: the models that follow Cycles' versions use it
 
     def __getattr__(self, name):
         try:
@@ -146,6 +149,15 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                f"Principled BSDF v2 materials {_principled_lobes(principled)}: lobes picked by their albedo "
                "estimates, eval and pdf summed over lobes (engine/materials/principled.py)"
                if principled else "no Principled material: no Principled lobes evaluated")
+    rough = users(lambda m: scatter_kind(m) == ROUGH_DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
+    plan.cycles_version = tuple(getattr(scene, "cycles_version", (5, 0)))
+    version = ".".join(map(str, plan.cycles_version))
+    set_effect("rough_diffuse", rough,
+               (f"rough diffuse materials {_names(rough)}: energy-preserving Oren-Nayar (Cycles {version} is 4.3+)"
+                if plan.cycles_version >= ENERGY_PRESERVING_SINCE else
+                f"rough diffuse materials {_names(rough)}: Cycles 3.x's Oren-Nayar, single scattering "
+                f"(Cycles {version} is before 4.3)") + ", eval and pdf per light sample (engine/materials/oren_nayar.py)"
+               if rough else "no diffuse material with a roughness: every diffuse hit is Lambertian")
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
@@ -153,9 +165,14 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
                    if light.visible_glossy or light.visible_transmission]
     specular = mirror or glass
-    set_effect("seen_lamps", round_lamps and specular and not report,
+    # After a glossy bounce the shadow rays own these lamps (a BSDF sample cannot reach them in
+    # their MIS, engine/lights/seen.py): glossy rays see them only when no shadow rays run.
+    glossy_sees = bool(glossy) and settings.shadow_rays == 0
+    seen = round_lamps and (specular or glossy_sees) and not report
+    set_effect("seen_lamps", seen,
                f"lamps {_names(round_lamps)} seen in mirrors and through glass (Cycles' light visibility)"
-               if round_lamps and specular and not report else
+               + (" and, without shadow rays, in glossy reflections" if glossy_sees else "")
+               if seen else
                "no point/spot light with a radius and no sun with an angle seen by glossy or transmission rays"
                if not round_lamps else
                "no mirror or glass: point, spot and sun lights are reached by shadow rays only" if not specular else

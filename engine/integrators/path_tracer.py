@@ -124,7 +124,8 @@ class PathTracer:
         self.geometry = geometry
         self.textures = textures          # engine/materials/textures.py HitTextures, or None (no textures)
         self.lights = lights
-        self.mats = MaterialTable(materials, settings, None if textures is None else textures.has_color)
+        self.mats = MaterialTable(materials, settings, None if textures is None else textures.has_color,
+                                  plan.cycles_version)
         self.bsdfs = self.mats.bsdfs             # bsdfs[g] scatters scatter group g (engine/materials/table.py)
         self.plan = plan
         self.settings = settings

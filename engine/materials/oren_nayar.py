@@ -175,3 +175,31 @@ class EnergyPreservingOrenNayar(_FujiiOrenNayar):
         e_ms = (1.0 / np.pi) * albedo * albedo * (e_avg / (1.0 - e_avg)) / (1.0 - albedo * (1.0 - e_avg))
         loss = (1.0 - fon_albedo(cos_i, a, b)) * (1.0 - fon_albedo(cos_o, a, b))
         return si.color * e_ms * loss                         # times the closure weight, as Cycles
+
+
+ENERGY_PRESERVING_SINCE = (4, 3)     # Cycles' switch to the EON model (Blender 4.3)
+
+
+def rough_diffuse_model(cycles_version) -> type:
+    """The Oren-Nayar of a Blender's Cycles: 3.x's below (4, 3), the energy-preserving one from it on."""
+    return EnergyPreservingOrenNayar if tuple(cycles_version) >= ENERGY_PRESERVING_SINCE else OrenNayar34
+
+
+class RoughDiffuse(BSDF):
+    """The scatter row of the rough diffuse materials (engine/materials/table.py): the Oren-Nayar
+    model of the scene's Cycles version with each material's `diffuse_roughness`."""
+    flags = LOBE
+
+    def __init__(self, materials, settings, cycles_version=(5, 0)):
+        self.model = rough_diffuse_model(cycles_version)
+        self.lobe = self.model(materials, settings, roughness=[getattr(m, "diffuse_roughness", 0.0)
+                                                               for m in materials])
+
+    def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+        return self.lobe.sample(si, u_lobe, u)
+
+    def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.lobe.eval(si, wi)
+
+    def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+        return self.lobe.pdf(si, wi)

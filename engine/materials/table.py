@@ -7,7 +7,8 @@ ABSORB (surfaces that absorb everything: the path ends there) and PASS_THROUGH (
 lights: their emission counts, then the ray goes on through them).
 
 A new BSDF is one class (engine/materials/protocol.py) and one row here, for a material kind of
-the scene model (engine/scene/model.py).
+the scene model (engine/scene/model.py).  One row is not a kind: ROUGH_DIFFUSE takes the diffuse
+materials with a diffuse roughness above 0 (`scatter_kind`); those of roughness 0 stay Lambertian.
 """
 from __future__ import annotations
 
@@ -20,11 +21,14 @@ from .glossy import MicrofacetReflection
 from .lambert import Lambertian
 from .mirror import PerfectMirror
 from .principled import PrincipledV2
+from .oren_nayar import RoughDiffuse
 from .protocol import has_non_delta
 
 # (material kind, its BSDF); the row is the kind's scatter group.
+ROUGH_DIFFUSE = "rough diffuse"     # a scatter row, not a material kind: see scatter_kind
 SCATTERING = ((DIFFUSE, Lambertian), (MIRROR, PerfectMirror), (GLASS, SmoothGlass),
-              (GLOSSY, MicrofacetReflection), (PRINCIPLED, PrincipledV2))
+              (GLOSSY, MicrofacetReflection), (PRINCIPLED, PrincipledV2),
+              (ROUGH_DIFFUSE, RoughDiffuse))
 KIND_CODE = {kind: group for group, (kind, _) in enumerate(SCATTERING)}
 ABSORB = len(SCATTERING)            # black surfaces: absorb everything
 PASS_THROUGH = ABSORB + 1           # Area lights: emission, then the ray goes on
@@ -33,15 +37,24 @@ N_SCATTER_GROUPS = PASS_THROUGH + 1
 NON_DELTA_KINDS = frozenset(kind for kind, bsdf in SCATTERING if has_non_delta(bsdf.flags))
 
 
+def scatter_kind(material) -> str:
+    """The row that scatters `material`: its kind's, or ROUGH_DIFFUSE for a diffuse material with
+    a diffuse roughness above 0 (Cycles' Oren-Nayar closure; at 0 its Lambertian one)."""
+    if material.kind == DIFFUSE and getattr(material, "diffuse_roughness", 0.0) > 0.0:
+        return ROUGH_DIFFUSE
+    return material.kind
+
+
 class MaterialTable:
     """Materials as arrays indexed by material id (colours as rows (3, M)), and the BSDFs.
 
     bsdfs[g] scatters the hits of scatter group g < ABSORB; scatter_group[m] is the group of
     material m: its kind's, or ABSORB where its colour is black (a textured colour scatters
-    whatever its unlinked value: `textured_color`, a bool per material, or None)."""
+    whatever its unlinked value: `textured_color`, a bool per material, or None).  cycles_version:
+    the scene's (engine/scene/model.py Scene), for the BSDFs whose model follows it."""
 
-    def __init__(self, materials, settings, textured_color=None):
-        self.kind = np.array([KIND_CODE[m.kind] for m in materials], dtype=np.int8)
+    def __init__(self, materials, settings, textured_color=None, cycles_version=(5, 0)):
+        self.kind = np.array([KIND_CODE[scatter_kind(m)] for m in materials], dtype=np.int8)
         color = np.array([m.color for m in materials], dtype=np.float64).reshape(-1, 3)
         emission = np.array([m.emission for m in materials], dtype=np.float64).reshape(-1, 3)
         self.color, self.emission = rows(color), rows(emission)
@@ -51,7 +64,8 @@ class MaterialTable:
             scatters = scatters | textured_color
         scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED])     # its specular layer reflects on black
         self.scatter_group = np.where(scatters, self.kind, ABSORB).astype(np.int8)
-        self.bsdfs = [bsdf(materials, settings) for _, bsdf in SCATTERING]
+        self.bsdfs = [bsdf(materials, settings, cycles_version) if kind == ROUGH_DIFFUSE else bsdf(materials, settings)
+                      for kind, bsdf in SCATTERING]
         # Groups whose BSDF has a lobe that given directions meet (light samples, MIS, 2D uniforms).
         self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]
         # Whether any material has a glossy (non-delta, non-Lambertian reflection) lobe.

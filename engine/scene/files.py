@@ -80,6 +80,8 @@ def _glossy_fields(m) -> dict:
         if not isinstance(value, bool):
             m.fail("multiscatter", "true or false", value)
         values["multiscatter"] = value
+    if "diffuse_roughness" in m:
+        values["diffuse_roughness"] = m.number("diffuse_roughness")
     return values
 
 
@@ -111,6 +113,11 @@ def _glossy_json(m) -> dict:
             "tangent": list(m.tangent), "distribution": m.distribution, "fresnel": m.fresnel,
             "multiscatter": bool(m.multiscatter), "edge_tint": list(m.edge_tint),
             "conductor_ior": list(m.conductor_ior), "conductor_k": list(m.conductor_k)}
+
+
+def _diffuse_roughness_json(m) -> dict:
+    """Only where it is not 0: files of Lambertian materials stay as they were."""
+    return {"diffuse_roughness": float(m.diffuse_roughness)} if m.diffuse_roughness else {}
 
 
 def _material_index(fields, names):
@@ -242,7 +249,8 @@ def load_scene(path: str) -> Scene:
     return Scene(camera, materials, meshes, spheres, quads,
                  background=top.numbers("background", 3, (0.0, 0.0, 0.0)),
                  resolution=top.integers("resolution", 2, (256, 256)), name=name, lights=lights,
-                 points=points, suns=suns, textures=textures)
+                 points=points, suns=suns, textures=textures,
+                 cycles_version=tuple(top.integers("cycles_version", 2, (5, 0))))
 
 
 def save_scene(scene: Scene, path: str) -> None:
@@ -270,13 +278,14 @@ def save_scene(scene: Scene, path: str) -> None:
         "format": FORMAT, "name": scene.name,
         "version": SMOOTH_VERSION if any(m.normals is not None for m in scene.meshes) else SMOOTH_VERSION - 1,
         "resolution": list(scene.resolution), "background": list(scene.background),
+        "cycles_version": [int(v) for v in scene.cycles_version],
         "camera": None if cam is None else {
             "name": cam.name, "matrix": np.asarray(cam.matrix).tolist(), "lens": cam.lens,
             "sensor_width": cam.sensor_width, "sensor_height": cam.sensor_height,
             "sensor_fit": cam.sensor_fit, "shift_x": cam.shift_x, "shift_y": cam.shift_y},
         "textures": textures_json(scene, arrays),
         "materials": [dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
-                            "emission": list(m.emission)}, **_glossy_json(m), **_principled_json(m),
+                            "emission": list(m.emission)}, **_glossy_json(m), **_principled_json(m), **_diffuse_roughness_json(m),
                            **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
                                                                      ("emission_texture", m.emission_texture))
                               if slot is not None}) for m in scene.materials],

@@ -82,7 +82,9 @@ class Material:
     edge_tint: tuple = (1.0, 1.0, 1.0)
     conductor_ior: tuple = (0.18, 0.42, 1.37)        # gold-like defaults, n and k per channel
     conductor_k: tuple = (3.42, 2.35, 1.77)
-    diffuse_roughness: float = 0.0       # Diffuse BSDF's Roughness (0: Lambertian)
+    # The Diffuse BSDF's Roughness (Oren-Nayar, engine/materials/oren_nayar.py; the model follows
+    # Scene.cycles_version); 0 = Lambert, exactly.
+    diffuse_roughness: float = 0.0
     # Principled only: its own inputs (None: the node's defaults).
     principled: Principled | None = None
 
@@ -109,6 +111,10 @@ class Material:
             if self.principled is not None and not isinstance(self.principled, Principled):
                 raise SceneError(f"Material '{self.name}': principled must be a Principled, got {self.principled!r}")
             (self.principled or Principled()).validate(f"Material '{self.name}'")
+        value = self.diffuse_roughness
+        if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                and 0.0 <= value <= 1.0):
+            raise SceneError(f"Material '{self.name}': diffuse roughness must be from 0 to 1, got {value!r}")
 
     def validate_glossy(self) -> None:
         owner = f"Material '{self.name}'"
@@ -485,7 +491,8 @@ class Scene:
     points: list = field(default_factory=list)      # PointLight
     suns: list = field(default_factory=list)        # SunLight
     textures: list = field(default_factory=list)    # engine/materials/textures.py ImageTexture
-    cycles_version: tuple = (5, 0)                  # (major, minor) of the Blender that exported it
+    # (major, minor) of the Blender whose Cycles the models follow (the running one at export).
+    cycles_version: tuple = (5, 0)
 
     def validate(self) -> list[str]:
         """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""
@@ -501,6 +508,12 @@ class Scene:
                              f"(at most {16384 * 16384:,} pixels)")
         if not self.materials:
             raise SceneError(f"Scene '{self.name}': no materials")
+        version = self.cycles_version
+        if not (isinstance(version, (tuple, list)) and len(version) == 2
+                and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in version)):
+            raise SceneError(f"Scene '{self.name}': cycles_version must be 2 non-negative integers "
+                             f"(major, minor), got {version!r}")
+        self.cycles_version = tuple(version)
         for material in self.materials:
             material.validate()
         bg = np.asarray(self.background, dtype=np.float64)

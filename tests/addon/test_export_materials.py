@@ -253,3 +253,19 @@ def test_principled_transmission_stays_smooth_glass(scene, ms):
     m = only(res, "Glassy")
     assert m.kind == "glass" and m.ior == pytest.approx(1.45)
     assert named(res, "Glassy", "'Transmission Weight' 0.8"), res.warnings
+
+
+def test_distribution_menu_maps_to_the_tracers_distributions():
+    """mcrt_addon/export/microfacet_nodes.py distribution(): Multiscatter GGX is GGX with energy
+    compensation; Ashikhmin-Shirley is not modelled: GGX and one warning naming material and node."""
+    from types import SimpleNamespace
+
+    from mcrt_addon.export.microfacet_nodes import distribution
+    warned = []
+    table = SimpleNamespace(warn=lambda mat, node, text: warned.append((mat.name, node.name, text)))
+    mat = SimpleNamespace(name="Brushed")
+    for menu, expected in (("GGX", ("ggx", False)), ("MULTI_GGX", ("ggx", True)), ("BECKMANN", ("beckmann", False))):
+        assert distribution(table, mat, SimpleNamespace(name="Glossy", distribution=menu)) == expected
+    assert not warned
+    assert distribution(table, mat, SimpleNamespace(name="Glossy", distribution="ASHIKHMIN_SHIRLEY")) == ("ggx", False)
+    assert warned == [("Brushed", "Glossy", "distribution ASHIKHMIN_SHIRLEY is not modelled; rendered as GGX")]
