@@ -108,6 +108,16 @@ def resolve_accelerator(name, version=None):
     return name, None
 
 
+def blender_prints_stats(version=None, binary=None):
+    """Whether Blender itself prints every update_stats line in the background: the blender
+    binary up to 4.x writes "Fra:1 Mem:... | <line>" to stdout for each (render_pipeline.cc
+    stats_background); from 5.0 on it logs them only at the "render" log's INFO level, and the
+    bpy module (binary_path "") does not print them, so there the engine prints its own."""
+    version = tuple(bpy.app.version) if version is None else tuple(version)
+    binary = bpy.app.binary_path if binary is None else binary
+    return bool(binary) and version < (5, 0, 0)
+
+
 def stats_line(message, stats=None):
     text = f"TNCG15 MC | {message}"
     if stats:
@@ -260,21 +270,19 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             finally:
                 self.end_result(result)
 
-        t_render = time.perf_counter()
         printed = [None]                 # when the last progress line went to the terminal
+        echoes = blender_prints_stats()
 
         def on_progress(fraction, message):
             fraction = min(max(float(fraction), 0.0), 1.0)
             self.update_progress(fraction)
-            if message.startswith("Sample "):     # the stopping rules' line: samples, error, time
-                line = stats_line(message)
-            else:
-                line = stats_line(f"{message} | {settings.samples} spp | {time.perf_counter() - t_render:.1f} s")
+            line = stats_line(message)      # "Sample n/N · Remaining mm:ss · est. error x %"
             self.update_stats("", line)
-            # In the background (blender -b, python -m mcrt_addon render) nobody sees the stats:
-            # a progress line on the terminal, as Cycles prints its own, at most one a second.
+            # In the background nobody sees the stats: a progress line on the terminal, at most one
+            # a second, unless Blender prints each stats line itself (blender_prints_stats).
             now = time.perf_counter()
-            if bpy.app.background and (printed[0] is None or now - printed[0] >= 1.0 or fraction >= 1.0):
+            if bpy.app.background and not echoes and (printed[0] is None or now - printed[0] >= 1.0
+                                                       or fraction >= 1.0):
                 printed[0] = now
                 print(f"{fraction * 100:5.1f}% {line}", flush=True)
 
@@ -304,7 +312,10 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         for w in warnings if not self.is_preview else ():      # the preview scene's own quirks
             self.report({"WARNING"}, w)
         self.update_progress(1.0)
-        self.update_stats("", stats_line(self._summary(stats, result), stats))
+        summary = stats_line(self._summary(stats, result), stats)
+        self.update_stats("", summary)      # the image editor's footer keeps the last stats line
+        if not self.is_preview:
+            self.report({"INFO"}, summary)  # and the Info log the summary
 
     def _write_passes(self, result, wanted, width, height, warnings):
         """Denoise (in a process of the worker Python) when asked, then the whole frame: Combined
