@@ -42,6 +42,8 @@ class RenderReport:
     crop: tuple = None
     wall_seconds: float = None
     passes: list = field(default_factory=list)     # Blender pass names written at the end
+    stats_lines: list = field(default_factory=list)  # every update_stats info line, in order
+    summary: str = None                            # the last of them, also in the Info log
 
 
 @contextlib.contextmanager
@@ -206,6 +208,11 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         """Esc in the render window, or a stop request (polled by the tracer between batches, ~0.1 s)."""
         return self.test_break() or any(stop() for stop in STOP_REQUESTS)
 
+    def _stats(self, info):
+        """update_stats(info), the line kept in the RenderReport."""
+        self.last.stats_lines.append(info)
+        self.update_stats("", info)
+
     def _fail(self, message):
         self.last.error = message
         self.report({"ERROR"}, message)
@@ -213,7 +220,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             self.error_set(message)
         except AttributeError:
             pass
-        self.update_stats("", f"TNCG15 MC | Error: {message}")
+        self._stats(f"TNCG15 MC | Error: {message}")
 
     def _render(self, depsgraph):
         if worker_python.NUMPY_PROBLEM:
@@ -234,7 +241,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         try:
             width, height = int(self.resolution_x), int(self.resolution_y)
             crop = border_rect(scene.render, width, height)
-            self.update_stats("", "TNCG15 MC | Exporting scene")
+            self._stats("TNCG15 MC | Exporting scene")
             camera = self.camera_override if self.camera_override is not None else scene.camera
             exported = export_scene(depsgraph, resolution=(width, height), camera=camera, crop=crop,
                                     test_break=self._cancel_requested)
@@ -277,7 +284,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             fraction = min(max(float(fraction), 0.0), 1.0)
             self.update_progress(fraction)
             line = stats_line(message)      # "Sample n/N · Remaining mm:ss · est. error x %"
-            self.update_stats("", line)
+            self._stats(line)
             # In the background nobody sees the stats: a progress line on the terminal, at most one
             # a second, unless Blender prints each stats line itself (blender_prints_stats).
             now = time.perf_counter()
@@ -289,7 +296,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         def log(*args):
             print(*args)
 
-        self.update_stats("", "TNCG15 MC | Rendering")
+        self._stats("TNCG15 MC | Rendering")
         if cluster:
             pool = bridge.module("api").make_pool(f"dask:{cluster}", settings.resolved_threads(), log=log)
         elif pool is None:
@@ -313,7 +320,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             self.report({"WARNING"}, w)
         self.update_progress(1.0)
         summary = stats_line(self._summary(stats, result), stats)
-        self.update_stats("", summary)      # the image editor's footer keeps the last stats line
+        self._stats(summary)                # the image editor's footer keeps the last stats line
+        self.last.summary = summary
         if not self.is_preview:
             self.report({"INFO"}, summary)  # and the Info log the summary
 
@@ -324,7 +332,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         passes = dict(getattr(result, "passes", {}) or {})
         image = np.asarray(result.image, dtype=np.float32)
         if "noisy" in wanted:
-            self.update_stats("", "TNCG15 MC | Denoising")
+            self._stats("TNCG15 MC | Denoising")
             python = worker_python.worker_python(worker_python.preferred_python())[0]
             t0 = time.perf_counter()
             try:
