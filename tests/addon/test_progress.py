@@ -131,11 +131,12 @@ def test_estimate_json_has_no_nan(samples):
 class FakeOperator:
     """The operator's modal methods on a plain object (bpy 5.0 in-process has no window to run a
     modal operator in)."""
-    op = estimate_module.TNCG15_OT_estimate_render_time
-    modal, cancel, _finish, _status, _end = op.modal, op.cancel, op._finish, op._status, op._end
 
     def __init__(self, job):
         self.job, self.timer, self.reports = job, None, []
+
+    def __getattr__(self, name):        # modal, cancel and their helpers, bound to this object
+        return getattr(estimate_module.TNCG15_OT_estimate_render_time, name).__get__(self)
 
     def report(self, kind, text):
         self.reports.append((set(kind), text))
