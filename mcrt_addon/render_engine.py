@@ -42,6 +42,8 @@ class RenderReport:
     crop: tuple = None
     wall_seconds: float = None
     passes: list = field(default_factory=list)     # Blender pass names written at the end
+    stats_lines: list = field(default_factory=list)  # every update_stats info line, in order
+    summary: str = None                            # the last of them, also in the Info log
 
 
 @contextlib.contextmanager
@@ -106,6 +108,16 @@ def resolve_accelerator(name, version=None):
                           f"{'.'.join(map(str, version[:2]))}: embreex clashes with Blender's own "
                           "Embree 3 library (the process would crash). Choose Auto, Octree or Brute Force")
     return name, None
+
+
+def blender_prints_stats(version=None, binary=None):
+    """Whether Blender itself prints every update_stats line in the background: the blender
+    binary up to 4.x writes "Fra:1 Mem:... | <line>" to stdout for each (render_pipeline.cc
+    stats_background); from 5.0 on it logs them only at the "render" log's INFO level, and the
+    bpy module (binary_path "") does not print them, so there the engine prints its own."""
+    version = tuple(bpy.app.version) if version is None else tuple(version)
+    binary = bpy.app.binary_path if binary is None else binary
+    return bool(binary) and version < (5, 0, 0)
 
 
 def stats_line(message, stats=None):
@@ -196,6 +208,11 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         """Esc in the render window, or a stop request (polled by the tracer between batches, ~0.1 s)."""
         return self.test_break() or any(stop() for stop in STOP_REQUESTS)
 
+    def _stats(self, info):
+        """update_stats(info), the line kept in the RenderReport."""
+        self.last.stats_lines.append(info)
+        self.update_stats("", info)
+
     def _fail(self, message):
         self.last.error = message
         self.report({"ERROR"}, message)
@@ -203,7 +220,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             self.error_set(message)
         except AttributeError:
             pass
-        self.update_stats("", f"TNCG15 MC | Error: {message}")
+        self._stats(f"TNCG15 MC | Error: {message}")
 
     def _render(self, depsgraph):
         if worker_python.NUMPY_PROBLEM:
@@ -224,7 +241,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         try:
             width, height = int(self.resolution_x), int(self.resolution_y)
             crop = border_rect(scene.render, width, height)
-            self.update_stats("", "TNCG15 MC | Exporting scene")
+            self._stats("TNCG15 MC | Exporting scene")
             camera = self.camera_override if self.camera_override is not None else scene.camera
             exported = export_scene(depsgraph, resolution=(width, height), camera=camera, crop=crop,
                                     test_break=self._cancel_requested)
@@ -260,28 +277,26 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             finally:
                 self.end_result(result)
 
-        t_render = time.perf_counter()
         printed = [None]                 # when the last progress line went to the terminal
+        echoes = blender_prints_stats()
 
         def on_progress(fraction, message):
             fraction = min(max(float(fraction), 0.0), 1.0)
             self.update_progress(fraction)
-            if message.startswith("Sample "):     # the stopping rules' line: samples, error, time
-                line = stats_line(message)
-            else:
-                line = stats_line(f"{message} | {settings.samples} spp | {time.perf_counter() - t_render:.1f} s")
-            self.update_stats("", line)
-            # In the background (blender -b, python -m mcrt_addon render) nobody sees the stats:
-            # a progress line on the terminal, as Cycles prints its own, at most one a second.
+            line = stats_line(message)      # "Sample n/N · Remaining mm:ss · est. error x %"
+            self._stats(line)
+            # In the background nobody sees the stats: a progress line on the terminal, at most one
+            # a second, unless Blender prints each stats line itself (blender_prints_stats).
             now = time.perf_counter()
-            if bpy.app.background and (printed[0] is None or now - printed[0] >= 1.0 or fraction >= 1.0):
+            if bpy.app.background and not echoes and (printed[0] is None or now - printed[0] >= 1.0
+                                                       or fraction >= 1.0):
                 printed[0] = now
                 print(f"{fraction * 100:5.1f}% {line}", flush=True)
 
         def log(*args):
             print(*args)
 
-        self.update_stats("", "TNCG15 MC | Rendering")
+        self._stats("TNCG15 MC | Rendering")
         if cluster:
             pool = bridge.module("api").make_pool(f"dask:{cluster}", settings.resolved_threads(), log=log)
         elif pool is None:
@@ -304,7 +319,11 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         for w in warnings if not self.is_preview else ():      # the preview scene's own quirks
             self.report({"WARNING"}, w)
         self.update_progress(1.0)
-        self.update_stats("", stats_line(self._summary(stats, result), stats))
+        summary = stats_line(self._summary(stats, result), stats)
+        self._stats(summary)                # the image editor's footer keeps the last stats line
+        self.last.summary = summary
+        if not self.is_preview:
+            self.report({"INFO"}, summary)  # and the Info log the summary
 
     def _write_passes(self, result, wanted, width, height, warnings):
         """Denoise (in a process of the worker Python) when asked, then the whole frame: Combined
@@ -313,7 +332,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         passes = dict(getattr(result, "passes", {}) or {})
         image = np.asarray(result.image, dtype=np.float32)
         if "noisy" in wanted:
-            self.update_stats("", "TNCG15 MC | Denoising")
+            self._stats("TNCG15 MC | Denoising")
             python = worker_python.worker_python(worker_python.preferred_python())[0]
             t0 = time.perf_counter()
             try:

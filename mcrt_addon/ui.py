@@ -11,12 +11,15 @@ import bpy
 ENGINE_ID = "TNCG15_MC"
 
 # Generic panels that draw nothing engine-specific but are gated by COMPAT_ENGINES.
+# (EEVEE's light panels are not lent: their options are EEVEE's; DATA_PT_tncg15_light draws ours.)
 EXTRA_PANELS = (
     "EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface", "EEVEE_WORLD_PT_surface",
-    "EEVEE_NEXT_MATERIAL_PT_surface", "EEVEE_NEXT_WORLD_PT_surface", "DATA_PT_EEVEE_light",
-    "DATA_PT_EEVEE_light_distance", "MATERIAL_PT_preview", "WORLD_PT_context_world",
+    "EEVEE_NEXT_MATERIAL_PT_surface", "EEVEE_NEXT_WORLD_PT_surface", "MATERIAL_PT_preview",
+    "WORLD_PT_context_world",
 )
-EXCLUDED_PANELS = {"VIEWLAYER_PT_filter", "VIEWLAYER_PT_layer_passes"}
+# The doc template's two, and the generic Light panel (the type row only; its node-editor twin
+# shares its COMPAT_ENGINES set), which DATA_PT_tncg15_light replaces as Cycles' own panel does.
+EXCLUDED_PANELS = {"VIEWLAYER_PT_filter", "VIEWLAYER_PT_layer_passes", "DATA_PT_light", "NODE_DATA_PT_light"}
 
 
 class TNCG15ButtonsPanel:
@@ -182,9 +185,52 @@ class OBJECT_PT_tncg15(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.prop(context.object.tncg15, "implicit_sphere")
 
 
+class DATA_PT_tncg15_light(TNCG15ButtonsPanel, bpy.types.Panel):
+    """The light's options the exporter reads (mcrt_addon/export/lights.py), laid out as Cycles'
+    Light panel: type, colour, power and exposure, then the type's shape."""
+    bl_label = "Light"
+    bl_context = "data"
+
+    @classmethod
+    def poll(cls, context):
+        return context.light is not None and super().poll(context)
+
+    def draw(self, context):
+        layout = self.layout
+        light = context.light
+        layout.row().prop(light, "type", expand=True)
+        split(layout)
+        col = layout.column()
+        col.prop(light, "color")
+        col.prop(light, "energy")
+        if hasattr(light, "exposure"):                       # Blender 4.0 on
+            col.prop(light, "exposure")
+        col.separator()
+        if light.type in {"POINT", "SPOT"}:
+            col.prop(light, "shadow_soft_size", text="Radius")
+        elif light.type == "SUN":
+            col.prop(light, "angle")
+        elif light.type == "AREA":
+            col.prop(light, "shape", text="Shape")
+            sub = col.column(align=True)
+            if light.shape in {"SQUARE", "DISK"}:
+                sub.prop(light, "size")
+            else:
+                sub.prop(light, "size", text="Size X")
+                sub.prop(light, "size_y", text="Y")
+            if hasattr(light, "normalize"):
+                col.prop(light, "normalize")
+        cycles = getattr(light, "cycles", None)              # the Cycles add-on's light options
+        if cycles is not None:
+            col.separator()
+            col.prop(cycles, "use_multiple_importance_sampling", text="Multiple Importance")
+            if light.type == "AREA":
+                col.prop(cycles, "is_portal", text="Portal")
+
+
 classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_sampling_viewport, RENDER_PT_tncg15_sampling_render,
            RENDER_PT_tncg15_sampling_lights, RENDER_PT_tncg15_sampling_advanced, RENDER_PT_tncg15_light_paths, RENDER_PT_tncg15_performance,
-           RENDER_PT_tncg15_denoise, VIEWLAYER_PT_tncg15_passes, OBJECT_PT_tncg15)
+           RENDER_PT_tncg15_denoise, VIEWLAYER_PT_tncg15_passes, OBJECT_PT_tncg15, DATA_PT_tncg15_light)
 
 _lent = []   # panels we added our engine id to, so unregister removes exactly those
 

@@ -107,19 +107,33 @@ class TNCG15Preferences(bpy.types.AddonPreferences):
     bl_idname = __package__
 
     worker_python: StringProperty(
-        name="Python for render workers", subtype="FILE_PATH", default="",
+        name="Worker Python", subtype="FILE_PATH", default="",
         description="A Python with numpy and embreex that runs the tracer's worker processes "
                     "(empty: Blender's own Python with the bundled wheels)")
     render_cluster: StringProperty(
-        name="Render cluster", default="",
+        name="Render Cluster", default="",
         description="Dask scheduler address (tcp://HOST:8786) whose workers render the work units; empty: "
                     "worker processes on this machine.  Blender's Python needs dask and distributed")
 
     def draw(self, context):
-        self.layout.prop(self, "worker_python")
-        self.layout.prop(self, "render_cluster")
+        import textwrap
+        layout = self.layout
+        layout.use_property_split = True                # labels left, fields right: never cut short
+        layout.prop(self, "worker_python")
+        layout.prop(self, "render_cluster")
         path, why = worker_python(self.worker_python)
-        self.layout.label(text=f"Workers run: {path}" if path else why)
+        col = layout.column(align=True)                 # a long path or reason wraps, not truncated
+        for i, line in enumerate(textwrap.wrap(f"Workers run: {path}" if path else why, 70) or [""]):
+            col.label(text=line, icon="INFO" if i == 0 else "BLANK1")
+        guide = documentation_path()
+        if guide:
+            layout.operator("wm.url_open", text="Documentation", icon="HELP").url = "file://" + guide
+
+
+def documentation_path():
+    """docs/user-guide.md beside the add-on (a repository checkout), or None."""
+    guide = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "docs", "user-guide.md")
+    return guide if os.path.isfile(guide) else None
 
 
 def register():

@@ -218,18 +218,33 @@ def estimate(scene, settings, target: float, render, pilot_samples: int = PILOT_
                "error": st["estimated_rel_error"], "seconds": seconds, "reachable": True}
     else:
         out = predict(result.film, seconds, real, target, st["round_log"], st["tile_size"], st["threads"], done)
+        if done >= real.samples:         # the pilot was the whole render: its error is the answer
+            out["error"] = st.get("estimated_rel_error")
     out.update({"target_rel_error": target, "pilot_samples": pilot.samples, "pilot_seconds": seconds,
                 "pilot_rel_error": result.stats.get("estimated_rel_error"),
                 "setup_seconds": result.stats.get("setup_seconds"), "samples_cap": settings.samples,
                 "adaptive": settings.adaptive, "resolution": list(scene.resolution)})
-    return out
+    return {k: None if isinstance(v, float) and not np.isfinite(v) else v for k, v in out.items()}  # JSON has no NaN
 
 
 def describe(e: dict) -> str:
-    """One line: "≈ 42 s to 1 % (adaptive, mean 180 spp; pilot 16 spp: error 8.0 % in 2.1 s)"."""
-    head = (f"≈ {e['seconds']:.1f} s to {e['target_rel_error'] * 100:g} %" if e["reachable"] else
-            f"the cap of {e['samples_cap']} samples stops at {e['error'] * 100:.2f} % "
-            f"(not {e['target_rel_error'] * 100:g} %) after ≈ {e['seconds']:.1f} s")
+    """One line: "≈ 42 s to 1 % (adaptive, mean 180 spp; pilot 16 spp: error 8.0 % in 2.1 s)";
+    without a reachable target: "the cap of 16 samples reaches ≈ 4.2 % (not 1 %) in ≈ 0.8 s (...)".
+    With `no_noise_target` (the add-on's panel has the noise target off) the render is uniform and
+    the line says so.  Unknown errors read "?", never "nan"."""
+    percent = (lambda x: "?" if x is None or not np.isfinite(x) else f"{x * 100:.2f}")
+    if e["reachable"]:
+        head = f"≈ {e['seconds']:.1f} s to {e['target_rel_error'] * 100:g} %"
+    else:
+        head = (f"the cap of {e['samples_cap']} samples reaches ≈ {percent(e.get('error'))} % "
+                f"(not {e['target_rel_error'] * 100:g} %) in ≈ {e['seconds']:.1f} s")
+    if e["adaptive"]:
+        mode = "adaptive"
+    elif e.get("no_noise_target"):
+        mode = "uniform: adaptive sampling off without a noise target"
+    else:
+        mode = "uniform: adaptive sampling off"
     pilot = e.get("pilot_rel_error")
-    return (f"{head} ({'adaptive' if e['adaptive'] else 'uniform'}, mean {e['mean_samples']:.0f} spp; pilot "
-            f"{e['pilot_samples']} spp: error {(pilot or float('nan')) * 100:.1f} % in {e['pilot_seconds']:.2f} s)")
+    pilot_error = "?" if pilot is None or not np.isfinite(pilot) else f"{pilot * 100:.1f}"
+    return (f"{head} ({mode}, mean {e['mean_samples']:.0f} spp; pilot "
+            f"{e['pilot_samples']} spp: error {pilot_error} % in {e['pilot_seconds']:.2f} s)")

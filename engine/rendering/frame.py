@@ -152,11 +152,7 @@ class Frame:
         def merge(result):
             self.add_and_show(result, on_tile)
             if on_progress is not None:
-                elapsed = max(time.perf_counter() - start, 1e-9)
-                rate = sum(self.totals.rays.values()) / elapsed / 1e6
-                on_progress(self.film.units_added / len(self.units),
-                            f"unit {self.film.units_added}/{len(self.units)} · {rate:.2f} M rays/s · "
-                            f"effects: {self.plan.summary()}")
+                on_progress(*self.progress(time.perf_counter() - start))
         try:
             pool.start(self.units)
             interrupt = None if should_cancel is None else (lambda: "cancelled" if should_cancel() else None)
@@ -175,6 +171,18 @@ class Frame:
             error.result = result
             raise error
         return result
+
+    def progress(self, seconds: float) -> tuple[float, str]:
+        """(fraction done, the stats line) after `seconds` of a render without stopping rules: the
+        samples every pixel has on average, the time left at the sample rate so far, and the
+        estimated error once every pixel has a sample (engine/rendering/stopping.py progress_message)."""
+        from .stopping import progress_message
+        count, cap = self.film.count, self.settings.samples
+        fraction = min(float(count.sum()) / (count.size * cap), 1.0)
+        samples = max(1, int(fraction * cap)) if fraction > 0 else 0
+        error = self.film.estimated_rel_error() if count.min() > 0 else float("nan")
+        remaining = seconds * (1.0 - fraction) / fraction if fraction > 0 else float("nan")
+        return fraction, progress_message(samples, cap, error, remaining)
 
     def error_stats(self, seconds: float) -> dict:
         """estimated_rel_error and seconds_to_target (docs/user-guide.md: Stopping rules)."""

@@ -173,8 +173,8 @@ def run_rounds(frame, pool, on_tile=None, should_cancel=None, on_progress=None, 
             state.update()
             elapsed = clock() - start
             if on_progress is not None:
-                on_progress(stop / s.samples, progress_message(stop, s.samples, state.error, elapsed,
-                                                               s.noise_target))
+                on_progress(stop / s.samples, progress_message(
+                    stop, s.samples, state.error, remaining_seconds(stop, s, state.error, elapsed)))
             if state.reached_target():
                 stopped_by = "noise target"
                 break
@@ -202,12 +202,31 @@ def fit_round(first: int, stop: int, count: np.ndarray, elapsed: float, limit: f
     return min(stop, first + fits) if fits >= 1 else first
 
 
-def progress_message(samples: int, cap: int, error: float, seconds: float, target: float) -> str:
-    """The stats line: "Sample 48/256 · est. error 2.1 % · 3.4 s · ≈ 12 s to 1 %"."""
-    target = target or 0.01
-    text = f"Sample {samples}/{cap} · est. error {error * 100:.1f} % · {seconds:.1f} s"
-    if np.isfinite(error) and error > target:
-        remaining = seconds_to_target(seconds, error, target) - seconds
-        text += f" · ≈ {remaining:.0f} s to {target * 100:g} %" if remaining >= 9.5 else \
-            f" · ≈ {remaining:.1f} s to {target * 100:g} %"
+def remaining_seconds(samples: int, settings, error: float, seconds: float) -> float:
+    """The time left after `seconds` and `samples` of the cap: at the sample rate so far for the
+    samples to come, sooner when the noise target (seconds_to_target, engine/film/error_estimate.py)
+    or the time limit comes first."""
+    left = seconds * (settings.samples - samples) / samples if samples > 0 else float("nan")
+    if settings.noise_target > 0 and np.isfinite(error):
+        left = min(left, max(seconds_to_target(seconds, error, settings.noise_target) - seconds, 0.0))
+    if settings.time_limit > 0:
+        left = min(left, max(settings.time_limit - seconds, 0.0))
+    return left
+
+
+def clock_text(seconds: float) -> str:
+    """mm:ss (h:mm:ss from an hour on), as Cycles' "Remaining"; "--:--" when unknown."""
+    if not np.isfinite(seconds):
+        return "--:--"
+    whole = int(round(max(seconds, 0.0)))
+    hours, rest = divmod(whole, 3600)
+    return f"{hours}:{rest // 60:02d}:{rest % 60:02d}" if hours else f"{rest // 60:02d}:{rest % 60:02d}"
+
+
+def progress_message(samples: int, cap: int, error: float, remaining: float) -> str:
+    """The stats line: "Sample 48/256 · Remaining 00:12 · est. error 2.1 %" (the error left out
+    while some pixel has no estimate yet)."""
+    text = f"Sample {samples}/{cap} · Remaining {clock_text(remaining)}"
+    if np.isfinite(error):
+        text += f" · est. error {error * 100:.1f} %"
     return text

@@ -225,7 +225,7 @@ def start_render(tmp_path, *extra):
                              "--threads", "2", *extra], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, env=dict(os.environ, PYTHONPATH=ROOT))
     seen = b""
-    while not re.search(rb"unit [1-9]\d*/", seen):
+    while not re.search(rb"Sample [1-9]\d*/", seen):
         chunk = os.read(proc.stderr.fileno(), 4096)
         assert chunk, f"the render ended early: {seen[-2000:]!r}"
         seen += chunk

@@ -240,7 +240,7 @@ def test_ctrl_c_stops_like_esc_and_writes_the_finished_work(cluster, tmp_path):
     def read():
         for chunk in iter(lambda: proc.stderr.read1(4096), b""):
             err.append(chunk)
-            if re.search(rb"unit [1-9]\d*/", b"".join(err)):      # a unit merged: stop now
+            if re.search(rb"Sample [1-9]\d*/", b"".join(err)):      # a unit merged: stop now
                 seen.set()
 
     threading.Thread(target=read, daemon=True).start()

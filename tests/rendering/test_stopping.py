@@ -347,7 +347,15 @@ def test_settings_refuse_bad_stopping_values():
             RenderSettings(**bad).validate()
 
 
-def test_progress_line_reads_like_the_issue():
-    from engine.rendering.stopping import progress_message
-    assert progress_message(48, 256, 0.021, 3.4, 0.01) == "Sample 48/256 · est. error 2.1 % · 3.4 s · ≈ 12 s to 1 %"
-    assert progress_message(256, 256, 0.009, 5.0, 0.01) == "Sample 256/256 · est. error 0.9 % · 5.0 s"
+def test_progress_line_reads_like_cycles():
+    """"Sample n/N · Remaining mm:ss · est. error x %"; no error while a pixel has none."""
+    from engine.core.settings import RenderSettings
+    from engine.rendering.stopping import clock_text, progress_message, remaining_seconds
+    assert progress_message(48, 256, 0.021, 12.4) == "Sample 48/256 · Remaining 00:12 · est. error 2.1 %"
+    assert progress_message(16, 64, float("nan"), 75.0) == "Sample 16/64 · Remaining 01:15"
+    assert clock_text(3725.0) == "1:02:05" and clock_text(float("nan")) == "--:--"
+    # at the sample rate so far; the noise target and the time limit cut it
+    assert remaining_seconds(64, RenderSettings(samples=256), 0.05, 2.0) == pytest.approx(6.0)
+    assert remaining_seconds(64, RenderSettings(samples=256, noise_target=0.04), 0.05, 2.0) == \
+        pytest.approx(2.0 * (0.05 / 0.04) ** 2 - 2.0)
+    assert remaining_seconds(64, RenderSettings(samples=256, time_limit=3.0), 0.05, 2.0) == pytest.approx(1.0)
