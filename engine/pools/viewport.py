@@ -51,7 +51,7 @@ START_TIMEOUT = 120.0           # seconds for imports + scene + BVH before the w
 CLOSE_SECONDS = 1.0             # EOF, then SIGKILL
 
 
-class WorkerError(SceneError):
+class ViewportWorkerError(SceneError):
     """A viewport worker could not start, failed or died (one line, shown in the viewport's header)."""
 
 
@@ -154,14 +154,14 @@ class ViewportPool(Pool):
                 self.workers.append(_Worker(i + 1, python, env, self.events))
         except OSError as exc:                          # no such interpreter, not executable
             close_all(self.workers, CLOSE_SECONDS)
-            raise WorkerError(f"TNCG15 MC: cannot start viewport workers with {python}: "
+            raise ViewportWorkerError(f"TNCG15 MC: cannot start viewport workers with {python}: "
                               f"{exc.strerror or exc}") from None
         self.describe = f"{len(self.workers)} viewport worker process(es) ({python})"
         self.pending: list = []
         self.cancelled = False
         self.preparation = 0                            # number of the last scene sent
         self.scene = self.settings = self.facts = None  # the scene prepared (its view: the last sent)
-        self.builds = 0                                 # scenes prepared, summed over the workers
+        self.builds = 0                                 # scenes sent to be prepared, summed over the workers
         self.reports: list[str] = []                    # workers that died, by name
 
     # -- preparation ----------------------------------------------------------------------------
@@ -181,13 +181,14 @@ class ViewportPool(Pool):
         for w in self.workers:
             w.prepared = None
             w.send(payload)
+            self.builds += 1                # counted when sent, not when a worker's "ready" comes back
         deadline = time.perf_counter() + timeout
         failed = 0
         while self.facts is None:
             try:
                 worker, event = self.events.get(timeout=max(0.01, deadline - time.perf_counter()))
             except queue.Empty:
-                raise WorkerError(f"viewport workers ({self.python}) did not start within {timeout:.0f} s") from None
+                raise ViewportWorkerError(f"viewport workers ({self.python}) did not start within {timeout:.0f} s") from None
             self._event(worker, event)
             if event[0] == "failed" and event[1] == self.preparation:
                 failed += 1
@@ -195,7 +196,7 @@ class ViewportPool(Pool):
                     self.scene = None
                     raise SceneError(event[2])
             if not any(w.alive for w in self.workers):
-                raise WorkerError(self.reports[-1] + "; no viewport worker is left")
+                raise ViewportWorkerError(self.reports[-1] + "; no viewport worker is left")
         for w in self.facts.warnings:
             self.log(f"warning: {w}")
         return self.facts
@@ -206,7 +207,6 @@ class ViewportPool(Pool):
         if kind == "ready":
             if event[1] == self.preparation:
                 worker.prepared = self.preparation
-                self.builds += 1
                 if self.facts is None:
                     self.facts = event[2]
                 self._feed(worker)
@@ -222,14 +222,14 @@ class ViewportPool(Pool):
             for w in self.workers:
                 self._feed(w)
             if not any(w.alive for w in self.workers) and self.pending:
-                return self.pending.pop(0), None, WorkerError(message + "; no viewport worker is left")
+                return self.pending.pop(0), None, ViewportWorkerError(message + "; no viewport worker is left")
             return None
         unit = event[1]
         if unit in worker.in_flight:
             worker.in_flight.remove(unit)
         self._feed(worker)
         if kind == "error":
-            return unit, None, WorkerError(f"{worker.name} failed on tile {unit.tile.index}:\n{event[2]}")
+            return unit, None, ViewportWorkerError(f"{worker.name} failed on tile {unit.tile.index}:\n{event[2]}")
         return unit, event[2], None
 
     def _feed(self, worker, limit: int = IN_FLIGHT):
@@ -251,7 +251,7 @@ class ViewportPool(Pool):
         if self.cancelled and self.pending:
             return self.pending.pop(0), None, None      # never sent: answered as cancelled
         if not any(w.alive for w in self.workers) and self.pending:
-            return self.pending.pop(0), None, WorkerError("no viewport worker is left: " + "; ".join(self.reports))
+            return self.pending.pop(0), None, ViewportWorkerError("no viewport worker is left: " + "; ".join(self.reports))
         try:
             worker, event = self.events.get(timeout=timeout)
         except queue.Empty:
