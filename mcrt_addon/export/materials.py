@@ -9,7 +9,7 @@ the node.  Node trees are read from ``material.original`` (evaluated copies can 
 import bpy
 import numpy as np
 
-from . import microfacet_nodes
+from . import microfacet_nodes, shader_mix
 from .images import image_node
 from .util import linked_from, socket, uses_nodes
 
@@ -128,10 +128,15 @@ class MaterialTable:
         if output is None:
             self.warn(mat, None, "no active Material Output node; rendered black like Cycles")
             return M(name=mat.name, kind=self.DIFFUSE, color=(0.0, 0.0, 0.0))
+        # Cycles renders an unconnected surface as black (no closure): shader(None).
         node = linked_from(output.inputs.get("Surface"))
+        return self.shader(mat, node)
+
+    def shader(self, mat, node):
+        """The material of the shader node ``node`` (None: an unlinked shader socket, no closure);
+        its textures go to ``self._slots``."""
         if node is None:
-            # Cycles renders an unconnected surface as black (no closure).
-            return M(name=mat.name, kind=self.DIFFUSE, color=(0.0, 0.0, 0.0))
+            return self.Material(name=mat.name, kind=self.DIFFUSE, color=(0.0, 0.0, 0.0))
         handler = {
             "ShaderNodeBsdfDiffuse": self._diffuse,
             "ShaderNodeBsdfGlossy": self._glossy,
@@ -140,11 +145,27 @@ class MaterialTable:
             "ShaderNodeBsdfGlass": self._glass,
             "ShaderNodeEmission": self._emission,
             "ShaderNodeBsdfPrincipled": self._principled,
+            "ShaderNodeAddShader": self._add_shader,
+            "ShaderNodeMixShader": self._mix_shader,
         }.get(node.bl_idname)
         if handler is None:
             self.warn(mat, node, f"{node.bl_idname} is not supported; rendered as diffuse grey")
-            return M(name=mat.name, kind=self.DIFFUSE, color=DEFAULT_GREY)
+            return self.Material(name=mat.name, kind=self.DIFFUSE, color=DEFAULT_GREY)
         return handler(mat, node)
+
+    def side(self, mat, node):
+        """(material, texture slots) of a shader node feeding an Add or Mix Shader."""
+        outer, self._slots = self._slots, {}
+        try:
+            return self.shader(mat, node), self._slots
+        finally:
+            self._slots = outer
+
+    def _add_shader(self, mat, node):
+        return shader_mix.add_shader(self, mat, node)
+
+    def _mix_shader(self, mat, node):
+        return shader_mix.mix_shader(self, mat, node)
 
     def read_color(self, mat, node, *names, default=(0.8, 0.8, 0.8), role="color"):
         """The unlinked value of the first socket of ``names``; an Image Texture node feeding it
