@@ -220,3 +220,20 @@ def test_mix_of_different_bsdfs_is_named(scene, ms):
     res = export()
     assert named(res, "DG", "not modelled"), res.warnings
     assert only(res, "DG").kind == "glossy"          # the side of larger weight
+
+
+def test_only_closures_linear_in_their_colour_are_blended():
+    """mcrt_addon/export/shader_mix.py colour_is_weight: a Mix of two such closures is the closure
+    of the mixed colour; the energy-preserving Oren-Nayar (4.3+) and a Fresnel-weighted glossy
+    are not linear in their colour, so they are never blended."""
+    from types import SimpleNamespace
+
+    from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, Material
+    from mcrt_addon.export.shader_mix import colour_is_weight
+    kinds = dict(DIFFUSE=DIFFUSE, MIRROR=MIRROR, GLASS=GLASS, GLOSSY=GLOSSY)
+    new, old = SimpleNamespace(version=(5, 0), **kinds), SimpleNamespace(version=(3, 4), **kinds)
+    assert colour_is_weight(new, Material("d", DIFFUSE)) and colour_is_weight(new, Material("m", MIRROR))
+    assert colour_is_weight(new, Material("g", GLOSSY, fresnel="none"))
+    assert not colour_is_weight(new, Material("g", GLOSSY, fresnel="dielectric"))
+    rough = Material("r", DIFFUSE, diffuse_roughness=0.5)
+    assert not colour_is_weight(new, rough) and colour_is_weight(old, rough)

@@ -192,7 +192,7 @@ def test_material_preview_renders_with_tncg15(addon):
     px = np.array(mat.preview.image_pixels_float[:]).reshape(size[1], size[0], 4)
     centre = px[size[1] // 2 - 10:size[1] // 2 + 10, size[0] // 2 - 10:size[0] // 2 + 10, :3].mean(axis=(0, 1))
     # the red material shows, under the specular layer's highlight of the preview's lamps (a
-    # Principled BSDF since issue 21; Cycles 5.0 renders this centre 0.85 / 0.44 / 0.41)
+    # Principled BSDF; Cycles 5.0 renders this centre 0.85 / 0.44 / 0.41)
     assert centre[0] > 1.6 * centre[1] and centre[0] > 1.6 * centre[2], centre
 
 
