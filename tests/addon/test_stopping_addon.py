@@ -80,5 +80,5 @@ def test_blender34_binary_shows_the_error_in_the_stats_line(tmp_path):
                     "-E", "TNCG15_MC", "-o", str(tmp_path / "out_####"), "-F", "OPEN_EXR", "-f", "1",
                     env=b34.user_env())
     assert r.returncode == 0 and (tmp_path / "out_0001.exr").exists(), r.stdout[-3000:] + r.stderr[-3000:]
-    assert re.search(r"Sample \d+/512 · est\. error", r.stdout), r.stdout[-3000:]
+    assert re.search(r"Sample \d+/512 · Remaining [0-9:-]+ · est\. error", r.stdout), r.stdout[-3000:]
     assert "(stopped by noise target)" in r.stdout and "Traceback" not in r.stdout + r.stderr
