@@ -28,8 +28,9 @@ from conftest import REPO
 from test_blender34 import BLENDER, legacy_zip  # noqa: F401 - the module fixture builds the zip
 
 XVFB = shutil.which("xvfb-run")
-pytestmark = pytest.mark.skipif((BLENDER is None or XVFB is None) and os.environ.get("CI") != "true",
-                                reason="needs `blender` and `xvfb-run` (apt-get install blender xvfb)")
+pytestmark = [pytest.mark.skipif((BLENDER is None or XVFB is None) and os.environ.get("CI") != "true",
+                                 reason="needs `blender` and `xvfb-run` (apt-get install blender xvfb)"),
+              pytest.mark.slow]     # one Blender 3.4 window for all six (about 15 s): `make test-slow`
 SCRIPT = os.path.join(REPO, "tests", "addon", "viewport_gui_script.py")
 GRID = 6                 # 6 x 6 blocks of the camera frame
 TOLERANCE = 0.08         # relative, per block: F12 at 64 spp has ~1.5 % noise per block (8 x 8 px)

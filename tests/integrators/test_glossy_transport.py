@@ -81,7 +81,8 @@ def light_only():
     return render(glossy_plates(), settings(samples=1024, estimator="solid-angle", seed=1), **SILENT)
 
 
-@pytest.mark.parametrize("case", ["bsdf only", "mis", "mis 3 shadow rays"])
+@pytest.mark.parametrize("case", [pytest.param("bsdf only", marks=pytest.mark.slow), "mis",
+                                  pytest.param("mis 3 shadow rays", marks=pytest.mark.slow)])
 def test_glossy_plates_light_bsdf_and_mis_converge_to_the_same_image(light_only, case):
     kw = {"bsdf only": dict(estimator="mis", shadow_rays=0, samples=1024),
           "mis": dict(estimator="mis", samples=512),

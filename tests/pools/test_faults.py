@@ -88,7 +88,7 @@ def test_a_killed_worker_is_named_and_its_units_rendered_by_the_other(kind, refe
     assert any(f"pid {victim['pid']}) died: killed by SIGKILL" in w for w in result.warnings), result.warnings
 
 
-@pytest.mark.parametrize("kind", POOLS)
+@pytest.mark.parametrize("kind", [POOLS[0]] + [pytest.param(k, marks=pytest.mark.slow) for k in POOLS[1:]])
 def test_a_stopped_worker_is_killed_at_its_unit_deadline_and_its_units_rendered_by_the_other(
         kind, reference, monkeypatch):
     monkeypatch.setattr(faults, "DEADLINE_MIN", 5.0)       # the deadline's floor, so the test takes seconds
@@ -179,7 +179,7 @@ def cli_reference(tmp_path_factory):
     return read_image(str(out))
 
 
-@pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGSTOP])
+@pytest.mark.parametrize("how", [signal.SIGKILL, pytest.param(signal.SIGSTOP, marks=pytest.mark.slow)])
 def test_the_cli_survives_a_killed_or_stopped_forked_worker(how, tmp_path, cli_reference):
     out = tmp_path / "out.exr"
     env_deadline = how == signal.SIGSTOP

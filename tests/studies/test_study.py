@@ -35,6 +35,7 @@ def test_quick_study_writes_tables_plots_and_sane_errors(tmp_path):
     assert by_label["16 spp"].rmse < by_label["1 spp"].rmse
 
 
+@pytest.mark.slow          # the stopping rules' own tests cover the rounds; this is the study's tables
 def test_quick_stopping_study_writes_both_tables(tmp_path):
     import json
     from engine.studies.stopping import run_stopping_study
