@@ -135,7 +135,7 @@ def test_with_no_worker_left_the_render_is_one_line_and_keeps_its_finished_units
 
 
 # -- the command line, killed and stopped by hand ------------------------------------------------------
-# the command line at 256 spp instead of 64: about 4 s, so that the kill 1 s after the
+# the reported hanging command line at 256 spp instead of 64: about 4 s, so that the kill 1 s after the
 # workers fork lands mid-render on a fast, quiet machine too (at 64 spp the render was over)
 CLI = [sys.executable, "-m", "engine", "render", "--builtin", "cornell", "--resolution", "128", "128",
        "--samples", "256", "--threads", "2", "--quiet"]      # auto: forked processes
