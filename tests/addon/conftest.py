@@ -47,6 +47,19 @@ def empty_scene(addon):
 
 
 
+@pytest.fixture
+def ms(make_samples_module):
+    """sample_blends/make_samples.py: its builders (camera, mesh_object, materials) for scenes made in a test."""
+    return make_samples_module
+
+
+@pytest.fixture
+def scene(empty_scene, ms):
+    """An empty scene with the sample scenes' camera."""
+    ms.camera(empty_scene)
+    return empty_scene
+
+
 @pytest.fixture(scope="session")
 def built_zips(tmp_path_factory):
     """{"extension": zip, "legacy": zip} from scripts/build_extension.py, built once per test run

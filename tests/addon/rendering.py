@@ -102,3 +102,24 @@ def to_png(image, path, scale=1):
     buf = oiio.ImageBuf(oiio.ImageSpec(a.shape[1], a.shape[0], 3, oiio.UINT8))
     buf.set_pixels(oiio.ROI(), (a * 255 + 0.5).astype(np.uint8))
     buf.write(path)
+
+
+# -- the agreement tests' method (tests/addon/test_agreement*.py) ------------------------------------
+RES = (64, 64)       # every agreement scene at 64 x 64,
+SPP = 32             # 32 samples per pixel,
+DEPTH = 8            # max depth 8,
+K = 4                # K independent seeds of each renderer
+_references = {}
+
+
+def cycles_reference(blend, name=None):
+    """Cycles' K runs of a .blend with the agreement settings, made once per test session."""
+    key = name or blend
+    if key not in _references:
+        _references[key] = cycles_runs(blend, RES, SPP, DEPTH, seeds=range(1, K + 1))
+    return _references[key]
+
+
+def tncg15_agreement_runs(scene, first_seed=1000):
+    """TNCG15 MC's K runs of an exported scene with the agreement settings (exact Fresnel, as Cycles)."""
+    return tncg15_runs(scene, SPP, DEPTH, seeds=range(first_seed, first_seed + K), fresnel="exact")

@@ -12,19 +12,14 @@ import copy
 import pytest
 
 from imagecompare import compare_runs
-from rendering import cycles_runs, export_blend, tncg15_runs
+from rendering import RES, cycles_reference, export_blend, tncg15_agreement_runs
 
 
-RES = (64, 64)
-SPP = 32
-DEPTH = 8
-K = 4
 TAU = {"cornell": 0.05, "mirror_glass": 0.05, "principled": 0.05, "diffuse_room": 0.02,
        "suzanne_5k": 0.02, "suzanne_100k": 0.02, "area_light": 0.02, "nested_glass": 0.05,
        "near_lamp": 0.02, "many_lights": 0.02, "caustic": 0.05, "area_mirror": 0.05,
        "point_light": 0.05, "sun_window": 0.05, "spot_light": 0.05, "sky_lit": 0.05, "textured": 0.02,
        "smooth": 0.02}
-_cache = {}
 # Scenes and controls in `make test-slow` only (.ci/run runs them): each one's subject has a faster test in
 # `make test` -- smooth: tests/geometry/test_shading_normals.py; textured: tests/materials/test_textures.py;
 # spot_light: test_spot_light_falloff_matches_cycles (tests/lights/test_point_sun_lights.py); many_lights:
@@ -39,13 +34,11 @@ def marked(*names):
 
 
 def reference(samples, name):
-    if name not in _cache:
-        _cache[name] = cycles_runs(samples[name], RES, SPP, DEPTH, seeds=range(1, K + 1))
-    return _cache[name]
+    return cycles_reference(samples[name], name)
 
 
 def ours(scene, first_seed=1000):
-    return tncg15_runs(scene, SPP, DEPTH, seeds=range(first_seed, first_seed + K), fresnel="exact")
+    return tncg15_agreement_runs(scene, first_seed)
 
 
 @pytest.mark.parametrize("name", marked(

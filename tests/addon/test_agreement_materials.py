@@ -11,25 +11,18 @@ import os
 import pytest
 
 from imagecompare import compare_runs
-from rendering import cycles_runs, export_blend, tncg15_runs
+from rendering import RES, cycles_reference, export_blend, tncg15_agreement_runs
 
-RES = (64, 64)
-SPP = 32
-DEPTH = 8
-K = 4
 TAU = {"glossy_plates": 0.02, "rough_diffuse": 0.02}
-_cache = {}
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def reference(samples, name):
-    if name not in _cache:
-        _cache[name] = cycles_runs(samples[name], RES, SPP, DEPTH, seeds=range(1, K + 1))
-    return _cache[name]
+    return cycles_reference(samples[name], name)
 
 
 def ours(scene, first_seed=1000):
-    return tncg15_runs(scene, SPP, DEPTH, seeds=range(first_seed, first_seed + K), fresnel="exact")
+    return tncg15_agreement_runs(scene, first_seed)
 
 
 def tracer_models_diffuse_roughness():

@@ -14,12 +14,8 @@ import bpy
 import pytest
 
 from imagecompare import compare_runs
-from rendering import cycles_runs, export_blend, tncg15_runs
+from rendering import RES, cycles_reference, export_blend, tncg15_agreement_runs
 
-RES = (64, 64)
-SPP = 32
-DEPTH = 8
-K = 4
 TAU = 0.02
 LAMP_STRENGTH = 12.0
 BALL_STRENGTH, BALL_FAC = 6.0, 0.5
@@ -84,7 +80,7 @@ def blend(tmp_path_factory, make_samples_module, addon):
 
 def reference(blend):
     if "ref" not in _cache:
-        _cache["ref"] = cycles_runs(blend, RES, SPP, DEPTH, seeds=range(1, K + 1))
+        _cache["ref"] = cycles_reference(blend)
     return _cache["ref"]
 
 
@@ -95,7 +91,7 @@ def exported(blend):
 
 
 def ours(scene, first_seed=1000):
-    return tncg15_runs(scene, SPP, DEPTH, seeds=range(first_seed, first_seed + K), fresnel="exact")
+    return tncg15_agreement_runs(scene, first_seed)
 
 
 def material(scene, name):

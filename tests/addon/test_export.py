@@ -6,25 +6,9 @@ import bpy
 import numpy as np
 import pytest
 
-from mcrt_addon.export import export_scene
-from mcrt_addon.export.camera import crop_params, pixel_directions
+from tests.addon.exporting import export
+from mcrt_addon.export.camera import pixel_directions
 from mcrt_addon.export.util import ExportError
-
-
-@pytest.fixture
-def ms(make_samples_module):
-    return make_samples_module
-
-
-@pytest.fixture
-def scene(empty_scene, ms):
-    ms.camera(empty_scene)
-    return empty_scene
-
-
-def export(resolution=(32, 32), **kw):
-    bpy.context.view_layer.update()
-    return export_scene(bpy.context.evaluated_depsgraph_get(), resolution=resolution, **kw)
 
 
 # ------------------------------------------------------------------------------------------ camera

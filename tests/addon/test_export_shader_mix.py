@@ -3,23 +3,11 @@ node -> material values, in the running Blender's vocabulary (bpy 5.0 here)."""
 import bpy
 import pytest
 
-from mcrt_addon.export import export_scene
-
-
-@pytest.fixture
-def ms(make_samples_module):
-    return make_samples_module
-
-
-@pytest.fixture
-def scene(empty_scene, ms):
-    ms.camera(empty_scene)
-    return empty_scene
+from tests.addon.exporting import export as export_at
 
 
 def export():
-    bpy.context.view_layer.update()
-    return export_scene(bpy.context.evaluated_depsgraph_get(), resolution=(16, 16))
+    return export_at((16, 16))
 
 
 def plate(ms, scene, material):
