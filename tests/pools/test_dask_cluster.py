@@ -141,6 +141,7 @@ def test_a_cancelled_render_leaves_no_unit_running(cluster):
     assert cluster.running() == []                                   # close() waited for the workers
 
 
+@pytest.mark.slow          # waits out a connect timeout (about 5 s)
 def test_unreachable_scheduler_is_one_line_before_dasks_own_timeout(tmp_path):
     """Refused after CONNECT_SECONDS (5 s), not after distributed's default connect timeout of 30 s
     (distributed.comm.timeouts.connect): 25 s leaves room for starting Python and importing Dask on a

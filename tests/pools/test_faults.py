@@ -181,7 +181,8 @@ def cli_reference(tmp_path_factory):
     return read_image(str(out))
 
 
-@pytest.mark.parametrize("how", [signal.SIGKILL, pytest.param(signal.SIGSTOP, marks=pytest.mark.slow)])
+@pytest.mark.slow          # the command line end to end (about 10 s); the pools' own fault tests above are fast
+@pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGSTOP])
 def test_the_cli_survives_a_killed_or_stopped_forked_worker(how, tmp_path, cli_reference):
     out = tmp_path / "out.exr"
     env_deadline = how == signal.SIGSTOP
@@ -202,6 +203,7 @@ def test_the_cli_survives_a_killed_or_stopped_forked_worker(how, tmp_path, cli_r
     assert np.array_equal(read_image(str(out)), cli_reference)
 
 
+@pytest.mark.slow
 def test_the_cli_with_no_worker_left_says_so_in_one_line_and_writes_the_finished_tiles(tmp_path):
     out = tmp_path / "out.exr"
     proc = start_cli(out)
