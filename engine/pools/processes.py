@@ -32,7 +32,7 @@ import traceback
 from ..core.paths import TRACER_DIR, worker_environment
 from .faults import POLL, Dispatch, Worker
 from .protocol import Pool
-from .transport import REFUSED, WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr
+from .transport import REFUSED, WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, start_workers
 
 START_TIMEOUT = 120.0                     # seconds for imports + scene + BVH before a worker is given up
 CLOSE_SECONDS = 2.0                       # EOF, then SIGKILL
@@ -96,14 +96,9 @@ class SubprocessPool(Pool):
         self.python, self.log = python, log
         self.events: queue.Queue = queue.Queue()
         env = worker_environment(extra_paths)
-        self.workers = []
-        try:
-            for i in range(max(1, count)):
-                self.workers.append(_Worker(i + 1, python, env, self.events))
-        except OSError as exc:                  # no such interpreter, not executable
-            close_all(self.workers, CLOSE_SECONDS)
-            raise WorkerError(f"TNCG15 MC: cannot start render workers with {python}: "
-                              f"{exc.strerror or exc}") from None
+        self.workers = start_workers(
+            lambda number: _Worker(number, python, env, self.events), count, CLOSE_SECONDS,
+            lambda why: WorkerError(f"TNCG15 MC: cannot start render workers with {python}: {why}"))
         self.describe = f"{len(self.workers)} worker process(es) ({python})"
         self.dispatch = Dispatch(self.workers, log=log, start_seconds=START_TIMEOUT)
         self.reports = self.dispatch.reports    # workers that died, by name

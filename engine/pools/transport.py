@@ -248,6 +248,20 @@ class WorkerProcess:
             self.proc.wait()
 
 
+def start_workers(make, count: int, grace: float, fail):
+    """`count` workers (at least one) made by make(number), numbered from 1.  When one cannot start
+    (no such interpreter, not executable) the started ones are closed (close_all with `grace`)
+    and fail(why) is raised: why is the OS's reason."""
+    workers = []
+    try:
+        for i in range(max(1, count)):
+            workers.append(make(i + 1))
+    except OSError as exc:
+        close_all(workers, grace)
+        raise fail(exc.strerror or str(exc)) from None
+    return workers
+
+
 def close_all(workers, grace: float) -> None:
     """EOF to every worker, then SIGKILL to those still running after `grace` seconds in all."""
     import time

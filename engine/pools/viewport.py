@@ -43,7 +43,7 @@ import numpy as np
 from ..core.errors import SceneError
 from ..core.paths import TRACER_DIR, worker_environment
 from .protocol import Pool
-from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr
+from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, start_workers
 
 COARSE = 4                      # the coarse frame: 1/COARSE of the resolution in each direction
 IN_FLIGHT = 2                   # units queued per worker, so none waits for the next
@@ -148,14 +148,9 @@ class ViewportPool(Pool):
         self.python, self.log = python, log
         self.events: queue.Queue = queue.Queue()
         env = worker_environment(extra_paths)
-        self.workers = []
-        try:
-            for i in range(max(1, count)):
-                self.workers.append(_Worker(i + 1, python, env, self.events))
-        except OSError as exc:                          # no such interpreter, not executable
-            close_all(self.workers, CLOSE_SECONDS)
-            raise ViewportWorkerError(f"TNCG15 MC: cannot start viewport workers with {python}: "
-                              f"{exc.strerror or exc}") from None
+        self.workers = start_workers(
+            lambda number: _Worker(number, python, env, self.events), count, CLOSE_SECONDS,
+            lambda why: ViewportWorkerError(f"TNCG15 MC: cannot start viewport workers with {python}: {why}"))
         self.describe = f"{len(self.workers)} viewport worker process(es) ({python})"
         self.pending: list = []
         self.cancelled = False
