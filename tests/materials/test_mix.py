@@ -311,3 +311,53 @@ def test_scene_file_errors_name_the_leaf():
     with pytest.raises(SceneError, match="mix leaf #0: factor #0: invert must be true or false"):
         read_mix(Fields({"mix": [{"material": {"kind": "diffuse"}, "factors": [{"invert": 1}]}]}, "Material 'M'"),
                  [], lambda f, name: Material(name))
+
+
+# -- end to end: a texture factor at triangle hits ------------------------------------------------------
+def textured_floor_scene(floor):
+    """A floor of two triangles with UVs 0..1 under a square lamp, seen from above."""
+    from engine.scene.model import Camera, Quad, Scene, TriangleMesh
+    from engine.scene.textures import ImageTexture
+    checker = np.array([[40, 200], [220, 90]], dtype=np.uint8)[:, :, None].repeat(3, axis=2)
+    vertices = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=np.float64)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float64)
+    triangles = np.array([[0, 1, 2], [0, 2, 3]])
+    mesh = TriangleMesh("Floor", vertices, triangles, np.zeros(2, dtype=np.int64), uvs=uv[triangles])
+    lamp = Material("Lamp", DIFFUSE, (0, 0, 0), emission=(6.0, 6.0, 6.0))
+    corners = np.array([[-0.3, -0.3, 1.5], [-0.3, 0.3, 1.5], [0.3, 0.3, 1.5], [0.3, -0.3, 1.5]])
+    return Scene(Camera.look_at((0.0, -0.2, 3.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), lens=30.0),
+                 [floor, lamp], [mesh], [], [Quad("Lamp", corners, 1)], resolution=(16, 16),
+                 textures=[ImageTexture("Checker", pixels=checker, colorspace="Non-Color")])
+
+
+def test_a_texture_mix_of_white_and_black_renders_as_the_textured_colour():
+    """Mix(texture, black, white diffuse) is the diffuse of colour = texture: both leaves sample the
+    cosine lobe, so value and light samples are the textured Lambertian's up to rounding.  Control:
+    the same mix without its texture lookups (the unlinked factor 0.5) renders another image."""
+    from engine import render
+    slot = TextureSlot(0, interpolation="Closest", node="Checker")
+    mix = mixed(leaf(Material("Black", DIFFUSE, (0, 0, 0)), MixFactor("texture", value=0.5, texture=slot, invert=True)),
+                leaf(Material("White", DIFFUSE, (1, 1, 1)), MixFactor("texture", value=0.5, texture=slot)))
+    settings = dict(samples=8, seed=4, threads=1, parallelism="threads")
+    quiet = dict(log=lambda *a: None)
+    mixed_image = render(textured_floor_scene(mix), RenderSettings(**settings), **quiet)
+    assert mixed_image.stats["effects"]["textures"] and mixed_image.stats["effects"]["mix"]
+    textured = Material("Textured", DIFFUSE, (0.5, 0.5, 0.5), color_texture=slot)
+    reference = render(textured_floor_scene(textured), RenderSettings(**settings), **quiet).image
+    assert reference.mean() > 0.02
+    assert np.allclose(mixed_image.image, reference, rtol=1e-4, atol=1e-6)
+    flat = mixed(*(MixLeaf(leaf.material, [dataclasses.replace(f, kind="constant") for f in leaf.factors])
+                   for leaf in mix.mix.leaves))
+    flat_image = render(textured_floor_scene(flat), RenderSettings(**settings), **quiet).image
+    assert not np.allclose(flat_image, reference, rtol=0.05, atol=1e-3)
+
+
+def test_the_effect_plan_names_the_mixed_lobes():
+    from engine.integrators.effects import plan_effects
+    scene = textured_floor_scene(MIXES["fresnel diffuse+glossy"])
+    plan = plan_effects(scene, RenderSettings())
+    assert plan.enabled["mix"] and plan.enabled["glossy"] and plan.enabled["direct_light"]
+    assert "'Mix' diffuse [1 - fresnel] + glossy [fresnel]" in plan.reason["mix"]
+    delta_only = plan_effects(textured_floor_scene(mixed(leaf(Material("M", MIRROR)), leaf(Material("G", GLASS)))),
+                              RenderSettings())
+    assert not delta_only.enabled["direct_light"] and delta_only.enabled["glass"]
