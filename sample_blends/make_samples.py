@@ -639,6 +639,84 @@ def make_sky_lit(scene, res):
     settings(scene, res)
 
 
+def mix_material(name, fac, first, second):
+    """A Mix Shader of two shader nodes made by first(nodes) / second(nodes); fac: a number, or
+    factor(nodes, links) -> the output socket feeding the Fac."""
+    mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    for n in list(nodes):
+        nodes.remove(n)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    mix = nodes.new("ShaderNodeMixShader")
+    if callable(fac):
+        links.new(fac(nodes, links), mix.inputs[0])
+    else:
+        mix.inputs[0].default_value = fac
+    links.new(first(nodes).outputs[0], mix.inputs[1])
+    links.new(second(nodes).outputs[0], mix.inputs[2])
+    links.new(mix.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def bsdf_node(kind, **inputs):
+    def build(nodes):
+        node = nodes.new(kind)
+        for key, value in inputs.items():
+            node.inputs[key].default_value = value
+        return node
+    return build
+
+
+def make_mix_shader(scene, res):
+    """Mix Shaders of different BSDFs in the Cornell room (mcrt_addon/export/shader_mix.py):
+    * left ball: Diffuse red + Glossy (roughness 0.2) by a Layer Weight's Facing (blend 0.4);
+    * middle ball: Diffuse blue + Glossy (roughness 0.1) by a Fresnel node (IOR 1.45);
+    * right box: Glass (IOR 1.5) + Diffuse yellow at factor 0.5;
+    * floor: Diffuse grey + Glossy (roughness 0.15) by an Image Texture (an 8 x 8 sRGB checker of
+      2 x 2 squares, black / white, UVs 0..1)."""
+    room(scene)
+
+    def layer_weight(nodes, links):
+        node = nodes.new("ShaderNodeLayerWeight")
+        node.inputs["Blend"].default_value = 0.4
+        return node.outputs["Facing"]
+
+    def fresnel(nodes, links):
+        node = nodes.new("ShaderNodeFresnel")
+        node.inputs["IOR"].default_value = 1.45
+        return node.outputs["Fac"]
+    white_gloss = (0.9, 0.9, 0.9, 1.0)
+    mesh_object(scene, "FacingBall", lambda bm: uv_sphere(bm, 0.22, 32, 16),
+                mix_material("Facing mix", layer_weight, bsdf_node("ShaderNodeBsdfDiffuse", Color=(0.7, 0.1, 0.08, 1)),
+                             bsdf_node("ShaderNodeBsdfGlossy", Color=white_gloss, Roughness=0.2)),
+                location=(-0.5, 0.1, 0.22), smooth=True)
+    mesh_object(scene, "FresnelBall", lambda bm: uv_sphere(bm, 0.22, 32, 16),
+                mix_material("Fresnel mix", fresnel, bsdf_node("ShaderNodeBsdfDiffuse", Color=(0.1, 0.2, 0.7, 1)),
+                             bsdf_node("ShaderNodeBsdfGlossy", Color=white_gloss, Roughness=0.1)),
+                location=(0.0, 0.35, 0.22), smooth=True)
+    mesh_object(scene, "GlassBox", lambda bm: cube(bm, 1.0),
+                mix_material("Glass diffuse mix", 0.5, bsdf_node("ShaderNodeBsdfGlass", IOR=1.5, Roughness=0.0),
+                             bsdf_node("ShaderNodeBsdfDiffuse", Color=(0.75, 0.65, 0.15, 1))),
+                location=(0.5, -0.05, 0.25), rotation=(0, 0, math.radians(25)), scale=(0.3, 0.3, 0.5))
+    checker = packed_image("Mix checker", 8, 8, lambda x, y: (1.0, 1.0, 1.0) if (x // 2 + y // 2) % 2 else
+                           (0.0, 0.0, 0.0))
+
+    def texture(nodes, links):
+        node = nodes.new("ShaderNodeTexImage")
+        node.image, node.interpolation = checker, "Closest"
+        return node.outputs["Color"]
+    floor = bpy.data.objects["Floor"]
+    floor.data.materials[0] = mix_material("Checker mix", texture,
+                                           bsdf_node("ShaderNodeBsdfDiffuse", Color=(0.6, 0.6, 0.6, 1)),
+                                           bsdf_node("ShaderNodeBsdfGlossy", Color=white_gloss, Roughness=0.15))
+    set_uvs(floor, {"UVMap": [(0, 0), (1, 0), (1, 1), (0, 1)]})
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
@@ -661,6 +739,7 @@ SCENES = {
     "glossy_plates": make_glossy_plates,
     "rough_diffuse": make_rough_diffuse,
     "principled_default": make_principled_default,
+    "mix_shader": make_mix_shader,
 }
 
 

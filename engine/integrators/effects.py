@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED, Principled
+from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, MIX, PRINCIPLED, Principled
 from ..geometry.shading_normals import has_smooth
 from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
 from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
@@ -21,7 +21,7 @@ from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, scatter_kind
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
-           "glossy", "principled", "rough_diffuse", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
+           "glossy", "principled", "rough_diffuse", "mix", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
            "light_tree", "mis", "passes",
            "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
@@ -105,6 +105,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     used.update(s.material_id for s in scene.spheres)
     used.update(q.material_id for q in scene.quads)
     used_mats = [mats[i] for i in sorted(used)]
+    mixes = [m for m in used_mats if m.kind == MIX and m.mix is not None]
+    used_mats += [leaf.material for m in mixes for leaf in m.mix.leaves]     # a mix scatters by its leaves' rows
 
     def users(predicate):
         return [m for m in used_mats if predicate(m)]
@@ -158,6 +160,10 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                 f"rough diffuse materials {_names(rough)}: Cycles 3.x's Oren-Nayar, single scattering "
                 f"(Cycles {version} is before 4.3)") + ", eval and pdf per light sample (engine/materials/oren_nayar.py)"
                if rough else "no diffuse material with a roughness: every diffuse hit is Lambertian")
+    set_effect("mix", mixes,
+               f"mixed materials {_mix_lobes(mixes)}: a leaf picked by weight x albedo, eval and pdf "
+               "summed over the leaves (engine/materials/mix.py)"
+               if mixes else "no Mix or Add Shader of different BSDFs: no closure lists")
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
@@ -234,6 +240,19 @@ def _principled_lobes(materials) -> str:
             rough = getattr(m, "diffuse_roughness", 0.0) >= DIFFUSE_ROUGHNESS_CUTOFF
             lobes.append("diffuse (Oren-Nayar)" if rough else "diffuse (Lambert)")
         parts.append(f"'{m.name}' {' + '.join(lobes)}")
+    more = f" and {len(materials) - 3} more" if len(materials) > 3 else ""
+    return ", ".join(parts) + more
+
+
+def _mix_lobes(materials) -> str:
+    """Each mixed material's name and its leaves: kind (scatter row) x weight factors."""
+    def weight(leaf):
+        parts = [f"{f.constant():g}" if f.is_constant else
+                 ("1 - " if f.invert else "") + (f"{f.kind}({f.output})" if f.kind == "layer_weight" else f.kind)
+                 for f in leaf.factors]
+        return " x ".join(parts) or "1"
+    parts = [f"'{m.name}' " + " + ".join(f"{scatter_kind(leaf.material)} [{weight(leaf)}]" for leaf in m.mix.leaves)
+             for m in materials[:3]]
     more = f" and {len(materials) - 3} more" if len(materials) > 3 else ""
     return ", ".join(parts) + more
 

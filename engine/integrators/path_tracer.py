@@ -233,7 +233,8 @@ class PathTracer:
             self.surface_features(p, surf, shade, color, bounds, features, hits)   # Cycles: the shading normal
         si = ShadingPoint(-p.d[:, :alive], shade[:, :alive], facing[:, :alive], surf.normal[:, :alive],
                           color[:, :alive], surf.material[:alive], smooth,
-                          None if p.media is None else MediumStack(p.media, p.depth)[:alive])
+                          None if p.media is None else MediumStack(p.media, p.depth)[:alive],
+                          None if self.textures is None else self.textures.at(hits)[:alive])
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
                 p.radiance[:, span] += p.beta[:, span] * self.direct_light(

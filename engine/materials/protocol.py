@@ -62,6 +62,8 @@ class ShadingPoint:
     material: material ids (a BSDF takes its per-material parameters, such as the IOR, by them).
     smooth: n is an interpolated shading normal (else n is ng).
     media: the paths' nested-dielectric medium stacks (engine/materials/media.py), or None.
+    lookup: texture lookups at these hits (engine/materials/textures.py HitLookup), or None when the
+      scene has no textures: for BSDFs that read textures themselves (engine/materials/mix.py).
     """
     wo: np.ndarray
     n: np.ndarray
@@ -71,19 +73,22 @@ class ShadingPoint:
     material: np.ndarray
     smooth: bool = False
     media: object = None
+    lookup: object = None
 
     def __getitem__(self, span: slice) -> "ShadingPoint":
         """The hits in `span` (views: a medium stack updated through them updates the paths')."""
         media = None if self.media is None else self.media[span]
         return ShadingPoint(self.wo[:, span], self.n[:, span], self.ng[:, span], self.normal[:, span],
-                            self.color[:, span], self.material[span], self.smooth, media)
+                            self.color[:, span], self.material[span], self.smooth, media,
+                            None if self.lookup is None else self.lookup[span])
 
     def take(self, index: np.ndarray) -> "ShadingPoint":
         """The hits `index` (copies; no medium stack: for evaluating directions only)."""
         def cols(a):
             return a.take(index, axis=1)
         return ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
-                            self.material.take(index), self.smooth)
+                            self.material.take(index), self.smooth,
+                            lookup=None if self.lookup is None else self.lookup.take(index))
 
     def __len__(self) -> int:
         return self.wo.shape[1]

@@ -9,17 +9,20 @@ lights: their emission counts, then the ray goes on through them).
 A new BSDF is one class (engine/materials/protocol.py) and one row here, for a material kind of
 the scene model (engine/scene/model.py).  One row is not a kind: ROUGH_DIFFUSE takes the diffuse
 materials with a diffuse roughness above 0 (`scatter_kind`); those of roughness 0 stay Lambertian.
+The MIX row (engine/materials/mix.py) scatters through the other rows: a mix's leaves are
+materials of the table too, with ids after the scene's (engine/scene/model.py with_mix_leaves).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..core.vec import rows
-from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED
+from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, MIX, PRINCIPLED, with_mix_leaves
 from .glass import SmoothGlass
 from .glossy import MicrofacetReflection
 from .lambert import Lambertian
 from .mirror import PerfectMirror
+from .mix import MixBSDF
 from .principled import PrincipledV2
 from .oren_nayar import RoughDiffuse
 from .protocol import has_non_delta
@@ -28,7 +31,7 @@ from .protocol import has_non_delta
 ROUGH_DIFFUSE = "rough diffuse"     # a scatter row, not a material kind: see scatter_kind
 SCATTERING = ((DIFFUSE, Lambertian), (MIRROR, PerfectMirror), (GLASS, SmoothGlass),
               (GLOSSY, MicrofacetReflection), (PRINCIPLED, PrincipledV2),
-              (ROUGH_DIFFUSE, RoughDiffuse))
+              (ROUGH_DIFFUSE, RoughDiffuse), (MIX, MixBSDF))
 KIND_CODE = {kind: group for group, (kind, _) in enumerate(SCATTERING)}
 ABSORB = len(SCATTERING)            # black surfaces: absorb everything
 PASS_THROUGH = ABSORB + 1           # Area lights: emission, then the ray goes on
@@ -54,6 +57,7 @@ class MaterialTable:
     the scene's (engine/scene/model.py Scene), for the BSDFs whose model follows it."""
 
     def __init__(self, materials, settings, textured_color=None, cycles_version=(5, 0)):
+        materials, leaf_ids = with_mix_leaves(materials)     # mix leaves: ids after the scene's materials
         self.kind = np.array([KIND_CODE[scatter_kind(m)] for m in materials], dtype=np.int8)
         color = np.array([m.color for m in materials], dtype=np.float64).reshape(-1, 3)
         emission = np.array([m.emission for m in materials], dtype=np.float64).reshape(-1, 3)
@@ -63,9 +67,11 @@ class MaterialTable:
         if textured_color is not None:
             scatters = scatters | textured_color
         scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED])     # its specular layer reflects on black
+        scatters = scatters | (self.kind == KIND_CODE[MIX])            # its leaves have their own colours
         self.scatter_group = np.where(scatters, self.kind, ABSORB).astype(np.int8)
         self.bsdfs = [bsdf(materials, settings, cycles_version) if kind == ROUGH_DIFFUSE else bsdf(materials, settings)
                       for kind, bsdf in SCATTERING]
+        self.bsdfs[KIND_CODE[MIX]].bind(self, leaf_ids)
         # Groups whose BSDF has a lobe that given directions meet (light samples, MIS, 2D uniforms).
         self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]
         # Whether any material has a glossy (non-delta, non-Lambertian reflection) lobe.

@@ -7,7 +7,8 @@
                 "shift_x": 0, "shift_y": 0},
      "materials": [{"name": "White", "kind": "diffuse", "color": [..], "ior": 1.5, "emission": [..]}],
                    (kind "principled": the glossy keys and "principled": {"metallic": 0, "specular_ior_level":
-                   0.5, "specular_tint": [1, 1, 1]}, each key optional)
+                   0.5, "specular_tint": [1, 1, 1]}, each key optional; kind "mix": "mix", the leaves and
+                   their weights, engine/scene/mix_fields.py)
      "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
                  "material": "White"  or  "material_ids": [..] or "@key",
                  "normals": [[..] x 3T] or "@key", "smooth": [0/1 x T] or "@key",  (optional)
@@ -40,6 +41,7 @@ import numpy as np
 from .model import GLOSSY, PRINCIPLED, AreaLight, Camera, Material, PointLight, Principled, Quad, Scene, Sphere, SunLight, TriangleMesh
 from ..core.errors import SceneError
 from .fields import Fields, is_integer
+from .mix_fields import mix_json, read_mix
 from .texture_fields import read_slot, read_textures, slot_json, textures_json
 
 FORMAT = "tncg15-scene"
@@ -195,14 +197,18 @@ def load_scene(path: str) -> Scene:
 
     textures = read_textures(top, arrays, os.path.dirname(os.path.abspath(path)))
     materials = []
+
+    def material(m, material_name):
+        return Material(name=material_name, kind=m.text("kind", "diffuse"),
+                        color=m.numbers("color", 3, (0.8, 0.8, 0.8)), ior=m.number("ior", 1.5),
+                        emission=m.numbers("emission", 3, (0.0, 0.0, 0.0)),
+                        color_texture=read_slot(m, "color_texture", textures),
+                        emission_texture=read_slot(m, "emission_texture", textures),
+                        mix=read_mix(m, textures, material),
+                        **_glossy_fields(m), **_principled_fields(m))
     for i, entry in enumerate(top.objects("materials")):
         m, material_name = _named(entry, "Material", f"#{i}", required=True)
-        materials.append(Material(name=material_name, kind=m.text("kind", "diffuse"),
-                                  color=m.numbers("color", 3, (0.8, 0.8, 0.8)), ior=m.number("ior", 1.5),
-                                  emission=m.numbers("emission", 3, (0.0, 0.0, 0.0)),
-                                  color_texture=read_slot(m, "color_texture", textures),
-                                  emission_texture=read_slot(m, "emission_texture", textures),
-                                  **_glossy_fields(m), **_principled_fields(m)))
+        materials.append(material(m, material_name))
     names = [m.name for m in materials]
     cam = top.get("camera", None)
     camera = None if cam is None else _camera(cam)
@@ -274,6 +280,13 @@ def save_scene(scene: Scene, path: str) -> None:
                 arrays[f"mesh{i}_smooth"] = np.asarray(mesh.smooth, dtype=np.int8)
                 meshes[-1]["smooth"] = f"@mesh{i}_smooth"
     cam = scene.camera
+
+    def material_json(m):
+        return dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
+                     "emission": list(m.emission)}, **_glossy_json(m), **_principled_json(m), **_diffuse_roughness_json(m),
+                    **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
+                                                              ("emission_texture", m.emission_texture))
+                       if slot is not None}, **mix_json(m, material_json))
     data = {
         "format": FORMAT, "name": scene.name,
         "version": SMOOTH_VERSION if any(m.normals is not None for m in scene.meshes) else SMOOTH_VERSION - 1,
@@ -284,11 +297,7 @@ def save_scene(scene: Scene, path: str) -> None:
             "sensor_width": cam.sensor_width, "sensor_height": cam.sensor_height,
             "sensor_fit": cam.sensor_fit, "shift_x": cam.shift_x, "shift_y": cam.shift_y},
         "textures": textures_json(scene, arrays),
-        "materials": [dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
-                            "emission": list(m.emission)}, **_glossy_json(m), **_principled_json(m), **_diffuse_roughness_json(m),
-                           **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
-                                                                     ("emission_texture", m.emission_texture))
-                              if slot is not None}) for m in scene.materials],
+        "materials": [material_json(m) for m in scene.materials],
         "meshes": meshes,
         "spheres": [{"name": s.name, "center": list(s.center), "radius": s.radius,
                      "material": s.material_id} for s in scene.spheres],

@@ -20,7 +20,8 @@ MIRROR = "mirror"
 GLASS = "glass"
 GLOSSY = "glossy"
 PRINCIPLED = "principled"
-MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY, PRINCIPLED)
+MIX = "mix"                 # a weighted list of leaf materials (Cycles' closure list): Material.mix
+MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY, PRINCIPLED, MIX)
 # The glossy kind's choices (engine/materials/microfacet.py, engine/materials/glossy.py).
 DISTRIBUTIONS = ("ggx", "beckmann")
 FRESNEL_KINDS = ("none", "dielectric", "conductor", "f82", "interpolated")
@@ -87,6 +88,8 @@ class Material:
     diffuse_roughness: float = 0.0
     # Principled only: its own inputs (None: the node's defaults).
     principled: Principled | None = None
+    # Mix only: the leaves and their weights (engine/materials/mix.py).
+    mix: "Mix | None" = None
 
     @property
     def is_emissive(self) -> bool:
@@ -115,6 +118,12 @@ class Material:
         if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
                 and 0.0 <= value <= 1.0):
             raise SceneError(f"Material '{self.name}': diffuse roughness must be from 0 to 1, got {value!r}")
+        if self.kind == MIX:
+            if not isinstance(self.mix, Mix):
+                raise SceneError(f"Material '{self.name}': kind mix needs a Mix (its leaves), got {self.mix!r}")
+            self.mix.validate(f"Material '{self.name}'")
+        elif self.mix is not None:
+            raise SceneError(f"Material '{self.name}': only kind mix has leaves (kind is {self.kind})")
 
     def validate_glossy(self) -> None:
         owner = f"Material '{self.name}'"
@@ -138,6 +147,111 @@ class Material:
             check_magnitude(owner, label, arr)
         if not np.any(np.asarray(self.tangent, dtype=np.float64)):
             raise SceneError(f"{owner}: tangent must not be zero")
+
+
+# A mix leaf's weight factors (engine/materials/mix.py evaluates them at each hit).
+CONSTANT, FRESNEL, LAYER_WEIGHT, TEXTURE = "constant", "fresnel", "layer_weight", "texture"
+FACTOR_KINDS = (CONSTANT, FRESNEL, LAYER_WEIGHT, TEXTURE)
+LAYER_OUTPUTS = ("fresnel", "facing")
+
+
+@dataclass
+class MixFactor:
+    """One factor of a leaf's weight, as a Mix Shader passes it: its Fac clamped to [0, 1] (or
+    1 - that, `invert`: the Mix Shader's first input).  `kind`:
+      constant:      `value` (any weight >= 0: an Add Shader's 1, or a folded product);
+      fresnel:       Cycles' Fresnel node of `ior` at the hit (the view direction and shading normal);
+      layer_weight:  Cycles' Layer Weight node of `blend`, its `output` "fresnel" or "facing";
+      texture:       the image `texture` (a TextureSlot) at the hit's UV, its colour's luminance
+                     (Cycles' colour-to-float); `value` where the hit has no UV or the image is missing.
+    `node`: the Blender node's name, for messages."""
+    kind: str = CONSTANT
+    value: float = 1.0
+    invert: bool = False
+    ior: float = 1.45
+    blend: float = 0.5
+    output: str = "fresnel"
+    texture: object = None
+    node: str = ""
+
+    @property
+    def is_constant(self) -> bool:
+        return self.kind == CONSTANT
+
+    def constant(self) -> float:
+        """The weight of a constant factor."""
+        return 1.0 - self.value if self.invert else self.value
+
+    def validate(self, owner: str) -> None:
+        if self.kind not in FACTOR_KINDS:
+            raise SceneError(f"{owner}: unknown mix factor kind '{self.kind}' (expected one of {', '.join(FACTOR_KINDS)})")
+        high = 1e6 if self.kind == CONSTANT and not self.invert else 1.0
+        for label, value, low, top in (("value", self.value, 0.0, high), ("ior", self.ior, 0.0, 1e6),
+                                       ("blend", self.blend, 0.0, 1.0)):
+            if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                    and low <= value <= top):
+                raise SceneError(f"{owner}: mix factor {label} must be from {low:g} to {top:g}, got {value!r}")
+        if self.kind == LAYER_WEIGHT and self.output not in LAYER_OUTPUTS:
+            raise SceneError(f"{owner}: Layer Weight output must be one of {', '.join(LAYER_OUTPUTS)}, "
+                             f"got {self.output!r}")
+        if self.kind == TEXTURE and self.texture is None:
+            raise SceneError(f"{owner}: a texture mix factor needs its texture slot")
+
+
+@dataclass
+class MixLeaf:
+    """One closure of a mix: an ordinary material of any scattering kind (not a mix, not emitting:
+    a mix's emission is the mix material's own) and its weight, the product of `factors`."""
+    material: Material
+    factors: list = field(default_factory=list)
+
+    def constant_weight(self) -> float | None:
+        """The weight if every factor is constant, else None."""
+        if not all(f.is_constant for f in self.factors):
+            return None
+        return float(np.prod([f.constant() for f in self.factors])) if self.factors else 1.0
+
+
+@dataclass
+class Mix:
+    """A material as Cycles' closure list: the weighted leaves, nested Mix and Add Shaders
+    flattened (weights multiplied).  Scattered by engine/materials/mix.py."""
+    leaves: list = field(default_factory=list)
+
+    def validate(self, owner: str) -> None:
+        if not self.leaves:
+            raise SceneError(f"{owner}: a mix needs at least one leaf")
+        for i, leaf in enumerate(self.leaves):
+            if not isinstance(leaf, MixLeaf) or not isinstance(leaf.material, Material):
+                raise SceneError(f"{owner}: mix leaf #{i} must be a MixLeaf holding a Material, got {leaf!r}")
+            m = leaf.material
+            where = f"{owner}: mix leaf #{i} '{m.name}'"
+            if m.kind == MIX:
+                raise SceneError(f"{where} is a mix itself (flatten nested mixes: multiply the weights)")
+            if m.is_emissive:
+                raise SceneError(f"{where} emits: a mix's emission belongs to the mix material")
+            try:
+                m.validate()
+            except SceneError as exc:
+                raise SceneError(f"{owner}: mix leaf #{i}: {exc}") from None
+            for factor in leaf.factors:
+                if not isinstance(factor, MixFactor):
+                    raise SceneError(f"{where}: factors must be MixFactors, got {factor!r}")
+                factor.validate(where)
+
+
+def with_mix_leaves(materials) -> tuple[list, list]:
+    """(materials followed by every mix's leaves, the leaf material ids of each material: [] for
+    non-mixes).  The one order both the material table and the textures number leaves by."""
+    expanded, leaf_ids = list(materials), []
+    for m in materials:
+        ids = []
+        if m.kind == MIX and m.mix is not None:
+            for leaf in m.mix.leaves:
+                ids.append(len(expanded))
+                expanded.append(leaf.material)
+        leaf_ids.append(ids)
+    return expanded, leaf_ids
 
 
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")

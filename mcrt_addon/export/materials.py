@@ -53,6 +53,7 @@ class MaterialTable:
         self._slots = {}                # the material being converted: role -> TextureSlot
         self.DIFFUSE, self.MIRROR, self.GLASS = model.DIFFUSE, model.MIRROR, model.GLASS
         self.GLOSSY, self.PRINCIPLED = model.GLOSSY, model.PRINCIPLED
+        self.MIX, self.Mix, self.MixLeaf, self.MixFactor = model.MIX, model.Mix, model.MixLeaf, model.MixFactor
         self.version = tuple(bpy.app.version if version is None else version)[:2]
         self.materials = []
         self.warnings = warnings
@@ -104,9 +105,7 @@ class MaterialTable:
     def uv_map(self, slot_ids):
         """The UV map a mesh with these material slots needs: '' for the active render one, the
         name a UV Map node gives, or None when no material of the mesh has a texture."""
-        names = [slot.uv_map for i in slot_ids for slot in (self.materials[i].color_texture,
-                                                            self.materials[i].emission_texture)
-                 if slot is not None]
+        names = [slot.uv_map for i in slot_ids for slot in shader_mix.texture_slots(self.materials[i])]
         if not names:
             return None
         if len(set(names)) > 1:

@@ -12,6 +12,7 @@ from engine.materials.glass import SmoothGlass
 from engine.materials.glossy import MicrofacetReflection
 from engine.materials.lambert import Lambertian
 from engine.materials.mirror import PerfectMirror
+from engine.materials.mix import MixBSDF
 from engine.materials.principled import PrincipledV2
 from engine.materials.protocol import BSDFFlags, ShadingPoint, has_non_delta
 from engine.materials.oren_nayar import RoughDiffuse
@@ -113,8 +114,10 @@ def make(cls, fresnel="exact"):
 def test_the_table_has_one_bsdf_per_material_kind_in_scatter_group_order():
     table = MaterialTable(MATERIALS, RenderSettings())
     assert [type(b) for b in table.bsdfs] == [cls for _, cls in SCATTERING] == [Lambertian, PerfectMirror, SmoothGlass,
-                                                                            MicrofacetReflection, PrincipledV2, RoughDiffuse]
-    assert list(table.scatter_group) == [0, 1, 2] and table.non_delta == [True, False, False, True, True, True]
+                                                                            MicrofacetReflection, PrincipledV2, RoughDiffuse,
+                                                                            MixBSDF]
+    # The mix row has the flags of its leaves: none in a scene without mixes.
+    assert list(table.scatter_group) == [0, 1, 2] and table.non_delta == [True, False, False, True, True, True, False]
     assert NON_DELTA_KINDS == {DIFFUSE, GLOSSY, PRINCIPLED, ROUGH_DIFFUSE}   # the rows whose hits take shadow rays
     rough = MaterialTable([Material("Clay", DIFFUSE, diffuse_roughness=0.5), Material("Wall", DIFFUSE)], RenderSettings())
     assert list(rough.scatter_group) == [KIND_CODE[ROUGH_DIFFUSE], 0]          # roughness 0 stays Lambertian
