@@ -17,6 +17,7 @@ from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED, Principled
 from ..geometry.shading_normals import has_smooth
 from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
 from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
+from ..materials.principled_v1 import SINGLE_SCATTER_ROUGHNESS
 from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, scatter_kind
 from ..materials.textures import textured_materials
 
@@ -249,8 +250,8 @@ def _principled_v1_lobes(m, p) -> str:
         if p.sheen > WEIGHT_CUTOFF:
             lobes.append("sheen")
     if p.specular > WEIGHT_CUTOFF or p.metallic > WEIGHT_CUTOFF:
-        lobes.append("specular (GGX, multiscatter by energy compensation)" if m.multiscatter and m.roughness > 0.075
-                     else "specular (GGX)")
+        multi = m.multiscatter and m.roughness > SINGLE_SCATTER_ROUGHNESS
+        lobes.append("specular (GGX, multiscatter by energy compensation)" if multi else "specular (GGX)")
     if p.clearcoat > WEIGHT_CUTOFF:
         lobes.append("clearcoat (GTR1)")
     return " + ".join(lobes)

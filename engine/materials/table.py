@@ -68,7 +68,8 @@ class MaterialTable:
         scatters = color.max(axis=1) > 0.0
         if textured_color is not None:
             scatters = scatters | textured_color
-        scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED]) | (self.kind == KIND_CODE[PRINCIPLED_V1])  # specular on black
+        # the Principled BSDFs' specular layer reflects on a black base
+        scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED]) | (self.kind == KIND_CODE[PRINCIPLED_V1])
         self.scatter_group = np.where(scatters, self.kind, ABSORB).astype(np.int8)
         self.bsdfs = [bsdf(materials, settings, cycles_version) if kind == ROUGH_DIFFUSE else bsdf(materials, settings)
                       for kind, bsdf in SCATTERING]

@@ -137,7 +137,7 @@ def furnace(bsdf, mu, n=200_000, seed=5):
 @pytest.mark.parametrize("mu", [0.2, 0.7])
 def test_multiscatter_approximation_keeps_a_white_metal_white(mu):
     """"Multiscatter GGX" (roughness 1, white metal) reflects what it receives, as Heitz's random walk;
-    the control, the node's "GGX" (single scatter, separable G), loses 35-60 %."""
+    the control, the node's "GGX" (single scatter, separable G), reads 0.51 and 0.36."""
     multi, err = furnace(PrincipledV1([v1(1.0, metallic=1.0, multiscatter=True)], RenderSettings()), mu)
     assert abs(multi - 1.0) < 0.01 + 4 * err, (multi, err)
     single, _ = furnace(PrincipledV1([v1(1.0, metallic=1.0)], RenderSettings()), mu)
