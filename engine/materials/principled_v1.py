@@ -188,12 +188,13 @@ class PrincipledV1(BSDF):
         w_spec = np.where(on_spec, 1.0, 0.0) * np.ones((3, n))
         cc = self.clearcoat.take(mat)
         w_cc = np.where(cc > WEIGHT_CUTOFF, 1.0, 0.0) * np.ones((3, n))
-        weights = [w_diffuse, w_sheen, w_spec, w_cc]
+        # bsdf_alloc drops closures whose weight averages below the cutoff
+        weights = [np.where(w.mean(axis=0) >= WEIGHT_CUTOFF, w, 0.0) for w in (w_diffuse, w_sheen, w_spec, w_cc)]
         f_spec = interpolated_fresnel(cos_o, self.eta.take(mat), self.cspec0(si))
         f_cc = 0.25 * cc * fresnel_dielectric(cos_o, np.full(n, CLEARCOAT_IOR))
+        w_diffuse, w_sheen, w_spec, w_cc = weights
         sample = np.stack([w_diffuse.mean(axis=0), w_sheen.mean(axis=0) * schlick_weight(cos_o) * cos_o,
                            w_spec.mean(axis=0) * f_spec.mean(axis=0), w_cc.mean(axis=0) * f_cc])
-        sample = np.where(np.stack([w.mean(axis=0) for w in weights]) >= WEIGHT_CUTOFF, sample, 0.0)
         total = sample.sum(axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
             prob = np.where(total > 0.0, sample / np.where(total > 0.0, total, 1.0), 0.0)
