@@ -38,6 +38,8 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
   rough_diffuse  the diffuse_room with Diffuse BSDF Roughness 0.8 on every wall and box (Oren-Nayar)
   principled_default  a cube with Blender's default material (Principled BSDF, all defaults) in the
                  Cornell room
+  principled_balls  a wall of Principled balls: roughness 0.15 / 0.4 / 0.8 x metallic 0 / 0.5 / 1, and
+                 a column with clearcoat, sheen and both, in the Cornell room
 Light-sampling stress scenes (plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -352,6 +354,31 @@ def make_principled_default(scene, res):
     room(scene)
     mesh_object(scene, "Cube", lambda bm: cube(bm, 1.0), node_material("Material", "ShaderNodeBsdfPrincipled"),
                 location=(0.0, 0.2, 0.202), rotation=(0, 0, math.radians(30)), scale=(0.4, 0.4, 0.4))
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_principled_balls(scene, res):
+    """A wall of Principled balls in the Cornell room: rows of roughness 0.15 / 0.4 / 0.8 (bottom to
+    top) x columns of metallic 0 / 0.5 / 1, all orange, node defaults otherwise (Specular 0.5 in 3.x),
+    and a fourth column: clearcoat 1 (clearcoat roughness 0.1), sheen 1, both (3.x's sockets; 4.x+
+    name them Coat Weight / Sheen Weight)."""
+    room(scene)
+    orange = (0.8, 0.45, 0.2, 1.0)
+    for i, roughness in enumerate((0.15, 0.4, 0.8)):
+        for j, metallic in enumerate((0.0, 0.5, 1.0)):
+            mat = node_material(f"Ball r{roughness:g} m{metallic:g}", "ShaderNodeBsdfPrincipled",
+                                **{"Base Color": orange, "Metallic": metallic, "Roughness": roughness})
+            mesh_object(scene, f"Ball{i}{j}", lambda bm: uv_sphere(bm, 0.2, 32, 16), mat,
+                        location=(-0.72 + 0.48 * j, 0.2, 0.35 + 0.5 * i), smooth=True)
+    for i, (coat, sheen) in enumerate(((1.0, 0.0), (0.0, 1.0), (1.0, 1.0))):
+        mat = node_material(f"Coat {coat:g} sheen {sheen:g}", "ShaderNodeBsdfPrincipled",
+                            **{"Base Color": orange, "Roughness": 0.4, "Clearcoat": coat, "Coat Weight": coat,
+                               "Clearcoat Roughness": 0.1, "Coat Roughness": 0.1, "Sheen": sheen,
+                               "Sheen Weight": sheen})
+        mesh_object(scene, f"Coated{i}", lambda bm: uv_sphere(bm, 0.2, 32, 16), mat,
+                    location=(0.72, 0.2, 0.35 + 0.5 * i), smooth=True)
     camera(scene)
     black_world(scene)
     settings(scene, res)
@@ -740,6 +767,7 @@ SCENES = {
     "rough_diffuse": make_rough_diffuse,
     "principled_default": make_principled_default,
     "mix_shader": make_mix_shader,
+    "principled_balls": make_principled_balls,
 }
 
 

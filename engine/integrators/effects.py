@@ -13,10 +13,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, MIX, PRINCIPLED, Principled
+from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, MIX, PRINCIPLED, Principled, PrincipledV1
 from ..geometry.shading_normals import has_smooth
 from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
 from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
+from ..materials.principled_v1 import SINGLE_SCATTER_ROUGHNESS
 from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, scatter_kind
 from ..materials.textures import textured_materials
 
@@ -148,8 +149,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                "light samples and MIS weighed by its eval and pdf (engine/materials/glossy.py)"
                if glossy else "no glossy material: no microfacet lobe evaluated")
     set_effect("principled", principled,
-               f"Principled BSDF v2 materials {_principled_lobes(principled)}: lobes picked by their albedo "
-               "estimates, eval and pdf summed over lobes (engine/materials/principled.py)"
+               f"Principled BSDF materials {_principled_lobes(principled)}: lobes picked by their albedo "
+               "estimates, eval and pdf summed over lobes (engine/materials/principled.py, principled_v1.py)"
                if principled else "no Principled material: no Principled lobes evaluated")
     rough = users(lambda m: scatter_kind(m) == ROUGH_DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
     plan.cycles_version = tuple(getattr(scene, "cycles_version", (5, 0)))
@@ -233,6 +234,9 @@ def _principled_lobes(materials) -> str:
     parts = []
     for m in materials[:3]:
         p = m.principled or Principled()
+        if isinstance(p, PrincipledV1):
+            parts.append(f"'{m.name}' {_principled_v1_lobes(m, p)}")
+            continue
         lobes = ["metallic (GGX, F82 tint)"] if p.metallic > WEIGHT_CUTOFF else []
         if 1.0 - p.metallic > WEIGHT_CUTOFF:
             if specular_eta_f0(max(m.ior, 1e-5), max(p.specular_ior_level, 0.0))[0] != 1.0:
@@ -255,6 +259,21 @@ def _mix_lobes(materials) -> str:
              for m in materials[:3]]
     more = f" and {len(materials) - 3} more" if len(materials) > 3 else ""
     return ", ".join(parts) + more
+
+
+def _principled_v1_lobes(m, p) -> str:
+    """The closures Blender 3.4's Principled BSDF runs (engine/materials/principled_v1.py)."""
+    lobes = []
+    if 1.0 - p.metallic > WEIGHT_CUTOFF:
+        lobes.append("diffuse (Burley, v1)")
+        if p.sheen > WEIGHT_CUTOFF:
+            lobes.append("sheen")
+    if p.specular > WEIGHT_CUTOFF or p.metallic > WEIGHT_CUTOFF:
+        multi = m.multiscatter and m.roughness > SINGLE_SCATTER_ROUGHNESS
+        lobes.append("specular (GGX, multiscatter by energy compensation)" if multi else "specular (GGX)")
+    if p.clearcoat > WEIGHT_CUTOFF:
+        lobes.append("clearcoat (GTR1)")
+    return " + ".join(lobes)
 
 
 def n_emissive_primitives(scene) -> int:

@@ -50,7 +50,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..core.vec import dot
-from ..scene.model import PRINCIPLED
+from ..scene.model import PRINCIPLED, Principled, PrincipledV1
 from . import albedo_tables
 from .glossy import MicrofacetReflection, fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import GGX, clamp_alpha, ggx_sample_vndf
@@ -169,7 +169,7 @@ class PrincipledV2(BSDF):
     flags = FLAGS
 
     def __init__(self, materials, settings):
-        params = [getattr(m, "principled", None) for m in materials]
+        params = [p if isinstance(p := getattr(m, "principled", None), Principled) else None for m in materials]
         m_count = len(materials)
         self.metallic = np.array([0.0 if p is None else min(max(p.metallic, 0.0), 1.0) for p in params])
         tint = np.array([(1.0, 1.0, 1.0) if p is None else np.maximum(p.specular_tint, 0.0) for p in params],
@@ -190,7 +190,8 @@ class PrincipledV2(BSDF):
         # Cycles' s(mu) tables, for the Principled materials only (every row of the material
         # table is built for all materials, engine/materials/table.py).
         rough = self.specular.roughness_of_table
-        own = [getattr(m, "kind", PRINCIPLED) == PRINCIPLED for m in materials]
+        own = [getattr(m, "kind", PRINCIPLED) == PRINCIPLED and not isinstance(getattr(m, "principled", None), PrincipledV1)
+               for m in materials]
         none = np.zeros(MU_POINTS)
         self.s_specular = np.array([interpolation_factor(float(r), float(e)) if mine and e != 1.0 else none
                                     for r, e, mine in zip(rough, self.eta, own)]).reshape(m_count, MU_POINTS)

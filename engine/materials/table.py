@@ -18,20 +18,23 @@ import numpy as np
 
 from ..core.vec import rows
 from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, MIX, PRINCIPLED, with_mix_leaves
+from ..scene.model import PrincipledV1 as PrincipledV1Inputs
 from .glass import SmoothGlass
 from .glossy import MicrofacetReflection
 from .lambert import Lambertian
 from .mirror import PerfectMirror
 from .mix import MixBSDF
 from .principled import PrincipledV2
+from .principled_v1 import PrincipledV1
 from .oren_nayar import RoughDiffuse
 from .protocol import has_non_delta
 
 # (material kind, its BSDF); the row is the kind's scatter group.
 ROUGH_DIFFUSE = "rough diffuse"     # a scatter row, not a material kind: see scatter_kind
+PRINCIPLED_V1 = "principled v1"     # a scatter row: Principled materials whose `principled` is a PrincipledV1
 SCATTERING = ((DIFFUSE, Lambertian), (MIRROR, PerfectMirror), (GLASS, SmoothGlass),
               (GLOSSY, MicrofacetReflection), (PRINCIPLED, PrincipledV2),
-              (ROUGH_DIFFUSE, RoughDiffuse), (MIX, MixBSDF))
+              (ROUGH_DIFFUSE, RoughDiffuse), (MIX, MixBSDF), (PRINCIPLED_V1, PrincipledV1))
 KIND_CODE = {kind: group for group, (kind, _) in enumerate(SCATTERING)}
 ABSORB = len(SCATTERING)            # black surfaces: absorb everything
 PASS_THROUGH = ABSORB + 1           # Area lights: emission, then the ray goes on
@@ -41,10 +44,13 @@ NON_DELTA_KINDS = frozenset(kind for kind, bsdf in SCATTERING if has_non_delta(b
 
 
 def scatter_kind(material) -> str:
-    """The row that scatters `material`: its kind's, or ROUGH_DIFFUSE for a diffuse material with
-    a diffuse roughness above 0 (Cycles' Oren-Nayar closure; at 0 its Lambertian one)."""
+    """The row that scatters `material`: its kind's, ROUGH_DIFFUSE for a diffuse material with
+    a diffuse roughness above 0 (Cycles' Oren-Nayar closure; at 0 its Lambertian one), or
+    PRINCIPLED_V1 for a Principled material with Blender 3.x's inputs (a PrincipledV1)."""
     if material.kind == DIFFUSE and getattr(material, "diffuse_roughness", 0.0) > 0.0:
         return ROUGH_DIFFUSE
+    if material.kind == PRINCIPLED and isinstance(getattr(material, "principled", None), PrincipledV1Inputs):
+        return PRINCIPLED_V1
     return material.kind
 
 
@@ -66,7 +72,8 @@ class MaterialTable:
         scatters = color.max(axis=1) > 0.0
         if textured_color is not None:
             scatters = scatters | textured_color
-        scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED])     # its specular layer reflects on black
+        # the Principled BSDFs' specular layer reflects on a black base
+        scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED]) | (self.kind == KIND_CODE[PRINCIPLED_V1])
         scatters = scatters | (self.kind == KIND_CODE[MIX])            # its leaves have their own colours
         self.scatter_group = np.where(scatters, self.kind, ABSORB).astype(np.int8)
         self.bsdfs = [bsdf(materials, settings, cycles_version) if kind == ROUGH_DIFFUSE else bsdf(materials, settings)
@@ -75,4 +82,5 @@ class MaterialTable:
         # Groups whose BSDF has a lobe that given directions meet (light samples, MIS, 2D uniforms).
         self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]
         # Whether any material has a glossy (non-delta, non-Lambertian reflection) lobe.
-        self.glossy = bool(np.any((self.kind == KIND_CODE[GLOSSY]) | (self.kind == KIND_CODE[PRINCIPLED])))
+        self.glossy = bool(np.any((self.kind == KIND_CODE[GLOSSY]) | (self.kind == KIND_CODE[PRINCIPLED])
+                                  | (self.kind == KIND_CODE[PRINCIPLED_V1])))

@@ -7,7 +7,10 @@
                 "shift_x": 0, "shift_y": 0},
      "materials": [{"name": "White", "kind": "diffuse", "color": [..], "ior": 1.5, "emission": [..]}],
                    (kind "principled": the glossy keys and "principled": {"metallic": 0, "specular_ior_level":
-                   0.5, "specular_tint": [1, 1, 1]}, each key optional; kind "mix": "mix", the leaves and
+                   0.5, "specular_tint": [1, 1, 1]}, each key optional; Blender 3.x's node instead:
+                   "principled_v1": {"metallic": 0, "specular": 0.5, "specular_tint": 0, "sheen": 0,
+                   "sheen_tint": 0.5, "clearcoat": 0, "clearcoat_roughness": 0.03, "transmission": 0,
+                   "transmission_roughness": 0, "alpha": 1}, each key optional; kind "mix": "mix", the leaves and
                    their weights, engine/scene/mix_fields.py)
      "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
                  "material": "White"  or  "material_ids": [..] or "@key",
@@ -39,6 +42,7 @@ import os
 import numpy as np
 
 from .model import GLOSSY, PRINCIPLED, AreaLight, Camera, Material, PointLight, Principled, Quad, Scene, Sphere, SunLight, TriangleMesh
+from .model import PrincipledV1
 from ..core.errors import SceneError
 from .fields import Fields, is_integer
 from .mix_fields import mix_json, read_mix
@@ -90,6 +94,9 @@ def _glossy_fields(m) -> dict:
 def _principled_fields(m) -> dict:
     """A material entry's "principled" object (engine/scene/model.py Principled), if present;
     each of its keys optional (the node's defaults)."""
+    if "principled_v1" in m:                    # Blender 3.x's inputs: {"metallic": 0, "specular": 0.5, ...}
+        p, default = Fields(m.get("principled_v1"), f"{m.owner}: principled_v1"), PrincipledV1()
+        return {"principled": PrincipledV1(**{key: p.number(key, value) for key, value in vars(default).items()})}
     if "principled" not in m:
         return {}
     p, default = Fields(m.get("principled"), f"{m.owner}: principled"), Principled()
@@ -103,6 +110,8 @@ def _principled_json(m) -> dict:
     if m.kind != PRINCIPLED:
         return {}
     p = m.principled or Principled()
+    if isinstance(p, PrincipledV1):
+        return {"principled_v1": dict(vars(p))}
     return {"principled": {"metallic": p.metallic, "specular_ior_level": p.specular_ior_level,
                            "specular_tint": list(p.specular_tint)}}
 

@@ -48,6 +48,32 @@ class Principled:
 
 
 @dataclass
+class PrincipledV1:
+    """Blender 3.x's Principled BSDF inputs (engine/materials/principled_v1.py), its socket
+    vocabulary; base colour, roughness, anisotropy / rotation / tangent, ior and `multiscatter`
+    (the node's distribution) are Material's.  Transmission is kept, not rendered by this model."""
+    metallic: float = 0.0
+    specular: float = 0.5
+    specular_tint: float = 0.0
+    sheen: float = 0.0
+    sheen_tint: float = 0.5
+    clearcoat: float = 0.0
+    clearcoat_roughness: float = 0.03
+    transmission: float = 0.0
+    transmission_roughness: float = 0.0
+    alpha: float = 1.0
+
+    def validate(self, owner: str) -> None:
+        for label in ("metallic", "specular", "specular_tint", "sheen", "sheen_tint", "clearcoat",
+                      "clearcoat_roughness", "transmission", "transmission_roughness", "alpha"):
+            value = getattr(self, label)
+            high = 1e6 if label in ("specular", "sheen", "clearcoat") else 1.0
+            if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                    and 0.0 <= value <= high):
+                raise SceneError(f"{owner}: Principled (3.x) {label} must be from 0 to {high:g}, got {value!r}")
+
+
+@dataclass
 class Material:
     """A surface: Lambertian, perfect mirror, smooth glass or rough (microfacet) reflection,
     optionally emitting.
@@ -86,8 +112,8 @@ class Material:
     # The Diffuse BSDF's Roughness (Oren-Nayar, engine/materials/oren_nayar.py; the model follows
     # Scene.cycles_version); 0 = Lambert, exactly.
     diffuse_roughness: float = 0.0
-    # Principled only: its own inputs (None: the node's defaults).
-    principled: Principled | None = None
+    # Principled only: its own inputs (None: the node's defaults); a PrincipledV1: Blender 3.x's node.
+    principled: Principled | PrincipledV1 | None = None
     # Mix only: the leaves and their weights (engine/materials/mix.py).
     mix: "Mix | None" = None
 
@@ -111,8 +137,9 @@ class Material:
             self.validate_glossy()
         if self.kind == PRINCIPLED:
             self.validate_glossy()
-            if self.principled is not None and not isinstance(self.principled, Principled):
-                raise SceneError(f"Material '{self.name}': principled must be a Principled, got {self.principled!r}")
+            if self.principled is not None and not isinstance(self.principled, (Principled, PrincipledV1)):
+                raise SceneError(f"Material '{self.name}': principled must be a Principled or a PrincipledV1, "
+                                 f"got {self.principled!r}")
             (self.principled or Principled()).validate(f"Material '{self.name}'")
         value = self.diffuse_roughness
         if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

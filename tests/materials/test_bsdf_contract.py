@@ -14,9 +14,10 @@ from engine.materials.lambert import Lambertian
 from engine.materials.mirror import PerfectMirror
 from engine.materials.mix import MixBSDF
 from engine.materials.principled import PrincipledV2
+from engine.materials.principled_v1 import PrincipledV1
 from engine.materials.protocol import BSDFFlags, ShadingPoint, has_non_delta
 from engine.materials.oren_nayar import RoughDiffuse
-from engine.materials.table import KIND_CODE, NON_DELTA_KINDS, ROUGH_DIFFUSE, SCATTERING, MaterialTable
+from engine.materials.table import KIND_CODE, NON_DELTA_KINDS, PRINCIPLED_V1, ROUGH_DIFFUSE, SCATTERING, MaterialTable
 from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED, Material
 
 N = 4000
@@ -115,10 +116,10 @@ def test_the_table_has_one_bsdf_per_material_kind_in_scatter_group_order():
     table = MaterialTable(MATERIALS, RenderSettings())
     assert [type(b) for b in table.bsdfs] == [cls for _, cls in SCATTERING] == [Lambertian, PerfectMirror, SmoothGlass,
                                                                             MicrofacetReflection, PrincipledV2, RoughDiffuse,
-                                                                            MixBSDF]
+                                                                             MixBSDF, PrincipledV1]
     # The mix row has the flags of its leaves: none in a scene without mixes.
-    assert list(table.scatter_group) == [0, 1, 2] and table.non_delta == [True, False, False, True, True, True, False]
-    assert NON_DELTA_KINDS == {DIFFUSE, GLOSSY, PRINCIPLED, ROUGH_DIFFUSE}   # the rows whose hits take shadow rays
+    assert list(table.scatter_group) == [0, 1, 2] and table.non_delta == [True, False, False, True, True, True, False, True]
+    assert NON_DELTA_KINDS == {DIFFUSE, GLOSSY, PRINCIPLED, ROUGH_DIFFUSE, PRINCIPLED_V1}   # rows whose hits take shadow rays
     rough = MaterialTable([Material("Clay", DIFFUSE, diffuse_roughness=0.5), Material("Wall", DIFFUSE)], RenderSettings())
     assert list(rough.scatter_group) == [KIND_CODE[ROUGH_DIFFUSE], 0]          # roughness 0 stays Lambertian
     black = MaterialTable([Material("Black", DIFFUSE, (0, 0, 0))], RenderSettings())
