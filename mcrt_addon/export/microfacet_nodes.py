@@ -168,8 +168,9 @@ def principled_layers(table, mat, node, transmission, emission):
         table.warn(mat, node, "input 'Coat Normal' is linked (not modelled): the coat uses the surface's normal")
     if layers["alpha"] < 1:
         table.warn(mat, node, f"input 'Alpha' {layers['alpha']:g}: rays pass straight through with probability "
-                              "1 - alpha, but shadow rays stop at the surface: point, spot and sun lamps cast its "
-                              "full shadow (Cycles lets 1 - alpha of their light through)")
+                              "1 - alpha, but shadow rays stop at the surface: point and spot lamps without a radius "
+                              "and suns without an angle cast its full shadow (Cycles lets 1 - alpha of their "
+                              "light through), and the light behind it is noisier")
     covered = [name for name, key in (("coat", "coat_weight"), ("sheen", "sheen_weight")) if layers[key] > 0]
     if covered and (max(emission) > 0 or "emission" in table._slots):
         f0 = ((layers["coat_ior"] - 1) / (layers["coat_ior"] + 1)) ** 2 * min(layers["coat_weight"], 1.0)

@@ -17,7 +17,7 @@ from engine.materials import sheen
 from engine.materials.principled import PASS_LOBE, PrincipledV2
 from engine.materials.protocol import BSDFFlags
 from engine.scene.files import load_scene, save_scene
-from engine.scene.model import DIFFUSE, PRINCIPLED, AreaLight, Camera, Material, Principled, Quad, Scene, Sphere
+from engine.scene.model import DIFFUSE, PRINCIPLED, AreaLight, Camera, Material, PointLight, Principled, Quad, Scene, Sphere
 from tests.chi_square import ALPHA, sphere_chi2
 from tests.integrators.test_mis import block_test
 from tests.materials.test_bsdf_contract import hits as random_hits
@@ -217,6 +217,10 @@ def test_transmission_weight_is_warned_by_material():
 def test_effect_plan_names_the_layers_and_sees_lamps_through_alpha():
     reason = plan_effects(small_scene(coat_weight=1.0, sheen_weight=0.5, alpha=0.5), RenderSettings()).reason
     assert "'L' alpha pass-through + sheen (microfiber) + coat (GGX) + specular (GGX) + diffuse" in reason["principled"]
+    for alpha, seen in ((0.5, True), (1.0, False)):         # a round lamp behind an alpha surface is met by rays
+        scene = small_scene(alpha=alpha)
+        scene.points = [PointLight("Bulb", (0.0, 1.5, 1.5), (3.0, 3.0, 3.0), radius=0.25)]
+        assert plan_effects(scene, RenderSettings()).enabled["seen_lamps"] == seen
 
 
 # -- a render: an alpha-0 ball is not there ----------------------------------------------------------------
