@@ -40,6 +40,8 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  Cornell room
   principled_balls  a wall of Principled balls: roughness 0.15 / 0.4 / 0.8 x metallic 0 / 0.5 / 1, and
                  a column with clearcoat, sheen and both, in the Cornell room
+  principled_grid  Principled BSDF balls: roughness 0.1, 0.3, 0.55, 0.8 across; rows dielectric,
+                 metal, a tinted coat over white, sheen over dark blue; lit by an Area light
 Light-sampling stress scenes (plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -740,6 +742,30 @@ def make_mix_shader(scene, res):
                                            bsdf_node("ShaderNodeBsdfGlossy", Color=white_gloss, Roughness=0.15))
     set_uvs(floor, {"UVMap": [(0, 0), (1, 0), (1, 1), (0, 1)]})
     camera(scene)
+PRINCIPLED_GRID_ROUGHNESS = (0.1, 0.3, 0.55, 0.8)
+# Rows from the top: (label, base colour, metallic, the layer's sockets).
+PRINCIPLED_GRID_ROWS = (
+    ("Dielectric", (0.8, 0.25, 0.15), 0.0, {}),
+    ("Metal", (0.95, 0.75, 0.45), 1.0, {}),
+    ("Coat", (0.8, 0.8, 0.8), 0.0, {"Coat Weight": 1.0, "Coat Roughness": 0.05, "Coat Tint": (0.9, 0.55, 0.25, 1.0)}),
+    ("Sheen", (0.04, 0.05, 0.12), 0.0, {"Sheen Weight": 1.0, "Sheen Roughness": 0.5}),
+)
+
+
+def make_principled_grid(scene, res):
+    """Principled BSDF balls (Blender 4.0+'s v2 sockets; 3.x reads what it has): four columns of
+    roughness, rows dielectric, metal, coated and sheen, lit by a 1.2 x 0.6 m Area light high in
+    front; in the Cornell room without its lamp, seen through a 70 mm lens."""
+    room(scene, ceiling_light=False)
+    light_object(scene, "Softbox", "AREA", (0.0, -1.4, 1.85), rotation=(math.radians(55), 0.0, 0.0),
+                 shape="RECTANGLE", size=1.2, size_y=0.6, energy=45.0, color=(1.0, 0.97, 0.92))
+    for row, (label, base, metallic, layer) in enumerate(PRINCIPLED_GRID_ROWS):
+        for col, roughness in enumerate(PRINCIPLED_GRID_ROUGHNESS):
+            kw = {"Base Color": (*base, 1.0), "Metallic": metallic, "Roughness": roughness, **layer}
+            mat = node_material(f"{label} {roughness:g}", "ShaderNodeBsdfPrincipled", **kw)
+            mesh_object(scene, f"Ball {label} {roughness:g}", lambda bm: uv_sphere(bm, 0.16, 48, 24), mat,
+                        location=(-0.63 + 0.42 * col, 0.0, 1.63 - 0.42 * row), smooth=True)
+    camera(scene, lens=70.0)
     black_world(scene)
     settings(scene, res)
 
@@ -768,6 +794,7 @@ SCENES = {
     "principled_default": make_principled_default,
     "mix_shader": make_mix_shader,
     "principled_balls": make_principled_balls,
+    "principled_grid": make_principled_grid,
 }
 
 

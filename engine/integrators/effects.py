@@ -171,7 +171,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
 
     round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
                    if light.visible_glossy or light.visible_transmission]
-    specular = mirror or glass
+    passing = [m for m in principled if (m.principled or Principled()).alpha < 1.0]   # alpha: delta pass-through
+    specular = mirror or glass or passing
     # After a glossy bounce the shadow rays own these lamps (a BSDF sample cannot reach them in
     # their MIS, engine/lights/seen.py): glossy rays see them only when no shadow rays run.
     glossy_sees = bool(glossy) and settings.shadow_rays == 0
@@ -243,6 +244,9 @@ def _principled_lobes(materials) -> str:
                 lobes.append("specular (GGX)")
             rough = getattr(m, "diffuse_roughness", 0.0) >= DIFFUSE_ROUGHNESS_CUTOFF
             lobes.append("diffuse (Oren-Nayar)" if rough else "diffuse (Lambert)")
+        over = [name for name, on in (("alpha pass-through", p.alpha < 1.0), ("sheen (microfiber)", p.sheen_weight > WEIGHT_CUTOFF),
+                                      ("coat (GGX)", p.coat_weight > WEIGHT_CUTOFF)) if on]
+        lobes = over + lobes
         parts.append(f"'{m.name}' {' + '.join(lobes)}")
     more = f" and {len(materials) - 3} more" if len(materials) > 3 else ""
     return ", ".join(parts) + more

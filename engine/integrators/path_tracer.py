@@ -450,8 +450,10 @@ class PathTracer:
                 p.prev_bsdf_pdf[sampled] = s.pdf[local]
         transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
         p.prev_delta[:alive] = (flags & BSDFFlags.DELTA) != 0
-        p.ray_kind[:alive] = np.where(transmitted, TRANSMISSION_RAY,
-                                      np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
+        kind = np.where(transmitted, TRANSMISSION_RAY, np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
+        # A straight pass-through (alpha) keeps a camera ray a camera ray (Area lights' visibility, as Cycles).
+        p.ray_kind[:alive] = np.where(((flags & BSDFFlags.STRAIGHT) != 0) & (p.ray_kind[:alive] == CAMERA_RAY),
+                                      CAMERA_RAY, kind)
         side = np.where(transmitted, -1.0, 1.0)
         beta = p.beta[:, :alive] * value             # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
         if si.smooth:                       # below the geometric surface (or not through it): ends

@@ -39,6 +39,7 @@ class BSDFFlags(IntFlag):
     DIFFUSE = 4             # f spread over the hemisphere (Lambert)
     GLOSSY = 8              # f peaked about a direction (microfacets: none yet)
     DELTA = 16              # f a Dirac delta: one direction (perfect mirror, smooth glass)
+    STRAIGHT = 32           # with TRANSMISSION | DELTA: wi = -wo, the ray goes on as it was (alpha)
 
 
 NON_DELTA = BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY

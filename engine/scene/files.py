@@ -7,7 +7,9 @@
                 "shift_x": 0, "shift_y": 0},
      "materials": [{"name": "White", "kind": "diffuse", "color": [..], "ior": 1.5, "emission": [..]}],
                    (kind "principled": the glossy keys and "principled": {"metallic": 0, "specular_ior_level":
-                   0.5, "specular_tint": [1, 1, 1]}, each key optional; Blender 3.x's node instead:
+                   0.5, "specular_tint": [1, 1, 1], "coat_weight": 0, "coat_roughness": 0.03, "coat_ior": 1.5,
+                   "coat_tint": [1, 1, 1], "sheen_weight": 0, "sheen_roughness": 0.5, "sheen_tint": [1, 1, 1],
+                   "alpha": 1, "transmission_weight": 0}, each key optional; Blender 3.x's node instead:
                    "principled_v1": {"metallic": 0, "specular": 0.5, "specular_tint": 0, "sheen": 0,
                    "sheen_tint": 0.5, "clearcoat": 0, "clearcoat_roughness": 0.03, "transmission": 0,
                    "transmission_roughness": 0, "alpha": 1}, each key optional; kind "mix": "mix", the leaves and
@@ -91,6 +93,11 @@ def _glossy_fields(m) -> dict:
     return values
 
 
+# The Principled layers' keys (engine/scene/model.py Principled), each optional.
+LAYER_KEYS = ("coat_weight", "coat_roughness", "coat_ior", "coat_tint", "sheen_weight", "sheen_roughness",
+              "sheen_tint", "alpha", "transmission_weight")
+
+
 def _principled_fields(m) -> dict:
     """A material entry's "principled" object (engine/scene/model.py Principled), if present;
     each of its keys optional (the node's defaults)."""
@@ -102,7 +109,9 @@ def _principled_fields(m) -> dict:
     p, default = Fields(m.get("principled"), f"{m.owner}: principled"), Principled()
     return {"principled": Principled(metallic=p.number("metallic", default.metallic),
                                      specular_ior_level=p.number("specular_ior_level", default.specular_ior_level),
-                                     specular_tint=p.numbers("specular_tint", 3, default.specular_tint))}
+                                     specular_tint=p.numbers("specular_tint", 3, default.specular_tint),
+                                     **{key: p.numbers(key, 3, getattr(default, key)) if key.endswith("_tint")
+                                        else p.number(key, getattr(default, key)) for key in LAYER_KEYS})}
 
 
 def _principled_json(m) -> dict:
@@ -112,8 +121,10 @@ def _principled_json(m) -> dict:
     p = m.principled or Principled()
     if isinstance(p, PrincipledV1):
         return {"principled_v1": dict(vars(p))}
+    layers = {key: list(getattr(p, key)) if key.endswith("_tint") else getattr(p, key) for key in LAYER_KEYS
+              if np.any(np.asarray(getattr(p, key)) != np.asarray(getattr(Principled(), key)))}  # the layers set only
     return {"principled": {"metallic": p.metallic, "specular_ior_level": p.specular_ior_level,
-                           "specular_tint": list(p.specular_tint)}}
+                           "specular_tint": list(p.specular_tint), **layers}}
 
 
 def _glossy_json(m) -> dict:

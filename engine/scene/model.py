@@ -35,16 +35,39 @@ class Principled:
     metallic: float = 0.0
     specular_ior_level: float = 0.5
     specular_tint: tuple = (1.0, 1.0, 1.0)
+    # The layers over the base (engine/materials/principled.py): a GGX dielectric coat, the
+    # microfiber sheen, alpha (1 - alpha passes straight through).  transmission_weight is kept
+    # for the rough dielectric, not rendered yet (rendered opaque, with a warning).
+    coat_weight: float = 0.0
+    coat_roughness: float = 0.03
+    coat_ior: float = 1.5
+    coat_tint: tuple = (1.0, 1.0, 1.0)
+    sheen_weight: float = 0.0
+    sheen_roughness: float = 0.5
+    sheen_tint: tuple = (1.0, 1.0, 1.0)
+    alpha: float = 1.0
+    transmission_weight: float = 0.0
 
     def validate(self, owner: str) -> None:
-        for label, value, high in (("metallic", self.metallic, 1.0), ("specular_ior_level", self.specular_ior_level, 1e6)):
+        for label, value, high in (("metallic", self.metallic, 1.0), ("specular_ior_level", self.specular_ior_level, 1e6),
+                                   ("coat_weight", self.coat_weight, 1e6), ("coat_roughness", self.coat_roughness, 1.0),
+                                   ("sheen_weight", self.sheen_weight, 1e6), ("sheen_roughness", self.sheen_roughness, 1.0),
+                                   ("alpha", self.alpha, 1.0), ("transmission_weight", self.transmission_weight, 1.0)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value <= high):
                 raise SceneError(f"{owner}: Principled {label} must be from 0 to {high:g}, got {value!r}")
-        arr = np.asarray(self.specular_tint, dtype=np.float64)
-        if arr.shape != (3,) or not np.isfinite(arr).all() or (arr < 0).any():
-            raise SceneError(f"{owner}: Principled specular_tint must be 3 finite non-negative numbers, "
-                             f"got {self.specular_tint!r}")
-        check_magnitude(owner, "specular_tint", arr)
+        if not (isinstance(self.coat_ior, (int, float)) and math.isfinite(self.coat_ior) and 1.0 <= self.coat_ior <= 1e6):
+            raise SceneError(f"{owner}: Principled coat_ior must be from 1 to 1e6, got {self.coat_ior!r}")
+        for label in ("specular_tint", "coat_tint", "sheen_tint"):
+            value = getattr(self, label)
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.shape != (3,) or not np.isfinite(arr).all() or (arr < 0).any():
+                raise SceneError(f"{owner}: Principled {label} must be 3 finite non-negative numbers, got {value!r}")
+            check_magnitude(owner, label, arr)
+
+    @property
+    def layered(self) -> bool:
+        """Whether any layer over the base is on (coat, sheen or alpha below 1)."""
+        return self.coat_weight > 0.0 or self.sheen_weight > 0.0 or self.alpha < 1.0
 
 
 @dataclass
@@ -657,6 +680,10 @@ class Scene:
         self.cycles_version = tuple(version)
         for material in self.materials:
             material.validate()
+            layers = material.principled if material.kind == PRINCIPLED else None
+            if isinstance(layers, Principled) and layers.transmission_weight > 0.0:
+                warnings.append(f"Material '{material.name}': Principled transmission_weight "
+                                f"{layers.transmission_weight:g} is not modelled yet (rendered opaque)")
         bg = np.asarray(self.background, dtype=np.float64)
         if bg.shape != (3,) or not np.isfinite(bg).all() or (bg < 0).any():
             raise SceneError(f"Scene '{self.name}': background must be 3 finite non-negative numbers")
