@@ -7,15 +7,18 @@ ABSORB (surfaces that absorb everything: the path ends there) and PASS_THROUGH (
 lights: their emission counts, then the ray goes on through them).
 
 A new BSDF is one class (engine/materials/protocol.py) and one row here, for a material kind of
-the scene model (engine/scene/model.py).  One row is not a kind: ROUGH_DIFFUSE takes the diffuse
+the scene model (engine/scene/model.py).  Some rows are not kinds: ROUGH_DIFFUSE takes the diffuse
 materials with a diffuse roughness above 0 (`scatter_kind`); those of roughness 0 stay Lambertian.
+ROUGH_GLASS and ROUGH_REFRACTION take the glass and refraction materials with a roughness above 0;
+those of roughness 0 stay delta (smooth glass, smooth refraction).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..core.vec import rows
-from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED
+from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED, REFRACTION, TRANSLUCENT, TRANSPARENT
+from .dielectric import RoughGlass, RoughRefraction, SmoothRefraction
 from .glass import SmoothGlass
 from .glossy import MicrofacetReflection
 from .lambert import Lambertian
@@ -23,25 +26,37 @@ from .mirror import PerfectMirror
 from .principled import PrincipledV2
 from .oren_nayar import RoughDiffuse
 from .protocol import has_non_delta
+from .translucent import Translucent
+from .transparent import Transparent
 
 # (material kind, its BSDF); the row is the kind's scatter group.
 ROUGH_DIFFUSE = "rough diffuse"     # a scatter row, not a material kind: see scatter_kind
+ROUGH_GLASS = "rough glass"         # the same
+ROUGH_REFRACTION = "rough refraction"
 SCATTERING = ((DIFFUSE, Lambertian), (MIRROR, PerfectMirror), (GLASS, SmoothGlass),
               (GLOSSY, MicrofacetReflection), (PRINCIPLED, PrincipledV2),
-              (ROUGH_DIFFUSE, RoughDiffuse))
+              (ROUGH_DIFFUSE, RoughDiffuse), (ROUGH_GLASS, RoughGlass), (REFRACTION, SmoothRefraction),
+              (ROUGH_REFRACTION, RoughRefraction), (TRANSPARENT, Transparent), (TRANSLUCENT, Translucent))
 KIND_CODE = {kind: group for group, (kind, _) in enumerate(SCATTERING)}
 ABSORB = len(SCATTERING)            # black surfaces: absorb everything
 PASS_THROUGH = ABSORB + 1           # Area lights: emission, then the ray goes on
 N_SCATTER_GROUPS = PASS_THROUGH + 1
 # Material kinds whose BSDF has a non-delta lobe: their hits take shadow rays (engine/integrators/effects.py).
 NON_DELTA_KINDS = frozenset(kind for kind, bsdf in SCATTERING if has_non_delta(bsdf.flags))
+ROUGH_ROWS = {GLASS: ROUGH_GLASS, REFRACTION: ROUGH_REFRACTION}     # kind -> its row at roughness > 0
+# Rows whose non-delta rays are glossy or transmission rays (engine/integrators/path_tracer.py lamps_seen).
+GLOSSY_RAY_ROWS = (GLOSSY, PRINCIPLED, ROUGH_GLASS, ROUGH_REFRACTION, TRANSLUCENT)
 
 
 def scatter_kind(material) -> str:
     """The row that scatters `material`: its kind's, or ROUGH_DIFFUSE for a diffuse material with
-    a diffuse roughness above 0 (Cycles' Oren-Nayar closure; at 0 its Lambertian one)."""
+    a diffuse roughness above 0 (Cycles' Oren-Nayar closure; at 0 its Lambertian one), ROUGH_GLASS
+    / ROUGH_REFRACTION for a glass / refraction material with a roughness above 0."""
     if material.kind == DIFFUSE and getattr(material, "diffuse_roughness", 0.0) > 0.0:
         return ROUGH_DIFFUSE
+    rough = ROUGH_ROWS.get(material.kind)
+    if rough is not None and (getattr(material, "roughness", 0.0) or 0.0) > 0.0:
+        return rough
     return material.kind
 
 
@@ -69,4 +84,4 @@ class MaterialTable:
         # Groups whose BSDF has a lobe that given directions meet (light samples, MIS, 2D uniforms).
         self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]
         # Whether any material has a glossy (non-delta, non-Lambertian reflection) lobe.
-        self.glossy = bool(np.any((self.kind == KIND_CODE[GLOSSY]) | (self.kind == KIND_CODE[PRINCIPLED])))
+        self.glossy = bool(np.isin(self.kind, [KIND_CODE[row] for row in GLOSSY_RAY_ROWS]).any())
