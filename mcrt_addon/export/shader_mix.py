@@ -12,7 +12,8 @@ A tracer material (engine/scene/model.py) holds one BSDF and an emission, so the
 * A Mix Shader's factor 0 or 1 is that side alone (the other side is not read).
 
 Both rest on a closure being linear in its colour, which holds for diffuse (Lambert, and the
-Oren-Nayar of Cycles 3.x), mirror, glass and glossy with fresnel 'none' (the Glossy BSDF's tint);
+Oren-Nayar of Cycles 3.x), mirror, glass (not multiscatter GGX rough glass), refraction, transparent,
+translucent and glossy with fresnel 'none' (the Glossy BSDF's tint);
 not for Cycles 4.3+'s energy-preserving Oren-Nayar (its multiple-scatter term is quadratic in the
 colour), the Metallic BSDF (colour = F0) or the Principled BSDF.  Other combinations are warned
 (naming material and node) and the side of larger weight is kept.
@@ -58,8 +59,8 @@ def has_bsdf(table, material, slots):
 
 def colour_is_weight(table, material):
     """Whether the closure is linear in `material.color` (module docstring)."""
-    if material.kind in (table.MIRROR, table.GLASS):
-        return True
+    if material.kind in (table.MIRROR, table.GLASS, table.REFRACTION, table.TRANSPARENT, table.TRANSLUCENT):
+        return not (material.roughness and material.distribution == "multi_ggx")   # its compensation: not linear
     if material.kind == table.DIFFUSE:
         return material.diffuse_roughness == 0.0 or table.version < ENERGY_PRESERVING_OREN_NAYAR
     return material.kind == table.GLOSSY and material.fresnel == "none"
