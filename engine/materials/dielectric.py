@@ -22,6 +22,7 @@ eta = n_far / n_near (the IOR beyond the surface over the viewer's, Cycles' `bsd
   dielectric Fresnel (engine/materials/glass_albedo.py), F_ms = c E_avg / (1 - c (1 - E_avg)) with
   c the tint (Cycles' F_ss is the transmission tint): 1 / E for white glass.
 
+Blender 3.4 (Scene.cycles_version before 3.5) multiplies separable G1(wo) G1(wi) instead of G2.
 Cycles' glass is isotropic (alpha_y = alpha_x).  Interfaces with |eta - 1| < INDEX_MATCHED pass
 light straight through (a delta transmission), as Cycles and engine/materials/fresnel.py do.
 
@@ -43,6 +44,7 @@ from .protocol import BSDF, BSDFSample, ShadingPoint, delta_eval
 from .specular import refract, refract_cos, specular_normal
 
 MULTI_GGX = "multi_ggx"
+HEIGHT_CORRELATED_SINCE = (3, 5)        # Cycles' G2 before: separable G1 G1
 
 
 def energy_scale(roughness, mu, eta, tint) -> np.ndarray:
@@ -63,13 +65,16 @@ class RoughDielectric(BSDF):
     reflection = True
     flags = REFLECTED | REFRACTED | PASSED
 
-    def __init__(self, materials, settings):
+    def __init__(self, materials, settings, cycles_version=(5, 0)):
         self.ior = np.array([max(m.ior, 1e-5) for m in materials], dtype=np.float64)
         self.roughness = np.array([min(max(getattr(m, "roughness", 0.0) or 0.0, 0.0), 1.0) for m in materials])
         self.alpha = dielectric_alpha(self.roughness)
         self.beckmann = np.array([getattr(m, "distribution", GGX) == BECKMANN for m in materials], dtype=bool)
         self.compensate = np.array([getattr(m, "distribution", GGX) == MULTI_GGX and self.reflection
                                     for m in materials], dtype=bool)
+        # Blender 3.4's single-scatter glass: separable G1 G1 (its compensated one, a random walk
+        # then, is approximated by 4.x's compensation of the height-correlated lobe).
+        self.separable = np.full(len(materials), tuple(cycles_version) < HEIGHT_CORRELATED_SINCE) & ~self.compensate
         self.lobe = MicrofacetDielectric(reflection=self.reflection, transmission=True)
 
     def _local(self, si: ShadingPoint):
@@ -91,7 +96,7 @@ class RoughDielectric(BSDF):
         wo = to_local(si.wo, *frame)
         matched = np.abs(eta - 1.0) < INDEX_MATCHED
         wi_l, weight, pdf, refracted, ok = self.lobe.sample(wo, self.alpha.take(mat), eta, self.beckmann.take(mat),
-                                                            u_lobe, u[0], u[1])
+                                                            u_lobe, u[0], u[1], separable=self.separable.take(mat))
         wi = normalize(to_world(wi_l, *frame))
         value = si.color * weight
         scale = self._scale(si, mat, wo[2], eta)
@@ -113,7 +118,8 @@ class RoughDielectric(BSDF):
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         mat, eta, _, frame = self._local(si)
         wo_l, wi_l = to_local(si.wo, *frame), to_local(wi, *frame)
-        f, pdf = self.lobe.eval(wo_l, wi_l, self.alpha.take(mat), eta, self.beckmann.take(mat))
+        f, pdf = self.lobe.eval(wo_l, wi_l, self.alpha.take(mat), eta, self.beckmann.take(mat),
+                                self.separable.take(mat))
         matched = np.abs(eta - 1.0) < INDEX_MATCHED
         f_cos = si.color * np.where(matched & (wi_l[2] < 0.0), 0.0, f)
         scale = self._scale(si, mat, wo_l[2], eta)

@@ -75,7 +75,16 @@ class MicrofacetDielectric:
             t = np.abs(cos_ho * cos_hi) / (cos_hi + cos_ho / eta) ** 2
         return np.where(refracted, t, 0.25)
 
-    def sample(self, wo, alpha, eta, beckmann, u_lobe, u1, u2, refraction_side: bool = True):
+    @staticmethod
+    def _g2(lo, li, separable):
+        """Masking-shadowing: height-correlated 1 / (1 + Lambda(wo) + Lambda(wi)) (Cycles >= 3.5), or
+        where `separable` (a bool per hit, or None) G1(wo) G1(wi) (Blender 3.4)."""
+        g2 = 1.0 / (1.0 + lo + li)
+        if separable is None or not np.any(separable):
+            return g2
+        return np.where(separable, 1.0 / ((1.0 + lo) * (1.0 + li)), g2)
+
+    def sample(self, wo, alpha, eta, beckmann, u_lobe, u1, u2, refraction_side: bool = True, separable=None):
         """(wi, weight, pdf, refracted, ok) per hit: wi (3, N) local, weight = (f cos / pdf) / tint,
         pdf per solid angle (lobe probability included), refracted: the sample went through, ok: a
         valid sample (wo above, wi on its lobe's side, a lobe with weight).  refraction_side=False
@@ -105,10 +114,10 @@ class MicrofacetDielectric:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             common = d / wo[2] * self._jacobian(cos_ho, cos_hi, eta, refracted)
             pdf = np.where(ok, lobe * common / (1.0 + lo), 0.0)
-            weight = np.where(ok, np.where(refracted, t, r) / lobe * (1.0 + lo) / (1.0 + lo + li), 0.0)
+            weight = np.where(ok, np.where(refracted, t, r) / lobe * (1.0 + lo) * self._g2(lo, li, separable), 0.0)
         return wi, np.nan_to_num(weight), np.nan_to_num(pdf), refracted, ok & (pdf > 0.0)
 
-    def eval(self, wo, wi, alpha, eta, beckmann):
+    def eval(self, wo, wi, alpha, eta, beckmann, separable=None):
         """(f cos / tint, pdf) per hit for local directions wo (above) and wi (either side)."""
         refracted = wi[2] < 0.0
         half = np.where(refracted, -(wo + eta * wi), wo + wi)
@@ -130,5 +139,5 @@ class MicrofacetDielectric:
             lobe = np.where(refracted, 1.0 - p_reflect, p_reflect)
             common = d / wo[2] * self._jacobian(cos_ho, cos_hi, eta, refracted)
             pdf = np.where(ok, lobe * common / (1.0 + lo), 0.0)
-            f_cos = np.where(ok, np.where(refracted, t, r) * common / (1.0 + lo + li), 0.0)
+            f_cos = np.where(ok, np.where(refracted, t, r) * common * self._g2(lo, li, separable), 0.0)
         return np.nan_to_num(f_cos), np.nan_to_num(pdf)

@@ -44,6 +44,7 @@ N_SCATTER_GROUPS = PASS_THROUGH + 1
 # Material kinds whose BSDF has a non-delta lobe: their hits take shadow rays (engine/integrators/effects.py).
 NON_DELTA_KINDS = frozenset(kind for kind, bsdf in SCATTERING if has_non_delta(bsdf.flags))
 ROUGH_ROWS = {GLASS: ROUGH_GLASS, REFRACTION: ROUGH_REFRACTION}     # kind -> its row at roughness > 0
+VERSIONED_ROWS = (ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION)    # BSDFs made with Scene.cycles_version
 # Rows whose non-delta rays are glossy or transmission rays (engine/integrators/path_tracer.py lamps_seen).
 GLOSSY_RAY_ROWS = (GLOSSY, PRINCIPLED, ROUGH_GLASS, ROUGH_REFRACTION, TRANSLUCENT)
 
@@ -79,7 +80,7 @@ class MaterialTable:
             scatters = scatters | textured_color
         scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED])     # its specular layer reflects on black
         self.scatter_group = np.where(scatters, self.kind, ABSORB).astype(np.int8)
-        self.bsdfs = [bsdf(materials, settings, cycles_version) if kind == ROUGH_DIFFUSE else bsdf(materials, settings)
+        self.bsdfs = [bsdf(materials, settings, cycles_version) if kind in VERSIONED_ROWS else bsdf(materials, settings)
                       for kind, bsdf in SCATTERING]
         # Groups whose BSDF has a lobe that given directions meet (light samples, MIS, 2D uniforms).
         self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]

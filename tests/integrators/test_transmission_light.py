@@ -53,3 +53,16 @@ def test_transparent_sheet_shows_the_lamp_behind_it():
     img = image(scene)
     centre = img[7:9, 7:9].mean()
     assert abs(centre - 0.8 * 5.0) < 1e-3
+
+
+def test_effect_plan_names_the_dielectric_lobes():
+    from engine.integrators.effects import plan_effects
+    rough = plan_effects(sheet_scene(GLASS, 0.4), RenderSettings())
+    assert rough.enabled["rough_glass"] and not rough.enabled["glass"] and rough.enabled["direct_light"]
+    assert "visible normals" in rough.reason["rough_glass"] and "both sides" in rough.reason["rough_glass"]
+    smooth = plan_effects(sheet_scene(GLASS), RenderSettings())
+    assert smooth.enabled["glass"] and not smooth.enabled["rough_glass"] and not smooth.enabled["direct_light"]
+    sheet = plan_effects(sheet_scene(TRANSLUCENT), RenderSettings())
+    assert sheet.enabled["translucent"] and "far side" in sheet.reason["translucent"] and sheet.enabled["direct_light"]
+    veil = plan_effects(sheet_scene(TRANSPARENT), RenderSettings())
+    assert veil.enabled["transparent"] and "block shadow rays" in veil.reason["transparent"]
