@@ -32,6 +32,13 @@ def test_rough_glass_keeps_roughness_distribution_and_ior(scene, ms, menu, distr
     assert not named(res, "Frosted", "roughness"), res.warnings           # no more "treated as 0"
 
 
+def test_every_distribution_menu_entry_is_mapped():
+    from mcrt_addon.export.dielectric_nodes import GLASS_DISTRIBUTIONS
+    from engine.scene.model import DIELECTRIC_DISTRIBUTIONS
+    assert set(GLASS_DISTRIBUTIONS) == {"SHARP", "BECKMANN", "GGX", "MULTI_GGX"}       # 3.4's menu; 4.x/5.0 drop SHARP
+    assert set(GLASS_DISTRIBUTIONS.values()) <= set(DIELECTRIC_DISTRIBUTIONS)
+
+
 def test_smooth_glass_stays_smooth(scene, ms):
     plate(ms, scene, "P", ms.glass("Clear", ior=1.5))
     m = only(export(), "Clear")
