@@ -16,7 +16,7 @@ eta = n_far / n_near (the IOR beyond the surface over the viewer's, Cycles' `bsd
   f cos / pdf = (R or T) / P(lobe) x G2 / G1(wo), computed as that ratio.
 * No 1 / eta^2 radiance scaling: Cycles' weight of a refraction is T / P(lobe) x G2 / G1 (and its
   smooth glass's is the tint, engine/materials/glass.py), so f(wo, wi) eta_near^2 = f(wi, wo) eta_far^2
-  (the reciprocity of Veach's thesis eq. 5.14 for the adjoint BSDF, which Cycles' radiance uses).
+  (a BTDF's generalised reciprocity, Veach's thesis ch. 5, here for the BTDF without the radiance factor).
 * Energy compensation ("multi_ggx", Cycles 4.x microfacet_ggx_preserve_energy): both lobes are scaled
   by 1 + F_ms (1 - E) / E, E = E(roughness, wo.z, eta) the albedo of the GGX dielectric with F = the
   dielectric Fresnel (engine/materials/glass_albedo.py), F_ms = c E_avg / (1 - c (1 - E_avg)) with
@@ -36,8 +36,7 @@ import numpy as np
 
 from ..core.vec import dot, normalize
 from . import glass_albedo
-from .dielectric_lobe import (PASSED, REFLECTED, REFRACTED, MicrofacetDielectric, dielectric_alpha,  # noqa: F401
-                              refraction_eta)
+from .dielectric_lobe import PASSED, REFLECTED, REFRACTED, MicrofacetDielectric, dielectric_alpha, refraction_eta
 from .fresnel import INDEX_MATCHED
 from .microfacet import BECKMANN, GGX, shading_frame, to_local, to_world
 from .protocol import BSDF, BSDFSample, ShadingPoint, delta_eval
@@ -67,7 +66,7 @@ class RoughDielectric(BSDF):
 
     def __init__(self, materials, settings, cycles_version=(5, 0)):
         self.ior = np.array([max(m.ior, 1e-5) for m in materials], dtype=np.float64)
-        self.roughness = np.array([min(max(getattr(m, "roughness", 0.0) or 0.0, 0.0), 1.0) for m in materials])
+        self.roughness = np.array([min(max(m.roughness, 0.0), 1.0) for m in materials], dtype=np.float64)
         self.alpha = dielectric_alpha(self.roughness)
         self.beckmann = np.array([getattr(m, "distribution", GGX) == BECKMANN for m in materials], dtype=bool)
         self.compensate = np.array([getattr(m, "distribution", GGX) == MULTI_GGX and self.reflection
