@@ -344,6 +344,34 @@ def make_glossy_plates(scene, res):
     settings(scene, res)
 
 
+def dielectric(name, kind, rgb, roughness, distribution, ior=1.5):
+    """A Glass or Refraction BSDF node material with the given roughness and distribution menu."""
+    mat = node_material(name, kind, Color=(*rgb, 1.0), Roughness=roughness, IOR=ior)
+    next(n for n in mat.node_tree.nodes if n.bl_idname != "ShaderNodeOutputMaterial").distribution = distribution
+    return mat
+
+
+def make_rough_glass(scene, res):
+    """A rough glass pane (Beckmann, roughness 0.35) in front of a lit window on the back wall, a
+    rough multiscatter-GGX glass ball (roughness 0.7) on the floor, and a translucent sheet under the
+    ceiling lamp (lit from behind) seen from below."""
+    mats = room(scene)
+    plane(scene, "Window", [(0.25, 0.99, 0.9), (0.65, 0.99, 0.9), (0.65, 0.99, 1.3), (0.25, 0.99, 1.3)],
+          emission("Window light", (1.0, 0.95, 0.9), 6.0))
+    mesh_object(scene, "Pane", lambda bm: cube(bm, 1.0),
+                dielectric("Ground glass", "ShaderNodeBsdfGlass", (0.95, 1.0, 0.97), 0.35, "BECKMANN"),
+                location=(0.45, 0.3, 1.1), scale=(0.7, 0.05, 0.7))
+    mesh_object(scene, "RoughBall", lambda bm: uv_sphere(bm, 0.35),
+                dielectric("Frosted", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0), 0.7, "MULTI_GGX"),
+                location=(-0.4, -0.1, 0.35), smooth=True)           # resting on the floor
+    plane(scene, "Sheet", [(-0.7, -0.6, 1.5), (-0.1, -0.6, 1.5), (-0.1, 0.2, 1.5), (-0.7, 0.2, 1.5)],
+          node_material("Paper", "ShaderNodeBsdfTranslucent", Color=(0.8, 0.75, 0.6, 1.0)))
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+    return mats
+
+
 def make_rough_diffuse(scene, res):
     make_diffuse_room(scene, res)
     for mat in bpy.data.materials:
@@ -791,6 +819,7 @@ SCENES = {
     "smooth": make_smooth,
     "glossy_plates": make_glossy_plates,
     "rough_diffuse": make_rough_diffuse,
+    "rough_glass": make_rough_glass,
     "principled_default": make_principled_default,
     "mix_shader": make_mix_shader,
     "principled_balls": make_principled_balls,

@@ -13,16 +13,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, MIX, PRINCIPLED, Principled, PrincipledV1
+from ..scene.model import (DIFFUSE, GLASS, GLOSSY, MIRROR, MIX, PRINCIPLED, REFRACTION, TRANSLUCENT,
+                           TRANSPARENT, Principled, PrincipledV1)
 from ..geometry.shading_normals import has_smooth
 from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
 from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
 from ..materials.principled_v1 import SINGLE_SCATTER_ROUGHNESS
-from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, scatter_kind
+from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION, scatter_kind
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
-           "glossy", "principled", "rough_diffuse", "mix", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
+           "glossy", "principled", "rough_diffuse", "mix", "rough_glass", "refraction", "transparent", "translucent",
+           "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
            "light_tree", "mis", "passes",
            "textures")
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
@@ -125,10 +127,10 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
 
     diffuse = users(lambda m: m.kind == DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
     mirror = users(lambda m: m.kind == MIRROR and (max(m.color) > 0 or m.color_texture is not None))
-    glass = users(lambda m: m.kind == GLASS)
+    glass = users(lambda m: scatter_kind(m) == GLASS)
     glossy = users(lambda m: m.kind == GLOSSY and (max(m.color) > 0 or m.color_texture is not None))
     principled = users(lambda m: m.kind == PRINCIPLED)         # its specular layer reflects on a black base
-    lit = users(lambda m: m.kind in NON_DELTA_KINDS and (max(m.color) > 0 or m.color_texture is not None
+    lit = users(lambda m: scatter_kind(m) in NON_DELTA_KINDS and (max(m.color) > 0 or m.color_texture is not None
                                                          or m.kind == PRINCIPLED))
     surface_emitters = users(lambda m: m.is_emissive)
     bulbs = [p for p in scene.points if max(p.intensity) > 0]
@@ -153,6 +155,7 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                "estimates, eval and pdf summed over lobes (engine/materials/principled.py, principled_v1.py)"
                if principled else "no Principled material: no Principled lobes evaluated")
     rough = users(lambda m: scatter_kind(m) == ROUGH_DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
+    _dielectric_effects(set_effect, users)
     plan.cycles_version = tuple(getattr(scene, "cycles_version", (5, 0)))
     version = ".".join(map(str, plan.cycles_version))
     set_effect("rough_diffuse", rough,
@@ -172,10 +175,10 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
                    if light.visible_glossy or light.visible_transmission]
     passing = [m for m in principled if (m.principled or Principled()).alpha < 1.0]   # alpha: delta pass-through
-    specular = mirror or glass or passing
+    specular = mirror or glass or passing or users(lambda m: m.kind in (GLASS, REFRACTION, TRANSPARENT))
     # After a glossy bounce the shadow rays own these lamps (a BSDF sample cannot reach them in
     # their MIS, engine/lights/seen.py): glossy rays see them only when no shadow rays run.
-    glossy_sees = bool(glossy) and settings.shadow_rays == 0
+    glossy_sees = bool(glossy or users(lambda m: m.kind == TRANSLUCENT)) and settings.shadow_rays == 0
     seen = round_lamps and (specular or glossy_sees) and not report
     set_effect("seen_lamps", seen,
                f"lamps {_names(round_lamps)} seen in mirrors and through glass (Cycles' light visibility)"
@@ -228,6 +231,35 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                    if part) + ": texture lookups at triangle hits (UVs interpolated)"
                if colored or glowing else "no image textures: no UVs, no texture lookups")
     return plan
+
+
+def _dielectric_effects(set_effect, users) -> None:
+    """The rough glass and refraction rows and the Refraction, Transparent and Translucent BSDFs
+    (engine/materials/dielectric.py, transparent.py, translucent.py)."""
+    rough = users(lambda m: scatter_kind(m) == ROUGH_GLASS)
+    set_effect("rough_glass", rough,
+               f"rough glass materials {_names(rough)}: microfacet reflection and refraction (Walter et al. "
+               "2007) sampled by visible normals, Fresnel picks the lobe; light samples from both sides"
+               + ("; multiscatter GGX compensated by glass albedo tables" if any(m.distribution == "multi_ggx"
+                                                                                 for m in rough) else "")
+               if rough else "no glass with a roughness: every glass surface is smooth (delta)")
+    refraction = users(lambda m: m.kind == REFRACTION)
+    rough_refraction = [m for m in refraction if scatter_kind(m) == ROUGH_REFRACTION]
+    set_effect("refraction", refraction,
+               f"Refraction BSDF materials {_names(refraction)}: the refracted lobe alone (no Fresnel), "
+               + (f"rough in {_names(rough_refraction)} (light samples from the far side)" if rough_refraction
+                  else "smooth (delta)")
+               if refraction else "no Refraction BSDF")
+    transparent = users(lambda m: m.kind == TRANSPARENT and max(m.color) > 0)
+    set_effect("transparent", transparent,
+               f"Transparent BSDF materials {_names(transparent)}: rays pass straight through with the "
+               "colour as weight; they block shadow rays (light behind them found by the passing paths)"
+               if transparent else "no Transparent BSDF")
+    translucent = users(lambda m: m.kind == TRANSLUCENT and (max(m.color) > 0 or m.color_texture is not None))
+    set_effect("translucent", translucent,
+               f"Translucent BSDF materials {_names(translucent)}: diffuse transmission, cosine-sampled on "
+               "the far side, light samples from the far side"
+               if translucent else "no Translucent BSDF")
 
 
 def _principled_lobes(materials) -> str:

@@ -49,7 +49,7 @@ from ..core.vec import dot, max3
 from ..geometry.scene_geometry import LIGHT, QUAD, SPHERE, TRIANGLE
 from ..geometry.shading_normals import terminator_amount
 from ..materials.media import MEDIUM_STACK_DEPTH, MediumStack
-from ..materials.protocol import BSDFFlags, ShadingPoint
+from ..materials.protocol import BSDFFlags, ShadingPoint, transmits_non_delta
 from ..materials.table import ABSORB, N_SCATTER_GROUPS, PASS_THROUGH, MaterialTable
 from ..sampling.qmc import RandomSampler
 
@@ -487,7 +487,8 @@ class PathTracer:
         MIS weight under `mis` (p_b = bsdf.pdf).  A Lambertian BSDF (f = rho / pi everywhere,
         bsdf.lambert_albedo) has its f multiplied in after the mean over the shadow rays, as the
         report writes it; any other has f cos = bsdf.eval per shadow ray.  Light comes from the
-        viewer's side only (the lobes of today reflect).  u: (pick, u1, u2) per shadow ray, else
+        viewer's side, and from the far side for a BSDF with a non-delta transmission lobe (its shadow
+        rays then start on that side).  u: (pick, u1, u2) per shadow ray, else
         drawn from rng.  Smooth shading (si.smooth): shadow rays start off the geometric surface
         si.ng and directions below it count 0 (no light leaks, engine/geometry/shading_normals.py).
         lift: (lift rows, cutoff) per point, the shadow-terminator geometry offset of smooth
@@ -507,18 +508,24 @@ class PathTracer:
             ls.radiance = self.textures.light_radiance(ls.radiance, ls.light, ls.point)
         w = ls.direction
         cos_x = dot(nx, w)
+        # A non-delta transmission lobe takes light from the far side too: side -1 there, and the
+        # viewer-side tests below hold for the side the sample is on.
+        side = np.where(cos_x < 0.0, -1.0, 1.0) if transmits_non_delta(bsdf.flags) else None
+        cos_side = cos_x if side is None else cos_x * side
         cos_ly = dot(ls.normal, w)
-        ok = (cos_x > 0.0) & (cos_ly != 0.0) & (ls.pdf > 0.0) & (ls.distance > 0.0)
+        ok = (cos_side > 0.0) & (cos_ly != 0.0) & (ls.pdf > 0.0) & (ls.distance > 0.0)
         if self.lights.any_one_sided:                   # front side only: emits towards -w
             ok &= ~(ls.one_sided & (cos_ly >= 0.0))
         amount = None
         if si.smooth:
             # Below the geometric surface: no light, unless the shadow-terminator lift moves the
             # shadow ray's origin up onto the smooth surface (Cycles: it is then traced from there).
-            ng_w = dot(ng, w)
+            ng_w = dot(ng, w) if side is None else dot(ng, w) * side
             if lift is not None:
                 s_vec, cutoff = (np.repeat(lift[0], ns, axis=1), np.repeat(lift[1], ns)) if ns > 1 else lift
-                amount = terminator_amount(cos_x, ng_w, cutoff)
+                amount = terminator_amount(cos_side, ng_w, cutoff)
+                if side is not None:                # no lift for light from the far side
+                    amount = np.where(side > 0.0, amount, 0.0)
                 ok &= (ng_w > 0.0) | (amount > 0.0)
             else:
                 ok &= ng_w > 0.0
@@ -530,7 +537,7 @@ class PathTracer:
         weight = np.zeros(k)
         f_cos = None if albedo is not None else np.zeros((3, k))
         if len(valid):
-            origin = pick(x, 1) + pick(off_x) * pick(ng, 1)
+            origin = pick(x, 1) + pick(off_x if side is None else off_x * side) * pick(ng, 1)
             if amount is not None:                  # grazing light on a smooth triangle: lifted origin
                 origin = origin + pick(amount) * pick(s_vec, 1)
             # End point pulled off the light towards x, so the light never occludes itself;

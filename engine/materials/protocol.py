@@ -21,7 +21,8 @@ pbrt and Mitsuba.  The cosine in f cos is the one with the shading normal si.n.
 The integrator keeps two rules for every BSDF (engine/integrators/path_tracer.py): a sampled
 direction must leave on the side of the geometric surface its flags say (REFLECTION: the
 viewer's side, TRANSMISSION: the other), and light reaches non-delta lobes from the viewer's
-side only (no lobe today transmits diffusely or glossily).
+side, and from the far side too for a BSDF whose flags have a non-delta lobe and TRANSMISSION
+(`transmits_non_delta`: rough glass and refraction, translucent).
 """
 from __future__ import annotations
 
@@ -49,6 +50,12 @@ def has_non_delta(flags: BSDFFlags) -> bool:
     """Whether a BSDF with these lobes can be met by a given direction: it takes light samples
     and MIS, and its sample needs the 2D direction uniforms."""
     return bool(flags & NON_DELTA)
+
+
+def transmits_non_delta(flags: BSDFFlags) -> bool:
+    """Whether a BSDF's given directions may lie beyond the surface: light samples from both sides
+    (a non-delta lobe and a transmission lobe; flags do not say whether they are the same lobe)."""
+    return bool(flags & NON_DELTA) and bool(flags & BSDFFlags.TRANSMISSION)
 
 
 @dataclass
@@ -84,12 +91,14 @@ class ShadingPoint:
                             None if self.lookup is None else self.lookup[span])
 
     def take(self, index: np.ndarray) -> "ShadingPoint":
-        """The hits `index` (copies; no medium stack: for evaluating directions only)."""
+        """The hits `index` (copies, the medium stacks too: for evaluating directions only)."""
         def cols(a):
             return a.take(index, axis=1)
+        media = None if self.media is None else type(self.media)(self.media.media.take(index, axis=0),
+                                                                 self.media.depth.take(index))
         return ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
-                            self.material.take(index), self.smooth,
-                            lookup=None if self.lookup is None else self.lookup.take(index))
+                             self.material.take(index), self.smooth, media,
+                             lookup=None if self.lookup is None else self.lookup.take(index))
 
     def __len__(self) -> int:
         return self.wo.shape[1]

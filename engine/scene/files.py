@@ -13,7 +13,9 @@
                    "principled_v1": {"metallic": 0, "specular": 0.5, "specular_tint": 0, "sheen": 0,
                    "sheen_tint": 0.5, "clearcoat": 0, "clearcoat_roughness": 0.03, "transmission": 0,
                    "transmission_roughness": 0, "alpha": 1}, each key optional; kind "mix": "mix", the leaves and
-                   their weights, engine/scene/mix_fields.py)
+                   their weights, engine/scene/mix_fields.py; kinds "glass" and "refraction":
+                   "roughness" (default 0, smooth) and "distribution" (ggx, beckmann, multi_ggx); kinds
+                   "transparent" and "translucent": the colour only)
      "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
                  "material": "White"  or  "material_ids": [..] or "@key",
                  "normals": [[..] x 3T] or "@key", "smooth": [0/1 x T] or "@key",  (optional)
@@ -43,7 +45,7 @@ import os
 
 import numpy as np
 
-from .model import GLOSSY, PRINCIPLED, AreaLight, Camera, Material, PointLight, Principled, Quad, Scene, Sphere, SunLight, TriangleMesh
+from .model import GLASS, GLOSSY, PRINCIPLED, REFRACTION, AreaLight, Camera, Material, PointLight, Principled, Quad, Scene, Sphere, SunLight, TriangleMesh
 from .model import PrincipledV1
 from ..core.errors import SceneError
 from .fields import Fields, is_integer
@@ -135,6 +137,14 @@ def _glossy_json(m) -> dict:
             "tangent": list(m.tangent), "distribution": m.distribution, "fresnel": m.fresnel,
             "multiscatter": bool(m.multiscatter), "edge_tint": list(m.edge_tint),
             "conductor_ior": list(m.conductor_ior), "conductor_k": list(m.conductor_k)}
+
+
+def _dielectric_json(m) -> dict:
+    """Roughness and distribution of rough glass and refraction materials (smooth ones: nothing, so
+    their files stay as they were and load smooth: engine/scene/model.py DEFAULT_ROUGHNESS)."""
+    if m.kind not in (GLASS, REFRACTION) or not m.roughness:
+        return {}
+    return {"roughness": float(m.roughness), "distribution": m.distribution}
 
 
 def _diffuse_roughness_json(m) -> dict:
@@ -304,6 +314,7 @@ def save_scene(scene: Scene, path: str) -> None:
     def material_json(m):
         return dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
                      "emission": list(m.emission)}, **_glossy_json(m), **_principled_json(m), **_diffuse_roughness_json(m),
+                    **_dielectric_json(m),
                     **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
                                                               ("emission_texture", m.emission_texture))
                        if slot is not None}, **mix_json(m, material_json))

@@ -21,9 +21,19 @@ GLASS = "glass"
 GLOSSY = "glossy"
 PRINCIPLED = "principled"
 MIX = "mix"                 # a weighted list of leaf materials (Cycles' closure list): Material.mix
-MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY, PRINCIPLED, MIX)
+# Dielectric kinds (engine/materials/dielectric.py, transparent.py, translucent.py): Blender's
+# Refraction, Transparent and Translucent BSDF nodes.
+REFRACTION = "refraction"
+TRANSPARENT = "transparent"
+TRANSLUCENT = "translucent"
+MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY, PRINCIPLED, MIX, REFRACTION, TRANSPARENT, TRANSLUCENT)
 # The glossy kind's choices (engine/materials/microfacet.py, engine/materials/glossy.py).
 DISTRIBUTIONS = ("ggx", "beckmann")
+# The glass and refraction kinds' choices: "multi_ggx" is GGX with Cycles 4.x's energy compensation.
+DIELECTRIC_DISTRIBUTIONS = ("ggx", "beckmann", "multi_ggx")
+# `Material.roughness` when not given: the Glossy node's 0.5, but 0 (smooth) for glass and refraction,
+# so scenes written before rough glass existed (no "roughness" for their glass) render as they did.
+DEFAULT_ROUGHNESS = {GLASS: 0.0, REFRACTION: 0.0}
 FRESNEL_KINDS = ("none", "dielectric", "conductor", "f82", "interpolated")
 
 
@@ -108,7 +118,9 @@ class Material:
     (a world direction made orthogonal to the normal) turned by ``rotation`` x 2 pi,
     ``distribution`` (ggx, beckmann), ``fresnel`` (none, dielectric with ``ior``, conductor with
     ``conductor_ior`` + i ``conductor_k``, f82 with ``edge_tint``, interpolated with ``ior``) and
-    ``multiscatter`` (GGX energy compensation, Cycles 4.x).  ``emission`` is
+    ``multiscatter`` (GGX energy compensation, Cycles 4.x).  Glass and refraction: ``roughness`` (0:
+    smooth, the default) and ``distribution`` (ggx, beckmann, multi_ggx) with ``ior``; the colour tints
+    both lobes (transparent: the pass-through colour; translucent: the diffuse transmittance).  ``emission`` is
     radiance (colour x strength), emitted from both sides as Cycles mesh lights do.
     A pure emitter (Cycles' Emission shader) is a diffuse material with colour 0.
     """
@@ -121,8 +133,9 @@ class Material:
     # (`emission` is then the unlinked value; the light sampler uses the texture's mean).
     color_texture: object = None
     emission_texture: object = None
-    # Glossy only (defaults: Blender's Glossy BSDF node).
-    roughness: float = 0.5
+    # Glossy, glass and refraction (defaults: Blender's Glossy BSDF node).  roughness None: the
+    # kind's default, DEFAULT_ROUGHNESS (set on construction).
+    roughness: float | None = None
     anisotropy: float = 0.0
     rotation: float = 0.0
     tangent: tuple = (1.0, 0.0, 0.0)
@@ -139,6 +152,10 @@ class Material:
     principled: Principled | PrincipledV1 | None = None
     # Mix only: the leaves and their weights (engine/materials/mix.py).
     mix: "Mix | None" = None
+
+    def __post_init__(self):
+        if self.roughness is None:
+            self.roughness = DEFAULT_ROUGHNESS.get(self.kind, 0.5)
 
     @property
     def is_emissive(self) -> bool:
@@ -158,6 +175,8 @@ class Material:
             raise SceneError(f"Material '{self.name}': IOR must be positive (at most 1e6), got {self.ior!r}")
         if self.kind == GLOSSY:
             self.validate_glossy()
+        if self.kind in (GLASS, REFRACTION):
+            self.validate_dielectric()
         if self.kind == PRINCIPLED:
             self.validate_glossy()
             if self.principled is not None and not isinstance(self.principled, (Principled, PrincipledV1)):
@@ -174,6 +193,16 @@ class Material:
             self.mix.validate(f"Material '{self.name}'")
         elif self.mix is not None:
             raise SceneError(f"Material '{self.name}': only kind mix has leaves (kind is {self.kind})")
+
+    def validate_dielectric(self) -> None:
+        owner = f"Material '{self.name}'"
+        value = self.roughness
+        if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                and 0.0 <= value <= 1.0):
+            raise SceneError(f"{owner}: roughness must be from 0 to 1, got {value!r}")
+        if self.distribution not in DIELECTRIC_DISTRIBUTIONS:
+            raise SceneError(f"{owner}: unknown distribution '{self.distribution}' "
+                             f"(expected one of {', '.join(DIELECTRIC_DISTRIBUTIONS)})")
 
     def validate_glossy(self) -> None:
         owner = f"Material '{self.name}'"

@@ -1,6 +1,7 @@
 """Material export: Cycles node trees -> tracer Materials (diffuse, mirror, glass, glossy, principled, emission).
 
-Supported: Diffuse BSDF (Roughness -> diffuse_roughness), Glass BSDF, Emission; the microfacet nodes
+Supported: Diffuse BSDF (Roughness -> diffuse_roughness), Emission; Glass, Refraction, Transparent and
+Translucent BSDFs in dielectric_nodes.py; the microfacet nodes
 (Glossy / Anisotropic, Metallic, Principled v2 of 4.0+) in microfacet_nodes.py; Blender 3.4's
 Principled v1 (the principled kind with PrincipledV1 inputs; Transmission >= 0.5 as smooth glass).
 Anything else becomes diffuse with a warning naming the material and the node.  Node trees are read
@@ -9,7 +10,7 @@ from ``material.original`` (evaluated copies can lack them).
 import bpy
 import numpy as np
 
-from . import microfacet_nodes, shader_mix
+from . import dielectric_nodes, microfacet_nodes, shader_mix
 from .images import image_node
 from .util import linked_from, socket, uses_nodes
 
@@ -55,6 +56,7 @@ class MaterialTable:
         self.DIFFUSE, self.MIRROR, self.GLASS = model.DIFFUSE, model.MIRROR, model.GLASS
         self.GLOSSY, self.PRINCIPLED = model.GLOSSY, model.PRINCIPLED
         self.MIX, self.Mix, self.MixLeaf, self.MixFactor = model.MIX, model.Mix, model.MixLeaf, model.MixFactor
+        self.REFRACTION, self.TRANSPARENT, self.TRANSLUCENT = model.REFRACTION, model.TRANSPARENT, model.TRANSLUCENT
         self.version = tuple(bpy.app.version if version is None else version)[:2]
         self.materials = []
         self.warnings = warnings
@@ -143,6 +145,9 @@ class MaterialTable:
             "ShaderNodeBsdfAnisotropic": self._glossy,
             "ShaderNodeBsdfMetallic": self._metallic,
             "ShaderNodeBsdfGlass": self._glass,
+            "ShaderNodeBsdfRefraction": lambda m, n: dielectric_nodes.refraction(self, m, n),
+            "ShaderNodeBsdfTransparent": lambda m, n: dielectric_nodes.transparent(self, m, n),
+            "ShaderNodeBsdfTranslucent": lambda m, n: dielectric_nodes.translucent(self, m, n),
             "ShaderNodeEmission": self._emission,
             "ShaderNodeBsdfPrincipled": self._principled,
             "ShaderNodeAddShader": self._add_shader,
@@ -229,12 +234,7 @@ class MaterialTable:
         return self._principled_v1(mat, node)
 
     def _glass(self, mat, node):
-        color = _clamp01(self.read_color(mat, node, "Color"))
-        roughness = self.read_float(mat, node, "Roughness")
-        if roughness > 0:
-            self.warn(mat, node, f"roughness {roughness:g} is treated as 0 (smooth glass)")
-        ior = self.read_float(mat, node, "IOR", default=1.45)
-        return self.Material(name=mat.name, kind=self.GLASS, color=color, ior=max(ior, 1e-3))
+        return dielectric_nodes.glass(self, mat, node)
 
     def _emission(self, mat, node):
         color = self.read_color(mat, node, "Color", default=(1.0, 1.0, 1.0), role="emission")

@@ -13,8 +13,8 @@ Shader 1 - fac and fac (fac clamped to [0, 1]); nested nodes multiply the weight
 * With constant weights, today's folds are kept, bit for bit: one BSDF (its weight scales its
   colour), two BSDFs of one kind with the same non-colour parameters (their weighted colours add),
   a factor 0 or 1 (that side alone).  Both rest on a closure being linear in its colour, which holds
-  for diffuse (Lambert, and the Oren-Nayar of Cycles 3.x), mirror, glass and glossy with fresnel
-  'none' (the Glossy BSDF's tint); not for Cycles 4.3+'s energy-preserving Oren-Nayar, the Metallic
+  for diffuse (Lambert, and the Oren-Nayar of Cycles 3.x), mirror, glass (not multiscatter GGX rough glass),
+  refraction, transparent, translucent and glossy with fresnel 'none' (the Glossy BSDF's tint); not for Cycles 4.3+'s energy-preserving Oren-Nayar, the Metallic
   BSDF (colour = F0) or the Principled BSDF.
 * Anything else is a material of kind "mix" (engine/scene/model.py Mix): the BSDF leaves, nested
   mixes flattened, each with its weight as a product of factors: constants, a Fresnel node, a
@@ -118,8 +118,8 @@ def has_bsdf(table, material, slots):
 
 def colour_is_weight(table, material):
     """Whether the closure is linear in `material.color` (module docstring)."""
-    if material.kind in (table.MIRROR, table.GLASS):
-        return True
+    if material.kind in (table.MIRROR, table.GLASS, table.REFRACTION, table.TRANSPARENT, table.TRANSLUCENT):
+        return not (material.roughness and material.distribution == "multi_ggx")   # its compensation: not linear
     if material.kind == table.DIFFUSE:
         return material.diffuse_roughness == 0.0 or table.version < ENERGY_PRESERVING_OREN_NAYAR
     return material.kind == table.GLOSSY and material.fresnel == "none"

@@ -334,12 +334,15 @@ def test_only_closures_linear_in_their_colour_are_blended():
     are not linear in their colour, so they are never blended."""
     from types import SimpleNamespace
 
-    from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, Material
+    from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, REFRACTION, TRANSLUCENT, TRANSPARENT, Material
     from mcrt_addon.export.shader_mix import colour_is_weight
-    kinds = dict(DIFFUSE=DIFFUSE, MIRROR=MIRROR, GLASS=GLASS, GLOSSY=GLOSSY)
+    kinds = dict(DIFFUSE=DIFFUSE, MIRROR=MIRROR, GLASS=GLASS, GLOSSY=GLOSSY, REFRACTION=REFRACTION,
+                 TRANSPARENT=TRANSPARENT, TRANSLUCENT=TRANSLUCENT)
     new, old = SimpleNamespace(version=(5, 0), **kinds), SimpleNamespace(version=(3, 4), **kinds)
     assert colour_is_weight(new, Material("d", DIFFUSE)) and colour_is_weight(new, Material("m", MIRROR))
     assert colour_is_weight(new, Material("g", GLOSSY, fresnel="none"))
+    assert colour_is_weight(new, Material("t", TRANSLUCENT)) and colour_is_weight(new, Material("r", GLASS, roughness=0.3))
+    assert not colour_is_weight(new, Material("r", GLASS, roughness=0.3, distribution="multi_ggx"))
     assert not colour_is_weight(new, Material("g", GLOSSY, fresnel="dielectric"))
     rough = Material("r", DIFFUSE, diffuse_roughness=0.5)
     assert not colour_is_weight(new, rough) and colour_is_weight(old, rough)

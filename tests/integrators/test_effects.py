@@ -41,6 +41,7 @@ def test_diffuse_only_scene_never_runs_sphere_or_refraction_code(spies):
                   "area_lights": False, "diffuse": True, "seen_lamps": False, "world_light": False,
                   "mirror": False, "glass": False, "glossy": False, "principled": False, "rough_diffuse": False, "mix": False, "emission": True,
                   "direct_light": True,
+                  "rough_glass": False, "refraction": False, "transparent": False, "translucent": False,
                   "solid_angle": True,
                   "light_tree": False, "mis": True, "passes": False, "textures": False}
     assert "never evaluated" in result.stats["effects_reason"]["glass"]
