@@ -5,14 +5,16 @@ Shadow rays are not let through (Cycles' "transparent shadows" are not modelled)
 surface blocks them as any surface does, and the light behind it is found by the paths that pass
 through it, whose emission counts with weight 1 after this delta bounce, so the estimate stays
 unbiased (engine/integrators/path_tracer.py).  The straight-through bounce counts towards the depth
-limit (Cycles keeps a separate transparent bounce limit)."""
+limit (Cycles keeps a separate transparent bounce limit).  Its flags carry STRAIGHT, as the
+Principled BSDF's alpha does (engine/materials/principled.py): a camera ray goes on as a camera ray,
+so what it meets behind the surface is seen as directly as Cycles shows it."""
 from __future__ import annotations
 
 import numpy as np
 
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint, delta_eval
 
-LOBE = BSDFFlags.DELTA | BSDFFlags.TRANSMISSION
+LOBE = BSDFFlags.DELTA | BSDFFlags.TRANSMISSION | BSDFFlags.STRAIGHT
 
 
 class Transparent(BSDF):

@@ -214,7 +214,7 @@ def test_transparent_passes_exactly():
     si = random_hits(31)
     s = Transparent([], SETTINGS).sample(si, np.zeros(len(si)))
     assert np.array_equal(s.wi, -si.wo) and np.array_equal(s.value, si.color)
-    assert s.flags[0] == BSDFFlags.DELTA | BSDFFlags.TRANSMISSION
+    assert s.flags[0] == BSDFFlags.DELTA | BSDFFlags.TRANSMISSION | BSDFFlags.STRAIGHT   # a camera ray goes on as one
 
 
 def test_translucent_sampler_chi2_and_eval():
