@@ -192,3 +192,29 @@ def test_animated_seed_hashes_the_frame(empty_scene):
         props.property_unset("use_animated_seed")
         props.property_unset("seed")
 
+
+
+def test_preferences_link_the_user_guide(addon):
+    """Preferences > Add-ons > TNCG15 MC: a Documentation button opening the user guide (in a
+    repository checkout docs/user-guide.md, in the zips their docs/ copy), and the fields drawn with
+    property split (labels left: never cut short)."""
+    import os
+    import types
+    from mcrt_addon import worker_python
+    guide = worker_python.documentation_path()
+    assert guide is not None and os.path.isfile(guide) and guide.endswith(os.path.join("docs", "user-guide.md"))
+    operators, props = [], []
+
+    class Layout(RecordingLayout):
+        use_property_split = None
+
+        def operator(self, name, **kw):
+            op = types.SimpleNamespace(url=None)
+            operators.append((name, kw.get("text"), op))
+            return op
+    layout = Layout(props)
+    prefs = types.SimpleNamespace(worker_python="", render_cluster="")
+    worker_python.TNCG15Preferences.draw(types.SimpleNamespace(layout=layout, **vars(prefs)), None)
+    assert props == ["worker_python", "render_cluster"]
+    assert [(n, t) for n, t, _ in operators] == [("wm.url_open", "Documentation")]
+    assert operators[0][2].url == "file://" + guide
