@@ -65,3 +65,25 @@ def test_animated_seed():
     seeds = [animated_seed(0, frame) for frame in range(1, 6)]
     assert len(set(seeds)) == 5 and all(0 <= s < 2**31 for s in seeds)
     assert animated_seed(0, 1) == animated_seed(0, 1) != animated_seed(1, 1)
+
+
+def test_transparent_images_are_premultiplied_exr_and_straight_png(tmp_path):
+    """engine/film/image_files.py: the EXR keeps premultiplied RGBA; the PNG stores straight alpha
+    (the colour divided by alpha, then sRGB), as Blender saves PNGs."""
+    import OpenImageIO as oiio
+    from engine.film.image_files import linear_to_srgb, read_image, write_exr, write_png
+    rgba = np.zeros((2, 2, 4), np.float32)
+    rgba[0, 0] = (0.25, 0.1, 0.0, 0.5)              # half covered
+    rgba[0, 1] = (0.5, 0.5, 0.5, 1.0)
+    write_exr(str(tmp_path / "a.exr"), rgba)
+    assert np.array_equal(read_image(str(tmp_path / "a.exr")), rgba)
+    write_png(str(tmp_path / "a.png"), rgba)
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)     # the stored values (OIIO would premultiply them)
+    inp = oiio.ImageInput.open(str(tmp_path / "a.png"), config)
+    png = inp.read_image("uint8")
+    inp.close()
+    assert png.shape == (2, 2, 4)
+    expected = np.round(linear_to_srgb(np.array([0.5, 0.2, 0.0])) * 255).astype(int)
+    assert np.abs(png[0, 0, :3].astype(int) - expected).max() <= 1 and png[0, 0, 3] in (127, 128)
+    assert tuple(png[1, 1]) == (0, 0, 0, 0)
