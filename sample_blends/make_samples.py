@@ -683,8 +683,8 @@ def use_tncg15(scene):
 def make(name, outdir, resolution=DEFAULT_RES):
     scene = reset()
     scene.name = name
+    use_tncg15(scene)                  # first: settings() then finds scene.tncg15
     SCENES[name](scene, resolution)
-    use_tncg15(scene)
     path = os.path.join(outdir, f"{name}.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path, compress=True, check_existing=False)
     return path
