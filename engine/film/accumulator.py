@@ -34,10 +34,10 @@ class Film:
             total[:, c] += np.bincount(pixel, weights=radiance[c], minlength=n)
             squares[:, c] += np.bincount(pixel, weights=radiance[c] * radiance[c], minlength=n)
 
-    def add_transparent(self, pixel: np.ndarray) -> None:
-        """Camera samples (their pixels' flat indices) that left the scene: Cycles' transparent
-        background counts them with their throughput, which is 1 for a camera ray."""
-        self.transparent.reshape(-1)[:] += np.bincount(pixel, minlength=self.width * self.height)
+    def add_transparent(self, pixel: np.ndarray, weight: np.ndarray) -> None:
+        """Camera samples (their pixels' flat indices) that left the scene, each with its weight:
+        Cycles' transparent background counts the mean throughput, 1 for a camera ray."""
+        self.transparent.reshape(-1)[:] += np.bincount(pixel, weights=weight, minlength=self.width * self.height)
 
     def add_sums(self, x0: int, y0: int, total: np.ndarray, squares: np.ndarray, count, transparent=None) -> None:
         """Another film's sums (h, w, 3) into the pixels from (x0, y0); `count` (h, w) or a number;

@@ -164,7 +164,7 @@ class PathTracer:
         engine/film/passes.py TileFeatures that gets each sample's first-hit albedo, normal and depth
         (None: no feature work at all).  `on_transparent(pixel)`: a transparent film
         (engine/film/accumulator.py Film.add_transparent) that counts the camera rays that leave the
-        scene; they then get no background (None: an opaque film).
+        scene, weighted by their throughput; they then get no background (None: an opaque film).
         """
         sampler = sampler or RandomSampler(rng)
         paths = None
@@ -272,12 +272,14 @@ class PathTracer:
         the world is a light (shadow rays sample it): then a ray sampled at a non-delta vertex
         (the final MIS rays beyond the depth limit included) counts with its MIS weight, or 0
         without MIS.  A transparent film takes the camera rays (Area lights pass them on) instead:
-        weight 0, counted by on_transparent."""
+        weight 0, counted by on_transparent with their mean throughput (Cycles' average(throughput):
+        1 for a camera ray)."""
         radiance = p.radiance.take(miss, axis=1)
         camera = None
         if on_transparent is not None:
             camera = p.ray_kind.take(miss) == CAMERA_RAY
-            on_transparent(p.pixel.take(miss[camera]))
+            seen = miss[camera]
+            on_transparent(p.pixel.take(seen), p.beta.take(seen, axis=1).mean(axis=0))
         if self.has_background:
             weight = np.ones(len(miss))
             if camera is not None:
