@@ -10,14 +10,12 @@ a transparent film; each with a control that must fail.
   Transparent: alpha and the premultiplied colour by the method of tests/addon/test_agreement.py
   (8 x 8 block means and the image mean).  Control: the opaque film (alpha 1) fails.
 """
-import os
-
 import numpy as np
 import pytest
 from scipy.stats import norm
 
 from imagecompare import compare_runs
-from rendering import DEPTH, K, RES, SPP, export_blend, open_blend, tncg15_runs
+from rendering import DEPTH, K, RES, SPP, export_blend, open_blend
 
 from mcrt_addon.headless import set_exr_output
 from mcrt_addon.reference import FilmSettings, setup_cycles_reference
