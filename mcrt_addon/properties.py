@@ -3,8 +3,11 @@
 Mirrors Cycles' ``properties.py``: plain PropertyGroups, no behaviour except converting the
 scene settings into the tracer's ``RenderSettings`` and back.  The scene's properties are made
 from the tracer's settings table (engine/core/settings.py, read through bridge.py without numpy):
-one bpy property per row that Blender exposes, with the row's label, default and limits; a row
-whose 0 means off (noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.
+one bpy property per row that Blender exposes, with the row's label, default (Cycles' default
+where the row names one for new files: the pixel filter) and limits; a row whose 0 means off
+(noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.  Two settings are Blender's
+own, read where Cycles reads them: Film > Transparent (scene.render.film_transparent) and the
+frame that the animated seed hashes with the seed (scene.frame_current).
 """
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
@@ -32,18 +35,18 @@ SPHERE_ITEMS = (
 def scene_property(s):
     """The bpy property of one row of the table."""
     common = dict(name=s.label, description=s.description or s.help, **s.bpy_options)
+    default = s.new_file_default
     if s.kind == TABLE.INT:
-        return IntProperty(default=s.default, min=s.limits[0], max=s.limits[1], **common)
+        return IntProperty(default=default, min=s.limits[0], max=s.limits[1], **common)
     if s.kind == TABLE.FLOAT:
+        low = s.limits[0]
         if s.off_toggle is not None:
             low, default = s.off_toggle.on_min, s.off_toggle.on_default
-        else:
-            low, default = s.limits[0], s.default
         return FloatProperty(default=default, min=low, max=s.limits[1], **common)
     if s.kind == TABLE.BOOL:
-        return BoolProperty(default=s.default, **common)
+        return BoolProperty(default=default, **common)
     if s.kind == TABLE.CHOICE:
-        return EnumProperty(items=enum_items(s), default=s.identifier(s.default), **common)
+        return EnumProperty(items=enum_items(s), default=s.identifier(default), **common)
     raise TypeError(f"setting {s.name}: no Blender property for a {s.kind} setting")
 
 
@@ -89,6 +92,10 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
         """The tracer's RenderSettings for these values (the class is passed in: the tracer loads lazily)."""
         settings = settings_cls(**{s.name: self.setting(s) for s in SCENE_SETTINGS})
         settings.min_samples = min(settings.min_samples, settings.samples)    # the panel lets Min exceed Max
+        scene = self.id_data
+        settings.film_transparent = bool(scene.render.film_transparent)
+        if settings.animated_seed:                  # Cycles: hash_uint2(frame, seed)
+            settings.seed = TABLE.animated_seed(settings.seed, scene.frame_current)
         return settings
 
 

@@ -2,8 +2,26 @@
 
 Box filter of width 1 px (pixels independent, as the tracer's jittered box), no clamping, no
 denoising, no adaptive sampling, Filter Glossy 0, light threshold 0, caustics on, every bounce
-limit = max_depth, Standard view transform, fixed seed, CPU.
+limit = max_depth, Standard view transform, fixed seed, CPU.  `film` (FilmSettings) replaces the
+box, opaque, unscaled film with TNCG15 MC's film settings, so that the two renderers can be compared
+at equal film settings (the add-on command line's --engine CYCLES does).
 """
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class FilmSettings:
+    """Cycles' film options in the tracer's terms (engine/core/settings.py FILM rows)."""
+    pixel_filter: str = "box"           # box | gaussian | blackman-harris
+    filter_width: float = 1.0
+    exposure: float = 1.0
+    transparent: bool = False
+
+    @classmethod
+    def of(cls, settings):
+        """The film of a RenderSettings."""
+        return cls(settings.pixel_filter, settings.filter_width, settings.film_exposure, settings.film_transparent)
+
 
 
 def _set(obj, name, value):
@@ -11,7 +29,7 @@ def _set(obj, name, value):
         setattr(obj, name, value)
 
 
-def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0):
+def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0, film=FilmSettings()):
     scene.render.engine = "CYCLES"
     c = scene.cycles
     _set(c, "device", "CPU")
@@ -34,15 +52,17 @@ def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0):
     c.volume_bounces = 0
     _set(c, "min_light_bounces", 0)
     _set(c, "min_transparent_bounces", 0)
-    c.pixel_filter_type = "BOX"
-    c.filter_width = 1.0
+    c.pixel_filter_type = film.pixel_filter.upper().replace("-", "_")
+    c.filter_width = film.filter_width
+    c.film_exposure = film.exposure
+    c.film_transparent_glass = False
     c.seed = int(seed)
     c.use_animated_seed = False
     _set(c, "use_guiding", False)
     _set(c, "sample_offset", 0)
     _set(c, "use_auto_tile", False)
     _set(c, "use_layer_samples", "IGNORE")
-    scene.render.film_transparent = False
+    scene.render.film_transparent = film.transparent
     scene.render.threads_mode = "AUTO" if not threads else "FIXED"
     if threads:
         scene.render.threads = int(threads)

@@ -6,6 +6,10 @@ Runs with the bpy module (Blender 5.0) or inside a Blender binary (Debian's 3.4 
   .venv/bin/python sample_blends/make_samples.py [--outdir DIR] [--only NAME ...] [--resolution W H]
   blender -b --factory-startup --python sample_blends/make_samples.py -- --outdir DIR
 
+The committed files are made by `make samples`: Debian's Blender 3.4 (files saved by 3.4 open in
+3.4 and in every newer Blender, files saved by 5.0 do not open in 3.4), each with TNCG15 MC as its
+render engine (use_tncg15; tests/addon/test_sample_files.py checks both).
+
 Only the bpy data API and bmesh are used (no operators), so the script is independent of the UI
 context and of the Blender version.  Meshes are small in the file: the heavy Suzannes are
 Subdivision modifiers evaluated at render time.
@@ -60,6 +64,8 @@ import bpy  # noqa: I001 - bpy must come before bmesh in the module build
 import bmesh
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+if os.path.dirname(HERE) not in sys.path:          # the add-on (use_tncg15) from this repository
+    sys.path.insert(0, os.path.dirname(HERE))
 V4 = bpy.app.version >= (4, 0, 0)
 DEFAULT_RES = (128, 128)
 
@@ -827,9 +833,20 @@ SCENES = {
 }
 
 
+def use_tncg15(scene):
+    """TNCG15 MC as the file's render engine (F12 renders with it): the add-on of this repository
+    registered, in the bpy module or in a Blender binary (3.4's Python has no numpy: registration
+    needs none)."""
+    import mcrt_addon
+    from mcrt_addon.headless import ensure_registered
+    ensure_registered(mcrt_addon)
+    scene.render.engine = mcrt_addon.ui.ENGINE_ID
+
+
 def make(name, outdir, resolution=DEFAULT_RES):
     scene = reset()
     scene.name = name
+    use_tncg15(scene)                  # first: settings() then finds scene.tncg15
     SCENES[name](scene, resolution)
     path = os.path.join(outdir, f"{name}.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path, compress=True, check_existing=False)

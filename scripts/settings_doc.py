@@ -21,14 +21,22 @@ from engine.core import settings as table  # noqa: E402  (standard library only:
 METAVARS = {table.INT: "N", table.FLOAT: "X", table.CHOICE: "NAME", table.CHOICES: "LIST"}
 
 
-def default_text(s) -> str:
+def value_text(s, value) -> str:
     if s.kind == table.BOOL:
-        return "on" if s.default else "off"
+        return "on" if value else "off"
     if s.kind == table.CHOICES:
-        return ", ".join(s.default) or "none"
+        return ", ".join(value) or "none"
     if s.kind == table.FLOAT:
-        return f"{s.default:g}"
-    return str(s.default)
+        return f"{value:g}"
+    return str(value)
+
+
+def default_text(s) -> str:
+    """The default; and a new Blender file's where it differs (Cycles' default)."""
+    text = value_text(s, s.default)
+    if s.blender_default is not None:
+        text += f" (new Blender files: {value_text(s, s.blender_default)})"
+    return text
 
 
 def limits_text(s) -> str:

@@ -146,7 +146,8 @@ class PathTracer:
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
 
     # -- the wavefront -----------------------------------------------------------------
-    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None) -> bool:
+    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None,
+              on_transparent=None) -> bool:
         """Trace every camera sample of `samples` (engine/scene/camera_rays.py TileSamples) to
         completion: True when all are traced, False when cancelled.
 
@@ -161,7 +162,9 @@ class PathTracer:
         darken its tile.  Uniform numbers come from
         `sampler` (engine/sampling/qmc.py; default: independent ones from `rng`).  `features`: an
         engine/film/passes.py TileFeatures that gets each sample's first-hit albedo, normal and depth
-        (None: no feature work at all).
+        (None: no feature work at all).  `on_transparent(pixel)`: a transparent film
+        (engine/film/accumulator.py Film.add_transparent) that counts the camera rays that leave the
+        scene, weighted by their throughput; they then get no background (None: an opaque film).
         """
         sampler = sampler or RandomSampler(rng)
         paths = None
@@ -181,9 +184,9 @@ class PathTracer:
                 return True
             counters.rays["camera"] += fresh
             counters.rays["extension"] += len(paths.pixel) - fresh
-            paths = self.bounce(paths, sampler, counters, on_finished, features)
+            paths = self.bounce(paths, sampler, counters, on_finished, features, on_transparent)
 
-    def bounce(self, p: "Paths", sampler, counters, on_finished, features=None) -> "Paths":
+    def bounce(self, p: "Paths", sampler, counters, on_finished, features=None, on_transparent=None) -> "Paths":
         """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
         finished = []                                   # (pixel, radiance) of paths that end
         # 1. Intersect.  Hits sorted by scatter group (engine/materials/table.py: one per BSDF,
@@ -202,7 +205,7 @@ class PathTracer:
             self.lamps_seen(p, hits)
         # Misses: the background.
         if len(hits.miss):
-            finished.append(self.misses(p, hits.miss))
+            finished.append(self.misses(p, hits.miss, on_transparent))
             if features is not None and features.surface:
                 self.miss_features(p, hits.miss, features)
         p = p.take(hits.index)
@@ -265,14 +268,23 @@ class PathTracer:
         return survivors if passing is None else survivors.extend(passing)
 
     # -- stages ------------------------------------------------------------------------
-    def misses(self, p, miss):
+    def misses(self, p, miss, on_transparent=None):
         """Rays that leave the scene reach the background, with weight 1 (the report), unless
         the world is a light (shadow rays sample it): then a ray sampled at a non-delta vertex
         (the final MIS rays beyond the depth limit included) counts with its MIS weight, or 0
-        without MIS."""
+        without MIS.  A transparent film takes the camera rays (Area lights pass them on) instead:
+        weight 0, counted by on_transparent with their mean throughput (Cycles' average(throughput):
+        1 for a camera ray)."""
         radiance = p.radiance.take(miss, axis=1)
+        camera = None
+        if on_transparent is not None:
+            camera = p.ray_kind.take(miss) == CAMERA_RAY
+            seen = miss[camera]
+            on_transparent(p.pixel.take(seen), p.beta.take(seen, axis=1).mean(axis=0))
         if self.has_background:
             weight = np.ones(len(miss))
+            if camera is not None:
+                weight[camera] = 0.0
             if self.world_nee:
                 delta = p.prev_delta.take(miss)
                 weight[~delta] = 0.0

@@ -422,7 +422,7 @@ def test_zero_area_emitter_is_an_error_naming_the_object(scene, ms):
     ("shadow_ray", "Object 'Q': ray visibility is not supported (shadow off)"),
     ("holdout_collection", "Collection 'Held': holdout is not supported"),
     ("motion_blur", "Motion blur is not rendered"),
-    ("film_transparent", "Film > Transparent is not supported"),
+    ("film_transparent_glass", "Film > Transparent Glass is not supported"),
     ("subsurface", "Material 'Skin', node 'Principled BSDF': input 'Subsurface Weight' 0.5 is rendered as diffuse"),
     ("transparent_bsdf", "Material 'Glassless', node 'Transparent BSDF': transparent shadows are not modelled"),
     ("holdout_node", "Material 'Hole', node 'Holdout': ShaderNodeHoldout is not supported"),
@@ -445,8 +445,9 @@ def test_unmodelled_blender_features_are_named_in_a_warning(scene, ms, feature, 
         bpy.context.view_layer.layer_collection.children["Held"].holdout = True
     elif feature == "motion_blur":
         scene.render.use_motion_blur = True
-    elif feature == "film_transparent":
+    elif feature == "film_transparent_glass":
         scene.render.film_transparent = True
+        scene.cycles.film_transparent_glass = True
     warnings = export().warnings
     assert any(expected in w for w in warnings), warnings
 

@@ -155,8 +155,10 @@ def cli_problems(name, front, rows, parser, base, settings_after):
         if s.flag is None:
             out.append(f"{name}: {s.name} declares it but has no flag")
             continue
-        if not same(getattr(defaults, s.name), s.default):
-            out.append(f"{name}: {s.name} without its flag is {getattr(defaults, s.name)!r}, the row says {s.default!r}")
+        # the add-on's command line keeps the file's value: a new file's (Cycles' default where it differs)
+        expected = s.new_file_default if front == ADDON_CLI and BLENDER in s.fronts else s.default
+        if not same(getattr(defaults, s.name), expected):
+            out.append(f"{name}: {s.name} without its flag is {getattr(defaults, s.name)!r}, the row says {expected!r}")
         value = other_value(s)
         args = parse(parser, base + flag_argv(s, value))
         if args is None or not same(getattr(settings_after(args), s.name), value):
@@ -218,16 +220,16 @@ def blender_problems(rows):
             if not (same(p.hard_min, float(low)) and same(p.hard_max, float(s.limits[1]))):
                 out.append(f"{name}.{s.blender_prop}: limits ({p.hard_min}, {p.hard_max}), the row says "
                            f"({low}, {s.limits[1]})")
-            if not toggle and not same(p.default, s.default):
-                out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.default!r}")
+            if not toggle and not same(p.default, s.new_file_default):
+                out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.new_file_default!r}")
         elif s.kind == CHOICE:
             items = [(i.identifier, i.name, i.description) for i in p.enum_items]
             if items != [(c.identifier, c.label, c.description) for c in s.choices]:
                 out.append(f"{name}.{s.blender_prop}: items {items}, the row says {s.choices}")
-            if p.default != s.identifier(s.default):
-                out.append(f"{name}.{s.blender_prop}: default {p.default}, the row says {s.default!r}")
-        elif p.default != s.default:
-            out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.default!r}")
+            if p.default != s.identifier(s.new_file_default):
+                out.append(f"{name}.{s.blender_prop}: default {p.default}, the row says {s.new_file_default!r}")
+        elif p.default != s.new_file_default:
+            out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.new_file_default!r}")
     extra = sorted(set(rna.keys()) - wanted)
     if extra:
         out.append(f"{name} has properties that are no row of the table: {extra}")
@@ -236,8 +238,9 @@ def blender_problems(rows):
         props = scene.tncg15
         defaults = props.to_settings(RenderSettings)
         for s in rows:
-            if BLENDER in s.fronts and not same(getattr(defaults, s.name), s.default):
-                out.append(f"to_settings(): {s.name} = {getattr(defaults, s.name)!r}, the row says {s.default!r}")
+            if BLENDER in s.fronts and not same(getattr(defaults, s.name), s.new_file_default):
+                out.append(f"to_settings(): {s.name} = {getattr(defaults, s.name)!r}, the row says "
+                           f"{s.new_file_default!r}")
         for s in rows:
             if BLENDER not in s.fronts or s.blender_prop not in rna:
                 continue
