@@ -111,7 +111,7 @@ def viewport_worker_main(parent_pid: int) -> int:
                 if not isinstance(exc, SceneError):
                     print(traceback.format_exc(), file=sys.stderr)
         elif kind == "view":
-            prepared.scene.camera, prepared.scene.resolution = message[1], tuple(message[2])
+            prepared.set_view(message[1], message[2])
         elif kind == "unit":
             unit = message[1]
             try:
