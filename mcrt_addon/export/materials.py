@@ -9,8 +9,8 @@ the node.  Node trees are read from ``material.original`` (evaluated copies can 
 import bpy
 import numpy as np
 
-from . import microfacet_nodes, shader_mix
-from .images import image_node
+from . import microfacet_nodes, shader_mix, unsupported
+from .images import image_node, nodes_read
 from .util import linked_from, socket, uses_nodes
 
 DEFAULT_GREY = (0.8, 0.8, 0.8)   # Cycles' surface for objects without material
@@ -29,6 +29,12 @@ def _rgb(value):
 
 def _clamp01(rgb):
     return tuple(min(max(c, 0.0), 1.0) for c in rgb)
+
+
+def _from(sock):
+    """' from node 'NAME'' for a linked socket (the node is then named: unsupported.node_warnings)."""
+    source = linked_from(sock)
+    return f" from node '{source.name}'" if source is not None else ""
 
 
 def _local_x(matrix):
@@ -51,6 +57,7 @@ class MaterialTable:
         self.Material, self.Principled = model.Material, model.Principled
         self.images = images            # images.ImageTable: Image Texture nodes (None: not read)
         self._slots = {}                # the material being converted: role -> TextureSlot
+        self.evaluated = set()          # the material being converted: names of the nodes read
         self.DIFFUSE, self.MIRROR, self.GLASS = model.DIFFUSE, model.MIRROR, model.GLASS
         self.GLOSSY, self.PRINCIPLED = model.GLOSSY, model.PRINCIPLED
         self.version = tuple(bpy.app.version if version is None else version)[:2]
@@ -84,9 +91,10 @@ class MaterialTable:
         if key in self._per_tangent:
             key = (key, self.object_x)
         if key not in self._index:
-            self._slots = {}
+            self._slots, self.evaluated = {}, set()
             self.used_object_tangent = False
             material = self.convert(original)
+            self.warnings += unsupported.node_warnings(original, self.evaluated, self.warnings)
             material.color_texture = self._slots.get("color")
             material.emission_texture = self._slots.get("emission")
             if self.used_object_tangent:
@@ -151,6 +159,7 @@ class MaterialTable:
         if handler is None:
             self.warn(mat, node, f"{node.bl_idname} is not supported; rendered as diffuse grey")
             return self.Material(name=mat.name, kind=self.DIFFUSE, color=DEFAULT_GREY)
+        self.evaluated.add(node.name)
         return handler(mat, node)
 
     def side(self, mat, node):
@@ -180,8 +189,9 @@ class MaterialTable:
             slot = self.images.slot(mat, image)
             if slot is not None:
                 self._slots[role] = slot
+                self.evaluated.update(nodes_read(image))
         elif sock.is_linked:
-            self.warn(mat, node, f"input '{sock.name}' is linked (textures are not supported); "
+            self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)} (textures are not supported); "
                                  f"its unlinked value is used")
         return _rgb(sock.default_value)
 
@@ -199,7 +209,7 @@ class MaterialTable:
         if sock is None:
             return default
         if sock.is_linked:
-            self.warn(mat, node, f"input '{sock.name}' is linked; its unlinked value is used")
+            self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)}; its unlinked value is used")
         return float(sock.default_value)
 
     def principled_emission(self, mat, node):
