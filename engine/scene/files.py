@@ -143,6 +143,9 @@ def _read_json(path: str):
         raise SceneError(f"scene '{path}' is not a text (JSON) file") from None
     except json.JSONDecodeError as exc:
         raise SceneError(f"scene '{path}' is not valid JSON: {exc}") from None
+    except ValueError as exc:                  # an integer of more than 4300 digits (int_max_str_digits)
+        reason = str(exc).split(":")[0]
+        raise SceneError(f"scene '{path}' holds a number too long to be a scene value ({reason})") from None
     except RecursionError:
         raise SceneError(f"scene '{path}' is nested too deeply to be a scene file") from None
 
