@@ -203,6 +203,10 @@ class Frame:
         s, facts = self.settings, self.facts
         width, height = self.resolution
         rays = dict(self.totals.rays)
+        saturated = self.film.saturated_variance() if "variance" in s.passes else 0
+        if saturated and not any(w.startswith("the variance of") for w in self.warnings):
+            self.warnings.append(f"the variance of {saturated} pixel(s) is beyond float32: the Variance pass "
+                                 "holds float32's largest value (3.4e38) there")
         stats = {
             "engine": ENGINE_NAME, "engine_version": ENGINE_VERSION,
             "render_seconds": seconds, "setup_seconds": facts.setup_seconds, "build_seconds": facts.build_seconds,
