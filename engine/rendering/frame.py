@@ -93,12 +93,14 @@ class FrameFilm(Film):
 
     def half_buffer_variance(self) -> np.ndarray:
         """(H, W, 3) variance of each pixel mean from the half buffers (engine/film/error_estimate.py);
-        where a pixel has no two halves (renders without stopping rules), the sample variance."""
+        where a pixel has no two halves (renders without stopping rules), the sample variance; NaN (no
+        estimate) for a pixel without samples (a time limit that ran out first)."""
         from ..film.error_estimate import half_buffer_variance
         var = half_buffer_variance(self.sum, self.count, self.sum_a, self.count_a)
         missing = np.isnan(var)
         if missing.any():
             var[missing] = self.variance_of_mean()[missing]
+        var[self.count == 0] = np.nan
         return var
 
     def estimated_rel_error(self) -> float:
