@@ -93,8 +93,27 @@ def _check_writable_dir(output: Output) -> None:
 UNTAGGED_PART_SECONDS = 24 * 3600        # a temporary file without HOST-PID older than this is stale
 
 
-def _part_prefix(name: str) -> str:
-    return f".{name}.{socket.gethostname()}-{os.getpid()}-"
+def _name_max(directory: str) -> int:
+    """The longest file name (bytes) the file system of `directory` takes."""
+    try:
+        return int(os.pathconf(directory, "PC_NAME_MAX"))
+    except (OSError, ValueError):
+        return 255
+
+
+def _part_stem(name: str, directory: str, tag: str) -> str:
+    """`name`, cut so that the temporary ".STEM.TAG" + 8 random + ".partEXT" fits in a file name."""
+    ext = os.path.splitext(name)[1]
+    room = _name_max(directory) - len(f"..{tag}12345678.part{ext}".encode())
+    stem = name
+    while len(stem.encode()) > max(room, 0):
+        stem = stem[:-1]
+    return stem
+
+
+def _part_prefix(name: str, directory: str) -> str:
+    tag = f"{socket.gethostname()}-{os.getpid()}-"
+    return f".{_part_stem(name, directory, tag)}.{tag}"
 
 
 def _running(pid: int) -> bool:
@@ -112,7 +131,8 @@ def remove_stale_parts(path: str) -> list[str]:
     returns their paths.  Those of a render still running, here or on another host, stay."""
     directory, name = os.path.split(path)
     ext = os.path.splitext(name)[1]
-    tagged = re.compile(re.escape(f".{name}.") + r"(?P<host>.+)-(?P<pid>\d+)-[^.]+" + re.escape(f".part{ext}") + "$")
+    stem = _part_stem(name, directory, f"{socket.gethostname()}-{os.getpid()}-")
+    tagged = re.compile(re.escape(f".{stem}.") + r"(?P<host>.+)-(?P<pid>\d+)-[^.]+" + re.escape(f".part{ext}") + "$")
     untagged = re.compile(re.escape(f".{name}.") + r"[^.]+" + re.escape(f".part{ext}") + "$")
     removed = []
     try:
@@ -183,6 +203,10 @@ def check_outputs(requested, inputs=(), base_dir: str | None = None) -> list[Out
                 raise OutputError(f"{output.describe()}: is also the target of {other.option}")
         _check_target(output)
         _check_writable_dir(output)
+        name = os.path.basename(output.path)
+        if len(name.encode()) > _name_max(os.path.dirname(output.path)):
+            raise OutputError(f"{output.describe()}: the file name is {len(name.encode())} bytes long; this file "
+                              f"system takes at most {_name_max(os.path.dirname(output.path))}")
         remove_stale_parts(output.path)
     return outputs
 
@@ -211,7 +235,7 @@ def replaced_atomically(output: Output):
     directory, name = os.path.split(output.path)
     ext = os.path.splitext(name)[1]
     try:
-        fd, tmp = tempfile.mkstemp(prefix=_part_prefix(name), suffix=f".part{ext}", dir=directory)
+        fd, tmp = tempfile.mkstemp(prefix=_part_prefix(name, directory), suffix=f".part{ext}", dir=directory)
         os.close(fd)
     except OSError as exc:
         raise OutputError(f"cannot write {output.describe()}: {exc.strerror}") from None

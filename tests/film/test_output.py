@@ -77,3 +77,13 @@ def test_a_temporary_names_its_host_and_process(tmp_path, monkeypatch):
     with pytest.raises(OutputError):
         write_image(Output("-o", str(tmp_path / "out.exr"), "exr"), np.ones((2, 2, 3), np.float32))
     assert seen[0].startswith(f".out.exr.{socket.gethostname()}-{os.getpid()}-") and seen[0].endswith(".part.exr")
+
+
+def test_a_name_too_long_for_the_file_system_is_refused_before_rendering(tmp_path):
+    """300 characters passed the check and failed after the render ("File name too long"); a 250-character
+    name, which the file system takes, failed too: its temporary's name was longer than 255 bytes."""
+    with pytest.raises(OutputError, match=r"the file name is 304 bytes long; this file system takes at most 255"):
+        check_outputs([("-o", str(tmp_path / ("a" * 300 + ".exr")), "image")])
+    [output] = check_outputs([("--stats-json", str(tmp_path / ("b" * 250 + ".json")), "json")])
+    write_text(output, "{}")
+    assert os.listdir(tmp_path) == ["b" * 250 + ".json"]
