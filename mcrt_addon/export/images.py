@@ -115,17 +115,6 @@ class ImageTable:
         return "sRGB"
 
 
-def nodes_read(node):
-    """Names of the nodes an Image Texture node's use reads without a warning: the node, and a UV Map
-    or a Texture Coordinate (UV) node on its Vector input (ImageTable.uv_map)."""
-    names = {node.name}
-    source = linked_from(socket(node, "Vector"))
-    if source is not None and source.bl_idname in ("ShaderNodeUVMap", "ShaderNodeTexCoord"):
-        if source.bl_idname == "ShaderNodeUVMap" or socket(node, "Vector").links[0].from_socket.name == "UV":
-            names.add(source.name)
-    return names
-
-
 def image_node(sock):
     """The Image Texture node whose Color output feeds ``sock``, else None."""
     node = linked_from(sock)

@@ -10,8 +10,8 @@ import bpy
 import numpy as np
 
 from . import microfacet_nodes, shader_mix, unsupported
-from .images import image_node, nodes_read
-from .util import linked_from, socket, uses_nodes
+from .images import image_node
+from .util import following_links, linked_from, socket, uses_nodes
 
 DEFAULT_GREY = (0.8, 0.8, 0.8)   # Cycles' surface for objects without material
 
@@ -57,7 +57,6 @@ class MaterialTable:
         self.Material, self.Principled = model.Material, model.Principled
         self.images = images            # images.ImageTable: Image Texture nodes (None: not read)
         self._slots = {}                # the material being converted: role -> TextureSlot
-        self.evaluated = set()          # the material being converted: names of the nodes read
         self.DIFFUSE, self.MIRROR, self.GLASS = model.DIFFUSE, model.MIRROR, model.GLASS
         self.GLOSSY, self.PRINCIPLED = model.GLOSSY, model.PRINCIPLED
         self.version = tuple(bpy.app.version if version is None else version)[:2]
@@ -91,10 +90,11 @@ class MaterialTable:
         if key in self._per_tangent:
             key = (key, self.object_x)
         if key not in self._index:
-            self._slots, self.evaluated = {}, set()
+            self._slots = {}
             self.used_object_tangent = False
-            material = self.convert(original)
-            self.warnings += unsupported.node_warnings(original, self.evaluated, self.warnings)
+            with following_links() as read:             # every node the conversion reads
+                material = self.convert(original)
+            self.warnings += unsupported.node_warnings(original, read, self.warnings)
             material.color_texture = self._slots.get("color")
             material.emission_texture = self._slots.get("emission")
             if self.used_object_tangent:
@@ -159,7 +159,6 @@ class MaterialTable:
         if handler is None:
             self.warn(mat, node, f"{node.bl_idname} is not supported; rendered as diffuse grey")
             return self.Material(name=mat.name, kind=self.DIFFUSE, color=DEFAULT_GREY)
-        self.evaluated.add(node.name)
         return handler(mat, node)
 
     def side(self, mat, node):
@@ -189,7 +188,6 @@ class MaterialTable:
             slot = self.images.slot(mat, image)
             if slot is not None:
                 self._slots[role] = slot
-                self.evaluated.update(nodes_read(image))
         elif sock.is_linked:
             self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)} (textures are not supported); "
                                  f"its unlinked value is used")

@@ -70,8 +70,9 @@ def _weighted_inputs(node):
 
 def node_warnings(mat, evaluated, warnings):
     """Warnings for the nodes of material ``mat`` that feed its active Material Output but that the
-    exporter did not evaluate (``evaluated``: the names of the nodes the conversion read) and that no
-    warning names yet (``warnings``: those so far; a warning names a node as "node 'NAME'").  The walk starts at the output (Surface, Volume,
+    exporter did not read (``evaluated``: the names of the nodes the conversion found through
+    util.linked_from: modelled, or warned by the code that found them) and that no warning names yet
+    (``warnings``: those so far; a warning names a node as "node 'NAME'").  The walk starts at the output (Surface, Volume,
     Displacement, ...) and goes upstream through evaluated nodes only: a node that is not evaluated is
     named once, with the input it feeds, and what feeds it is ignored with it."""
     from .util import uses_nodes
