@@ -74,7 +74,8 @@ def node_warnings(mat, evaluated, warnings):
     util.linked_from: modelled, or warned by the code that found them) and that no warning names yet
     (``warnings``: those so far; a warning names a node as "node 'NAME'").  The walk starts at the output (Surface, Volume,
     Displacement, ...) and goes upstream through evaluated nodes only: a node that is not evaluated is
-    named once, with the input it feeds, and what feeds it is ignored with it."""
+    named once, with the input it feeds, and what feeds it is ignored with it; so is what feeds a node
+    whose output a warning says is ignored ("... is linked from node 'NAME' ...")."""
     from .util import uses_nodes
     tree = mat.node_tree if uses_nodes(mat) else None
     output = tree.get_output_node("CYCLES") if tree is not None else None
@@ -91,7 +92,8 @@ def node_warnings(mat, evaluated, warnings):
                 continue
             seen.add(source.name)
             if source.name in evaluated:
-                stack.append(source)
+                if not any(f"from node '{source.name}'" in w for w in named):   # read, and its output ignored
+                    stack.append(source)
             elif not any(f"node '{source.name}'" in w for w in named):
                 label = getattr(source, "bl_label", "") or source.bl_idname
                 found.append(f"{prefix}, node '{source.name}': {label} ({source.bl_idname}) is not modelled; "
