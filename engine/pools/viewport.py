@@ -70,7 +70,7 @@ def viewport_worker_main(parent_pid: int) -> int:
     from ..rendering.session import PreparedScene
     end = WorkerEnd(parent_pid)
     if not end.handshake():
-        return 0
+        return end.exit_code
     tune_malloc()
     inbox: queue.Queue = queue.Queue()
     cancel = threading.Event()

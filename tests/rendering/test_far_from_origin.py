@@ -46,7 +46,8 @@ def origin_runs():
     return images(cornell_scene((RES, RES)), range(1, K + 1))
 
 
-@pytest.mark.parametrize("offset", OFFSETS)
+@pytest.mark.parametrize("offset", [pytest.param(OFFSETS[0], marks=pytest.mark.slow), OFFSETS[1],
+                                    pytest.param(OFFSETS[2], marks=pytest.mark.slow)])   # 0.35 s each
 def test_far_room_equals_the_origin_room_within_noise(offset, origin_runs):
     far = images(translated(cornell_scene((RES, RES)), (offset,) * 3), range(11, K + 11))
     result = compare_runs(far, origin_runs, tau=0.0)
