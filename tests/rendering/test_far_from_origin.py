@@ -96,3 +96,13 @@ def test_far_scenes_are_traced_relative_to_the_camera():
     prepared = PreparedScene(scene, RenderSettings(samples=1), log=lambda *a: None)
     prepared.set_view(scene.camera, (4, 4))                      # the viewport sends world coordinates
     assert np.abs(prepared.scene.camera.matrix[:3, 3]).max() == 0.0 and prepared.scene.resolution == (4, 4)
+
+
+def test_every_scene_field_is_known_to_the_move():
+    """tracing_origin.moved moves the positions of the camera, meshes, spheres, quads, Area and point
+    lights; the other fields hold none.  A new field of Scene must be placed in one group or the other."""
+    import dataclasses
+    from engine.scene.model import Scene
+    moved_fields = {"camera", "meshes", "spheres", "quads", "lights", "points"}
+    no_positions = {"materials", "background", "resolution", "name", "suns", "textures", "cycles_version"}
+    assert {f.name for f in dataclasses.fields(Scene)} == moved_fields | no_positions
