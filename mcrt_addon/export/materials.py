@@ -9,9 +9,10 @@ the node.  Node trees are read from ``material.original`` (evaluated copies can 
 import bpy
 import numpy as np
 
-from . import microfacet_nodes, shader_mix, unsupported
+from . import microfacet_nodes, shader_mix
 from .images import image_node
 from .util import following_links, linked_from, socket, uses_nodes
+from .unsupported import node_warnings
 
 DEFAULT_GREY = (0.8, 0.8, 0.8)   # Cycles' surface for objects without material
 
@@ -94,7 +95,7 @@ class MaterialTable:
             self.used_object_tangent = False
             with following_links() as read:             # every node the conversion reads
                 material = self.convert(original)
-            self.warnings += unsupported.node_warnings(original, read, self.warnings)
+            self.warnings += node_warnings(original, read, self.warnings)
             material.color_texture = self._slots.get("color")
             material.emission_texture = self._slots.get("emission")
             if self.used_object_tangent:

@@ -1,7 +1,5 @@
 """Blender features the tracer does not model, each named in a warning instead of being ignored
-silently: holdout (object or collection), ray visibility, motion blur, film transparency, and every
-shader node the material exporter does not evaluate (`node_warnings`: Bump, Normal Map,
-Displacement, a Volume output, a texture into a Normal input, ...).
+silently: holdout (object or collection), ray visibility, motion blur, film transparency.
 (Transparent and Holdout shader nodes and Principled alpha are named by materials.py.)"""
 
 RAY_VISIBILITY = (("visible_camera", "camera"), ("visible_diffuse", "diffuse"), ("visible_glossy", "glossy"),
@@ -41,6 +39,8 @@ def object_warnings(ob, label):
     return warnings
 
 
+# -- shader nodes: every node feeding a material's output that the exporter did not read (Bump, Normal
+# Map, Displacement, a Volume output, a texture into a Normal input, ...) is named (node_warnings).
 def _source(sock):
     """(node, output socket) feeding ``sock`` through reroutes; None when unlinked or muted."""
     while sock is not None and sock.is_linked:

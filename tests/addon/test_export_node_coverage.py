@@ -149,8 +149,8 @@ def test_what_feeds_an_ignored_node_is_not_named_again(scene, ms):
 
 def test_control_without_the_walk_bump_and_normal_map_go_unnamed(wired, monkeypatch):
     """CONTROL: without node_warnings the Bump, Normal Map, Displacement and Volume nodes are silent."""
-    from mcrt_addon.export import unsupported
-    monkeypatch.setattr(unsupported, "node_warnings", lambda *a: [])
+    from mcrt_addon.export import materials
+    monkeypatch.setattr(materials, "node_warnings", lambda *a: [])
     missing = unaccounted(wired, export((8, 8)).warnings)
     assert {"ShaderNodeBump", "ShaderNodeNormalMap", "ShaderNodeDisplacement",
             "ShaderNodeVolumePrincipled"} <= set(missing), missing
