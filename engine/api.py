@@ -42,6 +42,8 @@ def render(scene, settings: RenderSettings | None = None, pool=None, on_tile=Non
         f"({facts.accelerator_reason})")
     log("effect plan:\n" + facts.plan.describe())
     result = frame.run(pool, on_tile=on_tile, should_cancel=should_cancel, on_progress=on_progress)
+    for warning in frame.warnings[len(facts.warnings):]:       # found while rendering (the tracer's are logged)
+        log(f"warning: {warning}")
     result.stats.update(pool.stats())
     result.warnings = list(result.warnings) + list(pool.warnings())
     return result

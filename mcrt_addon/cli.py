@@ -111,6 +111,11 @@ def render_file(args):
     directory (Blender's temp files and its EXR), then writes each output atomically."""
     output = bridge.module("film.output")
     if getattr(args, "cluster", None):
+        if args.cluster != "local":           # a malformed address: one line before Blender opens the file
+            try:
+                bridge.module("pools.dask_cluster").scheduler_address(args.cluster)
+            except bridge.module("core.errors").SceneError as exc:
+                return error(exc)
         os.environ["TNCG15_CLUSTER"] = args.cluster      # read by worker_python.render_cluster()
     blend = os.path.abspath(args.file)
     problem = blend_problem(blend)

@@ -298,7 +298,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
 
         self._stats("TNCG15 MC | Rendering")
         if cluster:
-            pool = bridge.module("api").make_pool(f"dask:{cluster}", settings.resolved_threads(), log=log)
+            pool = bridge.module("api").make_pool(f"dask:{cluster}", settings.resolved_threads(), log=log,
+                                                  should_cancel=self._cancel_requested)
         elif pool is None:
             warnings.append(f"no render worker processes ({no_workers}): the tracer ran on threads inside Blender")
         result = bridge.render_function()(exported.scene, settings, pool=pool, on_tile=on_tile,

@@ -118,6 +118,7 @@ def scene_and_settings(args):
 def cmd_render(args) -> int:
     from ..rendering.memory import check_memory
     from ..api import make_pool, render
+    from ..pools.dask_cluster import ConnectStopped
 
     stop = StopRequest(PROG).install()
     outputs = check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
@@ -132,7 +133,11 @@ def cmd_render(args) -> int:
     if stop.requested():
         return stop.report_exit()
     log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    pool = make_pool(f"dask:{args.cluster}", settings.resolved_threads(), log=log) if args.cluster else None
+    try:
+        pool = (make_pool(f"dask:{args.cluster}", settings.resolved_threads(), log=log, should_cancel=stop.requested)
+                if args.cluster else None)
+    except ConnectStopped:                      # Ctrl-C while connecting: nothing rendered, nothing written
+        return stop.report_exit()
     try:
         result = render(scene, settings, pool=pool, on_progress=None if args.quiet else progress_bar(),
                         should_cancel=stop.requested, log=log)

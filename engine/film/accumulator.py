@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)     # about 3.4e38: a variance beyond is written as this
+
 
 class Film:
     """sum, sum_sq: (height, width, 3); count: (height, width) samples per pixel; transparent:
@@ -81,7 +83,13 @@ class Film:
 
     def variance_of_mean(self) -> np.ndarray:
         """(h, w, 3) float32 variance of each pixel mean: the sample variance / n (unbiased, n - 1
-        in the denominator), at least 2 samples counted."""
+        in the denominator), at least 2 samples counted.  Computed in float64 and saturated at
+        FLOAT32_MAX (radiance of 1e20 and more has a variance beyond float32: never +inf;
+        `saturated_variance` counts those pixels)."""
         n = np.maximum(self.count, 2)[..., None]
         mean = self.sum / n
-        return (np.maximum(self.sum_sq / n - mean * mean, 0.0) / (n - 1)).astype(np.float32)
+        return np.minimum(np.maximum(self.sum_sq / n - mean * mean, 0.0) / (n - 1), FLOAT32_MAX).astype(np.float32)
+
+    def saturated_variance(self) -> int:
+        """Pixels whose variance of the mean is beyond float32 (written as FLOAT32_MAX)."""
+        return int((self.variance_of_mean() >= np.float32(FLOAT32_MAX)).any(axis=-1).sum())

@@ -11,12 +11,19 @@ Both command lines (``python -m engine render`` and ``python -m mcrt_addon rende
   check the write (OpenImageIO's errors, the image read back), fsync it and only then rename
   it over the target.  On any failure the temporary file is removed and an existing target is
   left exactly as it was; the caller gets one ``OutputError`` line.
+* A temporary file is named ``.NAME.HOST-PID-XXXXXXXX.partEXT`` after the target, this machine and
+  the writing process.  One that a killed render left (SIGKILL, a power cut) is removed by the next
+  ``check_outputs()`` of that target: its process is gone (same host, the PID no longer runs), or
+  it has no HOST-PID (an older engine's) and is more than a day old (``remove_stale_parts``).
 """
 from __future__ import annotations
 
 import contextlib
 import os
+import re
+import socket
 import tempfile
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,6 +90,72 @@ def _check_writable_dir(output: Output) -> None:
                           f"{exc.strerror}") from None
 
 
+UNTAGGED_PART_SECONDS = 24 * 3600        # a temporary file without HOST-PID older than this is stale
+
+
+def _name_max(directory: str) -> int:
+    """The longest file name (bytes) the file system of `directory` takes."""
+    try:
+        return int(os.pathconf(directory, "PC_NAME_MAX"))
+    except (OSError, ValueError):
+        return 255
+
+
+def _part_stem(name: str, directory: str, tag: str) -> str:
+    """`name`, cut so that the temporary ".STEM.TAG" + 8 random + ".partEXT" fits in a file name."""
+    ext = os.path.splitext(name)[1]
+    room = _name_max(directory) - len(f"..{tag}12345678.part{ext}".encode())
+    stem = name
+    while len(stem.encode()) > max(room, 0):
+        stem = stem[:-1]
+    return stem
+
+
+def _part_prefix(name: str, directory: str) -> str:
+    tag = f"{socket.gethostname()}-{os.getpid()}-"
+    return f".{_part_stem(name, directory, tag)}.{tag}"
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:                          # EPERM: it runs, as another user
+        return True
+    return True
+
+
+def remove_stale_parts(path: str) -> list[str]:
+    """Remove the temporary files of target `path` that killed renders left (module docstring);
+    returns their paths.  Those of a render still running, here or on another host, stay."""
+    directory, name = os.path.split(path)
+    ext = os.path.splitext(name)[1]
+    stem = _part_stem(name, directory, f"{socket.gethostname()}-{os.getpid()}-")
+    tagged = re.compile(re.escape(f".{stem}.") + r"(?P<host>.+)-(?P<pid>\d+)-[^.]+" + re.escape(f".part{ext}") + "$")
+    untagged = re.compile(re.escape(f".{name}.") + r"[^.]+" + re.escape(f".part{ext}") + "$")
+    removed = []
+    try:
+        entries = os.listdir(directory)
+    except OSError:
+        return removed
+    host = socket.gethostname()
+    for entry in entries:
+        full = os.path.join(directory, entry)
+        match = tagged.match(entry)
+        try:
+            if match:
+                stale = match["host"] == host and not _running(int(match["pid"]))
+            else:
+                stale = bool(untagged.match(entry)) and time.time() - os.lstat(full).st_mtime > UNTAGGED_PART_SECONDS
+            if stale and os.path.isfile(full) and not os.path.islink(full):
+                os.unlink(full)
+                removed.append(full)
+        except OSError:                      # gone meanwhile, or not ours to remove
+            continue
+    return removed
+
+
 def _check_target(output: Output) -> None:
     if not os.path.lexists(output.path):
         return
@@ -130,6 +203,11 @@ def check_outputs(requested, inputs=(), base_dir: str | None = None) -> list[Out
                 raise OutputError(f"{output.describe()}: is also the target of {other.option}")
         _check_target(output)
         _check_writable_dir(output)
+        name = os.path.basename(output.path)
+        if len(name.encode()) > _name_max(os.path.dirname(output.path)):
+            raise OutputError(f"{output.describe()}: the file name is {len(name.encode())} bytes long; this file "
+                              f"system takes at most {_name_max(os.path.dirname(output.path))}")
+        remove_stale_parts(output.path)
     return outputs
 
 
@@ -157,7 +235,7 @@ def replaced_atomically(output: Output):
     directory, name = os.path.split(output.path)
     ext = os.path.splitext(name)[1]
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=f".part{ext}", dir=directory)
+        fd, tmp = tempfile.mkstemp(prefix=_part_prefix(name, directory), suffix=f".part{ext}", dir=directory)
         os.close(fd)
     except OSError as exc:
         raise OutputError(f"cannot write {output.describe()}: {exc.strerror}") from None

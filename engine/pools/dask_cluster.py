@@ -26,6 +26,8 @@ DaskPool is a pool of engine/pools/protocol.py whose units run as Dask tasks on 
 from __future__ import annotations
 
 import collections
+import errno
+import os
 import pickle
 import queue
 import re
@@ -40,6 +42,8 @@ from ..core.version import BUILD_HASH, ENGINE_VERSION, short_build
 from .protocol import Pool
 
 CONNECT_SECONDS = 5        # scheduler unreachable: one line within this (docs/command-line.md: within 6 s)
+HANDSHAKE_SECONDS = 5      # a port that accepts connections but does not speak Dask: one line within this
+POLL_SECONDS = 0.1         # a stop request ends a connection wait within this
 WORKERS_SECONDS = 10       # a scheduler without workers
 CANCEL_SECONDS = 10        # close() waits at most this for cancelled units to stop on the workers
 UNIT_RETRIES = 2           # exceptions; worker deaths are counted by the scheduler (allowed-failures)
@@ -49,6 +53,10 @@ KEY_PREFIX = "tncg15"
 class ClusterError(SceneError):
     """The cluster cannot render: unreachable scheduler, no workers, other engine versions.
     A SceneError so that both command lines print it as one line and exit 2."""
+
+
+class ConnectStopped(ClusterError):
+    """A stop request (Ctrl-C, Esc: the pool's should_cancel) came while connecting to the scheduler."""
 
 
 # -- worker side ----------------------------------------------------------------------------------
@@ -208,14 +216,84 @@ def scheduler_address(address: str) -> str:
     return f"{match.group(1) or 'tcp'}://{match.group(2)}:{match.group(3)}"
 
 
-def connect(address: str, timeout: float = CONNECT_SECONDS):
-    """A distributed Client for `address`; ClusterError (one line naming it) when unreachable."""
+def probe_scheduler(address: str, timeout: float = CONNECT_SECONDS, handshake: float | None = None,
+                    should_cancel=None) -> None:
+    """Return when a Dask scheduler answers at `address` (tcp:// or tls://HOST:PORT); else ClusterError,
+    one line naming it: refused until `timeout` (the scheduler may be starting), or a connection that
+    is accepted but silent for `handshake` seconds.
+
+    distributed's Client waits for the scheduler's handshake without a timeout (distributed/comm/
+    core.py `connect`: `await comm.read()`), so a port that accepts TCP and never speaks Dask would
+    hang it.  A scheduler writes its handshake as soon as it accepts a connection, before it reads
+    anything, so over tcp:// its first bytes must come within `handshake` seconds.  Over tls:// the
+    server waits for the client's hello: only the TCP connection is checked.  Every wait is cut into
+    POLL_SECONDS steps: `should_cancel()` true (Ctrl-C, Esc) ends it within one with ConnectStopped."""
+    import select
+    import socket
+    scheme, rest = address.split("://", 1)
+    host, _, port = rest.rpartition(":")
+    handshake = HANDSHAKE_SECONDS if handshake is None else handshake
+
+    def stop_requested():
+        if should_cancel is not None and should_cancel():
+            raise ConnectStopped(f"stopped while connecting to the Dask scheduler at {address}")
+
+    def ready(sock, until, writable=False) -> bool:
+        """sock readable (writable) before `until`."""
+        while True:
+            stop_requested()
+            left = until - time.monotonic()
+            if left <= 0:
+                return False
+            step = min(POLL_SECONDS, left)
+            if any(select.select([], [sock], [], step) if writable else select.select([sock], [], [], step)):
+                return True
+
+    try:
+        family, kind, proto, _, where = socket.getaddrinfo(host.strip("[]"), int(port), type=socket.SOCK_STREAM)[0]
+    except OSError as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc.strerror or exc}") from None
+    deadline = time.monotonic() + timeout
+    while True:
+        with socket.socket(family, kind, proto) as sock:
+            sock.setblocking(False)
+            error = sock.connect_ex(where)
+            if error in (errno.EINPROGRESS, errno.EWOULDBLOCK):
+                if not ready(sock, deadline, writable=True):
+                    raise ClusterError(f"cannot reach the Dask scheduler at {address}: no answer to a "
+                                       f"connection within {timeout:g} s")
+                error = sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
+            if error == 0:
+                if scheme == "tls":
+                    return
+                if not ready(sock, time.monotonic() + handshake):
+                    raise ClusterError(f"{address} accepts connections but does not answer as a Dask scheduler "
+                                       f"(no handshake within {handshake:g} s): is it the scheduler's port?")
+                try:
+                    if sock.recv(1):
+                        return
+                except OSError:
+                    pass
+                raise ClusterError(f"{address} closed the connection without a Dask handshake: "
+                                   f"is it the scheduler's port?")
+        if time.monotonic() >= deadline:
+            raise ClusterError(f"cannot reach the Dask scheduler at {address}: {os.strerror(error)}")
+        retry = min(deadline, time.monotonic() + 0.2)        # refused: try again, it may be starting
+        while time.monotonic() < retry:
+            stop_requested()
+            time.sleep(min(POLL_SECONDS, max(0.0, retry - time.monotonic())))
+
+
+def connect(address: str, timeout: float = CONNECT_SECONDS, should_cancel=None):
+    """A distributed Client for `address`; ClusterError (one line naming it) when unreachable or when
+    what answers is not a Dask scheduler (probe_scheduler); ConnectStopped on a stop request."""
     address = scheduler_address(address)
     try:
         from distributed import Client
     except ImportError as exc:
         raise ClusterError(f"--cluster needs dask and distributed (pip install -r requirements.txt): {exc}") from None
     _quiet_distributed_logs()
+    probe_scheduler(address, timeout, should_cancel=should_cancel)
     try:
         return Client(address, timeout=f"{timeout}s", set_as_default=False)
     except Exception as exc:          # OSError (timeout, refused), ValueError (bad address), ...
@@ -228,7 +306,8 @@ class DaskPool(Pool):
     "local" for a LocalCluster of `workers` one-thread processes started here."""
     takes_rounds = False        # start() takes a frame's units once: no stopping rules (engine/rendering/stopping.py)
 
-    def __init__(self, address: str, workers: int = 1, log=None):
+    def __init__(self, address: str, workers: int = 1, log=None, should_cancel=None):
+        """should_cancel: polled while connecting (a stop request ends the wait: ConnectStopped)."""
         self.address = address
         self.log = log or (lambda *a: None)
         self.local_cluster = None
@@ -250,7 +329,7 @@ class DaskPool(Pool):
             from distributed import Client
             self.client = Client(self.local_cluster, set_as_default=False)
         else:
-            self.client = connect(address)
+            self.client = connect(address, should_cancel=should_cancel)
         try:
             self.workers = self._matching_workers()
         except BaseException:

@@ -32,7 +32,7 @@ import traceback
 from ..core.paths import TRACER_DIR, worker_environment
 from .faults import POLL, Dispatch, Worker
 from .protocol import Pool
-from .transport import REFUSED, WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, start_workers
+from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, start_workers
 
 START_TIMEOUT = 120.0                     # seconds for imports + scene + BVH before a worker is given up
 CLOSE_SECONDS = 2.0                       # EOF, then SIGKILL
@@ -51,7 +51,7 @@ def worker_main(parent_pid: int) -> int:
     signal.signal(signal.SIGUSR1, lambda *_: cancel.set())
     end = WorkerEnd(parent_pid)
     if not end.handshake():
-        return REFUSED if end.foreign is not None else 0
+        return end.exit_code
     message = end.receive()
     if message is None:
         return 0

@@ -25,9 +25,11 @@ class PoolSpecError(SceneError):
     """Not a pool spec (a SceneError: both command lines print it as one line)."""
 
 
-def make_pool(spec: str, workers: int = 1, log=print, extra_paths=()):
+def make_pool(spec: str, workers: int = 1, log=print, extra_paths=(), should_cancel=None):
     """The pool (engine/pools/protocol.py) that `spec` names, with `workers` workers; started,
-    not yet prepared.  extra_paths: more PYTHONPATH entries for worker processes (bundled wheels)."""
+    not yet prepared.  extra_paths: more PYTHONPATH entries for worker processes (bundled wheels).
+    should_cancel: polled while a Dask pool connects (Ctrl-C, Esc: engine/pools/dask_cluster.py
+    ConnectStopped within 0.1 s)."""
     kind, _, arg = str(spec).strip().partition(":")
     if kind == "auto" and not arg:
         from .local import choose_parallelism
@@ -46,6 +48,7 @@ def make_pool(spec: str, workers: int = 1, log=print, extra_paths=()):
         return ViewportPool(arg or sys.executable, workers, extra_paths, log=log)
     if kind == "dask" and arg:
         from .dask_cluster import DaskPool, scheduler_address
-        return DaskPool(arg if arg == "local" else scheduler_address(arg), workers, log=log)
+        return DaskPool(arg if arg == "local" else scheduler_address(arg), workers, log=log,
+                        should_cancel=should_cancel)
     raise PoolSpecError(f"not a pool: {spec!r} (expected {KINDS})")
 

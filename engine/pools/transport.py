@@ -39,6 +39,12 @@ from ..core.version import BUILD_HASH, ENGINE_VERSION, short_build
 HEADER = struct.Struct("<Q")
 PR_SET_PDEATHSIG = 1
 REFUSED = 3                       # the worker's exit code when the engine versions or builds differ
+NOT_A_FRAME = 2                   # its exit code when stdin holds something else than the parent's frames
+LARGEST_FRAME = 1 << 36           # 64 GiB, far beyond any scene: a longer length is not a frame
+
+
+class FrameError(Exception):
+    """The stream holds something else than this transport's frames (garbage on a worker's stdin)."""
 
 
 # -- frames ---------------------------------------------------------------------------------------
@@ -64,6 +70,8 @@ def read_frame(stream) -> bytes | None:
     if len(head) < HEADER.size:
         return None
     size = HEADER.unpack(head)[0]
+    if size > LARGEST_FRAME:              # reading it would be an "out of memory" for a few stray bytes
+        raise FrameError(f"a frame length of {size:,} bytes (at most {LARGEST_FRAME:,}): not a frame")
     data = stream.read(size)
     if len(data) < size:
         return None
@@ -98,14 +106,23 @@ class WorkerEnd:
         sys.stdout = sys.stderr
         self.inp = sys.stdin.buffer
         self.foreign = None
+        self.exit_code = 0                          # the worker's, when handshake() says False
         self.lock = threading.Lock()
 
     def handshake(self) -> bool:
-        """Read the parent's hello and answer it; False at EOF or when the engine versions or builds differ."""
-        data = read_frame(self.inp)
-        if data is None:
+        """Read the parent's hello and answer it; False at EOF (exit_code 0), when the engine versions or
+        builds differ (REFUSED) or when stdin holds no hello frame (NOT_A_FRAME, one line on stderr)."""
+        try:
+            data = read_frame(self.inp)
+            if data is None:
+                return False
+            _, self.foreign, version, *build = pickle.loads(data)
+        except Exception as exc:                    # noqa: BLE001 - any bytes can reach an unpickler
+            print(f"error: this worker reads its parent's frames on stdin (engine/pools/transport.py); it got "
+                  f"something else: {type(exc).__name__}: {' '.join(str(exc).split())[:200]}", file=sys.stderr)
+            self.foreign, self.exit_code = None, NOT_A_FRAME
             return False
-        _, self.foreign, version, *build = pickle.loads(data)
+        self.exit_code = REFUSED
         build = build[0] if build else None
         self.send(("hello", ENGINE_VERSION, sys.version.split()[0], os.getpid(), BUILD_HASH))
         if version != ENGINE_VERSION:
@@ -115,6 +132,7 @@ class WorkerEnd:
             print(f"this worker runs engine build {short_build(BUILD_HASH)}, the parent build {short_build(build)} "
                   "(another checkout of the tracer): refused", file=sys.stderr)
             return False
+        self.exit_code = 0
         return True
 
     def receive(self):

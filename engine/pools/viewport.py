@@ -70,7 +70,7 @@ def viewport_worker_main(parent_pid: int) -> int:
     from ..rendering.session import PreparedScene
     end = WorkerEnd(parent_pid)
     if not end.handshake():
-        return 0
+        return end.exit_code
     tune_malloc()
     inbox: queue.Queue = queue.Queue()
     cancel = threading.Event()
@@ -111,7 +111,7 @@ def viewport_worker_main(parent_pid: int) -> int:
                 if not isinstance(exc, SceneError):
                     print(traceback.format_exc(), file=sys.stderr)
         elif kind == "view":
-            prepared.scene.camera, prepared.scene.resolution = message[1], tuple(message[2])
+            prepared.set_view(message[1], message[2])
         elif kind == "unit":
             unit = message[1]
             try:

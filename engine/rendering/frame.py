@@ -103,12 +103,14 @@ class FrameFilm(Film):
 
     def half_buffer_variance(self) -> np.ndarray:
         """(H, W, 3) variance of each pixel mean from the half buffers (engine/film/error_estimate.py);
-        where a pixel has no two halves (renders without stopping rules), the sample variance."""
+        where a pixel has no two halves (renders without stopping rules), the sample variance; NaN (no
+        estimate) for a pixel without samples (a time limit that ran out first)."""
         from ..film.error_estimate import half_buffer_variance
         var = half_buffer_variance(self.sum, self.count, self.sum_a, self.count_a)
         missing = np.isnan(var)
         if missing.any():
             var[missing] = self.variance_of_mean()[missing]
+        var[self.count == 0] = np.nan
         return var
 
     def estimated_rel_error(self) -> float:
@@ -213,6 +215,10 @@ class Frame:
         s, facts = self.settings, self.facts
         width, height = self.resolution
         rays = dict(self.totals.rays)
+        saturated = self.film.saturated_variance() if "variance" in s.passes else 0
+        if saturated and not any(w.startswith("the variance of") for w in self.warnings):
+            self.warnings.append(f"the variance of {saturated} pixel(s) is beyond float32: the Variance pass "
+                                 "holds float32's largest value (3.4e38) there")
         stats = {
             "engine": ENGINE_NAME, "engine_version": ENGINE_VERSION,
             "render_seconds": seconds, "setup_seconds": facts.setup_seconds, "build_seconds": facts.build_seconds,

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..geometry.accel import choose_accelerator
 from ..scene.camera_rays import TileSamples
+from ..scene.tracing_origin import moved, moved_camera, tracing_origin
 from ..integrators.effects import EffectPlan, plan_effects
 from ..film.accumulator import Film
 from ..film.pixel_filter import pixel_filter_for
@@ -83,6 +84,11 @@ class PreparedScene:
         settings.validate()
         start = time.perf_counter()
         self.warnings = scene.validate()
+        # Positions relative to the camera when the scene stands far from the world origin
+        # (engine/scene/tracing_origin.py); None: world coordinates, the scene as it is.
+        self.origin = tracing_origin(scene)
+        if self.origin is not None:
+            scene = moved(scene, self.origin)
         self.scene, self.settings = scene, settings
         n_tri = sum(len(m.triangles) for m in scene.meshes)
         self.accelerator, self.accelerator_reason = choose_accelerator(settings.accelerator, n_tri)
@@ -109,6 +115,11 @@ class PreparedScene:
         and keep the map on the tracer).  It may depend on the scene and the settings only, never on
         the worker, so that every worker holds the same result and images stay identical.  No
         effect needs one yet."""
+
+    def set_view(self, camera, resolution) -> None:
+        """A new camera (world coordinates) and resolution for the same prepared scene (the viewport)."""
+        self.scene.camera = camera if self.origin is None else moved_camera(camera, self.origin)
+        self.scene.resolution = tuple(resolution)
 
     def facts(self) -> TracerFacts:
         return TracerFacts(self.accelerator, self.accelerator_reason, self.plan, self.geometry.build_seconds,

@@ -186,6 +186,10 @@ def run_rounds(frame, pool, on_tile=None, should_cancel=None, on_progress=None, 
     if error is not None:
         raise error
     stopped_by = "cancelled" if cancelled else "time limit" if timed_out else stopped_by
+    unsampled = int((frame.film.count == 0).sum())
+    if timed_out and unsampled:
+        frame.warnings.append(f"the time limit ({s.time_limit:g} s) ran out before {unsampled} of "
+                              f"{frame.film.count.size} pixels had a sample: they are black and have no error estimate")
     result = frame.result(clock() - start, cancelled, pool.describe)
     result.stats.update({"stopped_by": stopped_by, "rounds": rounds, "round_log": round_log})
     return result

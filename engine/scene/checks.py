@@ -30,8 +30,10 @@ def check_resolution(name: str, resolution) -> tuple:
 
 
 def check_vector(owner: str, label: str, value, non_negative: bool = False) -> np.ndarray:
-    """The 3 finite (and, if asked, non-negative) numbers of `value`, or a SceneError naming them."""
+    """The 3 finite (and, if asked, non-negative) numbers of `value` within LARGEST_VALUE, or a
+    SceneError naming them."""
     v = np.asarray(value, dtype=np.float64)
     if v.shape != (3,) or not np.isfinite(v).all() or (non_negative and (v < 0).any()):
         raise SceneError(f"{owner}: {label} must be 3 finite {'non-negative ' if non_negative else ''}numbers")
+    check_magnitude(owner, label, v)
     return v

@@ -56,17 +56,25 @@ class Fields:
             self.fail(key, "a string", value)
         return value
 
+    def _floats(self, key, values, expected, value) -> list:
+        """float() of each number; an integer beyond float64 (JSON has no bound: 400 digits)
+        fails naming the field instead of an OverflowError."""
+        try:
+            return [float(v) for v in values]
+        except OverflowError:
+            self.fail(key, f"{expected} within the range of a float (about 1.8e308)", value)
+
     def number(self, key, default=REQUIRED) -> float:
         value = self.get(key, default)
         if not is_number(value):
             self.fail(key, "a number", value)
-        return float(value)
+        return self._floats(key, [value], "a number", value)[0]
 
     def numbers(self, key, count: int, default=REQUIRED) -> tuple:
         value = self.get(key, default)
         if not (isinstance(value, (list, tuple)) and len(value) == count and all(map(is_number, value))):
             self.fail(key, f"{count} numbers", value)
-        return tuple(float(v) for v in value)
+        return tuple(self._floats(key, value, f"{count} numbers", value))
 
     def integers(self, key, count: int, default=REQUIRED) -> tuple:
         value = self.get(key, default)
@@ -80,7 +88,8 @@ class Fields:
               and all(isinstance(r, (list, tuple)) and len(r) == cols and all(map(is_number, r)) for r in value))
         if not ok:
             self.fail(key, f"{rows} rows of {cols} numbers", value)
-        return np.asarray(value, dtype=np.float64)
+        flat = self._floats(key, [v for r in value for v in r], f"{rows} rows of {cols} numbers", value)
+        return np.asarray(flat, dtype=np.float64).reshape(rows, cols)
 
     def objects(self, key) -> list:
         value = self.get(key, [])

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 
 import numpy as np
 
@@ -58,6 +59,9 @@ SMOOTH_VERSION = 5                  # the first version with mesh normals; scene
 LIGHT_FLAGS = ("two_sided", "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
                "lights_diffuse")
 LAMP_FLAGS = ("lights_diffuse", "visible_glossy", "visible_transmission")     # point, spot and sun lights
+# A scene's JSON holds names and small lists; its arrays go in the NPZ (save_scene).  json.load holds
+# about ten times the file's size in memory, so a larger file is refused before it is read.
+LARGEST_JSON = 256 * 2**20
 
 
 def _flags(fields, keys) -> dict:
@@ -165,7 +169,22 @@ def _material_index(fields, names):
     return names.index(ref)
 
 
+def _regular_file(path: str, what: str, largest: int | None = None) -> None:
+    """SceneError unless `path` is a regular file (not /dev/zero, a FIFO or a directory, which read
+    forever or fail oddly) of at most `largest` bytes."""
+    try:
+        info = os.stat(path)
+    except OSError as exc:
+        raise SceneError(f"cannot read {what} '{path}': {exc.strerror}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise SceneError(f"{what} '{path}' is not a regular file")
+    if largest is not None and info.st_size > largest:
+        raise SceneError(f"{what} '{path}' is {info.st_size / 2**20:,.0f} MiB: a scene file is at most "
+                         f"{largest // 2**20} MiB (large arrays go in the NPZ beside it)")
+
+
 def _read_json(path: str):
+    _regular_file(path, "scene", LARGEST_JSON)
     try:
         with open(path, encoding="utf-8") as fh:
             return json.load(fh)
@@ -175,6 +194,9 @@ def _read_json(path: str):
         raise SceneError(f"scene '{path}' is not a text (JSON) file") from None
     except json.JSONDecodeError as exc:
         raise SceneError(f"scene '{path}' is not valid JSON: {exc}") from None
+    except ValueError as exc:                  # an integer of more than 4300 digits (int_max_str_digits)
+        reason = str(exc).split(":")[0]
+        raise SceneError(f"scene '{path}' holds a number too long to be a scene value ({reason})") from None
     except RecursionError:
         raise SceneError(f"scene '{path}' is nested too deeply to be a scene file") from None
 
@@ -183,6 +205,7 @@ def _read_npz(path: str) -> dict:
     """Every array of the NPZ beside the scene, read now so a corrupt file is one clear error."""
     if not os.path.exists(path):
         return {}
+    _regular_file(path, "arrays")
     try:
         with np.load(path, allow_pickle=False) as npz:
             return {name: np.asarray(npz[name]) for name in npz.files}

@@ -634,6 +634,7 @@ class PointLight:
         check_vector(owner, "intensity", self.intensity, non_negative=True)
         if not (math.isfinite(self.radius) and self.radius >= 0):
             raise SceneError(f"{owner}: radius must be 0 or more, got {self.radius!r}")
+        check_magnitude(owner, "radius", self.radius)
         if not (math.isfinite(self.spot_size) and 0 <= self.spot_size <= math.pi):
             raise SceneError(f"{owner}: spot size must be in [0, pi] radians (0: a point light), "
                              f"got {self.spot_size!r}")

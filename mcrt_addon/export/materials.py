@@ -12,7 +12,8 @@ import numpy as np
 
 from . import dielectric_nodes, microfacet_nodes, shader_mix
 from .images import image_node
-from .util import linked_from, socket, uses_nodes
+from .util import following_links, linked_from, socket, uses_nodes
+from .unsupported import node_warnings
 
 DEFAULT_GREY = (0.8, 0.8, 0.8)   # Cycles' surface for objects without material
 
@@ -30,6 +31,12 @@ def _rgb(value):
 
 def _clamp01(rgb):
     return tuple(min(max(c, 0.0), 1.0) for c in rgb)
+
+
+def _from(sock):
+    """' from node 'NAME'' for a linked socket (the node is then named: unsupported.node_warnings)."""
+    source = linked_from(sock)
+    return f" from node '{source.name}'" if source is not None else ""
 
 
 def _local_x(matrix):
@@ -90,7 +97,9 @@ class MaterialTable:
         if key not in self._index:
             self._slots = {}
             self.used_object_tangent = False
-            material = self.convert(original)
+            with following_links() as read:             # every node the conversion reads
+                material = self.convert(original)
+            self.warnings += node_warnings(original, read, self.warnings)
             material.color_texture = self._slots.get("color")
             material.emission_texture = self._slots.get("emission")
             if self.used_object_tangent:
@@ -186,7 +195,7 @@ class MaterialTable:
             if slot is not None:
                 self._slots[role] = slot
         elif sock.is_linked:
-            self.warn(mat, node, f"input '{sock.name}' is linked (textures are not supported); "
+            self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)} (textures are not supported); "
                                  f"its unlinked value is used")
         return _rgb(sock.default_value)
 
@@ -204,7 +213,7 @@ class MaterialTable:
         if sock is None:
             return default
         if sock.is_linked:
-            self.warn(mat, node, f"input '{sock.name}' is linked; its unlinked value is used")
+            self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)}; its unlinked value is used")
         return float(sock.default_value)
 
     def principled_emission(self, mat, node):

@@ -1,4 +1,7 @@
 """Small helpers shared by the exporters."""
+import contextlib
+
+_FOLLOWED = []       # sets of node names that linked_from returned, innermost last (following_links)
 
 
 class ExportError(Exception):
@@ -28,8 +31,23 @@ def linked_from(sock):
         if node.bl_idname == "NodeReroute":
             sock = node.inputs[0]
             continue
+        if _FOLLOWED:
+            _FOLLOWED[-1].add(node.name)
         return node
     return None
+
+
+@contextlib.contextmanager
+def following_links():
+    """Yield the set of the names of the nodes that linked_from returns inside the block: the nodes an
+    exporter read (modelled, or warned by the code that found them).  What feeds a material's output
+    and is not among them is named by mcrt_addon/export/unsupported.py node_warnings."""
+    found = set()
+    _FOLLOWED.append(found)
+    try:
+        yield found
+    finally:
+        _FOLLOWED.pop()
 
 
 def uses_nodes(id_block):

@@ -62,3 +62,20 @@ def test_a_render_of_the_linking_blend_still_renders(linked):
     r = run_cli("render", linked / "main.blend", "-o", linked / "out.exr", "--stats-json", linked / "s.json",
                 "--samples", "1", "--resolution", "8", "8")
     assert r.returncode == 0, r.stderr[-2000:]
+
+
+@pytest.mark.parametrize("address", ["garbage", "http//nowhere", "tcp://host:99999"])
+def test_a_malformed_cluster_address_is_refused_before_the_blend_is_opened(address, monkeypatch, capsys, tmp_path):
+    """Was checked only once Blender had opened the .blend and started the render (exit 1); now one
+    line and exit 2 first, as `python -m engine render --cluster` does."""
+    from mcrt_addon import cli
+    opened = []
+    monkeypatch.setattr(cli, "open_blend", lambda *a: opened.append(a) or "opened")
+    monkeypatch.delenv("TNCG15_CLUSTER", raising=False)
+    blend = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
+                         "sample_blends", "cornell.blend")
+    code = cli.main(["render", blend, "-o", str(tmp_path / "out.exr"), "--cluster", address])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and not opened and os.listdir(tmp_path) == []
+    assert len(err) == 1 and "not a Dask scheduler address" in err[0], err
+    assert "TNCG15_CLUSTER" not in os.environ

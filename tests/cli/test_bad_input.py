@@ -273,3 +273,37 @@ def test_an_output_onto_a_texture_of_the_scene_file_is_refused(tmp_path, option)
     assert snapshot(tmp_path) == before
     control = run("render", scene, "-o", tmp_path / "out.exr", "--samples", "1")
     assert control.returncode == 0, control.stderr           # the scene itself renders
+
+
+def _limited_memory():
+    import resource
+    resource.setrlimit(resource.RLIMIT_AS, (3 * 2**30, 3 * 2**30))     # main read /dev/zero until the OOM killer
+
+
+@pytest.mark.slow       # two command lines (about 0.7 s each); the same check in-process: the test below
+@pytest.mark.parametrize("kind", ["/dev/zero", "fifo"])
+def test_a_scene_that_is_not_a_regular_file_is_refused_before_reading(tmp_path, kind):
+    """`render /dev/zero` read until the machine ran out of memory; a FIFO without a writer waited forever."""
+    path = kind
+    if kind == "fifo":
+        path = tmp_path / "scene.json"
+        os.mkfifo(path)
+    r = subprocess.run([sys.executable, "-m", "engine", "render", str(path), "-o", str(tmp_path / "out.exr")],
+                       cwd=ROOT, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=ROOT), timeout=60,
+                       preexec_fn=_limited_memory)
+    assert_one_line(r, 2, f"scene '{path}' is not a regular file")
+
+
+def test_directories_huge_files_and_device_arrays_are_refused(tmp_path):
+    from engine.scene.files import LARGEST_JSON, load_scene
+    (tmp_path / "dir.json").mkdir()
+    with pytest.raises(SceneError, match="is not a regular file"):
+        load_scene(str(tmp_path / "dir.json"))
+    with open(tmp_path / "huge.json", "wb") as fh:                     # sparse: takes no disk
+        fh.truncate(LARGEST_JSON + 1)
+    with pytest.raises(SceneError, match=r"huge.json' is 256 MiB: a scene file is at most 256 MiB"):
+        load_scene(str(tmp_path / "huge.json"))
+    (tmp_path / "scene.json").write_text(json.dumps(SCENE))
+    os.symlink("/dev/zero", tmp_path / "scene.npz")
+    with pytest.raises(SceneError, match=r"arrays '.*scene.npz' is not a regular file"):
+        load_scene(str(tmp_path / "scene.json"))

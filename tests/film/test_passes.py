@@ -89,6 +89,21 @@ def test_sample_count_and_variance_are_the_films():
     assert not r.stats["effects"]["passes"]            # neither is traced
 
 
+def test_a_variance_beyond_float32_is_saturated_and_named(recwarn):
+    """A lamp of radiance 1e25 (the scene allows up to 1e30): the pixel variance is about 1e50, which
+    float32 cannot hold.  It was +inf in the Variance pass with no word (and 0 non-finite samples);
+    now it is float32's largest value and a warning counts those pixels."""
+    scene = cornell_scene((12, 12))
+    scene.materials[3].emission = (1e25,) * 3
+    r = render(scene, RenderSettings(samples=4, passes=("variance",), threads=1), **SILENT)
+    variance = r.passes["variance"]
+    assert np.isfinite(variance).all() and np.isfinite(r.variance).all()
+    saturated = int((variance == np.finfo(np.float32).max).any(axis=-1).sum())
+    assert saturated > 0 and r.stats["nonfinite_samples"] == 0
+    assert [w for w in r.warnings if w.startswith(f"the variance of {saturated} pixel(s) is beyond float32")]
+    assert not [w for w in recwarn if "overflow" in str(w.message)]         # no NumPy RuntimeWarning either
+
+
 def test_passes_off_cost_nothing(monkeypatch):
     """No traced pass: the plan's `passes` is off and no feature object is ever made."""
     import engine.rendering.session

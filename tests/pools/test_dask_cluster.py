@@ -289,3 +289,104 @@ def test_the_stopping_rules_are_refused_on_dask_in_one_line(cluster):
         render(cornell_scene((16, 16)), RenderSettings(samples=16, noise_target=0.5), pool=dask(cluster.address),
                **SILENT)
     assert "\n" not in str(err.value) and cluster.running() == []
+
+
+class SilentPort(int):
+    """The port number, and the connections accepted so far."""
+    def __new__(cls, port, held):
+        self = super().__new__(cls, port)
+        self.held = held
+        return self
+
+
+@pytest.fixture
+def silent_port():
+    """A port on 127.0.0.1 that accepts TCP connections and never sends a byte (not a Dask scheduler)."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(16)
+    held = []
+
+    def accept():
+        while True:
+            try:
+                held.append(server.accept()[0])
+            except OSError:                          # closed at the end of the test
+                return
+
+    threading.Thread(target=accept, daemon=True).start()
+    try:
+        yield SilentPort(server.getsockname()[1], held)
+    finally:
+        server.close()
+        for conn in held:
+            conn.close()
+
+
+def test_a_port_that_accepts_but_never_speaks_dask_is_one_line(silent_port, monkeypatch):
+    """distributed's Client waits for the handshake forever there; the probe gives up after
+    HANDSHAKE_SECONDS (0.5 s here) with one line naming the address."""
+    import engine.pools.dask_cluster as dask_cluster
+    monkeypatch.setattr(dask_cluster, "HANDSHAKE_SECONDS", 0.5, raising=False)
+    outcome = []
+
+    def try_connect():
+        try:
+            outcome.append(dask_cluster.connect(f"tcp://127.0.0.1:{silent_port}", timeout=1))
+        except BaseException as exc:              # noqa: BLE001 - the test looks at it
+            outcome.append(exc)
+
+    thread = threading.Thread(target=try_connect, daemon=True)
+    thread.start()
+    thread.join(30)                               # main: still waiting (300 s and more)
+    assert outcome, "connect() still waits for a handshake"
+    assert isinstance(outcome[0], ClusterError), outcome[0]
+    message = str(outcome[0])
+    assert f"tcp://127.0.0.1:{silent_port}" in message and "does not answer as a Dask scheduler" in message
+    assert "\n" not in message
+
+
+def test_a_stop_request_ends_the_wait_for_a_handshake(silent_port):
+    """Ctrl-C (the command line's StopRequest) or Esc while connecting: ConnectStopped at the next
+    poll (0.1 s), long before the handshake timeout of 60 s here."""
+    from engine.pools.dask_cluster import ConnectStopped, probe_scheduler
+    start = time.monotonic()
+    with pytest.raises(ConnectStopped, match=f"127.0.0.1:{silent_port}"):
+        make_pool(f"dask:tcp://127.0.0.1:{silent_port}", 1, should_cancel=lambda: time.monotonic() > start + 0.3,
+                  **SILENT)
+    with pytest.raises(ConnectStopped):
+        probe_scheduler(f"tcp://127.0.0.1:{silent_port}", handshake=60,
+                        should_cancel=lambda: time.monotonic() > start + 0.6)
+    assert time.monotonic() - start < 30          # a margin for a loaded machine; without the poll: 60 s
+
+
+def test_a_scheduler_passes_the_probe(cluster):
+    from engine.pools.dask_cluster import probe_scheduler
+    probe_scheduler(cluster.address, handshake=30)
+
+
+@pytest.mark.slow          # waits out the handshake timeout (5 s)
+def test_cli_on_a_silent_port_is_one_line_and_ctrl_c_ends_it(silent_port, tmp_path):
+    args = [sys.executable, "-m", "engine", "render", "--resolution", "16", "16", "--quiet",
+            "-o", str(tmp_path / "a.exr"), "--cluster", f"tcp://127.0.0.1:{silent_port}"]
+    start = time.monotonic()
+    proc = subprocess.run(args, cwd=REPO, env=_env(REPO), capture_output=True, text=True, timeout=120)
+    assert time.monotonic() - start < 25          # 5 s of handshake; room for imports under load
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "does not answer as a Dask scheduler" in lines[0], proc.stderr
+    accepted = len(silent_port.held)
+    proc = subprocess.Popen(args, cwd=REPO, env=_env(REPO), stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while len(silent_port.held) == accepted and time.monotonic() < deadline:
+            time.sleep(0.02)                       # until it waits for the handshake
+        proc.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        proc.wait(timeout=60)
+        returned = time.monotonic() - sent
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, proc.stderr.read()
+    assert returned < 3.5                          # under 0.2 s measured; without the poll: the 5-s handshake
+    assert not (tmp_path / "a.exr").exists()

@@ -49,6 +49,28 @@ def test_a_worker_of_another_engine_version_refuses_in_one_line():
     assert refusals == [f"this worker runs engine {ENGINE_VERSION}, the parent 0.0.0-other: refused"]
 
 
+def test_a_length_no_frame_has_is_not_read():
+    """Eight stray bytes read as a length would have Python allocate exabytes (a MemoryError)."""
+    from engine.pools.transport import FrameError
+    with pytest.raises(FrameError, match="not a frame"):
+        read_frame(io.BytesIO(b"garbage\n and more"))
+
+
+@pytest.mark.parametrize("data", [b"garbage\n", pytest.param(b"\x05\x00\x00\x00\x00\x00\x00\x00hello",
+                                                             marks=pytest.mark.slow)],   # a worker each: 0.8 s
+                         ids=["text", "a frame of no pickle"])
+def test_garbage_on_a_workers_stdin_is_one_line_not_out_of_memory(data):
+    """Was "error: out of memory (lower the resolution or the threads)" (a length of 7e18 bytes) or an
+    UnpicklingError traceback; now one line saying what the worker expects, exit NOT_A_FRAME."""
+    from engine.pools.transport import NOT_A_FRAME
+    proc = subprocess.run([sys.executable, "-m", "engine", "worker", str(os.getpid())], cwd=ROOT, input=data,
+                          capture_output=True, timeout=120)
+    lines = proc.stderr.decode().strip().splitlines()
+    assert proc.returncode == NOT_A_FRAME and proc.stdout == b""
+    assert len(lines) == 1 and "reads its parent's frames on stdin" in lines[0], lines
+    assert "out of memory" not in lines[0]
+
+
 @pytest.mark.parametrize("code, text", [(-9, "killed by SIGKILL"), (-11, "SIGSEGV")])
 def test_exit_codes_are_described_by_their_signal(code, text):
     assert text in describe_exit(code)

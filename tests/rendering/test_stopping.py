@@ -212,6 +212,25 @@ def test_time_limit_stops_the_render_with_a_fake_clock():
     assert st["samples_per_pixel"]["max"] <= 16 and st["render_seconds"] <= 7.0
 
 
+def test_a_time_limit_that_runs_out_first_is_a_warning_not_an_error_figure():
+    """`--time-limit 1e-9`: the first round is cancelled before its units finish.  Was a black image
+    claiming "estimated relative error 0.00 %" (pixels without samples counted as exact); now the
+    unsampled pixels have no estimate, a warning counts them, and with none sampled there is no figure."""
+    settings = RenderSettings(samples=64, time_limit=1e-9, threads=1, tile_size=16)
+    pool = ThreadPool(1, **QUIET)
+    frame = Frame(scene(), settings, pool.prepare(scene(), settings))      # 32x32: 4 tiles
+    ticks = iter([0.0])
+    result = run_rounds(frame, pool, clock=lambda: next(ticks, 1.0))       # out of time at the first look
+    unsampled = int((frame.film.count == 0).sum())
+    assert result.stats["stopped_by"] == "time limit" and unsampled >= 3 * 16 * 16   # at most one unit ran
+    assert [w for w in result.warnings if w.startswith(f"the time limit (1e-09 s) ran out before {unsampled} of 1024")]
+    if unsampled == 1024:
+        assert result.stats["estimated_rel_error"] is None
+    empty = Frame(scene(), settings, pool.prepare(scene(), settings))
+    assert np.isnan(empty.film.estimated_rel_error())                      # no sample: no estimate (was 0.0)
+    json.dumps(result.stats, allow_nan=False)
+
+
 def test_no_rules_no_rounds():
     """Without a time limit or noise target the frame renders as before (one unit list, no rounds),
     with the sample-variance estimate in the stats."""

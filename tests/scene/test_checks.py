@@ -33,3 +33,21 @@ def test_vector():
     with pytest.raises(SceneError, match="colour must be 3 finite non-negative numbers"):
         check_vector("Material 'M'", "colour", (0.5, -0.1, 0), non_negative=True)
     check_vector("Material 'M'", "colour", (0.5, 0, 0), non_negative=True)
+
+
+def test_lamps_are_capped_as_area_lights_are():
+    """Sun irradiance 3.5e38 (just under float32's largest) was accepted while area radiance is capped at
+    LARGEST_VALUE; so were point-light intensities, positions and radii."""
+    from engine.scene.model import AreaLight, PointLight, SunLight
+    too_large = 3.5e38
+    with pytest.raises(SceneError, match=r"^Light 'Lamp': radiance .* is too large"):
+        AreaLight("Lamp", np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0)]), (too_large,) * 3).validate()
+    with pytest.raises(SceneError, match=r"^Light 'Sun': irradiance 3.5e\+38 is too large \(at most 1e\+30\)$"):
+        SunLight("Sun", (0, 0, -1), (too_large, 1, 1)).validate()
+    for fields, label in [(dict(intensity=(too_large,) * 3), "intensity"), (dict(position=(0, 0, too_large)), "position"),
+                          (dict(radius=too_large), "radius")]:
+        light = PointLight("Bulb", **{"position": (0, 0, 1), "intensity": (1, 1, 1), **fields})
+        with pytest.raises(SceneError, match=rf"^Light 'Bulb': {label} 3.5e\+38 is too large"):
+            light.validate()
+    SunLight("Sun", (0, 0, -1), (LARGEST_VALUE,) * 3).validate()
+    PointLight("Bulb", (0, 0, 1), (LARGEST_VALUE,) * 3, LARGEST_VALUE).validate()

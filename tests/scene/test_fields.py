@@ -87,3 +87,43 @@ def test_scene_file_errors_name_the_object(tmp_path):
         with pytest.raises(SceneError) as error:
             load_scene(str(path))
         assert message in str(error.value), (change, str(error.value))
+
+
+HUGE = 10 ** 400                              # JSON integers have no bound; float64 ends near 1.8e308
+
+
+@pytest.mark.parametrize("call, data", [
+    (lambda f: f.number("ior"), {"ior": HUGE}),
+    (lambda f: f.numbers("color", 3), {"color": [0, -HUGE, 0]}),
+    (lambda f: f.matrix("matrix", 2, 2), {"matrix": [[1, 0], [0, HUGE]]}),
+    (lambda f: f.array("vertices", {}, 3, False), {"vertices": [[0, 0, HUGE]]}),
+])
+def test_integers_beyond_float64_are_errors_naming_the_field(call, data):
+    """Was an OverflowError traceback (int too large to convert to float)."""
+    with pytest.raises(SceneError, match=f"^{OWNER}: "):
+        call(Fields(data, OWNER))
+
+
+def test_a_400_digit_integer_anywhere_in_a_scene_file_is_a_scene_error(tmp_path):
+    """Every number of a saved scene replaced in turn by a 400-digit integer (the fuzzer's find), and
+    one by 5,000 digits (past Python's int_max_str_digits, a ValueError inside json.load)."""
+    import re
+    from engine.scene.files import save_scene
+    from engine.scene.model import AreaLight, PointLight, Sphere, SunLight
+    from tests.scenes import diffuse_box_scene
+    scene = diffuse_box_scene((8, 8))
+    scene.spheres.append(Sphere("Ball", (0.0, 0.5, 0.5), 0.2, 0))
+    scene.lights.append(AreaLight("Lamp", np.array([(0, 0, 1.9), (0.1, 0, 1.9), (0, 0.1, 1.9)]), (1, 1, 1)))
+    scene.points.append(PointLight("Bulb", (0.0, 0.0, 1.0), (1.0, 1.0, 1.0), 0.1))
+    scene.suns.append(SunLight("Sun", (0.0, 0.0, -1.0), (1.0, 1.0, 1.0)))
+    save_scene(scene, str(tmp_path / "scene.json"))
+    text = (tmp_path / "scene.json").read_text()
+    numbers = list(re.finditer(r"(?<![\w.\"])-?\d+(\.\d+)?", text))
+    assert len(numbers) > 80
+    for digits, found in [(400, m) for m in numbers] + [(5000, numbers[0])]:
+        path = tmp_path / "scene.json"
+        path.write_text(text[:found.start()] + "9" * digits + text[found.end():])
+        try:
+            load_scene(str(path)).validate()
+        except SceneError:
+            pass
