@@ -4,7 +4,9 @@ Mirrors Cycles' ``properties.py``: plain PropertyGroups, no behaviour except con
 scene settings into the tracer's ``RenderSettings`` and back.  The scene's properties are made
 from the tracer's settings table (engine/core/settings.py, read through bridge.py without numpy):
 one bpy property per row that Blender exposes, with the row's label, default and limits; a row
-whose 0 means off (noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.
+whose 0 means off (noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.  A row with a
+Cycles default (the Light Paths options) starts a new file at Cycles' value (`Setting.blender_default`);
+`apply_preset` sets the command lines' presets (fair, cycles) onto a scene.
 """
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
@@ -33,15 +35,15 @@ def scene_property(s):
     """The bpy property of one row of the table."""
     common = dict(name=s.label, description=s.description or s.help, **s.bpy_options)
     if s.kind == TABLE.INT:
-        return IntProperty(default=s.default, min=s.limits[0], max=s.limits[1], **common)
+        return IntProperty(default=s.blender_default, min=s.limits[0], max=s.limits[1], **common)
     if s.kind == TABLE.FLOAT:
         if s.off_toggle is not None:
             low, default = s.off_toggle.on_min, s.off_toggle.on_default
         else:
-            low, default = s.limits[0], s.default
+            low, default = s.limits[0], s.blender_default
         return FloatProperty(default=default, min=low, max=s.limits[1], **common)
     if s.kind == TABLE.BOOL:
-        return BoolProperty(default=s.default, **common)
+        return BoolProperty(default=s.blender_default, **common)
     if s.kind == TABLE.CHOICE:
         return EnumProperty(items=enum_items(s), default=s.identifier(s.default), **common)
     raise TypeError(f"setting {s.name}: no Blender property for a {s.kind} setting")
@@ -90,6 +92,13 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
         settings = settings_cls(**{s.name: self.setting(s) for s in SCENE_SETTINGS})
         settings.min_samples = min(settings.min_samples, settings.samples)    # the panel lets Min exceed Max
         return settings
+
+
+def apply_preset(props, name):
+    """A preset of the settings table (engine/core/settings.py preset_values: "fair" or "cycles")
+    onto scene.tncg15."""
+    for setting, value in TABLE.preset_values(name).items():
+        props.set_setting(TABLE.SETTING[setting], value)
 
 
 class TNCG15ViewLayerSettings(bpy.types.PropertyGroup):

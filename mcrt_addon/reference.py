@@ -3,7 +3,19 @@
 Box filter of width 1 px (pixels independent, as the tracer's jittered box), no clamping, no
 denoising, no adaptive sampling, Filter Glossy 0, light threshold 0, caustics on, every bounce
 limit = max_depth, Standard view transform, fixed seed, CPU.
+
+The Light Paths options (LIGHT_PATHS, the settings table's rows of engine/core/settings.py) can
+be given in the tracer's terms, so that Cycles renders with the values TNCG15 MC renders with
+(`python -m mcrt_addon render --engine CYCLES`); each one not given keeps the fair value above.
 """
+
+# The settings table's rows handed to Cycles: tracer name -> Cycles' property.
+LIGHT_PATHS = {"diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
+               "transmission_bounces": "transmission_bounces", "transparent_bounces": "transparent_max_bounces",
+               "clamp_direct": "sample_clamp_direct", "clamp_indirect": "sample_clamp_indirect",
+               "filter_glossy": "blur_glossy", "caustics_reflective": "caustics_reflective",
+               "caustics_refractive": "caustics_refractive"}
+CYCLES_MAX_BOUNCES = 1024            # Cycles' properties stop there (the tracer's 1024 means "the total only")
 
 
 def _set(obj, name, value):
@@ -11,7 +23,7 @@ def _set(obj, name, value):
         setattr(obj, name, value)
 
 
-def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0):
+def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0, **light_paths):
     scene.render.engine = "CYCLES"
     c = scene.cycles
     _set(c, "device", "CPU")
@@ -32,6 +44,9 @@ def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0):
     c.transmission_bounces = depth
     c.transparent_max_bounces = depth
     c.volume_bounces = 0
+    for name, value in light_paths.items():          # KeyError: not a Light Paths option
+        prop = LIGHT_PATHS[name]
+        setattr(c, prop, min(int(value), CYCLES_MAX_BOUNCES) if prop.endswith("bounces") else value)
     _set(c, "min_light_bounces", 0)
     _set(c, "min_transparent_bounces", 0)
     c.pixel_filter_type = "BOX"

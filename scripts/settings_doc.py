@@ -21,14 +21,22 @@ from engine.core import settings as table  # noqa: E402  (standard library only:
 METAVARS = {table.INT: "N", table.FLOAT: "X", table.CHOICE: "NAME", table.CHOICES: "LIST"}
 
 
-def default_text(s) -> str:
+def value_text(s, value) -> str:
     if s.kind == table.BOOL:
-        return "on" if s.default else "off"
+        return "on" if value else "off"
     if s.kind == table.CHOICES:
-        return ", ".join(s.default) or "none"
+        return ", ".join(value) or "none"
     if s.kind == table.FLOAT:
-        return f"{s.default:g}"
-    return str(s.default)
+        return f"{value:g}"
+    return str(value)
+
+
+def default_text(s) -> str:
+    """The default; a row with a Cycles default also shows it (a new .blend file, --preset cycles)."""
+    text = value_text(s, s.default)
+    if s.cycles is not None:
+        text += f" (Cycles: {value_text(s, s.cycles)})"
+    return text
 
 
 def limits_text(s) -> str:
@@ -75,6 +83,11 @@ def markdown() -> str:
         "* `python -m mcrt_addon render FILE.blend`: an absent flag keeps the file's value; choices in any",
         "  letter case.  `python -m mcrt_addon estimate` takes `--noise-target` and a few of these (`--help`).",
         "* A switch (`--nested-dielectrics`, `--no-adaptive`) flips the setting from its default.",
+        "* Presets (`--preset`, both command lines): `fair` (the default) gives the Light Paths rows",
+        f"  ({', '.join(f'`{n}`' for n in table.LIGHT_PATH_SPEEDUPS)}) their defaults here: the",
+        "  reference settings; `cycles` gives every row Cycles' default, shown as \"(Cycles: ...)\",",
+        "  which is also what a new .blend file starts with in Blender.  `python -m mcrt_addon` also takes",
+        "  `--preset file`: the file's own values.  A flag given wins over the preset.",
         "* Stats: how `--stats-json` lists the setting: *as set*, *as resolved* (what the render made of",
         "  it, e.g. `threads` 0 as the number of cores), or not at all.",
         "",

@@ -240,6 +240,9 @@ class PrincipledV2(BSDF):
         a_metal, a_spec = self.layer_albedos(si)
         w_spec = np.where(self.has_specular.take(rows), w_rest, 0.0)
         w_diffuse = w_rest * np.clip(1.0 - a_spec.max(axis=0), 0.0, 1.0)
+        if si.glossy_off is not None:       # Reflective Caustics off (engine/integrators/light_paths.py)
+            w_metal, w_spec = np.where(si.glossy_off, 0.0, w_metal), np.where(si.glossy_off, 0.0, w_spec)
+            w_diffuse = np.where(si.glossy_off, w_rest, w_diffuse)       # not darkened by a left-out layer
         sample = np.stack([w_metal * a_metal.mean(axis=0), w_spec * a_spec.mean(axis=0),
                            w_diffuse * np.abs(si.color).mean(axis=0)])
         total = sample.sum(axis=0)

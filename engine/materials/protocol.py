@@ -62,6 +62,10 @@ class ShadingPoint:
     material: material ids (a BSDF takes its per-material parameters, such as the IOR, by them).
     smooth: n is an interpolated shading normal (else n is ng).
     media: the paths' nested-dielectric medium stacks (engine/materials/media.py), or None.
+    alpha_floor: (N,) the least microfacet alpha of each hit (Filter Glossy,
+    engine/integrators/light_paths.py), or None.
+    glossy_off: (N,) hits whose glossy reflection lobes are left out (Reflective Caustics off after
+    a diffuse bounce; a BSDF with diffuse and glossy lobes reads it), or None.
     """
     wo: np.ndarray
     n: np.ndarray
@@ -71,19 +75,23 @@ class ShadingPoint:
     material: np.ndarray
     smooth: bool = False
     media: object = None
+    alpha_floor: np.ndarray | None = None
+    glossy_off: np.ndarray | None = None
 
     def __getitem__(self, span: slice) -> "ShadingPoint":
         """The hits in `span` (views: a medium stack updated through them updates the paths')."""
         media = None if self.media is None else self.media[span]
         return ShadingPoint(self.wo[:, span], self.n[:, span], self.ng[:, span], self.normal[:, span],
-                            self.color[:, span], self.material[span], self.smooth, media)
+                            self.color[:, span], self.material[span], self.smooth, media,
+                            *(None if a is None else a[span] for a in (self.alpha_floor, self.glossy_off)))
 
     def take(self, index: np.ndarray) -> "ShadingPoint":
         """The hits `index` (copies; no medium stack: for evaluating directions only)."""
         def cols(a):
             return a.take(index, axis=1)
         return ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
-                            self.material.take(index), self.smooth)
+                            self.material.take(index), self.smooth, None,
+                            *(None if a is None else a.take(index) for a in (self.alpha_floor, self.glossy_off)))
 
     def __len__(self) -> int:
         return self.wo.shape[1]

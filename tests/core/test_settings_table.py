@@ -144,9 +144,10 @@ def dataclass_problems(rows):
     return out
 
 
-def cli_problems(name, front, rows, parser, base, settings_after):
-    """Every row of `front` has a flag; no flags give the row's default; the flag makes another
-    value; the limits and choices offered are the row's; no flag without a row."""
+def cli_problems(name, front, rows, parser, base, settings_after, unflagged=lambda s: s.default):
+    """Every row of `front` has a flag; no flags give the row's default (unflagged(row): what the
+    command line makes of a flag not given); the flag makes another value; the limits and choices
+    offered are the row's; no flag without a row."""
     out = []
     defaults = settings_after(parse(parser, base))
     for s in rows:
@@ -155,8 +156,9 @@ def cli_problems(name, front, rows, parser, base, settings_after):
         if s.flag is None:
             out.append(f"{name}: {s.name} declares it but has no flag")
             continue
-        if not same(getattr(defaults, s.name), s.default):
-            out.append(f"{name}: {s.name} without its flag is {getattr(defaults, s.name)!r}, the row says {s.default!r}")
+        if not same(getattr(defaults, s.name), unflagged(s)):
+            out.append(f"{name}: {s.name} without its flag is {getattr(defaults, s.name)!r}, the row says "
+                       f"{unflagged(s)!r}")
         value = other_value(s)
         args = parse(parser, base + flag_argv(s, value))
         if args is None or not same(getattr(settings_after(args), s.name), value):
@@ -184,8 +186,9 @@ def addon_cli_problems(rows):
                 apply_pass_options(scene, args.passes, args.denoise)
                 result.passes = tuple(p for p in enabled_passes(scene, scene.view_layers[0]) if p != "noisy")
             return result
+    fair = table.preset_values(table.FAIR)          # the default preset; the rest keeps a new file's values
     return cli_problems("python -m mcrt_addon", ADDON_CLI, rows, build_parser(), ["render", "f.blend", "-o", "o.exr"],
-                        settings_after)
+                        settings_after, unflagged=lambda s: fair.get(s.name, s.blender_default))
 
 
 def blender_problems(rows):
@@ -218,16 +221,16 @@ def blender_problems(rows):
             if not (same(p.hard_min, float(low)) and same(p.hard_max, float(s.limits[1]))):
                 out.append(f"{name}.{s.blender_prop}: limits ({p.hard_min}, {p.hard_max}), the row says "
                            f"({low}, {s.limits[1]})")
-            if not toggle and not same(p.default, s.default):
-                out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.default!r}")
+            if not toggle and not same(p.default, s.blender_default):
+                out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.blender_default!r}")
         elif s.kind == CHOICE:
             items = [(i.identifier, i.name, i.description) for i in p.enum_items]
             if items != [(c.identifier, c.label, c.description) for c in s.choices]:
                 out.append(f"{name}.{s.blender_prop}: items {items}, the row says {s.choices}")
             if p.default != s.identifier(s.default):
                 out.append(f"{name}.{s.blender_prop}: default {p.default}, the row says {s.default!r}")
-        elif p.default != s.default:
-            out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.default!r}")
+        elif p.default != s.blender_default:
+            out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.blender_default!r}")
     extra = sorted(set(rna.keys()) - wanted)
     if extra:
         out.append(f"{name} has properties that are no row of the table: {extra}")
@@ -236,8 +239,8 @@ def blender_problems(rows):
         props = scene.tncg15
         defaults = props.to_settings(RenderSettings)
         for s in rows:
-            if BLENDER in s.fronts and not same(getattr(defaults, s.name), s.default):
-                out.append(f"to_settings(): {s.name} = {getattr(defaults, s.name)!r}, the row says {s.default!r}")
+            if BLENDER in s.fronts and not same(getattr(defaults, s.name), s.blender_default):
+                out.append(f"to_settings(): {s.name} = {getattr(defaults, s.name)!r}, the row says {s.blender_default!r}")
         for s in rows:
             if BLENDER not in s.fronts or s.blender_prop not in rna:
                 continue
@@ -353,6 +356,7 @@ DRIFTS = {
     "label": (edited("max_depth", label="Max Depth"), {BLENDER}),
     "panel": (edited("seed", panel="Sampling > Render"), {"panels"}),
     "bool": (edited("adaptive", default=False), {"RenderSettings", ENGINE_CLI, ADDON_CLI, BLENDER}),
+    "cycles default": (edited("clamp_indirect", cycles=5.0), {BLENDER}),
 }
 
 

@@ -42,7 +42,8 @@ def test_diffuse_only_scene_never_runs_sphere_or_refraction_code(spies):
                   "mirror": False, "glass": False, "glossy": False, "principled": False, "rough_diffuse": False, "emission": True,
                   "direct_light": True,
                   "solid_angle": True,
-                  "light_tree": False, "mis": True, "passes": False, "textures": False}
+                  "light_tree": False, "mis": True, "passes": False, "textures": False,
+                  "bounce_limits": False, "clamp": False, "filter_glossy": False, "caustics": False}
     assert "never evaluated" in result.stats["effects_reason"]["glass"]
     assert EXPECTED_KEYS <= set(result.stats)
     assert set(result.stats["rays"]) == {"camera", "extension", "shadow"}
