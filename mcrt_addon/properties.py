@@ -96,9 +96,16 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
 
 def apply_preset(props, name):
     """A preset of the settings table (engine/core/settings.py preset_values: "fair" or "cycles")
-    onto scene.tncg15."""
-    for setting, value in TABLE.preset_values(name).items():
+    onto scene.tncg15.  "fair" also gives the other rows with a Cycles default (the total, Max
+    Bounces) the table's default where the file does not set them: a file saved before those rows
+    had Cycles' defaults renders as it did."""
+    values = TABLE.preset_values(name)
+    for setting, value in values.items():
         props.set_setting(TABLE.SETTING[setting], value)
+    if name == TABLE.FAIR:
+        for s in SCENE_SETTINGS:
+            if s.cycles is not None and s.name not in values and not props.is_property_set(s.blender_prop):
+                props.set_setting(s, s.default)
 
 
 class TNCG15ViewLayerSettings(bpy.types.PropertyGroup):

@@ -144,10 +144,9 @@ def dataclass_problems(rows):
     return out
 
 
-def cli_problems(name, front, rows, parser, base, settings_after, unflagged=lambda s: s.default):
-    """Every row of `front` has a flag; no flags give the row's default (unflagged(row): what the
-    command line makes of a flag not given); the flag makes another value; the limits and choices
-    offered are the row's; no flag without a row."""
+def cli_problems(name, front, rows, parser, base, settings_after):
+    """Every row of `front` has a flag; no flags give the row's default; the flag makes another
+    value; the limits and choices offered are the row's; no flag without a row."""
     out = []
     defaults = settings_after(parse(parser, base))
     for s in rows:
@@ -156,9 +155,8 @@ def cli_problems(name, front, rows, parser, base, settings_after, unflagged=lamb
         if s.flag is None:
             out.append(f"{name}: {s.name} declares it but has no flag")
             continue
-        if not same(getattr(defaults, s.name), unflagged(s)):
-            out.append(f"{name}: {s.name} without its flag is {getattr(defaults, s.name)!r}, the row says "
-                       f"{unflagged(s)!r}")
+        if not same(getattr(defaults, s.name), s.default):
+            out.append(f"{name}: {s.name} without its flag is {getattr(defaults, s.name)!r}, the row says {s.default!r}")
         value = other_value(s)
         args = parse(parser, base + flag_argv(s, value))
         if args is None or not same(getattr(settings_after(args), s.name), value):
@@ -186,9 +184,8 @@ def addon_cli_problems(rows):
                 apply_pass_options(scene, args.passes, args.denoise)
                 result.passes = tuple(p for p in enabled_passes(scene, scene.view_layers[0]) if p != "noisy")
             return result
-    fair = table.preset_values(table.FAIR)          # the default preset; the rest keeps a new file's values
     return cli_problems("python -m mcrt_addon", ADDON_CLI, rows, build_parser(), ["render", "f.blend", "-o", "o.exr"],
-                        settings_after, unflagged=lambda s: fair.get(s.name, s.blender_default))
+                        settings_after)
 
 
 def blender_problems(rows):
