@@ -13,6 +13,7 @@ import pytest
 from imagecompare import compare_runs
 import bpy
 from rendering import DEPTH, K, RES, SPP, open_blend, render_operator, tncg15_runs
+from engine.core.settings import CYCLES, preset_values
 from mcrt_addon.export import export_scene
 from mcrt_addon.reference import setup_cycles_reference
 
@@ -36,6 +37,8 @@ CASES = {            # name: (sample file, the options in the tracer's terms, an
     "caustics": ("mirror_glass", dict(caustics_reflective=False, caustics_refractive=False), None),
     "clamp": ("mirror_glass", dict(clamp_direct=4.0, clamp_indirect=0.25), None),
     "filter_glossy": ("glossy_plates", dict(filter_glossy=1.0), sharp_plates),
+    # Cycles' defaults but the total (the method's 8): what F12 renders in a new file, both engines
+    "cycles_defaults": ("glossy_plates", {k: v for k, v in preset_values(CYCLES).items() if k != "max_depth"}, None),
 }
 _cycles = {}
 
