@@ -79,9 +79,10 @@ class LightPaths:
         self.caustics = bool(plan.enabled.get("caustics"))
         self.reflective, self.refractive = settings.caustics_reflective, settings.caustics_refractive
         flags = [int(b.flags) for b in bsdfs]
-        # Groups without a diffuse lobe: every reflection lobe is glossy or a mirror, every
+        # Groups with lobes but no diffuse one: every reflection lobe is glossy or a mirror, every
         # transmission lobe a refraction.  Those with both (Principled) filter their own lobes.
-        self.specular_only = np.array([not f & BSDFFlags.DIFFUSE for f in flags] + [False, False])
+        sides = BSDFFlags.REFLECTION | BSDFFlags.TRANSMISSION
+        self.specular_only = np.array([bool(f & sides) and not f & BSDFFlags.DIFFUSE for f in flags] + [False, False])
         self.reflects = np.array([bool(f & BSDFFlags.REFLECTION) for f in flags] + [False, False])
         self.transmits = np.array([bool(f & BSDFFlags.TRANSMISSION) for f in flags] + [False, False])
 
@@ -119,6 +120,8 @@ class LightPaths:
     def no_closure(self, group: np.ndarray, after_diffuse: np.ndarray) -> np.ndarray:
         """(N,) hits of a BSDF without a diffuse lobe whose every lobe is left out: black there."""
         gone = self.specular_only.take(group) & after_diffuse
+        if self.reflective and self.refractive:
+            return np.zeros_like(gone)
         if self.reflective:
             gone &= ~self.reflects.take(group)
         if self.refractive:

@@ -80,6 +80,8 @@ def test_caustics_leave_out_the_lobes_of_each_bsdf():
         paths = lp.LightPaths(settings, plan_effects(BUILTIN_SCENES["cornell"](), settings), table.bsdfs)
         return {kinds[g] for g in np.flatnonzero(paths.no_closure(group, after))}
     assert gone() == set()
+    assert not lp.LightPaths(RenderSettings(caustics_reflective=False), plan_effects(BUILTIN_SCENES["cornell"](),
+                             RenderSettings()), [type("NoLobes", (), {"flags": BSDFFlags.NONE})()]).specular_only[0]
     assert gone(caustics_reflective=False) == {"mirror", "glossy"}
     assert gone(caustics_refractive=False) == set()
     assert gone(caustics_reflective=False, caustics_refractive=False) == {"mirror", "glossy", "glass"}
