@@ -5,7 +5,7 @@ scene settings into the tracer's ``RenderSettings`` and back.  The scene's prope
 from the tracer's settings table (engine/core/settings.py, read through bridge.py without numpy):
 one bpy property per row that Blender exposes, with the row's label, default and limits; a row
 whose 0 means off (noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.  A row with a
-Cycles default (the Light Paths options) starts a new file at Cycles' value (`Setting.blender_default`);
+Cycles default (the Light Paths options) starts a new file at Cycles' value (`Setting.new_file_default`);
 `apply_preset` sets the command lines' presets (fair, cycles) onto a scene.
 """
 import bpy
@@ -34,18 +34,18 @@ SPHERE_ITEMS = (
 def scene_property(s):
     """The bpy property of one row of the table."""
     common = dict(name=s.label, description=s.description or s.help, **s.bpy_options)
+    default = s.new_file_default
     if s.kind == TABLE.INT:
-        return IntProperty(default=s.blender_default, min=s.limits[0], max=s.limits[1], **common)
+        return IntProperty(default=default, min=s.limits[0], max=s.limits[1], **common)
     if s.kind == TABLE.FLOAT:
+        low = s.limits[0]
         if s.off_toggle is not None:
             low, default = s.off_toggle.on_min, s.off_toggle.on_default
-        else:
-            low, default = s.limits[0], s.blender_default
         return FloatProperty(default=default, min=low, max=s.limits[1], **common)
     if s.kind == TABLE.BOOL:
-        return BoolProperty(default=s.blender_default, **common)
+        return BoolProperty(default=default, **common)
     if s.kind == TABLE.CHOICE:
-        return EnumProperty(items=enum_items(s), default=s.identifier(s.default), **common)
+        return EnumProperty(items=enum_items(s), default=s.identifier(default), **common)
     raise TypeError(f"setting {s.name}: no Blender property for a {s.kind} setting")
 
 
@@ -96,16 +96,13 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
 
 def apply_preset(props, name):
     """A preset of the settings table (engine/core/settings.py preset_values: "fair" or "cycles")
-    onto scene.tncg15.  "fair" also gives the other rows with a Cycles default (the total, Max
-    Bounces) the table's default where the file does not set them: a file saved before those rows
-    had Cycles' defaults renders as it did."""
-    values = TABLE.preset_values(name)
-    for setting, value in values.items():
+    onto scene.tncg15.  "fair" also gives the total (Max Bounces) the table's default where the
+    file does not set it: a file saved before it had Cycles' default renders as it did."""
+    for setting, value in TABLE.preset_values(name).items():
         props.set_setting(TABLE.SETTING[setting], value)
-    if name == TABLE.FAIR:
-        for s in SCENE_SETTINGS:
-            if s.cycles is not None and s.name not in values and not props.is_property_set(s.blender_prop):
-                props.set_setting(s, s.default)
+    total = TABLE.SETTING["max_depth"]
+    if name == TABLE.FAIR and not props.is_property_set(total.blender_prop):
+        props.set_setting(total, total.default)
 
 
 class TNCG15ViewLayerSettings(bpy.types.PropertyGroup):

@@ -32,10 +32,10 @@ def value_text(s, value) -> str:
 
 
 def default_text(s) -> str:
-    """The default; a row with a Cycles default also shows it (a new .blend file, --preset cycles)."""
+    """The default; and a new Blender file's where it differs (Cycles' default)."""
     text = value_text(s, s.default)
-    if s.cycles is not None:
-        text += f" (Cycles: {value_text(s, s.cycles)})"
+    if s.blender_default is not None:
+        text += f" (new Blender files: {value_text(s, s.blender_default)})"
     return text
 
 
@@ -85,8 +85,8 @@ def markdown() -> str:
         "* A switch (`--nested-dielectrics`, `--no-adaptive`) flips the setting from its default.",
         "* Presets (`--preset`, both command lines): `fair` (the default) gives the Light Paths rows",
         f"  ({', '.join(f'`{n}`' for n in table.LIGHT_PATH_SPEEDUPS)}) their defaults here: the",
-        "  reference settings; `cycles` gives every row Cycles' default, shown as \"(Cycles: ...)\",",
-        "  which is also what a new .blend file starts with in Blender.  `python -m mcrt_addon` also takes",
+        "  reference settings; `cycles` gives every row Cycles' default, shown as \"(new Blender files: ...)\",",
+        "  which is what a new .blend file starts with in Blender.  `python -m mcrt_addon` also takes",
         "  `--preset file`: the file's own values.  A flag given wins over the preset.",
         "* Stats: how `--stats-json` lists the setting: *as set*, *as resolved* (what the render made of",
         "  it, e.g. `threads` 0 as the number of cores), or not at all.",

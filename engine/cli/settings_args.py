@@ -72,7 +72,7 @@ def add_setting_arguments(parser, settings, table_defaults: bool = True, any_cas
         if s.kind == BOOL:
             parser.add_argument(s.flag, action="store_true", help=help_text)
             continue
-        default = s.default if (table_defaults and s.cycles is None) or s.kind == CHOICES else None
+        default = s.default if (table_defaults and s.blender_default is None) or s.kind == CHOICES else None
         options = dict(default=default, help=help_text)
         if s.metavar:
             options["metavar"] = s.metavar

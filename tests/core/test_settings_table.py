@@ -218,16 +218,16 @@ def blender_problems(rows):
             if not (same(p.hard_min, float(low)) and same(p.hard_max, float(s.limits[1]))):
                 out.append(f"{name}.{s.blender_prop}: limits ({p.hard_min}, {p.hard_max}), the row says "
                            f"({low}, {s.limits[1]})")
-            if not toggle and not same(p.default, s.blender_default):
-                out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.blender_default!r}")
+            if not toggle and not same(p.default, s.new_file_default):
+                out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.new_file_default!r}")
         elif s.kind == CHOICE:
             items = [(i.identifier, i.name, i.description) for i in p.enum_items]
             if items != [(c.identifier, c.label, c.description) for c in s.choices]:
                 out.append(f"{name}.{s.blender_prop}: items {items}, the row says {s.choices}")
             if p.default != s.identifier(s.default):
                 out.append(f"{name}.{s.blender_prop}: default {p.default}, the row says {s.default!r}")
-        elif p.default != s.blender_default:
-            out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.blender_default!r}")
+        elif p.default != s.new_file_default:
+            out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.new_file_default!r}")
     extra = sorted(set(rna.keys()) - wanted)
     if extra:
         out.append(f"{name} has properties that are no row of the table: {extra}")
@@ -236,8 +236,9 @@ def blender_problems(rows):
         props = scene.tncg15
         defaults = props.to_settings(RenderSettings)
         for s in rows:
-            if BLENDER in s.fronts and not same(getattr(defaults, s.name), s.blender_default):
-                out.append(f"to_settings(): {s.name} = {getattr(defaults, s.name)!r}, the row says {s.blender_default!r}")
+            if BLENDER in s.fronts and not same(getattr(defaults, s.name), s.new_file_default):
+                out.append(f"to_settings(): {s.name} = {getattr(defaults, s.name)!r}, the row says "
+                           f"{s.new_file_default!r}")
         for s in rows:
             if BLENDER not in s.fronts or s.blender_prop not in rna:
                 continue
@@ -353,7 +354,7 @@ DRIFTS = {
     "label": (edited("max_depth", label="Max Depth"), {BLENDER}),
     "panel": (edited("seed", panel="Sampling > Render"), {"panels"}),
     "bool": (edited("adaptive", default=False), {"RenderSettings", ENGINE_CLI, ADDON_CLI, BLENDER}),
-    "cycles default": (edited("clamp_indirect", cycles=5.0), {BLENDER}),
+    "new file default": (edited("clamp_indirect", blender_default=5.0), {BLENDER}),
 }
 
 
