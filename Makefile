@@ -3,6 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+BLENDER ?= blender
 
 .PHONY: setup render test test-slow test-all bench bench-estimators study extension samples clean
 
@@ -44,8 +45,10 @@ study: $(STAMP)
 extension: $(STAMP)
 	$(PY) scripts/build_extension.py
 
-samples: $(STAMP)
-	$(PY) sample_blends/make_samples.py
+# The sample .blend files, saved by a Blender 3.4 binary (Debian's `blender`; BLENDER=... for
+# another) so that 3.4 and every newer Blender open them, with TNCG15 MC as their render engine.
+samples:
+	$(BLENDER) -b --factory-startup --python-exit-code 1 --python sample_blends/make_samples.py --
 
 clean:
 	rm -rf renders .pytest_cache

@@ -80,7 +80,8 @@ def build_parser():
 def apply_tncg15_settings(props, args):
     """The settings given on the command line onto the scene's properties (mcrt_addon/properties.py);
     the others keep the file's values, but for the Light Paths rows of --preset (fair: the
-    reference settings; file: the file's).  --passes is the view layer's (mcrt_addon/passes.py)."""
+    reference settings; file: the file's).  --passes is the view layer's (mcrt_addon/passes.py);
+    --film-transparent is Blender's scene.render.film_transparent."""
     table = bridge.settings_table()
     preset = getattr(args, "preset", "file")
     if preset != "file":
@@ -88,6 +89,8 @@ def apply_tncg15_settings(props, args):
     given = bridge.module("cli.settings_args").setting_values(args, properties.SCENE_SETTINGS, given_only=True)
     for name, value in given.items():
         props.set_setting(table.SETTING[name], value)
+    if getattr(args, "film_transparent", False):     # Blender's own Film > Transparent
+        props.id_data.render.film_transparent = True
 
 
 def error(message, code=2):
@@ -191,8 +194,11 @@ def render_in(args, blend, outputs, stop, private):
     props = scene.tncg15
     apply_tncg15_settings(props, args)
     if args.engine == "CYCLES":
+        from mcrt_addon.reference import FilmSettings
         setup_cycles_reference(scene, samples=props.samples, max_depth=props.max_depth, seed=props.seed,
-                               threads=props.threads, **{name: getattr(props, name) for name in LIGHT_PATHS})
+                               threads=props.threads,
+                               film=FilmSettings.of(props.to_settings(bridge.settings_class())),
+                               **{name: getattr(props, name) for name in LIGHT_PATHS})
     else:
         scene.render.engine = "TNCG15_MC"
     rendered = os.path.join(private, "render.exr")
@@ -227,10 +233,15 @@ def render_in(args, blend, outputs, stop, private):
     try:
         if layered:
             from mcrt_addon.passes import passes_from_channels
-            image, passes = passes_from_channels(bridge.module("film.passes").read_multilayer_exr(rendered), args.passes)
+            channels = bridge.module("film.passes").read_multilayer_exr(rendered)
+            image, passes = passes_from_channels(channels, args.passes)
+            if scene.render.film_transparent:           # premultiplied RGBA, as Blender wrote it
+                import numpy as np
+                image = np.concatenate([image, channels["ViewLayer.Combined.A"][..., None]], axis=-1)
             write_outputs(outputs, image, stats, passes)
         else:
-            write_outputs(outputs, bridge.module("film.image_files").read_image(rendered)[..., :3], stats)
+            image = bridge.module("film.image_files").read_image(rendered)
+            write_outputs(outputs, image[..., :4] if scene.render.film_transparent else image[..., :3], stats)
     except (bridge.module("film.output").OutputError, OSError) as exc:
         return error(exc, 1)
     print(f"{args.engine}: wrote {', '.join(o.path for o in outputs)} in {wall:.2f} s "

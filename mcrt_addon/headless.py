@@ -6,7 +6,7 @@ def set_exr_output(scene, path):
     settings = scene.render.image_settings
     settings.file_format = "OPEN_EXR"
     settings.color_depth = "32"
-    settings.color_mode = "RGB"
+    settings.color_mode = "RGBA" if scene.render.film_transparent else "RGB"   # Film > Transparent: alpha
     settings.exr_codec = "ZIP"
     scene.render.filepath = path
     scene.render.use_file_extension = False

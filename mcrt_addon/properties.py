@@ -3,10 +3,12 @@
 Mirrors Cycles' ``properties.py``: plain PropertyGroups, no behaviour except converting the
 scene settings into the tracer's ``RenderSettings`` and back.  The scene's properties are made
 from the tracer's settings table (engine/core/settings.py, read through bridge.py without numpy):
-one bpy property per row that Blender exposes, with the row's label, default and limits; a row
-whose 0 means off (noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.  A row with a
-Cycles default (the Light Paths options) starts a new file at Cycles' value (`Setting.new_file_default`);
-`apply_preset` sets the command lines' presets (fair, cycles) onto a scene.
+one bpy property per row that Blender exposes, with the row's label, default (Cycles' default
+where the row names one for new files: the pixel filter, the Light Paths options) and limits; a row
+whose 0 means off (noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.  Two
+settings are Blender's own, read where Cycles reads them: Film > Transparent
+(scene.render.film_transparent) and the frame that the animated seed hashes with the seed
+(scene.frame_current).  `apply_preset` sets the command lines' presets (fair, cycles) onto a scene.
 """
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
@@ -91,6 +93,10 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
         """The tracer's RenderSettings for these values (the class is passed in: the tracer loads lazily)."""
         settings = settings_cls(**{s.name: self.setting(s) for s in SCENE_SETTINGS})
         settings.min_samples = min(settings.min_samples, settings.samples)    # the panel lets Min exceed Max
+        scene = self.id_data
+        settings.film_transparent = bool(scene.render.film_transparent)
+        if settings.animated_seed:                  # Cycles: hash_uint2(frame, seed)
+            settings.seed = TABLE.animated_seed(settings.seed, scene.frame_current)
         return settings
 
 

@@ -2,12 +2,30 @@
 
 Box filter of width 1 px (pixels independent, as the tracer's jittered box), no clamping, no
 denoising, no adaptive sampling, Filter Glossy 0, light threshold 0, caustics on, every bounce
-limit = max_depth, Standard view transform, fixed seed, CPU.
+limit = max_depth, Standard view transform, fixed seed, CPU.  `film` (FilmSettings) replaces the
+box, opaque, unscaled film with TNCG15 MC's film settings, so that the two renderers can be compared
+at equal film settings (the add-on command line's --engine CYCLES does).
 
 The Light Paths options (LIGHT_PATHS, the settings table's rows of engine/core/settings.py) can
 be given in the tracer's terms, so that Cycles renders with the values TNCG15 MC renders with
 (`python -m mcrt_addon render --engine CYCLES`); each one not given keeps the fair value above.
 """
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class FilmSettings:
+    """Cycles' film options in the tracer's terms (engine/core/settings.py FILM rows)."""
+    pixel_filter: str = "box"           # box | gaussian | blackman-harris
+    filter_width: float = 1.0
+    exposure: float = 1.0
+    transparent: bool = False
+
+    @classmethod
+    def of(cls, settings):
+        """The film of a RenderSettings."""
+        return cls(settings.pixel_filter, settings.filter_width, settings.film_exposure, settings.film_transparent)
+
 
 # The settings table's rows handed to Cycles: tracer name -> Cycles' property.
 LIGHT_PATHS = {"diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
@@ -23,7 +41,7 @@ def _set(obj, name, value):
         setattr(obj, name, value)
 
 
-def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0, **light_paths):
+def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0, film=FilmSettings(), **light_paths):
     scene.render.engine = "CYCLES"
     c = scene.cycles
     _set(c, "device", "CPU")
@@ -49,15 +67,17 @@ def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0, **li
         setattr(c, prop, min(int(value), CYCLES_MAX_BOUNCES) if prop.endswith("bounces") else value)
     _set(c, "min_light_bounces", 0)
     _set(c, "min_transparent_bounces", 0)
-    c.pixel_filter_type = "BOX"
-    c.filter_width = 1.0
+    c.pixel_filter_type = film.pixel_filter.upper().replace("-", "_")
+    c.filter_width = film.filter_width
+    c.film_exposure = film.exposure
+    c.film_transparent_glass = False
     c.seed = int(seed)
     c.use_animated_seed = False
     _set(c, "use_guiding", False)
     _set(c, "sample_offset", 0)
     _set(c, "use_auto_tile", False)
     _set(c, "use_layer_samples", "IGNORE")
-    scene.render.film_transparent = False
+    scene.render.film_transparent = film.transparent
     scene.render.threads_mode = "AUTO" if not threads else "FIXED"
     if threads:
         scene.render.threads = int(threads)

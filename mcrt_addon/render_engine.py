@@ -73,12 +73,12 @@ def border_rect(render, width, height):
 
 
 def to_rgba_bottom_up(pixels):
-    """Tracer tile (h, w, 3), row 0 = top -> flat float32 RGBA, row 0 = bottom (Blender's order)."""
+    """Tracer tile (h, w, 3), or (h, w, 4) with a transparent film's alpha, row 0 = top -> flat
+    float32 RGBA, row 0 = bottom (Blender's order)."""
     import numpy as np
     h, w = pixels.shape[:2]
-    rgba = np.empty((h, w, 4), np.float32)
-    rgba[..., :3] = pixels[::-1]
-    rgba[..., 3] = 1.0
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :pixels.shape[-1]] = pixels[::-1]
     bad = ~np.isfinite(rgba)
     if bad.any():
         rgba[bad] = 0.0
@@ -331,6 +331,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         import numpy as np
         passes = dict(getattr(result, "passes", {}) or {})
         image = np.asarray(result.image, dtype=np.float32)
+        alpha = getattr(result, "alpha", None)          # a transparent film's (Combined is premultiplied)
         if "noisy" in wanted:
             self._stats("TNCG15 MC | Denoising")
             python = worker_python.worker_python(worker_python.preferred_python())[0]
@@ -346,6 +347,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
                 passes["noisy"], image = image, denoised
                 result.stats["denoised"] = True
                 result.stats["denoise_seconds"] = time.perf_counter() - t0
+        if alpha is not None:
+            image = np.concatenate([image, np.asarray(alpha, dtype=np.float32)[..., None]], axis=-1)
         self.last.passes = addon_passes.write_frame(self, width, height, image, passes)
 
     def _start_workers(self, settings):

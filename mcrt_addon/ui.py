@@ -1,5 +1,6 @@
 """Panels, laid out as Cycles lays out its render properties: Sampling (Viewport, Render, Lights,
-Advanced), Light Paths (Max Bounces, Clamping, Caustics), Performance, Denoising, View Layer passes,
+Advanced), Light Paths (Max Bounces, Clamping, Caustics), Film (Pixel Filter, Transparent), Performance,
+Denoising, View Layer passes,
 plus an object panel for the implicit-sphere option.  Also lends our engine id to Blender's generic
 panels (output, dimensions, camera, light, material and world surface) the way the RenderEngine
 documentation template does.
@@ -103,7 +104,9 @@ class RENDER_PT_tncg15_sampling_advanced(TNCG15SamplingChild, bpy.types.Panel):
         layout = split(self.layout)
         props = context.scene.tncg15
         layout.prop(props, "sampler")
-        layout.prop(props, "seed")
+        row = layout.row(align=True)
+        row.prop(props, "seed")
+        row.prop(props, "use_animated_seed", text="", icon="TIME")
 
 
 class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):
@@ -163,6 +166,41 @@ class RENDER_PT_tncg15_light_paths_caustics(TNCG15LightPathsChild, bpy.types.Pan
         col = layout.column(heading="Caustics", align=True)
         col.prop(props, "caustics_reflective", text="Reflective")
         col.prop(props, "caustics_refractive", text="Refractive")
+
+
+class RENDER_PT_tncg15_film(TNCG15ButtonsPanel, bpy.types.Panel):
+    """Film, as Cycles': Exposure (a linear scale), then Pixel Filter and Transparent."""
+    bl_label = "Film"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        split(self.layout).prop(context.scene.tncg15, "film_exposure")
+
+
+class RENDER_PT_tncg15_film_pixel_filter(TNCG15ButtonsPanel, bpy.types.Panel):
+    bl_label = "Pixel Filter"
+    bl_parent_id = "RENDER_PT_tncg15_film"
+
+    def draw(self, context):
+        col = split(self.layout).column()
+        props = context.scene.tncg15
+        col.prop(props, "pixel_filter_type", text="Type")
+        col.prop(props, "filter_width")
+
+
+class RENDER_PT_tncg15_film_transparency(TNCG15ButtonsPanel, bpy.types.Panel):
+    """Blender's Film > Transparent (scene.render.film_transparent), which Cycles reads too."""
+    bl_label = "Transparent"
+    bl_parent_id = "RENDER_PT_tncg15_film"
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.render, "film_transparent", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.active = context.scene.render.film_transparent
+        layout.label(text="Alpha from the camera rays that see the world")
+        layout.label(text="Glass stays opaque (no Transparent Glass)")
 
 
 class RENDER_PT_tncg15_performance(TNCG15ButtonsPanel, bpy.types.Panel):
@@ -271,7 +309,8 @@ class DATA_PT_tncg15_light(TNCG15ButtonsPanel, bpy.types.Panel):
 classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_sampling_viewport, RENDER_PT_tncg15_sampling_render,
            RENDER_PT_tncg15_sampling_lights, RENDER_PT_tncg15_sampling_advanced, RENDER_PT_tncg15_light_paths,
            RENDER_PT_tncg15_light_paths_max_bounces, RENDER_PT_tncg15_light_paths_clamping,
-           RENDER_PT_tncg15_light_paths_caustics, RENDER_PT_tncg15_performance,
+           RENDER_PT_tncg15_light_paths_caustics, RENDER_PT_tncg15_film, RENDER_PT_tncg15_film_pixel_filter,
+           RENDER_PT_tncg15_film_transparency, RENDER_PT_tncg15_performance,
            RENDER_PT_tncg15_denoise, VIEWLAYER_PT_tncg15_passes, OBJECT_PT_tncg15, DATA_PT_tncg15_light)
 
 _lent = []   # panels we added our engine id to, so unregister removes exactly those

@@ -131,9 +131,14 @@ class TNCG15Preferences(bpy.types.AddonPreferences):
 
 
 def documentation_path():
-    """docs/user-guide.md beside the add-on (a repository checkout), or None."""
-    guide = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "docs", "user-guide.md")
-    return guide if os.path.isfile(guide) else None
+    """The user guide: docs/user-guide.md inside the add-on (the zips ship docs/*.md:
+    scripts/build_extension.py) or beside it (a repository checkout), or None."""
+    here = os.path.dirname(os.path.realpath(__file__))    # an add-on folder linked to a checkout too
+    for guide in (os.path.join(here, "docs", "user-guide.md"),
+                  os.path.join(os.path.dirname(here), "docs", "user-guide.md")):
+        if os.path.isfile(guide):
+            return guide
+    return None
 
 
 def register():

@@ -6,6 +6,10 @@ Runs with the bpy module (Blender 5.0) or inside a Blender binary (Debian's 3.4 
   .venv/bin/python sample_blends/make_samples.py [--outdir DIR] [--only NAME ...] [--resolution W H]
   blender -b --factory-startup --python sample_blends/make_samples.py -- --outdir DIR
 
+The committed files are made by `make samples`: Debian's Blender 3.4 (files saved by 3.4 open in
+3.4 and in every newer Blender, files saved by 5.0 do not open in 3.4), each with TNCG15 MC as its
+render engine (use_tncg15; tests/addon/test_sample_files.py checks both).
+
 Only the bpy data API and bmesh are used (no operators), so the script is independent of the UI
 context and of the Blender version.  Meshes are small in the file: the heavy Suzannes are
 Subdivision modifiers evaluated at render time.
@@ -38,6 +42,10 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
   rough_diffuse  the diffuse_room with Diffuse BSDF Roughness 0.8 on every wall and box (Oren-Nayar)
   principled_default  a cube with Blender's default material (Principled BSDF, all defaults) in the
                  Cornell room
+  principled_balls  a wall of Principled balls: roughness 0.15 / 0.4 / 0.8 x metallic 0 / 0.5 / 1, and
+                 a column with clearcoat, sheen and both, in the Cornell room
+  principled_grid  Principled BSDF balls: roughness 0.1, 0.3, 0.55, 0.8 across; rows dielectric,
+                 metal, a tinted coat over white, sheen over dark blue; lit by an Area light
 Light-sampling stress scenes (plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -56,6 +64,8 @@ import bpy  # noqa: I001 - bpy must come before bmesh in the module build
 import bmesh
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+if os.path.dirname(HERE) not in sys.path:          # the add-on (use_tncg15) from this repository
+    sys.path.insert(0, os.path.dirname(HERE))
 V4 = bpy.app.version >= (4, 0, 0)
 DEFAULT_RES = (128, 128)
 
@@ -340,6 +350,34 @@ def make_glossy_plates(scene, res):
     settings(scene, res)
 
 
+def dielectric(name, kind, rgb, roughness, distribution, ior=1.5):
+    """A Glass or Refraction BSDF node material with the given roughness and distribution menu."""
+    mat = node_material(name, kind, Color=(*rgb, 1.0), Roughness=roughness, IOR=ior)
+    next(n for n in mat.node_tree.nodes if n.bl_idname != "ShaderNodeOutputMaterial").distribution = distribution
+    return mat
+
+
+def make_rough_glass(scene, res):
+    """A rough glass pane (Beckmann, roughness 0.35) in front of a lit window on the back wall, a
+    rough multiscatter-GGX glass ball (roughness 0.7) on the floor, and a translucent sheet under the
+    ceiling lamp (lit from behind) seen from below."""
+    mats = room(scene)
+    plane(scene, "Window", [(0.25, 0.99, 0.9), (0.65, 0.99, 0.9), (0.65, 0.99, 1.3), (0.25, 0.99, 1.3)],
+          emission("Window light", (1.0, 0.95, 0.9), 6.0))
+    mesh_object(scene, "Pane", lambda bm: cube(bm, 1.0),
+                dielectric("Ground glass", "ShaderNodeBsdfGlass", (0.95, 1.0, 0.97), 0.35, "BECKMANN"),
+                location=(0.45, 0.3, 1.1), scale=(0.7, 0.05, 0.7))
+    mesh_object(scene, "RoughBall", lambda bm: uv_sphere(bm, 0.35),
+                dielectric("Frosted", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0), 0.7, "MULTI_GGX"),
+                location=(-0.4, -0.1, 0.35), smooth=True)           # resting on the floor
+    plane(scene, "Sheet", [(-0.7, -0.6, 1.5), (-0.1, -0.6, 1.5), (-0.1, 0.2, 1.5), (-0.7, 0.2, 1.5)],
+          node_material("Paper", "ShaderNodeBsdfTranslucent", Color=(0.8, 0.75, 0.6, 1.0)))
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+    return mats
+
+
 def make_rough_diffuse(scene, res):
     make_diffuse_room(scene, res)
     for mat in bpy.data.materials:
@@ -352,6 +390,31 @@ def make_principled_default(scene, res):
     room(scene)
     mesh_object(scene, "Cube", lambda bm: cube(bm, 1.0), node_material("Material", "ShaderNodeBsdfPrincipled"),
                 location=(0.0, 0.2, 0.202), rotation=(0, 0, math.radians(30)), scale=(0.4, 0.4, 0.4))
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def make_principled_balls(scene, res):
+    """A wall of Principled balls in the Cornell room: rows of roughness 0.15 / 0.4 / 0.8 (bottom to
+    top) x columns of metallic 0 / 0.5 / 1, all orange, node defaults otherwise (Specular 0.5 in 3.x),
+    and a fourth column: clearcoat 1 (clearcoat roughness 0.1), sheen 1, both (3.x's sockets; 4.x+
+    name them Coat Weight / Sheen Weight)."""
+    room(scene)
+    orange = (0.8, 0.45, 0.2, 1.0)
+    for i, roughness in enumerate((0.15, 0.4, 0.8)):
+        for j, metallic in enumerate((0.0, 0.5, 1.0)):
+            mat = node_material(f"Ball r{roughness:g} m{metallic:g}", "ShaderNodeBsdfPrincipled",
+                                **{"Base Color": orange, "Metallic": metallic, "Roughness": roughness})
+            mesh_object(scene, f"Ball{i}{j}", lambda bm: uv_sphere(bm, 0.2, 32, 16), mat,
+                        location=(-0.72 + 0.48 * j, 0.2, 0.35 + 0.5 * i), smooth=True)
+    for i, (coat, sheen) in enumerate(((1.0, 0.0), (0.0, 1.0), (1.0, 1.0))):
+        mat = node_material(f"Coat {coat:g} sheen {sheen:g}", "ShaderNodeBsdfPrincipled",
+                            **{"Base Color": orange, "Roughness": 0.4, "Clearcoat": coat, "Coat Weight": coat,
+                               "Clearcoat Roughness": 0.1, "Coat Roughness": 0.1, "Sheen": sheen,
+                               "Sheen Weight": sheen})
+        mesh_object(scene, f"Coated{i}", lambda bm: uv_sphere(bm, 0.2, 32, 16), mat,
+                    location=(0.72, 0.2, 0.35 + 0.5 * i), smooth=True)
     camera(scene)
     black_world(scene)
     settings(scene, res)
@@ -639,6 +702,108 @@ def make_sky_lit(scene, res):
     settings(scene, res)
 
 
+def mix_material(name, fac, first, second):
+    """A Mix Shader of two shader nodes made by first(nodes) / second(nodes); fac: a number, or
+    factor(nodes, links) -> the output socket feeding the Fac."""
+    mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    for n in list(nodes):
+        nodes.remove(n)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    mix = nodes.new("ShaderNodeMixShader")
+    if callable(fac):
+        links.new(fac(nodes, links), mix.inputs[0])
+    else:
+        mix.inputs[0].default_value = fac
+    links.new(first(nodes).outputs[0], mix.inputs[1])
+    links.new(second(nodes).outputs[0], mix.inputs[2])
+    links.new(mix.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def bsdf_node(kind, **inputs):
+    def build(nodes):
+        node = nodes.new(kind)
+        for key, value in inputs.items():
+            node.inputs[key].default_value = value
+        return node
+    return build
+
+
+def make_mix_shader(scene, res):
+    """Mix Shaders of different BSDFs in the Cornell room (mcrt_addon/export/shader_mix.py):
+    * left ball: Diffuse red + Glossy (roughness 0.2) by a Layer Weight's Facing (blend 0.4);
+    * middle ball: Diffuse blue + Glossy (roughness 0.1) by a Fresnel node (IOR 1.45);
+    * right box: Glass (IOR 1.5) + Diffuse yellow at factor 0.5;
+    * floor: Diffuse grey + Glossy (roughness 0.15) by an Image Texture (an 8 x 8 sRGB checker of
+      2 x 2 squares, black / white, UVs 0..1)."""
+    room(scene)
+
+    def layer_weight(nodes, links):
+        node = nodes.new("ShaderNodeLayerWeight")
+        node.inputs["Blend"].default_value = 0.4
+        return node.outputs["Facing"]
+
+    def fresnel(nodes, links):
+        node = nodes.new("ShaderNodeFresnel")
+        node.inputs["IOR"].default_value = 1.45
+        return node.outputs["Fac"]
+    white_gloss = (0.9, 0.9, 0.9, 1.0)
+    mesh_object(scene, "FacingBall", lambda bm: uv_sphere(bm, 0.22, 32, 16),
+                mix_material("Facing mix", layer_weight, bsdf_node("ShaderNodeBsdfDiffuse", Color=(0.7, 0.1, 0.08, 1)),
+                             bsdf_node("ShaderNodeBsdfGlossy", Color=white_gloss, Roughness=0.2)),
+                location=(-0.5, 0.1, 0.22), smooth=True)
+    mesh_object(scene, "FresnelBall", lambda bm: uv_sphere(bm, 0.22, 32, 16),
+                mix_material("Fresnel mix", fresnel, bsdf_node("ShaderNodeBsdfDiffuse", Color=(0.1, 0.2, 0.7, 1)),
+                             bsdf_node("ShaderNodeBsdfGlossy", Color=white_gloss, Roughness=0.1)),
+                location=(0.0, 0.35, 0.22), smooth=True)
+    mesh_object(scene, "GlassBox", lambda bm: cube(bm, 1.0),
+                mix_material("Glass diffuse mix", 0.5, bsdf_node("ShaderNodeBsdfGlass", IOR=1.5, Roughness=0.0),
+                             bsdf_node("ShaderNodeBsdfDiffuse", Color=(0.75, 0.65, 0.15, 1))),
+                location=(0.5, -0.05, 0.25), rotation=(0, 0, math.radians(25)), scale=(0.3, 0.3, 0.5))
+    checker = packed_image("Mix checker", 8, 8, lambda x, y: (1.0, 1.0, 1.0) if (x // 2 + y // 2) % 2 else
+                           (0.0, 0.0, 0.0))
+
+    def texture(nodes, links):
+        node = nodes.new("ShaderNodeTexImage")
+        node.image, node.interpolation = checker, "Closest"
+        return node.outputs["Color"]
+    floor = bpy.data.objects["Floor"]
+    floor.data.materials[0] = mix_material("Checker mix", texture,
+                                           bsdf_node("ShaderNodeBsdfDiffuse", Color=(0.6, 0.6, 0.6, 1)),
+                                           bsdf_node("ShaderNodeBsdfGlossy", Color=white_gloss, Roughness=0.15))
+    set_uvs(floor, {"UVMap": [(0, 0), (1, 0), (1, 1), (0, 1)]})
+    camera(scene)
+PRINCIPLED_GRID_ROUGHNESS = (0.1, 0.3, 0.55, 0.8)
+# Rows from the top: (label, base colour, metallic, the layer's sockets).
+PRINCIPLED_GRID_ROWS = (
+    ("Dielectric", (0.8, 0.25, 0.15), 0.0, {}),
+    ("Metal", (0.95, 0.75, 0.45), 1.0, {}),
+    ("Coat", (0.8, 0.8, 0.8), 0.0, {"Coat Weight": 1.0, "Coat Roughness": 0.05, "Coat Tint": (0.9, 0.55, 0.25, 1.0)}),
+    ("Sheen", (0.04, 0.05, 0.12), 0.0, {"Sheen Weight": 1.0, "Sheen Roughness": 0.5}),
+)
+
+
+def make_principled_grid(scene, res):
+    """Principled BSDF balls (Blender 4.0+'s v2 sockets; 3.x reads what it has): four columns of
+    roughness, rows dielectric, metal, coated and sheen, lit by a 1.2 x 0.6 m Area light high in
+    front; in the Cornell room without its lamp, seen through a 70 mm lens."""
+    room(scene, ceiling_light=False)
+    light_object(scene, "Softbox", "AREA", (0.0, -1.4, 1.85), rotation=(math.radians(55), 0.0, 0.0),
+                 shape="RECTANGLE", size=1.2, size_y=0.6, energy=45.0, color=(1.0, 0.97, 0.92))
+    for row, (label, base, metallic, layer) in enumerate(PRINCIPLED_GRID_ROWS):
+        for col, roughness in enumerate(PRINCIPLED_GRID_ROUGHNESS):
+            kw = {"Base Color": (*base, 1.0), "Metallic": metallic, "Roughness": roughness, **layer}
+            mat = node_material(f"{label} {roughness:g}", "ShaderNodeBsdfPrincipled", **kw)
+            mesh_object(scene, f"Ball {label} {roughness:g}", lambda bm: uv_sphere(bm, 0.16, 48, 24), mat,
+                        location=(-0.63 + 0.42 * col, 0.0, 1.63 - 0.42 * row), smooth=True)
+    camera(scene, lens=70.0)
+    black_world(scene)
+    settings(scene, res)
+
+
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
@@ -660,13 +825,28 @@ SCENES = {
     "smooth": make_smooth,
     "glossy_plates": make_glossy_plates,
     "rough_diffuse": make_rough_diffuse,
+    "rough_glass": make_rough_glass,
     "principled_default": make_principled_default,
+    "mix_shader": make_mix_shader,
+    "principled_balls": make_principled_balls,
+    "principled_grid": make_principled_grid,
 }
+
+
+def use_tncg15(scene):
+    """TNCG15 MC as the file's render engine (F12 renders with it): the add-on of this repository
+    registered, in the bpy module or in a Blender binary (3.4's Python has no numpy: registration
+    needs none)."""
+    import mcrt_addon
+    from mcrt_addon.headless import ensure_registered
+    ensure_registered(mcrt_addon)
+    scene.render.engine = mcrt_addon.ui.ENGINE_ID
 
 
 def make(name, outdir, resolution=DEFAULT_RES):
     scene = reset()
     scene.name = name
+    use_tncg15(scene)                  # first: settings() then finds scene.tncg15
     SCENES[name](scene, resolution)
     path = os.path.join(outdir, f"{name}.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path, compress=True, check_existing=False)

@@ -7,7 +7,8 @@
    Blender ships) for each platform into ./wheels/ (gitignored);
 2. stages the extension: blender_manifest.toml (its ``wheels``/``platforms`` set to what was
    downloaded), the contents of mcrt_addon/ at the zip root, the tracer package engine/ copied
-   as the sub-package ``tracer/`` (the add-on imports it relatively; see mcrt_addon/bridge.py);
+   as the sub-package ``tracer/`` (the add-on imports it relatively; see mcrt_addon/bridge.py), the
+   user guide docs/*.md as ``docs/`` (the preferences' Documentation button);
 3. builds and validates the zip with Blender's own blender_ext.py (shipped in the bpy wheel, or
    from a Blender 4.2+ binary: ``blender --command extension build``);
 4. also writes dist/tncg15_mc-<version>-legacy.zip for "Install Add-on" in Blender 3.4: a folder
@@ -115,6 +116,9 @@ def manifest_text(wheels, platforms):
 def stage(stage_dir, wheels, platforms, wheels_dir):
     shutil.copytree(os.path.join(REPO, "mcrt_addon"), stage_dir, ignore=IGNORE, dirs_exist_ok=True)
     shutil.copytree(os.path.join(REPO, "engine"), os.path.join(stage_dir, "tracer"), ignore=IGNORE)
+    os.makedirs(os.path.join(stage_dir, "docs"), exist_ok=True)      # the preferences' Documentation button
+    for page in glob.glob(os.path.join(REPO, "docs", "*.md")):
+        shutil.copy2(page, os.path.join(stage_dir, "docs", os.path.basename(page)))
     os.makedirs(os.path.join(stage_dir, "wheels"), exist_ok=True)
     for w in wheels:
         shutil.copy2(os.path.join(wheels_dir, w), os.path.join(stage_dir, "wheels", w))

@@ -77,9 +77,9 @@ def write_render_image(output, result, args) -> None:
     """-o: a multi-layer EXR when passes or the denoiser are on (engine/film/passes.py), else as before."""
     from ..film.output import write_multilayer
     if output.kind == "exr" and (args.passes or args.denoise):
-        write_multilayer(output, result.image, result.passes, error_metadata(result.stats))
+        write_multilayer(output, result.combined(), result.passes, error_metadata(result.stats))
     else:
-        write_image(output, result.image, error_metadata(result.stats))
+        write_image(output, result.combined(), error_metadata(result.stats))
 
 
 def progress_bar(stream=sys.stderr):
@@ -158,7 +158,7 @@ def cmd_render(args) -> int:
             elif output.option == "-o":
                 write_render_image(output, result, args)
             else:
-                write_image(output, result.image, error_metadata(stats))
+                write_image(output, result.combined(), error_metadata(stats))
     except OutputError as exc:
         sys.stderr.write(f"{PROG}: error: {exc}\n")
         return 1

@@ -56,7 +56,7 @@ def add_preset_argument(parser, extra=(), default: str = FAIR, note: str = "") -
     parser.add_argument("--preset", choices=PRESETS + tuple(extra), default=default, type=str.lower,
                         help="fair: the reference settings (no clamp, no filter, caustics on, only the total "
                         "limits bounces); cycles: Cycles' defaults (Max Bounces 12, Diffuse 4, Glossy 4, "
-                        f"Clamp Indirect 10, Filter Glossy 1, ...){note}; default {default}")
+                        f"Clamp Indirect 10, Filter Glossy 1, Blackman-Harris 1.5 px, ...){note}; default {default}")
 
 
 def add_setting_arguments(parser, settings, table_defaults: bool = True, any_case: bool = False,

@@ -96,7 +96,7 @@ class Setting:
     @property
     def new_file_default(self):
         """The value scene.tncg15 starts with in a new Blender file: Cycles' default where the
-        command lines' reference default differs (the Light Paths options)."""
+        command lines' reference default differs (the pixel filter, the Light Paths options)."""
         return self.default if self.blender_default is None else self.blender_default
 
     def identifier(self, value: str) -> str:
@@ -179,8 +179,9 @@ SETTINGS = (
             description="Maximum number of transmission bounces, bounded by total maximum",
             bpy_options={"soft_max": 1024}, panel="Light Paths > Max Bounces", stats=STATS_AS_SET,
             blender_default=12),
-    Setting("transparent_bounces", INT, BOUNCES_OFF, "transparent bounces, independent of --max-depth "
-            "(Cycles' Transparent BSDF; handed to Cycles, no tracer material is transparent yet)",
+    Setting("transparent_bounces", INT, BOUNCES_OFF, "transparent bounces: straight pass-throughs (the "
+            "Transparent BSDF, the Principled BSDF's alpha); Cycles does not count them in --max-depth, the "
+            "tracer does",
             limits=(0, INT32_MAX - 1), flag="--transparent-bounces", label="Transparent Max Bounces",
             description="Maximum number of transparent bounces. This is independent of maximum number of other "
             "bounces", bpy_options={"soft_max": 1024}, panel="Light Paths > Max Bounces", stats=STATS_AS_SET,
@@ -299,12 +300,43 @@ SETTINGS = (
             description="Denoise the final render with Intel Open Image Denoise (pyoidn in the worker Python), "
             "guided by the Denoising Albedo and Normal passes; the raw image is kept as the Noisy Image pass"),
 )
+# The film (engine/film/pixel_filter.py, engine/rendering/frame.py FrameFilm): Cycles' Film panel.
+FILM = (
+    Setting("film_exposure", FLOAT, 1.0, "scale the image (Combined, Noisy Image, Variance by its square) by "
+            "this factor, as Cycles' Film > Exposure", limits=(0.0, 1e6), flag="--exposure", metavar="SCALE",
+            label="Exposure", description="Image brightness scale", bpy_options={"soft_max": 10.0},
+            panel="Film", stats=STATS_AS_SET),
+    Setting("pixel_filter", CHOICE, "box", "pixel filter of the camera samples (engine/film/pixel_filter.py): "
+            "box (the reference: width 1 = a uniform jitter inside the pixel), gaussian or blackman-harris "
+            "(Cycles' default, width 1.5), importance-sampled as Cycles, every sample weighted equally",
+            flag="--pixel-filter", noun="pixel filter", label="Pixel Filter", prop="pixel_filter_type",
+            description="Pixel filter type", panel="Film > Pixel Filter", stats=STATS_AS_SET,
+            blender_default="blackman-harris",
+            choices=(Choice("box", "Box", "Box filter"), Choice("gaussian", "Gaussian", "Gaussian filter"),
+                     Choice("blackman-harris", "Blackman-Harris", "Blackman-Harris filter"))),
+    Setting("filter_width", FLOAT, 1.0, "pixel filter width in pixels (Cycles: the Gaussian's footprint is 3 x "
+            "the width, Blackman-Harris' 2 x)", limits=(0.01, 10.0), flag="--filter-width", metavar="PIXELS",
+            label="Width", description="Pixel filter width", blender_default=1.5, panel="Film > Pixel Filter",
+            bpy_options={"subtype": "PIXEL"}, stats=STATS_AS_SET),
+    Setting("film_transparent", BOOL, False, "transparent background: camera rays that leave the scene give "
+            "alpha 0 and no world colour (the world still lights the scene); Combined is premultiplied RGBA. "
+            "Blender: Film > Transparent (scene.render.film_transparent)", flag="--film-transparent",
+            fronts=frozenset((ENGINE_CLI, ADDON_CLI)), panel="Film (scene.render.film_transparent)",
+            stats=STATS_AS_SET),
+    Setting("animated_seed", BOOL, False, "a new noise pattern each frame: the seed used is Cycles' "
+            "hash_uint2(frame, seed) (animated_seed(); resolved by the add-on, which knows the frame)",
+            flag="--animated-seed", fronts=frozenset((ADDON_CLI, BLENDER)), label="Use Animated Seed",
+            prop="use_animated_seed", description="Use different seed values (and hence noise patterns) at "
+            "different frames", panel="Sampling > Advanced"),
+)
+SETTINGS = SETTINGS + FILM
 SETTING = {s.name: s for s in SETTINGS}
 
 FRESNEL_MODELS = SETTING["fresnel"].values
 ESTIMATORS = SETTING["estimator"].values
 SAMPLERS = SETTING["sampler"].values
 ACCELERATORS = SETTING["accelerator"].values
+PIXEL_FILTERS = SETTING["pixel_filter"].values
 PASSES = SETTING["passes"].values           # render passes besides Combined (engine/film/passes.py)
 INT_LIMITS = {s.name: s.limits for s in SETTINGS if s.kind == INT}
 
@@ -369,3 +401,24 @@ def stats_of(settings) -> dict:
     """The settings the render stats list as set (rows with stats=STATS_AS_SET); JSON types."""
     return {s.name: list(getattr(settings, s.name)) if s.kind == CHOICES else getattr(settings, s.name)
             for s in SETTINGS if s.stats == STATS_AS_SET}
+
+
+
+def _rot(x: int, k: int) -> int:
+    return ((x << k) | (x >> (32 - k))) & 0xFFFFFFFF
+
+
+def animated_seed(seed: int, frame: int) -> int:
+    """The seed of `frame` with Use Animated Seed on, as Cycles' Blender sync: hash_uint2(frame,
+    seed) (Bob Jenkins' lookup3 final mix), its top bit dropped to stay within the seed's limits."""
+    m = 0xFFFFFFFF
+    a = b = c = 0xDEADBEEF + (2 << 2) + 13
+    a, b = (a + frame) & m, (b + seed) & m
+    c = ((c ^ b) - _rot(b, 14)) & m
+    a = ((a ^ c) - _rot(c, 11)) & m
+    b = ((b ^ a) - _rot(a, 25)) & m
+    c = ((c ^ b) - _rot(b, 16)) & m
+    a = ((a ^ c) - _rot(c, 4)) & m
+    b = ((b ^ a) - _rot(a, 14)) & m
+    c = ((c ^ b) - _rot(b, 24)) & m
+    return c & INT32_MAX

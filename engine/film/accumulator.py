@@ -3,7 +3,9 @@
 One accumulator for every grid the renderer keeps: a work unit's tile (samples go in), the frame
 (tiles go in, engine/rendering/frame.py) and the viewport (whole frames go in,
 engine/pools/viewport.py).  The pixel mean and the variance of the pixel mean are computed here
-only.  Pixels use a box filter (every sample counts fully in the pixel it falls in).
+only.  Every sample counts fully in the pixel it was made for: the pixel filter is in where the
+camera samples are taken (engine/film/pixel_filter.py), as Cycles.  With a transparent film it also
+counts the camera samples that saw the background (`transparent`): alpha = 1 - transparent / count.
 """
 from __future__ import annotations
 
@@ -11,13 +13,17 @@ import numpy as np
 
 
 class Film:
-    """sum, sum_sq: (height, width, 3); count: (height, width) samples per pixel."""
+    """sum, sum_sq: (height, width, 3); count: (height, width) samples per pixel; transparent:
+    (height, width) samples that saw the background, or None (an opaque film); exposure: Cycles'
+    film exposure, the scale of what `display` shows."""
+    exposure = 1.0
 
-    def __init__(self, width: int, height: int):
+    def __init__(self, width: int, height: int, transparent: bool = False):
         self.width, self.height = width, height
         self.sum = np.zeros((height, width, 3))
         self.sum_sq = np.zeros((height, width, 3))
         self.count = np.zeros((height, width))
+        self.transparent = np.zeros((height, width)) if transparent else None
 
     def add_samples(self, pixel: np.ndarray, radiance: np.ndarray) -> None:
         """Samples' radiance as rows (3, N) (engine/core/vec.py) into their pixels (flat indices)."""
@@ -28,12 +34,20 @@ class Film:
             total[:, c] += np.bincount(pixel, weights=radiance[c], minlength=n)
             squares[:, c] += np.bincount(pixel, weights=radiance[c] * radiance[c], minlength=n)
 
-    def add_sums(self, x0: int, y0: int, total: np.ndarray, squares: np.ndarray, count) -> None:
-        """Another film's sums (h, w, 3) into the pixels from (x0, y0); `count` (h, w) or a number."""
+    def add_transparent(self, pixel: np.ndarray, weight: np.ndarray) -> None:
+        """Camera samples (their pixels' flat indices) that left the scene, each with its weight:
+        Cycles' transparent background counts the mean throughput, 1 for a camera ray."""
+        self.transparent.reshape(-1)[:] += np.bincount(pixel, weights=weight, minlength=self.width * self.height)
+
+    def add_sums(self, x0: int, y0: int, total: np.ndarray, squares: np.ndarray, count, transparent=None) -> None:
+        """Another film's sums (h, w, 3) into the pixels from (x0, y0); `count` (h, w) or a number;
+        `transparent` (h, w) when both films are transparent."""
         h, w = total.shape[:2]
         self.sum[y0:y0 + h, x0:x0 + w] += total
         self.sum_sq[y0:y0 + h, x0:x0 + w] += squares
         self.count[y0:y0 + h, x0:x0 + w] += count
+        if transparent is not None and self.transparent is not None:
+            self.transparent[y0:y0 + h, x0:x0 + w] += transparent
 
     @staticmethod
     def _region(tile):
@@ -45,6 +59,25 @@ class Film:
         with np.errstate(invalid="ignore", divide="ignore"):
             m = self.sum[s] / self.count[s][..., None]
         return np.nan_to_num(m).astype(np.float32)
+
+    def display(self, tile=None) -> np.ndarray:
+        """(h, w, 3) float32 pixels of the film or of `tile` as shown and saved: the mean times the
+        exposure; (h, w, 4) with alpha when the film is transparent (premultiplied: the camera
+        rays that saw the background brought no colour)."""
+        image = self.mean(tile)
+        if self.exposure != 1.0:
+            image = (image * np.float32(self.exposure)).astype(np.float32)
+        if self.transparent is None:
+            return image
+        return np.concatenate([image, self.alpha(tile)[..., None]], axis=-1)
+
+    def alpha(self, tile=None) -> np.ndarray:
+        """(h, w) float32 alpha of a transparent film: 1 - the fraction of samples that saw the
+        background (1 without samples: nothing was seen through)."""
+        s = self._region(tile)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            a = 1.0 - self.transparent[s] / self.count[s]
+        return np.where(self.count[s] > 0, a, 1.0).astype(np.float32)
 
     def variance_of_mean(self) -> np.ndarray:
         """(h, w, 3) float32 variance of each pixel mean: the sample variance / n (unbiased, n - 1

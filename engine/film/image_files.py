@@ -1,6 +1,8 @@
 """Image files: EXR and PNG written atomically and checked, and read back.
 
-Rows are stored top-down.  EXR is linear float; PNG is sRGB-encoded and clipped.
+Rows are stored top-down.  EXR is linear float; PNG is sRGB-encoded and clipped.  An (H, W, 4)
+image is premultiplied RGBA (a transparent film): the EXR keeps it so (as Blender's), the PNG stores
+straight alpha (as Blender saves PNGs: the colour divided by alpha before the sRGB encoding).
 """
 from __future__ import annotations
 
@@ -43,7 +45,16 @@ def write_exr(path: str, image: np.ndarray, metadata=()) -> None:
 
 
 def write_png(path: str, image: np.ndarray) -> None:
-    _write_checked(path, (linear_to_srgb(image) * 255.0 + 0.5).astype(np.uint8), "uint8")
+    image = np.asarray(image)
+    if image.shape[-1] != 4:
+        _write_checked(path, (linear_to_srgb(image) * 255.0 + 0.5).astype(np.uint8), "uint8")
+        return
+    alpha = np.clip(image[..., 3:4], 0.0, 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        straight = np.where(alpha > 0.0, image[..., :3] / alpha, 0.0)
+    pixels = np.concatenate([linear_to_srgb(straight), alpha], axis=-1)
+    # OpenImageIO would divide by alpha again unless told the pixels are straight already
+    _write_checked(path, (pixels * 255.0 + 0.5).astype(np.uint8), "uint8", [("oiio:UnassociatedAlpha", 1)])
 
 
 def read_image(path: str) -> np.ndarray:

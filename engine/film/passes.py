@@ -155,9 +155,12 @@ def exr_channels(passes) -> list:
 
 
 def multilayer_pixels(image, passes: dict):
-    """(H, W, C) float32 pixels and channel names: Combined RGBA (alpha 1), then each pass."""
+    """(H, W, C) float32 pixels and channel names: Combined RGBA (the image's alpha when it has one,
+    else 1), then each pass."""
     h, w = image.shape[:2]
-    layers = [np.asarray(image, dtype=np.float32)[..., :3], np.ones((h, w, 1), np.float32)]
+    image = np.asarray(image, dtype=np.float32)
+    alpha = image[..., 3:4] if image.shape[-1] == 4 else np.ones((h, w, 1), np.float32)
+    layers = [image[..., :3], alpha]
     for p in WRITTEN:
         if p in passes:
             layers.append(np.asarray(passes[p], dtype=np.float32).reshape(h, w, len(CHANNELS[p])))

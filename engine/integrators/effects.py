@@ -13,15 +13,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED, Principled
+from ..scene.model import (DIFFUSE, GLASS, GLOSSY, MIRROR, MIX, PRINCIPLED, REFRACTION, TRANSLUCENT,
+                           TRANSPARENT, Principled, PrincipledV1)
 from ..geometry.shading_normals import has_smooth
 from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
 from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
-from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, scatter_kind
+from ..materials.principled_v1 import SINGLE_SCATTER_ROUGHNESS
+from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION, scatter_kind
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
-           "glossy", "principled", "rough_diffuse", "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
+           "glossy", "principled", "rough_diffuse", "mix", "rough_glass", "refraction", "transparent", "translucent",
+           "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
            "light_tree", "mis", "passes",
            "textures",
            "bounce_limits", "clamp", "filter_glossy", "caustics")     # Light Paths (engine/integrators/light_paths.py)
@@ -106,6 +109,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     used.update(s.material_id for s in scene.spheres)
     used.update(q.material_id for q in scene.quads)
     used_mats = [mats[i] for i in sorted(used)]
+    mixes = [m for m in used_mats if m.kind == MIX and m.mix is not None]
+    used_mats += [leaf.material for m in mixes for leaf in m.mix.leaves]     # a mix scatters by its leaves' rows
 
     def users(predicate):
         return [m for m in used_mats if predicate(m)]
@@ -123,10 +128,10 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
 
     diffuse = users(lambda m: m.kind == DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
     mirror = users(lambda m: m.kind == MIRROR and (max(m.color) > 0 or m.color_texture is not None))
-    glass = users(lambda m: m.kind == GLASS)
+    glass = users(lambda m: scatter_kind(m) == GLASS)
     glossy = users(lambda m: m.kind == GLOSSY and (max(m.color) > 0 or m.color_texture is not None))
     principled = users(lambda m: m.kind == PRINCIPLED)         # its specular layer reflects on a black base
-    lit = users(lambda m: m.kind in NON_DELTA_KINDS and (max(m.color) > 0 or m.color_texture is not None
+    lit = users(lambda m: scatter_kind(m) in NON_DELTA_KINDS and (max(m.color) > 0 or m.color_texture is not None
                                                          or m.kind == PRINCIPLED))
     surface_emitters = users(lambda m: m.is_emissive)
     bulbs = [p for p in scene.points if max(p.intensity) > 0]
@@ -147,10 +152,11 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                "light samples and MIS weighed by its eval and pdf (engine/materials/glossy.py)"
                if glossy else "no glossy material: no microfacet lobe evaluated")
     set_effect("principled", principled,
-               f"Principled BSDF v2 materials {_principled_lobes(principled)}: lobes picked by their albedo "
-               "estimates, eval and pdf summed over lobes (engine/materials/principled.py)"
+               f"Principled BSDF materials {_principled_lobes(principled)}: lobes picked by their albedo "
+               "estimates, eval and pdf summed over lobes (engine/materials/principled.py, principled_v1.py)"
                if principled else "no Principled material: no Principled lobes evaluated")
     rough = users(lambda m: scatter_kind(m) == ROUGH_DIFFUSE and (max(m.color) > 0 or m.color_texture is not None))
+    _dielectric_effects(set_effect, users)
     plan.cycles_version = tuple(getattr(scene, "cycles_version", (5, 0)))
     version = ".".join(map(str, plan.cycles_version))
     set_effect("rough_diffuse", rough,
@@ -159,16 +165,21 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                 f"rough diffuse materials {_names(rough)}: Cycles 3.x's Oren-Nayar, single scattering "
                 f"(Cycles {version} is before 4.3)") + ", eval and pdf per light sample (engine/materials/oren_nayar.py)"
                if rough else "no diffuse material with a roughness: every diffuse hit is Lambertian")
+    set_effect("mix", mixes,
+               f"mixed materials {_mix_lobes(mixes)}: a leaf picked by weight x albedo, eval and pdf "
+               "summed over the leaves (engine/materials/mix.py)"
+               if mixes else "no Mix or Add Shader of different BSDFs: no closure lists")
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
                + (" (background light only)" if max(scene.background) > 0 else ""))
 
     round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
                    if light.visible_glossy or light.visible_transmission]
-    specular = mirror or glass
+    passing = [m for m in principled if (m.principled or Principled()).alpha < 1.0]   # alpha: delta pass-through
+    specular = mirror or glass or passing or users(lambda m: m.kind in (GLASS, REFRACTION, TRANSPARENT))
     # After a glossy bounce the shadow rays own these lamps (a BSDF sample cannot reach them in
     # their MIS, engine/lights/seen.py): glossy rays see them only when no shadow rays run.
-    glossy_sees = bool(glossy) and settings.shadow_rays == 0
+    glossy_sees = bool(glossy or users(lambda m: m.kind == TRANSLUCENT)) and settings.shadow_rays == 0
     seen = round_lamps and (specular or glossy_sees) and not report
     set_effect("seen_lamps", seen,
                f"lamps {_names(round_lamps)} seen in mirrors and through glass (Cycles' light visibility)"
@@ -220,38 +231,46 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                    f"on the emission of {_names(glowing)} (light samples read the texture)" if glowing else "")
                    if part) + ": texture lookups at triangle hits (UVs interpolated)"
                if colored or glowing else "no image textures: no UVs, no texture lookups")
-    _plan_light_paths(plan, settings, set_effect, mirror=mirror, glass=glass, glossy=glossy, principled=principled)
+    _plan_light_paths(settings, set_effect, users)
     return plan
 
 
-def _plan_light_paths(plan, settings, set_effect, mirror, glass, glossy, principled) -> None:
+def _plan_light_paths(settings, set_effect, users) -> None:
     """Cycles' Light Paths options (engine/integrators/light_paths.py): on where they change the image."""
+    kind_of = scatter_kind
+    mirror = users(lambda m: m.kind == MIRROR)
+    glass = users(lambda m: m.kind in (GLASS, REFRACTION))
+    glossy = users(lambda m: m.kind == GLOSSY)
+    principled = users(lambda m: kind_of(m) == PRINCIPLED)         # v2 (the v1 closures keep theirs)
+    passing = users(lambda m: m.kind == TRANSPARENT or (kind_of(m) == PRINCIPLED
+                                                          and getattr(m.principled, "alpha", 1.0) < 1.0))
     depth = settings.max_depth
     limits = {"diffuse": settings.diffuse_bounces, "glossy": settings.glossy_bounces,
               "transmission": settings.transmission_bounces}
     below = {kind: n for kind, n in limits.items() if n < depth}
-    transparent = (f"; transparent {settings.transparent_bounces}: no transparent surface in the tracer"
-                   if settings.transparent_bounces < depth else "")
+    if passing and settings.transparent_bounces <= depth:   # its last pass-through only finds emission
+        below[f"transparent (through {_names(passing)})"] = settings.transparent_bounces
     set_effect("bounce_limits", below,
                "bounces counted per type: " + ", ".join(f"{k} at most {n}" for k, n in below.items())
-               + f" (of {depth} in all); a bounce past its type's limit only finds emission" + transparent
-               if below else f"no bounce type limited below the total of {depth}" + transparent)
+               + f" (of {depth} in all); a bounce past its type's limit only finds emission"
+               if below else f"no bounce type limited below the total of {depth}")
     direct, indirect = settings.clamp_direct, settings.clamp_indirect
     set_effect("clamp", direct > 0 or indirect > 0,
                "each contribution's mean over R, G, B clamped: " + ", ".join(
                    part for part in (f"direct to {direct:g}" if direct > 0 else "",
                                      f"indirect to {indirect:g}" if indirect > 0 else "") if part)
                if direct > 0 or indirect > 0 else "no clamping (Clamp Direct and Indirect 0)")
-    lobes = glossy + principled
+    lobes = glossy + principled + users(lambda m: kind_of(m) in (ROUGH_GLASS, ROUGH_REFRACTION))
     blur = settings.filter_glossy > 0 and bool(lobes)
-    sharp = " (perfect mirrors and smooth glass stay sharp; Cycles blurs them too)" if mirror or glass else ""
+    delta = [m for m in mirror + glass if m not in lobes]
+    sharp = " (perfect mirrors and smooth glass stay sharp; Cycles blurs them too)" if delta else ""
     set_effect("filter_glossy", blur,
                f"Filter Glossy {settings.filter_glossy:g}: microfacet lobes of {_names(lobes)} widened after "
                "blurry bounces (alpha >= sqrt(1 - min pdf / filter) / 2)" + sharp if blur else
                "Filter Glossy 0: no roughness widened" if settings.filter_glossy <= 0 else
                "no microfacet material: Filter Glossy widens nothing" + sharp)
     reflective = [] if settings.caustics_reflective else mirror + glass + glossy + principled
-    refractive = [] if settings.caustics_refractive else glass
+    refractive = [] if settings.caustics_refractive else glass       # the Glass and Refraction BSDFs
     left_out = reflective + [m for m in refractive if m not in reflective]
     off = [name for name, on in (("reflective", settings.caustics_reflective),
                                  ("refractive", settings.caustics_refractive)) if not on]
@@ -263,20 +282,83 @@ def _plan_light_paths(plan, settings, set_effect, mirror, glass, glossy, princip
                f"{' and '.join(off)} caustics off, but no material has such a lobe")
 
 
+def _dielectric_effects(set_effect, users) -> None:
+    """The rough glass and refraction rows and the Refraction, Transparent and Translucent BSDFs
+    (engine/materials/dielectric.py, transparent.py, translucent.py)."""
+    rough = users(lambda m: scatter_kind(m) == ROUGH_GLASS)
+    set_effect("rough_glass", rough,
+               f"rough glass materials {_names(rough)}: microfacet reflection and refraction (Walter et al. "
+               "2007) sampled by visible normals, Fresnel picks the lobe; light samples from both sides"
+               + ("; multiscatter GGX compensated by glass albedo tables" if any(m.distribution == "multi_ggx"
+                                                                                 for m in rough) else "")
+               if rough else "no glass with a roughness: every glass surface is smooth (delta)")
+    refraction = users(lambda m: m.kind == REFRACTION)
+    rough_refraction = [m for m in refraction if scatter_kind(m) == ROUGH_REFRACTION]
+    set_effect("refraction", refraction,
+               f"Refraction BSDF materials {_names(refraction)}: the refracted lobe alone (no Fresnel), "
+               + (f"rough in {_names(rough_refraction)} (light samples from the far side)" if rough_refraction
+                  else "smooth (delta)")
+               if refraction else "no Refraction BSDF")
+    transparent = users(lambda m: m.kind == TRANSPARENT and max(m.color) > 0)
+    set_effect("transparent", transparent,
+               f"Transparent BSDF materials {_names(transparent)}: rays pass straight through with the "
+               "colour as weight; they block shadow rays (light behind them found by the passing paths)"
+               if transparent else "no Transparent BSDF")
+    translucent = users(lambda m: m.kind == TRANSLUCENT and (max(m.color) > 0 or m.color_texture is not None))
+    set_effect("translucent", translucent,
+               f"Translucent BSDF materials {_names(translucent)}: diffuse transmission, cosine-sampled on "
+               "the far side, light samples from the far side"
+               if translucent else "no Translucent BSDF")
+
+
 def _principled_lobes(materials) -> str:
     """Each Principled material's name and the lobes it runs (engine/materials/principled.py)."""
     parts = []
     for m in materials[:3]:
         p = m.principled or Principled()
+        if isinstance(p, PrincipledV1):
+            parts.append(f"'{m.name}' {_principled_v1_lobes(m, p)}")
+            continue
         lobes = ["metallic (GGX, F82 tint)"] if p.metallic > WEIGHT_CUTOFF else []
         if 1.0 - p.metallic > WEIGHT_CUTOFF:
             if specular_eta_f0(max(m.ior, 1e-5), max(p.specular_ior_level, 0.0))[0] != 1.0:
                 lobes.append("specular (GGX)")
             rough = getattr(m, "diffuse_roughness", 0.0) >= DIFFUSE_ROUGHNESS_CUTOFF
             lobes.append("diffuse (Oren-Nayar)" if rough else "diffuse (Lambert)")
+        over = [name for name, on in (("alpha pass-through", p.alpha < 1.0), ("sheen (microfiber)", p.sheen_weight > WEIGHT_CUTOFF),
+                                      ("coat (GGX)", p.coat_weight > WEIGHT_CUTOFF)) if on]
+        lobes = over + lobes
         parts.append(f"'{m.name}' {' + '.join(lobes)}")
     more = f" and {len(materials) - 3} more" if len(materials) > 3 else ""
     return ", ".join(parts) + more
+
+
+def _mix_lobes(materials) -> str:
+    """Each mixed material's name and its leaves: kind (scatter row) x weight factors."""
+    def weight(leaf):
+        parts = [f"{f.constant():g}" if f.is_constant else
+                 ("1 - " if f.invert else "") + (f"{f.kind}({f.output})" if f.kind == "layer_weight" else f.kind)
+                 for f in leaf.factors]
+        return " x ".join(parts) or "1"
+    parts = [f"'{m.name}' " + " + ".join(f"{scatter_kind(leaf.material)} [{weight(leaf)}]" for leaf in m.mix.leaves)
+             for m in materials[:3]]
+    more = f" and {len(materials) - 3} more" if len(materials) > 3 else ""
+    return ", ".join(parts) + more
+
+
+def _principled_v1_lobes(m, p) -> str:
+    """The closures Blender 3.4's Principled BSDF runs (engine/materials/principled_v1.py)."""
+    lobes = []
+    if 1.0 - p.metallic > WEIGHT_CUTOFF:
+        lobes.append("diffuse (Burley, v1)")
+        if p.sheen > WEIGHT_CUTOFF:
+            lobes.append("sheen")
+    if p.specular > WEIGHT_CUTOFF or p.metallic > WEIGHT_CUTOFF:
+        multi = m.multiscatter and m.roughness > SINGLE_SCATTER_ROUGHNESS
+        lobes.append("specular (GGX, multiscatter by energy compensation)" if multi else "specular (GGX)")
+    if p.clearcoat > WEIGHT_CUTOFF:
+        lobes.append("clearcoat (GTR1)")
+    return " + ".join(lobes)
 
 
 def n_emissive_primitives(scene) -> int:

@@ -4,7 +4,9 @@ public source: blender/cycles src/kernel/integrator/path_state.h, film/light_pas
 integrator/surface_shader.h, svm/closure.h).  docs/user-guide.md "Light paths" describes them.
 
 * Bounce limits (path_state_next): every scatter counts as a diffuse (diffuse reflection), a
-  glossy (glossy or mirror reflection) or a transmission bounce (any transmission).  The bounce
+  glossy (glossy or mirror reflection), a transmission (any other transmission) or a transparent
+  bounce (a straight pass-through: the Transparent BSDF, the Principled BSDF's alpha; its limit is
+  reached one pass earlier, as Cycles', and the tracer's total counts it too, where Cycles' does not).  The bounce
   that makes a type's count exceed its limit is traced, but its next hit only emits (Cycles'
   terminate-on-next-surface: the path tracer's "final" rays).  The total (max_depth) caps every
   type, so a type's limit at or above the total changes nothing.
@@ -20,7 +22,8 @@ integrator/surface_shader.h, svm/closure.h).  docs/user-guide.md "Light paths" d
   engine/materials/glossy.py).  The energy compensation and the Principled layer weights keep the
   closure's own roughness, as Cycles' (they are set up before the blur).  The tracer's perfect
   mirrors and smooth glass stay delta lobes (Cycles blurs them too: the one difference).
-* Caustics (svm/closure.h CAUSTICS_TRICKS): after a diffuse bounce, Reflective Caustics off leaves
+* Caustics (svm/closure.h CAUSTICS_TRICKS): after a diffuse bounce (a diffuse reflection or
+  transmission, Paths.after_diffuse; a straight pass-through keeps the state), Reflective Caustics off leaves
   out the glossy and mirror reflection closures, Refractive Caustics off the refraction ones.  A
   BSDF without a diffuse lobe whose every lobe is left out is a black surface there (no shadow
   rays, the path ends; its emission counts); glass with one of its two lobes left out drops the
@@ -34,8 +37,8 @@ import numpy as np
 
 from ..materials.protocol import BSDFFlags
 
-DIFFUSE_BOUNCE, GLOSSY_BOUNCE, TRANSMISSION_BOUNCE = 0, 1, 2      # rows of Paths.counts
-BOUNCE_TYPES = ("diffuse", "glossy", "transmission")
+DIFFUSE_BOUNCE, GLOSSY_BOUNCE, TRANSMISSION_BOUNCE, TRANSPARENT_BOUNCE = 0, 1, 2, 3   # rows of Paths.counts
+BOUNCE_TYPES = ("diffuse", "glossy", "transmission", "transparent")
 CLAMP_SCALE = 3.0              # Cycles: the clamp is on |R| + |G| + |B|, the user's value x 3
 
 
@@ -43,7 +46,14 @@ def bounce_type(flags: np.ndarray) -> np.ndarray:
     """The row of Paths.counts each sampled lobe counts in (path_state_next)."""
     transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
     diffuse = (flags & BSDFFlags.DIFFUSE) != 0
-    return np.where(transmitted, TRANSMISSION_BOUNCE, np.where(diffuse, DIFFUSE_BOUNCE, GLOSSY_BOUNCE))
+    kind = np.where(transmitted, TRANSMISSION_BOUNCE, np.where(diffuse, DIFFUSE_BOUNCE, GLOSSY_BOUNCE))
+    return np.where((flags & BSDFFlags.STRAIGHT) != 0, TRANSPARENT_BOUNCE, kind)   # Cycles' LABEL_TRANSPARENT
+
+
+def after_diffuse(flags: np.ndarray, before: np.ndarray) -> np.ndarray:
+    """Whether the next hit follows a diffuse bounce (Cycles' PATH_RAY_VISIBILITY_DIFFUSE): the lobe
+    taken was diffuse (reflection or transmission); a straight pass-through keeps `before`."""
+    return np.where((flags & BSDFFlags.STRAIGHT) != 0, before, (flags & BSDFFlags.DIFFUSE) != 0)
 
 
 def clamp_contribution(contribution: np.ndarray, limit: np.ndarray) -> np.ndarray:
@@ -69,8 +79,10 @@ class LightPaths:
     material table's BSDFs, one per scatter group (engine/materials/table.py)."""
 
     def __init__(self, settings, plan, bsdfs):
-        self.limits = np.array([settings.diffuse_bounces, settings.glossy_bounces, settings.transmission_bounces],
-                               dtype=np.int64)
+        # Cycles: the pass-through that makes the transparent count reach its limit is the last
+        # (path_state_next), one earlier than the other types (the kernel's limit is theirs + 1).
+        self.limits = np.array([settings.diffuse_bounces, settings.glossy_bounces, settings.transmission_bounces,
+                                settings.transparent_bounces - 1], dtype=np.int64)
         self.bounce_limits = bool(plan.enabled.get("bounce_limits"))
         self.clamping = bool(plan.enabled.get("clamp"))
         self.limit_direct = settings.clamp_direct if settings.clamp_direct > 0 else np.inf
@@ -85,6 +97,8 @@ class LightPaths:
         self.specular_only = np.array([bool(f & sides) and not f & BSDFFlags.DIFFUSE for f in flags] + [False, False])
         self.reflects = np.array([bool(f & BSDFFlags.REFLECTION) for f in flags] + [False, False])
         self.transmits = np.array([bool(f & BSDFFlags.TRANSMISSION) for f in flags] + [False, False])
+        # A straight pass-through (Transparent BSDF, alpha) is no refraction: never left out.
+        self.passes = np.array([bool(f & BSDFFlags.STRAIGHT) for f in flags] + [False, False])
 
     @property
     def on(self) -> bool:
@@ -119,7 +133,7 @@ class LightPaths:
 
     def no_closure(self, group: np.ndarray, after_diffuse: np.ndarray) -> np.ndarray:
         """(N,) hits of a BSDF without a diffuse lobe whose every lobe is left out: black there."""
-        gone = self.specular_only.take(group) & after_diffuse
+        gone = self.specular_only.take(group) & after_diffuse & ~self.passes.take(group)
         if self.reflective and self.refractive:
             return np.zeros_like(gone)
         if self.reflective:
@@ -142,5 +156,5 @@ class LightPaths:
         if not self.reflective:
             drop |= (flags & BSDFFlags.REFLECTION) != 0
         if not self.refractive:
-            drop |= (flags & BSDFFlags.TRANSMISSION) != 0
+            drop |= ((flags & BSDFFlags.TRANSMISSION) != 0) & ((flags & BSDFFlags.STRAIGHT) == 0)
         return drop & after_diffuse & self.specular_only.take(group)

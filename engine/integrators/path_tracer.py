@@ -51,10 +51,11 @@ from ..core.vec import dot, max3
 from ..geometry.scene_geometry import LIGHT, QUAD, SPHERE, TRIANGLE
 from ..geometry.shading_normals import terminator_amount
 from ..materials.media import MEDIUM_STACK_DEPTH, MediumStack
-from ..materials.protocol import BSDFFlags, ShadingPoint
+from ..materials.protocol import BSDFFlags, ShadingPoint, transmits_non_delta
 from ..materials.table import ABSORB, N_SCATTER_GROUPS, PASS_THROUGH, MaterialTable
 from ..sampling.qmc import RandomSampler
 from .light_paths import LightPaths
+from .light_paths import after_diffuse as lp_after_diffuse
 
 WAVEFRONT_SIZE = 1 << 15       # paths advanced together; 32768 measured fastest here
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
@@ -89,8 +90,9 @@ class Paths:
     depth: np.ndarray | None = None   # nested dielectrics: (N,) stack height
     f_thru: np.ndarray | None = None  # passes: (3, N) tints of the delta bounces before the feature hit
     f_open: np.ndarray | None = None  # passes: (N,) still looking for its first non-delta hit
-    counts: np.ndarray | None = None  # bounce limits: (3, N) diffuse, glossy, transmission bounces made
+    counts: np.ndarray | None = None  # bounce limits: (4, N) diffuse, glossy, transmission, transparent bounces made
     min_pdf: np.ndarray | None = None  # Filter Glossy: (N,) the least pdf of the non-delta bounces made
+    after_diffuse: np.ndarray | None = None  # caustics: (N,) the last bounce was diffuse
 
     @classmethod
     def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool, features: bool = False,
@@ -104,7 +106,9 @@ class Paths:
                     np.zeros(n, dtype=np.int64) if nested else None,
                     np.ones((3, n)) if features else None, np.ones(n, dtype=bool) if features else None)
         if light_paths is not None and light_paths.bounce_limits:
-            paths.counts = np.zeros((3, n), dtype=np.int32)
+            paths.counts = np.zeros((4, n), dtype=np.int32)
+        if light_paths is not None and light_paths.caustics:
+            paths.after_diffuse = np.zeros(n, dtype=bool)
         if light_paths is not None and light_paths.filter_glossy > 0:
             paths.min_pdf = np.full(n, np.inf)
         return paths
@@ -164,7 +168,8 @@ class PathTracer:
         self.light_paths = light_paths if light_paths.on else None       # Cycles' Light Paths options
 
     # -- the wavefront -----------------------------------------------------------------
-    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None) -> bool:
+    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None,
+              on_transparent=None) -> bool:
         """Trace every camera sample of `samples` (engine/scene/camera_rays.py TileSamples) to
         completion: True when all are traced, False when cancelled.
 
@@ -179,7 +184,9 @@ class PathTracer:
         darken its tile.  Uniform numbers come from
         `sampler` (engine/sampling/qmc.py; default: independent ones from `rng`).  `features`: an
         engine/film/passes.py TileFeatures that gets each sample's first-hit albedo, normal and depth
-        (None: no feature work at all).
+        (None: no feature work at all).  `on_transparent(pixel)`: a transparent film
+        (engine/film/accumulator.py Film.add_transparent) that counts the camera rays that leave the
+        scene, weighted by their throughput; they then get no background (None: an opaque film).
         """
         sampler = sampler or RandomSampler(rng)
         paths = None
@@ -199,9 +206,9 @@ class PathTracer:
                 return True
             counters.rays["camera"] += fresh
             counters.rays["extension"] += len(paths.pixel) - fresh
-            paths = self.bounce(paths, sampler, counters, on_finished, features)
+            paths = self.bounce(paths, sampler, counters, on_finished, features, on_transparent)
 
-    def bounce(self, p: "Paths", sampler, counters, on_finished, features=None) -> "Paths":
+    def bounce(self, p: "Paths", sampler, counters, on_finished, features=None, on_transparent=None) -> "Paths":
         """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
         finished = []                                   # (pixel, radiance) of paths that end
         # 1. Intersect.  Hits sorted by scatter group (engine/materials/table.py: one per BSDF,
@@ -223,7 +230,7 @@ class PathTracer:
             self.lamps_seen(p, hits)
         # Misses: the background.
         if len(hits.miss):
-            finished.append(self.misses(p, hits.miss))
+            finished.append(self.misses(p, hits.miss, on_transparent))
             if features is not None and features.surface:
                 self.miss_features(p, hits.miss, features)
         p = p.take(hits.index)
@@ -254,7 +261,8 @@ class PathTracer:
             self.surface_features(p, surf, shade, color, bounds, features, hits)   # Cycles: the shading normal
         si = ShadingPoint(-p.d[:, :alive], shade[:, :alive], facing[:, :alive], surf.normal[:, :alive],
                           color[:, :alive], surf.material[:alive], smooth,
-                          None if p.media is None else MediumStack(p.media, p.depth)[:alive])
+                          None if p.media is None else MediumStack(p.media, p.depth)[:alive],
+                          None if self.textures is None else self.textures.at(hits)[:alive])
         no_light = self.shade_light_paths(p, si, spans) if self.light_paths is not None else None
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
@@ -291,14 +299,23 @@ class PathTracer:
         return survivors if passing is None else survivors.extend(passing)
 
     # -- stages ------------------------------------------------------------------------
-    def misses(self, p, miss):
+    def misses(self, p, miss, on_transparent=None):
         """Rays that leave the scene reach the background, with weight 1 (the report), unless
         the world is a light (shadow rays sample it): then a ray sampled at a non-delta vertex
         (the final MIS rays beyond the depth limit included) counts with its MIS weight, or 0
-        without MIS."""
+        without MIS.  A transparent film takes the camera rays (Area lights pass them on) instead:
+        weight 0, counted by on_transparent with their mean throughput (Cycles' average(throughput):
+        1 for a camera ray)."""
         radiance = p.radiance.take(miss, axis=1)
+        camera = None
+        if on_transparent is not None:
+            camera = p.ray_kind.take(miss) == CAMERA_RAY
+            seen = miss[camera]
+            on_transparent(p.pixel.take(seen), p.beta.take(seen, axis=1).mean(axis=0))
         if self.has_background:
             weight = np.ones(len(miss))
+            if camera is not None:
+                weight[camera] = 0.0
             if self.world_nee:
                 delta = p.prev_delta.take(miss)
                 weight[~delta] = 0.0
@@ -481,8 +498,10 @@ class PathTracer:
             value = self.scatter_light_paths(p, spans, flags, pdf, value)
         transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
         p.prev_delta[:alive] = (flags & BSDFFlags.DELTA) != 0
-        p.ray_kind[:alive] = np.where(transmitted, TRANSMISSION_RAY,
-                                      np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
+        kind = np.where(transmitted, TRANSMISSION_RAY, np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
+        # A straight pass-through (alpha) keeps a camera ray a camera ray (Area lights' visibility, as Cycles).
+        p.ray_kind[:alive] = np.where(((flags & BSDFFlags.STRAIGHT) != 0) & (p.ray_kind[:alive] == CAMERA_RAY),
+                                      CAMERA_RAY, kind)
         side = np.where(transmitted, -1.0, 1.0)
         beta = p.beta[:, :alive] * value             # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
         if si.smooth:                       # below the geometric surface (or not through it): ends
@@ -507,7 +526,7 @@ class PathTracer:
             si.alpha_floor = lp.alpha_floor(p.min_pdf[:alive])
         if not lp.caustics:
             return None
-        after_diffuse = p.ray_kind[:alive] == DIFFUSE_RAY
+        after_diffuse = p.after_diffuse[:alive]
         si.glossy_off = lp.glossy_off(after_diffuse)
         return lp.no_light_samples(group_of(spans, alive), after_diffuse)
 
@@ -521,11 +540,12 @@ class PathTracer:
             non_delta = (flags & BSDFFlags.DELTA) == 0
             p.min_pdf[:alive] = np.where(non_delta, np.minimum(p.min_pdf[:alive], pdf), p.min_pdf[:alive])
         if lp.caustics:
-            after_diffuse = p.ray_kind[:alive] == DIFFUSE_RAY
+            after_diffuse = p.after_diffuse[:alive]
             group = group_of(spans, alive)
             drop = lp.dropped_samples(group, after_diffuse, flags) | lp.no_closure(group, after_diffuse)
             if drop.any():
                 value = np.where(drop, 0.0, value)
+            p.after_diffuse[:alive] = lp_after_diffuse(flags, after_diffuse)
         return value
 
     def roulette(self, beta, bounce, delta, u):
@@ -553,7 +573,8 @@ class PathTracer:
         MIS weight under `mis` (p_b = bsdf.pdf).  A Lambertian BSDF (f = rho / pi everywhere,
         bsdf.lambert_albedo) has its f multiplied in after the mean over the shadow rays, as the
         report writes it; any other has f cos = bsdf.eval per shadow ray.  Light comes from the
-        viewer's side only (the lobes of today reflect).  u: (pick, u1, u2) per shadow ray, else
+        viewer's side, and from the far side for a BSDF with a non-delta transmission lobe (its shadow
+        rays then start on that side).  u: (pick, u1, u2) per shadow ray, else
         drawn from rng.  Smooth shading (si.smooth): shadow rays start off the geometric surface
         si.ng and directions below it count 0 (no light leaks, engine/geometry/shading_normals.py).
         lift: (lift rows, cutoff) per point, the shadow-terminator geometry offset of smooth
@@ -573,18 +594,24 @@ class PathTracer:
             ls.radiance = self.textures.light_radiance(ls.radiance, ls.light, ls.point)
         w = ls.direction
         cos_x = dot(nx, w)
+        # A non-delta transmission lobe takes light from the far side too: side -1 there, and the
+        # viewer-side tests below hold for the side the sample is on.
+        side = np.where(cos_x < 0.0, -1.0, 1.0) if transmits_non_delta(bsdf.flags) else None
+        cos_side = cos_x if side is None else cos_x * side
         cos_ly = dot(ls.normal, w)
-        ok = (cos_x > 0.0) & (cos_ly != 0.0) & (ls.pdf > 0.0) & (ls.distance > 0.0)
+        ok = (cos_side > 0.0) & (cos_ly != 0.0) & (ls.pdf > 0.0) & (ls.distance > 0.0)
         if self.lights.any_one_sided:                   # front side only: emits towards -w
             ok &= ~(ls.one_sided & (cos_ly >= 0.0))
         amount = None
         if si.smooth:
             # Below the geometric surface: no light, unless the shadow-terminator lift moves the
             # shadow ray's origin up onto the smooth surface (Cycles: it is then traced from there).
-            ng_w = dot(ng, w)
+            ng_w = dot(ng, w) if side is None else dot(ng, w) * side
             if lift is not None:
                 s_vec, cutoff = (np.repeat(lift[0], ns, axis=1), np.repeat(lift[1], ns)) if ns > 1 else lift
-                amount = terminator_amount(cos_x, ng_w, cutoff)
+                amount = terminator_amount(cos_side, ng_w, cutoff)
+                if side is not None:                # no lift for light from the far side
+                    amount = np.where(side > 0.0, amount, 0.0)
                 ok &= (ng_w > 0.0) | (amount > 0.0)
             else:
                 ok &= ng_w > 0.0
@@ -596,7 +623,7 @@ class PathTracer:
         weight = np.zeros(k)
         f_cos = None if albedo is not None else np.zeros((3, k))
         if len(valid):
-            origin = pick(x, 1) + pick(off_x) * pick(ng, 1)
+            origin = pick(x, 1) + pick(off_x if side is None else off_x * side) * pick(ng, 1)
             if amount is not None:                  # grazing light on a smooth triangle: lifted origin
                 origin = origin + pick(amount) * pick(s_vec, 1)
             # End point pulled off the light towards x, so the light never occludes itself;

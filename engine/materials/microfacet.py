@@ -81,7 +81,8 @@ def ggx_d(h: np.ndarray, ax, ay) -> np.ndarray:
     """GGX normal distribution D(h) (Walter et al. 2007; anisotropic: Heitz 2014 eq. 85), h in
     the upper hemisphere; 0 below."""
     t = (h[0] / ax) ** 2 + (h[1] / ay) ** 2 + h[2] * h[2]
-    return np.where(h[2] > 0.0, 1.0 / (np.pi * ax * ay * t * t), 0.0)
+    with np.errstate(divide="ignore"):                  # t = 0 only for h = 0: below, D = 0
+        return np.where(h[2] > 0.0, 1.0 / (np.pi * ax * ay * t * t), 0.0)
 
 
 def ggx_lambda(w: np.ndarray, ax, ay) -> np.ndarray:

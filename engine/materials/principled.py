@@ -1,7 +1,8 @@
 """The Principled BSDF v2 (Blender 4.0+) as Cycles builds it from closures (its kernel/svm/closure.h,
 case CLOSURE_BSDF_PRINCIPLED_ID; kernel/closure/bsdf_microfacet.h and bsdf_util.h; a public source:
-blender/cycles src/kernel/), for the opaque case: no transmission, coat, sheen, subsurface or
-thin film.  Three lobes, in Cycles' layering order (metallic, then specular over diffuse):
+blender/cycles src/kernel/), without transmission, subsurface and thin film.  Over the base (three
+lobes, in Cycles' layering order: metallic, then specular over diffuse) lie, from the top, alpha,
+the sheen and the coat ("The layers over the base" below).  The base:
 
 * metallic, weight `metallic`: GGX reflection with the F82-tint Fresnel, F0 = the base colour
   (clamped to 1) and the edge tint = the specular tint (clamped to 1);
@@ -40,6 +41,31 @@ average times the albedo estimate; for the metallic lobe Cycles estimates with t
 exponent 5, ignoring the F82 bend) and returns the sum over lobes as value and pdf (one-sample MIS
 over the closures, as Cycles' surface_shader_bsdf_eval_mis): eval and pdf are the sums of the
 weighted lobes, so light samples and MIS see exactly the density that `sample` draws from.
+
+The layers over the base (principled_bsdf_emission in closure.h), each darkening what lies below
+it through closure_layering_weight, W <- W x clamp(1 - max_c(layer albedo / W), 0, 1), all at wo:
+
+* alpha < 1: a straight pass-through of weight 1 - alpha (Cycles' Transparent BSDF), W = alpha.  We
+  take it with probability exactly 1 - alpha (weight 1, flags TRANSMISSION | DELTA | STRAIGHT: the
+  path goes on through the surface, direction and medium unchanged, its MIS state that of a delta
+  bounce, a camera ray still a camera ray for the Area lights' visibility); the other
+  lobes share the probability alpha.  Shadow rays do not pass alpha surfaces (they occlude as
+  opaque ones): the light behind them is found by the pass-through rays alone, whose delta bounce
+  counts the emission they reach fully (unbiased for lights that rays can hit; point, spot and
+  sun lamps are fully shadowed: docs/materials.md).
+* sheen, weight sheen_weight x sheen_tint x W: the microfiber sheen (engine/materials/sheen.py),
+  albedo R(mu, sheen roughness) from its table; W <- W (1 - max_c(sheen_weight x tint_c x R)).
+* coat, weight coat_weight x W: GGX reflection (alpha = coat roughness^2, isotropic) with the
+  dielectric Fresnel of the coat IOR, energy-compensated always (bsdf_microfacet_setup_fresnel_
+  dielectric calls microfacet_ggx_preserve_energy whatever the node's distribution);
+  W <- W (1 - coat_weight x A_coat(mu)), A_coat = (E + F_ms (1 - E)) x mix(F0(coat IOR), 1, s(mu)) as
+  A_spec; then the tint absorbs along the refracted path, W <- W x mix(1, tint^(1 / cos_t),
+  coat_weight), cos_t = sqrt(1 - (1 - mu^2) / coat_ior^2).
+* the base lobes' weights are multiplied by W (a colour once the coat is tinted).
+
+Emission is not a lobe: Material.emission (the exporter multiplies it by alpha, as Cycles; the coat
+and sheen's darkening of it is not modelled).  Materials without any of these layers run the base
+alone (the same arithmetic as before the layers existed: their images are bit-identical).
 """
 from __future__ import annotations
 
@@ -50,14 +76,16 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..core.vec import dot
-from ..scene.model import PRINCIPLED
+from ..scene.model import PRINCIPLED, Principled, PrincipledV1
 from . import albedo_tables
 from .glossy import MicrofacetReflection, fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import GGX, clamp_alpha, ggx_sample_vndf
 from .oren_nayar import EnergyPreservingOrenNayar
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+from .sheen import LOBE as SHEEN_LOBE, MicrofiberSheen
 
 FLAGS = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
+PASS_LOBE = BSDFFlags.TRANSMISSION | BSDFFlags.DELTA | BSDFFlags.STRAIGHT      # alpha's pass-through
 WEIGHT_CUTOFF = 1e-5                # Cycles' CLOSURE_WEIGHT_CUTOFF: lobes below it are not set up
 DIFFUSE_ROUGHNESS_CUTOFF = 1e-5     # Cycles' diffuse_roughness_is_almost_zero
 MU_POINTS = 32                      # points of mu of our s(mu) tables, squared spacing (see mu_points)
@@ -169,7 +197,7 @@ class PrincipledV2(BSDF):
     flags = FLAGS
 
     def __init__(self, materials, settings):
-        params = [getattr(m, "principled", None) for m in materials]
+        params = [p if isinstance(p := getattr(m, "principled", None), Principled) else None for m in materials]
         m_count = len(materials)
         self.metallic = np.array([0.0 if p is None else min(max(p.metallic, 0.0), 1.0) for p in params])
         tint = np.array([(1.0, 1.0, 1.0) if p is None else np.maximum(p.specular_tint, 0.0) for p in params],
@@ -190,7 +218,8 @@ class PrincipledV2(BSDF):
         # Cycles' s(mu) tables, for the Principled materials only (every row of the material
         # table is built for all materials, engine/materials/table.py).
         rough = self.specular.roughness_of_table
-        own = [getattr(m, "kind", PRINCIPLED) == PRINCIPLED for m in materials]
+        own = [getattr(m, "kind", PRINCIPLED) == PRINCIPLED and not isinstance(getattr(m, "principled", None), PrincipledV1)
+               for m in materials]
         none = np.zeros(MU_POINTS)
         self.s_specular = np.array([interpolation_factor(float(r), float(e)) if mine and e != 1.0 else none
                                     for r, e, mine in zip(rough, self.eta, own)]).reshape(m_count, MU_POINTS)
@@ -199,6 +228,47 @@ class PrincipledV2(BSDF):
         diffuse_roughness = [getattr(m, "diffuse_roughness", 0.0) for m in materials]
         self.diffuse = EnergyPreservingOrenNayar(
             materials, settings, roughness=[r if r >= DIFFUSE_ROUGHNESS_CUTOFF else 0.0 for r in diffuse_roughness])
+        self._init_layers(materials, params, own, settings)
+
+    def _init_layers(self, materials, params, own, settings):
+        """The coat, sheen and alpha of each material (zero where a material has none)."""
+        m_count = len(materials)
+        layers = [p if (p is not None and mine and p.layered) else None for p, mine in zip(params, own)]
+        self.layered = np.array([p is not None for p in layers], dtype=bool)
+        self.any_layers = bool(self.layered.any())
+        if not self.any_layers:
+            return
+
+        def per(name, default):
+            return np.array([default if p is None else getattr(p, name) for p in layers], dtype=np.float64)
+
+        def colour(name):
+            return np.array([(1.0, 1.0, 1.0) if p is None else np.maximum(getattr(p, name), 0.0) for p in layers],
+                            dtype=np.float64).reshape(m_count, 3).T.copy()
+        self.alpha = np.clip(per("alpha", 1.0), 0.0, 1.0)
+        self.sheen_weight = np.maximum(per("sheen_weight", 0.0), 0.0)
+        self.sheen_weight = np.where(self.sheen_weight > WEIGHT_CUTOFF, self.sheen_weight, 0.0)
+        self.sheen_roughness = np.clip(per("sheen_roughness", 0.5), 0.0, 1.0)
+        self.sheen_tint = colour("sheen_tint")
+        self.coat_weight = np.maximum(per("coat_weight", 0.0), 0.0)
+        self.coat_weight = np.where(self.coat_weight > WEIGHT_CUTOFF, self.coat_weight, 0.0)
+        self.coat_ior = np.maximum(per("coat_ior", 1.5), 1.0)
+        self.coat_tint = colour("coat_tint")
+        self.coat_tinted = np.any(self.coat_tint != 1.0, axis=0) & (self.coat_weight > 0.0)
+        coat_rough = np.clip(per("coat_roughness", 0.03), 0.0, 1.0)
+        self.coat = MicrofacetReflection([SimpleNamespace(roughness=r, anisotropy=0.0, rotation=0.0, tangent=(1.0, 0.0, 0.0),
+                                                          distribution=GGX, fresnel="dielectric", ior=e, multiscatter=True)
+                                          for r, e in zip(coat_rough, self.coat_ior)], settings)
+        alphas = np.array([principled_alphas(r, 0.0) for r in coat_rough]).reshape(m_count, 2)
+        self.coat.ax, self.coat.ay = alphas[:, 0].copy(), alphas[:, 1].copy()
+        self.coat.roughness_of_table = np.sqrt(np.sqrt(self.coat.ax * self.coat.ay))
+        none = np.zeros(MU_POINTS)
+        self.s_coat = np.array([interpolation_factor(float(r), float(e)) if w > 0.0 else none
+                                for r, e, w in zip(self.coat.roughness_of_table, self.coat_ior, self.coat_weight)]
+                               ).reshape(m_count, MU_POINTS)
+        self.sheen = MicrofiberSheen()
+        if np.any(self.alpha < 1.0):
+            self.flags = FLAGS | PASS_LOBE
 
     # -- the layers at the hits ---------------------------------------------------------------
     def _views(self, si: ShadingPoint):
@@ -229,9 +299,10 @@ class PrincipledV2(BSDF):
         a_spec = self._darkening(self.specular, specular, mu) * (specular.color + (1.0 - specular.color) * s_spec)
         return a_metal, np.where(self.has_specular.take(rows), a_spec, 0.0)
 
-    def lobe_weights(self, si: ShadingPoint):
+    def lobe_weights(self, si: ShadingPoint, sample_total: bool = False):
         """((w_metal, w_specular, w_diffuse) (N,) each: the lobes' scalar closure weights, and
-        their sampling probabilities (3, N)), as closure.h and the closures' sample_weight."""
+        their sampling probabilities (3, N)), as closure.h and the closures' sample_weight
+        (sample_total: the sample weights themselves, unnormalised)."""
         rows = si.material
         m = self.metallic.take(rows)
         w_metal = np.where(m > WEIGHT_CUTOFF, m, 0.0)
@@ -245,6 +316,8 @@ class PrincipledV2(BSDF):
             w_diffuse = np.where(si.glossy_off, w_rest, w_diffuse)       # not darkened by a left-out layer
         sample = np.stack([w_metal * a_metal.mean(axis=0), w_spec * a_spec.mean(axis=0),
                            w_diffuse * np.abs(si.color).mean(axis=0)])
+        if sample_total:
+            return (w_metal, w_spec, w_diffuse), sample
         total = sample.sum(axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
             prob = np.where(total > 0.0, sample / total, 0.0)
@@ -262,8 +335,117 @@ class PrincipledV2(BSDF):
             pdf[idx] += p.take(idx) * pdf_l
         return f_cos, pdf
 
+    # -- the layers over the base ---------------------------------------------------------------
+    def layer_weights(self, si: ShadingPoint):
+        """The layers at the hits (see the module): a namespace of the pass-through weight (N,),
+        the sheen's closure weight (3, N) and LTC (a, b), the coat's closure weight (3, N), the
+        base's weight W (3, N), and the albedo estimates sheen_albedo (N,) and coat_albedo (N,)."""
+        rows = si.material
+        n = len(si)
+        mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)
+        alpha = self.alpha.take(rows)
+        w = np.tile(alpha, (3, 1))
+        sheen_w = self.sheen_weight.take(rows)
+        a, b, r = self.sheen.params(si, self.sheen_roughness.take(rows))
+        r = np.where(sheen_w > 0.0, r, 0.0)
+        sheen = sheen_w * self.sheen_tint.take(rows, axis=1) * r * w
+        w = w * np.clip(1.0 - (sheen_w * self.sheen_tint.take(rows, axis=1) * r).max(axis=0), 0.0, 1.0)
+        coat_w = self.coat_weight.take(rows)
+        # Reflective Caustics off (engine/integrators/light_paths.py): no coat closure, nor its
+        # darkening of the base; its tint stays (closure.h)
+        coat_on = coat_w if si.glossy_off is None else np.where(si.glossy_off, 0.0, coat_w)
+        coat = coat_on * w
+        coat_view = replace(si, color=np.ones((3, n)))
+        ior = self.coat_ior.take(rows)
+        f0 = f0_from_ior(ior)
+        s_coat = _read(self.s_coat, rows, mu)
+        a_coat = self._darkening(self.coat, coat_view, mu)[0] * (f0 + (1.0 - f0) * s_coat)
+        a_coat = np.where(coat_on > 0.0, a_coat, 0.0)
+        w = w * np.clip(1.0 - coat_on * a_coat, 0.0, 1.0)
+        tinted = self.coat_tinted.take(rows)
+        if tinted.any():
+            cos_t = np.sqrt(np.maximum(1.0 - (1.0 - mu * mu) / (ior * ior), 0.0))
+            with np.errstate(divide="ignore"):
+                absorbed = self.coat_tint.take(rows, axis=1) ** (1.0 / np.maximum(cos_t, 1e-12))
+            w = np.where(tinted, w * (1.0 + coat_w * (absorbed - 1.0)), w)
+        return SimpleNamespace(through=1.0 - alpha, sheen=sheen, sheen_a=a, sheen_b=b, coat=coat, base=w,
+                               sheen_albedo=r, coat_albedo=a_coat, coat_view=coat_view)
+
+    def _layered_lobes(self, si: ShadingPoint):
+        """(layers, closure weights (3, N) of sheen, coat, metal, specular, diffuse, and the
+        probabilities (6, N) of pass-through, sheen, coat, metal, specular, diffuse)."""
+        layers = self.layer_weights(si)
+        (w_metal, w_spec, w_diffuse), base_prob = self.lobe_weights(si, sample_total=True)
+        base = layers.base
+        weights = [layers.sheen, layers.coat, w_metal * base, w_spec * base, w_diffuse * base]
+        coat_sample = layers.coat.mean(axis=0) * layers.coat_albedo
+        sample = np.vstack([layers.sheen.mean(axis=0), coat_sample, base_prob * base.mean(axis=0)])
+        total = sample.sum(axis=0)
+        alpha = 1.0 - layers.through
+        opaque = np.where(total > 0.0, alpha, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            prob = np.where(total > 0.0, opaque * sample / total, 0.0)
+        return layers, weights, np.vstack([1.0 - opaque, prob])
+
+    def _layered_mixture(self, si: ShadingPoint, wi: np.ndarray, layers, weights, prob):
+        """(f cos, pdf) of the non-delta lobes: the base's _mixture plus the sheen and the coat."""
+        f_cos, pdf = np.zeros((3, len(si))), np.zeros(len(si))
+        sheen = np.flatnonzero(weights[0].max(axis=0) > 0.0)
+        if len(sheen):
+            d = self.sheen.eval(si.take(sheen), wi.take(sheen, axis=1), layers.sheen_a.take(sheen),
+                                layers.sheen_b.take(sheen))
+            f_cos[:, sheen] += weights[0].take(sheen, axis=1) * d
+            pdf[sheen] += prob[1].take(sheen) * d
+        coat = np.flatnonzero(weights[1].max(axis=0) > 0.0)
+        if len(coat):
+            f_l, pdf_l = self.coat.eval(layers.coat_view.take(coat), wi.take(coat, axis=1))
+            f_cos[:, coat] += weights[1].take(coat, axis=1) * f_l
+            pdf[coat] += prob[2].take(coat) * pdf_l
+        for lobe, view, w, p in zip((self.metal, self.specular, self.diffuse), self._views(si), weights[2:], prob[3:]):
+            idx = np.flatnonzero(w.max(axis=0) > 0.0)
+            if not len(idx):
+                continue
+            f_l, pdf_l = lobe.eval(view.take(idx), wi.take(idx, axis=1))
+            f_cos[:, idx] += w.take(idx, axis=1) * f_l
+            pdf[idx] += p.take(idx) * pdf_l
+        return f_cos, pdf
+
+    def _layered_sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+        layers, weights, prob = self._layered_lobes(si)
+        cdf = np.cumsum(prob, axis=0)
+        choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
+        n = len(si)
+        wi = np.zeros((3, n))
+        flags = np.zeros(n, dtype=np.int8)
+        through = np.flatnonzero(choice == 0)
+        wi[:, through] = -si.wo[:, through]
+        flags[through] = PASS_LOBE
+        idx = np.flatnonzero(choice == 1)
+        if len(idx):
+            wi[:, idx] = self.sheen.sample(si.take(idx), u[0].take(idx), u[1].take(idx),
+                                           layers.sheen_a.take(idx), layers.sheen_b.take(idx))
+            flags[idx] = SHEEN_LOBE
+        views = (layers.coat_view,) + self._views(si)
+        for code, (lobe, view) in enumerate(zip((self.coat, self.metal, self.specular, self.diffuse), views), start=2):
+            idx = np.flatnonzero(choice == code)
+            if not len(idx):
+                continue
+            s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
+            wi[:, idx] = s.wi
+            flags[idx] = s.flags
+        f_cos, pdf = self._layered_mixture(si, wi, layers, weights, prob)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
+            p_through = prob[0].take(through)
+            value[:, through] = np.where(p_through > 0.0, layers.through.take(through) / p_through, 0.0)
+        pdf[through] = prob[0].take(through)
+        return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
+
     # -- the protocol -------------------------------------------------------------------------
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.any_layers:
+            layers, weights, prob = self._layered_lobes(si)
+            return self._layered_mixture(si, wi, layers, weights, prob)
         weights, prob = self.lobe_weights(si)
         return self._mixture(si, wi, weights, prob)
 
@@ -271,6 +453,8 @@ class PrincipledV2(BSDF):
         return self.eval(si, wi)[1]
 
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+        if self.any_layers:
+            return self._layered_sample(si, u_lobe, u)
         weights, prob = self.lobe_weights(si)
         cdf = np.cumsum(prob, axis=0)
         choice = (np.asarray(u_lobe)[None, :] >= cdf[:2]).sum(axis=0)      # 0 metal, 1 specular, 2 diffuse

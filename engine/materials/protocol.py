@@ -21,7 +21,8 @@ pbrt and Mitsuba.  The cosine in f cos is the one with the shading normal si.n.
 The integrator keeps two rules for every BSDF (engine/integrators/path_tracer.py): a sampled
 direction must leave on the side of the geometric surface its flags say (REFLECTION: the
 viewer's side, TRANSMISSION: the other), and light reaches non-delta lobes from the viewer's
-side only (no lobe today transmits diffusely or glossily).
+side, and from the far side too for a BSDF whose flags have a non-delta lobe and TRANSMISSION
+(`transmits_non_delta`: rough glass and refraction, translucent).
 """
 from __future__ import annotations
 
@@ -39,6 +40,7 @@ class BSDFFlags(IntFlag):
     DIFFUSE = 4             # f spread over the hemisphere (Lambert)
     GLOSSY = 8              # f peaked about a direction (microfacets: none yet)
     DELTA = 16              # f a Dirac delta: one direction (perfect mirror, smooth glass)
+    STRAIGHT = 32           # with TRANSMISSION | DELTA: wi = -wo, the ray goes on as it was (alpha)
 
 
 NON_DELTA = BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
@@ -48,6 +50,12 @@ def has_non_delta(flags: BSDFFlags) -> bool:
     """Whether a BSDF with these lobes can be met by a given direction: it takes light samples
     and MIS, and its sample needs the 2D direction uniforms."""
     return bool(flags & NON_DELTA)
+
+
+def transmits_non_delta(flags: BSDFFlags) -> bool:
+    """Whether a BSDF's given directions may lie beyond the surface: light samples from both sides
+    (a non-delta lobe and a transmission lobe; flags do not say whether they are the same lobe)."""
+    return bool(flags & NON_DELTA) and bool(flags & BSDFFlags.TRANSMISSION)
 
 
 @dataclass
@@ -62,6 +70,8 @@ class ShadingPoint:
     material: material ids (a BSDF takes its per-material parameters, such as the IOR, by them).
     smooth: n is an interpolated shading normal (else n is ng).
     media: the paths' nested-dielectric medium stacks (engine/materials/media.py), or None.
+    lookup: texture lookups at these hits (engine/materials/textures.py HitLookup), or None when the
+      scene has no textures: for BSDFs that read textures themselves (engine/materials/mix.py).
     alpha_floor: (N,) the least microfacet alpha of each hit (Filter Glossy,
     engine/integrators/light_paths.py), or None.
     glossy_off: (N,) hits whose glossy reflection lobes are left out (Reflective Caustics off after
@@ -75,6 +85,7 @@ class ShadingPoint:
     material: np.ndarray
     smooth: bool = False
     media: object = None
+    lookup: object = None
     alpha_floor: np.ndarray | None = None
     glossy_off: np.ndarray | None = None
 
@@ -83,15 +94,19 @@ class ShadingPoint:
         media = None if self.media is None else self.media[span]
         return ShadingPoint(self.wo[:, span], self.n[:, span], self.ng[:, span], self.normal[:, span],
                             self.color[:, span], self.material[span], self.smooth, media,
+                            None if self.lookup is None else self.lookup[span],
                             *(None if a is None else a[span] for a in (self.alpha_floor, self.glossy_off)))
 
     def take(self, index: np.ndarray) -> "ShadingPoint":
-        """The hits `index` (copies; no medium stack: for evaluating directions only)."""
+        """The hits `index` (copies, the medium stacks too: for evaluating directions only)."""
         def cols(a):
             return a.take(index, axis=1)
+        media = None if self.media is None else type(self.media)(self.media.media.take(index, axis=0),
+                                                                 self.media.depth.take(index))
         return ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
-                            self.material.take(index), self.smooth, None,
-                            *(None if a is None else a.take(index) for a in (self.alpha_floor, self.glossy_off)))
+                             self.material.take(index), self.smooth, media,
+                             None if self.lookup is None else self.lookup.take(index),
+                             *(None if a is None else a.take(index) for a in (self.alpha_floor, self.glossy_off)))
 
     def __len__(self) -> int:
         return self.wo.shape[1]

@@ -7,41 +7,68 @@ ABSORB (surfaces that absorb everything: the path ends there) and PASS_THROUGH (
 lights: their emission counts, then the ray goes on through them).
 
 A new BSDF is one class (engine/materials/protocol.py) and one row here, for a material kind of
-the scene model (engine/scene/model.py).  One row is not a kind: ROUGH_DIFFUSE takes the diffuse
+the scene model (engine/scene/model.py).  Some rows are not kinds: ROUGH_DIFFUSE takes the diffuse
 materials with a diffuse roughness above 0 (`scatter_kind`); those of roughness 0 stay Lambertian.
+The MIX row (engine/materials/mix.py) scatters through the other rows: a mix's leaves are
+materials of the table too, with ids after the scene's (engine/scene/model.py with_mix_leaves).
+ROUGH_GLASS and ROUGH_REFRACTION take the glass and refraction materials with a roughness above 0;
+those of roughness 0 stay delta (smooth glass, smooth refraction).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..core.vec import rows
-from ..scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED
+from ..scene.model import (DIFFUSE, GLASS, GLOSSY, MIRROR, MIX, PRINCIPLED, REFRACTION, TRANSLUCENT, TRANSPARENT,
+                           with_mix_leaves)
+from ..scene.model import PrincipledV1 as PrincipledV1Inputs
+from .dielectric import RoughGlass, RoughRefraction, SmoothRefraction
 from .glass import SmoothGlass
 from .glossy import MicrofacetReflection
 from .lambert import Lambertian
 from .mirror import PerfectMirror
+from .mix import MixBSDF
 from .principled import PrincipledV2
+from .principled_v1 import PrincipledV1
 from .oren_nayar import RoughDiffuse
 from .protocol import has_non_delta
+from .translucent import Translucent
+from .transparent import Transparent
 
 # (material kind, its BSDF); the row is the kind's scatter group.
 ROUGH_DIFFUSE = "rough diffuse"     # a scatter row, not a material kind: see scatter_kind
+PRINCIPLED_V1 = "principled v1"     # a scatter row: Principled materials whose `principled` is a PrincipledV1
+ROUGH_GLASS = "rough glass"         # a scatter row: glass of roughness above 0
+ROUGH_REFRACTION = "rough refraction"
 SCATTERING = ((DIFFUSE, Lambertian), (MIRROR, PerfectMirror), (GLASS, SmoothGlass),
               (GLOSSY, MicrofacetReflection), (PRINCIPLED, PrincipledV2),
-              (ROUGH_DIFFUSE, RoughDiffuse))
+              (ROUGH_DIFFUSE, RoughDiffuse), (MIX, MixBSDF), (PRINCIPLED_V1, PrincipledV1),
+              (ROUGH_GLASS, RoughGlass), (REFRACTION, SmoothRefraction),
+              (ROUGH_REFRACTION, RoughRefraction), (TRANSPARENT, Transparent), (TRANSLUCENT, Translucent))
 KIND_CODE = {kind: group for group, (kind, _) in enumerate(SCATTERING)}
 ABSORB = len(SCATTERING)            # black surfaces: absorb everything
 PASS_THROUGH = ABSORB + 1           # Area lights: emission, then the ray goes on
 N_SCATTER_GROUPS = PASS_THROUGH + 1
 # Material kinds whose BSDF has a non-delta lobe: their hits take shadow rays (engine/integrators/effects.py).
 NON_DELTA_KINDS = frozenset(kind for kind, bsdf in SCATTERING if has_non_delta(bsdf.flags))
+ROUGH_ROWS = {GLASS: ROUGH_GLASS, REFRACTION: ROUGH_REFRACTION}     # kind -> its row at roughness > 0
+VERSIONED_ROWS = (ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION)    # BSDFs made with Scene.cycles_version
+# Rows whose non-delta rays are glossy or transmission rays (engine/integrators/path_tracer.py lamps_seen).
+GLOSSY_RAY_ROWS = (GLOSSY, PRINCIPLED, ROUGH_GLASS, ROUGH_REFRACTION, TRANSLUCENT)
 
 
 def scatter_kind(material) -> str:
-    """The row that scatters `material`: its kind's, or ROUGH_DIFFUSE for a diffuse material with
-    a diffuse roughness above 0 (Cycles' Oren-Nayar closure; at 0 its Lambertian one)."""
+    """The row that scatters `material`: its kind's, ROUGH_DIFFUSE for a diffuse material with
+    a diffuse roughness above 0 (Cycles' Oren-Nayar closure; at 0 its Lambertian one),
+    PRINCIPLED_V1 for a Principled material with Blender 3.x's inputs (a PrincipledV1), ROUGH_GLASS
+    / ROUGH_REFRACTION for a glass / refraction material with a roughness above 0."""
     if material.kind == DIFFUSE and getattr(material, "diffuse_roughness", 0.0) > 0.0:
         return ROUGH_DIFFUSE
+    if material.kind == PRINCIPLED and isinstance(getattr(material, "principled", None), PrincipledV1Inputs):
+        return PRINCIPLED_V1
+    rough = ROUGH_ROWS.get(material.kind)
+    if rough is not None and (getattr(material, "roughness", 0.0) or 0.0) > 0.0:
+        return rough
     return material.kind
 
 
@@ -54,6 +81,7 @@ class MaterialTable:
     the scene's (engine/scene/model.py Scene), for the BSDFs whose model follows it."""
 
     def __init__(self, materials, settings, textured_color=None, cycles_version=(5, 0)):
+        materials, leaf_ids = with_mix_leaves(materials)     # mix leaves: ids after the scene's materials
         self.kind = np.array([KIND_CODE[scatter_kind(m)] for m in materials], dtype=np.int8)
         color = np.array([m.color for m in materials], dtype=np.float64).reshape(-1, 3)
         emission = np.array([m.emission for m in materials], dtype=np.float64).reshape(-1, 3)
@@ -62,11 +90,14 @@ class MaterialTable:
         scatters = color.max(axis=1) > 0.0
         if textured_color is not None:
             scatters = scatters | textured_color
-        scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED])     # its specular layer reflects on black
+        # the Principled BSDFs' specular layer reflects on a black base
+        scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED]) | (self.kind == KIND_CODE[PRINCIPLED_V1])
+        scatters = scatters | (self.kind == KIND_CODE[MIX])            # its leaves have their own colours
         self.scatter_group = np.where(scatters, self.kind, ABSORB).astype(np.int8)
-        self.bsdfs = [bsdf(materials, settings, cycles_version) if kind == ROUGH_DIFFUSE else bsdf(materials, settings)
+        self.bsdfs = [bsdf(materials, settings, cycles_version) if kind in VERSIONED_ROWS else bsdf(materials, settings)
                       for kind, bsdf in SCATTERING]
+        self.bsdfs[KIND_CODE[MIX]].bind(self, leaf_ids)
         # Groups whose BSDF has a lobe that given directions meet (light samples, MIS, 2D uniforms).
         self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]
         # Whether any material has a glossy (non-delta, non-Lambertian reflection) lobe.
-        self.glossy = bool(np.any((self.kind == KIND_CODE[GLOSSY]) | (self.kind == KIND_CODE[PRINCIPLED])))
+        self.glossy = bool(np.isin(self.kind, [KIND_CODE[row] for row in GLOSSY_RAY_ROWS]).any())

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.textures import ImageTexture, TextureSlot, missing_message
+from ..scene.model import with_mix_leaves
+from ..scene.textures import ImageTexture, TextureSlot, material_slots, missing_message
 
 
 def as_float(pixels) -> np.ndarray:
@@ -132,11 +133,15 @@ class TextureSet:
     def __init__(self, scene):
         self.warnings: list[str] = []
         self.loaded: list[LoadedTexture | None] = [self._load(t, scene) for t in scene.textures]
-        mats = scene.materials
+        mats, _ = with_mix_leaves(scene.materials)        # mix leaves: material ids after the scene's
         self.color = [self._usable(m.color_texture) for m in mats]
         self.emission = [self._usable(m.emission_texture) for m in mats]
         self.has_color = np.array([s is not None for s in self.color], dtype=bool)
         self.has_emission = np.array([s is not None for s in self.emission], dtype=bool)
+        # Mix factors read from images (engine/materials/mix.py).
+        self.has_factor = any(slot.texture is not None and self.loaded[slot.texture] is not None
+                              for m in scene.materials for label, slot in material_slots(m)
+                              if label.startswith("mix factor"))
 
     def _usable(self, slot):
         return slot if slot is not None and self.loaded[slot.texture] is not None else None
@@ -221,7 +226,8 @@ def textured_materials(scene):
         if len(mesh.triangles):
             used.update(np.unique(np.asarray(mesh.material_ids)).tolist())
     mats = [scene.materials[i] for i in sorted(used)]
-    return ([m for m in mats if m.color_texture is not None],
+    return ([m for m in mats if m.color_texture is not None or (m.mix is not None and any(
+                label != "emission" for label, _ in material_slots(m)))],
             [m for m in mats if m.emission_texture is not None])
 
 
@@ -288,6 +294,23 @@ class HitTextures:
         """Emitted radiance rows (3, N) with textured hits replaced by texture x strength."""
         return self._apply(le, self.textures.emission, self.has_emission, material, kind, prim, b1, b2)
 
+    def at(self, hits) -> "HitLookup":
+        """The lookups at a wavefront's hits (engine/geometry/scene_geometry.py nearest_hits)."""
+        return HitLookup(self, hits.kind, hits.prim, hits.u, hits.v)
+
+    def factor(self, slot, fallback, kind, prim, b1, b2):
+        """A texture mix factor (N,) at hits: the luminance of `slot` at triangle hits with a readable
+        image, `fallback` elsewhere (engine/materials/mix.py)."""
+        from ..geometry.scene_geometry import TRIANGLE
+        out = np.full(len(kind), float(fallback))
+        sel = np.flatnonzero(kind == TRIANGLE)
+        if not len(sel) or self.textures.loaded[slot.texture] is None:
+            return out
+        from .mix import LUMINANCE
+        u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
+        out[sel] = LUMINANCE @ self.textures.evaluate(slot, u, v)
+        return out
+
     def light_radiance(self, radiance, light, point):
         """Radiance rows of light samples: textured emitters evaluated at the sampled point."""
         if self.light_a is None:
@@ -315,6 +338,28 @@ class HitTextures:
         return radiance
 
 
+class HitLookup:
+    """The texture lookups of some hits (a ShadingPoint's `lookup`, engine/materials/protocol.py):
+    the hits' primitive kinds, primitives and barycentrics with the scene's HitTextures."""
+
+    def __init__(self, textures: HitTextures, kind, prim, b1, b2):
+        self.textures, self.kind, self.prim, self.b1, self.b2 = textures, kind, prim, b1, b2
+
+    def __getitem__(self, span) -> "HitLookup":
+        return HitLookup(self.textures, self.kind[span], self.prim[span], self.b1[span], self.b2[span])
+
+    def take(self, index) -> "HitLookup":
+        return HitLookup(self.textures, self.kind.take(index), self.prim.take(index), self.b1.take(index),
+                         self.b2.take(index))
+
+    def color(self, color, material):
+        """Colour rows (3, N) of materials `material` at these hits (textured ones read)."""
+        return self.textures.color(color, material, self.kind, self.prim, self.b1, self.b2)
+
+    def factor(self, slot, fallback):
+        return self.textures.factor(slot, fallback, self.kind, self.prim, self.b1, self.b2)
+
+
 class LoadedTextures:
     """A scene's TextureSet, to be bound to the geometry and lights once they are built."""
 
@@ -337,6 +382,6 @@ def load_textures(scene, plan, log=print, warnings=None):
         log(f"warning: {warning}")
         if warnings is not None:
             warnings.append(warning)
-    if not (textures.has_color.any() or textures.has_emission.any()):
+    if not (textures.has_color.any() or textures.has_emission.any() or textures.has_factor):
         return None, scene
     return LoadedTextures(textures, scene), with_texture_means(scene, textures)

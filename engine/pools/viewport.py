@@ -275,9 +275,11 @@ class ViewportPool(Pool):
 
 # -- the progressive render -----------------------------------------------------------------------
 def film_image(film):
-    """(height, width, 4) float32 linear RGBA of a film, row 0 = BOTTOM (Blender's order)."""
+    """(height, width, 4) float32 linear RGBA of a frame's film as shown (engine/rendering/frame.py
+    FrameFilm.display: exposure, alpha), row 0 = BOTTOM (Blender's order)."""
+    shown = film.display()
     rgba = np.ones((film.height, film.width, 4), np.float32)
-    rgba[..., :3] = film.mean()[::-1]
+    rgba[..., :shown.shape[-1]] = shown[::-1]
     rgba[~np.isfinite(rgba)] = 0.0
     return rgba
 

@@ -34,6 +34,14 @@ class RenderResult:
     cancelled: bool = False
     passes: dict = field(default_factory=dict)    # engine/film/passes.py pass_images(): name -> (H, W, C)
     film: "FrameFilm | None" = None       # sums, half buffers, samples per pixel (engine/rendering/estimate.py)
+    alpha: np.ndarray | None = None       # (H, W) float32 alpha of a transparent film (image is premultiplied)
+
+    def combined(self) -> np.ndarray:
+        """Blender's Combined as written to files: the image, with its alpha when the film is
+        transparent ((H, W, 4) premultiplied RGBA), else (H, W, 3)."""
+        if self.alpha is None:
+            return self.image
+        return np.concatenate([self.image, self.alpha[..., None].astype(self.image.dtype)], axis=-1)
 
 
 class FrameFilm(Film):
@@ -42,8 +50,9 @@ class FrameFilm(Film):
     keeps half buffer A of the stopping rules' rounds (engine/film/error_estimate.py; B = total - A)
     and the traced passes' features."""
 
-    def __init__(self, width: int, height: int, units):
-        super().__init__(width, height)
+    def __init__(self, width: int, height: int, units, transparent: bool = False, exposure: float = 1.0):
+        super().__init__(width, height, transparent)
+        self.exposure = exposure
         self.sum_a = np.zeros((height, width, 3))
         self.count_a = np.zeros((height, width))
         self.next_chunk = {}                    # tile index -> next chunk to add
@@ -76,7 +85,8 @@ class FrameFilm(Film):
     def _merge(self, r) -> Tile:
         t = r.unit.tile
         h, w = t.y1 - t.y0, t.x1 - t.x0
-        self.add_sums(t.x0, t.y0, r.sum.reshape(h, w, 3), r.sum_sq.reshape(h, w, 3), r.count.reshape(h, w))
+        self.add_sums(t.x0, t.y0, r.sum.reshape(h, w, 3), r.sum_sq.reshape(h, w, 3), r.count.reshape(h, w),
+                      None if r.transparent is None else r.transparent.reshape(h, w))
         if r.sum_a is not None:
             self.sum_a[t.y0:t.y1, t.x0:t.x1] += r.sum_a.reshape(h, w, 3)
             self.count_a[t.y0:t.y1, t.x0:t.x1] += r.count_a.reshape(h, w)
@@ -121,7 +131,7 @@ class Frame:
         self.tile_size = tile_size_for(width, height, settings.tile_size)
         self.tiles = make_tiles(width, height, self.tile_size)
         self.units = make_units(self.tiles, settings.samples, progressive)
-        self.film = FrameFilm(width, height, self.units)
+        self.film = FrameFilm(width, height, self.units, settings.film_transparent, settings.film_exposure)
         if traced(settings.passes):
             self.film.features = FrameFeatures(width, height)
         self.totals = Counters()
@@ -138,7 +148,7 @@ class Frame:
         """Merge a unit's result and hand every tile it changed to on_tile(x0, y0, x1, y1, pixels)."""
         for tile in self.add(result):
             if on_tile is not None:
-                on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
+                on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.display(tile))
 
     def run(self, pool, on_tile=None, should_cancel=None, on_progress=None):
         """Render every unit on `pool` (engine/pools/protocol.py; prepared for this scene) and close
@@ -165,7 +175,7 @@ class Frame:
         if cancelled or error is not None:                 # keep every unit that finished
             for tile in self.film.flush():
                 if on_tile is not None:
-                    on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.mean(tile))
+                    on_tile(tile.x0, tile.y0, tile.x1, tile.y1, self.film.display(tile))
         result = self.result(time.perf_counter() - start, cancelled or error is not None, pool.describe)
         if error is not None:                              # no worker left: the finished units go with it
             error.result = result
@@ -218,5 +228,12 @@ class Frame:
             "cancelled": cancelled, "warnings": list(self.warnings),
         }
         stats.update(self.error_stats(seconds))
-        return RenderResult(self.film.mean(), self.film.variance_of_mean(), stats, list(self.warnings), cancelled,
-                            pass_images(self.film, s.passes), film=self.film)
+        shown = self.film.display()
+        variance, passes = self.film.variance_of_mean(), pass_images(self.film, s.passes)
+        if s.film_exposure != 1.0:                  # the variance of the image shown
+            scale = np.float32(s.film_exposure) ** 2
+            variance = variance * scale
+            if "variance" in passes:
+                passes["variance"] = passes["variance"] * scale
+        return RenderResult(shown[..., :3], variance, stats, list(self.warnings), cancelled, passes,
+                            film=self.film, alpha=shown[..., 3] if self.film.transparent is not None else None)

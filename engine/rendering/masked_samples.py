@@ -25,7 +25,7 @@ class MaskedTileSamples:
     """Samples first .. spp-1 of the active pixels (indices within the tile) of one tile."""
 
     def __init__(self, camera, width: int, height: int, x0: int, y0: int, x1: int, y1: int,
-                 spp: int, sampler, active: np.ndarray, first: int = 0):
+                 spp: int, sampler, active: np.ndarray, first: int = 0, pixel_filter=None):
         self.camera, self.width, self.height = camera, width, height
         self.tile_width = x1 - x0
         self.x0, self.y0 = x0, y0
@@ -35,6 +35,7 @@ class MaskedTileSamples:
         self.taken = 0
         self.first = first
         self.sampler = sampler
+        self.pixel_filter = pixel_filter
 
     @property
     def remaining(self) -> int:

@@ -33,6 +33,7 @@ from ..geometry.accel import choose_accelerator
 from ..scene.camera_rays import TileSamples
 from ..integrators.effects import EffectPlan, plan_effects
 from ..film.accumulator import Film
+from ..film.pixel_filter import pixel_filter_for
 from ..geometry.scene_geometry import Counters, SceneGeometry
 from ..integrators.path_tracer import PathTracer
 from ..lights import LightSet
@@ -57,6 +58,7 @@ class UnitResult:
     sum_a: np.ndarray | None = None      # half buffer A (unit.halves): sums and counts of [start, mid)
     count_a: np.ndarray | None = None
     features: dict | None = None # engine/film/passes.py TileFeatures.sums(), when a traced pass is on
+    transparent: np.ndarray | None = None   # (h, w) samples that saw the background (a transparent film)
 
 
 @dataclass
@@ -97,6 +99,7 @@ class PreparedScene:
         self.plan.describe_light_kinds(self.lights)
         self.tracer = PathTracer(self.geometry, self.lights, lit.materials, self.plan, settings,
                                  scene.background, textures=textures and textures.bind(self.geometry, self.lights))
+        self.pixel_filter = pixel_filter_for(settings)        # None: the box of width 1
         self.prepass()
         self.setup_seconds = time.perf_counter() - start
 
@@ -125,18 +128,20 @@ class PreparedScene:
         features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
                     if self.plan.passes else None)
         films = []
+        transparent = s.film_transparent
         mid = unit.start + (unit.stop - unit.start) // 2 if unit.halves else unit.start
         for first, stop in ((unit.start, mid), (mid, unit.stop)):     # half A, then B (or all)
             if stop <= first:
-                films.append(Film(tile.x1 - tile.x0, tile.y1 - tile.y0))
+                films.append(Film(tile.x1 - tile.x0, tile.y1 - tile.y0, transparent))
                 continue
             if unit.mask is None:
                 samples = TileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1, tile.y1,
-                                      stop, sampler, first=first)
+                                      stop, sampler, first=first, pixel_filter=self.pixel_filter)
             else:
                 samples = MaskedTileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1,
-                                            tile.y1, stop, sampler, unpack_mask(unit.mask, tile.pixels), first)
-            film = Film(tile.x1 - tile.x0, tile.y1 - tile.y0)
+                                            tile.y1, stop, sampler, unpack_mask(unit.mask, tile.pixels), first,
+                                            pixel_filter=self.pixel_filter)
+            film = Film(tile.x1 - tile.x0, tile.y1 - tile.y0, transparent)
             films.append(film)
 
             def finished(pixel, radiance, film=film):
@@ -147,12 +152,15 @@ class PreparedScene:
                     radiance[:, bad] = 0.0
                 film.add_samples(pixel, radiance)
 
-            if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler, features):
+            if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler, features,
+                                     film.add_transparent if transparent else None):
                 return None
         a, b = films
         seconds = time.perf_counter() - start
         sums = None if features is None else features.sums()
         if not unit.halves:
-            return UnitResult(unit, b.sum, b.sum_sq, b.count, counters, seconds, features=sums)
+            return UnitResult(unit, b.sum, b.sum_sq, b.count, counters, seconds, features=sums,
+                              transparent=b.transparent)
         return UnitResult(unit, a.sum + b.sum, a.sum_sq + b.sum_sq, a.count + b.count, counters, seconds,
-                          sum_a=a.sum, count_a=a.count, features=sums)
+                          sum_a=a.sum, count_a=a.count, features=sums,
+                          transparent=None if not transparent else a.transparent + b.transparent)

@@ -52,12 +52,13 @@ class TileSamples:
 
     Sample i of the tile belongs to pixel i mod (tile pixels): the first sweep gives every pixel
     its sample 0, the second its sample 1, ... up to sample `spp` - 1, from sample `first` on.
-    Each sample is a jittered sub-pixel position (box filter), from dimension pair 0 of `sampler`
-    (engine/sampling/qmc.py) when its chunk is taken.
+    Each sample is a jittered sub-pixel position from dimension pair 0 of `sampler`
+    (engine/sampling/qmc.py) when its chunk is taken: inside the pixel (a box of width 1), or
+    moved by `pixel_filter` (engine/film/pixel_filter.py PixelFilter.offsets, None: the box).
     """
 
     def __init__(self, camera, width: int, height: int, x0: int, y0: int, x1: int, y1: int,
-                 spp: int, sampler, first: int = 0):
+                 spp: int, sampler, first: int = 0, pixel_filter=None):
         """Samples first .. spp-1 of every pixel (a work unit's sample range)."""
         self.camera, self.width, self.height = camera, width, height
         self.tile_width = x1 - x0
@@ -66,6 +67,7 @@ class TileSamples:
         self.total = self.pixels * spp
         self.taken = self.pixels * first
         self.sampler = sampler
+        self.pixel_filter = pixel_filter
 
     @property
     def remaining(self) -> int:
@@ -82,8 +84,10 @@ class TileSamples:
 
     def rays(self, pixel, sample):
         """(pixel, sample, origins, directions): the jittered camera rays of these tile pixels'
-        samples (jitter from dimension pair 0 of the sampler)."""
+        samples (jitter from dimension pair 0 of the sampler, through the pixel filter)."""
         jx, jy = self.sampler.pair(pixel, sample, 0)
+        if self.pixel_filter is not None:
+            jx, jy = self.pixel_filter.offsets(jx), self.pixel_filter.offsets(jy)
         sx = (pixel % self.tile_width + self.x0) + jx
         sy = (pixel // self.tile_width + self.y0) + jy
         origins, directions = camera_rays(self.camera, self.width, self.height, sx, sy)

@@ -7,7 +7,15 @@
                 "shift_x": 0, "shift_y": 0},
      "materials": [{"name": "White", "kind": "diffuse", "color": [..], "ior": 1.5, "emission": [..]}],
                    (kind "principled": the glossy keys and "principled": {"metallic": 0, "specular_ior_level":
-                   0.5, "specular_tint": [1, 1, 1]}, each key optional)
+                   0.5, "specular_tint": [1, 1, 1], "coat_weight": 0, "coat_roughness": 0.03, "coat_ior": 1.5,
+                   "coat_tint": [1, 1, 1], "sheen_weight": 0, "sheen_roughness": 0.5, "sheen_tint": [1, 1, 1],
+                   "alpha": 1, "transmission_weight": 0}, each key optional; Blender 3.x's node instead:
+                   "principled_v1": {"metallic": 0, "specular": 0.5, "specular_tint": 0, "sheen": 0,
+                   "sheen_tint": 0.5, "clearcoat": 0, "clearcoat_roughness": 0.03, "transmission": 0,
+                   "transmission_roughness": 0, "alpha": 1}, each key optional; kind "mix": "mix", the leaves and
+                   their weights, engine/scene/mix_fields.py; kinds "glass" and "refraction":
+                   "roughness" (default 0, smooth) and "distribution" (ggx, beckmann, multi_ggx); kinds
+                   "transparent" and "translucent": the colour only)
      "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
                  "material": "White"  or  "material_ids": [..] or "@key",
                  "normals": [[..] x 3T] or "@key", "smooth": [0/1 x T] or "@key",  (optional)
@@ -37,9 +45,11 @@ import os
 
 import numpy as np
 
-from .model import GLOSSY, PRINCIPLED, AreaLight, Camera, Material, PointLight, Principled, Quad, Scene, Sphere, SunLight, TriangleMesh
+from .model import GLASS, GLOSSY, PRINCIPLED, REFRACTION, AreaLight, Camera, Material, PointLight, Principled, Quad, Scene, Sphere, SunLight, TriangleMesh
+from .model import PrincipledV1
 from ..core.errors import SceneError
 from .fields import Fields, is_integer
+from .mix_fields import mix_json, read_mix
 from .texture_fields import read_slot, read_textures, slot_json, textures_json
 
 FORMAT = "tncg15-scene"
@@ -85,15 +95,25 @@ def _glossy_fields(m) -> dict:
     return values
 
 
+# The Principled layers' keys (engine/scene/model.py Principled), each optional.
+LAYER_KEYS = ("coat_weight", "coat_roughness", "coat_ior", "coat_tint", "sheen_weight", "sheen_roughness",
+              "sheen_tint", "alpha", "transmission_weight")
+
+
 def _principled_fields(m) -> dict:
     """A material entry's "principled" object (engine/scene/model.py Principled), if present;
     each of its keys optional (the node's defaults)."""
+    if "principled_v1" in m:                    # Blender 3.x's inputs: {"metallic": 0, "specular": 0.5, ...}
+        p, default = Fields(m.get("principled_v1"), f"{m.owner}: principled_v1"), PrincipledV1()
+        return {"principled": PrincipledV1(**{key: p.number(key, value) for key, value in vars(default).items()})}
     if "principled" not in m:
         return {}
     p, default = Fields(m.get("principled"), f"{m.owner}: principled"), Principled()
     return {"principled": Principled(metallic=p.number("metallic", default.metallic),
                                      specular_ior_level=p.number("specular_ior_level", default.specular_ior_level),
-                                     specular_tint=p.numbers("specular_tint", 3, default.specular_tint))}
+                                     specular_tint=p.numbers("specular_tint", 3, default.specular_tint),
+                                     **{key: p.numbers(key, 3, getattr(default, key)) if key.endswith("_tint")
+                                        else p.number(key, getattr(default, key)) for key in LAYER_KEYS})}
 
 
 def _principled_json(m) -> dict:
@@ -101,8 +121,12 @@ def _principled_json(m) -> dict:
     if m.kind != PRINCIPLED:
         return {}
     p = m.principled or Principled()
+    if isinstance(p, PrincipledV1):
+        return {"principled_v1": dict(vars(p))}
+    layers = {key: list(getattr(p, key)) if key.endswith("_tint") else getattr(p, key) for key in LAYER_KEYS
+              if np.any(np.asarray(getattr(p, key)) != np.asarray(getattr(Principled(), key)))}  # the layers set only
     return {"principled": {"metallic": p.metallic, "specular_ior_level": p.specular_ior_level,
-                           "specular_tint": list(p.specular_tint)}}
+                           "specular_tint": list(p.specular_tint), **layers}}
 
 
 def _glossy_json(m) -> dict:
@@ -113,6 +137,14 @@ def _glossy_json(m) -> dict:
             "tangent": list(m.tangent), "distribution": m.distribution, "fresnel": m.fresnel,
             "multiscatter": bool(m.multiscatter), "edge_tint": list(m.edge_tint),
             "conductor_ior": list(m.conductor_ior), "conductor_k": list(m.conductor_k)}
+
+
+def _dielectric_json(m) -> dict:
+    """Roughness and distribution of rough glass and refraction materials (smooth ones: nothing, so
+    their files stay as they were and load smooth: engine/scene/model.py DEFAULT_ROUGHNESS)."""
+    if m.kind not in (GLASS, REFRACTION) or not m.roughness:
+        return {}
+    return {"roughness": float(m.roughness), "distribution": m.distribution}
 
 
 def _diffuse_roughness_json(m) -> dict:
@@ -195,14 +227,18 @@ def load_scene(path: str) -> Scene:
 
     textures = read_textures(top, arrays, os.path.dirname(os.path.abspath(path)))
     materials = []
+
+    def material(m, material_name):
+        return Material(name=material_name, kind=m.text("kind", "diffuse"),
+                        color=m.numbers("color", 3, (0.8, 0.8, 0.8)), ior=m.number("ior", 1.5),
+                        emission=m.numbers("emission", 3, (0.0, 0.0, 0.0)),
+                        color_texture=read_slot(m, "color_texture", textures),
+                        emission_texture=read_slot(m, "emission_texture", textures),
+                        mix=read_mix(m, textures, material),
+                        **_glossy_fields(m), **_principled_fields(m))
     for i, entry in enumerate(top.objects("materials")):
         m, material_name = _named(entry, "Material", f"#{i}", required=True)
-        materials.append(Material(name=material_name, kind=m.text("kind", "diffuse"),
-                                  color=m.numbers("color", 3, (0.8, 0.8, 0.8)), ior=m.number("ior", 1.5),
-                                  emission=m.numbers("emission", 3, (0.0, 0.0, 0.0)),
-                                  color_texture=read_slot(m, "color_texture", textures),
-                                  emission_texture=read_slot(m, "emission_texture", textures),
-                                  **_glossy_fields(m), **_principled_fields(m)))
+        materials.append(material(m, material_name))
     names = [m.name for m in materials]
     cam = top.get("camera", None)
     camera = None if cam is None else _camera(cam)
@@ -274,6 +310,14 @@ def save_scene(scene: Scene, path: str) -> None:
                 arrays[f"mesh{i}_smooth"] = np.asarray(mesh.smooth, dtype=np.int8)
                 meshes[-1]["smooth"] = f"@mesh{i}_smooth"
     cam = scene.camera
+
+    def material_json(m):
+        return dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
+                     "emission": list(m.emission)}, **_glossy_json(m), **_principled_json(m), **_diffuse_roughness_json(m),
+                    **_dielectric_json(m),
+                    **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
+                                                              ("emission_texture", m.emission_texture))
+                       if slot is not None}, **mix_json(m, material_json))
     data = {
         "format": FORMAT, "name": scene.name,
         "version": SMOOTH_VERSION if any(m.normals is not None for m in scene.meshes) else SMOOTH_VERSION - 1,
@@ -284,11 +328,7 @@ def save_scene(scene: Scene, path: str) -> None:
             "sensor_width": cam.sensor_width, "sensor_height": cam.sensor_height,
             "sensor_fit": cam.sensor_fit, "shift_x": cam.shift_x, "shift_y": cam.shift_y},
         "textures": textures_json(scene, arrays),
-        "materials": [dict({"name": m.name, "kind": m.kind, "color": list(m.color), "ior": m.ior,
-                            "emission": list(m.emission)}, **_glossy_json(m), **_principled_json(m), **_diffuse_roughness_json(m),
-                           **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
-                                                                     ("emission_texture", m.emission_texture))
-                              if slot is not None}) for m in scene.materials],
+        "materials": [material_json(m) for m in scene.materials],
         "meshes": meshes,
         "spheres": [{"name": s.name, "center": list(s.center), "radius": s.radius,
                      "material": s.material_id} for s in scene.spheres],

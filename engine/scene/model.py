@@ -20,9 +20,20 @@ MIRROR = "mirror"
 GLASS = "glass"
 GLOSSY = "glossy"
 PRINCIPLED = "principled"
-MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY, PRINCIPLED)
+MIX = "mix"                 # a weighted list of leaf materials (Cycles' closure list): Material.mix
+# Dielectric kinds (engine/materials/dielectric.py, transparent.py, translucent.py): Blender's
+# Refraction, Transparent and Translucent BSDF nodes.
+REFRACTION = "refraction"
+TRANSPARENT = "transparent"
+TRANSLUCENT = "translucent"
+MATERIAL_KINDS = (DIFFUSE, MIRROR, GLASS, GLOSSY, PRINCIPLED, MIX, REFRACTION, TRANSPARENT, TRANSLUCENT)
 # The glossy kind's choices (engine/materials/microfacet.py, engine/materials/glossy.py).
 DISTRIBUTIONS = ("ggx", "beckmann")
+# The glass and refraction kinds' choices: "multi_ggx" is GGX with Cycles 4.x's energy compensation.
+DIELECTRIC_DISTRIBUTIONS = ("ggx", "beckmann", "multi_ggx")
+# `Material.roughness` when not given: the Glossy node's 0.5, but 0 (smooth) for glass and refraction,
+# so scenes written before rough glass existed (no "roughness" for their glass) render as they did.
+DEFAULT_ROUGHNESS = {GLASS: 0.0, REFRACTION: 0.0}
 FRESNEL_KINDS = ("none", "dielectric", "conductor", "f82", "interpolated")
 
 
@@ -34,16 +45,65 @@ class Principled:
     metallic: float = 0.0
     specular_ior_level: float = 0.5
     specular_tint: tuple = (1.0, 1.0, 1.0)
+    # The layers over the base (engine/materials/principled.py): a GGX dielectric coat, the
+    # microfiber sheen, alpha (1 - alpha passes straight through).  transmission_weight is kept
+    # for the rough dielectric, not rendered yet (rendered opaque, with a warning).
+    coat_weight: float = 0.0
+    coat_roughness: float = 0.03
+    coat_ior: float = 1.5
+    coat_tint: tuple = (1.0, 1.0, 1.0)
+    sheen_weight: float = 0.0
+    sheen_roughness: float = 0.5
+    sheen_tint: tuple = (1.0, 1.0, 1.0)
+    alpha: float = 1.0
+    transmission_weight: float = 0.0
 
     def validate(self, owner: str) -> None:
-        for label, value, high in (("metallic", self.metallic, 1.0), ("specular_ior_level", self.specular_ior_level, 1e6)):
+        for label, value, high in (("metallic", self.metallic, 1.0), ("specular_ior_level", self.specular_ior_level, 1e6),
+                                   ("coat_weight", self.coat_weight, 1e6), ("coat_roughness", self.coat_roughness, 1.0),
+                                   ("sheen_weight", self.sheen_weight, 1e6), ("sheen_roughness", self.sheen_roughness, 1.0),
+                                   ("alpha", self.alpha, 1.0), ("transmission_weight", self.transmission_weight, 1.0)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value <= high):
                 raise SceneError(f"{owner}: Principled {label} must be from 0 to {high:g}, got {value!r}")
-        arr = np.asarray(self.specular_tint, dtype=np.float64)
-        if arr.shape != (3,) or not np.isfinite(arr).all() or (arr < 0).any():
-            raise SceneError(f"{owner}: Principled specular_tint must be 3 finite non-negative numbers, "
-                             f"got {self.specular_tint!r}")
-        check_magnitude(owner, "specular_tint", arr)
+        if not (isinstance(self.coat_ior, (int, float)) and math.isfinite(self.coat_ior) and 1.0 <= self.coat_ior <= 1e6):
+            raise SceneError(f"{owner}: Principled coat_ior must be from 1 to 1e6, got {self.coat_ior!r}")
+        for label in ("specular_tint", "coat_tint", "sheen_tint"):
+            value = getattr(self, label)
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.shape != (3,) or not np.isfinite(arr).all() or (arr < 0).any():
+                raise SceneError(f"{owner}: Principled {label} must be 3 finite non-negative numbers, got {value!r}")
+            check_magnitude(owner, label, arr)
+
+    @property
+    def layered(self) -> bool:
+        """Whether any layer over the base is on (coat, sheen or alpha below 1)."""
+        return self.coat_weight > 0.0 or self.sheen_weight > 0.0 or self.alpha < 1.0
+
+
+@dataclass
+class PrincipledV1:
+    """Blender 3.x's Principled BSDF inputs (engine/materials/principled_v1.py), its socket
+    vocabulary; base colour, roughness, anisotropy / rotation / tangent, ior and `multiscatter`
+    (the node's distribution) are Material's.  Transmission is kept, not rendered by this model."""
+    metallic: float = 0.0
+    specular: float = 0.5
+    specular_tint: float = 0.0
+    sheen: float = 0.0
+    sheen_tint: float = 0.5
+    clearcoat: float = 0.0
+    clearcoat_roughness: float = 0.03
+    transmission: float = 0.0
+    transmission_roughness: float = 0.0
+    alpha: float = 1.0
+
+    def validate(self, owner: str) -> None:
+        for label in ("metallic", "specular", "specular_tint", "sheen", "sheen_tint", "clearcoat",
+                      "clearcoat_roughness", "transmission", "transmission_roughness", "alpha"):
+            value = getattr(self, label)
+            high = 1e6 if label in ("specular", "sheen", "clearcoat") else 1.0
+            if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                    and 0.0 <= value <= high):
+                raise SceneError(f"{owner}: Principled (3.x) {label} must be from 0 to {high:g}, got {value!r}")
 
 
 @dataclass
@@ -58,7 +118,9 @@ class Material:
     (a world direction made orthogonal to the normal) turned by ``rotation`` x 2 pi,
     ``distribution`` (ggx, beckmann), ``fresnel`` (none, dielectric with ``ior``, conductor with
     ``conductor_ior`` + i ``conductor_k``, f82 with ``edge_tint``, interpolated with ``ior``) and
-    ``multiscatter`` (GGX energy compensation, Cycles 4.x).  ``emission`` is
+    ``multiscatter`` (GGX energy compensation, Cycles 4.x).  Glass and refraction: ``roughness`` (0:
+    smooth, the default) and ``distribution`` (ggx, beckmann, multi_ggx) with ``ior``; the colour tints
+    both lobes (transparent: the pass-through colour; translucent: the diffuse transmittance).  ``emission`` is
     radiance (colour x strength), emitted from both sides as Cycles mesh lights do.
     A pure emitter (Cycles' Emission shader) is a diffuse material with colour 0.
     """
@@ -71,8 +133,9 @@ class Material:
     # (`emission` is then the unlinked value; the light sampler uses the texture's mean).
     color_texture: object = None
     emission_texture: object = None
-    # Glossy only (defaults: Blender's Glossy BSDF node).
-    roughness: float = 0.5
+    # Glossy, glass and refraction (defaults: Blender's Glossy BSDF node).  roughness None: the
+    # kind's default, DEFAULT_ROUGHNESS (set on construction).
+    roughness: float | None = None
     anisotropy: float = 0.0
     rotation: float = 0.0
     tangent: tuple = (1.0, 0.0, 0.0)
@@ -85,8 +148,14 @@ class Material:
     # The Diffuse BSDF's Roughness (Oren-Nayar, engine/materials/oren_nayar.py; the model follows
     # Scene.cycles_version); 0 = Lambert, exactly.
     diffuse_roughness: float = 0.0
-    # Principled only: its own inputs (None: the node's defaults).
-    principled: Principled | None = None
+    # Principled only: its own inputs (None: the node's defaults); a PrincipledV1: Blender 3.x's node.
+    principled: Principled | PrincipledV1 | None = None
+    # Mix only: the leaves and their weights (engine/materials/mix.py).
+    mix: "Mix | None" = None
+
+    def __post_init__(self):
+        if self.roughness is None:
+            self.roughness = DEFAULT_ROUGHNESS.get(self.kind, 0.5)
 
     @property
     def is_emissive(self) -> bool:
@@ -106,15 +175,34 @@ class Material:
             raise SceneError(f"Material '{self.name}': IOR must be positive (at most 1e6), got {self.ior!r}")
         if self.kind == GLOSSY:
             self.validate_glossy()
+        if self.kind in (GLASS, REFRACTION):
+            self.validate_dielectric()
         if self.kind == PRINCIPLED:
             self.validate_glossy()
-            if self.principled is not None and not isinstance(self.principled, Principled):
-                raise SceneError(f"Material '{self.name}': principled must be a Principled, got {self.principled!r}")
+            if self.principled is not None and not isinstance(self.principled, (Principled, PrincipledV1)):
+                raise SceneError(f"Material '{self.name}': principled must be a Principled or a PrincipledV1, "
+                                 f"got {self.principled!r}")
             (self.principled or Principled()).validate(f"Material '{self.name}'")
         value = self.diffuse_roughness
         if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
                 and 0.0 <= value <= 1.0):
             raise SceneError(f"Material '{self.name}': diffuse roughness must be from 0 to 1, got {value!r}")
+        if self.kind == MIX:
+            if not isinstance(self.mix, Mix):
+                raise SceneError(f"Material '{self.name}': kind mix needs a Mix (its leaves), got {self.mix!r}")
+            self.mix.validate(f"Material '{self.name}'")
+        elif self.mix is not None:
+            raise SceneError(f"Material '{self.name}': only kind mix has leaves (kind is {self.kind})")
+
+    def validate_dielectric(self) -> None:
+        owner = f"Material '{self.name}'"
+        value = self.roughness
+        if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                and 0.0 <= value <= 1.0):
+            raise SceneError(f"{owner}: roughness must be from 0 to 1, got {value!r}")
+        if self.distribution not in DIELECTRIC_DISTRIBUTIONS:
+            raise SceneError(f"{owner}: unknown distribution '{self.distribution}' "
+                             f"(expected one of {', '.join(DIELECTRIC_DISTRIBUTIONS)})")
 
     def validate_glossy(self) -> None:
         owner = f"Material '{self.name}'"
@@ -138,6 +226,111 @@ class Material:
             check_magnitude(owner, label, arr)
         if not np.any(np.asarray(self.tangent, dtype=np.float64)):
             raise SceneError(f"{owner}: tangent must not be zero")
+
+
+# A mix leaf's weight factors (engine/materials/mix.py evaluates them at each hit).
+CONSTANT, FRESNEL, LAYER_WEIGHT, TEXTURE = "constant", "fresnel", "layer_weight", "texture"
+FACTOR_KINDS = (CONSTANT, FRESNEL, LAYER_WEIGHT, TEXTURE)
+LAYER_OUTPUTS = ("fresnel", "facing")
+
+
+@dataclass
+class MixFactor:
+    """One factor of a leaf's weight, as a Mix Shader passes it: its Fac clamped to [0, 1] (or
+    1 - that, `invert`: the Mix Shader's first input).  `kind`:
+      constant:      `value` (any weight >= 0: an Add Shader's 1, or a folded product);
+      fresnel:       Cycles' Fresnel node of `ior` at the hit (the view direction and shading normal);
+      layer_weight:  Cycles' Layer Weight node of `blend`, its `output` "fresnel" or "facing";
+      texture:       the image `texture` (a TextureSlot) at the hit's UV, its colour's luminance
+                     (Cycles' colour-to-float); `value` where the hit has no UV or the image is missing.
+    `node`: the Blender node's name, for messages."""
+    kind: str = CONSTANT
+    value: float = 1.0
+    invert: bool = False
+    ior: float = 1.45
+    blend: float = 0.5
+    output: str = "fresnel"
+    texture: object = None
+    node: str = ""
+
+    @property
+    def is_constant(self) -> bool:
+        return self.kind == CONSTANT
+
+    def constant(self) -> float:
+        """The weight of a constant factor."""
+        return 1.0 - self.value if self.invert else self.value
+
+    def validate(self, owner: str) -> None:
+        if self.kind not in FACTOR_KINDS:
+            raise SceneError(f"{owner}: unknown mix factor kind '{self.kind}' (expected one of {', '.join(FACTOR_KINDS)})")
+        high = 1e6 if self.kind == CONSTANT and not self.invert else 1.0
+        for label, value, low, top in (("value", self.value, 0.0, high), ("ior", self.ior, 0.0, 1e6),
+                                       ("blend", self.blend, 0.0, 1.0)):
+            if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                    and low <= value <= top):
+                raise SceneError(f"{owner}: mix factor {label} must be from {low:g} to {top:g}, got {value!r}")
+        if self.kind == LAYER_WEIGHT and self.output not in LAYER_OUTPUTS:
+            raise SceneError(f"{owner}: Layer Weight output must be one of {', '.join(LAYER_OUTPUTS)}, "
+                             f"got {self.output!r}")
+        if self.kind == TEXTURE and self.texture is None:
+            raise SceneError(f"{owner}: a texture mix factor needs its texture slot")
+
+
+@dataclass
+class MixLeaf:
+    """One closure of a mix: an ordinary material of any scattering kind (not a mix, not emitting:
+    a mix's emission is the mix material's own) and its weight, the product of `factors`."""
+    material: Material
+    factors: list = field(default_factory=list)
+
+    def constant_weight(self) -> float | None:
+        """The weight if every factor is constant, else None."""
+        if not all(f.is_constant for f in self.factors):
+            return None
+        return float(np.prod([f.constant() for f in self.factors])) if self.factors else 1.0
+
+
+@dataclass
+class Mix:
+    """A material as Cycles' closure list: the weighted leaves, nested Mix and Add Shaders
+    flattened (weights multiplied).  Scattered by engine/materials/mix.py."""
+    leaves: list = field(default_factory=list)
+
+    def validate(self, owner: str) -> None:
+        if not self.leaves:
+            raise SceneError(f"{owner}: a mix needs at least one leaf")
+        for i, leaf in enumerate(self.leaves):
+            if not isinstance(leaf, MixLeaf) or not isinstance(leaf.material, Material):
+                raise SceneError(f"{owner}: mix leaf #{i} must be a MixLeaf holding a Material, got {leaf!r}")
+            m = leaf.material
+            where = f"{owner}: mix leaf #{i} '{m.name}'"
+            if m.kind == MIX:
+                raise SceneError(f"{where} is a mix itself (flatten nested mixes: multiply the weights)")
+            if m.is_emissive:
+                raise SceneError(f"{where} emits: a mix's emission belongs to the mix material")
+            try:
+                m.validate()
+            except SceneError as exc:
+                raise SceneError(f"{owner}: mix leaf #{i}: {exc}") from None
+            for factor in leaf.factors:
+                if not isinstance(factor, MixFactor):
+                    raise SceneError(f"{where}: factors must be MixFactors, got {factor!r}")
+                factor.validate(where)
+
+
+def with_mix_leaves(materials) -> tuple[list, list]:
+    """(materials followed by every mix's leaves, the leaf material ids of each material: [] for
+    non-mixes).  The one order both the material table and the textures number leaves by."""
+    expanded, leaf_ids = list(materials), []
+    for m in materials:
+        ids = []
+        if m.kind == MIX and m.mix is not None:
+            for leaf in m.mix.leaves:
+                ids.append(len(expanded))
+                expanded.append(leaf.material)
+        leaf_ids.append(ids)
+    return expanded, leaf_ids
 
 
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
@@ -516,6 +709,10 @@ class Scene:
         self.cycles_version = tuple(version)
         for material in self.materials:
             material.validate()
+            layers = material.principled if material.kind == PRINCIPLED else None
+            if isinstance(layers, Principled) and layers.transmission_weight > 0.0:
+                warnings.append(f"Material '{material.name}': Principled transmission_weight "
+                                f"{layers.transmission_weight:g} is not modelled yet (rendered opaque)")
         bg = np.asarray(self.background, dtype=np.float64)
         if bg.shape != (3,) or not np.isfinite(bg).all() or (bg < 0).any():
             raise SceneError(f"Scene '{self.name}': background must be 3 finite non-negative numbers")

@@ -42,9 +42,22 @@ class TextureSlot:
     uv_map: str = ""                   # the UV map the exporter read ("": the active render one)
 
 
+def material_slots(material) -> list:
+    """(label, slot) of every texture a material reads: its colour and emission, and in a mix its
+    leaves' colours and its texture factors (engine/scene/model.py Mix)."""
+    slots = [("colour", material.color_texture), ("emission", material.emission_texture)]
+    mix = getattr(material, "mix", None)
+    if mix is not None:
+        for leaf in mix.leaves:
+            slots.append((f"mix leaf '{leaf.material.name}' colour", leaf.material.color_texture))
+            slots += [(f"mix factor '{f.node}'", f.texture) for f in leaf.factors if f.kind == "texture"]
+    return [(label, slot) for label, slot in slots if slot is not None]
+
+
 def missing_message(scene, tex: ImageTexture, why: str) -> str:
     users = [m.name for m in scene.materials
-             if any(s is not None and scene.textures[s.texture] is tex for s in (m.color_texture, m.emission_texture))]
+             if any(scene.textures[s.texture] is tex for _, s in material_slots(m)
+                    if isinstance(s.texture, (int, np.integer)) and 0 <= s.texture < len(scene.textures))]
     who = ", ".join(f"Material '{n}'" for n in users) or "no material"
     where = f" ('{tex.path}')" if tex.path else ""
     return (f"{who}: image '{tex.name}'{where} cannot be read: {why}; "
@@ -67,9 +80,7 @@ def validate_textures(scene) -> list[str]:
         elif not tex.path or not os.path.isfile(tex.path):
             warnings.append(missing_message(scene, tex, "file not found"))
     for m in scene.materials:
-        for label, slot in (("colour", m.color_texture), ("emission", m.emission_texture)):
-            if slot is None:
-                continue
+        for label, slot in material_slots(m):
             owner = f"Material '{m.name}'"
             if not (isinstance(slot.texture, (int, np.integer)) and 0 <= slot.texture < n):
                 raise SceneError(f"{owner}: {label} texture index {slot.texture!r} out of range")

@@ -1,15 +1,16 @@
 """Material export: Cycles node trees -> tracer Materials (diffuse, mirror, glass, glossy, principled, emission).
 
-Supported: Diffuse BSDF (Roughness -> diffuse_roughness), Glass BSDF, Emission; the microfacet nodes
+Supported: Diffuse BSDF (Roughness -> diffuse_roughness), Emission; Glass, Refraction, Transparent and
+Translucent BSDFs in dielectric_nodes.py; the microfacet nodes
 (Glossy / Anisotropic, Metallic, Principled v2 of 4.0+) in microfacet_nodes.py; Blender 3.4's
-Principled v1 (Base Color, Metallic, Roughness, Transmission, IOR, Emission x Emission Strength) as
-diffuse, mirror or glass.  Anything else becomes diffuse with a warning naming the material and
-the node.  Node trees are read from ``material.original`` (evaluated copies can lack them).
+Principled v1 (the principled kind with PrincipledV1 inputs; Transmission >= 0.5 as smooth glass).
+Anything else becomes diffuse with a warning naming the material and the node.  Node trees are read
+from ``material.original`` (evaluated copies can lack them).
 """
 import bpy
 import numpy as np
 
-from . import microfacet_nodes, shader_mix
+from . import dielectric_nodes, microfacet_nodes, shader_mix
 from .images import image_node
 from .util import linked_from, socket, uses_nodes
 
@@ -49,10 +50,13 @@ class MaterialTable:
         """model: the tracer's scene model module (engine/scene/model.py: Material, Principled, kinds);
         version: the Blender whose node vocabulary is read (default: the running one)."""
         self.Material, self.Principled = model.Material, model.Principled
+        self.PrincipledV1 = model.PrincipledV1
         self.images = images            # images.ImageTable: Image Texture nodes (None: not read)
         self._slots = {}                # the material being converted: role -> TextureSlot
         self.DIFFUSE, self.MIRROR, self.GLASS = model.DIFFUSE, model.MIRROR, model.GLASS
         self.GLOSSY, self.PRINCIPLED = model.GLOSSY, model.PRINCIPLED
+        self.MIX, self.Mix, self.MixLeaf, self.MixFactor = model.MIX, model.Mix, model.MixLeaf, model.MixFactor
+        self.REFRACTION, self.TRANSPARENT, self.TRANSLUCENT = model.REFRACTION, model.TRANSPARENT, model.TRANSLUCENT
         self.version = tuple(bpy.app.version if version is None else version)[:2]
         self.materials = []
         self.warnings = warnings
@@ -104,9 +108,7 @@ class MaterialTable:
     def uv_map(self, slot_ids):
         """The UV map a mesh with these material slots needs: '' for the active render one, the
         name a UV Map node gives, or None when no material of the mesh has a texture."""
-        names = [slot.uv_map for i in slot_ids for slot in (self.materials[i].color_texture,
-                                                            self.materials[i].emission_texture)
-                 if slot is not None]
+        names = [slot.uv_map for i in slot_ids for slot in shader_mix.texture_slots(self.materials[i])]
         if not names:
             return None
         if len(set(names)) > 1:
@@ -143,6 +145,9 @@ class MaterialTable:
             "ShaderNodeBsdfAnisotropic": self._glossy,
             "ShaderNodeBsdfMetallic": self._metallic,
             "ShaderNodeBsdfGlass": self._glass,
+            "ShaderNodeBsdfRefraction": lambda m, n: dielectric_nodes.refraction(self, m, n),
+            "ShaderNodeBsdfTransparent": lambda m, n: dielectric_nodes.transparent(self, m, n),
+            "ShaderNodeBsdfTranslucent": lambda m, n: dielectric_nodes.translucent(self, m, n),
             "ShaderNodeEmission": self._emission,
             "ShaderNodeBsdfPrincipled": self._principled,
             "ShaderNodeAddShader": self._add_shader,
@@ -229,12 +234,7 @@ class MaterialTable:
         return self._principled_v1(mat, node)
 
     def _glass(self, mat, node):
-        color = _clamp01(self.read_color(mat, node, "Color"))
-        roughness = self.read_float(mat, node, "Roughness")
-        if roughness > 0:
-            self.warn(mat, node, f"roughness {roughness:g} is treated as 0 (smooth glass)")
-        ior = self.read_float(mat, node, "IOR", default=1.45)
-        return self.Material(name=mat.name, kind=self.GLASS, color=color, ior=max(ior, 1e-3))
+        return dielectric_nodes.glass(self, mat, node)
 
     def _emission(self, mat, node):
         color = self.read_color(mat, node, "Color", default=(1.0, 1.0, 1.0), role="emission")
@@ -244,40 +244,50 @@ class MaterialTable:
         return self.Material(name=mat.name, kind=self.DIFFUSE, color=(0.0, 0.0, 0.0), emission=radiance)
 
     def _principled_v1(self, mat, node):
-        """Blender 3.4's Principled BSDF (v1): diffuse, mirror or glass by its largest lobe."""
+        """Blender 3.x's Principled BSDF (v1) -> the principled kind with PrincipledV1 inputs
+        (engine/materials/principled_v1.py); transmission >= 0.5 stays today's smooth glass."""
         base = _clamp01(self.read_color(mat, node, "Base Color"))
-        metallic = self.read_float(mat, node, "Metallic")
-        roughness = self.read_float(mat, node, "Roughness", default=0.5)
-        transmission = self.read_float(mat, node, "Transmission Weight", "Transmission")
-        ior = self.read_float(mat, node, "IOR", default=1.45)
+        metallic = min(max(self.read_float(mat, node, "Metallic"), 0.0), 1.0)
+        roughness = min(max(self.read_float(mat, node, "Roughness", default=0.5), 0.0), 1.0)
+        transmission = min(max(self.read_float(mat, node, "Transmission"), 0.0), 1.0)
+        ior = max(self.read_float(mat, node, "IOR", default=1.45), 1e-3)
         emission = self.principled_emission(mat, node)
-        alpha = self.read_float(mat, node, "Alpha", default=1.0)
+        alpha = min(max(self.read_float(mat, node, "Alpha", default=1.0), 0.0), 1.0)
         if alpha < 1:
-            self.warn(mat, node, f"alpha {alpha:g} is not modelled (rendered opaque)")
-        for names in (("Coat Weight", "Clearcoat"), ("Sheen Weight", "Sheen"),
-                      ("Subsurface Weight", "Subsurface")):
-            value = self.read_float(mat, node, *names)
-            if value > 0:
-                self.warn(mat, node, f"'{names[0]}' {value:g} is not modelled")
+            self.warn(mat, node, f"input 'Alpha' {alpha:g} is not modelled (rendered opaque)")
         if transmission >= 0.5:
             if transmission < 1 or metallic > 0:
-                self.warn(mat, node, f"transmission {transmission:g} / metallic {metallic:g} "
+                self.warn(mat, node, f"input 'Transmission' {transmission:g} / 'Metallic' {metallic:g} "
                                      "approximated as pure glass")
             if roughness > 0:
                 self.warn(mat, node, f"roughness {roughness:g} is treated as 0 (smooth glass)")
-            return self.Material(name=mat.name, kind=self.GLASS, color=base, ior=max(ior, 1e-3),
-                                 emission=emission)
-        if metallic >= 0.5:
-            if metallic < 1:
-                self.warn(mat, node, f"metallic {metallic:g} approximated as a pure mirror")
-            if roughness > 0:
-                self.warn(mat, node, f"roughness {roughness:g} is treated as 0 (perfect mirror)")
-            return self.Material(name=mat.name, kind=self.MIRROR, color=base, emission=emission)
-        if metallic > 0 or transmission > 0:
-            self.warn(mat, node, f"metallic {metallic:g} / transmission {transmission:g} "
-                                 "approximated as diffuse")
-        specular = self.read_float(mat, node, "Specular IOR Level", "Specular", default=0.0)
-        if specular > 0:
-            self.warn(mat, node, f"specular layer (level {specular:g}) is not modelled: "
-                                 "rendered as pure Lambertian (set it to 0 to match Cycles)")
-        return self.Material(name=mat.name, kind=self.DIFFUSE, color=base, emission=emission)
+            return self.Material(name=mat.name, kind=self.GLASS, color=base, ior=ior, emission=emission)
+        if transmission > 0:
+            self.warn(mat, node, f"input 'Transmission' {transmission:g} is not modelled (rendered opaque)")
+        subsurface = min(max(self.read_float(mat, node, "Subsurface"), 0.0), 1.0)
+        if subsurface > 0:
+            # Cycles' own fallback below a diffuse bounce: the base colour mixed with the subsurface colour.
+            sss = _clamp01(self.read_color(mat, node, "Subsurface Color", role=None))
+            base = tuple(b * (1.0 - subsurface) + c * subsurface for b, c in zip(base, sss))
+            self.warn(mat, node, f"input 'Subsurface' {subsurface:g} is rendered as diffuse (Burley) of the "
+                                 "base colour mixed with 'Subsurface Color'")
+        for name in ("Normal", "Clearcoat Normal"):
+            sock = socket(node, name)
+            if sock is not None and sock.is_linked:
+                self.warn(mat, node, f"input '{name}' is linked (normal inputs are not modelled)")
+        dist, multiscatter = microfacet_nodes.distribution(self, mat, node)
+        inputs = self.PrincipledV1(
+            metallic=metallic,
+            specular=max(self.read_float(mat, node, "Specular", default=0.5), 0.0),
+            specular_tint=min(max(self.read_float(mat, node, "Specular Tint"), 0.0), 1.0),
+            sheen=max(self.read_float(mat, node, "Sheen"), 0.0),
+            sheen_tint=min(max(self.read_float(mat, node, "Sheen Tint", default=0.5), 0.0), 1.0),
+            clearcoat=max(self.read_float(mat, node, "Clearcoat"), 0.0),
+            clearcoat_roughness=min(max(self.read_float(mat, node, "Clearcoat Roughness", default=0.03), 0.0), 1.0),
+            transmission=transmission,
+            transmission_roughness=min(max(self.read_float(mat, node, "Transmission Roughness"), 0.0), 1.0),
+            alpha=alpha)
+        return self.Material(name=mat.name, kind=self.PRINCIPLED, color=base, emission=emission, ior=ior,
+                             roughness=roughness, distribution=dist, multiscatter=multiscatter, principled=inputs,
+                             **microfacet_nodes.anisotropy_fields(self, mat, node, "Anisotropic",
+                                                                  "Anisotropic Rotation"))

@@ -9,7 +9,10 @@ names them):
 * 4.0+ (also 5.0): one Glossy BSDF, ShaderNodeBsdfAnisotropic (ShaderNodeBsdfGlossy creates it):
   Color, Roughness, Anisotropy (default 0), Rotation, Tangent; distribution BECKMANN / GGX /
   ASHIKHMIN_SHIRLEY / MULTI_GGX; Principled BSDF v2 (Base Color, Metallic, Roughness, IOR,
-  Specular IOR Level, Specular Tint (a colour), Anisotropic, Anisotropic Rotation, Tangent, ...).
+  Specular IOR Level, Specular Tint (a colour), Anisotropic, Anisotropic Rotation, Tangent, Coat
+  Weight / Roughness / IOR / Tint, Sheen Weight / Roughness / Tint, Alpha, Emission Color x
+  Emission Strength (times Alpha, as Cycles), ...; Coat Normal, Thin Film and Subsurface (rendered
+  as diffuse) are warned by socket).
 * 4.3+: Metallic BSDF (ShaderNodeBsdfMetallic): Base Color and Edge Tint (fresnel_type F82) or IOR
   and Extinction (PHYSICAL_CONDUCTOR), Roughness, Anisotropy, Rotation, Tangent, Thin Film;
   distribution BECKMANN / GGX / MULTI_GGX; the Principled BSDF's Diffuse Roughness.
@@ -20,13 +23,14 @@ perfect mirror it always was.  Tangent: the object's local X axis in world space
 tangent, radial about the object's Z axis, and tangent inputs are not modelled: both are named in a
 warning when the material is anisotropic).
 """
+import numpy as np
+
 from .util import socket
 
 DISTRIBUTIONS = {"GGX": ("ggx", False), "MULTI_GGX": ("ggx", True), "BECKMANN": ("beckmann", False)}
 PRINCIPLED_V2 = (4, 0)
 # Principled v2 inputs not modelled: warned (naming the socket) when above their "off" value.
-PRINCIPLED_UNMODELLED = ("Coat Weight", "Sheen Weight", "Subsurface Weight",
-                         "Thin Film Thickness")
+PRINCIPLED_UNMODELLED = ("Thin Film Thickness",)
 
 
 def _clamp(value, low, high):
@@ -100,16 +104,17 @@ def principled(table, mat, node):
     emission = table.principled_emission(mat, node)
     roughness = _clamp(table.read_float(mat, node, "Roughness", default=0.5), 0.0, 1.0)
     ior = max(table.read_float(mat, node, "IOR", default=1.5), 1e-3)
-    alpha = table.read_float(mat, node, "Alpha", default=1.0)
-    if alpha < 1:
-        table.warn(mat, node, f"input 'Alpha' {alpha:g} is not modelled (rendered opaque)")
     for name in PRINCIPLED_UNMODELLED:
         value = table.read_float(mat, node, name, default=0.0)
         if value > 0:
             table.warn(mat, node, f"input '{name}' {value:g} is not modelled")
+    subsurface = table.read_float(mat, node, "Subsurface Weight", default=0.0)
+    if subsurface > 0:
+        table.warn(mat, node, f"input 'Subsurface Weight' {subsurface:g} is rendered as diffuse "
+                              "(subsurface scattering is not modelled)")
     transmission = table.read_float(mat, node, "Transmission Weight", default=0.0)
     if 0 < transmission < 0.5:
-        table.warn(mat, node, f"input 'Transmission Weight' {transmission:g} is not modelled")
+        table.warn(mat, node, f"input 'Transmission Weight' {transmission:g} is not modelled yet (rendered opaque)")
     elif transmission >= 0.5:
         metal = table.read_float(mat, node, "Metallic", default=0.0)
         if transmission < 1 or metal > 0:
@@ -117,15 +122,58 @@ def principled(table, mat, node):
                                   "approximated as smooth glass")
         if roughness > 0:
             table.warn(mat, node, f"roughness {roughness:g} is treated as 0 (smooth glass)")
+        for name, off in (("Coat Weight", 0.0), ("Sheen Weight", 0.0), ("Alpha", 1.0)):
+            value = table.read_float(mat, node, name, default=off)
+            if value != off:
+                table.warn(mat, node, f"input '{name}' {value:g} is not modelled on smooth glass")
         return table.Material(name=mat.name, kind=table.GLASS, color=base, ior=ior, emission=emission)
     dist, multiscatter = distribution(table, mat, node)
+    layers = principled_layers(table, mat, node, transmission, emission)
+    emission = tuple(c * layers["alpha"] for c in emission)       # Cycles: the emission closure's weight is alpha
+    slot = table._slots.get("emission")
+    if slot is not None and layers["alpha"] < 1:
+        slot.scale = tuple(c * layers["alpha"] for c in slot.scale)
     settings = table.Principled(
         metallic=_clamp(table.read_float(mat, node, "Metallic", default=0.0), 0.0, 1.0),
         specular_ior_level=max(table.read_float(mat, node, "Specular IOR Level", default=0.5), 0.0),
         specular_tint=tuple(max(c, 0.0) for c in table.read_color(mat, node, "Specular Tint",
-                                                                   default=(1.0, 1.0, 1.0), role=None)))
+                                                                   default=(1.0, 1.0, 1.0), role=None)),
+        **layers)
     diffuse_roughness = _clamp(table.read_float(mat, node, "Diffuse Roughness", default=0.0), 0.0, 1.0)
     return table.Material(name=mat.name, kind=table.PRINCIPLED, color=base, emission=emission, ior=ior,
                           roughness=roughness, distribution=dist, multiscatter=multiscatter,
                           diffuse_roughness=diffuse_roughness, principled=settings,
                           **anisotropy_fields(table, mat, node, "Anisotropic", "Anisotropic Rotation"))
+
+
+def principled_layers(table, mat, node, transmission, emission):
+    """The layers over the Principled base (engine/scene/model.py Principled: coat, sheen, alpha,
+    transmission_weight), clamped as Cycles' closure.h; warnings for what is not modelled of them."""
+    def colour(name):
+        return tuple(max(c, 0.0) for c in table.read_color(mat, node, name, default=(1.0, 1.0, 1.0), role=None))
+    def number(name, default):      # sockets hold float32: their shortest decimal (0.03, not 0.029999999)
+        return float(str(np.float32(table.read_float(mat, node, name, default=default))))
+    layers = dict(
+        coat_weight=max(number("Coat Weight", 0.0), 0.0),
+        coat_roughness=_clamp(number("Coat Roughness", 0.03), 0.0, 1.0),
+        coat_ior=max(number("Coat IOR", 1.5), 1.0),
+        coat_tint=colour("Coat Tint"),
+        sheen_weight=max(number("Sheen Weight", 0.0), 0.0),
+        sheen_roughness=_clamp(number("Sheen Roughness", 0.5), 0.0, 1.0),
+        sheen_tint=colour("Sheen Tint"),
+        alpha=_clamp(number("Alpha", 1.0), 0.0, 1.0),
+        transmission_weight=_clamp(transmission, 0.0, 1.0))
+    coat_normal = socket(node, "Coat Normal")
+    if layers["coat_weight"] > 0 and coat_normal is not None and coat_normal.is_linked:
+        table.warn(mat, node, "input 'Coat Normal' is linked (not modelled): the coat uses the surface's normal")
+    if layers["alpha"] < 1:
+        table.warn(mat, node, f"input 'Alpha' {layers['alpha']:g}: rays pass straight through with probability "
+                              "1 - alpha, but shadow rays stop at the surface: point and spot lamps without a radius "
+                              "and suns without an angle cast its full shadow (Cycles lets 1 - alpha of their "
+                              "light through), and the light behind it is noisier")
+    covered = [name for name, key in (("coat", "coat_weight"), ("sheen", "sheen_weight")) if layers[key] > 0]
+    if covered and (max(emission) > 0 or "emission" in table._slots):
+        f0 = ((layers["coat_ior"] - 1) / (layers["coat_ior"] + 1)) ** 2 * min(layers["coat_weight"], 1.0)
+        table.warn(mat, node, f"the emission is not darkened by the {' and '.join(covered)} (Cycles darkens it by "
+                              f"their albedo at each view angle{f', the coat by {f0:.3f} at normal incidence' if f0 else ''})")
+    return layers

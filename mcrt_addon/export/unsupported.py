@@ -1,5 +1,6 @@
 """Blender features the tracer does not model, each named in a warning instead of being ignored
-silently: holdout (object or collection), ray visibility, motion blur, film transparency.
+silently: holdout (object or collection), ray visibility, motion blur, Film > Transparent Glass
+(Film > Transparent itself is rendered: engine/integrators/path_tracer.py misses).
 (Transparent and Holdout shader nodes and Principled alpha are named by materials.py.)"""
 
 RAY_VISIBILITY = (("visible_camera", "camera"), ("visible_diffuse", "diffuse"), ("visible_glossy", "glossy"),
@@ -12,8 +13,10 @@ def scene_warnings(scene, view_layer=None):
     render = scene.render
     if getattr(render, "use_motion_blur", False):
         warnings.append("Motion blur is not rendered: every object is shown at the frame's instant")
-    if getattr(render, "film_transparent", False):
-        warnings.append("Film > Transparent is not supported: the background is rendered and alpha is 1")
+    cycles = getattr(scene, "cycles", None)         # Cycles' own option, there when its add-on is
+    if getattr(render, "film_transparent", False) and getattr(cycles, "film_transparent_glass", False):
+        warnings.append("Film > Transparent Glass is not supported: glass is opaque in the alpha (the "
+                        "background seen through it is rendered)")
     if view_layer is not None:
         stack = [view_layer.layer_collection]
         while stack:

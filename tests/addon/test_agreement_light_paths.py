@@ -1,7 +1,8 @@
 """TNCG15 MC agrees with Cycles of the running Blender when both render with the same Light Paths
 options (engine/integrators/light_paths.py; Cycles gets them through mcrt_addon/reference.py as
 `python -m mcrt_addon render --engine CYCLES` hands them over): bounce limits per type, caustics
-off, clamping, Filter Glossy.  Each comparison has a control that must fail: TNCG15 MC without the
+off (also on Principled v2 balls with coat and sheen), clamping, Filter Glossy, the transparent
+limit on alpha.  Each comparison has a control that must fail: TNCG15 MC without the
 option against Cycles with it.
 
 Method and settings as tests/addon/test_agreement.py: 64 x 64, 32 spp, max depth 8, K = 4 seeds each,
@@ -13,7 +14,7 @@ import pytest
 from imagecompare import compare_runs
 import bpy
 from rendering import DEPTH, K, RES, SPP, open_blend, render_operator, tncg15_runs
-from engine.core.settings import CYCLES, preset_values
+from engine.core.settings import CYCLES, LIGHT_PATH_SPEEDUPS, preset_values
 from mcrt_addon.export import export_scene
 from mcrt_addon.reference import setup_cycles_reference
 
@@ -32,13 +33,24 @@ def sharp_plates(scene):
                 node.inputs["Roughness"].default_value = 0.05
 
 
+def veiled(scene):
+    """The principled_grid's dielectric row at Alpha 0.4 (as tests/addon/test_agreement_principled_layers.py)."""
+    for material in bpy.data.materials:
+        if material.name.startswith("Dielectric"):
+            node = next(n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+            node.inputs["Alpha"].default_value = 0.4
+
+
 CASES = {            # name: (sample file, the options in the tracer's terms, an edit of the file or None)
     "bounces": ("mirror_glass", dict(diffuse_bounces=1, glossy_bounces=1, transmission_bounces=2), None),
     "caustics": ("mirror_glass", dict(caustics_reflective=False, caustics_refractive=False), None),
     "clamp": ("mirror_glass", dict(clamp_direct=4.0, clamp_indirect=0.25), None),
     "filter_glossy": ("glossy_plates", dict(filter_glossy=1.0), sharp_plates),
-    # Cycles' defaults but the total (the method's 8): what F12 renders in a new file, both engines
-    "cycles_defaults": ("glossy_plates", {k: v for k, v in preset_values(CYCLES).items() if k != "max_depth"}, None),
+    "transparent": ("principled_grid", dict(transparent_bounces=1), veiled),
+    "caustics_principled": ("principled_grid", dict(caustics_reflective=False), None),
+    # Cycles' Light Paths defaults but the total (the method's 8): what F12 renders in a new file
+    "cycles_defaults": ("glossy_plates", {k: v for k, v in preset_values(CYCLES).items() if k in LIGHT_PATH_SPEEDUPS},
+                        None),
 }
 _cycles = {}
 

@@ -178,12 +178,12 @@ def test_material_mapping(scene, ms):
 
 
 def test_unsupported_node_warns_and_becomes_diffuse(scene, ms):
-    mat = ms.node_material("Toony", "ShaderNodeBsdfTranslucent")
+    mat = ms.node_material("Toony", "ShaderNodeBsdfToon")
     add(ms, scene, "T", lambda bm: ms.quad(bm, [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), mat)
     res = export()
     t = material_of(res.scene, "Toony")
     assert t.kind == "diffuse"
-    assert any("Material 'Toony'" in w and "ShaderNodeBsdfTranslucent" in w for w in res.warnings), res.warnings
+    assert any("Material 'Toony'" in w and "ShaderNodeBsdfToon" in w for w in res.warnings), res.warnings
 
 
 def test_object_without_material_is_cycles_default_grey(scene, ms):
@@ -422,13 +422,13 @@ def test_zero_area_emitter_is_an_error_naming_the_object(scene, ms):
     ("shadow_ray", "Object 'Q': ray visibility is not supported (shadow off)"),
     ("holdout_collection", "Collection 'Held': holdout is not supported"),
     ("motion_blur", "Motion blur is not rendered"),
-    ("film_transparent", "Film > Transparent is not supported"),
-    ("alpha", "Material 'Seethrough', node 'Principled BSDF': input 'Alpha' 0.5 is not modelled"),
-    ("transparent_bsdf", "Material 'Glassless', node 'Transparent BSDF': ShaderNodeBsdfTransparent is not supported"),
+    ("film_transparent_glass", "Film > Transparent Glass is not supported"),
+    ("subsurface", "Material 'Skin', node 'Principled BSDF': input 'Subsurface Weight' 0.5 is rendered as diffuse"),
+    ("transparent_bsdf", "Material 'Glassless', node 'Transparent BSDF': transparent shadows are not modelled"),
     ("holdout_node", "Material 'Hole', node 'Holdout': ShaderNodeHoldout is not supported"),
 ])
 def test_unmodelled_blender_features_are_named_in_a_warning(scene, ms, feature, expected):
-    mat = {"alpha": lambda: ms.node_material("Seethrough", "ShaderNodeBsdfPrincipled", Alpha=0.5),
+    mat = {"subsurface": lambda: ms.node_material("Skin", "ShaderNodeBsdfPrincipled", **{"Subsurface Weight": 0.5}),
            "transparent_bsdf": lambda: ms.node_material("Glassless", "ShaderNodeBsdfTransparent"),
            "holdout_node": lambda: ms.node_material("Hole", "ShaderNodeHoldout")}.get(feature, lambda: None)()
     ob = add(ms, scene, "Q", lambda bm: ms.quad(bm, [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), mat)
@@ -445,8 +445,9 @@ def test_unmodelled_blender_features_are_named_in_a_warning(scene, ms, feature, 
         bpy.context.view_layer.layer_collection.children["Held"].holdout = True
     elif feature == "motion_blur":
         scene.render.use_motion_blur = True
-    elif feature == "film_transparent":
+    elif feature == "film_transparent_glass":
         scene.render.film_transparent = True
+        scene.cycles.film_transparent_glass = True
     warnings = export().warnings
     assert any(expected in w for w in warnings), warnings
 

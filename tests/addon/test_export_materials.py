@@ -217,8 +217,7 @@ def test_principled_base_colour_texture(scene, ms):
 
 @needs_v2
 @pytest.mark.parametrize("socket_name, value", [
-    ("Transmission Weight", 0.3), ("Coat Weight", 0.5), ("Sheen Weight", 0.4), ("Subsurface Weight", 0.2),
-    ("Thin Film Thickness", 250.0), ("Alpha", 0.5)])
+    ("Transmission Weight", 0.3), ("Thin Film Thickness", 250.0)])     # coat, sheen, alpha: test_export_principled_layers.py
 def test_principled_unmodelled_inputs_name_material_and_socket(scene, ms, socket_name, value):
     plate(ms, scene, "P", ms.node_material("Layered", "ShaderNodeBsdfPrincipled", **{socket_name: value}))
     res = export()

@@ -74,7 +74,9 @@ def test_world_is_background_colour_times_strength(empty_scene):
 def test_unmodelled_scene_and_object_features_are_named(empty_scene):
     assert scene_warnings(empty_scene) == []
     empty_scene.render.use_motion_blur = True
-    empty_scene.render.film_transparent = True
+    empty_scene.render.film_transparent = True            # rendered: no warning
+    assert [w.split(" ")[0] for w in scene_warnings(empty_scene)] == ["Motion"]
+    empty_scene.cycles.film_transparent_glass = True
     assert [w.split(" ")[0] for w in scene_warnings(empty_scene)] == ["Motion", "Film"]
     bpy.ops.mesh.primitive_cube_add()
     ob = bpy.context.active_object

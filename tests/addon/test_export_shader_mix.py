@@ -180,34 +180,152 @@ def test_mix_factor_is_clamped(scene, ms):
     assert m.color == (0.0, 0.0, 0.0) and m.emission == pytest.approx((2.0, 2.0, 2.0))
 
 
-def test_linked_mix_factor_is_named_and_its_unlinked_value_used(scene, ms):
-    g = Graph("Fresnel")
+def test_a_factor_source_not_modelled_is_named_and_its_unlinked_value_used(scene, ms):
+    g = Graph("Noise")
     mix = g.mix(0.5, g.diffuse((0.8, 0.0, 0.0)), g.diffuse((0.0, 0.0, 0.8)))
-    fresnel = g.tree.nodes.new("ShaderNodeFresnel")
-    g.tree.links.new(fresnel.outputs[0], mix.inputs[0])
+    noise = g.tree.nodes.new("ShaderNodeTexNoise")
+    g.tree.links.new(noise.outputs[0], mix.inputs[0])
     plate(ms, scene, g.output(mix))
     res = export()
-    assert only(res, "Fresnel").color == pytest.approx((0.4, 0.0, 0.4))
-    assert [w for w in named(res, "Fresnel", "is linked") if f"node '{mix.name}'" in w], res.warnings
+    assert only(res, "Noise").color == pytest.approx((0.4, 0.0, 0.4))
+    assert [w for w in named(res, "Noise", "is linked") if f"node '{mix.name}'" in w and noise.name in w], res.warnings
 
 
 def test_rough_diffuse_of_two_colours_is_not_blended_in_4_3(scene, ms):
-    """Cycles 4.3+'s Oren-Nayar is not linear in its colour: no exact blend (warned)."""
+    """Cycles 4.3+'s Oren-Nayar is not linear in its colour: no blend, a mix of the two closures."""
     g = Graph("RoughMix")
     plate(ms, scene, g.output(g.mix(0.5, g.diffuse((0.8, 0.8, 0.8), 0.5), g.diffuse((0.2, 0.2, 0.2), 0.5))))
     res = export()
     if bpy.app.version >= (4, 3, 0):
-        assert named(res, "RoughMix", "is not modelled"), res.warnings
+        m = only(res, "RoughMix")
+        assert m.kind == "mix" and [leaf.material.color for leaf in m.mix.leaves] == [
+            pytest.approx((0.8, 0.8, 0.8)), pytest.approx((0.2, 0.2, 0.2))]
+        assert res.warnings == [], res.warnings
     else:
         assert only(res, "RoughMix").color == pytest.approx((0.5, 0.5, 0.5))
 
 
-def test_mix_of_different_bsdfs_is_named(scene, ms):
+def test_mix_of_different_bsdfs_is_a_closure_list(scene, ms):
     g = Graph("DG")
     plate(ms, scene, g.output(g.mix(0.7, g.diffuse((0.8, 0.8, 0.8)), g.glossy((0.9, 0.9, 0.9), 0.2))))
     res = export()
-    assert named(res, "DG", "not modelled"), res.warnings
-    assert only(res, "DG").kind == "glossy"          # the side of larger weight
+    m = only(res, "DG")
+    assert res.warnings == [], res.warnings
+    assert m.kind == "mix" and [leaf.material.kind for leaf in m.mix.leaves] == ["diffuse", "glossy"]
+    assert [[f.constant() for f in leaf.factors] for leaf in m.mix.leaves] == [[pytest.approx(0.3)],
+                                                                                [pytest.approx(0.7)]]
+    assert m.mix.leaves[1].material.roughness == pytest.approx(0.2)
+    assert m.mix.leaves[0].material.name.startswith("DG: ")          # leaves named after their nodes
+    m.validate()
+
+
+def link(g, output, sock):
+    g.tree.links.new(output, sock)
+
+
+@pytest.mark.parametrize("source", ["fresnel", "facing", "layer fresnel"])
+def test_fresnel_and_layer_weight_factors(scene, ms, source):
+    g = Graph("Varnish")
+    mix = g.mix(0.5, g.diffuse((0.8, 0.1, 0.1)), g.glossy((1.0, 1.0, 1.0), 0.1))
+    if source == "fresnel":
+        node = g.node("ShaderNodeFresnel", IOR=1.6)
+        link(g, node.outputs["Fac"], mix.inputs[0])
+    else:
+        node = g.node("ShaderNodeLayerWeight", Blend=0.3)
+        link(g, node.outputs["Facing" if source == "facing" else "Fresnel"], mix.inputs[0])
+    plate(ms, scene, g.output(mix))
+    res = export()
+    m = only(res, "Varnish")
+    assert res.warnings == [], res.warnings
+    (d, gl) = m.mix.leaves
+    assert [f.invert for f in d.factors] == [True] and [f.invert for f in gl.factors] == [False]
+    f = gl.factors[0]
+    assert f.node == node.name
+    if source == "fresnel":
+        assert f.kind == "fresnel" and f.ior == pytest.approx(1.6)
+    else:
+        assert f.kind == "layer_weight" and f.blend == pytest.approx(0.3)
+        assert f.output == ("facing" if source == "facing" else "fresnel")
+    m.validate()
+
+
+def test_image_texture_factor_is_uv_mapped(scene, ms):
+    image = ms.packed_image("Mask", 2, 1, lambda x, y: (x, x, x))
+    g = Graph("Masked")
+    mix = g.mix(0.5, g.diffuse((0.8, 0.8, 0.8)), g.node("ShaderNodeBsdfGlass", IOR=1.45))
+    tex = g.tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    link(g, tex.outputs["Color"], mix.inputs[0])
+    plate(ms, scene, g.output(mix))
+    res = export()
+    m = only(res, "Masked")
+    factor = m.mix.leaves[1].factors[0]
+    assert factor.kind == "texture" and res.scene.textures[factor.texture.texture].name == "Mask"
+    assert factor.value == pytest.approx(0.5)                     # where a hit has no UV
+    assert res.scene.meshes[0].uvs is not None                    # the mesh exports its UVs for it
+    res.scene.validate()
+
+
+def test_nested_mixes_flatten_with_multiplied_weights(scene, ms):
+    g = Graph("Nest")
+    lw = g.node("ShaderNodeLayerWeight", Blend=0.4)
+    inner = g.mix(0.5, g.glossy((0.9, 0.9, 0.9), 0.3), g.node("ShaderNodeBsdfGlass", IOR=1.5))
+    link(g, lw.outputs["Facing"], inner.inputs[0])
+    plate(ms, scene, g.output(g.mix(0.25, g.diffuse((0.2, 0.4, 0.6)), inner)))
+    m = only(export(), "Nest")
+    kinds = [leaf.material.kind for leaf in m.mix.leaves]
+    assert kinds == ["diffuse", "glossy", "glass"]
+    weights = [[(f.kind, f.invert, f.constant() if f.is_constant else None) for f in leaf.factors]
+               for leaf in m.mix.leaves]
+    assert weights == [[("constant", False, pytest.approx(0.75))],
+                       [("constant", False, pytest.approx(0.25)), ("layer_weight", True, None)],
+                       [("constant", False, pytest.approx(0.25)), ("layer_weight", False, None)]]
+    m.validate()
+
+
+def test_add_of_different_bsdfs_sums_them_at_weight_one(scene, ms):
+    g = Graph("Sum")
+    plate(ms, scene, g.output(g.add(g.diffuse((0.5, 0.5, 0.5)), g.glossy((0.8, 0.8, 0.8), 0.4))))
+    res = export()
+    m = only(res, "Sum")
+    assert m.kind == "mix" and [leaf.factors for leaf in m.mix.leaves] == [[], []]     # weights 1 + 1
+    assert res.warnings == [], res.warnings
+
+
+def test_emission_inside_a_mix_goes_to_the_mix_material(scene, ms):
+    g = Graph("GlowMix")
+    lamp = g.add(g.diffuse((0.5, 0.5, 0.5)), g.emission((1.0, 1.0, 1.0), 3.0))
+    plate(ms, scene, g.output(g.mix(0.5, lamp, g.glossy((0.9, 0.9, 0.9), 0.3))))
+    res = export()
+    m = only(res, "GlowMix")
+    assert m.kind == "mix" and m.emission == pytest.approx((1.5, 1.5, 1.5))
+    assert all(leaf.material.emission == (0.0, 0.0, 0.0) for leaf in m.mix.leaves)
+    assert res.warnings == [], res.warnings
+    m.validate()
+
+
+def test_emission_weighted_by_fresnel_is_named(scene, ms):
+    g = Graph("Rim")
+    mix = g.mix(0.5, g.diffuse((0.5, 0.5, 0.5)), g.emission((1.0, 1.0, 1.0), 4.0))
+    fresnel = g.node("ShaderNodeFresnel", IOR=1.5)
+    link(g, fresnel.outputs["Fac"], mix.inputs[0])
+    plate(ms, scene, g.output(mix))
+    res = export()
+    m = only(res, "Rim")
+    assert m.emission == pytest.approx((0.16, 0.16, 0.16))          # 4 x F0(1.5) = 4 x 0.04
+    assert named(res, "Rim", "not modelled per hit"), res.warnings
+    assert m.kind == "mix" and m.mix.leaves[0].factors[0].invert
+
+
+def test_a_weighted_principled_keeps_its_weight(scene, ms):
+    """A closure not linear in its colour at weight 0.5 is a one-leaf mix (Cycles scales the closure)."""
+    g = Graph("HalfP")
+    plate(ms, scene, g.output(g.mix(0.5, g.node("ShaderNodeBsdfPrincipled"), g.emission((1, 1, 1), 2.0))))
+    res = export()
+    m = only(res, "HalfP")
+    assert m.kind == "mix" and len(m.mix.leaves) == 1 and m.mix.leaves[0].factors[0].constant() == 0.5
+    assert m.emission == pytest.approx((1.0, 1.0, 1.0))
+    assert not named(res, "HalfP", "not modelled"), res.warnings
 
 
 def test_only_closures_linear_in_their_colour_are_blended():
@@ -216,12 +334,15 @@ def test_only_closures_linear_in_their_colour_are_blended():
     are not linear in their colour, so they are never blended."""
     from types import SimpleNamespace
 
-    from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, Material
+    from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, REFRACTION, TRANSLUCENT, TRANSPARENT, Material
     from mcrt_addon.export.shader_mix import colour_is_weight
-    kinds = dict(DIFFUSE=DIFFUSE, MIRROR=MIRROR, GLASS=GLASS, GLOSSY=GLOSSY)
+    kinds = dict(DIFFUSE=DIFFUSE, MIRROR=MIRROR, GLASS=GLASS, GLOSSY=GLOSSY, REFRACTION=REFRACTION,
+                 TRANSPARENT=TRANSPARENT, TRANSLUCENT=TRANSLUCENT)
     new, old = SimpleNamespace(version=(5, 0), **kinds), SimpleNamespace(version=(3, 4), **kinds)
     assert colour_is_weight(new, Material("d", DIFFUSE)) and colour_is_weight(new, Material("m", MIRROR))
     assert colour_is_weight(new, Material("g", GLOSSY, fresnel="none"))
+    assert colour_is_weight(new, Material("t", TRANSLUCENT)) and colour_is_weight(new, Material("r", GLASS, roughness=0.3))
+    assert not colour_is_weight(new, Material("r", GLASS, roughness=0.3, distribution="multi_ggx"))
     assert not colour_is_weight(new, Material("g", GLOSSY, fresnel="dielectric"))
     rough = Material("r", DIFFUSE, diffuse_roughness=0.5)
     assert not colour_is_weight(new, rough) and colour_is_weight(old, rough)

@@ -39,7 +39,8 @@ def test_extension_zip_contents(built):
         names = set(zf.namelist())
         manifest = zf.read("blender_manifest.toml").decode()
     assert {"blender_manifest.toml", "__init__.py", "render_engine.py", "properties.py", "ui.py",
-            "export/__init__.py", "tracer/__init__.py", "tracer/api.py", "tracer/scene/model.py"} <= names
+            "export/__init__.py", "tracer/__init__.py", "tracer/api.py", "tracer/scene/model.py",
+            "docs/user-guide.md", "docs/settings.md"} <= names
     wheels = [n for n in names if n.startswith("wheels/") and n.endswith(".whl")]
     assert any("embreex" in w for w in wheels) and any("openimageio" in w.lower() for w in wheels)
     assert not any(os.path.basename(w).startswith("numpy") for w in wheels)
@@ -78,7 +79,8 @@ def test_legacy_zip_is_a_3x_addon_folder(built):
         names = set(zf.namelist())
         init = zf.read("tncg15_mc/__init__.py").decode()
     assert "bl_info" in init
-    assert {"tncg15_mc/render_engine.py", "tncg15_mc/tracer/api.py", "tncg15_mc/export/mesh.py"} <= names
+    assert {"tncg15_mc/render_engine.py", "tncg15_mc/tracer/api.py", "tncg15_mc/export/mesh.py",
+            "tncg15_mc/docs/user-guide.md"} <= names
     assert not any(n.endswith(".whl") for n in names)            # wheels unpacked: importable as they are
     assert "tncg15_mc/vendor/numpy/numpy/__init__.py" in names
     assert "tncg15_mc/vendor/worker/embreex/__init__.py" in names

@@ -174,6 +174,8 @@ def test_passes_agree_with_cycles(samples, name):
     scene = open_blend(samples[name], res)
     setup(scene)
     scene.tncg15.samples = 32
+    # the box of 1 px, as the reference: per-pixel data at edges (Cycles' Z is one sample's)
+    scene.tncg15.pixel_filter_type, scene.tncg15.filter_width = "BOX", 1.0
     ours = render_multilayer(scene)
     scene = open_blend(samples[name], res)
     setup_cycles_reference(scene, samples=32, max_depth=8, seed=1)

@@ -127,4 +127,94 @@ def test_sampling_panel_has_cycles_sub_panels_and_draws_every_setting_once(empty
         cls.draw(SimpleNamespace(layout=RecordingLayout(seen)), Ctx)
     assert sorted(seen) == sorted(["viewport_samples", "use_noise_target", "noise_target", "samples", "min_samples",
                                    "time_limit", "adaptive", "tncg15.estimate_render_time", "shadow_rays",
-                                   "sampler", "seed"])
+                                   "sampler", "seed", "use_animated_seed"])
+
+
+def test_film_panel_is_cycles_film_panel(empty_scene):
+    """Render Properties > Film as Cycles: Exposure, then Pixel Filter (type, width) and Transparent
+    (Blender's own scene.render.film_transparent in its header), closed by default."""
+    import mcrt_addon.ui as ui
+    film = ui.RENDER_PT_tncg15_film
+    children = [c for c in ui.classes if getattr(c, "bl_parent_id", "") == "RENDER_PT_tncg15_film"]
+    assert film.bl_label == "Film" and film.bl_options == {"DEFAULT_CLOSED"}
+    assert [c.bl_label for c in children] == ["Pixel Filter", "Transparent"]
+
+    class Ctx:
+        engine = "TNCG15_MC"
+        scene = empty_scene
+    seen = []
+    from types import SimpleNamespace
+    for cls in (film, *children):
+        for method in ("draw_header", "draw"):
+            if hasattr(cls, method):
+                getattr(cls, method)(SimpleNamespace(layout=RecordingLayout(seen)), Ctx)
+    assert seen == ["film_exposure", "pixel_filter_type", "filter_width", "film_transparent"]
+    # a new file starts with Cycles' film: Blackman-Harris 1.5 px, exposure 1, opaque
+    props = empty_scene.tncg15
+    assert (props.pixel_filter_type, props.filter_width, props.film_exposure) == ("BLACKMAN_HARRIS", 1.5, 1.0)
+    settings = props.to_settings(__import__("mcrt_addon").bridge.settings_class())
+    assert (settings.pixel_filter, settings.filter_width, settings.film_transparent) == ("blackman-harris", 1.5, False)
+    empty_scene.render.film_transparent = True
+    assert props.to_settings(type(settings)).film_transparent is True
+    empty_scene.render.film_transparent = False
+
+
+def test_animated_seed_hashes_the_frame(empty_scene):
+    """Use Animated Seed: the seed the tracer gets is Cycles' hash of (frame, seed); off: the seed."""
+    from mcrt_addon import bridge
+    props, Settings = empty_scene.tncg15, bridge.settings_class()
+    props.seed = 5
+    frame = empty_scene.frame_current
+    assert props.to_settings(Settings).seed == 5
+    props.use_animated_seed = True
+    try:
+        first = props.to_settings(Settings).seed
+        empty_scene.frame_current = frame + 1
+        second = props.to_settings(Settings).seed
+        assert first != second and first != 5
+        assert first == bridge.settings_table().animated_seed(5, frame)
+        # two frames of a still scene: other noise with the toggle on, the same image with it off
+        import numpy as np
+        from engine.api import render
+        from tests.scenes import object_in_uniform_background
+        still = object_in_uniform_background("diffuse", color=0.5, resolution=(8, 8))
+
+        def image_at(f):
+            empty_scene.frame_current = f
+            settings = props.to_settings(Settings)
+            settings.samples, settings.threads, settings.parallelism = 4, 1, "threads"
+            return render(still, settings, log=lambda *a: None).image
+        assert not np.array_equal(image_at(frame), image_at(frame + 1))
+        props.use_animated_seed = False
+        assert np.array_equal(image_at(frame), image_at(frame + 1))
+    finally:
+        empty_scene.frame_current = frame
+        props.property_unset("use_animated_seed")
+        props.property_unset("seed")
+
+
+
+def test_preferences_link_the_user_guide(addon):
+    """Preferences > Add-ons > TNCG15 MC: a Documentation button opening the user guide (in a
+    repository checkout docs/user-guide.md, in the zips their docs/ copy), and the fields drawn with
+    property split (labels left: never cut short)."""
+    import os
+    import types
+    from mcrt_addon import worker_python
+    guide = worker_python.documentation_path()
+    assert guide is not None and os.path.isfile(guide) and guide.endswith(os.path.join("docs", "user-guide.md"))
+    operators, props = [], []
+
+    class Layout(RecordingLayout):
+        use_property_split = None
+
+        def operator(self, name, **kw):
+            op = types.SimpleNamespace(url=None)
+            operators.append((name, kw.get("text"), op))
+            return op
+    layout = Layout(props)
+    prefs = types.SimpleNamespace(worker_python="", render_cluster="")
+    worker_python.TNCG15Preferences.draw(types.SimpleNamespace(layout=layout, **vars(prefs)), None)
+    assert props == ["worker_python", "render_cluster"]
+    assert [(n, t) for n, t, _ in operators] == [("wm.url_open", "Documentation")]
+    assert operators[0][2].url == "file://" + guide

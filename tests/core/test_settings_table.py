@@ -155,8 +155,12 @@ def cli_problems(name, front, rows, parser, base, settings_after):
         if s.flag is None:
             out.append(f"{name}: {s.name} declares it but has no flag")
             continue
-        if not same(getattr(defaults, s.name), s.default):
-            out.append(f"{name}: {s.name} without its flag is {getattr(defaults, s.name)!r}, the row says {s.default!r}")
+        # the add-on's command line keeps the file's value: a new file's (Cycles' default where it
+        # differs), but for what its default preset (fair) sets (mcrt_addon/properties.py apply_preset)
+        fair = s.name in table.preset_values(table.FAIR) or s.name == "max_depth"
+        expected = s.new_file_default if front == ADDON_CLI and BLENDER in s.fronts and not fair else s.default
+        if not same(getattr(defaults, s.name), expected):
+            out.append(f"{name}: {s.name} without its flag is {getattr(defaults, s.name)!r}, the row says {expected!r}")
         value = other_value(s)
         args = parse(parser, base + flag_argv(s, value))
         if args is None or not same(getattr(settings_after(args), s.name), value):
@@ -224,8 +228,8 @@ def blender_problems(rows):
             items = [(i.identifier, i.name, i.description) for i in p.enum_items]
             if items != [(c.identifier, c.label, c.description) for c in s.choices]:
                 out.append(f"{name}.{s.blender_prop}: items {items}, the row says {s.choices}")
-            if p.default != s.identifier(s.default):
-                out.append(f"{name}.{s.blender_prop}: default {p.default}, the row says {s.default!r}")
+            if p.default != s.identifier(s.new_file_default):
+                out.append(f"{name}.{s.blender_prop}: default {p.default}, the row says {s.new_file_default!r}")
         elif p.default != s.new_file_default:
             out.append(f"{name}.{s.blender_prop}: default {p.default!r}, the row says {s.new_file_default!r}")
     extra = sorted(set(rna.keys()) - wanted)

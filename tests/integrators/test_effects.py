@@ -39,8 +39,9 @@ def test_diffuse_only_scene_never_runs_sphere_or_refraction_code(spies):
     fx = result.stats["effects"]
     assert fx == {"spheres": False, "quads": True, "triangles": True, "smooth_normals": False,
                   "area_lights": False, "diffuse": True, "seen_lamps": False, "world_light": False,
-                  "mirror": False, "glass": False, "glossy": False, "principled": False, "rough_diffuse": False, "emission": True,
+                  "mirror": False, "glass": False, "glossy": False, "principled": False, "rough_diffuse": False, "mix": False, "emission": True,
                   "direct_light": True,
+                  "rough_glass": False, "refraction": False, "transparent": False, "translucent": False,
                   "solid_angle": True,
                   "light_tree": False, "mis": True, "passes": False, "textures": False,
                   "bounce_limits": False, "clamp": False, "filter_glossy": False, "caustics": False}

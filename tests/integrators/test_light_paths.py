@@ -61,14 +61,18 @@ def test_blur_alpha_is_cycles_widening():
 def test_bounce_types_follow_cycles_labels():
     f = BSDFFlags
     flags = np.array([f.DIFFUSE | f.REFLECTION, f.GLOSSY | f.REFLECTION, f.DELTA | f.REFLECTION,
-                      f.DELTA | f.TRANSMISSION, f.DIFFUSE | f.TRANSMISSION], dtype=np.int8)
+                      f.DELTA | f.TRANSMISSION, f.DIFFUSE | f.TRANSMISSION, f.DELTA | f.TRANSMISSION | f.STRAIGHT],
+                     dtype=np.int8)
     assert lp.bounce_type(flags).tolist() == [lp.DIFFUSE_BOUNCE, lp.GLOSSY_BOUNCE, lp.GLOSSY_BOUNCE,
-                                              lp.TRANSMISSION_BOUNCE, lp.TRANSMISSION_BOUNCE]
+                                              lp.TRANSMISSION_BOUNCE, lp.TRANSMISSION_BOUNCE, lp.TRANSPARENT_BOUNCE]
+    # after a diffuse reflection or transmission; a straight pass-through keeps what was before
+    assert lp.after_diffuse(flags, np.array([False] * 5 + [True])).tolist() == [True, False, False, False, True, True]
 
 
 def test_caustics_leave_out_the_lobes_of_each_bsdf():
-    """Per scatter group: mirror and glossy lose everything with Reflective off, glass only both of
-    its lobes together; BSDFs with a diffuse lobe are never blackened by the tracer."""
+    """Per scatter group: mirror and glossy lose everything with Reflective off, refraction with
+    Refractive off, glass only both of its lobes together; BSDFs with a diffuse lobe and straight
+    pass-throughs (Transparent BSDF) are never blackened by the tracer."""
     kinds = [kind for kind, _ in SCATTERING]
     table = MaterialTable([Material(k, kind=k if k in ("diffuse", "mirror", "glass", "glossy", "principled")
                                     else DIFFUSE) for k in kinds], RenderSettings())
@@ -83,8 +87,9 @@ def test_caustics_leave_out_the_lobes_of_each_bsdf():
     assert not lp.LightPaths(RenderSettings(caustics_reflective=False), plan_effects(BUILTIN_SCENES["cornell"](),
                              RenderSettings()), [type("NoLobes", (), {"flags": BSDFFlags.NONE})()]).specular_only[0]
     assert gone(caustics_reflective=False) == {"mirror", "glossy"}
-    assert gone(caustics_refractive=False) == set()
-    assert gone(caustics_reflective=False, caustics_refractive=False) == {"mirror", "glossy", "glass"}
+    assert gone(caustics_refractive=False) == {"refraction", "rough refraction"}
+    assert gone(caustics_reflective=False, caustics_refractive=False) == {
+        "mirror", "glossy", "glass", "rough glass", "refraction", "rough refraction"}   # never transparent
 
 
 def test_alpha_floor_widens_the_microfacet_lobe():

@@ -76,3 +76,19 @@ def test_control_another_sampler_seed_gives_other_rays():
     a, _ = draw(MaskedTileSamples(camera, WIDTH, HEIGHT, *TILE, SPP, sampler, active), 15)
     b, _ = draw(MaskedTileSamples(camera, WIDTH, HEIGHT, *TILE, SPP, other, active), 15)
     assert not any(np.array_equal(a[k][1], b[k][1]) for k in a)
+
+
+def test_masked_samples_take_the_pixel_filter_as_the_full_tile():
+    """With a pixel filter (engine/film/pixel_filter.py) an active pixel's rays are still the full
+    tile's; and the filter moves them (a box of width 1 would not)."""
+    from engine.film.pixel_filter import PixelFilter
+    camera, sampler = camera_and_sampler()
+    wide = PixelFilter("blackman-harris", 1.5)
+    active = np.zeros(15, bool)
+    active[[1, 7, 12]] = True
+    full, _ = draw(TileSamples(camera, WIDTH, HEIGHT, *TILE, SPP, sampler, pixel_filter=wide), 7)
+    masked, _ = draw(MaskedTileSamples(camera, WIDTH, HEIGHT, *TILE, SPP, sampler, active, pixel_filter=wide), 4)
+    for key, (o, d) in masked.items():
+        assert np.array_equal(d, full[key][1]), key
+    plain, _ = draw(TileSamples(camera, WIDTH, HEIGHT, *TILE, SPP, sampler), 7)
+    assert not any(np.array_equal(plain[k][1], full[k][1]) for k in masked)

@@ -1,0 +1,208 @@
+"""Mix and Add Shaders as Cycles evaluates them: a material is a weighted list of closures (the
+leaves of engine/scene/model.py Mix), each scattered by its own row of the material table.
+
+At a hit, leaf c has the weight w_c, the product of its factors (`leaf_weights`): constants, Fresnel
+and Layer Weight nodes of the view direction, image textures at the hit's UV.  As Cycles'
+surface_shader_bsdf_sample and surface_shader_bsdf_eval_mis (its kernel/integrator/surface_shader.h):
+
+* `sample` picks leaf c with probability p_c = w_c a_c / sum_k w_k a_k, a_c the leaf's albedo
+  estimate (the mean of its colour, at least ALBEDO_FLOOR, so that no leaf that reflects is never
+  picked: Cycles' sample_weight is the closure weight's average), and samples it.  A non-delta
+  direction is then one sample of the mixture of the non-delta leaves (one-sample MIS over the
+  closures): value = sum_c w_c f_c cos / sum_c p_c pdf_c, pdf = sum_c p_c pdf_c.  A delta direction
+  (mirror, smooth glass) is the leaf's alone: value = w_c x its value / p_c, pdf = p_c x its pdf.
+* `eval` = (sum_c w_c f_c cos, sum_c p_c pdf_c); `pdf` = sum_c p_c pdf_c: light samples and MIS see
+  exactly the density `sample` draws from.
+
+Leaves are ordinary materials, appended to the table's material ids (engine/scene/model.py
+with_mix_leaves), so every row the table has scatters them, including rows added later; the mix
+knows none by name.  A glass leaf crosses the path's medium stack as a glass surface does.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.vec import dot
+from ..scene.model import FRESNEL, LAYER_WEIGHT, TEXTURE
+from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+
+ALBEDO_FLOOR = 0.05             # a leaf's albedo estimate is at least this (black leaves may reflect)
+# Cycles' colour-to-float conversion (linear_rgb_to_gray): luminance of linear Rec.709 (rgb_to_y).
+LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])
+DEAD = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION     # the flags of a hit whose weights are all 0
+
+
+def fresnel_dielectric_cos(cos, eta):
+    """Cycles' fresnel_dielectric_cos: the unpolarised reflectance at |cos| for the IOR ratio eta
+    (1 beyond the critical angle)."""
+    c = np.abs(cos)
+    g = eta * eta - 1.0 + c * c
+    ok = g > 0.0
+    g = np.sqrt(np.where(ok, g, 1.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = (g - c) / (g + c)
+        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+        f = 0.5 * a * a * (1.0 + b * b)
+    return np.where(ok, np.nan_to_num(f, nan=1.0), 1.0)
+
+
+def factor_value(factor, si: ShadingPoint) -> np.ndarray:
+    """The factor (engine/scene/model.py MixFactor) at the hits `si`, clamped to [0, 1] as a Mix
+    Shader's Fac (constants: as given), inverted for a Mix Shader's first input."""
+    n = len(si)
+    if factor.kind == FRESNEL or factor.kind == LAYER_WEIGHT:
+        cos = dot(si.wo, si.n)                               # Cycles: dot(sd->wi, N), N the shading normal
+        backfacing = dot(si.wo, si.normal) < 0.0            # the viewer inside the surface
+        if factor.kind == FRESNEL:                           # its svm_node_fresnel
+            eta = max(factor.ior, 1e-5)
+            f = fresnel_dielectric_cos(cos, np.where(backfacing, 1.0 / eta, eta))
+        elif factor.output == "fresnel":                     # its svm_node_layer_weight
+            eta = max(1.0 - factor.blend, 1e-5)
+            f = fresnel_dielectric_cos(cos, np.where(backfacing, eta, 1.0 / eta))
+        else:
+            f = np.abs(cos)
+            if factor.blend != 0.5:
+                blend = min(max(factor.blend, 0.0), 1.0 - 1e-5)
+                f = f ** (2.0 * blend if blend < 0.5 else 0.5 / (1.0 - blend))
+            f = 1.0 - f
+    elif factor.kind == TEXTURE:
+        if si.lookup is None:
+            f = np.full(n, float(factor.value))
+        else:
+            f = si.lookup.factor(factor.texture, factor.value)
+    else:
+        return np.full(n, factor.constant())
+    f = np.clip(f, 0.0, 1.0)
+    return 1.0 - f if factor.invert else f
+
+
+class MixBSDF(BSDF):
+    """The leaves of every mix material, scattered through the material table's rows."""
+    flags = BSDFFlags.NONE          # per instance: the union of its leaves' rows (bind)
+
+    def __init__(self, materials, settings):
+        self.materials = materials
+        self.closures = {}
+
+    def bind(self, table, leaf_ids) -> None:
+        """Take the leaves' rows from the material table (engine/materials/table.py) and the leaf
+        material ids of each material (engine/scene/model.py with_mix_leaves)."""
+        self.table = table
+        flags = BSDFFlags.NONE
+        for m, ids in enumerate(leaf_ids):
+            if not ids:
+                continue
+            leaves = self.materials[m].mix.leaves
+            self.closures[m] = [(leaf_id, int(table.kind[leaf_id]), leaf.factors)
+                                for leaf_id, leaf in zip(ids, leaves)]
+            for leaf_id, row, _ in self.closures[m]:
+                flags |= table.bsdfs[row].flags
+        self.flags = flags
+
+    # -- the closures at some hits ----------------------------------------------------------------
+    def _pairs(self, si: ShadingPoint):
+        """Every (hit, leaf) pair of the hits, hit-major: (hit (P,), row (P,), weight (P,),
+        probability (P,), total weight x albedo per hit (N,), the leaves as ShadingPoint of the pairs)."""
+        hit, leaf, row, weight = [], [], [], []
+        for m in np.unique(si.material):
+            idx = np.flatnonzero(si.material == m)
+            at = si.take(idx) if len(idx) != len(si) else si
+            for leaf_id, r, factors in self.closures[int(m)]:
+                w = np.ones(len(idx))
+                for factor in factors:
+                    w = w * factor_value(factor, at)
+                hit.append(idx)
+                leaf.append(np.full(len(idx), leaf_id))
+                row.append(np.full(len(idx), r))
+                weight.append(w)
+        hit, leaf, row, weight = (np.concatenate(a) for a in (hit, leaf, row, weight))
+        order = np.argsort(hit, kind="stable")
+        hit, leaf, row, weight = hit[order], leaf[order], row[order], weight[order]
+        leaves = si.take(hit)
+        color = self.table.color.take(leaf, axis=1)
+        if si.lookup is not None:
+            color = leaves.lookup.color(color, leaf)
+        leaves.color, leaves.material = color, leaf
+        rate = weight * np.maximum(color.mean(axis=0), ALBEDO_FLOOR)
+        total = np.bincount(hit, weights=rate, minlength=len(si))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            prob = np.where(total.take(hit) > 0.0, rate / total.take(hit), 0.0)
+        return hit, row, weight, prob, total, leaves
+
+    def _sum(self, hit, rows_of_pairs, n):
+        """Per-hit sums of (3, P) rows."""
+        return np.stack([np.bincount(hit, weights=r, minlength=n) for r in rows_of_pairs])
+
+    def _eval_pairs(self, row, leaves, wi_pairs, only=None):
+        """(f cos (3, P), pdf (P,)) of the leaves at wi (per pair); `only`: the pairs to evaluate."""
+        f_cos, pdf = np.zeros(wi_pairs.shape), np.zeros(wi_pairs.shape[1])
+        chosen = np.arange(len(row)) if only is None else only
+        for r in np.unique(row.take(chosen)):
+            sel = chosen[row.take(chosen) == r]
+            if not self.table.non_delta[r]:
+                continue                                    # delta leaves: no given direction meets them
+            f, p = self.table.bsdfs[r].eval(leaves.take(sel), wi_pairs.take(sel, axis=1))
+            f_cos[:, sel], pdf[sel] = f, p
+        return f_cos, pdf
+
+    def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = len(si)
+        hit, row, weight, prob, _, leaves = self._pairs(si)
+        f_cos, pdf = self._eval_pairs(row, leaves, wi.take(hit, axis=1))
+        return self._sum(hit, f_cos * weight, n), np.bincount(hit, weights=pdf * prob, minlength=n)
+
+    def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+        return self.eval(si, wi)[1]
+
+    def sample(self, si: ShadingPoint, u_lobe: np.ndarray, u) -> BSDFSample:
+        n = len(si)
+        hit, row, weight, prob, total, leaves = self._pairs(si)
+        # Pick one pair per hit by u_lobe over its probabilities; u_lobe rescaled for the leaf.
+        start = np.searchsorted(hit, np.arange(n))
+        stop = np.append(start[1:], len(hit))
+        cum = np.cumsum(prob)
+        base = cum.take(np.minimum(start, len(hit) - 1)) - prob.take(np.minimum(start, len(hit) - 1))
+        target = base + np.minimum(u_lobe, 1.0 - 1e-12) * np.where(total > 0.0, 1.0, 0.0)
+        chosen = np.clip(np.searchsorted(cum, target, side="right"), start, stop - 1)
+        p_c = prob.take(chosen)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u_leaf = np.clip((target - (cum.take(chosen) - p_c)) / p_c, 0.0, 1.0 - 1e-12)
+        u_leaf = np.where(p_c > 0.0, u_leaf, 0.0)
+        wi, value = np.zeros((3, n)), np.zeros((3, n))
+        pdf, flags = np.zeros(n), np.full(n, DEAD, dtype=np.int8)
+        wi[:] = si.n
+        delta = np.zeros(n, dtype=bool)
+        for r in np.unique(row.take(chosen)):
+            mine = np.flatnonzero((row.take(chosen) == r) & (p_c > 0.0))     # hits that picked a row-r leaf
+            if not len(mine):
+                continue
+            pairs = chosen.take(mine)
+            at = leaves.take(pairs)
+            if si.media is not None:                        # glass leaves cross the paths' media
+                from .media import MediumStack
+                at.media = MediumStack(si.media.media[mine], si.media.depth[mine])
+            bsdf = self.table.bsdfs[r]
+            uv = None if (u is None or not self.table.non_delta[r]) else (u[0].take(mine), u[1].take(mine))
+            s = bsdf.sample(at, u_leaf.take(mine), uv)
+            if si.media is not None:
+                si.media.media[mine], si.media.depth[mine] = at.media.media, at.media.depth
+            wi[:, mine], flags[mine] = s.wi, s.flags
+            is_delta = (s.flags & BSDFFlags.DELTA) != 0
+            delta[mine] = is_delta
+            d = mine[is_delta]                              # delta: the leaf's own value and pdf
+            w_over_p = weight.take(pairs[is_delta]) / p_c.take(d)
+            value[:, d] = s.value[:, is_delta] * w_over_p
+            pdf[d] = p_c.take(d) * s.pdf[is_delta]
+        # Non-delta samples: the mixture of every non-delta leaf of the hit at wi.
+        spread = np.flatnonzero(~delta & (p_c > 0.0))
+        if len(spread):
+            of = np.zeros(n, dtype=bool)
+            of[spread] = True
+            pairs = np.flatnonzero(of.take(hit))
+            f_cos, p = self._eval_pairs(row, leaves, wi.take(hit, axis=1), only=pairs)
+            f_sum = self._sum(hit, f_cos * weight, n).take(spread, axis=1)
+            p_sum = np.bincount(hit, weights=p * prob, minlength=n).take(spread)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                value[:, spread] = np.where(p_sum > 0.0, f_sum / p_sum, 0.0)
+            pdf[spread] = p_sum
+        return BSDFSample(wi, value, pdf, flags)
