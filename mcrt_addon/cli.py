@@ -22,9 +22,10 @@ import time
 
 from . import bridge, properties
 from .headless import ensure_registered, set_exr_output
+from .reference import LIGHT_PATHS
 
 # The settings the Cycles reference render also takes (mcrt_addon/reference.py); the others are TNCG15 MC's.
-CYCLES_REFERENCE = ("samples", "max_depth", "seed", "threads")
+CYCLES_REFERENCE = ("samples", "max_depth", "seed", "threads") + tuple(LIGHT_PATHS)
 # The settings `estimate` takes besides --noise-target (the pilot render decides the others).
 ESTIMATE_SETTINGS = ("samples", "min_samples", "adaptive", "threads", "seed")
 PROG = "python -m mcrt_addon"
@@ -54,7 +55,8 @@ def build_parser():
                    help="frame to render (default: the file's current frame)")
     r.add_argument("--stats-json", help="write render statistics (JSON) here")
     r.add_argument("--png", help="also write an sRGB PNG of the render here")
-    # A setting's flag not given keeps the .blend file's value.
+    # A setting's flag not given keeps the .blend file's value (the Light Paths rows: the preset's).
+    args_of.add_preset_argument(r, extra=("file",), note="; file: the .blend file's own values")
     args_of.add_setting_arguments(r, table.settings_for(table.ADDON_CLI), table_defaults=False, any_case=True,
                                   note=lambda s: "" if s.name in CYCLES_REFERENCE else " (TNCG15 MC only)")
     es = sub.add_parser("estimate", help="predict the render time to reach --noise-target from a short pilot render")
@@ -77,9 +79,13 @@ def build_parser():
 
 def apply_tncg15_settings(props, args):
     """The settings given on the command line onto the scene's properties (mcrt_addon/properties.py);
-    the others keep the file's values.  --passes is the view layer's (mcrt_addon/passes.py);
+    the others keep the file's values, but for the Light Paths rows of --preset (fair: the
+    reference settings; file: the file's).  --passes is the view layer's (mcrt_addon/passes.py);
     --film-transparent is Blender's scene.render.film_transparent."""
     table = bridge.settings_table()
+    preset = getattr(args, "preset", "file")
+    if preset != "file":
+        properties.apply_preset(props, preset)
     given = bridge.module("cli.settings_args").setting_values(args, properties.SCENE_SETTINGS, given_only=True)
     for name, value in given.items():
         props.set_setting(table.SETTING[name], value)
@@ -196,7 +202,8 @@ def render_in(args, blend, outputs, stop, private):
         from mcrt_addon.reference import FilmSettings
         setup_cycles_reference(scene, samples=props.samples, max_depth=props.max_depth, seed=props.seed,
                                threads=props.threads,
-                               film=FilmSettings.of(props.to_settings(bridge.settings_class())))
+                               film=FilmSettings.of(props.to_settings(bridge.settings_class())),
+                               **{name: getattr(props, name) for name in LIGHT_PATHS})
     else:
         scene.render.engine = "TNCG15_MC"
     rendered = os.path.join(private, "render.exr")
@@ -308,11 +315,19 @@ def render_stats(args, scene, last, wall):
     else:
         stats.update(engine="CYCLES", render_seconds=wall, samples=scene.cycles.samples,
                      max_bounces=scene.cycles.max_bounces, seed=scene.cycles.seed,
-                     blender=bpy.app.version_string)
+                     blender=bpy.app.version_string, light_paths=cycles_light_paths(scene.cycles))
     pct = scene.render.resolution_percentage / 100.0
     stats.setdefault("resolution", [int(scene.render.resolution_x * pct), int(scene.render.resolution_y * pct)])
     stats["wall_seconds"] = wall
     return stats
+
+
+def cycles_light_paths(cycles) -> dict:
+    """Cycles' Light Paths settings of a render (the stats of --engine CYCLES)."""
+    return {name: getattr(cycles, name) for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                                                      "transparent_max_bounces", "sample_clamp_direct",
+                                                      "sample_clamp_indirect", "blur_glossy", "caustics_reflective",
+                                                      "caustics_refractive") if hasattr(cycles, name)}
 
 
 def _json_default(value):

@@ -4,10 +4,11 @@ Mirrors Cycles' ``properties.py``: plain PropertyGroups, no behaviour except con
 scene settings into the tracer's ``RenderSettings`` and back.  The scene's properties are made
 from the tracer's settings table (engine/core/settings.py, read through bridge.py without numpy):
 one bpy property per row that Blender exposes, with the row's label, default (Cycles' default
-where the row names one for new files: the pixel filter) and limits; a row whose 0 means off
-(noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.  Two settings are Blender's
-own, read where Cycles reads them: Film > Transparent (scene.render.film_transparent) and the
-frame that the animated seed hashes with the seed (scene.frame_current).
+where the row names one for new files: the pixel filter, the Light Paths options) and limits; a row
+whose 0 means off (noise_target) gets a checkbox beside it, as Cycles' Noise Threshold.  Two
+settings are Blender's own, read where Cycles reads them: Film > Transparent
+(scene.render.film_transparent) and the frame that the animated seed hashes with the seed
+(scene.frame_current).  `apply_preset` sets the command lines' presets (fair, cycles) onto a scene.
 """
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
@@ -97,6 +98,17 @@ class TNCG15RenderSettings(bpy.types.PropertyGroup):
         if settings.animated_seed:                  # Cycles: hash_uint2(frame, seed)
             settings.seed = TABLE.animated_seed(settings.seed, scene.frame_current)
         return settings
+
+
+def apply_preset(props, name):
+    """A preset of the settings table (engine/core/settings.py preset_values: "fair" or "cycles")
+    onto scene.tncg15.  "fair" also gives the total (Max Bounces) the table's default where the
+    file does not set it: a file saved before it had Cycles' default renders as it did."""
+    for setting, value in TABLE.preset_values(name).items():
+        props.set_setting(TABLE.SETTING[setting], value)
+    total = TABLE.SETTING["max_depth"]
+    if name == TABLE.FAIR and not props.is_property_set(total.blender_prop):
+        props.set_setting(total, total.default)
 
 
 class TNCG15ViewLayerSettings(bpy.types.PropertyGroup):

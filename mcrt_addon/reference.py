@@ -5,6 +5,10 @@ denoising, no adaptive sampling, Filter Glossy 0, light threshold 0, caustics on
 limit = max_depth, Standard view transform, fixed seed, CPU.  `film` (FilmSettings) replaces the
 box, opaque, unscaled film with TNCG15 MC's film settings, so that the two renderers can be compared
 at equal film settings (the add-on command line's --engine CYCLES does).
+
+The Light Paths options (LIGHT_PATHS, the settings table's rows of engine/core/settings.py) can
+be given in the tracer's terms, so that Cycles renders with the values TNCG15 MC renders with
+(`python -m mcrt_addon render --engine CYCLES`); each one not given keeps the fair value above.
 """
 from dataclasses import dataclass
 
@@ -23,13 +27,21 @@ class FilmSettings:
         return cls(settings.pixel_filter, settings.filter_width, settings.film_exposure, settings.film_transparent)
 
 
+# The settings table's rows handed to Cycles: tracer name -> Cycles' property.
+LIGHT_PATHS = {"diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
+               "transmission_bounces": "transmission_bounces", "transparent_bounces": "transparent_max_bounces",
+               "clamp_direct": "sample_clamp_direct", "clamp_indirect": "sample_clamp_indirect",
+               "filter_glossy": "blur_glossy", "caustics_reflective": "caustics_reflective",
+               "caustics_refractive": "caustics_refractive"}
+CYCLES_MAX_BOUNCES = 1024            # Cycles' properties stop there (the tracer's 1024 means "the total only")
+
 
 def _set(obj, name, value):
     if hasattr(obj, name):
         setattr(obj, name, value)
 
 
-def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0, film=FilmSettings()):
+def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0, film=FilmSettings(), **light_paths):
     scene.render.engine = "CYCLES"
     c = scene.cycles
     _set(c, "device", "CPU")
@@ -50,6 +62,9 @@ def setup_cycles_reference(scene, *, samples, max_depth, seed=0, threads=0, film
     c.transmission_bounces = depth
     c.transparent_max_bounces = depth
     c.volume_bounces = 0
+    for name, value in light_paths.items():          # KeyError: not a Light Paths option
+        prop = LIGHT_PATHS[name]
+        setattr(c, prop, min(int(value), CYCLES_MAX_BOUNCES) if prop.endswith("bounces") else value)
     _set(c, "min_light_bounces", 0)
     _set(c, "min_transparent_bounces", 0)
     c.pixel_filter_type = film.pixel_filter.upper().replace("-", "_")

@@ -1,5 +1,6 @@
 """Panels, laid out as Cycles lays out its render properties: Sampling (Viewport, Render, Lights,
-Advanced), Light Paths, Film (Pixel Filter, Transparent), Performance, Denoising, View Layer passes,
+Advanced), Light Paths (Max Bounces, Clamping, Caustics), Film (Pixel Filter, Transparent), Performance,
+Denoising, View Layer passes,
 plus an object panel for the implicit-sphere option.  Also lends our engine id to Blender's generic
 panels (output, dimensions, camera, light, material and world surface) the way the RenderEngine
 documentation template does.
@@ -117,7 +118,6 @@ class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.use_property_decorate = False
         props = context.scene.tncg15
         layout.prop(props, "estimator")
-        layout.prop(props, "max_depth")
         col = layout.column(heading="Russian Roulette")
         col.prop(props, "russian_roulette", text="")
         sub = col.column()
@@ -125,6 +125,47 @@ class RENDER_PT_tncg15_light_paths(TNCG15ButtonsPanel, bpy.types.Panel):
         sub.prop(props, "rr_start_depth")
         layout.prop(props, "fresnel")
         layout.prop(props, "nested_dielectrics")
+
+
+class TNCG15LightPathsChild(TNCG15ButtonsPanel):
+    bl_parent_id = "RENDER_PT_tncg15_light_paths"
+
+
+class RENDER_PT_tncg15_light_paths_max_bounces(TNCG15LightPathsChild, bpy.types.Panel):
+    """Max Bounces as Cycles': the total, then per type (engine/integrators/light_paths.py)."""
+    bl_label = "Max Bounces"
+
+    def draw(self, context):
+        layout = split(self.layout)
+        props = context.scene.tncg15
+        layout.column(align=True).prop(props, "max_depth", text="Total")
+        col = layout.column(align=True)
+        col.prop(props, "diffuse_bounces", text="Diffuse")
+        col.prop(props, "glossy_bounces", text="Glossy")
+        col.prop(props, "transmission_bounces", text="Transmission")
+        layout.column(align=True).prop(props, "transparent_bounces", text="Transparent")
+
+
+class RENDER_PT_tncg15_light_paths_clamping(TNCG15LightPathsChild, bpy.types.Panel):
+    bl_label = "Clamping"
+
+    def draw(self, context):
+        col = split(self.layout).column(align=True)
+        props = context.scene.tncg15
+        col.prop(props, "clamp_direct", text="Direct Light")
+        col.prop(props, "clamp_indirect", text="Indirect Light")
+
+
+class RENDER_PT_tncg15_light_paths_caustics(TNCG15LightPathsChild, bpy.types.Panel):
+    bl_label = "Caustics"
+
+    def draw(self, context):
+        layout = split(self.layout)
+        props = context.scene.tncg15
+        layout.column().prop(props, "filter_glossy")
+        col = layout.column(heading="Caustics", align=True)
+        col.prop(props, "caustics_reflective", text="Reflective")
+        col.prop(props, "caustics_refractive", text="Refractive")
 
 
 class RENDER_PT_tncg15_film(TNCG15ButtonsPanel, bpy.types.Panel):
@@ -267,8 +308,9 @@ class DATA_PT_tncg15_light(TNCG15ButtonsPanel, bpy.types.Panel):
 
 classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_sampling_viewport, RENDER_PT_tncg15_sampling_render,
            RENDER_PT_tncg15_sampling_lights, RENDER_PT_tncg15_sampling_advanced, RENDER_PT_tncg15_light_paths,
-           RENDER_PT_tncg15_film, RENDER_PT_tncg15_film_pixel_filter, RENDER_PT_tncg15_film_transparency,
-           RENDER_PT_tncg15_performance,
+           RENDER_PT_tncg15_light_paths_max_bounces, RENDER_PT_tncg15_light_paths_clamping,
+           RENDER_PT_tncg15_light_paths_caustics, RENDER_PT_tncg15_film, RENDER_PT_tncg15_film_pixel_filter,
+           RENDER_PT_tncg15_film_transparency, RENDER_PT_tncg15_performance,
            RENDER_PT_tncg15_denoise, VIEWLAYER_PT_tncg15_passes, OBJECT_PT_tncg15, DATA_PT_tncg15_light)
 
 _lent = []   # panels we added our engine id to, so unregister removes exactly those

@@ -13,8 +13,8 @@ import numpy as np
 
 from ..core.errors import SceneError, WorkersLost
 from ..film.output import OutputError, check_outputs, refuse_inputs, write_image, write_text
-from ..core.settings import ENGINE_CLI, INT32_MAX, PASSES, RenderSettings, settings_for
-from .settings_args import add_setting_arguments, bounded_int, setting_values
+from ..core.settings import ENGINE_CLI, INT32_MAX, PASSES, RenderSettings, preset_values, settings_for
+from .settings_args import add_preset_argument, add_setting_arguments, bounded_int, setting_values
 from .signals import StopRequest
 
 PROG = "python -m engine"
@@ -34,6 +34,7 @@ MAX_RESOLUTION = 65536
 
 def add_settings_arguments(p):
     """Every setting of the table that this command line exposes (engine/cli/settings_args.py)."""
+    add_preset_argument(p)
     add_setting_arguments(p, settings_for(ENGINE_CLI))
 
 
@@ -49,7 +50,7 @@ def error_metadata(stats) -> list:
 
 def settings_from_args(args) -> RenderSettings:
     """The settings of a command: the table's flags, and the passes the denoiser needs."""
-    values = setting_values(args, settings_for(ENGINE_CLI))
+    values = setting_values(args, settings_for(ENGINE_CLI), preset=preset_values(args.preset))
     values["passes"] = traced_passes(args)
     return RenderSettings(**values)
 

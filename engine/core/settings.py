@@ -96,7 +96,7 @@ class Setting:
     @property
     def new_file_default(self):
         """The value scene.tncg15 starts with in a new Blender file: Cycles' default where the
-        command lines' reference default differs (the pixel filter)."""
+        command lines' reference default differs (the pixel filter, the Light Paths options)."""
         return self.default if self.blender_default is None else self.blender_default
 
     def identifier(self, value: str) -> str:
@@ -149,6 +149,7 @@ def plain(*values: str) -> tuple:
 
 
 STOPPING = "engine/rendering/stopping.py"
+BOUNCES_OFF = 1024                   # a bounce type's limit at which only the total limits it (fair)
 SETTINGS = (
     Setting("samples", INT, 16, "camera rays per pixel", limits=(1, INT32_MAX), flag="--samples",
             label="Samples", description="Camera rays per pixel", bpy_options={"soft_max": 4096},
@@ -159,7 +160,56 @@ SETTINGS = (
     Setting("max_depth", INT, 8, "bounces after the camera hit (0 = direct light only; report 3.4)",
             limits=(0, INT32_MAX - 1), flag="--max-depth", label="Max Bounces",
             description="Bounces after the camera hit (0 = direct light only)", bpy_options={"soft_max": 128},
-            panel="Light Paths", stats=STATS_AS_SET),
+            panel="Light Paths > Max Bounces", stats=STATS_AS_SET, blender_default=12),
+    # Cycles' Light Paths (docs/user-guide.md "Light paths"; engine/integrators/path_tracer.py): the
+    # table's defaults are the fair reference (no limit of a bounce type below the total, no clamp,
+    # no filter, caustics on), `cycles` Cycles' defaults (a new .blend file, --preset cycles).
+    Setting("diffuse_bounces", INT, BOUNCES_OFF, "diffuse reflection bounces (bounded by --max-depth)",
+            limits=(0, INT32_MAX - 1), flag="--diffuse-bounces", label="Diffuse Bounces",
+            description="Maximum number of diffuse reflection bounces, bounded by total maximum",
+            bpy_options={"soft_max": 1024}, panel="Light Paths > Max Bounces", stats=STATS_AS_SET,
+            blender_default=4),
+    Setting("glossy_bounces", INT, BOUNCES_OFF, "glossy and mirror reflection bounces (bounded by --max-depth)",
+            limits=(0, INT32_MAX - 1), flag="--glossy-bounces", label="Glossy Bounces",
+            description="Maximum number of glossy reflection bounces, bounded by total maximum",
+            bpy_options={"soft_max": 1024}, panel="Light Paths > Max Bounces", stats=STATS_AS_SET,
+            blender_default=4),
+    Setting("transmission_bounces", INT, BOUNCES_OFF, "transmission (refraction) bounces (bounded by "
+            "--max-depth)", limits=(0, INT32_MAX - 1), flag="--transmission-bounces", label="Transmission Bounces",
+            description="Maximum number of transmission bounces, bounded by total maximum",
+            bpy_options={"soft_max": 1024}, panel="Light Paths > Max Bounces", stats=STATS_AS_SET,
+            blender_default=12),
+    Setting("transparent_bounces", INT, BOUNCES_OFF, "transparent bounces: straight pass-throughs (the "
+            "Transparent BSDF, the Principled BSDF's alpha); Cycles does not count them in --max-depth, the "
+            "tracer does",
+            limits=(0, INT32_MAX - 1), flag="--transparent-bounces", label="Transparent Max Bounces",
+            description="Maximum number of transparent bounces. This is independent of maximum number of other "
+            "bounces", bpy_options={"soft_max": 1024}, panel="Light Paths > Max Bounces", stats=STATS_AS_SET,
+            blender_default=8),
+    Setting("clamp_direct", FLOAT, 0.0, "clamp each direct-light contribution (camera-seen emission and light "
+            "after one bounce) to a mean over R, G, B of X (0 = off)", limits=(0.0, 1e8), flag="--clamp-direct",
+            metavar="X", label="Clamp Direct", description="If non-zero, the maximum value for a direct sample, "
+            "higher values will be scaled down to avoid too much noise and slow convergence at the cost of accuracy",
+            bpy_options={"soft_max": 1000.0}, panel="Light Paths > Clamping", stats=STATS_AS_SET),
+    Setting("clamp_indirect", FLOAT, 0.0, "clamp each indirect contribution (after two or more bounces) to a "
+            "mean over R, G, B of X (0 = off)", limits=(0.0, 1e8), flag="--clamp-indirect", metavar="X",
+            label="Clamp Indirect", description="If non-zero, the maximum value for an indirect sample, higher "
+            "values will be scaled down to avoid too much noise and slow convergence at the cost of accuracy",
+            bpy_options={"soft_max": 1000.0}, panel="Light Paths > Clamping", stats=STATS_AS_SET,
+            blender_default=10.0),
+    Setting("filter_glossy", FLOAT, 0.0, "widen the roughness of microfacet lobes after blurry bounces (Cycles' "
+            "Filter Glossy; 0 = off)", limits=(0.0, 10.0), flag="--filter-glossy", metavar="X",
+            label="Filter Glossy", description="Adaptively blur glossy shaders after blurry bounces, to reduce "
+            "noise at the cost of accuracy", panel="Light Paths > Caustics", stats=STATS_AS_SET,
+            blender_default=1.0),
+    Setting("caustics_reflective", BOOL, True, "leave out glossy and mirror reflection after a diffuse bounce",
+            flag="--no-caustics-reflective", label="Reflective Caustics", description="Use reflective caustics, "
+            "resulting in a brighter image (more noise but added realism)", panel="Light Paths > Caustics",
+            stats=STATS_AS_SET),
+    Setting("caustics_refractive", BOOL, True, "leave out refraction after a diffuse bounce",
+            flag="--no-caustics-refractive", label="Refractive Caustics", description="Use refractive caustics, "
+            "resulting in a brighter image (more noise but added realism)", panel="Light Paths > Caustics",
+            stats=STATS_AS_SET),
     Setting("russian_roulette", BOOL, True, "disable Russian roulette (report 2.4)", flag="--no-russian-roulette",
             label="Russian Roulette", description="Terminate paths randomly (unbiased) from the start depth on",
             panel="Light Paths", stats=STATS_AS_SET),
@@ -289,6 +339,27 @@ ACCELERATORS = SETTING["accelerator"].values
 PIXEL_FILTERS = SETTING["pixel_filter"].values
 PASSES = SETTING["passes"].values           # render passes besides Combined (engine/film/passes.py)
 INT_LIMITS = {s.name: s.limits for s in SETTINGS if s.kind == INT}
+
+# Presets of both command lines (--preset): "fair", the reference settings (what TNCG15 MC and a fair
+# Cycles reference, mcrt_addon/reference.py, compute without Cycles' speed-ups: no limit of a bounce
+# type below the total, no clamp, no filter, caustics on); "cycles", Cycles' defaults (a new .blend).
+# The fair preset leaves the total (max_depth) alone: a .blend file keeps its own (where it sets one:
+# mcrt_addon/properties.py apply_preset).
+LIGHT_PATH_SPEEDUPS = ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_bounces",
+                       "clamp_direct", "clamp_indirect", "filter_glossy", "caustics_reflective", "caustics_refractive")
+FAIR, CYCLES = "fair", "cycles"
+PRESETS = (FAIR, CYCLES)
+
+
+def preset_values(name: str) -> dict:
+    """{setting: value} of a preset: FAIR the table's defaults of LIGHT_PATH_SPEEDUPS, CYCLES every
+    row's Cycles default (rows without one: their default)."""
+    if name == FAIR:
+        return {n: SETTING[n].default for n in LIGHT_PATH_SPEEDUPS}
+    if name == CYCLES:
+        return {s.name: s.new_file_default for s in SETTINGS
+                if s.blender_default is not None or s.name in LIGHT_PATH_SPEEDUPS}
+    raise SceneError(f"unknown preset '{name}' (expected one of {', '.join(PRESETS)})")
 
 
 def settings_for(front: str) -> tuple:

@@ -26,7 +26,8 @@ EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "di
            "glossy", "principled", "rough_diffuse", "mix", "rough_glass", "refraction", "transparent", "translucent",
            "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
            "light_tree", "mis", "passes",
-           "textures")
+           "textures",
+           "bounce_limits", "clamp", "filter_glossy", "caustics")     # Light Paths (engine/integrators/light_paths.py)
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -230,7 +231,55 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                    f"on the emission of {_names(glowing)} (light samples read the texture)" if glowing else "")
                    if part) + ": texture lookups at triangle hits (UVs interpolated)"
                if colored or glowing else "no image textures: no UVs, no texture lookups")
+    _plan_light_paths(settings, set_effect, users)
     return plan
+
+
+def _plan_light_paths(settings, set_effect, users) -> None:
+    """Cycles' Light Paths options (engine/integrators/light_paths.py): on where they change the image."""
+    kind_of = scatter_kind
+    mirror = users(lambda m: m.kind == MIRROR)
+    glass = users(lambda m: m.kind in (GLASS, REFRACTION))
+    glossy = users(lambda m: m.kind == GLOSSY)
+    principled = users(lambda m: kind_of(m) == PRINCIPLED)         # v2 (the v1 closures keep theirs)
+    passing = users(lambda m: m.kind == TRANSPARENT or (kind_of(m) == PRINCIPLED
+                                                          and getattr(m.principled, "alpha", 1.0) < 1.0))
+    depth = settings.max_depth
+    limits = {"diffuse": settings.diffuse_bounces, "glossy": settings.glossy_bounces,
+              "transmission": settings.transmission_bounces}
+    below = {kind: n for kind, n in limits.items() if n < depth}
+    if passing and settings.transparent_bounces <= depth:   # its last pass-through only finds emission
+        below[f"transparent (through {_names(passing)})"] = settings.transparent_bounces
+    set_effect("bounce_limits", below,
+               "bounces counted per type: " + ", ".join(f"{k} at most {n}" for k, n in below.items())
+               + f" (of {depth} in all); a bounce past its type's limit only finds emission"
+               if below else f"no bounce type limited below the total of {depth}")
+    direct, indirect = settings.clamp_direct, settings.clamp_indirect
+    set_effect("clamp", direct > 0 or indirect > 0,
+               "each contribution's mean over R, G, B clamped: " + ", ".join(
+                   part for part in (f"direct to {direct:g}" if direct > 0 else "",
+                                     f"indirect to {indirect:g}" if indirect > 0 else "") if part)
+               if direct > 0 or indirect > 0 else "no clamping (Clamp Direct and Indirect 0)")
+    lobes = glossy + principled + users(lambda m: kind_of(m) in (ROUGH_GLASS, ROUGH_REFRACTION))
+    blur = settings.filter_glossy > 0 and bool(lobes)
+    delta = [m for m in mirror + glass if m not in lobes]
+    sharp = " (perfect mirrors and smooth glass stay sharp; Cycles blurs them too)" if delta else ""
+    set_effect("filter_glossy", blur,
+               f"Filter Glossy {settings.filter_glossy:g}: microfacet lobes of {_names(lobes)} widened after "
+               "blurry bounces (alpha >= sqrt(1 - min pdf / filter) / 2)" + sharp if blur else
+               "Filter Glossy 0: no roughness widened" if settings.filter_glossy <= 0 else
+               "no microfacet material: Filter Glossy widens nothing" + sharp)
+    reflective = [] if settings.caustics_reflective else mirror + glass + glossy + principled
+    refractive = [] if settings.caustics_refractive else glass       # the Glass and Refraction BSDFs
+    left_out = reflective + [m for m in refractive if m not in reflective]
+    off = [name for name, on in (("reflective", settings.caustics_reflective),
+                                 ("refractive", settings.caustics_refractive)) if not on]
+    set_effect("caustics", left_out,
+               f"{' and '.join(off)} caustics off: after a diffuse bounce the "
+               f"{' and '.join(('glossy and mirror reflection',) * bool(reflective) + ('refraction',) * bool(refractive))}"
+               f" of {_names(left_out)} left out" if left_out else
+               "caustics on (reflective and refractive)" if not off else
+               f"{' and '.join(off)} caustics off, but no material has such a lobe")
 
 
 def _dielectric_effects(set_effect, users) -> None:

@@ -38,6 +38,8 @@ lights), direct light, scatter, roulette, compaction.
   UV interpolated with the hit's barycentrics (pdfs and MIS weights depend on geometry only);
 * Russian roulette (report 2.4) with survival probability min(1, max throughput),
   survivors divided by it; a zero throughput always terminates, without a division.
+* Cycles' Light Paths options (bounce limits per type, clamping, Filter Glossy, caustics): what
+  they do is engine/integrators/light_paths.py; the effect plan switches them on.
 """
 from __future__ import annotations
 
@@ -52,12 +54,14 @@ from ..materials.media import MEDIUM_STACK_DEPTH, MediumStack
 from ..materials.protocol import BSDFFlags, ShadingPoint, transmits_non_delta
 from ..materials.table import ABSORB, N_SCATTER_GROUPS, PASS_THROUGH, MaterialTable
 from ..sampling.qmc import RandomSampler
+from .light_paths import LightPaths
+from .light_paths import after_diffuse as lp_after_diffuse
 
 WAVEFRONT_SIZE = 1 << 15       # paths advanced together; 32768 measured fastest here
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
 
 
-VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n", "f_thru")
+VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n", "f_thru", "counts")
 CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = 0, 1, 2, 3   # LightPolygons.RAY_KINDS
 # Dimension pairs of the sampler (engine/sampling/qmc.py): 0 is the camera jitter (engine/scene/camera_rays.py);
 # the hit after bounce b uses DIMS_PER_BOUNCE pairs from 1 + DIMS_PER_BOUNCE b on.
@@ -86,17 +90,28 @@ class Paths:
     depth: np.ndarray | None = None   # nested dielectrics: (N,) stack height
     f_thru: np.ndarray | None = None  # passes: (3, N) tints of the delta bounces before the feature hit
     f_open: np.ndarray | None = None  # passes: (N,) still looking for its first non-delta hit
+    counts: np.ndarray | None = None  # bounce limits: (4, N) diffuse, glossy, transmission, transparent bounces made
+    min_pdf: np.ndarray | None = None  # Filter Glossy: (N,) the least pdf of the non-delta bounces made
+    after_diffuse: np.ndarray | None = None  # caustics: (N,) the last bounce was diffuse
 
     @classmethod
-    def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool, features: bool = False) -> "Paths":
+    def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool, features: bool = False,
+              light_paths: LightPaths | None = None) -> "Paths":
         n = len(pixel)
-        return cls(pixel, sample, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
-                   np.zeros(n, dtype=np.int8), np.zeros(n, dtype=np.int32),
-                   np.zeros((3, n)) if mis else None, np.zeros((3, n)) if mis else None,
-                   np.ones(n) if mis else None,
-                   np.ones((n, MEDIUM_STACK_DEPTH)) if nested else None,
-                   np.zeros(n, dtype=np.int64) if nested else None,
-                   np.ones((3, n)) if features else None, np.ones(n, dtype=bool) if features else None)
+        paths = cls(pixel, sample, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
+                    np.zeros(n, dtype=np.int8), np.zeros(n, dtype=np.int32),
+                    np.zeros((3, n)) if mis else None, np.zeros((3, n)) if mis else None,
+                    np.ones(n) if mis else None,
+                    np.ones((n, MEDIUM_STACK_DEPTH)) if nested else None,
+                    np.zeros(n, dtype=np.int64) if nested else None,
+                    np.ones((3, n)) if features else None, np.ones(n, dtype=bool) if features else None)
+        if light_paths is not None and light_paths.bounce_limits:
+            paths.counts = np.zeros((4, n), dtype=np.int32)
+        if light_paths is not None and light_paths.caustics:
+            paths.after_diffuse = np.zeros(n, dtype=bool)
+        if light_paths is not None and light_paths.filter_glossy > 0:
+            paths.min_pdf = np.full(n, np.inf)
+        return paths
 
     def _fields(self):
         return [(f.name, 1 if f.name in VECTOR_FIELDS else 0) for f in fields(self)
@@ -108,6 +123,11 @@ class Paths:
     def extend(self, other: "Paths") -> "Paths":
         return Paths(**{name: np.concatenate([getattr(self, name), getattr(other, name)], axis=axis)
                         for name, axis in self._fields()})
+
+
+def group_of(spans, n) -> np.ndarray:
+    """(n,) the scatter group of each of the first n paths, from the groups' slices."""
+    return np.repeat(np.arange(len(spans)), [span.stop - span.start for span in spans])[:n]
 
 
 def power_heuristic(n_f, p_f, n_g, p_g):
@@ -144,6 +164,8 @@ class PathTracer:
         self.seen_lamps = lights.seen if plan.enabled.get("seen_lamps") else None
         self.light_of_kind = {TRIANGLE: lights.triangle_light, SPHERE: lights.sphere_light,
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
+        light_paths = LightPaths(settings, plan, self.bsdfs)
+        self.light_paths = light_paths if light_paths.on else None       # Cycles' Light Paths options
 
     # -- the wavefront -----------------------------------------------------------------
     def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None,
@@ -178,7 +200,7 @@ class PathTracer:
                 pixel, sample, o, d = samples.take(room)
                 fresh = len(pixel)
                 new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis,
-                                  features is not None and features.surface)
+                                  features is not None and features.surface, self.light_paths)
                 paths = new if paths is None else paths.extend(new)
             if paths is None or len(paths.pixel) == 0:
                 return True
@@ -196,6 +218,9 @@ class PathTracer:
         # collects the MIS-weighted emission it reaches (the other half of that vertex's direct
         # light), then ends: its surface absorbs (as Cycles' terminate-on-next-surface).
         final = p.bounce > self.settings.max_depth if self.final_rays else None
+        if p.counts is not None:            # a bounce type past its limit: this hit only emits
+            past = self.light_paths.past_limit(p.counts)
+            final = past if final is None else final | past
         hits = self.geometry.nearest_hits(p.o, p.d, counters, self.scatter_group, N_SCATTER_GROUPS,
                                           light_group=PASS_THROUGH, ray_kind=p.ray_kind,
                                           forced_group=None if final is None or not final.any()
@@ -238,12 +263,18 @@ class PathTracer:
                           color[:, :alive], surf.material[:alive], smooth,
                           None if p.media is None else MediumStack(p.media, p.depth)[:alive],
                           None if self.textures is None else self.textures.at(hits)[:alive])
+        no_light = self.shade_light_paths(p, si, spans) if self.light_paths is not None else None
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
-                p.radiance[:, span] += p.beta[:, span] * self.direct_light(
+                light = p.beta[:, span] * self.direct_light(
                     bsdf, si[span], surf.point[:, span], surf.offset[span], None, counters,
                     u=self.light_uniforms(sampler, p.pixel[span], p.sample[span], dim[span], u_choice[span]),
                     lift=self.geometry.terminator_lift(hits, span, facing) if smooth else None)
+                if self.light_paths is not None:
+                    light = self.light_paths.clamp(light, p.bounce[span] == 0)
+                    if no_light is not None:
+                        light = np.where(no_light[span], 0.0, light)
+                p.radiance[:, span] += light
         # 6. Scatter: the next direction and throughput of every scattering path (non-delta lobes
         # draw their direction from the BSDF_UV pair, delta lobes need none).
         u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1)) if non_delta else None
@@ -294,7 +325,7 @@ class PathTracer:
                     p_world = self.lights.world_pdf(p.prev_n.take(m, axis=1), p.d.take(m, axis=1))
                     weight[sampled] = power_heuristic(1.0, p.prev_bsdf_pdf.take(m), float(self.settings.shadow_rays),
                                                       p_world)
-            radiance += p.beta.take(miss, axis=1) * self.background[:, None] * weight
+            radiance += self.clamped(p.beta.take(miss, axis=1) * self.background[:, None] * weight, p.bounce.take(miss))
         return p.pixel.take(miss), radiance
 
     def lamps_seen(self, p, hits):
@@ -313,7 +344,7 @@ class PathTracer:
         tmax[hits.index] = hits.t
         le = self.seen_lamps.radiance(p.o.take(rays, axis=1), p.d.take(rays, axis=1), tmax.take(rays),
                                       p.ray_kind.take(rays) == TRANSMISSION_RAY)
-        p.radiance[:, rays] += p.beta.take(rays, axis=1) * le
+        p.radiance[:, rays] += self.clamped(p.beta.take(rays, axis=1) * le, p.bounce.take(rays))
 
     def emission(self, p, surf, hits, surfaces):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
@@ -334,7 +365,7 @@ class PathTracer:
                     parts.append((idx, lamps.radiance.take(prim[front], axis=1)))
         for idx, le in parts:
             weight = self.emission_weight(p, surf, hits, idx)
-            p.radiance[:, idx] += p.beta.take(idx, axis=1) * le * weight
+            p.radiance[:, idx] += self.clamped(p.beta.take(idx, axis=1) * le * weight, p.bounce.take(idx))
 
     def emission_weight(self, p, surf, hits, idx):
         delta = p.prev_delta.take(idx)
@@ -445,11 +476,14 @@ class PathTracer:
         new_d = np.empty((3, alive))
         value = np.empty((3, alive))
         flags = np.empty(alive, dtype=np.int8)
+        pdf = np.empty(alive) if p.min_pdf is not None else None
         for g, span in enumerate(spans):
             if span.stop == span.start:
                 continue
             s = self.bsdfs[g].sample(si[span], u_lobe[span], u_dir[g])
             new_d[:, span], value[:, span], flags[span] = s.wi, s.value, s.flags
+            if pdf is not None:
+                pdf[span] = s.pdf
             if self.mis and self.mats.non_delta[g]:          # MIS: the vertex and pdf of non-delta samples
                 delta = (s.flags & BSDFFlags.DELTA) != 0
                 if delta.any():                 # a BSDF with delta lobes too: its non-delta samples
@@ -460,6 +494,8 @@ class PathTracer:
                 p.prev_p[:, sampled] = point[:, sampled]
                 p.prev_n[:, sampled] = si.n[:, sampled]
                 p.prev_bsdf_pdf[sampled] = s.pdf[local]
+        if self.light_paths is not None:
+            value = self.scatter_light_paths(p, spans, flags, pdf, value)
         transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
         p.prev_delta[:alive] = (flags & BSDFFlags.DELTA) != 0
         kind = np.where(transmitted, TRANSMISSION_RAY, np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
@@ -473,6 +509,44 @@ class PathTracer:
             if wrong.any():
                 beta = np.where(wrong, 0.0, beta)
         return new_d, side, beta
+
+    # -- Cycles' Light Paths options (engine/integrators/light_paths.py) ---------------------------
+    def clamped(self, contribution, bounce):
+        """Emission and background reached after `bounce` bounces (N,): clamped as direct light up
+        to one bounce, as indirect after more (Cycles' bounce - 1 <= 0)."""
+        if self.light_paths is None:
+            return contribution
+        return self.light_paths.clamp(contribution, bounce <= 1)
+
+    def shade_light_paths(self, p, si, spans):
+        """Before direct light: the alpha floor of Filter Glossy and the lobes the caustics
+        toggles leave out, onto `si`; returns the hits that take no light samples (or None)."""
+        lp, alive = self.light_paths, len(si)
+        if p.min_pdf is not None:
+            si.alpha_floor = lp.alpha_floor(p.min_pdf[:alive])
+        if not lp.caustics:
+            return None
+        after_diffuse = p.after_diffuse[:alive]
+        si.glossy_off = lp.glossy_off(after_diffuse)
+        return lp.no_light_samples(group_of(spans, alive), after_diffuse)
+
+    def scatter_light_paths(self, p, spans, flags, pdf, value):
+        """After sampling: count the bounce types, keep the least non-delta pdf, and drop the
+        samples of the lobes the caustics toggles leave out (their throughput 0 ends the path)."""
+        lp, alive = self.light_paths, len(flags)
+        if p.counts is not None:
+            lp.count(p.counts[:, :alive], flags)
+        if pdf is not None:
+            non_delta = (flags & BSDFFlags.DELTA) == 0
+            p.min_pdf[:alive] = np.where(non_delta, np.minimum(p.min_pdf[:alive], pdf), p.min_pdf[:alive])
+        if lp.caustics:
+            after_diffuse = p.after_diffuse[:alive]
+            group = group_of(spans, alive)
+            drop = lp.dropped_samples(group, after_diffuse, flags) | lp.no_closure(group, after_diffuse)
+            if drop.any():
+                value = np.where(drop, 0.0, value)
+            p.after_diffuse[:alive] = lp_after_diffuse(flags, after_diffuse)
+        return value
 
     def roulette(self, beta, bounce, delta, u):
         """Which paths go on (report 2.4) and their throughput after the survival division.

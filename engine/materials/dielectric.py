@@ -89,12 +89,17 @@ class RoughDielectric(BSDF):
             return None
         return np.where(on, energy_scale(self.roughness.take(mat), mu, eta, si.color), 1.0)
 
+    def _alpha(self, si: ShadingPoint, mat):
+        """Each hit's alpha, at least si.alpha_floor (Filter Glossy, engine/integrators/light_paths.py)."""
+        alpha = self.alpha.take(mat)
+        return alpha if si.alpha_floor is None else np.maximum(alpha, si.alpha_floor)
+
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
         """A refraction moves the path into or out of the surface's medium on si.media."""
         mat, eta, entering, frame = self._local(si)
         wo = to_local(si.wo, *frame)
         matched = np.abs(eta - 1.0) < INDEX_MATCHED
-        wi_l, weight, pdf, refracted, ok = self.lobe.sample(wo, self.alpha.take(mat), eta, self.beckmann.take(mat),
+        wi_l, weight, pdf, refracted, ok = self.lobe.sample(wo, self._alpha(si, mat), eta, self.beckmann.take(mat),
                                                             u_lobe, u[0], u[1], separable=self.separable.take(mat))
         wi = normalize(to_world(wi_l, *frame))
         value = si.color * weight
@@ -117,7 +122,7 @@ class RoughDielectric(BSDF):
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         mat, eta, _, frame = self._local(si)
         wo_l, wi_l = to_local(si.wo, *frame), to_local(wi, *frame)
-        f, pdf = self.lobe.eval(wo_l, wi_l, self.alpha.take(mat), eta, self.beckmann.take(mat),
+        f, pdf = self.lobe.eval(wo_l, wi_l, self._alpha(si, mat), eta, self.beckmann.take(mat),
                                 self.separable.take(mat))
         matched = np.abs(eta - 1.0) < INDEX_MATCHED
         f_cos = si.color * np.where(matched & (wi_l[2] < 0.0), 0.0, f)

@@ -128,6 +128,15 @@ class MicrofacetReflection(BSDF):
                                     for x in materials], dtype=bool)
 
     # -- per hit ------------------------------------------------------------------------------
+    def _alphas(self, si: ShadingPoint):
+        """(alpha_x, alpha_y, beckmann) of each hit, the alphas at least si.alpha_floor (Filter
+        Glossy, engine/integrators/light_paths.py)."""
+        mat = si.material
+        ax, ay = self.ax.take(mat), self.ay.take(mat)
+        if si.alpha_floor is not None:
+            ax, ay = np.maximum(ax, si.alpha_floor), np.maximum(ay, si.alpha_floor)
+        return ax, ay, self.beckmann.take(mat)
+
     def _frame(self, si: ShadingPoint):
         mat = si.material
         x, y = shading_frame(si.n, self.tangent.take(mat, axis=1))
@@ -221,8 +230,7 @@ class MicrofacetReflection(BSDF):
 
     # -- the protocol -------------------------------------------------------------------------
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
-        mat = si.material
-        ax, ay, beckmann = self.ax.take(mat), self.ay.take(mat), self.beckmann.take(mat)
+        ax, ay, beckmann = self._alphas(si)
         x, y = self._frame(si)
         wo_l = to_local(si.wo, x, y, si.n)
         h = np.empty_like(wo_l)
@@ -246,8 +254,7 @@ class MicrofacetReflection(BSDF):
         return BSDFSample(wi, np.nan_to_num(value), np.nan_to_num(pdf), np.full(len(si), LOBE, dtype=np.int8))
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        mat = si.material
-        ax, ay, beckmann = self.ax.take(mat), self.ay.take(mat), self.beckmann.take(mat)
+        ax, ay, beckmann = self._alphas(si)
         x, y = self._frame(si)
         wo_l, wi_l = to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n)
         ok = (wo_l[2] > 0.0) & (wi_l[2] > 0.0)

@@ -311,6 +311,9 @@ class PrincipledV2(BSDF):
         a_metal, a_spec = self.layer_albedos(si)
         w_spec = np.where(self.has_specular.take(rows), w_rest, 0.0)
         w_diffuse = w_rest * np.clip(1.0 - a_spec.max(axis=0), 0.0, 1.0)
+        if si.glossy_off is not None:       # Reflective Caustics off (engine/integrators/light_paths.py)
+            w_metal, w_spec = np.where(si.glossy_off, 0.0, w_metal), np.where(si.glossy_off, 0.0, w_spec)
+            w_diffuse = np.where(si.glossy_off, w_rest, w_diffuse)       # not darkened by a left-out layer
         sample = np.stack([w_metal * a_metal.mean(axis=0), w_spec * a_spec.mean(axis=0),
                            w_diffuse * np.abs(si.color).mean(axis=0)])
         if sample_total:
@@ -348,14 +351,17 @@ class PrincipledV2(BSDF):
         sheen = sheen_w * self.sheen_tint.take(rows, axis=1) * r * w
         w = w * np.clip(1.0 - (sheen_w * self.sheen_tint.take(rows, axis=1) * r).max(axis=0), 0.0, 1.0)
         coat_w = self.coat_weight.take(rows)
-        coat = coat_w * w
+        # Reflective Caustics off (engine/integrators/light_paths.py): no coat closure, nor its
+        # darkening of the base; its tint stays (closure.h)
+        coat_on = coat_w if si.glossy_off is None else np.where(si.glossy_off, 0.0, coat_w)
+        coat = coat_on * w
         coat_view = replace(si, color=np.ones((3, n)))
         ior = self.coat_ior.take(rows)
         f0 = f0_from_ior(ior)
         s_coat = _read(self.s_coat, rows, mu)
         a_coat = self._darkening(self.coat, coat_view, mu)[0] * (f0 + (1.0 - f0) * s_coat)
-        a_coat = np.where(coat_w > 0.0, a_coat, 0.0)
-        w = w * np.clip(1.0 - coat_w * a_coat, 0.0, 1.0)
+        a_coat = np.where(coat_on > 0.0, a_coat, 0.0)
+        w = w * np.clip(1.0 - coat_on * a_coat, 0.0, 1.0)
         tinted = self.coat_tinted.take(rows)
         if tinted.any():
             cos_t = np.sqrt(np.maximum(1.0 - (1.0 - mu * mu) / (ior * ior), 0.0))

@@ -72,6 +72,10 @@ class ShadingPoint:
     media: the paths' nested-dielectric medium stacks (engine/materials/media.py), or None.
     lookup: texture lookups at these hits (engine/materials/textures.py HitLookup), or None when the
       scene has no textures: for BSDFs that read textures themselves (engine/materials/mix.py).
+    alpha_floor: (N,) the least microfacet alpha of each hit (Filter Glossy,
+    engine/integrators/light_paths.py), or None.
+    glossy_off: (N,) hits whose glossy reflection lobes are left out (Reflective Caustics off after
+    a diffuse bounce; a BSDF with diffuse and glossy lobes reads it), or None.
     """
     wo: np.ndarray
     n: np.ndarray
@@ -82,13 +86,16 @@ class ShadingPoint:
     smooth: bool = False
     media: object = None
     lookup: object = None
+    alpha_floor: np.ndarray | None = None
+    glossy_off: np.ndarray | None = None
 
     def __getitem__(self, span: slice) -> "ShadingPoint":
         """The hits in `span` (views: a medium stack updated through them updates the paths')."""
         media = None if self.media is None else self.media[span]
         return ShadingPoint(self.wo[:, span], self.n[:, span], self.ng[:, span], self.normal[:, span],
                             self.color[:, span], self.material[span], self.smooth, media,
-                            None if self.lookup is None else self.lookup[span])
+                            None if self.lookup is None else self.lookup[span],
+                            *(None if a is None else a[span] for a in (self.alpha_floor, self.glossy_off)))
 
     def take(self, index: np.ndarray) -> "ShadingPoint":
         """The hits `index` (copies, the medium stacks too: for evaluating directions only)."""
@@ -98,7 +105,8 @@ class ShadingPoint:
                                                                  self.media.depth.take(index))
         return ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
                              self.material.take(index), self.smooth, media,
-                             lookup=None if self.lookup is None else self.lookup.take(index))
+                             None if self.lookup is None else self.lookup.take(index),
+                             *(None if a is None else a.take(index) for a in (self.alpha_floor, self.glossy_off)))
 
     def __len__(self) -> int:
         return self.wo.shape[1]

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from mcrt_addon import render_engine as engine_module
+from mcrt_addon.properties import apply_preset
 from rendering import export_blend, last_report, open_blend, render_operator, tncg15_runs
 from tests.load_tolerance import prompt_limit
 
@@ -11,6 +12,7 @@ from tests.load_tolerance import prompt_limit
 
 def set_props(scene, samples=8, seed=3, tile=16, depth=3):
     p = scene.tncg15
+    apply_preset(p, "fair")              # the tracer runs below use the settings' defaults
     p.samples, p.seed, p.tile_size, p.max_depth, p.fresnel = samples, seed, tile, depth, "EXACT"
     scene.render.engine = "TNCG15_MC"
 

@@ -155,8 +155,10 @@ def cli_problems(name, front, rows, parser, base, settings_after):
         if s.flag is None:
             out.append(f"{name}: {s.name} declares it but has no flag")
             continue
-        # the add-on's command line keeps the file's value: a new file's (Cycles' default where it differs)
-        expected = s.new_file_default if front == ADDON_CLI and BLENDER in s.fronts else s.default
+        # the add-on's command line keeps the file's value: a new file's (Cycles' default where it
+        # differs), but for what its default preset (fair) sets (mcrt_addon/properties.py apply_preset)
+        fair = s.name in table.preset_values(table.FAIR) or s.name == "max_depth"
+        expected = s.new_file_default if front == ADDON_CLI and BLENDER in s.fronts and not fair else s.default
         if not same(getattr(defaults, s.name), expected):
             out.append(f"{name}: {s.name} without its flag is {getattr(defaults, s.name)!r}, the row says {expected!r}")
         value = other_value(s)
@@ -356,6 +358,7 @@ DRIFTS = {
     "label": (edited("max_depth", label="Max Depth"), {BLENDER}),
     "panel": (edited("seed", panel="Sampling > Render"), {"panels"}),
     "bool": (edited("adaptive", default=False), {"RenderSettings", ENGINE_CLI, ADDON_CLI, BLENDER}),
+    "new file default": (edited("clamp_indirect", blender_default=5.0), {BLENDER}),
 }
 
 
