@@ -271,7 +271,10 @@ def _principled_lobes(materials) -> str:
             parts.append(f"'{m.name}' {_principled_v1_lobes(m, p)}")
             continue
         lobes = ["metallic (GGX, F82 tint)"] if p.metallic > WEIGHT_CUTOFF else []
-        if 1.0 - p.metallic > WEIGHT_CUTOFF:
+        if p.transmission_weight > WEIGHT_CUTOFF and 1.0 - p.metallic > WEIGHT_CUTOFF:
+            lobes.append("transmission (GGX glass" + (", multiscatter" if m.multiscatter else "")
+                         + "; light samples from both sides)")
+        if (1.0 - p.metallic) * (1.0 - p.transmission_weight) > WEIGHT_CUTOFF:
             if specular_eta_f0(max(m.ior, 1e-5), max(p.specular_ior_level, 0.0))[0] != 1.0:
                 lobes.append("specular (GGX)")
             rough = getattr(m, "diffuse_roughness", 0.0) >= DIFFUSE_ROUGHNESS_CUTOFF
