@@ -84,7 +84,8 @@ class Principled:
 class PrincipledV1:
     """Blender 3.x's Principled BSDF inputs (engine/materials/principled_v1.py), its socket
     vocabulary; base colour, roughness, anisotropy / rotation / tangent, ior and `multiscatter`
-    (the node's distribution) are Material's.  Transmission is kept, not rendered by this model."""
+    (the node's distribution) are Material's; transmission and transmission_roughness reach 3.4's glass
+    closures (engine/materials/principled_v1_glass.py)."""
     metallic: float = 0.0
     specular: float = 0.5
     specular_tint: float = 0.0
