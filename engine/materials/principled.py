@@ -1,8 +1,10 @@
 """The Principled BSDF v2 (Blender 4.0+) as Cycles builds it from closures (its kernel/svm/closure.h,
 case CLOSURE_BSDF_PRINCIPLED_ID; kernel/closure/bsdf_microfacet.h and bsdf_util.h; a public source:
-blender/cycles src/kernel/), without transmission, subsurface and thin film.  Over the base (three
-lobes, in Cycles' layering order: metallic, then specular over diffuse) lie, from the top, alpha,
-the sheen and the coat ("The layers over the base" below).  The base:
+blender/cycles src/kernel/), without subsurface and thin film.  Over the base (three lobes, in
+Cycles' layering order: metallic, then specular over diffuse; with a Transmission Weight t the
+glass closure of engine/materials/principled_glass.py between them, weight t (1 - metallic) W,
+specular and diffuse then x (1 - t)) lie, from the top, alpha, the sheen and the coat ("The layers
+over the base" below).  The base:
 
 * metallic, weight `metallic`: GGX reflection with the F82-tint Fresnel, F0 = the base colour
   (clamped to 1) and the edge tint = the specular tint (clamped to 1);
