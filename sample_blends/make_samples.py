@@ -804,6 +804,30 @@ def make_principled_grid(scene, res):
     settings(scene, res)
 
 
+PRINCIPLED_GLASS_BALLS = (      # (name, base colour, transmission, roughness, x)
+    ("Clear", (1.0, 1.0, 1.0), 1.0, 0.0, -0.6),
+    ("Frosted", (1.0, 0.85, 0.6), 1.0, 0.3, 0.0),
+    ("Half", (0.3, 0.5, 0.9), 0.5, 0.3, 0.6),
+)
+
+
+def make_principled_glass(scene, res):
+    """Principled BSDF balls with transmission (both socket vocabularies: 'Transmission Weight' in
+    4.0+, 'Transmission' in 3.x) on the floor of the Cornell room under its lamp: clear (transmission
+    1, roughness 0), frosted and tinted (1, 0.3) and half transmissive, blue (0.5, 0.3); IOR 1.5,
+    the node's other inputs at their defaults."""
+    room(scene)
+    for name, base, transmission, roughness, x in PRINCIPLED_GLASS_BALLS:
+        kw = {"Base Color": (*base, 1.0), "Roughness": roughness, "IOR": 1.5,
+              "Transmission Weight": transmission, "Transmission": transmission}
+        mat = node_material(f"{name} glass", "ShaderNodeBsdfPrincipled", **kw)
+        mesh_object(scene, f"Ball {name}", lambda bm: uv_sphere(bm, 0.3, 48, 24), mat,
+                    location=(x, -0.2, 0.302), smooth=True)             # 2 mm above the floor
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
@@ -830,6 +854,7 @@ SCENES = {
     "mix_shader": make_mix_shader,
     "principled_balls": make_principled_balls,
     "principled_grid": make_principled_grid,
+    "principled_glass": make_principled_glass,
 }
 
 

@@ -19,6 +19,7 @@ from ..geometry.shading_normals import has_smooth
 from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
 from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
 from ..materials.principled_v1 import SINGLE_SCATTER_ROUGHNESS
+from ..materials.principled_v1_glass import SINGLE_SCATTER_ROUGHNESS as GLASS_SINGLE_SCATTER_ROUGHNESS
 from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION, scatter_kind
 from ..materials.textures import textured_materials
 
@@ -320,7 +321,10 @@ def _principled_lobes(materials) -> str:
             parts.append(f"'{m.name}' {_principled_v1_lobes(m, p)}")
             continue
         lobes = ["metallic (GGX, F82 tint)"] if p.metallic > WEIGHT_CUTOFF else []
-        if 1.0 - p.metallic > WEIGHT_CUTOFF:
+        if p.transmission_weight > WEIGHT_CUTOFF and 1.0 - p.metallic > WEIGHT_CUTOFF:
+            lobes.append("transmission (GGX glass" + (", multiscatter" if m.multiscatter else "")
+                         + "; light samples from both sides)")
+        if (1.0 - p.metallic) * (1.0 - p.transmission_weight) > WEIGHT_CUTOFF:
             if specular_eta_f0(max(m.ior, 1e-5), max(p.specular_ior_level, 0.0))[0] != 1.0:
                 lobes.append("specular (GGX)")
             rough = getattr(m, "diffuse_roughness", 0.0) >= DIFFUSE_ROUGHNESS_CUTOFF
@@ -349,7 +353,8 @@ def _mix_lobes(materials) -> str:
 def _principled_v1_lobes(m, p) -> str:
     """The closures Blender 3.4's Principled BSDF runs (engine/materials/principled_v1.py)."""
     lobes = []
-    if 1.0 - p.metallic > WEIGHT_CUTOFF:
+    glass = p.transmission * (1.0 - p.metallic)
+    if (1.0 - p.metallic) * (1.0 - p.transmission) > WEIGHT_CUTOFF:
         lobes.append("diffuse (Burley, v1)")
         if p.sheen > WEIGHT_CUTOFF:
             lobes.append("sheen")
@@ -358,6 +363,10 @@ def _principled_v1_lobes(m, p) -> str:
         lobes.append("specular (GGX, multiscatter by energy compensation)" if multi else "specular (GGX)")
     if p.clearcoat > WEIGHT_CUTOFF:
         lobes.append("clearcoat (GTR1)")
+    if glass > WEIGHT_CUTOFF:
+        multi = m.multiscatter and m.roughness > GLASS_SINGLE_SCATTER_ROUGHNESS
+        lobes.append("glass (multiscatter GGX glass, approximated; light samples from both sides)" if multi else
+                     "glass (GGX reflection + GGX refraction; light samples from both sides)")
     return " + ".join(lobes)
 
 

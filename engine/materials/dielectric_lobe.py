@@ -84,12 +84,16 @@ class MicrofacetDielectric:
             return g2
         return np.where(separable, 1.0 / ((1.0 + lo) * (1.0 + li)), g2)
 
-    def sample(self, wo, alpha, eta, beckmann, u_lobe, u1, u2, refraction_side: bool = True, separable=None):
+    def sample(self, wo, alpha, eta, beckmann, u_lobe, u1, u2, refraction_side: bool = True, separable=None,
+               fresnel=None):
         """(wi, weight, pdf, refracted, ok) per hit: wi (3, N) local, weight = (f cos / pdf) / tint,
         pdf per solid angle (lobe probability included), refracted: the sample went through, ok: a
         valid sample (wo above, wi on its lobe's side, a lobe with weight).  refraction_side=False
         keeps refracted directions that leave on the viewer's side (only for the albedo tables:
-        engine/materials/glass_albedo.py)."""
+        engine/materials/glass_albedo.py).  fresnel: None (the dielectric Fresnel, `split`) or a
+        function of wo.h giving the lobes' weights (R, T), each (N,) or coloured (3, N); coloured,
+        the reflection is picked with probability mean(R) / mean(R + T) (Cycles' pdf_reflect) and
+        the weight is (3, N)."""
         h = np.empty_like(wo)
         for dist, mask in ((GGX, ~beckmann), (BECKMANN, beckmann)):
             sel = np.flatnonzero(mask)
@@ -97,10 +101,10 @@ class MicrofacetDielectric:
                 a = alpha.take(sel)
                 h[:, sel] = SAMPLE_VNDF[dist](wo.take(sel, axis=1), a, a, u1.take(sel), u2.take(sel))
         cos_ho = np.clip(dot(wo, h), 0.0, 1.0)
-        r, t = self.split(cos_ho, eta)
-        total = r + t
+        r, t = self.split(cos_ho, eta) if fresnel is None else fresnel(cos_ho)
+        total = _mean(r + t)
         with np.errstate(divide="ignore", invalid="ignore"):
-            p_reflect = np.where(total > 0.0, r / total, 0.0)
+            p_reflect = np.where(total > 0.0, _mean(r) / total, 0.0)
             cos_t = np.sqrt(np.maximum(0.0, 1.0 - (1.0 - cos_ho * cos_ho) / (eta * eta)))
         refracted = u_lobe >= p_reflect
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -117,8 +121,9 @@ class MicrofacetDielectric:
             weight = np.where(ok, np.where(refracted, t, r) / lobe * (1.0 + lo) * self._g2(lo, li, separable), 0.0)
         return wi, np.nan_to_num(weight), np.nan_to_num(pdf), refracted, ok & (pdf > 0.0)
 
-    def eval(self, wo, wi, alpha, eta, beckmann, separable=None):
-        """(f cos / tint, pdf) per hit for local directions wo (above) and wi (either side)."""
+    def eval(self, wo, wi, alpha, eta, beckmann, separable=None, fresnel=None):
+        """(f cos / tint, pdf) per hit for local directions wo (above) and wi (either side);
+        fresnel as in `sample` (coloured: f cos is (3, N))."""
         refracted = wi[2] < 0.0
         half = np.where(refracted, -(wo + eta * wi), wo + wi)
         length = np.sqrt(dot(half, half))
@@ -131,13 +136,18 @@ class MicrofacetDielectric:
             ok &= refracted
         if not self.transmission:
             ok &= ~refracted
-        r, t = self.split(np.clip(cos_ho, 0.0, 1.0), eta)
-        total = r + t
+        r, t = self.split(np.clip(cos_ho, 0.0, 1.0), eta) if fresnel is None else fresnel(np.clip(cos_ho, 0.0, 1.0))
+        total = _mean(r + t)
         d, lo, li = self._terms(wo, wi, h, alpha, beckmann)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            p_reflect = np.where(total > 0.0, r / total, 0.0)
+            p_reflect = np.where(total > 0.0, _mean(r) / total, 0.0)
             lobe = np.where(refracted, 1.0 - p_reflect, p_reflect)
             common = d / wo[2] * self._jacobian(cos_ho, cos_hi, eta, refracted)
             pdf = np.where(ok, lobe * common / (1.0 + lo), 0.0)
             f_cos = np.where(ok, np.where(refracted, t, r) * common * self._g2(lo, li, separable), 0.0)
         return np.nan_to_num(f_cos), np.nan_to_num(pdf)
+
+
+def _mean(x: np.ndarray) -> np.ndarray:
+    """x (N,) itself, or the channel mean of coloured weights (3, N) (Cycles' average)."""
+    return x if x.ndim == 1 else x.mean(axis=0)

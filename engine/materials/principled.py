@@ -1,8 +1,10 @@
 """The Principled BSDF v2 (Blender 4.0+) as Cycles builds it from closures (its kernel/svm/closure.h,
 case CLOSURE_BSDF_PRINCIPLED_ID; kernel/closure/bsdf_microfacet.h and bsdf_util.h; a public source:
-blender/cycles src/kernel/), without transmission, subsurface and thin film.  Over the base (three
-lobes, in Cycles' layering order: metallic, then specular over diffuse) lie, from the top, alpha,
-the sheen and the coat ("The layers over the base" below).  The base:
+blender/cycles src/kernel/), without subsurface and thin film.  Over the base (three lobes, in
+Cycles' layering order: metallic, then specular over diffuse; with a Transmission Weight t the
+glass closure of engine/materials/principled_glass.py between them, weight t (1 - metallic) W,
+specular and diffuse then x (1 - t)) lie, from the top, alpha, the sheen and the coat ("The layers
+over the base" below).  The base:
 
 * metallic, weight `metallic`: GGX reflection with the F82-tint Fresnel, F0 = the base colour
   (clamped to 1) and the edge tint = the specular tint (clamped to 1);
@@ -81,6 +83,7 @@ from . import albedo_tables
 from .glossy import MicrofacetReflection, fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import GGX, clamp_alpha, ggx_sample_vndf
 from .oren_nayar import EnergyPreservingOrenNayar
+from .principled_glass import FLAGS as GLASS_LOBES, PrincipledGlass
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
 from .sheen import LOBE as SHEEN_LOBE, MicrofiberSheen
 
@@ -233,9 +236,11 @@ class PrincipledV2(BSDF):
     def _init_layers(self, materials, params, own, settings):
         """The coat, sheen and alpha of each material (zero where a material has none)."""
         m_count = len(materials)
-        layers = [p if (p is not None and mine and p.layered) else None for p, mine in zip(params, own)]
+        layers = [p if (p is not None and mine and (p.layered or p.transmission_weight > 0.0)) else None
+                  for p, mine in zip(params, own)]
         self.layered = np.array([p is not None for p in layers], dtype=bool)
         self.any_layers = bool(self.layered.any())
+        self.any_transmission = False
         if not self.any_layers:
             return
 
@@ -269,6 +274,13 @@ class PrincipledV2(BSDF):
         self.sheen = MicrofiberSheen()
         if np.any(self.alpha < 1.0):
             self.flags = FLAGS | PASS_LOBE
+        # The transmission closure (engine/materials/principled_glass.py): light from the far side too.
+        self.glass = PrincipledGlass(materials, per("transmission_weight", 0.0),
+                                     np.array([(1.0, 1.0, 1.0) if p is None else np.maximum(p.specular_tint, 0.0)
+                                               for p in layers], dtype=np.float64).reshape(m_count, 3).T)
+        self.any_transmission = bool(np.any(self.glass.transmission > 0.0))
+        if self.any_transmission:
+            self.flags = self.flags | GLASS_LOBES
 
     # -- the layers at the hits ---------------------------------------------------------------
     def _views(self, si: ShadingPoint):
@@ -308,6 +320,8 @@ class PrincipledV2(BSDF):
         w_metal = np.where(m > WEIGHT_CUTOFF, m, 0.0)
         w_rest = 1.0 - m
         w_rest = np.where(w_rest > WEIGHT_CUTOFF, w_rest, 0.0)
+        if self.any_transmission:                   # the glass closure takes t of the dielectric base
+            w_rest = w_rest * (1.0 - self.glass.transmission.take(rows))
         a_metal, a_spec = self.layer_albedos(si)
         w_spec = np.where(self.has_specular.take(rows), w_rest, 0.0)
         w_diffuse = w_rest * np.clip(1.0 - a_spec.max(axis=0), 0.0, 1.0)
@@ -372,14 +386,20 @@ class PrincipledV2(BSDF):
                                sheen_albedo=r, coat_albedo=a_coat, coat_view=coat_view)
 
     def _layered_lobes(self, si: ShadingPoint):
-        """(layers, closure weights (3, N) of sheen, coat, metal, specular, diffuse, and the
-        probabilities (6, N) of pass-through, sheen, coat, metal, specular, diffuse)."""
+        """(layers, closure weights (3, N) of sheen, coat, metal, specular, diffuse (and glass where
+        any material transmits), and the probabilities (6 or 7, N) of pass-through, sheen, coat,
+        metal, specular, diffuse (, glass))."""
         layers = self.layer_weights(si)
         (w_metal, w_spec, w_diffuse), base_prob = self.lobe_weights(si, sample_total=True)
         base = layers.base
         weights = [layers.sheen, layers.coat, w_metal * base, w_spec * base, w_diffuse * base]
         coat_sample = layers.coat.mean(axis=0) * layers.coat_albedo
         sample = np.vstack([layers.sheen.mean(axis=0), coat_sample, base_prob * base.mean(axis=0)])
+        if self.any_transmission:                   # the transmission closure: t (1 - metallic) W
+            m = self.metallic.take(si.material)
+            w_glass = self.glass.transmission.take(si.material) * np.where(1.0 - m > WEIGHT_CUTOFF, 1.0 - m, 0.0)
+            weights.append(w_glass * base)
+            sample = np.vstack([sample, w_glass * base.mean(axis=0) * self.glass.sample_weight(si)])
         total = sample.sum(axis=0)
         alpha = 1.0 - layers.through
         opaque = np.where(total > 0.0, alpha, 0.0)
@@ -401,7 +421,10 @@ class PrincipledV2(BSDF):
             f_l, pdf_l = self.coat.eval(layers.coat_view.take(coat), wi.take(coat, axis=1))
             f_cos[:, coat] += weights[1].take(coat, axis=1) * f_l
             pdf[coat] += prob[2].take(coat) * pdf_l
-        for lobe, view, w, p in zip((self.metal, self.specular, self.diffuse), self._views(si), weights[2:], prob[3:]):
+        lobes, views = (self.metal, self.specular, self.diffuse), self._views(si)
+        if len(weights) > 5:
+            lobes, views = lobes + (self.glass,), views + (si,)
+        for lobe, view, w, p in zip(lobes, views, weights[2:], prob[3:]):
             idx = np.flatnonzero(w.max(axis=0) > 0.0)
             if not len(idx):
                 continue
@@ -417,6 +440,7 @@ class PrincipledV2(BSDF):
         n = len(si)
         wi = np.zeros((3, n))
         flags = np.zeros(n, dtype=np.int8)
+        failed = np.zeros(n, dtype=bool)            # samples their own lobe rejected: value 0
         through = np.flatnonzero(choice == 0)
         wi[:, through] = -si.wo[:, through]
         flags[through] = PASS_LOBE
@@ -433,13 +457,46 @@ class PrincipledV2(BSDF):
             s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
             wi[:, idx] = s.wi
             flags[idx] = s.flags
+            if self.any_transmission:               # a failed sample may point through the surface
+                failed[idx] = s.pdf <= 0.0
+        passed = self._sample_glass(si, np.flatnonzero(choice == 6), u_lobe, u, cdf, prob, weights, wi, flags, failed)
         f_cos, pdf = self._layered_mixture(si, wi, layers, weights, prob)
         with np.errstate(divide="ignore", invalid="ignore"):
             value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
             p_through = prob[0].take(through)
             value[:, through] = np.where(p_through > 0.0, layers.through.take(through) / p_through, 0.0)
         pdf[through] = prob[0].take(through)
+        if passed is not None:                      # the glass's delta pass-through (index-matched)
+            idx, weight = passed
+            p_glass = prob[6].take(idx)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                value[:, idx] = np.where(p_glass > 0.0, weights[5].take(idx, axis=1) * weight / p_glass, 0.0)
+            pdf[idx] = p_glass
+        if failed.any():
+            value[:, failed], pdf[failed] = 0.0, 0.0
         return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
+
+    def _sample_glass(self, si, idx, u_lobe, u, cdf, prob, weights, wi, flags, failed):
+        """Directions of the hits idx that picked the transmission closure (into wi, flags, failed), with
+        the closure-choice uniform rescaled to pick reflection or refraction; the refracted paths
+        cross the surface on their medium stacks.  Returns (indices, weight) of the delta
+        pass-throughs, or None."""
+        if not len(idx):
+            return None
+        p = prob[6].take(idx)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u_fresnel = np.clip(np.nan_to_num((np.asarray(u_lobe).take(idx) - cdf[5].take(idx)) / p), 0.0, 1.0 - 1e-12)
+        at = si.take(idx)
+        d, weight, _, sampled, refracted, entering = self.glass.sample(at, u_fresnel, u[0].take(idx), u[1].take(idx))
+        wi[:, idx] = d
+        flags[idx] = sampled
+        failed[idx] = ~np.any(weight > 0.0, axis=0)
+        if si.media is not None:
+            crossed = np.flatnonzero(refracted)
+            si.media.cross(idx.take(crossed), _scatter(entering, idx, len(si)), _scatter(self.glass.ior.take(at.material),
+                                                                                       idx, len(si)))
+        delta = np.flatnonzero((sampled & BSDFFlags.DELTA) != 0)
+        return (idx.take(delta), weight.take(delta, axis=1)) if len(delta) else None
 
     # -- the protocol -------------------------------------------------------------------------
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -472,6 +529,13 @@ class PrincipledV2(BSDF):
         with np.errstate(divide="ignore", invalid="ignore"):
             value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
         return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
+
+
+def _scatter(values: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:
+    """values (len(idx),) placed at idx of an array of n (zeros elsewhere)."""
+    out = np.zeros(n, dtype=values.dtype)
+    out[idx] = values
+    return out
 
 
 def _read(table: np.ndarray, rows: np.ndarray, mu: np.ndarray) -> np.ndarray:

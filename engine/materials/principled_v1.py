@@ -1,8 +1,11 @@
 """The Principled BSDF v1 (Blender 3.x) as Cycles 3.4 builds it from closures (its
 kernel/svm/closure.h, case CLOSURE_BSDF_PRINCIPLED_ID; kernel/closure/bsdf_principled_diffuse.h,
 bsdf_principled_sheen.h, bsdf_microfacet.h, bsdf_microfacet_multi.h; a public source: blender/cycles
-at tag v3.4.0, src/kernel/), for the opaque case.  Four closures, each with its own weight, none
-darkening another (3.4 does not layer: the diffuse is not attenuated by the specular albedo):
+at tag v3.4.0, src/kernel/).  Four closures, each with its own weight, none darkening another (3.4
+does not layer: the diffuse is not attenuated by the specular albedo), and the glass closures of
+the transmission (engine/materials/principled_v1_glass.py, weight W_g = transmission x (1 -
+metallic)) where a material has it; with transmission t the diffuse and sheen weights take a factor
+(1 - t) and the specular weight is 1 - W_g:
 
 * diffuse, weight (1 - metallic) x base colour: Burley's diffuse with retro-reflection,
   f cos = cos_i / pi x [(1 - F_o / 2)(1 - F_i / 2) + R (F_o + F_i + F_o F_i (R - 1))],
@@ -30,10 +33,8 @@ darkening another (3.4 does not layer: the diffuse is not attenuated by the spec
   Cycles', BSDF-sampled clearcoat reflections of other surfaces are the GTR1 lobe's (Cycles': the
   sharper GGX lobe's; the lobe's weight is at most 0.25 F).
 
-Not here: subsurface (the exporter renders it as this diffuse, with a warning), transmission and
-transmission roughness (PrincipledV1 keeps them; the exporter sends transmission >= 0.5 to the glass
-kind and warns for the rest; this BSDF renders the opaque part with transmission 0), clearcoat
-normal, alpha.
+Not here: subsurface (the exporter renders it as this diffuse, with a warning), clearcoat normal,
+alpha.
 
 Each closure is set up where Cycles sets it up (weights above CLOSURE_WEIGHT_CUTOFF).  Sampling
 picks a closure with probability proportional to Cycles' sample_weight: the closure weight's
@@ -52,7 +53,9 @@ from . import albedo_tables
 from .glossy import fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import ALPHA_MIN, ggx_d, ggx_lambda, ggx_sample_vndf, shading_frame, to_local, to_world
 from .principled import principled_alphas
+from .principled_v1_glass import CLOSURES as GLASS_CLOSURES, PrincipledV1Glass, interpolated_fresnel
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+from .dielectric_lobe import REFLECTED, REFRACTED
 
 FLAGS = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
 DIFFUSE_LOBE = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE
@@ -63,7 +66,7 @@ CLEARCOAT_IOR = 1.5
 CLEARCOAT_G_ALPHA = 0.25            # the clearcoat's masking uses this fixed alpha (bsdf_microfacet.h)
 LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])[:, None]    # Rec. 709 Y (linear_rgb_to_gray)
 TINT_LUMINANCE = np.array([0.3, 0.6, 0.1])[:, None]                 # closure.h's "luminance approx."
-LOBES = ("diffuse", "sheen", "specular", "clearcoat")
+LOBES = ("diffuse", "sheen", "specular", "clearcoat") + GLASS_CLOSURES     # the glass: principled_v1_glass.py
 
 
 def schlick_weight(cos):
@@ -83,14 +86,6 @@ def tint_colour(base, tint, luminance):
     with np.errstate(divide="ignore", invalid="ignore"):
         hue = np.where(lum > 0.0, base / np.where(lum > 0.0, lum, 1.0), 1.0)
     return (1.0 - tint) + hue * tint
-
-
-def interpolated_fresnel(cos, eta, cspec0):
-    """mix(cspec0, 1, (F_d(cos, eta) - F0) / (1 - F0)) (3, N) (Cycles' interpolate_fresnel_color)."""
-    f0 = fresnel_dielectric(np.ones_like(cos), eta)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(f0 < 1.0, (fresnel_dielectric(cos, eta) - f0) / (1.0 - f0), 1.0)
-    return cspec0 * (1.0 - s) + s
 
 
 def burley_diffuse(cos_o, cos_i, cos_oi, roughness):
@@ -154,6 +149,9 @@ class PrincipledV1(BSDF):
         self.tangent = np.array([getattr(x, "tangent", (1.0, 0.0, 0.0)) for x in materials],
                                 dtype=np.float64).reshape(m, 3).T.copy()
         self.rotation = column([getattr(x, "rotation", 0.0) for x in materials])
+        self.glass = PrincipledV1Glass(materials, params)
+        if self.glass.any:                          # light from the far side too
+            self.flags = FLAGS | REFLECTED | REFRACTED
 
     # -- per hit ------------------------------------------------------------------------------------
     def _frame(self, si: ShadingPoint):
@@ -174,11 +172,14 @@ class PrincipledV1(BSDF):
 
     def closures(self, si: ShadingPoint):
         """(weights, probabilities): each closure's weight per hit (3, N), zero where Cycles does not
-        set it up, in LOBES order, and the probability (4, N) of sampling each (Cycles' sample_weight)."""
+        set it up, in LOBES order, and the probability (4, N) of sampling each (Cycles' sample_weight);
+        where any material transmits, 7 closures (the glass's three last, principled_v1_glass.py)."""
         mat, base = si.material, si.color
         n = len(si)
         cos_o = np.clip(dot(si.wo, si.n), 0.0, 1.0)
         dw = 1.0 - self.metallic.take(mat)
+        if self.glass.any:                          # diffuse_weight = (1 - metallic)(1 - transmission)
+            dw = dw * (1.0 - self.glass.transmission.take(mat))
         on_diffuse = dw > WEIGHT_CUTOFF
         w_diffuse = np.where(on_diffuse & (np.abs(base.mean(axis=0)) > WEIGHT_CUTOFF), base * dw, 0.0)
         sheen = self.sheen.take(mat)
@@ -186,6 +187,9 @@ class PrincipledV1(BSDF):
         w_sheen = np.where(on_diffuse & (sheen > WEIGHT_CUTOFF), w_sheen, 0.0)
         on_spec = (self.specular.take(mat) > WEIGHT_CUTOFF) | (self.metallic.take(mat) > WEIGHT_CUTOFF)
         w_spec = np.where(on_spec, 1.0, 0.0) * np.ones((3, n))
+        if self.glass.any:                          # specular_weight = 1 - (1 - metallic) transmission
+            spec_weight = 1.0 - self.glass.weight.take(mat)
+            w_spec = np.where(spec_weight > WEIGHT_CUTOFF, spec_weight, 0.0) * w_spec
         cc = self.clearcoat.take(mat)
         w_cc = np.where(cc > WEIGHT_CUTOFF, 1.0, 0.0) * np.ones((3, n))
         # bsdf_alloc drops closures whose weight averages below the cutoff
@@ -195,6 +199,10 @@ class PrincipledV1(BSDF):
         w_diffuse, w_sheen, w_spec, w_cc = weights
         sample = np.stack([w_diffuse.mean(axis=0), w_sheen.mean(axis=0) * schlick_weight(cos_o) * cos_o,
                            w_spec.mean(axis=0) * f_spec.mean(axis=0), w_cc.mean(axis=0) * f_cc])
+        if self.glass.any:
+            glass, glass_sample = self.glass.closures(si)
+            weights = weights + glass
+            sample = np.vstack([sample, glass_sample])
         total = sample.sum(axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
             prob = np.where(total > 0.0, sample / np.where(total > 0.0, total, 1.0), 0.0)
@@ -272,7 +280,10 @@ class PrincipledV1(BSDF):
 
     def _mixture(self, si, wo_l, wi_l, weights, prob):
         f_cos, pdf = np.zeros((3, len(si))), np.zeros(len(si))
-        for code, lobe in enumerate((self._diffuse, self._sheen, self._specular, self._clearcoat)):
+        lobes = (self._diffuse, self._sheen, self._specular, self._clearcoat)
+        if len(weights) > len(lobes):
+            lobes = lobes + tuple((lambda s, o, i, code=code: self.glass.eval(code, s, o, i)) for code in range(3))
+        for code, lobe in enumerate(lobes):
             w, p = weights[code], prob[code]
             idx = np.flatnonzero(w.max(axis=0) > 0.0)
             if not len(idx):
@@ -296,8 +307,9 @@ class PrincipledV1(BSDF):
         x, y = self._frame(si)
         wo_l = to_local(si.wo, x, y, si.n)
         cdf = np.cumsum(prob, axis=0)
-        choice = (np.asarray(u_lobe)[None, :] >= cdf[:3]).sum(axis=0)
-        choice = np.where(prob.sum(axis=0) > 0.0, np.minimum(choice, 3), 0)
+        last = len(prob) - 1
+        choice = (np.asarray(u_lobe)[None, :] >= cdf[:last]).sum(axis=0)
+        choice = np.where(prob.sum(axis=0) > 0.0, np.minimum(choice, last), 0)
         wi_l = np.zeros((3, len(si)))
         flags = np.full(len(si), GLOSSY_LOBE, dtype=np.int8)
         for code in range(4):
@@ -308,9 +320,43 @@ class PrincipledV1(BSDF):
                                              u[0].take(idx), u[1].take(idx))
             if code < 2:
                 flags[idx] = DIFFUSE_LOBE
+        failed = None
+        if last > 3:            # with the glass, a reflection drawn below the surface must not count its refraction
+            failed = self._sample_glass(si, choice, u_lobe, u, cdf, prob, wo_l, wi_l, flags) | \
+                ((choice < 4) & (wi_l[2] <= 0.0))
         wi = normalize(to_world(wi_l, x, y, si.n))
         # evaluated from the world direction, exactly as eval() does (peaked lobes amplify rounding)
         f_cos, pdf = self._mixture(si, wo_l, to_local(wi, x, y, si.n), weights, prob)
         with np.errstate(divide="ignore", invalid="ignore"):
             value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
+        if failed is not None and failed.any():      # a rejected glass sample: no direction
+            value[:, failed], pdf[failed] = 0.0, 0.0
         return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
+
+    def _sample_glass(self, si, choice, u_lobe, u, cdf, prob, wo_l, wi_l, flags):
+        """Local directions (into wi_l, flags) of the hits that picked a glass closure (codes 4-6),
+        the closure-choice uniform rescaled for the multiscatter glass's reflect-or-refract choice;
+        refracted paths cross the surface on their medium stacks.  Returns the rejected samples."""
+        failed = np.zeros(len(si), dtype=bool)
+        for code in range(4, 7):
+            idx = np.flatnonzero(choice == code)
+            if not len(idx):
+                continue
+            p = prob[code].take(idx)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u_fresnel = np.clip(np.nan_to_num((np.asarray(u_lobe).take(idx) - cdf[code - 1].take(idx)) / p),
+                                    0.0, 1.0 - 1e-12)
+            at = si.take(idx)
+            d, refracted, entering = self.glass.sample(code - 4, at, wo_l.take(idx, axis=1), u_fresnel,
+                                                       u[0].take(idx), u[1].take(idx))
+            rejected = ~np.any(d != 0.0, axis=0)
+            wi_l[:, idx] = np.where(rejected, np.array([[0.0], [0.0], [1.0]]), d)
+            flags[idx] = np.where(refracted, np.int8(REFRACTED), np.int8(GLOSSY_LOBE))
+            failed[idx] = rejected
+            if si.media is not None and refracted.any():
+                n = len(si)
+                crossed = idx.take(np.flatnonzero(refracted))
+                enter, ior = np.zeros(n, dtype=bool), np.ones(n)
+                enter[idx], ior[idx] = entering, self.glass.ior.take(at.material)
+                si.media.cross(crossed, enter, ior)
+        return failed

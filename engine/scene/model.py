@@ -46,8 +46,8 @@ class Principled:
     specular_ior_level: float = 0.5
     specular_tint: tuple = (1.0, 1.0, 1.0)
     # The layers over the base (engine/materials/principled.py): a GGX dielectric coat, the
-    # microfiber sheen, alpha (1 - alpha passes straight through).  transmission_weight is kept
-    # for the rough dielectric, not rendered yet (rendered opaque, with a warning).
+    # microfiber sheen, alpha (1 - alpha passes straight through); transmission_weight: the share
+    # of the dielectric base that is rough glass (engine/materials/principled_glass.py).
     coat_weight: float = 0.0
     coat_roughness: float = 0.03
     coat_ior: float = 1.5
@@ -84,7 +84,8 @@ class Principled:
 class PrincipledV1:
     """Blender 3.x's Principled BSDF inputs (engine/materials/principled_v1.py), its socket
     vocabulary; base colour, roughness, anisotropy / rotation / tangent, ior and `multiscatter`
-    (the node's distribution) are Material's.  Transmission is kept, not rendered by this model."""
+    (the node's distribution) are Material's; transmission and transmission_roughness reach 3.4's glass
+    closures (engine/materials/principled_v1_glass.py)."""
     metallic: float = 0.0
     specular: float = 0.5
     specular_tint: float = 0.0
@@ -710,10 +711,6 @@ class Scene:
         self.cycles_version = tuple(version)
         for material in self.materials:
             material.validate()
-            layers = material.principled if material.kind == PRINCIPLED else None
-            if isinstance(layers, Principled) and layers.transmission_weight > 0.0:
-                warnings.append(f"Material '{material.name}': Principled transmission_weight "
-                                f"{layers.transmission_weight:g} is not modelled yet (rendered opaque)")
         bg = np.asarray(self.background, dtype=np.float64)
         if bg.shape != (3,) or not np.isfinite(bg).all() or (bg < 0).any():
             raise SceneError(f"Scene '{self.name}': background must be 3 finite non-negative numbers")

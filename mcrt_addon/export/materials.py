@@ -3,7 +3,7 @@
 Supported: Diffuse BSDF (Roughness -> diffuse_roughness), Emission; Glass, Refraction, Transparent and
 Translucent BSDFs in dielectric_nodes.py; the microfacet nodes
 (Glossy / Anisotropic, Metallic, Principled v2 of 4.0+) in microfacet_nodes.py; Blender 3.4's
-Principled v1 (the principled kind with PrincipledV1 inputs; Transmission >= 0.5 as smooth glass).
+Principled v1 (the principled kind with PrincipledV1 inputs, its transmission too).
 Anything else becomes diffuse with a warning naming the material and the node.  Node trees are read
 from ``material.original`` (evaluated copies can lack them).
 """
@@ -254,7 +254,8 @@ class MaterialTable:
 
     def _principled_v1(self, mat, node):
         """Blender 3.x's Principled BSDF (v1) -> the principled kind with PrincipledV1 inputs
-        (engine/materials/principled_v1.py); transmission >= 0.5 stays today's smooth glass."""
+        (engine/materials/principled_v1.py); its transmission is 3.4's glass closures there
+        (engine/materials/principled_v1_glass.py)."""
         base = _clamp01(self.read_color(mat, node, "Base Color"))
         metallic = min(max(self.read_float(mat, node, "Metallic"), 0.0), 1.0)
         roughness = min(max(self.read_float(mat, node, "Roughness", default=0.5), 0.0), 1.0)
@@ -264,15 +265,6 @@ class MaterialTable:
         alpha = min(max(self.read_float(mat, node, "Alpha", default=1.0), 0.0), 1.0)
         if alpha < 1:
             self.warn(mat, node, f"input 'Alpha' {alpha:g} is not modelled (rendered opaque)")
-        if transmission >= 0.5:
-            if transmission < 1 or metallic > 0:
-                self.warn(mat, node, f"input 'Transmission' {transmission:g} / 'Metallic' {metallic:g} "
-                                     "approximated as pure glass")
-            if roughness > 0:
-                self.warn(mat, node, f"roughness {roughness:g} is treated as 0 (smooth glass)")
-            return self.Material(name=mat.name, kind=self.GLASS, color=base, ior=ior, emission=emission)
-        if transmission > 0:
-            self.warn(mat, node, f"input 'Transmission' {transmission:g} is not modelled (rendered opaque)")
         subsurface = min(max(self.read_float(mat, node, "Subsurface"), 0.0), 1.0)
         if subsurface > 0:
             # Cycles' own fallback below a diffuse bounce: the base colour mixed with the subsurface colour.

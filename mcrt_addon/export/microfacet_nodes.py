@@ -99,7 +99,8 @@ def metallic(table, mat, node):
 
 
 def principled(table, mat, node):
-    """Principled BSDF v2 (4.0+) -> the principled kind; transmission >= 0.5 stays today's smooth glass."""
+    """Principled BSDF v2 (4.0+) -> the principled kind; 'Transmission Weight' is its rough glass closure
+    (engine/materials/principled_glass.py)."""
     base = _clamp01(table.read_color(mat, node, "Base Color"))
     emission = table.principled_emission(mat, node)
     roughness = _clamp(table.read_float(mat, node, "Roughness", default=0.5), 0.0, 1.0)
@@ -113,20 +114,6 @@ def principled(table, mat, node):
         table.warn(mat, node, f"input 'Subsurface Weight' {subsurface:g} is rendered as diffuse "
                               "(subsurface scattering is not modelled)")
     transmission = table.read_float(mat, node, "Transmission Weight", default=0.0)
-    if 0 < transmission < 0.5:
-        table.warn(mat, node, f"input 'Transmission Weight' {transmission:g} is not modelled yet (rendered opaque)")
-    elif transmission >= 0.5:
-        metal = table.read_float(mat, node, "Metallic", default=0.0)
-        if transmission < 1 or metal > 0:
-            table.warn(mat, node, f"input 'Transmission Weight' {transmission:g} / 'Metallic' {metal:g} "
-                                  "approximated as smooth glass")
-        if roughness > 0:
-            table.warn(mat, node, f"roughness {roughness:g} is treated as 0 (smooth glass)")
-        for name, off in (("Coat Weight", 0.0), ("Sheen Weight", 0.0), ("Alpha", 1.0)):
-            value = table.read_float(mat, node, name, default=off)
-            if value != off:
-                table.warn(mat, node, f"input '{name}' {value:g} is not modelled on smooth glass")
-        return table.Material(name=mat.name, kind=table.GLASS, color=base, ior=ior, emission=emission)
     dist, multiscatter = distribution(table, mat, node)
     layers = principled_layers(table, mat, node, transmission, emission)
     emission = tuple(c * layers["alpha"] for c in emission)       # Cycles: the emission closure's weight is alpha

@@ -1,9 +1,10 @@
 """Agreement with Cycles 3.4 (tests/addon/blender34.py): Debian's Blender 3.4 exports a scene with the
 add-on and renders Cycles references; the tracer renders the export with Blender 3.4's Principled
 BSDF v1 (engine/materials/principled_v1.py).  Scenes: the factory startup file's default cube
-(Principled defaults, a point light, the grey world) and the principled_balls sample scene
+(Principled defaults, a point light, the grey world), the principled_balls sample scene
 (roughness x metallic, clearcoat, sheen) with the node's default distribution (GGX) and with
-"Multiscatter GGX" (the energy-compensation approximation: its own budget, docs/materials.md).
+"Multiscatter GGX" (the energy-compensation approximation: its own budget, docs/materials.md), and
+the principled_glass sample scene (transmission, engine/materials/principled_v1_glass.py).
 Each has a control that must fail: the same export rendered with the v2 model (Blender 4.x's
 Principled) or as Lambertian (the export before v1 existed), or single scattering for the
 multiscatter references."""
@@ -106,3 +107,36 @@ def test_comparison_catches_single_scatter_for_multiscatter(outdir):
         m.multiscatter = False
     assert not compare("principled_balls MULTI_GGX as GGX", tracer_runs(single, 2000), r.cycles,
                        TAU_MULTISCATTER).passed
+
+
+# -- the Principled BSDF v1's transmission (engine/materials/principled_v1_glass.py) --------------------
+def as_smooth_glass(scene):
+    """Control: the export before the v1 transmission existed: transmission >= 0.5 as smooth glass."""
+    scene = copy.deepcopy(scene)
+    for m in scene.materials:
+        if isinstance(m.principled, PrincipledV1) and m.principled.transmission >= 0.5:
+            m.kind, m.roughness, m.principled = "glass", 0.0, None
+    return scene
+
+
+def test_principled_glass_agrees_with_cycles_34(outdir):
+    r = run("principled_glass", outdir)
+    balls = sorted((m.name, m.principled.transmission, m.roughness) for m in r.scene.materials
+                   if isinstance(m.principled, PrincipledV1))
+    assert [(t, rough) for _, t, rough in balls] == [pytest.approx((1.0, 0.0)), pytest.approx((1.0, 0.3)),
+                                                    pytest.approx((0.5, 0.3))], balls
+    assert all(scatter_kind(m) == PRINCIPLED_V1 for m in r.scene.materials if m.principled) and r.warnings == []
+    assert compare("principled_glass", tracer_runs(r.scene), r.cycles).passed
+
+
+def test_comparison_catches_the_principled_glass_as_smooth_glass(outdir):
+    r = run("principled_glass", outdir)
+    assert not compare("principled_glass as smooth glass", tracer_runs(as_smooth_glass(r.scene), 2000), r.cycles).passed
+
+
+def test_multiscatter_principled_glass_agrees_with_cycles_34(outdir):
+    """The random-walk glass approximated (engine/materials/principled_v1_glass.py): at roughness 0.3
+    it agrees within the ordinary budget (its worst block excess is 2.7 of 4.05)."""
+    r = run("principled_glass", outdir, "MULTI_GGX")
+    assert all(m.multiscatter for m in r.scene.materials if isinstance(m.principled, PrincipledV1))
+    assert compare("principled_glass MULTI_GGX", tracer_runs(r.scene), r.cycles).passed

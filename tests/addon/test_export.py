@@ -167,8 +167,8 @@ def test_material_mapping(scene, ms):
     assert e.kind == "diffuse" and e.color == (0, 0, 0) and e.emission == pytest.approx((4.0, 2.0, 1.0))
     pm = material_of(sc, "PMetal")        # Blender 4.0+: the principled kind (test_export_materials.py)
     assert pm.kind == "principled" and pm.principled.metallic == 1.0 and pm.roughness == 0.0
-    pg = material_of(sc, "PGlass")
-    assert pg.kind == "glass" and pg.ior == pytest.approx(1.45)
+    pg = material_of(sc, "PGlass")        # 4.0+: the Principled's own glass closure (principled_glass.py)
+    assert pg.kind == "principled" and pg.ior == pytest.approx(1.45)
     pd = material_of(sc, "PDiff")
     assert pd.kind == "principled" and pd.color == pytest.approx((0.3, 0.3, 0.3))
     assert pd.principled.metallic == 0.0 and pd.principled.specular_ior_level == 0.0

@@ -217,7 +217,7 @@ def test_principled_base_colour_texture(scene, ms):
 
 @needs_v2
 @pytest.mark.parametrize("socket_name, value", [
-    ("Transmission Weight", 0.3), ("Thin Film Thickness", 250.0)])     # coat, sheen, alpha: test_export_principled_layers.py
+    ("Thin Film Thickness", 250.0)])     # coat, sheen, alpha: test_export_principled_layers.py
 def test_principled_unmodelled_inputs_name_material_and_socket(scene, ms, socket_name, value):
     plate(ms, scene, "P", ms.node_material("Layered", "ShaderNodeBsdfPrincipled", **{socket_name: value}))
     res = export()
@@ -234,12 +234,16 @@ def test_principled_emission_as_before(scene, ms):
 
 
 @needs_v2
-def test_principled_transmission_stays_smooth_glass(scene, ms):
-    plate(ms, scene, "P", ms.principled("Glassy", (1, 1, 1), roughness=0.0, transmission=0.8, ior=1.45))
+@pytest.mark.parametrize("transmission, roughness", [(0.8, 0.0), (0.3, 0.4), (1.0, 0.25)])
+def test_principled_transmission_is_the_principleds_glass_closure(scene, ms, transmission, roughness):
+    """'Transmission Weight' stays on the principled kind (engine/materials/principled_glass.py), with
+    the node's roughness and IOR and no warning (it was exported as smooth glass before)."""
+    plate(ms, scene, "P", ms.principled("Glassy", (0.9, 1, 1), roughness=roughness, transmission=transmission, ior=1.45))
     res = export()
     m = only(res, "Glassy")
-    assert m.kind == "glass" and m.ior == pytest.approx(1.45)
-    assert named(res, "Glassy", "'Transmission Weight' 0.8"), res.warnings
+    assert m.kind == "principled" and m.ior == pytest.approx(1.45) and m.roughness == pytest.approx(roughness)
+    assert m.principled.transmission_weight == pytest.approx(transmission) and m.multiscatter
+    assert res.warnings == [], res.warnings
 
 
 def test_distribution_menu_maps_to_the_tracers_distributions():

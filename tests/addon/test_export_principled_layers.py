@@ -1,6 +1,6 @@
 """Exporter: the Principled BSDF v2's coat, sheen, alpha and emission sockets -> engine/scene/model.py
 Principled (mcrt_addon/export/microfacet_nodes.py principled_layers), and the warnings naming material
-and socket for what is still not modelled (Coat Normal, thin film, subsurface, transmission)."""
+and socket for what is still not modelled (Coat Normal, thin film, subsurface)."""
 import bpy
 import pytest
 
@@ -49,13 +49,10 @@ def test_coat_normal_linked_is_warned(scene, ms):
 
 
 @pytest.mark.parametrize("socket_name, value, text", [
-    ("Subsurface Weight", 0.2, "is rendered as diffuse"), ("Thin Film Thickness", 250.0, "is not modelled"),
-    ("Transmission Weight", 0.3, "is not modelled yet")])
+    ("Subsurface Weight", 0.2, "is rendered as diffuse"), ("Thin Film Thickness", 250.0, "is not modelled")])
 def test_what_is_not_modelled_names_material_and_socket(scene, ms, socket_name, value, text):
     plate(ms, scene, "P", ms.node_material("Layered", "ShaderNodeBsdfPrincipled", **{socket_name: value}))
     res = export()
     m = only(res, "Layered")
     assert m.kind == "principled"
     assert named(res, "Layered", f"input '{socket_name}' {value:g} {text}"), res.warnings
-    if socket_name == "Transmission Weight":
-        assert m.principled.transmission_weight == pytest.approx(0.3)

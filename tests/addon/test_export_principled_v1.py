@@ -54,13 +54,18 @@ def test_what_is_not_modelled_is_named():
     m, warnings = export_34(node_34(Subsurface=0.5, Subsurface_Color=(0.0, 0.0, 0.8, 1.0), Transmission=0.2,
                                     Alpha=0.5, linked=("Clearcoat Normal",)))
     named = " | ".join(warnings)
-    for text in ("'Subsurface' 0.5", "'Transmission' 0.2", "'Alpha' 0.5", "'Clearcoat Normal' is linked"):
+    for text in ("'Subsurface' 0.5", "'Alpha' 0.5", "'Clearcoat Normal' is linked"):
         assert text in named, warnings
+    assert "Transmission" not in named, warnings          # modelled: engine/materials/principled_v1_glass.py
     assert all(w.startswith("Material 'Mat', node 'Principled BSDF'") for w in warnings)
     assert m.color == pytest.approx((0.4, 0.4, 0.8))     # base mixed with the subsurface colour, as Cycles' fallback
     assert m.principled.transmission == pytest.approx(0.2)
 
 
-def test_mostly_transmissive_stays_smooth_glass():
-    m, warnings = export_34(node_34(Transmission=1.0, Roughness=0.0))
-    assert m.kind == model.GLASS and m.ior == pytest.approx(1.45) and warnings == []
+@pytest.mark.parametrize("transmission, roughness", [(1.0, 0.0), (0.5, 0.3)])
+def test_transmission_stays_on_principled_v1(transmission, roughness):
+    """Transmission is 3.4's glass closures of the Principled (it was exported as smooth glass)."""
+    m, warnings = export_34(node_34(Transmission=transmission, Roughness=roughness, Transmission_Roughness=0.2))
+    assert scatter_kind(m) == PRINCIPLED_V1 and m.ior == pytest.approx(1.45) and warnings == []
+    assert m.principled.transmission == pytest.approx(transmission) and m.roughness == pytest.approx(roughness)
+    assert m.principled.transmission_roughness == pytest.approx(0.2)

@@ -208,10 +208,8 @@ def test_scene_file_round_trip_of_the_layers(tmp_path):
     assert load_scene(path).materials[0].principled == Principled()
 
 
-def test_transmission_weight_is_warned_by_material():
-    warnings = small_scene(transmission_weight=0.3).validate()
-    assert any("Material 'L'" in w and "transmission_weight" in w for w in warnings), warnings
-    assert not any("transmission" in w for w in small_scene().validate())
+def test_transmission_weight_is_modelled_without_a_warning():
+    assert not any("transmission" in w for w in small_scene(transmission_weight=0.3).validate())
 
 
 def test_effect_plan_names_the_layers_and_sees_lamps_through_alpha():

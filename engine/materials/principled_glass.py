@@ -1,0 +1,136 @@
+"""The Principled BSDF v2's transmission closure (Blender 4.0+): the rough glass that Cycles' svm
+closure.h (case CLOSURE_BSDF_PRINCIPLED_ID, "Transmission component"; a public source:
+blender/cycles src/kernel/svm/closure.h and kernel/closure/bsdf_microfacet.h) sets up with weight
+transmission_weight x (1 - metallic) x W, W the weight left by alpha, sheen and coat
+(engine/materials/principled.py):
+
+* a GGX glass closure (reflection and refraction, engine/materials/dielectric_lobe.py), isotropic
+  alpha = roughness^2 (the anisotropy is not used), eta = IOR entering, 1 / IOR leaving (or the
+  ratio of the media on the path's medium stack, engine/materials/media.py, which a refraction
+  updates);
+* its Fresnel is Cycles' generalized Schlick in the "real Fresnel" mode (exponent -IOR):
+  R = mix(F0 x specular tint, 1, s(h)) with F0 = ((IOR - 1) / (IOR + 1))^2 (the node's IOR; the
+  Specular IOR Level does not touch this closure), F0 x tint saturated to [0, 1], and
+  s(h) = (F_d(wo.h, eta) - F0(eta)) / (1 - F0(eta)) clamped to [0, 1] (F_d = 1 under total internal
+  reflection: R = 1); T = (1 - R) x sqrt(base colour clamped to 1): the base colour tints the light
+  that enters and leaves, the square root each time (reflection tint 1, transmission tint
+  sqrt(base));
+* the lobe is picked by mean(R) / mean(R + T) (Cycles' pdf_reflect over colours);
+* with the node's "Multiscatter GGX" (`Material.multiscatter`), microfacet_ggx_preserve_energy with
+  Fss = the transmission tint: f x (1 + F_ms (1 - E) / E), E and E_avg from the glass albedo tables
+  (engine/materials/dielectric.py energy_scale).
+
+At roughness 0 Cycles' closure is singular (a delta); here alpha is floored as every lobe's
+(engine/materials/dielectric_lobe.py dielectric_alpha): the narrowest lobe.  An index-matched
+interface (|eta - 1| < 1e-4) passes light straight through with weight T at normal incidence (a
+delta, flags PASSED), as Cycles' singular refraction there.
+
+The closure's sampling weight (its share when the Principled picks a closure) is its weight's mean
+times mean(R + T) at wo.n, the smooth-surface estimate (Cycles' bsdf_microfacet_estimate_albedo
+reads its s(mu) table for the reflected part); it changes the noise only.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.vec import dot, normalize
+from .dielectric import energy_scale
+from .dielectric_lobe import PASSED, REFLECTED, REFRACTED, MicrofacetDielectric, dielectric_alpha, refraction_eta
+from .fresnel import INDEX_MATCHED
+from .glossy import fresnel_dielectric
+from .microfacet import shading_frame, to_local, to_world
+from .protocol import ShadingPoint
+
+FLAGS = REFLECTED | REFRACTED | PASSED
+WEIGHT_CUTOFF = 1e-5                # Cycles' CLOSURE_WEIGHT_CUTOFF
+
+
+def _f0(ior):
+    ior = np.asarray(ior, dtype=np.float64)
+    return ((ior - 1.0) / (ior + 1.0)) ** 2
+
+
+class PrincipledGlass:
+    """The transmission closure of every material (zero weight where a material has none):
+    transmission (M,) the node's Transmission Weight clamped to [0, 1] (0 below the cutoff)."""
+
+    def __init__(self, materials, transmission, specular_tint):
+        m = len(materials)
+        self.transmission = np.where(transmission > WEIGHT_CUTOFF, np.clip(transmission, 0.0, 1.0), 0.0)
+        self.ior = np.array([max(x.ior, 1e-5) for x in materials], dtype=np.float64).reshape(m)
+        self.roughness = np.array([min(max(x.roughness, 0.0), 1.0) for x in materials], dtype=np.float64).reshape(m)
+        self.alpha = dielectric_alpha(self.roughness)
+        self.f0 = np.clip(_f0(self.ior)[None, :] * np.asarray(specular_tint, dtype=np.float64).reshape(3, m), 0.0, 1.0)
+        self.compensate = np.array([bool(getattr(x, "multiscatter", False)) for x in materials], dtype=bool).reshape(m)
+        self.lobe = MicrofacetDielectric(reflection=True, transmission=True)
+
+    # -- per hit -------------------------------------------------------------------------------
+    def _setup(self, si: ShadingPoint):
+        mat = si.material
+        eta, entering = refraction_eta(si, self.ior.take(mat))
+        frame = (*shading_frame(si.n), si.n)
+        tint = np.sqrt(np.clip(si.color, 0.0, 1.0))
+        return mat, eta, entering, frame, self.f0.take(mat, axis=1), tint
+
+    @staticmethod
+    def _fresnel(eta, f0, tint):
+        """cos -> (R, T) (3, N) each: the generalized Schlick's real-Fresnel mode (see the module)."""
+        def split(cos):
+            f0_real = _f0(eta)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = (fresnel_dielectric(cos, eta) - f0_real) / (1.0 - f0_real)
+            s = np.clip(np.nan_to_num(s, nan=1.0), 0.0, 1.0)
+            r = f0 + (1.0 - f0) * s
+            return r, (1.0 - r) * tint
+        return split
+
+    def _scale(self, mat, mu, eta, tint):
+        on = self.compensate.take(mat)
+        if not on.any():
+            return None
+        return np.where(on, energy_scale(self.roughness.take(mat), mu, eta, tint), 1.0)
+
+    def sample_weight(self, si: ShadingPoint) -> np.ndarray:
+        """mean(R + T) (N,) at wo.n: the closure's albedo estimate (without its weight)."""
+        mat, eta, _, _, f0, tint = self._setup(si)
+        r, t = self._fresnel(eta, f0, tint)(np.clip(dot(si.wo, si.n), 0.0, 1.0))
+        return (r + t).mean(axis=0)
+
+    def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(f cos (3, N), pdf (N,)) of the closure without its weight; wi on either side."""
+        mat, eta, _, frame, f0, tint = self._setup(si)
+        wo_l, wi_l = to_local(si.wo, *frame), to_local(wi, *frame)
+        f, pdf = self.lobe.eval(wo_l, wi_l, self.alpha.take(mat), eta, np.zeros(len(si), bool),
+                                fresnel=self._fresnel(eta, f0, tint))
+        scale = self._scale(mat, wo_l[2], eta, tint)
+        if scale is not None:
+            f = f * scale
+        matched = np.abs(eta - 1.0) < INDEX_MATCHED
+        if matched.any():
+            f, pdf = np.where(matched, 0.0, f), np.where(matched, 0.0, pdf)
+        return f, pdf
+
+    def sample(self, si: ShadingPoint, u_lobe, u1, u2):
+        """(wi (3, N), weight (3, N) = f cos / pdf without the closure weight, pdf (N,), flags (N,),
+        refracted (N,) bool, entering (N,) bool).  The caller moves the refracted paths across the
+        surface on their medium stacks (si may be a copy)."""
+        mat, eta, entering, frame, f0, tint = self._setup(si)
+        wo = to_local(si.wo, *frame)
+        fresnel = self._fresnel(eta, f0, tint)
+        wi_l, weight, pdf, refracted, ok = self.lobe.sample(wo, self.alpha.take(mat), eta, np.zeros(len(si), bool),
+                                                            u_lobe, u1, u2, fresnel=fresnel)
+        wi = normalize(to_world(wi_l, *frame))
+        scale = self._scale(mat, wo[2], eta, tint)
+        if scale is not None:
+            weight = weight * scale
+        flags = np.where(refracted, np.int8(REFRACTED), np.int8(REFLECTED))
+        matched = np.abs(eta - 1.0) < INDEX_MATCHED
+        if matched.any():
+            straight = fresnel(np.ones(len(si)))[1]
+            wi = np.where(matched, -si.wo, wi)
+            weight = np.where(matched, straight, weight)
+            pdf = np.where(matched, 1.0, pdf)
+            flags = np.where(matched, np.int8(PASSED), flags)
+            refracted, ok = refracted | matched, ok | matched
+        weight = np.where(ok, weight, 0.0)
+        return wi, weight, np.where(ok, pdf, 0.0), flags.astype(np.int8), refracted & ok, entering
