@@ -53,6 +53,7 @@ from .glossy import fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import ALPHA_MIN, ggx_d, ggx_lambda, ggx_sample_vndf, shading_frame, to_local, to_world
 from .principled import principled_alphas
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+from .textures import hit_tangent
 
 FLAGS = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
 DIFFUSE_LOBE = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE
@@ -157,7 +158,7 @@ class PrincipledV1(BSDF):
 
     # -- per hit ------------------------------------------------------------------------------------
     def _frame(self, si: ShadingPoint):
-        x, y = shading_frame(si.n, self.tangent.take(si.material, axis=1))
+        x, y = shading_frame(si.n, hit_tangent(si, self.tangent))
         turn = 2.0 * np.pi * self.rotation.take(si.material)
         if np.any(turn != 0.0):
             c, s = np.cos(turn), np.sin(turn)
