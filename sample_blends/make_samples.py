@@ -46,6 +46,9 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  a column with clearcoat, sheen and both, in the Cornell room
   principled_grid  Principled BSDF balls: roughness 0.1, 0.3, 0.55, 0.8 across; rows dielectric,
                  metal, a tinted coat over white, sheen over dark blue; lit by an Area light
+  roughness_map  a Glossy plate whose Roughness is a 4 x 4 checker image (0.1 / 0.6, Non-Color,
+                 Closest) tilted to reflect an Area light, and an anisotropic Glossy ball (anisotropy
+                 0.9) whose Tangent is a Tangent node reading the UV map (MikkTSpace), in the room
 Light-sampling stress scenes (plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -823,6 +826,45 @@ def make_principled_glass(scene, res):
         mat = node_material(f"{name} glass", "ShaderNodeBsdfPrincipled", **kw)
         mesh_object(scene, f"Ball {name}", lambda bm: uv_sphere(bm, 0.3, 48, 24), mat,
                     location=(x, -0.2, 0.302), smooth=True)             # 2 mm above the floor
+ROUGHNESS_CHECKER = (0.1, 0.6)          # the roughness_map plate's two roughnesses
+
+
+def make_roughness_map(scene, res):
+    """Image textures on float inputs and a tangent from the UV map (mcrt_addon/export/materials.py):
+    * a 0.8 m Glossy plate (GGX), tilted back by 45 degrees towards the Area light, its Roughness fed
+      by a 4 x 4 checker of ROUGHNESS_CHECKER (Non-Color, Closest) over its UVs 0..1;
+    * a ball (UV sphere, shade smooth) of anisotropic Glossy (GGX, roughness 0.2, anisotropy 0.9)
+      whose Tangent input is a Tangent node in UV Map mode: the highlight stretches across the UV
+      map's u direction (the sphere's meridians)."""
+    room(scene, ceiling_light=False)
+    area_light(scene)
+    lo, hi = ROUGHNESS_CHECKER
+    checker = packed_image("Roughness checker", 4, 4, lambda x, y: (hi,) * 3 if (x + y) % 2 else (lo,) * 3,
+                           colorspace="Non-Color")
+    # ShaderNodeBsdfAnisotropic: 3.4's Anisotropic BSDF, 4.0+'s Glossy BSDF (anisotropy 0: isotropic)
+    plate_mat = image_material("Checker roughness", "ShaderNodeBsdfAnisotropic", "Roughness", checker,
+                               interpolation="Closest", Color=(0.9, 0.9, 0.9, 1.0), Anisotropy=0.0)
+    next(n for n in plate_mat.node_tree.nodes if n.bl_idname.startswith("ShaderNodeBsdf")).distribution = "GGX"
+    s = 0.4
+
+    def panel(bm):                      # a 0.8 m square in the XZ plane facing -Y (the camera)
+        quad(bm, [(-s, 0, -s), (s, 0, -s), (s, 0, s), (-s, 0, s)])
+    plate_ob = mesh_object(scene, "Plate", panel, plate_mat, location=(-0.45, 0.3, 0.55),
+                           rotation=(math.radians(-45), 0, 0))
+    set_uvs(plate_ob, {"UVMap": [(0, 0), (1, 0), (1, 1), (0, 1)]})
+    ball_mat = node_material("Brushed", "ShaderNodeBsdfAnisotropic", Color=(0.9, 0.9, 0.9, 1.0), Roughness=0.2,
+                             Anisotropy=0.9)
+    bsdf = next(n for n in ball_mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfAnisotropic")
+    bsdf.distribution = "GGX"
+    tangent = ball_mat.node_tree.nodes.new("ShaderNodeTangent")
+    tangent.direction_type, tangent.uv_map = "UV_MAP", "UVMap"
+    ball_mat.node_tree.links.new(tangent.outputs["Tangent"], bsdf.inputs["Tangent"])
+
+    def ball(bm):
+        bm.loops.layers.uv.new("UVMap")
+        bmesh.ops.create_uvsphere(bm, u_segments=48, v_segments=24, radius=0.4, calc_uvs=True)
+    mesh_object(scene, "Ball", ball, ball_mat, location=(0.45, -0.2, 0.4), rotation=(0, 0, math.radians(30)),
+                smooth=True)
     camera(scene)
     black_world(scene)
     settings(scene, res)
@@ -855,6 +897,7 @@ SCENES = {
     "principled_balls": make_principled_balls,
     "principled_grid": make_principled_grid,
     "principled_glass": make_principled_glass,
+    "roughness_map": make_roughness_map,
 }
 
 

@@ -28,7 +28,8 @@ light straight through (a delta transmission), as Cycles and engine/materials/fr
 
 The lobe alone, `MicrofacetDielectric` over per-hit alpha and eta arrays, is in
 engine/materials/dielectric_lobe.py, for any BSDF with a dielectric interface (the Glass and
-Refraction BSDFs here; a transmitting Principled BSDF).
+Refraction BSDFs here; a transmitting Principled BSDF).  An image texture on the roughness
+(Material.input_textures) gives each textured hit its own alpha and table roughness (`_rough`).
 """
 from __future__ import annotations
 
@@ -41,6 +42,7 @@ from .fresnel import INDEX_MATCHED
 from .microfacet import BECKMANN, GGX, shading_frame, to_local, to_world
 from .protocol import BSDF, BSDFSample, ShadingPoint, delta_eval
 from .specular import refract, refract_cos, specular_normal
+from .textures import per_hit, textured_mask
 
 MULTI_GGX = "multi_ggx"
 HEIGHT_CORRELATED_SINCE = (3, 5)        # Cycles' G2 before: separable G1 G1
@@ -76,6 +78,16 @@ class RoughDielectric(BSDF):
         self.separable = np.full(len(materials), tuple(cycles_version) < HEIGHT_CORRELATED_SINCE) & ~self.compensate
         self.lobe = MicrofacetDielectric(reflection=self.reflection, transmission=True)
 
+    def _rough(self, si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
+        """(roughness, alpha) (N,) at the hits: the material's, a roughness texture's where it has one."""
+        mat = si.material
+        roughness, alpha = self.roughness.take(mat), self.alpha.take(mat)
+        textured = textured_mask(si, "roughness")
+        if textured is None:
+            return roughness, alpha
+        r = np.clip(per_hit(si, self.roughness, "roughness"), 0.0, 1.0)
+        return np.where(textured, r, roughness), np.where(textured, dielectric_alpha(r), alpha)
+
     def _local(self, si: ShadingPoint):
         mat = si.material
         eta, entering = refraction_eta(si, self.ior.take(mat))
@@ -87,11 +99,12 @@ class RoughDielectric(BSDF):
         on = self.compensate.take(mat)
         if not on.any():
             return None
-        return np.where(on, energy_scale(self.roughness.take(mat), mu, eta, si.color), 1.0)
+        return np.where(on, energy_scale(self._rough(si)[0], mu, eta, si.color), 1.0)
 
     def _alpha(self, si: ShadingPoint, mat):
-        """Each hit's alpha, at least si.alpha_floor (Filter Glossy, engine/integrators/light_paths.py)."""
-        alpha = self.alpha.take(mat)
+        """Each hit's alpha (a roughness texture's where it has one: `_rough`), at least
+        si.alpha_floor (Filter Glossy, engine/integrators/light_paths.py)."""
+        alpha = self._rough(si)[1]
         return alpha if si.alpha_floor is None else np.maximum(alpha, si.alpha_floor)
 
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:

@@ -23,6 +23,11 @@ microfacet_ggx_preserve_energy): the single-scatter lobe is scaled by 1 + F_ms (
 E = E(cos(wo), roughness) and F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg)), F_ss the Fresnel's
 hemispherical average (engine/materials/albedo_tables.py); it depends on wo only, as in Cycles, so
 the compensated lobe is not exactly reciprocal.
+
+An image texture on the roughness (engine/scene/model.py Material.input_textures) gives each hit its
+own alphas (`alphas`; `alpha_rule` maps roughness and anisotropy, the Principled lobes set theirs) and
+table roughness; a tangent from the mesh (Material.tangent_source) replaces the material's tangent
+at the hits that have one (engine/materials/textures.py per_hit, hit_tangent).
 """
 from __future__ import annotations
 
@@ -30,8 +35,10 @@ import numpy as np
 
 from ..core.vec import dot, normalize
 from . import albedo_tables
-from .microfacet import BECKMANN, D, GGX, LAMBDA, SAMPLE_VNDF, glossy_alphas, shading_frame, to_local, to_world
+from .microfacet import (BECKMANN, D, GGX, LAMBDA, SAMPLE_VNDF, glossy_alpha_rows, glossy_alphas, shading_frame,
+                         to_local, to_world)
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+from .textures import hit_tangent, per_hit, textured_mask
 
 LOBE = BSDFFlags.GLOSSY | BSDFFlags.REFLECTION
 FRESNEL_KINDS = ("none", "dielectric", "conductor", "f82", "interpolated")
@@ -108,9 +115,13 @@ class MicrofacetReflection(BSDF):
     and anisotropy, engine/materials/microfacet.py glossy_alphas), the tangent (world space,
     turned by rotation x 2 pi about the normal), the distribution, the Fresnel and compensation."""
     flags = LOBE
+    roughness_input = "roughness"       # the textured input its roughness reads (None: none, the coat)
+    alpha_rule = staticmethod(glossy_alpha_rows)    # (roughness, anisotropy) rows -> (alpha_x, alpha_y)
 
     def __init__(self, materials, settings):
         m = len(materials)
+        self.roughness = np.array([getattr(x, "roughness", 0.5) for x in materials], dtype=np.float64).reshape(m)
+        self.anisotropy = np.array([getattr(x, "anisotropy", 0.0) for x in materials], dtype=np.float64).reshape(m)
         alphas = np.array([glossy_alphas(getattr(x, "roughness", 0.5), getattr(x, "anisotropy", 0.0))
                            for x in materials], dtype=np.float64).reshape(m, 2)
         self.ax, self.ay = alphas[:, 0], alphas[:, 1]
@@ -128,18 +139,37 @@ class MicrofacetReflection(BSDF):
                                     for x in materials], dtype=bool)
 
     # -- per hit ------------------------------------------------------------------------------
-    def _alphas(self, si: ShadingPoint):
-        """(alpha_x, alpha_y, beckmann) of each hit, the alphas at least si.alpha_floor (Filter
-        Glossy, engine/integrators/light_paths.py)."""
+    def alphas(self, si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
+        """(alpha_x, alpha_y) (N,): the material's, or from the roughness texture at textured hits;
+        the material's own roughness (energy compensation, layer weights: `table_roughness`)."""
         mat = si.material
         ax, ay = self.ax.take(mat), self.ay.take(mat)
+        textured = textured_mask(si, self.roughness_input)
+        if textured is None:
+            return ax, ay
+        tx, ty = self.alpha_rule(per_hit(si, self.roughness, self.roughness_input), self.anisotropy.take(mat))
+        return np.where(textured, tx, ax), np.where(textured, ty, ay)
+
+    def _alphas(self, si: ShadingPoint):
+        """(alpha_x, alpha_y, beckmann) of each hit for the lobe itself: `alphas`, at least
+        si.alpha_floor (Filter Glossy, engine/integrators/light_paths.py)."""
+        ax, ay = self.alphas(si)
         if si.alpha_floor is not None:
             ax, ay = np.maximum(ax, si.alpha_floor), np.maximum(ay, si.alpha_floor)
-        return ax, ay, self.beckmann.take(mat)
+        return ax, ay, self.beckmann.take(si.material)
+
+    def table_roughness(self, si: ShadingPoint) -> np.ndarray:
+        """The albedo tables' roughness (N,) at the hits, sqrt of the alphas' geometric mean (Cycles' `rough`)."""
+        base = self.roughness_of_table.take(si.material)
+        textured = textured_mask(si, self.roughness_input)
+        if textured is None:
+            return base
+        ax, ay = self.alphas(si)
+        return np.where(textured, np.sqrt(np.sqrt(ax * ay)), base)
 
     def _frame(self, si: ShadingPoint):
         mat = si.material
-        x, y = shading_frame(si.n, self.tangent.take(mat, axis=1))
+        x, y = shading_frame(si.n, hit_tangent(si, self.tangent))
         turn = 2.0 * np.pi * self.rotation.take(mat)
         if np.any(turn != 0.0):
             c, s = np.cos(turn), np.sin(turn)
@@ -206,7 +236,7 @@ class MicrofacetReflection(BSDF):
         on = self.compensate.take(si.material)
         if not on.any():
             return None
-        rough = self.roughness_of_table.take(si.material)
+        rough = self.table_roughness(si)
         e = albedo_tables.albedo(rough, np.clip(cos_o, 0.0, 1.0))
         e_avg = albedo_tables.average_albedo(rough)
         f_ss = self._fresnel_average(si)

@@ -40,6 +40,16 @@ def glossy_alphas(roughness: float, anisotropy: float = 0.0) -> tuple[float, flo
     return clamp_alpha(ax), clamp_alpha(ay)
 
 
+def glossy_alpha_rows(roughness: np.ndarray, anisotropy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """glossy_alphas over arrays (N,): per-hit roughness from a texture (engine/materials/textures.py)."""
+    alpha = np.clip(roughness, 0.0, 1.0) ** 2
+    a = np.clip(anisotropy, -0.99, 0.99)
+    iso = np.abs(a) <= 1e-4
+    ax = np.where(iso, alpha, np.where(a > 0.0, alpha * (1.0 - a), alpha / (1.0 + a)))
+    ay = np.where(iso, alpha, np.where(a > 0.0, alpha / (1.0 - a), alpha * (1.0 + a)))
+    return clamp_alpha(ax), clamp_alpha(ay)
+
+
 def clamp_alpha(alpha):
     """Cycles' saturate of alpha, and the floor ALPHA_MIN."""
     return np.clip(alpha, ALPHA_MIN, 1.0)

@@ -45,6 +45,7 @@ import numpy as np
 from ..core.vec import dot
 from ..sampling.warps import cosine_directions, to_world, unit_circle
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+from .textures import per_hit, textured_mask
 
 LOBE = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION
 FLT_MIN = 1.17549435e-38            # Cycles' guard of the division by t (float's smallest normal)
@@ -93,6 +94,7 @@ class _FujiiOrenNayar(BSDF):
     roughness: one value per material id (a sequence); by default each material's `roughness`
     attribute (0, i.e. Lambertian, where it has none)."""
     flags = LOBE
+    roughness_input = "diffuse_roughness"     # an image texture on it gives each hit its own (per_hit)
 
     def __init__(self, materials, settings, roughness=None):
         if roughness is None:
@@ -103,6 +105,8 @@ class _FujiiOrenNayar(BSDF):
     def _rough(self, si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
         """(whether each hit's material is rough, its roughness; 1 where smooth, unused there)."""
         sigma = self.roughness.take(si.material) if len(self.roughness) else np.zeros(len(si))
+        if len(self.roughness) and textured_mask(si, self.roughness_input) is not None:
+            sigma = np.clip(per_hit(si, self.roughness, self.roughness_input), 0.0, 1.0)
         rough = sigma > 0.0
         return rough, np.where(rough, sigma, 1.0)
 

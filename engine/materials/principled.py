@@ -65,6 +65,11 @@ it through closure_layering_weight, W <- W x clamp(1 - max_c(layer albedo / W), 
   coat_weight), cos_t = sqrt(1 - (1 - mu^2) / coat_ior^2).
 * the base lobes' weights are multiplied by W (a colour once the coat is tinted).
 
+Image textures on the roughness and metallic (engine/scene/model.py Material.input_textures) are read
+per hit: the metallic weight, the lobes' alphas (`principled_alpha_rows`), and s(mu) at the hit's
+roughness, linear between our s tables at ROUGHNESS_POINTS roughnesses r = i / 15 (Cycles' table has
+16 roughness points, read linearly too; `_textured_s`); untextured hits keep the material's own.
+
 Emission is not a lobe: Material.emission (the exporter multiplies it by alpha, as Cycles; the coat
 and sheen's darkening of it is not modelled).  Materials without any of these layers run the base
 alone (the same arithmetic as before the layers existed: their images are bit-identical).
@@ -86,6 +91,7 @@ from .oren_nayar import EnergyPreservingOrenNayar
 from .principled_glass import FLAGS as GLASS_LOBES, PrincipledGlass
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
 from .sheen import LOBE as SHEEN_LOBE, MicrofiberSheen
+from .textures import per_hit, textured_mask
 
 FLAGS = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
 PASS_LOBE = BSDFFlags.TRANSMISSION | BSDFFlags.DELTA | BSDFFlags.STRAIGHT      # alpha's pass-through
@@ -93,6 +99,7 @@ WEIGHT_CUTOFF = 1e-5                # Cycles' CLOSURE_WEIGHT_CUTOFF: lobes below
 DIFFUSE_ROUGHNESS_CUTOFF = 1e-5     # Cycles' diffuse_roughness_is_almost_zero
 MU_POINTS = 32                      # points of mu of our s(mu) tables, squared spacing (see mu_points)
 ESTIMATE_STRATA = 64                # our Monte Carlo of s(mu): 64 x 64 jittered samples per point
+ROUGHNESS_POINTS = 16               # s(mu) tables over roughness for textured roughness (i / 15)
 
 
 def f0_from_ior(ior):
@@ -194,6 +201,13 @@ def principled_alphas(roughness: float, anisotropy: float) -> tuple[float, float
     return float(clamp_alpha(alpha / aspect)), float(clamp_alpha(alpha * aspect))
 
 
+def principled_alpha_rows(roughness: np.ndarray, anisotropy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """principled_alphas over arrays (N,) (textured roughness)."""
+    alpha = np.clip(roughness, 0.0, 1.0) ** 2
+    aspect = np.sqrt(1.0 - 0.9 * np.clip(anisotropy, 0.0, 1.0))
+    return clamp_alpha(alpha / aspect), clamp_alpha(alpha * aspect)
+
+
 class PrincipledV2(BSDF):
     """The Principled BSDF v2 of every material (engine/scene/model.py Principled): metallic,
     specular and diffuse lobes, weighted and sampled as Cycles does (see the module)."""
@@ -218,6 +232,8 @@ class PrincipledV2(BSDF):
         for lobe in (self.metal, self.specular):
             lobe.ax, lobe.ay = alphas[:, 0].copy(), alphas[:, 1].copy()
             lobe.roughness_of_table = np.sqrt(np.sqrt(lobe.ax * lobe.ay))
+            lobe.alpha_rule = principled_alpha_rows
+        self._s_grids = {}                  # textured roughness: material -> s tables over roughness
         # Cycles' s(mu) tables, for the Principled materials only (every row of the material
         # table is built for all materials, engine/materials/table.py).
         rough = self.specular.roughness_of_table
@@ -265,6 +281,7 @@ class PrincipledV2(BSDF):
                                                           distribution=GGX, fresnel="dielectric", ior=e, multiscatter=True)
                                           for r, e in zip(coat_rough, self.coat_ior)], settings)
         alphas = np.array([principled_alphas(r, 0.0) for r in coat_rough]).reshape(m_count, 2)
+        self.coat.roughness_input = None            # the coat's own roughness: no texture
         self.coat.ax, self.coat.ay = alphas[:, 0].copy(), alphas[:, 1].copy()
         self.coat.roughness_of_table = np.sqrt(np.sqrt(self.coat.ax * self.coat.ay))
         none = np.zeros(MU_POINTS)
@@ -296,8 +313,35 @@ class PrincipledV2(BSDF):
         scale = lobe.compensation(si, cos_o)
         if scale is None:
             return np.ones((3, len(si)))
-        e = albedo_tables.albedo(lobe.roughness_of_table.take(si.material), np.clip(cos_o, 0.0, 1.0))
+        e = albedo_tables.albedo(lobe.table_roughness(si), np.clip(cos_o, 0.0, 1.0))
         return np.where(lobe.compensate.take(si.material), scale * e, 1.0)
+
+    def _textured_s(self, si: ShadingPoint, mu: np.ndarray, s_metal: np.ndarray, s_spec: np.ndarray):
+        """s_metal, s_spec (N,) with the hits of textured roughness read at their roughness: linear
+        between the s tables at ROUGHNESS_POINTS roughnesses (made once per material)."""
+        textured = textured_mask(si, self.specular.roughness_input)
+        if textured is None:
+            return s_metal, s_spec
+        idx = np.flatnonzero(textured)
+        x = np.clip(self.specular.table_roughness(si.take(idx)), 0.0, 1.0) * (ROUGHNESS_POINTS - 1)
+        i = np.minimum(x.astype(np.int64), ROUGHNESS_POINTS - 2)
+        t = x - i
+        rows = si.material.take(idx)
+        s_metal, s_spec = s_metal.copy(), s_spec.copy()
+        for m in np.unique(rows):
+            if int(m) not in self._s_grids:
+                eta = float(self.eta[m])
+                grid = np.arange(ROUGHNESS_POINTS) / (ROUGHNESS_POINTS - 1)
+                self._s_grids[int(m)] = (np.array([interpolation_factor(float(r), None) for r in grid]),
+                                         np.array([interpolation_factor(float(r), eta) if eta != 1.0
+                                                   else np.zeros(MU_POINTS) for r in grid]))
+            metal_grid, spec_grid = self._s_grids[int(m)]
+            mine = np.flatnonzero(rows == m)
+            at, ti, mu_m = i.take(mine), t.take(mine), mu.take(idx.take(mine))
+            for grid, out in ((metal_grid, s_metal), (spec_grid, s_spec)):
+                low, high = _read(grid, at, mu_m), _read(grid, at + 1, mu_m)
+                out[idx.take(mine)] = (1.0 - ti) * low + ti * high
+        return s_metal, s_spec
 
     def layer_albedos(self, si: ShadingPoint):
         """Cycles' albedo estimates (3, N) of the metallic and the specular lobe at wo (without
@@ -305,8 +349,7 @@ class PrincipledV2(BSDF):
         metal, specular, _ = self._views(si)
         mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)
         rows = si.material
-        s_metal = _read(self.s_metal, rows, mu)
-        s_spec = _read(self.s_specular, rows, mu)
+        s_metal, s_spec = self._textured_s(si, mu, _read(self.s_metal, rows, mu), _read(self.s_specular, rows, mu))
         a_metal = self._darkening(self.metal, metal, mu) * (metal.color + (1.0 - metal.color) * s_metal)
         a_spec = self._darkening(self.specular, specular, mu) * (specular.color + (1.0 - specular.color) * s_spec)
         return a_metal, np.where(self.has_specular.take(rows), a_spec, 0.0)
@@ -316,7 +359,7 @@ class PrincipledV2(BSDF):
         their sampling probabilities (3, N)), as closure.h and the closures' sample_weight
         (sample_total: the sample weights themselves, unnormalised)."""
         rows = si.material
-        m = self.metallic.take(rows)
+        m = np.clip(per_hit(si, self.metallic, "metallic"), 0.0, 1.0)
         w_metal = np.where(m > WEIGHT_CUTOFF, m, 0.0)
         w_rest = 1.0 - m
         w_rest = np.where(w_rest > WEIGHT_CUTOFF, w_rest, 0.0)

@@ -56,6 +56,7 @@ from .principled import principled_alphas
 from .principled_v1_glass import CLOSURES as GLASS_CLOSURES, PrincipledV1Glass, interpolated_fresnel
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
 from .dielectric_lobe import REFLECTED, REFRACTED
+from .textures import hit_tangent
 
 FLAGS = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
 DIFFUSE_LOBE = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE
@@ -155,7 +156,7 @@ class PrincipledV1(BSDF):
 
     # -- per hit ------------------------------------------------------------------------------------
     def _frame(self, si: ShadingPoint):
-        x, y = shading_frame(si.n, self.tangent.take(si.material, axis=1))
+        x, y = shading_frame(si.n, hit_tangent(si, self.tangent))
         turn = 2.0 * np.pi * self.rotation.take(si.material)
         if np.any(turn != 0.0):
             c, s = np.cos(turn), np.sin(turn)

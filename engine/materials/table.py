@@ -61,13 +61,15 @@ def scatter_kind(material) -> str:
     """The row that scatters `material`: its kind's, ROUGH_DIFFUSE for a diffuse material with
     a diffuse roughness above 0 (Cycles' Oren-Nayar closure; at 0 its Lambertian one),
     PRINCIPLED_V1 for a Principled material with Blender 3.x's inputs (a PrincipledV1), ROUGH_GLASS
-    / ROUGH_REFRACTION for a glass / refraction material with a roughness above 0."""
-    if material.kind == DIFFUSE and getattr(material, "diffuse_roughness", 0.0) > 0.0:
+    / ROUGH_REFRACTION for a glass / refraction material with a roughness above 0 (or an image
+    texture on that roughness: engine/materials/textures.py per_hit)."""
+    textured = getattr(material, "has_input_texture", lambda name: False)
+    if material.kind == DIFFUSE and (getattr(material, "diffuse_roughness", 0.0) > 0.0 or textured("diffuse_roughness")):
         return ROUGH_DIFFUSE
     if material.kind == PRINCIPLED and isinstance(getattr(material, "principled", None), PrincipledV1Inputs):
         return PRINCIPLED_V1
     rough = ROUGH_ROWS.get(material.kind)
-    if rough is not None and (getattr(material, "roughness", 0.0) or 0.0) > 0.0:
+    if rough is not None and ((getattr(material, "roughness", 0.0) or 0.0) > 0.0 or textured("roughness")):
         return rough
     return material.kind
 

@@ -7,6 +7,11 @@ Colour), looked up through per-corner UVs as Cycles does.
   rows are flipped on load.
 * `TextureSlot` is one use of an image by a material input: interpolation (Closest / Linear),
   extension (REPEAT / EXTEND / CLIP / MIRROR) and a scale (the emission strength).
+* Float inputs (engine/scene/model.py TEXTURED_INPUTS: roughness, diffuse roughness, metallic) read
+  a slot's `channel` of the texture: its luminance (Cycles' colour-to-float) or one channel (a
+  Separate RGB / Color node).  The BSDFs take the per-hit value with `per_hit` (the material's own
+  value at hits without a texture: no other hit changes); anisotropic BSDFs take the mesh's
+  interpolated corner tangents with `hit_tangent`.
 * Colour space: sRGB images are decoded to linear with the sRGB transfer function
   (IEC 61966-2-1): c <= 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055)^2.4.  As in Cycles, 8-bit
   sRGB images are interpolated in sRGB and decoded afterwards (Cycles' "compress as sRGB"); float
@@ -23,8 +28,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.model import with_mix_leaves
+from ..scene.model import TEXTURED_INPUTS, with_mix_leaves
 from ..scene.textures import ImageTexture, TextureSlot, material_slots, missing_message
+
+from .mix import LUMINANCE
+
+# A float input's weights of the linear colour, per TextureSlot.channel.
+CHANNEL_WEIGHTS = {"luminance": LUMINANCE, "r": np.array([1.0, 0.0, 0.0]), "g": np.array([0.0, 1.0, 0.0]),
+                   "b": np.array([0.0, 0.0, 1.0])}
 
 
 def as_float(pixels) -> np.ndarray:
@@ -142,6 +153,19 @@ class TextureSet:
         self.has_factor = any(slot.texture is not None and self.loaded[slot.texture] is not None
                               for m in scene.materials for label, slot in material_slots(m)
                               if label.startswith("mix factor"))
+        # Float inputs read from images (per_hit): per input name, the slot of each material.
+        self.inputs = {name: [self._usable((m.input_textures or {}).get(name)) for m in mats]
+                       for name in TEXTURED_INPUTS}
+        self.has_input = {name: np.array([s is not None for s in slots], dtype=bool)
+                          for name, slots in self.inputs.items()}
+        # Anisotropic materials that read the mesh's tangents (hit_tangent).
+        self.mesh_tangent = np.array([getattr(m, "tangent_source", "fixed") != "fixed" for m in mats], dtype=bool)
+
+    @property
+    def needed(self) -> bool:
+        """Whether any hit reads anything here (else the scene renders without lookups)."""
+        return bool(self.has_color.any() or self.has_emission.any() or self.has_factor or self.mesh_tangent.any()
+                    or any(h.any() for h in self.has_input.values()))
 
     def _usable(self, slot):
         return slot if slot is not None and self.loaded[slot.texture] is not None else None
@@ -181,6 +205,10 @@ class TextureSet:
     def mean(self, slot: TextureSlot) -> np.ndarray:
         return self.loaded[slot.texture].mean * np.asarray(slot.scale, dtype=np.float64)
 
+    def value(self, slot: TextureSlot, u, v) -> np.ndarray:
+        """The float (N,) of `slot` at (u, v): its channel of the linear colour (times the scale)."""
+        return CHANNEL_WEIGHTS[slot.channel] @ self.evaluate(slot, u, v)
+
 
 # -- UVs at hits ---------------------------------------------------------------------------------
 def triangle_uvs(scene) -> np.ndarray:
@@ -188,6 +216,17 @@ def triangle_uvs(scene) -> np.ndarray:
     parts = [np.asarray(m.uvs, dtype=np.float64).reshape(-1, 3, 2) if m.uvs is not None
              else np.zeros((len(m.triangles), 3, 2)) for m in scene.meshes if len(m.triangles)]
     return np.concatenate(parts) if parts else np.zeros((0, 3, 2))
+
+
+def triangle_tangents(scene):
+    """(corner tangents as rows (9, T), has_tangent (T,)) of every triangle in SceneGeometry's
+    order (engine/scene/model.py TriangleMesh.tangents; zeros and False for meshes without)."""
+    parts = [np.asarray(m.tangents, dtype=np.float64).reshape(-1, 9) if m.tangents is not None
+             else np.zeros((len(m.triangles), 9)) for m in scene.meshes if len(m.triangles)]
+    has = [np.full(len(m.triangles), m.tangents is not None) for m in scene.meshes if len(m.triangles)]
+    if not parts:
+        return np.zeros((9, 0)), np.zeros(0, dtype=bool)
+    return np.ascontiguousarray(np.concatenate(parts).T), np.concatenate(has)
 
 
 def interpolate_uv(tri_uv, prim, b1, b2):
@@ -220,14 +259,15 @@ class Barycentrics:
 
 
 def textured_materials(scene):
-    """(materials with a colour texture, materials with an emission texture) used by a mesh."""
+    """(materials that read textures or mesh tangents at hits: a colour, a float input, a mix leaf's
+    or factor's texture, a tangent from the mesh; materials with an emission texture) used by a mesh."""
     used = set()
     for mesh in scene.meshes:
         if len(mesh.triangles):
             used.update(np.unique(np.asarray(mesh.material_ids)).tolist())
     mats = [scene.materials[i] for i in sorted(used)]
-    return ([m for m in mats if m.color_texture is not None or (m.mix is not None and any(
-                label != "emission" for label, _ in material_slots(m)))],
+    return ([m for m in mats if m.color_texture is not None or m.tangent_source != "fixed" or any(
+                label != "emission" for label, _ in material_slots(m))],
             [m for m in mats if m.emission_texture is not None])
 
 
@@ -258,6 +298,8 @@ class HitTextures:
         self.triangles = triangles                    # (T, 3, 3)
         self.triangle_material = triangle_material
         self.has_color, self.has_emission = textures.has_color, textures.has_emission
+        self.tri_tangent, self.has_tangent = (triangle_tangents(scene) if textures.mesh_tangent.any()
+                                              else (None, None))
         self.light_a = self.light_b = None
         if lights is not None and self.has_emission.any() and len(lights.triangle_light):
             # Each light's triangles (a parallelogram light is a pair), for light samples: numbers k
@@ -306,9 +348,46 @@ class HitTextures:
         sel = np.flatnonzero(kind == TRIANGLE)
         if not len(sel) or self.textures.loaded[slot.texture] is None:
             return out
-        from .mix import LUMINANCE
         u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
         out[sel] = LUMINANCE @ self.textures.evaluate(slot, u, v)
+        return out
+
+    def input(self, name, values, material, kind, prim, b1, b2):
+        """`values` (N,) with the hits whose material has a texture on input `name` read from it
+        (triangle hits only: spheres and quads have no UVs); `values` itself when none has."""
+        from ..geometry.scene_geometry import TRIANGLE
+        has = self.textures.has_input[name]
+        if not has.any():
+            return values
+        sel = np.flatnonzero(has.take(material) & (kind == TRIANGLE))
+        if not len(sel):
+            return values
+        out = np.array(values, dtype=np.float64)
+        mat = material.take(sel)
+        u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
+        slots = self.textures.inputs[name]
+        for m in np.unique(mat):
+            mine = np.flatnonzero(mat == m)
+            out[sel.take(mine)] = self.textures.value(slots[m], u.take(mine), v.take(mine))
+        return out
+
+    def tangent(self, tangents, material, kind, prim, b1, b2):
+        """Tangent rows (3, N): `tangents` with the hits of mesh-tangent materials on triangles
+        that carry tangents replaced by the corner tangents interpolated at (b1, b2) (unnormalised:
+        the BSDF's frame orthonormalises them, as Cycles' make_orthonormals_tangent)."""
+        from ..geometry.scene_geometry import TRIANGLE
+        if self.tri_tangent is None:
+            return tangents
+        sel = np.flatnonzero(self.textures.mesh_tangent.take(material) & (kind == TRIANGLE))
+        if len(sel):
+            sel = sel[self.has_tangent.take(prim.take(sel))]
+        if not len(sel):
+            return tangents
+        c = self.tri_tangent.take(prim.take(sel), axis=1)
+        bb1, bb2 = b1.take(sel), b2.take(sel)
+        b0 = 1.0 - bb1 - bb2
+        out = np.array(tangents, dtype=np.float64)
+        out[:, sel] = b0 * c[0:3] + bb1 * c[3:6] + bb2 * c[6:9]
         return out
 
     def light_radiance(self, radiance, light, point):
@@ -359,6 +438,43 @@ class HitLookup:
     def factor(self, slot, fallback):
         return self.textures.factor(slot, fallback, self.kind, self.prim, self.b1, self.b2)
 
+    def input(self, name, values, material):
+        return self.textures.input(name, values, material, self.kind, self.prim, self.b1, self.b2)
+
+    def tangent(self, tangents, material):
+        return self.textures.tangent(tangents, material, self.kind, self.prim, self.b1, self.b2)
+
+
+def per_hit(si, values, name) -> np.ndarray:
+    """The per-material `values` (M,) at the hits `si` (N,), read from an image texture where the hit's
+    material has one on the float input `name` (engine/scene/model.py TEXTURED_INPUTS).  Scenes and
+    materials without one get exactly values.take(si.material)."""
+    out = values.take(si.material)
+    if si.lookup is None:
+        return out
+    return si.lookup.input(name, out, si.material)
+
+
+def textured_mask(si, name):
+    """Which hits (N,) bool have a material with a texture on input `name`; None when none has (or
+    `name` is None)."""
+    if si.lookup is None or name is None:
+        return None
+    has = si.lookup.textures.textures.has_input[name]
+    if not has.any():
+        return None
+    mask = has.take(si.material)
+    return mask if mask.any() else None
+
+
+def hit_tangent(si, tangents) -> np.ndarray:
+    """The per-material tangent rows `tangents` (3, M) at the hits `si`, the mesh's interpolated corner
+    tangent where the hit's material takes it (Material.tangent_source "radial" or "uv")."""
+    out = tangents.take(si.material, axis=1)
+    if si.lookup is None:
+        return out
+    return si.lookup.tangent(out, si.material)
+
 
 class LoadedTextures:
     """A scene's TextureSet, to be bound to the geometry and lights once they are built."""
@@ -382,6 +498,6 @@ def load_textures(scene, plan, log=print, warnings=None):
         log(f"warning: {warning}")
         if warnings is not None:
             warnings.append(warning)
-    if not (textures.has_color.any() or textures.has_emission.any() or textures.has_factor):
+    if not textures.needed:
         return None, scene
     return LoadedTextures(textures, scene), with_texture_means(scene, textures)

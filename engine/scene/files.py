@@ -19,7 +19,9 @@
      "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
                  "material": "White"  or  "material_ids": [..] or "@key",
                  "normals": [[..] x 3T] or "@key", "smooth": [0/1 x T] or "@key",  (optional)
-                 "terminator_offset": 0.1}],                                         (optional)
+                 "terminator_offset": 0.1,                                           (optional)
+                 "tangents": [[..] x 3T] or "@key"}],   (optional: corner tangents, for materials whose
+                 "tangent_source" is "radial" or "uv"; "tangent_uv_map": the UV map's name, "" the active)
      "spheres": [{"name": "Ball", "center": [..], "radius": 0.3, "material": "Glass"}],
      "quads": [{"name": "Light", "corners": [[..] x4], "material": "Light"}],
      "lights": [{"name": "Lamp", "vertices": [[..] x N], "radiance": [r, g, b], "two_sided": false,
@@ -51,7 +53,7 @@ from .model import PrincipledV1
 from ..core.errors import SceneError
 from .fields import Fields, is_integer
 from .mix_fields import mix_json, read_mix
-from .texture_fields import read_slot, read_textures, slot_json, textures_json
+from .texture_fields import input_slots_json, read_input_slots, read_slot, read_textures, slot_json, textures_json
 
 FORMAT = "tncg15-scene"
 FORMAT_VERSION = 5
@@ -86,7 +88,7 @@ def _glossy_fields(m) -> dict:
     for key in ("tangent", "edge_tint", "conductor_ior", "conductor_k"):
         if key in m:
             values[key] = m.numbers(key, 3)
-    for key in ("distribution", "fresnel"):
+    for key in ("distribution", "fresnel", "tangent_source", "tangent_uv_map"):
         if key in m:
             values[key] = m.text(key)
     if "multiscatter" in m:
@@ -137,16 +139,17 @@ def _glossy_json(m) -> dict:
     """The glossy fields of material m for the scene file (glossy and Principled materials only)."""
     if m.kind not in (GLOSSY, PRINCIPLED):
         return {}
+    source = {} if m.tangent_source == "fixed" else {"tangent_source": m.tangent_source, "tangent_uv_map": m.tangent_uv_map}
     return {"roughness": m.roughness, "anisotropy": m.anisotropy, "rotation": m.rotation,
             "tangent": list(m.tangent), "distribution": m.distribution, "fresnel": m.fresnel,
             "multiscatter": bool(m.multiscatter), "edge_tint": list(m.edge_tint),
-            "conductor_ior": list(m.conductor_ior), "conductor_k": list(m.conductor_k)}
+            "conductor_ior": list(m.conductor_ior), "conductor_k": list(m.conductor_k), **source}
 
 
 def _dielectric_json(m) -> dict:
     """Roughness and distribution of rough glass and refraction materials (smooth ones: nothing, so
     their files stay as they were and load smooth: engine/scene/model.py DEFAULT_ROUGHNESS)."""
-    if m.kind not in (GLASS, REFRACTION) or not m.roughness:
+    if m.kind not in (GLASS, REFRACTION) or not (m.roughness or m.has_input_texture("roughness")):
         return {}
     return {"roughness": float(m.roughness), "distribution": m.distribution}
 
@@ -257,6 +260,7 @@ def load_scene(path: str) -> Scene:
                         emission=m.numbers("emission", 3, (0.0, 0.0, 0.0)),
                         color_texture=read_slot(m, "color_texture", textures),
                         emission_texture=read_slot(m, "emission_texture", textures),
+                        input_textures=read_input_slots(m, textures),
                         mix=read_mix(m, textures, material),
                         **_glossy_fields(m), **_principled_fields(m))
     for i, entry in enumerate(top.objects("materials")):
@@ -274,11 +278,12 @@ def load_scene(path: str) -> Scene:
         uvs = m.array("uvs", arrays, 2, integer=False) if "uvs" in m else None
         normals = m.array("normals", arrays, 3, integer=False) if "normals" in m else None
         smooth = m.array("smooth", arrays, None, integer=True) if "smooth" in m else None
+        tangents = m.array("tangents", arrays, 3, integer=False) if "tangents" in m else None
         if smooth is not None and ((smooth < 0) | (smooth > 1)).any():
             m.fail("smooth", "a list of 0 (flat) or 1 (smooth) per triangle", smooth.tolist())
         meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids, uvs,
                                    normals=normals, smooth=None if smooth is None else smooth.astype(bool),
-                                   terminator_offset=m.number("terminator_offset", 0.1)))
+                                   terminator_offset=m.number("terminator_offset", 0.1), tangents=tangents))
     spheres = []
     for i, entry in enumerate(top.objects("spheres")):
         s, sphere_name = _named(entry, "Object", f"sphere{i}")
@@ -325,6 +330,9 @@ def save_scene(scene: Scene, path: str) -> None:
         if mesh.uvs is not None:
             arrays[f"mesh{i}_uvs"] = np.asarray(mesh.uvs, dtype=np.float64).reshape(-1, 2)
             meshes[-1]["uvs"] = f"@mesh{i}_uvs"
+        if mesh.tangents is not None:
+            arrays[f"mesh{i}_tangents"] = np.asarray(mesh.tangents, dtype=np.float64).reshape(-1, 3)
+            meshes[-1]["tangents"] = f"@mesh{i}_tangents"
         if mesh.normals is not None:
             arrays[f"mesh{i}_normals"] = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3)
             meshes[-1]["normals"] = f"@mesh{i}_normals"
@@ -340,7 +348,7 @@ def save_scene(scene: Scene, path: str) -> None:
                     **_dielectric_json(m),
                     **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
                                                               ("emission_texture", m.emission_texture))
-                       if slot is not None}, **mix_json(m, material_json))
+                       if slot is not None}, **input_slots_json(m), **mix_json(m, material_json))
     data = {
         "format": FORMAT, "name": scene.name,
         "version": SMOOTH_VERSION if any(m.normals is not None for m in scene.meshes) else SMOOTH_VERSION - 1,

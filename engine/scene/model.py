@@ -35,6 +35,13 @@ DIELECTRIC_DISTRIBUTIONS = ("ggx", "beckmann", "multi_ggx")
 # so scenes written before rough glass existed (no "roughness" for their glass) render as they did.
 DEFAULT_ROUGHNESS = {GLASS: 0.0, REFRACTION: 0.0}
 FRESNEL_KINDS = ("none", "dielectric", "conductor", "f82", "interpolated")
+# Float inputs an image texture may drive per hit (Material.input_textures; engine/materials/textures.py
+# per_hit): the Material or Principled field of that name is then the unlinked value.
+TEXTURED_INPUTS = ("roughness", "diffuse_roughness", "metallic")
+# Where an anisotropic material's tangent comes from (Material.tangent_source): "fixed" = Material.tangent;
+# "radial" (Cycles' default: radial about the object's Z axis) and "uv" (a UV map's tangent) are the
+# mesh's per-corner tangents (TriangleMesh.tangents), Material.tangent where a hit has none.
+TANGENT_SOURCES = ("fixed", "radial", "uv")
 
 
 @dataclass
@@ -153,6 +160,12 @@ class Material:
     principled: Principled | PrincipledV1 | None = None
     # Mix only: the leaves and their weights (engine/materials/mix.py).
     mix: "Mix | None" = None
+    # Image textures on float inputs (TEXTURED_INPUTS name -> TextureSlot, its `channel` the float):
+    # per hit, the field of that name is the unlinked value (hits without UVs keep it).
+    input_textures: dict = field(default_factory=dict)
+    # The anisotropic tangent's source (TANGENT_SOURCES) and, for "uv", the UV map ("": the active one).
+    tangent_source: str = "fixed"
+    tangent_uv_map: str = ""
 
     def __post_init__(self):
         if self.roughness is None:
@@ -161,6 +174,10 @@ class Material:
     @property
     def is_emissive(self) -> bool:
         return max(self.emission) > 0.0 or self.emission_texture is not None
+
+    def has_input_texture(self, name: str) -> bool:
+        """Whether an image texture drives the float input `name` (TEXTURED_INPUTS)."""
+        return bool(self.input_textures) and self.input_textures.get(name) is not None
 
     def validate(self) -> None:
         if self.kind not in MATERIAL_KINDS:
@@ -188,12 +205,25 @@ class Material:
         if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
                 and 0.0 <= value <= 1.0):
             raise SceneError(f"Material '{self.name}': diffuse roughness must be from 0 to 1, got {value!r}")
+        self.validate_inputs()
         if self.kind == MIX:
             if not isinstance(self.mix, Mix):
                 raise SceneError(f"Material '{self.name}': kind mix needs a Mix (its leaves), got {self.mix!r}")
             self.mix.validate(f"Material '{self.name}'")
         elif self.mix is not None:
             raise SceneError(f"Material '{self.name}': only kind mix has leaves (kind is {self.kind})")
+
+    def validate_inputs(self) -> None:
+        """The textured inputs' names and the tangent source (the slots: engine/scene/textures.py)."""
+        owner = f"Material '{self.name}'"
+        if not isinstance(self.input_textures, dict):
+            raise SceneError(f"{owner}: input_textures must map input names to texture slots, got {self.input_textures!r}")
+        for name in self.input_textures:
+            if name not in TEXTURED_INPUTS:
+                raise SceneError(f"{owner}: unknown textured input '{name}' (expected one of {', '.join(TEXTURED_INPUTS)})")
+        if self.tangent_source not in TANGENT_SOURCES:
+            raise SceneError(f"{owner}: unknown tangent source '{self.tangent_source}' "
+                             f"(expected one of {', '.join(TANGENT_SOURCES)})")
 
     def validate_dielectric(self) -> None:
         owner = f"Material '{self.name}'"
@@ -405,6 +435,9 @@ class TriangleMesh:
     normals: np.ndarray | None = None     # (T, 3, 3) corner normals of smooth triangles
     smooth: np.ndarray | None = None      # (T,) bool: shaded smooth (None: every triangle)
     terminator_offset: float = 0.1        # Cycles' Shadow Terminator > Geometry Offset (0: off)
+    # (T, 3, 3) corner tangents, world space, for anisotropic materials whose tangent_source is not
+    # "fixed" (a UV map's MikkTSpace tangent or Cycles' radial default), interpolated at hits.
+    tangents: np.ndarray | None = None
 
     def validate(self, n_materials: int, emissive: np.ndarray | None = None) -> int:
         """Check the mesh; drop degenerate triangles.  Returns how many were dropped.
@@ -451,6 +484,12 @@ class TriangleMesh:
             self.uvs = uvs.reshape(-1, 3, 2)
         if self.normals is not None:
             self._check_normal_shapes(owner)
+        if self.tangents is not None:
+            tangents = np.asarray(self.tangents, dtype=np.float64)
+            if tangents.size != len(self.triangles) * 9 or not np.isfinite(tangents).all():
+                raise SceneError(f"{owner}: tangents must be 3 finite vectors per triangle "
+                                 f"({len(self.triangles)} triangles, {tangents.size // 3} tangents)")
+            self.tangents = tangents.reshape(-1, 3, 3)
         if not (isinstance(self.terminator_offset, (int, float)) and 0.0 <= self.terminator_offset <= 1.0):
             raise SceneError(f"{owner}: shadow terminator geometry offset must be from 0 to 1, "
                              f"got {self.terminator_offset!r}")
@@ -459,6 +498,8 @@ class TriangleMesh:
             self.material_ids = self.material_ids[keep]
             if self.uvs is not None:
                 self.uvs = self.uvs[keep]
+            if self.tangents is not None:
+                self.tangents = self.tangents[keep]
             if self.normals is not None:
                 self.normals = self.normals[keep]
                 self.smooth = None if self.smooth is None else self.smooth[keep]

@@ -4,11 +4,14 @@
                  {"name": "Packed", "pixels": "@texture1_pixels", "colorspace": "sRGB", "is_float": false}],
     "materials": [{..., "color_texture": {"texture": "Checker" or 0, "interpolation": "Linear",
                                           "extension": "REPEAT", "scale": [1, 1, 1], "uv_map": ""},
-                   "emission_texture": {...}}],
+                   "emission_texture": {...},
+                   "input_textures": {"roughness": {..., "channel": "luminance" | "r" | "g" | "b"}}}],
     "meshes": [{..., "uvs": "@mesh0_uvs"}]          # (3 T, 2) corner UVs, 3 rows per triangle
 
 A relative "path" is relative to the scene file's directory.  "pixels" (height, width, channels)
 have row 0 at the bottom (v = 0), as Blender's; uint8 arrays are bytes (value / 255).
+"input_textures" maps float inputs (engine/scene/model.py TEXTURED_INPUTS) to slots; a slot's
+"channel" is the float it gives (default "luminance").
 """
 from __future__ import annotations
 
@@ -71,13 +74,35 @@ def read_slot(fields: Fields, key: str, textures: list):
         raise SceneError(f"{f.owner}: unknown texture {ref!r}")
     return TextureSlot(index, interpolation=f.text("interpolation", "Linear"),
                        extension=f.text("extension", "REPEAT"), scale=f.numbers("scale", 3, (1.0, 1.0, 1.0)),
-                       node=f.text("node", ""), uv_map=f.text("uv_map", ""))
+                       node=f.text("node", ""), uv_map=f.text("uv_map", ""), channel=f.text("channel", "luminance"))
+
+
+def read_input_slots(fields: Fields, textures: list) -> dict:
+    """A material entry's "input_textures" ({input name: slot}), {} when absent."""
+    if "input_textures" not in fields:
+        return {}
+    entry = fields.get("input_textures")
+    if not isinstance(entry, dict):
+        fields.fail("input_textures", "an object of input name: texture slot", entry)
+    inputs = Fields(entry, f"{fields.owner}: input_textures")
+    return {name: read_slot(inputs, name, textures) for name in entry}
 
 
 def slot_json(slot):
-    return None if slot is None else {
-        "texture": int(slot.texture), "interpolation": slot.interpolation, "extension": slot.extension,
-        "scale": [float(c) for c in slot.scale], "node": slot.node, "uv_map": slot.uv_map}
+    if slot is None:
+        return None
+    out = {"texture": int(slot.texture), "interpolation": slot.interpolation, "extension": slot.extension,
+           "scale": [float(c) for c in slot.scale], "node": slot.node, "uv_map": slot.uv_map}
+    if slot.channel != "luminance":
+        out["channel"] = slot.channel
+    return out
+
+
+def input_slots_json(material) -> dict:
+    """{"input_textures": ...} of a material with textured inputs, else {} (files stay as they were)."""
+    slots = {name: slot_json(slot) for name, slot in sorted((material.input_textures or {}).items())
+             if slot is not None}
+    return {"input_textures": slots} if slots else {}
 
 
 def textures_json(scene, arrays: dict) -> list:

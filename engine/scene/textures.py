@@ -13,6 +13,10 @@ from .checks import check_magnitude
 
 INTERPOLATIONS = ("Linear", "Closest")
 EXTENSIONS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")
+# How a float input reads a texture's colour (TextureSlot.channel): Cycles' colour-to-float (the
+# luminance of linear Rec.709, engine/materials/mix.py LUMINANCE), or one channel (a Separate RGB /
+# Separate Color node's output).
+CHANNELS = ("luminance", "r", "g", "b")
 LINEAR_SPACES = ("Non-Color", "Linear", "Linear Rec.709", "Raw", "Linear CIE-XYZ E", "scene_linear")
 
 
@@ -40,16 +44,21 @@ class TextureSlot:
     scale: tuple = (1.0, 1.0, 1.0)     # multiplies the colour (emission strength)
     node: str = ""                     # the node's name, for messages
     uv_map: str = ""                   # the UV map the exporter read ("": the active render one)
+    channel: str = "luminance"         # a float input's value: CHANNELS (colour inputs ignore it)
 
 
 def material_slots(material) -> list:
-    """(label, slot) of every texture a material reads: its colour and emission, and in a mix its
-    leaves' colours and its texture factors (engine/scene/model.py Mix)."""
+    """(label, slot) of every texture a material reads: its colour, emission and float inputs (labelled
+    by the input's name), and in a mix its leaves' colours and inputs and its texture factors
+    (engine/scene/model.py Mix)."""
     slots = [("colour", material.color_texture), ("emission", material.emission_texture)]
+    slots += [(name, slot) for name, slot in sorted((getattr(material, "input_textures", None) or {}).items())]
     mix = getattr(material, "mix", None)
     if mix is not None:
         for leaf in mix.leaves:
             slots.append((f"mix leaf '{leaf.material.name}' colour", leaf.material.color_texture))
+            slots += [(f"mix leaf '{leaf.material.name}' {name}", slot)
+                      for name, slot in sorted((leaf.material.input_textures or {}).items())]
             slots += [(f"mix factor '{f.node}'", f.texture) for f in leaf.factors if f.kind == "texture"]
     return [(label, slot) for label, slot in slots if slot is not None]
 
@@ -82,6 +91,8 @@ def validate_textures(scene) -> list[str]:
     for m in scene.materials:
         for label, slot in material_slots(m):
             owner = f"Material '{m.name}'"
+            if not isinstance(slot, TextureSlot):
+                raise SceneError(f"{owner}: {label} texture must be a texture slot, got {slot!r}")
             if not (isinstance(slot.texture, (int, np.integer)) and 0 <= slot.texture < n):
                 raise SceneError(f"{owner}: {label} texture index {slot.texture!r} out of range")
             if slot.interpolation not in INTERPOLATIONS:
@@ -90,6 +101,9 @@ def validate_textures(scene) -> list[str]:
             if slot.extension not in EXTENSIONS:
                 raise SceneError(f"{owner}: unknown texture extension '{slot.extension}' "
                                  f"(expected one of {', '.join(EXTENSIONS)})")
+            if slot.channel not in CHANNELS:
+                raise SceneError(f"{owner}: {label} texture channel '{slot.channel}' is not one of "
+                                 f"{', '.join(CHANNELS)}")
             scale = np.asarray(slot.scale, dtype=np.float64)
             if scale.shape != (3,) or not np.isfinite(scale).all() or (scale < 0).any():
                 raise SceneError(f"{owner}: {label} texture scale must be 3 finite non-negative numbers")

@@ -15,7 +15,7 @@ from .camera import export_camera
 from .images import ImageTable
 from .lights import export_area_light, export_point_light, export_sun_light
 from .materials import MaterialTable
-from .mesh import (bounding_sphere, corner_uvs, mesh_arrays, mesh_normals, sphere_fit, terminator_offsets,
+from .mesh import (bounding_sphere, corner_tangents, corner_uvs, mesh_arrays, mesh_normals, sphere_fit, terminator_offsets,
                    transform_normals, transform_points, uniform_scale)
 from .unsupported import object_warnings, scene_warnings
 from .util import ExportError
@@ -113,27 +113,32 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         key = ob.data.as_pointer() if (otype == "MESH" and ob.data is not None) else None
         slot_ids = np.asarray(table.slot_indices(ob, matrix), dtype=np.int64)
         uv_map = table.uv_map(slot_ids)                 # None: no textured material, no UVs
-        arrays = cache.get((key, uv_map)) if key is not None else None
-        kept = (ob.name, ob.data.name, uv_map) if (mesh_cache is not None and key is not None and not own) else None
+        need = table.tangent_need(slot_ids)             # None: no anisotropic material with mesh tangents
+        arrays = cache.get((key, uv_map, need)) if key is not None else None
+        kept = (ob.name, ob.data.name, uv_map, need) if (mesh_cache is not None and key is not None and not own) else None
         if arrays is None and kept is not None:
             arrays = mesh_cache.get(kept)
+
+        def read(me):
+            base = mesh_arrays(me)
+            return base + (corner_uvs(me, uv_map, label, warnings), mesh_normals(me),
+                           corner_tangents(me, need, base[0], base[1], label, warnings))
         if arrays is None:
             if otype == "MESH":
-                arrays = mesh_arrays(ob.data) + (corner_uvs(ob.data, uv_map, label, warnings), mesh_normals(ob.data))
+                arrays = read(ob.data)
             else:
                 me = ob.to_mesh()
                 try:
-                    arrays = (mesh_arrays(me) + (corner_uvs(me, uv_map, label, warnings), mesh_normals(me))
-                              if me is not None else None)
+                    arrays = read(me) if me is not None else None
                 finally:
                     ob.to_mesh_clear()
                 if arrays is None:
                     return
             if key is not None:
-                cache[(key, uv_map)] = arrays
+                cache[(key, uv_map, need)] = arrays
             if kept is not None:
                 mesh_cache[kept] = arrays
-        verts, tris, slots, uvs, shading = arrays
+        verts, tris, slots, uvs, shading, local_tangents = arrays
         if len(tris) == 0:
             if otype == "MESH" and ob.name not in skipped:
                 skipped.add(ob.name)
@@ -141,7 +146,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             return
         mat_ids = slot_ids[np.clip(slots, 0, len(slot_ids) - 1)]
 
-        mode = _sphere_mode(ob) if otype == "MESH" and uv_map is None and not own else "NEVER"   # spheres have no UVs
+        mode = (_sphere_mode(ob) if otype == "MESH" and uv_map is None and need is None and not own
+                else "NEVER")                       # spheres have no UVs, no tangents
         if mode != "NEVER":
             fit = sphere_fit(verts, tris, slots)
             scale = uniform_scale(matrix)
@@ -170,6 +176,10 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         tri_idx = tris[:, ::-1] if mirrored else tris
         if uvs is not None and mirrored:
             uvs = uvs[:, ::-1]
+        tangents = None
+        if local_tangents is not None:              # as Cycles' object_normal_transform
+            tangents = transform_normals(local_tangents, matrix)
+            tangents = tangents[:, ::-1] if mirrored else tangents
         normals = smooth = None
         terminator = 0.1
         if shading is not None:                     # smooth faces: corner normals in world space
@@ -182,7 +192,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                                 "supported (only the geometry offset); ignored")
         meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
                                       material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
-                                      terminator_offset=terminator))
+                                      terminator_offset=terminator, tangents=tangents))
         n_instances += 1
         n_triangles += len(tris)
 

@@ -11,7 +11,8 @@ The node vocabulary of the running Blender (bpy.app.version):
 * Transparent BSDF (ShaderNodeBsdfTransparent): Color.  Translucent BSDF (ShaderNodeBsdfTranslucent):
   Color, Normal.
 
-Roughness 0 (or SHARP) is the smooth (delta) glass or refraction it always was; the roughness is set
+An Image Texture on Roughness (straight or through Separate RGB / Color) is the material's roughness
+texture (rough glass per hit).  Roughness 0 (or SHARP) is the smooth (delta) glass or refraction it always was; the roughness is set
 explicitly on every material, since the scene model's default for these kinds is 0.  MULTI_GGX is
 Cycles 4.x's energy compensation by albedo scaling; Blender 3.x's MULTI_GGX glass (Heitz's random
 walk) is approximated by it (warned).  Linked Normal inputs and thin films are warned about.
@@ -34,11 +35,12 @@ def _normal_warning(table, mat, node):
 
 def _dielectric(table, mat, node, kind, ior_default):
     color = _clamp01(table.read_color(mat, node, "Color", default=(1.0, 1.0, 1.0)))
-    roughness = min(max(table.read_float(mat, node, "Roughness", default=0.0), 0.0), 1.0)
+    roughness = min(max(table.read_float(mat, node, "Roughness", default=0.0, role="roughness"), 0.0), 1.0)
     ior = max(table.read_float(mat, node, "IOR", default=ior_default), 1e-3)
     name = getattr(node, "distribution", "BECKMANN")
     if name == "SHARP":
         roughness = 0.0
+        table._slots.pop("roughness", None)
     distribution = GLASS_DISTRIBUTIONS.get(name)
     if distribution is None:
         table.warn(mat, node, f"distribution {name} is not modelled; rendered as GGX")

@@ -115,6 +115,33 @@ class ImageTable:
         return "sRGB"
 
 
+# Separate RGB (3.x) / Separate Color (4.x, 5.0; mode RGB) outputs -> a float input's texture channel.
+CHANNEL_OUTPUTS = {"R": "r", "G": "g", "B": "b", "Red": "r", "Green": "g", "Blue": "b"}
+
+
+def float_image(sock):
+    """(Image Texture node, channel) feeding the float input ``sock``: its Color output straight in
+    (Cycles' colour-to-float: the luminance) or through a Separate RGB / Color node's R, G or B
+    (engine/scene/textures.py CHANNELS); None for anything else."""
+    node = linked_from(sock)
+    if node is None:
+        return None
+    if node.bl_idname == "ShaderNodeTexImage":
+        image = image_node(sock)
+        return None if image is None else (image, "luminance")
+    if node.bl_idname not in ("ShaderNodeSeparateRGB", "ShaderNodeSeparateColor"):
+        return None
+    if getattr(node, "mode", "RGB") != "RGB":
+        return None
+    link = sock.links[0]
+    while link.from_node.bl_idname == "NodeReroute":
+        link = link.from_node.inputs[0].links[0]
+    channel = CHANNEL_OUTPUTS.get(link.from_socket.name)
+    source = node.inputs.get("Color") or node.inputs.get("Image")
+    image = image_node(source) if (channel is not None and source is not None) else None
+    return None if image is None else (image, channel)
+
+
 def image_node(sock):
     """The Image Texture node whose Color output feeds ``sock``, else None."""
     node = linked_from(sock)

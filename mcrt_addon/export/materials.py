@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 
 from . import dielectric_nodes, microfacet_nodes, shader_mix
-from .images import image_node
+from .images import float_image, image_node
 from .util import following_links, linked_from, socket, uses_nodes
 from .unsupported import node_warnings
 
@@ -64,6 +64,7 @@ class MaterialTable:
         self.GLOSSY, self.PRINCIPLED = model.GLOSSY, model.PRINCIPLED
         self.MIX, self.Mix, self.MixLeaf, self.MixFactor = model.MIX, model.Mix, model.MixLeaf, model.MixFactor
         self.REFRACTION, self.TRANSPARENT, self.TRANSLUCENT = model.REFRACTION, model.TRANSPARENT, model.TRANSLUCENT
+        self.TEXTURED_INPUTS = getattr(model, "TEXTURED_INPUTS", ())      # float inputs image textures may drive
         self.version = tuple(bpy.app.version if version is None else version)[:2]
         self.materials = []
         self.warnings = warnings
@@ -165,7 +166,11 @@ class MaterialTable:
         if handler is None:
             self.warn(mat, node, f"{node.bl_idname} is not supported; rendered as diffuse grey")
             return self.Material(name=mat.name, kind=self.DIFFUSE, color=DEFAULT_GREY)
-        return handler(mat, node)
+        material = handler(mat, node)
+        inputs = {name: self._slots.pop(name) for name in self.TEXTURED_INPUTS if name in self._slots}
+        if inputs:                              # this BSDF's textured float inputs (read_float's roles)
+            material.input_textures = inputs
+        return material
 
     def side(self, mat, node):
         """(material, texture slots) of a shader node feeding an Add or Mix Shader."""
@@ -208,13 +213,50 @@ class MaterialTable:
             else:
                 del self._slots["emission"]
 
-    def read_float(self, mat, node, *names, default=0.0):
+    def read_float(self, mat, node, *names, default=0.0, role=None):
+        """The unlinked value of the first socket of ``names``; with a ``role`` (a float input of
+        engine/scene/model.py TEXTURED_INPUTS) an Image Texture feeding it, straight or through a
+        Separate RGB / Color node, becomes the material's texture on that input."""
         sock = socket(node, *names)
         if sock is None:
             return default
+        if sock.is_linked and role is not None and self.images is not None and role in self.TEXTURED_INPUTS:
+            found = float_image(sock)
+            if found is not None:
+                slot = self.images.slot(mat, found[0])
+                if slot is not None:
+                    slot.channel = found[1]
+                    self._slots[role] = slot
+                return float(sock.default_value)
+            source = linked_from(sock)
+            what = f"'{source.name}' ({source.bl_idname})" if source is not None else "a muted link"
+            self.warn(mat, node, f"input '{sock.name}' is linked to {what}, which is not modelled (an Image "
+                                 "Texture, straight or through Separate RGB / Color, is); its unlinked value is used")
+            return float(sock.default_value)
         if sock.is_linked:
             self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)}; its unlinked value is used")
         return float(sock.default_value)
+
+    def tangent_need(self, slot_ids):
+        """The corner tangents a mesh with these materials needs (engine/scene/model.py
+        tangent_source): None, "radial" (Cycles' default) or ("uv", UV map name, "" the active render
+        map); a warning when its materials ask for different ones (the first is used)."""
+        needs = []
+        for i in slot_ids:
+            m = self.materials[i]
+            mats = [leaf.material for leaf in m.mix.leaves] if getattr(m, "mix", None) is not None else [m]
+            for x in mats:
+                source = getattr(x, "tangent_source", "fixed")
+                if source == "uv":
+                    needs.append(("uv", x.tangent_uv_map))
+                elif source == "radial":
+                    needs.append("radial")
+        if not needs:
+            return None
+        if len(set(needs)) > 1:
+            self.warnings.append(f"Materials of one mesh take tangents from {sorted(map(str, set(needs)))}: "
+                                 f"only {needs[0]} is used")
+        return needs[0]
 
     def principled_emission(self, mat, node):
         """Emitted radiance of a Principled BSDF: colour x strength (a textured colour: its slot)."""
@@ -228,7 +270,7 @@ class MaterialTable:
 
     def _diffuse(self, mat, node):
         color = _clamp01(self.read_color(mat, node, "Color"))
-        roughness = min(max(self.read_float(mat, node, "Roughness"), 0.0), 1.0)
+        roughness = min(max(self.read_float(mat, node, "Roughness", role="diffuse_roughness"), 0.0), 1.0)
         return self.Material(name=mat.name, kind=self.DIFFUSE, color=color, diffuse_roughness=roughness)
 
     def _glossy(self, mat, node):

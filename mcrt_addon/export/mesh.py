@@ -39,6 +39,51 @@ def corner_uvs(me, uv_map, label, warnings):
     return uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)
 
 
+def _texture_space(me, verts):
+    """(centre, half size) of the mesh's texture space (Blender's auto texture space: the bounding
+    box), each zero size made 1 as Blender does; from the bounding box of `verts` if unreadable."""
+    try:
+        loc = np.array(me.texspace_location, dtype=np.float64)
+        size = np.array(me.texspace_size, dtype=np.float64)
+    except (AttributeError, TypeError):
+        v = verts.astype(np.float64)
+        loc, size = 0.5 * (v.min(axis=0) + v.max(axis=0)), 0.5 * (v.max(axis=0) - v.min(axis=0))
+    return loc, np.where(size == 0.0, 1.0, size)
+
+
+def corner_tangents(me, need, verts, tris, label, warnings):
+    """Local-space corner tangents float64 (T, 3, 3) of a mesh whose loop triangles are computed, for
+    anisotropic materials (export/materials.py tangent_need): None for need None; "radial": Cycles'
+    default, primitive_tangent's (-(g_y - 1/2), g_x - 1/2, 0) of the generated coordinates
+    g = (P - centre) / (2 half size) + 1/2 (linear in P: exact at every point when interpolated);
+    ("uv", name): the UV map's MikkTSpace tangents (Mesh.calc_tangents, as Cycles' mikk_compute_tangents
+    for the Tangent node's UV Map mode).  The world transform (export/__init__.py) is the normals'
+    (Cycles' object_normal_transform)."""
+    if need is None:
+        return None
+    if need != "radial":
+        name = need[1]
+        layers = me.uv_layers
+        layer = layers.get(name) if name else next((lay for lay in layers if lay.active_render), None)
+        try:
+            if layer is None:
+                raise RuntimeError(f"no UV map '{name}'" if name else "no UV map")
+            me.calc_tangents(uvmap=layer.name)
+            nt = len(me.loop_triangles)
+            loops = np.empty(nt * 3, np.int32)
+            me.loop_triangles.foreach_get("loops", loops)
+            tangent = np.empty(len(me.loops) * 3, np.float32)
+            me.loops.foreach_get("tangent", tangent)
+            return tangent.reshape(-1, 3)[loops].reshape(nt, 3, 3).astype(np.float64)
+        except RuntimeError as exc:
+            warnings.append(f"Object '{label}': UV tangents cannot be computed ({exc}); "
+                            "Cycles' default radial tangent is used")
+    centre, size = _texture_space(me, verts)
+    p = verts.astype(np.float64)[tris]                              # (T, 3, 3) corner positions
+    g = (p - centre) / (2.0 * size)                                 # generated coordinates - 1/2
+    return np.stack([-g[..., 1], g[..., 0], np.zeros(g.shape[:2])], axis=-1)
+
+
 def mesh_normals(me):
     """Smooth shading of a mesh whose loop triangles are computed (mesh_arrays): (corner normals
     float32 (T, 3, 3), smooth (T,) bool or None when every face is smooth), or None when no face

@@ -19,13 +19,21 @@ names them):
 
 Distributions: GGX and BECKMANN as named, MULTI_GGX is GGX with `multiscatter` (energy compensation),
 ASHIKHMIN_SHIRLEY is exported as GGX with a warning.  The Glossy BSDF at roughness 0 (or SHARP) is the
-perfect mirror it always was.  Tangent: the object's local X axis in world space (Cycles' default
-tangent, radial about the object's Z axis, and tangent inputs are not modelled: both are named in a
-warning when the material is anisotropic).
+perfect mirror it always was (unless an image texture drives the roughness).
+
+Image textures (straight or through Separate RGB / Color, images.py float_image) on Roughness,
+Metallic and the Principled BSDF's Diffuse Roughness are the material's input textures; other
+links to float inputs are warned about (the unlinked value is used).
+
+Tangent of an anisotropic material (Cycles' svm closure.h takes the Tangent input; unlinked, the
+Geometry node's Tangent, primitive_tangent: radial about the object's Z axis in its generated
+coordinates): unlinked -> tangent_source "radial"; a Tangent node -> "radial" (axis Z) or "uv" (its
+UV map's MikkTSpace tangent); the mesh exporter computes the corner tangents (mesh.py
+corner_tangents).  Material.tangent, the object's local X axis, is the fallback where a hit has none.
 """
 import numpy as np
 
-from .util import socket
+from .util import linked_from, socket
 
 DISTRIBUTIONS = {"GGX": ("ggx", False), "MULTI_GGX": ("ggx", True), "BECKMANN": ("beckmann", False)}
 PRINCIPLED_V2 = (4, 0)
@@ -50,27 +58,42 @@ def distribution(table, mat, node):
     return "ggx", False
 
 
+def tangent_source(table, mat, node):
+    """(tangent_source, tangent_uv_map) of an anisotropic node's Tangent input (see the module)."""
+    sock = socket(node, "Tangent")
+    source = linked_from(sock) if sock is not None else None
+    if source is None:
+        return "radial", ""
+    if source.bl_idname == "ShaderNodeTangent":
+        if source.direction_type == "UV_MAP":
+            return "uv", source.uv_map
+        if source.axis != "Z":
+            table.warn(mat, node, f"Tangent node '{source.name}': radial about the {source.axis} axis is not "
+                                  "modelled; radial about Z is used")
+        return "radial", ""
+    table.warn(mat, node, f"input 'Tangent' is linked to '{source.name}' ({source.bl_idname}), which is not "
+                          "modelled; Cycles' default tangent (radial about the object's Z axis) is used")
+    return "radial", ""
+
+
 def anisotropy_fields(table, mat, node, anisotropy_name, rotation_name):
-    """anisotropy, rotation and tangent of a node (the object's local X axis as the tangent)."""
+    """anisotropy, rotation and tangent of a node: the mesh's tangents (tangent_source), the object's
+    local X axis where a hit has none."""
     anisotropy = _clamp(table.read_float(mat, node, anisotropy_name, default=0.0), -1.0, 1.0)
     rotation = table.read_float(mat, node, rotation_name, default=0.0)
+    fields = dict(anisotropy=anisotropy, rotation=rotation, tangent=table.object_x)
     if anisotropy != 0.0:
         table.used_object_tangent = True
-        tangent = socket(node, "Tangent")
-        if tangent is not None and tangent.is_linked:
-            table.warn(mat, node, "input 'Tangent' is linked (tangent inputs are not modelled); "
-                                  "the object's local X axis is the tangent")
-        else:
-            table.warn(mat, node, "Cycles' default tangent (radial about the object's Z axis) is not "
-                                  "modelled; the object's local X axis is the tangent")
-    return dict(anisotropy=anisotropy, rotation=rotation, tangent=table.object_x)
+        fields["tangent_source"], fields["tangent_uv_map"] = tangent_source(table, mat, node)
+    return fields
 
 
 def glossy(table, mat, node):
     """Glossy BSDF (3.4's Glossy and Anisotropic, 4.0+'s Glossy): fresnel 'none', the colour a tint."""
     color = _clamp01(table.read_color(mat, node, "Color"))
-    roughness = table.read_float(mat, node, "Roughness", default=0.5)
-    if roughness <= 0.0 or getattr(node, "distribution", "GGX") == "SHARP":
+    roughness = table.read_float(mat, node, "Roughness", default=0.5, role="roughness")
+    if getattr(node, "distribution", "GGX") == "SHARP" or (roughness <= 0.0 and "roughness" not in table._slots):
+        table._slots.pop("roughness", None)
         return table.Material(name=mat.name, kind=table.MIRROR, color=color)
     dist, multiscatter = distribution(table, mat, node)
     return table.Material(name=mat.name, kind=table.GLOSSY, color=color, roughness=min(roughness, 1.0),
@@ -80,7 +103,7 @@ def glossy(table, mat, node):
 
 def metallic(table, mat, node):
     """Metallic BSDF (4.3+): fresnel 'f82' (Base Color = F0, Edge Tint) or 'conductor' (IOR, Extinction)."""
-    roughness = _clamp(table.read_float(mat, node, "Roughness", default=0.5), 0.0, 1.0)
+    roughness = _clamp(table.read_float(mat, node, "Roughness", default=0.5, role="roughness"), 0.0, 1.0)
     dist, multiscatter = distribution(table, mat, node)
     fields = dict(name=mat.name, kind=table.GLOSSY, roughness=roughness, distribution=dist,
                   multiscatter=multiscatter, **anisotropy_fields(table, mat, node, "Anisotropy", "Rotation"))
@@ -103,7 +126,7 @@ def principled(table, mat, node):
     (engine/materials/principled_glass.py)."""
     base = _clamp01(table.read_color(mat, node, "Base Color"))
     emission = table.principled_emission(mat, node)
-    roughness = _clamp(table.read_float(mat, node, "Roughness", default=0.5), 0.0, 1.0)
+    roughness = _clamp(table.read_float(mat, node, "Roughness", default=0.5, role="roughness"), 0.0, 1.0)
     ior = max(table.read_float(mat, node, "IOR", default=1.5), 1e-3)
     for name in PRINCIPLED_UNMODELLED:
         value = table.read_float(mat, node, name, default=0.0)
@@ -121,12 +144,13 @@ def principled(table, mat, node):
     if slot is not None and layers["alpha"] < 1:
         slot.scale = tuple(c * layers["alpha"] for c in slot.scale)
     settings = table.Principled(
-        metallic=_clamp(table.read_float(mat, node, "Metallic", default=0.0), 0.0, 1.0),
+        metallic=_clamp(table.read_float(mat, node, "Metallic", default=0.0, role="metallic"), 0.0, 1.0),
         specular_ior_level=max(table.read_float(mat, node, "Specular IOR Level", default=0.5), 0.0),
         specular_tint=tuple(max(c, 0.0) for c in table.read_color(mat, node, "Specular Tint",
                                                                    default=(1.0, 1.0, 1.0), role=None)),
         **layers)
-    diffuse_roughness = _clamp(table.read_float(mat, node, "Diffuse Roughness", default=0.0), 0.0, 1.0)
+    diffuse_roughness = _clamp(table.read_float(mat, node, "Diffuse Roughness", default=0.0, role="diffuse_roughness"),
+                               0.0, 1.0)
     return table.Material(name=mat.name, kind=table.PRINCIPLED, color=base, emission=emission, ior=ior,
                           roughness=roughness, distribution=dist, multiscatter=multiscatter,
                           diffuse_roughness=diffuse_roughness, principled=settings,

@@ -225,10 +225,12 @@ def emission_of(table, mat, node, sides):
 
 
 def texture_slots(material):
-    """Every texture slot a material reads: its own, its mix leaves' colours and texture factors."""
-    slots = [material.color_texture, material.emission_texture]
+    """Every texture slot a material reads: its own (colour, emission, float inputs), its mix leaves'
+    and texture factors."""
+    slots = [material.color_texture, material.emission_texture, *(getattr(material, "input_textures", None) or {}).values()]
     if getattr(material, "mix", None) is not None:
         for leaf in material.mix.leaves:
             slots.append(leaf.material.color_texture)
+            slots += list((getattr(leaf.material, "input_textures", None) or {}).values())
             slots += [f.texture for f in leaf.factors if f.kind == "texture"]
     return [slot for slot in slots if slot is not None]

@@ -73,8 +73,9 @@ def test_ashikhmin_shirley_is_named_and_rendered_as_ggx(scene, ms):
 
 
 def test_anisotropic_glossy_takes_the_tangent_of_each_object(scene, ms):
-    """The tangent is the object's local X axis in world space: two objects turned differently get
-    two tracer materials; Cycles' default (radial) tangent is named in a warning."""
+    """Cycles' default tangent (radial about the object's Z) comes from the mesh's corner tangents
+    (tests/addon/test_export_input_textures.py); the material's fallback tangent, for hits without
+    one, is the object's local X axis: two objects turned differently get two tracer materials."""
     mat = ms.node_material("Brushed", "ShaderNodeBsdfGlossy", Roughness=0.4, Anisotropy=0.6)
     a = plate(ms, scene, "A", mat)
     b = plate(ms, scene, "B", mat, z=1.0, rotation=(0.0, 0.0, math.pi / 2))
@@ -86,18 +87,22 @@ def test_anisotropic_glossy_takes_the_tangent_of_each_object(scene, ms):
     assert by_object["A"] is by_object["C"]
     assert by_object["A"].tangent == pytest.approx((1, 0, 0)) and by_object["A"].anisotropy == pytest.approx(0.6)
     assert by_object["B"].tangent == pytest.approx((0, 1, 0), abs=1e-6)
-    assert named(res, "Brushed", "radial"), res.warnings
+    assert by_object["A"].tangent_source == "radial"
+    assert all(mesh.tangents is not None for mesh in res.scene.meshes)
+    assert res.warnings == [], res.warnings
     del a, b, c
 
 
-def test_linked_tangent_is_named(scene, ms):
+def test_linked_tangent_node_is_read(scene, ms):
+    """A Tangent node (radial about Z, its default) is the default's tangent; other links are named
+    (tests/addon/test_export_input_textures.py)."""
     mat = ms.node_material("Linked", "ShaderNodeBsdfGlossy", Roughness=0.4, Anisotropy=-0.5)
     tangent = mat.node_tree.nodes.new("ShaderNodeTangent")
     mat.node_tree.links.new(tangent.outputs[0], shader(mat).inputs["Tangent"])
     plate(ms, scene, "P", mat)
     res = export()
     assert only(res, "Linked").anisotropy == pytest.approx(-0.5)
-    assert named(res, "Linked", "input 'Tangent' is linked"), res.warnings
+    assert only(res, "Linked").tangent_source == "radial" and res.warnings == [], res.warnings
 
 
 def test_glossy_colour_texture_is_the_colour_slot(scene, ms):
