@@ -15,7 +15,9 @@ DaskPool is a pool of engine/pools/protocol.py whose units run as Dask tasks on 
 * The task function travels by value through a small trampoline that imports the engine on the
   worker only, so the scheduler needs nothing of this project (it unpickles every task).
 * Results stream back through `distributed.as_completed`; a SIGKILLed worker's units are re-run on
-  the others (the scheduler notices the closed connection at once).  Units depend only on (seed,
+  the others (the scheduler notices the closed connection at once).  A worker that stops answering
+  (SIGSTOP, a cut network link) is found by a unit deadline and removed, and no worker left or a
+  lost scheduler ends the render with one line that keeps the finished units: engine/pools/dask_watch.py.  Units depend only on (seed,
   pixel, sample), and the film merges each tile's units in order, so the image is bit for bit the
   one the local pool renders.
 * cancel(): the futures are cancelled and a running unit sees its task cancelled on the worker
@@ -36,9 +38,10 @@ import threading
 import time
 import uuid
 
-from ..core.errors import SceneError
+from ..core.errors import SceneError, WorkersLost
 from ..core.paths import TRACER_DIR
 from ..core.version import BUILD_HASH, ENGINE_VERSION, short_build
+from . import dask_watch, faults
 from .protocol import Pool
 
 CONNECT_SECONDS = 5        # scheduler unreachable: one line within this (docs/command-line.md: within 6 s)
@@ -46,6 +49,8 @@ HANDSHAKE_SECONDS = 5      # a port that accepts connections but does not speak 
 POLL_SECONDS = 0.1         # a stop request ends a connection wait within this
 WORKERS_SECONDS = 10       # a scheduler without workers
 CANCEL_SECONDS = 10        # close() waits at most this for cancelled units to stop on the workers
+CLIENT_CLOSE_SECONDS = 2  # the client's own close (a lost scheduler: it gives up after this)
+PROBE_SECONDS = 0.5        # ... but gives up when the workers do not answer within this (one is stopped)
 UNIT_RETRIES = 2           # exceptions; worker deaths are counted by the scheduler (allowed-failures)
 KEY_PREFIX = "tncg15"
 
@@ -53,6 +58,11 @@ KEY_PREFIX = "tncg15"
 class ClusterError(SceneError):
     """The cluster cannot render: unreachable scheduler, no workers, other engine versions.
     A SceneError so that both command lines print it as one line and exit 2."""
+
+
+class ClusterLost(ClusterError, WorkersLost):
+    """No Dask worker is left, the scheduler was lost, or a unit killed its workers: one line, and
+    the frame keeps the finished units (engine/rendering/frame.py) for the command lines to write."""
 
 
 class ConnectStopped(ClusterError):
@@ -301,6 +311,22 @@ def connect(address: str, timeout: float = CONNECT_SECONDS, should_cancel=None):
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
 
 
+def bounded(fn, seconds: float):
+    """fn() on a daemon thread: its value, or None when it has not returned within `seconds` or failed."""
+    out = {}
+
+    def run():
+        try:
+            out["value"] = fn()
+        except Exception:                          # noqa: BLE001 - None: no answer
+            pass
+
+    thread = threading.Thread(target=run, daemon=True, name="tncg15-dask-probe")
+    thread.start()
+    thread.join(seconds)
+    return out.get("value")
+
+
 class DaskPool(Pool):
     """The pool of engine/pools/protocol.py over a Dask cluster: its scheduler's `address`, or
     "local" for a LocalCluster of `workers` one-thread processes started here."""
@@ -316,6 +342,11 @@ class DaskPool(Pool):
         self.cancelled = False
         self.finished: queue.Queue = queue.Queue()
         self.collector, self.collector_error = None, None
+        self.answered: set = set()                # unit keys already answered (by the watch)
+        self.answer_lock = threading.Lock()
+        self.reports: list[str] = []              # workers given up, by address and why
+        self.prepare_seconds = 0.0
+        self.stop_watch = threading.Event()
         # Keys name two task groups (dask groups keys by their words before the hex id): the scene
         # task alone, and the units.  The units' group must not contain the scene task, or the
         # scheduler does not see them as "root-ish" and places them all next to the scene's data
@@ -375,6 +406,7 @@ class DaskPool(Pool):
         payload_key = f"{KEY_PREFIX}-scene-{self.render_id}"
         self.payload = self.client.submit(call, f"{__name__}:hold_payload", blob, key=payload_key, pure=False,
                                           **self.restrict)
+        started = time.perf_counter()
         facts = self.client.submit(call, f"{__name__}:prepare_task", self.payload, payload_key, (ENGINE_VERSION, BUILD_HASH),
                                    key=f"{KEY_PREFIX}-facts-{self.render_id}", pure=False, **self.restrict)
         try:
@@ -385,6 +417,7 @@ class DaskPool(Pool):
             text = " ".join(str(exc).split()) or type(exc).__name__
             raise ClusterError(text if "runs engine" in text else
                                f"the Dask cluster {self.address} could not prepare the scene: {text}") from None
+        self.prepare_seconds = time.perf_counter() - started
         for w in facts.warnings:
             self.log(f"warning: {w}")
         return facts
@@ -399,6 +432,45 @@ class DaskPool(Pool):
             self.unit_of[key] = unit
         self.collector = threading.Thread(target=self._collect, name="tncg15-dask-results", daemon=True)
         self.collector.start()
+        threading.Thread(target=self._watch, name="tncg15-dask-watch", daemon=True).start()
+
+    def _answer(self, key, answer) -> None:
+        """Queue a unit's outcome once (the watch and the results may both answer a unit)."""
+        with self.answer_lock:
+            if key in self.answered:
+                return
+            self.answered.add(key)
+        self.finished.put(answer)
+
+    def _watch(self):
+        """The unit deadline and the workers left (engine/pools/dask_watch.py), until close()."""
+        clock = dask_watch.UnitClock(first_extra=faults.DEADLINE_FACTOR * self.prepare_seconds)
+        usable_since = time.perf_counter()
+        while not self.stop_watch.wait(dask_watch.WATCH_SECONDS):
+            try:
+                view = self.client.run_on_scheduler(dask_watch.units_on_workers, prefix=self.unit_prefix)
+            except Exception:                     # the scheduler is gone: the results say so
+                continue
+            now = time.perf_counter()
+            if self.workers is not None:
+                view = {w: keys for w, keys in view.items() if w in self.workers}
+            for worker, limit in clock.observe(view, now):
+                message = f"Dask worker {worker} stopped answering: no unit finished in {limit:.0f} s (removed)"
+                self.reports.append(message)
+                self.log(f"warning: {message}")
+                try:
+                    self.client.run_on_scheduler(dask_watch.drop_worker, address=worker, why="unit-deadline")
+                except Exception:
+                    pass
+            if view.keys() - clock.dropped:
+                usable_since = now
+            elif now - usable_since > dask_watch.NO_WORKER_SECONDS and not self.cancelled:
+                left = [f for f in self.futures if not f.done() and f.key not in self.answered]
+                if left:
+                    why = "; ".join(self.reports[-1:]) or "the last one left the scheduler"
+                    self._answer(left[0].key, (self.unit_of[left[0].key], None, ClusterLost(
+                        f"no Dask worker is left at {self.address} ({why})")))
+                usable_since = now
 
     def _collect(self):
         try:
@@ -412,13 +484,14 @@ class DaskPool(Pool):
             unit = self.unit_of[future.key]
             try:
                 if future.status == "finished":
-                    self.finished.put((unit, future.result(), None))
+                    answer = (unit, future.result(), None)
                 elif future.status == "cancelled" and self.cancelled:
-                    self.finished.put((unit, None, None))
+                    answer = (unit, None, None)
                 else:
-                    self.finished.put((unit, None, self._error(unit, future)))
+                    answer = (unit, None, self._error(unit, future))
             except BaseException as exc:          # CancelledError races, a lost scheduler, ...
-                self.finished.put((unit, None, None if self.cancelled else self._error(unit, future, exc)))
+                answer = (unit, None, None if self.cancelled else self._error(unit, future, exc))
+            self._answer(future.key, answer)
 
     def _error(self, unit, future, exc=None):
         if exc is None:
@@ -431,6 +504,9 @@ class DaskPool(Pool):
             return ClusterError(text)
         if future.status == "cancelled" or exc is None or not text:
             text = f"{type(exc).__name__ if exc is not None else 'lost'} (was the scheduler {self.address} stopped?)"
+            return ClusterLost(f"unit {unit.index} failed on the Dask cluster {self.address}: {text}")
+        if type(exc).__name__ == "KilledWorker":  # it killed every worker that ran it
+            return ClusterLost(f"unit {unit.index} failed on the Dask cluster {self.address}: {text}")
         return ClusterError(f"unit {unit.index} failed on the Dask cluster {self.address}: {text}")
 
     def next_result(self, timeout: float):
@@ -447,7 +523,10 @@ class DaskPool(Pool):
         self.cancelled = True
         pending = [f for f in self.futures if not f.done()]
         if pending:
-            self.client.cancel(pending)
+            try:
+                self.client.cancel(pending)
+            except Exception:                      # the scheduler is gone: nothing runs for us
+                pass
 
     def running(self) -> list:
         """Keys of this render's units that some worker is executing now."""
@@ -455,24 +534,35 @@ class DaskPool(Pool):
         return [k for keys in found.values() if isinstance(keys, list) for k in keys]
 
     def close(self):
+        """Cancel what is left and wait until no unit of this render runs, but never for a
+        worker that does not answer (a stopped one: client.run would wait for it)."""
+        self.stop_watch.set()
         try:
             if self.futures and not all(f.done() for f in self.futures):
                 self.cancel()
             if self.cancelled:
                 deadline = time.monotonic() + CANCEL_SECONDS
-                while self.running() and time.monotonic() < deadline:
+                while bounded(self.running, PROBE_SECONDS) and time.monotonic() < deadline:
                     time.sleep(0.05)
             if self.payload is not None:
-                self.client.run(call, f"{__name__}:forget_scene", self.payload.key, on_error="ignore")
+                key = self.payload.key
+                bounded(lambda: self.client.run(call, f"{__name__}:forget_scene", key, on_error="ignore"),
+                        PROBE_SECONDS)
         except Exception:
             pass                                   # the cluster went away: nothing left to stop
         finally:
             self._shutdown()
 
+    def stats(self) -> dict:
+        return {"worker_reports": list(self.reports)} if self.reports else {}
+
+    def warnings(self) -> list:
+        return list(self.reports)
+
     def _shutdown(self):
         self.futures, self.payload = [], None
         try:
-            self.client.close(timeout=5)
+            self.client.close(timeout=CLIENT_CLOSE_SECONDS)
         except Exception:
             pass
         if self.local_cluster is not None:        # ours to stop; an external scheduler never is
