@@ -49,6 +49,7 @@ def build_parser():
     r.add_argument("--cluster", metavar="ADDRESS",
                    help="render on a Dask cluster: its scheduler's tcp://HOST:PORT, or 'local' (TNCG15 MC only; "
                         "as the add-on's Render cluster preference)")
+    bridge.module("cli.cluster_args").add_tls_options(r)
     r.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
     r.add_argument("--frame", type=bounded_int(-MAX_FRAME, MAX_FRAME),
                    help="frame to render (default: the file's current frame)")
@@ -117,6 +118,10 @@ def render_file(args):
             except bridge.module("core.errors").SceneError as exc:
                 return error(exc)
         os.environ["TNCG15_CLUSTER"] = args.cluster      # read by worker_python.render_cluster()
+    try:
+        bridge.module("cli.cluster_args").use_tls_options(args)    # tls://: the certificates (TNCG15_TLS_*)
+    except bridge.module("core.errors").SceneError as exc:
+        return error(exc)
     blend = os.path.abspath(args.file)
     problem = blend_problem(blend)
     if problem:

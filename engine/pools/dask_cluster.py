@@ -294,18 +294,21 @@ def probe_scheduler(address: str, timeout: float = CONNECT_SECONDS, handshake: f
             time.sleep(min(POLL_SECONDS, max(0.0, retry - time.monotonic())))
 
 
-def connect(address: str, timeout: float = CONNECT_SECONDS, should_cancel=None):
+def connect(address: str, timeout: float = CONNECT_SECONDS, should_cancel=None, security=None):
     """A distributed Client for `address`; ClusterError (one line naming it) when unreachable or when
-    what answers is not a Dask scheduler (probe_scheduler); ConnectStopped on a stop request."""
+    what answers is not a Dask scheduler (probe_scheduler); ConnectStopped on a stop request.
+    tls://: with `security`, else the certificates of engine/pools/dask_tls.py."""
     address = scheduler_address(address)
     try:
         from distributed import Client
     except ImportError as exc:
         raise ClusterError(f"--cluster needs dask and distributed (pip install -r requirements.txt): {exc}") from None
+    from .dask_tls import security_for
+    security = security or security_for(address)
     _quiet_distributed_logs()
     probe_scheduler(address, timeout, should_cancel=should_cancel)
     try:
-        return Client(address, timeout=f"{timeout}s", set_as_default=False)
+        return Client(address, timeout=f"{timeout}s", set_as_default=False, security=security)
     except Exception as exc:          # OSError (timeout, refused), ValueError (bad address), ...
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
@@ -589,9 +592,11 @@ RENDER_WORKER_CONFIG = {
 class ProcessCluster:
     """`dask scheduler` plus `dask worker` processes on 127.0.0.1, as one would start them by hand,
     each in its own process group; close() kills them all.  The scheduler runs without this
-    project on its path (it needs none); workers get `pythonpath` (default: this repository)."""
+    project on its path (it needs none); workers get `pythonpath` (default: this repository).
+    tls: {"ca", "cert", "key"} PEM files for a tls:// cluster (engine/pools/dask_tls.py), used by
+    the scheduler, the workers and the client alike."""
 
-    def __init__(self, directory, workers: int = 2, timeout: float = 60):
+    def __init__(self, directory, workers: int = 2, timeout: float = 60, tls=None):
         import json
         import os
         import subprocess
@@ -602,10 +607,18 @@ class ProcessCluster:
         self.bin = Path(sys.executable).parent
         self.repo = Path(TRACER_DIR).resolve().parent
         self._subprocess, self._os = subprocess, os
+        self.tls_options, security = [], None
+        if tls:
+            from distributed.security import Security
+            from .dask_tls import process_options
+            self.tls_options = process_options(tls["ca"], tls["cert"], tls.get("key"))
+            security = Security(tls_ca_file=tls["ca"], tls_client_cert=tls["cert"], tls_client_key=tls.get("key"),
+                                require_encryption=True)
         info = self.directory / "scheduler.json"
         try:
             self._spawn(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                         "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(info)], "scheduler", None)
+                         "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(info)]
+                        + (["--protocol", "tls"] + self.tls_options if tls else []), "scheduler", None)
             deadline = time.monotonic() + timeout
             while not (info.exists() and info.stat().st_size):
                 if time.monotonic() > deadline or self.procs[0].poll() is not None:
@@ -613,7 +626,7 @@ class ProcessCluster:
                 time.sleep(0.05)
             time.sleep(0.05)
             self.address = json.loads(info.read_text())["address"]
-            self.client = connect(self.address, timeout=10)
+            self.client = connect(self.address, timeout=10, security=security)
             for i in range(workers):
                 self.add_worker(f"w{i + 1}")
         except BaseException:
@@ -636,7 +649,7 @@ class ProcessCluster:
         """One one-thread worker process (under a nanny that restarts it, unless nanny=False)."""
         before = len(self.client.scheduler_info()["workers"])
         proc = self._spawn(["worker", self.address, "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1",
-                            "--name", name] + (["--nworkers", "1"] if nanny else ["--no-nanny"]),
+                            "--name", name] + (["--nworkers", "1"] if nanny else ["--no-nanny"]) + self.tls_options,
                            name, pythonpath or self.repo)
         self.client.wait_for_workers(before + 1, timeout=self.timeout)
         return proc
