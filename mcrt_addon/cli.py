@@ -221,7 +221,9 @@ def render_in(args, blend, outputs, stop, private):
     except RuntimeError as exc:
         # Blender's own refusals ("Cannot render, no camera") arrive as "Error: ...\n"
         msg = (reports[-1].error if reports else None) or str(exc).strip().removeprefix("Error: ")
-        return error(msg, 1)
+        if not (reports and reports[-1].partial is not None):
+            return error(msg, 1)
+        return write_finished_tiles(args, scene, reports[-1], outputs, msg, time.perf_counter() - t0)
     finally:
         engine_module.STOP_REQUESTS.remove(stop.requested)
     wall = time.perf_counter() - t0
@@ -285,6 +287,18 @@ def estimate_file(args):
         return 0
     finally:
         shutil.rmtree(private, ignore_errors=True)
+
+
+def write_finished_tiles(args, scene, last, outputs, message, wall):
+    """No worker left (engine/core/errors.py WorkersLost): Blender writes no image after an error,
+    so the finished tiles (last.partial, the tracer's RenderResult) are written here; exit 1."""
+    last.stats = dict(last.partial.stats)
+    stats = render_stats(args, scene, last, wall)
+    try:
+        write_outputs(outputs, last.partial.image, stats)
+    except (bridge.module("film.output").OutputError, OSError) as exc:
+        return error(exc, 1)
+    return error(f"{message} (wrote the finished tiles to {', '.join(o.path for o in outputs)})", 1)
 
 
 def write_outputs(outputs, image, stats, passes=None):

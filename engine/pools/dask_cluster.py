@@ -508,7 +508,7 @@ class DaskPool(Pool):
         if future.status == "cancelled" or exc is None or not text:
             text = f"{type(exc).__name__ if exc is not None else 'lost'} (was the scheduler {self.address} stopped?)"
             return ClusterLost(f"unit {unit.index} failed on the Dask cluster {self.address}: {text}")
-        if type(exc).__name__ == "KilledWorker":  # it killed every worker that ran it
+        if type(exc).__name__ == "KilledWorker" or isinstance(exc, OSError):   # it killed its workers; a lost connection
             return ClusterLost(f"unit {unit.index} failed on the Dask cluster {self.address}: {text}")
         return ClusterError(f"unit {unit.index} failed on the Dask cluster {self.address}: {text}")
 

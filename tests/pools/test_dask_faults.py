@@ -174,12 +174,14 @@ def cluster_address_in(text, cluster):
     return cluster.address in text
 
 
-@pytest.mark.slow          # the command line against a cluster of processes
-def test_the_cli_writes_the_finished_tiles_when_the_scheduler_is_killed(cluster, tmp_path):
+@pytest.mark.slow          # the command lines against a cluster of processes
+@pytest.mark.parametrize("cli", ["engine", "mcrt_addon"])
+def test_the_cli_writes_the_finished_tiles_when_the_scheduler_is_killed(cli, cluster, tmp_path):
     out = tmp_path / "part.exr"
-    proc = subprocess.Popen([sys.executable, "-m", "engine", "render", "--builtin", "cornell", "--resolution",
-                             "128", "128", "--samples", "256", "--cluster", cluster.address, "--quiet",
-                             "-o", str(out)], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    scene = ["--builtin", "cornell"] if cli == "engine" else [os.path.join(ROOT, "sample_blends", "cornell.blend")]
+    proc = subprocess.Popen([sys.executable, "-m", cli, "render", *scene, "--resolution", "128", "128",
+                             "--samples", "256", "--cluster", cluster.address, "-o", str(out)],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + HANG
     while cluster.client.run_on_scheduler(units_finished) < 4:   # mid-render: some units finished
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
