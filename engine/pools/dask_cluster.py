@@ -543,11 +543,16 @@ class DaskPool(Pool):
         try:
             if self.futures and not all(f.done() for f in self.futures):
                 self.cancel()
+            answering = True
             if self.cancelled:
                 deadline = time.monotonic() + CANCEL_SECONDS
-                while bounded(self.running, PROBE_SECONDS) and time.monotonic() < deadline:
+                while time.monotonic() < deadline:
+                    running = bounded(self.running, PROBE_SECONDS)
+                    answering = running is not None
+                    if not running:
+                        break
                     time.sleep(0.05)
-            if self.payload is not None:
+            if self.payload is not None and answering:     # a worker that does not answer is not waited for twice
                 key = self.payload.key
                 bounded(lambda: self.client.run(call, f"{__name__}:forget_scene", key, on_error="ignore"),
                         PROBE_SECONDS)

@@ -133,6 +133,7 @@ def test_a_cancel_returns_although_a_dask_worker_is_stopped(cluster):
 
     result = render_on(cluster, stop, should_cancel=lambda: "at" in state)
     waited = time.perf_counter() - state["at"]
+    print(f"a cancel with a stopped Dask worker returned after {waited:.2f} s")
     assert result.cancelled and 0 < result.stats["units_done"] < result.stats["units"]
     assert waited < faults.DEADLINE_MIN, waited    # a hang guard: the cancel did not wait for the deadline
 
