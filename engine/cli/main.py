@@ -14,9 +14,9 @@ import numpy as np
 from ..core.errors import SceneError, WorkersLost
 from ..film.output import OutputError, check_outputs, refuse_inputs, write_image, write_text
 from ..core.settings import ENGINE_CLI, INT32_MAX, PASSES, RenderSettings, settings_for
-from .cluster_args import add_tls_options, use_tls_options
 from .settings_args import add_setting_arguments, bounded_int, setting_values
 from .signals import StopRequest
+from .cluster_args import add_tls_options, use_tls_options
 
 PROG = "python -m engine"
 
