@@ -50,6 +50,7 @@ def build_parser():
     r.add_argument("--cluster", metavar="ADDRESS",
                    help="render on a Dask cluster: its scheduler's tcp://HOST:PORT, or 'local' (TNCG15 MC only; "
                         "as the add-on's Render cluster preference)")
+    bridge.module("cli.cluster_args").add_tls_options(r)
     r.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, metavar=("W", "H"))
     r.add_argument("--frame", type=bounded_int(-MAX_FRAME, MAX_FRAME),
                    help="frame to render (default: the file's current frame)")
@@ -123,6 +124,10 @@ def render_file(args):
             except bridge.module("core.errors").SceneError as exc:
                 return error(exc)
         os.environ["TNCG15_CLUSTER"] = args.cluster      # read by worker_python.render_cluster()
+    try:
+        bridge.module("cli.cluster_args").use_tls_options(args)    # tls://: the certificates (TNCG15_TLS_*)
+    except bridge.module("core.errors").SceneError as exc:
+        return error(exc)
     blend = os.path.abspath(args.file)
     problem = blend_problem(blend)
     if problem:
@@ -223,7 +228,9 @@ def render_in(args, blend, outputs, stop, private):
     except RuntimeError as exc:
         # Blender's own refusals ("Cannot render, no camera") arrive as "Error: ...\n"
         msg = (reports[-1].error if reports else None) or str(exc).strip().removeprefix("Error: ")
-        return error(msg, 1)
+        if not (reports and reports[-1].partial is not None):
+            return error(msg, 1)
+        return write_finished_tiles(args, scene, reports[-1], outputs, msg, time.perf_counter() - t0)
     finally:
         engine_module.STOP_REQUESTS.remove(stop.requested)
     wall = time.perf_counter() - t0
@@ -287,6 +294,18 @@ def estimate_file(args):
         return 0
     finally:
         shutil.rmtree(private, ignore_errors=True)
+
+
+def write_finished_tiles(args, scene, last, outputs, message, wall):
+    """No worker left (engine/core/errors.py WorkersLost): Blender writes no image after an error,
+    so the finished tiles (last.partial, the tracer's RenderResult) are written here; exit 1."""
+    last.stats = dict(last.partial.stats)
+    stats = render_stats(args, scene, last, wall)
+    try:
+        write_outputs(outputs, last.partial.image, stats)
+    except (bridge.module("film.output").OutputError, OSError) as exc:
+        return error(exc, 1)
+    return error(f"{message} (wrote the finished tiles to {', '.join(o.path for o in outputs)})", 1)
 
 
 def write_outputs(outputs, image, stats, passes=None):

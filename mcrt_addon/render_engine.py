@@ -44,6 +44,7 @@ class RenderReport:
     passes: list = field(default_factory=list)     # Blender pass names written at the end
     stats_lines: list = field(default_factory=list)  # every update_stats info line, in order
     summary: str = None                            # the last of them, also in the Info log
+    partial: object = None                         # no worker left: the finished tiles' RenderResult
 
 
 @contextlib.contextmanager
@@ -167,6 +168,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
                 message = f"TNCG15 MC internal error: {type(exc).__name__}: {exc}"
             if message != "cancelled":
                 self._fail(message)
+                self.last.partial = getattr(exc, "result", None) if self.tiles_written else None
         finally:
             if self.last.cancelled and not self.tiles_written:
                 self._blank_result()

@@ -295,7 +295,8 @@ def header_text(st, samples, noise, level, error):
     text = f"Sample {samples}/{target}"
     if noise is not None:
         text += f" | Noise ±{100 * noise:.1f} %"
-    return text
+    notice = st.workers.notice() if hasattr(st.workers, "notice") else None
+    return text + (f" | {notice}" if notice else "")      # a worker died and was restarted
 
 
 # -- drawing ---------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from ..film.output import OutputError, check_outputs, refuse_inputs, write_image
 from ..core.settings import ENGINE_CLI, INT32_MAX, PASSES, RenderSettings, preset_values, settings_for
 from .settings_args import add_preset_argument, add_setting_arguments, bounded_int, setting_values
 from .signals import StopRequest
+from .cluster_args import add_tls_options, use_tls_options
 
 PROG = "python -m engine"
 
@@ -122,6 +123,7 @@ def cmd_render(args) -> int:
     from ..pools.dask_cluster import ConnectStopped
 
     stop = StopRequest(PROG).install()
+    use_tls_options(args)
     outputs = check_outputs([("-o", args.output, "image"), ("--png", args.png, "png"),
                              ("--stats-json", args.stats_json, "json")], inputs=scene_inputs(args.scene),
                             base_dir=os.path.dirname(os.path.abspath(args.scene)) if args.scene else None)
@@ -244,6 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--cluster", metavar="ADDRESS",
                    help="render the work units on a Dask cluster: its scheduler's tcp://HOST:PORT, or 'local' "
                         "to start a LocalCluster here (docs/command-line.md: Rendering on several machines)")
+    add_tls_options(r)
     add_settings_arguments(r)
     r.set_defaults(func=cmd_render)
     e = sub.add_parser("estimate", help="predict the render time to reach --noise-target from a short pilot render")

@@ -34,12 +34,44 @@ def _pyoidn():
 
 
 def available() -> str | None:
-    """None when the denoiser works here, else why not (one line)."""
+    """None when the denoiser works here, else why not (one line).  pyoidn is first imported in a
+    process of its own (probe_import): a broken native library can abort the importing process
+    (SIGABRT) instead of raising, and must not take the command line with it."""
+    problem = probe_import()
+    if problem:
+        return problem
     try:
         _pyoidn()
     except DenoiserUnavailable as exc:
         return str(exc)
     return None
+
+
+def probe_import(python: str | None = None, timeout: float = 120.0) -> str | None:
+    """Import pyoidn in a child process of `python` (default: this one) with this process's
+    sys.path; why it is unavailable when the child was killed by a signal or hung, else None (an
+    ImportError is left to the import here, which names what to install)."""
+    import os
+    import signal
+    import subprocess
+    python = python or sys.executable
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    try:
+        proc = subprocess.run([python, "-c", "import pyoidn"], env=env, capture_output=True, text=True,
+                              timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return f"denoiser unavailable: importing pyoidn did not finish within {timeout:g} s"
+    except OSError as exc:
+        return f"denoiser unavailable: cannot run {python} to check pyoidn: {exc.strerror or exc}"
+    if proc.returncode >= 0:
+        return None
+    try:
+        how = signal.Signals(-proc.returncode).name
+    except ValueError:
+        how = f"signal {-proc.returncode}"
+    tail = (proc.stderr.strip().splitlines() or [""])[-1][:200]
+    return (f"denoiser unavailable: importing pyoidn killed its process ({how}{': ' + tail if tail else ''}); "
+            f"reinstall it ('pip install --force-reinstall pyoidn' for {python}) or render without --denoise")
 
 
 def denoise(image, albedo=None, normal=None) -> np.ndarray:

@@ -15,7 +15,9 @@ DaskPool is a pool of engine/pools/protocol.py whose units run as Dask tasks on 
 * The task function travels by value through a small trampoline that imports the engine on the
   worker only, so the scheduler needs nothing of this project (it unpickles every task).
 * Results stream back through `distributed.as_completed`; a SIGKILLed worker's units are re-run on
-  the others (the scheduler notices the closed connection at once).  Units depend only on (seed,
+  the others (the scheduler notices the closed connection at once).  A worker that stops answering
+  (SIGSTOP, a cut network link) is found by a unit deadline and removed, and no worker left or a
+  lost scheduler ends the render with one line that keeps the finished units: engine/pools/dask_watch.py.  Units depend only on (seed,
   pixel, sample), and the film merges each tile's units in order, so the image is bit for bit the
   one the local pool renders.
 * cancel(): the futures are cancelled and a running unit sees its task cancelled on the worker
@@ -36,9 +38,10 @@ import threading
 import time
 import uuid
 
-from ..core.errors import SceneError
+from ..core.errors import SceneError, WorkersLost
 from ..core.paths import TRACER_DIR
 from ..core.version import BUILD_HASH, ENGINE_VERSION, short_build
+from . import dask_watch, faults
 from .protocol import Pool
 
 CONNECT_SECONDS = 5        # scheduler unreachable: one line within this (docs/command-line.md: within 6 s)
@@ -46,6 +49,8 @@ HANDSHAKE_SECONDS = 5      # a port that accepts connections but does not speak 
 POLL_SECONDS = 0.1         # a stop request ends a connection wait within this
 WORKERS_SECONDS = 10       # a scheduler without workers
 CANCEL_SECONDS = 10        # close() waits at most this for cancelled units to stop on the workers
+CLIENT_CLOSE_SECONDS = 2  # the client's own close (a lost scheduler: it gives up after this)
+PROBE_SECONDS = 0.5        # ... but gives up when the workers do not answer within this (one is stopped)
 UNIT_RETRIES = 2           # exceptions; worker deaths are counted by the scheduler (allowed-failures)
 KEY_PREFIX = "tncg15"
 
@@ -53,6 +58,11 @@ KEY_PREFIX = "tncg15"
 class ClusterError(SceneError):
     """The cluster cannot render: unreachable scheduler, no workers, other engine versions.
     A SceneError so that both command lines print it as one line and exit 2."""
+
+
+class ClusterLost(ClusterError, WorkersLost):
+    """No Dask worker is left, the scheduler was lost, or a unit killed its workers: one line, and
+    the frame keeps the finished units (engine/rendering/frame.py) for the command lines to write."""
 
 
 class ConnectStopped(ClusterError):
@@ -284,21 +294,40 @@ def probe_scheduler(address: str, timeout: float = CONNECT_SECONDS, handshake: f
             time.sleep(min(POLL_SECONDS, max(0.0, retry - time.monotonic())))
 
 
-def connect(address: str, timeout: float = CONNECT_SECONDS, should_cancel=None):
+def connect(address: str, timeout: float = CONNECT_SECONDS, should_cancel=None, security=None):
     """A distributed Client for `address`; ClusterError (one line naming it) when unreachable or when
-    what answers is not a Dask scheduler (probe_scheduler); ConnectStopped on a stop request."""
+    what answers is not a Dask scheduler (probe_scheduler); ConnectStopped on a stop request.
+    tls://: with `security`, else the certificates of engine/pools/dask_tls.py."""
     address = scheduler_address(address)
     try:
         from distributed import Client
     except ImportError as exc:
         raise ClusterError(f"--cluster needs dask and distributed (pip install -r requirements.txt): {exc}") from None
+    from .dask_tls import security_for
+    security = security or security_for(address)
     _quiet_distributed_logs()
     probe_scheduler(address, timeout, should_cancel=should_cancel)
     try:
-        return Client(address, timeout=f"{timeout}s", set_as_default=False)
+        return Client(address, timeout=f"{timeout}s", set_as_default=False, security=security)
     except Exception as exc:          # OSError (timeout, refused), ValueError (bad address), ...
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
+
+
+def bounded(fn, seconds: float):
+    """fn() on a daemon thread: its value, or None when it has not returned within `seconds` or failed."""
+    out = {}
+
+    def run():
+        try:
+            out["value"] = fn()
+        except Exception:                          # noqa: BLE001 - None: no answer
+            pass
+
+    thread = threading.Thread(target=run, daemon=True, name="tncg15-dask-probe")
+    thread.start()
+    thread.join(seconds)
+    return out.get("value")
 
 
 class DaskPool(Pool):
@@ -316,6 +345,11 @@ class DaskPool(Pool):
         self.cancelled = False
         self.finished: queue.Queue = queue.Queue()
         self.collector, self.collector_error = None, None
+        self.answered: set = set()                # unit keys already answered (by the watch)
+        self.answer_lock = threading.Lock()
+        self.reports: list[str] = []              # workers given up, by address and why
+        self.prepare_seconds = 0.0
+        self.stop_watch = threading.Event()
         # Keys name two task groups (dask groups keys by their words before the hex id): the scene
         # task alone, and the units.  The units' group must not contain the scene task, or the
         # scheduler does not see them as "root-ish" and places them all next to the scene's data
@@ -375,6 +409,7 @@ class DaskPool(Pool):
         payload_key = f"{KEY_PREFIX}-scene-{self.render_id}"
         self.payload = self.client.submit(call, f"{__name__}:hold_payload", blob, key=payload_key, pure=False,
                                           **self.restrict)
+        started = time.perf_counter()
         facts = self.client.submit(call, f"{__name__}:prepare_task", self.payload, payload_key, (ENGINE_VERSION, BUILD_HASH),
                                    key=f"{KEY_PREFIX}-facts-{self.render_id}", pure=False, **self.restrict)
         try:
@@ -385,6 +420,7 @@ class DaskPool(Pool):
             text = " ".join(str(exc).split()) or type(exc).__name__
             raise ClusterError(text if "runs engine" in text else
                                f"the Dask cluster {self.address} could not prepare the scene: {text}") from None
+        self.prepare_seconds = time.perf_counter() - started
         for w in facts.warnings:
             self.log(f"warning: {w}")
         return facts
@@ -399,6 +435,45 @@ class DaskPool(Pool):
             self.unit_of[key] = unit
         self.collector = threading.Thread(target=self._collect, name="tncg15-dask-results", daemon=True)
         self.collector.start()
+        threading.Thread(target=self._watch, name="tncg15-dask-watch", daemon=True).start()
+
+    def _answer(self, key, answer) -> None:
+        """Queue a unit's outcome once (the watch and the results may both answer a unit)."""
+        with self.answer_lock:
+            if key in self.answered:
+                return
+            self.answered.add(key)
+        self.finished.put(answer)
+
+    def _watch(self):
+        """The unit deadline and the workers left (engine/pools/dask_watch.py), until close()."""
+        clock = dask_watch.UnitClock(first_extra=faults.DEADLINE_FACTOR * self.prepare_seconds)
+        usable_since = time.perf_counter()
+        while not self.stop_watch.wait(dask_watch.WATCH_SECONDS):
+            try:
+                view = self.client.run_on_scheduler(dask_watch.units_on_workers, prefix=self.unit_prefix)
+            except Exception:                     # the scheduler is gone: the results say so
+                continue
+            now = time.perf_counter()
+            if self.workers is not None:
+                view = {w: keys for w, keys in view.items() if w in self.workers}
+            for worker, limit in clock.observe(view, now):
+                message = f"Dask worker {worker} stopped answering: no unit finished in {limit:.0f} s (removed)"
+                self.reports.append(message)
+                self.log(f"warning: {message}")
+                try:
+                    self.client.run_on_scheduler(dask_watch.drop_worker, address=worker, why="unit-deadline")
+                except Exception:
+                    pass
+            if view.keys() - clock.dropped:
+                usable_since = now
+            elif now - usable_since > dask_watch.NO_WORKER_SECONDS and not self.cancelled:
+                left = [f for f in self.futures if not f.done() and f.key not in self.answered]
+                if left:
+                    why = "; ".join(self.reports[-1:]) or "the last one left the scheduler"
+                    self._answer(left[0].key, (self.unit_of[left[0].key], None, ClusterLost(
+                        f"no Dask worker is left at {self.address} ({why})")))
+                usable_since = now
 
     def _collect(self):
         try:
@@ -412,13 +487,14 @@ class DaskPool(Pool):
             unit = self.unit_of[future.key]
             try:
                 if future.status == "finished":
-                    self.finished.put((unit, future.result(), None))
+                    answer = (unit, future.result(), None)
                 elif future.status == "cancelled" and self.cancelled:
-                    self.finished.put((unit, None, None))
+                    answer = (unit, None, None)
                 else:
-                    self.finished.put((unit, None, self._error(unit, future)))
+                    answer = (unit, None, self._error(unit, future))
             except BaseException as exc:          # CancelledError races, a lost scheduler, ...
-                self.finished.put((unit, None, None if self.cancelled else self._error(unit, future, exc)))
+                answer = (unit, None, None if self.cancelled else self._error(unit, future, exc))
+            self._answer(future.key, answer)
 
     def _error(self, unit, future, exc=None):
         if exc is None:
@@ -431,6 +507,9 @@ class DaskPool(Pool):
             return ClusterError(text)
         if future.status == "cancelled" or exc is None or not text:
             text = f"{type(exc).__name__ if exc is not None else 'lost'} (was the scheduler {self.address} stopped?)"
+            return ClusterLost(f"unit {unit.index} failed on the Dask cluster {self.address}: {text}")
+        if type(exc).__name__ == "KilledWorker" or isinstance(exc, OSError):   # it killed its workers; a lost connection
+            return ClusterLost(f"unit {unit.index} failed on the Dask cluster {self.address}: {text}")
         return ClusterError(f"unit {unit.index} failed on the Dask cluster {self.address}: {text}")
 
     def next_result(self, timeout: float):
@@ -447,7 +526,10 @@ class DaskPool(Pool):
         self.cancelled = True
         pending = [f for f in self.futures if not f.done()]
         if pending:
-            self.client.cancel(pending)
+            try:
+                self.client.cancel(pending)
+            except Exception:                      # the scheduler is gone: nothing runs for us
+                pass
 
     def running(self) -> list:
         """Keys of this render's units that some worker is executing now."""
@@ -455,24 +537,40 @@ class DaskPool(Pool):
         return [k for keys in found.values() if isinstance(keys, list) for k in keys]
 
     def close(self):
+        """Cancel what is left and wait until no unit of this render runs, but never for a
+        worker that does not answer (a stopped one: client.run would wait for it)."""
+        self.stop_watch.set()
         try:
             if self.futures and not all(f.done() for f in self.futures):
                 self.cancel()
+            answering = True
             if self.cancelled:
                 deadline = time.monotonic() + CANCEL_SECONDS
-                while self.running() and time.monotonic() < deadline:
+                while time.monotonic() < deadline:
+                    running = bounded(self.running, PROBE_SECONDS)
+                    answering = running is not None
+                    if not running:
+                        break
                     time.sleep(0.05)
-            if self.payload is not None:
-                self.client.run(call, f"{__name__}:forget_scene", self.payload.key, on_error="ignore")
+            if self.payload is not None and answering:     # a worker that does not answer is not waited for twice
+                key = self.payload.key
+                bounded(lambda: self.client.run(call, f"{__name__}:forget_scene", key, on_error="ignore"),
+                        PROBE_SECONDS)
         except Exception:
             pass                                   # the cluster went away: nothing left to stop
         finally:
             self._shutdown()
 
+    def stats(self) -> dict:
+        return {"worker_reports": list(self.reports)} if self.reports else {}
+
+    def warnings(self) -> list:
+        return list(self.reports)
+
     def _shutdown(self):
         self.futures, self.payload = [], None
         try:
-            self.client.close(timeout=5)
+            self.client.close(timeout=CLIENT_CLOSE_SECONDS)
         except Exception:
             pass
         if self.local_cluster is not None:        # ours to stop; an external scheduler never is
@@ -499,9 +597,11 @@ RENDER_WORKER_CONFIG = {
 class ProcessCluster:
     """`dask scheduler` plus `dask worker` processes on 127.0.0.1, as one would start them by hand,
     each in its own process group; close() kills them all.  The scheduler runs without this
-    project on its path (it needs none); workers get `pythonpath` (default: this repository)."""
+    project on its path (it needs none); workers get `pythonpath` (default: this repository).
+    tls: {"ca", "cert", "key"} PEM files for a tls:// cluster (engine/pools/dask_tls.py), used by
+    the scheduler, the workers and the client alike."""
 
-    def __init__(self, directory, workers: int = 2, timeout: float = 60):
+    def __init__(self, directory, workers: int = 2, timeout: float = 60, tls=None):
         import json
         import os
         import subprocess
@@ -512,10 +612,18 @@ class ProcessCluster:
         self.bin = Path(sys.executable).parent
         self.repo = Path(TRACER_DIR).resolve().parent
         self._subprocess, self._os = subprocess, os
+        self.tls_options, security = [], None
+        if tls:
+            from distributed.security import Security
+            from .dask_tls import process_options
+            self.tls_options = process_options(tls["ca"], tls["cert"], tls.get("key"))
+            security = Security(tls_ca_file=tls["ca"], tls_client_cert=tls["cert"], tls_client_key=tls.get("key"),
+                                require_encryption=True)
         info = self.directory / "scheduler.json"
         try:
             self._spawn(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                         "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(info)], "scheduler", None)
+                         "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(info)]
+                        + (["--protocol", "tls"] + self.tls_options if tls else []), "scheduler", None)
             deadline = time.monotonic() + timeout
             while not (info.exists() and info.stat().st_size):
                 if time.monotonic() > deadline or self.procs[0].poll() is not None:
@@ -523,7 +631,7 @@ class ProcessCluster:
                 time.sleep(0.05)
             time.sleep(0.05)
             self.address = json.loads(info.read_text())["address"]
-            self.client = connect(self.address, timeout=10)
+            self.client = connect(self.address, timeout=10, security=security)
             for i in range(workers):
                 self.add_worker(f"w{i + 1}")
         except BaseException:
@@ -546,7 +654,7 @@ class ProcessCluster:
         """One one-thread worker process (under a nanny that restarts it, unless nanny=False)."""
         before = len(self.client.scheduler_info()["workers"])
         proc = self._spawn(["worker", self.address, "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1",
-                            "--name", name] + (["--nworkers", "1"] if nanny else ["--no-nanny"]),
+                            "--name", name] + (["--nworkers", "1"] if nanny else ["--no-nanny"]) + self.tls_options,
                            name, pythonpath or self.repo)
         self.client.wait_for_workers(before + 1, timeout=self.timeout)
         return proc

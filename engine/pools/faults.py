@@ -1,6 +1,7 @@
 """The fault model of the pools whose workers are processes started here: forked processes
-(engine/pools/local.py ForkPool) and worker processes of any Python (engine/pools/processes.py
-SubprocessPool).  One `Dispatch` per render keeps the units: which are pending, which each worker
+(engine/pools/local.py ForkPool), worker processes of any Python (engine/pools/processes.py
+SubprocessPool) and the viewport's (engine/pools/viewport.py); a Dask cluster's workers get the
+same deadline through its scheduler (engine/pools/dask_watch.py).  One `Dispatch` per render keeps the units: which are pending, which each worker
 holds, and what happens when a worker fails.
 
 * Dispatch: each worker gets its first unit before any gets a second; at most IN_FLIGHT units are
@@ -34,6 +35,12 @@ DEADLINE_MIN = 30.0      # seconds: a worker finishing no unit for this long (at
 DEADLINE_FACTOR = 10.0   # ... or for this many times the slowest unit so far, if longer
 CANCEL_SECONDS = 1.0     # after a cancel, a worker still holding units this long is killed
 POLL = 0.1               # seconds between deadline checks while a pool waits for a result
+
+
+def unit_deadline(slowest: float) -> float:
+    """Seconds a worker holding units may finish none before it is given up: `slowest` is the
+    slowest unit measured so far in this render (engine/pools/dask_watch.py uses it too)."""
+    return max(DEADLINE_MIN, DEADLINE_FACTOR * slowest)
 
 
 class Worker:
@@ -115,7 +122,7 @@ class Dispatch:
 
     # -- faults -----------------------------------------------------------------------------------
     def unit_deadline(self) -> float:
-        return max(DEADLINE_MIN, DEADLINE_FACTOR * self.slowest)
+        return unit_deadline(self.slowest)
 
     def check(self):
         """Kill the workers past their deadline (their deaths come back through died()); after a

@@ -15,6 +15,14 @@ settings is not prepared again: the workers get the new camera (no BVH rebuild).
                        ("result", unit, UnitResult | None)    None: cancelled
                        ("error", unit, traceback text)
 
+Faults as in engine/pools/faults.py: a worker that dies, or holds units and finishes none for the
+unit deadline (faults.unit_deadline of the slowest unit so far: SIGSTOP, a hang), is killed, named
+in the pool's reports (the viewport's header shows the last: ViewportRender.notice) and started
+again with the scene and view of the moment (at most MAX_RESTARTS times); its units go to the
+others first.  After a cancel, a worker that has not answered its units within
+faults.CANCEL_SECONDS is killed (its units are answered as cancelled) and restarted, so a new
+view never waits for a stopped worker.
+
 A reader thread in the worker sets the cancel event as soon as ("cancel",) arrives, so the unit
 in progress stops within a bounce and the units queued before the cancel are answered None; the
 cancel clears when the worker reaches it in the stream, so the units after it render.
@@ -33,6 +41,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import queue
+import signal
 import sys
 import threading
 import time
@@ -42,6 +51,7 @@ import numpy as np
 
 from ..core.errors import SceneError
 from ..core.paths import TRACER_DIR, worker_environment
+from . import faults
 from .protocol import Pool
 from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, start_workers
 
@@ -49,6 +59,8 @@ COARSE = 4                      # the coarse frame: 1/COARSE of the resolution i
 IN_FLIGHT = 2                   # units queued per worker, so none waits for the next
 START_TIMEOUT = 120.0           # seconds for imports + scene + BVH before the workers are given up
 CLOSE_SECONDS = 1.0             # EOF, then SIGKILL
+MAX_RESTARTS = 4                # dead workers started again, per pool (a worker that keeps dying stays dead)
+NOTICE_SECONDS = 15.0           # the viewport's header shows a worker's death this long
 
 
 class ViewportWorkerError(SceneError):
@@ -126,6 +138,8 @@ class _Worker(WorkerProcess):
         self.number = number
         self.in_flight: list = []
         self.alive, self.prepared = True, None          # the preparation number it is ready for
+        self.busy_since = time.perf_counter()           # since when it holds units and answered none
+        self.overdue = None                             # why it was killed, when the pool killed it
         super().__init__(python, [os.path.basename(TRACER_DIR) + ".pools.viewport"], env,
                          f"viewport worker {number}", on_message=lambda w, m: events.put((w, m)),
                          on_exit=lambda w, code: events.put((w, ("died", code))), tail_lines=20)
@@ -147,7 +161,7 @@ class ViewportPool(Pool):
     def __init__(self, python: str, count: int = 1, extra_paths=(), log=print):
         self.python, self.log = python, log
         self.events: queue.Queue = queue.Queue()
-        env = worker_environment(extra_paths)
+        self.env = env = worker_environment(extra_paths)
         self.workers = start_workers(
             lambda number: _Worker(number, python, env, self.events), count, CLOSE_SECONDS,
             lambda why: ViewportWorkerError(f"TNCG15 MC: cannot start viewport workers with {python}: {why}"))
@@ -158,12 +172,17 @@ class ViewportPool(Pool):
         self.scene = self.settings = self.facts = None  # the scene prepared (its view: the last sent)
         self.builds = 0                                 # scenes sent to be prepared, summed over the workers
         self.reports: list[str] = []                    # workers that died, by name
+        self.report_times: list[float] = []
+        self.restarts = 0
+        self.slowest = 0.0                              # seconds of the slowest unit answered so far
+        self.cancelled_at = None
 
     # -- preparation ----------------------------------------------------------------------------
     def prepare(self, scene, settings, timeout: float = START_TIMEOUT):
         """The scene on every worker: its camera and resolution only when nothing else changed,
         else the scene prepared again (waits for the first worker to be ready)."""
-        self.cancelled, self.pending = False, []
+        self._give_up_cancelled()
+        self.cancelled, self.pending, self.cancelled_at = False, [], None
         if self.facts is not None and settings == self.settings and same_but_the_view(scene, self.scene):
             scene.camera.validate()
             for w in self.workers:
@@ -199,9 +218,12 @@ class ViewportPool(Pool):
     def _event(self, worker, event):
         """Bookkeeping of a worker's message: (unit, result, error) when it answers a unit."""
         kind = event[0]
+        if worker not in self.workers:
+            return None                                  # a worker given up and replaced
         if kind == "ready":
             if event[1] == self.preparation:
                 worker.prepared = self.preparation
+                worker.busy_since = time.perf_counter()
                 if self.facts is None:
                     self.facts = event[2]
                 self._feed(worker)
@@ -210,10 +232,13 @@ class ViewportPool(Pool):
             return None
         if kind == "died":
             worker.alive = False
-            message = f"{worker.name} died: {worker.why(event[1])}"
-            self.reports.append(message)
+            message = f"{worker.name} died: {worker.overdue or worker.why(event[1])}"
             lost, worker.in_flight = worker.in_flight, []
-            self.pending[:0] = lost
+            self.pending[:0] = lost                      # after a cancel: answered as cancelled
+            replacement = self._restart(worker)
+            if replacement is not None:
+                message += f"; restarted as {replacement.name}"
+            self._report(message)
             for w in self.workers:
                 self._feed(w)
             if not any(w.alive for w in self.workers) and self.pending:
@@ -222,6 +247,9 @@ class ViewportPool(Pool):
         unit = event[1]
         if unit in worker.in_flight:
             worker.in_flight.remove(unit)
+            if worker.prepared == self.preparation:
+                self.slowest = max(self.slowest, time.perf_counter() - worker.busy_since)
+        worker.busy_since = time.perf_counter()
         self._feed(worker)
         if kind == "error":
             return unit, None, ViewportWorkerError(f"{worker.name} failed on tile {unit.tile.index}:\n{event[2]}")
@@ -231,8 +259,73 @@ class ViewportPool(Pool):
         while (worker.alive and worker.prepared == self.preparation and not self.cancelled and self.pending
                and len(worker.in_flight) < limit):
             unit = self.pending.pop(0)
+            if not worker.in_flight:
+                worker.busy_since = time.perf_counter()
             worker.in_flight.append(unit)
             worker.send(("unit", unit))
+
+    # -- faults (engine/pools/faults.py) ----------------------------------------------------------
+    def _report(self, message):
+        self.reports.append(message)
+        self.report_times.append(time.perf_counter())
+        self.log(f"warning: {message}")
+
+    def _restart(self, dead):
+        """A new worker in the place of `dead`, given the scene and view of the moment; None when
+        the pool has restarted MAX_RESTARTS already or the new process cannot start."""
+        if self.restarts >= MAX_RESTARTS or dead not in self.workers:
+            return None
+        try:
+            worker = _Worker(dead.number, self.python, self.env, self.events)
+        except OSError:
+            return None
+        self.restarts += 1
+        self.workers[self.workers.index(dead)] = worker
+        if self.scene is not None:
+            worker.send(("prepare", self.preparation, self.scene, self.settings))
+            self.builds += 1
+        return worker
+
+    def _check(self):
+        """Kill the workers past their unit deadline (their deaths come back as events); after a
+        cancel, give up the units of workers that have not answered in time.  Returns a cancelled
+        unit's answer (unit, None, None) or None."""
+        now = time.perf_counter()
+        if self.cancelled:
+            if self.cancelled_at is not None and now - self.cancelled_at > faults.CANCEL_SECONDS:
+                for w in self.workers:
+                    if w.alive and w.in_flight:
+                        self._kill(w, f"did not stop within {faults.CANCEL_SECONDS:g} s of a cancel (killed)")
+                        return w.in_flight.pop(0), None, None
+                    if not w.alive and w.in_flight:
+                        return w.in_flight.pop(0), None, None
+            return None
+        limit = faults.unit_deadline(self.slowest)
+        for w in self.workers:
+            if w.alive and w.in_flight and w.overdue is None and now - w.busy_since > limit:
+                self._kill(w, f"stopped answering: no unit finished in {limit:.0f} s (killed)")
+        return None
+
+    def _kill(self, worker, why):
+        worker.overdue = why
+        worker.signal(signal.SIGKILL)
+
+    def _give_up_cancelled(self):
+        """Before a new render: the units of a cancelled one that some worker still holds are
+        forgotten (a worker that does not stop is killed and restarted)."""
+        if not self.cancelled:
+            return
+        for w in list(self.workers):
+            if w.in_flight and w.alive and self.cancelled_at is not None \
+                    and time.perf_counter() - self.cancelled_at > faults.CANCEL_SECONDS:
+                self._kill(w, f"did not stop within {faults.CANCEL_SECONDS:g} s of a cancel (killed)")
+            w.in_flight = [] if not w.alive or w.overdue else w.in_flight
+
+    def notice(self):
+        """The last worker death of the last NOTICE_SECONDS (for the viewport's header), or None."""
+        if self.reports and time.perf_counter() - self.report_times[-1] < NOTICE_SECONDS:
+            return self.reports[-1]
+        return None
 
     # -- the pool protocol ----------------------------------------------------------------------
     def start(self, units):
@@ -247,16 +340,25 @@ class ViewportPool(Pool):
             return self.pending.pop(0), None, None      # never sent: answered as cancelled
         if not any(w.alive for w in self.workers) and self.pending:
             return self.pending.pop(0), None, ViewportWorkerError("no viewport worker is left: " + "; ".join(self.reports))
-        try:
-            worker, event = self.events.get(timeout=timeout)
-        except queue.Empty:
-            return None
-        return self._event(worker, event)
+        deadline = time.perf_counter() + timeout
+        while True:
+            answer = self._check()
+            if answer is not None:
+                return answer
+            try:
+                worker, event = self.events.get(timeout=max(0.0, min(faults.POLL, deadline - time.perf_counter())))
+            except queue.Empty:
+                if time.perf_counter() >= deadline:
+                    return None
+                continue
+            answer = self._event(worker, event)
+            if answer is not None:
+                return answer
 
     def cancel(self):
         """Units in flight stop within a bounce (answered None); prepare() starts the next render."""
         if not self.cancelled:
-            self.cancelled = True
+            self.cancelled, self.cancelled_at = True, time.perf_counter()
             for w in self.workers:
                 if w.alive and w.in_flight:
                     w.send(("cancel",))
@@ -417,6 +519,11 @@ class ViewportRender:
             samples = int(film.count.min()) if level == 1 else 0
             return (self.version, film_image(film), samples, relative_error(film) if level == 1 else None,
                     level, self.error)
+
+    def notice(self):
+        """A worker's death of the last few seconds, named (engine/pools/viewport.py ViewportPool.notice), or None."""
+        notice = getattr(self.pool, "notice", None)
+        return notice() if notice is not None else None
 
     def converged(self) -> bool:
         with self.lock:

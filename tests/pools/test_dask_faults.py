@@ -1,0 +1,199 @@
+"""The fault model of engine/pools/faults.py on a Dask cluster (engine/pools/dask_watch.py), with real
+`dask scheduler` / `dask worker` processes on 127.0.0.1 and real signals: a SIGSTOPped worker is
+removed at its unit deadline and the image is bit-identical; Ctrl-C returns although a worker is
+stopped; with no worker left, or with the scheduler killed, the render ends with one line and keeps
+its finished units.  Every time limit here is a guard against a hang, not a timing requirement."""
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from engine import RenderSettings, render                     # noqa: E402
+from engine.core.errors import WorkersLost                    # noqa: E402
+from engine.film.image_files import read_image                # noqa: E402
+from engine.pools import dask_watch, faults                   # noqa: E402
+from engine.pools.dask_cluster import ProcessCluster          # noqa: E402
+from engine.pools.spec import make_pool                       # noqa: E402
+from engine.scene.builtin import cornell_scene                # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+HANG = 150.0       # seconds: a guard against a hang (main waited for worker-ttl, 300 s), not a timing check
+QUIET = dict(log=lambda *a: None)
+SIZE = (96, 96)
+
+
+def settings():
+    return RenderSettings(samples=48, tile_size=16, seed=7)
+
+
+def guarded(fn):
+    out = {}
+
+    def run():
+        try:
+            out["value"] = fn()
+        except BaseException as exc:             # noqa: BLE001 - re-raised on the test's thread
+            out["error"] = exc
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(HANG)
+    assert not thread.is_alive(), f"the render hung (no answer in {HANG:.0f} s)"
+    if "error" in out:
+        raise out["error"]
+    return out["value"]
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    c = ProcessCluster(tmp_path / "dask", workers=2)
+    try:
+        yield c
+    finally:
+        c.close()
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return render(cornell_scene(SIZE), settings(), pool=make_pool("threads", 2, **QUIET), **QUIET).image
+
+
+def worker_pids(cluster):
+    """{worker address: pid of the worker process} (under its nanny)."""
+    return cluster.client.run(os.getpid)
+
+
+def render_on(cluster, action, should_cancel=None):
+    """Render on the cluster; action(pool) runs once, when the first tile is merged."""
+    pool = make_pool(f"dask:{cluster.address}", 2, **QUIET)
+    tiles = []
+
+    def on_tile(*args):
+        tiles.append(args[:4])
+        if len(tiles) == 1:
+            action(pool)
+
+    return guarded(lambda: render(cornell_scene(SIZE), settings(), pool=pool, on_tile=on_tile,
+                                  should_cancel=should_cancel, **QUIET))
+
+
+# -- the clock, without a cluster --------------------------------------------------------------------
+def test_the_unit_clock_finds_a_worker_that_finishes_nothing(monkeypatch):
+    monkeypatch.setattr(faults, "DEADLINE_MIN", 5.0)
+    clock = dask_watch.UnitClock(first_extra=2.0)
+    assert clock.observe({"a": ["u1", "u2"], "b": ["u3"]}, 0.0) == []
+    assert clock.observe({"a": ["u2", "u4"], "b": ["u3"]}, 1.0) == []       # a finished its first unit
+    assert clock.observe({"a": ["u4", "u5"], "b": ["u3"]}, 2.0) == []       # and a second: 1 s measured
+    assert clock.slowest == 1.0
+    assert clock.limit("a") == 10.0 and clock.limit("b") == 12.0           # 10 x 1 s; b's first + 2 s
+    for t in range(3, 12):                                                  # a finishes one a second
+        assert clock.observe({"a": [f"v{t}"], "b": ["u3"]}, float(t)) == []
+    assert clock.observe({"a": ["v11"], "b": ["u3"]}, 12.5) == [("b", 12.0)]
+    assert clock.observe({"a": [], "b": ["u3"]}, 30.0) == []               # reported once
+
+
+def test_a_worker_gone_from_the_scheduler_is_no_longer_watched(monkeypatch):
+    monkeypatch.setattr(faults, "DEADLINE_MIN", 5.0)
+    clock = dask_watch.UnitClock()
+    clock.observe({"a": ["u1"]}, 0.0)
+    assert clock.observe({}, 100.0) == [] and clock.held == {}
+
+
+# -- a cluster of real processes -------------------------------------------------------------------
+@pytest.mark.slow          # a cluster of processes and a 5 s deadline (today's main: hung for worker-ttl, 300 s)
+def test_a_stopped_dask_worker_is_removed_at_its_unit_deadline_and_the_image_is_bit_identical(
+        cluster, reference, monkeypatch):
+    monkeypatch.setattr(faults, "DEADLINE_MIN", 5.0)
+    victim = {}
+
+    def stop(pool):
+        victim["address"], victim["pid"] = sorted(worker_pids(cluster).items())[0]
+        os.kill(victim["pid"], signal.SIGSTOP)
+
+    result = render_on(cluster, stop)
+    assert np.array_equal(result.image, reference)
+    assert not result.cancelled and result.stats["units_done"] == result.stats["units"]
+    assert any(f"Dask worker {victim['address']} stopped answering" in w for w in result.warnings), result.warnings
+
+
+@pytest.mark.slow          # a cluster of processes
+def test_a_cancel_returns_although_a_dask_worker_is_stopped(cluster):
+    state = {}
+
+    def stop(pool):
+        os.kill(sorted(worker_pids(cluster).values())[0], signal.SIGSTOP)
+        state["at"] = time.perf_counter()
+
+    result = render_on(cluster, stop, should_cancel=lambda: "at" in state)
+    waited = time.perf_counter() - state["at"]
+    print(f"a cancel with a stopped Dask worker returned after {waited:.2f} s")
+    assert result.cancelled and 0 < result.stats["units_done"] < result.stats["units"]
+    assert waited < faults.DEADLINE_MIN, waited    # a hang guard: the cancel did not wait for the deadline
+
+
+@pytest.mark.slow          # a cluster of processes and the 10 s "no worker left" grace
+def test_with_no_dask_worker_left_the_render_is_one_line_and_keeps_its_finished_units(cluster):
+    def kill_all(pool):
+        for proc in cluster.procs[1:]:           # each worker with its nanny: nothing restarts them
+            cluster.stop(proc)
+
+    with pytest.raises(WorkersLost) as err:
+        render_on(cluster, kill_all)
+    assert "no Dask worker is left" in str(err.value) and "\n" not in str(err.value), err.value
+    kept = err.value.result
+    assert kept is not None and kept.cancelled and 0 < kept.stats["units_done"] < kept.stats["units"]
+    assert kept.image.shape == (SIZE[1], SIZE[0], 3) and kept.image.max() > 0
+
+
+@pytest.mark.slow          # a cluster of processes (today's main: a ClusterError, nothing kept)
+def test_a_killed_scheduler_ends_the_render_in_one_line_and_keeps_its_finished_units(cluster):
+    with pytest.raises(WorkersLost) as err:
+        render_on(cluster, lambda pool: cluster.stop(cluster.procs[0]))
+    assert "\n" not in str(err.value) and cluster_address_in(str(err.value), cluster), err.value
+    kept = err.value.result
+    assert kept is not None and 0 < kept.stats["units_done"] < kept.stats["units"]
+    assert kept.image.max() > 0
+
+
+def units_finished(dask_scheduler):
+    """On the scheduler: how many units of a render are finished (their results held)."""
+    return sum(1 for key, ts in dask_scheduler.tasks.items()
+               if str(key).startswith("tncg15-unit-") and ts.state == "memory")
+
+
+units_finished.__module__ = "__main__"       # pickled by value: the scheduler has no copy of the tests
+
+
+def cluster_address_in(text, cluster):
+    return cluster.address in text
+
+
+@pytest.mark.slow          # the command lines against a cluster of processes
+@pytest.mark.parametrize("cli", ["engine", "mcrt_addon"])
+def test_the_cli_writes_the_finished_tiles_when_the_scheduler_is_killed(cli, cluster, tmp_path):
+    out = tmp_path / "part.exr"
+    scene = ["--builtin", "cornell"] if cli == "engine" else [os.path.join(ROOT, "sample_blends", "cornell.blend")]
+    proc = subprocess.Popen([sys.executable, "-m", cli, "render", *scene, "--resolution", "128", "128",
+                             "--samples", "256", "--cluster", cluster.address, "-o", str(out)],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + HANG
+    while cluster.client.run_on_scheduler(units_finished) < 4:   # mid-render: some units finished
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.05)
+    cluster.stop(cluster.procs[0])
+    try:
+        _, err = proc.communicate(timeout=HANG)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        pytest.fail("the command line hung after its scheduler was killed")
+    assert proc.returncode == 1, err
+    lines = [line for line in err.splitlines() if "error:" in line]
+    assert len(lines) == 1 and "finished tiles" in lines[0], err
+    assert read_image(str(out)).max() > 0
