@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BLENDER ?= blender
 
-.PHONY: setup render test test-slow test-all bench bench-estimators study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-estimators bench-materials study extension samples clean
 
 setup: $(STAMP)
 
@@ -38,6 +38,11 @@ bench: $(STAMP)
 # markdown table + docs/estimators.json; Cycles references cached in renders/reference/.
 bench-estimators: $(STAMP)
 	$(PY) -m mcrt_addon bench-estimators --out docs/estimators.json
+
+# The material sample scenes vs Cycles (docs/materials.md, "Efficiency against Cycles"): markdown table +
+# docs/materials-efficiency.json; Cycles references cached in renders/reference/.
+bench-materials: $(STAMP)
+	$(PY) -m mcrt_addon bench-materials --out docs/materials-efficiency.json
 
 study: $(STAMP)
 	$(PY) -m engine study --full

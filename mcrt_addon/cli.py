@@ -9,6 +9,9 @@ export benchmark.  Runs in the ``bpy`` module (Blender 5.0.1 as a Python package
   python -m mcrt_addon bench-estimators [--scenes ...] [--resolution W H] [--samples N]
          [--reference-samples N] [--max-depth N] [--out docs/estimators.json]
          (light-sampling estimators vs Cycles; see mcrt_addon/bench_estimators.py)
+  python -m mcrt_addon bench-materials [--scenes ...] [--resolution W H] [--samples N]
+         [--reference-samples N] [--max-depth N] [--out docs/materials-efficiency.json]
+         (the material sample scenes vs Cycles; see mcrt_addon/bench_materials.py)
 
 The settings (--samples, --max-depth, --noise-target, ...) are the rows of the settings table
 (engine/core/settings.py; listed in docs/settings.md); a flag not given keeps the file's value.
@@ -75,6 +78,10 @@ def build_parser():
     e = sub.add_parser("bench-estimators", help="light-sampling estimators vs Cycles: time, MSE, "
                        "efficiency (markdown table + JSON)")
     add_arguments(e)
+    from .bench_materials import add_arguments as add_material_arguments
+    m = sub.add_parser("bench-materials", help="the material sample scenes vs Cycles: time, MSE, efficiency, "
+                       "and the time against diffuse materials (markdown table + JSON)")
+    add_material_arguments(m)
     return parser
 
 
@@ -374,6 +381,10 @@ def main(argv=None):
         from .bench_estimators import bench_estimators, check_arguments
         check_arguments(parser, args)
         return bench_estimators(args)
+    if args.command == "bench-materials":
+        from .bench_materials import bench_materials, check_arguments
+        check_arguments(parser, args)
+        return bench_materials(args)
     if args.command == "bench-export":
         from .bench import bench_export
         return bench_export(args.triangles, args.instances)

@@ -6,7 +6,8 @@ with the add-on's exporter to a scene file and renders Cycles 3.4 references of 
 
 NAME is "startup_cube" (the factory startup file as it is: the default cube with its Principled
 material, the point light, the grey world, the camera) or a scene of sample_blends/make_samples.py.
---distribution sets every Principled BSDF's distribution menu (e.g. MULTI_GGX) before the export.
+--distribution sets every Principled, Glossy and Anisotropic BSDF's distribution menu (e.g. MULTI_GGX,
+GGX) before the export.
 Writes DIR/NAME.blend, DIR/NAME.json (the exported scene; cycles_version is the running Blender's),
 DIR/NAME.warnings.json (the exporter's warnings) and DIR/NAME.cycles.SEED.exr per seed.
 """
@@ -19,6 +20,7 @@ import sys
 import bpy
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+DISTRIBUTION_NODES = ("ShaderNodeBsdfPrincipled", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")
 
 
 def build(name, outdir, resolution):
@@ -51,7 +53,7 @@ def main(argv):
     if args.distribution:
         for mat in bpy.data.materials:
             for node in (mat.node_tree.nodes if mat.node_tree else ()):
-                if node.bl_idname == "ShaderNodeBsdfPrincipled":
+                if node.bl_idname in DISTRIBUTION_NODES:
                     node.distribution = args.distribution
 
     import mcrt_addon

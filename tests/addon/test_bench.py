@@ -61,3 +61,26 @@ def test_bad_arguments_are_refused(argv, message, capsys):
         be.check_arguments(parser, parser.parse_args(argv))
     assert message in capsys.readouterr().err
     be.check_arguments(parser, parser.parse_args([]))
+
+
+def test_materials_bench_diffuse_stand_in_and_table():
+    """mcrt_addon/bench_materials.py: every material becomes a Lambertian of its base colour (a mix
+    by its leaves' constant weights, emission kept), and the table's ratios."""
+    from mcrt_addon import bench_materials as bm
+    from engine.scene.model import Material, Mix, MixFactor, MixLeaf, Principled, Scene
+    mix = Mix([MixLeaf(Material("a", kind="glossy", color=(1.0, 0.0, 0.0)), [MixFactor(value=0.25)]),
+               MixLeaf(Material("b", color=(0.0, 1.0, 0.0)), [MixFactor(value=0.25, invert=True)])])
+    scene = Scene(camera=None, materials=[Material("m", kind="mix", mix=mix, emission=(1.0, 1.0, 1.0)),
+                                          Material("p", kind="principled", principled=Principled(metallic=1.0),
+                                                   color=(0.5, 0.4, 0.3)),
+                                          Material("r", diffuse_roughness=0.8)])
+    diffuse = bm.as_lambert(scene)
+    assert [m.kind for m in diffuse.materials] == ["diffuse"] * 3 and scene.materials[0].kind == "mix"
+    assert diffuse.materials[0].color == pytest.approx((0.25, 0.75, 0.0)) and diffuse.materials[0].emission == (1, 1, 1)
+    assert diffuse.materials[1].color == (0.5, 0.4, 0.3) and diffuse.materials[1].principled is None
+    assert diffuse.materials[2].diffuse_roughness == 0.0
+    rows = [be.derived(dict(renderer=k, mse=mse, relmse=mse, seconds=t), 50.0)
+            for k, mse, t in (("cycles", 0.01, 2.0), ("tncg15", 0.02, 0.5), ("tncg15_diffuse", 0.03, 0.25))]
+    table = bm.markdown_table({"plates": dict(rows=rows, efficiency_vs_cycles=rows[1]["efficiency_vs_cycles"],
+                                               rough_over_diffuse_seconds=2.0)}).splitlines()
+    assert table[2] == ("| plates | 2.00 | 1.000e-02 | 50 | 0.50 | 2.000e-02 | 100 | 2 | 0.25 | 2.00 |"), table[2]
