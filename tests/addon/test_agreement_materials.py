@@ -13,6 +13,10 @@ import pytest
 from imagecompare import compare_runs
 from rendering import RES, cycles_reference, export_blend, tncg15_agreement_runs
 
+# Cycles renders: `make test-slow`; the models' own tests run in `make test`
+# (tests/materials/test_microfacet.py, test_oren_nayar.py).
+pytestmark = pytest.mark.slow
+
 TAU = {"glossy_plates": 0.02, "rough_diffuse": 0.02}
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 

@@ -16,6 +16,9 @@ import pytest
 from imagecompare import compare_runs
 from rendering import RES, cycles_reference, export_blend, tncg15_agreement_runs
 
+# Cycles renders: `make test-slow` (the mix's own tests: tests/materials/test_mix.py run in `make test`).
+pytestmark = pytest.mark.slow
+
 TAU = 0.02
 LAMP_STRENGTH = 12.0
 BALL_STRENGTH, BALL_FAC = 6.0, 0.5

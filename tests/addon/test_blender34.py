@@ -69,7 +69,7 @@ def legacy_zip(built_zips):
     return built_zips["legacy"]
 
 
-@pytest.mark.parametrize("name", ["cornell", "textured"])
+@pytest.mark.parametrize("name", ["cornell", pytest.param("textured", marks=pytest.mark.slow)])
 def test_legacy_zip_alone_renders_with_embree_in_blender34(legacy_zip, blend34, tmp_path, name):
     """textured: the exporter reads packed images and UVs with the zip's numpy in Blender 3.4."""
     blend34 = blend34.parent / f"{name}.blend"
