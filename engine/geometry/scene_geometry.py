@@ -175,9 +175,16 @@ class SceneGeometry:
                               prim)
         if self.has_quads:
             t = self._nearest(QUAD, self.quad_tree, self.quads.count, self._quad_test(o, d), o, d, t, kind, prim)
-        if self.lights.count:
+        sees = self.lights.rays_that_see_any(ray_kind) if self.lights.count else None
+        if self.lights.count and sees is None:
             t = self._nearest(LIGHT, self.light_tree, self.lights.count, self._light_test(o, d, ray_kind), o, d,
                               t, kind, prim)
+        elif self.lights.count and len(sees):            # only the rays some light is visible to
+            o_s, d_s, kind_s, prim_s = o.take(sees, axis=1), d.take(sees, axis=1), kind.take(sees), prim.take(sees)
+            test = self._light_test(o_s, d_s, ray_kind.take(sees))
+            t[sees] = self._nearest(LIGHT, self.light_tree, self.lights.count, test, o_s, d_s, t.take(sees), kind_s,
+                                    prim_s)
+            kind[sees], prim[sees] = kind_s, prim_s
         kind[~np.isfinite(t)] = NONE
         if tmax is not None:
             t[kind == NONE] = np.inf

@@ -52,6 +52,13 @@ class LightPolygons:
             return None
         return np.flatnonzero(vis.take(ray_kind))
 
+    def rays_that_see_any(self, ray_kind: np.ndarray | None) -> np.ndarray | None:
+        """Indices of the rays at least one light is visible to (None: all of them)."""
+        seen = self.visible.any(axis=0)
+        if ray_kind is None or seen.all():
+            return None
+        return np.flatnonzero(seen.take(ray_kind))
+
     def intersect_one(self, k: int, o, d, t_best):
         """t > 0 of each ray with light k's polygon, +inf where it misses (either face)."""
         c = self.corner_rows[:len(self.corners[k]), :, k:k + 1]

@@ -61,24 +61,26 @@ class QuadSet:
 
 class QuadColumns:
     """The data of one quad (columns (3, 1), broadcast over the rays) or of one quad per ray
-    (rows (3, N)), narrowed with the rays as the test discards them."""
+    (rows (3, N), gathered when first asked for), narrowed with the rays as the test discards them."""
     VECTORS = ("v00", "v10", "v11", "v01", "n", "center")
 
     def __init__(self, quads: QuadSet, k):
-        self.single = np.ndim(k) == 0
-        for name, a in zip(self.VECTORS, quads.vector_rows):
-            setattr(self, name, a[:, k:k + 1] if self.single else a.take(k, axis=1))
-        self.radius2 = quads.radius2[k] if self.single else quads.radius2.take(k)
+        self.quads, self.k, self.single = quads, k, np.ndim(k) == 0
 
     def take(self, idx) -> "QuadColumns":
-        if self.single:
-            return self
-        out = object.__new__(QuadColumns)
-        out.single = False
-        for name in self.VECTORS:
-            setattr(out, name, getattr(self, name).take(idx, axis=1))
-        out.radius2 = self.radius2.take(idx)
-        return out
+        return self if self.single else QuadColumns(self.quads, self.k.take(idx))
+
+    def __getattr__(self, name):
+        if name not in self.VECTORS and name != "radius2":
+            raise AttributeError(name)
+        k = self.k
+        if name == "radius2":
+            value = self.quads.radius2[k] if self.single else self.quads.radius2.take(k)
+        else:
+            a = self.quads.vector_rows[self.VECTORS.index(name)]
+            value = a[:, k:k + 1] if self.single else a.take(k, axis=1)
+        setattr(self, name, value)
+        return value
 
 
 def _intersect(q: QuadColumns, o, d, t_best):
