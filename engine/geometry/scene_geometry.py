@@ -1,7 +1,9 @@
 """All primitives of a scene behind one nearest-hit and one shadow-ray query.
 
 Triangles go to the accelerator (Embree, or the octree / brute force); spheres, quads and
-the polygons of Blender Area lights are analytic.  Rays and surface vectors are rows, (3, N)
+the polygons of Blender Area lights are analytic: up to LOOP_MAX of a kind are tested one after
+the other over all rays, more through a BoxTree (engine/geometry/shapes/box_tree.py) that gives
+the same hits.  Rays and surface vectors are rows, (3, N)
 arrays (engine/core/vec.py).  A kernel runs only if the effect plan switches it on (the plan is
 the one place that decides; it says why).  Area lights are tested by nearest-hit queries
 only (they cast no shadow) and only for the ray kinds they are visible to.  The nearest hit
@@ -31,9 +33,9 @@ KINDS = (TRIANGLE, SPHERE, QUAD, LIGHT)
 # float32 for Embree plus Embree's own float32 plane test (docs/hard-cases.md H1-H3).
 TRIANGLE_OFFSET = 2.0 ** -20
 
-# Up to this many spheres (quads, Area lights) are tested one after the other over all rays;
-# more go through a BoxTree (docs/performance.md "Many primitives": the crossing measured).
-LOOP_MAX = 8
+# Up to this many spheres (quads, Area lights) are tested one after the other over all rays, more
+# through a BoxTree: about where the two cost the same (docs/performance.md "Many primitives").
+LOOP_MAX = {"spheres": 48, "quads": 16, "lights": 16}
 
 
 @dataclass
@@ -142,10 +144,11 @@ class SceneGeometry:
         self.accelerator = build_accelerator(accelerator, self.triangles) if self.has_triangles else None
         r = self.sphere_radius[:, None]
         self.sphere_tree = (BoxTree(*padded_boxes(self.sphere_center.T - r, self.sphere_center.T + r))
-                            if self.has_spheres and len(r) > LOOP_MAX else None)
-        self.quad_tree = BoxTree(*padded_boxes(*self.quads.boxes())) if self.has_quads and self.quads.count > LOOP_MAX \
-            else None
-        self.light_tree = BoxTree(*padded_boxes(*self.lights.boxes())) if self.lights.count > LOOP_MAX else None
+                            if self.has_spheres and len(r) > LOOP_MAX["spheres"] else None)
+        self.quad_tree = (BoxTree(*padded_boxes(*self.quads.boxes()))
+                          if self.has_quads and self.quads.count > LOOP_MAX["quads"] else None)
+        self.light_tree = (BoxTree(*padded_boxes(*self.lights.boxes()))
+                           if self.lights.count > LOOP_MAX["lights"] else None)
         self.build_seconds = time.perf_counter() - start
 
     # -- queries -----------------------------------------------------------------
@@ -255,8 +258,9 @@ class SceneGeometry:
     @staticmethod
     def _nearest(kind_id, tree, count, test, o, d, t, kind, prim):
         """Fold the nearest hits of one analytic kind into (t, kind, prim): one primitive after the
-        other (nearer replaces, so of equal distances the lowest number wins) up to LOOP_MAX of them,
-        else through their BoxTree, which gives the same hits (engine/geometry/shapes/box_tree.py)."""
+        other (nearer replaces, so of equal distances the lowest number wins) without a tree (up to
+        LOOP_MAX of them), else through their BoxTree, which gives the same hits
+        (engine/geometry/shapes/box_tree.py)."""
         if tree is not None:
             t, best = tree.nearest(o, d, t, test)
             won = np.flatnonzero(best >= 0)

@@ -19,7 +19,8 @@ from engine.scene.model import (MIRROR, AreaLight, Camera, Material, PointLight,
                                 TriangleMesh)
 
 
-LOOP, TREE = 10**9, sg.LOOP_MAX         # LOOP_MAX for the loop alone, and as the engine has it
+LOOP = {kind: 10**9 for kind in sg.LOOP_MAX}      # LOOP_MAX for the loop alone, and for the tree
+TREE = {kind: 8 for kind in sg.LOOP_MAX}
 
 
 class Plan:
@@ -182,9 +183,10 @@ def seen_lamps_by_loop(seen, o, d, tmax, transmission):
 def test_seen_lamps_sum_is_the_loops_bit_for_bit():
     rng = np.random.default_rng(5)
     k, n = 300, 5000
-    points = [PointLight(f"b{i}", tuple(rng.uniform(-1, 1, 3)), tuple(rng.uniform(0, 5, 3)), radius=float(rng.uniform(0.05, 0.4)),
-                         spot_size=float(rng.choice([0.0, 1.5])), spot_blend=0.3, spot_direction=tuple(rng.normal(size=3)),
-                         visible_glossy=bool(i % 3), visible_transmission=bool(i % 4)) for i in range(k)]
+    points = [PointLight(f"b{i}", tuple(rng.uniform(-1, 1, 3)), tuple(rng.uniform(0, 5, 3)),
+                         radius=float(rng.uniform(0.05, 0.4)), spot_size=float(rng.choice([0.0, 1.5])), spot_blend=0.3,
+                         spot_direction=tuple(rng.normal(size=3)), visible_glossy=bool(i % 3),
+                         visible_transmission=bool(i % 4)) for i in range(k)]
     points.append(PointLight("delta", (0, 0, 0), (1, 1, 1)))                  # no radius: never seen
     seen = SeenLamps(Scene(None, [], points=points))
     o = rows(rng.uniform(-1.5, 1.5, (n, 3)))

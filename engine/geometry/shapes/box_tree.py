@@ -11,12 +11,13 @@ engine/lights/selection.py): node j of level L holds the positions K j // 2^L ..
 and each level sorts every node's primitives along the longest axis of their centres, so its two
 children are the halves of a median split.  Leaves hold at most LEAF_SIZE primitives.
 
-A query walks the levels breadth-first with (ray, node) pairs, keeping the pairs whose box the ray
-enters before its distance bound; `nearest` then tests each ray's nearest leaf first and the rest
-only where they begin before the best hit found, so a ray through a field of primitives tests few
-of them.  The boxes are padded (PAD_RELATIVE of the primitive's size plus a few ulps of its
-position) and the slab test accepts within BOX_SLACK, so rounding never drops a pair whose exact
-test would hit: the result is the exact tests' own (docs/performance.md, "Many primitives").
+A query walks the levels breadth-first with (ray, node) pairs, STRIDE levels a step, keeping the
+pairs whose box the ray enters before its distance bound; `nearest` then tests each ray's nearest
+leaf first and the other leaves only where they begin before the best hit found, so a ray through
+a field of primitives tests few of them.  Nothing a ray could hit is ever left out: the boxes are
+padded (PAD_RELATIVE of the primitive's size plus PAD_ULPS of its position), and the walk, in
+float32 for speed, grows every box by GROW of the largest coordinate in play, which exceeds all of
+its rounding; so the hits are the exact tests' own (docs/performance.md, "Many primitives").
 """
 from __future__ import annotations
 
@@ -25,9 +26,9 @@ import numpy as np
 LEAF_SIZE = 4
 PAD_RELATIVE = 1e-6
 PAD_ULPS = 16.0 * np.finfo(np.float64).eps
-BOX_SLACK = 1.0 + 1e-9         # relative: the slab test's rounding (a few ulps) and far more
 GROW = 2.0 ** -20              # of the largest coordinate: the float32 walk's margin (leaf_pairs)
-LIMIT_SLACK = 1.0 + 2.0 ** -20
+LIMIT_SLACK = 1.0 + 2.0 ** -20  # the distance bounds, rounded to float32 upward
+BOX_SLACK = 1.0 + 1e-9         # a leaf's (float32) entry against a best hit (float64)
 STRIDE = 2                     # levels per step of the walk (2: each node's 4 grandchildren at once)
 
 
@@ -115,7 +116,7 @@ class BoxTree:
             rays = np.empty((6, n), np.float32)
             rays[:3] = o
             np.divide(1.0, d, out=rays[3:], casting="unsafe")
-            grow = np.float32(GROW * max(self.scale, float(np.nanmax(np.abs(o)))))
+            grow = np.float32(GROW * max(self.scale, float(np.fmax.reduce(np.abs(o), axis=None, initial=0.0))))
             box = np.concatenate([self.box32[:3] - grow, self.box32[3:] + grow])
             limit = (bound * LIMIT_SLACK).astype(np.float32)
             limit = np.where(limit < bound, np.nextafter(limit, np.float32(np.inf)), limit)
