@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BLENDER ?= blender
 
-.PHONY: setup render test test-slow test-all bench bench-estimators bench-materials study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-primitives bench-estimators bench-materials study extension samples clean
 
 setup: $(STAMP)
 
@@ -33,6 +33,12 @@ test-all: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m engine bench
 	$(PY) -m mcrt_addon bench-export
+	$(PY) scripts/bench_primitives.py
+
+# 10,000 spheres, quads, Area lights and round lamps against their triangle / point-light twins:
+# time ratios measured in one run (docs/performance.md "Many primitives").
+bench-primitives: $(STAMP)
+	$(PY) scripts/bench_primitives.py
 
 # Light-sampling estimators (report | solid-angle | mis) vs Cycles on the light-sampling stress scenes:
 # markdown table + docs/estimators.json; Cycles references cached in renders/reference/.

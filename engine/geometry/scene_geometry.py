@@ -1,7 +1,9 @@
 """All primitives of a scene behind one nearest-hit and one shadow-ray query.
 
 Triangles go to the accelerator (Embree, or the octree / brute force); spheres, quads and
-the polygons of Blender Area lights are analytic.  Rays and surface vectors are rows, (3, N)
+the polygons of Blender Area lights are analytic: up to LOOP_MAX of a kind are tested one after
+the other over all rays, more through a BoxTree (engine/geometry/shapes/box_tree.py) that gives
+the same hits.  Rays and surface vectors are rows, (3, N)
 arrays (engine/core/vec.py).  A kernel runs only if the effect plan switches it on (the plan is
 the one place that decides; it says why).  Area lights are tested by nearest-hit queries
 only (they cast no shadow) and only for the ray kinds they are visible to.  The nearest hit
@@ -16,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import build_accelerator
+from .shapes.box_tree import BoxTree, padded_boxes
 from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
@@ -29,6 +32,10 @@ KINDS = (TRIANGLE, SPHERE, QUAD, LIGHT)
 # point or its triangle: about 16 float32 ulps, which covers rounding the origin to
 # float32 for Embree plus Embree's own float32 plane test (docs/hard-cases.md H1-H3).
 TRIANGLE_OFFSET = 2.0 ** -20
+
+# Up to this many spheres (quads, Area lights) are tested one after the other over all rays, more
+# through a BoxTree: about where the two cost the same (docs/performance.md "Many primitives").
+LOOP_MAX = {"spheres": 48, "quads": 16, "lights": 16}
 
 
 @dataclass
@@ -135,6 +142,13 @@ class SceneGeometry:
                                   dtype=np.int64)                   # a miss (prim -1) -> slot 0
         start = time.perf_counter()
         self.accelerator = build_accelerator(accelerator, self.triangles) if self.has_triangles else None
+        r = self.sphere_radius[:, None]
+        self.sphere_tree = (BoxTree(*padded_boxes(self.sphere_center.T - r, self.sphere_center.T + r))
+                            if self.has_spheres and len(r) > LOOP_MAX["spheres"] else None)
+        self.quad_tree = (BoxTree(*padded_boxes(*self.quads.boxes()))
+                          if self.has_quads and self.quads.count > LOOP_MAX["quads"] else None)
+        self.light_tree = (BoxTree(*padded_boxes(*self.lights.boxes()))
+                           if self.lights.count > LOOP_MAX["lights"] else None)
         self.build_seconds = time.perf_counter() - start
 
     # -- queries -----------------------------------------------------------------
@@ -159,31 +173,21 @@ class SceneGeometry:
             t = np.where(closer, tt, t)
             kind = closer.astype(np.int8)                   # TRIANGLE where closer
             prim = np.where(closer, tp, prim)
-        for k in range(len(self.sphere_radius)) if self.has_spheres else ():
-            ts = intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], t)
-            closer = ts < t
-            t = np.where(closer, ts, t)
-            kind = np.where(closer, np.int8(SPHERE), kind)
-            prim = np.where(closer, k, prim)
-        for k in range(self.quads.count) if self.has_quads else ():
-            tq = self.quads.intersect_one(k, o, d, t)
-            closer = tq < t
-            t = np.where(closer, tq, t)
-            kind = np.where(closer, np.int8(QUAD), kind)
-            prim = np.where(closer, k, prim)
-        for k in range(self.lights.count):
-            sees = self.lights.rays_that_see(k, ray_kind)
-            if sees is None:
-                tl = self.lights.intersect_one(k, o, d, t)
-            elif len(sees):
-                tl = np.full(n, np.inf)
-                tl[sees] = self.lights.intersect_one(k, o.take(sees, axis=1), d.take(sees, axis=1), t.take(sees))
-            else:
-                continue
-            closer = tl < t
-            t = np.where(closer, tl, t)
-            kind = np.where(closer, np.int8(LIGHT), kind)
-            prim = np.where(closer, k, prim)
+        if self.has_spheres:
+            t = self._nearest(SPHERE, self.sphere_tree, len(self.sphere_radius), self._sphere_test(o, d), o, d, t, kind,
+                              prim)
+        if self.has_quads:
+            t = self._nearest(QUAD, self.quad_tree, self.quads.count, self._quad_test(o, d), o, d, t, kind, prim)
+        sees = self.lights.rays_that_see_any(ray_kind) if self.lights.count else None
+        if self.lights.count and sees is None:
+            t = self._nearest(LIGHT, self.light_tree, self.lights.count, self._light_test(o, d, ray_kind), o, d,
+                              t, kind, prim)
+        elif self.lights.count and len(sees):            # only the rays some light is visible to
+            o_s, d_s, kind_s, prim_s = o.take(sees, axis=1), d.take(sees, axis=1), kind.take(sees), prim.take(sees)
+            test = self._light_test(o_s, d_s, ray_kind.take(sees))
+            t[sees] = self._nearest(LIGHT, self.light_tree, self.lights.count, test, o_s, d_s, t.take(sees), kind_s,
+                                    prim_s)
+            kind[sees], prim[sees] = kind_s, prim_s
         kind[~np.isfinite(t)] = NONE
         if tmax is not None:
             t[kind == NONE] = np.inf
@@ -236,13 +240,69 @@ class SceneGeometry:
             if len(rest) < len(blocked):
                 o, d, tmax = o.take(rest, axis=1), d.take(rest, axis=1), tmax.take(rest)
             hit = np.zeros(len(rest), dtype=bool)
-            for k in range(len(self.sphere_radius)):
-                hit |= intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], tmax) < tmax
-            for k in range(self.quads.count):
-                hit |= self.quads.intersect_one(k, o, d, tmax) < tmax
+            for tree, count, test in ((self.sphere_tree, len(self.sphere_radius), self._sphere_test(o, d)),
+                                      (self.quad_tree, self.quads.count, self._quad_test(o, d))):
+                if tree is None:
+                    everyone = np.arange(len(rest))
+                    for k in range(count):
+                        hit |= test(everyone, k, tmax) < tmax
+                else:
+                    ray, k = tree.all_pairs(o, d, tmax)
+                    bound = tmax.take(ray)
+                    hit[ray[test(ray, k, bound) < bound]] = True
             blocked[rest] = hit
         counters.seconds_in_intersection += time.perf_counter() - start
         return blocked
+
+    # -- the analytic kinds: one test per kind, on all rays for one primitive or on (ray, primitive) pairs
+    @staticmethod
+    def _nearest(kind_id, tree, count, test, o, d, t, kind, prim):
+        """Fold the nearest hits of one analytic kind into (t, kind, prim): one primitive after the
+        other (nearer replaces, so of equal distances the lowest number wins) without a tree (up to
+        LOOP_MAX of them), else through their BoxTree, which gives the same hits
+        (engine/geometry/shapes/box_tree.py)."""
+        if tree is not None:
+            t, best = tree.nearest(o, d, t, test)
+            won = np.flatnonzero(best >= 0)
+            kind[won], prim[won] = kind_id, best.take(won)
+            return t
+        everyone = np.arange(len(t))
+        for k in range(count):
+            tk = test(everyone, k, t)
+            closer = tk < t
+            t = np.where(closer, tk, t)
+            kind[closer], prim[closer] = kind_id, k
+        return t
+
+    def _sphere_test(self, o, d):
+        def test(ray, k, bound):
+            if np.ndim(k) == 0:
+                return intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], bound)
+            return intersect_sphere(o.take(ray, axis=1), d.take(ray, axis=1), self.sphere_center.take(k, axis=1),
+                                    self.sphere_radius.take(k), bound)
+        return test
+
+    def _quad_test(self, o, d):
+        def test(ray, k, bound):
+            if np.ndim(k) == 0:
+                return self.quads.intersect_one(k, o, d, bound)
+            return self.quads.intersect_pairs(k, o.take(ray, axis=1), d.take(ray, axis=1), bound)
+        return test
+
+    def _light_test(self, o, d, ray_kind):
+        def test(ray, k, bound):
+            if np.ndim(k) == 0:                              # the rays of the kinds light k is visible to
+                sees = self.lights.rays_that_see(k, ray_kind)
+                if sees is None:
+                    return self.lights.intersect_one(k, o, d, bound)
+                tl = np.full(o.shape[1], np.inf)
+                if len(sees):
+                    tl[sees] = self.lights.intersect_one(k, o.take(sees, axis=1), d.take(sees, axis=1),
+                                                         bound.take(sees))
+                return tl
+            return self.lights.intersect_pairs(k, o.take(ray, axis=1), d.take(ray, axis=1), bound,
+                                               None if ray_kind is None else ray_kind.take(ray))
+        return test
 
     def surface(self, o, d, hits: HitSet) -> SurfaceHits:
         """Shading data for the hit rays; rows o and d already in hits.index order."""

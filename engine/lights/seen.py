@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.shapes.box_tree import BoxTree, padded_boxes
 from ..geometry.shapes.spheres import intersect_sphere
 from ..core.vec import dot
 from .distant import SunLights
@@ -39,6 +40,11 @@ class SeenLamps:
         self.visible = {"glossy": np.array([light.visible_glossy for light in lights], dtype=bool),
                         "transmission": np.array([light.visible_transmission for light in lights], dtype=bool)}
         self.names = [light.name for light in lights]
+        if bulbs:                                   # the bulbs' spheres, for the rays to find them
+            center, radius = self.points.center.take(self.bulbs, axis=1).T, self.points.radius.take(self.bulbs)
+            self.bulb_tree = BoxTree(*padded_boxes(center - radius[:, None], center + radius[:, None]))
+        else:
+            self.bulb_tree = None
 
     @classmethod
     def of(cls, scene):
@@ -51,23 +57,39 @@ class SeenLamps:
         ray escapes, and suns in its direction count too); `transmission` (N,) bool: the ray
         left through glass (else it was reflected)."""
         total = np.zeros(o.shape)
-        visible = np.where(transmission[None, :], self.visible["transmission"][:, None],
-                           self.visible["glossy"][:, None])               # (lights, N)
-        for slot, j in enumerate(self.bulbs):
-            c, r = self.points.center[:, j], float(self.points.radius[j])
-            away = o - c[:, None]                                        # from the light to the origins
-            outside = dot(away, away) > r * r
-            t = intersect_sphere(o, d, c, r, tmax)
-            hit = np.flatnonzero(visible[slot] & outside & (t < tmax))
-            if len(hit):
-                emitted = away.take(hit, axis=1)
-                emitted = emitted / np.sqrt(dot(emitted, emitted))
-                # The falloff of the direction from the light to the ray's origin, as Cycles has it.
-                total[:, hit] += self.points.le(np.full(len(hit), j), None, -emitted)
+        if self.bulb_tree is not None:
+            self._add_bulbs(total, o, d, tmax, transmission)
         if self.suns is not None:
             escaped = np.isinf(tmax)
             for k in range(self.suns.count):
-                rays = np.flatnonzero(visible[len(self.bulbs) + k] & escaped)
+                slot = len(self.bulbs) + k
+                visible = np.where(transmission, self.visible["transmission"][slot], self.visible["glossy"][slot])
+                rays = np.flatnonzero(visible & escaped)
                 if len(rays):                                           # 0 outside the sun's disk
                     total[:, rays] += self.suns.le(np.full(len(rays), k), None, d.take(rays, axis=1))
         return total
+
+    def _add_bulbs(self, total, o, d, tmax, transmission):
+        """Add the emission of every bulb each ray meets before tmax, summed in bulb order."""
+        ray, slot = self.bulb_tree.all_pairs(o, d, tmax)                 # the bulbs each ray may meet
+        visible = np.where(transmission.take(ray), self.visible["transmission"].take(slot),
+                           self.visible["glossy"].take(slot))
+        ray, slot = ray[visible], slot[visible]
+        j = self.bulbs.take(slot)
+        c, r = self.points.center.take(j, axis=1), self.points.radius.take(j)
+        start = o.take(ray, axis=1)
+        away = start - c                                                 # from the light to the origins
+        bound = tmax.take(ray)
+        outside = dot(away, away) > r * r
+        t = intersect_sphere(start, d.take(ray, axis=1), c, r, bound)
+        hit = np.flatnonzero(outside & (t < bound))
+        if not len(hit):
+            return
+        hit = hit[np.lexsort((slot.take(hit), ray.take(hit)))]          # per ray in bulb order, as a loop adds
+        emitted = away.take(hit, axis=1)
+        emitted = emitted / np.sqrt(dot(emitted, emitted))
+        # The falloff of the direction from the light to the ray's origin, as Cycles has it.
+        le = self.points.le(j.take(hit), None, -emitted)
+        rays = ray.take(hit)
+        for channel in range(3):
+            total[channel] += np.bincount(rays, weights=le[channel], minlength=total.shape[1])

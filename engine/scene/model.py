@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import SceneError
-from .checks import LENS_RANGE, check_magnitude, check_resolution, check_vector
+from .checks import LENS_RANGE, check_magnitude, check_resolution, check_vector, validate_quads
 
 # Material kinds: how a surface scatters (emission is independent of kind).
 DIFFUSE = "diffuse"
@@ -628,8 +628,10 @@ class AreaLight:
             raise SceneError(f"Light '{self.name}': radiance must be 3 finite non-negative numbers")
         check_magnitude(f"Light '{self.name}'", "radiance", le)
         check_magnitude(f"Light '{self.name}'", "corner coordinate", v)
-        t = self.triangles()
-        area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
+        fan = v[1:] - v[0]                     # the fan triangles' doubled area, without np.cross
+        a, b = fan[:-1].T, fan[1:].T
+        area = 0.5 * np.sqrt((a[1] * b[2] - a[2] * b[1]) ** 2 + (a[2] * b[0] - a[0] * b[2]) ** 2
+                             + (a[0] * b[1] - a[1] * b[0]) ** 2).sum()
         if not area > 0:
             raise SceneError(f"Light '{self.name}': area light has zero area")
 
@@ -767,8 +769,7 @@ class Scene:
                 warnings.append(bad_normals)
         for sphere in self.spheres:
             sphere.validate(n)
-        for quad in self.quads:
-            quad.validate(n)
+        validate_quads(self.quads, n)
         for light in [*self.lights, *self.points, *self.suns]:
             light.validate()
         from .textures import validate_textures

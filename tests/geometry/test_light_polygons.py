@@ -130,3 +130,17 @@ def test_control_a_slightly_smaller_polygon_disagrees_with_the_reference():
     t = LightPolygons([AreaLight("Smaller", smaller, (1, 1, 1))]).intersect_one(0, o, d, np.inf)
     clear = margin > EDGE_MARGIN
     assert not np.array_equal(np.isinf(t[clear]), np.isinf(ref[clear]))
+
+
+def test_normals_built_for_all_lights_at_once_are_those_of_one_light_at_a_time():
+    """LightPolygons builds its normals as arrays over every light (10,000 Area lights in 0.1 s);
+    they are bit for bit the fan sum of np.cross and np.linalg.norm of each light alone."""
+    rng = np.random.default_rng(11)
+    corners = [convex_polygon(rng, int(rng.integers(3, 33))) * 10.0 ** rng.uniform(-3, 4) for _ in range(200)]
+    lights = LightPolygons([AreaLight(f"l{i}", c, (1.0, 1.0, 1.0)) for i, c in enumerate(corners)])
+    for k, c in enumerate(corners):
+        n = np.zeros(3)
+        for i in range(1, len(c) - 1):
+            n += np.cross(c[i] - c[0], c[i + 1] - c[0])
+        assert np.array_equal(lights.normal[k], n / max(np.linalg.norm(n), 1e-300))
+        assert lights.scale[k] == np.abs(c).max() and np.array_equal(lights.origin[k], c[0])

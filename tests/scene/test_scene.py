@@ -1,5 +1,6 @@
 """Validation errors name the object; scene files round-trip; the camera matches Blender."""
 import json
+import re
 
 import numpy as np
 import pytest
@@ -145,3 +146,21 @@ def test_camera_shift_and_orientation():
     assert np.allclose(o, [0, -5, 1])
     # Looking along +y; shift 0.1 of the 36 mm sensor at lens 50 moves the centre ray right (+x).
     assert d[0, 1] > 0 and d[0, 0] / d[0, 1] == pytest.approx(0.1 * 36 / 50, rel=1e-12)
+
+
+@pytest.mark.parametrize("name, corners, material", [
+    ("Bent", [(0, 0, 0), (1, 0, 0), (1, 1, 0.1), (0, 1, 0)], 0), ("Crossed", [(0, 0, 0), (1, 1, 0), (1, 0, 0), (0, 1, 0)], 0),
+    ("Flat", [(0, 0, 0)] * 4, 0), ("Nan", [(np.nan, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], 0),
+    ("Three", [(0, 0, 0), (1, 0, 0), (1, 1, 0)], 0), ("Twelve", list(range(12)), 0),
+    ("Huge", [(0, 0, 0), (2e30, 0, 0), (2e30, 2e30, 0), (0, 2e30, 0)], 0),
+    ("Unknown material", [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], 9)])
+def test_quads_checked_all_at_once_fail_as_one_by_one(name, corners, material):
+    """Scene.validate checks every quad at once (engine/scene/checks.py validate_quads): a bad quad
+    among good ones gives the message Quad.validate gives it alone."""
+    good = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], float)
+    bad = Quad(name, np.array(corners, dtype=float), material)
+    with pytest.raises(SceneError) as alone:
+        Quad(name, np.array(corners, dtype=float), material).validate(2)
+    with pytest.raises(SceneError, match=re.escape(str(alone.value))):
+        base_scene(quads=[Quad("a", good, 0), bad, Quad("b", good + 2, 0)]).validate()
+    assert base_scene(quads=[Quad("a", good, 0), Quad("b", good + 2, 1)]).validate() is not None

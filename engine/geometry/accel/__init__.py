@@ -9,8 +9,9 @@ answers, for arrays of rays:
     occluded(origins, directions, tmax) -> bool array
 
 Rays start at t = 0 (embreex cannot set tnear): callers offset the origins.
-Spheres and quads are not in the accelerator: a scene has a handful of them and
-they are tested directly in every mode (engine/geometry/scene_geometry.py).
+Spheres and quads are not in the accelerator (embreex takes triangles only): they are
+tested analytically in every mode, one after the other or, beyond a few, through their own
+hierarchy (engine/geometry/shapes/box_tree.py, engine/geometry/scene_geometry.py).
 
 Modes: "embree" (embreex, float32, robust mode), "octree" (the report's octree in
 Python + NumPy), "brute" (every ray against every triangle: the report's "no octree").

@@ -1,4 +1,5 @@
-"""Implicit spheres (report 2.2.1), vectorised over rays, looped over spheres.
+"""Implicit spheres (report 2.2.1), vectorised over rays: one sphere for every ray, or one sphere
+per ray (the (ray, sphere) pairs of engine/geometry/shapes/box_tree.py).
 
 The quadratic (eq. 2.3-2.5) is solved in the numerically stable form of Ray Tracing
 Gems ch. 7 (also pbrt-v4's Sphere): the discriminant is formed from the squared
@@ -18,6 +19,7 @@ EPS64 = np.finfo(np.float64).eps
 def intersect_sphere(o: np.ndarray, d: np.ndarray, center: np.ndarray,
                      radius: float, t_best: np.ndarray | None = None) -> np.ndarray:
     """Nearest t > 0 of each ray (rows, see engine/core/vec.py) with one sphere; +inf if none.
+    center (3,) and radius a number, or rows (3, N) and (N,): each ray's own sphere.
 
     A cheap test on the textbook discriminant first discards rays that clearly miss
     (or whose sphere lies beyond t_best); the stable solve runs on the rest only.
@@ -41,6 +43,8 @@ def intersect_sphere(o: np.ndarray, d: np.ndarray, center: np.ndarray,
     a = dot(dd, dd)                                                  # eq. 2.5a
     b = 2.0 * half_b.take(idx)                                       # eq. 2.5b
     c = c.take(idx)
+    if np.ndim(radius):
+        radius = radius.take(idx)
     with np.errstate(divide="ignore", invalid="ignore"):
         v = f - (0.5 * b / a) * dd
         length = np.sqrt(dot(v, v))
