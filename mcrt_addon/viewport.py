@@ -167,7 +167,9 @@ class ViewportState:
             raise RuntimeError(f"the viewport needs render worker processes: {why}")
         pool = bridge.module("api").make_pool(f"viewport:{python}", count, log=lambda *a: None,
                                               extra_paths=worker_python.extra_paths())
-        self.workers = bridge.module("pools.viewport").ViewportRender(pool)
+        denoiser = bridge.module("pools.denoiser")       # Viewport > Denoise: OIDN in a process of its own
+        self.workers = denoiser.DenoisedView(bridge.module("pools.viewport").ViewportRender(pool),
+                                             lambda: denoiser.DenoiserProcess(python, worker_python.extra_paths()))
         bpy.app.timers.register(self.poll, first_interval=POLL_SECONDS)
 
     def poll(self):
@@ -229,6 +231,7 @@ def export(engine, st, context, depsgraph):
     st.exports += 1
     if st.workers is None:
         st.start_workers(viewport_worker_count(settings))
+    st.workers.set_denoise(props.viewport_denoise_start if props.use_preview_denoising else None)
     st.workers.set_scene(exported.scene, settings, max(1, int(props.viewport_samples)))
     st.key, st.resolution, st.border = view_key(context, scene), resolution, border
     st.scene_sent, st.message = True, None
@@ -295,7 +298,8 @@ def header_text(st, samples, noise, level, error):
     text = f"Sample {samples}/{target}"
     if noise is not None:
         text += f" | Noise ±{100 * noise:.1f} %"
-    return text
+    note = getattr(st.workers, "note", None)      # Viewport > Denoise (engine/pools/denoiser.py)
+    return text + (f" | {note()}" if note is not None and note() else "")
 
 
 # -- drawing ---------------------------------------------------------------------------------------
