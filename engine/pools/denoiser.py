@@ -90,7 +90,7 @@ def due(samples: int, last: int, start: int, target: int) -> bool:
     (0: none yet for this view): from the start sample on, at each doubling, and at the target."""
     if samples < max(1, start) or samples <= last:
         return False
-    return last == 0 or samples >= 2 * last or samples >= target
+    return last == 0 or (samples >= 2 * last and last < target) or (samples >= target > last)
 
 
 class DenoisedView:

@@ -47,6 +47,8 @@ def test_extension_zip_contents(built):
     assert not any("__pycache__" in n for n in names)
     for w in wheels:
         assert f'"./{w}"' in manifest
+    for pkg in ("pyoidn", "cffi", "pycparser"):                  # the denoiser, bundled by default
+        assert any(os.path.basename(w).startswith(pkg + "-") for w in wheels), (pkg, wheels)
 
 
 def test_blender_ext_validates(built):
@@ -85,3 +87,6 @@ def test_legacy_zip_is_a_3x_addon_folder(built):
     assert "tncg15_mc/vendor/numpy/numpy/__init__.py" in names
     assert "tncg15_mc/vendor/worker/embreex/__init__.py" in names
     assert not any(n.startswith("tncg15_mc/vendor/numpy/embreex") for n in names)   # never in Blender's process
+    for path in ("pyoidn/__init__.py", "cffi/__init__.py", "pycparser/__init__.py"):     # the denoiser: the workers'
+        assert f"tncg15_mc/vendor/worker/{path}" in names, path
+        assert f"tncg15_mc/vendor/numpy/{path}" not in names
