@@ -148,34 +148,33 @@ class TNCG15Preferences(bpy.types.AddonPreferences):
         col = layout.column(align=True)                 # a long path or reason wraps, not truncated
         for i, line in enumerate(textwrap.wrap(f"Workers run: {path}" if path else why, 70) or [""]):
             col.label(text=line, icon="INFO" if i == 0 else "BLANK1")
-        self.draw_denoiser(layout, path)
+        draw_denoiser(layout, path)
         guide = documentation_path()
         if guide:
             layout.operator("wm.url_open", text="Documentation", icon="HELP").url = "file://" + guide
 
 
-    @staticmethod
-    def draw_denoiser(layout, python):
-        """Whether Denoise works for the worker Python (tried in a process of its own, cached), and
-        the button that installs it into the add-on's private directory."""
-        import textwrap
-        from . import bridge
-        col = layout.column(align=True)
-        if python is None:
-            status = "Denoiser: needs a worker Python"
-        else:
-            try:
-                done, problem = bridge.module("film.denoise").probe_cached(python, extra_paths())
-            except ImportError as exc:
-                done, problem = True, str(exc)
-            status = ("Denoiser: checking..." if not done else "Denoiser: works" if problem is None
-                      else f"Denoiser: missing ({problem})")
-        for i, line in enumerate(textwrap.wrap(status, 70)):
-            col.label(text=line, icon=("CHECKMARK" if status.endswith("works") else "INFO") if i == 0 else "BLANK1")
-        col.operator("tncg15.install_denoiser", icon="IMPORT")        # denoiser_install.py
-        where = denoiser_dir_installed()
-        if where:
-            col.label(text=f"Installed in {where}", icon="BLANK1")
+def draw_denoiser(layout, python):
+    """Preferences: whether Denoise works for the worker Python (tried in a process of its own, in
+    the background, cached), and the button that installs it into the add-on's private directory."""
+    import textwrap
+    from . import bridge
+    col = layout.column(align=True)
+    if python is None:
+        status = "Denoiser: needs a worker Python"
+    else:
+        try:
+            done, problem = bridge.module("film.denoise").probe_cached(python, extra_paths())
+        except ImportError as exc:
+            done, problem = True, str(exc)
+        status = ("Denoiser: checking..." if not done else "Denoiser: works" if problem is None
+                  else f"Denoiser: missing ({problem})")
+    for i, line in enumerate(textwrap.wrap(status, 70)):
+        col.label(text=line, icon=("CHECKMARK" if status.endswith("works") else "INFO") if i == 0 else "BLANK1")
+    col.operator("tncg15.install_denoiser", icon="IMPORT")        # denoiser_install.py
+    where = denoiser_dir_installed()
+    if where:
+        col.label(text=f"Installed in {where}", icon="BLANK1")
 
 
 def documentation_path():
