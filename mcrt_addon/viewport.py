@@ -231,10 +231,16 @@ def export(engine, st, context, depsgraph):
     st.exports += 1
     if st.workers is None:
         st.start_workers(viewport_worker_count(settings))
-    st.workers.set_denoise(props.viewport_denoise_start if props.use_preview_denoising else None)
+    st.workers.set_denoise(denoise_start(props))
     st.workers.set_scene(exported.scene, settings, max(1, int(props.viewport_samples)))
     st.key, st.resolution, st.border = view_key(context, scene), resolution, border
     st.scene_sent, st.message = True, None
+
+
+def denoise_start(props):
+    """Sampling > Viewport > Denoise: its Start Sample, or None when off.  Read at every draw too,
+    so the picture shown follows the checkbox at the next redraw (engine/pools/denoiser.py)."""
+    return props.viewport_denoise_start if props.use_preview_denoising else None
 
 
 def viewport_worker_count(settings):
@@ -268,6 +274,7 @@ def view_draw(engine, context, depsgraph):
         if st.workers is None:
             engine.update_stats("", f"TNCG15 MC | {st.message or 'Starting'}")
             return
+        st.workers.set_denoise(denoise_start(scene.tncg15))
         version, rgba, samples, noise, level, error = st.workers.snapshot()
         st.drawn_version = version
         if rgba is not None and version != st.texture_version and not bpy.app.background:

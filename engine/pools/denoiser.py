@@ -121,11 +121,13 @@ class DenoisedView:
         """Denoise from sample `start` on (Cycles' Start Sample), or None: off."""
         with self.lock:
             was, self.start = self.start, None if start is None else max(1, int(start))
+            if self.start == was:
+                return
             if self.start is None:
                 self.shown = None
             elif was is None:
                 self.problem = None                  # turned on again: try again
-            self.done += 1
+            self.done += 1                           # the picture shown changes
 
     def set_scene(self, *args, **kwargs):
         self.render.set_scene(*args, **kwargs)
