@@ -108,28 +108,62 @@ def forget_probes() -> None:
         _PROBES.clear()
 
 
-def _run_probe(python: str, paths: tuple, own: bool) -> str | None:
+def probe_import(python: str | None = None, timeout: float = PROBE_SECONDS) -> str | None:
+    """Only the import of pyoidn, in a process of `python` (default: this one, with its sys.path):
+    why it is unavailable when that process was killed by a signal or hung, else None (an
+    ImportError is left to the import here, which names what to install).  probe() also
+    denoises: OIDN can abort when it creates its device, after a clean import."""
+    key = ("import", python or sys.executable, _own_paths())
+    with _LOCK:
+        if key in _PROBES:
+            return _PROBES[key]
+    result = _run_probe(python or sys.executable, _own_paths(), own=True, mode="--probe-import", timeout=timeout)
+    with _LOCK:
+        _PROBES[key] = result
+    return result
+
+
+def _run_probe(python: str, paths: tuple, own: bool, mode: str = "--probe",
+               timeout: float = PROBE_SECONDS) -> str | None:
     from ..core.paths import TRACER_DIR, worker_environment
     env = worker_environment(() if own else paths)
     if own:                                          # this process's whole path, the tracer first
         env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys((os.path.dirname(TRACER_DIR),) + paths))
     module = os.path.basename(TRACER_DIR) + ".film.denoise"
     try:
-        proc = subprocess.run([python, "-m", module, "--probe"], env=env, capture_output=True, text=True,
-                              timeout=PROBE_SECONDS)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        return f"the denoiser could not be tried with {python}: {type(exc).__name__}: {exc}"
+        proc = subprocess.run([python, "-m", module, mode], env=env, capture_output=True, text=True,
+                              timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return f"denoiser unavailable: trying pyoidn with {python} did not finish within {timeout:g} s"
+    except OSError as exc:
+        return f"denoiser unavailable: cannot run {python} to try pyoidn: {exc.strerror or exc}"
     lines = [line for line in proc.stdout.splitlines() if line.strip()]
     if proc.returncode == 0 and lines and lines[-1] == "ok":
         return None
     if proc.returncode == 0 and lines:
-        return lines[-1]                             # DenoiserUnavailable's one line
-    from signal import Signals
-    how = (f"killed by {Signals(-proc.returncode).name}" if proc.returncode < 0 and
-           -proc.returncode in Signals._value2member_map_ else f"exit code {proc.returncode}")
+        return None if mode == "--probe-import" else lines[-1]     # DenoiserUnavailable's one line
     tail = (proc.stderr.strip().splitlines() or [""])[-1][:200]
-    return (f"pyoidn does not load with {python}: the trial process ended ({how}{': ' + tail if tail else ''}); "
-            f"{INSTALL_HINT}")
+    if proc.returncode < 0:
+        from signal import Signals
+        try:
+            how = Signals(-proc.returncode).name
+        except ValueError:
+            how = f"signal {-proc.returncode}"
+        return (f"denoiser unavailable: importing pyoidn killed its process ({how}{': ' + tail if tail else ''}) "
+                f"with {python}; {INSTALL_HINT}")
+    return (f"denoiser unavailable: pyoidn does not work with {python} (exit code {proc.returncode}"
+            f"{': ' + tail if tail else ''}); {INSTALL_HINT}")
+
+
+def _probe_import_main() -> int:
+    """--probe-import: import pyoidn; print "ok" (or the ImportError, exit 0: not a crash)."""
+    try:
+        import pyoidn  # noqa: F401
+    except ImportError as exc:
+        print(f"ImportError: {exc}")
+        return 0
+    print("ok")
+    return 0
 
 
 def _probe_main() -> int:
@@ -198,6 +232,8 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv == ["--probe"]:
         return _probe_main()
+    if argv == ["--probe-import"]:
+        return _probe_import_main()
     if len(argv) != 2:
         sys.stderr.write("usage: python -m engine.film.denoise IN.npz OUT.npz | --probe\n")
         return 2

@@ -11,7 +11,7 @@ import pytest
 
 from engine.film.denoise import DenoiserUnavailable
 from engine.pools.denoiser import DenoisedView, DenoiserProcess, due
-from tests.film.test_denoise_probe import ABORTS, fake_pyoidn
+from tests.film.test_denoise_trial import ABORTS, fake_pyoidn
 
 
 def test_due_denoises_at_the_start_each_doubling_and_the_target():
