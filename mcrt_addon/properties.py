@@ -61,6 +61,12 @@ def scene_properties() -> dict:
         props[s.blender_prop] = scene_property(s)
     props["viewport_samples"] = IntProperty(name="Max Samples", description="Samples per pixel the 3D viewport's "
                                             "Rendered mode accumulates", default=32, min=1, soft_max=4096)
+    # Viewport > Denoise, as Cycles' use_preview_denoising and preview_denoising_start_sample: the
+    # viewport's display only (engine/pools/denoiser.py), never the tracer's settings
+    props["use_preview_denoising"] = BoolProperty(name="Denoise", default=False, description="Denoise the "
+                                                  "Rendered viewport with Intel Open Image Denoise (colour only)")
+    props["viewport_denoise_start"] = IntProperty(name="Start Sample", default=1, min=1, soft_max=64,
+                                                  description="Sample from which the viewport is denoised")
     props["estimate_text"] = StringProperty(name="Estimate", description="The last Estimate Render Time",
                                             default="", options={"SKIP_SAVE"})
     return props

@@ -1,6 +1,6 @@
-"""Panels, laid out as Cycles lays out its render properties: Sampling (Viewport, Render, Lights,
-Advanced), Light Paths (Max Bounces, Clamping, Caustics), Film (Pixel Filter, Transparent), Performance,
-Denoising, View Layer passes,
+"""Panels, laid out as Cycles lays out its render properties: Sampling (Viewport with its Denoise,
+Render with its Denoise, Lights, Advanced), Light Paths (Max Bounces, Clamping, Caustics), Film
+(Pixel Filter, Transparent), Performance, View Layer passes,
 plus an object panel for the implicit-sphere option.  Also lends our engine id to Blender's generic
 panels (output, dimensions, camera, light, material and world surface) the way the RenderEngine
 documentation template does.
@@ -85,6 +85,48 @@ class RENDER_PT_tncg15_sampling_render(TNCG15SamplingChild, bpy.types.Panel):
         layout.operator("tncg15.estimate_render_time", icon="TIME")
         if props.estimate_text:
             layout.label(text=props.estimate_text)
+
+
+class RENDER_PT_tncg15_sampling_viewport_denoise(TNCG15ButtonsPanel, bpy.types.Panel):
+    """Sampling > Viewport > Denoise, as Cycles' (a Blender-only option: engine/pools/denoiser.py)."""
+    bl_label = "Denoise"
+    bl_parent_id = "RENDER_PT_tncg15_sampling_viewport"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.tncg15, "use_preview_denoising", text="")
+
+    def draw(self, context):
+        layout = split(self.layout)
+        props = context.scene.tncg15
+        layout.active = props.use_preview_denoising
+        layout.prop(props, "viewport_denoise_start")
+        denoiser_note(layout)
+
+
+class RENDER_PT_tncg15_sampling_render_denoise(TNCG15ButtonsPanel, bpy.types.Panel):
+    """Sampling > Render > Denoise, as Cycles': OIDN after the render, the raw image kept as the
+    Noisy Image pass (mcrt_addon/render_engine.py)."""
+    bl_label = "Denoise"
+    bl_parent_id = "RENDER_PT_tncg15_sampling_render"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.tncg15, "use_denoising", text="")
+
+    def draw(self, context):
+        layout = split(self.layout)
+        layout.active = context.scene.tncg15.use_denoising
+        layout.label(text="OpenImageDenoise, Albedo and Normal")
+        denoiser_note(layout)
+
+
+def denoiser_note(layout):
+    """One line when the denoiser is not there: where to install it (the preferences' button)."""
+    from . import denoiser_install
+    problem = denoiser_install.known_problem()
+    if problem:
+        layout.label(text="Denoiser missing: Preferences > Add-ons > Install Denoiser", icon="ERROR")
 
 
 class RENDER_PT_tncg15_sampling_lights(TNCG15SamplingChild, bpy.types.Panel):
@@ -217,19 +259,6 @@ class RENDER_PT_tncg15_performance(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.prop(props, "tile_size")
 
 
-class RENDER_PT_tncg15_denoise(TNCG15ButtonsPanel, bpy.types.Panel):
-    bl_label = "Denoising"
-
-    def draw_header(self, context):
-        self.layout.prop(context.scene.tncg15, "use_denoising", text="")
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.active = context.scene.tncg15.use_denoising
-        layout.label(text="Intel Open Image Denoise, guided by albedo and normal")
-
-
 class VIEWLAYER_PT_tncg15_passes(TNCG15ButtonsPanel, bpy.types.Panel):
     """View Layer > Passes, as Cycles: Z (Blender's), Denoising Data, Sample Count, Variance."""
     bl_label = "Passes"
@@ -306,12 +335,12 @@ class DATA_PT_tncg15_light(TNCG15ButtonsPanel, bpy.types.Panel):
                 col.prop(cycles, "is_portal", text="Portal")
 
 
-classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_sampling_viewport, RENDER_PT_tncg15_sampling_render,
-           RENDER_PT_tncg15_sampling_lights, RENDER_PT_tncg15_sampling_advanced, RENDER_PT_tncg15_light_paths,
+classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_sampling_viewport,
+           RENDER_PT_tncg15_sampling_viewport_denoise, RENDER_PT_tncg15_sampling_render,
+           RENDER_PT_tncg15_sampling_render_denoise, RENDER_PT_tncg15_sampling_lights, RENDER_PT_tncg15_sampling_advanced, RENDER_PT_tncg15_light_paths,
            RENDER_PT_tncg15_light_paths_max_bounces, RENDER_PT_tncg15_light_paths_clamping,
            RENDER_PT_tncg15_light_paths_caustics, RENDER_PT_tncg15_film, RENDER_PT_tncg15_film_pixel_filter,
-           RENDER_PT_tncg15_film_transparency, RENDER_PT_tncg15_performance,
-           RENDER_PT_tncg15_denoise, VIEWLAYER_PT_tncg15_passes, OBJECT_PT_tncg15, DATA_PT_tncg15_light)
+           RENDER_PT_tncg15_film_transparency, RENDER_PT_tncg15_performance, VIEWLAYER_PT_tncg15_passes, OBJECT_PT_tncg15, DATA_PT_tncg15_light)
 
 _lent = []   # panels we added our engine id to, so unregister removes exactly those
 

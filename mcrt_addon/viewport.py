@@ -167,7 +167,9 @@ class ViewportState:
             raise RuntimeError(f"the viewport needs render worker processes: {why}")
         pool = bridge.module("api").make_pool(f"viewport:{python}", count, log=lambda *a: None,
                                               extra_paths=worker_python.extra_paths())
-        self.workers = bridge.module("pools.viewport").ViewportRender(pool)
+        denoiser = bridge.module("pools.denoiser")       # Viewport > Denoise: OIDN in a process of its own
+        self.workers = denoiser.DenoisedView(bridge.module("pools.viewport").ViewportRender(pool),
+                                             lambda: denoiser.DenoiserProcess(python, worker_python.extra_paths()))
         bpy.app.timers.register(self.poll, first_interval=POLL_SECONDS)
 
     def poll(self):
@@ -229,9 +231,16 @@ def export(engine, st, context, depsgraph):
     st.exports += 1
     if st.workers is None:
         st.start_workers(viewport_worker_count(settings))
+    st.workers.set_denoise(denoise_start(props))
     st.workers.set_scene(exported.scene, settings, max(1, int(props.viewport_samples)))
     st.key, st.resolution, st.border = view_key(context, scene), resolution, border
     st.scene_sent, st.message = True, None
+
+
+def denoise_start(props):
+    """Sampling > Viewport > Denoise: its Start Sample, or None when off.  Read at every draw too,
+    so the picture shown follows the checkbox at the next redraw (engine/pools/denoiser.py)."""
+    return props.viewport_denoise_start if props.use_preview_denoising else None
 
 
 def viewport_worker_count(settings):
@@ -265,6 +274,7 @@ def view_draw(engine, context, depsgraph):
         if st.workers is None:
             engine.update_stats("", f"TNCG15 MC | {st.message or 'Starting'}")
             return
+        st.workers.set_denoise(denoise_start(scene.tncg15))
         version, rgba, samples, noise, level, error = st.workers.snapshot()
         st.drawn_version = version
         if rgba is not None and version != st.texture_version and not bpy.app.background:
@@ -296,7 +306,9 @@ def header_text(st, samples, noise, level, error):
     if noise is not None:
         text += f" | Noise ±{100 * noise:.1f} %"
     notice = st.workers.notice() if hasattr(st.workers, "notice") else None
-    return text + (f" | {notice}" if notice else "")      # a worker died and was restarted
+    text += f" | {notice}" if notice else ""             # a worker died and was restarted
+    note = getattr(st.workers, "note", None)              # Viewport > Denoise (engine/pools/denoiser.py)
+    return text + (f" | {note()}" if note is not None and note() else "")
 
 
 # -- drawing ---------------------------------------------------------------------------------------

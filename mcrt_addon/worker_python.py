@@ -23,6 +23,7 @@ from bpy.props import StringProperty
 ADDON_DIR = os.path.dirname(os.path.abspath(__file__))
 VENDOR_NUMPY = os.path.join(ADDON_DIR, "vendor", "numpy")
 VENDOR_WORKER = os.path.join(ADDON_DIR, "vendor", "worker")
+DENOISER_FOLDER = "denoiser"      # in the add-on's user data: denoiser_dir()
 INSTALL_HINT = ("install numpy for Blender's Python (e.g. apt-get install python3-numpy), or use the "
                 "add-on's legacy zip for Linux x64, which bundles it")
 
@@ -80,10 +81,32 @@ def worker_python(preferred: str = ""):
     return None, "no Python interpreter found next to Blender"
 
 
+def denoiser_dir(create=False):
+    """The private directory the preferences' "Install Denoiser" installs pyoidn into
+    (denoiser_install.py); it need not exist."""
+    package = __package__ or "tncg15_mc"
+    if package.startswith("bl_ext.") and hasattr(bpy.utils, "extension_path_user"):
+        return bpy.utils.extension_path_user(package, path=DENOISER_FOLDER, create=create)
+    path = bpy.utils.user_resource("SCRIPTS", path=os.path.join("addons_data", package.rpartition(".")[2],
+                                                                DENOISER_FOLDER))
+    if create:
+        os.makedirs(path, exist_ok=True)
+    return path
+
+
+def denoiser_dir_installed():
+    """denoiser_dir() when it holds pyoidn, else None."""
+    path = denoiser_dir()
+    return path if path and os.path.isdir(os.path.join(path, "pyoidn")) else None
+
+
 def extra_paths():
     """Bundled packages for the worker: numpy when Blender's own process uses the bundled copy
-    (same numpy on both ends of the pipe), embreex and OpenImageIO always when bundled."""
+    (same numpy on both ends of the pipe), the denoiser the preferences' button installed
+    (denoiser_install.py), embreex, OpenImageIO and the denoiser when bundled."""
     paths = [VENDOR_NUMPY] if VENDOR_NUMPY in sys.path else []
+    installed = denoiser_dir_installed()
+    paths += [installed] if installed else []
     return paths + ([VENDOR_WORKER] if os.path.isdir(VENDOR_WORKER) else [])
 
 
@@ -125,9 +148,33 @@ class TNCG15Preferences(bpy.types.AddonPreferences):
         col = layout.column(align=True)                 # a long path or reason wraps, not truncated
         for i, line in enumerate(textwrap.wrap(f"Workers run: {path}" if path else why, 70) or [""]):
             col.label(text=line, icon="INFO" if i == 0 else "BLANK1")
+        draw_denoiser(layout, path)
         guide = documentation_path()
         if guide:
             layout.operator("wm.url_open", text="Documentation", icon="HELP").url = "file://" + guide
+
+
+def draw_denoiser(layout, python):
+    """Preferences: whether Denoise works for the worker Python (tried in a process of its own, in
+    the background, cached), and the button that installs it into the add-on's private directory."""
+    import textwrap
+    from . import bridge
+    col = layout.column(align=True)
+    if python is None:
+        status = "Denoiser: needs a worker Python"
+    else:
+        try:
+            done, problem = bridge.module("film.denoise").probe_cached(python, extra_paths())
+        except ImportError as exc:
+            done, problem = True, str(exc)
+        status = ("Denoiser: checking..." if not done else "Denoiser: works" if problem is None
+                  else f"Denoiser: missing ({problem})")
+    for i, line in enumerate(textwrap.wrap(status, 70)):
+        col.label(text=line, icon=("CHECKMARK" if status.endswith("works") else "INFO") if i == 0 else "BLANK1")
+    col.operator("tncg15.install_denoiser", icon="IMPORT")        # denoiser_install.py
+    where = denoiser_dir_installed()
+    if where:
+        col.label(text=f"Installed in {where}", icon="BLANK1")
 
 
 def documentation_path():

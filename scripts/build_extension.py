@@ -4,7 +4,9 @@
     python scripts/build_extension.py [--platform linux-x64 ...] [--no-download] [--output-dir dist]
 
 1. pip-downloads the embreex and OpenImageIO wheels (and their dependencies except numpy, which
-   Blender ships) for each platform into ./wheels/ (gitignored);
+   Blender ships) for each platform into ./wheels/ (gitignored), and the denoiser's, pyoidn with
+   cffi and pycparser (Intel Open Image Denoise: engine/film/denoise.py), for the platforms it has
+   wheels for (Linux x64, Windows x64; about 88 MB each; --no-denoiser leaves it out);
 2. stages the extension: blender_manifest.toml (its ``wheels``/``platforms`` set to what was
    downloaded), the contents of mcrt_addon/ at the zip root, the tracer package engine/ copied
    as the sub-package ``tracer/`` (the add-on imports it relatively; see mcrt_addon/bridge.py), the
@@ -14,8 +16,9 @@
 4. also writes dist/tncg15_mc-<version>-legacy.zip for "Install Add-on" in Blender 3.4: a folder
    tncg15_mc/ with the same files and, for Linux x64 (CPython 3.11), the wheels unpacked:
    vendor/numpy/ (numpy 1.26.4: Blender's own process imports it when its Python has none, as
-   Debian's Blender 3.4) and vendor/worker/ (embreex, OpenImageIO: only the render worker
-   processes import them, so embreex never meets Blender 3.4's Embree 3; mcrt_addon/worker_python.py).
+   Debian's Blender 3.4) and vendor/worker/ (embreex, OpenImageIO and the denoiser: only the render
+   worker and denoiser processes import them, so embreex never meets Blender 3.4's Embree 3 and OIDN
+   never loads into Blender's process; mcrt_addon/worker_python.py).
 """
 import argparse
 import glob
@@ -30,10 +33,13 @@ import zipfile
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGES = ["embreex==4.4.0.post1", "OpenImageIO==3.0.21.0"]
-# --with-denoiser: Intel Open Image Denoise for the Denoise option (engine/film/denoise.py; run by the
-# worker Python).  pyoidn's wheel (py3-none-manylinux2014_x86_64, about 88 MB) exists for Linux x64.
-DENOISER = ["pyoidn==2.5.1.0"]
+# Intel Open Image Denoise for the Denoise option (engine/film/denoise.py; run by the worker Python),
+# bundled unless --no-denoiser: pyoidn's wheels (py3-none, about 88 MB) exist for these platforms only.
+# Its numpy dependency is Blender's (extension) or the legacy zip's numpy.  The same pins are what
+# the preferences' "Install Denoiser" installs (mcrt_addon/denoiser_install.py).
+DENOISER = ["pyoidn==2.5.1.0", "cffi==2.1.1", "pycparser==3.12"]     # the venv's (requirements.txt)
 DENOISER_DEPS = ("pyoidn", "cffi", "pycparser")
+DENOISER_PLATFORMS = {"linux-x64": "manylinux2014_x86_64", "windows-x64": "win_amd64"}
 PLATFORM_TAGS = {                      # Blender platform -> pip --platform
     "linux-x64": "manylinux_2_28_x86_64",
     "windows-x64": "win_amd64",
@@ -43,6 +49,7 @@ PLATFORM_TAGS = {                      # Blender platform -> pip --platform
 EXCLUDED_DEPS = ("numpy",)
 LEGACY_NUMPY = "numpy==1.26.4"          # the venv's; cp311 manylinux2014 wheels
 LEGACY_PLATFORMS = ("manylinux_2_28_x86_64", "manylinux2014_x86_64", "manylinux_2_17_x86_64")
+VENDOR_COMPRESSION = 1                 # deflate level of the unpacked wheels: 6 takes 1.5x the time for 5 % less
 IGNORE = shutil.ignore_patterns("__pycache__", "*.pyc", "*.pyo")
 
 
@@ -54,32 +61,45 @@ def find_blender_ext():
     return candidates[0] if candidates else None
 
 
-def download_wheels(platforms, wheels_dir, offline):
+def download_wheels(platforms, wheels_dir, offline, denoiser=True):
     os.makedirs(wheels_dir, exist_ok=True)
     for platform in platforms:
         if offline:
             continue
-        cmd = [sys.executable, "-m", "pip", "download", *PACKAGES, "--dest", wheels_dir, "--only-binary=:all:",
-               "--python-version", "3.11", "--implementation", "cp", "--platform", PLATFORM_TAGS[platform],
-               "--quiet"]
-        if DENOISER[0] in PACKAGES:           # pyoidn's wheel is tagged manylinux2014
-            cmd += ["--platform", "manylinux2014_x86_64", "--platform", "manylinux_2_17_x86_64"]
+        common = ["--dest", wheels_dir, "--only-binary=:all:", "--python-version", "3.11", "--implementation", "cp",
+                  "--quiet"]
+        cmd = [sys.executable, "-m", "pip", "download", *PACKAGES, *common, "--platform", PLATFORM_TAGS[platform]]
         print("+", " ".join(cmd))
         subprocess.run(cmd, check=True)
+        if denoiser and platform in DENOISER_PLATFORMS:      # pyoidn's Linux wheel is tagged manylinux2014
+            cmd = [sys.executable, "-m", "pip", "download", *DENOISER, "--no-deps", *common,
+                   "--platform", PLATFORM_TAGS[platform], "--platform", DENOISER_PLATFORMS[platform]]
+            print("+", " ".join(cmd))
+            subprocess.run(cmd, check=True)
     for path in glob.glob(os.path.join(wheels_dir, "*.whl")):
         if os.path.basename(path).split("-")[0].lower() in EXCLUDED_DEPS:
             os.remove(path)
     wheels = sorted(os.path.basename(p) for p in glob.glob(os.path.join(wheels_dir, "*.whl")))
     chosen = [w for w in wheels if any(wheel_matches(w, PLATFORM_TAGS[p]) for p in platforms)]
-    for pkg in ("embreex", "openimageio"):
-        if not any(w.lower().startswith(pkg + "-") for w in chosen):
+    if not denoiser or not set(platforms) & set(DENOISER_PLATFORMS):
+        chosen = [w for w in chosen if wheel_package(w) not in DENOISER_DEPS]
+    needed = ("embreex", "openimageio") + (DENOISER_DEPS if denoiser and set(platforms) & set(DENOISER_PLATFORMS) else ())
+    for pkg in needed:
+        if not any(wheel_package(w) == pkg for w in chosen):
             raise SystemExit(f"error: no {pkg} wheel in {wheels_dir} for {platforms} "
                              "(run without --no-download)")
     return chosen
 
 
+def wheel_package(name):
+    """'OpenImageIO-3.0.21.0-cp311-....whl' -> 'openimageio'."""
+    return os.path.basename(name).split("-")[0].lower()
+
+
 def wheel_matches(name, pip_platform):
     tags = name[:-4].split("-")[-1].split(".")
+    if "any" in tags:                       # pure Python (pycparser)
+        return True
     if pip_platform.startswith("manylinux"):
         return any(t.startswith("manylinux") and t.endswith("x86_64") for t in tags)
     if pip_platform.startswith("macosx"):
@@ -131,19 +151,21 @@ def version_of_manifest():
         return re.search(r'^version\s*=\s*"([^"]+)"', fh.read(), re.M).group(1)
 
 
-def legacy_wheels(wheels_dir, offline):
-    """numpy, embreex and OpenImageIO for CPython 3.11 on Linux x64, in wheels_dir/legacy/."""
+def legacy_wheels(wheels_dir, offline, denoiser=True):
+    """numpy, embreex, OpenImageIO (and the denoiser's pyoidn, cffi, pycparser) for CPython 3.11 on
+    Linux x64, in wheels_dir/legacy/."""
     legacy_dir = os.path.join(wheels_dir, "legacy")
     os.makedirs(legacy_dir, exist_ok=True)
     if not offline:
-        cmd = [sys.executable, "-m", "pip", "download", LEGACY_NUMPY, *PACKAGES, "--dest", legacy_dir,
-               "--only-binary=:all:", "--python-version", "3.11", "--implementation", "cp", "--quiet"]
+        cmd = [sys.executable, "-m", "pip", "download", LEGACY_NUMPY, *PACKAGES, *(DENOISER if denoiser else ()),
+               "--dest", legacy_dir, "--only-binary=:all:", "--python-version", "3.11", "--implementation", "cp",
+               "--quiet"]
         for tag in LEGACY_PLATFORMS:
             cmd += ["--platform", tag]
         print("+", " ".join(cmd))
         subprocess.run(cmd, check=True)
     found = {}
-    for pkg in ("numpy", "embreex", "openimageio") + (DENOISER_DEPS if DENOISER[0] in PACKAGES else ()):
+    for pkg in ("numpy", "embreex", "openimageio") + (DENOISER_DEPS if denoiser else ()):
         names = sorted(glob.glob(os.path.join(legacy_dir, f"{pkg}-*.whl")) +
                        glob.glob(os.path.join(legacy_dir, f"{pkg.replace('openimageio', 'OpenImageIO')}-*.whl")))
         if pkg == "numpy":
@@ -162,7 +184,8 @@ def legacy_zip(stage_dir, path, vendor=None):
             with zipfile.ZipFile(wheel) as whl:
                 for info in whl.infolist():
                     if not info.is_dir():
-                        zf.writestr(f"tncg15_mc/vendor/{target}/{info.filename}", whl.read(info))
+                        zf.writestr(f"tncg15_mc/vendor/{target}/{info.filename}", whl.read(info),
+                                    compresslevel=VENDOR_COMPRESSION)
         for root, _dirs, files in os.walk(stage_dir):
             rel_root = os.path.relpath(root, stage_dir)
             if rel_root.split(os.sep)[0] == "wheels":
@@ -180,16 +203,14 @@ def main(argv=None):
     parser.add_argument("--no-download", action="store_true", help="use the wheels already in ./wheels/")
     parser.add_argument("--output-dir", default=os.path.join(REPO, "dist"))
     parser.add_argument("--wheels-dir", default=os.path.join(REPO, "wheels"))
-    parser.add_argument("--with-denoiser", action="store_true",
-                        help="also bundle pyoidn (OIDN, about 88 MB; Linux x64 only) for the Denoise option")
+    parser.add_argument("--no-denoiser", action="store_true",
+                        help="leave out pyoidn (OIDN, about 88 MB a platform; bundled for linux-x64 and windows-x64)")
+    parser.add_argument("--with-denoiser", action="store_true", help=argparse.SUPPRESS)   # the default now
     args = parser.parse_args(argv)
-    if args.with_denoiser:
-        if args.platform != ["linux-x64"]:
-            parser.error("--with-denoiser: pyoidn has a wheel for linux-x64 only")
-        PACKAGES.extend(p for p in DENOISER if p not in PACKAGES)
+    denoiser = not args.no_denoiser
 
     check_tracer_imports()
-    wheels = download_wheels(args.platform, args.wheels_dir, args.no_download)
+    wheels = download_wheels(args.platform, args.wheels_dir, args.no_download, denoiser)
     blender_ext = find_blender_ext()
     if blender_ext is None:
         raise SystemExit("error: blender_ext.py not found (install the bpy wheel, or use "
@@ -207,7 +228,7 @@ def main(argv=None):
             print("+", " ".join(os.path.relpath(c, REPO) if c.startswith(REPO) else c for c in cmd))
             subprocess.run(cmd, check=True)
         legacy = os.path.join(args.output_dir, f"tncg15_mc-{version}-legacy.zip")
-        legacy_zip(stage_dir, legacy, legacy_wheels(args.wheels_dir, args.no_download))
+        legacy_zip(stage_dir, legacy, legacy_wheels(args.wheels_dir, args.no_download, denoiser))
     print(f"extension (Blender 4.2+): {out_zip} ({os.path.getsize(out_zip) / 1e6:.1f} MB)")
     print(f"legacy add-on (Blender 3.4): {legacy} ({os.path.getsize(legacy) / 1e6:.2f} MB)")
     return 0

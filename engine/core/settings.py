@@ -296,7 +296,7 @@ SETTINGS = (
             choices=plain("albedo", "normal", "depth", "samples", "variance")),
     Setting("denoise", BOOL, False, "denoise with Intel Open Image Denoise (pyoidn), guided by the albedo and "
             "normal passes; the raw image is kept in the EXR as 'Noisy Image' (engine/film/denoise.py)",
-            flag="--denoise", label="Denoise", prop="use_denoising", panel="Denoising",
+            flag="--denoise", label="Denoise", prop="use_denoising", panel="Render > Denoise",
             description="Denoise the final render with Intel Open Image Denoise (pyoidn in the worker Python), "
             "guided by the Denoising Albedo and Normal passes; the raw image is kept as the Noisy Image pass"),
 )

@@ -254,3 +254,49 @@ def test_blender34_exports_split_normals(tmp_path):
     for name, (_, cos_min, cos_mean) in data["meshes"].items():
         assert cos_min > 0.5 and 0.9 < cos_mean < 1.0, (name, cos_min, cos_mean)   # smooth, not flat
     assert not any("smooth" in w for w in data["warnings"]), data["warnings"]
+
+
+INSTALL_AND_DENOISE = r'''
+import json, sys, bpy
+zip_path, blend, out, stats_path = sys.argv[sys.argv.index("--") + 1:]
+bpy.ops.preferences.addon_install(filepath=zip_path)
+bpy.ops.preferences.addon_enable(module="tncg15_mc")
+bpy.ops.wm.open_mainfile(filepath=blend)
+import tncg15_mc.render_engine as engine
+sc = bpy.context.scene
+sc.render.engine = "TNCG15_MC"
+sc.tncg15.samples = 4
+sc.tncg15.use_denoising = True
+sc.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
+sc.render.filepath = out
+with engine.capture_reports() as reports:
+    bpy.ops.render.render(write_still=True)
+r = reports[-1]
+json.dump({"error": r.error, "warnings": r.warnings, "stats": r.stats, "passes": r.passes,
+           "pyoidn_in_blender": "pyoidn" in sys.modules}, open(stats_path, "w"), default=str)
+'''
+
+
+@pytest.mark.slow
+def test_legacy_zip_denoises_in_blender34(legacy_zip, blend34, tmp_path):
+    """The legacy zip alone brings the denoiser (vendor/worker/pyoidn): Denoise in Debian's Blender
+    3.4 gives a denoised Combined and the Noisy Image, OIDN never loaded into Blender's process."""
+    from engine.film.passes import read_multilayer_exr
+    script = tmp_path / "denoise.py"
+    script.write_text(INSTALL_AND_DENOISE)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env.update(BLENDER_USER_SCRIPTS=str(tmp_path / "scripts"), BLENDER_USER_CONFIG=str(tmp_path / "config"))
+    stats_path, out = tmp_path / "stats.json", tmp_path / "denoised.exr"
+    r = blender("-b", "--factory-startup", "--python", str(script), "--", str(legacy_zip), str(blend34),
+                str(out), str(stats_path), env=env, timeout=300)
+    log = r.stdout[-3000:] + r.stderr[-3000:]
+    assert r.returncode == 0 and stats_path.exists(), log
+    report = json.loads(stats_path.read_text())
+    assert report["error"] is None and not [w for w in report["warnings"] if "Denoise" in w], report
+    assert report["stats"].get("denoised") is True and not report["pyoidn_in_blender"], report
+    assert "Noisy Image" in report["passes"], report["passes"]
+    ch = read_multilayer_exr(out)
+    noisy, combined = ch["ViewLayer.Noisy Image.G"], ch["ViewLayer.Combined.G"]
+    assert np.isfinite(combined).all() and combined.mean() > 0.02
+    assert np.abs(np.diff(combined, axis=1)).mean() < 0.8 * np.abs(np.diff(noisy, axis=1)).mean()
+    print(f"Blender 3.4 legacy zip: denoised in {report['stats']['denoise_seconds']:.2f} s")

@@ -20,12 +20,16 @@ bpy.ops.wm.open_mainfile(filepath=blend)
 sc = bpy.context.scene
 sc.render.engine = "TNCG15_MC"
 sc.tncg15.samples = 4
+sc.tncg15.use_denoising = True              # with the extension's pyoidn wheel, in the worker Python
 sc.render.resolution_x = sc.render.resolution_y = 24
 sc.render.image_settings.file_format = "OPEN_EXR"
 sc.render.filepath = out
-bpy.ops.render.render(write_still=True)
+engine = sys.modules[next(m for m in sys.modules if m.endswith("tncg15_mc.render_engine"))]
+with engine.capture_reports() as reports:
+    bpy.ops.render.render(write_still=True)
 tracers = [m for m in sys.modules if m.endswith(".tracer.scene.model")]
 print("TRACER", tracers)
+print("DENOISED", reports[-1].stats.get("denoised"), reports[-1].warnings)
 '''
 
 
@@ -47,6 +51,8 @@ def test_extension_zip_contents(built):
     assert not any("__pycache__" in n for n in names)
     for w in wheels:
         assert f'"./{w}"' in manifest
+    for pkg in ("pyoidn", "cffi", "pycparser"):                  # the denoiser, bundled by default
+        assert any(os.path.basename(w).startswith(pkg + "-") for w in wheels), (pkg, wheels)
 
 
 def test_blender_ext_validates(built):
@@ -70,6 +76,7 @@ def test_extension_installs_and_renders_in_blender_5(built, samples, tmp_path):
     assert "bl_ext.user_default.tncg15_mc.tracer.scene.model" in r.stdout
     site = tmp_path / "user" / "extensions" / ".local" / "lib" / "python3.11" / "site-packages"
     assert (site / "embreex").is_dir(), "the embreex wheel was not installed by Blender"
+    assert (site / "pyoidn").is_dir() and "DENOISED True []" in r.stdout, r.stdout[-2000:]
     img = read_exr(str(out))
     assert img.shape == (24, 24, 3) and np.isfinite(img).all() and img.mean() > 0.02
 
@@ -85,3 +92,6 @@ def test_legacy_zip_is_a_3x_addon_folder(built):
     assert "tncg15_mc/vendor/numpy/numpy/__init__.py" in names
     assert "tncg15_mc/vendor/worker/embreex/__init__.py" in names
     assert not any(n.startswith("tncg15_mc/vendor/numpy/embreex") for n in names)   # never in Blender's process
+    for path in ("pyoidn/__init__.py", "cffi/__init__.py", "pycparser/__init__.py"):     # the denoiser: the workers'
+        assert f"tncg15_mc/vendor/worker/{path}" in names, path
+        assert f"tncg15_mc/vendor/numpy/{path}" not in names

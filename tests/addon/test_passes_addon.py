@@ -116,6 +116,20 @@ def test_denoise_in_blender(samples):
     assert np.abs(np.diff(combined, axis=1)).mean() < 0.7 * np.abs(np.diff(noisy, axis=1)).mean()
 
 
+def test_noisy_image_is_the_render_without_denoise(samples):
+    """Sampling > Render > Denoise on: Combined is denoised and Noisy Image is, to the float, what
+    the same render gives with Denoise off (the denoiser's albedo and normal passes change no sample)."""
+    pytest.importorskip("pyoidn", reason="pyoidn (requirements.txt) is not installed")
+    scene = open_blend(samples["cornell"], RES)
+    setup(scene, denoise=False, data=False)
+    plain = layer(render_multilayer(scene), "Combined", "RGB")
+    scene.tncg15.use_denoising = True
+    ch = render_multilayer(scene)
+    assert last_report().stats.get("denoised") is True, last_report().warnings
+    np.testing.assert_array_equal(layer(ch, "Noisy Image", "RGB"), plain)
+    assert np.abs(layer(ch, "Combined", "RGB") - plain).mean() > 0.01 * plain.mean()
+
+
 def test_addon_cli_writes_the_same_layers_as_the_tracer_cli(samples, tmp_path):
     """python -m mcrt_addon render --passes ...: Blender's multi-part EXR rewritten with the layers
     python -m engine render writes (engine/film/passes.py exr_channels), values as Blender filled them."""

@@ -216,5 +216,5 @@ def test_preferences_link_the_user_guide(addon):
     prefs = types.SimpleNamespace(worker_python="", render_cluster="")
     worker_python.TNCG15Preferences.draw(types.SimpleNamespace(layout=layout, **vars(prefs)), None)
     assert props == ["worker_python", "render_cluster"]
-    assert [(n, t) for n, t, _ in operators] == [("wm.url_open", "Documentation")]
-    assert operators[0][2].url == "file://" + guide
+    assert [(n, t) for n, t, _ in operators] == [("tncg15.install_denoiser", None), ("wm.url_open", "Documentation")]
+    assert operators[1][2].url == "file://" + guide

@@ -26,7 +26,8 @@ from engine.core.settings import (ADDON_CLI, BLENDER, BOOL, CHOICE, CHOICES, ENG
 from mcrt_addon.headless import ensure_registered
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-BLENDER_ONLY = {"rna_type", "name", "viewport_samples", "estimate_text"}   # scene.tncg15, not settings
+BLENDER_ONLY = {"rna_type", "name", "viewport_samples", "estimate_text",      # scene.tncg15, not settings
+                "use_preview_denoising", "viewport_denoise_start"}
 KINDS = {INT: "INT", FLOAT: "FLOAT", BOOL: "BOOLEAN", CHOICE: "ENUM"}      # bpy property types
 
 
