@@ -826,6 +826,11 @@ def make_principled_glass(scene, res):
         mat = node_material(f"{name} glass", "ShaderNodeBsdfPrincipled", **kw)
         mesh_object(scene, f"Ball {name}", lambda bm: uv_sphere(bm, 0.3, 48, 24), mat,
                     location=(x, -0.2, 0.302), smooth=True)             # 2 mm above the floor
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
 ROUGHNESS_CHECKER = (0.1, 0.6)          # the roughness_map plate's two roughnesses
 
 
