@@ -140,16 +140,20 @@ def cgroup_room(proc: str = "/proc", cgroup: str = "/sys/fs/cgroup") -> int | No
         _, controllers, path = parts
         path = path.strip("/")
         if controllers == "":
-            base = os.path.join(cgroup, path) if path else cgroup
-            files = ("memory.max", "memory.current")
+            root, files = cgroup, ("memory.max", "memory.current")
         elif "memory" in controllers.split(","):
-            base = os.path.join(cgroup, "memory", path) if path else os.path.join(cgroup, "memory")
-            files = ("memory.limit_in_bytes", "memory.usage_in_bytes")
+            root, files = os.path.join(cgroup, "memory"), ("memory.limit_in_bytes", "memory.usage_in_bytes")
         else:
             continue
-        limit = _number(_read(os.path.join(base, files[0])))
-        if limit is not None:
-            return max(0, limit - (_number(_read(os.path.join(base, files[1]))) or 0))
+        # in a container the path is the host's and the container's own cgroup is mounted at the root
+        for base in dict.fromkeys((os.path.join(root, path), root)):
+            text = _read(os.path.join(base, files[0]))
+            if text is None:
+                continue
+            limit = _number(text)
+            if limit is not None:
+                return max(0, limit - (_number(_read(os.path.join(base, files[1]))) or 0))
+            break
     return None
 
 

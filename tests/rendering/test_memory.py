@@ -74,6 +74,9 @@ def test_cgroup_v2_v1_and_unlimited(tmp_path):
     proc, root = fake_files(tmp_path / "v1max", 8 << 20, "7:memory:/",
                             {"memory/memory.limit_in_bytes": "9223372036854771712"})
     assert cgroup_room(proc, root) is None
+    proc, root = fake_files(tmp_path / "container", 8 << 20, "4:memory:/host/path\n0::/",
+                            {"memory/memory.limit_in_bytes": str(1 << 30), "memory/memory.usage_in_bytes": "0"})
+    assert cgroup_room(proc, root) == 1 << 30          # the host's path is absent: the mount root's limit
     proc, root = fake_files(tmp_path / "none", 8 << 20)
     assert cgroup_room(proc, root) is None
 

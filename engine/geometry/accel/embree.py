@@ -1,13 +1,16 @@
 """Triangles through Embree (embreex), robust mode, whole batches per call."""
 from __future__ import annotations
 
-import resource
-
 import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
 from ...core.errors import SceneError
+
+try:
+    import resource                     # POSIX only: without it there is no RLIMIT_AS to check
+except ImportError:                     # pragma: no cover - Windows
+    resource = None
 
 # embreex takes float32; +inf is a valid tfar but keep it finite for safety.
 FLOAT32_FAR = np.float32(3.0e38)
@@ -22,6 +25,8 @@ BUILD_ADDRESS_BYTES_PER_TRIANGLE = 200
 
 def check_build_fits(triangles: int, status: str = "/proc/self/status") -> None:
     """SceneError when a BVH of `triangles` would not fit under RLIMIT_AS (one line, not a crash)."""
+    if resource is None:
+        return
     soft, _ = resource.getrlimit(resource.RLIMIT_AS)
     if soft == resource.RLIM_INFINITY or soft < 0:
         return
