@@ -255,7 +255,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
                     exported.warnings.append(note)
             settings.validate()
             warnings = list(exported.warnings) + list(exported.scene.validate())
-            bridge.module("rendering.memory").check_memory(exported.scene, settings)     # refused before allocating
+            bridge.module("rendering.memory").check_memory(          # refused before allocating
+                exported.scene, settings, pool="dask" if cluster else "workers" if pool is not None else "threads")
         except BaseException:
             if pool is not None:
                 pool.close()

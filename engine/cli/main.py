@@ -132,7 +132,7 @@ def cmd_render(args) -> int:
                             for t in scene.textures if getattr(t, "path", None)])
     check_pass_outputs(args, outputs)
     scene.validate()
-    check_memory(scene, settings)
+    check_memory(scene, settings, pool=("workers" if args.cluster == "local" else "dask") if args.cluster else None)
     if stop.requested():
         return stop.report_exit()
     log = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
@@ -206,6 +206,12 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_bench_memory(args) -> int:
+    from .bench_memory import run_bench_memory
+    run_bench_memory()
+    return 0
+
+
 def cmd_bench_cluster(args) -> int:
     from .bench import run_bench_cluster
     run_bench_cluster(resolution=tuple(args.resolution), samples=args.samples, workers=args.workers,
@@ -262,6 +268,8 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar=("W", "H"))
     b.add_argument("--samples", type=positive_int, default=64)
     b.set_defaults(func=cmd_bench)
+    sub.add_parser("bench-memory", help="the memory estimate against the summed peak RSS of a few renders "
+                   "(about 4 minutes on 2 cores)").set_defaults(func=cmd_bench_memory)
     bc = sub.add_parser("bench-cluster", help="the same render on the local pool and on a Dask cluster of "
                                               "worker processes started here: the time ratio")
     bc.add_argument("--resolution", type=bounded_int(1, MAX_RESOLUTION), nargs=2, default=(256, 256),

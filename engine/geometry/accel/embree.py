@@ -1,12 +1,83 @@
 """Triangles through Embree (embreex), robust mode, whole batches per call."""
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
+from ...core.errors import SceneError
+
+try:
+    import resource                     # POSIX only: without it there is no RLIMIT_AS to check
+except ImportError:                     # pragma: no cover - Windows
+    resource = None
+
 # embreex takes float32; +inf is a valid tfar but keep it finite for safety.
 FLOAT32_FAR = np.float32(3.0e38)
+
+
+
+# Address space Embree's triangle buffers and the build take, probed before TriangleMesh: when its
+# buffers cannot be allocated it writes through a null pointer (rc 139) before any error can be
+# read.  Measured: 1M triangles built under RLIMIT_AS with 170 MiB of room in the CLI process;
+# unconstrained the build maps 190 MiB + 170 bytes per triangle (malloc arenas it then reuses).
+PROBE_BYTES = 32 << 20
+PROBE_BYTES_PER_TRIANGLE = 128
+
+
+def probe_room(triangles: int) -> None:
+    """SceneError when the address space Embree's buffers need cannot be mapped now (a mapping
+    never touched: no memory is used)."""
+    need = PROBE_BYTES + triangles * PROBE_BYTES_PER_TRIANGLE
+    try:
+        np.empty(need, np.uint8)
+    except MemoryError:
+        raise SceneError(_message(triangles, f"{need / 2**30:.2f} GB of address space could not be mapped")) from None
+
+
+def _message(triangles: int, what: str) -> str:
+    limit = address_space_limit()
+    return (f"Embree cannot build the BVH of {triangles} triangles ({what})"
+            + (f"; the address-space limit (RLIMIT_AS, ulimit -v) is {limit / 2**30:.1f} GB: raise it or"
+               if limit else ":") + " use fewer triangles or threads")
+
+
+class _Errors(logging.Handler):
+    """Collects what embreex's error callback logs (it logs and returns: the scene stays unbuilt)."""
+
+    def __init__(self):
+        super().__init__(logging.ERROR)
+        self.messages: list[str] = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+def build(scene, triangles: int) -> None:
+    """Commit `scene` (embreex builds the BVH on its first query: here one with no rays) and raise
+    SceneError in one line when Embree reports an error, before any ray meets the unbuilt scene,
+    which crashes the process (Embree out of memory under RLIMIT_AS: rc 139)."""
+    log = logging.getLogger("embreex")
+    errors, propagate = _Errors(), log.propagate
+    log.addHandler(errors)
+    log.propagate = False
+    try:
+        scene.run(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32))
+    finally:
+        log.removeHandler(errors)
+        log.propagate = propagate
+    if errors.messages:
+        what = "; ".join(m for m in errors.messages if not m.startswith("ERROR CAUGHT")) or errors.messages[0]
+        raise SceneError(_message(triangles, what))
+
+
+def address_space_limit() -> int | None:
+    if resource is None:
+        return None
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    return None if soft == resource.RLIM_INFINITY or soft < 0 else soft
 
 
 class EmbreeAccelerator:
@@ -18,10 +89,11 @@ class EmbreeAccelerator:
         self.scene = rtcore_scene.EmbreeScene(robust=True)
         self.count = len(triangles)
         if self.count:
+            probe_room(self.count)
             TriangleMesh(self.scene, np.ascontiguousarray(triangles, dtype=np.float32))
-            # Build the BVH now (embreex commits on the first query): the build uses Embree's
-            # thread pool, which a forked render worker does not have.
-            self.scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
+            # Build the BVH now: the build uses Embree's thread pool, which a forked render worker
+            # does not have.
+            build(self.scene, self.count)
 
     def _tfar(self, tmax: np.ndarray) -> np.ndarray:
         # A fresh array: embreex overwrites `dists` in place (docs/hard-cases.md §1).
