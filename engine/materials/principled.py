@@ -476,8 +476,13 @@ class PrincipledV2(BSDF):
             pdf[idx] += p.take(idx) * pdf_l
         return f_cos, pdf
 
+    def _lobes_at(self, si: ShadingPoint):
+        """_layered_lobes or lobe_weights at the hits (they depend on the hits, not on wi): once per hit for
+        its eval and its sample (ShadingPoint.memo)."""
+        return si.memo((self, "lobes"), self._layered_lobes if self.any_layers else self.lobe_weights)
+
     def _layered_sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
-        layers, weights, prob = self._layered_lobes(si)
+        layers, weights, prob = self._lobes_at(si)
         cdf = np.cumsum(prob, axis=0)
         choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
         n = len(si)
@@ -544,9 +549,9 @@ class PrincipledV2(BSDF):
     # -- the protocol -------------------------------------------------------------------------
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.any_layers:
-            layers, weights, prob = self._layered_lobes(si)
+            layers, weights, prob = self._lobes_at(si)
             return self._layered_mixture(si, wi, layers, weights, prob)
-        weights, prob = self.lobe_weights(si)
+        weights, prob = self._lobes_at(si)
         return self._mixture(si, wi, weights, prob)
 
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
@@ -555,7 +560,7 @@ class PrincipledV2(BSDF):
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
         if self.any_layers:
             return self._layered_sample(si, u_lobe, u)
-        weights, prob = self.lobe_weights(si)
+        weights, prob = self._lobes_at(si)
         cdf = np.cumsum(prob, axis=0)
         choice = (np.asarray(u_lobe)[None, :] >= cdf[:2]).sum(axis=0)      # 0 metal, 1 specular, 2 diffuse
         choice = np.where(prob.sum(axis=0) > 0.0, choice, 2)
