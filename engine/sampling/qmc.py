@@ -108,24 +108,41 @@ def permute(index: np.ndarray, bits: int, key: np.ndarray) -> np.ndarray:
     return x
 
 
+# Salts of the three keys of a (pixel, dim) seed: the index shuffle and the scrambles of x and y.
+_KEY_SALTS = np.array([0x1B873593, 0xA511E9B3, 0x63D83595], dtype=np.uint32)
+_DIM_SALT = U32(0x68E31DA4)
+_DIM_HASHES = hash32(np.arange(1024, dtype=np.uint32) + _DIM_SALT)      # hash32(dim + salt) of small dims
+
+
+def _dim_hash(dim) -> np.ndarray:
+    """hash32(dim + _DIM_SALT), read from a table for arrays of dims below 1024 (every render's)."""
+    dim = np.asarray(dim)
+    if dim.ndim and dim.size and dim.dtype.kind in "iu" and dim.min() >= 0 and dim.max() < len(_DIM_HASHES):
+        return _DIM_HASHES.take(dim)
+    return hash32(dim.astype(np.uint32) + _DIM_SALT)
+
+
 def sample_2d(index: np.ndarray, pixel_seed: np.ndarray, dim, count: int = 1 << 16
               ) -> tuple[np.ndarray, np.ndarray]:
     """Point `index` (< count) of the scrambled 2D Sobol' net of (pixel, dimension pair `dim`),
     as two float64 arrays in [0, 1).  `dim` is an int or an array like `index`.  The index is
     first permuted within [0, 2^ceil(log2 count)), with a key of its own per (pixel, dim)."""
     bits = max(int(count - 1).bit_length(), 0)
+    index = np.asarray(index, dtype=np.uint32)
     with np.errstate(over="ignore"):
-        seed = hash32(pixel_seed ^ hash32(np.asarray(dim, dtype=np.uint32) + U32(0x68E31DA4)))
+        seed = hash32(pixel_seed ^ _dim_hash(dim))
+        if seed.shape != index.shape:
+            seed = np.broadcast_to(seed, np.broadcast_shapes(seed.shape, index.shape))
         # Three independent keys: the shuffle and each coordinate's scramble.  (Keys that are
         # odd multiples of one seed share its low bit, and the low bits of the Laine-Karras keys
         # decide the top bits of x and y: the pair's two numbers would fall in the same half.)
-        i = permute(np.asarray(index, dtype=np.uint32), bits, hash32(seed ^ U32(0x1B873593)))
+        keys = hash32(np.bitwise_xor.outer(_KEY_SALTS, seed))
+        i = permute(index, bits, keys[0])
         # Dimension 0 is the bit-reversed index, dimension 1 sobol_dim1: the Owen scramble
         # reverse_bits(laine_karras(reverse_bits(point))) of each needs one reversal only.  Both
         # coordinates go through the hash and the reversal together, as the rows of one array.
         pair = np.stack((i, sobol_dim1_reversed(i)))
-        keys = np.stack(np.broadcast_arrays(hash32(seed ^ U32(0xA511E9B3)), hash32(seed ^ U32(0x63D83595))))
-        xy = reverse_bits(laine_karras(pair, keys)) * (1.0 / 4294967296.0)
+        xy = reverse_bits(laine_karras(pair, keys[1:])) * (1.0 / 4294967296.0)
     # (2^32 - 1) / 2^32 is exact in float64 and below 1: every coordinate is in [0, 1)
     return xy[0], xy[1]
 
