@@ -26,7 +26,7 @@ side, and from the far side too for a BSDF whose flags have a non-delta lobe and
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import IntFlag
 from types import SimpleNamespace
 
@@ -119,6 +119,13 @@ class ShadingPoint:
                 source, index = self._source
                 self._memo[key] = take_hits(source.memo(key, compute), index)
         return self._memo[key]
+
+    def recolour(self, color: np.ndarray) -> "ShadingPoint":
+        """These hits with another colour (a lobe's view of them): a memo of its own, which a
+        take of it gathers from as from the view of a span when these hits are one."""
+        view = replace(self, color=color)
+        object.__setattr__(view, "_shared", self._shared)
+        return view
 
     def __getitem__(self, span: slice) -> "ShadingPoint":
         """The hits in `span` (views: a medium stack updated through them updates the paths')."""
