@@ -51,3 +51,13 @@ def test_changed_hits_compute_afresh():
     alone = hits(3)                                 # not a span's view: a take computes its own
     alone.take(np.array([0])).memo("k", compute)
     assert calls == [4, 4, 2, 1]
+
+
+def test_a_recoloured_span_keeps_its_own_memo_and_gathers_for_its_takes():
+    si, (compute, calls) = hits(), counting()
+    span = si[0:4]
+    span.memo("k", compute)
+    lobe = span.recolour(np.ones((3, 4)))           # a lobe's view (engine/materials/principled.py)
+    assert np.array_equal(lobe.memo("k", compute)[0], np.full(4, 3.0))
+    assert np.array_equal(lobe.take(np.array([2, 1])).memo("k", compute)[0], np.full(2, 3.0))
+    assert calls == [4, 4]
