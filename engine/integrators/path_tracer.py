@@ -117,8 +117,10 @@ class Paths:
         return [(f.name, 1 if f.name in VECTOR_FIELDS else 0) for f in fields(self)
                 if getattr(self, f.name) is not None]
 
-    def take(self, index) -> "Paths":
-        return Paths(**{name: getattr(self, name).take(index, axis=axis) for name, axis in self._fields()})
+    def take(self, index, replaced=()) -> "Paths":
+        """The paths `index`; the fields named in `replaced` are left None, for the caller to set."""
+        return Paths(**{name: None if name in replaced else getattr(self, name).take(index, axis=axis)
+                        for name, axis in self._fields()})
 
     def extend(self, other: "Paths") -> "Paths":
         return Paths(**{name: np.concatenate([getattr(self, name), getattr(other, name)], axis=axis)
@@ -244,7 +246,7 @@ class PathTracer:
         if self.plan.emission:
             self.emission(p, surf, hits, surfaces)
         # 4. Area lights: the ray goes on through them, as it was.
-        passing = self.pass_through(p.take(np.arange(through.start, through.stop)), surf, through)
+        passing = self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
         # 5. Direct light at hits with a non-delta BSDF (eq. 2.11).
         towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
         facing = surf.normal * towards                                      # towards the ray
@@ -290,7 +292,7 @@ class PathTracer:
         if len(pixel):
             on_finished(pixel, np.concatenate([f[1] for f in finished], axis=1))
         keep = np.flatnonzero(keep)
-        survivors = p.take(keep)
+        survivors = p.take(keep, replaced=("o", "d", "beta"))
         survivors.o = (surf.point.take(keep, axis=1)
                        + (side.take(keep) * surf.offset.take(keep)) * facing.take(keep, axis=1))
         survivors.d = new_d.take(keep, axis=1)

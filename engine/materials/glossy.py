@@ -245,6 +245,14 @@ class MicrofacetReflection(BSDF):
             scale = 1.0 + f_ms * np.where(e > 0.0, (1.0 - e) / e, 0.0)
         return np.where(on, scale, 1.0)
 
+    def compensation_at(self, si: ShadingPoint) -> np.ndarray | None:
+        """compensation at cos_o = dot(wo, n) (wo's local z), once per hit for the sample and the
+        evals at the same hits (ShadingPoint.memo)."""
+        return si.memo((self, "compensation"), lambda at: self.compensation(at, dot(at.wo, at.n)))
+
+    def _frame_at(self, si: ShadingPoint):
+        return si.memo((self, "frame"), self._frame)
+
     def _lobe(self, si, wo_l, wi_l, h, ax, ay, beckmann):
         """(D, Lambda(wo), Lambda(wi)) per hit, each distribution on its hits."""
         d, lo, li = np.empty(len(si)), np.empty(len(si)), np.empty(len(si))
@@ -261,7 +269,7 @@ class MicrofacetReflection(BSDF):
     # -- the protocol -------------------------------------------------------------------------
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
         ax, ay, beckmann = self._alphas(si)
-        x, y = self._frame(si)
+        x, y = self._frame_at(si)
         wo_l = to_local(si.wo, x, y, si.n)
         h = np.empty_like(wo_l)
         for dist, mask in ((GGX, ~beckmann), (BECKMANN, beckmann)):
@@ -277,7 +285,7 @@ class MicrofacetReflection(BSDF):
             pdf = np.where(ok, d / (4.0 * wo_l[2] * (1.0 + lo)), 0.0)
             ratio = np.where(ok, (1.0 + lo) / (1.0 + lo + li), 0.0)          # G2 / G1(wo)
         value = self._fresnel(si, np.clip(cos_h, 0.0, 1.0)) * ratio
-        scale = self.compensation(si, wo_l[2])
+        scale = self.compensation_at(si)
         if scale is not None:
             value = value * scale
         wi = normalize(to_world(wi_l, x, y, si.n))
@@ -285,7 +293,7 @@ class MicrofacetReflection(BSDF):
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ax, ay, beckmann = self._alphas(si)
-        x, y = self._frame(si)
+        x, y = self._frame_at(si)
         wo_l, wi_l = to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n)
         ok = (wo_l[2] > 0.0) & (wi_l[2] > 0.0)
         half = wo_l + wi_l
@@ -296,7 +304,7 @@ class MicrofacetReflection(BSDF):
             common = np.where(ok, d / (4.0 * wo_l[2]), 0.0)
             pdf = np.nan_to_num(common / (1.0 + lo))
             f_cos = self._fresnel(si, np.clip(dot(wo_l, h), 0.0, 1.0)) * np.nan_to_num(common / (1.0 + lo + li))
-        scale = self.compensation(si, wo_l[2])
+        scale = self.compensation_at(si)
         if scale is not None:
             f_cos = f_cos * scale
         return f_cos, pdf

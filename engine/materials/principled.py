@@ -76,7 +76,6 @@ alone (the same arithmetic as before the layers existed: their images are bit-id
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from functools import lru_cache
 from types import SimpleNamespace
 
@@ -303,14 +302,14 @@ class PrincipledV2(BSDF):
     def _views(self, si: ShadingPoint):
         """The ShadingPoints the three lobes see: the colour is F0 of the metal (the clamped base
         colour), F0 x tint of the specular layer, the base colour of the diffuse."""
-        metal = replace(si, color=np.minimum(si.color, 1.0))
-        specular = replace(si, color=self.spec_f0.take(si.material, axis=1))
+        metal, specular = si.memo((self, "views"), lambda at: (at.recolour(np.minimum(at.color, 1.0)),
+                                                               at.recolour(self.spec_f0.take(at.material, axis=1))))
         return metal, specular, si
 
     def _darkening(self, lobe: MicrofacetReflection, si: ShadingPoint, cos_o: np.ndarray) -> np.ndarray:
         """E + F_ms (1 - E) (3, N): what microfacet_ggx_preserve_energy multiplies the closure
         weight by (its compensation times E); 1 where the material does not compensate."""
-        scale = lobe.compensation(si, cos_o)
+        scale = lobe.compensation_at(si)            # cos_o is clip(dot(wo, n)): compensation clips
         if scale is None:
             return np.ones((3, len(si)))
         e = albedo_tables.albedo(lobe.table_roughness(si), np.clip(cos_o, 0.0, 1.0))
@@ -412,7 +411,7 @@ class PrincipledV2(BSDF):
         # darkening of the base; its tint stays (closure.h)
         coat_on = coat_w if si.glossy_off is None else np.where(si.glossy_off, 0.0, coat_w)
         coat = coat_on * w
-        coat_view = replace(si, color=np.ones((3, n)))
+        coat_view = si.recolour(np.ones((3, n)))
         ior = self.coat_ior.take(rows)
         f0 = f0_from_ior(ior)
         s_coat = _read(self.s_coat, rows, mu)
@@ -476,8 +475,13 @@ class PrincipledV2(BSDF):
             pdf[idx] += p.take(idx) * pdf_l
         return f_cos, pdf
 
+    def _lobes_at(self, si: ShadingPoint):
+        """_layered_lobes or lobe_weights at the hits (they depend on the hits, not on wi): once per hit for
+        its eval and its sample (ShadingPoint.memo)."""
+        return si.memo((self, "lobes"), self._layered_lobes if self.any_layers else self.lobe_weights)
+
     def _layered_sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
-        layers, weights, prob = self._layered_lobes(si)
+        layers, weights, prob = self._lobes_at(si)
         cdf = np.cumsum(prob, axis=0)
         choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
         n = len(si)
@@ -544,9 +548,9 @@ class PrincipledV2(BSDF):
     # -- the protocol -------------------------------------------------------------------------
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.any_layers:
-            layers, weights, prob = self._layered_lobes(si)
+            layers, weights, prob = self._lobes_at(si)
             return self._layered_mixture(si, wi, layers, weights, prob)
-        weights, prob = self.lobe_weights(si)
+        weights, prob = self._lobes_at(si)
         return self._mixture(si, wi, weights, prob)
 
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
@@ -555,7 +559,7 @@ class PrincipledV2(BSDF):
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
         if self.any_layers:
             return self._layered_sample(si, u_lobe, u)
-        weights, prob = self.lobe_weights(si)
+        weights, prob = self._lobes_at(si)
         cdf = np.cumsum(prob, axis=0)
         choice = (np.asarray(u_lobe)[None, :] >= cdf[:2]).sum(axis=0)      # 0 metal, 1 specular, 2 diffuse
         choice = np.where(prob.sum(axis=0) > 0.0, choice, 2)

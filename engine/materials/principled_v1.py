@@ -233,7 +233,9 @@ class PrincipledV1(BSDF):
             pdf = np.nan_to_num(common / (1.0 + lo))
             f = np.nan_to_num(common * g)
         fresnel = interpolated_fresnel(np.clip(dot(wi_l, h), 0.0, 1.0), self.eta.take(mat), self.cspec0(si))
-        return fresnel * f * self._compensation(si, wo_l[2]), pdf
+        # wo_l[2] is dot(si.wo, si.n) (to_local): the same per hit in eval and sample, kept once
+        compensation = si.memo((self, "compensation"), lambda at: self._compensation(at, dot(at.wo, at.n)))
+        return fresnel * f * compensation, pdf
 
     def _compensation(self, si, cos_o):
         """1 + F_ms (1 - E) / E (3, N) where the material is "Multiscatter GGX" above roughness 0.075,
@@ -296,16 +298,16 @@ class PrincipledV1(BSDF):
 
     # -- the protocol -------------------------------------------------------------------------------
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        weights, prob = self.closures(si)
-        x, y = self._frame(si)
+        weights, prob = si.memo((self, "closures"), self.closures)
+        x, y = si.memo((self, "frame"), self._frame)
         return self._mixture(si, to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n), weights, prob)
 
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         return self.eval(si, wi)[1]
 
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
-        weights, prob = self.closures(si)
-        x, y = self._frame(si)
+        weights, prob = si.memo((self, "closures"), self.closures)
+        x, y = si.memo((self, "frame"), self._frame)
         wo_l = to_local(si.wo, x, y, si.n)
         cdf = np.cumsum(prob, axis=0)
         last = len(prob) - 1

@@ -26,8 +26,9 @@ side, and from the far side too for a BSDF whose flags have a non-delta lobe and
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from enum import IntFlag
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -76,6 +77,11 @@ class ShadingPoint:
     engine/integrators/light_paths.py), or None.
     glossy_off: (N,) hits whose glossy reflection lobes are left out (Reflective Caustics off after
     a diffuse bounce; a BSDF with diffuse and glossy lobes reads it), or None.
+
+    A BSDF keeps what it derives from the hits alone (not from wi) through `memo`, once for its
+    eval / pdf and sample at the same hits.  Views of one span (`si[span]`: the hits of a scatter
+    group) share the memo, and a `take` of such a view (or of its takes) gathers the view's values;
+    other ShadingPoints keep their own.  `dataclasses.replace` and setting a field start afresh.
     """
     wo: np.ndarray
     n: np.ndarray
@@ -88,14 +94,49 @@ class ShadingPoint:
     lookup: object = None
     alpha_floor: np.ndarray | None = None
     glossy_off: np.ndarray | None = None
+    _memo: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+    _spans: dict = field(default_factory=dict, init=False, repr=False, compare=False)  # span -> its views' memo
+    _shared: bool = field(default=False, init=False, repr=False, compare=False)  # a span's view
+    _source: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (view, index) of a take
+
+    def __setattr__(self, name, value):
+        object.__setattr__(self, name, value)
+        if name[0] != "_" and "_source" in self.__dict__:     # a field changed after __init__: other hits
+            object.__setattr__(self, "_memo", {})
+            object.__setattr__(self, "_spans", {})
+            object.__setattr__(self, "_shared", False)
+            object.__setattr__(self, "_source", None)
+
+    def memo(self, key, compute):
+        """compute(self) once per key for these hits: a value whose arrays all run over the hits
+        on their last axis (tuples, lists, SimpleNamespaces and ShadingPoints of them too).  A take
+        of a span's view computes it on the view and gathers (engine/integrators/path_tracer.py:
+        the light samples' eval takes some hits of the span its sample then scatters)."""
+        if key not in self._memo:
+            if self._source is None:
+                self._memo[key] = compute(self)
+            else:
+                source, index = self._source
+                self._memo[key] = take_hits(source.memo(key, compute), index)
+        return self._memo[key]
+
+    def recolour(self, color: np.ndarray) -> "ShadingPoint":
+        """These hits with another colour (a lobe's view of them): a memo of its own, which a
+        take of it gathers from as from the view of a span when these hits are one."""
+        view = replace(self, color=color)
+        object.__setattr__(view, "_shared", self._shared)
+        return view
 
     def __getitem__(self, span: slice) -> "ShadingPoint":
         """The hits in `span` (views: a medium stack updated through them updates the paths')."""
         media = None if self.media is None else self.media[span]
-        return ShadingPoint(self.wo[:, span], self.n[:, span], self.ng[:, span], self.normal[:, span],
+        view = ShadingPoint(self.wo[:, span], self.n[:, span], self.ng[:, span], self.normal[:, span],
                             self.color[:, span], self.material[span], self.smooth, media,
                             None if self.lookup is None else self.lookup[span],
                             *(None if a is None else a[span] for a in (self.alpha_floor, self.glossy_off)))
+        object.__setattr__(view, "_memo", self._spans.setdefault((span.start, span.stop, span.step), {}))
+        object.__setattr__(view, "_shared", True)
+        return view
 
     def take(self, index: np.ndarray) -> "ShadingPoint":
         """The hits `index` (copies, the medium stacks too: for evaluating directions only)."""
@@ -103,13 +144,29 @@ class ShadingPoint:
             return a.take(index, axis=1)
         media = None if self.media is None else type(self.media)(self.media.media.take(index, axis=0),
                                                                  self.media.depth.take(index))
-        return ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
+        taken = ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
                              self.material.take(index), self.smooth, media,
                              None if self.lookup is None else self.lookup.take(index),
                              *(None if a is None else a.take(index) for a in (self.alpha_floor, self.glossy_off)))
+        if self._shared or self._source is not None:
+            object.__setattr__(taken, "_source", (self, index))
+        return taken
 
     def __len__(self) -> int:
         return self.wo.shape[1]
+
+
+def take_hits(value, index: np.ndarray):
+    """A memo value (ShadingPoint.memo) at the hits `index`."""
+    if isinstance(value, np.ndarray):
+        return value.take(index, axis=-1)
+    if isinstance(value, ShadingPoint):
+        return value.take(index)
+    if isinstance(value, (tuple, list)):
+        return type(value)(take_hits(v, index) for v in value)
+    if isinstance(value, SimpleNamespace):
+        return SimpleNamespace(**{k: take_hits(v, index) for k, v in vars(value).items()})
+    return value
 
 
 @dataclass

@@ -11,45 +11,50 @@ uniforms, with much lower variance for the smooth parts of an integrand (direct 
 area lights, pixel footprints).  Random numbers depend only on (seed, pixel, sample index,
 dimension), never on tiles, threads or the order paths are traced in.
 
-Everything is vectorised over uint32 arrays; bit reversal and the Sobol' generator matrix of
-the second dimension go through byte tables.
+Everything is vectorised over uint32 arrays in shifts, masks and xors (no table gathers): bit
+reversal swaps ever larger bit groups and then the bytes; the second dimension's Sobol' matrix
+(Pascal's triangle modulo 2) is a superset-parity transform of the index bits.
 """
 from __future__ import annotations
 
 import numpy as np
 
 U32 = np.uint32
-_REV8 = np.array([int(f"{i:08b}"[::-1], 2) for i in range(256)], dtype=np.uint32)
-
-
-def _sobol_dim1_tables():
-    """Byte tables T[j][b] = XOR of the direction numbers of bits set in byte j of the index."""
-    v = [1 << 31]
-    for _ in range(31):
-        v.append(v[-1] ^ (v[-1] >> 1))
-    tables = np.zeros((4, 256), dtype=np.uint32)
-    for j in range(4):
-        for b in range(256):
-            acc = 0
-            for t in range(8):
-                if b >> t & 1:
-                    acc ^= v[8 * j + t]
-            tables[j, b] = acc
-    return tables
-
-
-_SOBOL1 = _sobol_dim1_tables()
+# (shift, mask) of the bit-group swaps of reverse_bits, and of the superset xors of sobol_dim1
+_SWAPS = tuple((U32(1 << k), U32(m)) for k, m in enumerate((0x55555555, 0x33333333, 0x0F0F0F0F)))
+_SUPERSETS = tuple((U32(1 << k), U32(m)) for k, m in enumerate((0x55555555, 0x33333333, 0x0F0F0F0F,
+                                                                 0x00FF00FF, 0x0000FFFF)))
 
 
 def reverse_bits(x: np.ndarray) -> np.ndarray:
-    x = x.astype(np.uint32, copy=False)
-    return ((_REV8[x & U32(255)] << U32(24)) | (_REV8[(x >> U32(8)) & U32(255)] << U32(16))
-            | (_REV8[(x >> U32(16)) & U32(255)] << U32(8)) | _REV8[x >> U32(24)])
+    """Bit 31 - k of each result is bit k of x (a new uint32 array)."""
+    x = np.array(x, dtype=np.uint32)
+    for shift, mask in _SWAPS:         # swap neighbouring bits, pairs, nibbles: each byte reversed
+        low = x & mask
+        x >>= shift
+        x &= mask
+        low <<= shift
+        x |= low
+    return x.byteswap(inplace=True)    # then the byte order
+
+
+def sobol_dim1_reversed(i: np.ndarray) -> np.ndarray:
+    """The second Sobol' dimension of index i, bit-reversed (bit j of the result is bit 31 - j of
+    sobol_dim1(i)).  Its direction numbers v_k = v_(k-1) xor (v_(k-1) >> 1), v_0 = 1 << 31, are the
+    columns of Pascal's triangle modulo 2: bit 31 - j of v_k is binomial(k, j) mod 2, which is 1
+    exactly when the bits of j are a subset of those of k (Lucas' theorem).  So bit j of the
+    reversed point is the parity of the bits k of i with k a superset of j: five xor-shifts."""
+    w = np.array(i, dtype=np.uint32)
+    for shift, mask in _SUPERSETS:     # bit j ^= bit j + shift, for the j without that bit
+        t = w >> shift
+        t &= mask
+        w ^= t
+    return w
 
 
 def sobol_dim1(i: np.ndarray) -> np.ndarray:
-    return (_SOBOL1[0][i & U32(255)] ^ _SOBOL1[1][(i >> U32(8)) & U32(255)]
-            ^ _SOBOL1[2][(i >> U32(16)) & U32(255)] ^ _SOBOL1[3][i >> U32(24)])
+    """The second dimension of the Sobol' sequence at index i (32-bit fixed point)."""
+    return reverse_bits(sobol_dim1_reversed(i))
 
 
 def hash32(x: np.ndarray) -> np.ndarray:
@@ -103,24 +108,43 @@ def permute(index: np.ndarray, bits: int, key: np.ndarray) -> np.ndarray:
     return x
 
 
+# Salts of the three keys of a (pixel, dim) seed: the index shuffle and the scrambles of x and y.
+_KEY_SALTS = np.array([0x1B873593, 0xA511E9B3, 0x63D83595], dtype=np.uint32)
+_DIM_SALT = U32(0x68E31DA4)
+_DIM_HASHES = hash32(np.arange(1024, dtype=np.uint32) + _DIM_SALT)      # hash32(dim + salt) of small dims
+
+
+def _dim_hash(dim) -> np.ndarray:
+    """hash32(dim + _DIM_SALT), read from a table for arrays of dims below 1024 (every render's)."""
+    dim = np.asarray(dim)
+    if dim.ndim and dim.size and dim.dtype.kind in "iu" and dim.min() >= 0 and dim.max() < len(_DIM_HASHES):
+        return _DIM_HASHES.take(dim)
+    return hash32(dim.astype(np.uint32) + _DIM_SALT)
+
+
 def sample_2d(index: np.ndarray, pixel_seed: np.ndarray, dim, count: int = 1 << 16
               ) -> tuple[np.ndarray, np.ndarray]:
     """Point `index` (< count) of the scrambled 2D Sobol' net of (pixel, dimension pair `dim`),
     as two float64 arrays in [0, 1).  `dim` is an int or an array like `index`.  The index is
     first permuted within [0, 2^ceil(log2 count)), with a key of its own per (pixel, dim)."""
     bits = max(int(count - 1).bit_length(), 0)
+    index = np.asarray(index, dtype=np.uint32)
     with np.errstate(over="ignore"):
-        seed = hash32(pixel_seed ^ hash32(np.asarray(dim, dtype=np.uint32) + U32(0x68E31DA4)))
+        seed = hash32(pixel_seed ^ _dim_hash(dim))
+        if seed.shape != index.shape:
+            seed = np.broadcast_to(seed, np.broadcast_shapes(seed.shape, index.shape))
         # Three independent keys: the shuffle and each coordinate's scramble.  (Keys that are
         # odd multiples of one seed share its low bit, and the low bits of the Laine-Karras keys
         # decide the top bits of x and y: the pair's two numbers would fall in the same half.)
-        i = permute(np.asarray(index, dtype=np.uint32), bits, hash32(seed ^ U32(0x1B873593)))
-        # Dimension 0 is the bit-reversed index: its Owen scramble needs one reversal only.
-        x = reverse_bits(laine_karras(i, hash32(seed ^ U32(0xA511E9B3))))
-        y = owen_scramble(sobol_dim1(i), hash32(seed ^ U32(0x63D83595)))
-    scale = 1.0 / 4294967296.0
-    one = np.nextafter(1.0, 0.0)
-    return np.minimum(x * scale, one), np.minimum(y * scale, one)
+        keys = hash32(np.bitwise_xor.outer(_KEY_SALTS, seed))
+        i = permute(index, bits, keys[0])
+        # Dimension 0 is the bit-reversed index, dimension 1 sobol_dim1: the Owen scramble
+        # reverse_bits(laine_karras(reverse_bits(point))) of each needs one reversal only.  Both
+        # coordinates go through the hash and the reversal together, as the rows of one array.
+        pair = np.stack((i, sobol_dim1_reversed(i)))
+        xy = reverse_bits(laine_karras(pair, keys[1:])) * (1.0 / 4294967296.0)
+    # (2^32 - 1) / 2^32 is exact in float64 and below 1: every coordinate is in [0, 1)
+    return xy[0], xy[1]
 
 
 class SobolSampler:

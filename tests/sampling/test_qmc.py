@@ -5,7 +5,7 @@ import pytest
 from scipy.stats import chi2_contingency
 
 from engine import RenderSettings, render
-from engine.sampling.qmc import owen_scramble, pixel_seeds, reverse_bits, sample_2d
+from engine.sampling.qmc import owen_scramble, pixel_seeds, reverse_bits, sample_2d, sobol_dim1
 
 from tests.scenes import diffuse_box_scene, near_lamp_box
 
@@ -13,6 +13,26 @@ from tests.scenes import diffuse_box_scene, near_lamp_box
 def points(pixel, dim, n=1024):
     seed = pixel_seeds(3, np.array([pixel]), np.array([5]))[0]
     return sample_2d(np.arange(n), np.full(n, seed, np.uint32), dim, n)
+
+
+def test_bit_tricks_match_their_definitions():
+    """reverse_bits and sobol_dim1 (shifts and masks) against bit-by-bit definitions: string
+    reversal, and the xor of the direction numbers v_k = v_(k-1) ^ (v_(k-1) >> 1) of the set bits."""
+    rng = np.random.default_rng(4)
+    x = np.concatenate([np.array([0, 1, 2, 0x80000000, 0xFFFFFFFF], np.uint32),
+                        rng.integers(0, 2 ** 32, 300, dtype=np.uint64).astype(np.uint32)])
+    assert [int(r) for r in reverse_bits(x)] == [int(f"{int(v):032b}"[::-1], 2) for v in x]
+    v = [1 << 31]
+    for _ in range(31):
+        v.append(v[-1] ^ (v[-1] >> 1))
+    expected = []
+    for value in x:
+        acc = 0
+        for k in range(32):
+            if int(value) >> k & 1:
+                acc ^= v[k]
+        expected.append(acc)
+    assert [int(r) for r in sobol_dim1(x)] == expected
 
 
 @pytest.mark.parametrize("dim", [0, 1, 7, 333])
