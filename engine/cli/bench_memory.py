@@ -28,13 +28,14 @@ CASES = (   # (triangles, resolution, pool, threads)
     (1_000_000, 1024, "processes", 2),
 )
 
+# The process measured; PKG: the tracer package (absolute imports would break the bundled copy).
 DRIVER = r"""
 import json, sys
-from engine.cli.bench_memory import torus_scene
-from engine.core.settings import RenderSettings
-from engine.rendering.memory import estimate_bytes
-from engine.api import render
-from engine.pools.spec import make_pool
+from PKG.cli.bench_memory import torus_scene
+from PKG.core.settings import RenderSettings
+from PKG.rendering.memory import estimate_bytes
+from PKG.api import render
+from PKG.pools.spec import make_pool
 triangles, res, pool, threads = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], int(sys.argv[4])
 scene = torus_scene(triangles, res)
 settings = RenderSettings(samples=1, threads=threads, parallelism="threads" if pool == "workers" else pool)
@@ -99,7 +100,8 @@ def measure(triangles: int, resolution: int, pool: str, threads: int) -> dict:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))]
         + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
-    proc = subprocess.Popen([sys.executable, "-c", DRIVER, str(triangles), str(resolution), pool, str(threads)],
+    driver = DRIVER.replace("PKG", __package__.split(".")[0])      # the tracer package's name, bundled or not
+    proc = subprocess.Popen([sys.executable, "-c", driver, str(triangles), str(resolution), pool, str(threads)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
     hwm: dict[int, int] = {}
     peak_pss = 0

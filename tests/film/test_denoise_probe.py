@@ -21,6 +21,9 @@ def aborting_pyoidn(tmp_path):
 
 
 def test_an_aborting_pyoidn_is_named_without_killing_this_process(aborting_pyoidn, monkeypatch):
+    # A pyoidn imported here by an earlier test is one that works (it is used as it is): forget it.
+    monkeypatch.delitem(sys.modules, "pyoidn", raising=False)
+    monkeypatch.setattr(denoise, "_PROBES", {})
     monkeypatch.syspath_prepend(str(aborting_pyoidn))
     problem = denoise.available()           # today's main: imported here, and this process aborted
     assert problem.startswith("denoiser unavailable: importing pyoidn killed its process (SIGABRT)"), problem
@@ -31,6 +34,8 @@ def test_a_pyoidn_that_imports_passes_the_probe(tmp_path, monkeypatch):
     fine = tmp_path / "fine"
     fine.mkdir()
     (fine / "pyoidn.py").write_text("VERSION = 'fake'\n")
+    monkeypatch.delitem(sys.modules, "pyoidn", raising=False)
+    monkeypatch.setattr(denoise, "_PROBES", {})
     monkeypatch.syspath_prepend(str(fine))
     assert denoise.probe_import() is None
 
