@@ -5,6 +5,7 @@ A limit in seconds is a guard against a hang, not a performance figure (those ar
 is prompt (a stop request), the limit scales with a time measured in the same run under the same
 load: how long the first work unit took to arrive.
 """
+import threading
 
 PROMPT_SHARE = 0.3       # a stop may take this share of the time to the first unit ...
 PROMPT_FLOOR = 1.0       # ... and at least this many seconds (the limit on a quiet machine)
@@ -16,3 +17,23 @@ def prompt_limit(seconds_to_first_unit: float) -> float:
     about that long and fails, at any load; measured under a load of 12 on 2 cores: the stop
     0.5 s, the first unit 7 s (limit 2.1 s)."""
     return max(PROMPT_FLOOR, PROMPT_SHARE * seconds_to_first_unit)
+
+
+def guarded(hang: float, fn):
+    """fn() on a thread: its value (or its exception, re-raised here), or a failed test when it has
+    not returned within `hang` seconds (a guard against a hang, not a timing check)."""
+    out = {}
+
+    def run():
+        try:
+            out["value"] = fn()
+        except BaseException as exc:             # noqa: BLE001 - re-raised on the test's thread
+            out["error"] = exc
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(hang)
+    assert not thread.is_alive(), f"the render hung (no answer in {hang:.0f} s)"
+    if "error" in out:
+        raise out["error"]
+    return out["value"]

@@ -7,7 +7,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
@@ -22,6 +21,7 @@ from engine.pools import dask_watch, faults                   # noqa: E402
 from engine.pools.dask_cluster import ProcessCluster          # noqa: E402
 from engine.pools.spec import make_pool                       # noqa: E402
 from engine.scene.builtin import cornell_scene                # noqa: E402
+from tests.load_tolerance import guarded                       # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 HANG = 150.0       # seconds: a guard against a hang (main waited for worker-ttl, 300 s), not a timing check
@@ -33,22 +33,6 @@ def settings():
     return RenderSettings(samples=48, tile_size=16, seed=7)
 
 
-def guarded(fn):
-    out = {}
-
-    def run():
-        try:
-            out["value"] = fn()
-        except BaseException as exc:             # noqa: BLE001 - re-raised on the test's thread
-            out["error"] = exc
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    thread.join(HANG)
-    assert not thread.is_alive(), f"the render hung (no answer in {HANG:.0f} s)"
-    if "error" in out:
-        raise out["error"]
-    return out["value"]
 
 
 @pytest.fixture
@@ -80,7 +64,7 @@ def render_on(cluster, action, should_cancel=None):
         if len(tiles) == 1:
             action(pool)
 
-    return guarded(lambda: render(cornell_scene(SIZE), settings(), pool=pool, on_tile=on_tile,
+    return guarded(HANG, lambda: render(cornell_scene(SIZE), settings(), pool=pool, on_tile=on_tile,
                                   should_cancel=should_cancel, **QUIET))
 
 

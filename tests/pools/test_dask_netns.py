@@ -13,7 +13,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import threading
 
 import numpy as np
 import pytest
@@ -25,6 +24,7 @@ from engine.pools import faults                               # noqa: E402
 from engine.pools.dask_cluster import RENDER_WORKER_CONFIG, connect   # noqa: E402
 from engine.pools.spec import make_pool                       # noqa: E402
 from engine.scene.builtin import cornell_scene                # noqa: E402
+from tests.load_tolerance import guarded                       # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DASK = os.path.join(os.path.dirname(sys.executable), "dask")
@@ -146,22 +146,6 @@ def reference():
     return render(cornell_scene(SCENE), RenderSettings(threads=1, **SETTINGS), **QUIET).image
 
 
-def guarded(fn):
-    out = {}
-
-    def run():
-        try:
-            out["value"] = fn()
-        except BaseException as exc:             # noqa: BLE001 - re-raised on the test's thread
-            out["error"] = exc
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    thread.join(HANG)
-    assert not thread.is_alive(), f"the render hung (no answer in {HANG:.0f} s)"
-    if "error" in out:
-        raise out["error"]
-    return out["value"]
 
 
 def render_through(cluster, on_first_tile=None):
@@ -173,7 +157,7 @@ def render_through(cluster, on_first_tile=None):
             on_first_tile()
 
     pool = make_pool(f"dask:{cluster.address}", 2, **QUIET)
-    return guarded(lambda: render(cornell_scene(SCENE), RenderSettings(**SETTINGS), pool=pool, on_tile=on_tile, **QUIET))
+    return guarded(HANG, lambda: render(cornell_scene(SCENE), RenderSettings(**SETTINGS), pool=pool, on_tile=on_tile, **QUIET))
 
 
 @pytest.mark.slow          # namespaces, a cluster of processes

@@ -8,7 +8,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
@@ -20,6 +19,7 @@ from engine.film.image_files import read_image
 from engine.pools import faults
 from engine.pools.spec import make_pool
 from engine.scene.builtin import cornell_scene
+from tests.load_tolerance import guarded
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 HANG = 240.0                 # seconds: a guard against a hang (today's main hung forever), not a timing check
@@ -32,23 +32,6 @@ def settings():
     return RenderSettings(samples=32, tile_size=16, seed=3, threads=2)
 
 
-def guarded(fn):
-    """fn() on a thread: its value, or a failed test when it has not returned within HANG seconds."""
-    out = {}
-
-    def run():
-        try:
-            out["value"] = fn()
-        except BaseException as exc:             # noqa: BLE001 - re-raised on the test's thread
-            out["error"] = exc
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    thread.join(HANG)
-    assert not thread.is_alive(), f"the render hung (no answer in {HANG:.0f} s)"
-    if "error" in out:
-        raise out["error"]
-    return out["value"]
 
 
 def pids(pool):
@@ -65,7 +48,7 @@ def render_with(kind, action, should_cancel=None):
         if len(tiles) == 1:
             action(pool)
 
-    return pool, guarded(lambda: render(cornell_scene(SIZE), settings(), pool=pool, on_tile=on_tile,
+    return pool, guarded(HANG, lambda: render(cornell_scene(SIZE), settings(), pool=pool, on_tile=on_tile,
                                         should_cancel=should_cancel, **QUIET))
 
 
