@@ -82,14 +82,19 @@ def reset():
     return scene
 
 
-def node_material(name, kind, **kw):
+def empty_material(name):
+    """A node material with only its Material Output: (material, nodes, links, output node)."""
     mat = bpy.data.materials.new(name)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True              # always on (and deprecated) in 5.0
-    nodes = mat.node_tree.nodes
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
     for n in list(nodes):
         nodes.remove(n)
-    out = nodes.new("ShaderNodeOutputMaterial")
+    return mat, nodes, links, nodes.new("ShaderNodeOutputMaterial")
+
+
+def node_material(name, kind, **kw):
+    mat, nodes, _, out = empty_material(name)
     node = nodes.new(kind)
     for key, value in kw.items():
         sock = node.inputs.get(key)
@@ -708,13 +713,7 @@ def make_sky_lit(scene, res):
 def mix_material(name, fac, first, second):
     """A Mix Shader of two shader nodes made by first(nodes) / second(nodes); fac: a number, or
     factor(nodes, links) -> the output socket feeding the Fac."""
-    mat = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    for n in list(nodes):
-        nodes.remove(n)
-    out = nodes.new("ShaderNodeOutputMaterial")
+    mat, nodes, links, out = empty_material(name)
     mix = nodes.new("ShaderNodeMixShader")
     if callable(fac):
         links.new(fac(nodes, links), mix.inputs[0])

@@ -25,16 +25,10 @@ def shader_node_types():
                   and issubclass(getattr(bpy.types, name), bpy.types.ShaderNode) and name not in NOT_IN_A_MATERIAL)
 
 
-def wired_material(idname):
+def wired_material(ms, idname):
     """A material with one node of type `idname` wired where it takes effect; (material, node name,
     "Surface" for a shader on the Surface, else "other")."""
-    mat = bpy.data.materials.new(f"M {idname}")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    for n in list(nodes):
-        nodes.remove(n)
-    out = nodes.new("ShaderNodeOutputMaterial")
+    mat, nodes, links, out = ms.empty_material(f"M {idname}")
     diffuse = nodes.new("ShaderNodeBsdfDiffuse")
     links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
     node = nodes.new(idname)
@@ -60,7 +54,7 @@ def wired(scene, ms):
     """Every node type on a plate of its own: {idname: (material name, node name, where)}."""
     built = {}
     for i, idname in enumerate(shader_node_types()):
-        mat, node, where = wired_material(idname)
+        mat, node, where = wired_material(ms, idname)
         if node is None:
             continue
         x = (i % 12) * 0.1
