@@ -53,6 +53,12 @@ def has_non_delta(flags: BSDFFlags) -> bool:
     return bool(flags & NON_DELTA)
 
 
+def sends_glossy_rays(flags: BSDFFlags) -> bool:
+    """Whether a BSDF with these lobes sends non-delta glossy or transmission rays (the rays whose
+    lamps the shadow rays already count: engine/integrators/path_tracer.py lamps_seen)."""
+    return bool(flags & BSDFFlags.GLOSSY) or (bool(flags & BSDFFlags.TRANSMISSION) and has_non_delta(flags))
+
+
 def transmits_non_delta(flags: BSDFFlags) -> bool:
     """Whether a BSDF's given directions may lie beyond the surface: light samples from both sides
     (a non-delta lobe and a transmission lobe; flags do not say whether they are the same lobe)."""

@@ -31,7 +31,7 @@ from .mix import MixBSDF
 from .principled import PrincipledV2
 from .principled_v1 import PrincipledV1
 from .oren_nayar import RoughDiffuse
-from .protocol import has_non_delta
+from .protocol import has_non_delta, sends_glossy_rays
 from .translucent import Translucent
 from .transparent import Transparent
 
@@ -53,8 +53,6 @@ N_SCATTER_GROUPS = PASS_THROUGH + 1
 NON_DELTA_KINDS = frozenset(kind for kind, bsdf in SCATTERING if has_non_delta(bsdf.flags))
 ROUGH_ROWS = {GLASS: ROUGH_GLASS, REFRACTION: ROUGH_REFRACTION}     # kind -> its row at roughness > 0
 VERSIONED_ROWS = (ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION)    # BSDFs made with Scene.cycles_version
-# Rows whose non-delta rays are glossy or transmission rays (engine/integrators/path_tracer.py lamps_seen).
-GLOSSY_RAY_ROWS = (GLOSSY, PRINCIPLED, ROUGH_GLASS, ROUGH_REFRACTION, TRANSLUCENT)
 
 
 def scatter_kind(material) -> str:
@@ -101,5 +99,5 @@ class MaterialTable:
         self.bsdfs[KIND_CODE[MIX]].bind(self, leaf_ids)
         # Groups whose BSDF has a lobe that given directions meet (light samples, MIS, 2D uniforms).
         self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]
-        # Whether any material has a glossy (non-delta, non-Lambertian reflection) lobe.
-        self.glossy = bool(np.isin(self.kind, [KIND_CODE[row] for row in GLOSSY_RAY_ROWS]).any())
+        # Whether any material's BSDF sends non-delta glossy or transmission rays (its flags say).
+        self.glossy = any(sends_glossy_rays(self.bsdfs[row].flags) for row in np.unique(self.kind))

@@ -253,3 +253,17 @@ def test_the_checks_fail_broken_bsdfs():
     assert not conserves_energy(broken, 12)
     assert not reciprocal(Anisotropic(MATERIALS, RenderSettings()), 13)
     assert not delta_has_no_density(make(LeakyMirror), 14)
+
+
+def test_the_table_knows_glossy_rays_from_the_rows_flags():
+    """lamps_seen counts a round lamp on a glossy or transmission ray only after a delta bounce when
+    some BSDF sends such rays (engine/integrators/path_tracer.py): every row that does must say so,
+    Blender 3.x's Principled BSDF too (a hand-kept list of rows once left it out)."""
+    from engine.scene.model import PrincipledV1, TRANSLUCENT
+    def glossy(*materials):
+        return MaterialTable(list(materials), RenderSettings()).glossy
+    assert glossy(Material("v1", PRINCIPLED, principled=PrincipledV1()))
+    assert glossy(Material("v2", PRINCIPLED)) and glossy(Material("g", GLOSSY, roughness=0.3))
+    assert glossy(Material("frosted", GLASS, roughness=0.3)) and glossy(Material("sheet", TRANSLUCENT))
+    assert not glossy(Material("wall", DIFFUSE), Material("clay", DIFFUSE, diffuse_roughness=0.5),
+                      Material("mirror", MIRROR), Material("glass", GLASS))
