@@ -69,7 +69,8 @@ def legacy_zip(built_zips):
     return built_zips["legacy"]
 
 
-@pytest.mark.parametrize("name", ["cornell", pytest.param("textured", marks=pytest.mark.slow)])
+@pytest.mark.slow          # 13 s: the legacy zip is built and unpacked into a fresh Blender 3.4 profile
+@pytest.mark.parametrize("name", ["cornell", "textured"])
 def test_legacy_zip_alone_renders_with_embree_in_blender34(legacy_zip, blend34, tmp_path, name):
     """textured: the exporter reads packed images and UVs with the zip's numpy in Blender 3.4."""
     blend34 = blend34.parent / f"{name}.blend"
@@ -143,6 +144,7 @@ def workers_of(pid):
     return found
 
 
+@pytest.mark.slow          # 4 s; Esc in bpy 5.0: tests/addon/test_render_blender.py
 def test_esc_stops_a_blender34_render_within_a_second(legacy_zip, blend34, tmp_path):
     """Esc is fast in Blender 3.4 too (worker processes with Embree, legacy zip): the
     render stops within a second of the request and no worker process outlives it."""

@@ -66,6 +66,7 @@ def test_workers_die_with_a_killed_command_line(command, tmp_path):
     assert not [w for w in workers if alive(w)], "orphaned render workers"
 
 
+@pytest.mark.slow          # 2.8 s; the cluster in `make test`: tests/pools/test_dask_cluster.py
 def test_addon_cli_renders_on_a_dask_cluster_pixel_identical(tmp_path):
     """--cluster (the add-on's Render cluster preference) sends the work units to Dask workers:
     the same image as the local worker processes."""

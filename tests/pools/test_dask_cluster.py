@@ -90,6 +90,7 @@ def unit_placement(dask_scheduler):
 unit_placement.__module__ = "__main__"       # pickled by value: the scheduler has no copy of the tests
 
 
+@pytest.mark.slow          # 2.5 s; the cluster in `make test`: test_cluster_render_is_bit_for_bit_the_local_one
 def test_units_queue_on_the_scheduler_for_the_next_free_worker(cluster):
     """The units must be "root-ish" to Dask: queued on the scheduler and handed to whichever worker
     is free.  Otherwise (e.g. scene task and units in one task group) they are all placed at once
@@ -175,6 +176,7 @@ def other_engine(tmp: Path, version: str) -> Path:
     return tmp
 
 
+@pytest.mark.slow          # 2.2 s
 def test_a_worker_of_another_engine_version_is_refused(cluster, tmp_path):
     """Alone it refuses the render with a message; next to good workers it gets no units."""
     old = other_engine(tmp_path, "0.0.9")

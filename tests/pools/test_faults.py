@@ -71,7 +71,8 @@ def test_a_killed_worker_is_named_and_its_units_rendered_by_the_other(kind, refe
     assert any(f"pid {victim['pid']}) died: killed by SIGKILL" in w for w in result.warnings), result.warnings
 
 
-@pytest.mark.parametrize("kind", [POOLS[0]] + [pytest.param(k, marks=pytest.mark.slow) for k in POOLS[1:]])
+@pytest.mark.slow          # 6 s per pool (it waits for a unit deadline); killed workers: the tests above
+@pytest.mark.parametrize("kind", POOLS)
 def test_a_stopped_worker_is_killed_at_its_unit_deadline_and_its_units_rendered_by_the_other(
         kind, reference, monkeypatch):
     monkeypatch.setattr(faults, "DEADLINE_MIN", 5.0)       # the deadline's floor, so the test takes seconds

@@ -162,6 +162,7 @@ def test_noise_target_is_reached_in_the_actual_error():
     assert np.sqrt(np.mean(rel) / (1 + 1 / (k - 1))) > 1.25 * target
 
 
+@pytest.mark.slow          # 5 s
 def test_adaptive_sampling_is_deterministic_and_really_adaptive():
     """Same seed, no time limit: identical image and sample counts on 1 thread and on 2 processes;
     the counts differ between pixels (blocks stopped), unlike uniform sampling (control)."""
