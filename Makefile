@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BLENDER ?= blender
 
-.PHONY: setup render test test-slow test-all bench bench-primitives bench-estimators bench-materials study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-primitives bench-animation bench-estimators bench-materials study extension samples clean
 
 setup: $(STAMP)
 
@@ -39,6 +39,11 @@ bench: $(STAMP)
 # time ratios measured in one run (docs/performance.md "Many primitives").
 bench-primitives: $(STAMP)
 	$(PY) scripts/bench_primitives.py
+
+# An animation's frames with Persistent Data off and on, against their tracing time and Cycles (Blender 3.4 -a):
+# docs/performance.md "Animation and Persistent Data".
+bench-animation: $(STAMP)
+	$(PY) scripts/bench_animation.py
 
 # Light-sampling estimators (report | solid-angle | mis) vs Cycles on the light-sampling stress scenes:
 # markdown table + docs/estimators.json; Cycles references cached in renders/reference/.

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import bridge, viewport, worker_python
+from . import bridge, persistent, viewport, worker_python
 from . import passes as addon_passes
 
 # Stop requests besides Esc: callables polled with test_break() (the command line's SIGINT/SIGTERM).
@@ -239,7 +239,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             settings.samples, settings.threads = min(settings.samples, PREVIEW_SAMPLES), 1
             wanted, settings.passes = (), ()
         cluster = None if self.is_preview else worker_python.render_cluster()
-        pool, no_workers = (None, None) if cluster else self._start_workers(settings)   # imports overlap the export
+        pool, no_workers = (None, None) if cluster else self._start_workers(scene, settings)   # imports overlap the export
         try:
             width, height = int(self.resolution_x), int(self.resolution_y)
             crop = border_rect(scene.render, width, height)
@@ -355,14 +355,17 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             image = np.concatenate([image, np.asarray(alpha, dtype=np.float32)[..., None]], axis=-1)
         self.last.passes = addon_passes.write_frame(self, width, height, image, passes)
 
-    def _start_workers(self, settings):
-        """The worker pool (started, not yet given the scene), or (None, why) without a worker Python."""
+    def _start_workers(self, scene, settings):
+        """The worker pool (started, not yet given the scene), or (None, why) without a worker Python:
+        with Persistent Data the one the last render left (mcrt_addon/persistent.py)."""
         python, why = worker_python.worker_python(worker_python.preferred_python())
         if python is None:
             if worker_python.preferred_python():
                 raise bridge.module("pools.processes").WorkerError(f"TNCG15 MC: {why}")
             return None, why
-        return start_worker_pool(python, settings), None
+        kept = None if self.is_preview else persistent.render_pool(
+            scene, python, settings.resolved_threads(), worker_python.extra_paths())
+        return kept or start_worker_pool(python, settings), None
 
     @staticmethod
     def _summary(stats, result):

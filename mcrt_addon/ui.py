@@ -257,6 +257,8 @@ class RENDER_PT_tncg15_performance(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.prop(props, "threads")
         layout.prop(props, "accelerator")
         layout.prop(props, "tile_size")
+        # Final Render > Persistent Data, Blender's own property as in Cycles (mcrt_addon/persistent.py)
+        layout.prop(context.scene.render, "use_persistent_data", text="Persistent Data")
 
 
 class VIEWLAYER_PT_tncg15_passes(TNCG15ButtonsPanel, bpy.types.Panel):

@@ -321,6 +321,10 @@ class ViewportPool(Pool):
                 self._kill(w, f"did not stop within {faults.CANCEL_SECONDS:g} s of a cancel (killed)")
             w.in_flight = [] if not w.alive or w.overdue else w.in_flight
 
+    def outstanding(self) -> int:
+        """Units started and not yet answered (queued here or held by a worker)."""
+        return len(self.pending) + sum(len(w.in_flight) for w in self.workers if w.alive)
+
     def notice(self):
         """The last worker death of the last NOTICE_SECONDS (for the viewport's header), or None."""
         if self.reports and time.perf_counter() - self.report_times[-1] < NOTICE_SECONDS:

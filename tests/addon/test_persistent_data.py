@@ -1,0 +1,86 @@
+"""Persistent Data (mcrt_addon/persistent.py, engine/pools/kept.py): final renders keep their workers."""
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from mcrt_addon import persistent
+from rendering import last_report, open_blend, render_operator
+from test_render_blender import set_props
+
+from engine.pools.kept import same_but_the_view, same_content
+from engine.scene.builtin import cornell_scene as cornell_box
+
+
+def alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat") as f:
+        return f.read().split(")")[-1].split()[0] != "Z"
+
+
+def test_same_content_compares_values_not_objects():
+    a, b = cornell_box(), cornell_box()
+    assert a is not b and same_content(a, b) and same_but_the_view(a, b)
+    b.meshes[0].vertices[0, 0] += 1e-9                        # one coordinate of one vertex
+    assert not same_content(a, b) and not same_but_the_view(a, b)
+    c = cornell_box()
+    c.resolution = (17, 9)
+    c.camera.matrix[0, 3] += 0.1
+    assert not same_content(a, c) and same_but_the_view(a, c)
+    assert same_content([np.array([np.nan])], [np.array([np.nan])])
+
+
+@pytest.mark.slow          # five renders in bpy 5.0 (about 6 s)
+def test_persistent_data_keeps_workers_and_renders_the_same_images(samples):
+    res = (40, 32)
+    scene = open_blend(samples["cornell"], res)
+    set_props(scene, samples=4, depth=3)
+    scene.render.use_persistent_data = False
+    fresh = render_operator(scene)
+    assert persistent.kept() is None and "persistent_data" not in last_report().stats
+
+    scene.render.use_persistent_data = True
+    first = render_operator(scene)
+    pool = persistent.kept()
+    assert pool is not None and last_report().error is None
+    pids = list(last_report().stats["worker_pids"])
+    np.testing.assert_array_equal(first, fresh)               # the pool never changes the image
+
+    # an object moves: the same processes prepare the scene again; the image is a fresh render's
+    torus = bpy.data.objects["Torus"]
+    torus.location.x += 0.2
+    moved = render_operator(scene)
+    stats = last_report().stats
+    assert persistent.kept() is pool and list(stats["worker_pids"]) == pids
+    assert stats["renders_on_pool"] == 2 and stats["renders_view_only"] == 0
+    built = stats["scenes_prepared"]
+    assert not np.array_equal(moved, first)
+
+    # only the camera moves: nothing is prepared again (no BVH rebuild in the workers)
+    scene.camera.location.x += 0.05
+    view = render_operator(scene)
+    stats = last_report().stats
+    assert stats["renders_view_only"] == 1 and stats["scenes_prepared"] == built
+    scene.render.use_persistent_data = False
+    assert np.array_equal(render_operator(scene), view)       # a fresh pool: the same image
+    assert persistent.kept() is None                          # Persistent Data off: the kept workers stop
+    assert not any(alive(p) for p in pids)
+    torus.location.x -= 0.2
+    scene.camera.location.x -= 0.05
+
+
+@pytest.mark.slow
+def test_loading_a_file_stops_the_kept_workers(samples):
+    scene = open_blend(samples["cornell"], (24, 24))
+    set_props(scene, samples=1, depth=1)
+    scene.render.use_persistent_data = True
+    render_operator(scene)
+    pids = list(last_report().stats["worker_pids"])
+    assert persistent.kept() is not None and all(alive(p) for p in pids)
+    open_blend(samples["cornell"], (24, 24))                  # load_pre handler
+    assert persistent.kept() is None
+    assert not any(alive(p) for p in pids)
