@@ -15,8 +15,15 @@ hierarchy (engine/geometry/shapes/box_tree.py, engine/geometry/scene_geometry.py
 
 Modes: "embree" (embreex, float32, robust mode), "octree" (the report's octree in
 Python + NumPy), "brute" (every ray against every triangle: the report's "no octree").
+
+A process keeps the last accelerator it built (`build_accelerator`): a scene prepared again with the
+same triangles (a light, material or camera edit in the viewport; an animation frame in which no mesh
+moved, with Persistent Data) reuses it instead of building the BVH again.  Accelerators are
+read-only once built, so sharing one between prepared scenes changes no hit.
 """
 from __future__ import annotations
+
+import numpy as np
 
 from .brute import BruteForceAccelerator
 from .octree import OctreeAccelerator
@@ -52,5 +59,18 @@ def choose_accelerator(name: str, triangle_count: int) -> tuple[str, str]:
     return "octree", f"auto: Embree unavailable; {triangle_count} triangles: octree"
 
 
+_last_built = []        # [(name, triangles, accelerator)]: the last one built in this process
+
+
 def build_accelerator(name: str, triangles):
-    return ACCELERATOR_CLASSES[name](triangles)
+    """The accelerator `name` over `triangles` (T, 3, 3): the last one built when its name and
+    triangles are the same (element for element), else a new one (which then is the last)."""
+    if _last_built:
+        last_name, last_triangles, accelerator = _last_built[0]
+        if last_name == name and last_triangles.shape == triangles.shape and np.array_equal(last_triangles, triangles):
+            return accelerator
+    _last_built.clear()                 # the old BVH is freed before the new one is built
+    accelerator = ACCELERATOR_CLASSES[name](triangles)
+    # kept by reference (no second copy of a big mesh): nothing writes into a built scene's triangles
+    _last_built.append((name, triangles, accelerator))
+    return accelerator
