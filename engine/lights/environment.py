@@ -248,7 +248,7 @@ class EnvironmentMap:
         t, _ = self._texture_direction(d)
         if self.equirectangular:
             u, v = direction_to_equirectangular(t)
-            s = np.sqrt(np.maximum(1.0 - np.clip(t[2], -1.0, 1.0) ** 2, 0.0))
+            s = np.hypot(t[0], t[1])                      # sin theta (accurate near the poles)
             with np.errstate(divide="ignore", invalid="ignore"):
                 pdf = np.where(s > 0.0, self.distribution.pdf(u, v) / (2.0 * np.pi * np.pi * s), 0.0)
         else:
