@@ -150,3 +150,18 @@ def test_scene_file_keeps_the_environment(tmp_path):
     again.environment.projection = "cube"
     with pytest.raises(Exception, match="World 'Sky'"):
         again.validate()
+
+
+def test_camera_rays_see_their_own_background():
+    """Light Path "Is Camera Ray": camera rays that miss see camera_color; the ball is lit by the image."""
+    from engine.api import render
+    from engine.core.settings import RenderSettings
+    from engine.scene.model import Camera, Material, Scene, Sphere
+    from engine.scene.textures import ImageTexture
+    px = np.full((8, 16, 3), 1.0, np.float32)
+    scene = Scene(Camera.look_at((0, -3.0, 0), (0, 0, 0)), [Material("White", color=(1, 1, 1))],
+                  spheres=[Sphere("Ball", (0, 0, 0), 0.5, 0)], resolution=(8, 8),
+                  textures=[ImageTexture("white", pixels=px, colorspace="Linear", is_float=True)],
+                  environment=Environment(0, strength=0.5, camera_color=(0.1, 0.2, 0.3)))
+    image = render(scene, RenderSettings(samples=16, threads=1), log=lambda *a: None).image
+    assert np.allclose(image[0, 0], (0.1, 0.2, 0.3)) and np.allclose(image[4, 4], 0.5, atol=0.05)
