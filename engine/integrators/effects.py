@@ -172,7 +172,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if mixes else "no Mix or Add Shader of different BSDFs: no closure lists")
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
-               + (" (background light only)" if max(scene.background) > 0 else ""))
+               + (" (background light only)" if max(scene.background) > 0 or getattr(scene, "environment", None)
+                  else ""))
 
     round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
                    if light.visible_glossy or light.visible_transmission]
