@@ -908,7 +908,7 @@ def sky_image():
 
 def make_hdri(scene, res):
     """An HDRI-lit object: a ball and a box on a floor under the sample sky (a gradient and a small,
-    very bright sun), the image turned 30 degrees about Z by a Mapping node; no lamp."""
+    very bright sun) of strength 0.6, the image turned 30 degrees about Z by a Mapping node; no lamp."""
     white = diffuse("White", (0.7, 0.7, 0.7))
     plane(scene, "Floor", [(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)], white)
     mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.45), diffuse("Orange", (0.8, 0.45, 0.2)),
@@ -916,7 +916,7 @@ def make_hdri(scene, res):
     mesh_object(scene, "Box", lambda bm: cube(bm, 1.0), white, location=(0.6, 0.5, 0.15),
                 rotation=(0, 0, math.radians(20)), scale=(0.3, 0.3, 0.3))
     camera(scene, lens=35.0, location=(0.0, -3.6, 1.4), target=(0.0, 0.3, 0.5))
-    environment_world(scene, sky_image(), 1.0, math.radians(30.0))
+    environment_world(scene, sky_image(), 0.6, math.radians(30.0))
     settings(scene, res)
 
 
