@@ -146,27 +146,32 @@ class EnvironmentMap:
         self.inverse = np.linalg.inv(self.matrix)
         self.det = abs(float(np.linalg.det(self.matrix)))
         self.strength = float(env.strength)
-        linear = self._linear(pixels.reshape(-1, pixels.shape[2]).astype(np.float64)).reshape(*pixels.shape[:2], 3)
-        cells = np.maximum(linear, 0.0)
+        # Float32 (H, W, 3) views where it can (a 8k x 4k image: no float64 copies of the colour).
+        colour = np.maximum(self._linear(pixels.reshape(-1, pixels.shape[2])), np.float32(0.0))
+        colour = colour.reshape(*pixels.shape[:2], 3)
+        area = self._cell_areas(*colour.shape[:2])
+        mean = np.einsum("hw,hwc->c", area, colour, dtype=np.float64) / max(area.sum(), 1e-300)
+        self.mean = np.maximum(mean, 0.0) * self.strength          # mean radiance over the sphere
+        lum = (colour @ LUMINANCE.astype(np.float32)).astype(np.float64)
+        del colour
         if env.interpolation != "Closest":              # a bilinear lookup's mean over each cell
-            cells = sum(k * np.roll(cells, s, axis=0) for k, s in zip(CELL_KERNEL, (1, 0, -1)))
-            cells = sum(k * np.roll(cells, s, axis=1) for k, s in zip(CELL_KERNEL, (1, 0, -1)))
-        while cells.shape[0] * cells.shape[1] > MOST_CELLS and cells.shape[0] % 2 == 0 and cells.shape[1] % 2 == 0:
-            cells = 0.25 * (cells[0::2, 0::2] + cells[1::2, 0::2] + cells[0::2, 1::2] + cells[1::2, 1::2])
-        h, w = cells.shape[:2]
+            lum = sum(k * np.roll(lum, s, axis=0) for k, s in zip(CELL_KERNEL, (1, 0, -1)))
+            lum = sum(k * np.roll(lum, s, axis=1) for k, s in zip(CELL_KERNEL, (1, 0, -1)))
+        while lum.size > MOST_CELLS and lum.shape[0] % 2 == 0 and lum.shape[1] % 2 == 0:
+            lum = 0.25 * (lum[0::2, 0::2] + lum[1::2, 0::2] + lum[0::2, 1::2] + lum[1::2, 1::2])
+        weight = lum * self._cell_areas(*lum.shape) if sin_theta_in_density or not self.equirectangular else lum
+        self.distribution = PiecewiseConstant2D(weight)
+
+    def _cell_areas(self, h, w):
+        """(h, w) the relative solid angle of each cell: sin theta of its centre (equirectangular), or
+        1 for the cells that reach into the mirror ball's disk and 0 for the others."""
         v = (np.arange(h) + 0.5) / h
         if self.equirectangular:
-            area = np.repeat(np.sin(np.pi * (1.0 - v))[:, None], w, axis=1)   # solid angle per cell, relative
-        else:                                           # the ball: cells that reach into the disk
-            cu, cv = (np.arange(w) + 0.5) / w - 0.5, v - 0.5
-            du = np.maximum(np.abs(cu)[None, :] - 0.5 / w, 0.0)
-            dv = np.maximum(np.abs(cv)[:, None] - 0.5 / h, 0.0)
-            area = (du * du + dv * dv < 0.25).astype(np.float64)
-        lum = cells @ LUMINANCE
-        self.distribution = PiecewiseConstant2D(lum * (area if sin_theta_in_density or not self.equirectangular
-                                                       else 1.0))
-        mean = (cells * area[:, :, None]).sum(axis=(0, 1)) / max(area.sum(), 1e-300)
-        self.mean = np.maximum(mean, 0.0) * self.strength          # mean radiance over the sphere
+            return np.repeat(np.sin(np.pi * (1.0 - v))[:, None], w, axis=1)
+        cu, cv = (np.arange(w) + 0.5) / w - 0.5, v - 0.5
+        du = np.maximum(np.abs(cu)[None, :] - 0.5 / w, 0.0)
+        dv = np.maximum(np.abs(cv)[:, None] - 0.5 / h, 0.0)
+        return (du * du + dv * dv < 0.25).astype(np.float64)
 
     @classmethod
     def of(cls, scene):
