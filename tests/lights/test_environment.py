@@ -165,3 +165,21 @@ def test_camera_rays_see_their_own_background():
                   environment=Environment(0, strength=0.5, camera_color=(0.1, 0.2, 0.3)))
     image = render(scene, RenderSettings(samples=16, threads=1), log=lambda *a: None).image
     assert np.allclose(image[0, 0], (0.1, 0.2, 0.3)) and np.allclose(image[4, 4], 0.5, atol=0.05)
+
+
+def test_sample_sky_file_reads_back(tmp_path):
+    """scripts/make_sample_hdr.py's file (top row first) is read back bottom row first, as the map wants."""
+    from engine.lights.environment import load_pixels
+    from engine.scene.textures import ImageTexture
+    from scripts.make_sample_hdr import write
+    write(str(tmp_path / "sky.exr"))
+    pixels, decode_after = load_pixels(ImageTexture("sky", path=str(tmp_path / "sky.exr"), colorspace="Linear"))
+    assert not decode_after and np.array_equal(pixels[..., :3], sky_pixels())
+    bytes_ = np.clip(np.rint(sky_pixels() * 255), 0, 255).astype(np.uint8)       # an 8-bit sRGB image
+    pixels, decode_after = load_pixels(ImageTexture("sky8", pixels=bytes_, colorspace="sRGB"))
+    m = EnvironmentMap(Environment(0, interpolation="Closest"), pixels, decode_after)
+    d = unit(np.array([[0.3], [0.2], [0.9]]))
+    from engine.materials.textures import srgb_to_linear
+    u, v = direction_to_equirectangular(d)
+    texel = bytes_[int(v[0] * 64), int(u[0] * 128)] / 255.0
+    assert np.allclose(m.radiance(d)[:, 0], srgb_to_linear(texel), rtol=1e-6)
