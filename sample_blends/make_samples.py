@@ -874,6 +874,52 @@ def make_roughness_map(scene, res):
     settings(scene, res)
 
 
+def environment_world(scene, image, strength=1.0, rotation_z=0.0):
+    """An image world: Texture Coordinate (Generated) -> Mapping (rotation about Z) -> Environment
+    Texture -> Background (strength) -> World Output."""
+    black_world(scene)
+    tree = scene.world.node_tree
+    bg = next(n for n in tree.nodes if n.type == "BACKGROUND")
+    bg.inputs["Strength"].default_value = strength
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = image
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, rotation_z)
+    tree.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    return env
+
+
+def sky_image():
+    """The sample sky of scripts/make_sample_hdr.py as a float image packed into the .blend."""
+    from scripts.make_sample_hdr import HEIGHT, WIDTH, sky_texel
+    img = bpy.data.images.new("sky_sun", WIDTH, HEIGHT, float_buffer=True)
+    pixels = []
+    for y in range(HEIGHT):
+        for x in range(WIDTH):
+            pixels.extend((*sky_texel(x, y), 1.0))
+    img.pixels.foreach_set(pixels)
+    img.file_format = "OPEN_EXR"
+    img.pack()
+    return img
+
+
+def make_hdri(scene, res):
+    """An HDRI-lit object: a ball and a box on a floor under the sample sky (a gradient and a small,
+    very bright sun) of strength 0.6, the image turned 30 degrees about Z by a Mapping node; no lamp."""
+    white = diffuse("White", (0.7, 0.7, 0.7))
+    plane(scene, "Floor", [(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)], white)
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.45), diffuse("Orange", (0.8, 0.45, 0.2)),
+                location=(-0.35, 0.2, 0.45), smooth=True)
+    mesh_object(scene, "Box", lambda bm: cube(bm, 1.0), white, location=(0.6, 0.5, 0.15),
+                rotation=(0, 0, math.radians(20)), scale=(0.3, 0.3, 0.3))
+    camera(scene, lens=35.0, location=(0.0, -3.6, 1.4), target=(0.0, 0.3, 0.5))
+    environment_world(scene, sky_image(), 0.6, math.radians(30.0))
+    settings(scene, res)
+
+
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
@@ -902,6 +948,7 @@ SCENES = {
     "principled_grid": make_principled_grid,
     "principled_glass": make_principled_glass,
     "roughness_map": make_roughness_map,
+    "hdri": make_hdri,
 }
 
 

@@ -172,7 +172,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if mixes else "no Mix or Add Shader of different BSDFs: no closure lists")
     set_effect("emission", emitters,
                f"emitters {_names(emitters)}" if emitters else "no emissive surfaces: no light sampling"
-               + (" (background light only)" if max(scene.background) > 0 else ""))
+               + (" (background light only)" if max(scene.background) > 0 or getattr(scene, "environment", None)
+                  else ""))
 
     round_lamps = [light for light in [p for p in bulbs if p.radius > 0] + [s for s in suns if s.angle > 0]
                    if light.visible_glossy or light.visible_transmission]
@@ -191,10 +192,14 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                "no mirror or glass: point, spot and sun lights are reached by shadow rays only" if not specular else
                "report estimator: point, spot and sun lights are reached by shadow rays only")
 
-    sky = max(scene.background) > 0
+    env = getattr(scene, "environment", None)
+    image = env is not None and env.lighting
+    sky = max(scene.background) > 0 or image
     world = bool(sky and lit and settings.shadow_rays > 0 and not report)
     set_effect("world_light", world,
-               "the background is sampled as a light (cosine directions, shadow rays to infinity)" if world else
+               ("the environment image is sampled as a light (by its luminance, engine/lights/environment.py)"
+                if image else "the background is sampled as a light (cosine directions, shadow rays to infinity)")
+               if world else
                "black background" if not sky else "report estimator: the background is found by bounce rays"
                if report else "no diffuse surface or no shadow rays: the background is found by bounce rays")
     nee = bool(lit and (emitters or world) and settings.shadow_rays > 0)     # hits with a non-delta BSDF

@@ -36,6 +36,8 @@ lights), direct light, scatter, roulette, compaction.
 * image textures (engine/materials/textures.py): the colour and emission of textured materials at triangle
   hits, and the radiance of light samples on textured emitters, are read from the texture at the
   UV interpolated with the hit's barycentrics (pdfs and MIS weights depend on geometry only);
+* an image world (engine/lights/environment.py): escaping rays see its radiance along their
+  direction (camera rays their own background), MIS-weighted with its importance sampler's pdf;
 * Russian roulette (report 2.4) with survival probability min(1, max throughput),
   survivors divided by it; a zero throughput always terminates, without a division.
 * Cycles' Light Paths options (bounce limits per type, clamping, Filter Glossy, caustics): what
@@ -158,7 +160,9 @@ class PathTracer:
         # emission it reaches (weighted by MIS, or 1 without shadow rays), so every estimator
         # counts the same paths: light reached by up to max_depth + 1 segments.
         self.final_rays = settings.estimator == "mis" and (self.mis or not self.use_nee)
-        self.has_background = bool(self.background.max() > 0)
+        # The image world (engine/lights/environment.py EnvironmentMap) or None: the constant background.
+        self.environment = getattr(lights, "environment", None)
+        self.has_background = bool(self.background.max() > 0) or self.environment is not None
         self.world_nee = self.use_nee and lights.world is not None       # shadow rays sample the world
         self.scatter_group = self.mats.scatter_group      # of each material id
         # Where the denoising features stop looking (surface_features): non-delta BSDFs and absorbers.
@@ -327,8 +331,16 @@ class PathTracer:
                     p_world = self.lights.world_pdf(p.prev_n.take(m, axis=1), p.d.take(m, axis=1))
                     weight[sampled] = power_heuristic(1.0, p.prev_bsdf_pdf.take(m), float(self.settings.shadow_rays),
                                                       p_world)
-            radiance += self.clamped(p.beta.take(miss, axis=1) * self.background[:, None] * weight, p.bounce.take(miss))
+            radiance += self.clamped(p.beta.take(miss, axis=1) * self.background_seen(p, miss) * weight,
+                                     p.bounce.take(miss))
         return p.pixel.take(miss), radiance
+
+    def background_seen(self, p, miss):
+        """What the rays `miss` see where they leave the scene: the constant background (3, 1), or
+        the image world's radiance along each ray (3, M), camera rays their own."""
+        if self.environment is None:
+            return self.background[:, None]
+        return self.environment.seen(p.d.take(miss, axis=1), p.ray_kind.take(miss) == CAMERA_RAY, self.background)
 
     def lamps_seen(self, p, hits):
         """Emission of point, spot and sun lights reached by glossy and transmission rays before
@@ -401,7 +413,7 @@ class PathTracer:
         its normal stays 0."""
         idx = miss[p.f_open.take(miss)]
         if len(idx) and self.has_background:
-            features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * self.background[:, None])
+            features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * self.background_seen(p, idx))
 
     def surface_features(self, p, surf, facing, color, bounds, features, hits=None):
         """Cycles' denoising features (film_write_denoising_features_surface): at the first hit with

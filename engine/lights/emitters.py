@@ -8,7 +8,9 @@ per kind, and which light each emissive primitive is.
   (disks, ellipses, other quads).  An Area light whose Diffuse visibility is off lights no diffuse
   surface (as in Cycles): it is left out; rays of the kinds it is visible to still see it.
 * Emissive spheres; point and spot lights (those that light diffuse surfaces).
-* At infinity: the sun lights that light diffuse surfaces, and the world when it is a light.
+* At infinity: the sun lights that light diffuse surfaces, and the world when it is a light: the
+  image world (engine/lights/environment.py EnvironmentLight) when the scene has one that lights,
+  else the constant background (engine/lights/distant.py WorldLight).
 
 The kinds are built in a fixed order (parallelograms, triangles, spheres, polygons, points; then
 suns and the world), each from its emitters in the order they were found: the light numbers, and
@@ -19,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from .distant import SunLights, WorldLight
+from .environment import EnvironmentLight, EnvironmentMap
 from .parallelograms import Parallelograms
 from .points import PointLights
 from .polygons import Polygons
@@ -142,10 +145,15 @@ class SceneEmitters:
         points = [p for p in scene.points if p.lights_diffuse]        # Diffuse visibility off: no light
         self.points = PointLights(points) if points else None
         suns = [s for s in scene.suns if s.lights_diffuse]
-        sky = world and max(scene.background) > 0
+        # The image world (None without one): what escaping rays see, and a light when it lights.
+        self.environment = EnvironmentMap.of(scene) if getattr(scene, "environment", None) is not None else None
+        image = self.environment is not None and self.environment.lights
+        constant = max(scene.background) > 0 and not (self.environment is not None and self.environment.env.lighting)
+        sky = world and (image or constant)
         radius = scene_radius(scene) if suns or sky else 0.0
         self.suns = SunLights(suns, radius) if suns else None
-        self.world = WorldLight(scene.background, radius) if sky else None
+        self.world = (EnvironmentLight(self.environment, radius) if image else
+                      WorldLight(scene.background, radius)) if sky else None
 
     def _mesh_triangles(self, scene, solid_angle):
         """Per mesh with triangles: (its triangles' lights among the parallelograms, among the

@@ -109,7 +109,8 @@ class LightSet:
     background is a light too.
 
     kinds: every LightKind, in light-number order; local, distant: the two LightGroups (distant:
-    None without lights at infinity); world: the WorldLight or None; triangle_light, quad_light,
+    None without lights at infinity); world: the WorldLight or EnvironmentLight, or None;
+    environment: the image world (engine/lights/environment.py EnvironmentMap) or None; triangle_light, quad_light,
     area_light_light, sphere_light: the light of each primitive (-1: none); seen: the lamps
     mirror and glass rays meet (engine/lights/seen.py) or None."""
 
@@ -128,6 +129,7 @@ class LightSet:
         self._light_tables(emitters, local_kinds, distant_kinds)
         self._groups(local_kinds, distant_kinds, spatial)
         self.world = emitters.world
+        self.environment = emitters.environment    # the image world's EnvironmentMap, or None
         self.seen = SeenLamps.of(scene)        # round lamps and suns that mirror and glass rays meet
 
     def _primitive_maps(self, emitters):

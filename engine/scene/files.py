@@ -30,7 +30,11 @@
      "points": [{"name": "Bulb", "position": [..], "intensity": [r, g, b], "radius": 0.1,
                  "spot_size": 0.0, "spot_blend": 0.0, "spot_direction": [0, 0, -1],
                  "spot_falloff": "smoothstep"}],
-     "suns": [{"name": "Sun", "direction": [..], "irradiance": [r, g, b], "angle": 0.01}]}
+     "suns": [{"name": "Sun", "direction": [..], "irradiance": [r, g, b], "angle": 0.01}],
+     "environment": {"name": "World", "texture": "Sky" or 0, "strength": 1.0,          (optional: an image
+                     "projection": "equirectangular", "interpolation": "Linear",        world, model.py
+                     "matrix": [[..] x 3], "camera_strength": null, "camera_color": null,  Environment)
+                     "lighting": true}}
 
 "version" is FORMAT_VERSION (2: Area lights; 3: point, spot and sun lights; 4: image textures,
 engine/scene/texture_fields.py; 5: smooth shading, a mesh's "normals": one shading normal per triangle
@@ -49,7 +53,7 @@ import stat
 import numpy as np
 
 from .model import GLASS, GLOSSY, PRINCIPLED, REFRACTION, AreaLight, Camera, Material, PointLight, Principled, Quad, Scene, Sphere, SunLight, TriangleMesh
-from .model import PrincipledV1
+from .model import Environment, PrincipledV1
 from ..core.errors import SceneError
 from .fields import Fields, is_integer
 from .mix_fields import mix_json, read_mix
@@ -311,10 +315,43 @@ def load_scene(path: str) -> Scene:
         suns.append(SunLight(light_name, f.numbers("direction", 3), f.numbers("irradiance", 3),
                              f.number("angle", 0.0), **_flags(f, LAMP_FLAGS)))
     return Scene(camera, materials, meshes, spheres, quads,
-                 background=top.numbers("background", 3, (0.0, 0.0, 0.0)),
+                 background=top.numbers("background", 3, (0.0, 0.0, 0.0)), environment=_environment(top, textures),
                  resolution=top.integers("resolution", 2, (256, 256)), name=name, lights=lights,
                  points=points, suns=suns, textures=textures,
                  cycles_version=tuple(top.integers("cycles_version", 2, (5, 0))))
+
+
+def _environment(top: Fields, textures: list):
+    """The scene's Environment (engine/scene/model.py), or None without an "environment" entry."""
+    if top.get("environment", None) is None:
+        return None
+    f = Fields(top.get("environment"), f"{top.owner}: environment")
+    ref, names = f.get("texture"), [t.name for t in textures]
+    index = int(ref) if is_integer(ref) else names.index(ref) if ref in names else None
+    if index is None:
+        raise SceneError(f"{f.owner}: unknown texture {ref!r}")
+    camera_color = f.get("camera_color", None)
+    camera_strength = f.get("camera_strength", None)
+    lighting = f.get("lighting", True)
+    if not isinstance(lighting, bool):
+        f.fail("lighting", "true or false", lighting)
+    return Environment(index, strength=f.number("strength", 1.0), projection=f.text("projection", "equirectangular"),
+                       interpolation=f.text("interpolation", "Linear"),
+                       matrix=tuple(map(tuple, f.matrix("matrix", 3, 3, [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).tolist())),
+                       camera_strength=None if camera_strength is None else f.number("camera_strength"),
+                       camera_color=None if camera_color is None else f.numbers("camera_color", 3),
+                       lighting=lighting, name=f.text("name", "World"))
+
+
+def _environment_json(env) -> dict:
+    if env is None:
+        return {}
+    return {"environment": {"name": env.name, "texture": int(env.texture), "strength": float(env.strength),
+                            "projection": env.projection, "interpolation": env.interpolation,
+                            "matrix": np.asarray(env.matrix, dtype=np.float64).tolist(),
+                            "camera_strength": None if env.camera_strength is None else float(env.camera_strength),
+                            "camera_color": None if env.camera_color is None else [float(c) for c in env.camera_color],
+                            "lighting": bool(env.lighting)}}
 
 
 def save_scene(scene: Scene, path: str) -> None:
@@ -376,6 +413,7 @@ def save_scene(scene: Scene, path: str) -> None:
         "suns": [{"name": sun.name, "direction": [float(v) for v in sun.direction],
                   "irradiance": [float(v) for v in sun.irradiance], "angle": float(sun.angle),
                   **{key: bool(getattr(sun, key)) for key in LAMP_FLAGS}} for sun in scene.suns],
+        **_environment_json(getattr(scene, "environment", None)),
     }
     with open(path, "w") as fh:
         json.dump(data, fh, indent=1)

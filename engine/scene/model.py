@@ -715,6 +715,51 @@ class SunLight:
             raise SceneError(f"Light '{self.name}': angle must be in [0, pi), got {self.angle!r}")
 
 
+# The world's Environment Texture node (engine/lights/environment.py): how a direction becomes
+# image coordinates (Cycles' direction_to_equirectangular / direction_to_mirrorball).
+ENVIRONMENT_PROJECTIONS = ("equirectangular", "mirror_ball")
+IDENTITY3 = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
+@dataclass
+class Environment:
+    """An image world: Environment Texture -> Background -> World Output, lighting the scene from
+    infinity (engine/lights/environment.py).  `texture`: index into Scene.textures; `strength`: the
+    Background node's; `matrix`: world direction -> the texture's direction before it is normalised
+    (a Mapping node's rotation and scale; identity without one).  Rays that leave the scene see the
+    image x strength, except camera rays (Light Path "Is Camera Ray" between two Backgrounds):
+    `camera_strength` (the image x that) or `camera_color` (a constant) when given.  `lighting`
+    False: only camera rays see the image, every other ray sees Scene.background (a constant)."""
+    texture: int
+    strength: float = 1.0
+    projection: str = "equirectangular"
+    interpolation: str = "Linear"
+    matrix: tuple = IDENTITY3
+    camera_strength: float | None = None
+    camera_color: tuple | None = None
+    lighting: bool = True
+    name: str = "World"
+
+    def validate(self, n_textures: int) -> None:
+        owner = f"World '{self.name}'"
+        if not (isinstance(self.texture, (int, np.integer)) and not isinstance(self.texture, bool)
+                and 0 <= self.texture < n_textures):
+            raise SceneError(f"{owner}: environment texture index {self.texture!r} out of range")
+        for label, value in (("strength", self.strength), ("camera strength", self.camera_strength)):
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise SceneError(f"{owner}: {label} must be a finite number >= 0, got {value!r}")
+        if self.projection not in ENVIRONMENT_PROJECTIONS:
+            raise SceneError(f"{owner}: projection must be one of {', '.join(ENVIRONMENT_PROJECTIONS)}, "
+                             f"got {self.projection!r}")
+        if self.interpolation not in ("Linear", "Closest"):
+            raise SceneError(f"{owner}: interpolation must be Linear or Closest, got {self.interpolation!r}")
+        m = np.asarray(self.matrix, dtype=np.float64)
+        if m.shape != (3, 3) or not np.isfinite(m).all() or not abs(np.linalg.det(m)) > 1e-12:
+            raise SceneError(f"{owner}: matrix must be an invertible 3x3 matrix")
+        if self.camera_color is not None:
+            check_vector(owner, "camera colour", self.camera_color, non_negative=True)
+
+
 @dataclass
 class Scene:
     camera: Camera | None
@@ -731,6 +776,7 @@ class Scene:
     textures: list = field(default_factory=list)    # engine/materials/textures.py ImageTexture
     # (major, minor) of the Blender whose Cycles the models follow (the running one at export).
     cycles_version: tuple = (5, 0)
+    environment: Environment | None = None          # an image world; None: the constant background
 
     def validate(self) -> list[str]:
         """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""
@@ -758,6 +804,8 @@ class Scene:
         if bg.shape != (3,) or not np.isfinite(bg).all() or (bg < 0).any():
             raise SceneError(f"Scene '{self.name}': background must be 3 finite non-negative numbers")
         check_magnitude(f"Scene '{self.name}'", "background", bg)
+        if self.environment is not None:
+            self.environment.validate(len(self.textures))
         n = len(self.materials)
         emissive = np.array([m.is_emissive for m in self.materials])
         for mesh in self.meshes:
@@ -779,7 +827,7 @@ class Scene:
         return warnings
 
     def has_light(self) -> bool:
-        if (max(self.background) > 0 or any(max(light.radiance) > 0 for light in self.lights)
+        if (max(self.background) > 0 or self.environment is not None or any(max(light.radiance) > 0 for light in self.lights)
                 or any(max(p.intensity) > 0 for p in self.points) or any(max(s.irradiance) > 0 for s in self.suns)):
             return True
         emissive = {i for i, m in enumerate(self.materials) if m.is_emissive}

@@ -67,7 +67,10 @@ def missing_message(scene, tex: ImageTexture, why: str) -> str:
     users = [m.name for m in scene.materials
              if any(scene.textures[s.texture] is tex for _, s in material_slots(m)
                     if isinstance(s.texture, (int, np.integer)) and 0 <= s.texture < len(scene.textures))]
-    who = ", ".join(f"Material '{n}'" for n in users) or "no material"
+    env = getattr(scene, "environment", None)
+    world = ([f"World '{env.name}'"] if env is not None and 0 <= env.texture < len(scene.textures)
+             and scene.textures[env.texture] is tex else [])
+    who = ", ".join([f"Material '{n}'" for n in users] + world) or "no material"
     where = f" ('{tex.path}')" if tex.path else ""
     return (f"{who}: image '{tex.name}'{where} cannot be read: {why}; "
             "rendered with the unlinked colour")

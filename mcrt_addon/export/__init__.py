@@ -248,9 +248,10 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         if not any(name == ob.original.name and np.allclose(m, matrix) for name, m in converted):
             add_geometry(ob, otype, matrix, label)
     materials = table.materials or [sm.Material(name="(unused)")]
-    background = export_world(scene.world, warnings)
+    background, environment = export_world(scene.world, warnings, images, getattr(sm, "Environment", None))
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
-                      background=background, resolution=out_res, name=name or scene.name, lights=lights,
+                      background=background, environment=environment, resolution=out_res, name=name or scene.name,
+                      lights=lights,
                       points=points, suns=suns, textures=images.textures, cycles_version=version[:2])
     info = dict(export_seconds=time.perf_counter() - t0, objects=n_instances, triangles=n_triangles,
                 spheres=len(spheres), meshes_shared=len(cache), materials=len(materials),

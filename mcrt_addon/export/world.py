@@ -1,28 +1,191 @@
-"""World export: a constant background colour (Background node Color x Strength, or world.color)."""
+"""World export: the constant background colour and the image world (engine/scene/model.py
+Environment, lit by engine/lights/environment.py).
+
+Node patterns read (Blender 3.4 to 5.0), into World Output's Surface:
+* Background (Color x Strength; Strength a constant): a constant world (world.color without nodes);
+* Environment Texture (image, Equirectangular / Mirror Ball, Linear / Closest; Cubic and Smart as
+  Linear) -> Background Color, its Vector unlinked, from a Texture Coordinate node's Generated
+  output, or through a Mapping node (rotation and scale of any vector type; a location is ignored)
+  from either: the image world;
+* Mix Shader whose Fac is Light Path's Is Camera Ray, between two of the above: camera rays see the
+  second (Cycles: Fac 1), every other ray the first.
+Anything else: a warning naming the world and the node, and the constant colour of the Background
+node it found (black without one), as before the image world existed.
+"""
+import math
+
 from .util import linked_from, socket, uses_nodes
 
+IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
-def export_world(world, warnings):
+
+def export_world(world, warnings, images=None, Environment=None):
+    """(background colour, Environment or None).  images: the export's ImageTable
+    (mcrt_addon/export/images.py) and Environment the scene model's class; without them only the
+    constant colour is exported."""
     if world is None:
-        return (0.0, 0.0, 0.0)
+        return (0.0, 0.0, 0.0), None
     tree = world.node_tree if uses_nodes(world) else None
     if tree is None:
         # 3.x without nodes uses world.color; 5.0 has no use_nodes and always a node tree
-        return tuple(max(float(c), 0.0) for c in world.color[:3])
+        return tuple(max(float(c), 0.0) for c in world.color[:3]), None
     output = tree.get_output_node("CYCLES")
     node = linked_from(output.inputs.get("Surface")) if output is not None else None
     if node is None:
-        return (0.0, 0.0, 0.0)
+        return (0.0, 0.0, 0.0), None
+    reader = WorldReader(world, warnings, images, Environment)
+    if node.bl_idname == "ShaderNodeMixShader":
+        return reader.mix(node)
     if node.bl_idname != "ShaderNodeBackground":
-        warnings.append(f"World '{world.name}': node '{node.name}' ({node.bl_idname}) is not supported; "
-                        "background is black")
-        return (0.0, 0.0, 0.0)
-    color_sock = socket(node, "Color")
-    strength_sock = socket(node, "Strength")
-    for sock in (color_sock, strength_sock):
-        if sock is not None and sock.is_linked:
-            warnings.append(f"World '{world.name}': input '{sock.name}' of node '{node.name}' is linked "
-                            "(only a constant colour is supported); its unlinked value is used")
-    color = tuple(float(c) for c in color_sock.default_value[:3])
-    strength = float(strength_sock.default_value)
-    return tuple(max(c * strength, 0.0) for c in color)
+        reader.warn(node, f"({node.bl_idname}) is not supported; background is black")
+        return (0.0, 0.0, 0.0), None
+    colour, image = reader.background(node)
+    if image is None:
+        return colour, None
+    return colour, Environment(**image, name=world.name)
+
+
+class WorldReader:
+    def __init__(self, world, warnings, images, Environment):
+        self.world, self.warnings, self.images, self.Environment = world, warnings, images, Environment
+
+    def warn(self, node, text):
+        self.warnings.append(f"World '{self.world.name}': node '{node.name}' {text}")
+
+    def mix(self, node):
+        """A Mix Shader: Light Path's Is Camera Ray between two Backgrounds, else a warning."""
+        fac, first, second = node.inputs[0], linked_from(node.inputs[1]), linked_from(node.inputs[2])
+        source = linked_from(fac)
+        is_camera = (source is not None and source.bl_idname == "ShaderNodeLightPath"
+                     and fac.links[0].from_socket.name == "Is Camera Ray")
+        backgrounds = [n for n in (first, second) if n is not None and n.bl_idname == "ShaderNodeBackground"]
+        if not is_camera or len(backgrounds) != 2:
+            self.warn(node, "is supported only as Light Path 'Is Camera Ray' mixing two Background nodes; "
+                            "the first Background's constant colour is used")
+            colour = self.constant(backgrounds[0]) if backgrounds else (0.0, 0.0, 0.0)
+            return colour, None
+        (lit, lit_image), (cam, cam_image) = self.background(first), self.background(second)
+        if lit_image is None and cam_image is None:
+            self.warn(node, "mixes two constant Backgrounds: camera rays see the lighting colour here")
+            return lit, None
+        if lit_image is None:                      # the image is seen by camera rays only
+            return lit, self.Environment(**cam_image, lighting=False, name=self.world.name)
+        if cam_image is None:
+            return lit, self.Environment(**lit_image, camera_color=cam, name=self.world.name)
+        if any(cam_image[k] != lit_image[k] for k in ("texture", "projection", "interpolation", "matrix")):
+            self.warn(node, "mixes two different environment images: camera rays see the lighting image here")
+            return lit, self.Environment(**lit_image, name=self.world.name)
+        return lit, self.Environment(**lit_image, camera_strength=cam_image["strength"], name=self.world.name)
+
+    def constant(self, node):
+        colour = tuple(float(c) for c in socket(node, "Color").default_value[:3])
+        strength = float(socket(node, "Strength").default_value)
+        return tuple(max(c * strength, 0.0) for c in colour)
+
+    def background(self, node):
+        """(constant colour, the Environment fields of its image or None) of a Background node."""
+        color_sock, strength_sock = socket(node, "Color"), socket(node, "Strength")
+        if strength_sock is not None and strength_sock.is_linked:
+            self.warn(node, "has its Strength linked (only a constant is supported); its unlinked value is used")
+        strength = max(float(strength_sock.default_value), 0.0)
+        colour = self.constant(node)
+        if not color_sock.is_linked:
+            return colour, None
+        source = linked_from(color_sock)
+        if source is None or source.bl_idname != "ShaderNodeTexEnvironment" or self.images is None:
+            name = "" if source is None else f" from '{source.name}' ({source.bl_idname})"
+            self.warn(node, f"has its Color linked{name}: only an Environment Texture is supported; "
+                            "its unlinked colour is used")
+            return colour, None
+        if color_sock.links[0].from_socket.name != "Color":
+            self.warn(source, "feeds the Background through its Alpha: not supported; the unlinked colour is used")
+            return colour, None
+        image = self.texture(source)
+        if image is None:
+            return colour, None
+        image["strength"] = strength
+        return colour, image
+
+    def texture(self, node):
+        """The Environment fields of an Environment Texture node (without strength), or None."""
+        if node.image is None:
+            self.warn(node, "has no image; the Background's unlinked colour is used")
+            return None
+        index = self.images.texture_index(self.world, node, node.image)
+        if index is None:
+            return None
+        if node.interpolation in ("Cubic", "Smart"):
+            self.warn(node, f"{node.interpolation} interpolation is rendered as Linear")
+        projection = {"EQUIRECTANGULAR": "equirectangular", "MIRROR_BALL": "mirror_ball"}.get(node.projection)
+        if projection is None:
+            self.warn(node, f"projection {node.projection} is not supported; rendered as equirectangular")
+            projection = "equirectangular"
+        return dict(texture=index, projection=projection,
+                    interpolation="Closest" if node.interpolation == "Closest" else "Linear",
+                    matrix=self.coordinates(node))
+
+    def coordinates(self, node):
+        """The texture's direction matrix from what feeds its Vector: nothing or Generated
+        coordinates (the ray direction) -> identity, through a Mapping node -> its matrix."""
+        vector = socket(node, "Vector")
+        source = linked_from(vector)
+        if source is None:
+            return IDENTITY
+        if source.bl_idname == "ShaderNodeMapping":
+            matrix = self.mapping(source)
+            if not self.generated(source, socket(source, "Vector")):
+                return IDENTITY
+            return matrix
+        self.generated(node, vector)              # a warning unless Generated coordinates
+        return IDENTITY
+
+    def generated(self, node, vector):
+        """Whether `vector` of `node` is unlinked or Generated texture coordinates (else a warning)."""
+        source = linked_from(vector)
+        if source is None:
+            return True
+        if source.bl_idname == "ShaderNodeTexCoord" and vector.links[0].from_socket.name == "Generated":
+            return True
+        self.warn(node, f"reads its Vector from '{source.name}' ({source.bl_idname}): only Generated "
+                        "coordinates (or a Mapping node of them) are supported; the ray direction is used")
+        return False
+
+    def mapping(self, node):
+        """A Mapping node's matrix on directions (Cycles' svm_mapping): Point and Vector R S, Texture
+        S^-1 R^T, Normal R S^-1 (normalised afterwards by the texture); a location is ignored."""
+        kind = getattr(node, "vector_type", "POINT")
+        for name in ("Location", "Rotation", "Scale"):
+            sock = socket(node, name)
+            if sock is not None and sock.is_linked:
+                self.warn(node, f"has its {name} linked (only constants are supported); its unlinked value is used")
+        loc = socket(node, "Location")
+        if kind in ("POINT", "TEXTURE") and loc is not None and any(abs(float(c)) > 0 for c in loc.default_value):
+            self.warn(node, "has a Location: a direction does not move with it in this tracer; ignored")
+        rx, ry, rz = (float(c) for c in socket(node, "Rotation").default_value)
+        scale = [float(c) for c in socket(node, "Scale").default_value]
+        r = euler_xyz(rx, ry, rz)
+        if kind == "TEXTURE" or kind == "NORMAL":
+            if any(s == 0.0 for s in scale):
+                self.warn(node, "has a Scale of 0; rendered with 1 there")
+            scale = [1.0 / s if s != 0.0 else 1.0 for s in scale]
+        if kind == "TEXTURE":                          # S^-1 R^T
+            m = [[scale[i] * r[j][i] for j in range(3)] for i in range(3)]
+        else:                                          # R S (Normal: R S^-1)
+            m = [[r[i][j] * scale[j] for j in range(3)] for i in range(3)]
+        if abs(det3(m)) < 1e-12:
+            self.warn(node, "maps every direction into a plane (a Scale of 0); rotation only is used")
+            m = r if kind != "TEXTURE" else [[r[j][i] for j in range(3)] for i in range(3)]
+        return tuple(tuple(row) for row in m)
+
+
+def euler_xyz(x, y, z):
+    """Blender's (and Cycles' euler_to_transform) XYZ Euler rotation: Rz Ry Rx."""
+    cx, cy, cz, sx, sy, sz = math.cos(x), math.cos(y), math.cos(z), math.sin(x), math.sin(y), math.sin(z)
+    return [[cy * cz, sy * sx * cz - cx * sz, sy * cx * cz + sx * sz],
+            [cy * sz, sy * sx * sz + cx * cz, sy * cx * sz - sx * cz],
+            [-sy, cy * sx, cy * cx]]
+
+
+def det3(m):
+    return (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))

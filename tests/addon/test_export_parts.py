@@ -57,17 +57,17 @@ def test_transforms_and_uniform_scale():
 # ----------------------------------------------------------------------------------------- world
 def test_world_is_background_colour_times_strength(empty_scene):
     warnings = []
-    assert export_world(None, warnings) == (0.0, 0.0, 0.0)
+    assert export_world(None, warnings) == ((0.0, 0.0, 0.0), None)
     world = bpy.data.worlds.new("Sky")
     world.use_nodes = True
     background = world.node_tree.nodes["Background"]
     background.inputs["Color"].default_value = (0.5, 0.25, 1.0, 1.0)
     background.inputs["Strength"].default_value = 2.0
-    assert export_world(world, warnings) == pytest.approx((1.0, 0.5, 2.0)) and warnings == []
+    assert export_world(world, warnings)[0] == pytest.approx((1.0, 0.5, 2.0)) and warnings == []
     sky = world.node_tree.nodes.new("ShaderNodeTexSky")
     world.node_tree.links.new(sky.outputs["Color"], background.inputs["Color"])
-    assert export_world(world, warnings) == pytest.approx((1.0, 0.5, 2.0))
-    assert len(warnings) == 1 and "World 'Sky'" in warnings[0] and "is linked" in warnings[0]
+    assert export_world(world, warnings) == (pytest.approx((1.0, 0.5, 2.0)), None)
+    assert len(warnings) == 1 and "World 'Sky'" in warnings[0] and "Color linked" in warnings[0]
 
 
 # ----------------------------------------------------------------------------------- unsupported

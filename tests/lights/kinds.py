@@ -70,5 +70,15 @@ def world():
     return WorldLight((0.2, 0.3, 0.4), 3.0)
 
 
+def environment():
+    """The image world under the sample sky of scripts/make_sample_hdr.py, turned by a rotation."""
+    from engine.lights.environment import EnvironmentLight, EnvironmentMap
+    from engine.scene.model import Environment
+    from scripts.make_sample_hdr import sky_pixels
+    env = Environment(0, strength=0.5, matrix=((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)))
+    return EnvironmentLight(EnvironmentMap(env, sky_pixels(32, 16), False), 3.0)
+
+
 EVERY_KIND = {"parallelograms": parallelograms, "triangles": triangles, "spheres": spheres,
-              "polygons": polygons, "point lights": point_lights, "suns": suns, "world": world}
+              "polygons": polygons, "point lights": point_lights, "suns": suns, "world": world,
+              "environment": environment}

@@ -1,0 +1,83 @@
+"""The world exporter (mcrt_addon/export/world.py) on the node patterns it reads, in bpy 5.0 (fast:
+no render; the renders are tests/addon/test_agreement_world.py): an Environment Texture through a
+Mapping node, Light Path "Is Camera Ray" between an image and a colour (either way round) or between
+two strengths of one image, and the warnings (naming world and node) for what it does not read,
+each falling back to the constant colour."""
+import math
+
+import bpy
+import pytest
+
+from mcrt_addon import bridge
+from mcrt_addon.export.images import ImageTable
+from mcrt_addon.export.world import export_world
+
+
+def world_with(ms, scene, image, rotation_z=0.0):
+    ms.environment_world(scene, image, 2.0, rotation_z)
+    return scene.world
+
+
+def export(world):
+    warnings = []
+    images = ImageTable(bridge.module("scene.textures"), warnings)
+    colour, env = export_world(world, warnings, images, bridge.scene_module().Environment)
+    return colour, env, warnings, images
+
+
+@pytest.fixture
+def sky(empty_scene):
+    img = bpy.data.images.new("sky", 8, 4, float_buffer=True)
+    img.pixels.foreach_set([0.5] * (8 * 4 * 4))
+    img.pack()
+    return img
+
+
+def camera_mix(world, camera_node_first=False):
+    """Mix Shader(Is Camera Ray, the world's Background, a grey Background) -> output."""
+    tree = world.node_tree
+    bg = next(n for n in tree.nodes if n.type == "BACKGROUND")
+    grey = tree.nodes.new("ShaderNodeBackground")
+    grey.inputs["Color"].default_value = (0.2, 0.3, 0.4, 1.0)
+    mix, path = tree.nodes.new("ShaderNodeMixShader"), tree.nodes.new("ShaderNodeLightPath")
+    tree.links.new(path.outputs["Is Camera Ray"], mix.inputs[0])
+    first, second = (grey, bg) if camera_node_first else (bg, grey)
+    tree.links.new(first.outputs[0], mix.inputs[1])
+    tree.links.new(second.outputs[0], mix.inputs[2])
+    out = next(n for n in tree.nodes if n.type == "OUTPUT_WORLD")
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    return grey
+
+
+def test_environment_texture_through_mapping(empty_scene, ms, sky):
+    colour, env, warnings, images = export(world_with(ms, empty_scene, sky, math.radians(90)))
+    assert warnings == [] and env.strength == 2.0 and env.projection == "equirectangular"
+    assert env.matrix[0] == pytest.approx((0.0, -1.0, 0.0), abs=1e-7)
+    assert images.textures[env.texture].is_float and env.camera_color is None and env.lighting
+
+
+def test_camera_ray_mixes(empty_scene, ms, sky):
+    world = world_with(ms, empty_scene, sky)
+    camera_mix(world)
+    _, env, warnings, _ = export(world)
+    assert warnings == [] and env.lighting and env.camera_color == pytest.approx((0.2, 0.3, 0.4))
+    world = world_with(ms, empty_scene, sky)
+    camera_mix(world, camera_node_first=True)
+    colour, env, warnings, _ = export(world)
+    assert warnings == [] and not env.lighting and colour == pytest.approx((0.2, 0.3, 0.4))
+
+
+def test_unsupported_worlds_warn_and_fall_back(empty_scene, ms, sky):
+    world = world_with(ms, empty_scene, sky)
+    tree = world.node_tree
+    env = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment")
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    tree.links.new(noise.outputs["Color"], env.inputs["Vector"])
+    _, exported, warnings, _ = export(world)
+    assert exported is not None and len(warnings) == 1 and "World 'World'" in warnings[0] and env.name in warnings[0]
+    bg = next(n for n in tree.nodes if n.type == "BACKGROUND")
+    sky_node = tree.nodes.new("ShaderNodeTexSky")
+    tree.links.new(sky_node.outputs["Color"], bg.inputs["Color"])
+    colour, exported, warnings, _ = export(world)
+    assert exported is None and colour == pytest.approx((0.0, 0.0, 0.0)) and bg.name in warnings[0]
+    assert "ShaderNodeTexSky" in warnings[0]
