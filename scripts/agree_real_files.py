@@ -50,6 +50,39 @@ def compare(runs, reference, samples, reference_samples):
                 agrees=bool(mean_ok and off.mean() <= 0.02))
 
 
+def replace_missing_images(path) -> int:
+    """Every image of the open file whose file is missing is given `path`; returns how many."""
+    import bpy
+    if not path:
+        return 0
+    n = 0
+    for image in bpy.data.images:
+        if image.source == "FILE" and image.packed_file is None and \
+                not os.path.isfile(bpy.path.abspath(image.filepath, library=image.library)):
+            image.filepath = os.path.abspath(path)
+            image.reload()
+            n += 1
+    return n
+
+
+def with_missing_images_replaced(blend, path, cache_dir):
+    """A copy of `blend` (saved beside the cache, relative paths kept absolute) whose missing images
+    are `path`, so that Cycles' reference sees what the tracer sees: (the file to render, how many
+    images were replaced)."""
+    import bpy
+    if not path:
+        return blend, 0
+    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(blend), load_ui=False)
+    bpy.ops.file.make_paths_absolute()
+    n = replace_missing_images(path)
+    if not n:
+        return blend, 0
+    os.makedirs(cache_dir, exist_ok=True)
+    out = os.path.join(os.path.abspath(cache_dir), "with-image-" + os.path.basename(blend))
+    bpy.ops.wm.save_as_mainfile(filepath=out, copy=True)
+    return out, n
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("directory")
@@ -60,12 +93,15 @@ def main():
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--cache-dir", default=os.path.join("renders", "reference-files"))
     ap.add_argument("--images", default=None, help="write TNCG15 / Cycles PNGs side by side here")
+    ap.add_argument("--missing-image", default=None,
+                    help="an image file put in place of every image file a .blend lacks (both renderers see it; "
+                         "Cycles renders a missing image magenta, TNCG15 MC warns and uses the unlinked value)")
     args = ap.parse_args()
     import bpy
     files = sorted(glob.glob(os.path.join(args.directory, "*.blend")))
     print(f"{len(files)} files, {args.width} px wide, TNCG15 MC {args.samples} spp x 2 seeds, "
           f"Cycles {args.reference_samples} spp, max depth {args.max_depth}, fair settings")
-    print(f"| file | warnings | mean / Cycles | block median | block p95 | blocks off | agrees |")
+    print("| file | warnings | mean / Cycles | block median | block p95 | blocks off | agrees |")
     print("|---|---|---|---|---|---|---|")
     agree = 0
     for blend in files:
@@ -75,13 +111,15 @@ def main():
         aspect = (r.resolution_y * r.pixel_aspect_y) / max(r.resolution_x * r.pixel_aspect_x, 1)
         res = (args.width, max(8, int(round(args.width * aspect))))
         with open(blend, "rb") as fh:
-            identity = be._sha1(fh.read())
+            identity = be._sha1(fh.read()) + (f":{os.path.basename(args.missing_image)}" if args.missing_image else "")
+        blend, replaced = with_missing_images_replaced(blend, args.missing_image, args.cache_dir)
         reference, _ = be.reference_image(label, blend, identity, cache_dir=args.cache_dir, resolution=res,
                                           samples=args.reference_samples, max_depth=args.max_depth,
                                           log=lambda *a: None)
         scene = be.open_blend(blend, res)
         exported = be.export_tracer_scene(scene, res)
-        warnings = list(exported.warnings)
+        warnings = [f"{n} missing image file(s) replaced by {args.missing_image}" for n in [replaced] if n] + \
+            list(exported.warnings)
         runs = [be.render_tncg15(exported.scene, samples=args.samples, max_depth=args.max_depth, seed=s,
                                  threads=args.threads, estimator="mis")[0] for s in (1, 2)]
         m = compare(runs, reference, args.samples, args.reference_samples)
