@@ -22,7 +22,7 @@ from .shapes.box_tree import BoxTree, padded_boxes
 from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
-from .shapes.spheres import intersect_sphere, surface_point
+from .shapes.spheres import sphere_kernel, surface_point
 from ..core.vec import aos, max_abs3, rows
 
 NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
@@ -120,6 +120,8 @@ class SceneGeometry:
 
         self.quads = QuadSet(np.array([q.corners for q in scene.quads]).reshape(-1, 4, 3))
         self.quad_material = np.array([q.material_id for q in scene.quads], dtype=np.int64)
+
+        self.intersect_sphere = sphere_kernel(plan.backends.get("spheres", "numpy") if plan is not None else "numpy")
 
         def kernel(name, present):
             return bool(present) if plan is None else bool(plan.enabled[name])
@@ -277,8 +279,8 @@ class SceneGeometry:
     def _sphere_test(self, o, d):
         def test(ray, k, bound):
             if np.ndim(k) == 0:
-                return intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], bound)
-            return intersect_sphere(o.take(ray, axis=1), d.take(ray, axis=1), self.sphere_center.take(k, axis=1),
+                return self.intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], bound)
+            return self.intersect_sphere(o.take(ray, axis=1), d.take(ray, axis=1), self.sphere_center.take(k, axis=1),
                                     self.sphere_radius.take(k), bound)
         return test
 
