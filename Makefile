@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BLENDER ?= blender
 
-.PHONY: setup render test test-slow test-all bench bench-primitives bench-estimators bench-materials study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-primitives bench-backend bench-estimators bench-materials study extension samples clean
 
 setup: $(STAMP)
 
@@ -39,6 +39,11 @@ bench: $(STAMP)
 # time ratios measured in one run (docs/performance.md "Many primitives").
 bench-primitives: $(STAMP)
 	$(PY) scripts/bench_primitives.py
+
+# NumPy against numba's compiled kernels: per kernel on captured inputs, per render, compile cold and
+# from the cache (docs/performance.md "Compiled kernels").
+bench-backend: $(STAMP)
+	$(PY) scripts/bench_backend.py
 
 # Light-sampling estimators (report | solid-angle | mis) vs Cycles on the light-sampling stress scenes:
 # markdown table + docs/estimators.json; Cycles references cached in renders/reference/.

@@ -7,6 +7,8 @@ import numpy as np
 from engine.geometry.shapes.spheres import intersect_sphere, sphere_kernel
 from tests.backend_capture import capture, require_compiled
 
+TWIN = "engine.geometry.shapes.spheres_jit"        # imported by sphere_kernel("numba"), not here: numba may be missing
+
 
 def test_captured_tests_are_bit_identical():
     require_compiled()

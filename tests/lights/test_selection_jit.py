@@ -8,6 +8,8 @@ import pytest
 from engine.lights.selection import LightTree
 from tests.backend_capture import capture, require_compiled
 
+TWIN = "engine.lights.selection_jit"     # imported after require_compiled(): numba may be missing
+
 
 @pytest.fixture(scope="module")
 def calls():
