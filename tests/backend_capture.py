@@ -1,20 +1,33 @@
 """Inputs of the kernels that have compiled twins, recorded from real renders (engine.api.render,
-one thread, NumPy backend): the light tree's walks and the sphere tests.  Used by the twins' tests
+one thread, NumPy backend): the light tree's walks, the sphere and quad tests.  Used by the twins' tests
 (tests/lights/test_selection_jit.py, tests/geometry/test_spheres_jit.py) and scripts/bench_backend.py."""
 from __future__ import annotations
 
 from engine import api
 from engine.core.settings import RenderSettings
 from engine.geometry import scene_geometry
+from engine.geometry.shapes.quads import QuadSet
 from engine.lights.selection import LightTree
 from engine.scene.builtin import BUILTIN_SCENES
 
 
 def capture(scene_name: str, resolution=16, samples=2, limit=64):
     """{"sample": [(tree, x, n, u)], "pmf": [(tree, x, n, light)], "sphere": [(o, d, center, radius,
-    t_best)]}: up to `limit` calls of each, recorded while rendering a built-in scene."""
-    calls = {"sample": [], "pmf": [], "sphere": []}
+    t_best)], "quad": [(quads, k, prim, o, d, t_best)]}: up to `limit` calls of each, recorded while
+    rendering a built-in scene."""
+    calls = {"sample": [], "pmf": [], "sphere": [], "quad": []}
     sample, pmf, kernel = LightTree._tree_sample, LightTree._tree_pmf, scene_geometry.sphere_kernel
+    one, pairs = QuadSet.intersect_one, QuadSet.intersect_pairs
+
+    def rec_one(self, k, o, d, t_best=None):
+        if len(calls["quad"]) < limit:
+            calls["quad"].append((self, k, None, o.copy(), d.copy(), None if t_best is None else t_best.copy()))
+        return one(self, k, o, d, t_best)
+
+    def rec_pairs(self, prim, o, d, t_best):
+        if len(calls["quad"]) < limit:
+            calls["quad"].append((self, None, prim.copy(), o.copy(), d.copy(), t_best.copy()))
+        return pairs(self, prim, o, d, t_best)
 
     def rec_sample(self, x, n, u):
         if len(calls["sample"]) < limit:
@@ -38,11 +51,13 @@ def capture(scene_name: str, resolution=16, samples=2, limit=64):
         return test
 
     LightTree._tree_sample, LightTree._tree_pmf, scene_geometry.sphere_kernel = rec_sample, rec_pmf, rec_kernel
+    QuadSet.intersect_one, QuadSet.intersect_pairs = rec_one, rec_pairs
     try:
         settings = RenderSettings(samples=samples, threads=1, backend="numpy")
         api.render(BUILTIN_SCENES[scene_name]((resolution, resolution)), settings, log=lambda m: None)
     finally:
         LightTree._tree_sample, LightTree._tree_pmf, scene_geometry.sphere_kernel = sample, pmf, kernel
+        QuadSet.intersect_one, QuadSet.intersect_pairs = one, pairs
     return calls
 
 

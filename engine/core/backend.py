@@ -41,6 +41,8 @@ BACKENDS = (AUTO, NUMPY, NUMBA)
 JIT_MODULES = {
     "lights.selection_jit": ("light_tree",),
     "geometry.shapes.spheres_jit": ("spheres",),
+    "geometry.shapes.quads_jit": ("quads",),
+    "geometry.shapes.light_polygons_jit": ("area_lights",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 

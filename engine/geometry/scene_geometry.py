@@ -118,10 +118,12 @@ class SceneGeometry:
         self.sphere_radius = np.array([s.radius for s in scene.spheres], dtype=np.float64)
         self.sphere_material = np.array([s.material_id for s in scene.spheres], dtype=np.int64)
 
-        self.quads = QuadSet(np.array([q.corners for q in scene.quads]).reshape(-1, 4, 3))
+        backends = plan.backends if plan is not None else {}     # kernel -> "numba" | "numpy"
+        self.quads = QuadSet(np.array([q.corners for q in scene.quads]).reshape(-1, 4, 3),
+                             backend=backends.get("quads", "numpy"))
         self.quad_material = np.array([q.material_id for q in scene.quads], dtype=np.int64)
 
-        self.intersect_sphere = sphere_kernel(plan.backends.get("spheres", "numpy") if plan is not None else "numpy")
+        self.intersect_sphere = sphere_kernel(backends.get("spheres", "numpy"))
 
         def kernel(name, present):
             return bool(present) if plan is None else bool(plan.enabled[name])
@@ -129,7 +131,7 @@ class SceneGeometry:
         self.has_spheres = kernel("spheres", len(self.sphere_radius))
         self.has_quads = kernel("quads", self.quads.count)
         self.has_lights = plan is not None and bool(plan.enabled.get("area_lights"))
-        self.lights = LightPolygons(scene.lights if self.has_lights else [])
+        self.lights = LightPolygons(scene.lights if self.has_lights else [], backend=backends.get("area_lights", "numpy"))
         # Smooth shading: interpolated corner normals, only when the plan says a scene has them.
         self.smooth = (SmoothNormals(scene.meshes) if self.has_triangles and kernel("smooth_normals",
                        has_smooth(scene.meshes)) else None)
