@@ -118,7 +118,7 @@ class SceneGeometry:
         self.sphere_radius = np.array([s.radius for s in scene.spheres], dtype=np.float64)
         self.sphere_material = np.array([s.material_id for s in scene.spheres], dtype=np.int64)
 
-        backends = plan.backends if plan is not None else {}     # kernel -> "numba" | "numpy"
+        backends = getattr(plan, "backends", {})       # kernel -> "numba" | "numpy" (engine/integrators/effects.py)
         self.quads = QuadSet(np.array([q.corners for q in scene.quads]).reshape(-1, 4, 3),
                              backend=backends.get("quads", "numpy"))
         self.quad_material = np.array([q.material_id for q in scene.quads], dtype=np.int64)
