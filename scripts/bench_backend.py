@@ -3,7 +3,7 @@
     python scripts/bench_backend.py [--resolution 96] [--samples 16] [--repeats 3] [--no-blend]
 
 1. Per kernel, on inputs recorded from real renders (tests/backend_capture.py: the light tree's
-   walks in the built-in many-lights room, the sphere tests of the built-in Cornell box): CPU time
+   walks in the built-in many-lights room, the sphere and quad tests of the built-in Cornell box): CPU time
    of every recorded call through the NumPy kernel and through its twin, best of --repeats, and
    the speed-up NumPy / numba.  The twin run alone on two threads with `prange` as well (an upper
    bound of what `parallel=True` could give; a render already keeps both cores busy with two
@@ -86,14 +86,16 @@ def parallel_tree_sample():
 def kernels(args):
     from engine.geometry.shapes.spheres import intersect_sphere
     from engine.geometry.shapes.spheres_jit import intersect_sphere as sphere_jit
+    from engine.geometry.shapes.quads import QuadSet
     from engine.lights.selection_jit import TreeTables
-    many = capture("many_lights", resolution=args.kernel_resolution, samples=1, limit=10**6)
-    cornell = capture("cornell", resolution=args.kernel_resolution, samples=1, limit=10**6)
+    many = capture("many_lights", resolution=args.kernel_resolution, samples=args.kernel_samples, limit=10**6)
+    cornell = capture("cornell", resolution=args.kernel_resolution, samples=args.kernel_samples, limit=10**6)
     tables = {id(t): TreeTables(t) for t, *_ in many["sample"] + many["pmf"]}
     rows = []
     samples = [(t, x, n, u) for t, x, n, u in many["sample"]]
     pmfs = [(t, x, n, light) for t, x, n, light in many["pmf"]]
     spheres = cornell["sphere"]
+    quads = cornell["quad"]
     rays = lambda calls, i: sum(len(c[i]) if np.ndim(c[i]) == 1 else c[i].shape[1] for c in calls)  # noqa: E731
 
     def run_numpy_sample():
@@ -119,13 +121,25 @@ def kernels(args):
     def run_jit_sphere():
         for o, d, c, r, b in spheres:
             sphere_jit(o, d, c, r, b)
+    def run_numpy_quad():
+        for q, k, prim, o, d, b in quads:
+            q.intersect_one(k, o, d, b) if prim is None else q.intersect_pairs(prim, o, d, b)
+    compiled_quads = {id(q): QuadSet(np.stack([q.v00, q.v10, q.v11, q.v01], axis=1), backend="numba")
+                      for q, *_ in quads}
+
+    def run_jit_quad():
+        for q, k, prim, o, d, b in quads:
+            c = compiled_quads[id(q)]
+            c.intersect_one(k, o, d, b) if prim is None else c.intersect_pairs(prim, o, d, b)
     for name, calls, a, b, count in (("light tree sample", samples, run_numpy_sample, run_jit_sample, rays(samples, 3)),
                                      ("light tree pmf", pmfs, run_numpy_pmf, run_jit_pmf, rays(pmfs, 3)),
-                                     ("sphere test", spheres, run_numpy_sphere, run_jit_sphere, rays(spheres, 0))):
+                                     ("sphere test", spheres, run_numpy_sphere, run_jit_sphere, rays(spheres, 0)),
+                                     ("quad test", quads, run_numpy_quad, run_jit_quad, rays(quads, 3))):
         b()                                               # loaded from the cache before timing
         t_np, t_nb = best_cpu(a, args.repeats), best_cpu(b, args.repeats)
         rows.append((name, len(calls), count, t_np, t_nb))
-    print(f"\n## Kernels on captured inputs ({args.kernel_resolution}^2 x 1 spp renders), CPU s, best of {args.repeats}")
+    print(f"\n## Kernels on captured inputs ({args.kernel_resolution}^2 x {args.kernel_samples} spp renders), "
+          f"CPU s, best of {args.repeats}")
     print("| kernel | calls | rays | NumPy [ms] | numba [ms] | speed-up |")
     print("|---|---:|---:|---:|---:|---:|")
     for name, calls, count, t_np, t_nb in rows:
@@ -205,7 +219,8 @@ def compile_times():
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--resolution", type=int, default=96)
-    ap.add_argument("--kernel-resolution", type=int, default=64)
+    ap.add_argument("--kernel-resolution", type=int, default=128)
+    ap.add_argument("--kernel-samples", type=int, default=4)
     ap.add_argument("--samples", type=int, default=16)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-blend", dest="blend", action="store_false")

@@ -33,6 +33,8 @@ import sys
 import threading
 import time
 
+from .paths import TRACER_BASE, TRACER_DIR
+
 NUMPY, NUMBA, AUTO = "numpy", "numba", "auto"
 BACKENDS = (AUTO, NUMPY, NUMBA)
 
@@ -46,8 +48,6 @@ JIT_MODULES = {
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 
-TRACER_BASE = __package__.rpartition(".")[0]     # "engine", or the bundled copy's package
-TRACER_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STALE_LOCK_SECONDS = 600.0                        # a warm-up lock older than this was left by a dead process
 
 _state = {"checked": False, "module": None, "error": None, "warming": None}

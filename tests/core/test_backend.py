@@ -99,5 +99,22 @@ def test_cold_compile_then_cache_load(tmp_path):
         out = subprocess.run([sys.executable, "-m", "engine.core.backend"], cwd=ROOT, env=env,
                              capture_output=True, text=True, timeout=300)
         assert out.returncode == 0, out.stderr
-        assert "kernels 2/2 ready" in out.stdout
+        assert f"kernels {len(backend.JIT_MODULES)}/{len(backend.JIT_MODULES)} ready" in out.stdout
     assert any(n.startswith("warm-") and n.endswith(".stamp") for n in os.listdir(tmp_path))
+
+
+@pytest.mark.slow
+def test_background_warm_up_stamps_the_cache(monkeypatch, tmp_path):
+    """auto on a cold cache: NumPy now, a Python process compiling into the cache, numba next time."""
+    require_compiled()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(backend, "_state", dict(backend._state, warming=None))
+    said = []
+    assert backend.resolve("auto", said.append)[0] == "numpy"
+    worker = backend._state["warming"]
+    assert worker is not None and any("background" in s for s in said)
+    assert backend.start_warm_up(said.append) is None                # one at a time
+    worker.wait(timeout=300)
+    assert worker.returncode == 0 and backend.is_warm()
+    assert not os.path.exists(backend.stamp_path() + ".lock")
+    assert backend.resolve("auto")[0] == "numba"
