@@ -114,17 +114,26 @@ def is_warm() -> bool:
     return os.path.exists(stamp_path())
 
 
-def warm_up(log=print) -> float:
-    """Compile (or load from the cache) every twin's kernels in this process and stamp the cache
-    warm; returns the seconds it took.  Raises ImportError when numba is missing."""
+def load_kernels(log=None) -> float:
+    """Compile or load from the cache every twin's kernels in this process, once (before the local
+    pool forks, so its workers inherit them); returns the seconds it took.  Raises ImportError when
+    numba is missing."""
     if numba_module() is None:
         raise ImportError(f"numba cannot be imported ({numba_error()})")
     start = time.perf_counter()
-    for i, name in enumerate(JIT_MODULES, 1):
-        module = importlib.import_module(f"{TRACER_BASE}.{name}")
-        module.warm_up()
-        log(f"numba: kernels {i}/{len(JIT_MODULES)} ready ({name}, {time.perf_counter() - start:.1f} s)")
-    seconds = time.perf_counter() - start
+    if not _state.get("loaded"):
+        for i, name in enumerate(JIT_MODULES, 1):
+            importlib.import_module(f"{TRACER_BASE}.{name}").warm_up()
+            if log:
+                log(f"numba: kernels {i}/{len(JIT_MODULES)} ready ({name}, {time.perf_counter() - start:.1f} s)")
+        _state["loaded"] = True
+    return time.perf_counter() - start
+
+
+def warm_up(log=print) -> float:
+    """Compile (or load from the cache) every twin's kernels in this process and stamp the cache
+    warm; returns the seconds it took.  Raises ImportError when numba is missing."""
+    seconds = load_kernels(log)
     stamp = stamp_path()
     with open(stamp + ".tmp", "w") as fh:
         fh.write(f"{seconds:.3f}\n")
@@ -176,17 +185,22 @@ def start_warm_up(log=print):
         return worker
 
 
-def resolve(setting: str, log=print) -> tuple:
-    """(backend, reason) of a render for the setting "auto" | "numpy" | "numba"."""
+def resolve(setting: str, log=print, kernels=KERNELS) -> tuple:
+    """(backend, reason) of a render for the setting "auto" | "numpy" | "numba"; kernels: the names
+    (KERNELS) the render runs (none: numba is not even imported)."""
     if setting == NUMPY:
         return NUMPY, "backend numpy (as set)"
+    if not set(kernels) & set(KERNELS):
+        return NUMPY, "no kernel of this scene has a compiled twin"
     if numba_module() is None:
         why = f"numba is not available ({numba_error()})"
         if setting == NUMBA:
             log(f"warning: backend numba asked for, but {why}: the NumPy kernels run")
         return NUMPY, why
     if is_warm():
-        return NUMBA, "numba, compiled kernels from the cache" + (" (as set)" if setting == NUMBA else "")
+        seconds = load_kernels()
+        return NUMBA, (f"numba, compiled kernels from the cache ({seconds:.2f} s)"
+                       + (" (as set)" if setting == NUMBA else ""))
     if setting == NUMBA:
         log("numba: compiling the kernels (once per machine, about 20 s)...")
         seconds = warm_up(log)

@@ -94,7 +94,7 @@ class PreparedScene:
         n_tri = sum(len(m.triangles) for m in scene.meshes)
         self.accelerator, self.accelerator_reason = choose_accelerator(settings.accelerator, n_tri)
         self.plan = plan_effects(scene, settings, self.accelerator)
-        self.plan.use_backend(*resolve_backend(settings.backend, log))
+        self.plan.use_backend(*resolve_backend(settings.backend, log, [k for k, on in self.plan.enabled.items() if on]))
         if scene.lights and not self.plan.area_lights and settings.shadow_rays == 0:
             self.warnings.append(f"{len(scene.lights)} area light(s) are reached by shadow rays only here: "
                                  "with 0 shadow rays they light nothing")

@@ -118,3 +118,8 @@ def test_background_warm_up_stamps_the_cache(monkeypatch, tmp_path):
     assert worker.returncode == 0 and backend.is_warm()
     assert not os.path.exists(backend.stamp_path() + ".lock")
     assert backend.resolve("auto")[0] == "numba"
+
+
+def test_a_scene_without_compiled_kernels_never_imports_numba(numba_missing):
+    assert backend.resolve("numba", kernels=["triangles", "diffuse"]) == (
+        "numpy", "no kernel of this scene has a compiled twin")
