@@ -38,13 +38,14 @@ from .paths import TRACER_BASE, TRACER_DIR
 NUMPY, NUMBA, AUTO = "numpy", "numba", "auto"
 BACKENDS = (AUTO, NUMPY, NUMBA)
 
-# The compiled twins, relative to the tracer package, and the kernels (engine/integrators/effects.py
-# names them in the plan) each one serves.
+# The compiled twins, relative to the tracer package, and the kernels each one serves: effects of
+# the plan (engine/integrators/effects.py), and "sobol" for the Sobol' sampler.
 JIT_MODULES = {
     "lights.selection_jit": ("light_tree",),
     "geometry.shapes.spheres_jit": ("spheres",),
     "geometry.shapes.quads_jit": ("quads",),
     "geometry.shapes.light_polygons_jit": ("area_lights",),
+    "sampling.sobol_jit": ("sobol",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 

@@ -42,11 +42,12 @@ class EffectPlan:
     backend_reason: str = "NumPy (the reference)"
     backends: dict = field(default_factory=dict)   # kernel with a compiled twin -> the backend that runs it
 
-    def use_backend(self, backend: str, reason: str) -> None:
-        """Record the render's backend: each enabled kernel that has a compiled twin runs on it."""
+    def use_backend(self, backend: str, reason: str, kernels) -> None:
+        """Record the render's backend: each of its kernels (`kernels`: names) that has a compiled
+        twin runs on it."""
         from ..core.backend import KERNELS
         self.backend, self.backend_reason = backend, reason
-        self.backends = {k: backend for k in KERNELS if self.enabled.get(k)}
+        self.backends = {k: backend for k in KERNELS if k in kernels}
 
     def __getattr__(self, name):
         try:

@@ -94,7 +94,12 @@ class PreparedScene:
         n_tri = sum(len(m.triangles) for m in scene.meshes)
         self.accelerator, self.accelerator_reason = choose_accelerator(settings.accelerator, n_tri)
         self.plan = plan_effects(scene, settings, self.accelerator)
-        self.plan.use_backend(*resolve_backend(settings.backend, log, [k for k, on in self.plan.enabled.items() if on]))
+        kernels = [k for k, on in self.plan.enabled.items() if on] + (["sobol"] if settings.sampler == "sobol" else [])
+        self.plan.use_backend(*resolve_backend(settings.backend, log, kernels), kernels)
+        self.sobol_kernel = None                     # qmc.sample_2d; its numba twin where the backend says
+        if self.plan.backends.get("sobol") == "numba":
+            from ..sampling.sobol_jit import sample_2d as compiled_sample_2d
+            self.sobol_kernel = compiled_sample_2d
         if scene.lights and not self.plan.area_lights and settings.shadow_rays == 0:
             self.warnings.append(f"{len(scene.lights)} area light(s) are reached by shadow rays only here: "
                                  "with 0 shadow rays they light nothing")
@@ -139,6 +144,8 @@ class PreparedScene:
         sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.sample_net or s.samples,
                                 s.shadow_rays)
                    if s.sampler == "sobol" else RandomSampler(rng))
+        if self.sobol_kernel is not None:
+            sampler.kernel = self.sobol_kernel
         features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
                     if self.plan.passes else None)
         films = []

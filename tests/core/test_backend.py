@@ -73,7 +73,7 @@ def test_renders_are_bit_identical_on_both_backends(name):
     require_compiled()
     a, b = render(name, "numpy"), render(name, "numba")
     assert b.stats["backend"] == "numba" and a.stats["backend"] == "numpy"
-    expected = {"cornell": {"spheres", "quads"}, "many_lights": {"spheres", "light_tree"}}[name]
+    expected = {"cornell": {"spheres", "quads", "sobol"}, "many_lights": {"spheres", "light_tree", "sobol"}}[name]
     assert set(b.stats["kernel_backends"]) == expected and set(b.stats["kernel_backends"].values()) == {"numba"}
     assert np.array_equal(a.image, b.image)
 
