@@ -3,7 +3,8 @@
     python scripts/bench_backend.py [--resolution 96] [--samples 16] [--repeats 3] [--no-blend]
 
 1. Per kernel, on inputs recorded from real renders (tests/backend_capture.py: the light tree's
-   walks in the built-in many-lights room, the sphere and quad tests of the built-in Cornell box): CPU time
+   walks in the built-in many-lights room, the sphere and quad tests and the Sobol' points of the
+   built-in Cornell box): CPU time
    of every recorded call through the NumPy kernel and through its twin, best of --repeats, and
    the speed-up NumPy / numba.  The twin run alone on two threads with `prange` as well (an upper
    bound of what `parallel=True` could give; a render already keeps both cores busy with two
@@ -96,6 +97,17 @@ def kernels(args):
     pmfs = [(t, x, n, light) for t, x, n, light in many["pmf"]]
     spheres = cornell["sphere"]
     quads = cornell["quad"]
+    sobol = cornell["sobol"]
+    from engine.sampling.qmc import sample_2d
+    from engine.sampling.sobol_jit import sample_2d as sample_2d_jit
+
+    def run_numpy_sobol():
+        for index, seeds, dim, count in sobol:
+            sample_2d(index, seeds, dim, count)
+
+    def run_jit_sobol():
+        for index, seeds, dim, count in sobol:
+            sample_2d_jit(index, seeds, dim, count)
     rays = lambda calls, i: sum(len(c[i]) if np.ndim(c[i]) == 1 else c[i].shape[1] for c in calls)  # noqa: E731
 
     def run_numpy_sample():
@@ -134,7 +146,8 @@ def kernels(args):
     for name, calls, a, b, count in (("light tree sample", samples, run_numpy_sample, run_jit_sample, rays(samples, 3)),
                                      ("light tree pmf", pmfs, run_numpy_pmf, run_jit_pmf, rays(pmfs, 3)),
                                      ("sphere test", spheres, run_numpy_sphere, run_jit_sphere, rays(spheres, 0)),
-                                     ("quad test", quads, run_numpy_quad, run_jit_quad, rays(quads, 3))):
+                                     ("quad test", quads, run_numpy_quad, run_jit_quad, rays(quads, 3)),
+                                     ("Sobol' sample_2d", sobol, run_numpy_sobol, run_jit_sobol, rays(sobol, 0))):
         b()                                               # loaded from the cache before timing
         t_np, t_nb = best_cpu(a, args.repeats), best_cpu(b, args.repeats)
         rows.append((name, len(calls), count, t_np, t_nb))

@@ -1,23 +1,32 @@
 """Inputs of the kernels that have compiled twins, recorded from real renders (engine.api.render,
-one thread, NumPy backend): the light tree's walks, the sphere and quad tests.  Used by the twins' tests
+one thread, NumPy backend): the light tree's walks, the sphere and quad tests, the Sobol' points.  Used by the twins' tests
 (tests/lights/test_selection_jit.py, tests/geometry/test_spheres_jit.py) and scripts/bench_backend.py."""
 from __future__ import annotations
+
+import numpy as np
 
 from engine import api
 from engine.core.settings import RenderSettings
 from engine.geometry import scene_geometry
 from engine.geometry.shapes.quads import QuadSet
+from engine.sampling.qmc import SobolSampler, sample_2d
 from engine.lights.selection import LightTree
 from engine.scene.builtin import BUILTIN_SCENES
 
 
 def capture(scene_name: str, resolution=16, samples=2, limit=64):
     """{"sample": [(tree, x, n, u)], "pmf": [(tree, x, n, light)], "sphere": [(o, d, center, radius,
-    t_best)], "quad": [(quads, k, prim, o, d, t_best)]}: up to `limit` calls of each, recorded while
+    t_best)], "quad": [(quads, k, prim, o, d, t_best)], "sobol": [(index, pixel_seed, dim, count)]}: up to `limit` calls of each, recorded while
     rendering a built-in scene."""
-    calls = {"sample": [], "pmf": [], "sphere": [], "quad": []}
+    calls = {"sample": [], "pmf": [], "sphere": [], "quad": [], "sobol": []}
     sample, pmf, kernel = LightTree._tree_sample, LightTree._tree_pmf, scene_geometry.sphere_kernel
     one, pairs = QuadSet.intersect_one, QuadSet.intersect_pairs
+    sobol = SobolSampler.kernel
+
+    def rec_sobol(index, pixel_seed, dim, count):
+        if len(calls["sobol"]) < limit:
+            calls["sobol"].append((np.array(index), pixel_seed.copy(), np.array(dim), count))
+        return sample_2d(index, pixel_seed, dim, count)
 
     def rec_one(self, k, o, d, t_best=None):
         if len(calls["quad"]) < limit:
@@ -52,12 +61,14 @@ def capture(scene_name: str, resolution=16, samples=2, limit=64):
 
     LightTree._tree_sample, LightTree._tree_pmf, scene_geometry.sphere_kernel = rec_sample, rec_pmf, rec_kernel
     QuadSet.intersect_one, QuadSet.intersect_pairs = rec_one, rec_pairs
+    SobolSampler.kernel = staticmethod(rec_sobol)
     try:
         settings = RenderSettings(samples=samples, threads=1, backend="numpy")
         api.render(BUILTIN_SCENES[scene_name]((resolution, resolution)), settings, log=lambda m: None)
     finally:
         LightTree._tree_sample, LightTree._tree_pmf, scene_geometry.sphere_kernel = sample, pmf, kernel
         QuadSet.intersect_one, QuadSet.intersect_pairs = one, pairs
+        SobolSampler.kernel = staticmethod(sobol)
     return calls
 
 

@@ -1,11 +1,11 @@
 """The compiled Sobol' points (engine/sampling/sobol_jit.py) against engine/sampling/qmc.py
 `sample_2d`: bit for bit over net sizes 1 to 2^20, single and per-path dimensions (inside and
-beyond the dimension-hash table), on indices recorded from a render's sampler calls too."""
+beyond the dimension-hash table), and on the calls recorded from a render of the built-in Cornell box."""
 import numpy as np
 import pytest
 
 from engine.sampling import qmc
-from tests.backend_capture import require_compiled
+from tests.backend_capture import capture, require_compiled
 
 TWIN = "engine.sampling.sobol_jit"      # imported after require_compiled(): numba may be missing
 
@@ -19,6 +19,16 @@ def test_points_are_bit_identical(count):
     index = rng.integers(0, count, n).astype(np.uint32)
     seeds = rng.integers(0, 2**32, n, dtype=np.uint64).astype(np.uint32)
     for dim in (0, 7, 2000, rng.integers(0, 40, n), rng.integers(0, 5000, n)):
+        a, b = qmc.sample_2d(index, seeds, dim, count), sample_2d(index, seeds, dim, count)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+
+
+def test_captured_calls_are_bit_identical():
+    require_compiled()
+    from engine.sampling.sobol_jit import sample_2d
+    calls = capture("cornell")["sobol"]
+    assert len(calls) > 10
+    for index, seeds, dim, count in calls:
         a, b = qmc.sample_2d(index, seeds, dim, count), sample_2d(index, seeds, dim, count)
         assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
 
