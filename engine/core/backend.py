@@ -9,10 +9,10 @@ compiles them and writes them to its cache (`cache=True`).
   per-user directory (`cache_dir`: $NUMBA_CACHE_DIR if set, else $XDG_CACHE_HOME or ~/.cache,
   then tncg15_mc/numba), so every process of a render (threads, forked and worker processes)
   reads and writes the same cache.
-* Compiling takes about 20 s once per machine (and again when a kernel's source or numba
-  changes); loading from the cache well under a second.  A stamp file in the cache directory
-  (`stamp_path`: named by numba's and Python's versions and the twins' sizes and modification
-  times, which is what numba's own cache index checks) says the cache is warm.
+* Compiling takes 2-20 s once per machine (and again when a kernel's source or numba changes);
+  loading from the cache well under a second.  A stamp file in the cache directory
+  (`stamp_path`: named by numba's and Python's versions and the twins' paths, sizes and
+  modification times, which is what numba's own cache index checks) says the cache is warm.
 * "auto" takes numba only when the cache is warm; otherwise that render runs on NumPy and a
   warm-up starts in the background (`start_warm_up`: a separate Python process, or a thread where
   this process is not a Python interpreter), with a progress line, so the compile never holds up
@@ -104,9 +104,9 @@ def jit_files() -> list:
 def stamp_path() -> str:
     """The file whose presence says the cache holds every twin compiled from today's sources."""
     key = [_numba_version(), sys.version, sys.platform]
-    for path in jit_files():
+    for path in jit_files():                   # numba's cache index: a source's path, size and time
         st = os.stat(path)
-        key.append(f"{os.path.basename(path)}:{st.st_size}:{st.st_mtime_ns}")
+        key.append(f"{path}:{st.st_size}:{st.st_mtime_ns}")
     digest = hashlib.sha1("\n".join(key).encode()).hexdigest()[:16]
     return os.path.join(cache_dir(), f"warm-{digest}.stamp")
 
@@ -163,7 +163,7 @@ def start_warm_up(log=print):
     with _lock:
         if _state["warming"] is not None or not _take_lock():
             return None
-        log("numba: compiling the kernels in the background (once per machine, about 20 s); "
+        log("numba: compiling the kernels in the background (once per machine, 2-20 s); "
             "until then renders use NumPy")
         lock = stamp_path() + ".lock"
         if "python" in os.path.basename(sys.executable).lower():
@@ -203,7 +203,7 @@ def resolve(setting: str, log=print, kernels=KERNELS) -> tuple:
         return NUMBA, (f"numba, compiled kernels from the cache ({seconds:.2f} s)"
                        + (" (as set)" if setting == NUMBA else ""))
     if setting == NUMBA:
-        log("numba: compiling the kernels (once per machine, about 20 s)...")
+        log("numba: compiling the kernels (once per machine, 2-20 s)...")
         seconds = warm_up(log)
         return NUMBA, f"numba (as set; compiled in {seconds:.1f} s)"
     start_warm_up(log)
