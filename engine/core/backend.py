@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib
-import importlib.util
 import os
 import subprocess
 import sys
@@ -35,8 +34,7 @@ import time
 
 from .paths import TRACER_BASE, TRACER_DIR
 
-NUMPY, NUMBA, AUTO = "numpy", "numba", "auto"
-BACKENDS = (AUTO, NUMPY, NUMBA)
+NUMPY, NUMBA, AUTO = "numpy", "numba", "auto"        # the setting's values (engine/core/settings.py)
 
 # The compiled twins, relative to the tracer package, and the kernels each one serves: effects of
 # the plan (engine/integrators/effects.py), and "sobol" for the Sobol' sampler.
@@ -161,7 +159,10 @@ def start_warm_up(log=print):
     """Compile the twins in the background (once per process and per machine); returns the process
     or thread started, or None when one is already running.  This process keeps running NumPy."""
     with _lock:
-        if _state["warming"] is not None or not _take_lock():
+        running = _state["warming"]
+        if isinstance(running, subprocess.Popen) and running.poll() is not None:
+            running = _state["warming"] = None          # it ended (and is reaped): the stamp says how
+        if running is not None or not _take_lock():
             return None
         log("numba: compiling the kernels in the background (once per machine, 2-20 s); "
             "until then renders use NumPy")
@@ -208,11 +209,6 @@ def resolve(setting: str, log=print, kernels=KERNELS) -> tuple:
         return NUMBA, f"numba (as set; compiled in {seconds:.1f} s)"
     start_warm_up(log)
     return NUMPY, "numba's kernels are not compiled yet (compiling in the background): NumPy this time"
-
-
-def kernel_backends(backend: str) -> dict:
-    """{kernel: backend} for a render on `backend` (every kernel with a twin takes it)."""
-    return {k: backend for k in KERNELS}
 
 
 if __name__ == "__main__":                 # python -m engine.core.backend: compile now, in the foreground

@@ -23,7 +23,7 @@ def numba_missing(monkeypatch):
                                             "warming": None})
 
 
-def render(name, backend_name, resolution=24, samples=4):
+def render(name, backend_name, resolution=16, samples=4):
     return api.render(BUILTIN_SCENES[name]((resolution, resolution)),
                       RenderSettings(samples=samples, threads=1, backend=backend_name), log=lambda m: None)
 
