@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BLENDER ?= blender
 
-.PHONY: setup render test test-slow test-all bench bench-primitives bench-animation bench-estimators bench-materials study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-primitives bench-animation bench-backend bench-estimators bench-materials study extension samples clean
 
 setup: $(STAMP)
 
@@ -44,6 +44,11 @@ bench-primitives: $(STAMP)
 # docs/performance.md "Animation and Persistent Data".
 bench-animation: $(STAMP)
 	$(PY) scripts/bench_animation.py
+
+# NumPy against numba's compiled kernels: per kernel on captured inputs, per render, compile cold and
+# from the cache (docs/performance.md "Compiled kernels").
+bench-backend: $(STAMP)
+	$(PY) scripts/bench_backend.py
 
 # Light-sampling estimators (report | solid-angle | mis) vs Cycles on the light-sampling stress scenes:
 # markdown table + docs/estimators.json; Cycles references cached in renders/reference/.

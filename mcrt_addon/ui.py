@@ -256,6 +256,7 @@ class RENDER_PT_tncg15_performance(TNCG15ButtonsPanel, bpy.types.Panel):
         props = context.scene.tncg15
         layout.prop(props, "threads")
         layout.prop(props, "accelerator")
+        layout.prop(props, "backend")
         layout.prop(props, "tile_size")
         # Final Render > Persistent Data, Blender's own property as in Cycles (mcrt_addon/persistent.py)
         layout.prop(context.scene.render, "use_persistent_data", text="Persistent Data")

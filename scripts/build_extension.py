@@ -6,7 +6,9 @@
 1. pip-downloads the embreex and OpenImageIO wheels (and their dependencies except numpy, which
    Blender ships) for each platform into ./wheels/ (gitignored), and the denoiser's, pyoidn with
    cffi and pycparser (Intel Open Image Denoise: engine/film/denoise.py), for the platforms it has
-   wheels for (Linux x64, Windows x64; about 88 MB each; --no-denoiser leaves it out);
+   wheels for (Linux x64, Windows x64; about 88 MB each; --no-denoiser leaves it out), and the
+   compiled kernels', numba with llvmlite (engine/core/backend.py), for Linux x64 (--no-numba
+   leaves them out: the tracer then runs its NumPy kernels);
 2. stages the extension: blender_manifest.toml (its ``wheels``/``platforms`` set to what was
    downloaded), the contents of mcrt_addon/ at the zip root, the tracer package engine/ copied
    as the sub-package ``tracer/`` (the add-on imports it relatively; see mcrt_addon/bridge.py), the
@@ -16,7 +18,7 @@
 4. also writes dist/tncg15_mc-<version>-legacy.zip for "Install Add-on" in Blender 3.4: a folder
    tncg15_mc/ with the same files and, for Linux x64 (CPython 3.11), the wheels unpacked:
    vendor/numpy/ (numpy 1.26.4: Blender's own process imports it when its Python has none, as
-   Debian's Blender 3.4) and vendor/worker/ (embreex, OpenImageIO and the denoiser: only the render
+   Debian's Blender 3.4) and vendor/worker/ (embreex, OpenImageIO, numba and the denoiser: only the render
    worker and denoiser processes import them, so embreex never meets Blender 3.4's Embree 3 and OIDN
    never loads into Blender's process; mcrt_addon/worker_python.py).
 """
@@ -40,6 +42,11 @@ PACKAGES = ["embreex==4.4.0.post1", "OpenImageIO==3.0.21.0"]
 DENOISER = ["pyoidn==2.5.1.0", "cffi==2.1.1", "pycparser==3.12"]     # the venv's (requirements.txt)
 DENOISER_DEPS = ("pyoidn", "cffi", "pycparser")
 DENOISER_PLATFORMS = {"linux-x64": "manylinux2014_x86_64", "windows-x64": "win_amd64"}
+# numba's compiled kernels (engine/core/backend.py; the workers import it): CPython 3.11 wheels bundled
+# for Linux x64 only (numba's own wheels are manylinux2014); numba's numpy is Blender's or the legacy zip's.
+COMPILED = ["numba==0.60.0", "llvmlite==0.43.0"]                    # the venv's (requirements.txt)
+COMPILED_DEPS = ("numba", "llvmlite")
+COMPILED_PLATFORMS = {"linux-x64": "manylinux2014_x86_64"}
 PLATFORM_TAGS = {                      # Blender platform -> pip --platform
     "linux-x64": "manylinux_2_28_x86_64",
     "windows-x64": "win_amd64",
@@ -61,7 +68,7 @@ def find_blender_ext():
     return candidates[0] if candidates else None
 
 
-def download_wheels(platforms, wheels_dir, offline, denoiser=True):
+def download_wheels(platforms, wheels_dir, offline, denoiser=True, compiled=True):
     os.makedirs(wheels_dir, exist_ok=True)
     for platform in platforms:
         if offline:
@@ -76,6 +83,11 @@ def download_wheels(platforms, wheels_dir, offline, denoiser=True):
                    "--platform", PLATFORM_TAGS[platform], "--platform", DENOISER_PLATFORMS[platform]]
             print("+", " ".join(cmd))
             subprocess.run(cmd, check=True)
+        if compiled and platform in COMPILED_PLATFORMS:
+            cmd = [sys.executable, "-m", "pip", "download", *COMPILED, "--no-deps", *common,
+                   "--platform", PLATFORM_TAGS[platform], "--platform", COMPILED_PLATFORMS[platform]]
+            print("+", " ".join(cmd))
+            subprocess.run(cmd, check=True)
     for path in glob.glob(os.path.join(wheels_dir, "*.whl")):
         if os.path.basename(path).split("-")[0].lower() in EXCLUDED_DEPS:
             os.remove(path)
@@ -83,7 +95,10 @@ def download_wheels(platforms, wheels_dir, offline, denoiser=True):
     chosen = [w for w in wheels if any(wheel_matches(w, PLATFORM_TAGS[p]) for p in platforms)]
     if not denoiser or not set(platforms) & set(DENOISER_PLATFORMS):
         chosen = [w for w in chosen if wheel_package(w) not in DENOISER_DEPS]
+    if not compiled or not set(platforms) & set(COMPILED_PLATFORMS):
+        chosen = [w for w in chosen if wheel_package(w) not in COMPILED_DEPS]
     needed = ("embreex", "openimageio") + (DENOISER_DEPS if denoiser and set(platforms) & set(DENOISER_PLATFORMS) else ())
+    needed += COMPILED_DEPS if compiled and set(platforms) & set(COMPILED_PLATFORMS) else ()
     for pkg in needed:
         if not any(wheel_package(w) == pkg for w in chosen):
             raise SystemExit(f"error: no {pkg} wheel in {wheels_dir} for {platforms} "
@@ -151,13 +166,14 @@ def version_of_manifest():
         return re.search(r'^version\s*=\s*"([^"]+)"', fh.read(), re.M).group(1)
 
 
-def legacy_wheels(wheels_dir, offline, denoiser=True):
-    """numpy, embreex, OpenImageIO (and the denoiser's pyoidn, cffi, pycparser) for CPython 3.11 on
-    Linux x64, in wheels_dir/legacy/."""
+def legacy_wheels(wheels_dir, offline, denoiser=True, compiled=True):
+    """numpy, embreex, OpenImageIO (and the denoiser's pyoidn, cffi, pycparser, and numba with
+    llvmlite) for CPython 3.11 on Linux x64, in wheels_dir/legacy/."""
     legacy_dir = os.path.join(wheels_dir, "legacy")
     os.makedirs(legacy_dir, exist_ok=True)
     if not offline:
         cmd = [sys.executable, "-m", "pip", "download", LEGACY_NUMPY, *PACKAGES, *(DENOISER if denoiser else ()),
+               *(COMPILED if compiled else ()),
                "--dest", legacy_dir, "--only-binary=:all:", "--python-version", "3.11", "--implementation", "cp",
                "--quiet"]
         for tag in LEGACY_PLATFORMS:
@@ -165,7 +181,7 @@ def legacy_wheels(wheels_dir, offline, denoiser=True):
         print("+", " ".join(cmd))
         subprocess.run(cmd, check=True)
     found = {}
-    for pkg in ("numpy", "embreex", "openimageio") + (DENOISER_DEPS if denoiser else ()):
+    for pkg in ("numpy", "embreex", "openimageio") + (DENOISER_DEPS if denoiser else ()) + (COMPILED_DEPS if compiled else ()):
         names = sorted(glob.glob(os.path.join(legacy_dir, f"{pkg}-*.whl")) +
                        glob.glob(os.path.join(legacy_dir, f"{pkg.replace('openimageio', 'OpenImageIO')}-*.whl")))
         if pkg == "numpy":
@@ -205,12 +221,15 @@ def main(argv=None):
     parser.add_argument("--wheels-dir", default=os.path.join(REPO, "wheels"))
     parser.add_argument("--no-denoiser", action="store_true",
                         help="leave out pyoidn (OIDN, about 88 MB a platform; bundled for linux-x64 and windows-x64)")
+    parser.add_argument("--no-numba", action="store_true",
+                        help="leave out numba and llvmlite (the compiled kernels, about 50 MB; bundled for linux-x64)")
     parser.add_argument("--with-denoiser", action="store_true", help=argparse.SUPPRESS)   # the default now
     args = parser.parse_args(argv)
     denoiser = not args.no_denoiser
 
     check_tracer_imports()
-    wheels = download_wheels(args.platform, args.wheels_dir, args.no_download, denoiser)
+    compiled = not args.no_numba
+    wheels = download_wheels(args.platform, args.wheels_dir, args.no_download, denoiser, compiled)
     blender_ext = find_blender_ext()
     if blender_ext is None:
         raise SystemExit("error: blender_ext.py not found (install the bpy wheel, or use "
@@ -228,7 +247,7 @@ def main(argv=None):
             print("+", " ".join(os.path.relpath(c, REPO) if c.startswith(REPO) else c for c in cmd))
             subprocess.run(cmd, check=True)
         legacy = os.path.join(args.output_dir, f"tncg15_mc-{version}-legacy.zip")
-        legacy_zip(stage_dir, legacy, legacy_wheels(args.wheels_dir, args.no_download, denoiser))
+        legacy_zip(stage_dir, legacy, legacy_wheels(args.wheels_dir, args.no_download, denoiser, compiled))
     print(f"extension (Blender 4.2+): {out_zip} ({os.path.getsize(out_zip) / 1e6:.1f} MB)")
     print(f"legacy add-on (Blender 3.4): {legacy} ({os.path.getsize(legacy) / 1e6:.2f} MB)")
     return 0

@@ -264,6 +264,14 @@ SETTINGS = (
                      Choice("embree", "Embree", "Intel Embree through embreex"),
                      Choice("octree", "Octree", "The tracer's own octree (NumPy)"),
                      Choice("brute", "Brute Force", "Test every primitive (reference, slow)"))),
+    Setting("backend", CHOICE, "auto", "the hot kernels: numba's compiled twins or NumPy (engine/core/backend.py; "
+            "auto = numba once its kernels are compiled, else NumPy)", flag="--backend",
+            label="Backend", panel="Performance", stats=STATS_RESOLVED,
+            description="Kernels compiled with numba, or the NumPy reference (the same images)",
+            choices=(Choice("auto", "Auto", "numba when installed and compiled (it compiles in the background "
+                                            "once), else NumPy"),
+                     Choice("numpy", "NumPy", "The NumPy kernels (the reference)"),
+                     Choice("numba", "numba", "The compiled kernels (compiling first if needed)"))),
     Setting("parallelism", CHOICE, "auto", "how several workers run: threads, processes (forked, Linux, "
             "outside Blender) or auto (engine/pools/local.py)", fronts=INTERNAL, stats=STATS_RESOLVED,
             choices=plain("auto", "threads", "processes")),

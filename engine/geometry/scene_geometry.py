@@ -22,7 +22,7 @@ from .shapes.box_tree import BoxTree, padded_boxes
 from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
-from .shapes.spheres import intersect_sphere, surface_point
+from .shapes.spheres import sphere_kernel, surface_point
 from ..core.vec import aos, max_abs3, rows
 
 NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
@@ -118,8 +118,12 @@ class SceneGeometry:
         self.sphere_radius = np.array([s.radius for s in scene.spheres], dtype=np.float64)
         self.sphere_material = np.array([s.material_id for s in scene.spheres], dtype=np.int64)
 
-        self.quads = QuadSet(np.array([q.corners for q in scene.quads]).reshape(-1, 4, 3))
+        backends = getattr(plan, "backends", {})       # kernel -> "numba" | "numpy" (engine/integrators/effects.py)
+        self.quads = QuadSet(np.array([q.corners for q in scene.quads]).reshape(-1, 4, 3),
+                             backend=backends.get("quads", "numpy"))
         self.quad_material = np.array([q.material_id for q in scene.quads], dtype=np.int64)
+
+        self.intersect_sphere = sphere_kernel(backends.get("spheres", "numpy"))
 
         def kernel(name, present):
             return bool(present) if plan is None else bool(plan.enabled[name])
@@ -127,7 +131,7 @@ class SceneGeometry:
         self.has_spheres = kernel("spheres", len(self.sphere_radius))
         self.has_quads = kernel("quads", self.quads.count)
         self.has_lights = plan is not None and bool(plan.enabled.get("area_lights"))
-        self.lights = LightPolygons(scene.lights if self.has_lights else [])
+        self.lights = LightPolygons(scene.lights if self.has_lights else [], backend=backends.get("area_lights", "numpy"))
         # Smooth shading: interpolated corner normals, only when the plan says a scene has them.
         self.smooth = (SmoothNormals(scene.meshes) if self.has_triangles and kernel("smooth_normals",
                        has_smooth(scene.meshes)) else None)
@@ -277,8 +281,8 @@ class SceneGeometry:
     def _sphere_test(self, o, d):
         def test(ray, k, bound):
             if np.ndim(k) == 0:
-                return intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], bound)
-            return intersect_sphere(o.take(ray, axis=1), d.take(ray, axis=1), self.sphere_center.take(k, axis=1),
+                return self.intersect_sphere(o, d, self.sphere_center[:, k], self.sphere_radius[k], bound)
+            return self.intersect_sphere(o.take(ray, axis=1), d.take(ray, axis=1), self.sphere_center.take(k, axis=1),
                                     self.sphere_radius.take(k), bound)
         return test
 

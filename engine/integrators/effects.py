@@ -38,6 +38,16 @@ class EffectPlan:
     enabled: dict = field(default_factory=dict)
     reason: dict = field(default_factory=dict)
     cycles_version: tuple = (5, 0)      # the scene's: the models that follow Cycles' versions use it
+    backend: str = "numpy"              # the hot kernels' backend and why (engine/core/backend.py)
+    backend_reason: str = "NumPy (the reference)"
+    backends: dict = field(default_factory=dict)   # kernel with a compiled twin -> the backend that runs it
+
+    def use_backend(self, backend: str, reason: str, kernels) -> None:
+        """Record the render's backend: each of its kernels (`kernels`: names) that has a compiled
+        twin runs on it."""
+        from ..core.backend import KERNELS
+        self.backend, self.backend_reason = backend, reason
+        self.backends = {k: backend for k in KERNELS if k in kernels}
 
     def __getattr__(self, name):
         try:
@@ -53,7 +63,9 @@ class EffectPlan:
         lines = []
         for name in EFFECTS:
             mark = "on " if self.enabled[name] else "off"
-            lines.append(f"  {mark} {name:12s} {self.reason[name]}")
+            lines.append(f"  {mark} {name:12s} {self.reason[name]}"
+                         + (f" [{self.backends[name]}]" if name in self.backends else ""))
+        lines.append(f"  backend: {self.backend} ({self.backend_reason})")
         return "\n".join(lines)
 
     def describe_light_kinds(self, lights) -> None:

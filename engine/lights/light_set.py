@@ -117,8 +117,8 @@ class LightSet:
     DISTANT_SHARE = (0.1, 0.9)        # bounds of the suns' and world's selection probability beside lamps
 
     def __init__(self, scene, solid_angle: bool = True, spatial: bool = True, lamps_hittable: bool = False,
-                 world: bool = False):
-        self.solid_angle = solid_angle
+                 world: bool = False, backend: str = "numpy"):
+        self.solid_angle, self.backend = solid_angle, backend    # backend: the light tree's (engine/core/backend.py)
         emitters = SceneEmitters(scene, solid_angle, lamps_hittable, world)    # the emitters, per kind
         local_kinds, distant_kinds = emitters.local_kinds(), emitters.distant_kinds()
         self.kinds = local_kinds + distant_kinds
@@ -167,7 +167,7 @@ class LightSet:
             bounds = [k.bounds() for k in local_kinds]
             selection = LightTree(np.concatenate([b.center.T for b in bounds]), np.concatenate([b.radius for b in bounds]),
                                   np.concatenate([b.axis.T for b in bounds]), np.concatenate([b.cos_o for b in bounds]),
-                                  self.power, self.power)
+                                  self.power, self.power, backend=self.backend)
         else:
             selection = PowerSelection(self.report_power if n_local else np.ones(0))
         self.distant_share = 0.0

@@ -103,8 +103,10 @@ def morton_order(points: np.ndarray) -> np.ndarray:
 
 
 class LightTree:
-    def __init__(self, center, radius, axis, cos_o, power, fallback_weight):
-        """center, axis: (K, 3); radius, cos_o, power: (K,).  fallback_weight: the defensive pmf."""
+    def __init__(self, center, radius, axis, cos_o, power, fallback_weight, backend="numpy"):
+        """center, axis: (K, 3); radius, cos_o, power: (K,).  fallback_weight: the defensive pmf.
+        backend: "numba" walks the tree with the compiled twin (engine/lights/selection_jit.py,
+        the same numbers), "numpy" here (engine/core/backend.py chooses)."""
         center, axis = np.asarray(center, float).reshape(-1, 3), np.asarray(axis, float).reshape(-1, 3)
         radius, cos_o, power = (np.asarray(a, float).reshape(-1) for a in (radius, cos_o, power))
         self.count = k = len(power)
@@ -140,6 +142,11 @@ class LightTree:
                                node_power / max(p.sum(), 1e-300), np.maximum.reduceat(r, start) ** 2])
             self.levels.append(dict(table=table.astype(np.float32), power=table[14].copy(), empty=empty,
                                     oriented=bool((node_theta < np.pi).any())))
+        self.backend = backend
+        self._compiled = None
+        if backend == "numba" and self.depth:
+            from .selection_jit import TreeTables
+            self._compiled = TreeTables(self)
 
     def _left_probability(self, x, n, level, left):
         nodes = self.levels[level]
@@ -158,6 +165,8 @@ class LightTree:
         return np.where(nodes["empty"].take(left + 1), 1.0, np.where(nodes["empty"].take(left), 0.0, p))
 
     def _tree_sample(self, x, n, u):
+        if self._compiled is not None:
+            return self._compiled.sample(x, n, u)
         node = np.zeros(len(u), dtype=np.int64)
         pmf = np.ones(len(u))
         for level in range(1, self.depth + 1):
@@ -173,6 +182,8 @@ class LightTree:
         return self.light_at.take(position), pmf
 
     def _tree_pmf(self, x, n, light):
+        if self._compiled is not None:
+            return self._compiled.pmf(x, n, light)
         position = self.position_of.take(light)
         node = np.zeros(len(light), dtype=np.int64)
         pmf = np.ones(len(light))

@@ -226,6 +226,8 @@ class Frame:
             "tile_size": self.tile_size, "units": len(self.units), "units_done": self.film.units_added,
             "progressive": self.progressive, "parallelism": pool,
             "accelerator": facts.accelerator, "accelerator_reason": facts.accelerator_reason,
+            "backend": self.plan.backend, "backend_reason": self.plan.backend_reason,
+            "kernel_backends": dict(self.plan.backends),
             "rays": rays, "rays_per_second": sum(rays.values()) / seconds if seconds > 0 else 0.0,
             "effects": dict(self.plan.enabled), "effects_reason": dict(self.plan.reason),
             "nonfinite_samples": self.totals.nonfinite_samples,

@@ -42,6 +42,7 @@ from .masked_samples import MaskedTileSamples, unpack_mask
 from ..film.passes import TileFeatures
 from ..sampling.qmc import RandomSampler, SobolSampler
 from ..core.settings import RenderSettings
+from ..core.backend import resolve as resolve_backend
 from ..materials.textures import load_textures
 from ..core.version import ENGINE_VERSION
 from .units import WorkUnit
@@ -93,6 +94,12 @@ class PreparedScene:
         n_tri = sum(len(m.triangles) for m in scene.meshes)
         self.accelerator, self.accelerator_reason = choose_accelerator(settings.accelerator, n_tri)
         self.plan = plan_effects(scene, settings, self.accelerator)
+        kernels = [k for k, on in self.plan.enabled.items() if on] + (["sobol"] if settings.sampler == "sobol" else [])
+        self.plan.use_backend(*resolve_backend(settings.backend, log, kernels), kernels)
+        self.sobol_kernel = None                     # qmc.sample_2d; its numba twin where the backend says
+        if self.plan.backends.get("sobol") == "numba":
+            from ..sampling.sobol_jit import sample_2d as compiled_sample_2d
+            self.sobol_kernel = compiled_sample_2d
         if scene.lights and not self.plan.area_lights and settings.shadow_rays == 0:
             self.warnings.append(f"{len(scene.lights)} area light(s) are reached by shadow rays only here: "
                                  "with 0 shadow rays they light nothing")
@@ -101,7 +108,8 @@ class PreparedScene:
         self.geometry = SceneGeometry(scene, self.accelerator, self.plan)
         textures, lit = load_textures(scene, self.plan, log, self.warnings)    # engine/materials/textures.py
         self.lights = LightSet(lit, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
-                               lamps_hittable=self.plan.area_lights, world=self.plan.world_light)
+                               lamps_hittable=self.plan.area_lights, world=self.plan.world_light,
+                               backend=self.plan.backends.get("light_tree", "numpy"))
         self.plan.describe_light_kinds(self.lights)
         self.tracer = PathTracer(self.geometry, self.lights, lit.materials, self.plan, settings,
                                  scene.background, textures=textures and textures.bind(self.geometry, self.lights))
@@ -136,6 +144,8 @@ class PreparedScene:
         sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.sample_net or s.samples,
                                 s.shadow_rays)
                    if s.sampler == "sobol" else RandomSampler(rng))
+        if self.sobol_kernel is not None:
+            sampler.kernel = self.sobol_kernel
         features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
                     if self.plan.passes else None)
         films = []

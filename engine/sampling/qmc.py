@@ -154,6 +154,7 @@ class SobolSampler:
     frame), index: the sample's number within its pixel (times the shadow-ray count plus
     the ray's number, for light samples), dim: the dimension pair (engine/integrators/path_tracer.py)."""
     name = "sobol"
+    kernel = staticmethod(sample_2d)   # or its numba twin engine/sampling/sobol_jit.py (engine/rendering/session.py)
 
     def __init__(self, seed: int, x0: int, y0: int, x1: int, y1: int, samples: int, shadow_rays: int):
         tile_width = x1 - x0
@@ -164,7 +165,7 @@ class SobolSampler:
 
     def pair(self, pixel, index, dim, light=False):
         """light: the index runs over the shadow rays of all samples (a larger net)."""
-        return sample_2d(index, self.pixel_seed.take(pixel), dim, self.light_count if light else self.count)
+        return self.kernel(index, self.pixel_seed.take(pixel), dim, self.light_count if light else self.count)
 
 
 class RandomSampler:

@@ -53,6 +53,8 @@ def test_extension_zip_contents(built):
         assert f'"./{w}"' in manifest
     for pkg in ("pyoidn", "cffi", "pycparser"):                  # the denoiser, bundled by default
         assert any(os.path.basename(w).startswith(pkg + "-") for w in wheels), (pkg, wheels)
+    for pkg in ("numba", "llvmlite"):                            # the compiled kernels (engine/core/backend.py)
+        assert any(os.path.basename(w).startswith(pkg + "-") for w in wheels), (pkg, wheels)
 
 
 def test_blender_ext_validates(built):
@@ -92,6 +94,7 @@ def test_legacy_zip_is_a_3x_addon_folder(built):
     assert "tncg15_mc/vendor/numpy/numpy/__init__.py" in names
     assert "tncg15_mc/vendor/worker/embreex/__init__.py" in names
     assert not any(n.startswith("tncg15_mc/vendor/numpy/embreex") for n in names)   # never in Blender's process
-    for path in ("pyoidn/__init__.py", "cffi/__init__.py", "pycparser/__init__.py"):     # the denoiser: the workers'
+    for path in ("pyoidn/__init__.py", "cffi/__init__.py", "pycparser/__init__.py",     # the denoiser: the workers'
+                 "numba/__init__.py", "llvmlite/__init__.py"):                          # and the compiled kernels
         assert f"tncg15_mc/vendor/worker/{path}" in names, path
         assert f"tncg15_mc/vendor/numpy/{path}" not in names

@@ -25,9 +25,14 @@ class CallCounter:
 
 @pytest.fixture
 def spies(monkeypatch):
-    sphere = CallCounter(engine.geometry.scene_geometry.intersect_sphere)
+    kernel = engine.geometry.scene_geometry.sphere_kernel          # the sphere test of either backend
+    sphere = CallCounter(None)
+
+    def counted_kernel(backend="numpy"):
+        sphere.fn = kernel(backend)
+        return sphere
     refract = CallCounter(engine.materials.glass.refract_cos)
-    monkeypatch.setattr(engine.geometry.scene_geometry, "intersect_sphere", sphere)
+    monkeypatch.setattr(engine.geometry.scene_geometry, "sphere_kernel", counted_kernel)
     monkeypatch.setattr(engine.materials.glass, "refract_cos", refract)
     return sphere, refract
 

@@ -17,7 +17,9 @@ RAY_KINDS = ("camera", "diffuse", "glossy", "transmission")
 
 
 class LightPolygons:
-    def __init__(self, lights):
+    def __init__(self, lights, backend: str = "numpy"):
+        """backend (engine/core/backend.py): "numba" tests with the compiled twin
+        (engine/geometry/shapes/light_polygons_jit.py, the same t), "numpy" with `_intersect` below."""
         self.count = len(lights)
         self.corners = [np.asarray(light.vertices, dtype=np.float64).reshape(-1, 3) for light in lights]
         # Corner i of every light as rows (corners, 3, K), each polygon padded with its last corner.
@@ -44,6 +46,10 @@ class LightPolygons:
         self.two_sided = np.array([light.two_sided for light in lights], dtype=bool)
         self.visible = np.array([[getattr(light, f"visible_{kind}") for kind in RAY_KINDS] for light in lights],
                                 dtype=bool).reshape(-1, len(RAY_KINDS))
+        self.compiled = None
+        if backend == "numba" and self.count:
+            from . import light_polygons_jit
+            self.compiled = light_polygons_jit.intersect
 
     def rays_that_see(self, k: int, ray_kind: np.ndarray | None) -> np.ndarray | None:
         """Indices of the rays light k is visible to (None: all of them)."""
@@ -61,12 +67,17 @@ class LightPolygons:
 
     def intersect_one(self, k: int, o, d, t_best):
         """t > 0 of each ray with light k's polygon, +inf where it misses (either face)."""
+        if self.compiled is not None:
+            return self.compiled(self, k, None, None, o, d, t_best)
         c = self.corner_rows[:len(self.corners[k]), :, k:k + 1]
         return _intersect(list(c), self.normal_rows[:, k:k + 1], o, d, t_best, single=True)
 
     def intersect_pairs(self, prim, o, d, t_best, ray_kind=None):
         """As intersect_one for each ray with its own light prim[i] (the same arithmetic, so the same
         t), +inf where that light is not visible to the ray's kind (ray_kind: each ray's, or None)."""
+        if self.compiled is not None:
+            return self.compiled(self, -1, prim, None if ray_kind is None else self.visible[prim, ray_kind],
+                                 o, d, t_best)
         t_out = np.full(len(prim), np.inf)
         if ray_kind is not None:
             sees = self.visible[prim, ray_kind]

@@ -18,7 +18,9 @@ EPS64 = np.finfo(np.float64).eps
 class QuadSet:
     """All quads of a scene as arrays, for the vectorised test."""
 
-    def __init__(self, corners: np.ndarray):
+    def __init__(self, corners: np.ndarray, backend: str = "numpy"):
+        """backend (engine/core/backend.py): "numba" tests with the compiled twin
+        (engine/geometry/shapes/quads_jit.py, the same t), "numpy" with `_intersect` below."""
         q = np.asarray(corners, dtype=np.float64).reshape(-1, 4, 3)
         self.v00, self.v10, self.v11, self.v01 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
         normal = np.cross(self.v10 - self.v00, self.v01 - self.v00)
@@ -30,6 +32,10 @@ class QuadSet:
         self.count = len(q)
         self.normal_rows, self.v00_rows = rows(self.normal), rows(self.v00)
         self.vector_rows = [rows(a) for a in (self.v00, self.v10, self.v11, self.v01, self.normal, self.center)]
+        self.compiled = None
+        if backend == "numba":
+            from . import quads_jit
+            self.compiled = quads_jit.intersect
 
     def intersect_one(self, k: int, o: np.ndarray, d: np.ndarray,
                       t_best: np.ndarray | None = None) -> np.ndarray:
@@ -39,10 +45,14 @@ class QuadSet:
         The plane distance is computed first; the edge tests run only for rays whose
         plane hit lies in (0, t_best) and within the quad's circumscribed circle.
         """
+        if self.compiled is not None:
+            return self.compiled(self, k, None, o, d, t_best)
         return _intersect(QuadColumns(self, k), o, d, t_best)
 
     def intersect_pairs(self, prim: np.ndarray, o: np.ndarray, d: np.ndarray, t_best: np.ndarray) -> np.ndarray:
         """As intersect_one for each ray with its own quad prim[i] (the same arithmetic, so the same t)."""
+        if self.compiled is not None:
+            return self.compiled(self, -1, prim, o, d, t_best)
         return _intersect(QuadColumns(self, prim), o, d, t_best)
 
     def boxes(self):

@@ -61,6 +61,15 @@ def intersect_sphere(o: np.ndarray, d: np.ndarray, center: np.ndarray,
     return t_out
 
 
+def sphere_kernel(backend: str = "numpy"):
+    """intersect_sphere of a backend (engine/core/backend.py): this module's, or its compiled twin
+    (engine/geometry/shapes/spheres_jit.py, the same t)."""
+    if backend == "numba":
+        from .spheres_jit import intersect_sphere as compiled
+        return compiled
+    return intersect_sphere
+
+
 def surface_point(o, d, t, centers, radii):
     """Hit point projected back onto the sphere, outward unit normal (rows), offset distance.
 

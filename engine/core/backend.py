@@ -1,0 +1,216 @@
+"""Which backend runs the hot kernels: NumPy (the reference, always there) or numba (compiled twins).
+
+The setting `backend` (engine/core/settings.py) is "numpy", "numba" or "auto".  The compiled twins
+are the modules named `*_jit.py` beside their NumPy modules (JIT_MODULES below); each has a
+`warm_up()` that calls its kernels once on small arrays of the types a render passes, so numba
+compiles them and writes them to its cache (`cache=True`).
+
+* numba is imported only here (`numba_module`), after NUMBA_CACHE_DIR is set to a writable
+  per-user directory (`cache_dir`: $NUMBA_CACHE_DIR if set, else $XDG_CACHE_HOME or ~/.cache,
+  then tncg15_mc/numba), so every process of a render (threads, forked and worker processes)
+  reads and writes the same cache.
+* Compiling takes 2-20 s once per machine (and again when a kernel's source or numba changes);
+  loading from the cache well under a second.  A stamp file in the cache directory
+  (`stamp_path`: named by numba's and Python's versions and the twins' paths, sizes and
+  modification times, which is what numba's own cache index checks) says the cache is warm.
+* "auto" takes numba only when the cache is warm; otherwise that render runs on NumPy and a
+  warm-up starts in the background (`start_warm_up`: a separate Python process, or a thread where
+  this process is not a Python interpreter), with a progress line, so the compile never holds up
+  a render or its Esc.  "numba" compiles first when needed (saying so) and falls back to NumPy
+  with a warning when numba cannot be imported.
+
+The NumPy kernels give the same images bit for bit: the twins repeat the same float operations in
+the same order (tests/core/test_backend.py and the tests of each twin check it on captured inputs).
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib
+import os
+import subprocess
+import sys
+import threading
+import time
+
+from .paths import TRACER_BASE, TRACER_DIR
+
+NUMPY, NUMBA, AUTO = "numpy", "numba", "auto"        # the setting's values (engine/core/settings.py)
+
+# The compiled twins, relative to the tracer package, and the kernels each one serves: effects of
+# the plan (engine/integrators/effects.py), and "sobol" for the Sobol' sampler.
+JIT_MODULES = {
+    "lights.selection_jit": ("light_tree",),
+    "geometry.shapes.spheres_jit": ("spheres",),
+    "geometry.shapes.quads_jit": ("quads",),
+    "geometry.shapes.light_polygons_jit": ("area_lights",),
+    "sampling.sobol_jit": ("sobol",),
+}
+KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
+
+STALE_LOCK_SECONDS = 600.0                        # a warm-up lock older than this was left by a dead process
+
+_state = {"checked": False, "module": None, "error": None, "warming": None}
+_lock = threading.Lock()
+
+
+def cache_dir() -> str:
+    """The per-user directory of numba's cache (created when missing)."""
+    path = os.environ.get("NUMBA_CACHE_DIR")
+    if not path:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        path = os.path.join(base, "tncg15_mc", "numba")
+    os.makedirs(path, exist_ok=True)
+    return path
+
+
+def numba_module():
+    """The numba module, imported once with NUMBA_CACHE_DIR set; None when it cannot be imported
+    (not installed, no wheel for this platform, a broken llvmlite): `numba_error()` says why."""
+    with _lock:
+        if not _state["checked"]:
+            _state["checked"] = True
+            try:
+                os.environ["NUMBA_CACHE_DIR"] = cache_dir()
+                _state["module"] = importlib.import_module("numba")
+            except Exception as exc:           # ImportError, or OSError of an unwritable cache / a bad llvmlite
+                _state["error"] = f"{type(exc).__name__}: {exc}"
+        return _state["module"]
+
+
+def numba_available() -> bool:
+    return numba_module() is not None
+
+
+def numba_error() -> str | None:
+    numba_module()
+    return _state["error"]
+
+
+def _numba_version() -> str:
+    try:
+        from importlib.metadata import version
+        return version("numba")
+    except Exception:
+        return "unknown"
+
+
+def jit_files() -> list:
+    """Source files of the compiled twins."""
+    return [os.path.join(TRACER_DIR, *name.split(".")) + ".py" for name in JIT_MODULES]
+
+
+def stamp_path() -> str:
+    """The file whose presence says the cache holds every twin compiled from today's sources."""
+    key = [_numba_version(), sys.version, sys.platform]
+    for path in jit_files():                   # numba's cache index: a source's path, size and time
+        st = os.stat(path)
+        key.append(f"{path}:{st.st_size}:{st.st_mtime_ns}")
+    digest = hashlib.sha1("\n".join(key).encode()).hexdigest()[:16]
+    return os.path.join(cache_dir(), f"warm-{digest}.stamp")
+
+
+def is_warm() -> bool:
+    return os.path.exists(stamp_path())
+
+
+def load_kernels(log=None) -> float:
+    """Compile or load from the cache every twin's kernels in this process, once (before the local
+    pool forks, so its workers inherit them); returns the seconds it took.  Raises ImportError when
+    numba is missing."""
+    if numba_module() is None:
+        raise ImportError(f"numba cannot be imported ({numba_error()})")
+    start = time.perf_counter()
+    if not _state.get("loaded"):
+        for i, name in enumerate(JIT_MODULES, 1):
+            importlib.import_module(f"{TRACER_BASE}.{name}").warm_up()
+            if log:
+                log(f"numba: kernels {i}/{len(JIT_MODULES)} ready ({name}, {time.perf_counter() - start:.1f} s)")
+        _state["loaded"] = True
+    return time.perf_counter() - start
+
+
+def warm_up(log=print) -> float:
+    """Compile (or load from the cache) every twin's kernels in this process and stamp the cache
+    warm; returns the seconds it took.  Raises ImportError when numba is missing."""
+    seconds = load_kernels(log)
+    stamp = stamp_path()
+    with open(stamp + ".tmp", "w") as fh:
+        fh.write(f"{seconds:.3f}\n")
+    os.replace(stamp + ".tmp", stamp)
+    return seconds
+
+
+def _take_lock() -> bool:
+    """One background warm-up per machine at a time (the workers of a render all ask)."""
+    lock = stamp_path() + ".lock"
+    try:
+        if time.time() - os.path.getmtime(lock) > STALE_LOCK_SECONDS:
+            os.remove(lock)
+    except OSError:
+        pass
+    try:
+        os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        return True
+    except OSError:
+        return False
+
+
+def start_warm_up(log=print):
+    """Compile the twins in the background (once per process and per machine); returns the process
+    or thread started, or None when one is already running.  This process keeps running NumPy."""
+    with _lock:
+        running = _state["warming"]
+        if isinstance(running, subprocess.Popen) and running.poll() is not None:
+            running = _state["warming"] = None          # it ended (and is reaped): the stamp says how
+        if running is not None or not _take_lock():
+            return None
+        log("numba: compiling the kernels in the background (once per machine, 2-20 s); "
+            "until then renders use NumPy")
+        lock = stamp_path() + ".lock"
+        if "python" in os.path.basename(sys.executable).lower():
+            env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir())
+            env["PYTHONPATH"] = os.pathsep.join([os.path.dirname(TRACER_DIR)] + [p for p in sys.path if p])
+            code = (f"import os, {TRACER_BASE}.core.backend as b\n"
+                    f"try:\n    b.warm_up(log=lambda m: None)\nfinally:\n    os.path.exists({lock!r}) and os.remove({lock!r})\n")
+            worker = subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.DEVNULL,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+        else:                                   # inside Blender without a worker Python: a thread
+            def run():
+                try:
+                    warm_up(log=lambda m: None)
+                finally:
+                    if os.path.exists(lock):
+                        os.remove(lock)
+            worker = threading.Thread(target=run, name="numba-warm-up", daemon=True)
+            worker.start()
+        _state["warming"] = worker
+        return worker
+
+
+def resolve(setting: str, log=print, kernels=KERNELS) -> tuple:
+    """(backend, reason) of a render for the setting "auto" | "numpy" | "numba"; kernels: the names
+    (KERNELS) the render runs (none: numba is not even imported)."""
+    if setting == NUMPY:
+        return NUMPY, "backend numpy (as set)"
+    if not set(kernels) & set(KERNELS):
+        return NUMPY, "no kernel of this scene has a compiled twin"
+    if numba_module() is None:
+        why = f"numba is not available ({numba_error()})"
+        if setting == NUMBA:
+            log(f"warning: backend numba asked for, but {why}: the NumPy kernels run")
+        return NUMPY, why
+    if is_warm():
+        seconds = load_kernels()
+        return NUMBA, (f"numba, compiled kernels from the cache ({seconds:.2f} s)"
+                       + (" (as set)" if setting == NUMBA else ""))
+    if setting == NUMBA:
+        log("numba: compiling the kernels (once per machine, 2-20 s)...")
+        seconds = warm_up(log)
+        return NUMBA, f"numba (as set; compiled in {seconds:.1f} s)"
+    start_warm_up(log)
+    return NUMPY, "numba's kernels are not compiled yet (compiling in the background): NumPy this time"
+
+
+if __name__ == "__main__":                 # python -m engine.core.backend: compile now, in the foreground
+    print(f"numba cache: {cache_dir()}")
+    print(f"warmed up in {warm_up():.1f} s")

@@ -1,0 +1,125 @@
+"""engine/core/backend.py: the choice of backend, numba missing, the per-user cache and its stamp,
+and whole renders on both backends (bit-identical images; the stats and the effect plan name the
+backend of each kernel)."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from engine import api
+from engine.core import backend
+from engine.core.settings import RenderSettings
+from engine.scene.builtin import BUILTIN_SCENES
+from tests.backend_capture import require_compiled
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+@pytest.fixture
+def numba_missing(monkeypatch):
+    monkeypatch.setattr(backend, "_state", {"checked": True, "module": None, "error": "ImportError: simulated",
+                                            "warming": None})
+
+
+def render(name, backend_name, resolution=16, samples=4):
+    return api.render(BUILTIN_SCENES[name]((resolution, resolution)),
+                      RenderSettings(samples=samples, threads=1, backend=backend_name), log=lambda m: None)
+
+
+def test_numpy_is_numpy_and_needs_no_numba(numba_missing):
+    assert backend.resolve("numpy")[0] == "numpy"
+
+
+def test_numba_missing_falls_back_to_numpy(numba_missing):
+    said = []
+    assert backend.resolve("auto", said.append)[0] == "numpy"
+    assert backend.resolve("numba", said.append)[0] == "numpy"
+    assert any("warning" in s and "simulated" in s for s in said)
+    result = render("many_lights", "auto", resolution=8, samples=1)
+    assert result.stats["backend"] == "numpy" and set(result.stats["kernel_backends"].values()) == {"numpy"}
+    assert "not available" in result.stats["backend_reason"]
+
+
+def test_cache_dir_is_per_user(monkeypatch, tmp_path):
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert backend.cache_dir() == str(tmp_path / "tncg15_mc" / "numba") and os.path.isdir(backend.cache_dir())
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "given"))
+    assert backend.cache_dir() == str(tmp_path / "given")
+
+
+def test_auto_on_a_cold_cache_renders_numpy_and_warms_in_the_background(monkeypatch, tmp_path):
+    require_compiled()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))          # no stamp there
+    started = []
+    monkeypatch.setattr(backend, "start_warm_up", lambda log: started.append(1))
+    assert not backend.is_warm()
+    assert backend.resolve("auto")[0] == "numpy" and started
+
+
+def test_stamp_follows_the_twins_sources(monkeypatch, tmp_path):
+    twin = tmp_path / "x_jit.py"
+    twin.write_text("pass\n")
+    monkeypatch.setattr(backend, "jit_files", lambda: [str(twin)])
+    stamp = backend.stamp_path()
+    os.utime(twin, ns=(0, 10**18))                                   # numba would recompile it
+    assert backend.stamp_path() != stamp
+
+
+@pytest.mark.parametrize("name", ["cornell", "many_lights"])
+def test_renders_are_bit_identical_on_both_backends(name):
+    require_compiled()
+    a, b = render(name, "numpy"), render(name, "numba")
+    assert b.stats["backend"] == "numba" and a.stats["backend"] == "numpy"
+    expected = {"cornell": {"spheres", "quads", "sobol"}, "many_lights": {"spheres", "light_tree", "sobol"}}[name]
+    assert set(b.stats["kernel_backends"]) == expected and set(b.stats["kernel_backends"].values()) == {"numba"}
+    assert np.array_equal(a.image, b.image)
+
+
+@pytest.mark.slow
+def test_render_in_a_python_where_numba_cannot_be_imported(tmp_path):
+    code = ("import sys; sys.modules['numba'] = None\n"
+            "from engine import api; from engine.core.settings import RenderSettings\n"
+            "from engine.scene.builtin import many_lights_scene\n"
+            "r = api.render(many_lights_scene((8, 8)), RenderSettings(samples=1, threads=1, backend='numba'))\n"
+            "print('BACKEND', r.stats['backend'])\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120,
+                         env=dict(os.environ, PYTHONPATH=ROOT, NUMBA_CACHE_DIR=str(tmp_path)))
+    assert out.returncode == 0, out.stderr
+    assert "BACKEND numpy" in out.stdout and "warning: backend numba asked for" in out.stdout
+
+
+@pytest.mark.slow
+def test_cold_compile_then_cache_load(tmp_path):
+    """python -m engine.core.backend in an empty cache compiles and stamps; a second run loads."""
+    env = dict(os.environ, PYTHONPATH=ROOT, NUMBA_CACHE_DIR=str(tmp_path))
+    for _ in range(2):
+        out = subprocess.run([sys.executable, "-m", "engine.core.backend"], cwd=ROOT, env=env,
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        assert f"kernels {len(backend.JIT_MODULES)}/{len(backend.JIT_MODULES)} ready" in out.stdout
+    assert any(n.startswith("warm-") and n.endswith(".stamp") for n in os.listdir(tmp_path))
+
+
+@pytest.mark.slow
+def test_background_warm_up_stamps_the_cache(monkeypatch, tmp_path):
+    """auto on a cold cache: NumPy now, a Python process compiling into the cache, numba next time."""
+    require_compiled()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(backend, "_state", dict(backend._state, warming=None))
+    said = []
+    assert backend.resolve("auto", said.append)[0] == "numpy"
+    worker = backend._state["warming"]
+    assert worker is not None and any("background" in s for s in said)
+    assert backend.start_warm_up(said.append) is None                # one at a time
+    worker.wait(timeout=300)
+    assert worker.returncode == 0 and backend.is_warm()
+    assert not os.path.exists(backend.stamp_path() + ".lock")
+    assert backend.resolve("auto")[0] == "numba"
+
+
+def test_a_scene_without_compiled_kernels_never_imports_numba(numba_missing):
+    assert backend.resolve("numba", kernels=["triangles", "diffuse"]) == (
+        "numpy", "no kernel of this scene has a compiled twin")
