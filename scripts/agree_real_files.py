@@ -8,9 +8,9 @@ mcrt_addon/bench_estimators.py (no clamp, no glossy filter, the same max depth).
 
 Per file: the exporter's warnings, the image mean against Cycles', the 8x8-block relative
 differences (median, 95th percentile), and the verdict.  A block is off when its difference from
-Cycles exceeds 4 standard deviations of the noise (TNCG15's, from its two seeds, plus the
-reference's, scaled from it by the sample counts) and 2 % of the image mean; a file agrees when
-the image mean is within 2 % (or 4 sigma) and at most 2 % of the blocks are off.
+Cycles exceeds 4 standard deviations of the noise (TNCG15's, from its two seeds' pixel differences,
+plus the reference's, scaled from it by the sample counts) and 2 % of the image mean; a file agrees
+when the image mean is within 2 % (or 4 sigma) and at most 2 % of the blocks are off.
 """
 import argparse
 import glob
@@ -28,22 +28,29 @@ BLOCK = 8
 
 
 def blocks(image):
+    """Mean of each 8x8 block of the channel mean, and its pixels (blocks, 64)."""
     h, w = image.shape[0] // BLOCK * BLOCK, image.shape[1] // BLOCK * BLOCK
-    a = image[:h, :w, :3].mean(axis=2)
-    return a.reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK).mean(axis=(1, 3))
+    a = image[:h, :w, :3].mean(axis=2).reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK).swapaxes(1, 2)
+    return a.mean(axis=(2, 3)), a.reshape(h // BLOCK, w // BLOCK, BLOCK * BLOCK)
 
 
 def compare(runs, reference, samples, reference_samples):
+    """Image mean ratio, block differences and the verdict.  The noise of a block's two-seed mean
+    comes from its 64 pixel differences between the seeds (63 degrees of freedom, not the 1 of two
+    block means): var(mean of a, b) = var(a_i - b_i) / 64 / 4 (pixels taken as independent)."""
     a, b = (np.asarray(r, dtype=np.float64) for r in runs)
     mean = 0.5 * (a + b)
-    ba, bb, bm, br = blocks(a), blocks(b), blocks(mean), blocks(reference)
-    var_mean = (ba - bb) ** 2 / 4.0                     # variance of the two-seed mean per block
+    bm, _ = blocks(mean)
+    br, _ = blocks(reference)
+    _, pixel_diff = blocks(a - b)
+    var_mean = pixel_diff.var(axis=2, ddof=1) / pixel_diff.shape[2] / 4.0
     var_ref = var_mean * 2 * samples / reference_samples
     level = max(float(reference.mean()), 1e-6)
     off = np.abs(bm - br) > np.maximum(4.0 * np.sqrt(var_mean + var_ref), 0.02 * level)
     img_t, img_r = float(mean.mean()), float(reference.mean())
-    img_sigma = float(np.abs(a.mean() - b.mean()) / 2.0)
-    mean_ok = abs(img_t - img_r) <= max(0.02 * img_r, 4.0 * img_sigma * np.sqrt(1 + 2 * samples / reference_samples))
+    d = (a - b)[..., :3].mean(axis=2)
+    img_sigma = float(np.sqrt(d.var(ddof=1) / d.size / 4.0 * (1 + 2 * samples / reference_samples)))
+    mean_ok = abs(img_t - img_r) <= max(0.02 * img_r, 4.0 * img_sigma)
     rel = np.abs(bm - br) / np.maximum(br, 0.05 * level)
     return dict(mean_ratio=img_t / max(img_r, 1e-12), block_median=float(np.median(rel)),
                 block_p95=float(np.percentile(rel, 95)), off_fraction=float(off.mean()),
