@@ -85,9 +85,13 @@ def fold(program: Program, cycles_version=(5, 0), table=None):
     table = kernels() if table is None else table
     ctx = NodeContext(1, cycles_version)
     outputs: list = []
+
+    def known(v):
+        """Whether the linked output has a constant value (a node may give some outputs, not others)."""
+        return outputs[v.node] is not None and v.output in outputs[v.node]
     for node in program.nodes:
         links = [v for v in node.inputs.values() if isinstance(v, Link)]
-        if any(outputs[v.node] is None for v in links) or node.kind not in table:
+        if not all(known(v) for v in links) or node.kind not in table:
             outputs.append(None)
             continue
         inputs = {key: (convert(outputs[v.node][v.output], v.source, v.target, 1) if isinstance(v, Link)
@@ -97,7 +101,7 @@ def fold(program: Program, cycles_version=(5, 0), table=None):
         except Varying:
             outputs.append(None)
     last, output, source = program.output
-    if outputs[last] is not None:
+    if outputs[last] is not None and output in outputs[last]:
         return None, _scalar(convert(outputs[last][output], source, program.type, 1))
     # Keep the varying nodes the output reads; constants feed them as values.
     needed, stack = set(), [last]
@@ -106,7 +110,7 @@ def fold(program: Program, cycles_version=(5, 0), table=None):
         if i in needed:
             continue
         needed.add(i)
-        stack += [v.node for v in program.nodes[i].inputs.values() if isinstance(v, Link) and outputs[v.node] is None]
+        stack += [v.node for v in program.nodes[i].inputs.values() if isinstance(v, Link) and not known(v)]
     order = sorted(needed)
     index = {old: new for new, old in enumerate(order)}
     nodes = []
@@ -114,7 +118,7 @@ def fold(program: Program, cycles_version=(5, 0), table=None):
         node = program.nodes[old]
         inputs = {}
         for key, v in node.inputs.items():
-            if isinstance(v, Link) and outputs[v.node] is not None:
+            if isinstance(v, Link) and known(v):
                 inputs[key] = _scalar(convert(outputs[v.node][v.output], v.source, v.target, 1))
             elif isinstance(v, Link):
                 inputs[key] = Link(index[v.node], v.output, v.source, v.target)

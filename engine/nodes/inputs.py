@@ -23,6 +23,23 @@ def _normalize(v):
         return np.where(length > 0.0, v / np.where(length > 0.0, length, 1.0), 0.0)
 
 
+def _outputs(getters, props):
+    """The outputs the program reads (props "_outputs", which the exporter writes), each computed only
+    then; without "_outputs" every output whose attributes the context has (Varying if none)."""
+    wanted = props.get("_outputs")
+    if wanted is not None:
+        return {name: getters[name]() for name in wanted if name in getters}
+    out = {}
+    for name, get in getters.items():
+        try:
+            out[name] = get()
+        except Varying:
+            pass
+    if not out:
+        raise Varying(next(iter(getters)))
+    return out
+
+
 def _attr_or(ctx, name, fallback):
     try:
         return ctx.attr(name)
@@ -35,7 +52,6 @@ def _attr_or(ctx, name, fallback):
 def texture_coordinate(inputs, props, ctx):
     """ShaderNodeTexCoord; props "object_matrix_inverse" (4x4, the From object's world-to-object
     matrix; absent: the hit's own object)."""
-    out = {}
 
     def lazy(name):
         return lambda: ctx.attr(name)
@@ -52,21 +68,16 @@ def texture_coordinate(inputs, props, ctx):
         i, n = ctx.attr("incoming"), ctx.attr("normal")
         return 2.0 * _dot(n, i) * n - i                  # -reflect(I, N)
     getters["Reflection"] = reflection
-    wanted = props.get("_outputs")                       # the exporter names the outputs read
-    for name, get in getters.items():
-        if wanted is None or name in wanted:
-            out[name] = get()
-    return out
+    return _outputs(getters, props)
 
 
 def geometry(inputs, props, ctx):
-    wanted = props.get("_outputs")
     getters = {"Position": lambda: ctx.attr("position"), "Normal": lambda: ctx.attr("normal"),
                "True Normal": lambda: ctx.attr("true_normal"), "Incoming": lambda: ctx.attr("incoming"),
                "Backfacing": lambda: ctx.attr("backfacing"), "Pointiness": lambda: np.full(ctx.n, 0.5),
                "Tangent": ctx.zeros3, "Parametric": lambda: _attr_or(ctx, "parametric", ctx.zeros3()),
                "Random Per Island": ctx.zeros}
-    return {name: get() for name, get in getters.items() if wanted is None or name in wanted}
+    return _outputs(getters, props)
 
 
 def uv_map(inputs, props, ctx):
@@ -124,11 +135,10 @@ def rgb(inputs, props, ctx):
 
 
 def object_info(inputs, props, ctx):
-    wanted = props.get("_outputs")
     getters = {"Location": lambda: ctx.attr("object_location"), "Random": lambda: ctx.attr("object_random"),
                "Color": lambda: np.ones((3, ctx.n)), "Alpha": lambda: np.ones(ctx.n),
                "Object Index": ctx.zeros, "Material Index": ctx.zeros}
-    return {name: get() for name, get in getters.items() if wanted is None or name in wanted}
+    return _outputs(getters, props)
 
 
 def fresnel_dielectric_cos(cos, eta):
@@ -211,3 +221,12 @@ KERNELS = {
     "ShaderNodeLightPath": light_path,
     "ShaderNodeAttribute": attribute,
 }
+
+
+def scale(inputs, props, ctx):
+    """TNCG15Scale, the tracer's own node (no Blender node has it): an emission's colour x strength
+    (mcrt_addon/export/node_graph.py scaled)."""
+    return {"Color": inputs["Color"] * inputs["Strength"]}
+
+
+KERNELS["TNCG15Scale"] = scale

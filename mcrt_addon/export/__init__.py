@@ -69,6 +69,54 @@ def finite_matrix(inst, ob):
     return matrix
 
 
+def hash_string(text):
+    """Cycles' hash_string (its util/hash.h): i = i * 37 + c over the UTF-8 bytes, 32 bits."""
+    i = 0
+    for c in text.encode("utf-8"):
+        i = (i * 37 + c) & 0xFFFFFFFF
+    return i
+
+
+def hash_uint2(kx, ky):
+    """Cycles' hash_uint2 (Bob Jenkins' lookup3 final mix), 32 bits."""
+    m = 0xFFFFFFFF
+
+    def rot(x, k):
+        return ((x << k) | (x >> (32 - k))) & m
+    a = b = c = (0xDEADBEEF + (2 << 2) + 13) & m
+    b, a = (b + ky) & m, (a + kx) & m
+    for x, y, k in (("c", "b", 14), ("a", "c", 11), ("b", "a", 25), ("c", "b", 16), ("a", "c", 4),
+                    ("b", "a", 14), ("c", "b", 24)):
+        v = {"a": a, "b": b, "c": c}
+        v[x] = ((v[x] ^ v[y]) - rot(v[y], k)) & m
+        a, b, c = v["a"], v["b"], v["c"]
+    return c
+
+
+def has_programs(materials):
+    """Whether any of these tracer materials (or their mix leaves and factors) has a node program."""
+    return any(getattr(m, "programs", None) or (getattr(m, "mix", None) is not None and any(
+        leaf.material.programs or any(f.kind == "program" for f in leaf.factors) for leaf in m.mix.leaves))
+        for m in materials)
+
+
+def object_fields(ob, matrix, random_id, materials):
+    """The object data node programs read (engine/scene/model.py TriangleMesh.object_matrix, texspace,
+    object_random), for meshes with a material that has one; {} otherwise (scenes stay as they were)."""
+    if not has_programs(materials):
+        return {}
+    if not random_id:                           # not an instance: Cycles hashes the object's name
+        random_id = hash_uint2(hash_string(ob.name), 0)
+    fields = {"object_matrix": np.asarray(matrix, dtype=np.float64),
+              # Cycles' object random number: the instance's random id / 0xFFFFFFFF (float32).
+              "object_random": float(np.float32(random_id & 0xFFFFFFFF) * np.float32(1.0 / 0xFFFFFFFF))}
+    data = getattr(ob, "data", None)
+    if data is not None and hasattr(data, "texspace_location"):
+        fields["texspace"] = (tuple(float(c) for c in data.texspace_location),
+                              tuple(float(c) for c in data.texspace_size))
+    return fields
+
+
 def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=None, name=None,
                  view_camera=None, mesh_cache=None):
     """Build the tracer Scene.
@@ -104,7 +152,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     n_instances = n_triangles = 0
     skipped = set()
     terminator_warned = set()
-    def add_geometry(ob, otype, matrix, label, own=False):
+    def add_geometry(ob, otype, matrix, label, own=False, random_id=0):
         """One evaluated geometry (a mesh, or a convertible object through to_mesh()) as a
         triangle mesh or an implicit sphere; own: the evaluated mesh of a convertible object
         (own_geometry: never an implicit sphere, not kept in mesh_cache, as a converted one)."""
@@ -147,7 +195,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         mat_ids = slot_ids[np.clip(slots, 0, len(slot_ids) - 1)]
 
         mode = (_sphere_mode(ob) if otype == "MESH" and uv_map is None and need is None and not own
-                else "NEVER")                       # spheres have no UVs, no tangents
+                and not has_programs([table.materials[i] for i in slot_ids])
+                else "NEVER")                       # spheres have no UVs, no tangents, no object for nodes
         if mode != "NEVER":
             fit = sphere_fit(verts, tris, slots)
             scale = uniform_scale(matrix)
@@ -192,7 +241,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                                 "supported (only the geometry offset); ignored")
         meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
                                       material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
-                                      terminator_offset=terminator, tangents=tangents))
+                                      terminator_offset=terminator, tangents=tangents,
+                                      **object_fields(ob, matrix, random_id, [table.materials[i] for i in slot_ids])))
         n_instances += 1
         n_triangles += len(tris)
 
@@ -237,16 +287,16 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         if otype in CONVERTIBLE_TYPES:
             # Blender 3.0+ lists the evaluated mesh of a curve, text, metaball or NURBS surface as an
             # instance of its own (below): the object itself is converted only when none came
-            convertible.append((ob, otype, matrix, instance_label(inst, ob)))
+            convertible.append((ob, otype, matrix, instance_label(inst, ob), int(getattr(inst, "random_id", 0))))
             continue
         own = own_geometry(inst, ob)
         if own:
             converted.append((ob.original.name, matrix))
-        add_geometry(ob, otype, matrix, instance_label(inst, ob), own)
+        add_geometry(ob, otype, matrix, instance_label(inst, ob), own, int(getattr(inst, "random_id", 0)))
 
-    for ob, otype, matrix, label in convertible:
+    for ob, otype, matrix, label, random_id in convertible:
         if not any(name == ob.original.name and np.allclose(m, matrix) for name, m in converted):
-            add_geometry(ob, otype, matrix, label)
+            add_geometry(ob, otype, matrix, label, random_id=random_id)
     materials = table.materials or [sm.Material(name="(unused)")]
     background = export_world(scene.world, warnings)
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
