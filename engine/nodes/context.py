@@ -122,7 +122,8 @@ class SceneAttributes:
                 local = np.asarray(m.vertices, dtype=np.float64) @ inverse[:3, :3].T + inverse[:3, 3]
                 lo, hi = local.min(axis=0), local.max(axis=0)
                 centre, size = 0.5 * (lo + hi), 0.5 * (hi - lo)
-            self.centre[i], self.size[i] = centre, np.where(size == 0.0, 1.0, size)
+            flat = size <= 1e-9 * max(float(np.abs(size).max()), 1.0)       # Blender: a zero size is 1
+            self.centre[i], self.size[i] = centre, np.where(flat, 1.0, size)
             self.random[i] = float(m.object_random)
         names = sorted({name for m in meshes for name in (m.colors or {})})
         self.colors = {}

@@ -94,11 +94,15 @@ def euler_matrix(euler):
                      [-sy, cy * sx, cy * cx]])
 
 
-def _apply(m, v):                 # m (3, 3, N), v (3, N)
+def _apply(m, v):                 # m (3, 3, N) or (3, 3, 1), v (3, N)
+    if m.shape[2] == 1:
+        return m[:, :, 0] @ v
     return np.einsum("ijn,jn->in", m, v)
 
 
 def _apply_t(m, v):
+    if m.shape[2] == 1:
+        return m[:, :, 0].T @ v
     return np.einsum("jin,jn->in", m, v)
 
 
@@ -111,7 +115,11 @@ def mapping(inputs, props, ctx):
     """ShaderNodeMapping (Cycles' svm_mapping): POINT, TEXTURE, VECTOR, NORMAL."""
     v = inputs.get("Vector", ctx.zeros3())
     loc = inputs.get("Location", ctx.zeros3())
-    rot = euler_matrix(inputs.get("Rotation", ctx.zeros3()))
+    euler = inputs.get("Rotation", ctx.zeros3())
+    if euler.shape[1] and (euler == euler[:, :1]).all():        # one rotation for every point (the usual)
+        rot = euler_matrix(euler[:, 0])[:, :, None]
+    else:
+        rot = euler_matrix(euler)
     scale = inputs.get("Scale", np.ones((3, ctx.n)))
     kind = props.get("vector_type", "POINT")
     if kind == "POINT":

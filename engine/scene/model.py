@@ -211,7 +211,7 @@ class Material:
         self.validate_inputs()
         if self.programs:
             from .programs import validate_programs
-            validate_programs(self)
+            validate_programs(self, TEXTURED_INPUTS)
         if self.kind == MIX:
             if not isinstance(self.mix, Mix):
                 raise SceneError(f"Material '{self.name}': kind mix needs a Mix (its leaves), got {self.mix!r}")

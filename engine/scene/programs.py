@@ -88,9 +88,10 @@ class Program:
             raise SceneError(f"{owner}: the program's output {self.output!r} names no node of it")
 
 
-def validate_programs(material) -> None:
-    """SceneError for bad programs of a material (engine/scene/model.py Material.programs)."""
-    from .model import TEXTURED_INPUTS
+def validate_programs(material, float_roles) -> None:
+    """SceneError for bad programs of a material (engine/scene/model.py Material.programs; float_roles:
+    its TEXTURED_INPUTS)."""
+    TEXTURED_INPUTS = tuple(float_roles)
     owner = f"Material '{material.name}'"
     programs = material.programs
     if not isinstance(programs, dict):

@@ -97,6 +97,10 @@ class MaterialTable:
             return None, None
         return graph.compile(mat, node, sock, target)
 
+    def graph_warned(self):
+        """Whether the last program() named the node feeding its socket in a warning already."""
+        return bool(self._graph and self._graph.warned)
+
     def add(self, material):
         self.materials.append(material)
         return len(self.materials) - 1
@@ -235,7 +239,7 @@ class MaterialTable:
                 self._programs[role] = program
             elif value is not None:
                 return tuple(float(c) for c in value)
-            else:
+            elif not self.graph_warned():
                 self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)}, which is not modelled; "
                                      f"its unlinked value is used")
         elif sock.is_linked:
@@ -280,6 +284,8 @@ class MaterialTable:
             if program is not None:
                 self.warn(mat, node, f"input '{sock.name}' is driven by nodes per hit, which this input does "
                                      "not take; its unlinked value is used")
+                return float(sock.default_value)
+            if self.graph_warned():
                 return float(sock.default_value)
             source = linked_from(sock)
             what = f"'{source.name}' ({source.bl_idname})" if source is not None else "a muted link"

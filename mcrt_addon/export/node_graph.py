@@ -5,8 +5,8 @@ reads per hit (engine/nodes/evaluator.py runs them).
 muted nodes' internal links), depth first, and emits them in topological order:
 * each node's own properties, captured generically from its RNA (enum identifiers, booleans,
   numbers, tuples; its image as an index into the scene's textures, a Texture Coordinate's From object
-  as its inverse matrix); mcrt_addon/export/node_props.py `special_props(node)` first, if that
-  module is there (Color Ramp, curves);
+  as its inverse matrix); the node_props module's `special_props(node)` first (beside this module,
+  when it is there: Color Ramp, curves);
 * each input: a link to an earlier node, or the socket's default value; an unlinked Vector of a texture
   node gets Cycles' implicit coordinates (UV for Image Texture, Generated for the others), an unlinked
   Normal the shading normal (the kernel's own default);
@@ -36,9 +36,11 @@ def _base_props():
 
 
 def _special_props(node):
+    """special_props(node) of the node_props module beside this one when it is there, else None."""
+    import importlib
     try:
-        from . import node_props
-    except ImportError:
+        node_props = importlib.import_module(__package__ + ".node_props")
+    except ModuleNotFoundError:
         return None
     return node_props.special_props(node)
 
@@ -84,13 +86,17 @@ class GraphCompiler:
         """(Program or None, constant or None) for the input ``sock`` of ``node`` (target: "RGBA" or
         "VALUE"): (None, value) when the graph folds to a constant, (None, None) when nothing feeds it
         that the tracer models (warned)."""
+        self.warned = False                   # the node feeding sock was named in a warning
         found = source_of(sock)
         if found is None:
             return None, None
         self.nodes, self.index, self.uv_maps, self.implicit = [], {}, [], {}
         self.mat = mat
+        if not self.modelled(found[0]):
+            return None, None                 # the caller names the socket's source as before
         root = self.emit(*found)
         if root is None:
+            self.warned = True
             return None, None
         out_sock = found[1]
         program = self.P.Program(self.nodes, (root, out_sock.identifier, SOCKET_KINDS.get(out_sock.type, "RGBA")),
@@ -101,8 +107,12 @@ class GraphCompiler:
             return None, value
         return folded, None
 
-    def emit(self, node, out):
-        """The index of ``node`` in the program (emitted with what feeds it), None when unsupported."""
+    def modelled(self, node):
+        return node.bl_idname not in GROUPS and node.bl_idname in self.kernels
+
+    def emit(self, node, out, consumer=None, sock=None):
+        """The index of ``node`` in the program (emitted with what feeds it), None when unsupported
+        (named in a warning with the input ``sock`` of ``consumer`` it feeds)."""
         key = node.as_pointer()
         outputs = {out.identifier}
         if key in self.index:
@@ -112,9 +122,11 @@ class GraphCompiler:
                 self._check_output(node, out)
             return i
         kind = node.bl_idname
-        if kind in GROUPS or kind not in self.kernels:
+        if not self.modelled(node):
             what = "node groups are not supported" if kind in GROUPS else f"{node.bl_label or kind} ({kind}) is not supported"
-            self.warn(self.mat, node, f"{what}; the input it feeds uses its unlinked value")
+            where = f"input '{sock.name}' of '{consumer.name}'" if consumer is not None else "the input it feeds"
+            # "linked from node": unsupported.node_warnings leaves what feeds this node unnamed with it
+            self.warn(self.mat, node, f"{what}; {where} is linked from node '{node.name}' and uses its unlinked value")
             self.index[key] = None
             return None
         self._check_output(node, out)
@@ -124,7 +136,7 @@ class GraphCompiler:
                 continue
             found = source_of(sock) if sock.is_linked else None
             if found is not None:
-                j = self.emit(*found)
+                j = self.emit(*found, node, sock)
                 if j is not None:
                     inputs[sock.identifier] = self.P.Link(j, found[1].identifier,
                                                           SOCKET_KINDS.get(found[1].type, "RGBA"),

@@ -86,6 +86,8 @@ def factor_node(table, mat, mix, sock, source, unlinked):
         return table.MixFactor(value=min(max(float(value), 0.0), 1.0), node=source.name)
     if program is not None:
         return table.MixFactor(kind="program", program=program, value=unlinked, node=source.name)
+    if table.graph_warned():
+        return None
     table.warn(mat, mix, f"input '{sock.name}' is linked to '{source.name}' ({kind}), which is not modelled "
                          f"as a mix factor; its unlinked value {unlinked:g} is used")
     return None
