@@ -51,7 +51,7 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  0.9) whose Tangent is a Tangent node reading the UV map (MikkTSpace), in the room
   node_room      node graphs (mcrt_addon/export/node_graph.py) in the Cornell room: the floor's Base
                  Color an image through Texture Coordinate Object -> Mapping, its Roughness the image at
-                 Generated; a ball coloured by its Geometry Normal; a lamp coloured by Generated
+                 Generated (4.0+); a ball coloured by its Geometry Normal; a lamp coloured by Generated
 Light-sampling stress scenes (plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -911,7 +911,8 @@ def node_floor_material():
     links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
     links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
     links.new(coords.outputs["Generated"], rough.inputs["Vector"])
-    links.new(rough.outputs["Color"], bsdf.inputs["Roughness"])
+    if V4:          # 3.x's Principled BSDF takes no per-hit roughness in the tracer (engine/materials/principled_v1.py)
+        links.new(rough.outputs["Color"], bsdf.inputs["Roughness"])
     links.new(bsdf.outputs[0], out.inputs["Surface"])
     return mat
 

@@ -437,6 +437,9 @@ class HitTextures:
         if self.attributes is None or not has.any():
             return values
         sel = np.flatnonzero(has.take(material))
+        if role == "emission":             # the light sampler knows program emitters' triangles only
+            from ..geometry.scene_geometry import TRIANGLE
+            sel = sel[kind.take(sel) == TRIANGLE]
         if not len(sel):
             return values
         values = np.array(values, dtype=np.float64)

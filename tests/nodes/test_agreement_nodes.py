@@ -20,7 +20,7 @@ TAU = 0.02
 @pytest.fixture(scope="module")
 def room(tmp_path_factory):
     from rendering import RES, cycles_reference, export_blend
-    import node_scene
+    from tests.nodes import node_scene
     path = node_scene.build(str(tmp_path_factory.mktemp("nodes") / "node_room.blend"))
     exported = export_blend(path, RES)
     return exported, cycles_reference(path, "node_room")
