@@ -76,6 +76,7 @@ class MaterialTable:
         self._per_tangent = set()           # names of the Blender materials that use it
         self._programs = {}                 # the shader node being converted: role -> node program
         self._emission_color = (0.0, 0.0, 0.0)   # the unlinked emission colour read last
+        self._converting = ""                    # the name of the Blender material being converted
         self._graph = None                  # node_graph.GraphCompiler, made on first use
 
     def graph(self):
@@ -122,6 +123,7 @@ class MaterialTable:
         if key in self._per_tangent:
             key = (key, self.object_x)
         if key not in self._index:
+            self._converting = original.name
             self._slots = {}
             self.used_object_tangent = False
             with following_links() as read:             # every node the conversion reads
@@ -256,6 +258,10 @@ class MaterialTable:
             else:
                 del self._slots["emission"]
         colour, power = self._programs.pop("emission", None), self._programs.pop("emission_strength", None)
+        if slot is not None and strength > 0 and power is not None and colour is None:
+            self.warnings.append(f"Material '{self._converting}': an image emission colour with a strength driven by "
+                                 "nodes is not modelled; the strength's unlinked value is used")
+            power = None
         if colour is not None or power is not None:      # radiance = colour x strength per hit
             from .node_graph import scaled
             self._programs["emission"] = scaled(self.graph(), colour, power, self._emission_color, strength)
