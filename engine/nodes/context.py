@@ -44,6 +44,7 @@ class NodeContext:
         self.cycles_version = tuple(cycles_version)[:2]
         self.images = images
         self._attributes = dict(attributes or {})
+        self.folding = attributes is None      # evaluator.fold's context: no hits at all
         self.warnings: list[str] = []
 
     def has(self, name: str) -> bool:

@@ -41,10 +41,11 @@ def _outputs(getters, props):
 
 
 def _attr_or(ctx, name, fallback):
+    """The attribute, or `fallback` where the hits lack it (never while folding: the mesh decides)."""
     try:
         return ctx.attr(name)
     except Varying:
-        if fallback is None:
+        if fallback is None or ctx.folding:
             raise
         return fallback
 

@@ -15,8 +15,9 @@ from .camera import export_camera
 from .images import ImageTable
 from .lights import export_area_light, export_point_light, export_sun_light
 from .materials import MaterialTable
-from .mesh import (bounding_sphere, corner_tangents, corner_uvs, mesh_arrays, mesh_normals, sphere_fit, terminator_offsets,
-                   transform_normals, transform_points, uniform_scale)
+from .mesh import (bounding_sphere, corner_colors, corner_tangents, corner_uvs, mesh_arrays, mesh_normals, sphere_fit,
+                   terminator_offsets, transform_normals, transform_points, uniform_scale)
+from .node_graph import attribute_names
 from .unsupported import object_warnings, scene_warnings
 from .util import ExportError
 from .world import export_world
@@ -162,15 +163,18 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         slot_ids = np.asarray(table.slot_indices(ob, matrix), dtype=np.int64)
         uv_map = table.uv_map(slot_ids)                 # None: no textured material, no UVs
         need = table.tangent_need(slot_ids)             # None: no anisotropic material with mesh tangents
-        arrays = cache.get((key, uv_map, need)) if key is not None else None
-        kept = (ob.name, ob.data.name, uv_map, need) if (mesh_cache is not None and key is not None and not own) else None
+        colours = attribute_names([table.materials[i] for i in slot_ids])     # Attribute nodes' colour attributes
+        arrays = cache.get((key, uv_map, need, colours)) if key is not None else None
+        kept = ((ob.name, ob.data.name, uv_map, need, colours) if (mesh_cache is not None and key is not None and not own)
+                else None)
         if arrays is None and kept is not None:
             arrays = mesh_cache.get(kept)
 
         def read(me):
             base = mesh_arrays(me)
             return base + (corner_uvs(me, uv_map, label, warnings), mesh_normals(me),
-                           corner_tangents(me, need, base[0], base[1], label, warnings))
+                           corner_tangents(me, need, base[0], base[1], label, warnings),
+                           corner_colors(me, colours, label, warnings))
         if arrays is None:
             if otype == "MESH":
                 arrays = read(ob.data)
@@ -183,10 +187,10 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                 if arrays is None:
                     return
             if key is not None:
-                cache[(key, uv_map, need)] = arrays
+                cache[(key, uv_map, need, colours)] = arrays
             if kept is not None:
                 mesh_cache[kept] = arrays
-        verts, tris, slots, uvs, shading, local_tangents = arrays
+        verts, tris, slots, uvs, shading, local_tangents, corner_colours = arrays
         if len(tris) == 0:
             if otype == "MESH" and ob.name not in skipped:
                 skipped.add(ob.name)
@@ -225,6 +229,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         tri_idx = tris[:, ::-1] if mirrored else tris
         if uvs is not None and mirrored:
             uvs = uvs[:, ::-1]
+        if corner_colours and mirrored:
+            corner_colours = {name: c[:, ::-1] for name, c in corner_colours.items()}
         tangents = None
         if local_tangents is not None:              # as Cycles' object_normal_transform
             tangents = transform_normals(local_tangents, matrix)
@@ -242,7 +248,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
                                       material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
                                       terminator_offset=terminator, tangents=tangents,
-                                      **object_fields(ob, matrix, random_id, [table.materials[i] for i in slot_ids])))
+                                      **object_fields(ob, matrix, random_id, [table.materials[i] for i in slot_ids]),
+                                      **({"colors": corner_colours} if corner_colours else {})))
         n_instances += 1
         n_triangles += len(tris)
 

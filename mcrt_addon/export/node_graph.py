@@ -164,8 +164,9 @@ class GraphCompiler:
                                       f"{'0.5' if out.identifier == 'Pointiness' else '0'})")
         if node.bl_idname in ("ShaderNodeTexCoord", "ShaderNodeUVMap") and out.identifier == "UV":
             self.uv_maps.append(getattr(node, "uv_map", "") or "")
-        if node.bl_idname == "ShaderNodeAttribute":
-            self.warn(self.mat, node, "colour attributes are not exported; the Attribute node reads 0")
+        if node.bl_idname == "ShaderNodeAttribute" and getattr(node, "attribute_type", "GEOMETRY") != "GEOMETRY":
+            self.warn(self.mat, node, f"{node.attribute_type.lower()} attributes are not exported; the Attribute "
+                                      "node reads 0")
 
     def implicit_vector(self, kind):
         """A link to Cycles' default coordinates of a texture node: UV (Image Texture) or Generated."""
@@ -221,6 +222,20 @@ class GraphCompiler:
         elif name == "object" and node.bl_idname == "ShaderNodeTexCoord" and value is not None:
             props["object_matrix_inverse"] = tuple(tuple(float(c) for c in row)
                                                    for row in np.linalg.inv(np.array(value.matrix_world)))
+
+
+def attribute_names(materials):
+    """The colour attribute names the Attribute nodes of these tracer materials' programs read (their
+    mix leaves' and factors' too), sorted, as a tuple (a cache key of export/__init__.py)."""
+    programs = []
+    for m in materials:
+        programs += list((getattr(m, "programs", None) or {}).values())
+        if getattr(m, "mix", None) is not None:
+            for leaf in m.mix.leaves:
+                programs += list((leaf.material.programs or {}).values())
+                programs += [f.program for f in leaf.factors if f.kind == "program"]
+    return tuple(sorted({n.props.get("attribute_name", "") for p in programs for n in p.nodes
+                         if n.kind == "ShaderNodeAttribute" and n.props.get("attribute_type", "GEOMETRY") == "GEOMETRY"}))
 
 
 def scaled(graph, colour, strength, colour_value, strength_value):

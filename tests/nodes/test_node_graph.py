@@ -139,3 +139,35 @@ def test_muted_node_passes_its_input_through(scene):
     material_on_plane(scene, build)
     m = material(export())
     assert [n.kind for n in m.programs["color"].nodes] == ["ShaderNodeNewGeometry"]
+
+
+def test_colour_attributes_reach_the_attribute_node(scene):
+    import numpy as np
+    from engine.geometry.scene_geometry import TRIANGLE
+    from engine.nodes.context import SceneAttributes
+
+    def build(nodes, links, bsdf):
+        attr = nodes.new("ShaderNodeAttribute")
+        attr.attribute_name = "Paint"
+        links.new(attr.outputs["Color"], bsdf.inputs["Base Color"])
+    material_on_plane(scene, build)
+    me = bpy.data.objects["Plane"].data
+    paint = me.color_attributes.new("Paint", "FLOAT_COLOR", "POINT")
+    colours = [(1.0, 0.0, 0.0, 1.0), (0.0, 1.0, 0.0, 1.0), (0.0, 0.0, 1.0, 1.0), (1.0, 1.0, 1.0, 1.0)]
+    for value, c in zip(paint.data, colours):
+        value.color = c
+    result = export()
+    assert not result.warnings, result.warnings
+    mesh = next(m for m in result.scene.meshes if m.name == "Plane")
+    corners = mesh.colors["Paint"]
+    assert corners.shape == (2, 3, 3)
+    vertex_colour = {tuple(v): c[:3] for v, c in zip(mesh.vertices.round(6), colours)}
+    for t, tri in enumerate(mesh.triangles):
+        for k, v in enumerate(tri):
+            assert tuple(corners[t, k]) == pytest.approx(vertex_colour[tuple(mesh.vertices[v].round(6))])
+    scene_ = result.scene
+    attrs = SceneAttributes(scene_, mesh.vertices[mesh.triangles], None)
+    ctx = attrs.context(np.array([TRIANGLE]), np.array([0]), np.array([0.25]), np.array([0.25]), None, (5, 0), None,
+                        TRIANGLE)
+    expected = 0.5 * corners[0, 0] + 0.25 * corners[0, 1] + 0.25 * corners[0, 2]
+    assert np.allclose(ctx.attr("color:Paint")[:, 0], expected)
