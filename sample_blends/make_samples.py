@@ -49,6 +49,9 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
   roughness_map  a Glossy plate whose Roughness is a 4 x 4 checker image (0.1 / 0.6, Non-Color,
                  Closest) tilted to reflect an Area light, and an anisotropic Glossy ball (anisotropy
                  0.9) whose Tangent is a Tangent node reading the UV map (MikkTSpace), in the room
+  node_room      node graphs (mcrt_addon/export/node_graph.py) in the Cornell room: the floor's Base
+                 Color an image through Texture Coordinate Object -> Mapping, its Roughness the image at
+                 Generated (4.0+); a ball coloured by its Geometry Normal; a lamp coloured by Generated
 Light-sampling stress scenes (plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -920,6 +923,67 @@ def make_hdri(scene, res):
     settings(scene, res)
 
 
+# -- node graphs (mcrt_addon/export/node_graph.py; tests/nodes/test_agreement_nodes.py) -----------------
+NODE_ROOM_SCALE = (2.0, 2.0, 2.0)         # the floor's Mapping scale
+
+
+def make_node_room(scene, res):
+    mats = dict(white=diffuse("White", (0.73, 0.73, 0.73)), red=diffuse("Red", (0.65, 0.05, 0.05)),
+                green=diffuse("Green", (0.12, 0.45, 0.15)), light=node_lamp_material())
+    room(scene, mats, light_size=0.6)
+    floor = bpy.data.objects["Floor"]
+    floor.data.materials.clear()
+    floor.data.materials.append(node_floor_material())
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.35), node_normal_material(), location=(0.2, 0.1, 0.5),
+                smooth=True)
+    camera(scene)
+    black_world(scene)
+    settings(scene, res)
+
+
+def node_floor_material():
+    mat, nodes, links, out = empty_material("NodeFloor")
+    bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+    coords = nodes.new("ShaderNodeTexCoord")
+    mapping = nodes.new("ShaderNodeMapping")
+    mapping.inputs["Scale"].default_value = NODE_ROOM_SCALE
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(25))
+    grid = bpy.data.images.new("Grid", 64, 64)
+    grid.generated_type = "COLOR_GRID"
+    tex, rough = nodes.new("ShaderNodeTexImage"), nodes.new("ShaderNodeTexImage")
+    tex.image = rough.image = grid
+    tex.interpolation = "Closest"
+    links.new(coords.outputs["Object"], mapping.inputs["Vector"])
+    links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+    links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    links.new(coords.outputs["Generated"], rough.inputs["Vector"])
+    if V4:          # 3.x's Principled BSDF takes no per-hit roughness in the tracer (engine/materials/principled_v1.py)
+        links.new(rough.outputs["Color"], bsdf.inputs["Roughness"])
+    links.new(bsdf.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def node_normal_material():
+    mat, nodes, links, out = empty_material("NodeBall")
+    bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+    geo, mapping = nodes.new("ShaderNodeNewGeometry"), nodes.new("ShaderNodeMapping")
+    mapping.inputs["Scale"].default_value = (0.5, 0.5, 0.5)
+    mapping.inputs["Location"].default_value = (0.5, 0.5, 0.5)
+    links.new(geo.outputs["Normal"], mapping.inputs["Vector"])
+    links.new(mapping.outputs["Vector"], bsdf.inputs["Color"])
+    links.new(bsdf.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def node_lamp_material():
+    mat, nodes, links, out = empty_material("NodeLamp")
+    em, coords = nodes.new("ShaderNodeEmission"), nodes.new("ShaderNodeTexCoord")
+    em.inputs["Strength"].default_value = 14.0
+    links.new(coords.outputs["Generated"], em.inputs["Color"])
+    links.new(em.outputs[0], out.inputs["Surface"])
+    return mat
+
+
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
@@ -949,6 +1013,7 @@ SCENES = {
     "principled_glass": make_principled_glass,
     "roughness_map": make_roughness_map,
     "hdri": make_hdri,
+    "node_room": lambda s, r: make_node_room(s, r),
 }
 
 

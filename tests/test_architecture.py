@@ -19,7 +19,7 @@ from tests.import_graph import Edge, build_graph, cycles, module_files, raw_impo
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TRACER, ADDON = "engine", "mcrt_addon"
-LAYERS = ("core", "sampling", "scene", "geometry", "materials", "lights", "film", "integrators",
+LAYERS = ("core", "sampling", "scene", "geometry", "nodes", "materials", "lights", "film", "integrators",
           "rendering", "pools", "api", "studies", "cli")
 FACADE = ("__init__", "__main__")          # engine/__init__.py, engine/__main__.py: above every layer
 BLENDER_MODULES = {"bpy", "bpy_extras", "bpy_types", "bmesh", "mathutils", "gpu", "gpu_extras", "bgl",

@@ -245,7 +245,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     colored, glowing = textured_materials(scene)
     set_effect("textures", colored or glowing,
                "; ".join(part for part in (
-                   f"image textures (colour, float inputs) or mesh tangents read by {_names(colored)}" if colored else "",
+                   f"image textures (colour, float inputs), node programs or mesh tangents read by {_names(colored)}"
+                   if colored else "",
                    f"on the emission of {_names(glowing)} (light samples read the texture)" if glowing else "")
                    if part) + ": texture lookups at triangle hits (UVs interpolated)"
                if colored or glowing else "no image textures: no UVs, no texture lookups")

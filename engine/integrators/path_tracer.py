@@ -246,9 +246,11 @@ class PathTracer:
         surfaces = bounds[PASS_THROUGH]       # absorbing surfaces end the path here
         through = slice(bounds[PASS_THROUGH], bounds[PASS_THROUGH + 1])
         spans = [slice(bounds[g], bounds[g + 1]) for g in range(ABSORB)]      # the hits of bsdfs[g]
+        # Texture and node-program lookups at the hits (engine/materials/textures.py HitLookup).
+        lookup = None if self.textures is None else self.textures.at(hits, self.hit_points(p, surf, hits))
         # 3. Emission found by the ray (surfaces and Area lights), MIS-weighted after non-delta bounces.
         if self.plan.emission:
-            self.emission(p, surf, hits, surfaces)
+            self.emission(p, surf, hits, surfaces, lookup)
         # 4. Area lights: the ray goes on through them, as it was.
         passing = self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
         # 5. Direct light at hits with a non-delta BSDF (eq. 2.11).
@@ -259,16 +261,16 @@ class PathTracer:
         smooth = surf.shading is not surf.normal
         shade = surf.shading * towards if smooth else facing
         color = self.mats.color.take(surf.material, axis=1)
-        if self.textures is not None:
-            color = self.textures.color(color, surf.material, hits.kind, hits.prim, hits.u, hits.v)
+        if lookup is not None:
+            color = lookup.color(color, surf.material)
         dim = 1 + DIMS_PER_BOUNCE * p.bounce[:alive]                        # this hit's dimensions
         u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
         if features is not None:
-            self.surface_features(p, surf, shade, color, bounds, features, hits)   # Cycles: the shading normal
+            self.surface_features(p, surf, shade, color, bounds, features, hits, lookup)   # Cycles: the shading normal
         si = ShadingPoint(-p.d[:, :alive], shade[:, :alive], facing[:, :alive], surf.normal[:, :alive],
                           color[:, :alive], surf.material[:alive], smooth,
                           None if p.media is None else MediumStack(p.media, p.depth)[:alive],
-                          None if self.textures is None else self.textures.at(hits)[:alive])
+                          None if lookup is None else lookup[:alive])
         no_light = self.shade_light_paths(p, si, spans) if self.light_paths is not None else None
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
@@ -360,7 +362,16 @@ class PathTracer:
                                       p.ray_kind.take(rays) == TRANSMISSION_RAY)
         p.radiance[:, rays] += self.clamped(p.beta.take(rays, axis=1) * le, p.bounce.take(rays))
 
-    def emission(self, p, surf, hits, surfaces):
+    def hit_points(self, p, surf, hits):
+        """What node programs read of the hits besides their primitives (engine/nodes/context.py
+        HitPoints); None when no material has a program."""
+        if self.textures is None or self.textures.attributes is None:
+            return None
+        from ..nodes.context import HitPoints
+        return HitPoints(point=surf.point, direction=p.d, normal=surf.normal, shading=surf.shading,
+                         depth=p.bounce, ray_kind=p.ray_kind, distance=hits.t)
+
+    def emission(self, p, surf, hits, surfaces, lookup=None):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
         the camera or a delta bounce or without shadow rays; after a non-delta bounce 0 under
         `report`/`solid-angle`, the power-heuristic weight under `mis`."""
@@ -369,7 +380,9 @@ class PathTracer:
         parts = [(lit, self.mats.emission.take(mat.take(lit), axis=1))] if len(lit) else []
         if parts and self.textures is not None:
             parts[0] = (lit, self.textures.emission(parts[0][1], mat.take(lit), hits.kind.take(lit),
-                                                    hits.prim.take(lit), hits.u.take(lit), hits.v.take(lit)))
+                                                    hits.prim.take(lit), hits.u.take(lit), hits.v.take(lit),
+                                                    None if lookup is None or lookup.points is None
+                                                    else lookup.points.take(lit)))
         for (group, kind), (a, b) in hits.runs.items():
             if group == PASS_THROUGH:
                 lamps, prim = self.geometry.lights, hits.prim[a:b]
@@ -415,7 +428,7 @@ class PathTracer:
         if len(idx) and self.has_background:
             features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * self.background_seen(p, idx))
 
-    def surface_features(self, p, surf, facing, color, bounds, features, hits=None):
+    def surface_features(self, p, surf, facing, color, bounds, features, hits=None, lookup=None):
         """Cycles' denoising features (film_write_denoising_features_surface): at the first hit with
         a non-delta BSDF (diffuse) or an absorbing one write albedo = the delta-bounce tints x
         colour and the facing normal, then stop; at delta BSDFs (mirrors, glass) multiply the tints
@@ -439,7 +452,8 @@ class PathTracer:
             if self.textures is not None and hits is not None:         # textured emitters: per hit
                 h = idx.take(e)
                 le = self.textures.emission(le, mat.take(e), hits.kind.take(h), hits.prim.take(h), hits.u.take(h),
-                                            hits.v.take(h))
+                                            hits.v.take(h), None if lookup is None or lookup.points is None
+                                            else lookup.points.take(h))
             features.add_albedo(pix.take(e), thru.take(e, axis=1) * le)
         stop = self.feature_stops.take(group)
         absorbs = group == ABSORB

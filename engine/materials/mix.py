@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.vec import dot
-from ..scene.model import FRESNEL, LAYER_WEIGHT, TEXTURE
+from ..scene.model import FRESNEL, LAYER_WEIGHT, PROGRAM, TEXTURE
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
 
 ALBEDO_FLOOR = 0.05             # a leaf's albedo estimate is at least this (black leaves may reflect)
@@ -70,6 +70,8 @@ def factor_value(factor, si: ShadingPoint) -> np.ndarray:
             f = np.full(n, float(factor.value))
         else:
             f = si.lookup.factor(factor.texture, factor.value)
+    elif factor.kind == PROGRAM:                             # a node program (engine/nodes/evaluator.py)
+        f = np.full(n, float(factor.value)) if si.lookup is None else si.lookup.program(factor.program)
     else:
         return np.full(n, factor.constant())
     f = np.clip(f, 0.0, 1.0)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.model import TEXTURED_INPUTS, with_mix_leaves
+from ..scene.model import PROGRAM, TEXTURED_INPUTS, with_mix_leaves
 from ..scene.textures import ImageTexture, TextureSlot, material_slots, missing_message
 
 from .mix import LUMINANCE
@@ -160,12 +160,39 @@ class TextureSet:
                           for name, slots in self.inputs.items()}
         # Anisotropic materials that read the mesh's tangents (hit_tangent).
         self.mesh_tangent = np.array([getattr(m, "tangent_source", "fixed") != "fixed" for m in mats], dtype=bool)
+        # Shader-node programs (engine/scene/programs.py, run by engine/nodes/evaluator.py): per role
+        # ("color", "emission", the TEXTURED_INPUTS), the program of each material or None.
+        self.programs = {role: [(m.programs or {}).get(role) for m in mats]
+                         for role in ("color", "emission") + TEXTURED_INPUTS}
+        self.has_program = {role: np.array([p is not None for p in progs], dtype=bool)
+                            for role, progs in self.programs.items()}
+        self.has_program_factor = any(f.kind == PROGRAM for m in scene.materials if m.mix is not None
+                                      for leaf in m.mix.leaves for f in leaf.factors)
+        self.cycles_version = tuple(getattr(scene, "cycles_version", (5, 0)))[:2]
+        for name in TEXTURED_INPUTS:                  # per_hit and textured_mask see both kinds of input
+            if self.has_program[name].any():
+                self.has_input[name] = self.has_input[name] | self.has_program[name]
 
     @property
     def needed(self) -> bool:
         """Whether any hit reads anything here (else the scene renders without lookups)."""
         return bool(self.has_color.any() or self.has_emission.any() or self.has_factor or self.mesh_tangent.any()
-                    or any(h.any() for h in self.has_input.values()))
+                    or any(h.any() for h in self.has_input.values()) or self.has_programs)
+
+    @property
+    def has_programs(self) -> bool:
+        return self.has_program_factor or any(h.any() for h in self.has_program.values())
+
+    def sample(self, texture, u, v, interpolation="Linear", extension="REPEAT", alpha=True):
+        """(linear colour rows (3, N), alpha (N,)) of image `texture` at (u, v): an Image Texture node
+        inside a node program (engine/nodes/image.py), read as `evaluate` reads a slot."""
+        tex = self.loaded[texture] if 0 <= texture < len(self.loaded) else None
+        if tex is None:
+            return np.repeat(np.array([[1.0], [0.0], [1.0]]), len(u), axis=1), np.ones(len(u))
+        color = self.evaluate(TextureSlot(texture, interpolation, extension), u, v)
+        if not alpha or tex.pixels.shape[2] < 4:
+            return color, np.ones(len(u))
+        return color, lookup(tex.pixels[:, :, 3:4], u, v, interpolation, extension)[:, 0]
 
     def _usable(self, slot):
         return slot if slot is not None and self.loaded[slot.texture] is not None else None
@@ -266,9 +293,22 @@ def textured_materials(scene):
         if len(mesh.triangles):
             used.update(np.unique(np.asarray(mesh.material_ids)).tolist())
     mats = [scene.materials[i] for i in sorted(used)]
+    # Node programs run on any primitive (engine/nodes/context.py): spheres' and quads' materials too.
+    shapes = [scene.materials[i] for i in sorted({x.material_id for x in list(scene.spheres) + list(scene.quads)}
+                                                  - used)]
     return ([m for m in mats if m.color_texture is not None or m.tangent_source != "fixed" or any(
-                label != "emission" for label, _ in material_slots(m))],
-            [m for m in mats if m.emission_texture is not None])
+                label != "emission" for label, _ in material_slots(m)) or _reads_programs(m)]
+            + [m for m in shapes if _reads_programs(m)],
+            [m for m in mats + shapes if m.emission_texture is not None or "emission" in (m.programs or {})])
+
+
+def _reads_programs(material) -> bool:
+    """Whether a material (or a leaf or factor of its mix) has a node program on an input but emission."""
+    if any(role != "emission" for role in (material.programs or {})):
+        return True
+    mix = getattr(material, "mix", None)
+    return mix is not None and any(leaf.material.programs or any(f.kind == PROGRAM for f in leaf.factors)
+                                   for leaf in mix.leaves)
 
 
 def with_texture_means(scene, textures: TextureSet):
@@ -277,10 +317,42 @@ def with_texture_means(scene, textures: TextureSet):
     and emission hit comes from the texture itself (HitTextures), so the estimate stays unbiased
     and the pdfs, which depend on geometry only, stay those of MIS."""
     import dataclasses
+    if textures.has_program["emission"].any():
+        scene = _with_program_means(scene, textures)
     if not textures.has_emission.any():
         return scene
     mats = [dataclasses.replace(m, emission=tuple(float(c) for c in textures.mean(slot)))
             if slot is not None else m for m, slot in zip(scene.materials, textures.emission)]
+    return dataclasses.replace(scene, materials=mats)
+
+
+def _with_program_means(scene, textures: TextureSet):
+    """The scene with each emitter whose emission is a node program given the program's area-weighted
+    mean over its triangles' centroids (at least 1e-6: it stays a light) as `emission` (the light
+    sampler's power; the radiance itself is the program's at every hit and light sample)."""
+    import dataclasses
+    from ..geometry.scene_geometry import TRIANGLE
+    from ..nodes.context import SceneAttributes
+    from ..nodes.evaluator import run
+    meshes = [m for m in scene.meshes if len(m.triangles)]
+    if not meshes:
+        return scene
+    tri = np.concatenate([np.asarray(m.vertices, dtype=np.float64)[np.asarray(m.triangles)] for m in meshes])
+    mat_of = np.concatenate([np.asarray(m.material_ids) for m in meshes])
+    attributes = SceneAttributes(scene, tri, np.ascontiguousarray(triangle_uvs(scene).reshape(-1, 6).T))
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    mats = list(scene.materials)
+    for i, m in enumerate(mats):
+        program = (m.programs or {}).get("emission")
+        sel = np.flatnonzero(mat_of == i)
+        if program is None or not len(sel):
+            continue
+        third = np.full(len(sel), 1.0 / 3.0)
+        ctx = attributes.context(np.full(len(sel), TRIANGLE, np.int8), sel, third, third, None,
+                                 textures.cycles_version, textures, TRIANGLE)
+        value = np.maximum(run(program, ctx), 0.0)
+        mean = (value * area[sel]).sum(axis=1) / max(area[sel].sum(), 1e-300)
+        mats[i] = dataclasses.replace(m, emission=tuple(max(float(c), 1e-6) for c in mean))
     return dataclasses.replace(scene, materials=mats)
 
 
@@ -300,13 +372,18 @@ class HitTextures:
         self.has_color, self.has_emission = textures.has_color, textures.has_emission
         self.tri_tangent, self.has_tangent = (triangle_tangents(scene) if textures.mesh_tangent.any()
                                               else (None, None))
+        self.attributes = None                        # engine/nodes/context.py SceneAttributes: programs only
+        if textures.has_programs:
+            from ..nodes.context import SceneAttributes
+            self.attributes = SceneAttributes(scene, triangles, self.tri_uv)
         self.light_a = self.light_b = None
-        if lights is not None and self.has_emission.any() and len(lights.triangle_light):
+        emits = self.has_emission | textures.has_program["emission"]
+        if lights is not None and emits.any() and len(lights.triangle_light):
             # Each light's triangles (a parallelogram light is a pair), for light samples: numbers k
             # into `emitting` (the textured emitters' triangles, whose barycentric terms are kept).
             total = len(lights.radiance[0])
             tl = lights.triangle_light
-            self.emitting = np.flatnonzero((tl >= 0) & self.has_emission.take(triangle_material))
+            self.emitting = np.flatnonzero((tl >= 0) & emits.take(triangle_material))
             k = np.arange(len(self.emitting))
             self.light_a = np.full(total, -1, np.int64)
             self.light_b = np.full(total, -1, np.int64)
@@ -328,17 +405,51 @@ class HitTextures:
             values[:, sel.take(mine)] = self.textures.evaluate(slots[m], u.take(mine), v.take(mine))
         return values
 
-    def color(self, color, material, kind, prim, b1, b2):
-        """Colour rows (3, N) with textured hits replaced by the texture (Base Colour / Color)."""
-        return self._apply(color, self.textures.color, self.has_color, material, kind, prim, b1, b2)
+    def color(self, color, material, kind, prim, b1, b2, points=None):
+        """Colour rows (3, N) with textured hits replaced by the texture (Base Colour / Color), and the
+        hits of materials with a node program on it by the program's value (at least 0)."""
+        color = self._apply(color, self.textures.color, self.has_color, material, kind, prim, b1, b2)
+        return self._programs("color", color, material, kind, prim, b1, b2, points, low=0.0)
 
-    def emission(self, le, material, kind, prim, b1, b2):
-        """Emitted radiance rows (3, N) with textured hits replaced by texture x strength."""
-        return self._apply(le, self.textures.emission, self.has_emission, material, kind, prim, b1, b2)
+    def emission(self, le, material, kind, prim, b1, b2, points=None):
+        """Emitted radiance rows (3, N) with textured hits replaced by texture x strength (node
+        programs: their value, at least 0)."""
+        le = self._apply(le, self.textures.emission, self.has_emission, material, kind, prim, b1, b2)
+        return self._programs("emission", le, material, kind, prim, b1, b2, points, low=0.0)
 
-    def at(self, hits) -> "HitLookup":
-        """The lookups at a wavefront's hits (engine/geometry/scene_geometry.py nearest_hits)."""
-        return HitLookup(self, hits.kind, hits.prim, hits.u, hits.v)
+    def at(self, hits, points=None) -> "HitLookup":
+        """The lookups at a wavefront's hits (engine/geometry/scene_geometry.py nearest_hits);
+        `points`: engine/nodes/context.py HitPoints of the hits, for node programs."""
+        return HitLookup(self, hits.kind, hits.prim, hits.u, hits.v, points)
+
+    # -- node programs (engine/nodes/evaluator.py) -----------------------------------------------
+    def run_program(self, program, kind, prim, b1, b2, points, idx):
+        """A program's value at the hits idx of these arrays."""
+        from ..geometry.scene_geometry import TRIANGLE
+        from ..nodes.evaluator import run
+        ctx = self.attributes.context(kind.take(idx), prim.take(idx), b1.take(idx), b2.take(idx),
+                                      None if points is None else points.take(idx), self.textures.cycles_version,
+                                      self.textures, TRIANGLE)
+        return run(program, ctx)
+
+    def _programs(self, role, values, material, kind, prim, b1, b2, points, low=None):
+        has = self.textures.has_program[role]
+        if self.attributes is None or not has.any():
+            return values
+        sel = np.flatnonzero(has.take(material))
+        if role == "emission":             # the light sampler knows program emitters' triangles only
+            from ..geometry.scene_geometry import TRIANGLE
+            sel = sel[kind.take(sel) == TRIANGLE]
+        if not len(sel):
+            return values
+        values = np.array(values, dtype=np.float64)
+        mat = material.take(sel)
+        programs = self.textures.programs[role]
+        for m in np.unique(mat):
+            idx = sel.take(np.flatnonzero(mat == m))
+            out = self.run_program(programs[m], kind, prim, b1, b2, points, idx)
+            values[..., idx] = out if low is None else np.maximum(out, low)
+        return values
 
     def factor(self, slot, fallback, kind, prim, b1, b2):
         """A texture mix factor (N,) at hits: the luminance of `slot` at triangle hits with a readable
@@ -352,11 +463,15 @@ class HitTextures:
         out[sel] = LUMINANCE @ self.textures.evaluate(slot, u, v)
         return out
 
-    def input(self, name, values, material, kind, prim, b1, b2):
+    def input(self, name, values, material, kind, prim, b1, b2, points=None):
         """`values` (N,) with the hits whose material has a texture on input `name` read from it
-        (triangle hits only: spheres and quads have no UVs); `values` itself when none has."""
+        (triangle hits only: spheres and quads have no UVs), or a node program (any hit); `values`
+        itself when none has."""
         from ..geometry.scene_geometry import TRIANGLE
+        values = self._programs(name, values, material, kind, prim, b1, b2, points)
         has = self.textures.has_input[name]
+        if self.attributes is not None:
+            has = has & np.array([s is not None for s in self.textures.inputs[name]], dtype=bool)
         if not has.any():
             return values
         sel = np.flatnonzero(has.take(material) & (kind == TRIANGLE))
@@ -419,27 +534,38 @@ class HitTextures:
 
 class HitLookup:
     """The texture lookups of some hits (a ShadingPoint's `lookup`, engine/materials/protocol.py):
-    the hits' primitive kinds, primitives and barycentrics with the scene's HitTextures."""
+    the hits' primitive kinds, primitives and barycentrics with the scene's HitTextures, and for
+    node programs their HitPoints (engine/nodes/context.py; None without programs)."""
 
-    def __init__(self, textures: HitTextures, kind, prim, b1, b2):
+    def __init__(self, textures: HitTextures, kind, prim, b1, b2, points=None):
         self.textures, self.kind, self.prim, self.b1, self.b2 = textures, kind, prim, b1, b2
+        self.points = points
 
     def __getitem__(self, span) -> "HitLookup":
-        return HitLookup(self.textures, self.kind[span], self.prim[span], self.b1[span], self.b2[span])
+        return HitLookup(self.textures, self.kind[span], self.prim[span], self.b1[span], self.b2[span],
+                         None if self.points is None else self.points[span])
 
     def take(self, index) -> "HitLookup":
         return HitLookup(self.textures, self.kind.take(index), self.prim.take(index), self.b1.take(index),
-                         self.b2.take(index))
+                         self.b2.take(index), None if self.points is None else self.points.take(index))
 
     def color(self, color, material):
         """Colour rows (3, N) of materials `material` at these hits (textured ones read)."""
-        return self.textures.color(color, material, self.kind, self.prim, self.b1, self.b2)
+        return self.textures.color(color, material, self.kind, self.prim, self.b1, self.b2, self.points)
+
+    def emission(self, le, material):
+        return self.textures.emission(le, material, self.kind, self.prim, self.b1, self.b2, self.points)
 
     def factor(self, slot, fallback):
         return self.textures.factor(slot, fallback, self.kind, self.prim, self.b1, self.b2)
 
+    def program(self, program):
+        """A node program's value (N,) at these hits (a mix factor, engine/materials/mix.py)."""
+        return self.textures.run_program(program, self.kind, self.prim, self.b1, self.b2, self.points,
+                                         np.arange(len(self.kind)))
+
     def input(self, name, values, material):
-        return self.textures.input(name, values, material, self.kind, self.prim, self.b1, self.b2)
+        return self.textures.input(name, values, material, self.kind, self.prim, self.b1, self.b2, self.points)
 
     def tangent(self, tangents, material):
         return self.textures.tangent(tangents, material, self.kind, self.prim, self.b1, self.b2)

@@ -57,6 +57,7 @@ from .model import Environment, PrincipledV1
 from ..core.errors import SceneError
 from .fields import Fields, is_integer
 from .mix_fields import mix_json, read_mix
+from .programs import programs_json, read_programs
 from .texture_fields import input_slots_json, read_input_slots, read_slot, read_textures, slot_json, textures_json
 
 FORMAT = "tncg15-scene"
@@ -163,6 +164,46 @@ def _diffuse_roughness_json(m) -> dict:
     return {"diffuse_roughness": float(m.diffuse_roughness)} if m.diffuse_roughness else {}
 
 
+def _object_fields(m, arrays) -> dict:
+    """A mesh entry's object data for shader nodes (engine/scene/model.py TriangleMesh.object_matrix ...)."""
+    out = {}
+    if "object_matrix" in m:
+        out["object_matrix"] = np.asarray(m.matrix("object_matrix", 4, 4), dtype=np.float64)
+    if "texspace" in m:
+        value = m.get("texspace")
+        try:
+            centre, size = (tuple(float(c) for c in v) for v in value)
+        except (TypeError, ValueError):
+            m.fail("texspace", "[centre, half size], 3 numbers each", value)
+        out["texspace"] = (centre, size)
+    if "object_random" in m:
+        out["object_random"] = m.number("object_random", 0.0)
+    if "colors" in m:
+        value = m.get("colors")
+        if not isinstance(value, dict):
+            m.fail("colors", "an object of attribute name: array", value)
+        out["colors"] = {name: np.asarray(arrays[ref[1:]] if isinstance(ref, str) and ref.startswith("@") and
+                                          ref[1:] in arrays else ref, dtype=np.float64).reshape(-1, 3, 3)
+                         for name, ref in value.items()}
+    return out
+
+
+def _object_json(mesh, i, arrays) -> dict:
+    out = {}
+    if mesh.object_matrix is not None:
+        out["object_matrix"] = np.asarray(mesh.object_matrix, dtype=np.float64).tolist()
+    if mesh.texspace is not None:
+        out["texspace"] = [[float(c) for c in v] for v in mesh.texspace]
+    if mesh.object_random:
+        out["object_random"] = float(mesh.object_random)
+    if mesh.colors:
+        out["colors"] = {}
+        for k, (name, c) in enumerate(sorted(mesh.colors.items())):
+            arrays[f"mesh{i}_color{k}"] = np.asarray(c, dtype=np.float64).reshape(-1, 3)
+            out["colors"][name] = f"@mesh{i}_color{k}"
+    return out
+
+
 def _material_index(fields, names):
     ref = fields.get("material", 0)
     if is_integer(ref):
@@ -265,7 +306,7 @@ def load_scene(path: str) -> Scene:
                         color_texture=read_slot(m, "color_texture", textures),
                         emission_texture=read_slot(m, "emission_texture", textures),
                         input_textures=read_input_slots(m, textures),
-                        mix=read_mix(m, textures, material),
+                        mix=read_mix(m, textures, material), programs=read_programs(m),
                         **_glossy_fields(m), **_principled_fields(m))
     for i, entry in enumerate(top.objects("materials")):
         m, material_name = _named(entry, "Material", f"#{i}", required=True)
@@ -287,7 +328,8 @@ def load_scene(path: str) -> Scene:
             m.fail("smooth", "a list of 0 (flat) or 1 (smooth) per triangle", smooth.tolist())
         meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids, uvs,
                                    normals=normals, smooth=None if smooth is None else smooth.astype(bool),
-                                   terminator_offset=m.number("terminator_offset", 0.1), tangents=tangents))
+                                   terminator_offset=m.number("terminator_offset", 0.1), tangents=tangents,
+                                   **_object_fields(m, arrays)))
     spheres = []
     for i, entry in enumerate(top.objects("spheres")):
         s, sphere_name = _named(entry, "Object", f"sphere{i}")
@@ -370,6 +412,7 @@ def save_scene(scene: Scene, path: str) -> None:
         if mesh.tangents is not None:
             arrays[f"mesh{i}_tangents"] = np.asarray(mesh.tangents, dtype=np.float64).reshape(-1, 3)
             meshes[-1]["tangents"] = f"@mesh{i}_tangents"
+        meshes[-1].update(_object_json(mesh, i, arrays))
         if mesh.normals is not None:
             arrays[f"mesh{i}_normals"] = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3)
             meshes[-1]["normals"] = f"@mesh{i}_normals"
@@ -385,7 +428,8 @@ def save_scene(scene: Scene, path: str) -> None:
                     **_dielectric_json(m),
                     **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
                                                               ("emission_texture", m.emission_texture))
-                       if slot is not None}, **input_slots_json(m), **mix_json(m, material_json))
+                       if slot is not None}, **input_slots_json(m), **mix_json(m, material_json),
+                    **programs_json(m))
     data = {
         "format": FORMAT, "name": scene.name,
         "version": SMOOTH_VERSION if any(m.normals is not None for m in scene.meshes) else SMOOTH_VERSION - 1,

@@ -12,7 +12,8 @@ Each factor key except "kind" is optional (the MixFactor defaults); "node" names
 from __future__ import annotations
 
 from .fields import Fields
-from .model import CONSTANT, TEXTURE, Mix, MixFactor, MixLeaf
+from .model import CONSTANT, PROGRAM, TEXTURE, Mix, MixFactor, MixLeaf
+from .programs import program_json, read_program
 from .texture_fields import read_slot, slot_json
 
 
@@ -38,7 +39,9 @@ def read_mix(m: Fields, textures: list, read_material):
             factors.append(MixFactor(kind=g.text("kind", CONSTANT), value=g.number("value", default.value),
                                      invert=invert, ior=g.number("ior", default.ior),
                                      blend=g.number("blend", default.blend), output=g.text("output", default.output),
-                                     texture=read_slot(g, "texture", textures), node=g.text("node", "")))
+                                     texture=read_slot(g, "texture", textures), node=g.text("node", ""),
+                                     program=(read_program(g.get("program"), f"{g.owner}: program")
+                                              if "program" in g else None)))
         leaves.append(MixLeaf(material, factors))
     return Mix(leaves)
 
@@ -51,6 +54,7 @@ def mix_json(material, material_json) -> dict:
                      "factors": [dict({"kind": f.kind, "value": float(f.value), "invert": bool(f.invert),
                                        "ior": float(f.ior), "blend": float(f.blend), "output": f.output,
                                        "node": f.node}, **({"texture": slot_json(f.texture)}
-                                                           if f.kind == TEXTURE and f.texture is not None else {}))
+                                                           if f.kind == TEXTURE and f.texture is not None else {}),
+                                       **({"program": program_json(f.program)} if f.kind == PROGRAM else {}))
                                  for f in leaf.factors]}
                     for leaf in material.mix.leaves]}

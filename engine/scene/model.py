@@ -166,6 +166,9 @@ class Material:
     # The anisotropic tangent's source (TANGENT_SOURCES) and, for "uv", the UV map ("": the active one).
     tangent_source: str = "fixed"
     tangent_uv_map: str = ""
+    # Shader-node programs (engine/scene/programs.py) on inputs (COLOR_ROLES and TEXTURED_INPUTS there):
+    # per hit, the program's value replaces the field (the field is the value where none runs).
+    programs: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if self.roughness is None:
@@ -173,7 +176,7 @@ class Material:
 
     @property
     def is_emissive(self) -> bool:
-        return max(self.emission) > 0.0 or self.emission_texture is not None
+        return max(self.emission) > 0.0 or self.emission_texture is not None or "emission" in (self.programs or {})
 
     def has_input_texture(self, name: str) -> bool:
         """Whether an image texture drives the float input `name` (TEXTURED_INPUTS)."""
@@ -206,6 +209,9 @@ class Material:
                 and 0.0 <= value <= 1.0):
             raise SceneError(f"Material '{self.name}': diffuse roughness must be from 0 to 1, got {value!r}")
         self.validate_inputs()
+        if self.programs:
+            from .programs import validate_programs
+            validate_programs(self, TEXTURED_INPUTS)
         if self.kind == MIX:
             if not isinstance(self.mix, Mix):
                 raise SceneError(f"Material '{self.name}': kind mix needs a Mix (its leaves), got {self.mix!r}")
@@ -261,7 +267,8 @@ class Material:
 
 # A mix leaf's weight factors (engine/materials/mix.py evaluates them at each hit).
 CONSTANT, FRESNEL, LAYER_WEIGHT, TEXTURE = "constant", "fresnel", "layer_weight", "texture"
-FACTOR_KINDS = (CONSTANT, FRESNEL, LAYER_WEIGHT, TEXTURE)
+PROGRAM = "program"         # a shader-node program (engine/scene/programs.py) at the hit
+FACTOR_KINDS = (CONSTANT, FRESNEL, LAYER_WEIGHT, TEXTURE, PROGRAM)
 LAYER_OUTPUTS = ("fresnel", "facing")
 
 
@@ -283,6 +290,7 @@ class MixFactor:
     output: str = "fresnel"
     texture: object = None
     node: str = ""
+    program: object = None          # kind program: the Program (engine/scene/programs.py)
 
     @property
     def is_constant(self) -> bool:
@@ -306,6 +314,11 @@ class MixFactor:
                              f"got {self.output!r}")
         if self.kind == TEXTURE and self.texture is None:
             raise SceneError(f"{owner}: a texture mix factor needs its texture slot")
+        if self.kind == PROGRAM:
+            from .programs import Program
+            if not isinstance(self.program, Program):
+                raise SceneError(f"{owner}: a program mix factor needs its node program")
+            self.program.validate(f"{owner}, mix factor '{self.node}'")
 
 
 @dataclass
@@ -438,6 +451,14 @@ class TriangleMesh:
     # (T, 3, 3) corner tangents, world space, for anisotropic materials whose tangent_source is not
     # "fixed" (a UV map's MikkTSpace tangent or Cycles' radial default), interpolated at hits.
     tangents: np.ndarray | None = None
+    # The object of this instance, for shader nodes (engine/nodes/inputs.py): its object-to-world
+    # matrix (4x4; None: the identity), texture space (centre, half size) in object space (None: the
+    # bounding box) for Generated coordinates, Object Info's Random; colour attributes by name,
+    # (T, 3, 3) linear corner colours, as the UVs.
+    object_matrix: np.ndarray | None = None
+    texspace: tuple | None = None
+    object_random: float = 0.0
+    colors: dict | None = None
 
     def validate(self, n_materials: int, emissive: np.ndarray | None = None) -> int:
         """Check the mesh; drop degenerate triangles.  Returns how many were dropped.
@@ -500,6 +521,8 @@ class TriangleMesh:
                 self.uvs = self.uvs[keep]
             if self.tangents is not None:
                 self.tangents = self.tangents[keep]
+            if self.colors:
+                self.colors = {k: np.asarray(c).reshape(-1, 3, 3)[keep] for k, c in self.colors.items()}
             if self.normals is not None:
                 self.normals = self.normals[keep]
                 self.smooth = None if self.smooth is None else self.smooth[keep]

@@ -15,8 +15,9 @@ from .camera import export_camera
 from .images import ImageTable
 from .lights import export_area_light, export_point_light, export_sun_light
 from .materials import MaterialTable
-from .mesh import (bounding_sphere, corner_tangents, corner_uvs, mesh_arrays, mesh_normals, sphere_fit, terminator_offsets,
-                   transform_normals, transform_points, uniform_scale)
+from .mesh import (bounding_sphere, corner_colors, corner_tangents, corner_uvs, mesh_arrays, mesh_normals, sphere_fit,
+                   terminator_offsets, transform_normals, transform_points, uniform_scale)
+from .node_graph import attribute_names
 from .unsupported import object_warnings, scene_warnings
 from .util import ExportError
 from .world import export_world
@@ -69,6 +70,54 @@ def finite_matrix(inst, ob):
     return matrix
 
 
+def hash_string(text):
+    """Cycles' hash_string (its util/hash.h): i = i * 37 + c over the UTF-8 bytes, 32 bits."""
+    i = 0
+    for c in text.encode("utf-8"):
+        i = (i * 37 + c) & 0xFFFFFFFF
+    return i
+
+
+def hash_uint2(kx, ky):
+    """Cycles' hash_uint2 (Bob Jenkins' lookup3 final mix), 32 bits."""
+    m = 0xFFFFFFFF
+
+    def rot(x, k):
+        return ((x << k) | (x >> (32 - k))) & m
+    a = b = c = (0xDEADBEEF + (2 << 2) + 13) & m
+    b, a = (b + ky) & m, (a + kx) & m
+    for x, y, k in (("c", "b", 14), ("a", "c", 11), ("b", "a", 25), ("c", "b", 16), ("a", "c", 4),
+                    ("b", "a", 14), ("c", "b", 24)):
+        v = {"a": a, "b": b, "c": c}
+        v[x] = ((v[x] ^ v[y]) - rot(v[y], k)) & m
+        a, b, c = v["a"], v["b"], v["c"]
+    return c
+
+
+def has_programs(materials):
+    """Whether any of these tracer materials (or their mix leaves and factors) has a node program."""
+    return any(getattr(m, "programs", None) or (getattr(m, "mix", None) is not None and any(
+        leaf.material.programs or any(f.kind == "program" for f in leaf.factors) for leaf in m.mix.leaves))
+        for m in materials)
+
+
+def object_fields(ob, matrix, random_id, materials):
+    """The object data node programs read (engine/scene/model.py TriangleMesh.object_matrix, texspace,
+    object_random), for meshes with a material that has one; {} otherwise (scenes stay as they were)."""
+    if not has_programs(materials):
+        return {}
+    if not random_id:                           # not an instance: Cycles hashes the object's name
+        random_id = hash_uint2(hash_string(ob.name), 0)
+    fields = {"object_matrix": np.asarray(matrix, dtype=np.float64),
+              # Cycles' object random number: the instance's random id / 0xFFFFFFFF (float32).
+              "object_random": float(np.float32(random_id & 0xFFFFFFFF) * np.float32(1.0 / 0xFFFFFFFF))}
+    data = getattr(ob, "data", None)
+    if data is not None and hasattr(data, "texspace_location"):
+        fields["texspace"] = (tuple(float(c) for c in data.texspace_location),
+                              tuple(float(c) for c in data.texspace_size))
+    return fields
+
+
 def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=None, name=None,
                  view_camera=None, mesh_cache=None):
     """Build the tracer Scene.
@@ -104,7 +153,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     n_instances = n_triangles = 0
     skipped = set()
     terminator_warned = set()
-    def add_geometry(ob, otype, matrix, label, own=False):
+    def add_geometry(ob, otype, matrix, label, own=False, random_id=0):
         """One evaluated geometry (a mesh, or a convertible object through to_mesh()) as a
         triangle mesh or an implicit sphere; own: the evaluated mesh of a convertible object
         (own_geometry: never an implicit sphere, not kept in mesh_cache, as a converted one)."""
@@ -114,15 +163,18 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         slot_ids = np.asarray(table.slot_indices(ob, matrix), dtype=np.int64)
         uv_map = table.uv_map(slot_ids)                 # None: no textured material, no UVs
         need = table.tangent_need(slot_ids)             # None: no anisotropic material with mesh tangents
-        arrays = cache.get((key, uv_map, need)) if key is not None else None
-        kept = (ob.name, ob.data.name, uv_map, need) if (mesh_cache is not None and key is not None and not own) else None
+        colours = attribute_names([table.materials[i] for i in slot_ids])     # Attribute nodes' colour attributes
+        arrays = cache.get((key, uv_map, need, colours)) if key is not None else None
+        kept = ((ob.name, ob.data.name, uv_map, need, colours) if (mesh_cache is not None and key is not None and not own)
+                else None)
         if arrays is None and kept is not None:
             arrays = mesh_cache.get(kept)
 
         def read(me):
             base = mesh_arrays(me)
             return base + (corner_uvs(me, uv_map, label, warnings), mesh_normals(me),
-                           corner_tangents(me, need, base[0], base[1], label, warnings))
+                           corner_tangents(me, need, base[0], base[1], label, warnings),
+                           corner_colors(me, colours, label, warnings))
         if arrays is None:
             if otype == "MESH":
                 arrays = read(ob.data)
@@ -135,10 +187,10 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                 if arrays is None:
                     return
             if key is not None:
-                cache[(key, uv_map, need)] = arrays
+                cache[(key, uv_map, need, colours)] = arrays
             if kept is not None:
                 mesh_cache[kept] = arrays
-        verts, tris, slots, uvs, shading, local_tangents = arrays
+        verts, tris, slots, uvs, shading, local_tangents, corner_colours = arrays
         if len(tris) == 0:
             if otype == "MESH" and ob.name not in skipped:
                 skipped.add(ob.name)
@@ -147,7 +199,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         mat_ids = slot_ids[np.clip(slots, 0, len(slot_ids) - 1)]
 
         mode = (_sphere_mode(ob) if otype == "MESH" and uv_map is None and need is None and not own
-                else "NEVER")                       # spheres have no UVs, no tangents
+                and not has_programs([table.materials[i] for i in slot_ids])
+                else "NEVER")                       # spheres have no UVs, no tangents, no object for nodes
         if mode != "NEVER":
             fit = sphere_fit(verts, tris, slots)
             scale = uniform_scale(matrix)
@@ -176,6 +229,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         tri_idx = tris[:, ::-1] if mirrored else tris
         if uvs is not None and mirrored:
             uvs = uvs[:, ::-1]
+        if corner_colours and mirrored:
+            corner_colours = {name: c[:, ::-1] for name, c in corner_colours.items()}
         tangents = None
         if local_tangents is not None:              # as Cycles' object_normal_transform
             tangents = transform_normals(local_tangents, matrix)
@@ -192,7 +247,9 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                                 "supported (only the geometry offset); ignored")
         meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
                                       material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
-                                      terminator_offset=terminator, tangents=tangents))
+                                      terminator_offset=terminator, tangents=tangents,
+                                      **object_fields(ob, matrix, random_id, [table.materials[i] for i in slot_ids]),
+                                      **({"colors": corner_colours} if corner_colours else {})))
         n_instances += 1
         n_triangles += len(tris)
 
@@ -237,16 +294,16 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         if otype in CONVERTIBLE_TYPES:
             # Blender 3.0+ lists the evaluated mesh of a curve, text, metaball or NURBS surface as an
             # instance of its own (below): the object itself is converted only when none came
-            convertible.append((ob, otype, matrix, instance_label(inst, ob)))
+            convertible.append((ob, otype, matrix, instance_label(inst, ob), int(getattr(inst, "random_id", 0))))
             continue
         own = own_geometry(inst, ob)
         if own:
             converted.append((ob.original.name, matrix))
-        add_geometry(ob, otype, matrix, instance_label(inst, ob), own)
+        add_geometry(ob, otype, matrix, instance_label(inst, ob), own, int(getattr(inst, "random_id", 0)))
 
-    for ob, otype, matrix, label in convertible:
+    for ob, otype, matrix, label, random_id in convertible:
         if not any(name == ob.original.name and np.allclose(m, matrix) for name, m in converted):
-            add_geometry(ob, otype, matrix, label)
+            add_geometry(ob, otype, matrix, label, random_id=random_id)
     materials = table.materials or [sm.Material(name="(unused)")]
     background, environment = export_world(scene.world, warnings, images, getattr(sm, "Environment", None))
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],

@@ -143,11 +143,26 @@ def float_image(sock):
 
 
 def image_node(sock):
-    """The Image Texture node whose Color output feeds ``sock``, else None."""
+    """The Image Texture node whose Color output feeds ``sock`` and that reads a UV map (its Vector
+    unlinked, or from a UV Map node or a Texture Coordinate's UV), else None (other coordinates: a
+    node program, mcrt_addon/export/node_graph.py)."""
     node = linked_from(sock)
     if node is None or node.bl_idname != "ShaderNodeTexImage":
         return None
     link = sock.links[0]
     while link.from_node.bl_idname == "NodeReroute":
         link = link.from_node.inputs[0].links[0]
-    return node if link.from_socket.name == "Color" else None
+    return node if link.from_socket.name == "Color" and reads_uv(node) else None
+
+
+def reads_uv(node):
+    """Whether an Image Texture node's Vector is a UV map (unlinked, UV Map node, Texture Coordinate UV)."""
+    vector = socket(node, "Vector")
+    if vector is None or not vector.is_linked:
+        return True
+    link = vector.links[0]
+    while link.from_node.bl_idname == "NodeReroute" and link.from_node.inputs[0].is_linked:
+        link = link.from_node.inputs[0].links[0]
+    source = link.from_node
+    return source.bl_idname == "ShaderNodeUVMap" or (source.bl_idname == "ShaderNodeTexCoord"
+                                                    and link.from_socket.name == "UV")

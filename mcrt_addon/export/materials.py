@@ -74,6 +74,33 @@ class MaterialTable:
         self.object_x = (1.0, 0.0, 0.0)     # the object being exported: its local X axis, world space
         self.used_object_tangent = False    # set by the conversion when it used `object_x`
         self._per_tangent = set()           # names of the Blender materials that use it
+        self._programs = {}                 # the shader node being converted: role -> node program
+        self._emission_color = (0.0, 0.0, 0.0)   # the unlinked emission colour read last
+        self._converting = ""                    # the name of the Blender material being converted
+        self._graph = None                  # node_graph.GraphCompiler, made on first use
+
+    def graph(self):
+        """The node-graph compiler (export/node_graph.py), or None when the tracer has no node layer."""
+        if self._graph is None:
+            from .. import bridge
+            from .node_graph import GraphCompiler
+            try:
+                self._graph = GraphCompiler(self, bridge.module("scene.programs"), bridge.module("nodes.evaluator"),
+                                            bridge.module("nodes.registry"))
+            except ImportError:
+                self._graph = False
+        return self._graph or None
+
+    def program(self, mat, node, sock, target):
+        """(node program or None, folded constant or None) of the graph feeding ``sock``."""
+        graph = self.graph() if self.images is not None else None
+        if graph is None:
+            return None, None
+        return graph.compile(mat, node, sock, target)
+
+    def graph_warned(self):
+        """Whether the last program() named the node feeding its socket in a warning already."""
+        return bool(self._graph and self._graph.warned)
 
     def add(self, material):
         self.materials.append(material)
@@ -96,6 +123,7 @@ class MaterialTable:
         if key in self._per_tangent:
             key = (key, self.object_x)
         if key not in self._index:
+            self._converting = original.name
             self._slots = {}
             self.used_object_tangent = False
             with following_links() as read:             # every node the conversion reads
@@ -119,6 +147,7 @@ class MaterialTable:
         """The UV map a mesh with these material slots needs: '' for the active render one, the
         name a UV Map node gives, or None when no material of the mesh has a texture."""
         names = [slot.uv_map for i in slot_ids for slot in shader_mix.texture_slots(self.materials[i])]
+        names += [name for i in slot_ids for name in shader_mix.program_uv_maps(self.materials[i])]
         if not names:
             return None
         if len(set(names)) > 1:
@@ -166,10 +195,17 @@ class MaterialTable:
         if handler is None:
             self.warn(mat, node, f"{node.bl_idname} is not supported; rendered as diffuse grey")
             return self.Material(name=mat.name, kind=self.DIFFUSE, color=DEFAULT_GREY)
-        material = handler(mat, node)
+        outer, self._programs = self._programs, {}
+        try:
+            material = handler(mat, node)
+            programs = {role: p for role, p in self._programs.items() if role != "emission_strength"}
+        finally:
+            self._programs = outer
         inputs = {name: self._slots.pop(name) for name in self.TEXTURED_INPUTS if name in self._slots}
         if inputs:                              # this BSDF's textured float inputs (read_float's roles)
             material.input_textures = inputs
+        if programs and hasattr(material, "programs"):   # node programs on its inputs (export/node_graph.py)
+            material.programs = dict(material.programs or {}, **programs)
         return material
 
     def side(self, mat, node):
@@ -199,6 +235,15 @@ class MaterialTable:
             slot = self.images.slot(mat, image)
             if slot is not None:
                 self._slots[role] = slot
+        elif sock.is_linked and role is not None:
+            program, value = self.program(mat, node, sock, "RGBA")
+            if program is not None:
+                self._programs[role] = program
+            elif value is not None:
+                return tuple(float(c) for c in value)
+            elif not self.graph_warned():
+                self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)}, which is not modelled; "
+                                     f"its unlinked value is used")
         elif sock.is_linked:
             self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)} (textures are not supported); "
                                  f"its unlinked value is used")
@@ -212,6 +257,14 @@ class MaterialTable:
                 slot.scale = (float(strength),) * 3
             else:
                 del self._slots["emission"]
+        colour, power = self._programs.pop("emission", None), self._programs.pop("emission_strength", None)
+        if slot is not None and strength > 0 and power is not None and colour is None:
+            self.warnings.append(f"Material '{self._converting}': an image emission colour with a strength driven by "
+                                 "nodes is not modelled; the strength's unlinked value is used")
+            power = None
+        if colour is not None or power is not None:      # radiance = colour x strength per hit
+            from .node_graph import scaled
+            self._programs["emission"] = scaled(self.graph(), colour, power, self._emission_color, strength)
 
     def read_float(self, mat, node, *names, default=0.0, role=None):
         """The unlinked value of the first socket of ``names``; with a ``role`` (a float input of
@@ -220,13 +273,25 @@ class MaterialTable:
         sock = socket(node, *names)
         if sock is None:
             return default
-        if sock.is_linked and role is not None and self.images is not None and role in self.TEXTURED_INPUTS:
-            found = float_image(sock)
+        if sock.is_linked and self.images is not None:
+            found = float_image(sock) if role in self.TEXTURED_INPUTS else None
             if found is not None:
                 slot = self.images.slot(mat, found[0])
                 if slot is not None:
                     slot.channel = found[1]
                     self._slots[role] = slot
+                return float(sock.default_value)
+            program, value = self.program(mat, node, sock, "VALUE")
+            if value is not None:
+                return float(value)
+            if program is not None and (role in self.TEXTURED_INPUTS or role == "emission_strength"):
+                self._programs[role] = program
+                return float(sock.default_value)
+            if program is not None:
+                self.warn(mat, node, f"input '{sock.name}' is driven by nodes per hit, which this input does "
+                                     "not take; its unlinked value is used")
+                return float(sock.default_value)
+            if self.graph_warned():
                 return float(sock.default_value)
             source = linked_from(sock)
             what = f"'{source.name}' ({source.bl_idname})" if source is not None else "a muted link"
@@ -264,7 +329,8 @@ class MaterialTable:
         # 4.x/5.0: 'Emission Color' (default white) x 'Emission Strength' (default 0).
         e_color = self.read_color(mat, node, "Emission Color", "Emission", default=(0.0, 0.0, 0.0),
                                   role="emission")
-        e_strength = self.read_float(mat, node, "Emission Strength", default=1.0)
+        self._emission_color = e_color
+        e_strength = self.read_float(mat, node, "Emission Strength", default=1.0, role="emission_strength")
         self._emission_strength(e_strength)
         return tuple(max(c * e_strength, 0.0) for c in e_color)
 
@@ -289,7 +355,8 @@ class MaterialTable:
 
     def _emission(self, mat, node):
         color = self.read_color(mat, node, "Color", default=(1.0, 1.0, 1.0), role="emission")
-        strength = self.read_float(mat, node, "Strength", default=1.0)
+        self._emission_color = color
+        strength = self.read_float(mat, node, "Strength", default=1.0, role="emission_strength")
         self._emission_strength(strength)
         radiance = tuple(max(c * strength, 0.0) for c in color)
         return self.Material(name=mat.name, kind=self.DIFFUSE, color=(0.0, 0.0, 0.0), emission=radiance)

@@ -39,6 +39,33 @@ def corner_uvs(me, uv_map, label, warnings):
     return uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)
 
 
+def corner_colors(me, names, label, warnings):
+    """{name: linear corner colours float64 (T, 3, 3)} of the colour attributes `names` (Attribute nodes
+    of node programs, mcrt_addon/export/node_graph.py attribute_names) on a mesh whose loop triangles
+    are computed: point or corner domain, read with foreach_get ("color": scene linear); a name the
+    mesh lacks is left out (Cycles reads 0 there)."""
+    out = {}
+    if not names:
+        return out
+    attributes = getattr(me, "color_attributes", None)
+    nt = len(me.loop_triangles)
+    loops = np.empty(nt * 3, np.int32)
+    me.loop_triangles.foreach_get("loops", loops)
+    for name in names:
+        attr = attributes.get(name) if attributes is not None else None
+        if attr is None or attr.domain not in ("POINT", "CORNER"):
+            continue
+        values = np.empty(len(attr.data) * 4, np.float32)
+        attr.data.foreach_get("color", values)
+        values = values.reshape(-1, 4)[:, :3].astype(np.float64)
+        if attr.domain == "POINT":
+            corner_vertex = np.empty(len(me.loops), np.int32)
+            me.loops.foreach_get("vertex_index", corner_vertex)
+            values = values[corner_vertex]
+        out[name] = values[loops].reshape(nt, 3, 3)
+    return out
+
+
 def _texture_space(me, verts):
     """(centre, half size) of the mesh's texture space (Blender's auto texture space: the bounding
     box), each zero size made 1 as Blender does; from the bounding box of `verts` if unreadable."""

@@ -71,7 +71,7 @@ def factor_node(table, mat, mix, sock, source, unlinked):
         blend = min(max(table.read_float(mat, source, "Blend", default=0.5), 0.0), 1.0)
         return table.MixFactor(kind="layer_weight", blend=blend, output=link.from_socket.name.lower(),
                                value=unlinked, node=source.name)
-    if kind == "ShaderNodeTexImage" and table.images is not None:
+    if kind == "ShaderNodeTexImage" and table.images is not None and image_node(sock) is not None:
         image = image_node(sock)
         if image is None:
             table.warn(mat, mix, f"a factor from the '{source.name}' node's Alpha is not modelled; "
@@ -81,6 +81,13 @@ def factor_node(table, mat, mix, sock, source, unlinked):
         if slot is None:
             return None                         # warned by the image table
         return table.MixFactor(kind="texture", texture=slot, value=unlinked, node=source.name)
+    program, value = table.program(mat, mix, sock, "VALUE")
+    if value is not None:
+        return table.MixFactor(value=min(max(float(value), 0.0), 1.0), node=source.name)
+    if program is not None:
+        return table.MixFactor(kind="program", program=program, value=unlinked, node=source.name)
+    if table.graph_warned():
+        return None
     table.warn(mat, mix, f"input '{sock.name}' is linked to '{source.name}' ({kind}), which is not modelled "
                          f"as a mix factor; its unlinked value {unlinked:g} is used")
     return None
@@ -168,8 +175,12 @@ def leaves(table, factor, material, slots):
     outer = [] if factor.is_constant and factor.constant() == 1.0 else [factor]
     if material.kind == table.MIX:
         return [table.MixLeaf(leaf.material, outer + list(leaf.factors)) for leaf in material.mix.leaves]
+    programs = {role: p for role, p in (getattr(material, "programs", None) or {}).items() if role != "emission"}
+    if len(programs) != len(getattr(material, "programs", None) or {}):
+        table.warnings.append(f"Material '{material.name}': an emission driven by nodes inside a Mix or Add "
+                              "Shader is not modelled; that side's emission is ignored")
     leaf = dataclasses.replace(material, emission=(0.0, 0.0, 0.0), emission_texture=None,
-                               color_texture=slots.get("color"))
+                               color_texture=slots.get("color"), **({"programs": programs} if hasattr(material, "programs") else {}))
     return [table.MixLeaf(leaf, outer)]
 
 
@@ -222,6 +233,16 @@ def emission_of(table, mat, node, sides):
         for c in range(3):
             total[c] += w * m.emission[c]
     return tuple(total)
+
+
+def program_uv_maps(material):
+    """The UV maps the node programs of a material (its own, its leaves', its factors') read."""
+    programs = list((getattr(material, "programs", None) or {}).values())
+    if getattr(material, "mix", None) is not None:
+        for leaf in material.mix.leaves:
+            programs += list((getattr(leaf.material, "programs", None) or {}).values())
+            programs += [f.program for f in leaf.factors if f.kind == "program"]
+    return [name for p in programs for name in p.uv_maps]
 
 
 def texture_slots(material):

@@ -89,8 +89,10 @@ def unaccounted(wired, warnings, read):
     that the exporter read (materials.py dispatches it, or names it "not supported").  Every other
     node here feeds a socket the exporter does not model (a Diffuse BSDF's Color and Normal, the
     output's Volume and Displacement), so it must be named."""
+    from engine.nodes.registry import supported           # node programs (mcrt_addon/export/node_graph.py)
     return [idname for idname, (material, node, where) in wired.items()
-            if not named(warnings, material, node) and not (where == "Surface" and node in read.get(material, ()))]
+            if not named(warnings, material, node) and not (where == "Surface" and node in read.get(material, ()))
+            and not (where == "other" and supported(idname) and node in read.get(material, ()))]
 
 
 def test_every_shader_node_is_modelled_or_named(wired, monkeypatch):

@@ -124,10 +124,14 @@ def test_principled_emission_colour_texture_and_uv_warnings(empty_scene, make_sa
     assert glowing.emission_texture is not None and glowing.emission_texture.scale == (5.0, 5.0, 5.0)
     assert any("Object 'Sign': no UV map 'Missing'" in w for w in result.warnings), result.warnings
     assert np.array_equal(result.scene.meshes[0].uvs, np.zeros((2, 3, 2)))
-    # a Mapping node between the UVs and the image is not modelled: a warning naming it
+    # a Mapping node between the UVs and the image: a node program (mcrt_addon/export/node_graph.py),
+    # radiance = the image at the mapped coordinates x strength, no warning
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     tex = next(n for n in nodes if n.bl_idname == "ShaderNodeTexImage")
     mapping = nodes.new("ShaderNodeMapping")
     links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
-    warnings = export().warnings
-    assert any("Material 'Glowing'" in w and "Mapping" in w and "not modelled" in w for w in warnings), warnings
+    result = export()
+    assert not any("Material 'Glowing'" in w and "Mapping" in w for w in result.warnings), result.warnings
+    glowing = by_name(result.scene.materials, "Glowing")
+    assert glowing.emission_texture is None
+    assert [n.kind for n in glowing.programs["emission"].nodes] == ["ShaderNodeTexImage", "TNCG15Scale"]

@@ -1,0 +1,250 @@
+"""NodeContext: what the kernels of one program run see besides their inputs: the number of points
+`n`, the running Blender's `cycles_version` (3.4's and 4.x/5.0's nodes differ), the images
+(`images`: an object with `sample(texture, u, v, interpolation, extension) -> (rgb rows (3, N),
+alpha (N,))`, engine/materials/textures.py TextureSet) and the hit attributes the input nodes read.
+
+Attributes are given as arrays or as functions of no arguments (computed on first use and kept), so a
+program pays only for what its nodes read.  Names (rows (3, N) unless noted), as Cycles' ShaderData:
+
+  position        P, world space
+  normal          N, the shading normal, flipped to the viewer's side on back faces (Cycles flips N
+                  and Ng of back-facing hits)
+  true_normal     Ng, the geometric normal, on the viewer's side
+  incoming        I = the direction towards the viewer (-ray direction)
+  backfacing      (N,) 1.0 where the ray hit the back face
+  uv              (u, v, 0) of the mesh's UV map (one UV map per mesh: engine/scene/model.py uvs)
+  generated       the object-space position mapped to its texture space: (P_obj - centre) / (2 half size) + 1/2
+  object          P in object space (the inverse of the object's matrix)
+  object_normal   normalize(M^T N), N in object space (Cycles' object_inverse_normal_transform)
+  object_location the object's origin in world space
+  object_random   (N,) Object Info's Random (Cycles' random_id / 0xFFFFFFFF)
+  camera          P in Cycles' camera space (x right, y up, z forward)
+  ray_depth       (N,) the bounce the hit was found on (0: the camera ray)
+  ray_kind        (N,) int: 0 camera, 1 diffuse, 2 glossy, 3 transmission (the ray that found the hit),
+                  4 a light sample (a shadow ray)
+  ray_length      (N,) the distance from the ray origin
+  color:NAME      a colour attribute's linear corner colours interpolated at the hit
+When folding constants (n = 1, no hits) every attribute raises `Varying`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+SHADOW_RAY = 4        # ray_kind at light samples (engine/nodes/inputs.py Light Path: Is Shadow Ray)
+
+
+class Varying(LookupError):
+    """A kernel read a hit attribute (or an image) where none is given: its output is not constant."""
+
+
+class NodeContext:
+    def __init__(self, n: int, cycles_version=(5, 0), attributes=None, images=None):
+        self.n = int(n)
+        self.cycles_version = tuple(cycles_version)[:2]
+        self.images = images
+        self._attributes = dict(attributes or {})
+        self.folding = attributes is None      # evaluator.fold's context: no hits at all
+        self.warnings: list[str] = []
+
+    def has(self, name: str) -> bool:
+        return name in self._attributes
+
+    def attr(self, name: str) -> np.ndarray:
+        """The attribute `name` (see the module doc); Varying when the context has none."""
+        if name not in self._attributes:
+            raise Varying(name)
+        value = self._attributes[name]
+        if callable(value):
+            value = value()
+            self._attributes[name] = value
+        return value
+
+    def image(self):
+        if self.images is None:
+            raise Varying("images")
+        return self.images
+
+    # conveniences
+    def zeros(self) -> np.ndarray:
+        return np.zeros(self.n)
+
+    def zeros3(self) -> np.ndarray:
+        return np.zeros((3, self.n))
+
+
+# -- the attributes of hits on a scene --------------------------------------------------------------
+class HitPoints:
+    """What the integrator knows of some hits besides their primitives: the rows `point`, `direction`
+    (the ray's), `normal` (outward geometric), `shading` (the shading normal, outward side) and the
+    (N,) `depth`, `ray_kind`, `distance`; any may be None.  Sliced and taken as the hits are."""
+    FIELDS = ("point", "direction", "normal", "shading", "depth", "ray_kind", "distance")
+
+    def __init__(self, **arrays):
+        for name in self.FIELDS:
+            setattr(self, name, arrays.get(name))
+
+    def _map(self, fn):
+        return HitPoints(**{name: None if getattr(self, name) is None else fn(getattr(self, name))
+                            for name in self.FIELDS})
+
+    def __getitem__(self, span) -> "HitPoints":
+        return self._map(lambda a: a[..., span])
+
+    def take(self, index) -> "HitPoints":
+        return self._map(lambda a: a.take(index, axis=a.ndim - 1))
+
+
+class SceneAttributes:
+    """A scene's per-triangle data for the input nodes, gathered once per prepared scene: the corner
+    UVs and colour attributes, each triangle's object (its inverse matrix, texture space, location,
+    Random), the triangles' corners, and the camera (Cycles' camera space)."""
+
+    def __init__(self, scene, triangles, tri_uv):
+        meshes = [m for m in scene.meshes if len(m.triangles)]
+        self.triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+        self.tri_uv = tri_uv                       # rows (6, T)
+        self.tri_object = (np.concatenate([np.full(len(m.triangles), i) for i, m in enumerate(meshes)])
+                           if meshes else np.zeros(0, np.int64))
+        count = max(len(meshes), 1)
+        self.to_object = np.tile(np.eye(4)[:3], (count, 1, 1))          # (O, 3, 4) world -> object
+        self.to_world = np.tile(np.eye(3), (count, 1, 1))               # (O, 3, 3) object -> world
+        self.location = np.zeros((count, 3))
+        self.centre = np.zeros((count, 3))
+        self.size = np.ones((count, 3))
+        self.random = np.zeros(count)
+        for i, m in enumerate(meshes):
+            matrix = np.eye(4) if m.object_matrix is None else np.asarray(m.object_matrix, dtype=np.float64)
+            inverse = np.linalg.pinv(matrix)
+            self.to_object[i], self.to_world[i], self.location[i] = inverse[:3], matrix[:3, :3], matrix[:3, 3]
+            if m.texspace is not None:
+                centre, size = (np.asarray(v, dtype=np.float64) for v in m.texspace)
+            else:                                   # Blender's auto texture space: the bounding box
+                local = np.asarray(m.vertices, dtype=np.float64) @ inverse[:3, :3].T + inverse[:3, 3]
+                lo, hi = local.min(axis=0), local.max(axis=0)
+                centre, size = 0.5 * (lo + hi), 0.5 * (hi - lo)
+            flat = size <= 1e-9 * max(float(np.abs(size).max()), 1.0)       # Blender: a zero size is 1
+            self.centre[i], self.size[i] = centre, np.where(flat, 1.0, size)
+            self.random[i] = float(m.object_random)
+        names = sorted({name for m in meshes for name in (m.colors or {})})
+        self.colors = {}
+        for name in names:
+            parts = [np.asarray(m.colors[name], dtype=np.float64).reshape(-1, 9) if m.colors and name in m.colors
+                     else np.zeros((len(m.triangles), 9)) for m in meshes]
+            self.colors[name] = np.ascontiguousarray(np.concatenate(parts).T)        # rows (9, T)
+        cam = getattr(scene, "camera", None)
+        self.world_to_camera = None
+        if cam is not None:
+            to_world = np.asarray(cam.matrix, dtype=np.float64) @ np.diag([1.0, 1.0, -1.0, 1.0])
+            self.world_to_camera = np.linalg.inv(to_world)
+
+    def context(self, kind, prim, b1, b2, points, cycles_version, images, triangle_kind) -> NodeContext:
+        """The NodeContext of some hits (kind, prim, b1, b2 (N,); points: a HitPoints or None, e.g. at
+        light samples: then positions and normals come from the triangles)."""
+        n = len(kind)
+        tri = np.flatnonzero(kind == triangle_kind)
+        prim_t = prim.take(tri)
+        b1t, b2t = b1.take(tri), b2.take(tri)
+        all_tri = len(tri) == n
+        obj = self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(len(tri), np.int64)
+
+        def on_triangles(values_t, rest=0.0):
+            """Rows (k, N) with the triangle hits' values; `rest` elsewhere."""
+            if all_tri:
+                return values_t
+            out = np.full((values_t.shape[0], n), rest) if values_t.ndim == 2 else np.full(n, rest)
+            out[..., tri] = values_t
+            return out
+
+        def bary(corners):          # corners (T, 3, 3) -> rows (3, len(tri))
+            c = corners[prim_t]
+            b0 = 1.0 - b1t - b2t
+            return (b0[:, None] * c[:, 0] + b1t[:, None] * c[:, 1] + b2t[:, None] * c[:, 2]).T
+
+        def position():
+            if points is not None and points.point is not None:
+                return points.point
+            return on_triangles(bary(self.triangles))
+
+        def geometric():
+            c = self.triangles[prim_t]
+            g = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]).T
+            return on_triangles(g / np.maximum(np.sqrt((g * g).sum(axis=0)), 1e-300), 0.0)
+
+        def towards():
+            if points is None or points.direction is None or points.normal is None:
+                return np.ones(n)
+            return np.where((points.direction * points.normal).sum(axis=0) < 0.0, 1.0, -1.0)
+
+        def true_normal():
+            base = points.normal if points is not None and points.normal is not None else ctx.attr("_geometric")
+            return base * ctx.attr("_towards")
+
+        def normal():
+            base = points.shading if points is not None and points.shading is not None else None
+            return true_normal() if base is None else base * ctx.attr("_towards")
+
+        def incoming():
+            if points is None or points.direction is None:
+                return ctx.attr("true_normal")
+            return -points.direction
+
+        def obj_pos():
+            p = ctx.attr("position")
+            if not len(tri):
+                return p
+            m = self.to_object[obj]                                   # (k, 3, 4)
+            pt = p[:, tri] if not all_tri else p
+            local = np.einsum("kij,jk->ik", m[:, :, :3], pt) + m[:, :, 3].T
+            out = p.copy()
+            out[:, tri] = local
+            return out
+
+        def generated():
+            o = ctx.attr("object")
+            if not len(tri):
+                return o
+            out = o.copy()
+            out[:, tri] = (o[:, tri] - self.centre[obj].T) / (2.0 * self.size[obj].T) + 0.5
+            return out
+
+        def object_normal():
+            nrm = ctx.attr("normal")
+            if not len(tri):
+                return nrm
+            m = self.to_world[obj]                                    # M^T n
+            local = np.einsum("kji,jk->ik", m, nrm[:, tri])
+            out = nrm.copy()
+            out[:, tri] = local / np.maximum(np.sqrt((local * local).sum(axis=0)), 1e-300)
+            return out
+
+        def uv():
+            if self.tri_uv is None or not len(tri):
+                return np.zeros((3, n))
+            c = self.tri_uv.take(prim_t, axis=1)
+            b0 = 1.0 - b1t - b2t
+            u = b0 * c[0] + b1t * c[2] + b2t * c[4]
+            v = b0 * c[1] + b1t * c[3] + b2t * c[5]
+            return on_triangles(np.stack([u, v, np.zeros(len(tri))]))
+
+        def camera():
+            if self.world_to_camera is None:
+                return np.zeros((3, n))
+            m = self.world_to_camera
+            return m[:3, :3] @ ctx.attr("position") + m[:3, 3:4]
+
+        attrs = {"position": position, "_geometric": geometric, "_towards": towards, "true_normal": true_normal,
+                 "normal": normal, "incoming": incoming, "object": obj_pos, "generated": generated,
+                 "object_normal": object_normal, "uv": uv, "camera": camera,
+                 "backfacing": lambda: (ctx.attr("_towards") < 0.0).astype(np.float64),
+                 "object_location": lambda: on_triangles(self.location[obj].T),
+                 "object_random": lambda: on_triangles(self.random[obj])}
+        attrs["ray_kind"], attrs["ray_depth"] = np.full(n, SHADOW_RAY), np.zeros(n)   # light samples
+        if points is not None:
+            for name, field in (("ray_depth", "depth"), ("ray_kind", "ray_kind"), ("ray_length", "distance")):
+                if getattr(points, field) is not None:
+                    attrs[name] = getattr(points, field)
+        for name, rows in self.colors.items():
+            attrs[f"color:{name}"] = (lambda rows=rows: on_triangles(bary(rows.T.reshape(-1, 3, 3))))
+        ctx = NodeContext(n, cycles_version, attrs, images)
+        return ctx

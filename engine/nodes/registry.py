@@ -1,0 +1,31 @@
+"""Every node kernel, by Blender node type: the KERNELS of engine/nodes/inputs.py, image.py, color.py,
+math.py, converter.py and the procedural/ package, merged.  A module that is not there means its
+nodes are unsupported (the exporter then warns and uses the socket's default value)."""
+from __future__ import annotations
+
+import importlib
+
+KERNEL_MODULES = ("inputs", "image", "color", "math", "converter", "procedural")
+_TABLE: dict | None = None
+
+
+def kernels() -> dict:
+    """{bl_idname: kernel(inputs, props, ctx) -> {output identifier: array}} of every module there is."""
+    global _TABLE
+    if _TABLE is None:
+        table = {}
+        for name in KERNEL_MODULES:
+            full = f"{__package__}.{name}"
+            try:
+                module = importlib.import_module(full)
+            except ModuleNotFoundError as exc:
+                if exc.name != full:
+                    raise
+                continue
+            table.update(getattr(module, "KERNELS", {}))
+        _TABLE = table
+    return _TABLE
+
+
+def supported(kind: str) -> bool:
+    return kind in kernels()
