@@ -20,6 +20,11 @@ A float socket reaches the emission / the AOV as (f, f, f), a vector as its (x, 
 Raw float pixels: a 32-bit EXR (linear, no view transform is applied to EXR files; the scene's view
 transform is Standard anyway), no denoising, no clamping, bounces 0.
 
+A kernel test needs the node's props as the exporter captures them: `keep(key, node)` in `build`
+stores {"props": capture_props(node) (its plain enum / bool / number properties and
+mcrt_addon/export/node_props.py special_props), "inputs": its input sockets' default values}, and
+`render(..., kept=True)` returns them as a third value {key: ...}, from either Blender.
+
 Blender 3.4: `render(build, blender="3.4")` runs Debian's `/usr/bin/blender -b` on this file (it
 is also a Blender script); `build` must then be a module-level function of an importable module
 (it is imported by module name and qualified name in Blender's Python, whose PYTHONPATH is the
@@ -39,6 +44,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(os.path.dirname(HERE))
 BLENDER34 = os.environ.get("BLENDER_BIN") or shutil.which("blender") or "/usr/bin/blender"
 RESOLUTION = 32
+KEPT = {}                      # keep(): props captured while `build` runs
 
 
 def coordinates(resolution=RESOLUTION, z=0.0):
@@ -50,8 +56,9 @@ def coordinates(resolution=RESOLUTION, z=0.0):
     return np.stack([x, y, np.full(w * w, float(z))])
 
 
-def render(build, resolution=RESOLUTION, blender="5.0", z=0.0, **kwargs):
-    """Cycles' image of `build`'s output(s) and the object coordinates of the pixel centres.
+def render(build, resolution=RESOLUTION, blender="5.0", z=0.0, kept=False, **kwargs):
+    """Cycles' image of `build`'s output(s) and the object coordinates of the pixel centres (and the
+    props `keep` stored, with kept=True).
 
     `kwargs` are passed on to `build(nodes, links, coord, **kwargs)`; `z` is the coordinate's z."""
     _check_resolution(resolution)
@@ -64,8 +71,43 @@ def render(build, resolution=RESOLUTION, blender="5.0", z=0.0, **kwargs):
         else:
             raise ValueError(f"blender must be '5.0' or '3.4', not {blender!r}")
         images = read_layers(path, names)
+        if blender == "3.4":
+            with open(path + ".json") as f:
+                props = json.load(f)["kept"]
+        else:
+            props = json.loads(json.dumps(KEPT))           # as plain as a scene file keeps them
     points = coordinates(resolution, z)
-    return images, points
+    return (images, points, props) if kept else (images, points)
+
+
+def keep(key, node):
+    """Store {"props": capture_props(node), "inputs": {identifier: default value}} (the defaults of its
+    input sockets: a float, or 3 floats for a colour / vector) under `key` for render(..., kept=True)."""
+    defaults = {}
+    for sock in node.inputs:
+        value = getattr(sock, "default_value", None)
+        if value is None:
+            continue
+        defaults[sock.identifier] = float(value) if isinstance(value, (int, float)) else [float(v) for v in value][:3]
+    KEPT[key] = {"props": capture_props(node), "inputs": defaults}
+    return node
+
+
+def capture_props(node):
+    """The node's props as the exporter gives them to the kernels: special_props (Color Ramp, curves)
+    and its own plain enum / bool / int / float properties."""
+    import bpy
+
+    from mcrt_addon.export.node_props import special_props
+    props = dict(special_props(node) or {})
+    base = {p.identifier for p in bpy.types.ShaderNode.bl_rna.properties} | {"rna_type"}
+    for prop in node.bl_rna.properties:
+        if prop.identifier in base or prop.identifier in props:
+            continue
+        if prop.type in ("ENUM", "BOOLEAN", "INT", "FLOAT") and not getattr(prop, "array_length", 0) \
+                and not getattr(prop, "is_enum_flag", False):
+            props[prop.identifier] = getattr(node, prop.identifier)
+    return props
 
 
 def _check_resolution(resolution):
@@ -78,7 +120,7 @@ def _render_blender34(build, path, resolution, z, kwargs):
     if "<locals>" in build.__qualname__ or build.__module__ == "__main__":
         raise ValueError("a Blender 3.4 build must be a module-level function of an importable module")
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([REPO, sysconfig.get_paths()["purelib"]])
+    env["PYTHONPATH"] = os.pathsep.join([REPO, sysconfig.get_paths()["purelib"]] + env.get("PYTHONPATH", "").split(os.pathsep))
     args = [BLENDER34, "-b", "--factory-startup", "--python-use-system-env", "--python", os.path.abspath(__file__),
             "--", "--module", build.__module__, "--function", build.__qualname__,
             "--kwargs", json.dumps(kwargs), "--resolution", str(int(resolution)), "--z", repr(float(z)),
@@ -133,6 +175,7 @@ def render_in_process(build, path, resolution, z, kwargs):
             mat.use_nodes = True
         nodes, links = mat.node_tree.nodes, mat.node_tree.links
         nodes.clear()
+        KEPT.clear()
         coord = _snapped_coordinate(nodes, links, resolution, z)
         result = build(nodes, links, coord, **kwargs)
         out = nodes.new("ShaderNodeOutputMaterial")
@@ -258,7 +301,7 @@ def _blender_main(argv):
     names = render_in_process(build, a.out, a.resolution, a.z, json.loads(a.kwargs))
     import bpy
     with open(a.out + ".json", "w") as f:
-        json.dump({"names": names, "blender": list(bpy.app.version)}, f)
+        json.dump({"names": names, "blender": list(bpy.app.version), "kept": KEPT}, f)
 
 
 if __name__ == "__main__":

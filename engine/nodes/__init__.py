@@ -1,0 +1,1 @@
+"""Shader nodes (package docstring: engine/nodes/__init__.py is nodes-core's)."""
