@@ -7,8 +7,8 @@ return what Cycles returns where the plain one is undefined (division by zero gi
 negative base to a non-integer exponent 0, the logarithm of a non-positive number 0, ...).
 
 Blender 3.4 and 4.x/5.0 differ (ctx.cycles_version): 3.4 has no Floored Modulo, no vector Power and
-Sign; its Arctan2 of (0, -0) is pi (5.0: 0); its vector Reflect uses the second vector as given
-(5.0 normalises it) and Refract normalises it without the zero-length guard.
+Sign; its Arctan2 of (0, -0) is pi (5.0: 0); its vector Reflect and Refract normalise the second
+vector without the zero-length guard (a zero vector gives NaN; 5.0 leaves it zero).
 """
 from __future__ import annotations
 
@@ -207,7 +207,7 @@ VECTOR_OPS = {   # (a, b, c, scale, legacy) -> vector rows or a float (N,)
     "MULTIPLY_ADD": lambda a, b, c, s, L: a * b + c,
     "CROSS_PRODUCT": lambda a, b, c, s, L: cross(a, b),
     "PROJECT": lambda a, b, c, s, L: _project(a, b),
-    "REFLECT": lambda a, b, c, s, L: _reflect(a, b if L else safe_normalize(b)),
+    "REFLECT": lambda a, b, c, s, L: _reflect(a, _normalize_unsafe(b) if L else safe_normalize(b)),
     "REFRACT": lambda a, b, c, s, L: _refract(a, _normalize_unsafe(b) if L else safe_normalize(b), s),
     "FACEFORWARD": lambda a, b, c, s, L: np.where(dot(c, b) < 0.0, a, -a),
     "DOT_PRODUCT": lambda a, b, c, s, L: dot(a, b),

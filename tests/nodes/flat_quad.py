@@ -154,7 +154,7 @@ def read_layers(path, names):
     def layer(pass_name):
         planes = []
         for c in "RGB":
-            hits = [i for i, n in enumerate(channels) if n.endswith(f"{pass_name}.{c}")]
+            hits = [i for i, n in enumerate(channels) if n == f"{pass_name}.{c}" or n.endswith(f".{pass_name}.{c}")]
             if len(hits) != 1:
                 raise IOError(f"{path}: no single channel for {pass_name}.{c} in {channels}")
             planes.append(pixels[hits[0]])
@@ -298,10 +298,11 @@ def _blender_main(argv):
     build = importlib.import_module(a.module)
     for part in a.function.split("."):
         build = getattr(build, part)
-    names = render_in_process(build, a.out, a.resolution, a.z, json.loads(a.kwargs))
+    harness = importlib.import_module("tests.nodes.flat_quad")     # the module `build` calls keep() of
+    names = harness.render_in_process(build, a.out, a.resolution, a.z, json.loads(a.kwargs))
     import bpy
     with open(a.out + ".json", "w") as f:
-        json.dump({"names": names, "blender": list(bpy.app.version), "kept": KEPT}, f)
+        json.dump({"names": names, "blender": list(bpy.app.version), "kept": harness.KEPT}, f)
 
 
 if __name__ == "__main__":

@@ -137,7 +137,7 @@ def test_vector_math_map_range_clamp_agree_with_cycles():
     errors = _vector_errors(images, points, kept)
     bad = {k: e for k, e in errors.items() if e > 1.0}
     assert not bad, bad
-    # control: Reflect about the unnormalised vector (Blender 3.4's formula) does not pass in 5.0
+    # control: Reflect about the unnormalised vector does not pass
     a, b, c, va, vb, vc = _abc(points)
     assert worst(images["v_REFLECT"], va - 2.0 * vb * (va * vb).sum(axis=0)) > 100
 
