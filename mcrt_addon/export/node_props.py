@@ -1,7 +1,7 @@
 """The properties of shader nodes whose settings are not plain RNA values: Color Ramp and the RGB /
 Vector / Float Curves nodes.  `special_props(node)` gives them as plain data for the node programs
-(engine/scene/programs.py; the generic capture of mcrt_addon/export/node_graph.py calls it first and
-adds the node's plain enum / bool / number properties), None for every other node.
+the exporter compiles (its generic property capture calls it first and adds the node's plain enum /
+bool / number properties), None for every other node.
 
 Cycles does not evaluate a ramp or a curve per shading point: it bakes a table in Blender (Blender's
 own ColorRamp.evaluate / CurveMapping.evaluate) and interpolates it (engine/nodes/color.py).  The

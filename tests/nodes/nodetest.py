@@ -1,4 +1,4 @@
-"""Helpers of the node-kernel tests (tests/nodes/test_*.py): input values that vary over the flat
+"""Helpers of the node-kernel tests in tests/nodes/: input values that vary over the flat
 quad (tests/nodes/flat_quad.py) built from the snapped coordinate with exact float32 operations, their
 NumPy twins, and the per-pixel comparison of a kernel's output with Cycles' image."""
 from types import SimpleNamespace
