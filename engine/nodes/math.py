@@ -23,6 +23,15 @@ def _legacy(ctx) -> bool:
     return tuple(getattr(ctx, "cycles_version", (5, 0)))[:2] < (4, 0)
 
 
+def _input(inputs, key, ctx, vector=False, default=0.0):
+    """inputs[key], or a constant where the exporter left out a socket the operation hides (Blender
+    disables the unused sockets; Cycles reads them, but they do not change the result)."""
+    value = inputs.get(key)
+    if value is not None:
+        return value
+    return np.full((3, ctx.n) if vector else ctx.n, float(default))
+
+
 # -- scalar helpers (util/math_base.h) ---------------------------------------------------------------
 def safe_divide(a, b):
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -150,7 +159,7 @@ def math_value(operation: str, a, b, c, legacy: bool = False):
 
 
 def math_kernel(inputs, props, ctx):
-    a, b, c = inputs["Value"], inputs["Value_001"], inputs["Value_002"]
+    a, b, c = (_input(inputs, key, ctx) for key in ("Value", "Value_001", "Value_002"))
     value = math_value(props.get("operation", "ADD"), a, b, c, _legacy(ctx))
     if props.get("use_clamp", False):                 # MathNode::expand: a Clamp node (0, 1) after
         value = _clamp(value, 0.0, 1.0)
@@ -239,7 +248,8 @@ def vector_math_kernel(inputs, props, ctx):
     if op not in VECTOR_OPS or (legacy and op in LEGACY_MISSING_VECTOR):
         raise SceneError(f"Vector Math node: operation {op!r} is not one of Cycles' "
                          f"{'3.4' if legacy else '5.0'} operations")
-    a, b, c, s = inputs["Vector"], inputs["Vector_001"], inputs["Vector_002"], inputs["Scale"]
+    a, b, c = (_input(inputs, key, ctx, vector=True) for key in ("Vector", "Vector_001", "Vector_002"))
+    s = _input(inputs, "Scale", ctx, default=1.0)
     with np.errstate(all="ignore"):
         r = VECTOR_OPS[op](a, b, c, s, legacy)
     if r.ndim == 1:                                   # a float operation: no vector (Cycles leaves it unset)
@@ -312,11 +322,11 @@ def map_range_kernel(inputs, props, ctx):
     clamp = bool(props.get("clamp", True))
     if props.get("data_type", "FLOAT") == "FLOAT_VECTOR":
         v = map_range_vector(inputs["Vector"], inputs["From_Min_FLOAT3"], inputs["From_Max_FLOAT3"],
-                             inputs["To_Min_FLOAT3"], inputs["To_Max_FLOAT3"], inputs["Steps_FLOAT3"],
-                             interpolation, clamp)
+                             inputs["To_Min_FLOAT3"], inputs["To_Max_FLOAT3"],
+                             _input(inputs, "Steps_FLOAT3", ctx, vector=True, default=4.0), interpolation, clamp)
         return {"Vector": v, "Result": np.zeros(v.shape[1])}
     r = map_range_float(inputs["Value"], inputs["From Min"], inputs["From Max"], inputs["To Min"],
-                        inputs["To Max"], inputs["Steps"], interpolation, clamp)
+                        inputs["To Max"], _input(inputs, "Steps", ctx, default=4.0), interpolation, clamp)
     return {"Result": r, "Vector": np.zeros((3, r.shape[0]))}
 
 

@@ -22,7 +22,7 @@ transform is Standard anyway), no denoising, no clamping, bounces 0.
 
 A kernel test needs the node's props as the exporter captures them: `keep(key, node)` in `build`
 stores {"props": capture_props(node) (its plain enum / bool / number properties and
-mcrt_addon/export/node_props.py special_props), "inputs": its input sockets' default values}, and
+mcrt_addon/export/node_props.py special_props), "inputs": its enabled input sockets' default values}, and
 `render(..., kept=True)` returns them as a third value {key: ...}, from either Blender.
 
 Blender 3.4: `render(build, blender="3.4")` runs Debian's `/usr/bin/blender -b` on this file (it
@@ -82,9 +82,12 @@ def render(build, resolution=RESOLUTION, blender="5.0", z=0.0, kept=False, **kwa
 
 def keep(key, node):
     """Store {"props": capture_props(node), "inputs": {identifier: default value}} (the defaults of its
-    input sockets: a float, or 3 floats for a colour / vector) under `key` for render(..., kept=True)."""
+    enabled input sockets, as the exporter gives a kernel: a float, or 3 floats for a colour / vector)
+    under `key` for render(..., kept=True).  Call it after setting the node's properties."""
     defaults = {}
     for sock in node.inputs:
+        if not getattr(sock, "enabled", True):         # as the exporter: a hidden socket is left out
+            continue
         value = getattr(sock, "default_value", None)
         if value is None:
             continue
