@@ -1,1 +1,0 @@
-"""Shader nodes (package docstring: engine/nodes/__init__.py is nodes-core's)."""
