@@ -10,7 +10,7 @@ from engine.nodes import color as nc
 from engine.nodes import converter as cv
 from engine.nodes import math as nm
 from tests.nodes import flat_quad
-from tests.nodes.nodetest import combine, ctx, inputs_of, worst
+from tests.nodes.nodetest import combine, ctx, inputs_of, math_node, worst
 from tests.nodes.test_color import RAMPS, _node, _other_inputs, _set_curve, _set_ramp, colour_values, colours
 from tests.nodes.test_converter import temperatures, wavelengths
 
@@ -47,12 +47,10 @@ def build_legacy(nodes, links, coord):
     for i, ch in enumerate("HSV"):
         _node(nodes, links, "ShaderNodeSeparateHSV", f"separatehsv_{ch}", out, {"Color": c1}, output=i)
     _node(nodes, links, "ShaderNodeRGBToBW", "bw", out, {"Color": c1})
-    from tests.nodes.test_converter import build_converters
-    conv = build_converters.__globals__                    # the same temperature / wavelength inputs
-    sep = nodes.new("ShaderNodeSeparateXYZ")
+    sep = nodes.new("ShaderNodeSeparateXYZ")              # the temperatures and wavelengths of test_converter
     links.new(coord, sep.inputs[0])
     x, y = sep.outputs[0], sep.outputs[1]
-    mm = conv["math_node"]
+    mm = math_node
     kelvin = mm(nodes, links, "ADD", mm(nodes, links, "MULTIPLY_ADD", x, 7000.0, mm(nodes, links, "MULTIPLY", y, 300.0)), 7000.0)
     _node(nodes, links, "ShaderNodeBlackbody", "blackbody", out, {"Temperature": kelvin})
     wl = mm(nodes, links, "MULTIPLY_ADD", x, 230.0, mm(nodes, links, "MULTIPLY_ADD", y, 7.0, 575.0))
