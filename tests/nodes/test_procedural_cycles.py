@@ -21,12 +21,17 @@ TOL = 2e-5                  # absolute, on values of order 1 (float32 ulp at 1: 
 FLIP_SHARE = 0.002          # share of pixels allowed to land in another cell (float32 borders)
 
 
+def aov_name(case_index, output_index):
+    """'t<case>o<output>': no AOV name ends with another (the harness finds passes by suffix)."""
+    return f"t{case_index}o{output_index}"
+
+
 def build(nodes, links, coord, bl_idname="", cases=None, outputs=()):
-    """Blender side: one node per case, each output to an AOV '<case>_<output>'."""
+    """Blender side: one node per case, each output to an AOV named by `aov_name`."""
     sep = nodes.new("ShaderNodeSeparateXYZ")
     links.new(coord, sep.inputs[0])
     result = {}
-    for name, case in cases.items():
+    for i, case in enumerate(cases.values()):
         node = nodes.new(bl_idname)
         for key, value in case.get("props", {}).items():
             setattr(node, key, value)
@@ -38,8 +43,8 @@ def build(nodes, links, coord, bl_idname="", cases=None, outputs=()):
         for key, value in case.get("inputs", {}).items():
             sockets[key].default_value = value
         outs = {s.identifier: s for s in node.outputs}
-        for out in case.get("outputs", outputs):
-            result[f"{name}_{out}"] = outs[out]
+        for j, out in enumerate(case.get("outputs", outputs)):
+            result[aov_name(i, j)] = outs[out]
     return result
 
 
@@ -49,12 +54,12 @@ def compare(bl_idname, cases, outputs, version=(5, 0), blender="5.0", z=Z, resol
     images, pts = render(build, resolution=resolution, blender=blender, z=z, bl_idname=bl_idname,
                          cases=cases, outputs=list(outputs))
     pairs = {}
-    for name, case in cases.items():
+    for i, (name, case) in enumerate(cases.items()):
         got = evaluate(bl_idname, case, pts, version)
-        for out in case.get("outputs", outputs):
+        for j, out in enumerate(case.get("outputs", outputs)):
             g = got[out]
             g = np.repeat(g[:, None], 3, axis=1) if g.ndim == 1 else g.T
-            pairs[f"{name}_{out}"] = (g, images[f"{name}_{out}"].reshape(-1, 3))
+            pairs[f"{name}_{out}"] = (g, images[aov_name(i, j)].reshape(-1, 3))
     return pairs
 
 
