@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from engine.core.errors import SceneError
+
 F32 = np.float32
 DEFAULT_VERSION = (5, 0)
 
@@ -58,5 +60,14 @@ def out_rows(*comps) -> np.ndarray:
     return np.stack([np.asarray(c, dtype=np.float64) for c in comps])
 
 
-def dims_of(props: dict, key: str, default: str = "3D") -> int:
-    return int(str(props.get(key, default))[0])
+def dims_of(props: dict, key: str, node: str = "texture") -> int:
+    """1 to 4 from the dimensions enum ("1D".."4D", default "3D")."""
+    return int(choice(props, key, ("1D", "2D", "3D", "4D"), "3D", node)[0])
+
+
+def choice(props: dict, key: str, allowed, default: str, node: str) -> str:
+    """Enum property ``key`` of ``node``; SceneError naming the node if it is none of ``allowed``."""
+    value = str(props.get(key, default))
+    if value not in allowed:
+        raise SceneError(f"{node}: {key} {value!r} is not one of {', '.join(allowed)}")
+    return value

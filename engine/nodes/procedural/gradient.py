@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.nodes.procedural.common import out_float, out_rows, points, vector
+from engine.nodes.procedural.common import choice, out_float, out_rows, points, vector
 from engine.nodes.procedural.perlin import F32
 
+TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "SPHERICAL", "QUADRATIC_SPHERE", "RADIAL")
 M_2PI_F = F32(2 * np.pi)
 
 
@@ -30,12 +31,13 @@ def gradient(x, y, z, kind):
         return r * r
     if kind == "SPHERICAL":
         return r
-    raise ValueError(f"Gradient Texture: unknown gradient_type {kind!r}")
+    raise AssertionError(kind)
 
 
 def gradient_texture(inputs: dict, props: dict, ctx) -> dict:
     x, y, z = vector(inputs, "Vector", points(inputs, ctx))
-    f = np.clip(gradient(x, y, z, str(props.get("gradient_type", "LINEAR"))), F32(0.0), F32(1.0))
+    kind = choice(props, "gradient_type", TYPES, "LINEAR", "Gradient Texture")
+    f = np.clip(gradient(x, y, z, kind), F32(0.0), F32(1.0))
     return {"Fac": out_float(f), "Color": out_rows(f, f, f)}
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.nodes.procedural import fractal
-from engine.nodes.procedural.common import (dims_of, out_float, out_rows, points, scalar, vector,
+from engine.nodes.procedural.common import (choice, dims_of, out_float, out_rows, points, scalar, vector,
                                             version_of, wanted)
 from engine.nodes.procedural.hash import hash_float_n_to_float
 from engine.nodes.procedural.perlin import F32, shifted, snoise
@@ -62,7 +62,7 @@ def _texture(p, fn, distortion, version, color):
 def noise_texture(inputs: dict, props: dict, ctx) -> dict:
     n = points(inputs, ctx)
     version = version_of(ctx)
-    dims = dims_of(props, "noise_dimensions")
+    dims = dims_of(props, "noise_dimensions", "Noise Texture")
     scale = scalar(inputs, "Scale", n, 5.0)
     vec = tuple(c * scale for c in vector(inputs, "Vector", n))
     w = scalar(inputs, "W", n, 0.0) * scale
@@ -81,7 +81,7 @@ def noise_texture(inputs: dict, props: dict, ctx) -> dict:
             kind = "FBM"
         else:
             rough = np.maximum(rough, F32(0.0))
-            kind = str(props.get("noise_type", "FBM"))
+            kind = choice(props, "noise_type", NOISE_TYPES, "FBM", "Noise Texture")
         normalize = bool(props.get("normalize", True))
         offset = scalar(inputs, "Offset", n, 0.0)
         gain = scalar(inputs, "Gain", n, 1.0)
@@ -105,7 +105,7 @@ def _select(kind, detail, rough, lac, offset, gain, normalize, version):
         return lambda q: fractal.hybrid_multi_fractal(q, detail, rough, lac, offset, gain, version)
     if kind == "HETERO_TERRAIN":
         return lambda q: fractal.hetero_terrain(q, detail, rough, lac, offset, version)
-    raise ValueError(f"Noise Texture: unknown noise_type {kind!r} (one of {NOISE_TYPES})")
+    raise AssertionError(kind)
 
 
 def musgrave_texture(inputs: dict, props: dict, ctx) -> dict:
@@ -113,8 +113,8 @@ def musgrave_texture(inputs: dict, props: dict, ctx) -> dict:
     each octave's amplitude lacunarity^-Dimension."""
     n = points(inputs, ctx)
     version = version_of(ctx)
-    dims = dims_of(props, "musgrave_dimensions")
-    kind = str(props.get("musgrave_type", "FBM"))
+    dims = dims_of(props, "musgrave_dimensions", "Musgrave Texture")
+    kind = choice(props, "musgrave_type", NOISE_TYPES, "FBM", "Musgrave Texture")
     scale = scalar(inputs, "Scale", n, 5.0)
     vec = tuple(c * scale for c in vector(inputs, "Vector", n))
     w = scalar(inputs, "W", n, 0.0) * scale
@@ -213,7 +213,7 @@ def musgrave(kind, p, pwhl, lac, octaves, offset, gain, version=(3, 4)):
             signal = upd(a, s, signal)
             pwr = upd(a, pwr * pwhl, pwr)
         return value
-    raise ValueError(f"Musgrave Texture: unknown musgrave_type {kind!r}")
+    raise AssertionError(kind)
 
 
 KERNELS = {"ShaderNodeTexNoise": noise_texture, "ShaderNodeTexMusgrave": musgrave_texture}

@@ -17,7 +17,7 @@ import itertools
 
 import numpy as np
 
-from engine.nodes.procedural.common import (dims_of, out_float, out_rows, points, scalar, vector,
+from engine.nodes.procedural.common import (choice, dims_of, out_float, out_rows, points, scalar, vector,
                                             version_of)
 from engine.nodes.procedural.hash import (hash_float2_to_float2, hash_float2_to_float3,
                                           hash_float3_to_float3, hash_float4_to_float3,
@@ -26,6 +26,8 @@ from engine.nodes.procedural.hash import (hash_float2_to_float2, hash_float2_to_
                                           hash_int_n_to_float_n)
 from engine.nodes.procedural.perlin import F32, mix
 
+FEATURES = ("F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE", "N_SPHERE_RADIUS")
+METRICS = ("EUCLIDEAN", "MANHATTAN", "CHEBYCHEV", "MINKOWSKI")
 FLT_MAX = F32(np.finfo(np.float32).max)
 PCG_SINCE = (5, 0)
 FRACTAL_SINCE = (4, 0)
@@ -76,7 +78,7 @@ class Cells:
         if self.metric == "MINKOWSKI":
             e = self.exponent
             return np.power(_sum(np.power(x, e) for x in d), F32(1.0) / e)
-        raise ValueError(f"Voronoi Texture: unknown distance {self.metric!r}")
+        raise AssertionError(self.metric)
 
     def bound(self, a, b):
         """`voronoi_distance_bound`: orders like the distance, cheaper (5.0's F1)."""
@@ -352,9 +354,9 @@ def fractal_distance_to_edge(cells, coord, par):
 def voronoi_texture(inputs: dict, props: dict, ctx) -> dict:
     n = points(inputs, ctx)
     version = version_of(ctx)
-    dims = dims_of(props, "voronoi_dimensions")
-    feature = str(props.get("feature", "F1"))
-    metric = str(props.get("distance", "EUCLIDEAN"))
+    dims = dims_of(props, "voronoi_dimensions", "Voronoi Texture")
+    feature = choice(props, "feature", FEATURES, "F1", "Voronoi Texture")
+    metric = choice(props, "distance", METRICS, "EUCLIDEAN", "Voronoi Texture")
     node_scale = scalar(inputs, "Scale", n, 5.0)
     coord3 = tuple(c * node_scale for c in vector(inputs, "Vector", n))
     w = scalar(inputs, "W", n, 0.0) * node_scale

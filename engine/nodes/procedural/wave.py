@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.nodes.procedural import fractal
-from engine.nodes.procedural.common import out_float, out_rows, points, scalar, vector, version_of
+from engine.nodes.procedural.common import choice, out_float, out_rows, points, scalar, vector, version_of
 from engine.nodes.procedural.perlin import F32
 
 M_PI_2_F = F32(np.pi / 2)
@@ -20,12 +20,13 @@ M_2PI_F = F32(2 * np.pi)
 def wave(p, props, distortion, detail, dscale, droughness, phase, version):
     p = tuple((c + F32(0.000001)) * F32(0.999999) for c in p)
     x, y, z = p
-    if str(props.get("wave_type", "BANDS")) == "BANDS":
-        d = str(props.get("bands_direction", "X"))
+    node = "Wave Texture"
+    if choice(props, "wave_type", ("BANDS", "RINGS"), "BANDS", node) == "BANDS":
+        d = choice(props, "bands_direction", ("X", "Y", "Z", "DIAGONAL"), "X", node)
         n = {"X": lambda: x * F32(20.0), "Y": lambda: y * F32(20.0), "Z": lambda: z * F32(20.0),
              "DIAGONAL": lambda: (x + y + z) * F32(10.0)}[d]()
     else:
-        d = str(props.get("rings_direction", "X"))
+        d = choice(props, "rings_direction", ("X", "Y", "Z", "SPHERICAL"), "X", node)
         keep = {"X": (0, 1, 1), "Y": (1, 0, 1), "Z": (1, 1, 0), "SPHERICAL": (1, 1, 1)}[d]
         rp = [c * F32(k) for c, k in zip(p, keep)]
         n = np.sqrt(rp[0] * rp[0] + rp[1] * rp[1] + rp[2] * rp[2]) * F32(20.0)
@@ -38,7 +39,7 @@ def wave(p, props, distortion, detail, dscale, droughness, phase, version):
             rough = np.clip(droughness, F32(0), F32(1)) if version < (4, 1) else droughness
             noise = fractal.fbm(q, detail, rough, np.full_like(detail, F32(2.0)), True, version)
         n = np.where(distortion != 0, n + distortion * (noise * F32(2.0) - F32(1.0)), n)
-    profile = str(props.get("wave_profile", "SIN"))
+    profile = choice(props, "wave_profile", ("SIN", "SAW", "TRI"), "SIN", node)
     if profile == "SIN":
         return F32(0.5) + F32(0.5) * np.sin(n - M_PI_2_F)
     n = n / M_2PI_F

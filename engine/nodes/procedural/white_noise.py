@@ -13,7 +13,7 @@ def white_noise_texture(inputs: dict, props: dict, ctx) -> dict:
     n = points(inputs, ctx)
     x, y, z = vector(inputs, "Vector", n)
     w = scalar(inputs, "W", n, 0.0)
-    dims = dims_of(props, "noise_dimensions")
+    dims = dims_of(props, "noise_dimensions", "White Noise Texture")
     k = {1: (w,), 2: (x, y), 3: (x, y, z), 4: (x, y, z, w)}[dims]
     color = {1: hash_float_to_float3, 2: hash_float2_to_float3, 3: hash_float3_to_float3,
              4: hash_float4_to_float3}[dims](*k)
