@@ -56,42 +56,34 @@ def _final(a, b, c):
     return c
 
 
-def _start(n_words, shape):
-    return np.full(shape, (_SEED + (n_words << 2) + 13) & 0xFFFFFFFF, dtype=U32)
+def _start(n_words):
+    """lookup3's initial a = b = c for ``n_words`` words (a uint32 scalar)."""
+    return U32((_SEED + (n_words << 2) + 13) & 0xFFFFFFFF)
 
 
 def hash_uint(kx) -> np.ndarray:
     kx = as_u32(kx)
-    a = _start(1, kx.shape)
-    b, c = a.copy(), a.copy()
-    a = a + kx
-    return _final(a, b, c)
+    s = _start(1)
+    return _final(kx + s, np.full_like(kx, s), np.full_like(kx, s))
 
 
 def hash_uint2(kx, ky) -> np.ndarray:
     kx, ky = np.broadcast_arrays(as_u32(kx), as_u32(ky))
-    a = _start(2, kx.shape)
-    b, c = a + ky, a.copy()
-    a = a + kx
-    return _final(a, b, c)
+    s = _start(2)
+    return _final(kx + s, ky + s, np.full_like(kx, s))
 
 
 def hash_uint3(kx, ky, kz) -> np.ndarray:
     kx, ky, kz = np.broadcast_arrays(as_u32(kx), as_u32(ky), as_u32(kz))
-    a = _start(3, kx.shape)
-    c = a + kz
-    b = a + ky
-    a = a + kx
-    return _final(a, b, c)
+    s = _start(3)
+    return _final(kx + s, ky + s, kz + s)
 
 
 def hash_uint4(kx, ky, kz, kw) -> np.ndarray:
     kx, ky, kz, kw = np.broadcast_arrays(as_u32(kx), as_u32(ky), as_u32(kz), as_u32(kw))
-    a = _start(4, kx.shape)
-    a, b, c = a + kx, a + ky, a + kz
-    a, b, c = _mix(a, b, c)
-    a = a + kw
-    return _final(a, b, c)
+    s = _start(4)
+    a, b, c = _mix(kx + s, ky + s, kz + s)
+    return _final(a + kw, b, c)
 
 
 _HASH_UINT = {1: hash_uint, 2: hash_uint2, 3: hash_uint3, 4: hash_uint4}

@@ -42,10 +42,9 @@ def _negate_if(v, cond):
 
 def _grad(h, d):
     """Gradient dot offset for the corner hash ``h`` (uint32) and offset ``d`` (D arrays)."""
-    h = h.astype(np.int64)
     if len(d) == 1:
         h = h & 15
-        g = (1 + (h & 7)).astype(F32)
+        g = ((h & 7) + 1).astype(F32)
         return _negate_if(g, h & 8) * d[0]
     if len(d) == 2:
         x, y = d
@@ -72,12 +71,13 @@ def perlin(p) -> np.ndarray:
     """Cycles' unscaled `perlin_{D}d` at the point ``p`` (tuple of D float32 arrays)."""
     dims = len(p)
     floors = [np.floor(c) for c in p]
-    cells = [fl.astype(np.int64) for fl in floors]           # float_to_int of the floor
+    # float_to_int of the floor, as the uint32 that lookup3 hashes (corner + 1 wraps like C's)
+    cells = [fl.astype(np.int32).view(np.uint32) for fl in floors]
     frac = [c - fl for c, fl in zip(p, floors)]
     fades = [_fade(t) for t in frac]
     corners = {}
     for corner in itertools.product((0, 1), repeat=dims):
-        h = hash_uint_n(*(cell + o for cell, o in zip(cells, corner)))
+        h = hash_uint_n(*(cell + np.uint32(o) if o else cell for cell, o in zip(cells, corner)))
         corners[corner] = _grad(h, [t - F32(o) for t, o in zip(frac, corner)])
     # Interpolate along x (the first index of a corner) first, then y, z, w.
     for axis in range(dims):
