@@ -166,3 +166,90 @@ def test_voronoi_hashes_follow_the_blender_version():
 def test_unknown_enum_values_raise_scene_errors_naming_the_node(bl_idname, props):
     with pytest.raises(SceneError, match="Texture"):
         KERNELS[bl_idname]({"Vector": np.zeros((3, 2))}, props, ctx(2))
+
+
+# -- the family modules' building blocks --------------------------------------------------------
+
+def test_brick_noise_and_random_offsets_equal_cycles_c_code():
+    from engine.nodes.procedural.brick import brick_noise
+    from engine.nodes.procedural.noise import random_offset
+    keys = np.array([0, (3 << 16) + (-2 & 0xFFFF), ((-5 << 16) + 7) & 0xFFFFFFFF])
+    assert list(brick_noise(keys)) == [np.float32(v) for v in (0.263250649, 0.0457506068, 0.575086892)]
+    assert random_offset(0.0, 1) == (np.float32(158.242584),)
+    assert random_offset(3.0, 3) == tuple(np.float32(v) for v in (165.445282, 162.768219, 193.408417))
+
+
+def test_checker_parity_of_cells():
+    from engine.nodes.procedural.checker import checker
+    p = tuple(np.float32(v) for v in ([0.5, 1.5, 1.5, -0.5], [0.5, 0.5, 1.5, 0.5], [0.5, 0.5, 0.5, 0.5]))
+    assert list(checker(p)) == [0.0, 1.0, 0.0, 1.0]
+
+
+def test_fbm_of_detail_zero_is_one_octave_of_unsigned_noise():
+    from engine.nodes.procedural.fractal import fbm
+    from engine.nodes.procedural.perlin import unoise
+    x = np.linspace(0.1, 4.0, 20, dtype=np.float32)
+    p = (x, x * np.float32(0.7), x * np.float32(1.3))
+    one = np.ones(20, dtype=np.float32)
+    assert np.array_equal(fbm(p, one * 0, one * 0.5, one * 2, True), unoise(p))
+
+
+def test_gradient_types_at_known_points():
+    from engine.nodes.procedural.gradient import gradient
+    f = np.float32
+    assert gradient(f(0.25), f(0), f(0), "LINEAR") == f(0.25)
+    assert gradient(f(0.5), f(0), f(0), "EASING") == f(0.5)
+    assert gradient(f(0), f(1), f(0), "RADIAL") == f(0.75)
+    assert gradient(f(0.6), f(0.8), f(0), "SPHERICAL") == f(0)
+
+
+def test_magic_without_turbulence_or_distortion_is_its_first_sines():
+    from engine.nodes.procedural.magic import magic
+    p = tuple(np.float32([v]) for v in (0.1, 0.2, 0.3))
+    x, y, z = magic(p, np.float32(1.0), 0, np.float32([0.0]))
+    assert np.isclose(x[0], 0.5 - np.sin(3.0), atol=1e-6)
+    assert np.isclose(y[0], 0.5 - np.cos(-1.0), atol=1e-6)
+    assert np.isclose(z[0], 0.5 + np.cos(0.0), atol=1e-6)
+
+
+def test_voronoi_without_randomness_measures_to_the_lattice():
+    """Randomness 0 puts every feature point on its cell's corner: F1 = distance to the nearest
+    integer point, in each metric."""
+    from engine.nodes.procedural.voronoi import Cells, f1
+    rng = np.random.default_rng(4)
+    p = tuple(rng.uniform(-3, 3, 200).astype(np.float32) for _ in range(3))
+    d = [np.abs(c - np.round(c)) for c in p]
+    zero = np.float32(0.0)
+    for metric, expect in (("EUCLIDEAN", np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)),
+                           ("MANHATTAN", d[0] + d[1] + d[2]), ("CHEBYCHEV", np.maximum(np.maximum(d[0], d[1]), d[2]))):
+        dist, _, _ = f1(Cells(3, (5, 0), metric, np.float32(1.0)), p, zero)
+        assert np.allclose(dist, expect, atol=1e-6), metric
+
+
+def test_choice_names_the_node_and_the_allowed_values():
+    from engine.nodes.procedural.common import choice
+    assert choice({}, "wave_type", ("BANDS", "RINGS"), "BANDS", "Wave Texture") == "BANDS"
+    with pytest.raises(SceneError, match="Wave Texture: wave_type 'X' is not one of BANDS, RINGS"):
+        choice({"wave_type": "X"}, "wave_type", ("BANDS", "RINGS"), "BANDS", "Wave Texture")
+
+
+def test_wave_bands_and_rings_follow_their_formulas():
+    from engine.nodes.procedural.wave import wave
+    x = np.linspace(-1, 1, 33)
+    p = tuple(np.asarray(c, dtype=np.float32) for c in (x, x * 0.5, x * 0.25))
+    zero, one = np.zeros(33, np.float32), np.ones(33, np.float32)
+    q = [(c + 1e-6) * 0.999999 for c in (x, x * 0.5, x * 0.25)]
+    bands = wave(p, {}, zero, one, one, one, zero, (5, 0))
+    assert np.allclose(bands, 0.5 + 0.5 * np.sin(q[0] * 20 - np.pi / 2), atol=2e-6)
+    rings = wave(p, {"wave_type": "RINGS", "rings_direction": "SPHERICAL", "wave_profile": "SAW"},
+                 zero, one, one, one, zero, (5, 0))
+    n = np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2) * 20 / (2 * np.pi)
+    assert np.allclose(rings, n - np.floor(n), atol=2e-6)
+
+
+def test_white_noise_hashes_the_float32_bits_of_its_input():
+    from engine.nodes.procedural.white_noise import white_noise_texture
+    w = np.array([0.25, 0.25, np.nextafter(np.float32(0.25), np.float32(1))], dtype=np.float64)
+    out = white_noise_texture({"Vector": np.zeros((3, 3)), "W": w}, {"noise_dimensions": "1D"}, ctx(3))
+    assert out["Value"][0] == out["Value"][1] != out["Value"][2]
+    assert out["Value"][0] == hash_float_n_to_float(np.float32([0.25]))[0]
