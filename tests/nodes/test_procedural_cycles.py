@@ -30,6 +30,7 @@ def build(nodes, links, coord, bl_idname="", cases=None, outputs=()):
     """Blender side: one node per case, each output to an AOV named by `aov_name`."""
     sep = nodes.new("ShaderNodeSeparateXYZ")
     links.new(coord, sep.inputs[0])
+    swizzled = {}
     result = {}
     for i, case in enumerate(cases.values()):
         node = nodes.new(bl_idname)
@@ -37,7 +38,7 @@ def build(nodes, links, coord, bl_idname="", cases=None, outputs=()):
             setattr(node, key, value)
         sockets = {s.identifier: s for s in node.inputs}
         if "Vector" in sockets:
-            links.new(coord, sockets["Vector"])
+            links.new(_swizzle(nodes, links, sep, case.get("swizzle"), swizzled) or coord, sockets["Vector"])
         if "W" in sockets:
             links.new(sep.outputs["X"], sockets["W"])
         for key, value in case.get("inputs", {}).items():
@@ -46,6 +47,20 @@ def build(nodes, links, coord, bl_idname="", cases=None, outputs=()):
         for j, out in enumerate(case.get("outputs", outputs)):
             result[aov_name(i, j)] = outs[out]
     return result
+
+
+def _swizzle(nodes, links, sep, order, made):
+    """Vector (c[order[0]], c[order[1]], c[order[2]]) of the coordinate c, by Combine XYZ (exact
+    copies of float32 components: a 3-D texture then varies along its z too); None: c itself."""
+    if not order:
+        return None
+    key = tuple(order)
+    if key not in made:
+        comb = nodes.new("ShaderNodeCombineXYZ")
+        for axis, src in zip("XYZ", key):
+            links.new(sep.outputs["XYZ"[src]], comb.inputs[axis])
+        made[key] = comb.outputs[0]
+    return made[key]
 
 
 def render_cases(bl_idname, cases, outputs, blender="5.0", z=Z, resolution=RES):
@@ -79,7 +94,8 @@ def compare(bl_idname, cases, outputs, version=(5, 0), blender="5.0", z=Z, resol
 
 
 def evaluate(bl_idname, case, pts, version=(5, 0)):
-    inputs = {"Vector": pts, "W": pts[0].copy()}
+    vec = pts[list(case["swizzle"])] if case.get("swizzle") else pts
+    inputs = {"Vector": vec, "W": pts[0].copy()}
     for key, value in case.get("inputs", {}).items():
         inputs[key] = np.broadcast_to(np.asarray(value, dtype=float).reshape(-1, 1)
                                       if np.ndim(value) else np.asarray(value, dtype=float),
@@ -117,8 +133,9 @@ def with_inputs(cases, **changes):
     out = {}
     for name, case in cases.items():
         c = {"props": dict(case.get("props", {})), "inputs": dict(case.get("inputs", {}))}
-        if "outputs" in case:
-            c["outputs"] = case["outputs"]
+        for key in ("outputs", "swizzle"):
+            if key in case:
+                c[key] = case[key]
         for key, factor in changes.items():
             c["inputs"][key] = c["inputs"].get(key, DEFAULT_SCALE) * factor
         out[name] = c
@@ -159,6 +176,9 @@ NOISE_50 = {
     "multi": {"props": {"noise_type": "MULTIFRACTAL", "noise_dimensions": "1D"},
               "inputs": {"Scale": 2.0, "Detail": 2.5}},
     "raw": {"props": {"normalize": False}, "inputs": {"Scale": 6.0, "Detail": 5.0, "Lacunarity": 2.5}},
+    "xzy": {"swizzle": (0, 2, 1), "inputs": {"Scale": 3.0, "Detail": 3.0, "Distortion": 1.0}},
+    "yxx": {"swizzle": (1, 0, 0), "props": {"noise_dimensions": "4D", "noise_type": "HETERO_TERRAIN"},
+            "inputs": {"Scale": 2.0, "Detail": 2.0, "Offset": 0.2}},
 }
 NOISE_34 = {k: NOISE_50[k] for k in ("n3", "n2", "n1", "n4")}
 MUSGRAVE_34 = {
@@ -183,6 +203,10 @@ VORONOI_METRIC = {      # cases whose metric matters (2-D to 4-D distances)
     "sm3": {"props": {"feature": "SMOOTH_F1"}, "inputs": {"Scale": 3.0, "Smoothness": 0.6}},
     "sm2": {"props": {"feature": "SMOOTH_F1", "voronoi_dimensions": "2D", "distance": "MANHATTAN"},
             "inputs": {"Scale": 3.0}},
+    "xzy": {"swizzle": (0, 2, 1), "props": {"feature": "F2", "distance": "MINKOWSKI"},
+            "inputs": {"Scale": 4.0, "Exponent": 3.0}},
+    "yzx": {"swizzle": (1, 2, 0), "props": {"feature": "SMOOTH_F1", "distance": "CHEBYCHEV"},
+            "inputs": {"Scale": 3.0}},
 }
 VORONOI_OTHER = {
     "f1d1": {"props": {"feature": "F1", "voronoi_dimensions": "1D"}, "inputs": {"Scale": 4.0}},
@@ -192,6 +216,8 @@ VORONOI_OTHER = {
     "ns3": {"props": {"feature": "N_SPHERE_RADIUS"}, "inputs": {"Scale": 3.0}},
     "ns2": {"props": {"feature": "N_SPHERE_RADIUS", "voronoi_dimensions": "2D"}, "inputs": {"Scale": 4.0}},
     "ns1": {"props": {"feature": "N_SPHERE_RADIUS", "voronoi_dimensions": "1D"}, "inputs": {"Scale": 4.0}},
+    "dex": {"swizzle": (0, 2, 1), "props": {"feature": "DISTANCE_TO_EDGE"}, "inputs": {"Scale": 4.0}},
+    "nsx": {"swizzle": (2, 0, 1), "props": {"feature": "N_SPHERE_RADIUS"}, "inputs": {"Scale": 4.0}},
 }
 VORONOI_FRACTAL = {     # Blender 4.0+
     "fr3": {"props": {"feature": "F1", "normalize": True}, "inputs": {"Scale": 2.0, "Detail": 2.5, "Roughness": 0.6}},
@@ -211,6 +237,8 @@ WAVE = {
            "inputs": {"Scale": 0.7}},
     "rs": {"props": {"wave_type": "RINGS", "rings_direction": "SPHERICAL"},
            "inputs": {"Scale": 0.5, "Distortion": 3.0, "Detail": 2.5, "Detail Scale": 2.0}},
+    "rx": {"swizzle": (0, 2, 1), "props": {"wave_type": "RINGS", "rings_direction": "X"},
+           "inputs": {"Scale": 0.8, "Distortion": 1.0}},
 }
 GRADIENT = {k: {"props": {"gradient_type": k}} for k in
             ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "SPHERICAL", "QUADRATIC_SPHERE", "RADIAL")}
@@ -219,9 +247,11 @@ MAGIC = {
     "d2": {"props": {"turbulence_depth": 2}},
     "d5": {"props": {"turbulence_depth": 5}, "inputs": {"Distortion": 2.5}},
     "d10": {"props": {"turbulence_depth": 10}, "inputs": {"Scale": 1.3}},
+    "xzy": {"swizzle": (0, 2, 1), "props": {"turbulence_depth": 3}},
 }
 CHECKER = {"c": {"inputs": {"Scale": 5.0}},
-           "c2": {"inputs": {"Scale": 7.3, "Color1": [1.0, 0.5, 0.1, 1.0]}}}
+           "c2": {"inputs": {"Scale": 7.3, "Color1": [1.0, 0.5, 0.1, 1.0]}},
+           "xzy": {"swizzle": (0, 2, 1), "inputs": {"Scale": 4.1}}}
 BRICK = {
     "b": {"inputs": {"Scale": 2.0}},
     "b2": {"props": {"offset": 0.3, "offset_frequency": 3, "squash": 0.6, "squash_frequency": 2},
@@ -230,6 +260,7 @@ BRICK = {
                       "Mortar": [0.1, 0.9, 0.3, 1.0]}},
 }
 WHITE = {f"w{d}": {"props": {"noise_dimensions": f"{d}D"}} for d in (1, 2, 3, 4)}
+WHITE["xzy"] = {"swizzle": (0, 2, 1)}
 
 
 @pytest.mark.slow
