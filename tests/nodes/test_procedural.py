@@ -253,3 +253,13 @@ def test_white_noise_hashes_the_float32_bits_of_its_input():
     out = white_noise_texture({"Vector": np.zeros((3, 3)), "W": w}, {"noise_dimensions": "1D"}, ctx(3))
     assert out["Value"][0] == out["Value"][1] != out["Value"][2]
     assert out["Value"][0] == hash_float_n_to_float(np.float32([0.25]))[0]
+
+
+@pytest.mark.parametrize("bl_idname", sorted(OUTPUTS))
+def test_non_finite_and_huge_coordinates_raise_no_warning(bl_idname):
+    import warnings
+    pts = np.array([[np.nan, np.inf, 1e10, -1e12, 0.5], [0.1, 0.2, 0.3, 1e9, -np.inf], [0, 0, 0, 0, 0.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = KERNELS[bl_idname]({"Vector": pts, "W": pts[0]}, {}, ctx(5))
+    assert all(v.shape[-1] == 5 for v in out.values())
