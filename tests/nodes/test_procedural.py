@@ -263,3 +263,20 @@ def test_non_finite_and_huge_coordinates_raise_no_warning(bl_idname):
         warnings.simplefilter("error")
         out = KERNELS[bl_idname]({"Vector": pts, "W": pts[0]}, {}, ctx(5))
     assert all(v.shape[-1] == 5 for v in out.values())
+
+
+@pytest.mark.parametrize("props,version", [
+    ({"feature": "F1"}, (5, 0)), ({"feature": "SMOOTH_F1", "voronoi_dimensions": "2D"}, (5, 0)),
+    ({"feature": "F2", "voronoi_dimensions": "4D"}, (4, 5)), ({"feature": "N_SPHERE_RADIUS"}, (5, 0)),
+    ({"feature": "DISTANCE_TO_EDGE", "voronoi_dimensions": "1D"}, (3, 4))])
+def test_voronoi_hashes_per_distinct_cell_equal_hashes_per_point(monkeypatch, props, version):
+    """Grid hashes a neighbour once per distinct cell when points share cells: same bits."""
+    from engine.nodes.procedural import voronoi
+    pts = np.random.default_rng(6).uniform(-1, 1, (3, 3000))
+    inputs = {"Vector": pts, "W": pts[0], "Scale": np.full(3000, 2.0)}
+    shared = voronoi.voronoi_texture(inputs, props, ctx(3000, version))
+    assert voronoi.Grid(tuple(np.floor(c * 2).astype(np.float32) for c in pts), None).rep is not None
+    monkeypatch.setattr(voronoi.Grid, "MIN_POINTS", 10 ** 9)
+    alone = voronoi.voronoi_texture(inputs, props, ctx(3000, version))
+    for name in alone:
+        assert np.array_equal(shared[name], alone[name]), name

@@ -33,6 +33,41 @@ PCG_SINCE = (5, 0)
 FRACTAL_SINCE = (4, 0)
 
 
+class Grid:
+    """The lattice cells of a batch: float floors `fl`, their ints for PCG, and, where many points
+    share a cell, one representative point per distinct cell (`rep`) and each point's cell
+    (`inv`), so that a neighbour's hash is computed once per distinct cell and gathered."""
+
+    SHARED = 4          # dedupe when the batch has at least this many points per distinct cell
+    MIN_POINTS = 1024
+
+    def __init__(self, fl, ints):
+        self.fl, self.ints, self.rep, self.inv = fl, ints, None, None
+        n = fl[0].size
+        if n < self.MIN_POINTS:
+            return
+        keys = [f.astype(np.int64) for f in fl] if ints is None else list(ints)
+        lows = [int(k.min()) for k in keys]
+        spans = [int(k.max()) - lo + 1 for k, lo in zip(keys, lows)]
+        if float(np.prod([float(x) for x in spans])) >= 2.0 ** 62:
+            return
+        key = np.zeros(n, dtype=np.int64)
+        for k, lo, span in zip(keys, lows, spans):
+            key = key * span + (k - lo)
+        uniq, rep, inv = np.unique(key, return_index=True, return_inverse=True)
+        if uniq.size * self.SHARED <= n:
+            self.rep, self.inv = rep, inv.reshape(-1)
+
+    def hashed(self, fn, off):
+        """fn(cells + off) per point (a tuple of arrays), via the distinct cells where it pays."""
+        per_point = any(np.ndim(o) for o in off)
+        if self.rep is None or per_point:
+            return fn(self.fl, self.ints, off)
+        fl = tuple(f[self.rep] for f in self.fl)
+        ints = None if self.ints is None else tuple(i[self.rep] for i in self.ints)
+        return tuple(v[self.inv] for v in fn(fl, ints, off))
+
+
 class Cells:
     """The point and colour hashes of lattice cells of one Blender version, and the metric."""
 
@@ -42,14 +77,20 @@ class Cells:
         self.legacy = tuple(version) < FRACTAL_SINCE
 
     def cell(self, coord):
-        """Cell index (float floor and, for PCG, int) and the local position in the cell."""
+        """The batch's cells (a Grid) and each point's local position in its cell."""
         fl = tuple(np.floor(c) for c in coord)
         local = tuple(c - f for c, f in zip(coord, fl))
         ints = tuple(f.astype(np.int64) for f in fl) if self.pcg else None
-        return fl, ints, local
+        return Grid(fl, ints), local
 
-    def point(self, fl, ints, off):
+    def point(self, grid, off):
         """Hash of cell `cell + off` into a point offset in [0, 1]^D."""
+        return grid.hashed(self._point, off)
+
+    def color(self, grid, off):
+        return grid.hashed(self._color, off)
+
+    def _point(self, fl, ints, off):
         if self.pcg:
             return hash_int_n_to_float_n(*(i + o for i, o in zip(ints, off)))
         k = tuple(f + F32(o) for f, o in zip(fl, off))
@@ -57,7 +98,7 @@ class Cells:
             return (hash_float_n_to_float(k[0]),)
         return {2: hash_float2_to_float2, 3: hash_float3_to_float3, 4: hash_float4_to_float4}[self.dims](*k)
 
-    def color(self, fl, ints, off):
+    def _color(self, fl, ints, off):
         if self.pcg:
             return hash_int_n_to_float3(*(i + o for i, o in zip(ints, off)))
         k = tuple(f + F32(o) for f, o in zip(fl, off))
@@ -118,38 +159,40 @@ def _sel(m, a, b):
     return tuple(np.where(m, x, y) for x, y in zip(a, b))
 
 
-def _point_pos(cells, fl, ints, off, randomness):
-    h = cells.point(fl, ints, off)
+def _point_pos(cells, grid, off, randomness):
+    h = cells.point(grid, off)
     return tuple(F32(o) + hv * randomness for o, hv in zip(off, h))
 
 
 def f1(cells, coord, randomness, params=None):
-    fl, ints, local = cells.cell(coord)
+    grid, local = cells.cell(coord)
+    fl = grid.fl
     n = coord[0].shape
     best = np.full(n, F32(8.0) if cells.legacy else FLT_MAX, dtype=F32)
     target_off = tuple(np.zeros(n, dtype=np.int64) for _ in coord)
     target = tuple(np.zeros(n, dtype=F32) for _ in coord)
     for off in _offsets(cells.dims, 1):
-        pp = _point_pos(cells, fl, ints, off, randomness)
+        pp = _point_pos(cells, grid, off, randomness)
         d = cells.bound(pp, local)
         m = d < best
         best = np.where(m, d, best)
         target_off = tuple(np.where(m, o, t) for o, t in zip(off, target_off))
         target = _sel(m, pp, target)
     dist = best if (cells.legacy or cells.dims == 1) else cells.distance(target, local)
-    color = cells.color(fl, ints, target_off)
+    color = cells.color(grid, target_off)
     return dist, color, tuple(t + f for t, f in zip(target, fl))
 
 
 def smooth_f1(cells, coord, randomness, smoothness):
-    fl, ints, local = cells.cell(coord)
+    grid, local = cells.cell(coord)
+    fl = grid.fl
     n = coord[0].shape
     sdist = np.zeros(n, dtype=F32)
     spos = tuple(np.zeros(n, dtype=F32) for _ in coord)
     scol = tuple(np.zeros(n, dtype=F32) for _ in range(3))
     first = True
     for off in _offsets(cells.dims, 2):
-        pp = _point_pos(cells, fl, ints, off, randomness)
+        pp = _point_pos(cells, grid, off, randomness)
         d = cells.distance(pp, local)
         if first:
             h = np.ones(n, dtype=F32)
@@ -159,7 +202,7 @@ def smooth_f1(cells, coord, randomness, smoothness):
         corr = smoothness * h * (F32(1.0) - h)
         sdist = mix(sdist, d, h) - corr
         corr = corr / (F32(1.0) + F32(3.0) * smoothness)
-        col = cells.color(fl, ints, off)
+        col = cells.color(grid, off)
         scol = tuple(mix(s, c, h) - corr for s, c in zip(scol, col))
         spos = tuple(mix(s, p, h) - corr for s, p in zip(spos, pp))
     return sdist, scol, tuple(f + s for f, s in zip(fl, spos))
@@ -173,7 +216,8 @@ def _smoothstep(x):
 
 
 def f2(cells, coord, randomness, params=None):
-    fl, ints, local = cells.cell(coord)
+    grid, local = cells.cell(coord)
+    fl = grid.fl
     n = coord[0].shape
     init = F32(8.0) if cells.legacy else FLT_MAX
     d1, d2 = np.full(n, init, dtype=F32), np.full(n, init, dtype=F32)
@@ -181,7 +225,7 @@ def f2(cells, coord, randomness, params=None):
     zeros_f = tuple(np.zeros(n, dtype=F32) for _ in coord)
     o1, o2, p1, p2 = zeros_i, zeros_i, zeros_f, zeros_f
     for off in _offsets(cells.dims, 1):
-        pp = _point_pos(cells, fl, ints, off, randomness)
+        pp = _point_pos(cells, grid, off, randomness)
         d = cells.distance(pp, local)
         offs = tuple(np.full(n, o, dtype=np.int64) for o in off)
         m1 = d < d1
@@ -192,14 +236,14 @@ def f2(cells, coord, randomness, params=None):
         d1 = np.where(m1, d, d1)
         o1 = _sel(m1, offs, o1)
         p1 = _sel(m1, pp, p1)
-    return d2, cells.color(fl, ints, o2), tuple(p + f for p, f in zip(p2, fl))
+    return d2, cells.color(grid, o2), tuple(p + f for p, f in zip(p2, fl))
 
 
 def distance_to_edge(cells, coord, randomness):
-    fl, ints, local = cells.cell(coord)
+    grid, local = cells.cell(coord)
     n = coord[0].shape
     if cells.dims == 1:
-        h = lambda o: cells.point(fl, ints, (o,))[0]  # noqa: E731
+        h = lambda o: cells.point(grid, (o,))[0]  # noqa: E731
         mid = h(0) * randomness
         left = F32(-1.0) + h(-1) * randomness
         right = F32(1.0) + h(1) * randomness
@@ -210,7 +254,7 @@ def distance_to_edge(cells, coord, randomness):
     best = np.full(n, FLT_MAX, dtype=F32)
     closest = tuple(np.zeros(n, dtype=F32) for _ in coord)
     for off in _offsets(cells.dims, 1):
-        v = tuple(p - q for p, q in zip(_point_pos(cells, fl, ints, off, randomness), local))
+        v = tuple(p - q for p, q in zip(_point_pos(cells, grid, off, randomness), local))
         vectors.append(v)
         d = _sum(x * x for x in v)
         m = d < best
@@ -229,7 +273,7 @@ def distance_to_edge(cells, coord, randomness):
 
 
 def n_sphere_radius(cells, coord, randomness):
-    fl, ints, local = cells.cell(coord)
+    grid, local = cells.cell(coord)
     n = coord[0].shape
     dims = cells.dims
     sq = not cells.legacy and dims >= 2          # 5.0 compares squared lengths
@@ -241,7 +285,7 @@ def n_sphere_radius(cells, coord, randomness):
     closest = tuple(np.zeros(n, dtype=F32) for _ in coord)
     c_off = tuple(np.zeros(n, dtype=np.int64) for _ in coord)
     for off in _offsets(dims, 1):
-        pp = _point_pos(cells, fl, ints, off, randomness)
+        pp = _point_pos(cells, grid, off, randomness)
         d = metric(pp, local)
         m = d < best
         best = np.where(m, d, best)
@@ -255,7 +299,7 @@ def n_sphere_radius(cells, coord, randomness):
         if all(o == 0 for o in off):
             continue
         cell_off = tuple(o + c for o, c in zip(off, c_off))
-        h = cells.point(fl, ints, cell_off)
+        h = cells.point(grid, cell_off)
         pp = tuple(co.astype(F32) + hv * randomness for co, hv in zip(cell_off, h))
         d = metric(closest, pp)
         m = d < best
