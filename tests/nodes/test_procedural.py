@@ -280,3 +280,17 @@ def test_voronoi_hashes_per_distinct_cell_equal_hashes_per_point(monkeypatch, pr
     alone = voronoi.voronoi_texture(inputs, props, ctx(3000, version))
     for name in alone:
         assert np.array_equal(shared[name], alone[name]), name
+
+
+def test_musgrave_fbm_of_detail_one_is_one_signed_octave_and_detail_counts_octaves():
+    """Blender 3.x's Musgrave loops `i < (int)detail`: Detail 1 is one snoise octave (not two, as
+    the Noise Texture's `<=` would give), Detail 1.5 adds half the next."""
+    from engine.nodes.procedural.musgrave import musgrave
+    x = np.linspace(0.1, 4.0, 20, dtype=np.float32)
+    p = (x, x * np.float32(0.7), x * np.float32(1.3))
+    one = np.ones(20, dtype=np.float32)
+    lac, pwhl = one * 2, one * np.float32(0.25)
+    assert np.array_equal(musgrave("FBM", p, pwhl, lac, one, one * 0, one), snoise(p, (3, 4)))
+    half = musgrave("FBM", p, pwhl, lac, one * 1.5, one * 0, one)
+    second = snoise(tuple(c * np.float32(2) for c in p), (3, 4))
+    assert np.allclose(half, snoise(p, (3, 4)) + 0.5 * second * 0.25, atol=1e-7)

@@ -7,7 +7,8 @@ import functools
 
 import numpy as np
 
-from engine.nodes.procedural import brick, checker, gradient, magic, noise, voronoi, wave, white_noise
+from engine.nodes.procedural import (brick, checker, gradient, magic, musgrave, noise, voronoi, wave,
+                                     white_noise)
 
 
 def _quiet(kernel):
@@ -19,5 +20,5 @@ def _quiet(kernel):
 
 
 KERNELS = {}
-for _module in (noise, voronoi, wave, gradient, magic, checker, brick, white_noise):
+for _module in (noise, musgrave, voronoi, wave, gradient, magic, checker, brick, white_noise):
     KERNELS.update({name: _quiet(kernel) for name, kernel in _module.KERNELS.items()})
