@@ -36,35 +36,39 @@ def _fade(t):
     return (t * t) * (t * b)
 
 
-def _negate_if(v, cond):
-    return np.where(cond != 0, -v, v)
+def _flip(v, h, bit):
+    """-v where bit ``bit`` of the hash ``h`` is set: Cycles' `negate_if_nth_bit`, an XOR of the
+    float32 sign bit (exact, like negation)."""
+    sign = (h & np.uint32(1 << bit)) << np.uint32(31 - bit)
+    return (np.ascontiguousarray(v, dtype=F32).view(np.uint32) ^ sign).view(F32)
 
 
 def _grad(h, d):
     """Gradient dot offset for the corner hash ``h`` (uint32) and offset ``d`` (D arrays)."""
     if len(d) == 1:
-        h = h & 15
-        g = ((h & 7) + 1).astype(F32)
-        return _negate_if(g, h & 8) * d[0]
+        h = h & np.uint32(15)
+        g = ((h & np.uint32(7)) + np.uint32(1)).astype(F32)
+        return _flip(g, h, 3) * d[0]
     if len(d) == 2:
         x, y = d
-        h = h & 7
-        u = np.where(h < 4, x, y)
-        v = F32(2.0) * np.where(h < 4, y, x)
-        return _negate_if(u, h & 1) + _negate_if(v, h & 2)
+        h = h & np.uint32(7)
+        lo = h < 4
+        u = np.where(lo, x, y)
+        v = F32(2.0) * np.where(lo, y, x)
+        return _flip(u, h, 0) + _flip(v, h, 1)
     if len(d) == 3:
         x, y, z = d
-        h = h & 15
+        h = h & np.uint32(15)
         u = np.where(h < 8, x, y)
         vt = np.where((h == 12) | (h == 14), x, z)
         v = np.where(h < 4, y, vt)
-        return _negate_if(u, h & 1) + _negate_if(v, h & 2)
+        return _flip(u, h, 0) + _flip(v, h, 1)
     x, y, z, w = d
-    h = h & 31
+    h = h & np.uint32(31)
     u = np.where(h < 24, x, y)
     v = np.where(h < 16, y, z)
     s = np.where(h < 8, z, w)
-    return _negate_if(u, h & 1) + _negate_if(v, h & 2) + _negate_if(s, h & 4)
+    return _flip(u, h, 0) + _flip(v, h, 1) + _flip(s, h, 2)
 
 
 def perlin(p) -> np.ndarray:
