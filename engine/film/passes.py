@@ -18,8 +18,27 @@ Passes (``--passes albedo,normal,depth,samples,variance``; Blender's names, as C
   samples   ``Debug Sample Count`` (X): camera samples per pixel (Cycles' name).
   variance  ``Variance`` (R, G, B): the variance of each pixel's mean (sample variance / n).
 
-Only albedo, normal and depth are traced (``TRACED``); when none of them is asked for the tracer
-does no extra work at all (effect plan entry ``passes``).  Sums go through the same ordered merge
+Cycles' data and light passes of the camera ray's first hit (``FIRST_HIT``; Cycles'
+film_write_data_passes and film_write_emission_or_background_pass, written only for camera rays,
+which pass through Area lights):
+
+  mist            ``Mist`` (Z): 1 - the mean over the samples of (1 - m), m = clamp((d - start) /
+                  depth, 0, 1) ^ falloff, d the hit's distance from the camera, (start, depth,
+                  falloff) = Scene.mist (World > Mist Pass); a miss counts (1 - m) = 0, so 1.
+  world_normal    ``Normal`` (X, Y, Z): the first hit's world-space shading normal, facing the ray
+                  (Cycles' sd->N, flipped for back faces); averaged, a miss counts 0.
+  uv              ``UV`` (U, V, A): the active render UV map's (u, v, 1) at triangle hits
+                  (Cycles' primitive_uv), 0 elsewhere; averaged (A: the share of samples with UVs).
+  position        ``Position`` (X, Y, Z): the world-space hit point of the pixel's sample 0 (Cycles
+                  writes position and the indices for sample 0 only, not averaged); 0 for a miss.
+  object_index    ``IndexOB`` (X): the sample-0 hit's object Pass Index.
+  material_index  ``IndexMA`` (X): the sample-0 hit's material Pass Index.
+  emission        ``Emit`` (R, G, B): emission the camera ray sees directly (surfaces and Area
+                  lights, as Combined has it); averaged.
+  environment     ``Env`` (R, G, B): the background seen directly by camera rays; averaged.
+
+Only TRACED passes cost tracer work; when none of them is asked for the tracer does no extra work
+at all (effect plan entry ``passes``), and each first-hit pass only runs when asked for.  Sums go through the same ordered merge
 as the radiance (engine/rendering/frame.py FrameFilm), so every pass is the same bit for bit
 whatever the workers.
 """
@@ -29,16 +48,28 @@ import numpy as np
 
 from ..core.errors import SceneError
 from ..core.settings import PASSES, SETTING
+from ..geometry.scene_geometry import TRIANGLE
+from ..materials.textures import triangle_uvs
 
-TRACED = ("albedo", "normal", "depth")
+FIRST_HIT = ("mist", "world_normal", "uv", "position", "object_index", "material_index", "emission",
+             "environment")
+TRACED = ("albedo", "normal", "depth") + FIRST_HIT
 NOISY = "noisy"                 # with --denoise: the image before denoising (Cycles' "Noisy Image")
 WRITTEN = PASSES + (NOISY,)     # layer order in the EXR, after Combined
 BLENDER_NAME = {"albedo": "Denoising Albedo", "normal": "Denoising Normal", "depth": "Depth",
-                "samples": "Debug Sample Count", "variance": "Variance", NOISY: "Noisy Image"}
-CHANNELS = {"albedo": "RGB", "normal": "XYZ", "depth": "Z", "samples": "X", "variance": "RGB", NOISY: "RGB"}
+                "samples": "Debug Sample Count", "variance": "Variance", NOISY: "Noisy Image",
+                "mist": "Mist", "world_normal": "Normal", "uv": "UV", "position": "Position",
+                "object_index": "IndexOB", "material_index": "IndexMA", "emission": "Emit",
+                "environment": "Env"}
+CHANNELS = {"albedo": "RGB", "normal": "XYZ", "depth": "Z", "samples": "X", "variance": "RGB", NOISY: "RGB",
+            "mist": "Z", "world_normal": "XYZ", "uv": "UVA", "position": "XYZ", "object_index": "X",
+            "material_index": "X", "emission": "RGB", "environment": "RGB"}
 # Blender's pass types for RenderEngine.register_pass
 PASS_TYPE = {"albedo": "COLOR", "normal": "VECTOR", "depth": "VALUE", "samples": "VALUE", "variance": "COLOR",
-             NOISY: "COLOR"}
+             NOISY: "COLOR", "mist": "VALUE", "world_normal": "VECTOR", "uv": "VECTOR", "position": "VECTOR",
+             "object_index": "VALUE", "material_index": "VALUE", "emission": "COLOR", "environment": "COLOR"}
+SAMPLE_ZERO = ("position", "object_index", "material_index")     # Cycles: sample 0's value, not averaged
+CAMERA_LIGHT = ("emission", "environment")                       # radiance seen by camera rays
 NO_DEPTH = 1e10                 # Blender's Z of the background
 LAYER = "ViewLayer"             # the view layer name in the EXR's channel names
 
@@ -68,7 +99,7 @@ def camera_frame(camera):
 class TileFeatures:
     """Per-sample first-hit features of one work unit, summed per pixel of its tile."""
 
-    def __init__(self, pixels: int, camera, surface: bool = True):
+    def __init__(self, pixels: int, camera, surface: bool = True, first_hit: "FirstHitTables | None" = None):
         self.n = pixels
         self.surface = surface          # albedo or normal asked for: paths carry their specular tints
         self.position, self.axes = camera_frame(camera)
@@ -76,6 +107,10 @@ class TileFeatures:
         self.normal = np.zeros((pixels, 3))
         self.depth = np.zeros(pixels)
         self.depth_hits = np.zeros(pixels)
+        self.first_hit = first_hit      # FIRST_HIT passes asked for: their tables, else None
+        wanted = () if first_hit is None else first_hit.wanted
+        self.extra = {name: np.zeros((pixels, len(CHANNELS[name]))) for name in wanted}
+        self.camera_light = bool(set(CAMERA_LIGHT) & set(wanted))
 
     def _sum(self, target, pixel, rows):
         for c in range(rows.shape[0]):
@@ -102,8 +137,90 @@ class TileFeatures:
             self.depth += np.bincount(pixel, weights=z, minlength=self.n)
             self.depth_hits += np.bincount(pixel, minlength=self.n)
 
+    def add_first_hit(self, pixel, sample, point, normal, material, kind, prim, u, v) -> None:
+        """The FIRST_HIT data passes of camera rays' first surfaces: hit points and world-space
+        shading normals facing the ray (rows (3, N)), material ids and the hits' (kind, prim, u, v)."""
+        if not len(pixel):
+            return
+        t, x = self.first_hit, self.extra
+        if "mist" in x:
+            x["mist"][:, 0] += np.bincount(pixel, weights=1.0 - t.mist(point, self.position), minlength=self.n)
+        if "world_normal" in x:
+            self._sum(x["world_normal"], pixel, normal)
+        if "uv" in x:
+            self._sum(x["uv"], pixel, t.uv(kind, prim, u, v))
+        zero = np.flatnonzero(sample == 0)
+        if len(zero) and set(SAMPLE_ZERO) & set(x):
+            pz = pixel.take(zero)
+            if "position" in x:
+                self._sum(x["position"], pz, point.take(zero, axis=1) + t.origin[:, None])
+            if "object_index" in x:
+                x["object_index"][:, 0] += np.bincount(pz, weights=t.object_index(kind.take(zero), prim.take(zero)),
+                                                       minlength=self.n)
+            if "material_index" in x:
+                x["material_index"][:, 0] += np.bincount(pz, weights=t.material_index.take(material.take(zero)),
+                                                         minlength=self.n)
+
+    def add_camera_light(self, name, pixel, radiance) -> None:
+        """Emission or environment (CAMERA_LIGHT) seen by camera rays: radiance rows (3, N)."""
+        if name in self.extra and len(pixel):
+            self._sum(self.extra[name], pixel, radiance)
+
     def sums(self) -> dict:
-        return {"albedo": self.albedo, "normal": self.normal, "depth": self.depth, "depth_hits": self.depth_hits}
+        return {"albedo": self.albedo, "normal": self.normal, "depth": self.depth, "depth_hits": self.depth_hits,
+                **self.extra}
+
+
+class FirstHitTables:
+    """What the FIRST_HIT passes look up per hit, built once per prepared scene: the camera and
+    mist settings, each primitive's object Pass Index (in engine/geometry/scene_geometry.py's
+    primitive slots), each material's Pass Index and the triangles' corner UVs."""
+
+    def __init__(self, scene, geometry, passes, origin=None):
+        self.wanted = tuple(n for n in FIRST_HIT if n in passes)
+        # the tracing origin (engine/scene/tracing_origin.py) the scene was moved by: Position is in world space
+        self.origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
+        start, depth, falloff = (float(v) for v in scene.mist)
+        self.mist_start, self.mist_falloff = start, falloff
+        self.mist_inv_depth = 1.0 / depth if depth > 0.0 else 0.0          # as Cycles' Film::device_update
+        tri = [np.full(len(m.triangles), m.pass_index, np.float64) for m in scene.meshes if len(m.triangles)]
+        lights = geometry.lights.count if geometry.has_lights else 0
+        self.primitive_object = np.concatenate([np.zeros(1)] + tri + [
+            np.array([s.pass_index for s in scene.spheres], np.float64),
+            np.array([q.pass_index for q in scene.quads], np.float64), np.zeros(lights)])
+        self.kind_base = geometry.kind_base
+        self.material_index = np.array([m.pass_index for m in scene.materials], np.float64)
+        self.tri_uv = self.has_uv = None
+        if "uv" in self.wanted:
+            self.tri_uv = np.ascontiguousarray(triangle_uvs(scene).reshape(-1, 6).T)       # rows (6, T)
+            self.has_uv = np.concatenate([np.full(len(m.triangles), m.uvs is not None)
+                                          for m in scene.meshes if len(m.triangles)] or [np.zeros(0, bool)])
+
+    def mist(self, point, camera) -> np.ndarray:
+        """Cycles' mist of hit points rows (3, N) seen from `camera` (3,):
+        clamp((|P - camera| - start) / depth, 0, 1) ^ falloff."""
+        d = np.sqrt(sum((point[i] - camera[i]) ** 2 for i in range(3)))
+        m = np.clip((d - self.mist_start) * self.mist_inv_depth, 0.0, 1.0)
+        return m if self.mist_falloff == 1.0 else m ** self.mist_falloff
+
+    def object_index(self, kind, prim) -> np.ndarray:
+        return self.primitive_object.take(self.kind_base.take(kind) + prim)
+
+    def uv(self, kind, prim, u, v) -> np.ndarray:
+        """Rows (3, N): (u, v, 1) of the UV map at triangle hits with UVs, 0 elsewhere."""
+        out = np.zeros((3, len(kind)))
+        tri = np.flatnonzero(kind == TRIANGLE)
+        if len(tri):
+            p = prim.take(tri)
+            tri = tri[self.has_uv.take(p)]
+            p = prim.take(tri)
+            if len(tri):
+                uv, a, b = self.tri_uv[:, p], u.take(tri), v.take(tri)
+                w = 1.0 - a - b
+                out[0, tri] = w * uv[0] + a * uv[2] + b * uv[4]
+                out[1, tri] = w * uv[1] + a * uv[3] + b * uv[5]
+                out[2, tri] = 1.0
+        return out
 
 
 class FrameFeatures:
@@ -114,6 +231,7 @@ class FrameFeatures:
         self.normal = np.zeros((height, width, 3))
         self.depth = np.zeros((height, width))
         self.depth_hits = np.zeros((height, width))
+        self.extra = {}                 # FIRST_HIT passes: name -> (H, W, channels)
 
     def add(self, tile, sums: dict) -> None:
         h, w = tile.y1 - tile.y0, tile.x1 - tile.x0
@@ -122,6 +240,12 @@ class FrameFeatures:
         self.normal[s] += sums["normal"].reshape(h, w, 3)
         self.depth[s] += sums["depth"].reshape(h, w)
         self.depth_hits[s] += sums["depth_hits"].reshape(h, w)
+        for name in FIRST_HIT:
+            if name in sums:
+                c = len(CHANNELS[name])
+                if name not in self.extra:
+                    self.extra[name] = np.zeros(self.depth.shape + (c,))
+                self.extra[name][s] += sums[name].reshape(h, w, c)
 
 
 def pass_images(film, passes) -> dict:
@@ -138,6 +262,11 @@ def pass_images(film, passes) -> dict:
         with np.errstate(invalid="ignore", divide="ignore"):
             z = np.where(f.depth_hits > 0, f.depth / np.maximum(f.depth_hits, 1), NO_DEPTH)
         out["depth"] = z[..., None].astype(np.float32)
+    for name in FIRST_HIT:
+        if name in passes and f is not None:
+            total = f.extra.get(name, np.zeros(count.shape + (len(CHANNELS[name]),)))
+            value = total if name in SAMPLE_ZERO else total / n
+            out[name] = (1.0 - value if name == "mist" else value).astype(np.float32)
     if "samples" in passes:
         out["samples"] = count[..., None].astype(np.float32)
     if "variance" in passes:

@@ -235,6 +235,9 @@ class PathTracer:
             finished.append(self.misses(p, hits.miss, on_transparent))
             if features is not None and features.surface:
                 self.miss_features(p, hits.miss, features)
+            if features is not None and features.camera_light:
+                self.camera_light(p, hits.miss, finished[-1][1] - p.radiance.take(hits.miss, axis=1), "environment",
+                                  features)
         p = p.take(hits.index)
         surf = self.geometry.surface(p.o, p.d, hits)
         bounds = [start for start, _ in hits.groups] + [hits.groups[-1][1]]
@@ -244,7 +247,11 @@ class PathTracer:
         spans = [slice(bounds[g], bounds[g + 1]) for g in range(ABSORB)]      # the hits of bsdfs[g]
         # 3. Emission found by the ray (surfaces and Area lights), MIS-weighted after non-delta bounces.
         if self.plan.emission:
+            seen = np.flatnonzero(p.bounce == 0) if features is not None and features.camera_light else None
+            before = None if seen is None else p.radiance.take(seen, axis=1)
             self.emission(p, surf, hits, surfaces)
+            if seen is not None:
+                self.camera_light(p, seen, p.radiance.take(seen, axis=1) - before, "emission", features)
         # 4. Area lights: the ray goes on through them, as it was.
         passing = self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
         # 5. Direct light at hits with a non-delta BSDF (eq. 2.11).
@@ -403,6 +410,13 @@ class PathTracer:
         if len(idx) and self.has_background:
             features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * self.background[:, None])
 
+    def camera_light(self, p, idx, radiance, name, features):
+        """The Emission or Environment pass: what the paths `idx` gathered at this stage, for those
+        still camera rays (bounce 0: Cycles' "directly visible", before PATH_RAY_ANY_PASS)."""
+        camera = np.flatnonzero(p.bounce.take(idx) == 0)
+        if len(camera):
+            features.add_camera_light(name, p.pixel.take(idx.take(camera)), radiance.take(camera, axis=1))
+
     def surface_features(self, p, surf, facing, color, bounds, features, hits=None):
         """Cycles' denoising features (film_write_denoising_features_surface): at the first hit with
         a non-delta BSDF (diffuse) or an absorbing one write albedo = the delta-bounce tints x
@@ -413,6 +427,10 @@ class PathTracer:
         first = np.flatnonzero(p.bounce[:surfaces] == 0)
         if len(first):
             features.add_depth(p.pixel.take(first), surf.point.take(first, axis=1))
+        if features.first_hit is not None and len(first):      # Cycles' data passes (film_write_data_passes)
+            features.add_first_hit(p.pixel.take(first), p.sample.take(first), surf.point.take(first, axis=1),
+                                   facing.take(first, axis=1), surf.material.take(first), hits.kind.take(first),
+                                   hits.prim.take(first), hits.u.take(first), hits.v.take(first))
         if not features.surface:                 # depth only
             return
         idx = np.flatnonzero(p.f_open[:surfaces])

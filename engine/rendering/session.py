@@ -39,7 +39,7 @@ from ..geometry.scene_geometry import Counters, SceneGeometry
 from ..integrators.path_tracer import PathTracer
 from ..lights import LightSet
 from .masked_samples import MaskedTileSamples, unpack_mask
-from ..film.passes import TileFeatures
+from ..film.passes import FIRST_HIT, FirstHitTables, TileFeatures
 from ..sampling.qmc import RandomSampler, SobolSampler
 from ..core.settings import RenderSettings
 from ..materials.textures import load_textures
@@ -106,6 +106,8 @@ class PreparedScene:
         self.tracer = PathTracer(self.geometry, self.lights, lit.materials, self.plan, settings,
                                  scene.background, textures=textures and textures.bind(self.geometry, self.lights))
         self.pixel_filter = pixel_filter_for(settings)        # None: the box of width 1
+        self.first_hit = (FirstHitTables(scene, self.geometry, settings.passes, self.origin)
+                          if self.plan.passes and set(FIRST_HIT) & set(settings.passes) else None)
         self.prepass()
         self.setup_seconds = time.perf_counter() - start
 
@@ -136,7 +138,8 @@ class PreparedScene:
         sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.sample_net or s.samples,
                                 s.shadow_rays)
                    if s.sampler == "sobol" else RandomSampler(rng))
-        features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
+        features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)),
+                                 first_hit=self.first_hit)
                     if self.plan.passes else None)
         films = []
         transparent = s.film_transparent

@@ -166,6 +166,7 @@ class Material:
     # The anisotropic tangent's source (TANGENT_SOURCES) and, for "uv", the UV map ("": the active one).
     tangent_source: str = "fixed"
     tangent_uv_map: str = ""
+    pass_index: int = 0           # Blender's Material > Settings > Pass Index (the IndexMA pass)
 
     def __post_init__(self):
         if self.roughness is None:
@@ -438,6 +439,7 @@ class TriangleMesh:
     # (T, 3, 3) corner tangents, world space, for anisotropic materials whose tangent_source is not
     # "fixed" (a UV map's MikkTSpace tangent or Cycles' radial default), interpolated at hits.
     tangents: np.ndarray | None = None
+    pass_index: int = 0                   # Blender's Object > Relations > Pass Index (the IndexOB pass)
 
     def validate(self, n_materials: int, emissive: np.ndarray | None = None) -> int:
         """Check the mesh; drop degenerate triangles.  Returns how many were dropped.
@@ -550,6 +552,7 @@ class Sphere:
     center: tuple
     radius: float
     material_id: int
+    pass_index: int = 0           # the object's Pass Index (the IndexOB pass)
 
     def validate(self, n_materials: int) -> None:
         c = np.asarray(self.center, dtype=np.float64)
@@ -569,6 +572,7 @@ class Quad:
     name: str
     corners: np.ndarray           # (4, 3): v00, v10, v11, v01
     material_id: int
+    pass_index: int = 0           # the object's Pass Index (the IndexOB pass)
 
     def validate(self, n_materials: int) -> None:
         q = np.asarray(self.corners, dtype=np.float64)
@@ -731,6 +735,9 @@ class Scene:
     textures: list = field(default_factory=list)    # engine/materials/textures.py ImageTexture
     # (major, minor) of the Blender whose Cycles the models follow (the running one at export).
     cycles_version: tuple = (5, 0)
+    # The Mist pass (engine/film/passes.py): World > Mist Pass start, depth (metres) and falloff
+    # exponent (Blender's Quadratic 2, Linear 1, Inverse Quadratic 0.5).
+    mist: tuple = (5.0, 25.0, 2.0)
 
     def validate(self) -> list[str]:
         """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""
