@@ -246,7 +246,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             self._stats("TNCG15 MC | Exporting scene")
             camera = self.camera_override if self.camera_override is not None else scene.camera
             exported = export_scene(depsgraph, resolution=(width, height), camera=camera, crop=crop,
-                                    test_break=self._cancel_requested)
+                                    test_break=self._cancel_requested, uv_pass="uv" in settings.passes)
             if abs(scene.render.pixel_aspect_x - scene.render.pixel_aspect_y) > 1e-6:
                 exported.warnings.append("non-square pixel aspect is ignored")
             if pool is None and not cluster:

@@ -31,11 +31,11 @@ which pass through Area lights):
                   (Cycles' primitive_uv), 0 elsewhere; averaged (A: the share of samples with UVs).
   position        ``Position`` (X, Y, Z): the world-space hit point of the pixel's sample 0 (Cycles
                   writes position and the indices for sample 0 only, not averaged); 0 for a miss.
-  object_index    ``IndexOB`` (X): the sample-0 hit's object Pass Index.
-  material_index  ``IndexMA`` (X): the sample-0 hit's material Pass Index.
-  emission        ``Emit`` (R, G, B): emission the camera ray sees directly (surfaces and Area
+  object_index    ``Object Index`` (X): the sample-0 hit's object Pass Index.
+  material_index  ``Material Index`` (X): the sample-0 hit's material Pass Index.
+  emission        ``Emission`` (R, G, B): emission the camera ray sees directly (surfaces and Area
                   lights, as Combined has it); averaged.
-  environment     ``Env`` (R, G, B): the background seen directly by camera rays; averaged.
+  environment     ``Environment`` (R, G, B): the background seen directly by camera rays; averaged.
 
 Only TRACED passes cost tracer work; when none of them is asked for the tracer does no extra work
 at all (effect plan entry ``passes``), and each first-hit pass only runs when asked for.  Sums go through the same ordered merge
@@ -59,8 +59,8 @@ WRITTEN = PASSES + (NOISY,)     # layer order in the EXR, after Combined
 BLENDER_NAME = {"albedo": "Denoising Albedo", "normal": "Denoising Normal", "depth": "Depth",
                 "samples": "Debug Sample Count", "variance": "Variance", NOISY: "Noisy Image",
                 "mist": "Mist", "world_normal": "Normal", "uv": "UV", "position": "Position",
-                "object_index": "IndexOB", "material_index": "IndexMA", "emission": "Emit",
-                "environment": "Env"}
+                "object_index": "Object Index", "material_index": "Material Index", "emission": "Emission",
+                "environment": "Environment"}     # Blender 5.0's names; 3.x's: mcrt_addon/passes.py LEGACY_NAMES
 CHANNELS = {"albedo": "RGB", "normal": "XYZ", "depth": "Z", "samples": "X", "variance": "RGB", NOISY: "RGB",
             "mist": "Z", "world_normal": "XYZ", "uv": "UVA", "position": "XYZ", "object_index": "X",
             "material_index": "X", "emission": "RGB", "environment": "RGB"}
