@@ -291,11 +291,14 @@ SETTINGS = (
             "pixels whose error reached it get no more samples", panel="Sampling > Render", stats=STATS_RESOLVED),
     Setting("passes", CHOICES, (), "extra passes in the EXR, comma-separated: albedo,normal,depth,samples,"
             "variance, and Cycles' mist,world_normal,uv,position,object_index,material_index,emission,"
-            "environment (engine/film/passes.py; layers named as Blender's)", flag="--passes", metavar="LIST",
+            "environment, diffuse_direct,diffuse_indirect,glossy_direct,glossy_indirect,transmission_direct,"
+            "transmission_indirect (engine/film/passes.py; layers named as Blender's)", flag="--passes", metavar="LIST",
             fronts=frozenset((ENGINE_CLI, ADDON_CLI)), noun="pass", stats=STATS_AS_SET,
             panel="View Layer > Passes (mcrt_addon/passes.py)",
             choices=plain("albedo", "normal", "depth", "samples", "variance", "mist", "world_normal", "uv",
-                          "position", "object_index", "material_index", "emission", "environment")),
+                          "position", "object_index", "material_index", "emission", "environment",
+                          "diffuse_direct", "diffuse_indirect", "glossy_direct", "glossy_indirect",
+                          "transmission_direct", "transmission_indirect")),
     Setting("denoise", BOOL, False, "denoise with Intel Open Image Denoise (pyoidn), guided by the albedo and "
             "normal passes; the raw image is kept in the EXR as 'Noisy Image' (engine/film/denoise.py)",
             flag="--denoise", label="Denoise", prop="use_denoising", panel="Render > Denoise",

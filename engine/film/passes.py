@@ -37,6 +37,16 @@ which pass through Area lights):
                   lights, as Combined has it); averaged.
   environment     ``Environment`` (R, G, B): the background seen directly by camera rays; averaged.
 
+Cycles' light passes (``LIGHT``; light_passes.h): ``Diffuse Direct`` ... ``Transmission Indirect``
+(R, G, B), the light of paths by the class of their first (non-straight) bounce: diffuse lobes
+(translucent too), other reflections (glossy, mirror, glass reflection) or other transmissions
+(glass, refraction).  Direct: light sampled at the first vertex (shadow rays) and emission or
+background found by the ray after it; Indirect: everything later.  So Combined = Emission +
+Environment + the six light passes (Cycles' identity, without AO, volumes or shadow catchers).  A
+BSDF with lobes of several classes (Principled, Mix) files each sample under the class of the lobe it
+sampled (Cycles splits by each lobe's share of the evaluated BSDF): the sum is exact, the split
+between such a material's diffuse and glossy passes is only right on average over its lobes' choice.
+
 Only TRACED passes cost tracer work; when none of them is asked for the tracer does no extra work
 at all (effect plan entry ``passes``), and each first-hit pass only runs when asked for.  Sums go through the same ordered merge
 as the radiance (engine/rendering/frame.py FrameFilm), so every pass is the same bit for bit
@@ -53,21 +63,26 @@ from ..materials.textures import triangle_uvs
 
 FIRST_HIT = ("mist", "world_normal", "uv", "position", "object_index", "material_index", "emission",
              "environment")
-TRACED = ("albedo", "normal", "depth") + FIRST_HIT
+LIGHT = ("diffuse_direct", "diffuse_indirect", "glossy_direct", "glossy_indirect", "transmission_direct",
+         "transmission_indirect")        # index: 2 x class (0 diffuse, 1 glossy, 2 transmission) + indirect
+EXTRA = FIRST_HIT + LIGHT               # the passes TileFeatures.extra holds
+TRACED = ("albedo", "normal", "depth") + EXTRA
 NOISY = "noisy"                 # with --denoise: the image before denoising (Cycles' "Noisy Image")
 WRITTEN = PASSES + (NOISY,)     # layer order in the EXR, after Combined
 BLENDER_NAME = {"albedo": "Denoising Albedo", "normal": "Denoising Normal", "depth": "Depth",
                 "samples": "Debug Sample Count", "variance": "Variance", NOISY: "Noisy Image",
                 "mist": "Mist", "world_normal": "Normal", "uv": "UV", "position": "Position",
                 "object_index": "Object Index", "material_index": "Material Index", "emission": "Emission",
-                "environment": "Environment"}     # Blender 5.0's names; 3.x's: mcrt_addon/passes.py LEGACY_NAMES
+                "environment": "Environment", **{n: n.replace("_", " ").title() for n in LIGHT}}
+# Blender 5.0's names ("Diffuse Direct" ...); 3.x's: mcrt_addon/passes.py LEGACY_NAMES
 CHANNELS = {"albedo": "RGB", "normal": "XYZ", "depth": "Z", "samples": "X", "variance": "RGB", NOISY: "RGB",
             "mist": "Z", "world_normal": "XYZ", "uv": "UVA", "position": "XYZ", "object_index": "X",
-            "material_index": "X", "emission": "RGB", "environment": "RGB"}
+            "material_index": "X", "emission": "RGB", "environment": "RGB", **{n: "RGB" for n in LIGHT}}
 # Blender's pass types for RenderEngine.register_pass
 PASS_TYPE = {"albedo": "COLOR", "normal": "VECTOR", "depth": "VALUE", "samples": "VALUE", "variance": "COLOR",
              NOISY: "COLOR", "mist": "VALUE", "world_normal": "VECTOR", "uv": "VECTOR", "position": "VECTOR",
-             "object_index": "VALUE", "material_index": "VALUE", "emission": "COLOR", "environment": "COLOR"}
+             "object_index": "VALUE", "material_index": "VALUE", "emission": "COLOR", "environment": "COLOR",
+             **{n: "COLOR" for n in LIGHT}}
 SAMPLE_ZERO = ("position", "object_index", "material_index")     # Cycles: sample 0's value, not averaged
 CAMERA_LIGHT = ("emission", "environment")                       # radiance seen by camera rays
 NO_DEPTH = 1e10                 # Blender's Z of the background
@@ -111,6 +126,7 @@ class TileFeatures:
         wanted = () if first_hit is None else first_hit.wanted
         self.extra = {name: np.zeros((pixels, len(CHANNELS[name]))) for name in wanted}
         self.camera_light = bool(set(CAMERA_LIGHT) & set(wanted))
+        self.light_split = bool(set(LIGHT) & set(wanted))     # paths carry their first bounce's class
 
     def _sum(self, target, pixel, rows):
         for c in range(rows.shape[0]):
@@ -166,6 +182,16 @@ class TileFeatures:
         if name in self.extra and len(pixel):
             self._sum(self.extra[name], pixel, radiance)
 
+    def add_light(self, lobe, direct, pixel, radiance) -> None:
+        """Light passes: radiance rows (3, N) of paths whose first bounce had class `lobe` (N,)
+        (0 diffuse, 1 glossy, 2 transmission), Direct where `direct` (N,) else Indirect."""
+        which = 2 * lobe.astype(np.int64) + np.where(direct, 0, 1)
+        for k, name in enumerate(LIGHT):
+            if name in self.extra:
+                sel = np.flatnonzero(which == k)
+                if len(sel):
+                    self._sum(self.extra[name], pixel.take(sel), radiance.take(sel, axis=1))
+
     def sums(self) -> dict:
         return {"albedo": self.albedo, "normal": self.normal, "depth": self.depth, "depth_hits": self.depth_hits,
                 **self.extra}
@@ -177,7 +203,7 @@ class FirstHitTables:
     primitive slots), each material's Pass Index and the triangles' corner UVs."""
 
     def __init__(self, scene, geometry, passes, origin=None):
-        self.wanted = tuple(n for n in FIRST_HIT if n in passes)
+        self.wanted = tuple(n for n in EXTRA if n in passes)
         # the tracing origin (engine/scene/tracing_origin.py) the scene was moved by: Position is in world space
         self.origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
         start, depth, falloff = (float(v) for v in scene.mist)
@@ -240,7 +266,7 @@ class FrameFeatures:
         self.normal[s] += sums["normal"].reshape(h, w, 3)
         self.depth[s] += sums["depth"].reshape(h, w)
         self.depth_hits[s] += sums["depth_hits"].reshape(h, w)
-        for name in FIRST_HIT:
+        for name in EXTRA:
             if name in sums:
                 c = len(CHANNELS[name])
                 if name not in self.extra:
@@ -262,7 +288,7 @@ def pass_images(film, passes) -> dict:
         with np.errstate(invalid="ignore", divide="ignore"):
             z = np.where(f.depth_hits > 0, f.depth / np.maximum(f.depth_hits, 1), NO_DEPTH)
         out["depth"] = z[..., None].astype(np.float32)
-    for name in FIRST_HIT:
+    for name in EXTRA:
         if name in passes and f is not None:
             total = f.extra.get(name, np.zeros(count.shape + (len(CHANNELS[name]),)))
             value = total if name in SAMPLE_ZERO else total / n
