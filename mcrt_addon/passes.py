@@ -22,7 +22,8 @@ kept equal by tests/addon/test_passes_addon.py).  Kept free of numpy and the tra
   emission      Emission (Emit)        RGB       Light > Other > Emission (use_pass_emit)
   environment   Environment (Env)      RGB       Light > Other > Environment (use_pass_environment)
   diffuse_direct  Diffuse Direct (DiffDir) RGB   Light > Diffuse > Direct (use_pass_diffuse_direct); the
-                same for _indirect (DiffInd), glossy_ (GlossDir, GlossInd), transmission_ (TransDir, TransInd)
+                same for _indirect (DiffInd), _color (DiffCol), glossy_ (GlossDir, GlossInd, GlossCol),
+                transmission_ (TransDir, TransInd, TransCol)
 
 Blender before 5.0 names four of them as in brackets (LEGACY_NAMES; Blender 3.4's Cycles registers
 those, Blender 5.0's the long ones).
@@ -43,21 +44,23 @@ BLENDER_PASSES = {
     "emission": ("Emission", 3, "RGB", "COLOR"),
     "environment": ("Environment", 3, "RGB", "COLOR"),
     **{f"{kind}_{part}": (f"{kind.title()} {part.title()}", 3, "RGB", "COLOR")
-       for kind in ("diffuse", "glossy", "transmission") for part in ("direct", "indirect")},
+       for kind in ("diffuse", "glossy", "transmission") for part in ("direct", "indirect", "color")},
 }
 ORDER = ("albedo", "normal", "depth", "samples", "variance", "noisy", "mist", "world_normal", "uv", "position",
          "object_index", "material_index", "emission", "environment", "diffuse_direct", "diffuse_indirect",
-         "glossy_direct", "glossy_indirect", "transmission_direct", "transmission_indirect")
+         "glossy_direct", "glossy_indirect", "transmission_direct", "transmission_indirect", "diffuse_color",
+         "glossy_color", "transmission_color")
 # The view layer's own toggle of each Cycles pass (Blender's, so files made for Cycles keep them).
 TOGGLES = {"mist": "use_pass_mist", "world_normal": "use_pass_normal", "uv": "use_pass_uv",
            "position": "use_pass_position", "object_index": "use_pass_object_index",
            "material_index": "use_pass_material_index", "emission": "use_pass_emit",
            "environment": "use_pass_environment",
            **{f"{kind}_{part}": f"use_pass_{kind}_{part}" for kind in ("diffuse", "glossy", "transmission")
-              for part in ("direct", "indirect")}}
+              for part in ("direct", "indirect", "color")}}
 LEGACY_NAMES = {"Object Index": "IndexOB", "Material Index": "IndexMA", "Emission": "Emit", "Environment": "Env",
                 "Diffuse Direct": "DiffDir", "Diffuse Indirect": "DiffInd", "Glossy Direct": "GlossDir",
-                "Glossy Indirect": "GlossInd", "Transmission Direct": "TransDir", "Transmission Indirect": "TransInd"}
+                "Glossy Indirect": "GlossInd", "Transmission Direct": "TransDir", "Transmission Indirect": "TransInd",
+                "Diffuse Color": "DiffCol", "Glossy Color": "GlossCol", "Transmission Color": "TransCol"}
 
 
 def blender_name(name) -> str:

@@ -287,6 +287,7 @@ class VIEWLAYER_PT_tncg15_passes(TNCG15ButtonsPanel, bpy.types.Panel):
             col = layout.column(heading=kind.title(), align=True)
             col.prop(view_layer, f"use_pass_{kind}_direct", text="Direct")
             col.prop(view_layer, f"use_pass_{kind}_indirect", text="Indirect")
+            col.prop(view_layer, f"use_pass_{kind}_color", text="Color")
         col = layout.column(heading="Other", align=True)
         col.prop(view_layer, "use_pass_emit", text="Emission")
         col.prop(view_layer, "use_pass_environment")

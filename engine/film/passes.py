@@ -59,13 +59,15 @@ import numpy as np
 from ..core.errors import SceneError
 from ..core.settings import PASSES, SETTING
 from ..geometry.scene_geometry import TRIANGLE
+from ..materials.principled import MU_POINTS, _read, f0_from_ior, interpolation_factor
 from ..materials.textures import triangle_uvs
 
 FIRST_HIT = ("mist", "world_normal", "uv", "position", "object_index", "material_index", "emission",
              "environment")
 LIGHT = ("diffuse_direct", "diffuse_indirect", "glossy_direct", "glossy_indirect", "transmission_direct",
          "transmission_indirect")        # index: 2 x class (0 diffuse, 1 glossy, 2 transmission) + indirect
-EXTRA = FIRST_HIT + LIGHT               # the passes TileFeatures.extra holds
+COLOR = ("diffuse_color", "glossy_color", "transmission_color")   # index: the class
+EXTRA = FIRST_HIT + LIGHT + COLOR       # the passes TileFeatures.extra holds
 TRACED = ("albedo", "normal", "depth") + EXTRA
 NOISY = "noisy"                 # with --denoise: the image before denoising (Cycles' "Noisy Image")
 WRITTEN = PASSES + (NOISY,)     # layer order in the EXR, after Combined
@@ -73,16 +75,22 @@ BLENDER_NAME = {"albedo": "Denoising Albedo", "normal": "Denoising Normal", "dep
                 "samples": "Debug Sample Count", "variance": "Variance", NOISY: "Noisy Image",
                 "mist": "Mist", "world_normal": "Normal", "uv": "UV", "position": "Position",
                 "object_index": "Object Index", "material_index": "Material Index", "emission": "Emission",
-                "environment": "Environment", **{n: n.replace("_", " ").title() for n in LIGHT}}
+                "environment": "Environment", **{n: n.replace("_", " ").title() for n in LIGHT + COLOR}}
 # Blender 5.0's names ("Diffuse Direct" ...); 3.x's: mcrt_addon/passes.py LEGACY_NAMES
 CHANNELS = {"albedo": "RGB", "normal": "XYZ", "depth": "Z", "samples": "X", "variance": "RGB", NOISY: "RGB",
             "mist": "Z", "world_normal": "XYZ", "uv": "UVA", "position": "XYZ", "object_index": "X",
-            "material_index": "X", "emission": "RGB", "environment": "RGB", **{n: "RGB" for n in LIGHT}}
+            "material_index": "X", "emission": "RGB", "environment": "RGB", **{n: "RGB" for n in LIGHT + COLOR}}
 # Blender's pass types for RenderEngine.register_pass
 PASS_TYPE = {"albedo": "COLOR", "normal": "VECTOR", "depth": "VALUE", "samples": "VALUE", "variance": "COLOR",
              NOISY: "COLOR", "mist": "VALUE", "world_normal": "VECTOR", "uv": "VECTOR", "position": "VECTOR",
              "object_index": "VALUE", "material_index": "VALUE", "emission": "COLOR", "environment": "COLOR",
-             **{n: "COLOR" for n in LIGHT}}
+             **{n: "COLOR" for n in LIGHT + COLOR}}
+# The Color passes' class of each material kind (engine/scene/model.py): 0 diffuse (its colour),
+# 1 glossy (its colour: no Fresnel), GLASS_CLASS split by Fresnel; other kinds (principled, mix,
+# transparent: ANY_CLASS) put their colour in all three, a stand-in for Cycles' per-closure albedos
+# that keeps Colour x (Direct + Indirect) their light.
+GLASS_CLASS, ANY_CLASS = 2, -1
+COLOR_CLASS = {"diffuse": 0, "translucent": 0, "mirror": 1, "glossy": 1, "glass": GLASS_CLASS, "refraction": GLASS_CLASS}
 SAMPLE_ZERO = ("position", "object_index", "material_index")     # Cycles: sample 0's value, not averaged
 CAMERA_LIGHT = ("emission", "environment")                       # radiance seen by camera rays
 NO_DEPTH = 1e10                 # Blender's Z of the background
@@ -153,12 +161,19 @@ class TileFeatures:
             self.depth += np.bincount(pixel, weights=z, minlength=self.n)
             self.depth_hits += np.bincount(pixel, minlength=self.n)
 
-    def add_first_hit(self, pixel, sample, point, normal, material, kind, prim, u, v) -> None:
+    def add_first_hit(self, pixel, sample, point, normal, material, kind, prim, u, v, color=None,
+                      cos_i=None) -> None:
         """The FIRST_HIT data passes of camera rays' first surfaces: hit points and world-space
-        shading normals facing the ray (rows (3, N)), material ids and the hits' (kind, prim, u, v)."""
+        shading normals facing the ray (rows (3, N)), material ids and the hits' (kind, prim, u, v);
+        for the Color passes the hits' colours (3, N) and cosines to the viewer (N,)."""
         if not len(pixel):
             return
         t, x = self.first_hit, self.extra
+        if color is not None and set(COLOR) & set(x):
+            colors = t.lobe_colors(material, color, cos_i)
+            for k, name in enumerate(COLOR):
+                if name in x:
+                    self._sum(x[name], pixel, colors[k])
         if "mist" in x:
             x["mist"][:, 0] += np.bincount(pixel, weights=1.0 - t.mist(point, self.position), minlength=self.n)
         if "world_normal" in x:
@@ -203,7 +218,9 @@ class FirstHitTables:
     primitive slots), each material's Pass Index and the triangles' corner UVs."""
 
     def __init__(self, scene, geometry, passes, origin=None):
-        self.wanted = tuple(n for n in EXTRA if n in passes)
+        # a class's Direct / Indirect are divided by its Color (Cycles' pass_divide): computed with them
+        needed = set(passes) | {COLOR[i // 2] for i, n in enumerate(LIGHT) if n in passes}
+        self.wanted = tuple(n for n in EXTRA if n in needed)
         # the tracing origin (engine/scene/tracing_origin.py) the scene was moved by: Position is in world space
         self.origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
         start, depth, falloff = (float(v) for v in scene.mist)
@@ -216,11 +233,38 @@ class FirstHitTables:
             np.array([q.pass_index for q in scene.quads], np.float64), np.zeros(lights)])
         self.kind_base = geometry.kind_base
         self.material_index = np.array([m.pass_index for m in scene.materials], np.float64)
+        self.color_class = np.array([COLOR_CLASS.get(m.kind, ANY_CLASS) for m in scene.materials], np.int64)
+        self.glass_s = None                 # glass: the Fresnel's interpolation factor table per material
+        if set(COLOR) & set(self.wanted) and (self.color_class == GLASS_CLASS).any():
+            self.glass_s = np.stack([interpolation_factor(float(m.roughness or 0.0), float(m.ior))
+                                     if COLOR_CLASS.get(m.kind, ANY_CLASS) == GLASS_CLASS else np.zeros(MU_POINTS)
+                                     for m in scene.materials])
+            self.glass_f0 = f0_from_ior(np.array([m.ior for m in scene.materials], np.float64))
         self.tri_uv = self.has_uv = None
         if "uv" in self.wanted:
             self.tri_uv = np.ascontiguousarray(triangle_uvs(scene).reshape(-1, 6).T)       # rows (6, T)
             self.has_uv = np.concatenate([np.full(len(m.triangles), m.uvs is not None)
                                           for m in scene.meshes if len(m.triangles)] or [np.zeros(0, bool)])
+
+    def lobe_colors(self, material, color, cos_i) -> np.ndarray:
+        """(3 classes, 3, N): Cycles' Diffuse / Glossy / Transmission Color of first hits (the
+        closures' bsdf_albedo: the weight, a glass's split by its microfacet-averaged Fresnel
+        F = F0 + (1 - F0) s(cos_i), bsdf_microfacet_estimate_albedo); `color` the hits' colours."""
+        out = np.zeros((3,) + color.shape)
+        cls = self.color_class.take(material)
+        for k in (0, 1):
+            sel = np.flatnonzero((cls == k) | (cls == ANY_CLASS))
+            out[k][:, sel] = color[:, sel]
+        other = np.flatnonzero(cls == ANY_CLASS)
+        out[2][:, other] = color[:, other]
+        glass = np.flatnonzero(cls == GLASS_CLASS)
+        if len(glass) and self.glass_s is not None:
+            m = material.take(glass)
+            f0 = self.glass_f0.take(m)
+            f = f0 + (1.0 - f0) * _read(self.glass_s, m, np.abs(cos_i.take(glass)))
+            out[1][:, glass] = color[:, glass] * f
+            out[2][:, glass] = color[:, glass] * (1.0 - f)
+        return out
 
     def mist(self, point, camera) -> np.ndarray:
         """Cycles' mist of hit points rows (3, N) seen from `camera` (3,):
@@ -291,6 +335,10 @@ def pass_images(film, passes) -> dict:
     for name in EXTRA:
         if name in passes and f is not None:
             total = f.extra.get(name, np.zeros(count.shape + (len(CHANNELS[name]),)))
+            if name in LIGHT:               # divided by its class's Color, as Cycles (sample counts cancel)
+                empty = np.zeros(total.shape)
+                out[name] = divide_even_color(total, f.extra.get(COLOR[LIGHT.index(name) // 2], empty)).astype(np.float32)
+                continue
             value = total if name in SAMPLE_ZERO else total / n
             out[name] = (1.0 - value if name == "mist" else value).astype(np.float32)
     if "samples" in passes:
@@ -298,6 +346,18 @@ def pass_images(film, passes) -> dict:
     if "variance" in passes:
         out["variance"] = film.variance_of_mean().astype(np.float32)
     return out
+
+
+def divide_even_color(a, b) -> np.ndarray:
+    """a / b per channel (..., 3), 0 where b is 0 and then, as Cycles' safe_divide_even_color, the
+    other channels' ratio (their mean; one of them if two are 0) so a grey stays grey."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    zero = b == 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.where(zero, 0.0, a / np.where(zero, 1.0, b))
+    good = (~zero).sum(axis=-1, keepdims=True)
+    mean = np.where(good > 0, q.sum(axis=-1, keepdims=True) / np.maximum(good, 1), 0.0)
+    return np.where(zero, mean, q)
 
 
 def exr_channels(passes) -> list:

@@ -472,9 +472,11 @@ class PathTracer:
         if len(first):
             features.add_depth(p.pixel.take(first), surf.point.take(first, axis=1))
         if features.first_hit is not None and len(first):      # Cycles' data passes (film_write_data_passes)
+            n_first = facing.take(first, axis=1)
             features.add_first_hit(p.pixel.take(first), p.sample.take(first), surf.point.take(first, axis=1),
-                                   facing.take(first, axis=1), surf.material.take(first), hits.kind.take(first),
-                                   hits.prim.take(first), hits.u.take(first), hits.v.take(first))
+                                   n_first, surf.material.take(first), hits.kind.take(first),
+                                   hits.prim.take(first), hits.u.take(first), hits.v.take(first),
+                                   color.take(first, axis=1), -dot(p.d.take(first, axis=1), n_first))
         if not features.surface:                 # depth only
             return
         idx = np.flatnonzero(p.f_open[:surfaces])

@@ -1,16 +1,27 @@
-"""Cycles' first-hit and light passes in the tracer (engine/film/passes.py FIRST_HIT, LIGHT): closed
-forms on a plane, the Combined identity (Combined = Emission + Environment + the six light passes)
-per pass kind, and the image staying the same bit for bit with any of them on."""
+"""Cycles' first-hit and light passes in the tracer (engine/film/passes.py FIRST_HIT, LIGHT, COLOR):
+closed forms on a plane, Cycles' Combined identity (Combined = Emission + Environment + the sum over
+diffuse, glossy and transmission of Color x (Direct + Indirect)) per material kind, and the image
+staying the same bit for bit with any of them on."""
 import numpy as np
 import pytest
 
 from engine import RenderSettings, render
-from engine.film.passes import FIRST_HIT, LIGHT
+from engine.film.passes import COLOR, FIRST_HIT, LIGHT
 from engine.scene.builtin import cornell_scene
 from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, Camera, Material, Quad, Scene, Sphere
 
 SILENT = dict(log=lambda *a: None)
-IDENTITY = ("emission", "environment") + LIGHT
+IDENTITY = ("emission", "environment") + LIGHT + COLOR
+
+
+def light_sum(passes, leave_out=()):
+    """Cycles' identity's right-hand side from the passes (float64)."""
+    p = {n: np.asarray(v, np.float64) for n, v in passes.items()}
+    total = p["emission"] + p["environment"]
+    for k, kind in enumerate(("diffuse", "glossy", "transmission")):
+        light = sum(p[f"{kind}_{part}"] for part in ("direct", "indirect") if f"{kind}_{part}" not in leave_out)
+        total = total + p[COLOR[k]] * light
+    return total
 
 
 def floor(z=0.0, material=0, size=50.0, index=0):
@@ -59,7 +70,7 @@ def identity_scene(kind):
 @pytest.mark.parametrize("kind", [DIFFUSE, GLOSSY, MIRROR, GLASS])
 def test_combined_is_the_sum_of_the_light_passes(kind):
     r = render(identity_scene(kind), RenderSettings(samples=4, max_depth=4, passes=IDENTITY, threads=1), **SILENT)
-    total = sum(r.passes[n].astype(np.float64) for n in IDENTITY)
+    total = light_sum(r.passes)
     assert np.allclose(total, r.image, rtol=1e-5, atol=1e-5), np.abs(total - r.image).max()
     lit = {n: float(r.passes[n].sum()) for n in IDENTITY}
     expected = {DIFFUSE: "diffuse", GLOSSY: "glossy", MIRROR: "glossy", GLASS: "transmission"}[kind]
@@ -67,13 +78,25 @@ def test_combined_is_the_sum_of_the_light_passes(kind):
     seen = f"{expected}_indirect" if kind == GLASS else f"{expected}_direct"
     assert lit[seen] > 0 and lit["diffuse_direct"] > 0 and lit["environment"] > 0, lit
     # control: one pass left out breaks the identity
-    short = total - r.passes[f"{expected}_indirect"]
+    short = light_sum(r.passes, leave_out=(f"{expected}_indirect",))
     assert not np.allclose(short, r.image, rtol=1e-5, atol=1e-5)
 
 
 def test_image_is_the_same_with_every_pass_on():
     scene = cornell_scene(resolution=(12, 12))
     plain = render(scene, RenderSettings(samples=4, threads=1), **SILENT).image
-    every = render(cornell_scene(resolution=(12, 12)), RenderSettings(samples=4, threads=1, passes=FIRST_HIT + LIGHT),
+    every = render(cornell_scene(resolution=(12, 12)), RenderSettings(samples=4, threads=1, passes=FIRST_HIT + LIGHT + COLOR),
                    **SILENT).image
     assert np.array_equal(plain, every)
+
+
+def test_glass_colour_splits_by_fresnel():
+    """A smooth glass plane seen head-on: Glossy Color = F0 x colour = 0.04 x colour (IOR 1.5),
+    Transmission Color = the rest; a diffuse plane: Diffuse Color = its colour, the others 0."""
+    cam = Camera.look_at((0.0, 0.0, 3.0), (0.0, 0.0, 0.0), up=(0, 1, 0), lens=200.0)
+    for kind, expect in ((GLASS, (0.0, 0.04, 0.96)), (DIFFUSE, (1.0, 0.0, 0.0))):
+        mats = [Material("M", kind, (0.5, 0.6, 0.7), ior=1.5)]
+        p = render(Scene(cam, mats, quads=[floor()], resolution=(4, 4)),
+                   RenderSettings(samples=2, passes=COLOR, threads=1), **SILENT).passes
+        for name, share in zip(COLOR, expect):
+            assert np.allclose(p[name], share * np.array([0.5, 0.6, 0.7]), atol=2e-3), (kind, name, p[name][0, 0])
