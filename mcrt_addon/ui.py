@@ -291,6 +291,10 @@ class VIEWLAYER_PT_tncg15_passes(TNCG15ButtonsPanel, bpy.types.Panel):
         col = layout.column(heading="Other", align=True)
         col.prop(view_layer, "use_pass_emit", text="Emission")
         col.prop(view_layer, "use_pass_environment")
+        col = layout.column(heading="Cryptomatte", align=True)
+        col.prop(view_layer, "use_pass_cryptomatte_object", text="Object")
+        col.prop(view_layer, "use_pass_cryptomatte_material", text="Material")
+        col.prop(view_layer, "use_pass_cryptomatte_asset", text="Asset")
 
 
 class WORLD_PT_tncg15_mist(TNCG15ButtonsPanel, bpy.types.Panel):

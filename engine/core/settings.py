@@ -292,7 +292,8 @@ SETTINGS = (
     Setting("passes", CHOICES, (), "extra passes in the EXR, comma-separated: albedo,normal,depth,samples,"
             "variance, and Cycles' mist,world_normal,uv,position,object_index,material_index,emission,"
             "environment, diffuse_direct,diffuse_indirect,glossy_direct,glossy_indirect,transmission_direct,"
-            "transmission_indirect,diffuse_color,glossy_color,transmission_color (engine/film/passes.py; layers "
+            "transmission_indirect,diffuse_color,glossy_color,transmission_color, crypto_object,crypto_material,"
+            "crypto_asset (engine/film/passes.py; layers "
             "named as Blender's)", flag="--passes", metavar="LIST",
             fronts=frozenset((ENGINE_CLI, ADDON_CLI)), noun="pass", stats=STATS_AS_SET,
             panel="View Layer > Passes (mcrt_addon/passes.py)",
@@ -300,7 +301,7 @@ SETTINGS = (
                           "position", "object_index", "material_index", "emission", "environment",
                           "diffuse_direct", "diffuse_indirect", "glossy_direct", "glossy_indirect",
                           "transmission_direct", "transmission_indirect", "diffuse_color", "glossy_color",
-                          "transmission_color")),
+                          "transmission_color", "crypto_object", "crypto_material", "crypto_asset")),
     Setting("denoise", BOOL, False, "denoise with Intel Open Image Denoise (pyoidn), guided by the albedo and "
             "normal passes; the raw image is kept in the EXR as 'Noisy Image' (engine/film/denoise.py)",
             flag="--denoise", label="Denoise", prop="use_denoising", panel="Render > Denoise",

@@ -47,6 +47,10 @@ BSDF with lobes of several classes (Principled, Mix) files each sample under the
 sampled (Cycles splits by each lobe's share of the evaluated BSDF): the sum is exact, the split
 between such a material's diffuse and glossy passes is only right on average over its lobes' choice.
 
+Cryptomatte (``CRYPTO``: crypto_object, crypto_material, crypto_asset; engine/film/cryptomatte.py):
+``CryptoObject00`` .. ``CryptoObject02`` (r, g, b, a: id, coverage, id, coverage), the manifest in
+the EXR's metadata (cryptomatte_metadata).
+
 Only TRACED passes cost tracer work; when none of them is asked for the tracer does no extra work
 at all (effect plan entry ``passes``), and each first-hit pass only runs when asked for.  Sums go through the same ordered merge
 as the radiance (engine/rendering/frame.py FrameFilm), so every pass is the same bit for bit
@@ -61,6 +65,7 @@ from ..core.settings import PASSES, SETTING
 from ..geometry.scene_geometry import TRIANGLE
 from ..materials.principled import MU_POINTS, _read, f0_from_ior, interpolation_factor
 from ..materials.textures import triangle_uvs
+from . import cryptomatte
 
 FIRST_HIT = ("mist", "world_normal", "uv", "position", "object_index", "material_index", "emission",
              "environment")
@@ -68,23 +73,26 @@ LIGHT = ("diffuse_direct", "diffuse_indirect", "glossy_direct", "glossy_indirect
          "transmission_indirect")        # index: 2 x class (0 diffuse, 1 glossy, 2 transmission) + indirect
 COLOR = ("diffuse_color", "glossy_color", "transmission_color")   # index: the class
 EXTRA = FIRST_HIT + LIGHT + COLOR       # the passes TileFeatures.extra holds
-TRACED = ("albedo", "normal", "depth") + EXTRA
+CRYPTO = cryptomatte.KINDS              # Cryptomatte (engine/film/cryptomatte.py): LEVELS layers each
+TRACED = ("albedo", "normal", "depth") + EXTRA + CRYPTO
 NOISY = "noisy"                 # with --denoise: the image before denoising (Cycles' "Noisy Image")
 WRITTEN = PASSES + (NOISY,)     # layer order in the EXR, after Combined
 BLENDER_NAME = {"albedo": "Denoising Albedo", "normal": "Denoising Normal", "depth": "Depth",
                 "samples": "Debug Sample Count", "variance": "Variance", NOISY: "Noisy Image",
                 "mist": "Mist", "world_normal": "Normal", "uv": "UV", "position": "Position",
                 "object_index": "Object Index", "material_index": "Material Index", "emission": "Emission",
-                "environment": "Environment", **{n: n.replace("_", " ").title() for n in LIGHT + COLOR}}
+                "environment": "Environment", **{n: n.replace("_", " ").title() for n in LIGHT + COLOR},
+                **cryptomatte.LAYER_NAME}
 # Blender 5.0's names ("Diffuse Direct" ...); 3.x's: mcrt_addon/passes.py LEGACY_NAMES
 CHANNELS = {"albedo": "RGB", "normal": "XYZ", "depth": "Z", "samples": "X", "variance": "RGB", NOISY: "RGB",
             "mist": "Z", "world_normal": "XYZ", "uv": "UVA", "position": "XYZ", "object_index": "X",
-            "material_index": "X", "emission": "RGB", "environment": "RGB", **{n: "RGB" for n in LIGHT + COLOR}}
+            "material_index": "X", "emission": "RGB", "environment": "RGB", **{n: "RGB" for n in LIGHT + COLOR},
+            **{n: "rgba" * cryptomatte.LEVELS for n in CRYPTO}}     # the spec's lower-case channels
 # Blender's pass types for RenderEngine.register_pass
 PASS_TYPE = {"albedo": "COLOR", "normal": "VECTOR", "depth": "VALUE", "samples": "VALUE", "variance": "COLOR",
              NOISY: "COLOR", "mist": "VALUE", "world_normal": "VECTOR", "uv": "VECTOR", "position": "VECTOR",
              "object_index": "VALUE", "material_index": "VALUE", "emission": "COLOR", "environment": "COLOR",
-             **{n: "COLOR" for n in LIGHT + COLOR}}
+             **{n: "COLOR" for n in LIGHT + COLOR + CRYPTO}}
 # The Color passes' class of each material kind (engine/scene/model.py): 0 diffuse (its colour),
 # 1 glossy (its colour: no Fresnel), GLASS_CLASS split by Fresnel; other kinds (principled, mix,
 # transparent: ANY_CLASS) put their colour in all three, a stand-in for Cycles' per-closure albedos
@@ -135,6 +143,7 @@ class TileFeatures:
         self.extra = {name: np.zeros((pixels, len(CHANNELS[name]))) for name in wanted}
         self.camera_light = bool(set(CAMERA_LIGHT) & set(wanted))
         self.light_split = bool(set(LIGHT) & set(wanted))     # paths carry their first bounce's class
+        self.crypto = {name: [] for name in wanted if name in CRYPTO}      # (pixel, id) per sample hit
 
     def _sum(self, target, pixel, rows):
         for c in range(rows.shape[0]):
@@ -169,6 +178,10 @@ class TileFeatures:
         if not len(pixel):
             return
         t, x = self.first_hit, self.extra
+        for name, entries in self.crypto.items():
+            ids = (t.material_crypto.take(material) if name == "crypto_material"
+                   else t.primitive_crypto[name].take(t.kind_base.take(kind) + prim))
+            entries.append((pixel, ids))
         if color is not None and set(COLOR) & set(x):
             colors = t.lobe_colors(material, color, cos_i)
             for k, name in enumerate(COLOR):
@@ -208,8 +221,10 @@ class TileFeatures:
                     self._sum(self.extra[name], pixel.take(sel), radiance.take(sel, axis=1))
 
     def sums(self) -> dict:
+        crypto = {name: np.concatenate([np.stack([p.astype(np.float64), i]) for p, i in entries], axis=1)
+                  if entries else np.zeros((2, 0)) for name, entries in self.crypto.items()}
         return {"albedo": self.albedo, "normal": self.normal, "depth": self.depth, "depth_hits": self.depth_hits,
-                **self.extra}
+                **self.extra, **crypto}
 
 
 class FirstHitTables:
@@ -220,7 +235,10 @@ class FirstHitTables:
     def __init__(self, scene, geometry, passes, origin=None):
         # a class's Direct / Indirect are divided by its Color (Cycles' pass_divide): computed with them
         needed = set(passes) | {COLOR[i // 2] for i, n in enumerate(LIGHT) if n in passes}
-        self.wanted = tuple(n for n in EXTRA if n in needed)
+        self.wanted = tuple(n for n in EXTRA + CRYPTO if n in needed)
+        self.primitive_crypto = {n: cryptomatte.primitive_ids(scene, geometry, n) for n in ("crypto_object", "crypto_asset")
+                                 if n in self.wanted}
+        self.material_crypto = cryptomatte.material_ids(scene) if "crypto_material" in self.wanted else None
         # the tracing origin (engine/scene/tracing_origin.py) the scene was moved by: Position is in world space
         self.origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
         start, depth, falloff = (float(v) for v in scene.mist)
@@ -302,6 +320,8 @@ class FrameFeatures:
         self.depth = np.zeros((height, width))
         self.depth_hits = np.zeros((height, width))
         self.extra = {}                 # FIRST_HIT passes: name -> (H, W, channels)
+        self.crypto = {}                # Cryptomatte: name -> [(frame pixel, id) rows (2, k)]
+        self.width = width
 
     def add(self, tile, sums: dict) -> None:
         h, w = tile.y1 - tile.y0, tile.x1 - tile.x0
@@ -310,6 +330,11 @@ class FrameFeatures:
         self.normal[s] += sums["normal"].reshape(h, w, 3)
         self.depth[s] += sums["depth"].reshape(h, w)
         self.depth_hits[s] += sums["depth_hits"].reshape(h, w)
+        for name in CRYPTO:
+            if name in sums and sums[name].shape[1]:
+                p = sums[name][0].astype(np.int64)
+                frame = (tile.y0 + p // w) * self.width + tile.x0 + p % w
+                self.crypto.setdefault(name, []).append((frame, sums[name][1]))
         for name in EXTRA:
             if name in sums:
                 c = len(CHANNELS[name])
@@ -341,6 +366,12 @@ def pass_images(film, passes) -> dict:
                 continue
             value = total if name in SAMPLE_ZERO else total / n
             out[name] = (1.0 - value if name == "mist" else value).astype(np.float32)
+    for name in CRYPTO:
+        if name in passes and f is not None:
+            entries = f.crypto.get(name, [])
+            pixel = np.concatenate([e[0] for e in entries]) if entries else np.zeros(0, np.int64)
+            ids = np.concatenate([e[1] for e in entries]) if entries else np.zeros(0)
+            out[name] = cryptomatte.layers(pixel, ids, count, count.shape)
     if "samples" in passes:
         out["samples"] = count[..., None].astype(np.float32)
     if "variance" in passes:
@@ -365,8 +396,20 @@ def exr_channels(passes) -> list:
     names = [f"{LAYER}.Combined.{c}" for c in "RGBA"]
     for p in WRITTEN:
         if p in passes:
-            names += [f"{LAYER}.{BLENDER_NAME[p]}.{c}" for c in CHANNELS[p]]
+            if p in CRYPTO:                 # CryptoObject00.r/g/b/a, CryptoObject01.r ...
+                names += [f"{LAYER}.{BLENDER_NAME[p]}{i // 4:02d}.{c}" for i, c in enumerate(CHANNELS[p])]
+            else:
+                names += [f"{LAYER}.{BLENDER_NAME[p]}.{c}" for c in CHANNELS[p]]
     return names
+
+
+def cryptomatte_metadata(scene, passes, layer=LAYER) -> list:
+    """The EXR attributes (name, value) of the Cryptomatte manifests of `passes`."""
+    out = []
+    for name in CRYPTO:
+        if name in passes:
+            out += list(cryptomatte.manifest_metadata(scene, name, layer).items())
+    return out
 
 
 def multilayer_pixels(image, passes: dict):

@@ -39,7 +39,7 @@ from ..geometry.scene_geometry import Counters, SceneGeometry
 from ..integrators.path_tracer import PathTracer
 from ..lights import LightSet
 from .masked_samples import MaskedTileSamples, unpack_mask
-from ..film.passes import EXTRA, FirstHitTables, TileFeatures
+from ..film.passes import CRYPTO, EXTRA, FirstHitTables, TileFeatures
 from ..sampling.qmc import RandomSampler, SobolSampler
 from ..core.settings import RenderSettings
 from ..materials.textures import load_textures
@@ -107,7 +107,7 @@ class PreparedScene:
                                  scene.background, textures=textures and textures.bind(self.geometry, self.lights))
         self.pixel_filter = pixel_filter_for(settings)        # None: the box of width 1
         self.first_hit = (FirstHitTables(scene, self.geometry, settings.passes, self.origin)
-                          if self.plan.passes and set(EXTRA) & set(settings.passes) else None)
+                          if self.plan.passes and set(EXTRA + CRYPTO) & set(settings.passes) else None)
         self.prepass()
         self.setup_seconds = time.perf_counter() - start
 

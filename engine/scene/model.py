@@ -440,6 +440,8 @@ class TriangleMesh:
     # "fixed" (a UV map's MikkTSpace tangent or Cycles' radial default), interpolated at hits.
     tangents: np.ndarray | None = None
     pass_index: int = 0                   # Blender's Object > Relations > Pass Index (the IndexOB pass)
+    crypto_object: str = ""               # Cryptomatte names (engine/film/cryptomatte.py); "": `name`
+    crypto_asset: str = ""
 
     def validate(self, n_materials: int, emissive: np.ndarray | None = None) -> int:
         """Check the mesh; drop degenerate triangles.  Returns how many were dropped.
@@ -553,6 +555,8 @@ class Sphere:
     radius: float
     material_id: int
     pass_index: int = 0           # the object's Pass Index (the IndexOB pass)
+    crypto_object: str = ""       # Cryptomatte names (engine/film/cryptomatte.py); "": `name`
+    crypto_asset: str = ""
 
     def validate(self, n_materials: int) -> None:
         c = np.asarray(self.center, dtype=np.float64)
@@ -573,6 +577,8 @@ class Quad:
     corners: np.ndarray           # (4, 3): v00, v10, v11, v01
     material_id: int
     pass_index: int = 0           # the object's Pass Index (the IndexOB pass)
+    crypto_object: str = ""       # Cryptomatte names (engine/film/cryptomatte.py); "": `name`
+    crypto_asset: str = ""
 
     def validate(self, n_materials: int) -> None:
         q = np.asarray(self.corners, dtype=np.float64)

@@ -69,6 +69,15 @@ def export_mist(world):
     return (float(m.start), float(m.depth), MIST_FALLOFF.get(m.falloff, 2.0))
 
 
+def crypto_names(ob) -> dict:
+    """Cryptomatte's names of an object (engine/film/cryptomatte.py): its own, and its topmost
+    parent's for the asset (as Cycles' blender sync)."""
+    top = ob.original if hasattr(ob, "original") else ob
+    while top.parent is not None:
+        top = top.parent
+    return {"crypto_object": ob.name, "crypto_asset": top.name}
+
+
 def finite_matrix(inst, ob):
     """The instance's world matrix as float64 (a copy); ExportError naming the object when it holds
     NaN or infinity (a NaN location, rotation or scale, or a driver gone wrong)."""
@@ -178,7 +187,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                 centre = transform_points(fit[0][None, :], matrix)[0]
                 spheres.append(sm.Sphere(name=label, center=tuple(float(c) for c in centre),
                                          radius=fit[1] * scale, material_id=int(mat_ids[0]),
-                                         pass_index=int(ob.pass_index)))
+                                         pass_index=int(ob.pass_index), **crypto_names(ob)))
                 n_instances += 1
                 return
         world_verts = transform_points(verts, matrix)
@@ -208,7 +217,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
                                       material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
                                       terminator_offset=terminator, tangents=tangents,
-                                      pass_index=int(ob.pass_index)))
+                                      pass_index=int(ob.pass_index), **crypto_names(ob)))
         n_instances += 1
         n_triangles += len(tris)
 

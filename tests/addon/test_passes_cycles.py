@@ -1,4 +1,5 @@
-"""Cycles' first-hit passes (engine/film/passes.py FIRST_HIT) against Cycles 5.0's own, pixel by pixel,
+"""Cycles' first-hit passes (engine/film/passes.py FIRST_HIT, and Cryptomatte: engine/film/cryptomatte.py)
+against Cycles 5.0's own, pixel by pixel,
 on one scene: a ground plane, a cube and a tilted emitter under a coloured sky, each object and
 material with its own Pass Index.  The definitions are deterministic per sample point, so the images
 agree except where a pixel's samples see different surfaces (edges: each renderer jitters on its own);
@@ -18,10 +19,12 @@ SPP = 16
 MIN_SHARE = 0.94                  # of the pixels within tolerance (the rest: silhouette edges)
 CAMERA = np.array([0.0, -6.5, 2.6])
 PASSES = ("mist", "world_normal", "uv", "position", "object_index", "material_index", "emission",
-          "environment")
+          "environment", "crypto_object", "crypto_material", "crypto_asset")
+CRYPTO = ("crypto_object", "crypto_material", "crypto_asset")
 # position: sample 0's point on each side, so within the pixel's footprint (4 % of the distance)
 TOLERANCE = {"mist": 0.01, "world_normal": 0.01, "uv": 0.02, "position": 0.04, "object_index": 0.0,
              "material_index": 0.0, "emission": 0.01, "environment": 0.001}
+CRYPTO_COVERAGE = 1.0 / SPP + 1e-6        # one sample's share
 
 
 def build_scene():
@@ -55,6 +58,8 @@ def build_scene():
         ob.data.materials.append(mat)
         return ob
 
+    rig = bpy.data.objects.new("Rig", None)           # the Emitter's parent: its Cryptomatte asset
+    scene.collection.objects.link(rig)
     add(bpy.ops.mesh.primitive_plane_add, "Ground", material("GroundMat", (0.6, 0.6, 0.6), 7), 3,
         size=12.0, location=(0, 0, 0))
     cube = add(bpy.ops.mesh.primitive_cube_add, "Cube", material("CubeMat", (0.8, 0.2, 0.1), 9), 5,
@@ -63,6 +68,7 @@ def build_scene():
     lamp = add(bpy.ops.mesh.primitive_plane_add, "Emitter", material("Glow", (1.0, 0.8, 0.5), 2, emission=3.0),
                11, size=1.2, location=(-1.6, 0.4, 1.2))
     lamp.rotation_euler = (1.2, 0.0, 0.6)
+    lamp.parent = rig
     bpy.ops.object.camera_add(location=tuple(CAMERA), rotation=(np.radians(75), 0.0, 0.0))
     scene.camera = bpy.context.active_object
     world = bpy.data.worlds.new("World")
@@ -71,8 +77,8 @@ def build_scene():
     world.mist_settings.start, world.mist_settings.depth, world.mist_settings.falloff = 2.0, 9.0, "QUADRATIC"
     scene.world = world
     vl = scene.view_layers[0]
-    for toggle in addon_passes.TOGGLES.values():
-        setattr(vl, toggle, True)
+    for name in PASSES:
+        setattr(vl, addon_passes.TOGGLES[name], True)
     return scene
 
 
@@ -86,8 +92,13 @@ def render_passes(scene):
     bpy.ops.render.render(write_still=True)
     from engine.film.passes import read_multilayer_exr
     channels = read_multilayer_exr(path)
+    import OpenImageIO as oiio
+    inp = oiio.ImageInput.open(path)
+    meta = {a.name: a.value for a in inp.spec().extra_attribs if a.name.startswith("cryptomatte/")}
+    inp.close()
     os.remove(path)
     image, passes = addon_passes.passes_from_channels(channels, PASSES)
+    passes["metadata"] = meta
     return passes
 
 
@@ -124,7 +135,7 @@ def rendered(addon):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", PASSES)
+@pytest.mark.parametrize("name", [n for n in PASSES if n not in CRYPTO])
 def test_first_hit_pass_agrees_with_cycles(rendered, name):
     cycles, ours, _ = rendered
     assert name in cycles and name in ours, (sorted(cycles), sorted(ours))
@@ -153,3 +164,31 @@ def test_controls_fail(rendered):
     assert share_within(linear, cycles["mist"], TOLERANCE["mist"]) < 0.6          # falloff linear, not quadratic
     assert share_within(0.9 * ours["world_normal"], cycles["world_normal"], TOLERANCE["world_normal"]) < 0.5   # the sky: 0 both
     assert share_within(ours["object_index"], cycles["material_index"], 0.0) < 0.5    # the sky: 0 both
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", CRYPTO)
+def test_cryptomatte_agrees_with_cycles(rendered, name):
+    """The ids of rank 0 and their coverage, pixel by pixel; the ids are bit for bit Cycles'
+    (MurmurHash3 of the names), so the manifests agree too."""
+    cycles, ours, _ = rendered
+    c, o = cycles[name], ours[name]
+    assert c.shape[-1] == o.shape[-1] == 12
+    same_id = (o[..., 0].view(np.uint32) == c[..., 0].view(np.uint32))
+    close = np.abs(o[..., 1] - c[..., 1]) <= CRYPTO_COVERAGE
+    assert (same_id & close).mean() >= MIN_SHARE, (same_id.mean(), close.mean())
+    assert len(np.unique(c[..., 0])) >= 3                   # several ids on screen (and 0: the sky)
+    key = {v: k.split("/")[1] for k, v in cycles["metadata"].items() if k.endswith("/name")}
+    layer = f"ViewLayer.{addon_passes.BLENDER_PASSES[name][0]}"
+    import json
+    theirs = json.loads(cycles["metadata"][f"cryptomatte/{key[layer]}/manifest"])
+    ours_manifest = json.loads(ours["metadata"][f"cryptomatte/{key[layer]}/manifest"])
+    assert ours_manifest and all(theirs.get(n) == h for n, h in ours_manifest.items()), (ours_manifest, theirs)
+
+
+@pytest.mark.slow
+def test_cryptomatte_control_fails(rendered):
+    """Object ids compared with the material ids: none agree (other names, other hashes)."""
+    cycles, ours, _ = rendered
+    same = ours["crypto_object"][..., 0].view(np.uint32) == cycles["crypto_material"][..., 0].view(np.uint32)
+    assert same[cycles["crypto_material"][..., 0] != 0].mean() < 0.05

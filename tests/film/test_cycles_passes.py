@@ -100,3 +100,29 @@ def test_glass_colour_splits_by_fresnel():
                    RenderSettings(samples=2, passes=COLOR, threads=1), **SILENT).passes
         for name, share in zip(COLOR, expect):
             assert np.allclose(p[name], share * np.array([0.5, 0.6, 0.7]), atol=2e-3), (kind, name, p[name][0, 0])
+
+
+def test_cryptomatte_hash_and_coverage():
+    """engine/film/cryptomatte.py: MurmurHash3_32 test vectors, the spec's float conversion (never
+    NaN, inf or denormal), and a render's ids and coverage: two quads side by side, each pixel
+    wholly one (coverage 1) and an edge column shared."""
+    from engine.film import cryptomatte as cm
+    assert cm.murmur3_32(b"") == 0 and cm.murmur3_32(b"hello") == 0x248BFA47
+    assert cm.murmur3_32(b"The quick brown fox jumps over the lazy dog") == 0x2E4FF723
+    for h in (0, 0xFFFFFFFF, 0x7F800000, 0x00000001):
+        f = np.float32(cm.hash_to_float(h))
+        assert np.isfinite(f) and (f == 0 or abs(f) >= np.finfo(np.float32).tiny)
+    cam = Camera.look_at((0.0, 0.0, 4.0), (0.0, 0.0, 0.0), up=(0, 1, 0), lens=30.0)
+    left = Quad("Left", np.array([(-9, -9, 0), (0, -9, 0), (0, 9, 0), (-9, 9, 0)], float), 0)
+    right = Quad("Right", np.array([(0, -9, 0), (9, -9, 0), (9, 9, 0), (0, 9, 0)], float), 1)
+    mats = [Material("Red", DIFFUSE, (0.8, 0.1, 0.1)), Material("Blue", DIFFUSE, (0.1, 0.1, 0.8))]
+    r = render(Scene(cam, mats, quads=[left, right], resolution=(9, 4)),
+               RenderSettings(samples=8, passes=("crypto_object", "crypto_material"), threads=1), **SILENT)
+    obj = r.passes["crypto_object"]
+    assert obj.shape == (4, 9, 4 * cm.LEVELS)
+    assert np.all(obj[:, 0, 0] == np.float32(cm.name_id("Left"))) and np.all(obj[:, 0, 1] == 1.0)
+    assert np.all(obj[:, 8, 0] == np.float32(cm.name_id("Right")))
+    assert np.allclose(obj[..., 1] + obj[..., 3], 1.0)          # the edge column: two ids sharing it
+    assert np.all(r.passes["crypto_material"][:, 0, 0] == np.float32(cm.name_id("Red")))
+    meta = dict(cm.manifest_metadata(Scene(cam, mats, quads=[left, right]), "crypto_object"))
+    assert '"Left":"%08x"' % cm.name_hash("Left") in next(v for k, v in meta.items() if k.endswith("manifest"))
