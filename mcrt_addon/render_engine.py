@@ -246,7 +246,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             self._stats("TNCG15 MC | Exporting scene")
             camera = self.camera_override if self.camera_override is not None else scene.camera
             exported = export_scene(depsgraph, resolution=(width, height), camera=camera, crop=crop,
-                                    test_break=self._cancel_requested)
+                                    test_break=self._cancel_requested, uv_pass="uv" in settings.passes)
             if abs(scene.render.pixel_aspect_x - scene.render.pixel_aspect_y) > 1e-6:
                 exported.warnings.append("non-square pixel aspect is ignored")
             if pool is None and not cluster:
@@ -308,7 +308,9 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         result = bridge.render_function()(exported.scene, settings, pool=pool, on_tile=on_tile,
                                            should_cancel=self._cancel_requested, on_progress=on_progress, log=log)
         if not getattr(result, "cancelled", False) and wanted:
-            self._write_passes(result, wanted, out_w, out_h, warnings)
+            self._write_passes(result, wanted, out_w, out_h, warnings,
+                               bridge.module("film.passes").cryptomatte_metadata(
+                                   exported.scene, wanted, depsgraph.view_layer.name))
         # the tracer validates the scene again and returns the same warnings: report each once
         warnings = list(dict.fromkeys(warnings + list(getattr(result, "warnings", []) or [])))
         if n_bad[0]:
@@ -329,7 +331,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
         if not self.is_preview:
             self.report({"INFO"}, summary)  # and the Info log the summary
 
-    def _write_passes(self, result, wanted, width, height, warnings):
+    def _write_passes(self, result, wanted, width, height, warnings, metadata=()):
         """Denoise (in a process of the worker Python) when asked, then the whole frame: Combined
         and every pass Blender made a slot for."""
         import numpy as np
@@ -353,7 +355,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
                 result.stats["denoise_seconds"] = time.perf_counter() - t0
         if alpha is not None:
             image = np.concatenate([image, np.asarray(alpha, dtype=np.float32)[..., None]], axis=-1)
-        self.last.passes = addon_passes.write_frame(self, width, height, image, passes)
+        self.last.passes = addon_passes.write_frame(self, width, height, image, passes, metadata)
 
     def _start_workers(self, scene, settings):
         """The worker pool (started, not yet given the scene), or (None, why) without a worker Python:

@@ -278,6 +278,45 @@ class VIEWLAYER_PT_tncg15_passes(TNCG15ButtonsPanel, bpy.types.Panel):
         col.prop(view_layer.tncg15, "denoising_store_passes")
         col.prop(view_layer.tncg15, "pass_sample_count")
         col.prop(view_layer.tncg15, "pass_variance")
+        col = layout.column(heading="Data", align=True)     # Cycles' own toggles (mcrt_addon/passes.py TOGGLES)
+        for toggle in ("use_pass_mist", "use_pass_position", "use_pass_normal", "use_pass_uv"):
+            col.prop(view_layer, toggle)
+        col = layout.column(heading="Indexes", align=True)
+        col.prop(view_layer, "use_pass_object_index")
+        col.prop(view_layer, "use_pass_material_index")
+        for kind in ("diffuse", "glossy", "transmission"):
+            col = layout.column(heading=kind.title(), align=True)
+            col.prop(view_layer, f"use_pass_{kind}_direct", text="Direct")
+            col.prop(view_layer, f"use_pass_{kind}_indirect", text="Indirect")
+            col.prop(view_layer, f"use_pass_{kind}_color", text="Color")
+        col = layout.column(heading="Other", align=True)
+        col.prop(view_layer, "use_pass_emit", text="Emission")
+        col.prop(view_layer, "use_pass_environment")
+        col = layout.column(heading="Cryptomatte", align=True)
+        col.prop(view_layer, "use_pass_cryptomatte_object", text="Object")
+        col.prop(view_layer, "use_pass_cryptomatte_material", text="Material")
+        col.prop(view_layer, "use_pass_cryptomatte_asset", text="Asset")
+
+
+class WORLD_PT_tncg15_mist(TNCG15ButtonsPanel, bpy.types.Panel):
+    """World > Mist Pass, as Cycles: shown when the view layer's Mist pass is on."""
+    bl_label = "Mist Pass"
+    bl_context = "world"
+
+    @classmethod
+    def poll(cls, context):
+        return (super().poll(context) and context.world is not None
+                and getattr(context.view_layer, "use_pass_mist", False))
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        mist = context.world.mist_settings
+        col = layout.column(align=True)
+        col.prop(mist, "start")
+        col.prop(mist, "depth")
+        layout.prop(mist, "falloff")
 
 
 class OBJECT_PT_tncg15(TNCG15ButtonsPanel, bpy.types.Panel):
@@ -343,7 +382,8 @@ classes = (RENDER_PT_tncg15_sampling, RENDER_PT_tncg15_sampling_viewport,
            RENDER_PT_tncg15_sampling_render_denoise, RENDER_PT_tncg15_sampling_lights, RENDER_PT_tncg15_sampling_advanced, RENDER_PT_tncg15_light_paths,
            RENDER_PT_tncg15_light_paths_max_bounces, RENDER_PT_tncg15_light_paths_clamping,
            RENDER_PT_tncg15_light_paths_caustics, RENDER_PT_tncg15_film, RENDER_PT_tncg15_film_pixel_filter,
-           RENDER_PT_tncg15_film_transparency, RENDER_PT_tncg15_performance, VIEWLAYER_PT_tncg15_passes, OBJECT_PT_tncg15, DATA_PT_tncg15_light)
+           RENDER_PT_tncg15_film_transparency, RENDER_PT_tncg15_performance, VIEWLAYER_PT_tncg15_passes, WORLD_PT_tncg15_mist, OBJECT_PT_tncg15,
+           DATA_PT_tncg15_light)
 
 _lent = []   # panels we added our engine id to, so unregister removes exactly those
 

@@ -74,11 +74,13 @@ def check_pass_outputs(args, outputs) -> None:
             raise OutputError(problem)
 
 
-def write_render_image(output, result, args) -> None:
+def write_render_image(output, result, args, scene=None) -> None:
     """-o: a multi-layer EXR when passes or the denoiser are on (engine/film/passes.py), else as before."""
     from ..film.output import write_multilayer
     if output.kind == "exr" and (args.passes or args.denoise):
-        write_multilayer(output, result.combined(), result.passes, error_metadata(result.stats))
+        from ..film.passes import cryptomatte_metadata
+        write_multilayer(output, result.combined(), result.passes,
+                         error_metadata(result.stats) + (cryptomatte_metadata(scene, args.passes or ()) if scene is not None else []))
     else:
         write_image(output, result.combined(), error_metadata(result.stats))
 
@@ -163,7 +165,7 @@ def cmd_render(args) -> int:
             if output.kind == "json":
                 write_text(output, json.dumps(stats, indent=1))
             elif output.option == "-o":
-                write_render_image(output, result, args)
+                write_render_image(output, result, args, scene)
             else:
                 write_image(output, result.combined(), error_metadata(stats))
     except OutputError as exc:

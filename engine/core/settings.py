@@ -298,10 +298,18 @@ SETTINGS = (
             flag="--no-adaptive", label="Adaptive Sampling", description="With a noise target: blocks of 8x8 "
             "pixels whose error reached it get no more samples", panel="Sampling > Render", stats=STATS_RESOLVED),
     Setting("passes", CHOICES, (), "extra passes in the EXR, comma-separated: albedo,normal,depth,samples,"
-            "variance (engine/film/passes.py; layers named as Blender's)", flag="--passes", metavar="LIST",
+            "variance, and Cycles' mist,world_normal,uv,position,object_index,material_index,emission,"
+            "environment, diffuse_direct,diffuse_indirect,glossy_direct,glossy_indirect,transmission_direct,"
+            "transmission_indirect,diffuse_color,glossy_color,transmission_color, crypto_object,crypto_material,"
+            "crypto_asset (engine/film/passes.py; layers "
+            "named as Blender's)", flag="--passes", metavar="LIST",
             fronts=frozenset((ENGINE_CLI, ADDON_CLI)), noun="pass", stats=STATS_AS_SET,
             panel="View Layer > Passes (mcrt_addon/passes.py)",
-            choices=plain("albedo", "normal", "depth", "samples", "variance")),
+            choices=plain("albedo", "normal", "depth", "samples", "variance", "mist", "world_normal", "uv",
+                          "position", "object_index", "material_index", "emission", "environment",
+                          "diffuse_direct", "diffuse_indirect", "glossy_direct", "glossy_indirect",
+                          "transmission_direct", "transmission_indirect", "diffuse_color", "glossy_color",
+                          "transmission_color", "crypto_object", "crypto_material", "crypto_asset")),
     Setting("denoise", BOOL, False, "denoise with Intel Open Image Denoise (pyoidn), guided by the albedo and "
             "normal passes; the raw image is kept in the EXR as 'Noisy Image' (engine/film/denoise.py)",
             flag="--denoise", label="Denoise", prop="use_denoising", panel="Render > Denoise",

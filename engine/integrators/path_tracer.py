@@ -95,6 +95,8 @@ class Paths:
     counts: np.ndarray | None = None  # bounce limits: (4, N) diffuse, glossy, transmission, transparent bounces made
     min_pdf: np.ndarray | None = None  # Filter Glossy: (N,) the least pdf of the non-delta bounces made
     after_diffuse: np.ndarray | None = None  # caustics: (N,) the last bounce was diffuse
+    lobe: np.ndarray | None = None    # light passes: (N,) int8 pass class of the first bounce (-1: none yet)
+    lobe_at: np.ndarray | None = None  # light passes: (N,) the bounce that set it
 
     @classmethod
     def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool, features: bool = False,
@@ -207,6 +209,8 @@ class PathTracer:
                 fresh = len(pixel)
                 new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis,
                                   features is not None and features.surface, self.light_paths)
+                if features is not None and features.light_split:       # engine/film/passes.py LIGHT
+                    new.lobe, new.lobe_at = np.full(fresh, -1, np.int8), np.zeros(fresh, np.int32)
                 paths = new if paths is None else paths.extend(new)
             if paths is None or len(paths.pixel) == 0:
                 return True
@@ -224,6 +228,7 @@ class PathTracer:
         # collects the MIS-weighted emission it reaches (the other half of that vertex's direct
         # light), then ends: its surface absorbs (as Cycles' terminate-on-next-surface).
         final = p.bounce > self.settings.max_depth if self.final_rays else None
+        start_radiance = p.radiance.copy() if p.lobe is not None else None       # light passes
         if p.counts is not None:            # a bounce type past its limit: this hit only emits
             past = self.light_paths.past_limit(p.counts)
             final = past if final is None else final | past
@@ -239,6 +244,11 @@ class PathTracer:
             finished.append(self.misses(p, hits.miss, on_transparent))
             if features is not None and features.surface:
                 self.miss_features(p, hits.miss, features)
+            if features is not None and features.camera_light:
+                self.camera_light(p, hits.miss, finished[-1][1] - p.radiance.take(hits.miss, axis=1), "environment",
+                                  features)
+            if start_radiance is not None:
+                self.ray_light(p, hits.miss, finished[-1][1] - start_radiance.take(hits.miss, axis=1), features)
         p = p.take(hits.index)
         surf = self.geometry.surface(p.o, p.d, hits)
         bounds = [start for start, _ in hits.groups] + [hits.groups[-1][1]]
@@ -250,7 +260,14 @@ class PathTracer:
         lookup = None if self.textures is None else self.textures.at(hits, self.hit_points(p, surf, hits))
         # 3. Emission found by the ray (surfaces and Area lights), MIS-weighted after non-delta bounces.
         if self.plan.emission:
+            seen = (np.flatnonzero(p.ray_kind == CAMERA_RAY) if features is not None and features.camera_light
+                    else None)
+            before = None if seen is None else p.radiance.take(seen, axis=1)
             self.emission(p, surf, hits, surfaces, lookup)
+            if seen is not None:
+                self.camera_light(p, seen, p.radiance.take(seen, axis=1) - before, "emission", features)
+        if start_radiance is not None:
+            self.ray_light(p, np.arange(len(p.pixel)), p.radiance - start_radiance.take(hits.index, axis=1), features)
         # 4. Area lights: the ray goes on through them, as it was.
         passing = self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
         # 5. Direct light at hits with a non-delta BSDF (eq. 2.11).
@@ -272,6 +289,7 @@ class PathTracer:
                           None if p.media is None else MediumStack(p.media, p.depth)[:alive],
                           None if lookup is None else lookup[:alive])
         no_light = self.shade_light_paths(p, si, spans) if self.light_paths is not None else None
+        before_light = p.radiance[:, :alive].copy() if p.lobe is not None else None
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
                 light = p.beta[:, span] * self.direct_light(
@@ -288,6 +306,8 @@ class PathTracer:
         u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1)) if non_delta else None
                   for span, non_delta in zip(spans, self.mats.non_delta)]
         new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf)
+        if before_light is not None:        # the shadow rays' light, by the lobe the vertex sampled
+            self.vertex_light(p, p.radiance[:, :alive] - before_light, features)
         # 7. Russian roulette and the depth limit.
         keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
         # 8. Compaction: hand finished paths to the film, keep the rest.
@@ -428,6 +448,44 @@ class PathTracer:
         if len(idx) and self.has_background:
             features.add_albedo(p.pixel.take(idx), p.f_thru.take(idx, axis=1) * self.background_seen(p, idx))
 
+    def camera_light(self, p, idx, radiance, name, features):
+        """The Emission or Environment pass: what the paths `idx` gathered at this stage, for those
+        still camera rays (Cycles' "directly visible", before PATH_RAY_ANY_PASS; Area lights and
+        straight pass-throughs keep a camera ray one)."""
+        camera = np.flatnonzero(p.ray_kind.take(idx) == CAMERA_RAY)
+        if len(camera):
+            features.add_camera_light(name, p.pixel.take(idx.take(camera)), radiance.take(camera, axis=1))
+
+    def first_lobe(self, p, flags):
+        """Light passes: the pass class of each path's first non-straight bounce (Cycles' pass_diffuse_weight
+        and pass_glossy_weight, set at bounce 0): diffuse lobes (translucent too) -> diffuse, other
+        reflections -> glossy, other transmissions -> transmission (engine/film/passes.py LIGHT)."""
+        alive = len(flags)
+        new = (p.lobe[:alive] < 0) & ((flags & BSDFFlags.STRAIGHT) == 0)
+        if new.any():
+            cls = np.where((flags & BSDFFlags.DIFFUSE) != 0, 0, np.where((flags & BSDFFlags.TRANSMISSION) != 0, 2, 1))
+            p.lobe[:alive] = np.where(new, cls, p.lobe[:alive])
+            p.lobe_at[:alive] = np.where(new, p.bounce[:alive], p.lobe_at[:alive])
+
+    def ray_light(self, p, idx, radiance, features):
+        """Light passes: emission and background a ray found (radiance rows of the paths `idx`):
+        Direct after the first bounce, Indirect after more; camera rays' is Emission / Environment."""
+        lobe = p.lobe.take(idx)
+        on = np.flatnonzero(lobe >= 0)
+        if len(on):
+            direct = p.bounce.take(idx.take(on)) == p.lobe_at.take(idx.take(on)) + 1
+            features.add_light(lobe.take(on), direct, p.pixel.take(idx.take(on)), radiance.take(on, axis=1))
+
+    def vertex_light(self, p, radiance, features):
+        """Light passes: the shadow rays' light at the first len(radiance) paths' vertices: Direct at
+        the vertex that set the path's class, Indirect after it."""
+        alive = radiance.shape[1]
+        lobe = p.lobe[:alive]
+        on = np.flatnonzero((lobe >= 0) & (radiance != 0.0).any(axis=0))
+        if len(on):
+            direct = p.bounce.take(on) == p.lobe_at.take(on)
+            features.add_light(lobe.take(on), direct, p.pixel.take(on), radiance.take(on, axis=1))
+
     def surface_features(self, p, surf, facing, color, bounds, features, hits=None, lookup=None):
         """Cycles' denoising features (film_write_denoising_features_surface): at the first hit with
         a non-delta BSDF (diffuse) or an absorbing one write albedo = the delta-bounce tints x
@@ -438,6 +496,12 @@ class PathTracer:
         first = np.flatnonzero(p.bounce[:surfaces] == 0)
         if len(first):
             features.add_depth(p.pixel.take(first), surf.point.take(first, axis=1))
+        if features.first_hit is not None and len(first):      # Cycles' data passes (film_write_data_passes)
+            n_first = facing.take(first, axis=1)
+            features.add_first_hit(p.pixel.take(first), p.sample.take(first), surf.point.take(first, axis=1),
+                                   n_first, surf.material.take(first), hits.kind.take(first),
+                                   hits.prim.take(first), hits.u.take(first), hits.v.take(first),
+                                   color.take(first, axis=1), -dot(p.d.take(first, axis=1), n_first))
         if not features.surface:                 # depth only
             return
         idx = np.flatnonzero(p.f_open[:surfaces])
@@ -525,6 +589,8 @@ class PathTracer:
         if self.light_paths is not None:
             value = self.scatter_light_paths(p, spans, flags, pdf, value)
         transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
+        if p.lobe is not None:
+            self.first_lobe(p, flags)
         p.prev_delta[:alive] = (flags & BSDFFlags.DELTA) != 0
         kind = np.where(transmitted, TRANSMISSION_RAY, np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
         # A straight pass-through (alpha) keeps a camera ray a camera ray (Area lights' visibility, as Cycles).

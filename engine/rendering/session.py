@@ -39,7 +39,7 @@ from ..geometry.scene_geometry import Counters, SceneGeometry
 from ..integrators.path_tracer import PathTracer
 from ..lights import LightSet
 from .masked_samples import MaskedTileSamples, unpack_mask
-from ..film.passes import TileFeatures
+from ..film.passes import CRYPTO, EXTRA, FirstHitTables, TileFeatures
 from ..sampling.qmc import RandomSampler, SobolSampler
 from ..core.settings import RenderSettings
 from ..core.backend import resolve as resolve_backend
@@ -114,6 +114,8 @@ class PreparedScene:
         self.tracer = PathTracer(self.geometry, self.lights, lit.materials, self.plan, settings,
                                  scene.background, textures=textures and textures.bind(self.geometry, self.lights))
         self.pixel_filter = pixel_filter_for(settings)        # None: the box of width 1
+        self.first_hit = (FirstHitTables(scene, self.geometry, settings.passes, self.origin)
+                          if self.plan.passes and set(EXTRA + CRYPTO) & set(settings.passes) else None)
         self.prepass()
         self.setup_seconds = time.perf_counter() - start
 
@@ -146,7 +148,8 @@ class PreparedScene:
                    if s.sampler == "sobol" else RandomSampler(rng))
         if self.sobol_kernel is not None:
             sampler.kernel = self.sobol_kernel
-        features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)))
+        features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)),
+                                 first_hit=self.first_hit)
                     if self.plan.passes else None)
         films = []
         transparent = s.film_transparent

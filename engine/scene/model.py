@@ -169,6 +169,7 @@ class Material:
     # Shader-node programs (engine/scene/programs.py) on inputs (COLOR_ROLES and TEXTURED_INPUTS there):
     # per hit, the program's value replaces the field (the field is the value where none runs).
     programs: dict = field(default_factory=dict)
+    pass_index: int = 0           # Blender's Material > Settings > Pass Index (the IndexMA pass)
 
     def __post_init__(self):
         if self.roughness is None:
@@ -459,6 +460,9 @@ class TriangleMesh:
     texspace: tuple | None = None
     object_random: float = 0.0
     colors: dict | None = None
+    pass_index: int = 0                   # Blender's Object > Relations > Pass Index (the IndexOB pass)
+    crypto_object: str = ""               # Cryptomatte names (engine/film/cryptomatte.py); "": `name`
+    crypto_asset: str = ""
 
     def validate(self, n_materials: int, emissive: np.ndarray | None = None) -> int:
         """Check the mesh; drop degenerate triangles.  Returns how many were dropped.
@@ -573,6 +577,9 @@ class Sphere:
     center: tuple
     radius: float
     material_id: int
+    pass_index: int = 0           # the object's Pass Index (the IndexOB pass)
+    crypto_object: str = ""       # Cryptomatte names (engine/film/cryptomatte.py); "": `name`
+    crypto_asset: str = ""
 
     def validate(self, n_materials: int) -> None:
         c = np.asarray(self.center, dtype=np.float64)
@@ -592,6 +599,9 @@ class Quad:
     name: str
     corners: np.ndarray           # (4, 3): v00, v10, v11, v01
     material_id: int
+    pass_index: int = 0           # the object's Pass Index (the IndexOB pass)
+    crypto_object: str = ""       # Cryptomatte names (engine/film/cryptomatte.py); "": `name`
+    crypto_asset: str = ""
 
     def validate(self, n_materials: int) -> None:
         q = np.asarray(self.corners, dtype=np.float64)
@@ -800,6 +810,9 @@ class Scene:
     # (major, minor) of the Blender whose Cycles the models follow (the running one at export).
     cycles_version: tuple = (5, 0)
     environment: Environment | None = None          # an image world; None: the constant background
+    # The Mist pass (engine/film/passes.py): World > Mist Pass start, depth (metres) and falloff
+    # exponent (Blender's Quadratic 2, Linear 1, Inverse Quadratic 0.5).
+    mist: tuple = (5.0, 25.0, 2.0)
 
     def validate(self) -> list[str]:
         """Raise SceneError on invalid input; return warnings (e.g. dropped triangles)."""

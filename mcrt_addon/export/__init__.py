@@ -59,6 +59,26 @@ def instance_label(inst, ob):
     return f"{ob.name} (instanced by {inst.parent.name})"
 
 
+MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}     # as Cycles' blender sync
+
+
+def export_mist(world):
+    """World > Mist Pass as the tracer's Scene.mist (start, depth, falloff exponent)."""
+    if world is None:
+        return (5.0, 25.0, 2.0)
+    m = world.mist_settings
+    return (float(m.start), float(m.depth), MIST_FALLOFF.get(m.falloff, 2.0))
+
+
+def crypto_names(ob) -> dict:
+    """Cryptomatte's names of an object (engine/film/cryptomatte.py): its own, and its topmost
+    parent's for the asset (as Cycles' blender sync)."""
+    top = ob.original if hasattr(ob, "original") else ob
+    while top.parent is not None:
+        top = top.parent
+    return {"crypto_object": ob.name, "crypto_asset": top.name}
+
+
 def finite_matrix(inst, ob):
     """The instance's world matrix as float64 (a copy); ExportError naming the object when it holds
     NaN or infinity (a NaN location, rotation or scale, or a driver gone wrong)."""
@@ -119,7 +139,7 @@ def object_fields(ob, matrix, random_id, materials):
 
 
 def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=None, name=None,
-                 view_camera=None, mesh_cache=None):
+                 view_camera=None, mesh_cache=None, uv_pass=False):
     """Build the tracer Scene.
 
     resolution: full-frame (width, height) in pixels (after the resolution percentage).
@@ -128,6 +148,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     view_camera: a tracer Camera to use instead of the scene's (the 3D viewport's view).
     mesh_cache: a dict kept across exports (the viewport): mesh arrays by (object, mesh, UV map), so a
           transform or material edit does not read meshes again (mcrt_addon/viewport.py empties it).
+    uv_pass: the UV pass is on: every mesh with a UV map exports its active render map's UVs.
     Raises ExportError (user-facing message) or ExportCancelled.
     """
     t0 = time.perf_counter()
@@ -164,15 +185,17 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         uv_map = table.uv_map(slot_ids)                 # None: no textured material, no UVs
         need = table.tangent_need(slot_ids)             # None: no anisotropic material with mesh tangents
         colours = attribute_names([table.materials[i] for i in slot_ids])     # Attribute nodes' colour attributes
-        arrays = cache.get((key, uv_map, need, colours)) if key is not None else None
-        kept = ((ob.name, ob.data.name, uv_map, need, colours) if (mesh_cache is not None and key is not None and not own)
-                else None)
+        pass_uvs = uv_pass and uv_map is None               # UVs for the UV pass only (not for textures)
+        arrays = cache.get((key, uv_map, need, colours, pass_uvs)) if key is not None else None
+        kept = ((ob.name, ob.data.name, uv_map, need, colours, pass_uvs)
+                if (mesh_cache is not None and key is not None and not own) else None)
         if arrays is None and kept is not None:
             arrays = mesh_cache.get(kept)
 
         def read(me):
             base = mesh_arrays(me)
-            return base + (corner_uvs(me, uv_map, label, warnings), mesh_normals(me),
+            read_map = "" if pass_uvs and len(me.uv_layers) else uv_map
+            return base + (corner_uvs(me, read_map, label, warnings), mesh_normals(me),
                            corner_tangents(me, need, base[0], base[1], label, warnings),
                            corner_colors(me, colours, label, warnings))
         if arrays is None:
@@ -187,7 +210,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                 if arrays is None:
                     return
             if key is not None:
-                cache[(key, uv_map, need, colours)] = arrays
+                cache[(key, uv_map, need, colours, pass_uvs)] = arrays
             if kept is not None:
                 mesh_cache[kept] = arrays
         verts, tris, slots, uvs, shading, local_tangents, corner_colours = arrays
@@ -216,7 +239,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             if fit is not None and scale is not None:
                 centre = transform_points(fit[0][None, :], matrix)[0]
                 spheres.append(sm.Sphere(name=label, center=tuple(float(c) for c in centre),
-                                         radius=fit[1] * scale, material_id=int(mat_ids[0])))
+                                         radius=fit[1] * scale, material_id=int(mat_ids[0]),
+                                         pass_index=int(ob.pass_index), **crypto_names(ob)))
                 n_instances += 1
                 return
         world_verts = transform_points(verts, matrix)
@@ -249,7 +273,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                                       material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
                                       terminator_offset=terminator, tangents=tangents,
                                       **object_fields(ob, matrix, random_id, [table.materials[i] for i in slot_ids]),
-                                      **({"colors": corner_colours} if corner_colours else {})))
+                                      **({"colors": corner_colours} if corner_colours else {}),
+                                      pass_index=int(ob.pass_index), **crypto_names(ob)))
         n_instances += 1
         n_triangles += len(tris)
 
@@ -305,11 +330,14 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         if not any(name == ob.original.name and np.allclose(m, matrix) for name, m in converted):
             add_geometry(ob, otype, matrix, label, random_id=random_id)
     materials = table.materials or [sm.Material(name="(unused)")]
+    for m in materials:                     # the IndexMA pass: Material > Settings > Pass Index
+        source = bpy.data.materials.get(m.name)
+        m.pass_index = int(source.pass_index) if source is not None else 0
     background, environment = export_world(scene.world, warnings, images, getattr(sm, "Environment", None))
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
                       background=background, environment=environment, resolution=out_res, name=name or scene.name,
-                      lights=lights,
-                      points=points, suns=suns, textures=images.textures, cycles_version=version[:2])
+                      lights=lights, points=points, suns=suns, textures=images.textures, cycles_version=version[:2],
+                      mist=export_mist(scene.world))
     info = dict(export_seconds=time.perf_counter() - t0, objects=n_instances, triangles=n_triangles,
                 spheres=len(spheres), meshes_shared=len(cache), materials=len(materials),
                 textures=len(images.textures))
