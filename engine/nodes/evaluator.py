@@ -3,8 +3,9 @@ over all the hits of the material, as Cycles' SVM runs a shader's nodes in order
 
 `run(program, ctx)` gives the material input's value: (N,) for a float input, rows (3, N) for a colour.
 Inputs are broadcast to full arrays before a kernel sees them (constants: (N,) or (3, N)), and links
-convert between socket types as Cycles' svm_node_convert: colour to float is the luminance (Rec.709,
-as engine/materials/mix.py LUMINANCE), vector to float the average of the three components, float to
+convert between socket types as Cycles' svm_node_convert: colour to float is the luminance of the
+running Blender's colour space (engine/nodes/converter.py luminance_weights: 3.4's and 4.x/5.0's
+differ in the fifth digit), vector to float the average of the three components, float to
 colour or vector a grey.  `fold(program, version)` runs what does not depend on the hit once (n = 1) at
 export and returns the smaller program, or the constant the input then has.
 """
@@ -16,7 +17,7 @@ from ..scene.programs import Link, Program, ProgramNode
 from .context import NodeContext, Varying
 from .registry import kernels
 
-LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])
+LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])     # without converter.py: Blender 3.4's
 THREE = ("RGBA", "VECTOR")
 
 
@@ -25,8 +26,18 @@ class UnsupportedNode(KeyError):
     socket's default value, so a program from the exporter has none)."""
 
 
-def convert(value, source: str, target: str, n: int):
-    """`value` of socket type `source` as type `target` (full arrays of n points)."""
+def luminance(cycles_version) -> np.ndarray:
+    """The colour-to-float weights of the running Blender (Cycles' rgb_to_y)."""
+    try:
+        from .converter import luminance_weights
+    except ImportError:
+        return LUMINANCE
+    return luminance_weights(cycles_version)
+
+
+def convert(value, source: str, target: str, n: int, weights=LUMINANCE):
+    """`value` of socket type `source` as type `target` (full arrays of n points); `weights`: colour to
+    float (`luminance`)."""
     value = np.asarray(value, dtype=np.float64)
     if target in THREE:
         if value.ndim == 1:
@@ -34,7 +45,7 @@ def convert(value, source: str, target: str, n: int):
         return value
     if value.ndim == 2:
         if source == "RGBA":
-            return LUMINANCE @ value
+            return weights @ value
         return value.mean(axis=0)
     return value
 
@@ -52,12 +63,13 @@ def constant(value, n: int):
 def run_nodes(program: Program, ctx: NodeContext, table=None):
     """The outputs of every node (a list of {output identifier: array})."""
     table = kernels() if table is None else table
+    weights = luminance(ctx.cycles_version)
     outputs = []
     for node in program.nodes:
         kernel = table.get(node.kind)
         if kernel is None:
             raise UnsupportedNode(node.kind)
-        inputs = {key: (convert(outputs[v.node][v.output], v.source, v.target, ctx.n) if isinstance(v, Link)
+        inputs = {key: (convert(outputs[v.node][v.output], v.source, v.target, ctx.n, weights) if isinstance(v, Link)
                         else constant(v, ctx.n)) for key, v in node.inputs.items()}
         outputs.append(kernel(inputs, node.props, ctx))
     return outputs
@@ -67,7 +79,7 @@ def run(program: Program, ctx: NodeContext, table=None) -> np.ndarray:
     """The program's value at the ctx.n points: (N,) for type VALUE, rows (3, N) for RGBA / VECTOR."""
     outputs = run_nodes(program, ctx, table)
     node, output, source = program.output
-    return convert(outputs[node][output], source, program.type, ctx.n)
+    return convert(outputs[node][output], source, program.type, ctx.n, luminance(ctx.cycles_version))
 
 
 def _scalar(value):
@@ -84,6 +96,7 @@ def fold(program: Program, cycles_version=(5, 0), table=None):
     of the input when the whole program is constant; else None)."""
     table = kernels() if table is None else table
     ctx = NodeContext(1, cycles_version)
+    weights = luminance(cycles_version)
     outputs: list = []
 
     def known(v):
@@ -94,7 +107,7 @@ def fold(program: Program, cycles_version=(5, 0), table=None):
         if not all(known(v) for v in links) or node.kind not in table:
             outputs.append(None)
             continue
-        inputs = {key: (convert(outputs[v.node][v.output], v.source, v.target, 1) if isinstance(v, Link)
+        inputs = {key: (convert(outputs[v.node][v.output], v.source, v.target, 1, weights) if isinstance(v, Link)
                         else constant(v, 1)) for key, v in node.inputs.items()}
         try:
             outputs.append(table[node.kind](inputs, node.props, ctx))
@@ -102,7 +115,7 @@ def fold(program: Program, cycles_version=(5, 0), table=None):
             outputs.append(None)
     last, output, source = program.output
     if outputs[last] is not None and output in outputs[last]:
-        return None, _scalar(convert(outputs[last][output], source, program.type, 1))
+        return None, _scalar(convert(outputs[last][output], source, program.type, 1, weights))
     # Keep the varying nodes the output reads; constants feed them as values.
     needed, stack = set(), [last]
     while stack:
@@ -119,7 +132,7 @@ def fold(program: Program, cycles_version=(5, 0), table=None):
         inputs = {}
         for key, v in node.inputs.items():
             if isinstance(v, Link) and known(v):
-                inputs[key] = _scalar(convert(outputs[v.node][v.output], v.source, v.target, 1))
+                inputs[key] = _scalar(convert(outputs[v.node][v.output], v.source, v.target, 1, weights))
             elif isinstance(v, Link):
                 inputs[key] = Link(index[v.node], v.output, v.source, v.target)
             else:

@@ -145,8 +145,9 @@ class GraphCompiler:
             if sock.identifier == "Vector" and kind.startswith("ShaderNodeTex"):
                 inputs[sock.identifier] = self.implicit_vector(kind)
                 continue
-            if not hasattr(sock, "default_value") or getattr(sock, "hide_value", False):
+            if not hasattr(sock, "default_value") or (getattr(sock, "hide_value", False) and sock.type == "VECTOR"):
                 continue                          # e.g. a Normal: the kernel's default, the shading normal
+            # (a colour or float without a value field, e.g. Gamma's Color, still gives Cycles its default_value)
             value = _plain(sock.default_value)
             if isinstance(value, tuple):
                 value = value[:3]

@@ -142,18 +142,19 @@ def test_the_walk_names_only_what_the_exporter_did_not_read(scene, ms):
 
 
 def test_what_feeds_an_ignored_node_is_not_named_again(scene, ms):
-    """A Checker into Base Color is named by the Principled BSDF's warning ("linked from node 'Checker
-    Texture'"), the Mapping behind it is ignored with it; a Normal Map into Normal is named once."""
+    """A Sky Texture (not modelled in materials) into Base Color is named by the compiler's warning
+    ("linked from node 'Sky Texture'"), the Mapping behind it is ignored with it; a Normal Map into
+    Normal is named once."""
     mat = ms.node_material("Chain", "ShaderNodeBsdfPrincipled")
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    checker, mapping = nodes.new("ShaderNodeTexChecker"), nodes.new("ShaderNodeMapping")
-    links.new(mapping.outputs[0], checker.inputs["Vector"])
-    links.new(checker.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
+    sky, mapping = nodes.new("ShaderNodeTexSky"), nodes.new("ShaderNodeMapping")
+    links.new(mapping.outputs[0], sky.inputs[0])
+    links.new(sky.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
     normal_map = nodes.new("ShaderNodeNormalMap")
     links.new(normal_map.outputs[0], nodes["Principled BSDF"].inputs["Normal"])
     ms.mesh_object(scene, "P", lambda bm: ms.quad(bm, [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), mat)
     warnings = [w for w in export((8, 8)).warnings if w.startswith("Material 'Chain',")]
-    assert any("is linked from node 'Checker Texture'" in w for w in warnings), warnings
+    assert any("is linked from node 'Sky Texture'" in w for w in warnings), warnings
     assert [w for w in warnings if "node 'Normal Map'" in w] and not [w for w in warnings if "Mapping" in w], warnings
     assert len(warnings) == 2, warnings
 

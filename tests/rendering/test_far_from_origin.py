@@ -105,5 +105,5 @@ def test_every_scene_field_is_known_to_the_move():
     from engine.scene.model import Scene
     moved_fields = {"camera", "meshes", "spheres", "quads", "lights", "points"}
     no_positions = {"materials", "background", "resolution", "name", "suns", "textures", "cycles_version",
-                    "mist"}                 # mist: distances from the camera, not positions
+                    "mist", "environment"}  # mist: distances from the camera; environment: directions
     assert {f.name for f in dataclasses.fields(Scene)} == moved_fields | no_positions
