@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BLENDER ?= blender
 
-.PHONY: setup render test test-slow test-all bench bench-primitives bench-animation bench-backend bench-estimators bench-materials study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-primitives bench-animation bench-backend bench-speed bench-estimators bench-materials study extension samples clean
 
 setup: $(STAMP)
 
@@ -49,6 +49,11 @@ bench-animation: $(STAMP)
 # from the cache (docs/performance.md "Compiled kernels").
 bench-backend: $(STAMP)
 	$(PY) scripts/bench_backend.py
+
+# ms/spp against the Embree-alone replay of the same rays, the per-stage table and 1 -> 2 workers, per
+# scene (docs/performance.md "Speed"); BASELINE=<another checkout> adds its before / after ratios.
+bench-speed: $(STAMP)
+	$(PY) scripts/replay_embree.py --wavefronts 16384 32768 65536 131072 $(if $(BASELINE),--baseline $(BASELINE))
 
 # Light-sampling estimators (report | solid-angle | mis) vs Cycles on the light-sampling stress scenes:
 # markdown table + docs/estimators.json; Cycles references cached in renders/reference/.

@@ -186,7 +186,7 @@ class PathTracer:
         the arrays stay long and the per-call cost of NumPy is paid once per bounce of
         a full wavefront, not for the few paths left at depth 8.  Each path carries its
         pixel, throughput beta and radiance L; a finished path is handed to
-        `on_finished(pixel, L)`.  Returns False as soon as `cancel` is set (checked every
+        `on_finished(pixel, L, sample)` (sample: its number within its pixel).  Returns False as soon as `cancel` is set (checked every
         bounce; the paths in flight are dropped): the caller drops the whole unit
         (engine/rendering/session.py), since a partial one would keep only its short paths and
         darken its tile.  Uniform numbers come from
@@ -220,7 +220,7 @@ class PathTracer:
 
     def bounce(self, p: "Paths", sampler, counters, on_finished, features=None, on_transparent=None) -> "Paths":
         """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
-        finished = []                                   # (pixel, radiance) of paths that end
+        finished = []                                   # (pixel, radiance, sample) of paths that end
         # 1. Intersect.  Hits sorted by scatter group (engine/materials/table.py: one per BSDF,
         # 0 diffuse, 1 mirror, 2 glass, then ABSORB and PASS_THROUGH, the Area lights), then by
         # primitive kind: every group is one slice.
@@ -241,7 +241,7 @@ class PathTracer:
             self.lamps_seen(p, hits)
         # Misses: the background.
         if len(hits.miss):
-            finished.append(self.misses(p, hits.miss, on_transparent))
+            finished.append((*self.misses(p, hits.miss, on_transparent), p.sample.take(hits.miss)))
             if features is not None and features.surface:
                 self.miss_features(p, hits.miss, features)
             if features is not None and features.camera_light:
@@ -312,11 +312,12 @@ class PathTracer:
         keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
         # 8. Compaction: hand finished paths to the film, keep the rest.
         ended = np.flatnonzero(~keep)
-        finished += [(p.pixel.take(ended), p.radiance.take(ended, axis=1)),
-                     (p.pixel[alive:surfaces], p.radiance[:, alive:surfaces])]
+        finished += [(p.pixel.take(ended), p.radiance.take(ended, axis=1), p.sample.take(ended)),
+                     (p.pixel[alive:surfaces], p.radiance[:, alive:surfaces], p.sample[alive:surfaces])]
         pixel = np.concatenate([f[0] for f in finished])
         if len(pixel):
-            on_finished(pixel, np.concatenate([f[1] for f in finished], axis=1))
+            on_finished(pixel, np.concatenate([f[1] for f in finished], axis=1),
+                        np.concatenate([f[2] for f in finished]))
         keep = np.flatnonzero(keep)
         survivors = p.take(keep, replaced=("o", "d", "beta"))
         survivors.o = (surf.point.take(keep, axis=1)

@@ -55,25 +55,37 @@ class SeenLamps:
     def radiance(self, o, d, tmax, transmission) -> np.ndarray:
         """(3, N) emission along the rays (rows o, unit rows d) before distance tmax (inf: the
         ray escapes, and suns in its direction count too); `transmission` (N,) bool: the ray
-        left through glass (else it was reflected)."""
-        total = np.zeros(o.shape)
+        left through glass (else it was reflected).
+
+        No loop over lamps: the (ray, lamp) pairs that meet are found at once (the bulbs through
+        their BoxTree, the suns as every escaped ray with every sun), and each ray's emission is
+        summed over its pairs in lamp order (bulbs, then suns), the order a loop over the lamps
+        adds them in, so the sums are the same bit for bit (tests/lights/test_seen.py)."""
+        parts = []                                  # (ray, slot, le (3, P)) of the pairs that meet
         if self.bulb_tree is not None:
-            self._add_bulbs(total, o, d, tmax, transmission)
+            parts.append(self._bulb_pairs(o, d, tmax, transmission))
         if self.suns is not None:
-            escaped = np.isinf(tmax)
-            for k in range(self.suns.count):
-                slot = len(self.bulbs) + k
-                visible = np.where(transmission, self.visible["transmission"][slot], self.visible["glossy"][slot])
-                rays = np.flatnonzero(visible & escaped)
-                if len(rays):                                           # 0 outside the sun's disk
-                    total[:, rays] += self.suns.le(np.full(len(rays), k), None, d.take(rays, axis=1))
+            parts.append(self._sun_pairs(d, tmax, transmission))
+        parts = [part for part in parts if len(part[0])]
+        total = np.zeros(o.shape)
+        if not parts:
+            return total
+        ray, slot, le = (np.concatenate(a, axis=-1) for a in zip(*parts))
+        if len(parts) > 1:                                              # bulbs and suns
+            order = np.lexsort((slot, ray))                             # per ray in lamp order
+            ray, le = ray.take(order), le.take(order, axis=1)
+        for channel in range(3):
+            total[channel] = np.bincount(ray, weights=le[channel], minlength=total.shape[1])
         return total
 
-    def _add_bulbs(self, total, o, d, tmax, transmission):
-        """Add the emission of every bulb each ray meets before tmax, summed in bulb order."""
+    def _visible(self, transmission, ray, slot):
+        return np.where(transmission.take(ray), self.visible["transmission"].take(slot),
+                        self.visible["glossy"].take(slot))
+
+    def _bulb_pairs(self, o, d, tmax, transmission):
+        """(ray, slot, le) of every bulb each ray meets before tmax, per ray in bulb order."""
         ray, slot = self.bulb_tree.all_pairs(o, d, tmax)                 # the bulbs each ray may meet
-        visible = np.where(transmission.take(ray), self.visible["transmission"].take(slot),
-                           self.visible["glossy"].take(slot))
+        visible = self._visible(transmission, ray, slot)
         ray, slot = ray[visible], slot[visible]
         j = self.bulbs.take(slot)
         c, r = self.points.center.take(j, axis=1), self.points.radius.take(j)
@@ -83,13 +95,23 @@ class SeenLamps:
         outside = dot(away, away) > r * r
         t = intersect_sphere(start, d.take(ray, axis=1), c, r, bound)
         hit = np.flatnonzero(outside & (t < bound))
-        if not len(hit):
-            return
-        hit = hit[np.lexsort((slot.take(hit), ray.take(hit)))]          # per ray in bulb order, as a loop adds
+        hit = hit[np.lexsort((slot.take(hit), ray.take(hit)))]          # per ray in bulb order
         emitted = away.take(hit, axis=1)
         emitted = emitted / np.sqrt(dot(emitted, emitted))
         # The falloff of the direction from the light to the ray's origin, as Cycles has it.
-        le = self.points.le(j.take(hit), None, -emitted)
-        rays = ray.take(hit)
-        for channel in range(3):
-            total[channel] += np.bincount(rays, weights=le[channel], minlength=total.shape[1])
+        return ray.take(hit), slot.take(hit), self.points.le(j.take(hit), None, -emitted)
+
+    def _sun_pairs(self, d, tmax, transmission):
+        """(ray, slot, le) of every escaped ray with every sun whose disk it points into."""
+        escaped = np.flatnonzero(np.isinf(tmax))
+        k = self.suns.count
+        ray, sun = np.repeat(escaped, k), np.tile(np.arange(k), len(escaped))
+        slot = sun + len(self.bulbs)
+        visible = np.flatnonzero(self._visible(transmission, ray, slot))
+        ray, sun, slot = ray.take(visible), sun.take(visible), slot.take(visible)
+        # A sun adds 0 outside its disk, and x + 0 = x for the sums (no -0 among them): left out.
+        inside = np.flatnonzero(~self.suns.delta.take(sun)
+                                & (dot(d.take(ray, axis=1), self.suns.axis.take(sun, axis=1))
+                                   >= self.suns.cos_half.take(sun)))
+        return ray.take(inside), slot.take(inside), self.suns.le(sun.take(inside), None,
+                                                                  d.take(ray.take(inside), axis=1))

@@ -34,6 +34,7 @@ from ..scene.camera_rays import TileSamples
 from ..scene.tracing_origin import moved, moved_camera, tracing_origin
 from ..integrators.effects import EffectPlan, plan_effects
 from ..film.accumulator import Film
+from ..film.ordered_samples import OrderedSamples
 from ..film.pixel_filter import pixel_filter_for
 from ..geometry.scene_geometry import Counters, SceneGeometry
 from ..integrators.path_tracer import PathTracer
@@ -167,18 +168,21 @@ class PreparedScene:
                                             pixel_filter=self.pixel_filter)
             film = Film(tile.x1 - tile.x0, tile.y1 - tile.y0, transparent)
             films.append(film)
+            # The film's sums in sample order, whatever the wavefront (engine/film/ordered_samples.py).
+            ordered = OrderedSamples(film, tile.pixels, first, stop)
 
-            def finished(pixel, radiance, film=film):
+            def finished(pixel, radiance, sample, ordered=ordered):
                 bad = ~np.isfinite(radiance).all(axis=0)
                 if bad.any():
                     # Counted before the guard, never hidden silently.
                     counters.nonfinite_samples += int(bad.sum())
                     radiance[:, bad] = 0.0
-                film.add_samples(pixel, radiance)
+                ordered.add(pixel, radiance, sample)
 
             if not self.tracer.trace(samples, rng, counters, finished, cancel, sampler, features,
                                      film.add_transparent if transparent else None):
                 return None
+            ordered.flush()
         a, b = films
         seconds = time.perf_counter() - start
         sums = None if features is None else features.sums()

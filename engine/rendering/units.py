@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..integrators import path_tracer
+
 MIN_TILES = 4                     # so that both cores of a small frame have work
 UNIT_PATHS = 1 << 18              # camera samples per work unit, about: each unit ends with a tail of
                                   # a few paths, so units much smaller than this cost time (1 << 16: +25 %)
@@ -76,9 +78,15 @@ def make_units(tiles, samples: int, order: str = "tiles") -> list[WorkUnit]:
     if order not in ORDERS:
         raise ValueError(f"progressive order {order!r}: expected one of {', '.join(ORDERS)}")
     per_tile = []
+    # A unit smaller than a wavefront pays the tail of a wavefront that never fills (measured: a
+    # unit of 4k paths costs about 20 ms more than its paths' share, docs/performance.md "Speed"):
+    # a tile's last chunk that small joins the one before it.
+    smallest = min(path_tracer.WAVEFRONT_SIZE, UNIT_PATHS // 2)
     for tile in tiles:
         step = max(1, min(samples, -(-UNIT_PATHS // tile.pixels)))
         starts = chunk_starts(samples, step, order == "growing")
+        if order != "growing" and len(starts) > 1 and (samples - starts[-1]) * tile.pixels < smallest:
+            starts.pop()
         per_tile.append([(tile, c, s, starts[c + 1] if c + 1 < len(starts) else samples)
                          for c, s in enumerate(starts)])
     if order in ("frame", "growing"):

@@ -112,3 +112,57 @@ def test_a_spot_shows_the_falloff_of_the_direction_to_the_rays_origin(falloff):
     a = np.where(c > c0, t * t * (3 - 2 * t), 0.0)
     assert np.allclose(le, c * a if falloff == "cosine-smoothstep" else a, atol=1e-12)
     assert le[0] > 0 and le[-1] == 0                                        # on the axis; outside the cone
+
+
+def loop_radiance(seen, o, d, tmax, transmission):
+    """The definition the vectorised radiance keeps: one lamp after the other, each adding the
+    emission of the rays that meet it (bulbs, then suns; the loop SeenLamps had before its pairs)."""
+    from engine.core.vec import dot
+    from engine.geometry.shapes.spheres import intersect_sphere
+    total = np.zeros(o.shape)
+    visible = np.where(transmission[None, :], seen.visible["transmission"][:, None], seen.visible["glossy"][:, None])
+    for slot, j in enumerate(seen.bulbs):
+        c, r = seen.points.center[:, j], float(seen.points.radius[j])
+        away = o - c[:, None]
+        outside = dot(away, away) > r * r
+        t = intersect_sphere(o, d, c, r, tmax)
+        hit = np.flatnonzero(visible[slot] & outside & (t < tmax))
+        if len(hit):
+            emitted = away.take(hit, axis=1)
+            emitted = emitted / np.sqrt(dot(emitted, emitted))
+            total[:, hit] += seen.points.le(np.full(len(hit), j), None, -emitted)
+    if seen.suns is not None:
+        escaped = np.isinf(tmax)
+        for k in range(seen.suns.count):
+            rays = np.flatnonzero(visible[len(seen.bulbs) + k] & escaped)
+            if len(rays):
+                total[:, rays] += seen.suns.le(np.full(len(rays), k), None, d.take(rays, axis=1))
+    return total
+
+
+@pytest.mark.parametrize("bulbs, suns", [(60, 3), (5, 0), (0, 4), (200, 1)])
+def test_the_pairs_sum_as_the_loop_over_lamps_bit_for_bit(bulbs, suns):
+    """Overlapping bulbs (of both visibilities, some spots) and wide suns seen by rays from inside
+    and outside the cloud, some stopped by a nearer hit: the same sums to the last bit.  Control:
+    summing the same lamps in another order (the bulbs reversed) changes some last bits."""
+    rng = np.random.default_rng(bulbs + suns)
+    points = [PointLight(f"P{i}", tuple(rng.uniform(-1, 1, 3)), tuple(rng.uniform(0.1, 5, 3)),
+                         radius=float(rng.uniform(0.05, 0.4)), visible_glossy=bool(i % 3),
+                         visible_transmission=bool(i % 4),
+                         **({"spot_size": 1.2, "spot_blend": 0.3, "spot_direction": (0.0, 0.0, -1.0)} if i % 5 == 0
+                            else {})) for i in range(bulbs)]
+    sun_lights = [SunLight(f"S{k}", tuple(rng.normal(size=3)), tuple(rng.uniform(0.5, 3, 3)), 1.5 + 0.3 * k,
+                           visible_transmission=bool(k % 2)) for k in range(suns)]
+    seen = SeenLamps.of(scene(points, sun_lights))
+    m = 20_000
+    o = rng.uniform(-1.5, 1.5, (3, m))
+    d = rng.normal(size=(3, m))
+    d /= np.sqrt((d * d).sum(axis=0))
+    tmax = np.where(rng.random(m) < 0.3, rng.uniform(0.1, 2.0, m), np.inf)
+    transmission = rng.random(m) < 0.5
+    vectorised, loop = seen.radiance(o, d, tmax, transmission), loop_radiance(seen, o, d, tmax, transmission)
+    assert (vectorised > 0).any(axis=0).mean() > 0.01
+    assert np.array_equal(vectorised, loop)
+    if bulbs > 20:
+        reversed_bulbs = loop_radiance(SeenLamps.of(scene(points[::-1], sun_lights)), o, d, tmax, transmission)
+        assert not np.array_equal(reversed_bulbs, loop) and np.allclose(reversed_bulbs, loop, rtol=1e-14)

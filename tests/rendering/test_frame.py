@@ -90,3 +90,22 @@ def test_the_viewport_film_is_the_film_of_its_frames():
     expected = np.sqrt(film.variance_of_mean().mean()) / mean.mean()
     assert relative_error(film) == pytest.approx(expected, rel=1e-6)
     assert np.array_equal(film_image(film)[::-1, :, :3], mean)
+
+
+def test_units_are_never_smaller_than_a_wavefront_where_the_tile_has_the_samples():
+    """A unit smaller than the wavefront (engine/integrators/path_tracer.py WAVEFRONT_SIZE) pays
+    the tail of few paths of a wavefront that never fills: every unit holds at least a wavefront of
+    camera samples unless its tile's whole sample range is smaller (a tile's last chunk that small
+    joins the one before).  Control: the viewport's growing chunks (1, 1, 2, 4 ... samples) are small
+    on purpose."""
+    from engine.integrators.path_tracer import WAVEFRONT_SIZE
+    from engine.rendering.units import UNIT_PATHS
+    assert UNIT_PATHS >= WAVEFRONT_SIZE
+    for size, samples in ((64, 64), (64, 65), (64, 8), (256, 2), (16, 1100), (16, 1024), (8, 4100)):
+        tiles = make_tiles(300, 200, size)
+        units = make_units(tiles, samples)
+        for unit in units:
+            paths = unit.tile.pixels * (unit.stop - unit.start)
+            assert paths >= min(WAVEFRONT_SIZE, unit.tile.pixels * samples), (size, samples, unit)
+        assert [sum(u.stop - u.start for u in units if u.tile is t) for t in tiles] == [samples] * len(tiles)
+    assert min(u.stop - u.start for u in make_units(make_tiles(64, 64, 64), 64, "growing")) == 1

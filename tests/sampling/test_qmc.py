@@ -118,3 +118,54 @@ def test_sobol_images_do_not_depend_on_tiles_or_threads():
     assert np.allclose(one.image, two.image, rtol=1e-5, atol=1e-7)
     other = render(scene, RenderSettings(samples=8, threads=2, tile_size=16, seed=5), log=lambda *a: None)
     assert not np.allclose(one.image, other.image)
+
+
+# The byte-table Sobol' points that the shifts and masks of engine/sampling/qmc.py replaced (kept as
+# the reference the new code must match bit for bit).
+_REV8 = np.array([int(f"{i:08b}"[::-1], 2) for i in range(256)], dtype=np.uint32)
+
+
+def _byte_tables():
+    v = [1 << 31]
+    for _ in range(31):
+        v.append(v[-1] ^ (v[-1] >> 1))
+    tables = np.zeros((4, 256), dtype=np.uint32)
+    for j in range(4):
+        for b in range(256):
+            for t in range(8):
+                if b >> t & 1:
+                    tables[j, b] ^= np.uint32(v[8 * j + t])
+    return tables
+
+
+def _table_sample_2d(index, pixel_seed, dim, count):
+    from engine.sampling.qmc import hash32, laine_karras, permute
+    u32, sobol1 = np.uint32, _byte_tables()
+
+    def rev(x):
+        return ((_REV8[x & u32(255)] << u32(24)) | (_REV8[(x >> u32(8)) & u32(255)] << u32(16))
+                | (_REV8[(x >> u32(16)) & u32(255)] << u32(8)) | _REV8[x >> u32(24)])
+
+    bits = max(int(count - 1).bit_length(), 0)
+    with np.errstate(over="ignore"):
+        seed = hash32(pixel_seed ^ hash32(np.asarray(dim, dtype=np.uint32) + u32(0x68E31DA4)))
+        i = permute(np.asarray(index, dtype=np.uint32), bits, hash32(seed ^ u32(0x1B873593)))
+        x = rev(laine_karras(i, hash32(seed ^ u32(0xA511E9B3))))
+        d1 = (sobol1[0][i & u32(255)] ^ sobol1[1][(i >> u32(8)) & u32(255)]
+              ^ sobol1[2][(i >> u32(16)) & u32(255)] ^ sobol1[3][i >> u32(24)])
+        y = rev(laine_karras(rev(d1), hash32(seed ^ u32(0x63D83595))))
+    one = np.nextafter(1.0, 0.0)
+    return np.minimum(x * (1.0 / 4294967296.0), one), np.minimum(y * (1.0 / 4294967296.0), one)
+
+
+@pytest.mark.parametrize("count", [1, 2, 16, 1000, 1 << 16, 3 << 20])
+def test_sample_2d_matches_the_byte_table_code_bit_for_bit(count):
+    """Random pixels, indices below count and dimensions (arrays below and beyond the hash table of
+    1024 dimensions, and plain ints): the same float64 points as the byte-table code."""
+    rng = np.random.default_rng(count)
+    n = 20_000
+    index = rng.integers(0, count, n, dtype=np.int64)
+    seeds = rng.integers(0, 2 ** 32, n, dtype=np.uint64).astype(np.uint32)
+    for dim in (rng.integers(0, 40, n), rng.integers(0, 5000, n), 0, 3, 1023, 1024, 70_000):
+        new, old = sample_2d(index, seeds, dim, count), _table_sample_2d(index, seeds, dim, count)
+        assert np.array_equal(new[0], old[0]) and np.array_equal(new[1], old[1]), dim
