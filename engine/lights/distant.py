@@ -44,10 +44,15 @@ class DistantKind:
     def bounds(self):
         return None
 
-    def _disk_rays(self, facing, u3, u4, direction, radiance, pdf_dir):
+    def _disk_rays(self, facing, u3, u4, direction, radiance, pdf_dir, targets=None):
         """Rays along `direction` (rows) from points uniform (u3, u4) on the disk of radius R that
-        faces the unit rows `facing`, a distance R behind the scene's sphere along them."""
+        faces the unit rows `facing`, a distance R behind the scene's sphere along them; with
+        `targets` (engine/lights/aim.py) from the disk about a target that faces `direction`."""
         r = max(self.scene_radius, 1e-300)
+        if targets is not None:
+            far = 2.0 * r + np.sqrt(dot(targets.center, targets.center).max())
+            origin, pdf_pos = targets.disk_origins(direction, u3, u4, far)
+            return EmissionSample(origin, direction, direction, radiance, pdf_pos, pdf_dir)
         t1, t2 = orthonormal_basis(facing)
         c, s = unit_circle(u4)
         rho = r * np.sqrt(u3)
@@ -78,13 +83,13 @@ class SunLights(DistantKind):
         self.flux = np.pi * r2 * irradiance.mean(axis=1)
         self.scene_radius = scene_radius
 
-    def sample_emission(self, idx, u1, u2, u3, u4):
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None):
         """In the sun's cone (u1, u2), away from the sun, from the disk facing down its axis (u3, u4)."""
         towards = self.axis.take(idx, axis=1)
         cone, _ = uniform_cone(u1, u2, towards, self.one_minus_cos.take(idx))
         direction = -np.where(self.delta.take(idx), towards, cone)
         return self._disk_rays(-towards, u3, u4, direction, self.radiance.take(idx, axis=1),
-                               self.pdf_li(None, idx, None))
+                               self.pdf_li(None, idx, None), targets)
 
     def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
         """Uniform in the sun's cone; a delta sun's 'density' is 1 (its radiance is the irradiance E)."""
@@ -114,11 +119,11 @@ class WorldLight(DistantKind):
         self.flux = np.array([np.pi * float(np.mean(background)) * 4.0 * np.pi * r2])
         self.scene_radius = scene_radius
 
-    def sample_emission(self, idx, u1, u2, u3, u4):
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None):
         """Directions uniform over the sphere (u1, u2), each from the disk facing it (u3, u4)."""
         direction = uniform_sphere(u1, u2)
         return self._disk_rays(direction, u3, u4, direction, self.radiance.take(idx, axis=1),
-                               np.full(len(u1), 1.0 / (4.0 * np.pi)))
+                               np.full(len(u1), 1.0 / (4.0 * np.pi)), targets)
 
     def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
         """Cosine-distributed about the receivers' facing normals n."""

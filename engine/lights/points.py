@@ -129,7 +129,7 @@ class PointLights:
         return LightBounds(self.center, self.radius, rows(np.tile([0.0, 0.0, 1.0], (self.count, 1))),
                            np.full(self.count, -1.0))                  # emits in every direction
 
-    def sample_emission(self, idx, u1, u2, u3, u4):
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None):
         """Direction uniform over the sphere (u1, u2; pdf_dir 1 / 4 pi), a spot light's uniform in
         its cone (pdf_dir 1 / (2 pi (1 - cos(size / 2)))); origin uniform on the disk of radius r
         facing it (u3, u4; pdf_pos 1 / (pi r^2); a point without a radius: the centre, pdf_pos 1,

@@ -114,9 +114,10 @@ class LightKind(Protocol):
         """Bounding sphere and normal cone of each light; None for lights at infinity."""
         ...
 
-    def sample_emission(self, idx, u1, u2, u3, u4) -> EmissionSample:
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None) -> EmissionSample:
         """A ray leaving light idx, from four uniforms (N,) each; a kind that cannot emit rays yet
-        raises NotImplementedError naming itself."""
+        raises NotImplementedError naming itself.  targets: an engine/lights/aim.py SphereTargets
+        to aim the rays at (their density in pdf_dir, or in pdf_pos at infinity), or None."""
         ...
 
 

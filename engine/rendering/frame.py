@@ -234,6 +234,11 @@ class Frame:
             "cancelled": cancelled, "warnings": list(self.warnings),
         }
         stats.update(self.error_stats(seconds))
+        if self.totals.photons:             # the caustic photon passes (engine/integrators/photons/)
+            radii = self.totals.photon_radii
+            stats["photons"] = {**self.totals.photons, "passes": len(radii),
+                                "radius_first": radii[min(radii)] if radii else None,
+                                "radius_last": radii[max(radii)] if radii else None}
         shown = self.film.display()
         variance, passes = self.film.variance_of_mean(), pass_images(self.film, s.passes)
         if s.film_exposure != 1.0:                  # the variance of the image shown

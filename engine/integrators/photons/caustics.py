@@ -1,0 +1,106 @@
+"""What the path tracer asks of the caustic photons: the photon map of a pass, and the caustic
+radiance at camera-path vertices.
+
+Pass k holds the camera samples k S .. (k + 1) S - 1 of every pixel (S = SAMPLES_PER_PASS) and one
+photon map of `photons_per_pass` photons with radius r_k (engine/integrators/photons/photon_map.py).
+A pass's map is a function of (seed, k) and the scene only: its random numbers come from their own
+stream, so every worker that renders samples of pass k builds the same map, whatever unit, worker
+or order asks for it, and images stay bit-identical on every pool.  Maps are kept while the cache
+holds less than CACHE_BYTES; a map made after that is used and dropped (rebuilt, identically, when
+asked for again).  Units run through their passes in order, tile after tile, so keeping the first
+maps (rather than the latest, which such a sweep would always evict) saves the most tracing.
+"""
+from __future__ import annotations
+
+import time
+import numpy as np
+
+from .emission import emit
+from .photon_map import PhotonMap, radius_of_pass
+from .targets import specular_targets
+from .tracing import trace_photons
+
+SAMPLES_PER_PASS = 1          # camera samples per pixel per photon pass (SPPM: one)
+PHOTON_STREAM = 0x70686F74    # 'phot': the photon passes' random stream, apart from the camera's
+CACHE_BYTES = 512 << 20
+AUTO_RADIUS_PIXELS = 1.5      # the automatic first radius: this many pixel footprints at the targets
+
+
+def passes_of(samples: int) -> int:
+    """The number of photon passes a render of `samples` samples per pixel runs."""
+    return -(-samples // SAMPLES_PER_PASS)
+
+
+def auto_radius(scene, targets) -> float:
+    """The first pass's radius: AUTO_RADIUS_PIXELS pixel footprints at the distance from the camera
+    to the nearest target's centre (a pinhole's footprint: sensor width / lens / pixels), at least
+    1e-5 of the scene's size."""
+    cam = scene.camera
+    eye = np.asarray(cam.matrix, dtype=np.float64)[:3, 3]
+    width, height = scene.resolution
+    if cam.sensor_fit == "VERTICAL":
+        per_pixel = cam.sensor_height / cam.lens / height
+    elif cam.sensor_fit == "HORIZONTAL":
+        per_pixel = cam.sensor_width / cam.lens / width
+    else:
+        per_pixel = cam.sensor_width / cam.lens / max(width, height)
+    distance = float(np.min(np.linalg.norm(targets.center - eye[:, None], axis=0)))
+    size = float(np.max(targets.radius))
+    return max(AUTO_RADIUS_PIXELS * per_pixel * distance, 1e-5 * size, 1e-9)
+
+
+class CausticPhotons:
+    """The caustic photon maps of a prepared scene (engine/rendering/session.py), pass by pass."""
+
+    def __init__(self, tracer, scene, settings):
+        """tracer: the PathTracer whose geometry, lights and materials the photons meet."""
+        self.tracer, self.settings = tracer, settings
+        self.targets = specular_targets(scene, tracer.mats)
+        self.photons = int(settings.photons_per_pass)
+        self.alpha = float(settings.photon_alpha)
+        self.first_radius = (float(settings.photon_radius) if settings.photon_radius > 0 or self.targets is None
+                             else auto_radius(scene, self.targets))
+        self.maps = {}
+        self.cached_bytes = 0
+
+    def radius(self, k: int) -> float:
+        return radius_of_pass(self.first_radius, k, self.alpha)
+
+    def map_of(self, k: int, counters) -> PhotonMap:
+        """Pass k's photon map (from the cache, or traced now)."""
+        found = self.maps.get(k)
+        if found is not None:
+            return found
+        start = time.perf_counter()
+        rng = np.random.default_rng([self.settings.seed, PHOTON_STREAM, k])
+        e = emit(self.tracer.lights, self.photons, rng, self.targets)
+        stored = trace_photons(self.tracer, e.origin, e.direction, e.flux, counters, rng, self.settings.max_depth)
+        made = PhotonMap(stored, self.radius(k))
+        if self.cached_bytes + made.nbytes <= CACHE_BYTES:
+            self.maps[k] = made
+            self.cached_bytes += made.nbytes
+        ph = counters.photons
+        for key, value in (("passes_traced", 1), ("photons_emitted", e.emitted), ("photons_traced", stored.traced),
+                           ("photons_stored", made.count), ("photon_rays", stored.segments),
+                           ("trace_seconds", time.perf_counter() - start)):
+            ph[key] = ph.get(key, 0) + value
+        counters.photon_radii[k] = made.radius
+        return made
+
+    def radiance(self, sample, bsdf, si, points, facing, counters) -> np.ndarray:
+        """(3, M) the caustic radiance at the M camera-path vertices (rows `points`, ShadingPoint si
+        of `bsdf`, facing geometric normals) of the camera samples `sample` (M,), each from its
+        pass's map."""
+        out = np.zeros((3, points.shape[1]))
+        passes = sample // SAMPLES_PER_PASS
+        for k in np.unique(passes):
+            photon_map = self.map_of(int(k), counters)
+            start = time.perf_counter()
+            mine = np.flatnonzero(passes == k)
+            every = len(mine) == len(passes)
+            out[:, mine] = photon_map.radiance(bsdf, si if every else si.take(mine),
+                                               points if every else points.take(mine, axis=1),
+                                               facing if every else facing.take(mine, axis=1))
+            counters.photons["gather_seconds"] = counters.photons.get("gather_seconds", 0.0) + \
+                time.perf_counter() - start
+        return out
