@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BLENDER ?= blender
 
-.PHONY: setup render test test-slow test-all bench bench-primitives bench-estimators bench-materials study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-primitives bench-caustics bench-estimators bench-materials study extension samples clean
 
 setup: $(STAMP)
 
@@ -39,6 +39,10 @@ bench: $(STAMP)
 # time ratios measured in one run (docs/performance.md "Many primitives").
 bench-primitives: $(STAMP)
 	$(PY) scripts/bench_primitives.py
+
+# Caustics: the photon map against path tracing at equal time on the caustic room (relMSE ratios).
+bench-caustics: $(STAMP)
+	$(PY) scripts/bench_caustics.py
 
 # Light-sampling estimators (report | solid-angle | mis) vs Cycles on the light-sampling stress scenes:
 # markdown table + docs/estimators.json; Cycles references cached in renders/reference/.

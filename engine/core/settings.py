@@ -218,12 +218,12 @@ SETTINGS = (
             choices=(Choice("auto", "Auto", "A photon map where the scene has specular objects and receivers"),
                      Choice("path", "Path Tracing", "Path tracing alone (point-light caustics stay black)"),
                      Choice("photons", "Photon Map", "A progressive caustic photon map beside the path tracer"))),
-    Setting("photons_per_pass", INT, 50000, "caustic photons emitted per photon pass (one pass per sample "
+    Setting("photons_per_pass", INT, 20000, "caustic photons emitted per photon pass (one pass per sample "
             "per pixel)", limits=(1, INT32_MAX), flag="--photons-per-pass", label="Photons per Pass",
             description="Caustic photons emitted per pass (one pass per sample)", bpy_options={"soft_max": 2000000},
             panel="Light Paths > Caustics", stats=STATS_AS_SET),
-    Setting("photon_radius", FLOAT, 0.0, "the caustic photon map's first gather radius (0 = auto: 1.5 pixel "
-            "footprints at the specular objects)", limits=(0.0, 1e30), flag="--photon-radius", metavar="R",
+    Setting("photon_radius", FLOAT, 0.0, "the caustic photon map's first gather radius (0 = auto: one pixel "
+            "footprint at the specular objects)", limits=(0.0, 1e30), flag="--photon-radius", metavar="R",
             label="Initial Radius", description="First gather radius of the caustic photon map (0: automatic)",
             panel="Light Paths > Caustics", stats=STATS_AS_SET),
     Setting("photon_alpha", FLOAT, 2.0 / 3.0, "the photon radius's reduction per pass: r^2 shrinks by "

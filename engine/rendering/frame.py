@@ -20,7 +20,7 @@ from ..core.version import ENGINE_NAME, ENGINE_VERSION
 from ..film.accumulator import Film
 from ..film.passes import FrameFeatures, pass_images, traced
 from ..geometry.scene_geometry import Counters
-from .units import Tile, await_units, make_tiles, make_units, tile_size_for
+from .units import PHOTON_UNIT_SAMPLES, Tile, await_units, make_tiles, make_units, tile_size_for
 
 DEFAULT_TARGET = 0.01            # the error seconds_to_target aims at without a noise target
 
@@ -132,7 +132,9 @@ class Frame:
         self.warnings = list(facts.warnings)
         self.tile_size = tile_size_for(width, height, settings.tile_size)
         self.tiles = make_tiles(width, height, self.tile_size)
-        self.units = make_units(self.tiles, settings.samples, progressive)
+        photons = facts.plan.enabled.get("photon_caustics", False)        # each sample a photon pass: shorter units
+        self.units = make_units(self.tiles, settings.samples, progressive,
+                                max_samples=PHOTON_UNIT_SAMPLES if photons else None)
         self.film = FrameFilm(width, height, self.units, settings.film_transparent, settings.film_exposure)
         if traced(settings.passes):
             self.film.features = FrameFeatures(width, height)

@@ -23,7 +23,7 @@ from .tracing import trace_photons
 SAMPLES_PER_PASS = 1          # camera samples per pixel per photon pass (SPPM: one)
 PHOTON_STREAM = 0x70686F74    # 'phot': the photon passes' random stream, apart from the camera's
 CACHE_BYTES = 512 << 20
-AUTO_RADIUS_PIXELS = 1.5      # the automatic first radius: this many pixel footprints at the targets
+AUTO_RADIUS_PIXELS = 1.0      # the automatic first radius: this many pixel footprints at the targets
 
 
 def passes_of(samples: int) -> int:

@@ -65,15 +65,17 @@ class PhotonMap:
         query, photon = query[same], photon[same]
         if not len(query):
             return out
+        albedo = bsdf.lambert_albedo(si)
+        if albedo is not None:              # f = rho / pi for every direction: sum the flux per point first
+            flux = self.flux.take(photon, axis=1)
+            for c in range(3):
+                out[c] = np.bincount(query, flux[c], minlength=m)
+            return out * albedo * (1.0 / (np.pi * np.pi * self.radius * self.radius))
         at = si.take(query)
         wi = self.incoming.take(photon, axis=1)
-        albedo = bsdf.lambert_albedo(at)
-        if albedo is not None:
-            f = albedo * (1.0 / np.pi)
-        else:
-            f_cos, _ = bsdf.eval(at, wi)
-            cos = np.abs(dot(at.n, wi))
-            f = np.where(cos > 1e-6, f_cos / np.maximum(cos, 1e-6), 0.0)
+        f_cos, _ = bsdf.eval(at, wi)
+        cos = np.abs(dot(at.n, wi))
+        f = np.where(cos > 1e-6, f_cos / np.maximum(cos, 1e-6), 0.0)
         contrib = f * self.flux.take(photon, axis=1)
         for c in range(3):
             out[c] = np.bincount(query, contrib[c], minlength=m)
