@@ -539,12 +539,15 @@ class PathTracer:
         return (p.caustic.take(idx) == AFTER_RECEIVER) & p.prev_delta.take(idx)
 
     def gather_caustics(self, p, si, spans, surf, facing, counters):
-        """Add beta x the caustic photons' radiance at every hit with a non-delta BSDF."""
+        """Add beta x the caustic photons' radiance at every hit with a non-delta BSDF, from photons
+        whose paths keep the whole path within the depth limit."""
         for g, span in enumerate(spans):
             if not self.mats.non_delta[g] or span.stop == span.start:
                 continue
+            # The path tracer's paths have up to max_depth + 1 segments; this vertex ends bounce + 1.
             caustic = self.photons.radiance(p.sample[span], self.bsdfs[g], si[span], surf.point[:, span],
-                                            facing[:, span], counters)
+                                            facing[:, span], counters, self.settings.max_depth - p.bounce[span],
+                                            p.caustic[span] == AFTER_RECEIVER)
             p.radiance[:, span] += p.beta[:, span] * caustic
 
     # -- Cycles' Light Paths options (engine/integrators/light_paths.py) ---------------------------

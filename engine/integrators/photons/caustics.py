@@ -23,6 +23,8 @@ from .tracing import trace_photons
 SAMPLES_PER_PASS = 1          # camera samples per pixel per photon pass (SPPM: one)
 PHOTON_STREAM = 0x70686F74    # 'phot': the photon passes' random stream, apart from the camera's
 CACHE_BYTES = 512 << 20
+SECONDARY_SCALE = 4.0         # the radius at vertices after a non-delta bounce: their caustics are seen
+                              # blurred anyway, and a wider disk holds 16 x the photons (less noise)
 AUTO_RADIUS_PIXELS = 1.0      # the automatic first radius: this many pixel footprints at the targets
 
 
@@ -81,26 +83,32 @@ class CausticPhotons:
             self.cached_bytes += made.nbytes
         ph = counters.photons
         for key, value in (("passes_traced", 1), ("photons_emitted", e.emitted), ("photons_traced", stored.traced),
-                           ("photons_stored", made.count), ("photon_rays", stored.segments),
+                           ("photons_stored", made.count), ("photon_rays", stored.rays),
                            ("trace_seconds", time.perf_counter() - start)):
             ph[key] = ph.get(key, 0) + value
         counters.photon_radii[k] = made.radius
         return made
 
-    def radiance(self, sample, bsdf, si, points, facing, counters) -> np.ndarray:
+    def radiance(self, sample, bsdf, si, points, facing, counters, segments=None, secondary=None) -> np.ndarray:
         """(3, M) the caustic radiance at the M camera-path vertices (rows `points`, ShadingPoint si
         of `bsdf`, facing geometric normals) of the camera samples `sample` (M,), each from its
-        pass's map."""
+        pass's map; segments (M,): the most photon segments each may take (None: any); secondary
+        (M,) bool: the vertices after a non-delta bounce, which gather with SECONDARY_SCALE x the
+        radius (None: none)."""
         out = np.zeros((3, points.shape[1]))
         passes = sample // SAMPLES_PER_PASS
+        wide = np.zeros(len(sample), bool) if secondary is None else secondary
         for k in np.unique(passes):
             photon_map = self.map_of(int(k), counters)
             start = time.perf_counter()
-            mine = np.flatnonzero(passes == k)
-            every = len(mine) == len(passes)
-            out[:, mine] = photon_map.radiance(bsdf, si if every else si.take(mine),
-                                               points if every else points.take(mine, axis=1),
-                                               facing if every else facing.take(mine, axis=1))
+            for is_wide in (False, True):
+                mine = np.flatnonzero((passes == k) & (wide == is_wide))
+                if not len(mine):
+                    continue
+                out[:, mine] = photon_map.radiance(bsdf, si.take(mine), points.take(mine, axis=1),
+                                                   facing.take(mine, axis=1),
+                                                   None if segments is None else segments.take(mine),
+                                                   SECONDARY_SCALE if is_wide else 1.0)
             counters.photons["gather_seconds"] = counters.photons.get("gather_seconds", 0.0) + \
                 time.perf_counter() - start
         return out

@@ -37,31 +37,37 @@ class PhotonMap:
         """stored: engine/integrators/photons/tracing.py Stored; radius: this pass's."""
         self.position, self.incoming, self.flux, self.normal = (stored.position, stored.incoming,
                                                                 stored.flux, stored.normal)
+        self.segments = stored.segments
         self.count = self.position.shape[1]
         self.radius = float(radius)
         self.tree = cKDTree(self.position.T) if self.count else None
         # The tree's nodes and index: about 40 bytes a photon more.
         self.nbytes = sum(a.nbytes for a in (self.position, self.incoming, self.flux, self.normal)) + 40 * self.count
 
-    def pairs(self, points):
+    def pairs(self, points, radius):
         """(query index, photon index) of every photon within the radius of each point (rows): the
         pairs of a tree over the points against the photons' (cKDTree.sparse_distance_matrix, which
         returns them as arrays)."""
         if self.tree is None or points.shape[1] == 0:
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        found = cKDTree(points.T).sparse_distance_matrix(self.tree, self.radius, output_type="ndarray")
+        found = cKDTree(points.T).sparse_distance_matrix(self.tree, radius, output_type="ndarray")
         return found["i"].astype(np.int64), found["j"].astype(np.int64)
 
-    def radiance(self, bsdf, si, points, facing) -> np.ndarray:
+    def radiance(self, bsdf, si, points, facing, segments=None, scale: float = 1.0) -> np.ndarray:
         """(3, M) the caustic radiance towards si.wo at the M points (rows) of the ShadingPoint si
         (engine/materials/protocol.py) whose BSDF is `bsdf`; facing: their geometric normals on the
-        viewer's side."""
+        viewer's side; segments (M,): the most segments a photon's path may have at each point
+        (the camera path's depth limit; None: any); scale: of the radius (vertices seen after a
+        diffuse bounce gather over a wider disk)."""
         m = points.shape[1]
         out = np.zeros((3, m))
-        query, photon = self.pairs(points)
+        radius = self.radius * scale
+        query, photon = self.pairs(points, radius)
         if not len(query):
             return out
         same = dot(facing.take(query, axis=1), self.normal.take(photon, axis=1)) > SAME_SIDE_COS
+        if segments is not None:
+            same &= self.segments.take(photon) <= segments.take(query)
         query, photon = query[same], photon[same]
         if not len(query):
             return out
@@ -70,7 +76,7 @@ class PhotonMap:
             flux = self.flux.take(photon, axis=1)
             for c in range(3):
                 out[c] = np.bincount(query, flux[c], minlength=m)
-            return out * albedo * (1.0 / (np.pi * np.pi * self.radius * self.radius))
+            return out * albedo * (1.0 / (np.pi * np.pi * radius * radius))
         at = si.take(query)
         wi = self.incoming.take(photon, axis=1)
         f_cos, _ = bsdf.eval(at, wi)
@@ -79,4 +85,4 @@ class PhotonMap:
         contrib = f * self.flux.take(photon, axis=1)
         for c in range(3):
             out[c] = np.bincount(query, contrib[c], minlength=m)
-        return out * (1.0 / (np.pi * self.radius * self.radius))
+        return out * (1.0 / (np.pi * radius * radius))

@@ -29,8 +29,9 @@ class Stored:
     incoming: np.ndarray    # (3, M) unit, towards where the photon came from
     flux: np.ndarray        # (3, M)
     normal: np.ndarray      # (3, M) unit geometric normal on the photon's side
+    segments: np.ndarray    # (M,) the photon path's segments from the light to it (bounces + 1)
     traced: int = 0         # photons traced (after emission's culling)
-    segments: int = 0       # rays cast
+    rays: int = 0           # rays cast
 
 
 def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int) -> Stored:
@@ -40,10 +41,10 @@ def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int
     o, d, phi = origin, direction, flux
     start = np.maximum(max3(flux), 1e-300)
     bounce = np.zeros(o.shape[1], dtype=np.int32)
-    out = Stored(*(np.zeros((3, 0)) for _ in range(4)), traced=o.shape[1])
+    out = Stored(*(np.zeros((3, 0)) for _ in range(4)), np.zeros(0, np.int32), traced=o.shape[1])
     parts = []
     while o.shape[1]:
-        out.segments += o.shape[1]
+        out.rays += o.shape[1]
         hits = geometry.nearest_hits(o, d, counters, tracer.scatter_group, N_SCATTER_GROUPS,
                                      light_group=PASS_THROUGH)
         idx = hits.index
@@ -63,7 +64,7 @@ def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int
         keep = np.flatnonzero(non_delta.take(group) & (bounce >= 1))
         if len(keep):
             parts.append((surf.point.take(keep, axis=1), -d.take(keep, axis=1), phi.take(keep, axis=1),
-                          facing.take(keep, axis=1)))
+                          facing.take(keep, axis=1), bounce.take(keep) + 1))
         color = mats.color.take(surf.material, axis=1)
         if textures is not None:
             color = textures.color(color, surf.material, hits.kind, hits.prim, hits.u, hits.v)
@@ -108,4 +109,5 @@ def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int
     if parts:
         out.position, out.incoming, out.flux, out.normal = (np.concatenate([p[i] for p in parts], axis=1)
                                                             for i in range(4))
+        out.segments = np.concatenate([p[4] for p in parts])
     return out
