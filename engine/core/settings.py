@@ -218,7 +218,7 @@ SETTINGS = (
             choices=(Choice("auto", "Auto", "A photon map where the scene has specular objects and receivers"),
                      Choice("path", "Path Tracing", "Path tracing alone (point-light caustics stay black)"),
                      Choice("photons", "Photon Map", "A progressive caustic photon map beside the path tracer"))),
-    Setting("photons_per_pass", INT, 20000, "caustic photons emitted per photon pass (one pass per sample "
+    Setting("photons_per_pass", INT, 10000, "caustic photons emitted per photon pass (one pass per sample "
             "per pixel)", limits=(1, INT32_MAX), flag="--photons-per-pass", label="Photons per Pass",
             description="Caustic photons emitted per pass (one pass per sample)", bpy_options={"soft_max": 2000000},
             panel="Light Paths > Caustics", stats=STATS_AS_SET),

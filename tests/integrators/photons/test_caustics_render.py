@@ -41,27 +41,28 @@ def test_control_counting_the_caustics_twice_fails(monkeypatch):
     assert z > 4, (z, rel)
 
 
-def block_bias(image, reference, region):
-    """The largest relative error of the 4 x 4-pixel block means inside `region` (a bool mask)."""
+def block_error(image, reference, region):
+    """The RMS relative error of the 4 x 4-pixel block means that lie mostly (3/4) in `region`."""
     h, w = reference.shape[:2]
     a = image.mean(axis=2).reshape(h // 4, 4, w // 4, 4).mean(axis=(1, 3))
     b = reference.mean(axis=2).reshape(h // 4, 4, w // 4, 4).mean(axis=(1, 3))
-    m = region.reshape(h // 4, 4, w // 4, 4).all(axis=(1, 3)) & (b > 0)
-    return float(np.abs(a[m] / b[m] - 1.0).max())
+    m = (region.reshape(h // 4, 4, w // 4, 4).mean(axis=(1, 3)) >= 0.75) & (b > 0)
+    return float(np.sqrt(np.mean((a[m] / b[m] - 1.0) ** 2)))
 
 
 def test_the_caustics_bias_falls_as_passes_accumulate():
     """The glass ball on the floor under a small lamp: the caustic's block error against a path-traced
-    reference falls from 4 to 64 passes (the fitted exponent is negative) and ends below 5 %."""
+    reference (its own noise about 1.5 % a block) falls from 4 to 64 passes (the fitted exponent is
+    negative) and ends below 5 %, where path tracing at 64 samples is far off."""
     scene = caustic_scene((32, 32))
     reference = render(scene, RenderSettings(samples=8192, caustics_method="path", seed=7)).image
     path_few = render(scene, RenderSettings(samples=64, caustics_method="path", seed=1)).image
     bright = reference.mean(axis=2) > 2.0 * np.median(reference.mean(axis=2))
     region = bright.copy()
     region[:16] = False                                   # the floor under the ball, not the lamp
-    errors = {n: block_bias(render(scene, RenderSettings(samples=n, caustics_method="photons", seed=1,
+    errors = {n: block_error(render(scene, RenderSettings(samples=n, caustics_method="photons", seed=1,
                                                          photons_per_pass=20_000)).image, reference, region)
               for n in (4, 16, 64)}
     slope = np.polyfit(np.log(list(errors)), np.log(list(errors.values())), 1)[0]
-    assert slope < 0 and errors[64] < 0.05, (errors, slope)
-    assert block_bias(path_few, reference, region) > errors[64]         # what the photons beat
+    assert slope < 0 and errors[64] < errors[4] and errors[64] < 0.05, (errors, slope)
+    assert block_error(path_few, reference, region) > errors[64]         # what the photons beat
