@@ -6,7 +6,9 @@ sample_emission (engine/lights/protocol.py), aimed at the specular objects' boun
 
 so that the N photons' fluxes sum, in expectation, to the flux the lights send towards the targets
 (all their flux without targets).  Photons of zero flux (the back of a one-sided light, outside a
-spot's cone) are dropped before tracing.
+spot's cone) are dropped before tracing.  Each photon starts a little off its light, along the
+normal of the side it leaves (the light set's LIGHT_OFFSET, relative to the coordinates), so that
+the emitter's own surface never stops it.
 """
 from __future__ import annotations
 
@@ -14,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...core.vec import dot
+from ...core.vec import dot, max_abs3
+from ...lights.light_set import LIGHT_OFFSET
 
 
 @dataclass
@@ -52,7 +55,7 @@ def emit(lights, n: int, rng, targets=None) -> Emitted:
         with np.errstate(divide="ignore", invalid="ignore"):
             phi = e.radiance * (cos / (p_light * e.pdf_pos * e.pdf_dir * n))
         phi = np.where(np.isfinite(phi), phi, 0.0)
-        origins.append(e.origin)
+        origins.append(e.origin + (LIGHT_OFFSET * np.maximum(max_abs3(e.origin), 1.0)) * e.normal)
         directions.append(e.direction)
         fluxes.append(phi)
     o, d, phi = (np.concatenate(a, axis=1) for a in (origins, directions, fluxes))

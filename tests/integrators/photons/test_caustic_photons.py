@@ -169,3 +169,14 @@ def test_the_image_is_the_same_on_every_pool():
               for kind, t in (("threads", 1), ("threads", 2), ("processes", 2))]
     assert np.array_equal(images[0], images[1]) and np.array_equal(images[0], images[2])
     assert images[0].sum() > 0
+
+
+def test_photons_leave_a_mesh_lamp():
+    """A lamp of emissive triangles (as Blender files have them) does not stop its own photons."""
+    from engine.scene.builtin import box_wall
+    scene = caustic_scene((8, 8))
+    lamp = next(q for q in scene.quads if scene.materials[q.material_id].is_emissive)
+    scene.quads.remove(lamp)
+    scene.meshes.append(box_wall("Lamp mesh", lamp.corners, lamp.material_id))
+    photons = prepared(scene, photons_per_pass=5000).tracer.photons
+    assert photons.map_of(0, Counters()).count > 0.8 * 5000
