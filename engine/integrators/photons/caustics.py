@@ -3,9 +3,11 @@ radiance at camera-path vertices.
 
 Pass k holds the camera samples k S .. (k + 1) S - 1 of every pixel (S = SAMPLES_PER_PASS) and one
 photon map of `photons_per_pass` photons with radius r_k (engine/integrators/photons/photon_map.py).
-A pass's map is a function of (seed, k) and the scene only: its random numbers come from their own
-stream, so every worker that renders samples of pass k builds the same map, whatever unit, worker
-or order asks for it, and images stay bit-identical on every pool.  Maps are kept while the cache
+A pass's map is a function of (seed, k) and the scene only: its photons are emitted from their own
+stream, and traced together with those of the other passes of its batch of PASSES_PER_BATCH (passes
+8 b .. 8 b + 7, with the batch's stream for the bounces), so every worker that renders samples of
+pass k builds the same map, whatever unit, worker or order asks for it, and images stay
+bit-identical on every pool.  Maps are kept while the cache
 holds less than CACHE_BYTES; a map made after that is used and dropped (rebuilt, identically, when
 asked for again).  Units run through their passes in order, tile after tile, so keeping the first
 maps (rather than the latest, which such a sweep would always evict) saves the most tracing.
@@ -21,6 +23,7 @@ from .targets import specular_targets
 from .tracing import trace_photons
 
 SAMPLES_PER_PASS = 1          # camera samples per pixel per photon pass (SPPM: one)
+PASSES_PER_BATCH = 8          # passes traced together (one wavefront of photons: less overhead per photon)
 PHOTON_STREAM = 0x70686F74    # 'phot': the photon passes' random stream, apart from the camera's
 CACHE_BYTES = 512 << 20
 SECONDARY_SCALE = 4.0         # the radius at vertices after a non-delta bounce: their caustics are seen
@@ -69,25 +72,37 @@ class CausticPhotons:
         return radius_of_pass(self.first_radius, k, self.alpha)
 
     def map_of(self, k: int, counters) -> PhotonMap:
-        """Pass k's photon map (from the cache, or traced now)."""
+        """Pass k's photon map (from the cache, or traced now with the other passes of its batch)."""
         found = self.maps.get(k)
         if found is not None:
             return found
         start = time.perf_counter()
-        rng = np.random.default_rng([self.settings.seed, PHOTON_STREAM, k])
-        e = emit(self.tracer.lights, self.photons, rng, self.targets)
-        stored = trace_photons(self.tracer, e.origin, e.direction, e.flux, counters, rng, self.settings.max_depth)
-        made = PhotonMap(stored, self.radius(k))
-        if self.cached_bytes + made.nbytes <= CACHE_BYTES:
-            self.maps[k] = made
-            self.cached_bytes += made.nbytes
+        first = k - k % PASSES_PER_BATCH
+        batch = range(first, first + PASSES_PER_BATCH)
+        emitted = []
+        for j in batch:                  # each pass's photons from its own stream
+            emitted.append(emit(self.tracer.lights, self.photons,
+                                np.random.default_rng([self.settings.seed, PHOTON_STREAM, j]), self.targets))
+        label = np.concatenate([np.full(e.origin.shape[1], j) for j, e in zip(batch, emitted)])
+        o, d, phi = (np.concatenate([getattr(e, name) for e in emitted], axis=1)
+                     for name in ("origin", "direction", "flux"))
+        rng = np.random.default_rng([self.settings.seed, PHOTON_STREAM, first, 1])     # the batch's bounces
+        stored = trace_photons(self.tracer, o, d, phi, counters, rng, self.settings.max_depth, label)
         ph = counters.photons
-        for key, value in (("passes_traced", 1), ("photons_emitted", e.emitted), ("photons_traced", stored.traced),
-                           ("photons_stored", made.count), ("photon_rays", stored.rays),
+        for j in batch:
+            made = PhotonMap(stored, self.radius(j), label=j)
+            if j == k:
+                found = made
+            if self.cached_bytes + made.nbytes <= CACHE_BYTES:
+                self.maps[j] = made
+                self.cached_bytes += made.nbytes
+            ph["photons_stored"] = ph.get("photons_stored", 0) + made.count
+            counters.photon_radii[j] = made.radius
+        for key, value in (("passes_traced", PASSES_PER_BATCH), ("photons_emitted", self.photons * PASSES_PER_BATCH),
+                           ("photons_traced", stored.traced), ("photon_rays", stored.rays),
                            ("trace_seconds", time.perf_counter() - start)):
             ph[key] = ph.get(key, 0) + value
-        counters.photon_radii[k] = made.radius
-        return made
+        return found
 
     def radiance(self, sample, bsdf, si, points, facing, counters, segments=None, secondary=None) -> np.ndarray:
         """(3, M) the caustic radiance at the M camera-path vertices (rows `points`, ShadingPoint si

@@ -33,11 +33,13 @@ def radius_of_pass(r1: float, k: int, alpha: float) -> float:
 
 
 class PhotonMap:
-    def __init__(self, stored, radius: float):
-        """stored: engine/integrators/photons/tracing.py Stored; radius: this pass's."""
-        self.position, self.incoming, self.flux, self.normal = (stored.position, stored.incoming,
-                                                                stored.flux, stored.normal)
-        self.segments = stored.segments
+    def __init__(self, stored, radius: float, label=None):
+        """stored: engine/integrators/photons/tracing.py Stored; radius: this pass's; label: keep only
+        the stored photons of that label (None: all)."""
+        keep = slice(None) if label is None else np.flatnonzero(stored.label == label)
+        self.position, self.incoming, self.flux, self.normal = (a[:, keep] for a in (
+            stored.position, stored.incoming, stored.flux, stored.normal))
+        self.segments = stored.segments[keep]
         self.count = self.position.shape[1]
         self.radius = float(radius)
         self.tree = cKDTree(self.position.T) if self.count else None

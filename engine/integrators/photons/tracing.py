@@ -30,26 +30,30 @@ class Stored:
     flux: np.ndarray        # (3, M)
     normal: np.ndarray      # (3, M) unit geometric normal on the photon's side
     segments: np.ndarray    # (M,) the photon path's segments from the light to it (bounces + 1)
+    label: np.ndarray       # (M,) the label its emitted photon had (its pass)
     traced: int = 0         # photons traced (after emission's culling)
     rays: int = 0           # rays cast
 
 
-def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int) -> Stored:
+def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int, label=None) -> Stored:
     """Trace the emitted photons (rows) through `tracer`'s scene (engine/integrators/path_tracer.py
-    PathTracer: its geometry, material table, BSDFs and textures)."""
+    PathTracer: its geometry, material table, BSDFs and textures); label (N,): carried to the stored
+    photons (default 0)."""
     geometry, mats, textures = tracer.geometry, tracer.mats, tracer.textures
     o, d, phi = origin, direction, flux
     start = np.maximum(max3(flux), 1e-300)
     bounce = np.zeros(o.shape[1], dtype=np.int32)
-    out = Stored(*(np.zeros((3, 0)) for _ in range(4)), np.zeros(0, np.int32), traced=o.shape[1])
+    tag = np.zeros(o.shape[1], dtype=np.int64) if label is None else np.asarray(label, dtype=np.int64)
+    out = Stored(*(np.zeros((3, 0)) for _ in range(4)), np.zeros(0, np.int32), np.zeros(0, np.int64),
+                 traced=o.shape[1])
     parts = []
     while o.shape[1]:
         out.rays += o.shape[1]
         hits = geometry.nearest_hits(o, d, counters, tracer.scatter_group, N_SCATTER_GROUPS,
                                      light_group=PASS_THROUGH)
         idx = hits.index
-        o, d, phi, bounce, start = (o.take(idx, axis=1), d.take(idx, axis=1), phi.take(idx, axis=1),
-                                    bounce.take(idx), start.take(idx))
+        o, d, phi, bounce, start, tag = (o.take(idx, axis=1), d.take(idx, axis=1), phi.take(idx, axis=1),
+                                         bounce.take(idx), start.take(idx), tag.take(idx))
         surf = geometry.surface(o, d, hits)
         bounds = [s for s, _ in hits.groups] + [hits.groups[-1][1]]
         alive = bounds[ABSORB]
@@ -64,7 +68,7 @@ def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int
         keep = np.flatnonzero(non_delta.take(group) & (bounce >= 1))
         if len(keep):
             parts.append((surf.point.take(keep, axis=1), -d.take(keep, axis=1), phi.take(keep, axis=1),
-                          facing.take(keep, axis=1), bounce.take(keep) + 1))
+                          facing.take(keep, axis=1), bounce.take(keep) + 1, tag.take(keep)))
         color = mats.color.take(surf.material, axis=1)
         if textures is not None:
             color = textures.color(color, surf.material, hits.kind, hits.prim, hits.u, hits.v)
@@ -97,6 +101,7 @@ def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int
         nxt_phi = phi_next.take(go, axis=1) / survive.take(go)
         nxt_start = start.take(go)
         nxt_bounce = bounce.take(go) + 1
+        nxt_tag = tag.take(go)
         if len(through):                    # Area lights: on through them, unchanged
             p = surf.point.take(through, axis=1)
             dt = d.take(through, axis=1)
@@ -105,9 +110,11 @@ def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int
             nxt_phi = np.concatenate([nxt_phi, phi.take(through, axis=1)], axis=1)
             nxt_start = np.concatenate([nxt_start, start.take(through)])
             nxt_bounce = np.concatenate([nxt_bounce, bounce.take(through)])
-        o, d, phi, start, bounce = nxt_o, nxt_d, nxt_phi, nxt_start, nxt_bounce
+            nxt_tag = np.concatenate([nxt_tag, tag.take(through)])
+        o, d, phi, start, bounce, tag = nxt_o, nxt_d, nxt_phi, nxt_start, nxt_bounce, nxt_tag
     if parts:
         out.position, out.incoming, out.flux, out.normal = (np.concatenate([p[i] for p in parts], axis=1)
                                                             for i in range(4))
         out.segments = np.concatenate([p[4] for p in parts])
+        out.label = np.concatenate([p[5] for p in parts])
     return out

@@ -55,9 +55,9 @@ def mirror_error(scale=1.0, monkeypatch=None):
             e.flux = e.flux * scale
             return e
         monkeypatch.setattr(caustics_module, "emit", scaled)
-    photons = prepared(mirror_under_ceiling(), photons_per_pass=150_000, photon_radius=0.05, seed=3).tracer.photons
+    photons = prepared(mirror_under_ceiling(), photons_per_pass=60_000, photon_radius=0.05, seed=3).tracer.photons
     points = ceiling_points()
-    estimate = ceiling_irradiance(photons, points, 3)
+    estimate = ceiling_irradiance(photons, points, 8)      # one batch of passes
     return estimate.mean() / mirrored_irradiance(points).mean() - 1.0
 
 
