@@ -275,7 +275,7 @@ class PathTracer:
                           None if p.media is None else MediumStack(p.media, p.depth)[:alive],
                           None if self.textures is None else self.textures.at(hits)[:alive])
         no_light = self.shade_light_paths(p, si, spans) if self.light_paths is not None else None
-        if p.caustic is not None:           # caustic photons gathered at the camera chain's receivers
+        if p.caustic is not None:           # caustic photons gathered at every non-delta hit
             self.gather_caustics(p, si, spans, surf, facing, counters)
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
