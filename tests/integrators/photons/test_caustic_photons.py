@@ -180,3 +180,13 @@ def test_photons_leave_a_mesh_lamp():
     scene.meshes.append(box_wall("Lamp mesh", lamp.corners, lamp.material_id))
     photons = prepared(scene, photons_per_pass=5000).tracer.photons
     assert photons.map_of(0, Counters()).count > 0.8 * 5000
+
+
+def test_no_photon_pass_without_scipy(monkeypatch):
+    """The gather needs scipy's kD-tree: where it is missing (a Blender add-on install), caustics stay
+    path-traced and the plan says why."""
+    import importlib.util
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "scipy" else real(name, *a))
+    plan = plan_effects(cornell_scene((8, 8)), RenderSettings(caustics_method="photons"))
+    assert not plan.photon_caustics and "scipy" in plan.reason["photon_caustics"]
