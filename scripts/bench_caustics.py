@@ -77,7 +77,7 @@ def main(argv=None):
         extra = ""
         if "photons" in r.stats:
             ph = r.stats["photons"]
-            extra = (f"; photon passes {ph['passes']}, traced {ph['photons_traced']}, stored {ph['photons_stored']}, "
+            extra = (f"; photon passes {ph['photon_passes']}, traced {ph['photons_traced']}, stored {ph['photons_stored']}, "
                      f"radius {ph['radius_first']:.4g} -> {ph['radius_last']:.4g}, trace {ph['trace_seconds']:.1f} s, "
                      f"gather {ph['gather_seconds']:.1f} s (worker seconds)")
         print(f"  {method:8s} {r.stats['render_seconds']:5.1f} s, {spp:7.1f} spp: relMSE image {rows[method][0]:.3e}, "

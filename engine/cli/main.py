@@ -184,7 +184,7 @@ def cmd_render(args) -> int:
           + (f", stopped by {stats['stopped_by']}" if "stopped_by" in stats else ""))
     if "photons" in stats:                      # the caustic photon passes (docs/photons.md)
         ph = stats["photons"]
-        print(f"caustic photons: {ph['passes']} passes (traced {ph['passes_traced']} times over the workers), "
+        print(f"caustic photons: {ph['photon_passes']} passes (traced {ph['photon_passes_traced']} times over the workers), "
               f"{ph['photons_traced'] / 1e6:.2f} M traced, {ph['photons_stored'] / 1e6:.2f} M stored, radius "
               f"{ph['radius_first']:.4g} -> {ph['radius_last']:.4g}, trace {ph['trace_seconds']:.2f} s, "
               f"gather {ph['gather_seconds']:.2f} s (worker seconds)")

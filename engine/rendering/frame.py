@@ -238,7 +238,7 @@ class Frame:
         stats.update(self.error_stats(seconds))
         if self.totals.photons:             # the caustic photon passes (engine/integrators/photons/)
             radii = self.totals.photon_radii
-            stats["photons"] = {**self.totals.photons, "passes": len(radii),
+            stats["photons"] = {**self.totals.photons, "photon_passes": len(radii),
                                 "radius_first": radii[min(radii)] if radii else None,
                                 "radius_last": radii[max(radii)] if radii else None}
         shown = self.film.display()

@@ -98,7 +98,7 @@ class CausticPhotons:
                 self.cached_bytes += made.nbytes
             ph["photons_stored"] = ph.get("photons_stored", 0) + made.count
             counters.photon_radii[j] = made.radius
-        for key, value in (("passes_traced", PASSES_PER_BATCH), ("photons_emitted", self.photons * PASSES_PER_BATCH),
+        for key, value in (("photon_passes_traced", PASSES_PER_BATCH), ("photons_emitted", self.photons * PASSES_PER_BATCH),
                            ("photons_traced", stored.traced), ("photon_rays", stored.rays),
                            ("trace_seconds", time.perf_counter() - start)):
             ph[key] = ph.get(key, 0) + value

@@ -190,3 +190,14 @@ def test_no_photon_pass_without_scipy(monkeypatch):
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "scipy" else real(name, *a))
     plan = plan_effects(cornell_scene((8, 8)), RenderSettings(caustics_method="photons"))
     assert not plan.photon_caustics and "scipy" in plan.reason["photon_caustics"]
+
+
+def test_the_stats_count_the_photon_passes():
+    from engine.api import render
+    r = render(caustic_scene((16, 16)), RenderSettings(samples=3, caustics_method="photons", photons_per_pass=1000,
+                                                       threads=1))
+    ph = r.stats["photons"]
+    assert ph["photon_passes"] == 8 and ph["photon_passes_traced"] == 8          # one batch, one worker
+    assert ph["photons_emitted"] == 8000 and 0 < ph["photons_stored"] <= ph["photons_traced"] <= 8000
+    assert ph["radius_last"] < ph["radius_first"] and ph["gather_seconds"] > 0
+    assert "photons" not in render(caustic_scene((16, 16)), RenderSettings(samples=1, threads=1)).stats
