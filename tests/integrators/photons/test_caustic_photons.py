@@ -201,3 +201,21 @@ def test_the_stats_count_the_photon_passes():
     assert ph["photons_emitted"] == 8000 and 0 < ph["photons_stored"] <= ph["photons_traced"] <= 8000
     assert ph["radius_last"] < ph["radius_first"] and ph["gather_seconds"] > 0
     assert "photons" not in render(caustic_scene((16, 16)), RenderSettings(samples=1, threads=1)).stats
+
+
+@pytest.mark.parametrize("kind, flux", [("suns", lambda k: np.pi * 0.25 * k.radiance[:, 0]),
+                                        ("world", lambda k: 4 * np.pi * np.pi * 0.25 * k.radiance[:, 0])])
+def test_lights_at_infinity_aim_at_a_target_disk(kind, flux):
+    """A delta sun's photons aimed at a sphere of radius 0.5 carry E pi r^2 between them; the world's,
+    L 4 pi pi r^2 (the flux through the sphere's cross-section), and every ray meets the sphere."""
+    from tests.lights import kinds as K
+    light = getattr(K, kind)()
+    ball = SphereTargets([[0.2], [0.1], [0.3]], [0.5])
+    rng = np.random.default_rng(4)
+    n = 20000
+    e = light.sample_emission(np.zeros(n, np.int64), *rng.random((4, n)), targets=ball)
+    phi = e.radiance * np.abs((e.direction * e.normal).sum(axis=0)) / (e.pdf_pos * e.pdf_dir)
+    assert np.allclose(phi.mean(axis=1), flux(light), rtol=1e-9)
+    rel = ball.center - e.origin
+    along = (rel * e.direction).sum(axis=0)
+    assert ((rel * rel).sum(axis=0) - along ** 2 <= 0.25 * (1 + 1e-9)).all() and (along > 0).all()
