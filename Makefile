@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BLENDER ?= blender
 
-.PHONY: setup render test test-slow test-all bench bench-primitives bench-animation bench-backend bench-speed bench-estimators bench-materials study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-primitives bench-animation bench-backend bench-speed bench-caustics bench-estimators bench-materials study extension samples clean
 
 setup: $(STAMP)
 
@@ -54,6 +54,10 @@ bench-backend: $(STAMP)
 # scene (docs/performance.md "Speed"); BASELINE=<another checkout> adds its before / after ratios.
 bench-speed: $(STAMP)
 	$(PY) scripts/replay_embree.py --wavefronts 16384 32768 65536 131072 $(if $(BASELINE),--baseline $(BASELINE))
+
+# Caustics: the photon map against path tracing at equal time on the caustic room (relMSE ratios).
+bench-caustics: $(STAMP)
+	$(PY) scripts/bench_caustics.py
 
 # Light-sampling estimators (report | solid-angle | mis) vs Cycles on the light-sampling stress scenes:
 # markdown table + docs/estimators.json; Cycles references cached in renders/reference/.

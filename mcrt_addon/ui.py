@@ -208,6 +208,11 @@ class RENDER_PT_tncg15_light_paths_caustics(TNCG15LightPathsChild, bpy.types.Pan
         col = layout.column(heading="Caustics", align=True)
         col.prop(props, "caustics_reflective", text="Reflective")
         col.prop(props, "caustics_refractive", text="Refractive")
+        col = layout.column(heading="Photon Map", align=True)
+        col.prop(props, "caustics_method")
+        col.prop(props, "photons_per_pass")
+        col.prop(props, "photon_radius")
+        col.prop(props, "photon_alpha")
 
 
 class RENDER_PT_tncg15_film(TNCG15ButtonsPanel, bpy.types.Panel):

@@ -560,6 +560,23 @@ def make_point_light(scene, res):
     settings(scene, res)
 
 
+def make_point_caustic(scene, res):
+    """A glass ball on the floor under a point lamp of radius 0: its caustic is a delta light seen
+    through glass, which no camera path reaches (Cycles renders the floor under the ball black);
+    the file renders it with the caustic photon map (docs/photons.md)."""
+    room(scene, ceiling_light=False)
+    # up on the left: the caustic lands on the floor to the right of the ball, in plain view
+    light_object(scene, "Point lamp", "POINT", (-0.8, -0.2, 1.1), energy=20.0, shadow_soft_size=0.0,
+                 color=(1.0, 0.9, 0.75))
+    mesh_object(scene, "GlassBall", lambda bm: uv_sphere(bm, 0.35), glass("Glass", ior=1.5),
+                location=(0.0, -0.2, 0.35), smooth=True)
+    camera(scene, location=(0.0, -3.9, 1.3), target=(0.0, 0.0, 0.8))
+    black_world(scene)
+    settings(scene, res)
+    if hasattr(scene, "tncg15"):
+        scene.tncg15.caustics_method = "PHOTONS"
+
+
 def make_sun_window(scene, res):
     """The Cornell room with a window in its left wall: a sun of 0.1 rad shines in and across the
     floor; no other light."""
@@ -998,6 +1015,7 @@ SCENES = {
     "many_lights": make_many_lights,
     "area_mirror": make_area_mirror,
     "point_light": make_point_light,
+    "point_caustic": make_point_caustic,
     "sun_window": make_sun_window,
     "spot_light": make_spot_light,
     "sky_lit": make_sky_lit,

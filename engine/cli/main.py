@@ -184,6 +184,12 @@ def cmd_render(args) -> int:
         print(f"estimated relative error {stats['estimated_rel_error'] * 100:.2f} % "
           f"({stats['error_estimate']}), mean {stats['samples_per_pixel']['mean']:.1f} spp"
           + (f", stopped by {stats['stopped_by']}" if "stopped_by" in stats else ""))
+    if "photons" in stats:                      # the caustic photon passes (docs/photons.md)
+        ph = stats["photons"]
+        print(f"caustic photons: {ph['photon_passes']} passes (traced {ph['photon_passes_traced']} times over the workers), "
+              f"{ph['photons_traced'] / 1e6:.2f} M traced, {ph['photons_stored'] / 1e6:.2f} M stored, radius "
+              f"{ph['radius_first']:.4g} -> {ph['radius_last']:.4g}, trace {ph['trace_seconds']:.2f} s, "
+              f"gather {ph['gather_seconds']:.2f} s (worker seconds)")
     return stop.report_exit()
 
 

@@ -210,6 +210,26 @@ SETTINGS = (
             flag="--no-caustics-refractive", label="Refractive Caustics", description="Use refractive caustics, "
             "resulting in a brighter image (more noise but added realism)", panel="Light Paths > Caustics",
             stats=STATS_AS_SET),
+    Setting("caustics_method", CHOICE, "path", "caustics (light through mirrors and glass onto diffuse "
+            "surfaces): path tracing alone, a progressive caustic photon map beside it (docs/photons.md), or auto "
+            "(photons where there are specular objects and non-specular receivers)", flag="--caustics-method",
+            noun="caustics method", label="Method", description="How caustics are rendered",
+            panel="Light Paths > Caustics", stats=STATS_AS_SET,
+            choices=(Choice("auto", "Auto", "A photon map where the scene has specular objects and receivers"),
+                     Choice("path", "Path Tracing", "Path tracing alone (point-light caustics stay black)"),
+                     Choice("photons", "Photon Map", "A progressive caustic photon map beside the path tracer"))),
+    Setting("photons_per_pass", INT, 10000, "caustic photons emitted per photon pass (one pass per sample "
+            "per pixel)", limits=(1, INT32_MAX), flag="--photons-per-pass", label="Photons per Pass",
+            description="Caustic photons emitted per pass (one pass per sample)", bpy_options={"soft_max": 2000000},
+            panel="Light Paths > Caustics", stats=STATS_AS_SET),
+    Setting("photon_radius", FLOAT, 0.0, "the caustic photon map's first gather radius (0 = auto: one pixel "
+            "footprint at the specular objects)", limits=(0.0, 1e30), flag="--photon-radius", metavar="R",
+            label="Initial Radius", description="First gather radius of the caustic photon map (0: automatic)",
+            panel="Light Paths > Caustics", stats=STATS_AS_SET),
+    Setting("photon_alpha", FLOAT, 2.0 / 3.0, "the photon radius's reduction per pass: r^2 shrinks by "
+            "(k + alpha) / (k + 1) (SPPM's alpha)", limits=(0.01, 0.99), flag="--photon-alpha", metavar="A",
+            label="Alpha", description="Radius reduction of the progressive photon map (SPPM's alpha)",
+            panel="Light Paths > Caustics", stats=STATS_AS_SET),
     Setting("russian_roulette", BOOL, True, "disable Russian roulette (report 2.4)", flag="--no-russian-roulette",
             label="Russian Roulette", description="Terminate paths randomly (unbiased) from the start depth on",
             panel="Light Paths", stats=STATS_AS_SET),

@@ -88,6 +88,8 @@ class Counters:
         self.seconds_in_intersection = 0.0
         self.seconds_in_accelerator = 0.0
         self.nonfinite_samples = 0
+        self.photons = {}            # caustic photon passes (engine/integrators/photons/caustics.py)
+        self.photon_radii = {}       # their radius, by pass
 
     def merge(self, other: "Counters") -> None:
         for key, value in other.rays.items():
@@ -95,6 +97,9 @@ class Counters:
         self.seconds_in_intersection += other.seconds_in_intersection
         self.seconds_in_accelerator += other.seconds_in_accelerator
         self.nonfinite_samples += other.nonfinite_samples
+        for key, value in getattr(other, "photons", {}).items():
+            self.photons[key] = self.photons.get(key, 0) + value
+        self.photon_radii.update(getattr(other, "photon_radii", {}))
 
 
 class SceneGeometry:

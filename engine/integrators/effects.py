@@ -28,7 +28,8 @@ EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "di
            "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
            "light_tree", "mis", "passes",
            "textures",
-           "bounce_limits", "clamp", "filter_glossy", "caustics")     # Light Paths (engine/integrators/light_paths.py)
+           "bounce_limits", "clamp", "filter_glossy", "caustics",     # Light Paths (engine/integrators/light_paths.py)
+           "photon_caustics")                                         # engine/integrators/photons/
 ACCELERATOR_KERNEL = {"embree": "Embree kernel", "octree": "octree kernel (Python)",
                       "brute": "brute-force kernel (every triangle)"}
 
@@ -251,7 +252,35 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                    if part) + ": texture lookups at triangle hits (UVs interpolated)"
                if colored or glowing else "no image textures: no UVs, no texture lookups")
     _plan_light_paths(settings, set_effect, users)
+    _plan_photons(settings, set_effect, users, lit, emitters + (["the world"] if world else []))
     return plan
+
+
+def _plan_photons(settings, set_effect, users, receivers, emitters) -> None:
+    """The caustic photon pass (engine/integrators/photons/): on where `caustics_method` asks for it
+    and the scene has specular surfaces (a BSDF with a delta lobe), non-specular receivers and lights."""
+    from ..materials.protocol import BSDFFlags
+    from ..materials.table import SCATTERING
+    delta_kinds = {kind for kind, bsdf in SCATTERING if bsdf.flags & BSDFFlags.DELTA}
+    specular = users(lambda m: scatter_kind(m) in delta_kinds)
+    method = settings.caustics_method
+    toggled = not (settings.caustics_reflective and settings.caustics_refractive)
+    import importlib.util
+    scipy = importlib.util.find_spec("scipy") is not None          # the gather's kD-tree (photon_map.py)
+    on = method != "path" and bool(specular) and bool(receivers) and bool(emitters) and not toggled and scipy
+    set_effect("photon_caustics", on,
+               f"caustics_method {method}: {settings.photons_per_pass} photons per pass aimed at the specular "
+               f"{_names(specular)}, gathered on the non-specular {_names(receivers)} (radius "
+               f"{'auto' if settings.photon_radius <= 0 else format(settings.photon_radius, 'g')}, alpha "
+               f"{settings.photon_alpha:.3g}); the path tracer leaves L S+ D paths to them" if on else
+               "caustics_method path: caustics by path tracing alone" if method == "path" else
+               f"caustics_method {method}, but scipy (its kD-tree) is not installed: caustics by path tracing"
+               if not scipy else
+               f"caustics_method {method}, but Cycles' caustics options leave caustics out" if toggled else
+               f"caustics_method {method}, but no specular surface (mirror, smooth glass, pass-through)"
+               if not specular else
+               f"caustics_method {method}, but no non-specular surface to receive caustics" if not receivers else
+               f"caustics_method {method}, but no lights")
 
 
 def _plan_light_paths(settings, set_effect, users) -> None:

@@ -71,6 +71,10 @@ CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = 0, 1, 2, 3   # LightPoly
 # lobe choice of the BSDF: Fresnel at glass; roulette).
 LIGHT_UV, BSDF_UV, CHOICES, LIGHT_PICK = 1, 2, 3, 4          # LIGHT_PICK: with several shadow rays
 DIMS_PER_BOUNCE = 4
+# Caustic photons (engine/integrators/photons/): whether a camera path has made a non-delta bounce.
+# Every non-delta vertex gathers the photons (the L S+ D light that reaches it); emission reached
+# after such a bounce through delta bounces only is L S+ D too, the photons' own: it counts 0.
+CAMERA_CHAIN, AFTER_RECEIVER = 0, 1
 
 
 @dataclass
@@ -97,10 +101,11 @@ class Paths:
     after_diffuse: np.ndarray | None = None  # caustics: (N,) the last bounce was diffuse
     lobe: np.ndarray | None = None    # light passes: (N,) int8 pass class of the first bounce (-1: none yet)
     lobe_at: np.ndarray | None = None  # light passes: (N,) the bounce that set it
+    caustic: np.ndarray | None = None   # caustic photons: (N,) int8 CAMERA_CHAIN or AFTER_RECEIVER
 
     @classmethod
     def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool, features: bool = False,
-              light_paths: LightPaths | None = None) -> "Paths":
+              light_paths: LightPaths | None = None, photons: bool = False) -> "Paths":
         n = len(pixel)
         paths = cls(pixel, sample, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
                     np.zeros(n, dtype=np.int8), np.zeros(n, dtype=np.int32),
@@ -115,6 +120,8 @@ class Paths:
             paths.after_diffuse = np.zeros(n, dtype=bool)
         if light_paths is not None and light_paths.filter_glossy > 0:
             paths.min_pdf = np.full(n, np.inf)
+        if photons:
+            paths.caustic = np.zeros(n, dtype=np.int8)
         return paths
 
     def _fields(self):
@@ -174,6 +181,7 @@ class PathTracer:
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
         light_paths = LightPaths(settings, plan, self.bsdfs)
         self.light_paths = light_paths if light_paths.on else None       # Cycles' Light Paths options
+        self.photons = None     # engine/integrators/photons/caustics.py CausticPhotons (set by the session's prepass)
 
     # -- the wavefront -----------------------------------------------------------------
     def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None,
@@ -208,7 +216,8 @@ class PathTracer:
                 pixel, sample, o, d = samples.take(room)
                 fresh = len(pixel)
                 new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis,
-                                  features is not None and features.surface, self.light_paths)
+                                  features is not None and features.surface, self.light_paths,
+                                  self.photons is not None)
                 if features is not None and features.light_split:       # engine/film/passes.py LIGHT
                     new.lobe, new.lobe_at = np.full(fresh, -1, np.int8), np.zeros(fresh, np.int32)
                 paths = new if paths is None else paths.extend(new)
@@ -290,6 +299,12 @@ class PathTracer:
                           None if lookup is None else lookup[:alive])
         no_light = self.shade_light_paths(p, si, spans) if self.light_paths is not None else None
         before_light = p.radiance[:, :alive].copy() if p.lobe is not None else None
+        caustic_light = None
+        if p.caustic is not None:           # caustic photons gathered at every non-delta hit
+            before = None if before_light is None else p.radiance[:, :alive].copy()
+            self.gather_caustics(p, si, spans, surf, facing, counters)
+            if before is not None:          # light passes: light through a specular chain is indirect
+                caustic_light = p.radiance[:, :alive] - before
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
                 light = p.beta[:, span] * self.direct_light(
@@ -307,7 +322,11 @@ class PathTracer:
                   for span, non_delta in zip(spans, self.mats.non_delta)]
         new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf)
         if before_light is not None:        # the shadow rays' light, by the lobe the vertex sampled
-            self.vertex_light(p, p.radiance[:, :alive] - before_light, features)
+            vertex = p.radiance[:, :alive] - before_light
+            if caustic_light is not None:
+                self.vertex_light(p, caustic_light, features, indirect=True)
+                vertex = vertex - caustic_light
+            self.vertex_light(p, vertex, features)
         # 7. Russian roulette and the depth limit.
         keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
         # 8. Compaction: hand finished paths to the film, keep the rest.
@@ -354,6 +373,8 @@ class PathTracer:
                     p_world = self.lights.world_pdf(p.prev_n.take(m, axis=1), p.d.take(m, axis=1))
                     weight[sampled] = power_heuristic(1.0, p.prev_bsdf_pdf.take(m), float(self.settings.shadow_rays),
                                                       p_world)
+            if p.caustic is not None and self.lights.world is not None:      # the world emits photons too
+                weight[self.photons_own(p, miss)] = 0.0
             radiance += self.clamped(p.beta.take(miss, axis=1) * self.background_seen(p, miss) * weight,
                                      p.bounce.take(miss))
         return p.pixel.take(miss), radiance
@@ -381,6 +402,8 @@ class PathTracer:
         tmax[hits.index] = hits.t
         le = self.seen_lamps.radiance(p.o.take(rays, axis=1), p.d.take(rays, axis=1), tmax.take(rays),
                                       p.ray_kind.take(rays) == TRANSMISSION_RAY)
+        if p.caustic is not None:
+            le = np.where(self.photons_own(p, rays), 0.0, le)
         p.radiance[:, rays] += self.clamped(p.beta.take(rays, axis=1) * le, p.bounce.take(rays))
 
     def hit_points(self, p, surf, hits):
@@ -413,6 +436,8 @@ class PathTracer:
                     parts.append((idx, lamps.radiance.take(prim[front], axis=1)))
         for idx, le in parts:
             weight = self.emission_weight(p, surf, hits, idx)
+            if p.caustic is not None:
+                weight = np.where(self.photons_own(p, idx), 0.0, weight)
             p.radiance[:, idx] += self.clamped(p.beta.take(idx, axis=1) * le * weight, p.bounce.take(idx))
 
     def emission_weight(self, p, surf, hits, idx):
@@ -477,14 +502,15 @@ class PathTracer:
             direct = p.bounce.take(idx.take(on)) == p.lobe_at.take(idx.take(on)) + 1
             features.add_light(lobe.take(on), direct, p.pixel.take(idx.take(on)), radiance.take(on, axis=1))
 
-    def vertex_light(self, p, radiance, features):
+    def vertex_light(self, p, radiance, features, indirect=False):
         """Light passes: the shadow rays' light at the first len(radiance) paths' vertices: Direct at
-        the vertex that set the path's class, Indirect after it."""
+        the vertex that set the path's class, Indirect after it (and always with `indirect`: gathered
+        caustic photons, light that came through a specular chain)."""
         alive = radiance.shape[1]
         lobe = p.lobe[:alive]
         on = np.flatnonzero((lobe >= 0) & (radiance != 0.0).any(axis=0))
         if len(on):
-            direct = p.bounce.take(on) == p.lobe_at.take(on)
+            direct = (p.bounce.take(on) == p.lobe_at.take(on)) & (not indirect)
             features.add_light(lobe.take(on), direct, p.pixel.take(on), radiance.take(on, axis=1))
 
     def surface_features(self, p, surf, facing, color, bounds, features, hits=None, lookup=None):
@@ -593,6 +619,8 @@ class PathTracer:
         if p.lobe is not None:
             self.first_lobe(p, flags)
         p.prev_delta[:alive] = (flags & BSDFFlags.DELTA) != 0
+        if p.caustic is not None:
+            p.caustic[:alive] = np.where(p.prev_delta[:alive], p.caustic[:alive], AFTER_RECEIVER)
         kind = np.where(transmitted, TRANSMISSION_RAY, np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
         # A straight pass-through (alpha) keeps a camera ray a camera ray (Area lights' visibility, as Cycles).
         p.ray_kind[:alive] = np.where(((flags & BSDFFlags.STRAIGHT) != 0) & (p.ray_kind[:alive] == CAMERA_RAY),
@@ -604,6 +632,25 @@ class PathTracer:
             if wrong.any():
                 beta = np.where(wrong, 0.0, beta)
         return new_d, side, beta
+
+    # -- caustic photons (engine/integrators/photons/) ---------------------------------------------
+    @staticmethod
+    def photons_own(p, idx):
+        """(len(idx),) whether the emission the paths idx reach belongs to the photon map: a ray after
+        a delta bounce, with a non-delta bounce before it on the path (L S+ D, gathered at D)."""
+        return (p.caustic.take(idx) == AFTER_RECEIVER) & p.prev_delta.take(idx)
+
+    def gather_caustics(self, p, si, spans, surf, facing, counters):
+        """Add beta x the caustic photons' radiance at every hit with a non-delta BSDF, from photons
+        whose paths keep the whole path within the depth limit."""
+        for g, span in enumerate(spans):
+            if not self.mats.non_delta[g] or span.stop == span.start:
+                continue
+            # The path tracer's paths have up to max_depth + 1 segments; this vertex ends bounce + 1.
+            caustic = self.photons.radiance(p.sample[span], self.bsdfs[g], si[span], surf.point[:, span],
+                                            facing[:, span], counters, self.settings.max_depth - p.bounce[span],
+                                            p.caustic[span] == AFTER_RECEIVER)
+            p.radiance[:, span] += p.beta[:, span] * caustic
 
     # -- Cycles' Light Paths options (engine/integrators/light_paths.py) ---------------------------
     def clamped(self, contribution, bounce):

@@ -1,6 +1,6 @@
 """Lights: every emitter of a scene, how a shading point picks one, and how it samples it.
 
-* protocol.py: what every kind of light offers (sample_li, pdf_li, le, power, bounds, sample_le);
+* protocol.py: what every kind of light offers (sample_li, pdf_li, le, power, bounds, sample_emission);
   emitting_surface.py: what the emitting surfaces share;
 * the kinds, one module each: parallelograms.py (emissive quads that are parallelograms and
   4-corner Area lights: spherical rectangles, Urena et al. 2013, for rectangles), triangles.py

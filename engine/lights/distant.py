@@ -10,21 +10,28 @@ The light set picks among them by flux (power(): a sun's E through the scene's c
 world's radiance through a sphere around the scene), apart from the lamps and emissive surfaces
 (engine/lights/light_set.py).  Shadow rays to them run to t = inf; a bounce ray that escapes
 reaches the world (`reached_by_escaping_rays`; the integrator's misses stage weighs that by MIS);
-suns are reached by shadow rays only.  Neither emits rays yet (sample_le): a photon pass needs a
-disk over the scene's bounds for them, as pbrt-v4's DistantLight::SampleLe.
+suns are reached by shadow rays only.
+
+Rays leaving them (sample_emission, as pbrt-v4's DistantLight::SampleLe): from a disk of the scene's
+radius R (about the origin, engine/lights/emitters.py scene_radius) outside the scene, pdf_pos
+1 / (pi R^2).  A sun's disk faces its axis and its rays leave in the sun's cone (a delta sun: along
+the axis, 'density' 1 as in sample_li); the world's rays leave in directions uniform over the
+sphere (pdf_dir 1 / 4 pi), each from a disk facing its direction.  The flux radiance |cos| /
+(pdf_pos pdf_dir) is then E pi R^2 for a sun (the cosine to the disk's normal, the axis) and
+L 4 pi pi R^2 for the world: the flux of power().
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..sampling.warps import cosine_directions, uniform_cone
+from ..sampling.warps import cosine_directions, orthonormal_basis, uniform_cone, uniform_sphere, unit_circle
 from ..core.vec import dot, rows
-from .protocol import infinite_sample
+from .protocol import EmissionSample, infinite_sample
 
 
 class DistantKind:
     """What the lights at infinity share: selection by flux (`self.flux`, (K,)), no bounds for the
-    light tree, and no ray emission yet."""
+    light tree, rays emitted from a disk of the scene's radius (`self.scene_radius`)."""
     at_infinity = True
     first = 0
 
@@ -37,9 +44,21 @@ class DistantKind:
     def bounds(self):
         return None
 
-    def sample_le(self, idx, u1, u2, u3, u4):
-        raise NotImplementedError(f"no ray emission (sample_le) for {self.description} yet: "
-                                  "a photon pass needs a disk over the scene")
+    def _disk_rays(self, facing, u3, u4, direction, radiance, pdf_dir, targets=None):
+        """Rays along `direction` (rows) from points uniform (u3, u4) on the disk of radius R that
+        faces the unit rows `facing`, a distance R behind the scene's sphere along them; with
+        `targets` (engine/lights/aim.py) from the disk about a target that faces `direction`."""
+        r = max(self.scene_radius, 1e-300)
+        if targets is not None:
+            far = 2.0 * r + np.sqrt(dot(targets.center, targets.center).max())
+            origin, pdf_pos = targets.disk_origins(direction, u3, u4, far)
+            return EmissionSample(origin, direction, direction, radiance, pdf_pos, pdf_dir)
+        t1, t2 = orthonormal_basis(facing)
+        c, s = unit_circle(u4)
+        rho = r * np.sqrt(u3)
+        origin = -2.0 * r * facing + rho * (c * t1 + s * t2)
+        pdf_pos = np.full(len(u3), 1.0 / (np.pi * r * r))
+        return EmissionSample(origin, direction, facing, radiance, pdf_pos, pdf_dir)
 
 
 class SunLights(DistantKind):
@@ -62,6 +81,15 @@ class SunLights(DistantKind):
         self.radiance = rows(np.where(self.delta[:, None], irradiance, irradiance / (np.pi * sin2)[:, None]))
         self.one_sided = np.zeros(self.count, dtype=bool)
         self.flux = np.pi * r2 * irradiance.mean(axis=1)
+        self.scene_radius = scene_radius
+
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None):
+        """In the sun's cone (u1, u2), away from the sun, from the disk facing down its axis (u3, u4)."""
+        towards = self.axis.take(idx, axis=1)
+        cone, _ = uniform_cone(u1, u2, towards, self.one_minus_cos.take(idx))
+        direction = -np.where(self.delta.take(idx), towards, cone)
+        return self._disk_rays(-towards, u3, u4, direction, self.radiance.take(idx, axis=1),
+                               self.pdf_li(None, idx, None), targets)
 
     def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
         """Uniform in the sun's cone; a delta sun's 'density' is 1 (its radiance is the irradiance E)."""
@@ -89,6 +117,13 @@ class WorldLight(DistantKind):
         self.radiance = rows(np.asarray(background, dtype=np.float64)[None, :])
         self.one_sided = np.zeros(1, dtype=bool)
         self.flux = np.array([np.pi * float(np.mean(background)) * 4.0 * np.pi * r2])
+        self.scene_radius = scene_radius
+
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None):
+        """Directions uniform over the sphere (u1, u2), each from the disk facing it (u3, u4)."""
+        direction = uniform_sphere(u1, u2)
+        return self._disk_rays(direction, u3, u4, direction, self.radiance.take(idx, axis=1),
+                               np.full(len(u1), 1.0 / (4.0 * np.pi)), targets)
 
     def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
         """Cosine-distributed about the receivers' facing normals n."""

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..core.vec import dot, rows
 from ..sampling.warps import ONE_MINUS_EPSILON, cosine_directions
-from .protocol import LeSample, finite_sample
+from .protocol import EmissionSample, finite_sample
 
 
 class EmittingSurface:
@@ -44,17 +44,24 @@ class EmittingSurface:
     def report_power(self):
         return self.area * self.radiance.mean(axis=0)
 
-    def sample_le(self, idx, u1, u2, u3, u4):
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None):
         """Origin uniform over the area (u1, u2; pdf_pos 1 / A), direction cosine-distributed about
         the side it leaves from (u3, u4); a two-sided light leaves from either side with
-        probability 1/2 (u3 < 1/2: the back, u3 rescaled to [0, 1) for the direction)."""
+        probability 1/2 (u3 < 1/2: the back, u3 rescaled to [0, 1) for the direction).  With
+        `targets` (engine/lights/aim.py SphereTargets) the direction is aimed at them instead
+        (pdf_dir their mixture density) and leaves from the side it points to."""
         origin, normal = self.sample_area(idx, u1, u2)
         normal = np.array(np.broadcast_to(normal, origin.shape))
         two_sided = ~self.one_sided.take(idx)
+        if targets is not None:
+            direction, pdf_dir = targets.directions(origin, u3, u4)
+            normal *= np.where(dot(direction, normal) < 0.0, -1.0, 1.0)
+            return EmissionSample(origin, direction, normal, self.le(idx, origin, -direction),
+                                  1.0 / self.area.take(idx), pdf_dir)
         back = two_sided & (u3 < 0.5)
         u3 = np.where(two_sided, np.minimum(np.where(back, 2.0 * u3, 2.0 * u3 - 1.0), ONE_MINUS_EPSILON), u3)
         normal[:, back] *= -1.0
         direction = cosine_directions(u3, u4, normal)
         pdf_dir = np.maximum(dot(direction, normal), 0.0) * (1.0 / np.pi) * np.where(two_sided, 0.5, 1.0)
-        return LeSample(origin, direction, normal, self.radiance.take(idx, axis=1),
-                        1.0 / self.area.take(idx), pdf_dir)
+        return EmissionSample(origin, direction, normal, self.radiance.take(idx, axis=1),
+                              1.0 / self.area.take(idx), pdf_dir)

@@ -12,8 +12,9 @@ direction of the receiver (engine/scene/model.py PointLight; Cycles evaluates it
 the sampled point to the receiver, as `spot_factor` does).  Their samples are drawn as the point
 light's: the falloff only scales what a sample carries.
 
-Rays leaving a point light (sample_le): directions uniform over the sphere, from a point uniform
-on the disk of radius r that faces the direction (the disk every receiver in that direction sees).
+Rays leaving a point light (sample_emission): directions uniform over the sphere (a spot light's:
+uniform in its cone), from a point uniform on the disk of radius r that faces the direction (the
+disk every receiver in that direction sees).
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import numpy as np
 
 from ..sampling.warps import orthonormal_basis, uniform_cone, uniform_sphere, unit_circle
 from ..core.vec import dot, gather, rows
-from .protocol import LeSample, LightBounds, finite_sample
+from .protocol import EmissionSample, LightBounds, finite_sample
 
 
 class PointLights:
@@ -128,16 +129,26 @@ class PointLights:
         return LightBounds(self.center, self.radius, rows(np.tile([0.0, 0.0, 1.0], (self.count, 1))),
                            np.full(self.count, -1.0))                  # emits in every direction
 
-    def sample_le(self, idx, u1, u2, u3, u4):
-        """Direction uniform over the sphere (u1, u2; pdf_dir 1 / 4 pi); origin uniform on the disk of
-        radius r facing it (u3, u4; pdf_pos 1 / (pi r^2); a point without a radius: the centre,
-        pdf_pos 1, radiance its intensity), so radiance / (pdf_pos pdf_dir) = 4 pi I x falloff."""
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None):
+        """Direction uniform over the sphere (u1, u2; pdf_dir 1 / 4 pi), a spot light's uniform in
+        its cone (pdf_dir 1 / (2 pi (1 - cos(size / 2)))); origin uniform on the disk of radius r
+        facing it (u3, u4; pdf_pos 1 / (pi r^2); a point without a radius: the centre, pdf_pos 1,
+        radiance its intensity), so radiance / (pdf_pos pdf_dir) = 4 pi I x falloff for a point
+        light (the falloff's solid angle for a spot)."""
         direction = uniform_sphere(u1, u2)
+        pdf_dir = np.full(len(u1), 1.0 / (4.0 * np.pi))
+        if len(self.spots):
+            slot = self.spot_slot.take(idx)
+            sel = np.flatnonzero(slot >= 0)
+            if len(sel):
+                k = slot.take(sel)
+                one_minus = 1.0 - self.spot_cos_half.take(k)
+                direction[:, sel], _ = uniform_cone(u1.take(sel), u2.take(sel), gather(self.spot_axis, k), one_minus)
+                pdf_dir[sel] = 1.0 / (2.0 * np.pi * one_minus)
         t1, t2 = orthonormal_basis(direction)
         cphi, sphi = unit_circle(u4)
         r = gather(self.radius, idx)
         s = r * np.sqrt(u3)
         origin = gather(self.center, idx) + s * (cphi * t1 + sphi * t2)
         pdf_pos = np.broadcast_to(np.where(r > 0, 1.0 / np.maximum(np.pi * r * r, 1e-300), 1.0), (len(u1),)).copy()
-        return LeSample(origin, direction, direction, self.le(idx, origin, -direction), pdf_pos,
-                        np.full(len(u1), 1.0 / (4.0 * np.pi)))
+        return EmissionSample(origin, direction, direction, self.le(idx, origin, -direction), pdf_pos, pdf_dir)

@@ -42,7 +42,7 @@ class LiSample:
 
 
 @dataclass
-class LeSample:
+class EmissionSample:
     """A ray leaving a light (pbrt's SampleLe), for a pass that traces light from the lamps:
     the ray carries the flux radiance |cos theta| / (pdf_pos pdf_dir), theta between the ray and
     `normal`."""
@@ -114,9 +114,10 @@ class LightKind(Protocol):
         """Bounding sphere and normal cone of each light; None for lights at infinity."""
         ...
 
-    def sample_le(self, idx, u1, u2, u3, u4) -> LeSample:
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None) -> EmissionSample:
         """A ray leaving light idx, from four uniforms (N,) each; a kind that cannot emit rays yet
-        raises NotImplementedError naming itself."""
+        raises NotImplementedError naming itself.  targets: an engine/lights/aim.py SphereTargets
+        to aim the rays at (their density in pdf_dir, or in pdf_pos at infinity), or None."""
         ...
 
 

@@ -20,7 +20,7 @@ from ..core.version import ENGINE_NAME, ENGINE_VERSION
 from ..film.accumulator import Film
 from ..film.passes import FrameFeatures, pass_images, traced
 from ..geometry.scene_geometry import Counters
-from .units import Tile, await_units, make_tiles, make_units, tile_size_for
+from .units import PHOTON_UNIT_SAMPLES, Tile, await_units, make_tiles, make_units, tile_size_for
 
 DEFAULT_TARGET = 0.01            # the error seconds_to_target aims at without a noise target
 
@@ -132,7 +132,9 @@ class Frame:
         self.warnings = list(facts.warnings)
         self.tile_size = tile_size_for(width, height, settings.tile_size)
         self.tiles = make_tiles(width, height, self.tile_size)
-        self.units = make_units(self.tiles, settings.samples, progressive)
+        photons = facts.plan.enabled.get("photon_caustics", False)        # each sample a photon pass: shorter units
+        self.units = make_units(self.tiles, settings.samples, progressive,
+                                max_samples=PHOTON_UNIT_SAMPLES if photons else None)
         self.film = FrameFilm(width, height, self.units, settings.film_transparent, settings.film_exposure)
         if traced(settings.passes):
             self.film.features = FrameFeatures(width, height)
@@ -236,6 +238,11 @@ class Frame:
             "cancelled": cancelled, "warnings": list(self.warnings),
         }
         stats.update(self.error_stats(seconds))
+        if self.totals.photons:             # the caustic photon passes (engine/integrators/photons/)
+            radii = self.totals.photon_radii
+            stats["photons"] = {**self.totals.photons, "photon_passes": len(radii),
+                                "radius_first": radii[min(radii)] if radii else None,
+                                "radius_last": radii[max(radii)] if radii else None}
         shown = self.film.display()
         variance, passes = self.film.variance_of_mean(), pass_images(self.film, s.passes)
         if s.film_exposure != 1.0:                  # the variance of the image shown

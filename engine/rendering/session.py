@@ -122,10 +122,13 @@ class PreparedScene:
 
     def prepass(self) -> None:
         """The hook for work done once per prepared scene before any unit, wherever the scene is
-        prepared (a photon pass: trace photons from the lights with their own seeded random numbers
-        and keep the map on the tracer).  It may depend on the scene and the settings only, never on
-        the worker, so that every worker holds the same result and images stay identical.  No
-        effect needs one yet."""
+        prepared.  It may depend on the scene and the settings only, never on the worker, so that
+        every worker holds the same result and images stay identical.  The caustic photons
+        (engine/integrators/photons/caustics.py) are set up here; each pass's map is traced when a
+        unit first needs it, as a function of (seed, pass) alone."""
+        if self.plan.enabled.get("photon_caustics"):
+            from ..integrators.photons import CausticPhotons
+            self.tracer.photons = CausticPhotons(self.tracer, self.scene, self.settings)
 
     def set_view(self, camera, resolution) -> None:
         """A new camera (world coordinates) and resolution for the same prepared scene (the viewport)."""

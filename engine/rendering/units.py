@@ -10,6 +10,8 @@ from ..integrators import path_tracer
 MIN_TILES = 4                     # so that both cores of a small frame have work
 UNIT_PATHS = 1 << 18              # camera samples per work unit, about: each unit ends with a tail of
                                   # a few paths, so units much smaller than this cost time (1 << 16: +25 %)
+PHOTON_UNIT_SAMPLES = 16          # at most, per unit, with caustic photons: each sample of a pixel is one
+                                  # photon pass (engine/integrators/photons/caustics.py), which a unit traces
 
 
 @dataclass(frozen=True)
@@ -69,12 +71,12 @@ def chunk_starts(samples: int, step: int, growing: bool) -> list[int]:
     return starts
 
 
-def make_units(tiles, samples: int, order: str = "tiles") -> list[WorkUnit]:
+def make_units(tiles, samples: int, order: str = "tiles", max_samples: int | None = None) -> list[WorkUnit]:
     """Each tile's samples in chunks of about UNIT_PATHS camera samples.  order "tiles": a tile's
     chunks one after the other (the frame fills tile by tile); "frame": chunk 0 of every tile,
     then chunk 1, ... (the whole frame refines); "growing": as "frame", with chunks of 1, 1, 2, 4,
     ... samples up to that size (the viewport: a picture of the whole frame after one sample,
-    big units after that, engine/pools/viewport.py)."""
+    big units after that, engine/pools/viewport.py).  max_samples: a cap on a unit's samples."""
     if order not in ORDERS:
         raise ValueError(f"progressive order {order!r}: expected one of {', '.join(ORDERS)}")
     per_tile = []
@@ -83,7 +85,7 @@ def make_units(tiles, samples: int, order: str = "tiles") -> list[WorkUnit]:
     # a tile's last chunk that small joins the one before it.
     smallest = min(path_tracer.WAVEFRONT_SIZE, UNIT_PATHS // 2)
     for tile in tiles:
-        step = max(1, min(samples, -(-UNIT_PATHS // tile.pixels)))
+        step = max(1, min(samples, -(-UNIT_PATHS // tile.pixels), max_samples or samples))
         starts = chunk_starts(samples, step, order == "growing")
         if order != "growing" and len(starts) > 1 and (samples - starts[-1]) * tile.pixels < smallest:
             starts.pop()

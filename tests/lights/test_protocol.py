@@ -5,7 +5,7 @@ each other, over random receivers and all the kind's lights.
   sampled point (direction), points inside the light's bounds, at infinity one unit away;
 * le: the sample's radiance where the light faces the receiver, 0 behind a one-sided light;
 * power, report_power: positive and finite per light;
-* sample_le: rays that leave the light from its bounds, whose flux radiance |cos| / (pdf_pos pdf_dir)
+* sample_emission: rays that leave the light from its bounds, whose flux radiance |cos| / (pdf_pos pdf_dir)
   averages to power() (spot lights: at most), or NotImplementedError naming the kind.
 
 Controls: the same check fails a kind whose pdf_li is off by 0.1 %, one whose power is off by 1 %,
@@ -14,7 +14,7 @@ one whose sample_li returns directions that are not unit, and one whose le ignor
 import numpy as np
 import pytest
 
-from engine.lights.protocol import LeSample, LightBounds, LightKind, LiSample
+from engine.lights.protocol import EmissionSample, LightBounds, LightKind, LiSample
 
 from tests.lights.kinds import EVERY_KIND
 
@@ -73,7 +73,7 @@ def check_kind(kind, seed=0):
         front = ~kind.one_sided[idx[ok]] | ((s.normal[:, ok] * d).sum(axis=0) < 0)
         assert np.array_equal(le[:, front], s.radiance[:, ok][:, front]), "le differs from the sample's radiance"
         assert not le[:, ~front].any(), "a one-sided light shines from behind"
-    check_sample_le(kind, rng)
+    check_sample_emission(kind, rng)
     return len(ok)
 
 
@@ -83,30 +83,38 @@ def check_in_bounds(bounds, idx, point, normal):
     assert ((normal * bounds.axis[:, idx]).sum(axis=0) >= bounds.cos_o[idx] - 1e-9).all(), "a normal outside the cone"
 
 
-def check_sample_le(kind, rng, m=M):
+def check_sample_emission(kind, rng, m=M):
     idx = np.repeat(np.arange(kind.count), m // kind.count)
     u = [rng.random(len(idx)) for _ in range(4)]
     try:
-        e = kind.sample_le(idx, *u)
+        e = kind.sample_emission(idx, *u)
     except NotImplementedError as exc:
         assert kind.name in str(exc), "NotImplementedError without the kind's name"
         assert kind.at_infinity, "only lights at infinity may not emit rays yet"
         return
-    assert isinstance(e, LeSample)
-    assert unit(e.direction) and unit(e.normal), "sample_le: directions or normals are not unit"
+    assert isinstance(e, EmissionSample)
+    assert unit(e.direction) and unit(e.normal), "sample_emission: directions or normals are not unit"
     cos = (e.direction * e.normal).sum(axis=0)
     assert (cos >= 0).all(), "a ray leaves from the other side"
     assert (e.pdf_pos > 0).all() and (e.pdf_dir > 0).all() and np.isfinite(e.pdf_pos * e.pdf_dir).all()
-    check_in_bounds(kind.bounds(), idx, e.origin, e.normal)
-    # A receiver on the ray sees the light with the radiance the ray carries.
-    assert np.array_equal(kind.le(idx, e.origin, -e.direction), e.radiance), "sample_le's radiance is not le"
+    if kind.at_infinity:                # from a disk outside the scene's sphere, facing into it
+        r = kind.scene_radius
+        assert (np.sqrt((e.origin ** 2).sum(axis=0)) >= r * (1 - 1e-9)).all(), "a ray starts inside the scene"
+        assert np.allclose(((e.origin + 2 * r * e.normal) * e.normal).sum(axis=0), 0.0, atol=1e-9 * r)
+        le = kind.le(idx, None, -e.direction)
+        met = le.any(axis=0)            # a delta sun: no ray meets it, its rays carry E
+        assert np.array_equal(le[:, met], e.radiance[:, met]), "sample_emission's radiance is not le"
+    else:
+        check_in_bounds(kind.bounds(), idx, e.origin, e.normal)
+        # A receiver on the ray sees the light with the radiance the ray carries.
+        assert np.array_equal(kind.le(idx, e.origin, -e.direction), e.radiance), "sample_emission's radiance is not le"
     flux = e.radiance.mean(axis=0) * cos / (e.pdf_pos * e.pdf_dir)
     mean = np.bincount(idx, flux) / np.bincount(idx)
     sigma = np.sqrt(np.bincount(idx, (flux - mean[idx]) ** 2) / np.bincount(idx) / np.bincount(idx))
     power = kind.power()
     spot = getattr(kind, "spot_slot", np.full(kind.count, -1)) >= 0        # falloff: below 4 pi I
     close = np.abs(mean - power) <= 5 * sigma + 1e-9 * power
-    assert (close | spot).all() and (mean[spot] <= power[spot] * (1 + 1e-9)).all(), "flux of sample_le != power"
+    assert (close | spot).all() and (mean[spot] <= power[spot] * (1 + 1e-9)).all(), "flux of sample_emission != power"
 
 
 @pytest.mark.parametrize("name", list(EVERY_KIND))
@@ -161,7 +169,7 @@ def le_two_sided(le, idx, point, direction):
 
 @pytest.mark.parametrize("name, method, fn, message", [
     ("parallelograms", "pdf_li", pdf_off, "pdf_li differs"), ("world", "pdf_li", pdf_off, "pdf_li differs"),
-    ("spheres", "power", power_off, "flux of sample_le"), ("triangles", "sample_li", not_unit, "not unit"),
+    ("spheres", "power", power_off, "flux of sample_emission"), ("triangles", "sample_li", not_unit, "not unit"),
     ("parallelograms", "le", le_two_sided, "le differs")])
 def test_the_check_fails_a_kind_that_breaks_the_protocol(name, method, fn, message):
     with pytest.raises(AssertionError, match=message):

@@ -2,7 +2,7 @@
 tests/lights/test_light_sampling.py does not already bin against an independent oracle: area
 sampling of parallelograms (the report's estimator, and skew parallelograms under solid angle), of
 triangles and of polygons, a sphere seen from inside, the world's cosine directions, and the
-directions of the rays that sample_le emits.
+directions of the rays that sample_emission emits.
 
 Two ways to bin, both with tests/chi_square.py:
 
@@ -21,6 +21,7 @@ density all fail.
 import numpy as np
 import pytest
 
+from engine.sampling.warps import orthonormal_basis
 from tests.chi_square import ALPHA, pooled_chi2, sphere_chi2
 from tests.lights import kinds as K
 
@@ -164,11 +165,11 @@ def test_world_sampler_against_its_pdf():
 
 
 def emitted_chi2(kind, i, pdf):
-    """p-value of the directions of the rays sample_le emits from light i against pdf(d)."""
+    """p-value of the directions of the rays sample_emission emits from light i against pdf(d)."""
     def sample(u):
         m = u.shape[1]
         v = np.random.default_rng(5).random((2, m))
-        return kind.sample_le(np.full(m, i), v[0], v[1], u[0], u[1]).direction
+        return kind.sample_emission(np.full(m, i), v[0], v[1], u[0], u[1]).direction
     return sphere_chi2(sample, pdf, N)[0]
 
 
@@ -188,7 +189,60 @@ def test_point_lights_emit_in_every_direction():
     assert emitted_chi2(K.point_lights(), 1, lambda d: np.full(d.shape[1], 1 / (4 * np.pi))) > ALPHA_EACH
 
 
+def cone_to_sphere(directions, axis, one_minus):
+    """Directions in the cone of 1 - cos = one_minus about `axis`, mapped onto the whole sphere by
+    the map that takes the cone's uniform density to the sphere's (cos to the axis stretched onto
+    [-1, 1], the azimuth kept); directions outside the cone become zeros (counted in no cell).
+    A cone's sharp edge cuts the χ² grid's cells, so its samplers are tested through this map."""
+    t1, t2 = orthonormal_basis(axis[:, None])
+    local = np.stack([(t1 * directions).sum(axis=0), (t2 * directions).sum(axis=0), axis @ directions])
+    z = 1.0 - 2.0 * (1.0 - local[2]) / one_minus
+    inside = z >= -1.0
+    r = np.sqrt(np.maximum(1.0 - z * z, 0.0) / np.maximum(local[0] ** 2 + local[1] ** 2, 1e-300))
+    out = np.stack([local[0] * r, local[1] * r, z])
+    return np.where(inside, out, 0.0)
+
+
+def emitted_in_cone_chi2(kind, i, axis, one_minus, scale=1.0):
+    """p-value of the directions light i emits, mapped from the cone onto the sphere, against the
+    sphere's uniform density (times scale)."""
+    def sample(u):
+        m = u.shape[1]
+        v = np.random.default_rng(5).random((2, m))
+        return cone_to_sphere(kind.sample_emission(np.full(m, i), v[0], v[1], u[0], u[1]).direction, axis, one_minus)
+    return sphere_chi2(sample, lambda d: np.full(d.shape[1], scale / (4 * np.pi)), N)[0]
+
+
+def spot_cone(kind, i):
+    k = kind.spot_slot[i]
+    return kind.spot_axis[:, k], 1.0 - kind.spot_cos_half[k]
+
+
+@pytest.mark.parametrize("i", [2, 3])
+def test_spot_lights_emit_uniformly_in_their_cone(i):
+    kind = K.point_lights()
+    assert emitted_in_cone_chi2(kind, i, *spot_cone(kind, i)) > ALPHA_EACH
+
+
+def test_a_soft_sun_emits_uniformly_in_its_cone():
+    kind = K.suns()
+    assert emitted_in_cone_chi2(kind, 1, -kind.axis[:, 1], kind.one_minus_cos[1]) > ALPHA_EACH
+
+
+def test_the_world_emits_in_every_direction():
+    assert emitted_chi2(K.world(), 0, lambda d: np.full(d.shape[1], 1 / (4 * np.pi))) > ALPHA_EACH
+
+
 # -- controls ----------------------------------------------------------------------------
+def test_a_spot_emitting_over_the_whole_sphere_fails():
+    """Control: a point light's rays (the whole sphere) fail the spot's cone test, and so do the
+    spot's rays against a cone 10 % narrower."""
+    kind = K.point_lights()
+    axis, one_minus = spot_cone(kind, 2)
+    assert emitted_in_cone_chi2(kind, 1, axis, one_minus) < 1e-6          # the point light's sphere
+    assert emitted_in_cone_chi2(kind, 2, axis, one_minus * 0.9) < 1e-6    # a cone 10 % too narrow
+
+
 def test_a_pdf_off_by_ten_percent_fails():
     make, corners_of, i, x, solid_angle = PLANAR["pentagon polygon"]
     kind = make()

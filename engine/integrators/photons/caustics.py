@@ -1,0 +1,129 @@
+"""What the path tracer asks of the caustic photons: the photon map of a pass, and the caustic
+radiance at camera-path vertices.
+
+Pass k holds the camera samples k S .. (k + 1) S - 1 of every pixel (S = SAMPLES_PER_PASS) and one
+photon map of `photons_per_pass` photons with radius r_k (engine/integrators/photons/photon_map.py).
+A pass's map is a function of (seed, k) and the scene only: its photons are emitted from their own
+stream, and traced together with those of the other passes of its batch of PASSES_PER_BATCH (passes
+8 b .. 8 b + 7, with the batch's stream for the bounces), so every worker that renders samples of
+pass k builds the same map, whatever unit, worker or order asks for it, and images stay
+bit-identical on every pool.  Maps are kept while the cache
+holds less than CACHE_BYTES; a map made after that is used and dropped (rebuilt, identically, when
+asked for again).  Units run through their passes in order, tile after tile, so keeping the first
+maps (rather than the latest, which such a sweep would always evict) saves the most tracing.
+"""
+from __future__ import annotations
+
+import time
+import numpy as np
+
+from .emission import emit
+from .photon_map import PhotonMap, radius_of_pass
+from .targets import specular_targets
+from .tracing import trace_photons
+
+SAMPLES_PER_PASS = 1          # camera samples per pixel per photon pass (SPPM: one)
+PASSES_PER_BATCH = 8          # passes traced together (one wavefront of photons: less overhead per photon)
+PHOTON_STREAM = 0x70686F74    # 'phot': the photon passes' random stream, apart from the camera's
+CACHE_BYTES = 512 << 20
+SECONDARY_SCALE = 4.0         # the radius at vertices after a non-delta bounce: their caustics are seen
+                              # blurred anyway, and a wider disk holds 16 x the photons (less noise)
+AUTO_RADIUS_PIXELS = 1.0      # the automatic first radius: this many pixel footprints at the targets
+
+
+def passes_of(samples: int) -> int:
+    """The number of photon passes a render of `samples` samples per pixel runs."""
+    return -(-samples // SAMPLES_PER_PASS)
+
+
+def auto_radius(scene, targets) -> float:
+    """The first pass's radius: AUTO_RADIUS_PIXELS pixel footprints at the distance from the camera
+    to the nearest target's centre (a pinhole's footprint: sensor width / lens / pixels), at least
+    1e-5 of the scene's size."""
+    cam = scene.camera
+    eye = np.asarray(cam.matrix, dtype=np.float64)[:3, 3]
+    width, height = scene.resolution
+    if cam.sensor_fit == "VERTICAL":
+        per_pixel = cam.sensor_height / cam.lens / height
+    elif cam.sensor_fit == "HORIZONTAL":
+        per_pixel = cam.sensor_width / cam.lens / width
+    else:
+        per_pixel = cam.sensor_width / cam.lens / max(width, height)
+    distance = float(np.min(np.linalg.norm(targets.center - eye[:, None], axis=0)))
+    size = float(np.max(targets.radius))
+    return max(AUTO_RADIUS_PIXELS * per_pixel * distance, 1e-5 * size, 1e-9)
+
+
+class CausticPhotons:
+    """The caustic photon maps of a prepared scene (engine/rendering/session.py), pass by pass."""
+
+    def __init__(self, tracer, scene, settings):
+        """tracer: the PathTracer whose geometry, lights and materials the photons meet."""
+        self.tracer, self.settings = tracer, settings
+        self.targets = specular_targets(scene, tracer.mats)
+        self.photons = int(settings.photons_per_pass)
+        self.alpha = float(settings.photon_alpha)
+        self.first_radius = (float(settings.photon_radius) if settings.photon_radius > 0 or self.targets is None
+                             else auto_radius(scene, self.targets))
+        self.maps = {}
+        self.cached_bytes = 0
+
+    def radius(self, k: int) -> float:
+        return radius_of_pass(self.first_radius, k, self.alpha)
+
+    def map_of(self, k: int, counters) -> PhotonMap:
+        """Pass k's photon map (from the cache, or traced now with the other passes of its batch)."""
+        found = self.maps.get(k)
+        if found is not None:
+            return found
+        start = time.perf_counter()
+        first = k - k % PASSES_PER_BATCH
+        batch = range(first, first + PASSES_PER_BATCH)
+        emitted = []
+        for j in batch:                  # each pass's photons from its own stream
+            emitted.append(emit(self.tracer.lights, self.photons,
+                                np.random.default_rng([self.settings.seed, PHOTON_STREAM, j]), self.targets))
+        label = np.concatenate([np.full(e.origin.shape[1], j) for j, e in zip(batch, emitted)])
+        o, d, phi = (np.concatenate([getattr(e, name) for e in emitted], axis=1)
+                     for name in ("origin", "direction", "flux"))
+        rng = np.random.default_rng([self.settings.seed, PHOTON_STREAM, first, 1])     # the batch's bounces
+        stored = trace_photons(self.tracer, o, d, phi, counters, rng, self.settings.max_depth, label)
+        ph = counters.photons
+        for j in batch:
+            made = PhotonMap(stored, self.radius(j), label=j)
+            if j == k:
+                found = made
+            if self.cached_bytes + made.nbytes <= CACHE_BYTES:
+                self.maps[j] = made
+                self.cached_bytes += made.nbytes
+            ph["photons_stored"] = ph.get("photons_stored", 0) + made.count
+            counters.photon_radii[j] = made.radius
+        for key, value in (("photon_passes_traced", PASSES_PER_BATCH), ("photons_emitted", self.photons * PASSES_PER_BATCH),
+                           ("photons_traced", stored.traced), ("photon_rays", stored.rays),
+                           ("trace_seconds", time.perf_counter() - start)):
+            ph[key] = ph.get(key, 0) + value
+        return found
+
+    def radiance(self, sample, bsdf, si, points, facing, counters, segments=None, secondary=None) -> np.ndarray:
+        """(3, M) the caustic radiance at the M camera-path vertices (rows `points`, ShadingPoint si
+        of `bsdf`, facing geometric normals) of the camera samples `sample` (M,), each from its
+        pass's map; segments (M,): the most photon segments each may take (None: any); secondary
+        (M,) bool: the vertices after a non-delta bounce, which gather with SECONDARY_SCALE x the
+        radius (None: none)."""
+        out = np.zeros((3, points.shape[1]))
+        passes = sample // SAMPLES_PER_PASS
+        wide = np.zeros(len(sample), bool) if secondary is None else secondary
+        for k in np.unique(passes):
+            photon_map = self.map_of(int(k), counters)
+            start = time.perf_counter()
+            for is_wide in (False, True):
+                mine = np.flatnonzero((passes == k) & (wide == is_wide))
+                if not len(mine):
+                    continue
+                out[:, mine] = photon_map.radiance(bsdf, si.take(mine), points.take(mine, axis=1),
+                                                   facing.take(mine, axis=1),
+                                                   None if segments is None else segments.take(mine),
+                                                   SECONDARY_SCALE if is_wide else 1.0)
+            counters.photons["gather_seconds"] = counters.photons.get("gather_seconds", 0.0) + \
+                time.perf_counter() - start
+        return out
