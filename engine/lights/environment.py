@@ -275,6 +275,14 @@ class EnvironmentLight(DistantKind):
         self.radiance = rows(environment.mean[None, :])            # the mean, for the light tables
         self.one_sided = np.zeros(1, dtype=bool)
         self.flux = np.array([np.pi * float(np.mean(environment.mean)) * 4.0 * np.pi * r2])
+        self.scene_radius = scene_radius
+
+    def sample_emission(self, idx, u1, u2, u3, u4, targets=None):
+        """Photons (engine/integrators/photons/): a direction towards the image drawn by its sampler
+        (u1, u2), the photon travelling the other way, from the disk facing it (u3, u4)."""
+        towards, pdf = self.map.sample(u1, u2)
+        travel = -towards
+        return self._disk_rays(travel, u3, u4, travel, self.map.radiance(towards), pdf, targets)
 
     def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
         direction, pdf = self.map.sample(u1, u2)
