@@ -58,14 +58,15 @@ def compare(runs, reference, samples, reference_samples):
 
 
 def replace_missing_images(path) -> int:
-    """Every image of the open file whose file is missing is given `path`; returns how many."""
+    """Every image of the open file whose file is missing or unreadable is given `path`; returns how many."""
     import bpy
     if not path:
         return 0
     n = 0
     for image in bpy.data.images:
-        if image.source == "FILE" and image.packed_file is None and \
-                not os.path.isfile(bpy.path.abspath(image.filepath, library=image.library)):
+        if image.source == "FILE" and image.packed_file is None and (
+                not os.path.isfile(bpy.path.abspath(image.filepath, library=image.library))
+                or tuple(image.size) == (0, 0)):          # there but unreadable (e.g. a Git LFS pointer)
             image.filepath = os.path.abspath(path)
             image.reload()
             n += 1
