@@ -98,6 +98,7 @@ def main():
     ap.add_argument("--samples", type=int, default=256)
     ap.add_argument("--reference-samples", type=int, default=2048)
     ap.add_argument("--max-depth", type=int, default=12)
+    ap.add_argument("--only", nargs="*", help="file names (without .blend) of DIR to compare")
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--cache-dir", default=os.path.join("renders", "reference-files"))
     ap.add_argument("--images", default=None, help="write TNCG15 / Cycles PNGs side by side here")
@@ -107,6 +108,8 @@ def main():
     args = ap.parse_args()
     import bpy
     files = sorted(glob.glob(os.path.join(args.directory, "*.blend")))
+    if args.only:
+        files = [f for f in files if os.path.splitext(os.path.basename(f))[0] in args.only]
     print(f"{len(files)} files, {args.width} px wide, TNCG15 MC {args.samples} spp x 2 seeds, "
           f"Cycles {args.reference_samples} spp, max depth {args.max_depth}, fair settings")
     print("| file | warnings | mean / Cycles | block median | block p95 | blocks off | agrees |")
