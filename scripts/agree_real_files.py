@@ -122,8 +122,10 @@ def main():
         aspect = (r.resolution_y * r.pixel_aspect_y) / max(r.resolution_x * r.pixel_aspect_x, 1)
         res = (args.width, max(8, int(round(args.width * aspect))))
         with open(blend, "rb") as fh:
-            identity = be._sha1(fh.read()) + (f":{os.path.basename(args.missing_image)}" if args.missing_image else "")
+            identity = be._sha1(fh.read())
         blend, replaced = with_missing_images_replaced(blend, args.missing_image, args.cache_dir)
+        if replaced:                    # the reference of the file with the replacement image
+            identity += f":{replaced} x {os.path.basename(args.missing_image)}"
         reference, _ = be.reference_image(label, blend, identity, cache_dir=args.cache_dir, resolution=res,
                                           samples=args.reference_samples, max_depth=args.max_depth,
                                           log=lambda *a: None)
