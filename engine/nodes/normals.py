@@ -25,7 +25,7 @@ import numpy as np
 # ray differentials).  Heights that are smooth at the pixel scale give Cycles' normal; for detail
 # finer than a pixel Cycles' difference filters it and this one does not.
 BUMP_STEP = 1e-4
-BUMP_FILTER_WIDTH = 0.1          # Cycles 4.x / 5.0 (svm_node_set_bump's bump_filter_width)
+BUMP_FILTER_WIDTH = 0.1          # Blender 4.x / 5.0: the Bump node's Filter Width default (bump_filter_width)
 
 
 def _dot(a, b):
@@ -102,7 +102,10 @@ def bump(inputs, props, ctx):
         return {"Normal": _valid_34(normal_in, ctx)}
     dx, dy = bump_offsets(ctx, shading)
     new = tuple(ctx.cycles_version) >= (4, 0)
-    width = BUMP_FILTER_WIDTH if new else 1.0
+    width = 1.0
+    if new:                                  # Blender 4.x / 5.0: the node's Filter Width (a constant in Cycles)
+        width = inputs["Filter Width"] if "Filter Width" in inputs else np.full(ctx.n, BUMP_FILTER_WIDTH)
+        width = np.maximum(width, 1e-6)
     h_c = inputs["Height"]
     h_x, h_y = height_at(dx * width), height_at(dy * width)
     rx, ry = _cross(dy, normal_in), _cross(normal_in, dx)
