@@ -71,3 +71,36 @@ def test_comparison_catches_an_inverted_bump(lit):
     result = compare_runs(tncg15_agreement_runs(scene, first_seed=3000), reference, tau=TAU)
     print(f"normals, bump inverted: {result.summary()}")
     assert not result.passed, result.summary()
+
+
+@pytest.fixture(scope="module")
+def run34(tmp_path_factory):
+    from blender34 import BLENDER34, blender34_run
+    if BLENDER34 is None:
+        pytest.skip("no `blender` binary (apt-get install blender)")
+    r = blender34_run("normals", tmp_path_factory.mktemp("blender34"))
+    assert r.blender[:2] == (3, 4)
+    return r
+
+
+def test_normal_map_and_bump_agree_with_cycles_34(run34):
+    from blender34 import tracer_runs
+    from imagecompare import compare_runs
+    assert run34.warnings == [], run34.warnings
+    assert {m.name: sorted(m.programs) for m in run34.scene.materials if m.programs} == {
+        "NormalBall": ["normal"], "BumpFloor": ["normal"]}
+    result = compare_runs(tracer_runs(run34.scene), run34.cycles, tau=TAU)
+    print(f"normals 3.4: {result.summary()}")
+    assert result.passed, result.summary()
+
+
+def test_comparison_catches_a_flipped_bitangent_sign_34(run34):
+    from blender34 import tracer_runs
+    from imagecompare import compare_runs
+    scene = copy.deepcopy(run34.scene)
+    for mesh in scene.meshes:
+        if mesh.tangent_signs is not None:
+            mesh.tangent_signs = -mesh.tangent_signs
+    result = compare_runs(tracer_runs(scene, 2000), run34.cycles, tau=TAU)
+    print(f"normals 3.4, bitangent sign flipped: {result.summary()}")
+    assert not result.passed, result.summary()
