@@ -28,6 +28,8 @@ program pays only for what its nodes read.  Names (rows (3, N) unless noted), as
   tangent_sign    (N,) the interpolated corner bitangent sign; has_tangent (N,) bool: the hit has both
   tangent_base    the outward base normal of the tangent frame: the smooth normal, or Ng on flat faces
   object_to_world_normal  a function: rows (3, N) in object space -> normalised world normals
+  camera_pixel    (right, up, forward) rows (3, 1) of the camera and one pixel's size at unit distance
+                  (the image centre's), for Bump's footprint (engine/nodes/normals.py bump_offsets)
 `ctx.shifted(offset)` (None without hits) is the context of the same hits moved by offset rows (3, N)
 along their surface: position, UV, Generated, ... there, the normals of the hits (Bump's heights).
 When folding constants (n = 1, no hits) every attribute raises `Varying`.
@@ -150,9 +152,19 @@ class SceneAttributes:
             self.colors[name] = np.ascontiguousarray(np.concatenate(parts).T)        # rows (9, T)
         cam = getattr(scene, "camera", None)
         self.world_to_camera = None
+        self.camera_pixel = None
         if cam is not None:
             to_world = np.asarray(cam.matrix, dtype=np.float64) @ np.diag([1.0, 1.0, -1.0, 1.0])
             self.world_to_camera = np.linalg.inv(to_world)
+            # The camera's axes and one pixel's size at unit distance, for Bump's footprint.
+            w, h = (int(c) for c in getattr(scene, "resolution", (256, 256)))
+            fit = getattr(cam, "sensor_fit", "AUTO")
+            sensor = (cam.sensor_height if fit == "VERTICAL" else cam.sensor_width)
+            across = h if fit == "VERTICAL" else (w if fit == "HORIZONTAL" else max(w, h))
+            size = float(sensor) / float(cam.lens) / max(across, 1)
+            m = np.asarray(cam.matrix, dtype=np.float64)
+            self.camera_pixel = (m[:3, 0:1] / np.linalg.norm(m[:3, 0]),
+                                 m[:3, 1:2] / np.linalg.norm(m[:3, 1]), -m[:3, 2:3] / np.linalg.norm(m[:3, 2]), size)
 
     def context(self, kind, prim, b1, b2, points, cycles_version, images, triangle_kind) -> NodeContext:
         """The NodeContext of some hits (kind, prim, b1, b2 (N,); points: a HitPoints or None, e.g. at
@@ -283,6 +295,8 @@ class SceneAttributes:
                                         & ((ctx.attr("tangent") ** 2).sum(axis=0) > 0.0))
         attrs["tangent_base"] = lambda: ctx.attr("normal") * ctx.attr("_towards")
         attrs["object_to_world_normal"] = lambda: to_world_normal
+        if self.camera_pixel is not None:
+            attrs["camera_pixel"] = self.camera_pixel
         ctx = NodeContext(n, cycles_version, attrs, images)
 
         def shifted(offset):

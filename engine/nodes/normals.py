@@ -20,11 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-# Bump's offsets: a fraction of the distance from the ray origin (Cycles takes the ray differentials,
-# about one pixel's footprint, times the filter width 0.1 in Blender 4.x / 5.0; the tracer has no
-# ray differentials).  Heights that are smooth at the pixel scale give Cycles' normal; for detail
-# finer than a pixel Cycles' difference filters it and this one does not.
-BUMP_STEP = 1e-4
+# Bump's offsets without a camera: this fraction of the ray length (bump_offsets).
+BUMP_STEP = 1e-3
 BUMP_FILTER_WIDTH = 0.1          # Blender 4.x / 5.0: the Bump node's Filter Width default (bump_filter_width)
 
 
@@ -82,15 +79,37 @@ def normal_map(inputs, props, ctx):
     return {"Normal": np.where(bad, shading, n)}
 
 
-def bump_offsets(ctx, normal):
-    """(dx, dy) rows (3, N): two offsets in the plane of `normal`, of length BUMP_STEP x the ray length."""
-    size = BUMP_STEP * (ctx.attr("ray_length") if ctx.has("ray_length") else np.ones(ctx.n))
-    size = np.maximum(size, 1e-7)
-    helper = np.where(np.abs(normal[0]) < 0.9, 1.0, 0.0) * np.array([[1.0], [0.0], [0.0]]) + \
-        np.where(np.abs(normal[0]) < 0.9, 0.0, 1.0) * np.array([[0.0], [1.0], [0.0]])
-    u = safe_normalize(_cross(helper, normal))
-    v = _cross(normal, u)
-    return u * size, v * size
+def make_orthonormals(n):
+    """Cycles' make_orthonormals: a = normalize((1, 1, 1) x n) (or (-1, 1, 1) x n), b = n x a."""
+    a = np.stack([n[2] - n[1], n[0] - n[2], n[1] - n[0]])
+    other = np.stack([n[2] - n[1], n[0] + n[2], -n[1] - n[0]])
+    a = safe_normalize(np.where((n[0] != n[1]) | (n[0] != n[2]), a, other))
+    return a, _cross(n, a)
+
+
+def bump_offsets(ctx, ng):
+    """(dx, dy) rows (3, N): Cycles' differential_from_compact(Ng, dP): make_orthonormals of the
+    geometric normal `ng` times the compact footprint dP, the mean length of the ray's position
+    differentials.  Camera rays (ray depth 0): the ray length times the mean length of the camera
+    ray direction's one-pixel steps (|dD/dx| = pixel cos(theta) sqrt(1 - (D.right)^2), theta the
+    angle off the view axis; likewise y) as Cycles' differential_transfer_compact.  Other rays: the
+    ray length times the image centre's pixel size (Cycles carries the footprint along the path;
+    the tracer keeps no ray differentials).  Without a camera: BUMP_STEP x the ray length."""
+    distance = ctx.attr("ray_length") if ctx.has("ray_length") else np.ones(ctx.n)
+    if ctx.has("camera_pixel"):
+        right, up, forward, pixel = ctx.attr("camera_pixel")
+        size = distance * pixel
+        if ctx.has("ray_depth") and ctx.has("incoming"):
+            d = -ctx.attr("incoming")
+            cos = np.abs(_dot(d, forward))
+            step = pixel * cos * 0.5 * (np.sqrt(np.maximum(1.0 - _dot(d, right) ** 2, 0.0))
+                                        + np.sqrt(np.maximum(1.0 - _dot(d, up) ** 2, 0.0)))
+            size = np.where(ctx.attr("ray_depth") == 0, distance * step, size)
+    else:
+        size = BUMP_STEP * distance
+    a, b = make_orthonormals(ng)
+    size = np.maximum(size, 1e-9)
+    return a * size, b * size
 
 
 def bump(inputs, props, ctx):
@@ -100,7 +119,7 @@ def bump(inputs, props, ctx):
     height_at = inputs.get("_Height_at")
     if height_at is None:                      # a constant height: no perturbation
         return {"Normal": _valid_34(normal_in, ctx)}
-    dx, dy = bump_offsets(ctx, shading)
+    dx, dy = bump_offsets(ctx, ctx.attr("true_normal"))
     new = tuple(ctx.cycles_version) >= (4, 0)
     width = 1.0
     if new:                                  # Blender 4.x / 5.0: the node's Filter Width (a constant in Cycles)
