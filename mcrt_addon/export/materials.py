@@ -207,6 +207,10 @@ class MaterialTable:
             material.input_textures = inputs
         if programs and hasattr(material, "programs"):   # node programs on its inputs (export/node_graph.py)
             material.programs = dict(material.programs or {}, **programs)
+        mix = getattr(material, "mix", None)
+        if mix is not None and node.bl_idname in ("ShaderNodeMixShader", "ShaderNodeAddShader") and any(
+                "normal" in (leaf.material.programs or {}) for leaf in mix.leaves):
+            self.warn(mat, node, "a Normal input of a shader inside this mix is not modelled (the shading normal is used)")
         return material
 
     def _normal_program(self, mat, node):
