@@ -394,6 +394,20 @@ class PathTracer:
         return HitPoints(point=surf.point, direction=p.d, normal=surf.normal, shading=surf.shading,
                          depth=p.bounce, ray_kind=p.ray_kind, distance=hits.t)
 
+    def bump_shadowing(self, si, wi, diffuse, is_eval, repeat=1):
+        """engine/nodes/normals.py bump_shadowing of directions wi (3, len(si) x repeat) at hits whose
+        normal a Normal input replaced: against their smooth normal (from the lookup's HitPoints)."""
+        from ..nodes.normals import bump_shadowing
+        points = si.lookup.points
+        if points is None:
+            return np.ones(wi.shape[1])
+        towards = np.where(dot(points.direction, points.normal) < 0.0, 1.0, -1.0)
+        smooth = (points.shading if points.shading is not None else points.normal) * towards
+        n = si.n
+        if repeat > 1:
+            smooth, n = np.repeat(smooth, repeat, axis=1), np.repeat(n, repeat, axis=1)
+        return bump_shadowing(smooth, n, wi, diffuse, is_eval, self.textures.textures.cycles_version)
+
     def emission(self, p, surf, hits, surfaces, lookup=None):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
         the camera or a delta bounce or without shadow rays; after a non-delta bounce 0 under
@@ -608,20 +622,6 @@ class PathTracer:
             if wrong.any():
                 beta = np.where(wrong, 0.0, beta)
         return new_d, side, beta
-
-    def bump_shadowing(self, si, wi, diffuse, is_eval, repeat=1):
-        """engine/nodes/normals.py bump_shadowing of directions wi (3, len(si) x repeat) at hits whose
-        normal a Normal input replaced: against their smooth normal (from the lookup's HitPoints)."""
-        from ..nodes.normals import bump_shadowing
-        points = si.lookup.points
-        if points is None:
-            return np.ones(wi.shape[1])
-        towards = np.where(dot(points.direction, points.normal) < 0.0, 1.0, -1.0)
-        smooth = (points.shading if points.shading is not None else points.normal) * towards
-        n = si.n
-        if repeat > 1:
-            smooth, n = np.repeat(smooth, repeat, axis=1), np.repeat(n, repeat, axis=1)
-        return bump_shadowing(smooth, n, wi, diffuse, is_eval, self.textures.textures.cycles_version)
 
     # -- Cycles' Light Paths options (engine/integrators/light_paths.py) ---------------------------
     def clamped(self, contribution, bounce):
