@@ -16,7 +16,9 @@ def _material(name):
     return mat, nodes, mat.node_tree.links, nodes["Material Output"]
 
 
-def build(path, resolution=(64, 64), normal_map=True, bump=True):
+def build(path, resolution=(64, 64), normal_map=True, bump=True, facing_away=False):
+    """The scene saved as `path`; facing_away: the Wave Texture's colour itself into the Normal Map
+    (its dark bands give normals pointing into the ball: Cycles' handling of normals facing away)."""
     import bpy
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -51,7 +53,7 @@ def build(path, resolution=(64, 64), normal_map=True, bump=True):
         colour.inputs["Z"].default_value = 1.0
         nmap = nodes.new("ShaderNodeNormalMap")
         nmap.inputs["Strength"].default_value = 1.0
-        links.new(colour.outputs["Vector"], nmap.inputs["Color"])
+        links.new((wave.outputs["Color"] if facing_away else colour.outputs["Vector"]), nmap.inputs["Color"])
         links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
     ball.data.materials.append(mat)
 

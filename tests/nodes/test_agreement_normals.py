@@ -73,6 +73,31 @@ def test_comparison_catches_an_inverted_bump(lit):
     assert not result.passed, result.summary()
 
 
+def test_normals_facing_away_agree_with_cycles(tmp_path_factory):
+    """The Wave Texture's colour itself into the Normal Map: its dark bands (colour ~0) give normals
+    pointing into the ball, which Cycles' Diffuse keeps and its bump shadowing term darkens."""
+    from imagecompare import compare_runs
+    from rendering import DEPTH, K, RES, SPP, cycles_reference, export_blend, tncg15_agreement_runs, tncg15_runs
+    from tests.nodes import normal_scene
+    path = normal_scene.build(str(tmp_path_factory.mktemp("normals") / "away.blend"), facing_away=True)
+    exported = export_blend(path, RES)
+    reference = cycles_reference(path, "normals_facing_away")
+    result = compare_runs(tncg15_agreement_runs(exported.scene), reference, tau=TAU)
+    print(f"normals facing away: {result.summary()}")
+    assert result.passed, result.summary()
+    scene = copy.deepcopy(exported.scene)          # CONTROL: without the bump shadowing term
+    from engine.nodes import normals
+    saved = normals.bump_shadowing
+    try:
+        normals.bump_shadowing = lambda smooth, n, wi, *a: np.ones(wi.shape[1])
+        ours = tncg15_runs(scene, SPP, DEPTH, seeds=range(2000, 2000 + K), fresnel="exact", threads=1)   # in-process
+        control = compare_runs(ours, reference, tau=TAU)
+    finally:
+        normals.bump_shadowing = saved
+    print(f"normals facing away, no bump shadowing: {control.summary()}")
+    assert not control.passed, control.summary()
+
+
 @pytest.fixture(scope="module")
 def run34(tmp_path_factory):
     from blender34 import BLENDER34, blender34_run
