@@ -286,6 +286,9 @@ class PathTracer:
         # only; offsets and side tests keep `facing`).  Flat-only scenes: the same array.
         smooth = surf.shading is not surf.normal
         shade = surf.shading * towards if smooth else facing
+        if lookup is not None and lookup.has_normals:       # a BSDF's Normal input (Normal Map, Bump)
+            shade = lookup.normal(shade, surf.material, facing, -p.d, self.mats.specular_normal)
+            smooth = True
         color = self.mats.color.take(surf.material, axis=1)
         if lookup is not None:
             color = lookup.color(color, surf.material)
@@ -414,6 +417,20 @@ class PathTracer:
         from ..nodes.context import HitPoints
         return HitPoints(point=surf.point, direction=p.d, normal=surf.normal, shading=surf.shading,
                          depth=p.bounce, ray_kind=p.ray_kind, distance=hits.t)
+
+    def bump_shadowing(self, si, wi, diffuse, is_eval, repeat=1):
+        """engine/nodes/normals.py bump_shadowing of directions wi (3, len(si) x repeat) at hits whose
+        normal a Normal input replaced: against their smooth normal (from the lookup's HitPoints)."""
+        from ..nodes.normals import bump_shadowing
+        points = si.lookup.points
+        if points is None:
+            return np.ones(wi.shape[1])
+        towards = np.where(dot(points.direction, points.normal) < 0.0, 1.0, -1.0)
+        smooth = (points.shading if points.shading is not None else points.normal) * towards
+        n = si.n
+        if repeat > 1:
+            smooth, n = np.repeat(smooth, repeat, axis=1), np.repeat(n, repeat, axis=1)
+        return bump_shadowing(smooth, n, wi, diffuse, is_eval, self.textures.textures.cycles_version)
 
     def emission(self, p, surf, hits, surfaces, lookup=None):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
@@ -627,6 +644,8 @@ class PathTracer:
                                       CAMERA_RAY, kind)
         side = np.where(transmitted, -1.0, 1.0)
         beta = p.beta[:, :alive] * value             # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
+        if si.lookup is not None and si.lookup.has_normals:     # a Normal input: Cycles' bump shadowing
+            beta = beta * self.bump_shadowing(si, new_d, (flags & BSDFFlags.DIFFUSE) != 0, False)
         if si.smooth:                       # below the geometric surface (or not through it): ends
             wrong = dot(new_d, si.ng) * side <= 0.0
             if wrong.any():
@@ -792,6 +811,9 @@ class PathTracer:
                 p_bsdf = np.where(pick(self.lights.bsdf_reachable.take(ls.light)), p_b, 0.0)
                 sample *= power_heuristic(float(ns), pdf, 1.0, p_bsdf)
             weight[valid] = np.where(blocked, 0.0, sample)
+        if si.lookup is not None and si.lookup.has_normals:     # a Normal input: Cycles' bump shadowing
+            diffuse = ~self.mats.specular_normal.take(si.material)
+            weight *= self.bump_shadowing(si, w, np.repeat(diffuse, ns) if ns > 1 else diffuse, True, ns)
         contrib = ls.radiance * weight if albedo is not None else ls.radiance * weight * f_cos
         mean = contrib.reshape(3, m, ns).sum(axis=2) / ns if ns > 1 else contrib
         if albedo is None:

@@ -87,6 +87,8 @@ class MaterialTable:
         emission = np.array([m.emission for m in materials], dtype=np.float64).reshape(-1, 3)
         self.color, self.emission = rows(color), rows(emission)
         self.is_emissive = emission.max(axis=1) > 0
+        # Blender 4.x / 5.0 raise a Normal input's normal for every BSDF but Diffuse (engine/nodes/normals.py).
+        self.specular_normal = np.array([m.kind != DIFFUSE for m in materials], dtype=bool)
         scatters = color.max(axis=1) > 0.0
         if textured_color is not None:
             scatters = scatters | textured_color

@@ -163,7 +163,7 @@ class TextureSet:
         # Shader-node programs (engine/scene/programs.py, run by engine/nodes/evaluator.py): per role
         # ("color", "emission", the TEXTURED_INPUTS), the program of each material or None.
         self.programs = {role: [(m.programs or {}).get(role) for m in mats]
-                         for role in ("color", "emission") + TEXTURED_INPUTS}
+                         for role in ("color", "emission", "normal") + TEXTURED_INPUTS}
         self.has_program = {role: np.array([p is not None for p in progs], dtype=bool)
                             for role, progs in self.programs.items()}
         self.has_program_factor = any(f.kind == PROGRAM for m in scene.materials if m.mix is not None
@@ -486,6 +486,32 @@ class HitTextures:
             out[sel.take(mine)] = self.textures.value(slots[m], u.take(mine), v.take(mine))
         return out
 
+    def normal(self, shading, material, kind, prim, b1, b2, points, ng, incoming, specular):
+        """Shading normals rows (3, N) (on the viewer's side) with the hits of materials with a normal
+        program (a BSDF's Normal input) replaced by the program's normal, then raised as Cycles'
+        closures raise it where its mirror reflection of `incoming` would fall below the geometric
+        normal `ng` (engine/nodes/normals.py ensure_valid_reflection: Blender 3.x for every BSDF,
+        4.x / 5.0 for the materials `specular` (M,) bool flags, not Diffuse)."""
+        has = self.textures.has_program["normal"]
+        if self.attributes is None or not has.any():
+            return shading
+        from ..nodes.normals import ensure_valid_reflection, safe_normalize
+        sel = np.flatnonzero(has.take(material))
+        if not len(sel):
+            return shading
+        out = np.array(shading, dtype=np.float64)
+        mat = material.take(sel)
+        programs = self.textures.programs["normal"]
+        version = self.textures.cycles_version
+        for m in np.unique(mat):
+            idx = sel.take(np.flatnonzero(mat == m))
+            n = safe_normalize(self.run_program(programs[m], kind, prim, b1, b2, points, idx))
+            n = np.where((np.abs(n) > 0).any(axis=0) & np.isfinite(n).all(axis=0), n, out[:, idx])
+            if version < (4, 0) or specular[m]:
+                n = ensure_valid_reflection(ng[:, idx], incoming[:, idx], n, version)
+            out[:, idx] = n
+        return out
+
     def tangent(self, tangents, material, kind, prim, b1, b2):
         """Tangent rows (3, N): `tangents` with the hits of mesh-tangent materials on triangles
         that carry tangents replaced by the corner tangents interpolated at (b1, b2) (unnormalised:
@@ -566,6 +592,15 @@ class HitLookup:
 
     def input(self, name, values, material):
         return self.textures.input(name, values, material, self.kind, self.prim, self.b1, self.b2, self.points)
+
+    def normal(self, shading, material, ng, incoming, specular):
+        """The shading normals of these hits with the materials' normal programs (HitTextures.normal)."""
+        return self.textures.normal(shading, material, self.kind, self.prim, self.b1, self.b2, self.points,
+                                    ng, incoming, specular)
+
+    @property
+    def has_normals(self) -> bool:
+        return self.textures.attributes is not None and bool(self.textures.textures.has_program["normal"].any())
 
     def tangent(self, tangents, material):
         return self.textures.tangent(tangents, material, self.kind, self.prim, self.b1, self.b2)

@@ -24,6 +24,14 @@ program pays only for what its nodes read.  Names (rows (3, N) unless noted), as
                   4 a light sample (a shadow ray)
   ray_length      (N,) the distance from the ray origin
   color:NAME      a colour attribute's linear corner colours interpolated at the hit
+  tangent         the UV map's interpolated (unnormalised) corner tangent, world space (Normal Map)
+  tangent_sign    (N,) the interpolated corner bitangent sign; has_tangent (N,) bool: the hit has both
+  tangent_base    the outward base normal of the tangent frame: the smooth normal, or Ng on flat faces
+  object_to_world_normal  a function: rows (3, N) in object space -> normalised world normals
+  camera_pixel    (right, up, forward) rows (3, 1) of the camera and one pixel's size at unit distance
+                  (the image centre's), for Bump's footprint (engine/nodes/normals.py bump_offsets)
+`ctx.shifted(offset)` (None without hits) is the context of the same hits moved by offset rows (3, N)
+along their surface: position, UV, Generated, ... there, the normals of the hits (Bump's heights).
 When folding constants (n = 1, no hits) every attribute raises `Varying`.
 """
 from __future__ import annotations
@@ -45,6 +53,7 @@ class NodeContext:
         self.images = images
         self._attributes = dict(attributes or {})
         self.folding = attributes is None      # evaluator.fold's context: no hits at all
+        self.shifted = None                    # offset rows (3, N) -> NodeContext (SceneAttributes)
         self.warnings: list[str] = []
 
     def has(self, name: str) -> bool:
@@ -126,6 +135,15 @@ class SceneAttributes:
             flat = size <= 1e-9 * max(float(np.abs(size).max()), 1.0)       # Blender: a zero size is 1
             self.centre[i], self.size[i] = centre, np.where(flat, 1.0, size)
             self.random[i] = float(m.object_random)
+        # Normal Map: per corner world tangents and bitangent signs (engine/scene/model.py TriangleMesh).
+        self.tri_tangent = self.tri_sign = None
+        if any(m.tangents is not None and getattr(m, "tangent_signs", None) is not None for m in meshes):
+            self.tri_tangent = np.concatenate([np.asarray(m.tangents, dtype=np.float64).reshape(-1, 3, 3)
+                                               if m.tangents is not None else np.zeros((len(m.triangles), 3, 3))
+                                               for m in meshes])
+            self.tri_sign = np.concatenate([np.asarray(m.tangent_signs, dtype=np.float64).reshape(-1, 3)
+                                            if getattr(m, "tangent_signs", None) is not None
+                                            else np.zeros((len(m.triangles), 3)) for m in meshes])
         names = sorted({name for m in meshes for name in (m.colors or {})})
         self.colors = {}
         for name in names:
@@ -134,9 +152,19 @@ class SceneAttributes:
             self.colors[name] = np.ascontiguousarray(np.concatenate(parts).T)        # rows (9, T)
         cam = getattr(scene, "camera", None)
         self.world_to_camera = None
+        self.camera_pixel = None
         if cam is not None:
             to_world = np.asarray(cam.matrix, dtype=np.float64) @ np.diag([1.0, 1.0, -1.0, 1.0])
             self.world_to_camera = np.linalg.inv(to_world)
+            # The camera's axes and one pixel's size at unit distance, for Bump's footprint.
+            w, h = (int(c) for c in getattr(scene, "resolution", (256, 256)))
+            fit = getattr(cam, "sensor_fit", "AUTO")
+            sensor = (cam.sensor_height if fit == "VERTICAL" else cam.sensor_width)
+            across = h if fit == "VERTICAL" else (w if fit == "HORIZONTAL" else max(w, h))
+            size = float(sensor) / float(cam.lens) / max(across, 1)
+            m = np.asarray(cam.matrix, dtype=np.float64)
+            self.camera_pixel = (m[:3, 0:1] / np.linalg.norm(m[:3, 0]),
+                                 m[:3, 1:2] / np.linalg.norm(m[:3, 1]), -m[:3, 2:3] / np.linalg.norm(m[:3, 2]), size)
 
     def context(self, kind, prim, b1, b2, points, cycles_version, images, triangle_kind) -> NodeContext:
         """The NodeContext of some hits (kind, prim, b1, b2 (N,); points: a HitPoints or None, e.g. at
@@ -246,5 +274,47 @@ class SceneAttributes:
                     attrs[name] = getattr(points, field)
         for name, rows in self.colors.items():
             attrs[f"color:{name}"] = (lambda rows=rows: on_triangles(bary(rows.T.reshape(-1, 3, 3))))
+        def tangent_sign():
+            if self.tri_sign is None or not len(tri):
+                return np.zeros(n)
+            c = self.tri_sign[prim_t]
+            return on_triangles((1.0 - b1t - b2t) * c[:, 0] + b1t * c[:, 1] + b2t * c[:, 2])
+
+        def to_world_normal(local):
+            """Cycles' object_normal_transform: normalize(inverse(M)^T local)."""
+            out = np.array(local, dtype=np.float64)
+            if len(tri):
+                m = self.to_object[obj][:, :, :3]                     # inverse(M), (k, 3, 3)
+                out[:, tri] = np.einsum("kji,jk->ik", m, out[:, tri])
+            return out / np.maximum(np.sqrt((out * out).sum(axis=0)), 1e-300)
+
+        attrs["tangent"] = lambda: (np.zeros((3, n)) if self.tri_tangent is None or not len(tri)
+                                    else on_triangles(bary(self.tri_tangent)))
+        attrs["tangent_sign"] = tangent_sign
+        attrs["has_tangent"] = lambda: ((ctx.attr("tangent_sign") != 0.0)
+                                        & ((ctx.attr("tangent") ** 2).sum(axis=0) > 0.0))
+        attrs["tangent_base"] = lambda: ctx.attr("normal") * ctx.attr("_towards")
+        attrs["object_to_world_normal"] = lambda: to_world_normal
+        if self.camera_pixel is not None:
+            attrs["camera_pixel"] = self.camera_pixel
         ctx = NodeContext(n, cycles_version, attrs, images)
+
+        def shifted(offset):
+            """The context of these hits moved by `offset` rows (3, N) (their normals kept)."""
+            nb1, nb2 = b1.copy(), b2.copy()
+            if len(tri):
+                c = self.triangles[prim_t]
+                e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+                w = (ctx.attr("position")[:, tri] + offset[:, tri]).T - c[:, 0]
+                d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+                w1, w2 = (w * e1).sum(1), (w * e2).sum(1)
+                inv = 1.0 / np.maximum(d11 * d22 - d12 * d12, 1e-300)
+                nb1[tri], nb2[tri] = (d22 * w1 - d12 * w2) * inv, (d11 * w2 - d12 * w1) * inv
+            moved = HitPoints(**{f: getattr(points, f) for f in HitPoints.FIELDS}) if points is not None else \
+                HitPoints(direction=None)
+            moved.point = ctx.attr("position") + offset
+            moved.normal = ctx.attr("true_normal") * ctx.attr("_towards") if moved.normal is None else moved.normal
+            moved.shading = ctx.attr("normal") * ctx.attr("_towards") if moved.shading is None else moved.shading
+            return self.context(kind, prim, nb1, nb2, moved, cycles_version, images, triangle_kind)
+        ctx.shifted = shifted
         return ctx

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..scene.programs import Link, Program, ProgramNode
 from .context import NodeContext, Varying
-from .registry import kernels
+from .registry import kernels, offset_inputs
 
 LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])     # without converter.py: Blender 3.4's
 THREE = ("RGBA", "VECTOR")
@@ -71,8 +71,32 @@ def run_nodes(program: Program, ctx: NodeContext, table=None):
             raise UnsupportedNode(node.kind)
         inputs = {key: (convert(outputs[v.node][v.output], v.source, v.target, ctx.n, weights) if isinstance(v, Link)
                         else constant(v, ctx.n)) for key, v in node.inputs.items()}
+        for key in offset_inputs(node.kind):
+            if isinstance(node.inputs.get(key), Link) and ctx.shifted is not None:
+                inputs[f"_{key}_at"] = _at_offsets(upstream(program, node.inputs[key]), ctx, table)
         outputs.append(kernel(inputs, node.props, ctx))
     return outputs
+
+
+def upstream(program: Program, link: Link) -> Program:
+    """The program of the nodes feeding `link` (an input of a node of `program`), its output that link's."""
+    needed, stack = set(), [link.node]
+    while stack:
+        i = stack.pop()
+        if i not in needed:
+            needed.add(i)
+            stack += [v.node for v in program.nodes[i].inputs.values() if isinstance(v, Link)]
+    order = sorted(needed)
+    index = {old: new for new, old in enumerate(order)}
+    nodes = [ProgramNode(program.nodes[i].kind, program.nodes[i].name, program.nodes[i].props,
+                         {k: (Link(index[v.node], v.output, v.source, v.target) if isinstance(v, Link) else v)
+                          for k, v in program.nodes[i].inputs.items()}) for i in order]
+    return Program(nodes, (index[link.node], link.output, link.source), link.target, list(program.uv_maps))
+
+
+def _at_offsets(sub: Program, ctx: NodeContext, table):
+    """offset rows (3, N) -> the value of `sub` at the points shifted by it (ctx.shifted)."""
+    return lambda offset: run(sub, ctx.shifted(offset), table)
 
 
 def run(program: Program, ctx: NodeContext, table=None) -> np.ndarray:

@@ -1,12 +1,13 @@
 """Every node kernel, by Blender node type: the KERNELS of engine/nodes/inputs.py, image.py, color.py,
-math.py, converter.py and the procedural/ package, merged.  A module that is not there means its
+math.py, converter.py, normals.py and the procedural/ package, merged.  A module that is not there means its
 nodes are unsupported (the exporter then warns and uses the socket's default value)."""
 from __future__ import annotations
 
 import importlib
 
-KERNEL_MODULES = ("inputs", "image", "color", "math", "converter", "procedural")
+KERNEL_MODULES = ("inputs", "image", "color", "math", "converter", "procedural", "normals")
 _TABLE: dict | None = None
+_OFFSETS: dict = {}
 
 
 def kernels() -> dict:
@@ -23,8 +24,16 @@ def kernels() -> dict:
                     raise
                 continue
             table.update(getattr(module, "KERNELS", {}))
+            _OFFSETS.update(getattr(module, "OFFSET_INPUTS", {}))
         _TABLE = table
     return _TABLE
+
+
+def offset_inputs(kind: str) -> tuple:
+    """The inputs of node type `kind` that its kernel also reads at shifted points (a module's
+    OFFSET_INPUTS, e.g. Bump's Height: engine/nodes/evaluator.py gives the kernel "_Height_at")."""
+    kernels()
+    return _OFFSETS.get(kind, ())
 
 
 def supported(kind: str) -> bool:

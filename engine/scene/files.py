@@ -324,11 +324,13 @@ def load_scene(path: str) -> Scene:
         normals = m.array("normals", arrays, 3, integer=False) if "normals" in m else None
         smooth = m.array("smooth", arrays, None, integer=True) if "smooth" in m else None
         tangents = m.array("tangents", arrays, 3, integer=False) if "tangents" in m else None
+        signs = m.array("tangent_signs", arrays, None, integer=False) if "tangent_signs" in m else None
         if smooth is not None and ((smooth < 0) | (smooth > 1)).any():
             m.fail("smooth", "a list of 0 (flat) or 1 (smooth) per triangle", smooth.tolist())
         meshes.append(TriangleMesh(mesh_name, m.array("vertices", arrays, 3, integer=False), tris, ids, uvs,
                                    normals=normals, smooth=None if smooth is None else smooth.astype(bool),
                                    terminator_offset=m.number("terminator_offset", 0.1), tangents=tangents,
+                                   tangent_signs=signs,
                                    **_object_fields(m, arrays)))
     spheres = []
     for i, entry in enumerate(top.objects("spheres")):
@@ -412,6 +414,9 @@ def save_scene(scene: Scene, path: str) -> None:
         if mesh.tangents is not None:
             arrays[f"mesh{i}_tangents"] = np.asarray(mesh.tangents, dtype=np.float64).reshape(-1, 3)
             meshes[-1]["tangents"] = f"@mesh{i}_tangents"
+        if mesh.tangent_signs is not None:
+            arrays[f"mesh{i}_tangent_signs"] = np.asarray(mesh.tangent_signs, dtype=np.float64).reshape(-1)
+            meshes[-1]["tangent_signs"] = f"@mesh{i}_tangent_signs"
         meshes[-1].update(_object_json(mesh, i, arrays))
         if mesh.normals is not None:
             arrays[f"mesh{i}_normals"] = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3)

@@ -452,6 +452,9 @@ class TriangleMesh:
     # (T, 3, 3) corner tangents, world space, for anisotropic materials whose tangent_source is not
     # "fixed" (a UV map's MikkTSpace tangent or Cycles' radial default), interpolated at hits.
     tangents: np.ndarray | None = None
+    # (T, 3) the UV map's corner bitangent signs (Blender's MeshLoop.bitangent_sign, times the sign of
+    # the object matrix's determinant) with `tangents` of that map, for Normal Map nodes.
+    tangent_signs: np.ndarray | None = None
     # The object of this instance, for shader nodes (engine/nodes/inputs.py): its object-to-world
     # matrix (4x4; None: the identity), texture space (centre, half size) in object space (None: the
     # bounding box) for Generated coordinates, Object Info's Random; colour attributes by name,
@@ -515,6 +518,11 @@ class TriangleMesh:
                 raise SceneError(f"{owner}: tangents must be 3 finite vectors per triangle "
                                  f"({len(self.triangles)} triangles, {tangents.size // 3} tangents)")
             self.tangents = tangents.reshape(-1, 3, 3)
+        if self.tangent_signs is not None:
+            signs = np.asarray(self.tangent_signs, dtype=np.float64)
+            if signs.size != len(self.triangles) * 3 or not np.isfinite(signs).all():
+                raise SceneError(f"{owner}: tangent_signs must be 3 finite numbers per triangle")
+            self.tangent_signs = signs.reshape(-1, 3)
         if not (isinstance(self.terminator_offset, (int, float)) and 0.0 <= self.terminator_offset <= 1.0):
             raise SceneError(f"{owner}: shadow terminator geometry offset must be from 0 to 1, "
                              f"got {self.terminator_offset!r}")
@@ -525,6 +533,8 @@ class TriangleMesh:
                 self.uvs = self.uvs[keep]
             if self.tangents is not None:
                 self.tangents = self.tangents[keep]
+            if self.tangent_signs is not None:
+                self.tangent_signs = self.tangent_signs[keep]
             if self.colors:
                 self.colors = {k: np.asarray(c).reshape(-1, 3, 3)[keep] for k, c in self.colors.items()}
             if self.normals is not None:

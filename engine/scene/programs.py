@@ -31,6 +31,9 @@ SOCKET_TYPES = ("VALUE", "RGBA", "VECTOR", "INT", "BOOLEAN")
 # The material inputs a program may drive: the colour (Base Color / Color), the emitted radiance
 # (colour x strength) and the float inputs of engine/scene/model.py TEXTURED_INPUTS.
 COLOR_ROLES = ("color", "emission")
+# The shading normal (a BSDF's Normal input: Normal Map, Bump, ...): rows (3, N), world space, on the
+# viewer's side; it replaces the hit's shading normal (engine/integrators/path_tracer.py).
+NORMAL_ROLE = "normal"
 
 
 @dataclass(frozen=True)
@@ -97,9 +100,9 @@ def validate_programs(material, float_roles) -> None:
     if not isinstance(programs, dict):
         raise SceneError(f"{owner}: programs must map input names to node programs, got {programs!r}")
     for role, program in programs.items():
-        if role not in COLOR_ROLES + TEXTURED_INPUTS:
+        if role not in COLOR_ROLES + (NORMAL_ROLE,) + TEXTURED_INPUTS:
             raise SceneError(f"{owner}: unknown program input '{role}' (expected one of "
-                             f"{', '.join(COLOR_ROLES + TEXTURED_INPUTS)})")
+                             f"{', '.join(COLOR_ROLES + (NORMAL_ROLE,) + TEXTURED_INPUTS)})")
         if not isinstance(program, Program):
             raise SceneError(f"{owner}: program of '{role}' must be a Program, got {program!r}")
         program.validate(f"{owner}, input '{role}'")

@@ -15,7 +15,7 @@ from .camera import export_camera
 from .images import ImageTable
 from .lights import export_area_light, export_point_light, export_sun_light
 from .materials import MaterialTable
-from .mesh import (bounding_sphere, corner_colors, corner_tangents, corner_uvs, mesh_arrays, mesh_normals, sphere_fit,
+from .mesh import (bounding_sphere, corner_bitangent_signs, corner_colors, corner_tangents, corner_uvs, mesh_arrays, mesh_normals, sphere_fit,
                    terminator_offsets, transform_normals, transform_points, uniform_scale)
 from .node_graph import attribute_names
 from .unsupported import object_warnings, scene_warnings
@@ -197,7 +197,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             read_map = "" if pass_uvs and len(me.uv_layers) else uv_map
             return base + (corner_uvs(me, read_map, label, warnings), mesh_normals(me),
                            corner_tangents(me, need, base[0], base[1], label, warnings),
-                           corner_colors(me, colours, label, warnings))
+                           corner_colors(me, colours, label, warnings), corner_bitangent_signs(me, need))
         if arrays is None:
             if otype == "MESH":
                 arrays = read(ob.data)
@@ -213,7 +213,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                 cache[(key, uv_map, need, colours, pass_uvs)] = arrays
             if kept is not None:
                 mesh_cache[kept] = arrays
-        verts, tris, slots, uvs, shading, local_tangents, corner_colours = arrays
+        verts, tris, slots, uvs, shading, local_tangents, corner_colours, local_signs = arrays
         if len(tris) == 0:
             if otype == "MESH" and ob.name not in skipped:
                 skipped.add(ob.name)
@@ -259,6 +259,9 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         if local_tangents is not None:              # as Cycles' object_normal_transform
             tangents = transform_normals(local_tangents, matrix)
             tangents = tangents[:, ::-1] if mirrored else tangents
+        signs = None
+        if local_signs is not None and local_tangents is not None:     # world-space frame: a mirror flips B
+            signs = -local_signs[:, ::-1] if mirrored else local_signs
         normals = smooth = None
         terminator = 0.1
         if shading is not None:                     # smooth faces: corner normals in world space
@@ -271,7 +274,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                                 "supported (only the geometry offset); ignored")
         meshes.append(sm.TriangleMesh(name=label, vertices=world_verts, triangles=tri_idx,
                                       material_ids=mat_ids, uvs=uvs, normals=normals, smooth=smooth,
-                                      terminator_offset=terminator, tangents=tangents,
+                                      terminator_offset=terminator, tangents=tangents, tangent_signs=signs,
                                       **object_fields(ob, matrix, random_id, [table.materials[i] for i in slot_ids]),
                                       **({"colors": corner_colours} if corner_colours else {}),
                                       pass_index=int(ob.pass_index), **crypto_names(ob)))

@@ -198,6 +198,7 @@ class MaterialTable:
         outer, self._programs = self._programs, {}
         try:
             material = handler(mat, node)
+            self._normal_program(mat, node)
             programs = {role: p for role, p in self._programs.items() if role != "emission_strength"}
         finally:
             self._programs = outer
@@ -206,7 +207,23 @@ class MaterialTable:
             material.input_textures = inputs
         if programs and hasattr(material, "programs"):   # node programs on its inputs (export/node_graph.py)
             material.programs = dict(material.programs or {}, **programs)
+        mix = getattr(material, "mix", None)
+        if mix is not None and node.bl_idname in ("ShaderNodeMixShader", "ShaderNodeAddShader") and any(
+                "normal" in (leaf.material.programs or {}) for leaf in mix.leaves):
+            self.warn(mat, node, "a Normal input of a shader inside this mix is not modelled (the shading normal is used)")
         return material
+
+    def _normal_program(self, mat, node):
+        """A BSDF's linked Normal input (Normal Map, Bump, ...) as its "normal" program (export/node_graph.py)."""
+        sock = node.inputs.get("Normal") if node.bl_idname != "ShaderNodeEmission" else None
+        if sock is None or not sock.is_linked or sock.bl_idname == "NodeSocketShader":
+            return
+        program, _ = self.program(mat, node, sock, "VECTOR")
+        if program is not None:
+            self._programs["normal"] = program
+        elif not self.graph_warned():
+            self.warn(mat, node, f"input 'Normal' is linked{_from(sock)}, which is not modelled; the shading "
+                                 "normal is used")
 
     def side(self, mat, node):
         """(material, texture slots) of a shader node feeding an Add or Mix Shader."""
@@ -311,6 +328,9 @@ class MaterialTable:
             m = self.materials[i]
             mats = [leaf.material for leaf in m.mix.leaves] if getattr(m, "mix", None) is not None else [m]
             for x in mats:
+                normal = (getattr(x, "programs", None) or {}).get("normal")
+                needs += [("uv", n.props.get("uv_map", "") or "") for n in (normal.nodes if normal else [])
+                          if n.kind == "ShaderNodeNormalMap" and n.props.get("space", "TANGENT") == "TANGENT"]
                 source = getattr(x, "tangent_source", "fixed")
                 if source == "uv":
                     needs.append(("uv", x.tangent_uv_map))
@@ -381,7 +401,7 @@ class MaterialTable:
             base = tuple(b * (1.0 - subsurface) + c * subsurface for b, c in zip(base, sss))
             self.warn(mat, node, f"input 'Subsurface' {subsurface:g} is rendered as diffuse (Burley) of the "
                                  "base colour mixed with 'Subsurface Color'")
-        for name in ("Normal", "Clearcoat Normal"):
+        for name in ("Clearcoat Normal",):         # Normal: a "normal" program (_normal_program)
             sock = socket(node, name)
             if sock is not None and sock.is_linked:
                 self.warn(mat, node, f"input '{name}' is linked (normal inputs are not modelled)")

@@ -78,6 +78,19 @@ def _texture_space(me, verts):
     return loc, np.where(size == 0.0, 1.0, size)
 
 
+def corner_bitangent_signs(me, need):
+    """The corner bitangent signs float64 (T, 3) of the UV map's MikkTSpace tangents (after
+    corner_tangents computed them for ("uv", name)), for Normal Map nodes; None otherwise."""
+    if need is None or need == "radial" or not len(me.loops):
+        return None
+    nt = len(me.loop_triangles)
+    loops = np.empty(nt * 3, np.int32)
+    me.loop_triangles.foreach_get("loops", loops)
+    sign = np.empty(len(me.loops), np.float32)
+    me.loops.foreach_get("bitangent_sign", sign)
+    return sign[loops].reshape(nt, 3).astype(np.float64)
+
+
 def corner_tangents(me, need, verts, tris, label, warnings):
     """Local-space corner tangents float64 (T, 3, 3) of a mesh whose loop triangles are computed, for
     anisotropic materials (export/materials.py tangent_need): None for need None; "radial": Cycles'
