@@ -312,8 +312,8 @@ class MaterialTable:
                 return float(sock.default_value)
             source = linked_from(sock)
             what = f"'{source.name}' ({source.bl_idname})" if source is not None else "a muted link"
-            self.warn(mat, node, f"input '{sock.name}' is linked to {what}, which is not modelled (an Image "
-                                 "Texture, straight or through Separate RGB / Color, is); its unlinked value is used")
+            self.warn(mat, node, f"input '{sock.name}' is linked to {what}, which is not modelled (docs/nodes.md "
+                                 "lists the nodes that are); its unlinked value is used")
             return float(sock.default_value)
         if sock.is_linked:
             self.warn(mat, node, f"input '{sock.name}' is linked{_from(sock)}; its unlinked value is used")

@@ -108,15 +108,17 @@ def test_diffuse_and_glass_roughness_textures_take_the_rough_rows(scene, ms, kin
 
 
 def test_other_links_to_a_float_input_are_named(scene, ms):
+    """A node no kernel models (a Sky Texture in a material) is named; the input keeps its value."""
     mat = ms.node_material("Noisy", "ShaderNodeBsdfGlossy", Roughness=0.3)
-    noise = mat.node_tree.nodes.new("ShaderNodeTexNoise")
-    noise.name = "Noise"
-    mat.node_tree.links.new(noise.outputs["Fac"], shader(mat).inputs["Roughness"])
+    sky = mat.node_tree.nodes.new("ShaderNodeTexSky")
+    sky.name = "Sky"
+    mat.node_tree.links.new(sky.outputs["Color"], shader(mat).inputs["Roughness"])
     plate(ms, scene, "P", mat, uvs=SQUARE)
     res = export()
     m = only(res, "Noisy")
-    assert m.input_textures == {} and m.roughness == pytest.approx(0.3)
-    assert named(res, "Noisy", "input 'Roughness' is linked to 'Noise' (ShaderNodeTexNoise)"), res.warnings
+    assert m.input_textures == {} and not m.programs and m.roughness == pytest.approx(0.3)
+    assert named(res, "Noisy", "input 'Roughness' is linked to 'Sky' (ShaderNodeTexSky), which is not modelled"), \
+        res.warnings
 
 
 def test_a_mix_leaf_keeps_its_roughness_texture(scene, ms):

@@ -183,7 +183,7 @@ def test_mix_factor_is_clamped(scene, ms):
 def test_a_factor_source_not_modelled_is_named_and_its_unlinked_value_used(scene, ms):
     g = Graph("Noise")
     mix = g.mix(0.5, g.diffuse((0.8, 0.0, 0.0)), g.diffuse((0.0, 0.0, 0.8)))
-    noise = g.tree.nodes.new("ShaderNodeTexNoise")
+    noise = g.tree.nodes.new("ShaderNodeTexSky")          # no kernel models a Sky Texture in a material
     g.tree.links.new(noise.outputs[0], mix.inputs[0])
     plate(ms, scene, g.output(mix))
     res = export()

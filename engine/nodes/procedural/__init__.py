@@ -7,7 +7,7 @@ import functools
 
 import numpy as np
 
-from engine.nodes.procedural import (brick, checker, gradient, magic, musgrave, noise, voronoi, wave,
+from . import (brick, checker, gradient, magic, musgrave, noise, voronoi, wave,
                                      white_noise)
 
 

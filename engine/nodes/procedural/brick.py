@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.nodes.procedural.common import out_float, points, scalar, vector
-from engine.nodes.procedural.perlin import F32
+from .common import out_float, points, scalar, vector
+from .perlin import F32
 
 
 def brick_noise(n):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.core.errors import SceneError
+from ...core.errors import SceneError
 
 F32 = np.float32
 DEFAULT_VERSION = (5, 0)

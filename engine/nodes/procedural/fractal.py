@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.nodes.procedural.perlin import F32, mix, scaled, snoise, unoise
+from .perlin import F32, mix, scaled, snoise, unoise
 
 
 def _octaves(detail):

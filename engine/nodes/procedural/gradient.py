@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.nodes.procedural.common import choice, out_float, out_rows, points, vector
-from engine.nodes.procedural.perlin import F32
+from .common import choice, out_float, out_rows, points, vector
+from .perlin import F32
 
 TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "SPHERICAL", "QUADRATIC_SPHERE", "RADIAL")
 M_2PI_F = F32(2 * np.pi)

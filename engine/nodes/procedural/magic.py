@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.nodes.procedural.common import out_float, out_rows, points, scalar, vector
-from engine.nodes.procedural.perlin import F32
+from .common import out_float, out_rows, points, scalar, vector
+from .perlin import F32
 
 M_2PI_F = F32(2 * np.pi)
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.nodes.procedural.common import choice, dims_of, out_float, points, scalar, vector, version_of
-from engine.nodes.procedural.noise import NOISE_TYPES, point_of
-from engine.nodes.procedural.perlin import F32, snoise
+from .common import choice, dims_of, out_float, points, scalar, vector, version_of
+from .noise import NOISE_TYPES, point_of
+from .perlin import F32, snoise
 
 
 def musgrave_texture(inputs: dict, props: dict, ctx) -> dict:

@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.nodes.procedural import fractal
-from engine.nodes.procedural.common import (choice, dims_of, out_float, out_rows, points, scalar, vector,
+from . import fractal
+from .common import (choice, dims_of, out_float, out_rows, points, scalar, vector,
                                             version_of, wanted)
-from engine.nodes.procedural.hash import hash_float_n_to_float
-from engine.nodes.procedural.perlin import F32, shifted, snoise
+from .hash import hash_float_n_to_float
+from .perlin import F32, shifted, snoise
 
 NOISE_TYPES = ("FBM", "MULTIFRACTAL", "RIDGED_MULTIFRACTAL", "HYBRID_MULTIFRACTAL", "HETERO_TERRAIN")
 

@@ -14,7 +14,7 @@ import itertools
 
 import numpy as np
 
-from engine.nodes.procedural.hash import hash_uint_n
+from .hash import hash_uint_n
 
 F32 = np.float32
 NOISE_SCALE = {1: F32(0.2500), 2: F32(0.6616), 3: F32(0.9820), 4: F32(0.8344)}

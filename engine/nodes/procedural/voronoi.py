@@ -17,14 +17,14 @@ import itertools
 
 import numpy as np
 
-from engine.nodes.procedural.common import (choice, dims_of, out_float, out_rows, points, scalar, vector,
+from .common import (choice, dims_of, out_float, out_rows, points, scalar, vector,
                                             version_of)
-from engine.nodes.procedural.hash import (hash_float2_to_float2, hash_float2_to_float3,
+from .hash import (hash_float2_to_float2, hash_float2_to_float3,
                                           hash_float3_to_float3, hash_float4_to_float3,
                                           hash_float4_to_float4, hash_float_n_to_float,
                                           hash_float_to_float3, hash_int_n_to_float3,
                                           hash_int_n_to_float_n)
-from engine.nodes.procedural.perlin import F32, mix
+from .perlin import F32, mix
 
 FEATURES = ("F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE", "N_SPHERE_RADIUS")
 METRICS = ("EUCLIDEAN", "MANHATTAN", "CHEBYCHEV", "MINKOWSKI")

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.nodes.procedural import fractal
-from engine.nodes.procedural.common import choice, out_float, out_rows, points, scalar, vector, version_of
-from engine.nodes.procedural.perlin import F32
+from . import fractal
+from .common import choice, out_float, out_rows, points, scalar, vector, version_of
+from .perlin import F32
 
 M_PI_2_F = F32(np.pi / 2)
 M_2PI_F = F32(2 * np.pi)

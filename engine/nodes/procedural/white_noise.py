@@ -3,8 +3,8 @@
 result matches Cycles only where the input coordinate is bit-identical.  Prop: "noise_dimensions"."""
 from __future__ import annotations
 
-from engine.nodes.procedural.common import dims_of, out_float, out_rows, points, scalar, vector
-from engine.nodes.procedural.hash import (hash_float2_to_float3, hash_float3_to_float3,
+from .common import dims_of, out_float, out_rows, points, scalar, vector
+from .hash import (hash_float2_to_float3, hash_float3_to_float3,
                                           hash_float4_to_float3, hash_float_n_to_float,
                                           hash_float_to_float3)
 
