@@ -13,6 +13,9 @@ geometric normal N_g stays for ray offsets and side tests.  Where the two disagr
 * mirror / glass: the shading normal is bent towards N_g just enough that the mirror direction
   lies above the geometric surface (Cycles' `ensure_valid_specular_reflection`,
   kernel/closure/bsdf_util.h), and a refraction that would leave on the wrong side of N_g ends;
+  the microfacet lobes (Glossy, rough Glass and Refraction, the Principled glass) build their frame
+  on the same bent normal (engine/materials/specular.py `specular_normal_at`), as Cycles' closure
+  setup does, so a silhouette whose shading normal faces away from the viewer still scatters;
 * diffuse: a direction (BSDF sample or light sample) below the geometric surface is rejected
   (weight 0), as Cycles' `bsdf_diffuse_sample` does for BSDF samples; for light samples Cycles
   gets the same through self-occlusion of closed meshes, this also holds for open ones;

@@ -41,7 +41,7 @@ from .dielectric_lobe import PASSED, REFLECTED, REFRACTED, MicrofacetDielectric,
 from .fresnel import INDEX_MATCHED
 from .microfacet import BECKMANN, GGX, shading_frame, to_local, to_world
 from .protocol import BSDF, BSDFSample, ShadingPoint, delta_eval
-from .specular import refract, refract_cos, specular_normal
+from .specular import refract, refract_cos, specular_normal, specular_normal_at
 from .textures import per_hit, textured_mask
 
 MULTI_GGX = "multi_ggx"
@@ -91,8 +91,9 @@ class RoughDielectric(BSDF):
     def _local(self, si: ShadingPoint):
         mat = si.material
         eta, entering = refraction_eta(si, self.ior.take(mat))
-        x, y = shading_frame(si.n)
-        return mat, eta, entering, (x, y, si.n)
+        n = specular_normal_at(si)
+        x, y = shading_frame(n)
+        return mat, eta, entering, (x, y, n)
 
     def _scale(self, si, mat, mu, eta):
         """The compensation factor (3, N) where the material compensates, else None."""

@@ -38,6 +38,7 @@ from . import albedo_tables
 from .microfacet import (BECKMANN, D, GGX, LAMBDA, SAMPLE_VNDF, glossy_alpha_rows, glossy_alphas, shading_frame,
                          to_local, to_world)
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+from .specular import specular_normal_at
 from .textures import hit_tangent, per_hit, textured_mask
 
 LOBE = BSDFFlags.GLOSSY | BSDFFlags.REFLECTION
@@ -169,12 +170,13 @@ class MicrofacetReflection(BSDF):
 
     def _frame(self, si: ShadingPoint):
         mat = si.material
-        x, y = shading_frame(si.n, hit_tangent(si, self.tangent))
+        n = specular_normal_at(si)
+        x, y = shading_frame(n, hit_tangent(si, self.tangent))
         turn = 2.0 * np.pi * self.rotation.take(mat)
         if np.any(turn != 0.0):
             c, s = np.cos(turn), np.sin(turn)
             x, y = c * x + s * y, c * y - s * x
-        return x, y
+        return x, y, n
 
     def _fresnel(self, si: ShadingPoint, cos: np.ndarray) -> np.ndarray:
         """F (3, N) at cos = wo.h, times the colour where the colour tints (all but conductors)."""
@@ -248,7 +250,7 @@ class MicrofacetReflection(BSDF):
     def compensation_at(self, si: ShadingPoint) -> np.ndarray | None:
         """compensation at cos_o = dot(wo, n) (wo's local z), once per hit for the sample and the
         evals at the same hits (ShadingPoint.memo)."""
-        return si.memo((self, "compensation"), lambda at: self.compensation(at, dot(at.wo, at.n)))
+        return si.memo((self, "compensation"), lambda at: self.compensation(at, dot(at.wo, specular_normal_at(at))))
 
     def _frame_at(self, si: ShadingPoint):
         return si.memo((self, "frame"), self._frame)
@@ -269,8 +271,8 @@ class MicrofacetReflection(BSDF):
     # -- the protocol -------------------------------------------------------------------------
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
         ax, ay, beckmann = self._alphas(si)
-        x, y = self._frame_at(si)
-        wo_l = to_local(si.wo, x, y, si.n)
+        x, y, n = self._frame_at(si)
+        wo_l = to_local(si.wo, x, y, n)
         h = np.empty_like(wo_l)
         for dist, mask in ((GGX, ~beckmann), (BECKMANN, beckmann)):
             sel = np.flatnonzero(mask)
@@ -288,13 +290,13 @@ class MicrofacetReflection(BSDF):
         scale = self.compensation_at(si)
         if scale is not None:
             value = value * scale
-        wi = normalize(to_world(wi_l, x, y, si.n))
+        wi = normalize(to_world(wi_l, x, y, n))
         return BSDFSample(wi, np.nan_to_num(value), np.nan_to_num(pdf), np.full(len(si), LOBE, dtype=np.int8))
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ax, ay, beckmann = self._alphas(si)
-        x, y = self._frame_at(si)
-        wo_l, wi_l = to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n)
+        x, y, n = self._frame_at(si)
+        wo_l, wi_l = to_local(si.wo, x, y, n), to_local(wi, x, y, n)
         ok = (wo_l[2] > 0.0) & (wi_l[2] > 0.0)
         half = wo_l + wi_l
         length = np.sqrt(dot(half, half))

@@ -90,6 +90,7 @@ from .oren_nayar import EnergyPreservingOrenNayar
 from .principled_glass import FLAGS as GLASS_LOBES, PrincipledGlass
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
 from .sheen import LOBE as SHEEN_LOBE, MicrofiberSheen
+from .specular import specular_normal_at
 from .textures import per_hit, textured_mask
 
 FLAGS = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
@@ -346,7 +347,7 @@ class PrincipledV2(BSDF):
         """Cycles' albedo estimates (3, N) of the metallic and the specular lobe at wo (without
         their weights): darkening x mix(F0, 1, s(mu)) (bsdf_albedo)."""
         metal, specular, _ = self._views(si)
-        mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)
+        mu = np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0)   # the lobes' normal (engine/materials/specular.py)
         rows = si.material
         s_metal, s_spec = self._textured_s(si, mu, _read(self.s_metal, rows, mu), _read(self.s_specular, rows, mu))
         a_metal = self._darkening(self.metal, metal, mu) * (metal.color + (1.0 - metal.color) * s_metal)

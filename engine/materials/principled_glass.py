@@ -40,6 +40,7 @@ from .fresnel import INDEX_MATCHED
 from .glossy import fresnel_dielectric
 from .microfacet import shading_frame, to_local, to_world
 from .protocol import ShadingPoint
+from .specular import specular_normal_at
 
 FLAGS = REFLECTED | REFRACTED | PASSED
 WEIGHT_CUTOFF = 1e-5                # Cycles' CLOSURE_WEIGHT_CUTOFF
@@ -68,7 +69,8 @@ class PrincipledGlass:
     def _setup(self, si: ShadingPoint):
         mat = si.material
         eta, entering = refraction_eta(si, self.ior.take(mat))
-        frame = (*shading_frame(si.n), si.n)
+        n = specular_normal_at(si)
+        frame = (*shading_frame(n), n)
         tint = np.sqrt(np.clip(si.color, 0.0, 1.0))
         return mat, eta, entering, frame, self.f0.take(mat, axis=1), tint
 
@@ -93,7 +95,7 @@ class PrincipledGlass:
     def sample_weight(self, si: ShadingPoint) -> np.ndarray:
         """mean(R + T) (N,) at wo.n: the closure's albedo estimate (without its weight)."""
         mat, eta, _, _, f0, tint = self._setup(si)
-        r, t = self._fresnel(eta, f0, tint)(np.clip(dot(si.wo, si.n), 0.0, 1.0))
+        r, t = self._fresnel(eta, f0, tint)(np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0))
         return (r + t).mean(axis=0)
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

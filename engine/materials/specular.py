@@ -42,3 +42,12 @@ def specular_normal(si) -> np.ndarray:
     direction clears the geometric surface (Cycles' valid-reflection normal,
     engine/geometry/shading_normals.py)."""
     return ensure_valid_reflection(si.ng, si.wo, si.n) if si.smooth else si.n
+
+
+def specular_normal_at(si) -> np.ndarray:
+    """specular_normal once per hit set (ShadingPoint.memo): the normal a microfacet lobe's frame is
+    built on.  Cycles bends the closure normal of its Glossy, Metallic, Glass and Refraction BSDFs
+    and of the Principled BSDF's specular layers this way (maybe_ensure_valid_specular_reflection in
+    svm_node_closure_bsdf; its diffuse, sheen and Oren-Nayar closures keep the shading normal), so a
+    silhouette's shading normal that faces away from the viewer still gives a lobe above it."""
+    return si.memo("specular_normal", specular_normal)
