@@ -148,10 +148,9 @@ def render_cycles(scene, *, samples, max_depth, seed, threads):
 
 
 def export_tracer_scene(scene, resolution):
-    import bpy
-    from mcrt_addon.export import export_scene
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    return export_scene(depsgraph, resolution=tuple(resolution))
+    """The scene as F12 exports it (the render depsgraph, as Cycles renders it)."""
+    from mcrt_addon.headless import export_as_rendered
+    return export_as_rendered(scene, resolution=tuple(resolution))
 
 
 def tracer_settings(**kw):

@@ -14,8 +14,7 @@ import bpy  # noqa: E402
 import mcrt_addon  # noqa: E402
 from mcrt_addon import bridge  # noqa: E402
 from mcrt_addon import render_engine as engine_module  # noqa: E402
-from mcrt_addon.headless import ensure_registered, set_exr_output  # noqa: E402
-from mcrt_addon.export import export_scene  # noqa: E402
+from mcrt_addon.headless import ensure_registered, export_as_rendered, set_exr_output  # noqa: E402
 from mcrt_addon.reference import setup_cycles_reference  # noqa: E402
 
 
@@ -75,9 +74,10 @@ def cycles_runs(blend, resolution, samples, max_depth, seeds):
 
 
 def export_blend(blend, resolution):
+    """The file's scene as F12 exports it: the render depsgraph, which Cycles renders (the
+    viewport's would take modifiers at their viewport settings, mcrt_addon/headless.py)."""
     scene = open_blend(blend, resolution)
-    dg = bpy.context.evaluated_depsgraph_get()
-    return export_scene(dg, resolution=resolution)
+    return export_as_rendered(scene, resolution=resolution)
 
 
 def tncg15_runs(tracer_scene, samples, max_depth, seeds, fresnel="exact", threads=0, **extra):
