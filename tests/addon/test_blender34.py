@@ -172,6 +172,7 @@ def user_env():
     return dict(os.environ, PYTHONPATH=os.pathsep.join([REPO, site]))
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_blender_binary_renders_with_tncg15(blend34, tmp_path):
     version = blender("--version").stdout.splitlines()[0]
     r = blender("-b", "--python-use-system-env", str(blend34),
@@ -198,6 +199,7 @@ def test_blender_binary_cycles_reference_runs(blend34, tmp_path):
     assert np.isfinite(img).all() and img.mean() > 0.02
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_blender34_fills_passes_and_denoises(blend34, tmp_path):
     """Blender 3.4: the registered passes (Z, Denoising Data, Sample Count, Variance) land in its
     multi-layer EXR, and Denoise runs OIDN in a process of the worker Python (never in Blender's,
@@ -241,6 +243,7 @@ json.dump({"meshes": meshes, "warnings": result.warnings}, open(out, "w"))
 '''
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_blender34_exports_split_normals(tmp_path):
     """Blender 3.4 has no corner_normals: the exporter calls calc_normals_split() and reads
     loop_triangles.split_normals; the smooth sample's normals arrive, on the outside."""

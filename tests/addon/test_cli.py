@@ -41,6 +41,7 @@ def test_missing_file_is_an_error(tmp_path):
     assert r.returncode == 2 and "no such file" in r.stderr
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_cli_renders_both_engines(samples, tmp_path):
     for engine in ("TNCG15_MC", "CYCLES"):
         out, stats_path = tmp_path / f"{engine}.exr", tmp_path / f"{engine}.json"

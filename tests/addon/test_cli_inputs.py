@@ -57,6 +57,7 @@ def test_an_output_onto_a_file_the_render_reads_is_refused(linked, name, args, f
     assert snapshot(linked) == before
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_a_render_of_the_linking_blend_still_renders(linked):
     """The control: the same .blend and outputs elsewhere render (the refusals above are not a broken file)."""
     r = run_cli("render", linked / "main.blend", "-o", linked / "out.exr", "--stats-json", linked / "s.json",

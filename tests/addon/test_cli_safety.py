@@ -95,6 +95,7 @@ def test_failed_render_keeps_the_earlier_output(tmp_path, empty_scene):
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_png_output_is_png_and_relative_paths_are_beside_the_blend(workdir):
     r = run_cli("render", workdir / "scene.blend", "-o", "//renders/a.png", "--stats-json", "//renders/s.json",
                 "--samples", "1", "--resolution", "16", "8")
@@ -104,6 +105,7 @@ def test_png_output_is_png_and_relative_paths_are_beside_the_blend(workdir):
     assert sorted(os.listdir(workdir / "renders")) == ["a.png", "s.json"]
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_no_copy_of_the_scene_is_left_in_the_temporary_directory(workdir, tmp_path):
     tmp = tmp_path / "tmpdir"
     tmp.mkdir()
@@ -119,6 +121,7 @@ def test_no_copy_of_the_scene_is_left_in_the_temporary_directory(workdir, tmp_pa
     assert os.listdir(tmp) == []                         # no quit.blend, no private directory left
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_disk_full_is_one_line_and_keeps_the_earlier_output(tiny_disk):
     (tiny_disk / "out.exr").write_bytes(OLD_OUTPUT)
     before = snapshot(tiny_disk)
@@ -127,6 +130,7 @@ def test_disk_full_is_one_line_and_keeps_the_earlier_output(tiny_disk):
     assert snapshot(tiny_disk) == before
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_stop_signal_writes_the_finished_tiles(workdir, signum, code):
     command, env = cli("render", workdir / "scene.blend", "-o", workdir / "out.exr", "--samples", "4000",

@@ -8,6 +8,7 @@ from mcrt_addon.estimate import DEFAULT_TARGET, estimate_scene
 from rendering import open_blend
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_estimate_scene_predicts_for_the_border_at_the_panels_target(samples):
     scene = open_blend(samples["cornell"], (32, 24))
     scene.render.use_border = True

@@ -38,6 +38,7 @@ def built(built_zips):
     return built_zips
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_extension_zip_contents(built):
     with zipfile.ZipFile(built["extension"]) as zf:
         names = set(zf.namelist())
@@ -57,6 +58,7 @@ def test_extension_zip_contents(built):
         assert any(os.path.basename(w).startswith(pkg + "-") for w in wheels), (pkg, wheels)
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_blender_ext_validates(built):
     import glob
     import sysconfig
@@ -66,6 +68,7 @@ def test_blender_ext_validates(built):
     assert r.returncode == 0, r.stdout + r.stderr
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_extension_installs_and_renders_in_blender_5(built, samples, tmp_path):
     script = tmp_path / "install.py"
     script.write_text(INSTALL_AND_RENDER)
@@ -83,6 +86,7 @@ def test_extension_installs_and_renders_in_blender_5(built, samples, tmp_path):
     assert img.shape == (24, 24, 3) and np.isfinite(img).all() and img.mean() > 0.02
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_legacy_zip_is_a_3x_addon_folder(built):
     with zipfile.ZipFile(built["legacy"]) as zf:
         names = set(zf.namelist())

@@ -119,6 +119,7 @@ def bridge_describe(result):
     return bridge.module("rendering.estimate").describe(result)
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 def test_estimate_json_has_no_nan(samples):
     r = subprocess.run([sys.executable, "-m", "mcrt_addon", "estimate", samples["cornell"], "--noise-target", "1e-9",
                         "--resolution", "32", "24", "--json"], cwd=REPO, capture_output=True, text=True, timeout=600)

@@ -38,6 +38,7 @@ def test_every_local_pool_answers_every_unit_after_cancel(spec):
     check_cancel_answers_every_unit(make_pool(spec, 2, **QUIET))
 
 
+@pytest.mark.slow          # 3-40 s (subprocesses, built zips): make test-slow, which .ci/run runs too
 @pytest.mark.parametrize("spec", LOCAL_KINDS)
 def test_the_stopping_rules_give_the_same_image_on_every_pool(spec):
     """Rounds of adaptive units (noise target) on two workers of each kind: the image and the
