@@ -25,6 +25,7 @@ import numpy as np
 from ..core.vec import dot
 from ..scene.model import FRESNEL, LAYER_WEIGHT, PROGRAM, TEXTURE
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+from ..nodes.inputs import fresnel_dielectric_cos   # Cycles' Fresnel of the Fresnel and Layer Weight factors
 
 ALBEDO_FLOOR = 0.05             # a leaf's albedo estimate is at least this (black leaves may reflect)
 # Cycles' colour-to-float conversion (linear_rgb_to_gray): luminance of linear Rec.709 (rgb_to_y).
@@ -32,18 +33,6 @@ LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])
 DEAD = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION     # the flags of a hit whose weights are all 0
 
 
-def fresnel_dielectric_cos(cos, eta):
-    """Cycles' fresnel_dielectric_cos: the unpolarised reflectance at |cos| for the IOR ratio eta
-    (1 beyond the critical angle)."""
-    c = np.abs(cos)
-    g = eta * eta - 1.0 + c * c
-    ok = g > 0.0
-    g = np.sqrt(np.where(ok, g, 1.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = (g - c) / (g + c)
-        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
-        f = 0.5 * a * a * (1.0 + b * b)
-    return np.where(ok, np.nan_to_num(f, nan=1.0), 1.0)
 
 
 def factor_value(factor, si: ShadingPoint) -> np.ndarray:

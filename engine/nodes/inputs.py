@@ -151,7 +151,8 @@ def object_info(inputs, props, ctx):
 
 
 def fresnel_dielectric_cos(cos, eta):
-    """Cycles' fresnel_dielectric_cos (as engine/materials/mix.py), per point eta."""
+    """Cycles' fresnel_dielectric_cos: the unpolarised reflectance at |cos| for the IOR ratio eta, per
+    point (1 beyond the critical angle); also the mix factors' (engine/materials/mix.py)."""
     c = np.abs(cos)
     g = eta * eta - 1.0 + c * c
     ok = g > 0.0

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.shading_normals import ensure_valid_reflection as valid_reflection_3x
+
 # Bump's offsets without a camera: this fraction of the ray length (bump_offsets).
 BUMP_STEP = 1e-3
 BUMP_FILTER_WIDTH = 0.1          # Blender 4.x / 5.0: the Bump node's Filter Width default (bump_filter_width)
@@ -149,8 +151,11 @@ def ensure_valid_reflection(ng, incoming, n, cycles_version=(5, 0)):
     """The shading normal n (3, N) raised towards ng just enough that the mirror reflection of the
     direction `incoming` (towards the viewer, on ng's side) lies above the surface (by
     min(0.9 cos, 0.01)): Cycles' ensure_valid_specular_reflection (4.x / 5.0: one root of the
-    quartic) or 3.x's ensure_valid_reflection (both roots tried, ng when neither is valid)."""
+    quartic) or 3.x's ensure_valid_reflection (both roots tried, ng when neither is valid:
+    engine/geometry/shading_normals.py ensure_valid_reflection)."""
     n = np.asarray(n, dtype=np.float64)
+    if tuple(cycles_version) < (4, 0):
+        return valid_reflection_3x(ng, incoming, n)
     ni = _dot(n, incoming)
     r = 2.0 * ni * n - incoming
     iz = _dot(incoming, ng)
@@ -167,33 +172,13 @@ def ensure_valid_reflection(ng, incoming, n, cycles_version=(5, 0)):
     ix = _dot(ib, x)
     a = ix * ix + izb * izb
     a_safe = np.where(a > 0.0, a, 1.0)
-    if tuple(cycles_version) >= (4, 0):
-        b = 2.0 * (a + izb * t)
-        c = (t + izb) ** 2
-        root = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
-        nz2 = np.where(ix < 0.0, 0.25 * (b + root) / a_safe, 0.25 * (b - root) / a_safe)
-        nx, nz = np.sqrt(np.maximum(1.0 - nz2, 0.0)), np.sqrt(np.maximum(nz2, 0.0))
-        fixed = nx * x + nz * gb
-    else:
-        bb = np.sqrt(np.maximum(ix * ix * (a - t * t), 0.0))
-        cc = izb * t + a
-        fac = 0.5 / a_safe
-        n1, n2 = fac * (bb + cc), fac * (-bb + cc)
-        v1 = (n1 > 1e-5) & (n1 <= 1.0 + 1e-5)
-        v2 = (n2 > 1e-5) & (n2 <= 1.0 + 1e-5)
-        p1 = (np.sqrt(np.maximum(1.0 - n1, 0.0)), np.sqrt(np.maximum(n1, 0.0)))
-        p2 = (np.sqrt(np.maximum(1.0 - n2, 0.0)), np.sqrt(np.maximum(n2, 0.0)))
-        r1 = 2.0 * (p1[0] * ix + p1[1] * izb) * p1[1] - izb
-        r2 = 2.0 * (p2[0] * ix + p2[1] * izb) * p2[1] - izb
-        both = v1 & v2
-        w1, w2 = r1 >= 1e-5, r2 >= 1e-5
-        pick1_both = np.where(w1 & w2, r1 < r2, r1 > r2)
-        pick1 = np.where(both, pick1_both, v1)
-        nx = np.where(pick1, p1[0], p2[0])
-        nz = np.where(pick1, p1[1], p2[1])
-        fixed = np.where(v1 | v2, nx * x + nz * gb, gb)
+    b = 2.0 * (a + izb * t)
+    c = (t + izb) ** 2
+    root = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
+    nz2 = np.where(ix < 0.0, 0.25 * (b + root) / a_safe, 0.25 * (b - root) / a_safe)
+    nx, nz = np.sqrt(np.maximum(1.0 - nz2, 0.0)), np.sqrt(np.maximum(nz2, 0.0))
     out = n.copy()
-    out[:, idx] = fixed
+    out[:, idx] = nx * x + nz * gb
     return out
 
 
