@@ -19,6 +19,7 @@ def room_reference(samples):
     return cycles_runs(samples["diffuse_room"], RES, SPP, DEPTH, seeds=range(11, 11 + K))
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 @pytest.mark.parametrize("accelerator", ["octree", "embree"])
 def test_accelerator_agrees_with_cycles(samples, room_reference, accelerator):
     scene = export_blend(samples["diffuse_room"], RES).scene

@@ -26,11 +26,12 @@ TAU = {"cornell": 0.05, "mirror_glass": 0.05, "principled": 0.05, "diffuse_room"
 # tests/lights/test_light_sampling.py; suzanne_100k: suzanne_5k here and tests/geometry/test_accelerators.py;
 # the comparison's controls: glass_as_mirror, red_green_swapped and the light-unit controls stay.  Also slow,
 # their subjects covered in `make test` by the scenes that stay (cornell: area light, mirror, glass, spheres;
-# principled; mirror_glass): suzanne_5k, diffuse_room, area_light, area_mirror, nested_glass (and
-# tests/hard_cases/test_s_t_shading_transport.py), near_lamp, sun_window and point_light (tests/lights/).
+# mirror_glass): suzanne_5k, diffuse_room, area_light, area_mirror, nested_glass (and
+# tests/hard_cases/test_s_t_shading_transport.py), near_lamp, sun_window and point_light (tests/lights/);
+# principled (tests/materials/test_principled*.py in `make test`).
 SLOW = {"smooth", "textured", "spot_light", "many_lights", "suzanne_100k", "light_x1.3", "fov_lens_x1.1",
         "mirror_as_diffuse", "suzanne_5k", "diffuse_room", "area_light", "area_mirror", "nested_glass",
-        "near_lamp", "sun_window", "point_light"}
+        "near_lamp", "sun_window", "point_light", "principled"}
 
 
 def marked(*names):

@@ -60,6 +60,7 @@ def test_cli_renders_both_engines(samples, tmp_path):
             assert stats["engine"] == "CYCLES" and stats["samples"] == 4 and stats["max_bounces"] == 2
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_cli_reports_scene_errors(tmp_path, empty_scene, make_samples_module):
     import bpy
     ms = make_samples_module

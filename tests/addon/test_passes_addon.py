@@ -116,6 +116,7 @@ def test_denoise_in_blender(samples):
     assert np.abs(np.diff(combined, axis=1)).mean() < 0.7 * np.abs(np.diff(noisy, axis=1)).mean()
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_noisy_image_is_the_render_without_denoise(samples):
     """Sampling > Render > Denoise on: Combined is denoised and Noisy Image is, to the float, what
     the same render gives with Denoise off (the denoiser's albedo and normal passes change no sample)."""
@@ -130,6 +131,7 @@ def test_noisy_image_is_the_render_without_denoise(samples):
     assert np.abs(layer(ch, "Combined", "RGB") - plain).mean() > 0.01 * plain.mean()
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_addon_cli_writes_the_same_layers_as_the_tracer_cli(samples, tmp_path):
     """python -m mcrt_addon render --passes ...: Blender's multi-part EXR rewritten with the layers
     python -m engine render writes (engine/film/passes.py exr_channels), values as Blender filled them."""

@@ -88,6 +88,7 @@ def test_command_line_prints_each_progress_line_once(samples, tmp_path):
 BLENDER = shutil.which("blender")
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 @pytest.mark.skipif(BLENDER is None, reason="no `blender` binary (apt-get install blender)")
 def test_blender_binary_prints_each_progress_line_once(tmp_path):
     """Blender 3.4 prints every stats line ("Fra:1 Mem:... | TNCG15 MC | Sample ..."): the engine

@@ -47,6 +47,7 @@ def test_resolution_percentage(samples):
     assert last_report().resolution == (32, 24)
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_border_render_fills_only_the_border(samples):
     res = (64, 48)
     scene = open_blend(samples["cornell"], res)
@@ -162,6 +163,7 @@ def test_cancel_before_the_first_tile_leaves_a_black_image(samples, monkeypatch)
     assert last_report().cancelled is True and not img.any()
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_animation_renders_each_frame_with_its_transforms(empty_scene, make_samples_module, tmp_path):
     ms = make_samples_module
     ms.camera(empty_scene)

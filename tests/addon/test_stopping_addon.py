@@ -29,6 +29,7 @@ def test_estimate_operator_is_registered(empty_scene):
     assert bpy.ops.tncg15.estimate_render_time.poll()
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_cli_noise_target_stats_and_exr_metadata(tmp_path):
     import OpenImageIO as oiio
     out, stats = tmp_path / "o.exr", tmp_path / "s.json"
@@ -42,6 +43,7 @@ def test_cli_noise_target_stats_and_exr_metadata(tmp_path):
     assert spec.getattribute("tncg15:estimated_rel_error") == pytest.approx(st["estimated_rel_error"], rel=1e-6)
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_cli_estimate_prints_a_prediction(tmp_path):
     r = run_cli("estimate", f"{REPO}/sample_blends/cornell.blend", "--noise-target", "0.05",
                 "--resolution", "32", "32", "--samples", "1024", "--json")

@@ -176,6 +176,7 @@ def test_view_update_reports_problems_in_the_header(point_light):
     assert "Object 'Box'" in engine.stats[-1] and "NaN" in engine.stats[-1], engine.stats
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_material_preview_renders_with_tncg15(addon):
     import mcrt_addon.render_engine as engine_module
     bpy.ops.wm.read_factory_settings(use_empty=False)

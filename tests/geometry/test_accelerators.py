@@ -27,6 +27,7 @@ def random_rays(n, seed=0):
     return o, d
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_octree_matches_brute_force_exactly():
     tri = cornell_triangles()
     o, d = random_rays(3000)

@@ -330,6 +330,7 @@ def run(*args):
     return subprocess.run([sys.executable, "-m", "engine", *args], cwd=ROOT, capture_output=True, text=True)
 
 
+@pytest.mark.slow          # 2-5 s (renders, subprocesses): make test-slow, which .ci/run runs too
 def test_cli_noise_target_writes_error_keys_and_exr_metadata(tmp_path):
     import OpenImageIO as oiio
     out, stats = tmp_path / "o.exr", tmp_path / "s.json"
