@@ -3,22 +3,19 @@ inputs.py attribute) agrees with Cycles 5.0: the node room's ball painted per ve
 FLOAT_COLOR attribute: green on the upper half, random red and blue) into its Diffuse Color; the
 control (the attribute's red and green swapped) fails."""
 import copy
-import os
-import sys
 
 import pytest
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "addon"))
+from tests.nodes.agreement import against_cycles, compared, saved
+
 pytestmark = pytest.mark.slow
-TAU = 0.02
 
 
 @pytest.fixture(scope="module")
 def room(tmp_path_factory):
     import bpy
     import numpy as np
-    from rendering import RES, cycles_reference, export_blend
+    from rendering import RES
     from tests.nodes import node_scene
     ms = node_scene.ms
     ms.reset()
@@ -36,29 +33,21 @@ def room(tmp_path_factory):
     links.new(bsdf.outputs[0], out.inputs["Surface"])
     ball.data.materials.clear()
     ball.data.materials.append(mat)
-    path = str(tmp_path_factory.mktemp("nodes") / "painted_room.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=path)
-    return export_blend(path, RES), cycles_reference(path, "painted_room")
+    return against_cycles(saved(tmp_path_factory, "painted_room"), "painted_room")
 
 
 def test_painted_ball_agrees_with_cycles(room):
-    from imagecompare import compare_runs
-    from rendering import tncg15_agreement_runs
     exported, reference = room
     assert exported.warnings == [], exported.warnings
     assert "Paint" in next(m for m in exported.scene.meshes if m.name == "Ball").colors
-    result = compare_runs(tncg15_agreement_runs(exported.scene), reference, tau=TAU)
-    print(f"painted_room: {result.summary()}")
+    result = compared(exported.scene, reference, "painted_room")
     assert result.passed, result.summary()
 
 
 def test_comparison_catches_red_and_green_swapped(room):
-    from imagecompare import compare_runs
-    from rendering import tncg15_agreement_runs
     exported, reference = room
     scene = copy.deepcopy(exported.scene)
     ball = next(m for m in scene.meshes if m.name == "Ball")
     ball.colors["Paint"] = ball.colors["Paint"][..., [1, 0, 2]].copy()
-    result = compare_runs(tncg15_agreement_runs(scene, first_seed=2000), reference, tau=TAU)
-    print(f"painted_room, red and green swapped: {result.summary()}")
+    result = compared(scene, reference, "painted_room, red and green swapped", first_seed=2000)
     assert not result.passed, result.summary()

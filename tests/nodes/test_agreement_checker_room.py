@@ -7,25 +7,21 @@ kernel for one of these nodes (engine/nodes/registry.py).
 Measured on the merged branches (nodes-core, nodes-math, nodes-textures): image mean 0.1468 vs 0.1468,
 0 of 193 blocks beyond the bound; control 16 of 193."""
 import copy
-import os
-import sys
 
 import pytest
 
 from engine.nodes.registry import supported
+from tests.nodes.agreement import against_cycles, compared, saved
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "addon"))
 NODES = ("ShaderNodeTexChecker", "ShaderNodeTexNoise", "ShaderNodeSeparateXYZ", "ShaderNodeMath")
 pytestmark = [pytest.mark.slow,
               pytest.mark.skipif(not all(supported(n) for n in NODES), reason="the texture or math kernels are not merged")]
-TAU = 0.02
 
 
 @pytest.fixture(scope="module")
 def room(tmp_path_factory):
     import bpy
-    from rendering import RES, cycles_reference, export_blend
+    from rendering import RES
     from tests.nodes import node_scene
     ms = node_scene.ms
     ms.reset()
@@ -46,29 +42,21 @@ def room(tmp_path_factory):
     floor = bpy.data.objects["Floor"]
     floor.data.materials.clear()
     floor.data.materials.append(mat)
-    path = str(tmp_path_factory.mktemp("nodes") / "checker_room.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=path)
-    return export_blend(path, RES), cycles_reference(path, "checker_room")
+    return against_cycles(saved(tmp_path_factory, "checker_room"), "checker_room")
 
 
 def test_checker_room_agrees_with_cycles(room):
-    from imagecompare import compare_runs
-    from rendering import tncg15_agreement_runs
     exported, reference = room
     assert exported.warnings == [], exported.warnings
-    result = compare_runs(tncg15_agreement_runs(exported.scene), reference, tau=TAU)
-    print(f"checker_room: {result.summary()}")
+    result = compared(exported.scene, reference, "checker_room")
     assert result.passed, result.summary()
 
 
 def test_comparison_catches_the_checker_scale_off_by_10_percent(room):
-    from imagecompare import compare_runs
-    from rendering import tncg15_agreement_runs
     exported, reference = room
     scene = copy.deepcopy(exported.scene)
     floor = next(m for m in scene.materials if m.name == "Checkered")
     checker = next(n for n in floor.programs["color"].nodes if n.kind == "ShaderNodeTexChecker")
     checker.inputs["Scale"] = 1.1 * checker.inputs["Scale"]
-    result = compare_runs(tncg15_agreement_runs(scene, first_seed=2000), reference, tau=TAU)
-    print(f"checker_room, checker scale x 1.1: {result.summary()}")
+    result = compared(scene, reference, "checker_room, checker scale x 1.1", first_seed=2000)
     assert not result.passed, result.summary()

@@ -4,26 +4,19 @@ Texture on the floor), and the comparison catches a flipped bitangent sign and a
 
 Method as tests/addon/test_agreement_materials.py: 64 x 64, 32 spp, max depth 8, K = 4 seeds each."""
 import copy
-import os
-import sys
 
 import numpy as np
 import pytest
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "addon"))
+from tests.nodes.agreement import TAU, against_cycles, compared
 
 pytestmark = pytest.mark.slow
-TAU = 0.02
 
 
 @pytest.fixture(scope="module")
 def lit(tmp_path_factory):
-    from rendering import RES, cycles_reference, export_blend
     from tests.nodes import normal_scene
-    path = normal_scene.build(str(tmp_path_factory.mktemp("normals") / "normals.blend"))
-    exported = export_blend(path, RES)
-    return exported, cycles_reference(path, "normals")
+    return against_cycles(normal_scene.build(str(tmp_path_factory.mktemp("normals") / "normals.blend")), "normals")
 
 
 def test_normal_inputs_export_as_normal_programs_with_tangents(lit):
@@ -37,39 +30,27 @@ def test_normal_inputs_export_as_normal_programs_with_tangents(lit):
 
 
 def test_normal_map_and_bump_agree_with_cycles(lit):
-    from imagecompare import compare_runs
-    from rendering import tncg15_agreement_runs, to_png
     exported, reference = lit
-    ours = tncg15_agreement_runs(exported.scene)
-    to_png(ours.mean(0), "/tmp/normals_ours.png", 4)
-    to_png(reference.mean(0), "/tmp/normals_cycles.png", 4)
-    result = compare_runs(ours, reference, tau=TAU)
-    print(f"normals: {result.summary()}")
+    result = compared(exported.scene, reference, "normals", png="normals")
     assert result.passed, result.summary()
 
 
 def test_comparison_catches_a_flipped_bitangent_sign(lit):
-    from imagecompare import compare_runs
-    from rendering import tncg15_agreement_runs
     exported, reference = lit
     scene = copy.deepcopy(exported.scene)
     for mesh in scene.meshes:
         if mesh.tangent_signs is not None:
             mesh.tangent_signs = -mesh.tangent_signs
-    result = compare_runs(tncg15_agreement_runs(scene, first_seed=2000), reference, tau=TAU)
-    print(f"normals, bitangent sign flipped: {result.summary()}")
+    result = compared(scene, reference, "normals, bitangent sign flipped", first_seed=2000)
     assert not result.passed, result.summary()
 
 
 def test_comparison_catches_an_inverted_bump(lit):
-    from imagecompare import compare_runs
-    from rendering import tncg15_agreement_runs
     exported, reference = lit
     scene = copy.deepcopy(exported.scene)
     floor = next(m for m in scene.materials if m.name == "BumpFloor")
     next(n for n in floor.programs["normal"].nodes if n.kind == "ShaderNodeBump").props["invert"] = True
-    result = compare_runs(tncg15_agreement_runs(scene, first_seed=3000), reference, tau=TAU)
-    print(f"normals, bump inverted: {result.summary()}")
+    result = compared(scene, reference, "normals, bump inverted", first_seed=3000)
     assert not result.passed, result.summary()
 
 
@@ -77,13 +58,12 @@ def test_normals_facing_away_agree_with_cycles(tmp_path_factory):
     """The Wave Texture's colour itself into the Normal Map: its dark bands (colour ~0) give normals
     pointing into the ball, which Cycles' Diffuse keeps and its bump shadowing term darkens."""
     from imagecompare import compare_runs
-    from rendering import DEPTH, K, RES, SPP, cycles_reference, export_blend, tncg15_agreement_runs, tncg15_runs
+    from rendering import DEPTH, K, SPP, tncg15_runs
     from tests.nodes import normal_scene
-    path = normal_scene.build(str(tmp_path_factory.mktemp("normals") / "away.blend"), facing_away=True)
-    exported = export_blend(path, RES)
-    reference = cycles_reference(path, "normals_facing_away")
-    result = compare_runs(tncg15_agreement_runs(exported.scene), reference, tau=TAU)
-    print(f"normals facing away: {result.summary()}")
+    exported, reference = against_cycles(
+        normal_scene.build(str(tmp_path_factory.mktemp("normals") / "away.blend"), facing_away=True),
+        "normals_facing_away")
+    result = compared(exported.scene, reference, "normals facing away")
     assert result.passed, result.summary()
     scene = copy.deepcopy(exported.scene)          # CONTROL: without the bump shadowing term
     from engine.nodes import normals
