@@ -1,5 +1,5 @@
 """The Cycles 5.0 agreement method of the node tests (tests/addon/rendering.py, tests/addon/imagecompare.py:
-64 x 64, 32 spp, max depth 8, K = 4 seeds each), shared by tests/nodes/test_agreement_*.py."""
+64 x 64, 32 spp, max depth 8, K = 4 seeds each), shared by the node agreement tests (tests/nodes/test_agreement_nodes.py and its siblings)."""
 import os
 import sys
 
