@@ -303,14 +303,11 @@ class PrincipledV2(BSDF):
     def _views(self, si: ShadingPoint):
         """The ShadingPoints the three lobes see: the colour is F0 of the metal (the clamped base
         colour), F0 x tint of the specular layer, the base colour of the diffuse.  The two
-        microfacet lobes see Cycles' valid-reflection normal (closure.h valid_reflection_N,
-        maybe_ensure_valid_specular_reflection: under smooth shading the normal bent just enough
-        that the mirror direction of wo clears the geometric surface, engine/materials/specular.py
-        specular_normal_at); the diffuse lobe the shading normal."""
+        microfacet lobes build their frames on Cycles' valid-reflection normal themselves
+        (engine/materials/glossy.py, engine/materials/specular.py specular_normal_at); the diffuse
+        lobe keeps the shading normal."""
         def views(at):
-            n = specular_normal_at(at)
-            return (at.recolour(np.minimum(at.color, 1.0), n),
-                    at.recolour(self.spec_f0.take(at.material, axis=1), n))
+            return (at.recolour(np.minimum(at.color, 1.0)), at.recolour(self.spec_f0.take(at.material, axis=1)))
         metal, specular = si.memo((self, "views"), views)
         return metal, specular, si
 
@@ -354,7 +351,7 @@ class PrincipledV2(BSDF):
         """Cycles' albedo estimates (3, N) of the metallic and the specular lobe at wo (without
         their weights): darkening x mix(F0, 1, s(mu)) (bsdf_albedo)."""
         metal, specular, _ = self._views(si)
-        mu = np.clip(dot(si.wo, specular.n), 0.0, 1.0)         # the lobes' normal (bsdf_albedo)
+        mu = np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0)   # the lobes' normal (bsdf_albedo)
         rows = si.material
         s_metal, s_spec = self._textured_s(si, mu, _read(self.s_metal, rows, mu), _read(self.s_specular, rows, mu))
         a_metal = self._darkening(self.metal, metal, mu) * (metal.color + (1.0 - metal.color) * s_metal)

@@ -126,11 +126,10 @@ class ShadingPoint:
                 self._memo[key] = take_hits(source.memo(key, compute), index)
         return self._memo[key]
 
-    def recolour(self, color: np.ndarray, n: np.ndarray | None = None) -> "ShadingPoint":
-        """These hits with another colour (a lobe's view of them), and another shading normal n
-        where given: a memo of its own, which a take of it gathers from as from the view of a
-        span when these hits are one."""
-        view = replace(self, color=color) if n is None else replace(self, color=color, n=n)
+    def recolour(self, color: np.ndarray) -> "ShadingPoint":
+        """These hits with another colour (a lobe's view of them): a memo of its own, which a take
+        of it gathers from as from the view of a span when these hits are one."""
+        view = replace(self, color=color)
         object.__setattr__(view, "_shared", self._shared)
         return view
 
