@@ -1,0 +1,150 @@
+"""Node-group graphs for the group tests (tests/nodes/test_node_groups*.py), built in the running
+Blender (5.0 in process, or 3.4 through tests/nodes/flat_quad.py): `new_group` makes a group tree
+with the 3.x (`tree.inputs/outputs`) or 4.x/5.0 (`tree.interface`) interface; `build_nested` is the
+flat-quad build of the nested graph; `compiled` compiles the graph feeding a socket with the
+exporter's GraphCompiler (mcrt_addon/export/node_graph.py) in that Blender, as JSON data
+(engine/scene/programs.py program_json), so that the test can run it in the tracer."""
+from tests.nodes import flat_quad
+
+SOCKETS = {"VALUE": "NodeSocketFloat", "RGBA": "NodeSocketColor", "VECTOR": "NodeSocketVector"}
+
+
+def new_group(name, inputs=(), outputs=()):
+    """A shader node group with `inputs` / `outputs` [(name, "VALUE" | "RGBA" | "VECTOR", default)]
+    and its Group Input and Group Output nodes: (tree, group input node, group output node)."""
+    import bpy
+    tree = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    for in_out, sockets in (("INPUT", inputs), ("OUTPUT", outputs)):
+        for sock_name, kind, default in sockets:
+            if hasattr(tree, "interface"):                       # Blender 4.0 and later
+                item = tree.interface.new_socket(sock_name, in_out=in_out, socket_type=SOCKETS[kind])
+            else:                                                # Blender 3.x
+                item = (tree.inputs if in_out == "INPUT" else tree.outputs).new(SOCKETS[kind], sock_name)
+            if default is not None:
+                item.default_value = default if kind == "VALUE" else tuple(default) + ((1.0,) if kind == "RGBA" else ())
+    gin = tree.nodes.new("NodeGroupInput")
+    gout = tree.nodes.new("NodeGroupOutput")
+    return tree, gin, gout
+
+
+def group_node(nodes, tree, **values):
+    """A group node of `tree` in `nodes`, its input sockets set from `values` (socket name -> value)."""
+    node = nodes.new("ShaderNodeGroup")
+    node.node_tree = tree
+    for name, value in values.items():
+        sock = node.inputs[name]
+        sock.default_value = value if isinstance(value, float) else tuple(value) + ((1.0,) if sock.type == "RGBA" else ())
+    return node
+
+
+def warp_group():
+    """Inner group: Vector x Scale + (0.3, -0.2, 0.1), a reroute and a muted Invert on the way."""
+    tree, gin, gout = new_group("Warp", [("Vector", "VECTOR", None), ("Scale", "VALUE", 2.0)],
+                                [("Vector", "VECTOR", None)])
+    mul = tree.nodes.new("ShaderNodeVectorMath")
+    mul.operation = "MULTIPLY"
+    tree.links.new(gin.outputs["Vector"], mul.inputs[0])
+    tree.links.new(gin.outputs["Scale"], mul.inputs[1])          # a float into a vector: grey
+    reroute = tree.nodes.new("NodeReroute")
+    tree.links.new(mul.outputs[0], reroute.inputs[0])
+    add = tree.nodes.new("ShaderNodeVectorMath")
+    add.operation = "ADD"
+    add.inputs[1].default_value = (0.3, -0.2, 0.1)
+    tree.links.new(reroute.outputs[0], add.inputs[0])
+    muted = tree.nodes.new("ShaderNodeVectorMath")             # muted: passes its first input through
+    muted.operation = "SCALE"
+    muted.mute = True
+    tree.links.new(add.outputs[0], muted.inputs[0])
+    tree.links.new(muted.outputs[0], gout.inputs["Vector"])
+    return tree
+
+
+def tint_group(warp, swap=False):
+    """Outer group (nests Warp): Noise at Warp(Vector, Fac x 3) multiplied by Color, mixed by Fac;
+    outputs Color, Value (the colour through a Float socket: its luminance) and Spare (unlinked,
+    default 0.25).  swap: the control, Color and Fac taken from each other's sockets inside."""
+    tree, gin, gout = new_group("Tint", [("Vector", "VECTOR", None), ("Color", "RGBA", (0.9, 0.6, 0.3)),
+                                         ("Fac", "VALUE", 0.5)],
+                                [("Color", "RGBA", None), ("Value", "VALUE", None), ("Spare", "VALUE", 0.25)])
+    fac, color = ("Color", "Fac") if swap else ("Fac", "Color")
+    scale = tree.nodes.new("ShaderNodeMath")
+    scale.operation = "MULTIPLY"
+    scale.inputs[1].default_value = 3.0
+    tree.links.new(gin.outputs[fac], scale.inputs[0])
+    inner = tree.nodes.new("ShaderNodeGroup")
+    inner.node_tree = warp
+    tree.links.new(gin.outputs["Vector"], inner.inputs["Vector"])
+    tree.links.new(scale.outputs[0], inner.inputs["Scale"])
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.5
+    tree.links.new(inner.outputs["Vector"], noise.inputs["Vector"])
+    mix = tree.nodes.new("ShaderNodeMix")
+    mix.data_type, mix.blend_type = "RGBA", "MULTIPLY"
+    tree.links.new(gin.outputs[fac], mix.inputs["Factor"])
+    tree.links.new(noise.outputs["Color"], mix.inputs[6])
+    tree.links.new(gin.outputs[color], mix.inputs[7])
+    tree.links.new(mix.outputs[2], gout.inputs["Color"])
+    tree.links.new(mix.outputs[2], gout.inputs["Value"])
+    return tree
+
+
+def build_nested(nodes, links, coord, swap=False):
+    """Flat-quad build: Tint used twice (the second fed the first's colour and a mapped coordinate),
+    a colour math chain after them; one AOV per output."""
+    warp = warp_group()
+    tint = tint_group(warp, swap=swap)
+    first = group_node(nodes, tint, Color=(1.0, 0.5, 0.2), Fac=0.7)
+    links.new(coord, first.inputs["Vector"])
+    mapping = nodes.new("ShaderNodeMapping")
+    mapping.inputs["Location"].default_value = (0.5, 0.25, 0.0)
+    mapping.inputs["Scale"].default_value = (1.5, 0.75, 1.0)
+    links.new(coord, mapping.inputs["Vector"])
+    second = group_node(nodes, tint, Fac=0.3)
+    links.new(mapping.outputs[0], second.inputs["Vector"])
+    links.new(first.outputs["Color"], second.inputs["Color"])
+    gamma = nodes.new("ShaderNodeGamma")
+    gamma.inputs["Gamma"].default_value = 1.7
+    links.new(second.outputs["Color"], gamma.inputs["Color"])
+    hsv = nodes.new("ShaderNodeHueSaturation")
+    hsv.inputs["Hue"].default_value = 0.6
+    links.new(gamma.outputs[0], hsv.inputs["Color"])
+    links.new(first.outputs["Value"], hsv.inputs["Fac"])
+    narrow, gin, gout = new_group("Narrow", [("X", "VALUE", 0.5)], [("Color", "RGBA", None)])
+    inside = narrow.nodes.new("ShaderNodeGamma")                # the float input into a colour socket
+    narrow.links.new(gin.outputs["X"], inside.inputs["Color"])
+    narrow.links.new(inside.outputs[0], gout.inputs["Color"])
+    through = group_node(nodes, narrow)
+    links.new(first.outputs["Color"], through.inputs["X"])      # a colour into the Float group input
+    result = {"first": first.outputs["Color"], "second": second.outputs["Color"],
+              "value": first.outputs["Value"], "spare": second.outputs["Spare"], "chain": hsv.outputs[0],
+              "narrow": through.outputs["Color"]}
+    flat_quad.KEPT["programs"] = {name: compiled(nodes, sock) for name, sock in result.items()}
+    return result
+
+
+class _Table:
+    """What GraphCompiler needs of export/materials.py MaterialTable: warn, images, version."""
+
+    def __init__(self):
+        import bpy
+        self.warnings, self.images, self.version = [], None, tuple(bpy.app.version[:2])
+
+    def warn(self, mat, node, text):
+        self.warnings.append(f"Material '{mat.name}', node '{getattr(node, 'name', '')}': {text}")
+
+
+def compiled(nodes, sock, target="RGBA"):
+    """The program (JSON data) of the graph feeding output `sock`, through a probe Emission node's
+    Color (removed again), and the compiler's warnings: {"program": ..., "warnings": [...]}."""
+    from engine.nodes import evaluator, registry
+    from engine.scene import programs
+    from mcrt_addon.export.node_graph import GraphCompiler
+    tree = sock.id_data
+    probe = nodes.new("ShaderNodeEmission")
+    tree.links.new(sock, probe.inputs["Color"])
+    table = _Table()
+    compiler = GraphCompiler(table, programs, evaluator, registry)
+    program, value = compiler.compile(tree, probe, probe.inputs["Color"], target)
+    nodes.remove(probe)
+    return {"program": None if program is None else programs.program_json(program),
+            "value": value, "warnings": table.warnings}
