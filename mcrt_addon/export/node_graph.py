@@ -45,6 +45,9 @@ class Feed(NamedTuple):
     narrow: bool = False
 
 
+BLOCKED = "blocked"      # resolve(): a group that cannot be entered (warned): the input keeps its value
+
+
 class Constant(NamedTuple):
     """A group socket's value feeding an input (`type`: the socket type it has, e.g. "RGBA")."""
     value: object
@@ -151,7 +154,7 @@ class GraphCompiler:
         feed = self.resolve(sock)
         if isinstance(feed, Constant):            # a group socket's value, converted as a link is
             return None, self._constant_as(feed, target)
-        if feed is None:
+        if feed is None or feed is BLOCKED:
             return None, None
         root = self.emit(feed.node, feed.out, path=feed.path)
         if root is None:
@@ -173,8 +176,8 @@ class GraphCompiler:
     # -- node groups -------------------------------------------------------------------------------
     def resolve(self, sock, path=()):
         """What feeds the input ``sock`` of a node inside the group nodes ``path``: a Feed (a node
-        output, through any groups), a Constant (a group socket's value) or None (unlinked, or a group
-        that cannot be entered: warned)."""
+        output, through any groups), a Constant (a group socket's value), None (unlinked) or BLOCKED (a
+        group that cannot be entered: warned)."""
         found = source_of(sock)
         if found is None:
             return None
@@ -192,12 +195,12 @@ class GraphCompiler:
                 self.warned = True
                 self.warn(self.mat, node, "is a node group without a node tree; the input it feeds uses its "
                                           "unlinked value", path)
-                return None
+                return BLOCKED
             if any(g.node_tree == tree for g in path):
                 self.warned = True
                 self.warn(self.mat, node, f"node group '{tree.name}' contains itself; the input it feeds uses "
                                           "its unlinked value", path)
-                return None
+                return BLOCKED
             output = active_group_output(tree)
             inner = _matching(output.inputs, out) if output is not None else None
             if inner is None:
@@ -211,6 +214,8 @@ class GraphCompiler:
         Cycles' group proxies convert there (a colour or vector through a Float socket becomes a
         float); Blender 5.0 inlines the groups first and converts only at the node that reads it
         (both measured: tests/nodes/test_node_groups_cycles.py)."""
+        if feed is BLOCKED:
+            return feed
         if feed is None:                          # unlinked: the socket's own value
             value = _socket_value(boundary)
             return None if value is None else Constant(value, boundary.type)
