@@ -110,6 +110,19 @@ def _matching(sockets, sock):
     return None
 
 
+def _read_upstream(node):
+    """Record every node upstream of ``node`` as read (util.linked_from): what feeds a group node's
+    inputs that its used outputs do not read is irrelevant, not "unmodelled"
+    (unsupported.node_warnings); what they do read is compiled and named by emit when unsupported."""
+    seen, stack = set(), [node]
+    while stack:
+        for sock in stack.pop().inputs:
+            source = linked_from(sock) if sock.is_linked else None
+            if source is not None and source.as_pointer() not in seen:
+                seen.add(source.as_pointer())
+                stack.append(source)
+
+
 def active_group_output(tree):
     """The Group Output node of a node group's tree that Cycles reads (the active one), or None."""
     outputs = [n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"]
@@ -201,6 +214,8 @@ class GraphCompiler:
                 self.warn(self.mat, node, f"node group '{tree.name}' contains itself; the input it feeds uses "
                                           "its unlinked value", path)
                 return BLOCKED
+            if not path:
+                _read_upstream(node)
             output = active_group_output(tree)
             inner = _matching(output.inputs, out) if output is not None else None
             if inner is None:

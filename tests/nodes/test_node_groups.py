@@ -1,6 +1,7 @@
 """Node groups in the exporter (mcrt_addon/export/node_graph.py, bpy 5.0): a Principled material whose
 Base Color comes from a group exports without a warning and with the same program as the same graph
-ungrouped (the control: a group whose inner link is changed gives another program); a group without a
+ungrouped (the control: a group whose inner link is changed gives another program), and what feeds
+only an unused group input is not warned about; a group without a
 node tree is named with the material; an unlinked group Vector into a texture keeps the texture's
 implicit coordinates; a colour through a Float group socket is a float before 5.0 only."""
 import os
@@ -59,7 +60,7 @@ def shape(program):
     return [(n.kind, n.props, n.inputs) for n in program.nodes], program.output
 
 
-def test_grouped_graph_exports_like_the_ungrouped_one_without_warnings(scene):
+def test_grouped_graph_exports_like_the_ungrouped_one(scene):
     def plain(nodes, links):
         coords = nodes.new("ShaderNodeTexCoord")
         value = nodes.new("ShaderNodeValue")
@@ -91,11 +92,24 @@ def test_grouped_graph_exports_like_the_ungrouped_one_without_warnings(scene):
             return node.outputs["Color"]
         return build
 
+    def unused_input(nodes, links):
+        """A group whose input B feeds only its unused output: what feeds B is not warned; a Bevel
+        (unsupported) feeding the used input A is, once."""
+        tree, gin, gout = new_group("Two", [("A", "RGBA", None), ("B", "RGBA", None)],
+                                    [("C", "RGBA", None), ("D", "RGBA", None)])
+        tree.links.new(gin.outputs["A"], gout.inputs["C"])
+        tree.links.new(gin.outputs["B"], gout.inputs["D"])
+        node = group_node(nodes, tree)
+        links.new(nodes.new("ShaderNodeBevel").outputs[0], node.inputs["A"])
+        links.new(nodes.new("ShaderNodeTexWave").outputs["Color"], node.inputs["B"])
+        return node.outputs["C"]
+
     principled("Plain", plain, scene)
     principled("Grouped", grouped(), scene)
     principled("Other", grouped("Generated"), scene)
+    principled("Unused", unused_input, scene)
     result = export()
-    assert result.warnings == [], result.warnings
+    assert len(result.warnings) == 1 and "Material 'Unused', node 'Bevel'" in result.warnings[0], result.warnings
     m = {x.name: x for x in result.scene.materials}
     assert shape(m["Grouped"].programs["color"]) == shape(m["Plain"].programs["color"])
     assert shape(m["Other"].programs["color"]) != shape(m["Plain"].programs["color"])      # control
