@@ -1,7 +1,8 @@
 """Node-group graphs for the group tests (tests/nodes/test_node_groups*.py), built in the running
 Blender (5.0 in process, or 3.4 through tests/nodes/flat_quad.py): `new_group` makes a group tree
 with the 3.x (`tree.inputs/outputs`) or 4.x/5.0 (`tree.interface`) interface; `build_nested` is the
-flat-quad build of the nested graph; `compiled` compiles the graph feeding a socket with the
+flat-quad build of the nested graph; `build_group_room` a user-like scene (tests/nodes/test_node_groups_room.py);
+`compiled` compiles the graph feeding a socket with the
 exporter's GraphCompiler (mcrt_addon/export/node_graph.py) in that Blender, as JSON data
 (engine/scene/programs.py program_json), so that the test can run it in the tracer."""
 from tests.nodes import flat_quad
@@ -148,3 +149,80 @@ def compiled(nodes, sock, target="RGBA"):
     nodes.remove(probe)
     return {"program": None if program is None else programs.program_json(program),
             "value": value, "warnings": table.warnings}
+
+
+# -- a user-like scene: the room of sample_blends/make_samples.py with a marble node group --------------
+def ms():
+    """sample_blends/make_samples.py (the scene helpers), imported on first use."""
+    import os
+    import sys
+    here = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "sample_blends")
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    import make_samples
+    return make_samples
+
+
+def marble_group():
+    """Noise (scale from the group input) -> Color Ramp -> the mix of the Vein and Stone colours."""
+    tree, gin, gout = new_group("Marble", [("Vector", "VECTOR", None), ("Scale", "VALUE", 4.0),
+                                           ("Vein", "RGBA", (0.05, 0.05, 0.08)), ("Stone", "RGBA", (0.9, 0.88, 0.8))],
+                                [("Color", "RGBA", None)])
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Detail"].default_value = 6.0
+    tree.links.new(gin.outputs["Vector"], noise.inputs["Vector"])
+    tree.links.new(gin.outputs["Scale"], noise.inputs["Scale"])
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].position, ramp.color_ramp.elements[1].position = 0.42, 0.58
+    tree.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    mix = tree.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    tree.links.new(ramp.outputs["Color"], mix.inputs["Factor"])
+    tree.links.new(gin.outputs["Vein"], mix.inputs[6])
+    tree.links.new(gin.outputs["Stone"], mix.inputs[7])
+    tree.links.new(mix.outputs[2], gout.inputs["Color"])
+    return tree
+
+
+def marble_material(name, tree, object_space, **values):
+    """A Principled BSDF whose Base Color is the Marble group of Position (object_space: through a
+    Vector Transform from World to Object)."""
+    mat, nodes, links, out = ms().empty_material(name)
+    bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Roughness"].default_value = 0.35
+    links.new(bsdf.outputs[0], out.inputs["Surface"])
+    group = group_node(nodes, tree, **values)
+    geo = nodes.new("ShaderNodeNewGeometry")
+    if object_space:
+        vt = nodes.new("ShaderNodeVectorTransform")
+        vt.vector_type, vt.convert_from, vt.convert_to = "POINT", "WORLD", "OBJECT"
+        links.new(geo.outputs["Position"], vt.inputs["Vector"])
+        links.new(vt.outputs["Vector"], group.inputs["Vector"])
+    else:
+        links.new(geo.outputs["Position"], group.inputs["Vector"])
+    links.new(group.outputs["Color"], bsdf.inputs["Base Color"])
+    return mat
+
+
+def build_group_room(path, res):
+    """The room (Cornell box) whose floor and ball take their Base Color from the Marble group, used
+    twice with different inputs (the ball's coordinates through a Vector Transform), saved at path."""
+    import math
+
+    import bpy
+    m = ms()
+    scene = m.reset()
+    mats = dict(white=m.diffuse("White", (0.73, 0.73, 0.73)), red=m.diffuse("Red", (0.65, 0.05, 0.05)),
+                green=m.diffuse("Green", (0.12, 0.45, 0.15)), light=m.emission("Lamp", (1.0, 1.0, 1.0), 14.0))
+    m.room(scene, mats, light_size=0.6)
+    tree = marble_group()
+    floor = bpy.data.objects["Floor"]
+    floor.data.materials.clear()
+    floor.data.materials.append(marble_material("MarbleFloor", tree, False, Scale=3.0))
+    ball = marble_material("MarbleBall", tree, True, Scale=6.0, Vein=(0.5, 0.05, 0.02), Stone=(0.95, 0.75, 0.3))
+    m.mesh_object(scene, "Ball", lambda bm: m.uv_sphere(bm, 0.35), ball, location=(0.2, 0.1, 0.5),
+                  rotation=(0.0, 0.0, math.radians(40)), smooth=True)
+    m.camera(scene)
+    m.black_world(scene)
+    m.settings(scene, res)
+    bpy.ops.wm.save_as_mainfile(filepath=path)
