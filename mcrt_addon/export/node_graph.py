@@ -14,9 +14,9 @@ muted nodes' internal links), depth first, and emits them in topological order:
   around it), as Cycles' group proxies (its blender/shader.cpp add_nodes, scene/shader_graph.cpp
   remove_proxy_nodes): a Group Input output is the group node's input socket (its link, else its
   value), a group node's output the active Group Output's input socket (its link, else its value).
-  A value reaches the socket converted as a link (a hidden-value Vector, a texture's coordinates or
-  a Normal, keeps its implicit link instead); before Blender 5.0 a colour or vector through a Float
-  group socket becomes a float there (luminance, average), as Cycles' proxies convert;
+  A value reaches the socket converted as a link; before Blender 5.0 (Cycles' proxies) a hidden-value
+  Vector (a texture's coordinates, a Normal) keeps its implicit link instead, and a colour or vector
+  through a Float group socket becomes a float there (luminance, average);
 * a node type without a kernel (engine/nodes/registry.py), a group without a node tree or one that
   contains itself: one warning naming the material and the node (and the group it is in), and the
   input it feeds keeps its default value.
@@ -234,7 +234,7 @@ class GraphCompiler:
         if feed is None:                          # unlinked: the socket's own value
             value = _socket_value(boundary)
             return None if value is None else Constant(value, boundary.type)
-        if not self.converts_at_groups():
+        if not self.group_proxies():
             return feed
         if isinstance(feed, Constant):
             return Constant(self._constant_as(feed, boundary.type), boundary.type)
@@ -242,7 +242,8 @@ class GraphCompiler:
             return feed._replace(narrow=True)
         return feed
 
-    def converts_at_groups(self):
+    def group_proxies(self):
+        """Whether Cycles sees the groups through its proxies (before Blender 5.0), not inlined."""
         return tuple(getattr(self.table, "version", (5, 0)))[:2] < (5, 0)
 
     def _constant_as(self, const, target):
@@ -306,9 +307,9 @@ class GraphCompiler:
                                                           SOCKET_KINDS.get(sock.type, "RGBA"))
                     continue
             hidden_vector = getattr(sock, "hide_value", False) and sock.type == "VECTOR"
-            if isinstance(feed, Constant) and not hidden_vector:
+            if isinstance(feed, Constant) and not (hidden_vector and self.group_proxies()):
                 inputs[sock.identifier] = self._constant_as(feed, SOCKET_KINDS.get(sock.type, "VALUE"))
-                continue                          # a group socket's value (a hidden Vector keeps its implicit link)
+                continue                          # a group socket's value (before 5.0 a hidden Vector keeps its implicit link)
             if sock.identifier == "Vector" and kind.startswith("ShaderNodeTex"):
                 inputs[sock.identifier] = self.implicit_vector(kind)
                 continue

@@ -89,9 +89,10 @@ def tint_group(warp, swap=False):
     return tree
 
 
-def build_nested(nodes, links, coord, swap=False):
+def build_nested(nodes, links, coord, swap=False, rules=None):
     """Flat-quad build: Tint used twice (the second fed the first's colour and a mapped coordinate),
-    a colour math chain after them; one AOV per output."""
+    a colour math chain after them, the Narrow and Implicit groups; one AOV per output.  The graph's
+    programs are compiled for the running Blender, or for the Blender `rules` ([major, minor])."""
     warp = warp_group()
     tint = tint_group(warp, swap=swap)
     first = group_node(nodes, tint, Color=(1.0, 0.5, 0.2), Fac=0.7)
@@ -116,10 +117,26 @@ def build_nested(nodes, links, coord, swap=False):
     narrow.links.new(inside.outputs[0], gout.inputs["Color"])
     through = group_node(nodes, narrow)
     links.new(first.outputs["Color"], through.inputs["X"])      # a colour into the Float group input
+    implicit, gin, gout = new_group("Implicit", [("Vector", "VECTOR", (0.3, 0.6, 0.9))],
+                                    [("Texture", "VALUE", None), ("Math", "VECTOR", None), ("Mapped", "VECTOR", None)])
+    gradient = implicit.nodes.new("ShaderNodeTexGradient")       # its hidden Vector: Generated when unlinked
+    implicit.links.new(gin.outputs["Vector"], gradient.inputs["Vector"])
+    implicit.links.new(gradient.outputs["Fac"], gout.inputs["Texture"])
+    add = implicit.nodes.new("ShaderNodeVectorMath")             # a plain Vector: the group socket's value
+    add.inputs[1].default_value = (0.0, 0.0, 0.0)
+    implicit.links.new(gin.outputs["Vector"], add.inputs[0])
+    implicit.links.new(add.outputs[0], gout.inputs["Math"])
+    mapping = implicit.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Location"].default_value = (0.1, 0.0, 0.0)
+    implicit.links.new(gin.outputs["Vector"], mapping.inputs["Vector"])
+    implicit.links.new(mapping.outputs[0], gout.inputs["Mapped"])
+    unlinked = group_node(nodes, implicit)
+    geo = nodes.new("ShaderNodeNewGeometry")
     result = {"first": first.outputs["Color"], "second": second.outputs["Color"],
               "value": first.outputs["Value"], "spare": second.outputs["Spare"], "chain": hsv.outputs[0],
-              "narrow": through.outputs["Color"]}
-    flat_quad.KEPT["programs"] = {name: compiled(nodes, sock) for name, sock in result.items()}
+              "narrow": through.outputs["Color"], "implicit": unlinked.outputs["Texture"],
+              "math": unlinked.outputs["Math"], "mapped": unlinked.outputs["Mapped"], "P": geo.outputs["Position"]}
+    flat_quad.KEPT["programs"] = {name: compiled(nodes, sock, version=rules) for name, sock in result.items()}
     return result
 
 
@@ -134,9 +151,10 @@ class _Table:
         self.warnings.append(f"Material '{mat.name}', node '{getattr(node, 'name', '')}': {text}")
 
 
-def compiled(nodes, sock, target="RGBA"):
+def compiled(nodes, sock, target="RGBA", version=None):
     """The program (JSON data) of the graph feeding output `sock`, through a probe Emission node's
-    Color (removed again), and the compiler's warnings: {"program": ..., "warnings": [...]}."""
+    Color (removed again), and the compiler's warnings: {"program": ..., "warnings": [...]}; version:
+    the Blender the compiler takes the scene for (default: the running one)."""
     from engine.nodes import evaluator, registry
     from engine.scene import programs
     from mcrt_addon.export.node_graph import GraphCompiler
@@ -144,6 +162,7 @@ def compiled(nodes, sock, target="RGBA"):
     probe = nodes.new("ShaderNodeEmission")
     tree.links.new(sock, probe.inputs["Color"])
     table = _Table()
+    table.version = tuple(version or table.version)
     compiler = GraphCompiler(table, programs, evaluator, registry)
     program, value = compiler.compile(tree, probe, probe.inputs["Color"], target)
     nodes.remove(probe)

@@ -175,7 +175,10 @@ def test_a_group_without_its_tree_and_one_inside_itself_are_named_with_the_mater
     assert "inside node group 'Loop'" in warnings[0]
 
 
-def test_unlinked_group_vector_keeps_the_textures_implicit_coordinates():
+@pytest.mark.parametrize("version", [(3, 4), (5, 0)])
+def test_unlinked_group_vector_into_a_texture(version):
+    """Before 5.0 the texture keeps its implicit coordinates (Cycles' proxies); 5.0 gives it the
+    group socket's value (both measured: tests/nodes/test_node_groups_cycles.py)."""
     mat, nodes, links, out = ms.empty_material("Implicit")
     tree, gin, gout = new_group("Tex", [("Vector", "VECTOR", (0.5, 0.5, 0.5)), ("Scale", "VALUE", 3.0)],
                                 [("Color", "RGBA", None)])
@@ -184,13 +187,20 @@ def test_unlinked_group_vector_keeps_the_textures_implicit_coordinates():
     tree.links.new(gin.outputs["Scale"], noise.inputs["Scale"])
     tree.links.new(noise.outputs["Color"], gout.inputs["Color"])
     node = group_node(nodes, tree, Scale=7.0)
-    info = compiled(nodes, node.outputs["Color"])
+    geo = nodes.new("ShaderNodeNewGeometry")                 # a varying W keeps the graph a program
+    noise.noise_dimensions = "4D"
+    links.new(geo.outputs["Backfacing"], node.inputs["Scale"])
+    tree.links.new(gin.outputs["Scale"], noise.inputs["W"])
+    info = compiled(nodes, node.outputs["Color"], version=version)
     assert info["warnings"] == []
     program = info["program"]
     kinds = [n["type"] for n in program["nodes"]]
-    assert kinds == ["ShaderNodeTexCoord", "ShaderNodeTexNoise"], kinds
-    assert program["nodes"][0]["props"]["_outputs"] == ["Generated"]
-    assert program["nodes"][1]["inputs"]["Scale"] == {"value": 7.0}          # the group node's value
+    if version < (5, 0):
+        assert kinds == ["ShaderNodeTexCoord", "ShaderNodeNewGeometry", "ShaderNodeTexNoise"], kinds
+        assert program["nodes"][0]["props"]["_outputs"] == ["Generated"]
+    else:
+        assert kinds == ["ShaderNodeNewGeometry", "ShaderNodeTexNoise"], kinds
+        assert program["nodes"][1]["inputs"]["Vector"] == {"value": [0.5, 0.5, 0.5]}
     del mat, links, out
 
 
