@@ -18,7 +18,7 @@ program pays only for what its nodes read.  Names (rows (3, N) unless noted), as
   object_normal   normalize(M^T N), N in object space (Cycles' object_inverse_normal_transform)
   object_location the object's origin in world space
   object_random   (N,) Object Info's Random (Cycles' random_id / 0xFFFFFFFF)
-  camera          P in Cycles' camera space (x right, y up, z forward)
+  camera          P in Cycles' camera space (x right, y up, z forward; the camera's scale cleared)
   ray_depth       (N,) the bounce the hit was found on (0: the camera ray)
   ray_kind        (N,) int: 0 camera, 1 diffuse, 2 glossy, 3 transmission (the ray that found the hit),
                   4 a light sample (a shadow ray)
@@ -86,6 +86,16 @@ class NodeContext:
         return np.zeros((3, self.n))
 
 
+def camera_to_world(camera) -> np.ndarray:
+    """(4, 4) Cycles' camera space (x right, y up, z forward) -> world: the camera's matrix with z
+    flipped and its scale cleared (Cycles' blender_camera_matrix)."""
+    m = np.asarray(camera.matrix, dtype=np.float64) @ np.diag([1.0, 1.0, -1.0, 1.0])
+    scale = np.linalg.norm(m[:3, :3], axis=0)
+    scale = np.where(np.abs(scale - 1.0) < 1e-12, 1.0, np.maximum(scale, 1e-300))     # unscaled: as it was
+    m[:3, :3] = m[:3, :3] / scale
+    return m
+
+
 def camera_window(camera, width: int, height: int):
     """points rows (3, N) -> Window rows (3, N) of a camera (engine/scene/model.py Camera; a `type`
     "ORTHO" with `ortho_scale`, when a camera has them, projects orthographically): where each point
@@ -100,7 +110,7 @@ def camera_window(camera, width: int, height: int):
         plane_w, plane_h, extent = view_plane(_Lens(camera, lens), width, height)
     else:
         plane_w, plane_h, extent = view_plane(camera, width, height)
-    to_camera = np.linalg.inv(np.asarray(camera.matrix, dtype=np.float64) @ np.diag([1.0, 1.0, -1.0, 1.0]))
+    to_camera = np.linalg.inv(camera_to_world(camera))
 
     def window(points):
         local = to_camera[:3, :3] @ points + to_camera[:3, 3:4]
@@ -197,8 +207,7 @@ class SceneAttributes:
         self.window = None
         if cam is not None:
             self.window = camera_window(cam, *(int(c) for c in getattr(scene, "resolution", (256, 256))))
-            to_world = np.asarray(cam.matrix, dtype=np.float64) @ np.diag([1.0, 1.0, -1.0, 1.0])
-            self.world_to_camera = np.linalg.inv(to_world)
+            self.world_to_camera = np.linalg.inv(camera_to_world(cam))
             # The camera's axes and one pixel's size at unit distance, for Bump's footprint.
             w, h = (int(c) for c in getattr(scene, "resolution", (256, 256)))
             fit = getattr(cam, "sensor_fit", "AUTO")

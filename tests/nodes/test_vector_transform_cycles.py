@@ -19,7 +19,7 @@ RES = 32
 SPACES = ("WORLD", "OBJECT", "CAMERA")
 KINDS = ("POINT", "VECTOR", "NORMAL")
 PLANE = {"location": (0.1, -0.2, -0.3), "rotation_euler": (0.3, -0.2, 0.5), "scale": (3.0, 2.5, 1.0)}
-CAMERA_OBJECT = {"location": (0.0, 0.0, 2.0), "rotation_euler": (0.0, 0.0, 0.4)}
+CAMERA_OBJECT = {"location": (0.0, 0.0, 2.0), "rotation_euler": (0.0, 0.0, 0.4), "scale": (1.3, 0.8, 1.1)}
 
 
 def cases():
@@ -52,8 +52,8 @@ def matrix(location, rotation_euler, scale=(1.0, 1.0, 1.0)):
 
 
 def context(n, version, object_matrix):
-    from engine.nodes.context import NodeContext
-    cam = matrix(**CAMERA_OBJECT) @ np.diag([1.0, 1.0, -1.0, 1.0])
+    from engine.nodes.context import NodeContext, camera_to_world
+    cam = camera_to_world(types.SimpleNamespace(matrix=matrix(**CAMERA_OBJECT)))      # its scale cleared
     to_camera = np.linalg.inv(cam)
     return NodeContext(n, version, {"object_to_world": np.tile(object_matrix[:3], (n, 1, 1)),
                                     "world_to_object": np.tile(np.linalg.inv(object_matrix)[:3], (n, 1, 1)),
