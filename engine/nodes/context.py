@@ -18,7 +18,7 @@ program pays only for what its nodes read.  Names (rows (3, N) unless noted), as
   object_normal   normalize(M^T N), N in object space (Cycles' object_inverse_normal_transform)
   object_location the object's origin in world space
   object_random   (N,) Object Info's Random (Cycles' random_id / 0xFFFFFFFF)
-  camera          P in Cycles' camera space (x right, y up, z forward)
+  camera          P in Cycles' camera space (x right, y up, z forward; the camera's scale cleared)
   ray_depth       (N,) the bounce the hit was found on (0: the camera ray)
   ray_kind        (N,) int: 0 camera, 1 diffuse, 2 glossy, 3 transmission (the ray that found the hit),
                   4 a light sample (a shadow ray)
@@ -30,6 +30,10 @@ program pays only for what its nodes read.  Names (rows (3, N) unless noted), as
   object_to_world_normal  a function: rows (3, N) in object space -> normalised world normals
   camera_pixel    (right, up, forward) rows (3, 1) of the camera and one pixel's size at unit distance
                   (the image centre's), for Bump's footprint (engine/nodes/normals.py bump_offsets)
+  object_to_world (N, 3, 4) the hit's object matrix (identity off meshes); world_to_object its inverse
+  world_to_camera (4, 4) world -> Cycles' camera space; camera_to_world its inverse (Vector Transform)
+  window          Texture Coordinate's Window: (x, y, 0), the point's place in the camera's frame, 0..1
+                  from the bottom left (Cycles' camera_world_to_ndc; `camera_window`)
 `ctx.shifted(offset)` (None without hits) is the context of the same hits moved by offset rows (3, N)
 along their surface: position, UV, Generated, ... there, the normals of the hits (Bump's heights).
 When folding constants (n = 1, no hits) every attribute raises `Varying`.
@@ -80,6 +84,53 @@ class NodeContext:
 
     def zeros3(self) -> np.ndarray:
         return np.zeros((3, self.n))
+
+
+def camera_to_world(camera) -> np.ndarray:
+    """(4, 4) Cycles' camera space (x right, y up, z forward) -> world: the camera's matrix with z
+    flipped and its scale cleared (Cycles' blender_camera_matrix)."""
+    m = np.asarray(camera.matrix, dtype=np.float64) @ np.diag([1.0, 1.0, -1.0, 1.0])
+    scale = np.linalg.norm(m[:3, :3], axis=0)
+    scale = np.where(np.abs(scale - 1.0) < 1e-12, 1.0, np.maximum(scale, 1e-300))     # unscaled: as it was
+    m[:3, :3] = m[:3, :3] / scale
+    return m
+
+
+def camera_window(camera, width: int, height: int):
+    """points rows (3, N) -> Window rows (3, N) of a camera (engine/scene/model.py Camera; a `type`
+    "ORTHO" with `ortho_scale`, when a camera has them, projects orthographically): where each point
+    lands in the frame, x from the left and y from the bottom, 0..1 across the image with the lens
+    shift, z 0 (Cycles' camera_world_to_ndc through its worldtondc: the view plane of
+    engine/scene/camera_rays.py view_plane)."""
+    from ..scene.camera_rays import view_plane
+    ortho = getattr(camera, "type", "PERSP") == "ORTHO"
+    if ortho:                         # the fitted side spans ortho_scale (the lens's place in view_plane)
+        lens = float(camera.sensor_width if camera.sensor_fit != "VERTICAL" else camera.sensor_height)
+        lens /= float(getattr(camera, "ortho_scale", 1.0))
+        plane_w, plane_h, extent = view_plane(_Lens(camera, lens), width, height)
+    else:
+        plane_w, plane_h, extent = view_plane(camera, width, height)
+    to_camera = np.linalg.inv(camera_to_world(camera))
+
+    def window(points):
+        local = to_camera[:3, :3] @ points + to_camera[:3, 3:4]
+        if ortho:
+            x, y = local[0], local[1]
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                depth = np.where(local[2] != 0.0, local[2], 1.0)
+            x, y = local[0] / depth, local[1] / depth
+        return np.stack([(x - camera.shift_x * extent) / plane_w + 0.5,
+                         (y - camera.shift_y * extent) / plane_h + 0.5, np.zeros_like(x)])
+    return window
+
+
+class _Lens:
+    """A camera seen through another focal length (camera_window's orthographic view plane)."""
+
+    def __init__(self, camera, lens):
+        self.sensor_fit, self.sensor_width, self.sensor_height = camera.sensor_fit, camera.sensor_width, camera.sensor_height
+        self.lens = lens
 
 
 # -- the attributes of hits on a scene --------------------------------------------------------------
@@ -153,9 +204,10 @@ class SceneAttributes:
         cam = getattr(scene, "camera", None)
         self.world_to_camera = None
         self.camera_pixel = None
+        self.window = None
         if cam is not None:
-            to_world = np.asarray(cam.matrix, dtype=np.float64) @ np.diag([1.0, 1.0, -1.0, 1.0])
-            self.world_to_camera = np.linalg.inv(to_world)
+            self.window = camera_window(cam, *(int(c) for c in getattr(scene, "resolution", (256, 256))))
+            self.world_to_camera = np.linalg.inv(camera_to_world(cam))
             # The camera's axes and one pixel's size at unit distance, for Bump's footprint.
             w, h = (int(c) for c in getattr(scene, "resolution", (256, 256)))
             fit = getattr(cam, "sensor_fit", "AUTO")
@@ -297,6 +349,19 @@ class SceneAttributes:
         attrs["object_to_world_normal"] = lambda: to_world_normal
         if self.camera_pixel is not None:
             attrs["camera_pixel"] = self.camera_pixel
+
+        def object_transforms(inverse):
+            out = np.tile(np.eye(4)[:3], (n, 1, 1))
+            if len(tri):
+                out[tri] = (self.to_object if inverse else np.concatenate(
+                    [self.to_world, self.location[:, :, None]], axis=2))[obj]
+            return out
+        attrs["object_to_world"] = lambda: object_transforms(False)
+        attrs["world_to_object"] = lambda: object_transforms(True)
+        if self.world_to_camera is not None:
+            attrs["world_to_camera"] = self.world_to_camera
+            attrs["camera_to_world"] = lambda: np.linalg.inv(self.world_to_camera)
+            attrs["window"] = lambda: self.window(ctx.attr("position"))
         ctx = NodeContext(n, cycles_version, attrs, images)
 
         def shifted(offset):

@@ -1,8 +1,8 @@
 """Input nodes as Cycles evaluates them (its kernel/svm/tex_coord.h, geometry.h, mapping.h, fresnel.h,
 light_path.h): Texture Coordinate, Geometry, UV Map, Mapping, Value, RGB, Object Info, Layer Weight,
 Fresnel, Light Path, Attribute.  Hit attributes come from the NodeContext (engine/nodes/context.py);
-outputs Cycles gives that are not modelled here (Window, Pointiness, Tangent, Object Info's Color) are
-named by the exporter (mcrt_addon/export/node_graph.py) and read 0 (Pointiness 0.5)."""
+Window is the point's place in the camera's frame (context.py camera_window); outputs Cycles gives that
+are not modelled here (Pointiness, Tangent, Object Info's Color) are named by the exporter (mcrt_addon/export/node_graph.py) and read 0 (Pointiness 0.5)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,11 +1,11 @@
 """Every node kernel, by Blender node type: the KERNELS of engine/nodes/inputs.py, image.py, color.py,
-math.py, converter.py, normals.py and the procedural/ package, merged.  A module that is not there means its
-nodes are unsupported (the exporter then warns and uses the socket's default value)."""
+math.py, converter.py, normals.py, vector_transform.py and the procedural/ package, merged.  A module
+that is not there means its nodes are unsupported (the exporter then warns and uses the socket's default value)."""
 from __future__ import annotations
 
 import importlib
 
-KERNEL_MODULES = ("inputs", "image", "color", "math", "converter", "procedural", "normals")
+KERNEL_MODULES = ("inputs", "image", "color", "math", "converter", "procedural", "normals", "vector_transform")
 _TABLE: dict | None = None
 _OFFSETS: dict = {}
 

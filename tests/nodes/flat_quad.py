@@ -25,6 +25,11 @@ stores {"props": capture_props(node) (its plain enum / bool / number properties 
 mcrt_addon/export/node_props.py special_props), "inputs": its enabled input sockets' default values}, and
 `render(..., kept=True)` returns them as a third value {key: ...}, from either Blender.
 
+`render(..., view={"plane": {...}, "camera": {...}, "camera_object": {...}})` sets attributes of the
+plane object (location, rotation_euler, scale), of the camera data (type, lens, shift_x, ortho_scale,
+...) and of the camera object (location, rotation_euler) before rendering: the Object coordinate is
+then no longer the pixel centre (read Geometry Position into an AOV instead).
+
 Blender 3.4: `render(build, blender="3.4")` runs Debian's `/usr/bin/blender -b` on this file (it
 is also a Blender script); `build` must then be a module-level function of an importable module
 (it is imported by module name and qualified name in Blender's Python, whose PYTHONPATH is the
@@ -56,7 +61,7 @@ def coordinates(resolution=RESOLUTION, z=0.0):
     return np.stack([x, y, np.full(w * w, float(z))])
 
 
-def render(build, resolution=RESOLUTION, blender="5.0", z=0.0, kept=False, **kwargs):
+def render(build, resolution=RESOLUTION, blender="5.0", z=0.0, kept=False, view=None, **kwargs):
     """Cycles' image of `build`'s output(s) and the object coordinates of the pixel centres (and the
     props `keep` stored, with kept=True).
 
@@ -65,9 +70,9 @@ def render(build, resolution=RESOLUTION, blender="5.0", z=0.0, kept=False, **kwa
     with tempfile.TemporaryDirectory(dir=os.environ.get("FLAT_QUAD_KEEP")) as tmp:
         path = os.path.join(tmp, "flat_quad.exr")
         if blender == "5.0":
-            names = render_in_process(build, path, resolution, z, kwargs)
+            names = render_in_process(build, path, resolution, z, kwargs, view)
         elif blender == "3.4":
-            names = _render_blender34(build, path, resolution, z, kwargs)
+            names = _render_blender34(build, path, resolution, z, kwargs, view)
         else:
             raise ValueError(f"blender must be '5.0' or '3.4', not {blender!r}")
         images = read_layers(path, names)
@@ -119,7 +124,7 @@ def _check_resolution(resolution):
         raise ValueError(f"the flat-quad resolution must be a power of two (exact pixel centres), not {r}")
 
 
-def _render_blender34(build, path, resolution, z, kwargs):
+def _render_blender34(build, path, resolution, z, kwargs, view=None):
     if "<locals>" in build.__qualname__ or build.__module__ == "__main__":
         raise ValueError("a Blender 3.4 build must be a module-level function of an importable module")
     env = dict(os.environ)
@@ -127,7 +132,7 @@ def _render_blender34(build, path, resolution, z, kwargs):
     args = [BLENDER34, "-b", "--factory-startup", "--python-use-system-env", "--python", os.path.abspath(__file__),
             "--", "--module", build.__module__, "--function", build.__qualname__,
             "--kwargs", json.dumps(kwargs), "--resolution", str(int(resolution)), "--z", repr(float(z)),
-            "--out", path]
+            "--out", path, "--view", json.dumps(view or {})]
     r = subprocess.run(args, capture_output=True, text=True, timeout=600, env=env)
     info = path + ".json"
     if r.returncode != 0 or not os.path.exists(info):
@@ -168,7 +173,7 @@ def read_layers(path, names):
 
 # --- Blender side (bpy 5.0 in this process, or Blender 3.4 running this file) ----------------------
 
-def render_in_process(build, path, resolution, z, kwargs):
+def render_in_process(build, path, resolution, z, kwargs, view=None):
     """Build the scene in the running Blender, render it to the EXR `path`; the AOV names (or None)."""
     import bpy
     scene = bpy.data.scenes.new("flat_quad")
@@ -214,6 +219,9 @@ def render_in_process(build, path, resolution, z, kwargs):
         cam.location = (0.0, 0.0, 1.0)
         scene.collection.objects.link(cam)
         scene.camera = cam
+        for target, key in ((plane, "plane"), (cam_data, "camera"), (cam, "camera_object")):
+            for name, value in (view or {}).get(key, {}).items():
+                setattr(target, name, value)
         _setup_render(scene, resolution, path, names is not None)
         bpy.ops.render.render(write_still=True, scene=scene.name)
         return names
@@ -297,12 +305,13 @@ def _blender_main(argv):
     p.add_argument("--resolution", type=int, default=RESOLUTION)
     p.add_argument("--z", type=float, default=0.0)
     p.add_argument("--out", required=True)
+    p.add_argument("--view", default="{}")
     a = p.parse_args(argv)
     build = importlib.import_module(a.module)
     for part in a.function.split("."):
         build = getattr(build, part)
     harness = importlib.import_module("tests.nodes.flat_quad")     # the module `build` calls keep() of
-    names = harness.render_in_process(build, a.out, a.resolution, a.z, json.loads(a.kwargs))
+    names = harness.render_in_process(build, a.out, a.resolution, a.z, json.loads(a.kwargs), json.loads(a.view))
     import bpy
     with open(a.out + ".json", "w") as f:
         json.dump({"names": names, "blender": list(bpy.app.version), "kept": harness.KEPT}, f)
