@@ -302,6 +302,14 @@ class PrincipledV1(BSDF):
         x, y = si.memo((self, "frame"), self._frame)
         return self._mixture(si, to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n), weights, prob)
 
+    def diffuse_eval(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+        """f cos (3, N) of the diffuse and sheen closures alone (Cycles' CLOSURE_IS_BSDF_DIFFUSE, whose
+        bump shadowing differs: engine/nodes/normals.py bump_shadowing)."""
+        weights, prob = si.memo((self, "closures"), self.closures)
+        kept = [w if code < 2 else np.zeros_like(w) for code, w in enumerate(weights)]
+        x, y = si.memo((self, "frame"), self._frame)
+        return self._mixture(si, to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n), kept, prob)[0]
+
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         return self.eval(si, wi)[1]
 
