@@ -51,7 +51,7 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  0.9) whose Tangent is a Tangent node reading the UV map (MikkTSpace), in the room
   node_room      node graphs (mcrt_addon/export/node_graph.py) in the Cornell room: the floor's Base
                  Color an image through Texture Coordinate Object -> Mapping, its Roughness the image at
-                 Generated (4.0+); a ball coloured by its Geometry Normal; a lamp coloured by Generated
+                 Generated; a ball coloured by its Geometry Normal; a lamp coloured by Generated
   normal_map     a normal-mapped object: a smooth UV sphere whose Principled BSDF's Normal is a tangent-space
                  Normal Map of a packed 8-bit Non-Color image (scripts/make_sample_normal_map.py), on a
                  floor under a low sun and a dim sky
@@ -1012,8 +1012,7 @@ def node_floor_material():
     links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
     links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
     links.new(coords.outputs["Generated"], rough.inputs["Vector"])
-    if V4:          # 3.x's Principled BSDF takes no per-hit roughness in the tracer (engine/materials/principled_v1.py)
-        links.new(rough.outputs["Color"], bsdf.inputs["Roughness"])
+    links.new(rough.outputs["Color"], bsdf.inputs["Roughness"])
     links.new(bsdf.outputs[0], out.inputs["Surface"])
     return mat
 

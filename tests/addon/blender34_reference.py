@@ -5,7 +5,8 @@ with the add-on's exporter to a scene file and renders Cycles 3.4 references of 
       --scene NAME --outdir DIR --resolution 64 64 --samples 32 --depth 8 --seeds 1 2 3 4 [--distribution D]
 
 NAME is "startup_cube" (the factory startup file as it is: the default cube with its Principled
-material, the point light, the grey world, the camera), "normals" (tests/nodes/normal_scene.py) or a
+material, the point light, the grey world, the camera), "normals" (tests/nodes/normal_scene.py),
+"checker_room" (tests/nodes/node_scene.py) or a
 scene of sample_blends/make_samples.py.
 --distribution sets every Principled, Glossy and Anisotropic BSDF's distribution menu (e.g. MULTI_GGX,
 GGX) before the export.
@@ -33,6 +34,11 @@ def build(name, outdir, resolution):
     if name == "startup_cube":
         bpy.ops.wm.save_as_mainfile(filepath=path, check_existing=False)
         return path
+    if name == "checker_room":            # tests/nodes/node_scene.py (the node room, a procedural floor)
+        spec = importlib.util.spec_from_file_location("node_scene", os.path.join(REPO, "tests", "nodes", "node_scene.py"))
+        node_scene = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(node_scene)
+        return node_scene.build_checker_room(path, tuple(resolution))
     if name == "normals":                 # tests/nodes/normal_scene.py (Normal Map and Bump)
         spec = importlib.util.spec_from_file_location("normal_scene", os.path.join(REPO, "tests", "nodes", "normal_scene.py"))
         normal_scene = importlib.util.module_from_spec(spec)
