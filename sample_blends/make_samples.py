@@ -51,7 +51,10 @@ Scenes (all in a Cornell-style room: x, y in [-1, 1], z in [0, 2], open towards 
                  0.9) whose Tangent is a Tangent node reading the UV map (MikkTSpace), in the room
   node_room      node graphs (mcrt_addon/export/node_graph.py) in the Cornell room: the floor's Base
                  Color an image through Texture Coordinate Object -> Mapping, its Roughness the image at
-                 Generated (4.0+); a ball coloured by its Geometry Normal; a lamp coloured by Generated
+                 Generated; a ball coloured by its Geometry Normal; a lamp coloured by Generated
+  normal_map     a normal-mapped object: a smooth UV sphere whose Principled BSDF's Normal is a tangent-space
+                 Normal Map of a packed 8-bit Non-Color image (scripts/make_sample_normal_map.py), on a
+                 floor under a low sun and a dim sky
 Light-sampling stress scenes (plain ceiling, the lamps are two-sided emissive meshes, as
 mesh emission in Cycles, hung just under it so they also light the ceiling):
   near_lamp      a 0.5 m lamp quad (strength 12) 2 cm under the ceiling, two diffuse boxes
@@ -940,6 +943,41 @@ def make_hdri(scene, res):
     settings(scene, res)
 
 
+
+def normal_map_image():
+    """The sample normal map of scripts/make_sample_normal_map.py, packed into the .blend (8-bit, Non-Color)."""
+    from scripts.make_sample_normal_map import HEIGHT, WIDTH, normal_texel
+    return packed_image("bumps", WIDTH, HEIGHT, normal_texel, colorspace="Non-Color")
+
+
+def make_normal_map(scene, res):
+    """A normal-mapped object: a smooth UV sphere (its UV map from bmesh) whose Principled BSDF's
+    Normal is a tangent-space Normal Map (strength 1) of an Image Texture (the domes of
+    scripts/make_sample_normal_map.py, Non-Color) at its UVs, on a floor, under a low sun and a dim
+    uniform sky."""
+    mat, nodes, links, out = empty_material("NormalMapped")
+    bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Base Color"].default_value = (0.8, 0.5, 0.3, 1.0)
+    bsdf.inputs["Roughness"].default_value = 0.4
+    tex, nmap = nodes.new("ShaderNodeTexImage"), nodes.new("ShaderNodeNormalMap")
+    tex.image = normal_map_image()
+    nmap.space, nmap.uv_map = "TANGENT", "UVMap"
+    nmap.inputs["Strength"].default_value = 1.0
+    links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
+    links.new(bsdf.outputs[0], out.inputs["Surface"])
+
+    def ball(bm):
+        bm.loops.layers.uv.new("UVMap")
+        bmesh.ops.create_uvsphere(bm, u_segments=64, v_segments=32, radius=0.5, calc_uvs=True)
+    plane(scene, "Floor", [(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)], diffuse("Grey", (0.5, 0.5, 0.5)))
+    mesh_object(scene, "Ball", ball, mat, location=(0.0, 0.0, 0.5), rotation=(0, 0, math.radians(20)), smooth=True)
+    light_object(scene, "Sun", "SUN", (0.0, 0.0, 3.0), rotation=(math.radians(65), 0.0, math.radians(-50)),
+                 energy=3.0, angle=math.radians(3.0))
+    camera(scene, lens=50.0, location=(0.0, -3.2, 1.3), target=(0.0, 0.0, 0.45))
+    world_colour(scene, (0.35, 0.4, 0.5), 0.3)
+    settings(scene, res)
+
 # -- node graphs (mcrt_addon/export/node_graph.py; tests/nodes/test_agreement_nodes.py) -----------------
 NODE_ROOM_SCALE = (2.0, 2.0, 2.0)         # the floor's Mapping scale
 
@@ -974,8 +1012,7 @@ def node_floor_material():
     links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
     links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
     links.new(coords.outputs["Generated"], rough.inputs["Vector"])
-    if V4:          # 3.x's Principled BSDF takes no per-hit roughness in the tracer (engine/materials/principled_v1.py)
-        links.new(rough.outputs["Color"], bsdf.inputs["Roughness"])
+    links.new(rough.outputs["Color"], bsdf.inputs["Roughness"])
     links.new(bsdf.outputs[0], out.inputs["Surface"])
     return mat
 
@@ -1031,6 +1068,7 @@ SCENES = {
     "principled_glass": make_principled_glass,
     "roughness_map": make_roughness_map,
     "hdri": make_hdri,
+    "normal_map": make_normal_map,
     "node_room": lambda s, r: make_node_room(s, r),
 }
 

@@ -287,7 +287,7 @@ class PathTracer:
         smooth = surf.shading is not surf.normal
         shade = surf.shading * towards if smooth else facing
         if lookup is not None and lookup.has_normals:       # a BSDF's Normal input (Normal Map, Bump)
-            shade = lookup.normal(shade, surf.material, facing, -p.d, self.mats.specular_normal)
+            shade = lookup.normal(shade, surf.material, facing, -p.d, self.mats.raised_normal)
             smooth = True
         color = self.mats.color.take(surf.material, axis=1)
         if lookup is not None:
@@ -613,11 +613,19 @@ class PathTracer:
         value = np.empty((3, alive))
         flags = np.empty(alive, dtype=np.int8)
         pdf = np.empty(alive) if p.min_pdf is not None else None
+        normals = si.lookup is not None and si.lookup.has_normals
+        split = None            # a Normal input on diffuse and glossy closures in one BSDF: its diffuse part / pdf
         for g, span in enumerate(spans):
             if span.stop == span.start:
                 continue
             s = self.bsdfs[g].sample(si[span], u_lobe[span], u_dir[g])
             new_d[:, span], value[:, span], flags[span] = s.wi, s.value, s.flags
+            if normals and hasattr(self.bsdfs[g], "diffuse_eval"):
+                if split is None:
+                    split, diffuse_part = np.zeros(alive, dtype=bool), np.zeros((3, alive))
+                split[span] = True
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    diffuse_part[:, span] = np.where(s.pdf > 0.0, self.bsdfs[g].diffuse_eval(si[span], s.wi) / s.pdf, 0.0)
             if pdf is not None:
                 pdf[span] = s.pdf
             if self.mis and self.mats.non_delta[g]:          # MIS: the vertex and pdf of non-delta samples
@@ -645,7 +653,14 @@ class PathTracer:
         side = np.where(transmitted, -1.0, 1.0)
         beta = p.beta[:, :alive] * value             # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
         if si.lookup is not None and si.lookup.has_normals:     # a Normal input: Cycles' bump shadowing
-            beta = beta * self.bump_shadowing(si, new_d, (flags & BSDFFlags.DIFFUSE) != 0, False)
+            shadowing = self.bump_shadowing(si, new_d, (flags & BSDFFlags.DIFFUSE) != 0, False)
+            if split is None:
+                beta = beta * shadowing
+            else:                               # per closure, as Cycles: the glossy part and the diffuse part
+                glossy = self.bump_shadowing(si, new_d, np.zeros(alive, dtype=bool), False)
+                soft = self.bump_shadowing(si, new_d, np.ones(alive, dtype=bool), False)
+                split_value = glossy * (value - diffuse_part) + soft * diffuse_part
+                beta = p.beta[:, :alive] * np.where(split, split_value, shadowing * value)
         if si.smooth:                       # below the geometric surface (or not through it): ends
             wrong = dot(new_d, si.ng) * side <= 0.0
             if wrong.any():
@@ -813,7 +828,15 @@ class PathTracer:
             weight[valid] = np.where(blocked, 0.0, sample)
         if si.lookup is not None and si.lookup.has_normals:     # a Normal input: Cycles' bump shadowing
             diffuse = ~self.mats.specular_normal.take(si.material)
-            weight *= self.bump_shadowing(si, w, np.repeat(diffuse, ns) if ns > 1 else diffuse, True, ns)
+            shadowing = self.bump_shadowing(si, w, np.repeat(diffuse, ns) if ns > 1 else diffuse, True, ns)
+            weight *= shadowing
+            if f_cos is not None and len(valid) and hasattr(bsdf, "diffuse_eval"):
+                # Diffuse and glossy closures in one BSDF (the Principled): the diffuse ones take the
+                # diffuse term, per closure as Cycles' bsdf_eval
+                soft = self.bump_shadowing(si, w, np.ones(k, dtype=bool), True, ns)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    scale = np.where(shadowing > 0.0, soft / shadowing - 1.0, 0.0)
+                f_cos[:, valid] += pick(scale) * bsdf.diffuse_eval(at_valid(), pick(w, 1))
         contrib = ls.radiance * weight if albedo is not None else ls.radiance * weight * f_cos
         mean = contrib.reshape(3, m, ns).sum(axis=2) / ns if ns > 1 else contrib
         if albedo is None:

@@ -558,6 +558,17 @@ class PrincipledV2(BSDF):
         weights, prob = self._lobes_at(si)
         return self._mixture(si, wi, weights, prob)
 
+    def diffuse_eval(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+        """f cos (3, N) of the diffuse and sheen lobes alone, as weighted in eval: the closures Cycles
+        counts as diffuse (CLOSURE_IS_BSDF_DIFFUSE), whose bump shadowing differs from the glossy
+        ones' (engine/nodes/normals.py bump_shadowing; engine/integrators/path_tracer.py)."""
+        if self.any_layers:
+            layers, weights, prob = self._lobes_at(si)
+            kept = [w if i in (0, 4) else np.zeros_like(w) for i, w in enumerate(weights)]
+            return self._layered_mixture(si, wi, layers, kept, prob)[0]
+        (w_metal, w_spec, w_diffuse), prob = self._lobes_at(si)
+        return self._mixture(si, wi, (np.zeros_like(w_metal), np.zeros_like(w_spec), w_diffuse), prob)[0]
+
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         return self.eval(si, wi)[1]
 

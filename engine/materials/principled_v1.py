@@ -44,6 +44,8 @@ over the closures (one-sample MIS over closures, as Cycles' _shader_bsdf_multi_e
 """
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 
 from ..core.vec import dot, normalize
@@ -52,11 +54,11 @@ from ..scene.model import PrincipledV1 as Params
 from . import albedo_tables
 from .glossy import fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import ALPHA_MIN, ggx_d, ggx_lambda, ggx_sample_vndf, shading_frame, to_local, to_world
-from .principled import principled_alphas
+from .principled import principled_alpha_rows, principled_alphas
 from .principled_v1_glass import CLOSURES as GLASS_CLOSURES, PrincipledV1Glass, interpolated_fresnel
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
 from .dielectric_lobe import REFLECTED, REFRACTED
-from .textures import hit_tangent
+from .textures import hit_tangent, per_hit, textured_mask
 
 FLAGS = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
 DIFFUSE_LOBE = BSDFFlags.REFLECTION | BSDFFlags.DIFFUSE
@@ -142,9 +144,10 @@ class PrincipledV1(BSDF):
                            for x in materials], dtype=np.float64).reshape(m, 2)
         self.ax, self.ay = alphas[:, 0].copy(), alphas[:, 1].copy()
         self.roughness_of_table = np.sqrt(np.sqrt(self.ax * self.ay))
-        self.multiscatter = np.array([bool(getattr(x, "multiscatter", False)) and
-                                      min(max(getattr(x, "roughness", 0.5), 0.0), 1.0) > SINGLE_SCATTER_ROUGHNESS
-                                      for x in materials], dtype=bool).reshape(m)
+        self.multiscatter_menu = np.array([bool(getattr(x, "multiscatter", False)) for x in materials],
+                                          dtype=bool).reshape(m)
+        self.multiscatter = self.multiscatter_menu & (self.roughness > SINGLE_SCATTER_ROUGHNESS)
+        self.anisotropy = column([getattr(x, "anisotropy", 0.0) for x in materials])
         self.cc_alpha = column([min(max(p.clearcoat_roughness, 0.0), 1.0) ** 2 for p in params])
         self.cc_alpha = np.clip(self.cc_alpha, ALPHA_MIN, 1.0 - 1e-6)
         self.tangent = np.array([getattr(x, "tangent", (1.0, 0.0, 0.0)) for x in materials],
@@ -155,6 +158,31 @@ class PrincipledV1(BSDF):
             self.flags = FLAGS | REFLECTED | REFRACTED
 
     # -- per hit ------------------------------------------------------------------------------------
+    def inputs(self, si: ShadingPoint) -> SimpleNamespace:
+        """The hits' roughness, metallic, alphas ax, ay, "Multiscatter GGX" flags (above roughness
+        0.075) and the roughness of the albedo tables (N,) each: the materials' own, or read per hit
+        from their Roughness / Metallic image textures or node programs (engine/materials/textures.py
+        per_hit; the exporter gives them only to materials without transmission, whose glass
+        closures keep the material's)."""
+        mat = si.material
+        metallic = np.clip(per_hit(si, self.metallic, "metallic"), 0.0, 1.0)
+        out = SimpleNamespace(roughness=self.roughness.take(mat), metallic=metallic, ax=self.ax.take(mat),
+                              ay=self.ay.take(mat), multi=self.multiscatter.take(mat),
+                              table=self.roughness_of_table.take(mat))
+        textured = textured_mask(si, "roughness")
+        if textured is None:
+            return out
+        r = np.clip(per_hit(si, self.roughness, "roughness"), 0.0, 1.0)
+        ax, ay = principled_alpha_rows(r, self.anisotropy.take(mat))
+        out.roughness = np.where(textured, r, out.roughness)
+        out.ax, out.ay = np.where(textured, ax, out.ax), np.where(textured, ay, out.ay)
+        out.multi = np.where(textured, self.multiscatter_menu.take(mat) & (r > SINGLE_SCATTER_ROUGHNESS), out.multi)
+        out.table = np.where(textured, np.sqrt(np.sqrt(out.ax * out.ay)), out.table)
+        return out
+
+    def _inputs(self, si: ShadingPoint) -> SimpleNamespace:
+        return si.memo((self, "inputs"), self.inputs)
+
     def _frame(self, si: ShadingPoint):
         x, y = shading_frame(si.n, hit_tangent(si, self.tangent))
         turn = 2.0 * np.pi * self.rotation.take(si.material)
@@ -166,7 +194,7 @@ class PrincipledV1(BSDF):
     def cspec0(self, si: ShadingPoint) -> np.ndarray:
         """The specular lobe's colour at normal incidence (3, N), clamped to [0, 1]."""
         mat, base = si.material, si.color
-        metal = self.metallic.take(mat)
+        metal = self._inputs(si).metallic
         tint = tint_colour(base, self.specular_tint.take(mat), TINT_LUMINANCE)
         dielectric = 0.08 * self.specular.take(mat) * tint
         return np.clip(dielectric * (1.0 - metal) + base * metal, 0.0, 1.0)
@@ -178,7 +206,8 @@ class PrincipledV1(BSDF):
         mat, base = si.material, si.color
         n = len(si)
         cos_o = np.clip(dot(si.wo, si.n), 0.0, 1.0)
-        dw = 1.0 - self.metallic.take(mat)
+        metallic = self._inputs(si).metallic
+        dw = 1.0 - metallic
         if self.glass.any:                          # diffuse_weight = (1 - metallic)(1 - transmission)
             dw = dw * (1.0 - self.glass.transmission.take(mat))
         on_diffuse = dw > WEIGHT_CUTOFF
@@ -186,7 +215,7 @@ class PrincipledV1(BSDF):
         sheen = self.sheen.take(mat)
         w_sheen = sheen * tint_colour(base, self.sheen_tint.take(mat), LUMINANCE) * dw
         w_sheen = np.where(on_diffuse & (sheen > WEIGHT_CUTOFF), w_sheen, 0.0)
-        on_spec = (self.specular.take(mat) > WEIGHT_CUTOFF) | (self.metallic.take(mat) > WEIGHT_CUTOFF)
+        on_spec = (self.specular.take(mat) > WEIGHT_CUTOFF) | (metallic > WEIGHT_CUTOFF)
         w_spec = np.where(on_spec, 1.0, 0.0) * np.ones((3, n))
         if self.glass.any:                          # specular_weight = 1 - (1 - metallic) transmission
             spec_weight = 1.0 - self.glass.weight.take(mat)
@@ -211,7 +240,7 @@ class PrincipledV1(BSDF):
 
     # -- the lobes (f cos without the closure weight, and pdf), directions in the local frame ------
     def _diffuse(self, si, wo_l, wi_l):
-        f = burley_diffuse(wo_l[2], wi_l[2], dot(wo_l, wi_l), self.roughness.take(si.material))
+        f = burley_diffuse(wo_l[2], wi_l[2], dot(wo_l, wi_l), self._inputs(si).roughness)
         return f[None, :] * np.ones((3, 1)), np.maximum(wi_l[2], 0.0) / np.pi
 
     def _sheen(self, si, wo_l, wi_l):
@@ -222,11 +251,12 @@ class PrincipledV1(BSDF):
 
     def _specular(self, si, wo_l, wi_l):
         mat = si.material
-        ax, ay = self.ax.take(mat), self.ay.take(mat)
+        hit = self._inputs(si)
+        ax, ay = hit.ax, hit.ay
         ok = (wo_l[2] > 0.0) & (wi_l[2] > 0.0)
         h = normalize(wo_l + wi_l)
         lo, li = ggx_lambda(wo_l, ax, ay), ggx_lambda(wi_l, ax, ay)
-        multi = self.multiscatter.take(mat)
+        multi = hit.multi
         with np.errstate(divide="ignore", invalid="ignore"):
             common = np.where(ok, ggx_d(h, ax, ay) / (4.0 * wo_l[2]), 0.0)
             g = np.where(multi, 1.0 / (1.0 + lo + li), 1.0 / ((1.0 + lo) * (1.0 + li)))
@@ -240,11 +270,12 @@ class PrincipledV1(BSDF):
     def _compensation(self, si, cos_o):
         """1 + F_ms (1 - E) / E (3, N) where the material is "Multiscatter GGX" above roughness 0.075,
         1 elsewhere (the approximation of the module)."""
-        multi = self.multiscatter.take(si.material)
+        hit = self._inputs(si)
+        multi = hit.multi
         if not multi.any():
             return np.ones((3, len(si)))
         mat = si.material
-        rough = self.roughness_of_table.take(mat)
+        rough = hit.table
         e = albedo_tables.albedo(rough, np.clip(cos_o, 0.0, 1.0))
         e_avg = albedo_tables.average_albedo(rough)
         eta = self.eta.take(mat)
@@ -276,7 +307,8 @@ class PrincipledV1(BSDF):
         if code in (0, 1):
             return cosine_hemisphere(u1, u2)
         if code == 2:
-            h = ggx_sample_vndf(wo_l, self.ax.take(mat), self.ay.take(mat), u1, u2)
+            hit = self._inputs(si)
+            h = ggx_sample_vndf(wo_l, hit.ax, hit.ay, u1, u2)
         else:
             h = gtr1_sample(self.cc_alpha.take(mat), u1, u2)
         return 2.0 * dot(wo_l, h) * h - wo_l
@@ -301,6 +333,14 @@ class PrincipledV1(BSDF):
         weights, prob = si.memo((self, "closures"), self.closures)
         x, y = si.memo((self, "frame"), self._frame)
         return self._mixture(si, to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n), weights, prob)
+
+    def diffuse_eval(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+        """f cos (3, N) of the diffuse and sheen closures alone (Cycles' CLOSURE_IS_BSDF_DIFFUSE, whose
+        bump shadowing differs: engine/nodes/normals.py bump_shadowing)."""
+        weights, prob = si.memo((self, "closures"), self.closures)
+        kept = [w if code < 2 else np.zeros_like(w) for code, w in enumerate(weights)]
+        x, y = si.memo((self, "frame"), self._frame)
+        return self._mixture(si, to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n), kept, prob)[0]
 
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         return self.eval(si, wi)[1]

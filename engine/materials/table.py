@@ -89,6 +89,10 @@ class MaterialTable:
         self.is_emissive = emission.max(axis=1) > 0
         # Blender 4.x / 5.0 raise a Normal input's normal for every BSDF but Diffuse (engine/nodes/normals.py).
         self.specular_normal = np.array([m.kind != DIFFUSE for m in materials], dtype=bool)
+        # ... but the Principled BSDF (v2) raises only its specular layers' normal, itself
+        # (engine/materials/specular.py specular_normal_at): its diffuse and sheen keep the input's
+        self.raised_normal = self.specular_normal & np.array([scatter_kind(m) != PRINCIPLED for m in materials],
+                                                             dtype=bool)
         scatters = color.max(axis=1) > 0.0
         if textured_color is not None:
             scatters = scatters | textured_color

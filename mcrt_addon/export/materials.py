@@ -386,9 +386,11 @@ class MaterialTable:
         (engine/materials/principled_v1.py); its transmission is 3.4's glass closures there
         (engine/materials/principled_v1_glass.py)."""
         base = _clamp01(self.read_color(mat, node, "Base Color"))
-        metallic = min(max(self.read_float(mat, node, "Metallic"), 0.0), 1.0)
-        roughness = min(max(self.read_float(mat, node, "Roughness", default=0.5), 0.0), 1.0)
         transmission = min(max(self.read_float(mat, node, "Transmission"), 0.0), 1.0)
+        per_hit = transmission == 0.0           # its glass closures take the material's roughness, metallic
+        metallic = min(max(self.read_float(mat, node, "Metallic", role="metallic" if per_hit else None), 0.0), 1.0)
+        roughness = min(max(self.read_float(mat, node, "Roughness", default=0.5,
+                                            role="roughness" if per_hit else None), 0.0), 1.0)
         ior = max(self.read_float(mat, node, "IOR", default=1.45), 1e-3)
         emission = self.principled_emission(mat, node)
         alpha = min(max(self.read_float(mat, node, "Alpha", default=1.0), 0.0), 1.0)

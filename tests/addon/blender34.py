@@ -41,13 +41,14 @@ def blender_environment() -> dict:
     return env
 
 
-def blender34_run(name, outdir, distribution=None, timeout=900) -> Blender34Run:
+def blender34_run(name, outdir, distribution=None, timeout=900, no_light_sampling=()) -> Blender34Run:
     """Scene `name` ("startup_cube" or a make_samples.py scene) built, exported and rendered by Cycles
-    in Blender 3.4, once per session for each (name, distribution)."""
+    in Blender 3.4, once per session for each (name, distribution, no_light_sampling: materials whose
+    emission Cycles does not light-sample, tests/addon/blender34_reference.py)."""
     import time
 
     from engine.scene.files import load_scene
-    key = (name, distribution)
+    key = (name, distribution, tuple(no_light_sampling))
     if key in _runs:
         return _runs[key]
     tag = name + (f"-{distribution.lower()}" if distribution else "")
@@ -58,6 +59,8 @@ def blender34_run(name, outdir, distribution=None, timeout=900) -> Blender34Run:
             "--depth", str(DEPTH), "--seeds", *map(str, SEEDS)]
     if distribution:
         args += ["--distribution", distribution]
+    if no_light_sampling:
+        args += ["--no-light-sampling", *no_light_sampling]
     t0 = time.perf_counter()
     r = subprocess.run(args, capture_output=True, text=True, timeout=timeout, env=blender_environment())
     seconds = time.perf_counter() - t0

@@ -5,10 +5,15 @@ with the add-on's exporter to a scene file and renders Cycles 3.4 references of 
       --scene NAME --outdir DIR --resolution 64 64 --samples 32 --depth 8 --seeds 1 2 3 4 [--distribution D]
 
 NAME is "startup_cube" (the factory startup file as it is: the default cube with its Principled
-material, the point light, the grey world, the camera), "normals" (tests/nodes/normal_scene.py) or a
+material, the point light, the grey world, the camera), "normals" (tests/nodes/normal_scene.py),
+"checker_room" (tests/nodes/node_scene.py) or a
 scene of sample_blends/make_samples.py.
 --distribution sets every Principled, Glossy and Anisotropic BSDF's distribution menu (e.g. MULTI_GGX,
 GGX) before the export.
+--no-light-sampling MAT ... turns the Cycles setting Multiple Importance (cycles.sample_as_light) of
+these materials off for the references only (the exporter does not read it): their emission reaches
+Cycles 3.4 through BSDF-sampled rays alone, the same converged image without Cycles 3.x's
+light-sampling error on textured emissive triangles (docs/nodes.md "Agreement with Cycles").
 Writes DIR/NAME.blend, DIR/NAME.json (the exported scene; cycles_version is the running Blender's),
 DIR/NAME.warnings.json (the exporter's warnings) and DIR/NAME.cycles.SEED.exr per seed.
 """
@@ -29,6 +34,11 @@ def build(name, outdir, resolution):
     if name == "startup_cube":
         bpy.ops.wm.save_as_mainfile(filepath=path, check_existing=False)
         return path
+    if name == "checker_room":            # tests/nodes/node_scene.py (the node room, a procedural floor)
+        spec = importlib.util.spec_from_file_location("node_scene", os.path.join(REPO, "tests", "nodes", "node_scene.py"))
+        node_scene = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(node_scene)
+        return node_scene.build_checker_room(path, tuple(resolution))
     if name == "normals":                 # tests/nodes/normal_scene.py (Normal Map and Bump)
         spec = importlib.util.spec_from_file_location("normal_scene", os.path.join(REPO, "tests", "nodes", "normal_scene.py"))
         normal_scene = importlib.util.module_from_spec(spec)
@@ -49,6 +59,7 @@ def main(argv):
     parser.add_argument("--depth", type=int, default=8)
     parser.add_argument("--seeds", type=int, nargs="*", default=[1, 2, 3, 4])
     parser.add_argument("--distribution", default=None)
+    parser.add_argument("--no-light-sampling", nargs="*", default=[])
     args = parser.parse_args(argv)
     os.makedirs(args.outdir, exist_ok=True)
     path = build(args.scene, args.outdir, args.resolution)
@@ -73,6 +84,8 @@ def main(argv):
     bridge.module("scene.files").save_scene(exported.scene, stem + ".json")
     with open(stem + ".warnings.json", "w") as f:
         json.dump({"warnings": exported.warnings, "blender": list(bpy.app.version)}, f)
+    for name in args.no_light_sampling:
+        bpy.data.materials[name].cycles.sample_as_light = False
     for seed in args.seeds:
         setup_cycles_reference(scene, samples=args.samples, max_depth=args.depth, seed=seed)
         scene.cycles.use_denoising = False

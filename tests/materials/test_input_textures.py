@@ -16,8 +16,8 @@ from engine import RenderSettings, render
 from engine.core.errors import SceneError
 from engine.materials.textures import per_hit
 from engine.scene.files import load_scene, save_scene
-from engine.scene.model import (DIFFUSE, GLASS, GLOSSY, PRINCIPLED, Camera, Material, Principled, Quad, Scene,
-                                TriangleMesh)
+from engine.scene.model import (DIFFUSE, GLASS, GLOSSY, PRINCIPLED, Camera, Material, Principled, PrincipledV1, Quad,
+                                Scene, TriangleMesh)
 from engine.scene.textures import ImageTexture, TextureSlot
 
 SLOT = TextureSlot(0, interpolation="Closest", extension="EXTEND")
@@ -54,12 +54,20 @@ def principled(**kw):
     return Material(kw.pop("name", "P"), PRINCIPLED, kw.pop("color", (0.5, 0.3, 0.2)), principled=Principled(**p), **kw)
 
 
+def principled_v1(roughness, metallic=0.0):
+    return Material("P34", PRINCIPLED, (0.9, 0.6, 0.2), roughness=roughness, multiscatter=True,
+                    principled=PrincipledV1(metallic=metallic))
+
+
 # (input, the two materials of the split plate, the textured material's unlinked fields, the texels)
 CASES = {
     "glossy roughness": ("roughness", lambda r: Material("G", GLOSSY, (0.9, 0.9, 0.9), roughness=r), (0.2, 0.8)),
     "principled roughness": ("roughness", lambda r: principled(roughness=r), (0.2, 0.8)),
     "principled metallic": ("metallic", lambda m: principled(roughness=0.3, metallic=m, color=(0.9, 0.6, 0.2)),
                             (0.0, 1.0)),
+    # Blender 3.x's Principled (engine/materials/principled_v1.py), "Multiscatter GGX": 0.05 is single scattering
+    "principled v1 roughness": ("roughness", lambda r: principled_v1(roughness=r), (0.05, 0.8)),
+    "principled v1 metallic": ("metallic", lambda m: principled_v1(roughness=0.3, metallic=m), (0.0, 1.0)),
     "diffuse roughness": ("diffuse_roughness", lambda r: Material("D", DIFFUSE, (0.8, 0.8, 0.8), diffuse_roughness=r),
                           (0.2, 0.8)),
     "glass roughness": ("roughness", lambda r: Material("Gl", GLASS, (1, 1, 1), roughness=r), (0.2, 0.8)),

@@ -11,7 +11,7 @@ import copy
 import pytest
 
 from engine.nodes.registry import supported
-from tests.nodes.agreement import against_cycles, compared, saved
+from tests.nodes.agreement import against_cycles, compared
 
 NODES = ("ShaderNodeTexChecker", "ShaderNodeTexNoise", "ShaderNodeSeparateXYZ", "ShaderNodeMath")
 pytestmark = [pytest.mark.slow,
@@ -20,29 +20,10 @@ pytestmark = [pytest.mark.slow,
 
 @pytest.fixture(scope="module")
 def room(tmp_path_factory):
-    import bpy
     from rendering import RES
     from tests.nodes import node_scene
-    ms = node_scene.ms
-    ms.reset()
-    ms.make_node_room(bpy.context.scene, RES)
-    mat, nodes, links, out = ms.empty_material("Checkered")
-    bsdf = nodes.new("ShaderNodeBsdfPrincipled")
-    links.new(bsdf.outputs[0], out.inputs["Surface"])
-    checker, noise = nodes.new("ShaderNodeTexChecker"), nodes.new("ShaderNodeTexNoise")
-    checker.inputs["Scale"].default_value = 6.0
-    coords, separate, math = nodes.new("ShaderNodeTexCoord"), nodes.new("ShaderNodeSeparateXYZ"), nodes.new("ShaderNodeMath")
-    math.operation = "MULTIPLY_ADD"
-    math.inputs[1].default_value, math.inputs[2].default_value = 0.3, 0.4
-    links.new(coords.outputs["Object"], separate.inputs[0])
-    links.new(separate.outputs["X"], math.inputs[0])
-    links.new(checker.outputs["Color"], bsdf.inputs["Base Color"])
-    links.new(math.outputs[0], bsdf.inputs["Roughness"])
-    links.new(noise.outputs["Fac"], bsdf.inputs["Metallic"])
-    floor = bpy.data.objects["Floor"]
-    floor.data.materials.clear()
-    floor.data.materials.append(mat)
-    return against_cycles(saved(tmp_path_factory, "checker_room"), "checker_room")
+    path = node_scene.build_checker_room(str(tmp_path_factory.mktemp("nodes") / "checker_room.blend"), RES)
+    return against_cycles(path, "checker_room")
 
 
 def test_checker_room_agrees_with_cycles(room):
