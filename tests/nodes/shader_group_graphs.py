@@ -3,10 +3,25 @@ process, 3.4 in a subprocess): a Principled BSDF whose base colour is an image t
 roughness is a Noise texture, built either inside a group (its Tint, Scale and Metallic the group's
 inputs, its BSDF the group's Shader output) or straight in the material with the same values; a
 "Coat" group mixing a shader input with a Glossy BSDF inside by a group input factor."""
+import dataclasses
+
 import bpy
 
 SOCKETS = {"VALUE": "NodeSocketFloat", "RGBA": "NodeSocketColor", "VECTOR": "NodeSocketVector",
            "SHADER": "NodeSocketShader"}
+
+
+def canonical(value):
+    """A material as plain data without names (a group's inner nodes are named by their path; a mix
+    factor names the node it was read from for messages: the Group Input inside a group)."""
+    if dataclasses.is_dataclass(value):
+        skip = ("name", "node") if type(value).__name__ == "MixFactor" else ("name",)
+        return {f.name: canonical(getattr(value, f.name)) for f in dataclasses.fields(value) if f.name not in skip}
+    if isinstance(value, dict):
+        return {k: canonical(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [canonical(v) for v in value]
+    return value
 
 
 def new_group(name, inputs=(), outputs=()):
@@ -72,6 +87,15 @@ def surface_group(name="Surface"):
     shader, _ = principled_chain(tree.nodes, tree.links, gin.outputs["Tint"], gin.outputs["Scale"],
                                  gin.outputs["Metallic"])
     tree.links.new(shader, gout.inputs["Shader"])
+    return tree
+
+
+def changed_group():
+    """CONTROL: the Surface group with one inner link changed: the image's Alpha (1) tints, not its Color."""
+    tree = surface_group("Changed")
+    image = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    mix = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeMix")
+    tree.links.new(image.outputs["Alpha"], by_id(mix.inputs, "A_Color"))
     return tree
 
 
@@ -147,3 +171,37 @@ def coat_group():
     tree.links.new(glossy.outputs[0], mix.inputs[2])
     tree.links.new(mix.outputs[0], gout.inputs["Shader"])
     return tree
+
+
+# (tint, scale, metallic) of the floor and the ball: one Surface group, two sets of inputs.
+FLOOR_INPUTS = ((0.9, 0.85, 0.8), 3.0, 0.0)
+BALL_INPUTS = ((0.95, 0.45, 0.1), 12.0, 1.0)
+
+
+def build_shader_group_room(path, res):
+    """The room of sample_blends/make_samples.py whose floor and ball are the Surface group (a
+    Principled BSDF with an image-tinted base colour and a Noise-driven roughness, wrapped in the
+    Wrapper group) with FLOOR_INPUTS and BALL_INPUTS, saved at `path`."""
+    import math
+    import os
+    import sys
+    here = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "sample_blends")
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    import make_samples as m
+    scene = m.reset()
+    mats = dict(white=m.diffuse("White", (0.73, 0.73, 0.73)), red=m.diffuse("Red", (0.65, 0.05, 0.05)),
+                green=m.diffuse("Green", (0.12, 0.45, 0.15)), light=m.emission("Lamp", (1.0, 1.0, 1.0), 14.0))
+    m.room(scene, mats, light_size=0.6)
+    tree = wrapper_group(surface_group())
+    floor = bpy.data.objects["Floor"]
+    floor.data.materials.clear()
+    floor.data.materials.append(group_material("GroupFloor", tree, *FLOOR_INPUTS)[0])
+    floor.data.uv_layers.new(name="UVMap")
+    ball = m.mesh_object(scene, "Ball", lambda bm: m.uv_sphere(bm, 0.35), group_material("GroupBall", tree, *BALL_INPUTS)[0],
+                         location=(0.2, 0.1, 0.5), rotation=(0.0, 0.0, math.radians(40)), smooth=True)
+    ball.data.uv_layers.new(name="UVMap")
+    m.camera(scene)
+    m.black_world(scene)
+    m.settings(scene, res)
+    bpy.ops.wm.save_as_mainfile(filepath=path)

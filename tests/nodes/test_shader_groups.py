@@ -5,7 +5,6 @@ using the group with different inputs, nested in another group (through a rerout
 Shader) and behind a Mix Shader whose factor is a group input; the CONTROL: the group with one inner
 link changed exports another material.  A group without its tree and one containing itself: one
 warning naming the material and the node."""
-import dataclasses
 import os
 import sys
 
@@ -19,6 +18,7 @@ import make_samples as ms  # noqa: E402
 
 from mcrt_addon.export import export_scene  # noqa: E402
 from tests.nodes import shader_group_graphs as sg  # noqa: E402
+from tests.nodes.shader_group_graphs import canonical  # noqa: E402
 
 RED = ((0.8, 0.3, 0.2), 4.0, 0.0)                  # (tint, scale, metallic) of the first user
 BLUE = ((0.2, 0.5, 0.9), sg.value_node(9.0), 1.0)  # the second: its Scale linked from a Value node outside
@@ -45,19 +45,6 @@ def place(scene, mats):
         ob.data.uv_layers.new(name="UVMap")
 
 
-def canonical(value):
-    """A material as plain data without names (a group's inner nodes are named by their path; a mix
-    factor names the node it was read from for messages: the Group Input inside a group)."""
-    if dataclasses.is_dataclass(value):
-        skip = ("name", "node") if type(value).__name__ == "MixFactor" else ("name",)
-        return {f.name: canonical(getattr(value, f.name)) for f in dataclasses.fields(value) if f.name not in skip}
-    if isinstance(value, dict):
-        return {k: canonical(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [canonical(v) for v in value]
-    return value
-
-
 def materials(result):
     return {m.name: m for m in result.scene.materials}
 
@@ -65,10 +52,7 @@ def materials(result):
 def test_grouped_principled_exports_like_the_ungrouped_one(scene):
     surface = sg.surface_group()
     nested = sg.wrapper_group(surface)
-    changed = sg.surface_group("Changed")           # CONTROL: Noise Fac -> Map Range replaced by its Color
-    noise = next(n for n in changed.nodes if n.bl_idname == "ShaderNodeTexNoise")
-    ramp = next(n for n in changed.nodes if n.bl_idname == "ShaderNodeMapRange")
-    changed.links.new(noise.outputs["Color"], ramp.inputs["Value"])
+    changed = sg.changed_group()
     mats = [sg.plain_material("PlainRed", *RED), sg.plain_material("PlainBlue", *BLUE),
             sg.group_material("GroupRed", surface, *RED)[0], sg.group_material("GroupBlue", surface, *BLUE)[0],
             sg.group_material("NestedBlue", nested, *BLUE)[0], sg.group_material("ChangedRed", changed, *RED)[0]]
