@@ -29,13 +29,21 @@ def export():
     return export_scene(bpy.context.evaluated_depsgraph_get(), resolution=(8, 8))
 
 
-@pytest.fixture
-def scene():
+@pytest.fixture(scope="module")
+def empty_scene():
     s = ms.reset()
     ms.camera(s)
     ms.black_world(s)
     ms.settings(s, (8, 8))
     return s
+
+
+@pytest.fixture
+def scene(empty_scene):
+    """The module's scene (reset once: each reset costs ~0.4 s) without the meshes of earlier tests."""
+    for ob in [ob for ob in bpy.data.objects if ob.type == "MESH"]:
+        bpy.data.objects.remove(ob)
+    return empty_scene
 
 
 def place(scene, mats):
@@ -165,3 +173,58 @@ def test_a_shader_group_without_its_tree_or_inside_itself_is_named_once():
     tree.nodes = [inner, _Node("NodeGroupOutput", "Group Output", [_Sock("Shader", source=(inner, inner.outputs[0]))])]
     material, warnings = _surface(outer)
     assert len(warnings) == 1 and "node 'Inner'" in warnings[0] and "contains itself" in warnings[0], warnings
+
+
+def world_nodes(name, grouped, strength=2.5, rotation=0.5):
+    """A world: Background(Color = Environment Texture(Mapping(Generated), rotated about Z), Strength);
+    grouped: the Background and its texture inside a group whose inputs are the Vector (the Mapping,
+    outside) and the Strength (its value), feeding the World Output through a reroute."""
+    world = bpy.data.worlds.new(name)
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    for n in list(nodes):
+        nodes.remove(n)
+    out = nodes.new("ShaderNodeOutputWorld")
+    coords = nodes.new("ShaderNodeTexCoord")
+    mapping = nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, rotation)
+    links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    if grouped:
+        tree, gin, gout = sg.new_group(f"{name}Sky", [("Vector", "VECTOR"), ("Strength", "VALUE")],
+                                       [("Background", "SHADER")])
+        inner_nodes, inner_links, vector, power = tree.nodes, tree.links, gin.outputs["Vector"], gin.outputs["Strength"]
+    else:
+        inner_nodes, inner_links, vector, power = nodes, links, mapping.outputs["Vector"], strength
+    env = inner_nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.get("Sky") or bpy.data.images.new("Sky", 8, 4, float_buffer=True)
+    inner_links.new(vector, env.inputs["Vector"])
+    background = inner_nodes.new("ShaderNodeBackground")
+    inner_links.new(env.outputs["Color"], background.inputs["Color"])
+    sg.feed(inner_links, power, background.inputs["Strength"])
+    if not grouped:
+        links.new(background.outputs[0], out.inputs["Surface"])
+        return world
+    inner_links.new(background.outputs[0], gout.inputs["Background"])
+    group = nodes.new("ShaderNodeGroup")
+    group.node_tree = tree
+    links.new(mapping.outputs["Vector"], group.inputs["Vector"])
+    group.inputs["Strength"].default_value = strength
+    reroute = nodes.new("NodeReroute")
+    links.new(group.outputs[0], reroute.inputs[0])
+    links.new(reroute.outputs[0], out.inputs["Surface"])
+    return world
+
+
+def test_world_background_and_environment_inside_a_group_export_as_ungrouped(scene):
+    from engine.scene import model, textures
+    from mcrt_addon.export.images import ImageTable
+    from mcrt_addon.export.world import export_world
+    results = {}
+    for name, grouped, rotation in (("Plain", False, 0.5), ("Grouped", True, 0.5), ("Turned", True, 0.9)):
+        warnings = []
+        colour, env = export_world(world_nodes(name, grouped, rotation=rotation), warnings,
+                                   ImageTable(textures, warnings), model.Environment)
+        assert warnings == [] and env is not None, warnings
+        results[name] = canonical((colour, env))
+    assert results["Grouped"] == results["Plain"]
+    assert results["Turned"] != results["Plain"]                     # control: another Mapping rotation
+    assert results["Grouped"][1]["strength"] == 2.5                  # the group node's Strength value
