@@ -3,8 +3,10 @@ a Principled BSDF inside a group feeding the Surface exports exactly the Materia
 ungrouped (kinds, values, textures, programs; node names aside), with no warning, for two materials
 using the group with different inputs, nested in another group (through a reroute and a muted Add
 Shader) and behind a Mix Shader whose factor is a group input; the CONTROL: the group with one inner
-link changed exports another material.  A group without its tree and one containing itself: one
-warning naming the material and the node."""
+link changed exports another material.  A muted BSDF on the Surface passes no shader (black, as
+Cycles).  A group without its tree and one containing itself: one warning naming the material and the
+node.  The world (mcrt_addon/export/world.py): a Background and Environment Texture inside a group
+export the ungrouped world's Environment (CONTROL: another Mapping rotation)."""
 import os
 import sys
 
@@ -112,13 +114,18 @@ def test_mix_shader_inside_a_group_with_its_factor_from_a_group_input(scene):
     mats = [plain_coat("PlainConst", 0.3, (0.7, 0.6, 0.2)), coat_material("CoatConst", 0.3, (0.7, 0.6, 0.2)),
             plain_coat("PlainNoise", noise_fac, (0.1, 0.6, 0.2)), coat_material("CoatNoise", noise_fac, (0.1, 0.6, 0.2)),
             coat_material("CoatOther", 0.7, (0.7, 0.6, 0.2))]
-    place(scene, mats)
+    muted, nodes, links, out = ms.empty_material("Muted")       # a muted BSDF passes no shader: black, as
+    lamp = nodes.new("ShaderNodeEmission")                       # Cycles renders it (measured in 5.0)
+    lamp.mute = True
+    links.new(lamp.outputs[0], out.inputs["Surface"])
+    place(scene, mats + [muted])
     result = export()
     assert result.warnings == [], result.warnings
     m = materials(result)
     assert canonical(m["CoatConst"]) == canonical(m["PlainConst"])
     assert m["CoatNoise"].kind == "mix" and canonical(m["CoatNoise"]) == canonical(m["PlainNoise"])
     assert canonical(m["CoatOther"]) != canonical(m["CoatConst"])          # control: another factor
+    assert m["Muted"].emission == (0.0, 0.0, 0.0) and m["Muted"].color == (0.0, 0.0, 0.0)
 
 
 class _Sock:
