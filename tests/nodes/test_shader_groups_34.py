@@ -28,7 +28,6 @@ def test_shader_group_exports_like_the_ungrouped_nodes_in_34(tmp_path):
     assert r["kinds"]["GroupRed"] == "principled"
     assert r["red"] and r["blue"], r
     assert not r["control"], r
-    # the same warnings for a grouped material as for its ungrouped twin (3.4's Principled v1 takes no
-    # per-hit roughness)
+    # the same warnings for a grouped material as for its ungrouped twin (none, or those its nodes give)
     assert r["warnings"].get("GroupRed") == r["warnings"].get("PlainRed"), r["warnings"]
     assert r["warnings"].get("NestedBlue") == r["warnings"].get("PlainBlue"), r["warnings"]
