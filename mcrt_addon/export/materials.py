@@ -78,6 +78,7 @@ class MaterialTable:
         self._emission_color = (0.0, 0.0, 0.0)   # the unlinked emission colour read last
         self._converting = ""                    # the name of the Blender material being converted
         self._graph = None                  # node_graph.GraphCompiler, made on first use
+        self._path = ()                     # the group nodes around the shader node being converted
 
     def graph(self):
         """The node-graph compiler (export/node_graph.py), or None when the tracer has no node layer."""
@@ -96,7 +97,7 @@ class MaterialTable:
         graph = self.graph() if self.images is not None else None
         if graph is None:
             return None, None
-        return graph.compile(mat, node, sock, target)
+        return graph.compile(mat, node, sock, target, self._path)
 
     def graph_warned(self):
         """Whether the last program() named the node feeding its socket in a warning already."""
@@ -157,6 +158,8 @@ class MaterialTable:
 
     # --- conversion -----------------------------------------------------------------------------
     def warn(self, mat, node, text):
+        if self._path and node is not None and "(inside node group" not in text:
+            text = f"{text} (inside node group '{self._path[-1].node_tree.name}')"
         where = f"Material '{mat.name}'" + (f", node '{node.name}'" if node is not None else "")
         self.warnings.append(f"{where}: {text}")
 
@@ -170,12 +173,29 @@ class MaterialTable:
             self.warn(mat, None, "no active Material Output node; rendered black like Cycles")
             return M(name=mat.name, kind=self.DIFFUSE, color=(0.0, 0.0, 0.0))
         # Cycles renders an unconnected surface as black (no closure): shader(None).
-        node = linked_from(output.inputs.get("Surface"))
-        return self.shader(mat, node)
+        return self.shader(mat, *self.shader_source(mat, output.inputs.get("Surface")))
 
-    def shader(self, mat, node):
-        """The material of the shader node ``node`` (None: an unlinked shader socket, no closure);
-        its textures go to ``self._slots``."""
+    def shader_source(self, mat, sock):
+        """(shader node or None, its group path) feeding the shader socket ``sock`` of a node inside
+        the current group path: through reroutes, muted nodes and node groups (export/node_graph.py
+        shader_feed; without the tracer's node layer only reroutes are followed)."""
+        graph = self.graph()
+        if graph is None:
+            return linked_from(sock), self._path
+        found = graph.shader_feed(mat, sock, self._path)
+        return found if found is not None else (None, self._path)
+
+    def shader(self, mat, node, path=None):
+        """The material of the shader node ``node`` inside the group nodes ``path`` (None: the current
+        path; its value inputs are read through them); None: an unlinked shader socket, no closure.
+        Its textures go to ``self._slots``."""
+        outer_path, self._path = self._path, (self._path if path is None else tuple(path))
+        try:
+            return self._shader(mat, node)
+        finally:
+            self._path = outer_path
+
+    def _shader(self, mat, node):
         if node is None:
             return self.Material(name=mat.name, kind=self.DIFFUSE, color=(0.0, 0.0, 0.0))
         handler = {
@@ -225,11 +245,12 @@ class MaterialTable:
             self.warn(mat, node, f"input 'Normal' is linked{_from(sock)}, which is not modelled; the shading "
                                  "normal is used")
 
-    def side(self, mat, node):
-        """(material, texture slots) of a shader node feeding an Add or Mix Shader."""
+    def side(self, mat, node, path=None):
+        """(material, texture slots) of a shader node (inside the group nodes ``path``) feeding an Add
+        or Mix Shader."""
         outer, self._slots = self._slots, {}
         try:
-            return self.shader(mat, node), self._slots
+            return self.shader(mat, node, path), self._slots
         finally:
             self._slots = outer
 

@@ -152,10 +152,11 @@ class GraphCompiler:
             text = f"{text} (inside node group '{path[-1].node_tree.name}')"
         self.table.warn(mat, node, text)
 
-    def compile(self, mat, node, sock, target):
-        """(Program or None, constant or None) for the input ``sock`` of ``node`` (target: "RGBA" or
-        "VALUE"): (None, value) when the graph folds to a constant, (None, None) when nothing feeds it
-        that the tracer models (warned)."""
+    def compile(self, mat, node, sock, target, path=()):
+        """(Program or None, constant or None) for the input ``sock`` of ``node`` inside the group
+        nodes ``path`` (a BSDF in a group: its Group Input sockets are the group node's inputs; target:
+        "RGBA" or "VALUE"): (None, value) when the graph folds to a constant, (None, None) when
+        nothing feeds it that the tracer models (warned)."""
         self.warned = False                   # the node feeding sock was named in a warning
         self.nodes, self.index, self.uv_maps, self.implicit = [], {}, [], {}
         self.mat = mat
@@ -164,7 +165,7 @@ class GraphCompiler:
             return None, None
         if found[0].bl_idname not in GROUPS and not self.modelled(found[0]):
             return None, None                 # the caller names the socket's source as before
-        feed = self.resolve(sock)
+        feed = self.resolve(sock, path)
         if isinstance(feed, Constant):            # a group socket's value, converted as a link is
             return None, self._constant_as(feed, target)
         if feed is None or feed is BLOCKED:
@@ -241,6 +242,15 @@ class GraphCompiler:
         if boundary.type == "VALUE" and feed.out.type in ("RGBA", "VECTOR"):
             return feed._replace(narrow=True)
         return feed
+
+    def shader_feed(self, mat, sock, path=()):
+        """The node feeding the shader socket ``sock`` of a node inside the group nodes ``path``
+        (the Material Output's Surface, a Mix or Add Shader input), through reroutes, muted nodes
+        and groups as resolve(): (node, path) of that shader node, or None (unlinked: no closure;
+        a group that cannot be entered: warned)."""
+        self.mat, self.warned = mat, False
+        feed = self.resolve(sock, path)
+        return (feed.node, feed.path) if isinstance(feed, Feed) else None
 
     def group_proxies(self):
         """Whether Cycles sees the groups through its proxies (before Blender 5.0), not inlined."""

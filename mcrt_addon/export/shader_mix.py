@@ -52,6 +52,8 @@ def mix_factor(table, mat, node):
     if source is None:
         return min(max(table.read_float(mat, node, "Factor", "Fac", default=0.5), 0.0), 1.0)
     factor = factor_node(table, mat, node, sock, source, unlinked)
+    if factor is not None and factor.is_constant and source.bl_idname == "NodeGroupInput":
+        return factor.constant()              # a group input's value: as an unlinked factor
     return unlinked if factor is None else factor
 
 
@@ -105,15 +107,15 @@ def mix_shader(table, mat, node):
         inverted = dataclasses.replace(fac, invert=True)
         return combine(table, mat, node, [(inverted, *side(table, mat, first)), (fac, *side(table, mat, second))])
     if fac <= 0.0 or fac >= 1.0:
-        return table.shader(mat, linked_from(second if fac >= 1.0 else first))
+        return table.shader(mat, *table.shader_source(mat, second if fac >= 1.0 else first))
     return combine(table, mat, node, [(constant(table, 1.0 - fac), *side(table, mat, first)),
                                       (constant(table, fac), *side(table, mat, second))])
 
 
 def side(table, mat, sock):
     """(material, slots) of the shader feeding `sock`; a BSDF is named after its node (a mix leaf)."""
-    source = linked_from(sock)
-    material, slots = table.side(mat, source)
+    source, path = table.shader_source(mat, sock)
+    material, slots = table.side(mat, source, path)
     if source is not None and material.kind != table.MIX:
         material = dataclasses.replace(material, name=f"{mat.name}: {source.name}")
     return material, slots

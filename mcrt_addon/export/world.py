@@ -11,6 +11,9 @@ Node patterns read (Blender 3.4 to 5.0), into World Output's Surface:
   second (Cycles: Fac 1), every other ray the first.
 Anything else: a warning naming the world and the node, and the constant colour of the Background
 node it found (black without one), as before the image world existed.
+Node groups are entered as in materials (mcrt_addon/export/node_graph.py resolve, docs/nodes.md "Node
+groups"): each link read here is followed through reroutes, muted nodes and groups, and a socket's
+value through a Group Input is the group node's input value.
 """
 import math
 
@@ -30,10 +33,10 @@ def export_world(world, warnings, images=None, Environment=None):
         # 3.x without nodes uses world.color; 5.0 has no use_nodes and always a node tree
         return tuple(max(float(c), 0.0) for c in world.color[:3]), None
     output = tree.get_output_node("CYCLES")
-    node = linked_from(output.inputs.get("Surface")) if output is not None else None
+    reader = WorldReader(world, warnings, images, Environment)
+    node = reader.source(output.inputs.get("Surface"), output) if output is not None else None
     if node is None:
         return (0.0, 0.0, 0.0), None
-    reader = WorldReader(world, warnings, images, Environment)
     if node.bl_idname == "ShaderNodeMixShader":
         return reader.mix(node)
     if node.bl_idname != "ShaderNodeBackground":
@@ -48,23 +51,68 @@ def export_world(world, warnings, images=None, Environment=None):
 class WorldReader:
     def __init__(self, world, warnings, images, Environment):
         self.world, self.warnings, self.images, self.Environment = world, warnings, images, Environment
+        self.graph = _groups(self)           # node_graph.GraphCompiler for resolve(), None without the tracer
+        self.paths = {}                      # a node found through groups -> the group nodes around it
 
     def warn(self, node, text):
         self.warnings.append(f"World '{self.world.name}': node '{node.name}' {text}")
 
+    # -- links and values through node groups --------------------------------------------------------
+    def feed(self, sock, owner):
+        """What feeds the input ``sock`` of the node ``owner`` (node_graph.resolve inside the groups
+        around ``owner``): a Feed, a Constant, None (unlinked) or BLOCKED (warned)."""
+        if sock is None or not sock.is_linked:
+            return None
+        if self.graph is None:
+            node = linked_from(sock)
+            return None if node is None else _Feed(node, sock.links[0].from_socket)
+        self.graph.mat, self.graph.warned = self.world, False
+        feed = self.graph.resolve(sock, self.paths.get(owner.as_pointer(), ()))
+        if hasattr(feed, "path"):
+            self.paths[feed.node.as_pointer()] = feed.path
+        return feed
+
+    def source(self, sock, owner):
+        """The node feeding ``sock`` of ``owner`` through reroutes, muted nodes and groups, or None."""
+        feed = self.feed(sock, owner)
+        return feed.node if hasattr(feed, "node") else None
+
+    def output_name(self, sock, owner):
+        """The name of the output socket feeding ``sock`` of ``owner`` ("" when no node feeds it)."""
+        feed = self.feed(sock, owner)
+        return feed.out.name if hasattr(feed, "out") else ""
+
+    def linked(self, sock, owner):
+        """Whether a node (not a group socket's value) feeds ``sock`` of ``owner``."""
+        return hasattr(self.feed(sock, owner), "node")
+
+    def value(self, sock, owner):
+        """The value ``sock`` of ``owner`` has unless a node feeds it: its own, or through a Group
+        Input the group node's input value (as the group socket converts it)."""
+        feed = self.feed(sock, owner)
+        if hasattr(feed, "value"):
+            value = self.graph._constant_as(feed, sock.type)
+            return tuple(value) if isinstance(value, tuple) else value
+        return sock.default_value
+
     def mix(self, node):
         """A Mix Shader: Light Path's Is Camera Ray between two Backgrounds, else a warning."""
-        fac, first, second = node.inputs[0], linked_from(node.inputs[1]), linked_from(node.inputs[2])
-        source = linked_from(fac)
+        fac, feeds = node.inputs[0], [self.feed(node.inputs[i], node) for i in (1, 2)]
+        first, second = (getattr(f, "node", None) for f in feeds)
+        paths = [getattr(f, "path", ()) for f in feeds]     # one node may be both sides, in two group uses
+        source = self.source(fac, node)
         is_camera = (source is not None and source.bl_idname == "ShaderNodeLightPath"
-                     and fac.links[0].from_socket.name == "Is Camera Ray")
+                     and self.output_name(fac, node) == "Is Camera Ray")
         backgrounds = [n for n in (first, second) if n is not None and n.bl_idname == "ShaderNodeBackground"]
         if not is_camera or len(backgrounds) != 2:
             self.warn(node, "is supported only as Light Path 'Is Camera Ray' mixing two Background nodes; "
                             "the first Background's constant colour is used")
             colour = self.constant(backgrounds[0]) if backgrounds else (0.0, 0.0, 0.0)
             return colour, None
-        (lit, lit_image), (cam, cam_image) = self.background(first), self.background(second)
+        self.paths[first.as_pointer()] = paths[0]
+        lit, lit_image = self.background(first)
+        self.paths[second.as_pointer()] = paths[1]
+        cam, cam_image = self.background(second)
         if lit_image is None and cam_image is None:
             self.warn(node, "mixes two constant Backgrounds: camera rays see the lighting colour here")
             return lit, None
@@ -78,26 +126,26 @@ class WorldReader:
         return lit, self.Environment(**lit_image, camera_strength=cam_image["strength"], name=self.world.name)
 
     def constant(self, node):
-        colour = tuple(float(c) for c in socket(node, "Color").default_value[:3])
-        strength = float(socket(node, "Strength").default_value)
+        colour = tuple(float(c) for c in self.value(socket(node, "Color"), node)[:3])
+        strength = float(self.value(socket(node, "Strength"), node))
         return tuple(max(c * strength, 0.0) for c in colour)
 
     def background(self, node):
         """(constant colour, the Environment fields of its image or None) of a Background node."""
         color_sock, strength_sock = socket(node, "Color"), socket(node, "Strength")
-        if strength_sock is not None and strength_sock.is_linked:
+        if strength_sock is not None and self.linked(strength_sock, node):
             self.warn(node, "has its Strength linked (only a constant is supported); its unlinked value is used")
-        strength = max(float(strength_sock.default_value), 0.0)
+        strength = max(float(self.value(strength_sock, node)), 0.0)
         colour = self.constant(node)
-        if not color_sock.is_linked:
+        if not color_sock.is_linked or hasattr(self.feed(color_sock, node), "value"):
             return colour, None
-        source = linked_from(color_sock)
+        source = self.source(color_sock, node)
         if source is None or source.bl_idname != "ShaderNodeTexEnvironment" or self.images is None:
             name = "" if source is None else f" from '{source.name}' ({source.bl_idname})"
             self.warn(node, f"has its Color linked{name}: only an Environment Texture is supported; "
                             "its unlinked colour is used")
             return colour, None
-        if color_sock.links[0].from_socket.name != "Color":
+        if self.output_name(color_sock, node) != "Color":
             self.warn(source, "feeds the Background through its Alpha: not supported; the unlinked colour is used")
             return colour, None
         image = self.texture(source)
@@ -128,7 +176,7 @@ class WorldReader:
         """The texture's direction matrix from what feeds its Vector: nothing or Generated
         coordinates (the ray direction) -> identity, through a Mapping node -> its matrix."""
         vector = socket(node, "Vector")
-        source = linked_from(vector)
+        source = self.source(vector, node)
         if source is None:
             return IDENTITY
         if source.bl_idname == "ShaderNodeMapping":
@@ -141,10 +189,10 @@ class WorldReader:
 
     def generated(self, node, vector):
         """Whether `vector` of `node` is unlinked or Generated texture coordinates (else a warning)."""
-        source = linked_from(vector)
+        source = self.source(vector, node)
         if source is None:
             return True
-        if source.bl_idname == "ShaderNodeTexCoord" and vector.links[0].from_socket.name == "Generated":
+        if source.bl_idname == "ShaderNodeTexCoord" and self.output_name(vector, node) == "Generated":
             return True
         self.warn(node, f"reads its Vector from '{source.name}' ({source.bl_idname}): only Generated "
                         "coordinates (or a Mapping node of them) are supported; the ray direction is used")
@@ -156,13 +204,13 @@ class WorldReader:
         kind = getattr(node, "vector_type", "POINT")
         for name in ("Location", "Rotation", "Scale"):
             sock = socket(node, name)
-            if sock is not None and sock.is_linked:
+            if sock is not None and self.linked(sock, node):
                 self.warn(node, f"has its {name} linked (only constants are supported); its unlinked value is used")
         loc = socket(node, "Location")
-        if kind in ("POINT", "TEXTURE") and loc is not None and any(abs(float(c)) > 0 for c in loc.default_value):
+        if kind in ("POINT", "TEXTURE") and loc is not None and any(abs(float(c)) > 0 for c in self.value(loc, node)):
             self.warn(node, "has a Location: a direction does not move with it in this tracer; ignored")
-        rx, ry, rz = (float(c) for c in socket(node, "Rotation").default_value)
-        scale = [float(c) for c in socket(node, "Scale").default_value]
+        rx, ry, rz = (float(c) for c in self.value(socket(node, "Rotation"), node))
+        scale = [float(c) for c in self.value(socket(node, "Scale"), node)]
         r = euler_xyz(rx, ry, rz)
         if kind == "TEXTURE" or kind == "NORMAL":
             if any(s == 0.0 for s in scale):
@@ -176,6 +224,36 @@ class WorldReader:
             self.warn(node, "maps every direction into a plane (a Scale of 0); rotation only is used")
             m = r if kind != "TEXTURE" else [[r[j][i] for j in range(3)] for i in range(3)]
         return tuple(tuple(row) for row in m)
+
+
+class _Feed:
+    """A node output feeding an input (without the tracer's node layer: no groups entered)."""
+    def __init__(self, node, out):
+        self.node, self.out, self.path = node, out, ()
+
+
+class _WorldTable:
+    """What node_graph.GraphCompiler reads of its table, for a world: warnings naming the world."""
+    images = None
+
+    def __init__(self, reader):
+        import bpy
+        self.reader, self.version = reader, tuple(bpy.app.version[:2])
+
+    def warn(self, mat, node, text):
+        self.reader.warn(node, text)
+
+
+def _groups(reader):
+    """A node_graph.GraphCompiler whose resolve() the reader follows links with, or None when the
+    tracer's node layer is not there (then links are followed through reroutes only)."""
+    from .. import bridge
+    from .node_graph import GraphCompiler
+    try:
+        return GraphCompiler(_WorldTable(reader), bridge.module("scene.programs"), bridge.module("nodes.evaluator"),
+                             bridge.module("nodes.registry"))
+    except ImportError:
+        return None
 
 
 def euler_xyz(x, y, z):
