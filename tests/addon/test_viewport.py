@@ -160,6 +160,9 @@ def test_view_update_reads_meshes_only_when_their_geometry_changes(point_light, 
     finally:
         pids = st.workers.pids if st.workers else []
         viewport.free(engine)
+    deadline = time.perf_counter() + 15            # they stop on a thread of their own: a guard only
+    while any(alive(p) for p in pids) and time.perf_counter() < deadline:
+        time.sleep(0.02)
     assert pids and not any(alive(p) for p in pids), "freeing the engine must stop its workers"
 
 
