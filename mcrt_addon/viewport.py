@@ -22,10 +22,12 @@ it and ``__del__`` stops the workers).
   (Performance > Viewport: Start Pixels and Pixel Size, as Cycles) follows.  The header shows
   samples and the noise estimate.
 
-What the UI thread pays is recorded (ViewportState.update_log and draw_log: perf_counter seconds
-of every view_update and view_draw) for tests/addon/test_viewport_blender34.py.  Its control
-TNCG15_VIEWPORT_BLOCKING=1 makes the UI thread do what a blocking viewport does (export the scene
-again on every view change and wait for the workers' first picture of it); never set otherwise.
+What the UI thread pays is recorded (ViewportState.update_log and draw_log: the wall seconds
+(perf_counter) and the UI thread's CPU seconds (thread_time) of every view_update and view_draw) for tests/addon/test_viewport_blender34.py.  Its negative
+control sets TNCG15_VIEWPORT_CONTROL (never set otherwise) to a comma list of what a blocking,
+stale viewport does: "export" (a view change exports the scene again, on the UI thread), "wait"
+(the UI thread waits for the workers' first picture of each change), "stale" (the last picture
+is drawn whatever view it was rendered for).
 """
 import os
 import threading
@@ -39,8 +41,8 @@ from . import bridge, worker_python
 MAX_HALF = 65000.0              # half floats overflow above 65504
 POLL_SECONDS = 0.02             # redraw poller (a version compare: costs microseconds)
 LOG_LENGTH = 4000               # callbacks kept in ViewportState.update_log / draw_log
-BLOCKING = os.environ.get("TNCG15_VIEWPORT_BLOCKING") == "1"     # a test's negative control only
-BLOCKING_WAIT = 10.0            # seconds the control waits for a picture
+CONTROL = set(filter(None, os.environ.get("TNCG15_VIEWPORT_CONTROL", "").split(",")))   # a test's control only
+CONTROL_WAIT = 10.0             # seconds the "wait" control waits for a picture
 ACTIVE = weakref.WeakSet()      # the ViewportStates of live Rendered viewports (tests, diagnostics)
 
 
@@ -174,8 +176,8 @@ class ViewportState:
         self.last_export_seconds = None
         self.draw_seconds = []                # view_draw durations (UI thread), the last 200
         self.upload_seconds = []              # texture uploads among them
-        self.update_log = []                  # (perf_counter at the start, seconds, "view" | "scene" | ...)
-        self.draw_log = []                    # (perf_counter at the start, seconds, drawn, view changed)
+        self.update_log = []                  # (perf_counter at the start, seconds, kind, CPU seconds)
+        self.draw_log = []                    # (perf_counter at the start, seconds, drawn, view changed, CPU seconds)
         self.view_changes = 0                 # views sent to the workers without an export
         ACTIVE.add(self)
 
@@ -230,7 +232,7 @@ def view_update(engine, context, depsgraph):
     st = getattr(engine, "viewport_state", None)
     if st is None:
         st = engine.viewport_state = ViewportState()
-    t0, kind = time.perf_counter(), "error"
+    t0, cpu0, kind = time.perf_counter(), time.thread_time(), "error"
     try:
         if worker_python.NUMPY_PROBLEM:
             raise ImportError(worker_python.NUMPY_PROBLEM)
@@ -239,21 +241,21 @@ def view_update(engine, context, depsgraph):
         if st.scene_sent and kind != "scene":
             return                           # the view is compared in view_draw
         export(engine, st, context, depsgraph)
-        if BLOCKING:
+        if "wait" in CONTROL:
             wait_for_picture(st)
     except Exception as exc:                 # noqa: BLE001 - in the header, never a traceback
         st.message = "Error: " + (engine._readable(exc) or f"{type(exc).__name__}: {exc}")
         st.scene_sent = False
     finally:
-        logged(st.update_log, (t0, time.perf_counter() - t0, kind))
+        logged(st.update_log, (t0, time.perf_counter() - t0, kind, time.thread_time() - cpu0))
 
 
 def wait_for_picture(st):
-    """The negative control's blocking UI thread (TNCG15_VIEWPORT_BLOCKING=1): wait for the
-    workers' first picture of the request just sent."""
+    """The negative control's blocking UI thread ("wait"): wait for the workers' first picture of
+    the request just sent."""
     t0 = time.perf_counter()
     while (st.workers is not None and st.workers.first_frame_seconds is None and st.workers.error is None
-           and time.perf_counter() - t0 < BLOCKING_WAIT):
+           and time.perf_counter() - t0 < CONTROL_WAIT):
         time.sleep(0.002)
 
 
@@ -309,7 +311,7 @@ def view_draw(engine, context, depsgraph):
     if st is None:
         return
     scene = depsgraph.scene
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.thread_time()
     drawn = changed = False
     try:
         key = view_key(context, scene)
@@ -319,11 +321,12 @@ def view_draw(engine, context, depsgraph):
                 engine.tag_update()
         elif key != st.key:
             changed = True
-            if BLOCKING:                     # the negative control: export and wait, as a blocking viewport
+            if "export" in CONTROL:          # the negative control: as a viewport without view-only updates
                 export(engine, st, context, depsgraph)
-                wait_for_picture(st)
             else:
                 send_view(st, context, scene, key)
+            if "wait" in CONTROL:
+                wait_for_picture(st)
         if st.workers is None:
             engine.update_stats("", f"TNCG15 MC | {st.message or 'Starting'}")
             return
@@ -335,7 +338,7 @@ def view_draw(engine, context, depsgraph):
             st.texture = upload(picture.rgba)
             st.texture_version, st.texture_tag = picture.version, picture.tag
             st.upload_seconds = (st.upload_seconds + [time.perf_counter() - t_upload])[-200:]
-        if st.texture is not None and st.message is None and st.texture_tag == st.key:
+        if st.texture is not None and st.message is None and (st.texture_tag == st.key or "stale" in CONTROL):
             region = context.region          # only the picture of this view (never an old one)
             x0, y0, x1, y1 = st.border if st.border is not None else (0, 0, region.width, region.height)
             draw_texture(engine, scene, st.texture, x0, y0, x1 - x0, y1 - y0)
@@ -345,7 +348,7 @@ def view_draw(engine, context, depsgraph):
     except Exception as exc:                 # noqa: BLE001 - drawing must never raise into Blender
         engine.update_stats("", f"TNCG15 MC | Error: {type(exc).__name__}: {exc}")
     finally:
-        logged(st.draw_log, (t0, time.perf_counter() - t0, drawn, changed))
+        logged(st.draw_log, (t0, time.perf_counter() - t0, drawn, changed, time.thread_time() - cpu0))
 
 
 def send_view(st, context, scene, key):
