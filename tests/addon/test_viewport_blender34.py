@@ -9,6 +9,13 @@ legacy zip installed as a user installs it (tests/addon/viewport_gui_script.py d
   against the F12 render (negative control: the comparison can fail);
 * a 20 ms timer keeps firing while the viewport renders (the UI is not blocked);
 * a render border (camera view) renders and draws only its pixels;
+* moving the camera and orbiting the view (30 steps of 2° every 30 ms from a timer, as a user
+  orbits) export nothing, cost the UI thread little in view_draw, keep the 20 ms timer's median gap
+  within 100 ms (or, on a loaded machine, within 1.5x that of the same orbit in Solid mode, which
+  measures Blender's own redraws there), and never draw a picture of another view; the first
+  picture of the new view and when it was drawn are printed.  Negative control: the same run with
+  TNCG15_VIEWPORT_CONTROL=export,wait (a UI thread that exports and waits for the workers) fails
+  the export and view_draw bounds, and an orbit drawing any picture ("stale") fails the stale check;
 * leaving Rendered mode, or quitting Blender while it renders, stops the viewport's worker processes.
 
 How soon things happen (first frame, restart, timer gaps) is printed, not required: the limits
@@ -39,6 +46,13 @@ TOLERANCE = 0.08         # relative, per block: F12 at 64 spp has ~1.5 % noise p
 MEDIAN_TICK_LIMIT = 0.2  # seconds between 20 ms timer calls, median: a UI thread that renders is slower
 LONGEST_TICK_LIMIT = 5.0
 LONGEST_DRAW_LIMIT = 1.0
+# Navigation (camera move, orbit).  A view change on the UI thread is a few matrix compares and a
+# camera sent (measured 0.4-0.5 ms median wall at load 15-20 on 2 cores); exporting the point
+# light scene costs about 8 ms there, waiting for the workers' first picture 0.1-0.8 s.
+ORBIT_GAP_LIMIT = 0.100          # median timer gap while orbiting, or 1.5x the Solid-mode orbit's
+ORBIT_SOLID_FACTOR = 1.5
+ORBIT_DRAW_MEDIAN_LIMIT = 0.005  # seconds of view_draw for a changed view, median
+ORBIT_DRAW_LONGEST_LIMIT = 0.25  # seconds of any view_draw while orbiting
 
 
 def srgb_to_linear(c):
@@ -75,9 +89,9 @@ def worst_block_difference(a, b):
     return float(np.max(np.abs(sa[lit] - sb[lit]) / sb[lit]))
 
 
-@pytest.fixture(scope="module")
-def gui_run(legacy_zip, tmp_path_factory):  # noqa: F811
-    out = tmp_path_factory.mktemp("viewport34")
+def run_gui(legacy_zip, out, mode="full", **environment):  # noqa: F811
+    """The point light sample saved in `out`, then tests/addon/viewport_gui_script.py in MODE `mode`
+    in Blender 3.4's window (Xvfb) with `environment` added; its report (viewport.json)."""
     r = subprocess.run([BLENDER, "-b", "--factory-startup", "--python",
                         os.path.join(REPO, "sample_blends", "make_samples.py"), "--", "--outdir", str(out),
                         "--only", "point_light", "--resolution", "48", "48"],
@@ -86,10 +100,10 @@ def gui_run(legacy_zip, tmp_path_factory):  # noqa: F811
     (out / "tmp").mkdir()
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     env.update(BLENDER_USER_SCRIPTS=str(out / "scripts"), BLENDER_USER_CONFIG=str(out / "config"),
-               TMPDIR=str(out / "tmp"))
+               TMPDIR=str(out / "tmp"), **environment)
     r = subprocess.run([XVFB, "-a", "-s", "-screen 0 640x480x24", BLENDER, "--factory-startup",
                         "-p", "0", "0", "640", "480", "--python", SCRIPT, "--", str(legacy_zip),
-                        str(out / "point_light.blend"), str(out)], capture_output=True, text=True,
+                        str(out / "point_light.blend"), str(out), mode], capture_output=True, text=True,
                        timeout=600, env=env)
     log = r.stdout[-4000:] + r.stderr[-4000:]
     report_path = out / "viewport.json"
@@ -99,6 +113,64 @@ def gui_run(legacy_zip, tmp_path_factory):  # noqa: F811
     assert "Traceback" not in r.stdout + r.stderr, log
     report["dir"] = out
     return report
+
+
+@pytest.fixture(scope="module")
+def gui_run(legacy_zip, tmp_path_factory):  # noqa: F811
+    return run_gui(legacy_zip, tmp_path_factory.mktemp("viewport34"))
+
+
+@pytest.fixture(scope="module")
+def control_run(legacy_zip, tmp_path_factory):  # noqa: F811
+    """The negative control: a UI thread that exports on every view change and waits for the
+    workers' first picture (mcrt_addon/viewport.py TNCG15_VIEWPORT_CONTROL), then draws stale pictures."""
+    return run_gui(legacy_zip, tmp_path_factory.mktemp("viewport34_control"), "control",
+                   TNCG15_VIEWPORT_CONTROL="export,wait")
+
+
+def median(values):
+    return float(np.median(values)) if len(values) else 0.0
+
+
+def navigation_problems(r):
+    """What a viewport that blocks on navigation, or draws an old view, gets wrong (a list of lines)."""
+    problems = []
+    orbit, during, cam = r["orbit"], r["orbit"]["during"], r["camera_move"]
+    if cam["exports"] or orbit["exports"]:
+        problems.append(f"view changes exported the scene (camera move {cam['exports']}, orbit {orbit['exports']})")
+    changed = [d[1] for d in during["draws"] if d[3]]
+    if not changed or median(changed) > ORBIT_DRAW_MEDIAN_LIMIT:
+        problems.append(f"view_draw of a changed view {1000 * median(changed):.1f} ms median ({len(changed)} draws)")
+    longest = max((d[1] for d in during["draws"]), default=0.0)
+    if longest > ORBIT_DRAW_LONGEST_LIMIT:
+        problems.append(f"a view_draw while orbiting took {1000 * longest:.0f} ms")
+    limit = max(ORBIT_GAP_LIMIT, ORBIT_SOLID_FACTOR * median(r["orbit_solid"]["ticks"]))
+    if median(during["ticks"]) > limit:
+        problems.append(f"timer gaps while orbiting {1000 * median(during['ticks']):.0f} ms median > {1000 * limit:.0f} ms")
+    problems += stale_problems(r["draws"])
+    if orbit["first_picture"] is None or not orbit["fresh_draws"]:
+        problems.append("no picture of the orbited view was drawn")
+    return problems
+
+
+def stale_problems(draws):
+    stale = sum(1 for _, fresh, _ in draws if not fresh)
+    return [f"{stale} of {len(draws)} pictures drawn were rendered for another view"] if stale else []
+
+
+def navigation_figures(r):
+    orbit, during, cam = r["orbit"], r["orbit"]["during"], r["camera_move"]
+    ms = lambda values: f"median {1000 * median(values):.1f} / longest {1000 * max(values, default=0):.1f} ms"  # noqa: E731
+    changed = [d for d in during["draws"] if d[3]]
+    return (f"[{r['mode']}] orbit {orbit['steps']} steps in {orbit['orbit_seconds']:.2f} s (load {during['load'][0]:.1f}): "
+            f"timer gaps {ms(during['ticks'])} (Solid-mode orbit: {ms(r['orbit_solid']['ticks'])}, load "
+            f"{r['orbit_solid']['load'][0]:.1f}); view_draw of a changed view wall {ms([d[1] for d in changed])}, "
+            f"UI-thread CPU {ms([d[4] for d in changed])}; views sent {orbit['views_sent']}, exports {orbit['exports']}; "
+            f"first picture {orbit['first_picture']:.3f} s after the last step, full resolution "
+            f"{orbit['first_full_resolution'] or 0:.2f} s, converged {orbit['converged']:.1f} s at {orbit['resolution']}; camera move: first picture "
+            f"{cam['first_picture']:.3f} s, timer gaps {ms(cam['ticks'])}, exports {cam['exports']}; "
+            f"converged viewport (idle workers): timer gaps {ms(r['idle']['ticks'])}; stale pictures drawn "
+            f"{sum(1 for d in r['draws'] if not d[1])} of {len(r['draws'])}")
 
 
 def test_viewport_is_progressive_and_matches_f12(gui_run):
@@ -179,3 +251,20 @@ def test_material_preview_renders_with_tncg15_in_blender34(gui_run):
     r, g, b, _ = p["centre"]                         # the pink ball (0.8, 0.4, 0.5) in the middle
     assert r > g + 0.05 and r > b + 0.03, p["centre"]
     print(f"material preview in Blender 3.4: {gui_run['preview_seconds']:.2f} s (worker start included)")
+
+
+def test_navigating_never_blocks_the_ui_or_draws_an_old_view(gui_run):
+    print(navigation_figures(gui_run))
+    assert navigation_problems(gui_run) == []
+
+
+def test_navigation_control_that_blocks_or_draws_stale_pictures_fails(control_run):
+    """Negative control: the same checks reject a UI thread that exports and waits on every view
+    change, and an orbit that draws the last picture whatever its view."""
+    print(navigation_figures(control_run))
+    problems = navigation_problems(control_run)
+    assert any("exported" in p for p in problems) and any("view_draw" in p for p in problems), problems
+    stale = control_run["orbit_stale_control"]
+    assert stale["stale_draws"] > 0, stale["stale_draws"]
+    print("control:", "; ".join(problems), f"; stale control: {stale['stale_draws']} stale of "
+          f"{stale['stale_draws'] + stale['fresh_draws']} drawn")
