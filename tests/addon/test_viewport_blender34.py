@@ -47,12 +47,14 @@ MEDIAN_TICK_LIMIT = 0.2  # seconds between 20 ms timer calls, median: a UI threa
 LONGEST_TICK_LIMIT = 5.0
 LONGEST_DRAW_LIMIT = 1.0
 # Navigation (camera move, orbit).  A view change on the UI thread is a few matrix compares and a
-# camera sent (measured 0.4-0.5 ms median wall at load 15-20 on 2 cores); exporting the point
-# light scene costs about 8 ms there, waiting for the workers' first picture 0.1-0.8 s.
+# camera sent: measured view_draw of a changed view 0.5-0.9 ms CPU median (thread_time), 0.4-3.5 ms
+# wall median, 11-63 ms longest, at load 15-28 on 2 cores; the control's export costs 8.7 ms CPU
+# median, its wait for the workers' first picture 0.27 s wall median and 2.4 s longest.
 ORBIT_GAP_LIMIT = 0.100          # median timer gap while orbiting, or 1.5x the Solid-mode orbit's
 ORBIT_SOLID_FACTOR = 1.5
-ORBIT_DRAW_MEDIAN_LIMIT = 0.005  # seconds of view_draw for a changed view, median
-ORBIT_DRAW_LONGEST_LIMIT = 0.25  # seconds of any view_draw while orbiting
+ORBIT_DRAW_CPU_LIMIT = 0.002     # UI-thread CPU seconds of view_draw for a changed view, median
+ORBIT_DRAW_MEDIAN_LIMIT = 0.025  # wall seconds of view_draw for a changed view, median
+ORBIT_DRAW_LONGEST_LIMIT = 0.5   # wall seconds of any view_draw while orbiting
 
 
 def srgb_to_linear(c):
@@ -138,9 +140,12 @@ def navigation_problems(r):
     orbit, during, cam = r["orbit"], r["orbit"]["during"], r["camera_move"]
     if cam["exports"] or orbit["exports"]:
         problems.append(f"view changes exported the scene (camera move {cam['exports']}, orbit {orbit['exports']})")
-    changed = [d[1] for d in during["draws"] if d[3]]
-    if not changed or median(changed) > ORBIT_DRAW_MEDIAN_LIMIT:
-        problems.append(f"view_draw of a changed view {1000 * median(changed):.1f} ms median ({len(changed)} draws)")
+    changed = [d for d in during["draws"] if d[3]]
+    if not changed or median([d[4] for d in changed]) > ORBIT_DRAW_CPU_LIMIT:
+        problems.append(f"view_draw of a changed view {1000 * median([d[4] for d in changed]):.1f} ms CPU median "
+                        f"({len(changed)} draws)")
+    if median([d[1] for d in changed]) > ORBIT_DRAW_MEDIAN_LIMIT:
+        problems.append(f"view_draw of a changed view {1000 * median([d[1] for d in changed]):.1f} ms wall median")
     longest = max((d[1] for d in during["draws"]), default=0.0)
     if longest > ORBIT_DRAW_LONGEST_LIMIT:
         problems.append(f"a view_draw while orbiting took {1000 * longest:.0f} ms")
@@ -197,8 +202,12 @@ def test_moving_the_light_restarts_and_shows_it(gui_run):
     # negative control: the block test rejects the viewport once the light has moved
     last = frame_pixels(read_png(r["moved_shots"][-1][1]), r["frame"], r["area_size"])
     assert worst_block_difference(last, read_png(r["dir"] / "f12.png")) > TOLERANCE
+    light = r["light_move"]
+    exports = [u for u in light["updates"] if u[2] == "scene"]
     print(f"light moved: restart {1000 * r['restart_seconds']:.0f} ms, first new frame "
-          f"{1000 * r['first_new_frame_seconds']:.0f} ms, picture changed in the shot at {changed[0]:.2f} s")
+          f"{1000 * r['first_new_frame_seconds']:.0f} ms, drawn at {1000 * (light['first_picture'] or 0):.0f} ms, "
+          f"picture changed in the shot at {changed[0]:.2f} s; view_update (export) on the UI thread "
+          f"{', '.join(f'{1000 * u[1]:.1f} ms wall / {1000 * u[3]:.1f} ms CPU' for u in exports)} (load {light['load'][0]:.1f})")
 
 
 def test_ui_stays_responsive_while_the_viewport_renders(gui_run):
@@ -218,6 +227,9 @@ def test_leaving_rendered_mode_or_quitting_stops_the_workers(gui_run):
     from tests.file_safety import alive
     assert gui_run["pids"], gui_run
     assert gui_run["workers_alive_after_solid"] == [], gui_run["workers_alive_after_solid"]
+    ticks = gui_run["leave_rendered_ticks"]
+    print(f"leaving Rendered mode: gc.collect (the engine freed) {1000 * gui_run['free_seconds']:.0f} ms, "
+          f"longest timer gap in the next second {1000 * max(ticks, default=0):.0f} ms")
     pids = gui_run["pids_at_quit"]                  # Blender quit while the viewport rendered
     assert pids and set(pids).isdisjoint(gui_run["pids"]), pids
     deadline = time.monotonic() + 15                # a guard against a hang: they die within ms

@@ -362,6 +362,7 @@ def steps():
             out["restart_seconds"] = time.perf_counter() - t_move       # re-exported, workers told
         if st.workers.gen != gen and st.workers.first_frame_seconds is not None:
             out["first_new_frame_seconds"] = time.perf_counter() - t_move
+            new_version = st.workers.picture().version          # drawn when the texture is this one or newer
             break
         if time.perf_counter() - t_move > HANG:
             raise RuntimeError(f"no new frame {HANG:.0f} s after the light moved: {st.message}")
@@ -372,6 +373,9 @@ def steps():
         shots.append([time.perf_counter() - t_move, screenshot(f"moved_{len(shots):02d}.png")])
     out["moved_shots"] = shots
     out["exports_after_move"] = st.exports
+    out["light_move"] = dict(window_of(st, t_move, t_move + out["first_new_frame_seconds"] + 0.5),
+                             first_picture=next((t - t_move for t, fresh, v in out["draws"]
+                                                 if t > t_move and fresh and v >= new_version), None))
     # the light back where it was, and a render border in camera view: only its pixels are
     # rendered and drawn, and they show what the full view showed there
     light.location.x += 0.6
@@ -397,7 +401,12 @@ def steps():
     t_solid = time.perf_counter()
     yield 0.5
     import gc
-    gc.collect()
+    t_gc = time.perf_counter()
+    gc.collect()                                    # the engine freed (its __del__ stops the workers)
+    out["free_seconds"] = time.perf_counter() - t_gc
+    yield 0.5
+    out["leave_rendered_ticks"] = [b - a for a, b in zip(out["tick_times"], out["tick_times"][1:])
+                                   if t_solid <= b <= time.perf_counter()]
     while any(os.path.exists(f"/proc/{p}") and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
               for p in out["pids"]) and time.perf_counter() - t_solid < HANG:
         yield 0.1
