@@ -464,7 +464,7 @@ class ViewportRender:
         self.level = -1                           # of the picture shown (0: coarse, 1: the view)
         self.version = 0                          # changes whenever the picture does
         self.error = None
-        self.shown = Picture(0, None, 0, None, -1, None)
+        self.latest = Picture(0, None, 0, None, -1, None)   # the picture shown (snapshot, picture)
         self.gen_started = time.perf_counter()
         self.first_frame_seconds = None           # of the current request, coarse or not
         self.closed = False
@@ -499,7 +499,7 @@ class ViewportRender:
             self.target = target
             self.level, self.error = -1, None
             self.version += 1
-            self.shown = Picture(self.version, None, 0, None, -1, None, tag)
+            self.latest = Picture(self.version, None, 0, None, -1, None, tag)
             self.gen_started, self.first_frame_seconds = time.perf_counter(), None
             self.wake.notify()
 
@@ -531,7 +531,7 @@ class ViewportRender:
                     if gen == self.gen:
                         self.error = one_line(exc)
                         self.version += 1
-                        self.shown = self.shown._replace(version=self.version, error=self.error)
+                        self.latest = self.latest._replace(version=self.version, error=self.error)
                 self._notify()
             done = gen
 
@@ -560,7 +560,7 @@ class ViewportRender:
                 if gen == self.gen and level >= self.level:
                     self.level = level
                     self.version += 1
-                    self.shown = Picture(self.version, rgba, samples, noise, level, None, tag, divider)
+                    self.latest = Picture(self.version, rgba, samples, noise, level, None, tag, divider)
                     if self.first_frame_seconds is None:
                         self.first_frame_seconds = time.perf_counter() - self.gen_started
             self._notify()
@@ -581,7 +581,7 @@ class ViewportRender:
     def picture(self) -> Picture:
         """The picture shown (made on the render thread: reading it costs nothing)."""
         with self.lock:
-            return self.shown
+            return self.latest
 
     def snapshot(self):
         """(version, rgba or None, samples, relative error or None, level, error message) of picture()."""
