@@ -23,9 +23,9 @@ it and ``__del__`` stops the workers).
   samples and the noise estimate.
 
 What the UI thread pays is recorded (ViewportState.update_log and draw_log: the wall seconds
-(perf_counter) and the UI thread's CPU seconds (thread_time) of every view_update and view_draw) for tests/addon/test_viewport_blender34.py.  Its negative
-control sets TNCG15_VIEWPORT_CONTROL (never set otherwise) to a comma list of what a blocking,
-stale viewport does: "export" (a view change exports the scene again, on the UI thread), "wait"
+(perf_counter) and the UI thread's CPU seconds (thread_time) of every view_update and view_draw)
+for tests/addon/test_viewport_blender34.py.  Its negative control sets TNCG15_VIEWPORT_CONTROL
+(never set otherwise) to a comma list of what a blocking, stale viewport does: "export" (a view change exports the scene again, on the UI thread), "wait"
 (the UI thread waits for the workers' first picture of each change), "stale" (the last picture
 is drawn whatever view it was rendered for).
 """
@@ -278,7 +278,7 @@ def export(engine, st, context, depsgraph):
     st.workers.set_denoise(denoise_start(props))
     key = view_key(context, scene)
     st.workers.set_scene(exported.scene, settings, max(1, int(props.viewport_samples)), tag=key,
-                         start_resolution=getattr(props, "viewport_start_resolution", 64),
+                         start_resolution=props.viewport_start_resolution,
                          pixel_size=pixel_size(engine, scene))
     st.key, st.resolution, st.border = key, resolution, border
     st.scene_sent, st.message = True, None
