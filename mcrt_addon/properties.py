@@ -61,6 +61,12 @@ def scene_properties() -> dict:
         props[s.blender_prop] = scene_property(s)
     props["viewport_samples"] = IntProperty(name="Max Samples", description="Samples per pixel the 3D viewport's "
                                             "Rendered mode accumulates", default=32, min=1, soft_max=4096)
+    # Performance > Viewport > Start Pixels, as Cycles' preview_start_resolution: the first coarse
+    # frame of a view has at most this squared pixels (engine/pools/viewport.py start_divider)
+    props["viewport_start_resolution"] = IntProperty(name="Start Pixels", default=64, min=8, max=16384,
+                                                     subtype="PIXEL", description="Resolution to start "
+                                                     "rendering the viewport at, progressively increasing "
+                                                     "it to the full viewport size")
     # Viewport > Denoise, as Cycles' use_preview_denoising and preview_denoising_start_sample: the
     # viewport's display only (engine/pools/denoiser.py), never the tracer's settings
     props["use_preview_denoising"] = BoolProperty(name="Denoise", default=False, description="Denoise the "

@@ -265,6 +265,9 @@ class RENDER_PT_tncg15_performance(TNCG15ButtonsPanel, bpy.types.Panel):
         layout.prop(props, "tile_size")
         # Final Render > Persistent Data, Blender's own property as in Cycles (mcrt_addon/persistent.py)
         layout.prop(context.scene.render, "use_persistent_data", text="Persistent Data")
+        # Viewport: Pixel Size (Blender's own property) and Start Pixels, as Cycles (mcrt_addon/viewport.py)
+        layout.prop(context.scene.render, "preview_pixel_size", text="Pixel Size")
+        layout.prop(props, "viewport_start_resolution", text="Start Pixels")
 
 
 class VIEWLAYER_PT_tncg15_passes(TNCG15ButtonsPanel, bpy.types.Panel):

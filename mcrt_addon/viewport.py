@@ -12,12 +12,25 @@ it and ``__del__`` stops the workers).
   objects and camera data change the view only; anything else re-exports the scene, reading
   meshes again only for objects and meshes whose geometry changed (a mesh cache across exports).
 * ``view_draw``: the view (region size, view and projection matrices, render border) is compared
-  with the last one; a change sends only the new camera to the workers (no BVH rebuild).  The
-  latest film is uploaded as a half-float texture when it changed and drawn with
-  ``gpu_extras.presets.draw_texture_2d`` between ``bind_display_space_shader`` and
-  ``unbind_display_space_shader`` (as Cycles): the film is scene-linear and Blender applies the
-  view transform, look, exposure and gamma.  The header shows samples and the noise estimate.
+  with the last one; a change sends only the new camera to the workers (no BVH rebuild) and
+  returns: nothing on the UI thread waits for the workers.  The latest picture is uploaded as a
+  half-float texture when it changed and drawn with ``gpu_extras.presets.draw_texture_2d`` between
+  ``bind_display_space_shader`` and ``unbind_display_space_shader`` (as Cycles): the film is
+  scene-linear and Blender applies the view transform, look, exposure and gamma.  A picture is
+  drawn only for the view it was rendered for (its tag, engine/pools/viewport.py Picture): after
+  a rotation the old picture is not drawn against the new view; the new view's first coarse frame
+  (Performance > Viewport: Start Pixels and Pixel Size, as Cycles) follows.  The header shows
+  samples and the noise estimate.
+
+What the UI thread pays is recorded (ViewportState.update_log and draw_log: the wall seconds
+(perf_counter) and the UI thread's CPU seconds (thread_time) of every view_update and view_draw)
+for tests/addon/test_viewport_blender34.py.  Its negative control sets TNCG15_VIEWPORT_CONTROL
+(never set otherwise) to a comma list of what a blocking, stale viewport does: "export" (a view change exports the scene again, on the UI thread), "wait"
+(the UI thread waits for the workers' first picture of each change), "stale" (the last picture
+is drawn whatever view it was rendered for).
 """
+import os
+import threading
 import time
 import weakref
 
@@ -26,7 +39,10 @@ import bpy
 from . import bridge, worker_python
 
 MAX_HALF = 65000.0              # half floats overflow above 65504
-POLL_SECONDS = 0.05             # redraw poller
+POLL_SECONDS = 0.02             # redraw poller (a version compare: costs microseconds)
+LOG_LENGTH = 4000               # callbacks kept in ViewportState.update_log / draw_log
+CONTROL = set(filter(None, os.environ.get("TNCG15_VIEWPORT_CONTROL", "").split(",")))   # a test's control only
+CONTROL_WAIT = 10.0             # seconds the "wait" control waits for a picture
 ACTIVE = weakref.WeakSet()      # the ViewportStates of live Rendered viewports (tests, diagnostics)
 
 
@@ -152,6 +168,7 @@ class ViewportState:
         self.scene_sent = False
         self.texture = None
         self.texture_version = -1
+        self.texture_tag = None               # the view the texture's picture was rendered for
         self.drawn_version = -1
         self.closed = False
         self.started = time.perf_counter()
@@ -159,17 +176,23 @@ class ViewportState:
         self.last_export_seconds = None
         self.draw_seconds = []                # view_draw durations (UI thread), the last 200
         self.upload_seconds = []              # texture uploads among them
+        self.update_log = []                  # (perf_counter at the start, seconds, kind, CPU seconds)
+        self.draw_log = []                    # (perf_counter at the start, seconds, drawn, view changed, CPU seconds)
+        self.view_changes = 0                 # views sent to the workers without an export
         ACTIVE.add(self)
 
     def start_workers(self, count):
+        """The progressive render; its worker processes start on its own thread (the UI goes on)."""
         python, why = worker_python.worker_python(worker_python.preferred_python())
         if python is None:
             raise RuntimeError(f"the viewport needs render worker processes: {why}")
-        pool = bridge.module("api").make_pool(f"viewport:{python}", count, log=lambda *a: None,
-                                              extra_paths=worker_python.extra_paths())
+        extra = worker_python.extra_paths()
+
+        def make_pool():
+            return bridge.module("api").make_pool(f"viewport:{python}", count, log=lambda *a: None, extra_paths=extra)
         denoiser = bridge.module("pools.denoiser")       # Viewport > Denoise: OIDN in a process of its own
-        self.workers = denoiser.DenoisedView(bridge.module("pools.viewport").ViewportRender(pool),
-                                             lambda: denoiser.DenoiserProcess(python, worker_python.extra_paths()))
+        self.workers = denoiser.DenoisedView(bridge.module("pools.viewport").ViewportRender(make_pool=make_pool),
+                                             lambda: denoiser.DenoiserProcess(python, extra))
         bpy.app.timers.register(self.poll, first_interval=POLL_SECONDS)
 
     def poll(self):
@@ -182,10 +205,18 @@ class ViewportState:
         return POLL_SECONDS
 
     def close(self):
+        """Stop the render and its workers on a thread of their own: leaving Rendered mode never
+        waits for a worker to stop."""
         self.closed = True
         if self.workers is not None:
-            self.workers.close()
+            threading.Thread(target=self.workers.close, daemon=True, name="viewport close").start()
         self.texture = None
+
+
+def logged(log, entry):
+    log.append(entry)
+    if len(log) > LOG_LENGTH:
+        del log[:len(log) - LOG_LENGTH]
 
 
 def tag_rendered_viewports():
@@ -201,18 +232,31 @@ def view_update(engine, context, depsgraph):
     st = getattr(engine, "viewport_state", None)
     if st is None:
         st = engine.viewport_state = ViewportState()
+    t0, cpu0, kind = time.perf_counter(), time.thread_time(), "error"
     try:
         if worker_python.NUMPY_PROBLEM:
             raise ImportError(worker_python.NUMPY_PROBLEM)
-        scene = depsgraph.scene
         kind, geometry = classify(depsgraph.updates)
         forget_meshes(st.mesh_cache, geometry)
         if st.scene_sent and kind != "scene":
             return                           # the view is compared in view_draw
         export(engine, st, context, depsgraph)
+        if "wait" in CONTROL:
+            wait_for_picture(st)
     except Exception as exc:                 # noqa: BLE001 - in the header, never a traceback
         st.message = "Error: " + (engine._readable(exc) or f"{type(exc).__name__}: {exc}")
         st.scene_sent = False
+    finally:
+        logged(st.update_log, (t0, time.perf_counter() - t0, kind, time.thread_time() - cpu0))
+
+
+def wait_for_picture(st):
+    """The negative control's blocking UI thread ("wait"): wait for the workers' first picture of
+    the request just sent."""
+    t0 = time.perf_counter()
+    while (st.workers is not None and st.workers.first_frame_seconds is None and st.workers.error is None
+           and time.perf_counter() - t0 < CONTROL_WAIT):
+        time.sleep(0.002)
 
 
 def export(engine, st, context, depsgraph):
@@ -232,9 +276,22 @@ def export(engine, st, context, depsgraph):
     if st.workers is None:
         st.start_workers(viewport_worker_count(settings))
     st.workers.set_denoise(denoise_start(props))
-    st.workers.set_scene(exported.scene, settings, max(1, int(props.viewport_samples)))
-    st.key, st.resolution, st.border = view_key(context, scene), resolution, border
+    key = view_key(context, scene)
+    st.workers.set_scene(exported.scene, settings, max(1, int(props.viewport_samples)), tag=key,
+                         start_resolution=props.viewport_start_resolution,
+                         pixel_size=pixel_size(engine, scene))
+    st.key, st.resolution, st.border = key, resolution, border
     st.scene_sent, st.message = True, None
+
+
+def pixel_size(engine, scene):
+    """Performance > Viewport > Pixel Size: Blender's scene.render.preview_pixel_size as Cycles
+    reads it (Automatic: the interface's pixel size)."""
+    get = getattr(engine, "get_preview_pixel_size", None)
+    try:
+        return max(1, int(get(scene))) if get is not None else 1
+    except (TypeError, ValueError, RuntimeError):
+        return 1
 
 
 def denoise_start(props):
@@ -244,9 +301,9 @@ def denoise_start(props):
 
 
 def viewport_worker_count(settings):
-    """Threads setting, or all cores but one (left to Blender's UI and drawing), at least one."""
-    import os
-    return settings.threads if settings.threads > 0 else max(1, (os.cpu_count() or 1) - 1)
+    """Threads setting, or one worker process a core (as Cycles' viewport uses every thread: the
+    UI thread only hands views on and draws, docs/performance.md "The Rendered viewport")."""
+    return settings.threads if settings.threads > 0 else max(1, os.cpu_count() or 1)
 
 
 def view_draw(engine, context, depsgraph):
@@ -254,42 +311,56 @@ def view_draw(engine, context, depsgraph):
     if st is None:
         return
     scene = depsgraph.scene
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.thread_time()
+    drawn = changed = False
     try:
+        key = view_key(context, scene)
         if not st.scene_sent:
-            key = view_key(context, scene)
             if key != st.key:                # e.g. orthographic -> perspective: export again
                 st.key = key
                 engine.tag_update()
-        else:
-            key = view_key(context, scene)
-            if key != st.key:
-                camera, resolution, border = view_camera(context, scene)
-                if camera is None:
-                    st.message = resolution
-                else:
-                    st.workers.set_view(camera, resolution)
-                    st.resolution, st.border, st.message = resolution, border, None
-                st.key = key
+        elif key != st.key:
+            changed = True
+            if "export" in CONTROL:          # the negative control: as a viewport without view-only updates
+                export(engine, st, context, depsgraph)
+            else:
+                send_view(st, context, scene, key)
+            if "wait" in CONTROL:
+                wait_for_picture(st)
         if st.workers is None:
             engine.update_stats("", f"TNCG15 MC | {st.message or 'Starting'}")
             return
         st.workers.set_denoise(denoise_start(scene.tncg15))
-        version, rgba, samples, noise, level, error = st.workers.snapshot()
-        st.drawn_version = version
-        if rgba is not None and version != st.texture_version and not bpy.app.background:
+        picture = st.workers.picture()
+        st.drawn_version = picture.version
+        if picture.rgba is not None and picture.version != st.texture_version and not bpy.app.background:
             t_upload = time.perf_counter()
-            st.texture = upload(rgba)
-            st.texture_version = version
+            st.texture = upload(picture.rgba)
+            st.texture_version, st.texture_tag = picture.version, picture.tag
             st.upload_seconds = (st.upload_seconds + [time.perf_counter() - t_upload])[-200:]
-        if st.texture is not None and st.message is None:
-            region = context.region
+        if st.texture is not None and st.message is None and (st.texture_tag == st.key or "stale" in CONTROL):
+            region = context.region          # only the picture of this view (never an old one)
             x0, y0, x1, y1 = st.border if st.border is not None else (0, 0, region.width, region.height)
             draw_texture(engine, scene, st.texture, x0, y0, x1 - x0, y1 - y0)
-        engine.update_stats("", header_text(st, samples, noise, level, error))
+            drawn = True
+        engine.update_stats("", header_text(st, *picture[2:6]))
         st.draw_seconds = (st.draw_seconds + [time.perf_counter() - t0])[-200:]
     except Exception as exc:                 # noqa: BLE001 - drawing must never raise into Blender
         engine.update_stats("", f"TNCG15 MC | Error: {type(exc).__name__}: {exc}")
+    finally:
+        logged(st.draw_log, (t0, time.perf_counter() - t0, drawn, changed, time.thread_time() - cpu0))
+
+
+def send_view(st, context, scene, key):
+    """The view changed: its camera to the workers (they rebuild nothing), and return."""
+    camera, resolution, border = view_camera(context, scene)
+    if camera is None:
+        st.message = resolution
+    else:
+        st.workers.set_view(camera, resolution, tag=key)
+        st.resolution, st.border, st.message = resolution, border, None
+        st.view_changes += 1
+    st.key = key
 
 
 def header_text(st, samples, noise, level, error):
@@ -299,7 +370,7 @@ def header_text(st, samples, noise, level, error):
         return f"TNCG15 MC | {st.message}"
     target = st.workers.target
     if level < 0:
-        return "TNCG15 MC | Preparing scene"
+        return "TNCG15 MC | " + ("Updating" if st.texture is not None else "Preparing scene")
     if level == 0:
         return f"Sample 0/{target} | Coarse pass"
     text = f"Sample {samples}/{target}"

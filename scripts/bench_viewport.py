@@ -5,11 +5,13 @@
 A room with one mesh of about N triangles and a point light; the viewport's view_update /
 view_draw bodies are called as Blender calls them (mcrt_addon/viewport.py, stub engine and
 context, the depsgraph of a depsgraph_update_post handler).  For entering Rendered mode, moving the
-camera (view_draw: a new camera only), moving the light (re-export without reading the mesh,
-workers rebuild) and editing the mesh (the mesh read again) it prints the time spent on Blender's
-UI thread, the meshes read, and the time until the workers' first frame of the change; for
-entering Rendered mode also the time to the first full-resolution picture and the sample rate
-after it (samples of the whole frame per second, until --samples are there).
+camera (view_draw: a new camera only), orbiting (--orbit views 30 ms apart, as a user drags),
+moving the light (re-export without reading the mesh, workers rebuild) and editing the mesh (the
+mesh read again) it prints the time spent on Blender's UI thread, the meshes read, and the time
+until the workers' first frame of the change; for entering Rendered mode also the time to the
+first full-resolution picture and the sample rate after it (samples of the whole frame per second,
+until --samples are there) with the worker processes' CPU seconds (--threads: worker processes,
+0 = one a core as the viewport starts them).
 """
 import argparse
 import os
@@ -28,6 +30,8 @@ def main():
     ap.add_argument("--triangles", type=int, default=1_000_000)
     ap.add_argument("--size", type=int, nargs=2, default=(320, 240))
     ap.add_argument("--samples", type=int, default=16, help="the viewport's max samples")
+    ap.add_argument("--threads", type=int, default=0, help="viewport worker processes (0: one a core)")
+    ap.add_argument("--orbit", type=int, default=30, help="views of the orbit, 30 ms apart")
     args = ap.parse_args()
     import mcrt_addon
     from mcrt_addon.headless import ensure_registered
@@ -39,6 +43,7 @@ def main():
     scene = bpy.context.scene
     scene.render.engine = "TNCG15_MC"
     scene.tncg15.viewport_samples = args.samples
+    scene.tncg15.threads = args.threads
     n = max(1, int((args.triangles / 2) ** 0.5))
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=n, y_subdivisions=n, size=4.0)
     grid = bpy.context.object
@@ -60,12 +65,23 @@ def main():
     export.mesh_arrays = lambda me: reads.append(me.name) or original(me)
     engine = SimpleNamespace(_readable=lambda exc: None, update_stats=lambda a, b: None, tag_update=lambda: None)
 
-    def context():
+    def context(view_matrix=None):
         dg = bpy.context.evaluated_depsgraph_get()
         return SimpleNamespace(region=SimpleNamespace(width=w, height=h), space_data=None,
                                region_data=SimpleNamespace(window_matrix=cam.calc_matrix_camera(dg, x=w, y=h),
-                                                           view_matrix=cam.matrix_world.inverted(),
+                                                           view_matrix=view_matrix or cam.matrix_world.inverted(),
                                                            view_perspective="PERSP"))
+
+    def worker_cpu(st):
+        """CPU seconds (user + system) the viewport's worker processes used so far."""
+        total = 0.0
+        for pid in st.workers.pids:
+            try:
+                fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+                total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+            except (OSError, IndexError, ValueError):
+                pass
+        return total
 
     def first_frame(st, timeout=300):
         t = time.perf_counter()
@@ -96,7 +112,22 @@ def main():
         n0, t0 = samples[0][1], samples[0][0]
         rate = (args.samples - n0) / max(end - t0, 1e-9)
         print(f"{'':<34} first full-resolution picture after {1000 * full:8.1f} ms, then "
-              f"{rate:6.2f} samples/s ({n0} -> {args.samples} in {end - t0:.2f} s)")
+              f"{rate:6.2f} samples/s ({n0} -> {args.samples} in {end - t0:.2f} s; {len(st.workers.pids)} "
+              f"worker(s), {worker_cpu(st):.1f} CPU s in all, load {os.getloadavg()[0]:.2f})")
+        # the orbit: a view every 30 ms about the room's centre, view_draw each time
+        from mathutils import Matrix
+        ui = []
+        for i in range(args.orbit):
+            turn = Matrix.Rotation(0.035 * (i + 1), 4, "Z")
+            t = time.perf_counter()
+            viewport.view_draw(engine, context((turn @ cam.matrix_world).inverted()), bpy.context.evaluated_depsgraph_get())
+            ui.append(time.perf_counter() - t)
+            time.sleep(max(0.0, 0.03 - ui[-1]))
+        first = first_frame(st)                  # seconds after the last view was sent
+        ui.sort()
+        print(f"{'orbit (' + str(args.orbit) + ' views, view_draw)':<34} UI thread {1000 * ui[len(ui) // 2]:8.1f} ms "
+              f"median, {1000 * ui[-1]:.1f} longest   first frame of the last view after {1000 * first:8.1f} ms")
+        viewport.view_draw(engine, context(), bpy.context.evaluated_depsgraph_get())
         # the camera moves: view_draw sends only a camera
         cam.location.x += 0.3
         bpy.context.view_layer.update()

@@ -148,12 +148,24 @@ class DenoisedView:
         """ViewportRender.snapshot, with the last denoised picture of this view when there is one."""
         gen = self.render.gen
         version, rgba, samples, noise, level, error = self.render.snapshot()
+        version, rgba = self._shown(gen, version, rgba, level)
+        return version, rgba, samples, noise, level, error
+
+    def picture(self):
+        """ViewportRender.picture (engine/pools/viewport.py Picture: with the view it belongs to),
+        denoised as snapshot()."""
+        gen = self.render.gen
+        picture = self.render.picture()
+        version, rgba = self._shown(gen, picture.version, picture.rgba, picture.level)
+        return picture._replace(version=version, rgba=rgba)
+
+    def _shown(self, gen, version, rgba, level):
         with self.lock:
             shown = self.shown
             if (shown is not None and self.start is not None and shown[0] == gen == self.render.gen
                     and level == 1 and rgba is not None and shown[2].shape == rgba.shape):
                 rgba = shown[2]
-            return version + self.done, rgba, samples, noise, level, error
+            return version + self.done, rgba
 
     def _run(self):
         last_seen = None

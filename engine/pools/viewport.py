@@ -28,11 +28,17 @@ in progress stops within a bounce and the units queued before the cancel are ans
 cancel clears when the worker reaches it in the stream, so the units after it render.
 
 `ViewportRender` is the progressive render the 3D viewport shows (mcrt_addon/viewport.py): on
-a thread of the parent it renders each view as two frames of the frame side
-(engine/rendering/frame.py Frame, one film each), a coarse one of 1 sample at 1/COARSE of the
-resolution, then the view itself in the "growing" order of engine/rendering/units.py (one sample
-of the whole frame, then units of 1, 2, 4, ... samples), until `target` samples.  A new scene or
-view cancels the frame in progress (engine/rendering/units.py await_units) and starts again.
+a thread of the parent it renders each view as frames of the frame side (engine/rendering/frame.py
+Frame, one film each), as Cycles' viewport does: coarse frames of 1 sample, the first at the
+resolution divided by the power of two that leaves at most `start_resolution`² pixels (Cycles'
+Performance > Viewport > Start Pixels, `start_divider`), each next one at twice the resolution,
+then the view itself at the resolution divided by the pixel size (Cycles' Pixel Size) in the
+"growing" order of engine/rendering/units.py (one sample of the whole frame, then units of 1, 2,
+4, ... samples), until `target` samples.  A new scene or view cancels the frame in progress
+(engine/rendering/units.py await_units) and starts again.  Every picture carries the `tag` of the
+request it was rendered for (the viewport's view), so a picture of an old view is never taken
+for the new one; the picture shown (image, noise) is made on the render thread, never on the
+caller's (Blender's UI thread), whose snapshot() only reads it.
 With the Sobol' sampler a sample number gives the same random numbers wherever it is traced, so
 the picture after `target` samples is the final render's image of that view with `target` samples.
 """
@@ -46,6 +52,7 @@ import sys
 import threading
 import time
 import traceback
+from typing import NamedTuple
 
 import numpy as np
 
@@ -55,7 +62,7 @@ from . import faults
 from .protocol import Pool
 from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, start_workers
 
-COARSE = 4                      # the coarse frame: 1/COARSE of the resolution in each direction
+START_RESOLUTION = 64           # Cycles' default Start Pixels: the first frame has at most 64² pixels
 IN_FLIGHT = 2                   # units queued per worker, so none waits for the next
 START_TIMEOUT = 120.0           # seconds for imports + scene + BVH before the workers are given up
 CLOSE_SECONDS = 1.0             # EOF, then SIGKILL
@@ -67,9 +74,46 @@ class ViewportWorkerError(SceneError):
     """A viewport worker could not start, failed or died (one line, shown in the viewport's header)."""
 
 
-def coarse_resolution(resolution, factor: int = COARSE):
+def coarse_resolution(resolution, divider: int):
+    """The resolution divided by `divider` (rounded up, at least one pixel)."""
     w, h = resolution
-    return max(1, -(-w // factor)), max(1, -(-h // factor))
+    return max(1, -(-w // divider)), max(1, -(-h // divider))
+
+
+def start_divider(resolution, start_resolution: int = START_RESOLUTION, pixel_size: int = 1) -> int:
+    """Cycles' rule for the first frame of a view: halve the resolution until it has at most
+    start_resolution² pixels; the power of two it was divided by (at least the pixel size)."""
+    w, h = resolution
+    divider = 1
+    while w * h > start_resolution * start_resolution and (w > 1 or h > 1):
+        w, h, divider = max(1, w // 2), max(1, h // 2), divider * 2
+    return max(divider, pixel_size)
+
+
+def frame_dividers(resolution, start_resolution: int = START_RESOLUTION, pixel_size: int = 1) -> list[int]:
+    """The dividers of one view's frames: the start divider, halved for every next (coarse)
+    frame while it is above the pixel size, then the pixel size (the view's own frame)."""
+    divider, out = start_divider(resolution, start_resolution, pixel_size), []
+    while divider > pixel_size:
+        out.append(divider)
+        divider //= 2
+    return out + [pixel_size]
+
+
+class Picture(NamedTuple):
+    """What the viewport shows: `version` changes whenever it does; rgba (h, w, 4) float32 with
+    row 0 at the bottom, or None; samples the fewest any pixel of the view has (0 for a coarse
+    frame); noise the relative error or None; level -1 (nothing yet), 0 (a coarse frame) or 1 (the
+    view's own frame); error one line or None; tag the request's (the view it belongs to);
+    divider the frame's resolution divider."""
+    version: int
+    rgba: object
+    samples: int
+    noise: object
+    level: int
+    error: object
+    tag: object = None
+    divider: int = 1
 
 
 def one_line(exc) -> str:
@@ -405,20 +449,22 @@ def relative_error(film):
 
 
 class ViewportRender:
-    """The progressive render of the current scene and view on `pool` (any Pool whose prepare()
-    may be called again: the viewport's), on a thread of its own.  set_scene / set_view restart
-    it; on_frame() is called (on that thread) after every merged unit."""
+    """The progressive render of the current scene and view on a pool whose prepare() may be
+    called again (the viewport's), on a thread of its own.  `pool` is the pool, or `make_pool`
+    makes it on that thread (the workers start while the caller goes on).  set_scene / set_view
+    restart it and return at once; on_frame() is called (on that thread) after every merged unit."""
 
-    def __init__(self, pool, on_frame=None):
-        self.pool, self.on_frame = pool, on_frame
+    def __init__(self, pool=None, on_frame=None, make_pool=None):
+        self.pool, self.make_pool, self.on_frame = pool, make_pool, on_frame
         self.lock = threading.Lock()
         self.wake = threading.Condition(self.lock)
         self.gen = 0                              # the request number: a new scene or view
-        self.request = None                       # (gen, scene, settings, target)
+        self.request = None                       # (gen, scene, settings, target, tag, start_resolution, pixel_size)
         self.target = 1
-        self.frame, self.level = None, -1         # the frame shown and its level (0: coarse, 1: the view)
+        self.level = -1                           # of the picture shown (0: coarse, 1: the view)
         self.version = 0                          # changes whenever the picture does
         self.error = None
+        self.latest = Picture(0, None, 0, None, -1, None)   # the picture shown (snapshot, picture)
         self.gen_started = time.perf_counter()
         self.first_frame_seconds = None           # of the current request, coarse or not
         self.closed = False
@@ -427,29 +473,33 @@ class ViewportRender:
 
     @property
     def pids(self):
-        return self.pool.stats().get("worker_pids", [])
+        return self.pool.stats().get("worker_pids", []) if self.pool is not None else []
 
     @property
     def builds(self):
-        return self.pool.stats().get("scenes_prepared", 0)
+        return self.pool.stats().get("scenes_prepared", 0) if self.pool is not None else 0
 
-    def set_scene(self, scene, settings, target: int):
+    def set_scene(self, scene, settings, target: int, tag=None, start_resolution: int = START_RESOLUTION,
+                  pixel_size: int = 1):
         """A new scene (geometry, materials, lights or settings changed): prepared again."""
         target = max(1, int(target))
-        self._ask(scene, dataclasses.replace(settings, samples=target), target)
+        self._ask(scene, dataclasses.replace(settings, samples=target), target, tag,
+                  max(1, int(start_resolution)), max(1, int(pixel_size)))
 
-    def set_view(self, camera, resolution):
+    def set_view(self, camera, resolution, tag=None):
         """Only the camera (or the viewport's size) changed: the workers prepare nothing again."""
-        _, scene, settings, target = self.request
-        self._ask(dataclasses.replace(scene, camera=camera, resolution=tuple(resolution)), settings, target)
+        _, scene, settings, target, _, start_resolution, pixel_size = self.request
+        self._ask(dataclasses.replace(scene, camera=camera, resolution=tuple(resolution)), settings, target, tag,
+                  start_resolution, pixel_size)
 
-    def _ask(self, scene, settings, target):
+    def _ask(self, scene, settings, target, tag, start_resolution, pixel_size):
         with self.lock:
             self.gen += 1
-            self.request = (self.gen, scene, settings, target)
+            self.request = (self.gen, scene, settings, target, tag, start_resolution, pixel_size)
             self.target = target
-            self.frame, self.level, self.error = None, -1, None
+            self.level, self.error = -1, None
             self.version += 1
+            self.latest = Picture(self.version, None, 0, None, -1, None, tag)
             self.gen_started, self.first_frame_seconds = time.perf_counter(), None
             self.wake.notify()
 
@@ -462,21 +512,30 @@ class ViewportRender:
                 if self.closed:
                     return
                 request = self.request
-            gen, scene, settings, target = request
+            gen, scene, settings, target, tag, start_resolution, pixel_size = request
             try:
-                w, h = scene.resolution
-                coarse = dataclasses.replace(scene, resolution=coarse_resolution((w, h)))
-                if self._frame(gen, 0, coarse, settings) and self.gen == gen:
-                    self._frame(gen, 1, scene, settings)
+                if self.pool is None:
+                    self.pool = self.make_pool()
+                    if self.closed:             # closed while the workers started
+                        self.pool.close()
+                        return
+                dividers = frame_dividers(scene.resolution, start_resolution, pixel_size)
+                for divider in dividers:
+                    level = 1 if divider == dividers[-1] else 0
+                    frame_scene = scene if divider == 1 else dataclasses.replace(
+                        scene, resolution=coarse_resolution(scene.resolution, divider))
+                    if self.gen != gen or not self._frame(gen, level, divider, tag, frame_scene, settings):
+                        break
             except Exception as exc:            # noqa: BLE001 - shown in the viewport's header
                 with self.lock:
                     if gen == self.gen:
                         self.error = one_line(exc)
                         self.version += 1
+                        self.latest = self.latest._replace(version=self.version, error=self.error)
                 self._notify()
             done = gen
 
-    def _frame(self, gen, level, scene, settings) -> bool:
+    def _frame(self, gen, level, divider, tag, scene, settings) -> bool:
         """Render one frame of the request `gen` (level 0: 1 sample); False when a newer request came."""
         from ..rendering.frame import Frame
         from ..rendering.units import await_units
@@ -490,11 +549,18 @@ class ViewportRender:
         self.pool.start(frame.units)
 
         def merge(result):
+            frame.add(result)                   # the film is this thread's alone
+            if gen != self.gen or level < self.level or frame.film.count.min() == 0:
+                return                          # all of it, or nothing
+            film = frame.film
+            rgba = film_image(film)             # made here, not on the thread that draws
+            samples = int(film.count.min()) if level == 1 else 0
+            noise = relative_error(film) if level == 1 else None
             with self.lock:
-                frame.add(result)
-                if gen == self.gen and level >= self.level and frame.film.count.min() > 0:   # all of it
-                    self.frame, self.level = frame, level
+                if gen == self.gen and level >= self.level:
+                    self.level = level
                     self.version += 1
+                    self.latest = Picture(self.version, rgba, samples, noise, level, None, tag, divider)
                     if self.first_frame_seconds is None:
                         self.first_frame_seconds = time.perf_counter() - self.gen_started
             self._notify()
@@ -512,17 +578,14 @@ class ViewportRender:
             except Exception:                   # noqa: BLE001 - a redraw request must not stop the render
                 pass
 
-    def snapshot(self):
-        """(version, rgba or None, samples, relative error or None, level, error message);
-        samples: the fewest any pixel of the view has (0 for the coarse frame)."""
+    def picture(self) -> Picture:
+        """The picture shown (made on the render thread: reading it costs nothing)."""
         with self.lock:
-            frame, level = self.frame, self.level
-            if frame is None:
-                return self.version, None, 0, None, level, self.error
-            film = frame.film
-            samples = int(film.count.min()) if level == 1 else 0
-            return (self.version, film_image(film), samples, relative_error(film) if level == 1 else None,
-                    level, self.error)
+            return self.latest
+
+    def snapshot(self):
+        """(version, rgba or None, samples, relative error or None, level, error message) of picture()."""
+        return tuple(self.picture()[:6])
 
     def notice(self):
         """A worker's death of the last few seconds, named (engine/pools/viewport.py ViewportPool.notice), or None."""
@@ -530,18 +593,20 @@ class ViewportRender:
         return notice() if notice is not None else None
 
     def converged(self) -> bool:
-        with self.lock:
-            return self.level == 1 and self.frame.film.count.min() >= self.target
+        shown = self.picture()
+        return shown.level == 1 and shown.samples >= self.target
 
     def close(self):
-        """Stop the render and the pool's workers.  Safe to call twice."""
+        """Stop the render and the pool's workers.  Safe to call twice; blocks up to a few
+        seconds (the viewport calls it on a thread of its own)."""
         with self.lock:
             if self.closed:
                 return
             self.closed = True
             self.wake.notify()
         self.thread.join(timeout=5)
-        self.pool.close()
+        if self.pool is not None:
+            self.pool.close()
 
 
 if __name__ == "__main__":

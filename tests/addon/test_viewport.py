@@ -157,9 +157,22 @@ def test_view_update_reads_meshes_only_when_their_geometry_changes(point_light, 
         assert engine.stats[-1].startswith("Sample 4/4 | Noise ±"), engine.stats[-3:]
         _, rgba, samples, *_ = st.workers.snapshot()
         assert samples == 4 and rgba.shape == (30, 40, 4) and rgba[..., :3].mean() > 0.02
+        assert st.workers.picture().tag == st.key, "the picture carries the view it was rendered for"
+        # Pixel Size 2 (scene.render.preview_pixel_size as RenderEngine.get_preview_pixel_size
+        # reads it): the view's own frame at half its resolution, drawn over the whole region
+        engine.get_preview_pixel_size = lambda scene_: 2
+        viewport.export(engine, st, ctx, bpy.context.evaluated_depsgraph_get())
+        deadline = time.perf_counter() + 60
+        while not st.workers.converged() and time.perf_counter() < deadline:
+            time.sleep(0.05)
+        picture = st.workers.picture()
+        assert picture.divider == 2 and picture.rgba.shape == (15, 20, 4) and picture.samples == 4, picture[2:]
     finally:
         pids = st.workers.pids if st.workers else []
         viewport.free(engine)
+    deadline = time.perf_counter() + 15            # they stop on a thread of their own: a guard only
+    while any(alive(p) for p in pids) and time.perf_counter() < deadline:
+        time.sleep(0.02)
     assert pids and not any(alive(p) for p in pids), "freeing the engine must stop its workers"
 
 

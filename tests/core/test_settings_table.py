@@ -27,7 +27,7 @@ from mcrt_addon.headless import ensure_registered
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BLENDER_ONLY = {"rna_type", "name", "viewport_samples", "estimate_text",      # scene.tncg15, not settings
-                "use_preview_denoising", "viewport_denoise_start"}
+                "use_preview_denoising", "viewport_denoise_start", "viewport_start_resolution"}
 KINDS = {INT: "INT", FLOAT: "FLOAT", BOOL: "BOOLEAN", CHOICE: "ENUM"}      # bpy property types
 
 

@@ -14,7 +14,7 @@ from engine.api import render
 from engine.core.settings import RenderSettings
 from engine.film.accumulator import Film
 from engine.pools.spec import make_pool
-from engine.pools.viewport import ViewportRender, coarse_resolution, film_image, relative_error
+from engine.pools.viewport import ViewportRender, coarse_resolution, film_image, frame_dividers, relative_error
 from engine.rendering.frame import Frame
 from tests.pools.conformance import drain
 from tests.file_safety import alive
@@ -45,7 +45,7 @@ def test_coarse_first_then_the_final_render_image(workers):
     scene = cornell_scene((40, 30))
     frames = []
     workers.on_frame = lambda: frames.append(workers.snapshot()[4])
-    workers.set_scene(scene, SETTINGS, 8)
+    workers.set_scene(scene, SETTINGS, 8, start_resolution=8)      # tiny views: coarse frames of 8² pixels at most
     version, rgba, samples, noise, level, _ = wait(workers, lambda s: s[4] == 1 and s[2] >= 8)
     levels = [level for level in frames if level >= 0]            # -1: "ready" before any frame
     assert levels[0] == 0 and levels[-1] == 1, "the first frame must be the coarse pass"
@@ -61,7 +61,7 @@ def test_coarse_first_then_the_final_render_image(workers):
 
 def test_a_new_view_restarts_without_rebuilding(workers):
     scene = cornell_scene((32, 32))
-    workers.set_scene(scene, SETTINGS, 4)
+    workers.set_scene(scene, SETTINGS, 4, start_resolution=8)
     wait(workers, lambda s: s[4] == 1 and s[2] >= 4)
     time.sleep(0.1)
     builds = workers.builds
@@ -70,17 +70,28 @@ def test_a_new_view_restarts_without_rebuilding(workers):
     shapes = []
     workers.on_frame = lambda: shapes.append((time.perf_counter(), workers.snapshot()[1]))
     t0 = time.perf_counter()
-    workers.set_view(narrow, (24, 16))
+    workers.set_view(narrow, (24, 16), tag="narrow")
     wait(workers, lambda s: s[1] is not None)
+    assert workers.picture().tag == "narrow", "a picture carries the view it was rendered for"
     first_time, coarse = next((t, img) for t, img in shapes if img is not None)
     first = first_time - t0
-    assert coarse.shape[:2] == coarse_resolution((24, 16))[::-1]
+    assert coarse.shape[:2] == coarse_resolution((24, 16), 4)[::-1]
     _, rgba, *_ = wait(workers, lambda s: s[4] == 1 and s[2] >= 4)
     assert rgba.shape[:2] == (16, 24) and workers.builds == builds
     expected = render(replace(scene, camera=narrow, resolution=(24, 16)), replace(SETTINGS, samples=4, threads=1),
                       log=lambda *a: None).image
     np.testing.assert_allclose(rgba[::-1, :, :3], expected, rtol=1e-4, atol=1e-5)
     print(f"view change: first (coarse) frame after {1000 * first:.0f} ms")
+
+
+def test_frames_of_a_view_follow_cycles_start_pixels_and_pixel_size():
+    """Cycles' rule: the first frame has at most Start Pixels² pixels (the resolution halved),
+    every next frame twice the resolution, the last at the resolution over the Pixel Size."""
+    assert frame_dividers((528, 399), 64, 1) == [8, 4, 2, 1]       # 66 x 49 = 3234 <= 64²
+    assert frame_dividers((528, 399), 64, 2) == [8, 4, 2]
+    assert frame_dividers((1321, 879), 64, 1) == [32, 16, 8, 4, 2, 1]
+    assert frame_dividers((40, 30), 64, 1) == [1], "a view of fewer pixels has no coarse frame"
+    assert frame_dividers((40, 30), 64, 4) == [4]
 
 
 def test_scene_errors_are_reported_not_raised(workers):
