@@ -35,10 +35,13 @@ class Stored:
     rays: int = 0           # rays cast
 
 
-def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int, label=None) -> Stored:
+def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int, label=None,
+                  cancel=None) -> Stored | None:
     """Trace the emitted photons (rows) through `tracer`'s scene (engine/integrators/path_tracer.py
     PathTracer: its geometry, material table, BSDFs and textures); label (N,): carried to the stored
-    photons (default 0)."""
+    photons (default 0).  None as soon as `cancel` (anything with is_set()) is set: it is checked
+    before every bounce of the whole wavefront (a few tenths of a second of a batch, Esc within a
+    pass)."""
     geometry, mats, textures = tracer.geometry, tracer.mats, tracer.textures
     o, d, phi = origin, direction, flux
     start = np.maximum(max3(flux), 1e-300)
@@ -48,6 +51,8 @@ def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int
                  traced=o.shape[1])
     parts = []
     while o.shape[1]:
+        if cancel is not None and cancel.is_set():
+            return None
         out.rays += o.shape[1]
         hits = geometry.nearest_hits(o, d, counters, tracer.scatter_group, N_SCATTER_GROUPS,
                                      light_group=PASS_THROUGH)
