@@ -171,9 +171,21 @@ def unit_from_plain(fields):
     return WorkUnit(index, Tile(*tile), chunk, start, stop, mask, halves)
 
 
-def render_unit_task(blob: bytes, key: str, unit: tuple, client_version: str):
+def render_unit_task(blob: bytes, key: str, unit: tuple, client_version: str, *photons):
+    """A camera unit; `photons`: the PhotonResults of the photon batches it gathers from (the results
+    of their tasks, which the scheduler brings to this worker once: engine/rendering/photon_passes.py)."""
     check_version(client_version)
-    return worker_scene(key, blob).render_unit(unit_from_plain(unit), TaskCancelled())
+    prepared = worker_scene(key, blob)
+    for traced in photons:
+        prepared.share_photons(traced.unit.batch, traced.stored)
+    return prepared.render_unit(unit_from_plain(unit), TaskCancelled())
+
+
+def photon_unit_task(blob: bytes, key: str, batch: int, client_version: str):
+    """A photon batch (engine/rendering/units.py PhotonUnit), traced on this worker."""
+    from ..rendering.units import PhotonUnit
+    check_version(client_version)
+    return worker_scene(key, blob).render_unit(PhotonUnit(batch), TaskCancelled())
 
 
 def engine_version() -> tuple:
@@ -334,6 +346,7 @@ class DaskPool(Pool):
     """The pool of engine/pools/protocol.py over a Dask cluster: its scheduler's `address`, or
     "local" for a LocalCluster of `workers` one-thread processes started here."""
     takes_rounds = False        # start() takes a frame's units once: no stopping rules (engine/rendering/stopping.py)
+    resolves_photons = True     # photon units and the camera units that need them in one start() (start)
 
     def __init__(self, address: str, workers: int = 1, log=None, should_cancel=None):
         """should_cancel: polled while connecting (a stop request ends the wait: ConnectStopped)."""
@@ -426,11 +439,26 @@ class DaskPool(Pool):
         return facts
 
     def start(self, units):
+        """The units as tasks.  Photon units (engine/rendering/units.py PhotonUnit) become tasks whose
+        results the camera units that gather from their batch take as arguments: each batch is traced
+        once, and the scheduler brings its photons to the workers that need them (and traces it again
+        should its holder die)."""
+        from ..integrators.photons.caustics import batches_of
+        from ..rendering.units import PhotonUnit
+        photons = {}
         for unit in units:
-            key = f"{self.unit_prefix}-{unit.index}"
-            future = self.client.submit(call, f"{__name__}:render_unit_task", self.payload, self.payload.key,
-                                        plain_unit(unit), (ENGINE_VERSION, BUILD_HASH), key=key, pure=False,
-                                        retries=UNIT_RETRIES, **self.restrict)
+            if isinstance(unit, PhotonUnit):
+                key = f"{self.unit_prefix}-photons-{unit.batch}"
+                future = self.client.submit(call, f"{__name__}:photon_unit_task", self.payload, self.payload.key,
+                                            unit.batch, (ENGINE_VERSION, BUILD_HASH), key=key, pure=False,
+                                            retries=UNIT_RETRIES, **self.restrict)
+                photons[unit.batch] = future
+            else:
+                key = f"{self.unit_prefix}-{unit.index}"
+                needs = [photons[b] for b in batches_of(unit.start, unit.stop) if b in photons] if photons else []
+                future = self.client.submit(call, f"{__name__}:render_unit_task", self.payload, self.payload.key,
+                                            plain_unit(unit), (ENGINE_VERSION, BUILD_HASH), *needs, key=key,
+                                            pure=False, retries=UNIT_RETRIES, **self.restrict)
             self.futures.append(future)
             self.unit_of[key] = unit
         self.collector = threading.Thread(target=self._collect, name="tncg15-dask-results", daemon=True)

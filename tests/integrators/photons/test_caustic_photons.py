@@ -160,15 +160,18 @@ def test_the_targets_hold_every_specular_object():
 
 
 def test_the_image_is_the_same_on_every_pool():
-    """Each pass's map is traced by whichever worker needs it, identically: one thread, two threads
-    and two forked processes give the same image bit for bit (engine/integrators/photons/caustics.py)."""
+    """Each pass's batch is traced once, by whichever worker is free, and shared
+    (engine/rendering/photon_passes.py): one thread, two threads and two forked processes give the
+    same image bit for bit, each tracing the one batch once."""
     from engine.api import render
     scene = caustic_scene((32, 16))
-    images = [render(scene, RenderSettings(samples=3, caustics_method="photons", photons_per_pass=3000, threads=t,
-                                           parallelism=kind)).image
-              for kind, t in (("threads", 1), ("threads", 2), ("processes", 2))]
+    runs = [render(scene, RenderSettings(samples=3, caustics_method="photons", photons_per_pass=3000, threads=t,
+                                         parallelism=kind))
+            for kind, t in (("threads", 1), ("threads", 2), ("processes", 2))]
+    images = [r.image for r in runs]
     assert np.array_equal(images[0], images[1]) and np.array_equal(images[0], images[2])
     assert images[0].sum() > 0
+    assert all(r.stats["photons"]["photon_passes_traced"] == 8 for r in runs)
 
 
 def test_photons_leave_a_mesh_lamp():
