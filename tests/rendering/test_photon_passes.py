@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import os
 import sys
-import threading
 
 import numpy as np
 import pytest
@@ -136,11 +135,17 @@ def test_a_cancel_mid_pass_stops_the_photon_batch():
     assert mid.calls == PASSES_PER_BATCH + 2 and not counters.photons
 
 
-def test_the_stopping_rules_count_the_photon_batches():
-    """Rounds of a noise target (samples 0-12, 12-20, 20-30): each batch is traced once over all the
-    rounds (batches 1 and 2 serve two rounds each), the stats say how."""
-    r = render(caustic_scene((8, 8)), photon_settings(samples=30, min_samples=12, noise_target=1e-6, threads=2,
-                                                      parallelism="threads", photons_per_pass=300), **QUIET)
+@pytest.fixture(scope="module")
+def rounds_render():
+    """Rounds of a noise target that is never met: samples 0-12, 12-20, 20-30."""
+    return render(caustic_scene((8, 8)), photon_settings(samples=30, min_samples=12, noise_target=1e-6, threads=2,
+                                                         parallelism="threads", photons_per_pass=300), **QUIET)
+
+
+def test_the_stopping_rules_count_the_photon_batches(rounds_render):
+    """Each batch is traced once over all the rounds (batches 1 and 2 serve two rounds each), the
+    stats say how."""
+    r = rounds_render
     st, ph = r.stats, r.stats["photons"]
     assert st["rounds"] == 3 and ph["photon_passes"] == 4 * PASSES_PER_BATCH
     assert ph["photon_passes_traced"] == 4 * PASSES_PER_BATCH and ph["photon_units"] == 4
@@ -206,3 +211,23 @@ def test_the_viewport_pool_shares_photons_too():
 
 if __name__ == "__main__":      # pragma: no cover
     sys.exit(pytest.main([os.path.abspath(__file__), "-q"]))
+
+
+def test_the_error_estimate_prices_the_photon_batches_of_the_rounds_to_come(rounds_render):
+    """engine/rendering/estimate.py predict: the rounds still to render trace new photon batches at
+    the pilot's seconds per batch (round_photons); with those seconds 0 the prediction is the one
+    without photons, and costlier batches predict a longer render."""
+    from engine.rendering.estimate import new_batches, predict
+    assert new_batches([(64, 96), (96, 144)], 64) == [4, 6]
+    assert new_batches([(12, 20), (20, 30)], 12) == [1, 1]            # batch 1 was traced by the pilot
+    r = rounds_render
+    st = r.stats
+    assert len(st["round_photons"]) == st["rounds"] == 3
+    assert [n for n, _ in st["round_photons"]] == [2, 1, 1] and all(t > 0 for _, t in st["round_photons"])
+    real = photon_settings(samples=200, min_samples=12, noise_target=1e-9, threads=1)
+
+    def seconds(scale):
+        rp = None if scale is None else [(n, t * scale) for n, t in st["round_photons"]]
+        return predict(r.film, st["render_seconds"], real, 1e-9, st["round_log"], st["tile_size"], 1, 30, rp)["seconds"]
+    assert seconds(0.0) == seconds(None)
+    assert seconds(100.0) > seconds(1.0) > seconds(0.0) > st["render_seconds"]
