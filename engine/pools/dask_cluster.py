@@ -181,11 +181,11 @@ def render_unit_task(blob: bytes, key: str, unit: tuple, client_version: str, *p
     return prepared.render_unit(unit_from_plain(unit), TaskCancelled())
 
 
-def photon_unit_task(blob: bytes, key: str, batch: int, client_version: str):
-    """A photon batch (engine/rendering/units.py PhotonUnit), traced on this worker."""
+def photon_unit_task(blob: bytes, key: str, unit: tuple, client_version: str):
+    """A photon batch (engine/rendering/units.py PhotonUnit, as (batch, scheduler)), traced on this worker."""
     from ..rendering.units import PhotonUnit
     check_version(client_version)
-    return worker_scene(key, blob).render_unit(PhotonUnit(batch), TaskCancelled())
+    return worker_scene(key, blob).render_unit(PhotonUnit(*unit), TaskCancelled())
 
 
 def engine_version() -> tuple:
@@ -450,8 +450,8 @@ class DaskPool(Pool):
             if isinstance(unit, PhotonUnit):
                 key = f"{self.unit_prefix}-photons-{unit.batch}"
                 future = self.client.submit(call, f"{__name__}:photon_unit_task", self.payload, self.payload.key,
-                                            unit.batch, (ENGINE_VERSION, BUILD_HASH), key=key, pure=False,
-                                            retries=UNIT_RETRIES, **self.restrict)
+                                            (unit.batch, unit.scheduler), (ENGINE_VERSION, BUILD_HASH), key=key,
+                                            pure=False, retries=UNIT_RETRIES, **self.restrict)
                 photons[unit.batch] = future
             else:
                 key = f"{self.unit_prefix}-{unit.index}"

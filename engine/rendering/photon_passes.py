@@ -27,12 +27,14 @@ estimate see it as the rounds' wall time (engine/rendering/stopping.py).
 from __future__ import annotations
 
 import collections
+import itertools
 import time
 
 from ..integrators.photons.caustics import batches_of
 from .units import PhotonUnit
 
 LOOKAHEAD = 2      # photon batches started and not yet shared, at most: the next is traced while the last renders
+_SCHEDULERS = itertools.count(1)
 
 
 def photon_scheduled(pool, frame):
@@ -51,6 +53,7 @@ class PhotonScheduler:
 
     def __init__(self, pool, totals):
         self.pool, self.totals = pool, totals
+        self.number = next(_SCHEDULERS)           # on its PhotonUnits: answers to another render's are ignored
         self.describe = pool.describe
         self.takes_rounds = pool.takes_rounds
         self.resolves = getattr(pool, "resolves_photons", False) and not getattr(pool, "shares_photons", False)
@@ -85,7 +88,7 @@ class PhotonScheduler:
             self.wanted.clear()
             self.tracing.update(batches)
             self.photon_units += len(batches)
-            self.pool.start([PhotonUnit(b) for b in batches] + units)
+            self.pool.start([PhotonUnit(b, self.number) for b in batches] + units)
             return
         self.held.extend(units)
         self._advance()
@@ -105,7 +108,7 @@ class PhotonScheduler:
         if more:
             self.tracing.update(more)
             self.photon_units += len(more)
-            self.pool.start([PhotonUnit(b) for b in more])
+            self.pool.start([PhotonUnit(b, self.number) for b in more])
 
     def next_result(self, timeout: float):
         deadline = time.perf_counter() + timeout
@@ -119,8 +122,8 @@ class PhotonScheduler:
             if not isinstance(unit, PhotonUnit):
                 self._done(unit)
                 return item
-            if unit.batch not in self.tracing:
-                continue                           # a cancelled earlier render's (the viewport's pool lives on)
+            if unit.scheduler != self.number or unit.batch not in self.tracing:
+                continue                           # an earlier render's, answered late (the viewport's pool lives on)
             self.tracing.discard(unit.batch)
             if error is not None or result is None:
                 # A failed photon unit fails the units that need it (the frame side cancels the rest);

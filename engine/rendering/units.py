@@ -44,8 +44,10 @@ class PhotonUnit:
     """Trace photon batch `batch` (the caustic photon passes PASSES_PER_BATCH batch .. of
     engine/integrators/photons/caustics.py) for the units that gather from it
     (engine/rendering/photon_passes.py).  Its index, -1 - batch, never equals a camera unit's (the
-    pools key retries and tasks by index)."""
+    pools key retries and tasks by index).  `scheduler`: which PhotonScheduler asked for it (a pool
+    kept across renders may answer an earlier render's unit late: it is not this render's batch)."""
     batch: int
+    scheduler: int = 0
 
     @property
     def index(self) -> int:

@@ -79,18 +79,26 @@ def test_a_unit_starts_after_its_batches_are_traced_and_shared():
     inner, totals = FakePool(), Counters()
     sched = PhotonScheduler(inner, totals)
     units = camera_units([(0, 8), (8, 16), (16, 24), (24, 32)])
+
+    def photon(b):
+        return PhotonUnit(b, sched.number)
     sched.start(units)
     # only photon units first, LOOKAHEAD of them, in order of first need
-    assert inner.started == [PhotonUnit(b) for b in range(LOOKAHEAD)]
-    inner.pending = [inner.answer(PhotonUnit(0))]
+    assert inner.started == [photon(b) for b in range(LOOKAHEAD)]
+    inner.pending = [inner.answer(photon(0))]
     assert sched.next_result(0) is None                      # a photon answer is the scheduler's own
-    assert [(b, st.traced) for b, st in inner.shared] == [(0, 0)] and units[0] in inner.started and units[1] not in inner.started
-    assert PhotonUnit(2) in inner.started                    # the next batch is traced while unit 0 renders
+    assert [(b, st.traced) for b, st in inner.shared] == [(0, 0)] and units[0] in inner.started
+    assert units[1] not in inner.started
+    assert photon(2) in inner.started                        # the next batch is traced while unit 0 renders
     assert totals.photons["photon_passes_traced"] == PASSES_PER_BATCH
-    inner.pending = [inner.answer(PhotonUnit(1)), inner.answer(units[0])]
+    inner.pending = [inner.answer(photon(1)), inner.answer(units[0])]
     assert sched.next_result(0)[0] == units[0]              # camera answers pass through
     assert units[1] in inner.started
     assert inner.forgotten == [0]                            # no unit left needs batch 0
+    # an earlier render's photon unit answered late (a pool kept across renders) is not this one's
+    inner.queue.append(PhotonUnit(2, sched.number - 1))
+    inner.pending = [inner.answer(PhotonUnit(2, sched.number - 1))]
+    assert sched.next_result(0) is None and units[2] not in inner.started and len(inner.shared) == 2
     # cancel: the held units are answered as cancelled here, the pool is cancelled
     sched.cancel()
     answered = [sched.next_result(0)[0] for _ in range(2)]
