@@ -188,6 +188,13 @@ def photon_unit_task(blob: bytes, key: str, unit: tuple, client_version: str):
     return worker_scene(key, blob).render_unit(PhotonUnit(*unit), TaskCancelled())
 
 
+def photon_summary(traced):
+    """A traced photon batch without its photons: what the client needs (counters, seconds), so the
+    photons travel only to the workers whose units gather from them."""
+    import dataclasses
+    return dataclasses.replace(traced, stored=None)
+
+
 def engine_version() -> tuple:
     """(ENGINE_VERSION, BUILD_HASH) of this worker's engine (a worker of an older engine: its version alone)."""
     return ENGINE_VERSION, BUILD_HASH
@@ -354,6 +361,7 @@ class DaskPool(Pool):
         self.log = log or (lambda *a: None)
         self.local_cluster = None
         self.futures, self.unit_of = [], {}
+        self.photon_futures = []                  # photon batches' tasks (their results stay on the workers)
         self.payload = None
         self.cancelled = False
         self.finished: queue.Queue = queue.Queue()
@@ -453,6 +461,10 @@ class DaskPool(Pool):
                                             (unit.batch, unit.scheduler), (ENGINE_VERSION, BUILD_HASH), key=key,
                                             pure=False, retries=UNIT_RETRIES, **self.restrict)
                 photons[unit.batch] = future
+                self.photon_futures.append(future)      # held: the camera units' tasks need it
+                key = f"{self.unit_prefix}-photonsummary-{unit.batch}"
+                future = self.client.submit(call, f"{__name__}:photon_summary", future, key=key, pure=False,
+                                            retries=UNIT_RETRIES, **self.restrict)
             else:
                 key = f"{self.unit_prefix}-{unit.index}"
                 needs = [photons[b] for b in batches_of(unit.start, unit.stop) if b in photons] if photons else []
@@ -552,7 +564,7 @@ class DaskPool(Pool):
         if self.cancelled:
             return
         self.cancelled = True
-        pending = [f for f in self.futures if not f.done()]
+        pending = [f for f in self.futures + self.photon_futures if not f.done()]
         if pending:
             try:
                 self.client.cancel(pending)
@@ -596,7 +608,7 @@ class DaskPool(Pool):
         return list(self.reports)
 
     def _shutdown(self):
-        self.futures, self.payload = [], None
+        self.futures, self.payload, self.photon_futures = [], None, []
         try:
             self.client.close(timeout=CLIENT_CLOSE_SECONDS)
         except Exception:
