@@ -144,12 +144,37 @@ class _Fork(Worker):
         child.close()
         self.ready = True                        # it inherits the prepared scene
         self.name = f"render worker {number} (pid {self.proc.pid})"
+        self.outbox = None                       # a writer thread's queue, from the first photon batch on
 
     def send_unit(self, unit):
+        if self.outbox is not None:
+            self.outbox.put(unit)
+            return
         try:
             self.conn.send(unit)
         except (BrokenPipeError, OSError):
             pass                                 # it died: its sentinel reports it
+
+    def send_bytes(self, payload: bytes):
+        """A pickled message (megabytes: a photon batch) written by a thread of its own, so the frame
+        side never waits for the pipe; the units sent after it take the same thread, in order."""
+        if self.outbox is None:
+            self.outbox = queue.Queue()
+            threading.Thread(target=self._write, daemon=True, name="tncg15-fork-writer").start()
+        self.outbox.put(payload)
+
+    def _write(self):
+        while True:
+            message = self.outbox.get()
+            try:
+                if isinstance(message, bytes):
+                    self.conn.send_bytes(message)
+                else:
+                    self.conn.send(message)
+            except (BrokenPipeError, OSError, ValueError):
+                return                           # it died (its sentinel reports it) or the pool closed
+            if message is None:
+                return
 
     def kill(self):
         try:
@@ -237,7 +262,7 @@ class ForkPool(Pool):
 
     def share_photons(self, batch, stored):
         """A photon batch to every live worker, pickled once (engine/rendering/photon_passes.py);
-        the pipe keeps it ahead of the units that need it."""
+        each worker's writer thread keeps it ahead of the units sent after it."""
         self._tell(("share", batch, stored))
 
     def forget_photons(self, batches):
@@ -248,10 +273,7 @@ class ForkPool(Pool):
         payload = bytes(ForkingPickler.dumps(message))
         for w in self.workers:
             if w.alive:
-                try:
-                    w.conn.send_bytes(payload)
-                except (BrokenPipeError, OSError):
-                    pass                         # it died: its sentinel reports it
+                w.send_bytes(payload)
 
     def cancel(self):
         self.cancel_flag.set()
