@@ -171,9 +171,28 @@ def unit_from_plain(fields):
     return WorkUnit(index, Tile(*tile), chunk, start, stop, mask, halves)
 
 
-def render_unit_task(blob: bytes, key: str, unit: tuple, client_version: str):
+def render_unit_task(blob: bytes, key: str, unit: tuple, client_version: str, *photons):
+    """A camera unit; `photons`: the PhotonResults of the photon batches it gathers from (the results
+    of their tasks, which the scheduler brings to this worker once: engine/rendering/photon_passes.py)."""
     check_version(client_version)
-    return worker_scene(key, blob).render_unit(unit_from_plain(unit), TaskCancelled())
+    prepared = worker_scene(key, blob)
+    for traced in photons:
+        prepared.share_photons(traced.unit.batch, traced.stored)
+    return prepared.render_unit(unit_from_plain(unit), TaskCancelled())
+
+
+def photon_unit_task(blob: bytes, key: str, unit: tuple, client_version: str):
+    """A photon batch (engine/rendering/units.py PhotonUnit, as (batch, scheduler)), traced on this worker."""
+    from ..rendering.units import PhotonUnit
+    check_version(client_version)
+    return worker_scene(key, blob).render_unit(PhotonUnit(*unit), TaskCancelled())
+
+
+def photon_summary(traced):
+    """A traced photon batch without its photons: what the client needs (counters, seconds), so the
+    photons travel only to the workers whose units gather from them."""
+    import dataclasses
+    return dataclasses.replace(traced, stored=None)
 
 
 def engine_version() -> tuple:
@@ -334,6 +353,7 @@ class DaskPool(Pool):
     """The pool of engine/pools/protocol.py over a Dask cluster: its scheduler's `address`, or
     "local" for a LocalCluster of `workers` one-thread processes started here."""
     takes_rounds = False        # start() takes a frame's units once: no stopping rules (engine/rendering/stopping.py)
+    resolves_photons = True     # photon units and the camera units that need them in one start() (start)
 
     def __init__(self, address: str, workers: int = 1, log=None, should_cancel=None):
         """should_cancel: polled while connecting (a stop request ends the wait: ConnectStopped)."""
@@ -341,6 +361,7 @@ class DaskPool(Pool):
         self.log = log or (lambda *a: None)
         self.local_cluster = None
         self.futures, self.unit_of = [], {}
+        self.photon_futures = []                  # photon batches' tasks (their results stay on the workers)
         self.payload = None
         self.cancelled = False
         self.finished: queue.Queue = queue.Queue()
@@ -426,11 +447,30 @@ class DaskPool(Pool):
         return facts
 
     def start(self, units):
+        """The units as tasks.  Photon units (engine/rendering/units.py PhotonUnit) become tasks whose
+        results the camera units that gather from their batch take as arguments: each batch is traced
+        once, and the scheduler brings its photons to the workers that need them (and traces it again
+        should its holder die)."""
+        from ..integrators.photons.caustics import batches_of
+        from ..rendering.units import PhotonUnit
+        photons = {}
         for unit in units:
-            key = f"{self.unit_prefix}-{unit.index}"
-            future = self.client.submit(call, f"{__name__}:render_unit_task", self.payload, self.payload.key,
-                                        plain_unit(unit), (ENGINE_VERSION, BUILD_HASH), key=key, pure=False,
-                                        retries=UNIT_RETRIES, **self.restrict)
+            if isinstance(unit, PhotonUnit):
+                key = f"{self.unit_prefix}-photons-{unit.batch}"
+                future = self.client.submit(call, f"{__name__}:photon_unit_task", self.payload, self.payload.key,
+                                            (unit.batch, unit.scheduler), (ENGINE_VERSION, BUILD_HASH), key=key,
+                                            pure=False, retries=UNIT_RETRIES, **self.restrict)
+                photons[unit.batch] = future
+                self.photon_futures.append(future)      # held: the camera units' tasks need it
+                key = f"{self.unit_prefix}-photonsummary-{unit.batch}"
+                future = self.client.submit(call, f"{__name__}:photon_summary", future, key=key, pure=False,
+                                            retries=UNIT_RETRIES, **self.restrict)
+            else:
+                key = f"{self.unit_prefix}-{unit.index}"
+                needs = [photons[b] for b in batches_of(unit.start, unit.stop) if b in photons] if photons else []
+                future = self.client.submit(call, f"{__name__}:render_unit_task", self.payload, self.payload.key,
+                                            plain_unit(unit), (ENGINE_VERSION, BUILD_HASH), *needs, key=key,
+                                            pure=False, retries=UNIT_RETRIES, **self.restrict)
             self.futures.append(future)
             self.unit_of[key] = unit
         self.collector = threading.Thread(target=self._collect, name="tncg15-dask-results", daemon=True)
@@ -524,7 +564,7 @@ class DaskPool(Pool):
         if self.cancelled:
             return
         self.cancelled = True
-        pending = [f for f in self.futures if not f.done()]
+        pending = [f for f in self.futures + self.photon_futures if not f.done()]
         if pending:
             try:
                 self.client.cancel(pending)
@@ -568,7 +608,7 @@ class DaskPool(Pool):
         return list(self.reports)
 
     def _shutdown(self):
-        self.futures, self.payload = [], None
+        self.futures, self.payload, self.photon_futures = [], None, []
         try:
             self.client.close(timeout=CLIENT_CLOSE_SECONDS)
         except Exception:

@@ -92,6 +92,16 @@ class KeptPool(Pool):
     def next_result(self, timeout: float):
         return self.inner.next_result(timeout)
 
+    @property
+    def shares_photons(self) -> bool:
+        return getattr(self.inner, "shares_photons", False)
+
+    def share_photons(self, batch, stored) -> None:
+        self.inner.share_photons(batch, stored)
+
+    def forget_photons(self, batches) -> None:
+        self.inner.forget_photons(batches)
+
     def cancel(self) -> None:
         self.inner.cancel()
 

@@ -35,6 +35,7 @@ def choose_parallelism(requested: str, workers: int) -> str:
 
 class ThreadPool(Pool):
     describe = "threads"
+    shares_photons = True         # one prepared scene: a photon batch shared is every thread's
 
     def __init__(self, count: int, log=print):
         self.count, self.log = max(1, count), log
@@ -62,6 +63,12 @@ class ThreadPool(Pool):
             return self.finished.get(timeout=timeout)
         except queue.Empty:
             return None
+
+    def share_photons(self, batch, stored):
+        self.prepared.share_photons(batch, stored)
+
+    def forget_photons(self, batches):
+        self.prepared.forget_photons(batches)
 
     def cancel(self):
         self.cancel_event.set()
@@ -92,13 +99,30 @@ class SharedFlag:
 def _process_main(conn, cancel_flag, parent_pid):
     die_with_parent(parent_pid)
     prepared = _FORKED_SCENE
+    # A reader thread empties the pipe while a unit renders, so the parent's write of a photon batch
+    # (megabytes) never waits for the unit, and never meets this worker's write of its result.
+    inbox: queue.Queue = queue.Queue()
+
+    def read():
+        while True:
+            try:
+                message = conn.recv()
+            except (EOFError, OSError):
+                message = None
+            inbox.put(message)
+            if message is None:
+                return
+    threading.Thread(target=read, daemon=True).start()
     while True:
-        try:
-            unit = conn.recv()
-        except (EOFError, OSError):
-            return
+        unit = inbox.get()
         if unit is None:
             return
+        if isinstance(unit, tuple):             # ("share", batch, stored) | ("forget", batches): photon batches
+            if unit[0] == "share":
+                prepared.share_photons(unit[1], unit[2])
+            else:
+                prepared.forget_photons(unit[1])
+            continue
         try:
             answer = (unit, prepared.render_unit(unit, cancel_flag), None)
         except BaseException:
@@ -120,12 +144,37 @@ class _Fork(Worker):
         child.close()
         self.ready = True                        # it inherits the prepared scene
         self.name = f"render worker {number} (pid {self.proc.pid})"
+        self.outbox = None                       # a writer thread's queue, from the first photon batch on
 
     def send_unit(self, unit):
+        if self.outbox is not None:
+            self.outbox.put(unit)
+            return
         try:
             self.conn.send(unit)
         except (BrokenPipeError, OSError):
             pass                                 # it died: its sentinel reports it
+
+    def send_bytes(self, payload: bytes):
+        """A pickled message (megabytes: a photon batch) written by a thread of its own, so the frame
+        side never waits for the pipe; the units sent after it take the same thread, in order."""
+        if self.outbox is None:
+            self.outbox = queue.Queue()
+            threading.Thread(target=self._write, daemon=True, name="tncg15-fork-writer").start()
+        self.outbox.put(payload)
+
+    def _write(self):
+        while True:
+            message = self.outbox.get()
+            try:
+                if isinstance(message, bytes):
+                    self.conn.send_bytes(message)
+                else:
+                    self.conn.send(message)
+            except (BrokenPipeError, OSError, ValueError):
+                return                           # it died (its sentinel reports it) or the pool closed
+            if message is None:
+                return
 
     def kill(self):
         try:
@@ -139,6 +188,7 @@ class ForkPool(Pool):
     are rendered by the others)."""
 
     describe = "processes"
+    shares_photons = True
 
     def __init__(self, count: int, log=print):
         self.count, self.log = max(1, count), log
@@ -209,6 +259,21 @@ class ForkPool(Pool):
             return None
         worker.proc.join()
         return self.dispatch.died(worker, describe_exit(worker.proc.exitcode))
+
+    def share_photons(self, batch, stored):
+        """A photon batch to every live worker, pickled once (engine/rendering/photon_passes.py);
+        each worker's writer thread keeps it ahead of the units sent after it."""
+        self._tell(("share", batch, stored))
+
+    def forget_photons(self, batches):
+        self._tell(("forget", list(batches)))
+
+    def _tell(self, message):
+        from multiprocessing.reduction import ForkingPickler
+        payload = bytes(ForkingPickler.dumps(message))
+        for w in self.workers:
+            if w.alive:
+                w.send_bytes(payload)
 
     def cancel(self):
         self.cancel_flag.set()

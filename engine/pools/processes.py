@@ -5,7 +5,9 @@ the transport of engine/pools/transport.py (framed pickles, the hello with the e
 the stderr tail, close and kill, death with the parent).  After the hello:
 
     parent -> worker   ("prepare", scene, settings)          once: the worker builds a PreparedScene
-                       ("unit", WorkUnit)                     any number
+                       ("unit", WorkUnit)                     any number (or a PhotonUnit)
+                       ("share", batch, stored photons)       a photon batch traced by some worker
+                       ("forget", batches)                    photon batches no unit needs now
     worker -> parent   ("ready", TracerFacts)                 accelerator, effect plan, build time
                        ("result", unit, UnitResult | None)    None: cancelled, dropped whole
                        ("error", unit, traceback text)
@@ -63,6 +65,12 @@ def worker_main(parent_pid: int) -> int:
         message = end.receive()
         if message is None:
             return 0
+        if message[0] == "share":
+            prepared.share_photons(message[1], message[2])
+            continue
+        if message[0] == "forget":
+            prepared.forget_photons(message[1])
+            continue
         _, unit = message
         try:
             end.send(("result", unit, prepared.render_unit(unit, cancel)))
@@ -91,6 +99,8 @@ class _Worker(WorkerProcess, Worker):
 class SubprocessPool(Pool):
     """Worker processes of `python` (`count` of them, started here); faults as in
     engine/pools/faults.py."""
+
+    shares_photons = True
 
     def __init__(self, python: str, count: int, extra_paths=(), log=print):
         self.python, self.log = python, log
@@ -174,6 +184,19 @@ class SubprocessPool(Pool):
             where = f"tile {unit.tile.index}" if hasattr(unit, "tile") else repr(unit)
             return unit, None, WorkerError(f"{worker.name} failed on {where}:\n{event[2]}")
         return unit, event[2], None
+
+    def share_photons(self, batch, stored):
+        """A photon batch to every live worker, encoded once (engine/rendering/photon_passes.py)."""
+        payload = encode(("share", batch, stored))
+        for w in self.workers:
+            if w.alive:
+                w.send(payload)
+
+    def forget_photons(self, batches):
+        payload = encode(("forget", list(batches)))
+        for w in self.workers:
+            if w.alive:
+                w.send(payload)
 
     def cancel(self):
         if self.dispatch.cancelled:

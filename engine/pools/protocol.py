@@ -9,6 +9,8 @@ rules of engine/rendering/stopping.py) drive any pool the same way:
     pool.cancel()                           # running units stop within a bounce, answered with None
     pool.close()                            # always, once: no worker or unit of this render is left
     pool.stats(), pool.warnings()           # what the pool adds to the render's stats and warnings
+    pool.share_photons(batch, stored)       # optional (shares_photons): a caustic photon batch to every worker
+    pool.forget_photons(batches)            # ... and dropped (engine/rendering/photon_passes.py)
 
 A unit's random numbers do not depend on where it runs and the frame merges each tile's units in
 order, so the image never depends on the pool.  engine/pools/spec.py make_pool builds a pool from
@@ -24,6 +26,8 @@ class Pool(ABC):
 
     describe: str = "pool"        # for the stats' "parallelism" and the log ("threads", "dask local (2 workers)")
     takes_rounds: bool = True     # start() may be called again with more units (the stopping rules' rounds)
+    shares_photons: bool = False  # share_photons / forget_photons reach every worker (engine/rendering/photon_passes.py)
+    resolves_photons: bool = False  # start() takes photon units with the units that need them, and passes them on
 
     @abstractmethod
     def prepare(self, scene, settings):

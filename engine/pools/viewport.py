@@ -9,7 +9,8 @@ settings is not prepared again: the workers get the new camera (no BVH rebuild).
 
     parent -> worker   ("prepare", number, scene, settings)   build a PreparedScene
                        ("view", camera, resolution)           the prepared scene's new camera
-                       ("unit", WorkUnit)                     trace it
+                       ("unit", WorkUnit)                     trace it (or a PhotonUnit)
+                       ("share", batch, stored) | ("forget", batches)   photon batches (engine/rendering/photon_passes.py)
                        ("cancel",)                            the units before it stop within a bounce
     worker -> parent   ("ready", number, TracerFacts) | ("failed", number, one line)
                        ("result", unit, UnitResult | None)    None: cancelled
@@ -168,6 +169,10 @@ def viewport_worker_main(parent_pid: int) -> int:
                     print(traceback.format_exc(), file=sys.stderr)
         elif kind == "view":
             prepared.set_view(message[1], message[2])
+        elif kind == "share" and prepared is not None:
+            prepared.share_photons(message[1], message[2])
+        elif kind == "forget" and prepared is not None:
+            prepared.forget_photons(message[1])
         elif kind == "unit":
             unit = message[1]
             try:
@@ -201,6 +206,7 @@ class ViewportPool(Pool):
     """`count` viewport worker processes of `python`, started here and kept until close()."""
 
     takes_rounds = True
+    shares_photons = True
 
     def __init__(self, python: str, count: int = 1, extra_paths=(), log=print):
         self.python, self.log = python, log
@@ -403,6 +409,20 @@ class ViewportPool(Pool):
             if answer is not None:
                 return answer
 
+    def share_photons(self, batch, stored):
+        """A photon batch to every live worker, encoded once (a worker started again later traces
+        the batches it was not given itself: the same photons)."""
+        payload = encode(("share", batch, stored))
+        for w in self.workers:
+            if w.alive:
+                w.send(payload)
+
+    def forget_photons(self, batches):
+        payload = encode(("forget", list(batches)))
+        for w in self.workers:
+            if w.alive:
+                w.send(payload)
+
     def cancel(self):
         """Units in flight stop within a bounce (answered None); prepare() starts the next render."""
         if not self.cancelled:
@@ -546,7 +566,8 @@ class ViewportRender:
         shape = dataclasses.replace(settings, samples=1 if level == 0 else settings.samples,
                                     tile_size=max(8, w, h), noise_target=0.0)
         frame = Frame(scene, shape, facts, "growing")
-        self.pool.start(frame.units)
+        pool = frame.scheduled(self.pool)          # caustic photon batches traced once (engine/rendering/photon_passes.py)
+        pool.start(frame.units)
 
         def merge(result):
             frame.add(result)                   # the film is this thread's alone
@@ -565,7 +586,7 @@ class ViewportRender:
                         self.first_frame_seconds = time.perf_counter() - self.gen_started
             self._notify()
 
-        reason, error = await_units(self.pool, len(frame.units), merge,
+        reason, error = await_units(pool, len(frame.units), merge,
                                     lambda: "restart" if self.gen != gen or self.closed else None, poll=0.02)
         if error is not None:
             raise error

@@ -15,7 +15,8 @@ term is u_p / s.  The prediction replays the rest of the round schedule on 8x8 b
 * the render stops after the first round whose image error sqrt(sum_b w_b e_b^2) (w_b: the
   block's share of the pixels) is at or below the target, or at the samples cap;
 
-and prices each replayed round by its units (one per tile with active blocks, in tile order): a unit
+and prices each replayed round by its units (and, with caustic photons, by the photon batches it
+traces first: the pilot's seconds per batch, `round_photons` of engine/rendering/stopping.py) (one per tile with active blocks, in tile order): a unit
 of N pixel-samples costs b (N + 2 TAIL_PATHS), each of its two halves ending with a tail of few
 paths that costs about as much as TAIL_PATHS more paths, and the round lasts c times the makespan
 of its units on the workers, each taking the next unit when free: when few tiles are left active, a
@@ -174,13 +175,28 @@ def pilot_stop(settings, pilot_samples: int) -> int:
     return settings.samples
 
 
+def new_batches(ranges, done: int) -> list:
+    """Photon batches each of the sample ranges [(start, stop)] of replayed rounds traces: those of
+    its samples not traced by the rounds before it (the pilot's rounds end at sample `done`)."""
+    from ..integrators.photons.caustics import batches_of
+    traced = set(batches_of(0, done))
+    out = []
+    for start, stop in ranges:
+        mine = set(batches_of(start, stop)) - traced
+        out.append(len(mine))
+        traced |= mine
+    return out
+
+
 def predict(film, seconds: float, settings, target: float, round_log, tile_size: int, workers: int,
-            done: int) -> dict:
+            done: int, round_photons=None) -> dict:
     """The prediction from a pilot that was the real render's first rounds up to the round end
     `done`: its film (FrameFilm), render seconds and rounds [(pixel-samples, seconds, [(tile,
     unit pixel-samples, unit seconds)])] (engine/rendering/stopping.py run_rounds).  From the pilot's rounds after the first (all, if it had one):
     b, the seconds of a unit per unit of work (unit_works), and c, a round's wall seconds per second
-    of its makespan on `workers`; each replayed round then costs c * makespan(b * its units)."""
+    of its makespan on `workers`; each replayed round then costs c * makespan(b * its units).
+    round_photons (per pilot round: photon batches, their units' seconds; None without photons): a
+    photon batch costs the pilot's seconds per batch, one more unit in its round's makespan."""
     count = film.samples_per_pixel
     unit_var, pixels = block_unit_variance(film.mean().astype(np.float64), film.half_buffer_variance(), count)
     h, w = count.shape
@@ -190,11 +206,21 @@ def predict(film, seconds: float, settings, target: float, round_log, tile_size:
     later = list(round_log)[1:] or list(round_log)
     units = [u for _, _, round_units in later for u in round_units]
     b = tile_costs(units, seconds / max(float(count.sum()), 1.0))
-    spans = sum(makespan([b(tile) * (n + 2 * TAIL_PATHS) for tile, n, _ in round_units], workers)
-                for _, _, round_units in later)
+    photons = list(round_photons or [])
+    later_photons = (photons[1:] or photons) if len(photons) == len(round_log) else [(0, 0.0)] * len(later)
+    batches = sum(n for n, _ in photons)
+    per_batch = sum(t for _, t in photons) / batches if batches else 0.0
+
+    def batch_costs(n, t=None):
+        return [t / n if t is not None else per_batch] * n if n else []
+    spans = sum(makespan(batch_costs(pn, pt) + [b(tile) * (n + 2 * TAIL_PATHS) for tile, n, _ in round_units],
+                         workers)
+                for (_, _, round_units), (pn, pt) in zip(later, later_photons))
     c = sum(t for _, t, _ in later) / spans if spans > 0 else 1.0
-    played["seconds"] = seconds + sum(c * makespan([b(tile) * w for tile, w in round_units], workers)
-                                      for round_units in played["round_units"])
+    ranges = [r for r in round_schedule(settings.samples, effective_min_samples(settings)) if r[1] > done]
+    traced = new_batches(ranges[:len(played["round_units"])], done) if batches else [0] * len(played["round_units"])
+    played["seconds"] = seconds + sum(c * makespan(batch_costs(n) + [b(tile) * w for tile, w in round_units], workers)
+                                      for round_units, n in zip(played["round_units"], traced))
     played["reachable"] = played["stopped_by"] == "noise target"
     return played
 
@@ -217,7 +243,8 @@ def estimate(scene, settings, target: float, render, pilot_samples: int = PILOT_
         out = {"pixel_samples": float(spp.sum()), "mean_samples": float(spp.mean()), "stopped_by": "noise target",
                "error": st["estimated_rel_error"], "seconds": seconds, "reachable": True}
     else:
-        out = predict(result.film, seconds, real, target, st["round_log"], st["tile_size"], st["threads"], done)
+        out = predict(result.film, seconds, real, target, st["round_log"], st["tile_size"], st["threads"], done,
+                      st.get("round_photons"))
         if done >= real.samples:         # the pilot was the whole render: its error is the answer
             out["error"] = st.get("estimated_rel_error")
     out.update({"target_rel_error": target, "pilot_samples": pilot.samples, "pilot_seconds": seconds,

@@ -139,6 +139,15 @@ class Frame:
         if traced(settings.passes):
             self.film.features = FrameFeatures(width, height)
         self.totals = Counters()
+        self.photon_schedule = None             # engine/rendering/photon_passes.py PhotonScheduler of run()
+
+    def scheduled(self, pool):
+        """`pool` with this frame's caustic photon batches as work units (engine/rendering/photon_passes.py)."""
+        from .photon_passes import PhotonScheduler, photon_scheduled
+        pool = photon_scheduled(pool, self)
+        if isinstance(pool, PhotonScheduler):
+            self.photon_schedule = pool
+        return pool
 
     @property
     def plan(self):
@@ -158,6 +167,7 @@ class Frame:
         """Render every unit on `pool` (engine/pools/protocol.py; prepared for this scene) and close
         it.  Callbacks run on the calling thread: on_tile(x0, y0, x1, y1, pixels) after each merge,
         should_cancel() polled about every 0.1 s, on_progress(fraction, message)."""
+        pool = self.scheduled(pool)
         if self.settings.stopping_rules():
             from .stopping import run_rounds
             return run_rounds(self, pool, on_tile, should_cancel, on_progress)
@@ -242,7 +252,10 @@ class Frame:
             radii = self.totals.photon_radii
             stats["photons"] = {**self.totals.photons, "photon_passes": len(radii),
                                 "radius_first": radii[min(radii)] if radii else None,
-                                "radius_last": radii[max(radii)] if radii else None}
+                                "radius_last": radii[max(radii)] if radii else None,
+                                "radius_per_pass": [radii[k] for k in sorted(radii)],
+                                **(self.photon_schedule.photon_stats() if self.photon_schedule else
+                                   {"distribution": "each worker traces its own passes"})}
         shown = self.film.display()
         variance, passes = self.film.variance_of_mean(), pass_images(self.film, s.passes)
         if s.film_exposure != 1.0:                  # the variance of the image shown

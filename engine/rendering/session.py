@@ -46,7 +46,7 @@ from ..core.settings import RenderSettings
 from ..core.backend import resolve as resolve_backend
 from ..materials.textures import load_textures
 from ..core.version import ENGINE_VERSION
-from .units import WorkUnit
+from .units import PhotonUnit, WorkUnit
 
 
 @dataclass
@@ -62,6 +62,17 @@ class UnitResult:
     count_a: np.ndarray | None = None
     features: dict | None = None # engine/film/passes.py TileFeatures.sums(), when a traced pass is on
     transparent: np.ndarray | None = None   # (h, w) samples that saw the background (a transparent film)
+
+
+@dataclass
+class PhotonResult:
+    """A traced photon batch (engine/rendering/units.py PhotonUnit): its stored photons
+    (engine/integrators/photons/tracing.py Stored), for every worker's units to gather from."""
+    unit: PhotonUnit
+    stored: object
+    counters: Counters
+    seconds: float
+    engine_version: str = ENGINE_VERSION
 
 
 @dataclass
@@ -134,6 +145,25 @@ class PreparedScene:
         """A new camera (world coordinates) and resolution for the same prepared scene (the viewport)."""
         self.scene.camera = camera if self.origin is None else moved_camera(camera, self.origin)
         self.scene.resolution = tuple(resolution)
+        if self.tracer.photons is not None:
+            self.tracer.photons.view_changed(self.scene)
+
+    # -- photon batches (engine/rendering/photon_passes.py) -----------------------------------------
+    def trace_photon_unit(self, unit: PhotonUnit, cancel=None) -> PhotonResult | None:
+        """Trace the unit's photon batch; None when `cancel` was set first (checked at every bounce)."""
+        start = time.perf_counter()
+        counters = Counters()
+        stored = self.tracer.photons.trace_batch(unit.batch, counters, cancel)
+        return None if stored is None else PhotonResult(unit, stored, counters, time.perf_counter() - start)
+
+    def share_photons(self, batch: int, stored) -> None:
+        """A photon batch traced by some worker: this scene's units gather from it."""
+        if self.tracer.photons is not None:
+            self.tracer.photons.share(batch, stored)
+
+    def forget_photons(self, batches) -> None:
+        if self.tracer.photons is not None:
+            self.tracer.photons.forget(batches)
 
     def facts(self) -> TracerFacts:
         return TracerFacts(self.accelerator, self.accelerator_reason, self.plan, self.geometry.build_seconds,
@@ -141,7 +171,10 @@ class PreparedScene:
 
     # -- one unit -------------------------------------------------------------------------
     def render_unit(self, unit: WorkUnit, cancel=None) -> UnitResult | None:
-        """Trace the unit's samples; None when `cancel` (anything with is_set()) was set first."""
+        """Trace the unit's samples; None when `cancel` (anything with is_set()) was set first.  A
+        PhotonUnit is traced by trace_photon_unit (every pool runs both kinds the same way)."""
+        if isinstance(unit, PhotonUnit):
+            return self.trace_photon_unit(unit, cancel)
         s, tile = self.settings, unit.tile
         start = time.perf_counter()
         width, height = self.scene.resolution

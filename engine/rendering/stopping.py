@@ -23,7 +23,11 @@ samples so far (at least FIRST_ROUND), so there are about log1.5(samples) rounds
 limit a round is cut to the samples that fit in the time left at the rate measured so far (units
 cancelled at the limit are lost work: up to a third of the render with uncut rounds).
 
-The stats gain `stopped_by`, `rounds` (the rounds rendered) and `round_log`.
+The stats gain `stopped_by`, `rounds` (the rounds rendered) and `round_log`; with caustic photons,
+`round_photons`: per round, the photon batches traced and their units' seconds
+(engine/rendering/photon_passes.py).  The photon batches are work of the rounds like the camera
+units: the time limit, the rates of fit_round and the round times that the error estimate
+(engine/rendering/estimate.py) prices include them.
 """
 from __future__ import annotations
 
@@ -119,6 +123,8 @@ def run_rounds(frame, pool, on_tile=None, should_cancel=None, on_progress=None, 
     error, stopped_by, rounds = None, "samples", 0
     # per finished round: (pixel-samples added, seconds, [(tile, unit pixel-samples, unit seconds)])
     round_log = []
+    round_photons = []                  # per finished round: (photon batches traced, their units' seconds)
+    schedule_of_photons = frame.photon_schedule
     start = clock()
     try:
         if not pool.takes_rounds:
@@ -150,6 +156,8 @@ def run_rounds(frame, pool, on_tile=None, should_cancel=None, on_progress=None, 
             frame.units.extend(units)
             frame.film.units_total = len(frame.units)
             round_start, samples_before = clock(), float(frame.film.count.sum())
+            photons_before = ((schedule_of_photons.photon_units, schedule_of_photons.photon_seconds)
+                              if schedule_of_photons is not None else None)
             pool.start(units)
             rounds += 1
             unit_log = []
@@ -170,6 +178,9 @@ def run_rounds(frame, pool, on_tile=None, should_cancel=None, on_progress=None, 
                 break
             round_log.append((float(frame.film.count.sum()) - samples_before, clock() - round_start,
                               [u[1:] for u in sorted(unit_log)]))      # in dispatch order
+            if photons_before is not None:
+                round_photons.append((schedule_of_photons.photon_units - photons_before[0],
+                                      schedule_of_photons.photon_seconds - photons_before[1]))
             state.update()
             elapsed = clock() - start
             if on_progress is not None:
@@ -192,6 +203,8 @@ def run_rounds(frame, pool, on_tile=None, should_cancel=None, on_progress=None, 
                               f"{frame.film.count.size} pixels had a sample: they are black and have no error estimate")
     result = frame.result(clock() - start, cancelled, pool.describe)
     result.stats.update({"stopped_by": stopped_by, "rounds": rounds, "round_log": round_log})
+    if schedule_of_photons is not None:
+        result.stats["round_photons"] = round_photons
     return result
 
 

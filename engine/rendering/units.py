@@ -39,6 +39,21 @@ class WorkUnit:
     halves: bool = False         # render [start, mid) and [mid, stop) apart: the half buffers
 
 
+@dataclass(frozen=True)
+class PhotonUnit:
+    """Trace photon batch `batch` (the caustic photon passes PASSES_PER_BATCH batch .. of
+    engine/integrators/photons/caustics.py) for the units that gather from it
+    (engine/rendering/photon_passes.py).  Its index, -1 - batch, never equals a camera unit's (the
+    pools key retries and tasks by index).  `scheduler`: which PhotonScheduler asked for it (a pool
+    kept across renders may answer an earlier render's unit late: it is not this render's batch)."""
+    batch: int
+    scheduler: int = 0
+
+    @property
+    def index(self) -> int:
+        return -1 - self.batch
+
+
 def tile_size_for(width: int, height: int, size: int) -> int:
     """The tile edge used: `size`, halved (not below 16) until the frame has MIN_TILES tiles.
     It depends on the frame only, never on the workers, so images stay identical whatever

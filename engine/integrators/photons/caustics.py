@@ -11,10 +11,18 @@ bit-identical on every pool.  Maps are kept while the cache
 holds less than CACHE_BYTES; a map made after that is used and dropped (rebuilt, identically, when
 asked for again).  Units run through their passes in order, tile after tile, so keeping the first
 maps (rather than the latest, which such a sweep would always evict) saves the most tracing.
+
+Batches as work (engine/rendering/photon_passes.py): a render session has one worker trace a batch
+(`trace_batch`, a photon unit) and hands its stored photons to every worker (`share`): each worker
+then builds its maps from them (a kD-tree, milliseconds) instead of tracing the batch itself, and
+drops them with `forget` once no unit needs them.  A batch that was not shared is traced where it is
+needed, as above: the photons are the same either way, so the image is too.
 """
 from __future__ import annotations
 
+import threading
 import time
+
 import numpy as np
 
 from .emission import emit
@@ -29,6 +37,13 @@ CACHE_BYTES = 512 << 20
 SECONDARY_SCALE = 4.0         # the radius at vertices after a non-delta bounce: their caustics are seen
                               # blurred anyway, and a wider disk holds 16 x the photons (less noise)
 AUTO_RADIUS_PIXELS = 1.0      # the automatic first radius: this many pixel footprints at the targets
+
+
+def batches_of(start: int, stop: int) -> range:
+    """The photon batches that camera samples start .. stop - 1 of a pixel gather from."""
+    if stop <= start:
+        return range(0)
+    return range(start // SAMPLES_PER_PASS // PASSES_PER_BATCH, (stop - 1) // SAMPLES_PER_PASS // PASSES_PER_BATCH + 1)
 
 
 def passes_of(samples: int) -> int:
@@ -67,42 +82,93 @@ class CausticPhotons:
                              else auto_radius(scene, self.targets))
         self.maps = {}
         self.cached_bytes = 0
+        self.shared = {}                 # batch -> Stored handed over by the session (share)
+        self.lock = threading.Lock()     # threads of one worker: a map is built (or its batch traced) once
 
     def radius(self, k: int) -> float:
         return radius_of_pass(self.first_radius, k, self.alpha)
 
-    def map_of(self, k: int, counters) -> PhotonMap:
-        """Pass k's photon map (from the cache, or traced now with the other passes of its batch)."""
-        found = self.maps.get(k)
-        if found is not None:
-            return found
+    def view_changed(self, scene) -> None:
+        """A new camera or resolution (the viewport): the automatic first radius follows it; the
+        maps built with the old radius go, the shared photons (which do not depend on the view) stay."""
+        if self.settings.photon_radius > 0 or self.targets is None:
+            return
+        radius = auto_radius(scene, self.targets)
+        with self.lock:
+            if radius != self.first_radius:
+                self.first_radius, self.maps, self.cached_bytes = radius, {}, 0
+
+    def trace_batch(self, b: int, counters, cancel=None):
+        """The stored photons (engine/integrators/photons/tracing.py Stored) of batch b: passes
+        PASSES_PER_BATCH b .. PASSES_PER_BATCH (b + 1) - 1, each pass's photons from its own stream,
+        traced together; None when `cancel` (anything with is_set()) was set first (it is checked
+        between passes' emissions and at every bounce)."""
         start = time.perf_counter()
-        first = k - k % PASSES_PER_BATCH
-        batch = range(first, first + PASSES_PER_BATCH)
+        batch = range(b * PASSES_PER_BATCH, (b + 1) * PASSES_PER_BATCH)
         emitted = []
         for j in batch:                  # each pass's photons from its own stream
+            if cancel is not None and cancel.is_set():
+                return None
             emitted.append(emit(self.tracer.lights, self.photons,
                                 np.random.default_rng([self.settings.seed, PHOTON_STREAM, j]), self.targets))
         label = np.concatenate([np.full(e.origin.shape[1], j) for j, e in zip(batch, emitted)])
         o, d, phi = (np.concatenate([getattr(e, name) for e in emitted], axis=1)
                      for name in ("origin", "direction", "flux"))
-        rng = np.random.default_rng([self.settings.seed, PHOTON_STREAM, first, 1])     # the batch's bounces
-        stored = trace_photons(self.tracer, o, d, phi, counters, rng, self.settings.max_depth, label)
+        rng = np.random.default_rng([self.settings.seed, PHOTON_STREAM, batch[0], 1])     # the batch's bounces
+        stored = trace_photons(self.tracer, o, d, phi, counters, rng, self.settings.max_depth, label, cancel)
+        if stored is None:
+            return None
         ph = counters.photons
-        for j in batch:
-            made = PhotonMap(stored, self.radius(j), label=j)
-            if j == k:
-                found = made
-            if self.cached_bytes + made.nbytes <= CACHE_BYTES:
-                self.maps[j] = made
-                self.cached_bytes += made.nbytes
-            ph["photons_stored"] = ph.get("photons_stored", 0) + made.count
-            counters.photon_radii[j] = made.radius
         for key, value in (("photon_passes_traced", PASSES_PER_BATCH), ("photons_emitted", self.photons * PASSES_PER_BATCH),
-                           ("photons_traced", stored.traced), ("photon_rays", stored.rays),
-                           ("trace_seconds", time.perf_counter() - start)):
+                           ("photons_traced", stored.traced), ("photons_stored", len(stored.label)),
+                           ("photon_rays", stored.rays), ("trace_seconds", time.perf_counter() - start)):
             ph[key] = ph.get(key, 0) + value
-        return found
+        for j in batch:
+            counters.photon_radii[j] = self.radius(j)
+        return stored
+
+    def share(self, b: int, stored) -> None:
+        """Batch b's stored photons, traced elsewhere (engine/rendering/photon_passes.py)."""
+        with self.lock:
+            self.shared[b] = stored
+
+    def forget(self, batches) -> None:
+        """Drop the shared photons and the maps of `batches`: no unit of the render needs them now."""
+        with self.lock:
+            for b in batches:
+                self.shared.pop(b, None)
+                for j in range(b * PASSES_PER_BATCH, (b + 1) * PASSES_PER_BATCH):
+                    made = self.maps.pop(j, None)
+                    if made is not None:
+                        self.cached_bytes -= made.nbytes
+
+    def map_of(self, k: int, counters, cancel=None) -> PhotonMap | None:
+        """Pass k's photon map: from the cache, built from its batch's shared photons, or traced now
+        with the other passes of its batch (None: cancelled while tracing)."""
+        found = self.maps.get(k)
+        if found is not None:
+            return found
+        with self.lock:
+            found = self.maps.get(k)
+            if found is not None:
+                return found
+            b = k // PASSES_PER_BATCH
+            stored = self.shared.get(b)
+            if stored is None:
+                stored = self.trace_batch(b, counters, cancel)
+                if stored is None:
+                    return None
+                passes = range(b * PASSES_PER_BATCH, (b + 1) * PASSES_PER_BATCH)
+            else:
+                passes = (k,)                # the others are built from it when asked for
+            for j in passes:
+                made = PhotonMap(stored, self.radius(j), label=j)
+                if j == k:
+                    found = made
+                if self.cached_bytes + made.nbytes <= CACHE_BYTES:
+                    self.maps[j] = made
+                    self.cached_bytes += made.nbytes
+            return found
 
     def radiance(self, sample, bsdf, si, points, facing, counters, segments=None, secondary=None) -> np.ndarray:
         """(3, M) the caustic radiance at the M camera-path vertices (rows `points`, ShadingPoint si

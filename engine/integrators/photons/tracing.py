@@ -35,10 +35,33 @@ class Stored:
     rays: int = 0           # rays cast
 
 
-def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int, label=None) -> Stored:
+CHUNK = 1 << 17     # photons traced together at most: a bounce of that many takes about 0.1 s (Esc within that)
+
+
+def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int, label=None,
+                  cancel=None) -> Stored | None:
     """Trace the emitted photons (rows) through `tracer`'s scene (engine/integrators/path_tracer.py
     PathTracer: its geometry, material table, BSDFs and textures); label (N,): carried to the stored
-    photons (default 0)."""
+    photons (default 0).  In wavefronts of at most CHUNK photons, one after the other (with the same
+    `rng`, so the photons depend on CHUNK, never on the worker).  None as soon as `cancel` (anything
+    with is_set()) is set: it is checked before and in the middle of every bounce."""
+    n = origin.shape[1]
+    if n <= CHUNK:
+        return _trace(tracer, origin, direction, flux, counters, rng, max_depth, label, cancel)
+    parts = []
+    for first in range(0, n, CHUNK):
+        span = slice(first, min(n, first + CHUNK))
+        part = _trace(tracer, origin[:, span], direction[:, span], flux[:, span], counters, rng, max_depth,
+                      None if label is None else np.asarray(label)[span], cancel)
+        if part is None:
+            return None
+        parts.append(part)
+    arrays = [np.concatenate([getattr(p, name) for p in parts], axis=-1)
+              for name in ("position", "incoming", "flux", "normal", "segments", "label")]
+    return Stored(*arrays, traced=sum(p.traced for p in parts), rays=sum(p.rays for p in parts))
+
+
+def _trace(tracer, origin, direction, flux, counters, rng, max_depth: int, label, cancel) -> Stored | None:
     geometry, mats, textures = tracer.geometry, tracer.mats, tracer.textures
     o, d, phi = origin, direction, flux
     start = np.maximum(max3(flux), 1e-300)
@@ -48,9 +71,13 @@ def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int
                  traced=o.shape[1])
     parts = []
     while o.shape[1]:
+        if cancel is not None and cancel.is_set():
+            return None
         out.rays += o.shape[1]
         hits = geometry.nearest_hits(o, d, counters, tracer.scatter_group, N_SCATTER_GROUPS,
                                      light_group=PASS_THROUGH)
+        if cancel is not None and cancel.is_set():          # the query is about half of a bounce
+            return None
         idx = hits.index
         o, d, phi, bounce, start, tag = (o.take(idx, axis=1), d.take(idx, axis=1), phi.take(idx, axis=1),
                                          bounce.take(idx), start.take(idx), tag.take(idx))

@@ -160,15 +160,18 @@ def test_the_targets_hold_every_specular_object():
 
 
 def test_the_image_is_the_same_on_every_pool():
-    """Each pass's map is traced by whichever worker needs it, identically: one thread, two threads
-    and two forked processes give the same image bit for bit (engine/integrators/photons/caustics.py)."""
+    """Each pass's batch is traced once, by whichever worker is free, and shared
+    (engine/rendering/photon_passes.py): one thread, two threads and two forked processes give the
+    same image bit for bit, each tracing the one batch once."""
     from engine.api import render
     scene = caustic_scene((32, 16))
-    images = [render(scene, RenderSettings(samples=3, caustics_method="photons", photons_per_pass=3000, threads=t,
-                                           parallelism=kind)).image
-              for kind, t in (("threads", 1), ("threads", 2), ("processes", 2))]
+    runs = [render(scene, RenderSettings(samples=3, caustics_method="photons", photons_per_pass=3000, threads=t,
+                                         parallelism=kind))
+            for kind, t in (("threads", 1), ("threads", 2), ("processes", 2))]
+    images = [r.image for r in runs]
     assert np.array_equal(images[0], images[1]) and np.array_equal(images[0], images[2])
     assert images[0].sum() > 0
+    assert all(r.stats["photons"]["photon_passes_traced"] == 8 for r in runs)
 
 
 def test_photons_leave_a_mesh_lamp():
@@ -182,14 +185,19 @@ def test_photons_leave_a_mesh_lamp():
     assert photons.map_of(0, Counters()).count > 0.8 * 5000
 
 
-def test_no_photon_pass_without_scipy(monkeypatch):
-    """The gather needs scipy's kD-tree: where it is missing (a Blender add-on install), caustics stay
-    path-traced and the plan says why."""
-    import importlib.util
-    real = importlib.util.find_spec
-    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "scipy" else real(name, *a))
-    plan = plan_effects(cornell_scene((8, 8)), RenderSettings(caustics_method="photons"))
-    assert not plan.photon_caustics and "scipy" in plan.reason["photon_caustics"]
+def test_without_scipy_a_numpy_grid_finds_the_same_photons():
+    """Blender's own Python has no scipy: the gather's pairs then come from photon_map.py's grid,
+    the same set as cKDTree's (the caustic photons of a pass around points of the floor), and the
+    photon pass stays on."""
+    from engine.integrators.photons.photon_map import grid_pairs
+    photon_map = prepared(caustic_scene((8, 8)), photons_per_pass=3000).tracer.photons.map_of(0, Counters())
+    rng = np.random.default_rng(2)
+    points = photon_map.position[:, rng.integers(0, photon_map.count, 500)] + rng.normal(0, 0.02, (3, 500))
+    kd = set(zip(*(a.tolist() for a in photon_map.pairs(points, 0.05))))
+    grid = set(zip(*(a.tolist() for a in grid_pairs(points, photon_map.position, 0.05))))
+    assert len(kd) > 1000 and grid == kd
+    control = set(zip(*(a.tolist() for a in grid_pairs(points, photon_map.position, 0.049))))
+    assert control < kd                       # a radius a bit smaller finds fewer: the check can fail
 
 
 def test_the_stats_count_the_photon_passes():
