@@ -26,7 +26,7 @@ from ..materials.textures import textured_materials
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
            "glossy", "principled", "rough_diffuse", "mix", "rough_glass", "refraction", "transparent", "translucent",
            "emission", "seen_lamps", "world_light", "direct_light", "solid_angle",
-           "light_tree", "mis", "passes",
+           "light_tree", "mis", "deferred_roulette", "passes",
            "textures",
            "bounce_limits", "clamp", "filter_glossy", "caustics",     # Light Paths (engine/integrators/light_paths.py)
            "photon_caustics")                                         # engine/integrators/photons/
@@ -238,6 +238,7 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if nee and settings.estimator != "mis" else
                "no emitter that bounce rays can reach" if nee else
                "no direct light: BSDF sampling alone (weight 1)")
+    _plan_roulette(plan, settings, set_effect)
     from ..film.passes import TRACED
     features = [n for n in TRACED if n in tuple(getattr(settings, "passes", ()) or ())]
     set_effect("passes", features,
@@ -324,6 +325,28 @@ def _plan_light_paths(settings, set_effect, users) -> None:
                f" of {_names(left_out)} left out" if left_out else
                "caustics on (reflective and refractive)" if not off else
                f"{' and '.join(off)} caustics off, but no material has such a lobe")
+
+
+# The material models after Cycles' closures: scenes that use any of them take Cycles' order of
+# Russian roulette (deferred_roulette); scenes of the report's materials keep the report's.
+CYCLES_MODELS = ("glossy", "principled", "rough_diffuse", "mix", "rough_glass", "refraction", "transparent",
+                 "translucent")
+
+
+def _plan_roulette(plan, settings, set_effect) -> None:
+    """Russian roulette as Cycles orders it (kernel/integrator/intersect_closest.h and shade_surface.h):
+    the ray is traced whatever the roulette says, the emission and background it reaches count with
+    the throughput before the roulette, and only what follows (the next vertex's light samples and
+    bounces) is ended or divided by the survival probability (engine/integrators/path_tracer.py
+    `deferred_roulette`)."""
+    models = [name for name in CYCLES_MODELS if plan.enabled.get(name)]
+    on = bool(models and settings.russian_roulette and settings.estimator != "report")
+    set_effect("deferred_roulette", on,
+               f"{', '.join(models)} materials: Russian roulette as Cycles', after the emission its ray "
+               "reaches (never rouletted), survival min(1, sqrt(max throughput))" if on else
+               "Russian roulette off" if not settings.russian_roulette else
+               "report estimator: Russian roulette before the ray (report 2.4)" if settings.estimator == "report"
+               else "only diffuse, mirror and glass materials: Russian roulette before the ray (report 2.4)")
 
 
 def _dielectric_effects(set_effect, users) -> None:

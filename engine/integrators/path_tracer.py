@@ -39,7 +39,11 @@ lights), direct light, scatter, roulette, compaction.
 * an image world (engine/lights/environment.py): escaping rays see its radiance along their
   direction (camera rays their own background), MIS-weighted with its importance sampler's pdf;
 * Russian roulette (report 2.4) with survival probability min(1, max throughput),
-  survivors divided by it; a zero throughput always terminates, without a division.
+  survivors divided by it; a zero throughput always terminates, without a division.  With the
+  effect plan's deferred_roulette (scenes of Cycles' material models) in Cycles' order instead: the
+  ray is traced either way, the emission and background it reaches count with the throughput
+  before the roulette, and only the rest of the path is ended or divided, with Cycles' survival
+  probability min(1, sqrt(max throughput)) (`deferred_roulette`).
 * Cycles' Light Paths options (bounce limits per type, clamping, Filter Glossy, caustics): what
   they do is engine/integrators/light_paths.py; the effect plan switches them on.
 """
@@ -102,10 +106,13 @@ class Paths:
     lobe: np.ndarray | None = None    # light passes: (N,) int8 pass class of the first bounce (-1: none yet)
     lobe_at: np.ndarray | None = None  # light passes: (N,) the bounce that set it
     caustic: np.ndarray | None = None   # caustic photons: (N,) int8 CAMERA_CHAIN or AFTER_RECEIVER
+    rr_after: np.ndarray | None = None  # deferred roulette: (N,) factor of the throughput after this ray's
+    #                                     emission: 1 / survival probability, 0 = ended (the ray only emits)
 
     @classmethod
     def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool, features: bool = False,
-              light_paths: LightPaths | None = None, photons: bool = False) -> "Paths":
+              light_paths: LightPaths | None = None, photons: bool = False,
+              deferred_roulette: bool = False) -> "Paths":
         n = len(pixel)
         paths = cls(pixel, sample, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
                     np.zeros(n, dtype=np.int8), np.zeros(n, dtype=np.int32),
@@ -122,6 +129,8 @@ class Paths:
             paths.min_pdf = np.full(n, np.inf)
         if photons:
             paths.caustic = np.zeros(n, dtype=np.int8)
+        if deferred_roulette:
+            paths.rr_after = np.ones(n)
         return paths
 
     def _fields(self):
@@ -182,6 +191,7 @@ class PathTracer:
         light_paths = LightPaths(settings, plan, self.bsdfs)
         self.light_paths = light_paths if light_paths.on else None       # Cycles' Light Paths options
         self.photons = None     # engine/integrators/photons/caustics.py CausticPhotons (set by the session's prepass)
+        self.deferred_rr = bool(plan.enabled.get("deferred_roulette"))
 
     # -- the wavefront -----------------------------------------------------------------
     def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None,
@@ -217,7 +227,7 @@ class PathTracer:
                 fresh = len(pixel)
                 new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis,
                                   features is not None and features.surface, self.light_paths,
-                                  self.photons is not None)
+                                  self.photons is not None, self.deferred_rr)
                 if features is not None and features.light_split:       # engine/film/passes.py LIGHT
                     new.lobe, new.lobe_at = np.full(fresh, -1, np.int8), np.zeros(fresh, np.int32)
                 paths = new if paths is None else paths.extend(new)
@@ -241,6 +251,9 @@ class PathTracer:
         if p.counts is not None:            # a bounce type past its limit: this hit only emits
             past = self.light_paths.past_limit(p.counts)
             final = past if final is None else final | past
+        if p.rr_after is not None:          # ended by the deferred roulette: this hit only emits
+            ended = p.rr_after == 0.0
+            final = ended if final is None else final | ended
         hits = self.geometry.nearest_hits(p.o, p.d, counters, self.scatter_group, N_SCATTER_GROUPS,
                                           light_group=PASS_THROUGH, ray_kind=p.ray_kind,
                                           forced_group=None if final is None or not final.any()
@@ -277,6 +290,9 @@ class PathTracer:
                 self.camera_light(p, seen, p.radiance.take(seen, axis=1) - before, "emission", features)
         if start_radiance is not None:
             self.ray_light(p, np.arange(len(p.pixel)), p.radiance - start_radiance.take(hits.index, axis=1), features)
+        if p.rr_after is not None:          # the deferred roulette's division, after the emission
+            p.beta[:, :alive] *= p.rr_after[:alive]
+            p.rr_after[:alive] = 1.0
         # 4. Area lights: the ray goes on through them, as it was.
         passing = self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
         # 5. Direct light at hits with a non-delta BSDF (eq. 2.11).
@@ -331,7 +347,10 @@ class PathTracer:
                 vertex = vertex - caustic_light
             self.vertex_light(p, vertex, features)
         # 7. Russian roulette and the depth limit.
-        keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
+        if p.rr_after is None:
+            keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
+        else:
+            keep, p.rr_after[:alive] = self.deferred_roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
         # 8. Compaction: hand finished paths to the film, keep the rest.
         ended = np.flatnonzero(~keep)
         finished += [(p.pixel.take(ended), p.radiance.take(ended, axis=1), p.sample.take(ended)),
@@ -737,6 +756,23 @@ class PathTracer:
             keep &= u < survive_p
             beta = beta / np.where(keep, survive_p, 1.0)
         return keep, beta
+
+    def deferred_roulette(self, beta, bounce, delta, u):
+        """Russian roulette in Cycles' order (kernel/integrator/intersect_closest.h, shade_surface.h
+        integrate_surface_terminate): (which paths trace their next ray, the factor (N,) their
+        throughput takes after the emission that ray reaches: 1 / survival probability, or 0 for
+        the paths the roulette ends, whose next hit then only emits).  The survival probability is
+        Cycles' (path_state_continuation_probability), min(1, sqrt(max throughput)), from the bounce
+        `rr_start_depth` on as `roulette`; the throughput is left as it is until that emission is counted."""
+        s = self.settings
+        within = bounce < s.max_depth
+        if self.final_rays:
+            within |= (bounce == s.max_depth) & ~delta
+        keep = (max3(beta) > 0.0) & within
+        survive_p = np.where(bounce + 1 >= s.rr_start_depth, np.minimum(np.sqrt(max3(beta)), 1.0), 1.0)
+        with np.errstate(divide="ignore"):
+            after = np.where(u < survive_p, 1.0 / survive_p, 0.0)
+        return keep, after
 
     # -- direct light, eq. 2.11 ---------------------------------------------------------
     def direct_light(self, bsdf, si, point, offset, rng, counters, u=None, lift=None) -> np.ndarray:

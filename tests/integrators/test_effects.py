@@ -48,7 +48,7 @@ def test_diffuse_only_scene_never_runs_sphere_or_refraction_code(spies):
                   "direct_light": True,
                   "rough_glass": False, "refraction": False, "transparent": False, "translucent": False,
                   "solid_angle": True,
-                  "light_tree": False, "mis": True, "passes": False, "textures": False,
+                  "light_tree": False, "mis": True, "deferred_roulette": False, "passes": False, "textures": False,
                   "bounce_limits": False, "clamp": False, "filter_glossy": False, "caustics": False,
                   "photon_caustics": False}
     assert "never evaluated" in result.stats["effects_reason"]["glass"]
