@@ -68,6 +68,7 @@ class KeptPool(Pool):
         self.scene = None               # the scene last prepared (its objects are what the workers hold)
         self.renders = 0                # renders prepared on this pool
         self.view_only = 0              # of them, how many sent only a new camera
+        self.prepare_seconds = 0.0      # the last render's prepare(): until the first worker was ready
         self.is_shut = False
         self.describe = f"{len(inner.workers)} worker process(es) ({inner.python}) kept across renders (Persistent Data)"
 
@@ -81,7 +82,9 @@ class KeptPool(Pool):
             # the workers' own objects with the new view: ViewportPool.prepare sends the camera only
             scene = dataclasses.replace(self.scene, camera=scene.camera, resolution=scene.resolution)
             self.view_only += 1
+        start = time.perf_counter()
         facts = self.inner.prepare(scene, settings)
+        self.prepare_seconds = time.perf_counter() - start      # sent, and the first worker ready
         self.scene = scene
         self.renders += 1
         return facts
@@ -113,7 +116,8 @@ class KeptPool(Pool):
 
     def stats(self) -> dict:
         stats = dict(self.inner.stats())
-        stats.update(persistent_data=True, renders_on_pool=self.renders, renders_view_only=self.view_only)
+        stats.update(persistent_data=True, renders_on_pool=self.renders, renders_view_only=self.view_only,
+                     prepare_seconds=self.prepare_seconds)
         return stats
 
     def warnings(self) -> list:
