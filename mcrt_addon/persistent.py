@@ -38,7 +38,8 @@ def render_pool(scene, python, threads, extra_paths, log=print):
         free()
     if not _kept:
         inner = bridge.module("api").make_pool(f"viewport:{python}", threads, log=log, extra_paths=extra_paths)
-        _kept.append(bridge.module("pools.kept").KeptPool(inner, key))
+        # checked: render_engine validates every exported scene before rendering it
+        _kept.append(bridge.module("pools.kept").KeptPool(inner, key, checked=True))
     return _kept[0]
 
 

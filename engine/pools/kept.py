@@ -63,8 +63,10 @@ class KeptPool(Pool):
 
     takes_rounds = True
 
-    def __init__(self, inner, key=None):
-        self.inner, self.key = inner, key
+    def __init__(self, inner, key=None, checked: bool = False):
+        """checked: the caller validates every scene before it renders it (the add-on's final render,
+        mcrt_addon/render_engine.py), so the workers do not validate it again."""
+        self.inner, self.key, self.checked = inner, key, checked
         self.scene = None               # the scene last prepared (its objects are what the workers hold)
         self.renders = 0                # renders prepared on this pool
         self.view_only = 0              # of them, how many sent only a new camera
@@ -83,7 +85,7 @@ class KeptPool(Pool):
             scene = dataclasses.replace(self.scene, camera=scene.camera, resolution=scene.resolution)
             self.view_only += 1
         start = time.perf_counter()
-        facts = self.inner.prepare(scene, settings)
+        facts = self.inner.prepare(scene, settings, checked=self.checked)
         self.prepare_seconds = time.perf_counter() - start      # sent, and the first worker ready
         self.scene = scene
         self.renders += 1
