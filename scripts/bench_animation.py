@@ -15,7 +15,7 @@ The machine is shared: every run is repeated and the run with the smallest frame
 shown (the ratio is always measured within one run), with the load average around it.
 
   python scripts/bench_animation.py [--scene suzanne_100k] [--frames 4] [--size 128] [--samples 16]
-                                    [--repeat 3] [--blender 3.4,5.0]
+                                    [--repeat 3] [--blender 3.4,5.0] [--cases off,on,cycles]
 """
 import argparse
 import json
@@ -142,6 +142,7 @@ def main():
     ap.add_argument("--samples", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=3, help="runs of each case; the one of the smallest ratio is shown")
     ap.add_argument("--blender", default="3.4,5.0", help="3.4 (the blender binary), 5.0 (the bpy module), or both")
+    ap.add_argument("--cases", default="off,on,cycles", help="Persistent Data off, on, Cycles: which to run")
     a = ap.parse_args()
     blend = os.path.join(REPO, "sample_blends", a.scene + ".blend")
     print(f"{a.scene}.blend, {a.frames} frames, one object moving, {a.size}^2, {a.samples} spp, frames 2-{a.frames}, "
@@ -150,7 +151,8 @@ def main():
             f"{'w.setup':>8}{'w.build':>8}{'rest':>7}{'Blender':>8}{'read':>5}{'cpu B':>7}{'cpu W':>7}{'load':>11}")
     print(head)
     for blender in a.blender.split(","):
-        for engine, persistent in (("TNCG15_MC", "off"), ("TNCG15_MC", "on"), ("CYCLES", "off")):
+        cases = {"off": ("TNCG15_MC", "off"), "on": ("TNCG15_MC", "on"), "cycles": ("CYCLES", "off")}
+        for engine, persistent in (cases[c] for c in a.cases.split(",")):
             rows = [summary(run(blender, blend, a.frames, a.size, a.samples, engine, persistent))
                     for _ in range(a.repeat if engine == "TNCG15_MC" else 1)]
             r = min(rows, key=lambda row: row.get("ratio", row["frame"]))

@@ -150,6 +150,21 @@ def test_animation_keeps_workers_and_meshes_and_renders_each_frame_as_a_fresh_re
         np.testing.assert_array_equal(a, b)                  # bit for bit a fresh render's frame
     assert not np.array_equal(kept[1][0], kept[2][0])
 
+    # an edit between two F12 presses (the mesh's data, not a key or modifier) reaches the kept depsgraph
+    torus = bpy.data.objects["Torus"].data
+    original = np.zeros(len(torus.vertices) * 3, np.float32)
+    torus.vertices.foreach_get("co", original)
+    torus.vertices.foreach_set("co", original * np.tile(np.float32([1.0, 1.0, 1.5]), len(torus.vertices)))
+    torus.update()
+    edited = render_operator(scene)
+    assert last_report().export["meshes_read"] == 2 and last_report().stats["renders_on_pool"] == 4
+    scene.render.use_persistent_data = False
+    np.testing.assert_array_equal(edited, render_operator(scene))
+    assert not np.array_equal(edited, kept[2][0])
+    torus.vertices.foreach_set("co", original)                  # exactly as it was
+    torus.update()
+    scene.render.use_persistent_data = True
+
     # control: a cache that never forgets renders frame 3 with the unbent wall
     persistent.free()
     monkeypatch.setattr(persistent, "forget_meshes", lambda cache, names: None)
