@@ -7,12 +7,19 @@ camera moved, the same prepared scene and BVH.  The pool is shut down when a ren
 Persistent Data off or with other workers (Python, thread count), when a file is loaded, and when
 the add-on is unregistered; the workers also exit by themselves when Blender does (they watch their
 parent).
+
+`mesh_cache` keeps the exporter's mesh arrays (mcrt_addon/export/__init__.py export_scene's
+mesh_cache) from one frame to the next while Blender keeps the render's depsgraph (it does with
+Persistent Data on, in 3.4 and 5.0): arrays of the objects and meshes whose geometry the depsgraph
+reports as updated are read again, the others (an object that only moved) are not.
 """
 import bpy
 
 from . import bridge
+from .viewport import classify, forget_meshes
 
 _kept = []          # at most one KeptPool
+_meshes = {}        # "depsgraph": pointer of the depsgraph the arrays were read from; "arrays": the cache
 
 
 def _key(python, threads, extra_paths):
@@ -31,8 +38,24 @@ def render_pool(scene, python, threads, extra_paths, log=print):
         free()
     if not _kept:
         inner = bridge.module("api").make_pool(f"viewport:{python}", threads, log=log, extra_paths=extra_paths)
-        _kept.append(bridge.module("pools.kept").KeptPool(inner, key))
+        # checked: render_engine validates every exported scene before rendering it
+        _kept.append(bridge.module("pools.kept").KeptPool(inner, key, checked=True))
     return _kept[0]
+
+
+def mesh_cache(scene, depsgraph):
+    """The mesh arrays kept for a final render of `scene` from `depsgraph`: None when Persistent
+    Data is off; else the dict of the last render of the same depsgraph less the objects and meshes
+    whose geometry its updates report as changed, or an empty one for another depsgraph."""
+    if not getattr(scene.render, "use_persistent_data", False):
+        _meshes.clear()
+        return None
+    pointer = depsgraph.as_pointer()
+    if _meshes.get("depsgraph") != pointer:
+        _meshes.update(depsgraph=pointer, arrays={})
+    else:
+        forget_meshes(_meshes["arrays"], classify(depsgraph.updates)[1])
+    return _meshes["arrays"]
 
 
 def kept():
@@ -43,6 +66,7 @@ def kept():
 @bpy.app.handlers.persistent
 def free(*_args):
     """Shut the kept pool down (also a bpy.app.handlers.load_pre handler)."""
+    _meshes.clear()
     while _kept:
         _kept.pop().shutdown()
 

@@ -245,8 +245,10 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             crop = border_rect(scene.render, width, height)
             self._stats("TNCG15 MC | Exporting scene")
             camera = self.camera_override if self.camera_override is not None else scene.camera
+            kept_meshes = None if self.is_preview else persistent.mesh_cache(scene, depsgraph)
             exported = export_scene(depsgraph, resolution=(width, height), camera=camera, crop=crop,
-                                    test_break=self._cancel_requested, uv_pass="uv" in settings.passes)
+                                    test_break=self._cancel_requested, uv_pass="uv" in settings.passes,
+                                    mesh_cache=kept_meshes)
             if abs(scene.render.pixel_aspect_x - scene.render.pixel_aspect_y) > 1e-6:
                 exported.warnings.append("non-square pixel aspect is ignored")
             if pool is None and not cluster:
@@ -262,6 +264,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
                 pool.close()
             raise
         out_w, out_h = exported.scene.resolution
+        export_seconds = time.perf_counter() - t_start         # workers started, scene exported and checked
         self.last.export, self.last.resolution, self.last.crop = exported.info, (out_w, out_h), crop
 
         n_bad = [0]
@@ -317,6 +320,7 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             warnings.append(f"{n_bad[0]} pixels had NaN/infinite values and were set to black")
         stats = dict(getattr(result, "stats", {}) or {})
         stats["first_tile_seconds"] = first_tile[0] if first_tile else None
+        stats["export_seconds"] = export_seconds
         if no_workers is not None:
             stats["parallelism"] = f"threads in Blender ({no_workers})"
         self.last.stats, self.last.warnings = stats, warnings

@@ -63,11 +63,14 @@ class KeptPool(Pool):
 
     takes_rounds = True
 
-    def __init__(self, inner, key=None):
-        self.inner, self.key = inner, key
+    def __init__(self, inner, key=None, checked: bool = False):
+        """checked: the caller validates every scene before it renders it (the add-on's final render,
+        mcrt_addon/render_engine.py), so the workers do not validate it again."""
+        self.inner, self.key, self.checked = inner, key, checked
         self.scene = None               # the scene last prepared (its objects are what the workers hold)
         self.renders = 0                # renders prepared on this pool
         self.view_only = 0              # of them, how many sent only a new camera
+        self.prepare_seconds = 0.0      # the last render's prepare(): until the first worker was ready
         self.is_shut = False
         self.describe = f"{len(inner.workers)} worker process(es) ({inner.python}) kept across renders (Persistent Data)"
 
@@ -81,7 +84,9 @@ class KeptPool(Pool):
             # the workers' own objects with the new view: ViewportPool.prepare sends the camera only
             scene = dataclasses.replace(self.scene, camera=scene.camera, resolution=scene.resolution)
             self.view_only += 1
-        facts = self.inner.prepare(scene, settings)
+        start = time.perf_counter()
+        facts = self.inner.prepare(scene, settings, checked=self.checked)
+        self.prepare_seconds = time.perf_counter() - start      # sent, and the first worker ready
         self.scene = scene
         self.renders += 1
         return facts
@@ -123,7 +128,8 @@ class KeptPool(Pool):
 
     def stats(self) -> dict:
         stats = dict(self.inner.stats())
-        stats.update(persistent_data=True, renders_on_pool=self.renders, renders_view_only=self.view_only)
+        stats.update(persistent_data=True, renders_on_pool=self.renders, renders_view_only=self.view_only,
+                     prepare_seconds=self.prepare_seconds)
         return stats
 
     def warnings(self) -> list:

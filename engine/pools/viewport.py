@@ -7,7 +7,8 @@ after every started unit was answered, and a scene that differs from the last on
 and resolution only (the same objects otherwise, as dataclasses.replace makes it) with the same
 settings is not prepared again: the workers get the new camera (no BVH rebuild).
 
-    parent -> worker   ("prepare", number, scene, settings)   build a PreparedScene
+    parent -> worker   ("prepare", number, scene, settings, checked)   build a PreparedScene (checked:
+                                                           the parent validated the scene, engine/rendering/session.py)
                        ("view", camera, resolution)           the prepared scene's new camera
                        ("unit", WorkUnit)                     trace it (or a PhotonUnit)
                        ("share", batch, stored) | ("forget", batches)   photon batches (engine/rendering/photon_passes.py)
@@ -158,10 +159,10 @@ def viewport_worker_main(parent_pid: int) -> int:
                 if cancels["reached"] == cancels["received"]:
                     cancel.clear()
         elif kind == "prepare":
-            _, number, scene, settings = message
+            _, number, scene, settings, checked = message
             prepared = None
             try:
-                prepared = PreparedScene(scene, settings, log=log_to_stderr)
+                prepared = PreparedScene(scene, settings, log=log_to_stderr, checked=checked)
                 end.send(("ready", number, prepared.facts()))
             except Exception as exc:            # noqa: BLE001 - one line for the viewport's header
                 end.send(("failed", number, one_line(exc)))
@@ -220,6 +221,7 @@ class ViewportPool(Pool):
         self.cancelled = False
         self.preparation = 0                            # number of the last scene sent
         self.scene = self.settings = self.facts = None  # the scene prepared (its view: the last sent)
+        self.checked = False                            # whether the caller validated it (prepare)
         self.builds = 0                                 # scenes sent to be prepared, summed over the workers
         self.reports: list[str] = []                    # workers that died, by name
         self.report_times: list[float] = []
@@ -228,9 +230,10 @@ class ViewportPool(Pool):
         self.cancelled_at = None
 
     # -- preparation ----------------------------------------------------------------------------
-    def prepare(self, scene, settings, timeout: float = START_TIMEOUT):
+    def prepare(self, scene, settings, timeout: float = START_TIMEOUT, checked: bool = False):
         """The scene on every worker: its camera and resolution only when nothing else changed,
-        else the scene prepared again (waits for the first worker to be ready)."""
+        else the scene prepared again (waits for the first worker to be ready); checked: the caller
+        validated `scene` (Scene.validate), the workers do not again."""
         self._give_up_cancelled()
         self.cancelled, self.pending, self.cancelled_at = False, [], None
         if self.facts is not None and settings == self.settings and same_but_the_view(scene, self.scene):
@@ -240,8 +243,8 @@ class ViewportPool(Pool):
             self.scene = scene
             return self.facts
         self.preparation += 1
-        self.scene, self.settings, self.facts = scene, settings, None
-        payload = encode(("prepare", self.preparation, scene, settings))
+        self.scene, self.settings, self.facts, self.checked = scene, settings, None, checked
+        payload = encode(("prepare", self.preparation, scene, settings, checked))
         for w in self.workers:
             w.prepared = None
             w.send(payload)
@@ -332,7 +335,7 @@ class ViewportPool(Pool):
         self.restarts += 1
         self.workers[self.workers.index(dead)] = worker
         if self.scene is not None:
-            worker.send(("prepare", self.preparation, self.scene, self.settings))
+            worker.send(("prepare", self.preparation, self.scene, self.settings, self.checked))
             self.builds += 1
         return worker
 

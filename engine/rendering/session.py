@@ -92,11 +92,14 @@ class PreparedScene:
     """Scene preparation (validation, effect plan, BVH, lights, textures, the path tracer) once;
     units rendered on demand with render_unit."""
 
-    def __init__(self, scene, settings: RenderSettings | None = None, log=print):
+    def __init__(self, scene, settings: RenderSettings | None = None, log=print, checked: bool = False):
+        """checked: `scene` was validated where it was made (its warnings reported there) and has
+        not changed since; Scene.validate is idempotent, so it is not run again (the kept workers of
+        Persistent Data, engine/pools/kept.py)."""
         settings = settings or RenderSettings()
         settings.validate()
         start = time.perf_counter()
-        self.warnings = scene.validate()
+        self.warnings = [] if checked else scene.validate()
         # Positions relative to the camera when the scene stands far from the world origin
         # (engine/scene/tracing_origin.py); None: world coordinates, the scene as it is.
         self.origin = tracing_origin(scene)

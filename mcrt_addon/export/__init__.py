@@ -171,7 +171,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     meshes, spheres, lights, points, suns = [], [], [], [], []
     cache = {}
     flagged = set()
-    n_instances = n_triangles = 0
+    n_instances = n_triangles = n_read = 0
     skipped = set()
     terminator_warned = set()
     def add_geometry(ob, otype, matrix, label, own=False, random_id=0):
@@ -193,6 +193,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
             arrays = mesh_cache.get(kept)
 
         def read(me):
+            nonlocal n_read
+            n_read += 1
             base = mesh_arrays(me)
             read_map = "" if pass_uvs and len(me.uv_layers) else uv_map
             return base + (corner_uvs(me, read_map, label, warnings), mesh_normals(me),
@@ -342,6 +344,6 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                       lights=lights, points=points, suns=suns, textures=images.textures, cycles_version=version[:2],
                       mist=export_mist(scene.world))
     info = dict(export_seconds=time.perf_counter() - t0, objects=n_instances, triangles=n_triangles,
-                spheres=len(spheres), meshes_shared=len(cache), materials=len(materials),
+                spheres=len(spheres), meshes_shared=len(cache), meshes_read=n_read, materials=len(materials),
                 textures=len(images.textures))
     return ExportResult(scene=result, warnings=warnings, info=info)

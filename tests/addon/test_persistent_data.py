@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
-from mcrt_addon import persistent
+from mcrt_addon import bridge, persistent
 from rendering import last_report, open_blend, render_operator
 from test_render_blender import set_props
 
@@ -84,3 +84,93 @@ def test_loading_a_file_stops_the_kept_workers(samples):
     open_blend(samples["cornell"], (24, 24))                  # load_pre handler
     assert persistent.kept() is None
     assert not any(alive(p) for p in pids)
+
+
+def animate(scene):
+    """Frames 1-3 of the cornell sample: the torus moves on every frame (a transform), and on frame 3
+    a shape key bends the back wall (a geometry change the exporter must read again)."""
+    torus, wall = bpy.data.objects["Torus"], bpy.data.objects["Back"]
+    for f in (1, 2, 3):
+        torus.location.x = 0.1 * f
+        torus.keyframe_insert("location", frame=f)
+    wall.shape_key_add(name="Basis")
+    bend = wall.shape_key_add(name="Bend")
+    for point in bend.data:
+        point.co.z += 0.3 * point.co.x
+    for f, value in ((1, 0.0), (2, 0.0), (3, 1.0)):
+        bend.value = value
+        bend.keyframe_insert("value", frame=f)
+
+
+def frames(scene, starts, count=3):
+    """(image, RenderReport, worker pools started) of frames 1..count, one F12 each; `starts`
+    counts the pools made (counted_pools)."""
+    out = []
+    for f in range(1, count + 1):
+        scene.frame_set(f)
+        before = starts[0]
+        out.append((render_operator(scene), last_report(), starts[0] - before))
+    return out
+
+
+def counted_pools(monkeypatch):
+    """Count every worker pool the add-on makes (render_engine and persistent go through api.make_pool)."""
+    api = bridge.module("api")
+    starts, make_pool = [0], api.make_pool
+
+    def counting(*args, **kwargs):
+        starts[0] += 1
+        return make_pool(*args, **kwargs)
+    monkeypatch.setattr(api, "make_pool", counting)
+    return starts
+
+
+@pytest.mark.slow          # nine renders in bpy 5.0
+def test_animation_keeps_workers_and_meshes_and_renders_each_frame_as_a_fresh_render(samples, monkeypatch):
+    scene = open_blend(samples["cornell"], (32, 24))
+    set_props(scene, samples=2, depth=3)
+    animate(scene)
+    meshes = sum(1 for o in scene.objects if o.type == "MESH")
+    starts = counted_pools(monkeypatch)
+    scene.render.use_persistent_data = False
+    fresh = frames(scene, starts)
+    assert [r.export["meshes_read"] for _, r, _ in fresh] == [meshes] * 3         # every frame reads every mesh
+    assert [n for _, _, n in fresh] == [1, 1, 1]                                 # and starts its own workers
+
+    scene.render.use_persistent_data = True
+    kept = frames(scene, starts)
+    # one pool for the animation: started once, the same processes, one render and one export per frame
+    assert [n for _, _, n in kept] == [1, 0, 0]
+    assert len({tuple(r.stats["worker_pids"]) for _, r, _ in kept}) == 1
+    assert [r.stats["renders_on_pool"] for _, r, _ in kept] == [1, 2, 3]
+    # the moved torus is not read again; the wall, whose shape key is animated, is on every frame
+    # (Blender's depsgraph flags its geometry as updated on each frame, not only where it changes)
+    assert [r.export["meshes_read"] for _, r, _ in kept] == [meshes, 1, 1]
+    for (a, _, _), (b, _, _) in zip(fresh, kept):
+        np.testing.assert_array_equal(a, b)                  # bit for bit a fresh render's frame
+    assert not np.array_equal(kept[1][0], kept[2][0])
+
+    # an edit between two F12 presses (the mesh's data, not a key or modifier) reaches the kept depsgraph
+    torus = bpy.data.objects["Torus"].data
+    original = np.zeros(len(torus.vertices) * 3, np.float32)
+    torus.vertices.foreach_get("co", original)
+    torus.vertices.foreach_set("co", original * np.tile(np.float32([1.0, 1.0, 1.5]), len(torus.vertices)))
+    torus.update()
+    edited = render_operator(scene)
+    assert last_report().export["meshes_read"] == 2 and last_report().stats["renders_on_pool"] == 4
+    scene.render.use_persistent_data = False
+    np.testing.assert_array_equal(edited, render_operator(scene))
+    assert not np.array_equal(edited, kept[2][0])
+    torus.vertices.foreach_set("co", original)                  # exactly as it was
+    torus.update()
+    scene.render.use_persistent_data = True
+
+    # control: a cache that never forgets renders frame 3 with the unbent wall
+    persistent.free()
+    monkeypatch.setattr(persistent, "forget_meshes", lambda cache, names: None)
+    stale = frames(scene, starts)
+    assert [r.export["meshes_read"] for _, r, _ in stale] == [meshes, 0, 0]
+    np.testing.assert_array_equal(stale[1][0], fresh[1][0])
+    assert not np.array_equal(stale[2][0], fresh[2][0])
+    scene.render.use_persistent_data = False
+    render_operator(scene)                                   # the kept workers stop
