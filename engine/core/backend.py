@@ -44,6 +44,7 @@ JIT_MODULES = {
     "geometry.shapes.quads_jit": ("quads",),
     "geometry.shapes.light_polygons_jit": ("area_lights",),
     "sampling.sobol_jit": ("sobol",),
+    "materials.microfacet_jit": ("glossy", "principled", "mix"),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.backend import JIT_MODULES, NUMBA
 from ..core.vec import dot, normalize
 from . import albedo_tables
 from .microfacet import (BECKMANN, D, GGX, LAMBDA, SAMPLE_VNDF, glossy_alpha_rows, glossy_alphas, shading_frame,
@@ -118,6 +119,7 @@ class MicrofacetReflection(BSDF):
     flags = LOBE
     roughness_input = "roughness"       # the textured input its roughness reads (None: none, the coat)
     alpha_rule = staticmethod(glossy_alpha_rows)    # (roughness, anisotropy) rows -> (alpha_x, alpha_y)
+    compiled = None                     # engine/materials/microfacet_jit.py when the backend is numba
 
     def __init__(self, materials, settings):
         m = len(materials)
@@ -138,6 +140,16 @@ class MicrofacetReflection(BSDF):
         self.rotation = np.array([getattr(x, "rotation", 0.0) for x in materials], dtype=np.float64)
         self.compensate = np.array([getattr(x, "multiscatter", True) and getattr(x, "distribution", GGX) == GGX
                                     for x in materials], dtype=bool)
+
+    def use_backend(self, backends: dict) -> None:
+        """The GGX geometry of eval and sample compiled (engine/materials/microfacet_jit.py, the
+        same numbers) when the render runs the microfacet effects on numba."""
+        if any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.microfacet_jit"]):
+            from . import microfacet_jit
+            self.compiled = microfacet_jit
+        else:
+            self.compiled = None
+        super().use_backend(backends)
 
     # -- per hit ------------------------------------------------------------------------------
     def alphas(self, si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
@@ -272,6 +284,13 @@ class MicrofacetReflection(BSDF):
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
         ax, ay, beckmann = self._alphas(si)
         x, y, n = self._frame_at(si)
+        if self.compiled is not None and not beckmann.any():
+            wi, cos_h, pdf, ratio = self.compiled.ggx_sample(si.wo, x, y, n, ax, ay, u[0], u[1])
+            value = self._fresnel(si, cos_h) * ratio
+            scale = self.compensation_at(si)
+            if scale is not None:
+                value = value * scale
+            return BSDFSample(wi, np.nan_to_num(value), pdf, np.full(len(si), LOBE, dtype=np.int8))
         wo_l = to_local(si.wo, x, y, n)
         h = np.empty_like(wo_l)
         for dist, mask in ((GGX, ~beckmann), (BECKMANN, beckmann)):
@@ -296,6 +315,11 @@ class MicrofacetReflection(BSDF):
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ax, ay, beckmann = self._alphas(si)
         x, y, n = self._frame_at(si)
+        if self.compiled is not None and not beckmann.any():
+            cos, pdf, g = self.compiled.ggx_eval(si.wo, wi, x, y, n, ax, ay)
+            f_cos = self._fresnel(si, cos) * g
+            scale = self.compensation_at(si)
+            return (f_cos if scale is None else f_cos * scale), pdf
         wo_l, wi_l = to_local(si.wo, x, y, n), to_local(wi, x, y, n)
         ok = (wo_l[2] > 0.0) & (wi_l[2] > 0.0)
         half = wo_l + wi_l
