@@ -190,14 +190,25 @@ class MicrofacetReflection(BSDF):
             x, y = c * x + s * y, c * y - s * x
         return x, y, n
 
+    def _kinds(self, mat: np.ndarray):
+        """(Fresnel code, its hits) for each Fresnel kind among the hits of materials `mat`: every
+        hit (a slice, no gather) where all materials of the lobe have one kind."""
+        if self.fresnel.size and (self.fresnel == self.fresnel[0]).all():
+            return [(self.fresnel[0], slice(None))] if len(mat) else []
+        kind = self.fresnel.take(mat)
+        return [(code, np.flatnonzero(kind == code)) for code in np.unique(kind)]
+
+    @staticmethod
+    def _at(a, sel, axis=0):
+        return a if isinstance(sel, slice) else a.take(sel, axis=axis)
+
     def _fresnel(self, si: ShadingPoint, cos: np.ndarray) -> np.ndarray:
         """F (3, N) at cos = wo.h, times the colour where the colour tints (all but conductors)."""
         mat, color = si.material, si.color
-        kind = self.fresnel.take(mat)
         f = color.copy()
-        for code in np.unique(kind):
-            sel = np.flatnonzero(kind == code)
-            c, m, col = cos.take(sel), mat.take(sel), color.take(sel, axis=1)
+        at = self._at
+        for code, sel in self._kinds(mat):
+            c, m, col = at(cos, sel), at(mat, sel), at(color, sel, 1)
             name = FRESNEL_KINDS[code]
             if name == "none":
                 continue
@@ -219,25 +230,25 @@ class MicrofacetReflection(BSDF):
     def _fresnel_average(self, si: ShadingPoint) -> np.ndarray:
         """F_ss (3, N), the hemispherical average of F (Cycles' *_Fss)."""
         mat, color = si.material, si.color
-        kind = self.fresnel.take(mat)
         f = color.copy()
-        for code in np.unique(kind):
-            sel = np.flatnonzero(kind == code)
-            m, col = mat.take(sel), color.take(sel, axis=1)
+        at = self._at
+        for code, sel in self._kinds(mat):
+            m, col = at(mat, sel), at(color, sel, 1)
+            count = len(m)
             name = FRESNEL_KINDS[code]
             if name == "dielectric":
                 f[:, sel] = col * fresnel_dielectric_average(self.ior.take(m))
             elif name == "conductor":
                 n, k = self.n.take(m, axis=1), self.k.take(m, axis=1)
-                f0 = fresnel_conductor(np.ones(len(sel)), n, k)
-                f82 = fresnel_conductor(np.full(len(sel), 1.0 / 7.0), n, k)
+                f0 = fresnel_conductor(np.ones(count), n, k)
+                f82 = fresnel_conductor(np.full(count, 1.0 / 7.0), n, k)
                 f[:, sel] = np.clip(f82_average(f0, f82_b_from_f82(f0, f82)), 0.0, 1.0)
             elif name == "f82":
                 f0 = np.clip(col, 0.0, 1.0)
                 f[:, sel] = f82_average(f0, f82_b(f0, np.clip(self.edge_tint.take(m, axis=1), 0.0, 1.0)))
             elif name == "interpolated":
                 ior = self.ior.take(m)
-                real0 = fresnel_dielectric(np.ones(len(sel)), ior)
+                real0 = fresnel_dielectric(np.ones(count), ior)
                 with np.errstate(divide="ignore", invalid="ignore"):
                     s = np.clip(np.where(real0 < 1.0, (fresnel_dielectric_average(ior) - real0) / (1.0 - real0), 1.0),
                                 0.0, 1.0)
