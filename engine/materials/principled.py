@@ -391,6 +391,11 @@ class PrincipledV2(BSDF):
             idx = np.flatnonzero(w > 0.0)
             if not len(idx):
                 continue
+            if len(idx) == len(si):                 # every hit: no gathers, the same numbers
+                f_l, pdf_l = lobe.eval(view, wi)
+                f_cos += w * f_l
+                pdf += p * pdf_l
+                continue
             f_l, pdf_l = lobe.eval(view.take(idx), wi.take(idx, axis=1))
             f_cos[:, idx] += w.take(idx) * f_l
             pdf[idx] += p.take(idx) * pdf_l
@@ -474,6 +479,11 @@ class PrincipledV2(BSDF):
         for lobe, view, w, p in zip(lobes, views, weights[2:], prob[3:]):
             idx = np.flatnonzero(w.max(axis=0) > 0.0)
             if not len(idx):
+                continue
+            if len(idx) == len(si):                 # every hit: no gathers, the same numbers
+                f_l, pdf_l = lobe.eval(view, wi)
+                f_cos += w * f_l
+                pdf += p * pdf_l
                 continue
             f_l, pdf_l = lobe.eval(view.take(idx), wi.take(idx, axis=1))
             f_cos[:, idx] += w.take(idx, axis=1) * f_l
