@@ -258,9 +258,13 @@ class MicrofacetReflection(BSDF):
     def compensation(self, si: ShadingPoint, cos_o: np.ndarray) -> np.ndarray | None:
         """1 + F_ms (1 - E) / E (3, N) for the hits whose material compensates, 1 elsewhere; None
         if none does."""
+        return self.compensation_terms(si, cos_o)[0]
+
+    def compensation_terms(self, si: ShadingPoint, cos_o: np.ndarray):
+        """(compensation, E(cos_o) (N,) of the albedo table): both None if no material compensates."""
         on = self.compensate.take(si.material)
         if not on.any():
-            return None
+            return None, None
         rough = self.table_roughness(si)
         e = albedo_tables.albedo(rough, np.clip(cos_o, 0.0, 1.0))
         e_avg = albedo_tables.average_albedo(rough)
@@ -268,12 +272,21 @@ class MicrofacetReflection(BSDF):
         f_ms = f_ss * e_avg / (1.0 - f_ss * (1.0 - e_avg))
         with np.errstate(divide="ignore", invalid="ignore"):
             scale = 1.0 + f_ms * np.where(e > 0.0, (1.0 - e) / e, 0.0)
-        return np.where(on, scale, 1.0)
+        return np.where(on, scale, 1.0), e
+
+    def _compensation_terms_at(self, si: ShadingPoint):
+        return si.memo((self, "compensation"),
+                       lambda at: self.compensation_terms(at, dot(at.wo, specular_normal_at(at))))
 
     def compensation_at(self, si: ShadingPoint) -> np.ndarray | None:
         """compensation at cos_o = dot(wo, n) (wo's local z), once per hit for the sample and the
         evals at the same hits (ShadingPoint.memo)."""
-        return si.memo((self, "compensation"), lambda at: self.compensation(at, dot(at.wo, specular_normal_at(at))))
+        return self._compensation_terms_at(si)[0]
+
+    def albedo_at(self, si: ShadingPoint) -> np.ndarray | None:
+        """E (N,) of the albedo table at the lobe's normal (clip(dot(wo, n), 0, 1)), as compensation_at
+        reads it; None if no material compensates."""
+        return self._compensation_terms_at(si)[1]
 
     def _frame_at(self, si: ShadingPoint):
         return si.memo((self, "frame"), self._frame)
