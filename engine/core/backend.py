@@ -44,6 +44,8 @@ JIT_MODULES = {
     "geometry.shapes.quads_jit": ("quads",),
     "geometry.shapes.light_polygons_jit": ("area_lights",),
     "sampling.sobol_jit": ("sobol",),
+    "materials.microfacet_jit": ("glossy", "principled", "mix"),
+    "lights.parallelograms_jit": ("emission",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 

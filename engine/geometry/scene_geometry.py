@@ -22,7 +22,7 @@ from .shapes.box_tree import BoxTree, padded_boxes
 from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
-from .shapes.spheres import sphere_kernel, surface_point
+from .shapes.spheres import sphere_kernel, sphere_loop_kernels, surface_point
 from ..core.vec import aos, max_abs3, rows
 
 NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
@@ -129,6 +129,7 @@ class SceneGeometry:
         self.quad_material = np.array([q.material_id for q in scene.quads], dtype=np.int64)
 
         self.intersect_sphere = sphere_kernel(backends.get("spheres", "numpy"))
+        self.sphere_loops = sphere_loop_kernels(backends.get("spheres", "numpy"))    # compiled: all in one loop
 
         def kernel(name, present):
             return bool(present) if plan is None else bool(plan.enabled[name])
@@ -182,7 +183,9 @@ class SceneGeometry:
             t = np.where(closer, tt, t)
             kind = closer.astype(np.int8)                   # TRIANGLE where closer
             prim = np.where(closer, tp, prim)
-        if self.has_spheres:
+        if self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None:
+            t = self.sphere_loops[0](o, d, self.sphere_center, self.sphere_radius, t, kind, prim, SPHERE)
+        elif self.has_spheres:
             t = self._nearest(SPHERE, self.sphere_tree, len(self.sphere_radius), self._sphere_test(o, d), o, d, t, kind,
                               prim)
         if self.has_quads:
@@ -249,7 +252,10 @@ class SceneGeometry:
             if len(rest) < len(blocked):
                 o, d, tmax = o.take(rest, axis=1), d.take(rest, axis=1), tmax.take(rest)
             hit = np.zeros(len(rest), dtype=bool)
-            for tree, count, test in ((self.sphere_tree, len(self.sphere_radius), self._sphere_test(o, d)),
+            loops = self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None
+            if loops:                           # compiled: every sphere in one loop per ray
+                self.sphere_loops[1](o, d, self.sphere_center, self.sphere_radius, tmax, hit)
+            for tree, count, test in ((self.sphere_tree, 0 if loops else len(self.sphere_radius), self._sphere_test(o, d)),
                                       (self.quad_tree, self.quads.count, self._quad_test(o, d))):
                 if tree is None:
                     everyone = np.arange(len(rest))

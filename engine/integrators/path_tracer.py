@@ -168,6 +168,7 @@ class PathTracer:
         self.lights = lights
         self.mats = MaterialTable(materials, settings, None if textures is None else textures.has_color,
                                   plan.cycles_version)
+        self.mats.use_backend(getattr(plan, "backends", {}))     # compiled material kernels (engine/core/backend.py)
         self.bsdfs = self.mats.bsdfs             # bsdfs[g] scatters scatter group g (engine/materials/table.py)
         self.plan = plan
         self.settings = settings

@@ -117,11 +117,14 @@ class LightSet:
     DISTANT_SHARE = (0.1, 0.9)        # bounds of the suns' and world's selection probability beside lamps
 
     def __init__(self, scene, solid_angle: bool = True, spatial: bool = True, lamps_hittable: bool = False,
-                 world: bool = False, backend: str = "numpy"):
+                 world: bool = False, backend: str = "numpy", shapes_backend: str = "numpy"):
         self.solid_angle, self.backend = solid_angle, backend    # backend: the light tree's (engine/core/backend.py)
         emitters = SceneEmitters(scene, solid_angle, lamps_hittable, world)    # the emitters, per kind
         local_kinds, distant_kinds = emitters.local_kinds(), emitters.distant_kinds()
         self.kinds = local_kinds + distant_kinds
+        for kind in self.kinds:                # shapes_backend: the kinds with compiled sampling (parallelograms)
+            if hasattr(kind, "use_backend"):
+                kind.use_backend(shapes_backend)
         start = 0
         for kind in self.kinds:                                   # each kind's range of light numbers
             kind.first, start = start, start + kind.count

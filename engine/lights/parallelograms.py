@@ -31,6 +31,15 @@ RECTANGLE_TOLERANCE = 1e-9
 
 class Parallelograms(EmittingSurface):
     name = "parallelogram"
+    compiled = None               # engine/lights/parallelograms_jit.py when the backend is numba
+
+    def use_backend(self, backend: str) -> None:
+        """The spherical-rectangle arithmetic compiled (the same numbers) when backend is "numba"."""
+        if backend == "numba":
+            from . import parallelograms_jit
+            self.compiled = parallelograms_jit
+        else:
+            self.compiled = None
 
     def __init__(self, v0, e1, e2, radiance=None, one_sided=None):
         """Corners v0 and edges e1, e2 ((K, 3) each); radiance, one_sided: as EmittingSurface."""
@@ -56,6 +65,8 @@ class Parallelograms(EmittingSurface):
     def _frame(self, x, idx):
         """Local coordinates of each light seen from x (Urena et al., section 3), its solid
         angle and `use`: the predicate that sample_li() and pdf_li() share."""
+        if self.compiled is not None:
+            return self._compiled_frame(x, idx)
         ax, ay = gather(self.axis1, idx), gather(self.axis2, idx)
         az = gather(self.axis3, idx)
         rel = gather(self.v0, idx) - x
@@ -78,8 +89,21 @@ class Parallelograms(EmittingSurface):
         return dict(ax=ax, ay=ay, az=az, x0=x0, y0=y0, x1=x1, y1=y1, z0=z0, e0=e0, e2=e2,
                     g23=g[2] + g[3], omega=omega, use=use)
 
+    def _compiled_frame(self, x, idx):
+        """_frame by the compiled twin: its loop up to the arcsines, NumPy's arcsines (the same
+        function on the same arguments as above), the same sums and predicate."""
+        az, terms, args, cdist = self.compiled.frame_terms(self, x, idx)
+        x0, y0, x1, y1, z0, e0, e2 = terms
+        g = [np.arcsin(args[k]) for k in range(4)]
+        omega = -(g[0] + g[1] + g[2] + g[3])         # spherical excess, arcsin form
+        use = (gather(self.rectangle, idx) & (omega >= OMEGA_MIN) & np.isfinite(omega) & (-z0 >= GRAZING * cdist))
+        return dict(ax=gather(self.axis1, idx), ay=gather(self.axis2, idx), az=az, x0=x0, y0=y0, x1=x1, y1=y1,
+                    z0=z0, e0=e0, e2=e2, g23=g[2] + g[3], omega=omega, use=use, terms=terms, idx=idx)
+
     def _spherical_point(self, x, f, u1, u2):
         """The point of the rectangle in the direction that (u1, u2) maps to (Cycles' form)."""
+        if "terms" in f:
+            return self.compiled.spherical_point(self, x, f["idx"], f["az"], f["terms"], f["omega"], f["g23"], u1, u2)
         e0, z0 = f["e0"], f["z0"]
         with np.errstate(divide="ignore", invalid="ignore"):
             au = u1 * f["omega"] + f["g23"]

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.backend import JIT_MODULES, NUMBA
 from ..core.vec import dot, normalize
 from . import albedo_tables
 from .microfacet import (BECKMANN, D, GGX, LAMBDA, SAMPLE_VNDF, glossy_alpha_rows, glossy_alphas, shading_frame,
@@ -118,6 +119,7 @@ class MicrofacetReflection(BSDF):
     flags = LOBE
     roughness_input = "roughness"       # the textured input its roughness reads (None: none, the coat)
     alpha_rule = staticmethod(glossy_alpha_rows)    # (roughness, anisotropy) rows -> (alpha_x, alpha_y)
+    compiled = None                     # engine/materials/microfacet_jit.py when the backend is numba
 
     def __init__(self, materials, settings):
         m = len(materials)
@@ -138,6 +140,16 @@ class MicrofacetReflection(BSDF):
         self.rotation = np.array([getattr(x, "rotation", 0.0) for x in materials], dtype=np.float64)
         self.compensate = np.array([getattr(x, "multiscatter", True) and getattr(x, "distribution", GGX) == GGX
                                     for x in materials], dtype=bool)
+
+    def use_backend(self, backends: dict) -> None:
+        """The GGX geometry of eval and sample compiled (engine/materials/microfacet_jit.py, the
+        same numbers) when the render runs the microfacet effects on numba."""
+        if any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.microfacet_jit"]):
+            from . import microfacet_jit
+            self.compiled = microfacet_jit
+        else:
+            self.compiled = None
+        super().use_backend(backends)
 
     # -- per hit ------------------------------------------------------------------------------
     def alphas(self, si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
@@ -178,14 +190,25 @@ class MicrofacetReflection(BSDF):
             x, y = c * x + s * y, c * y - s * x
         return x, y, n
 
+    def _kinds(self, mat: np.ndarray):
+        """(Fresnel code, its hits) for each Fresnel kind among the hits of materials `mat`: every
+        hit (a slice, no gather) where all materials of the lobe have one kind."""
+        if self.fresnel.size and (self.fresnel == self.fresnel[0]).all():
+            return [(self.fresnel[0], slice(None))] if len(mat) else []
+        kind = self.fresnel.take(mat)
+        return [(code, np.flatnonzero(kind == code)) for code in np.unique(kind)]
+
+    @staticmethod
+    def _at(a, sel, axis=0):
+        return a if isinstance(sel, slice) else a.take(sel, axis=axis)
+
     def _fresnel(self, si: ShadingPoint, cos: np.ndarray) -> np.ndarray:
         """F (3, N) at cos = wo.h, times the colour where the colour tints (all but conductors)."""
         mat, color = si.material, si.color
-        kind = self.fresnel.take(mat)
         f = color.copy()
-        for code in np.unique(kind):
-            sel = np.flatnonzero(kind == code)
-            c, m, col = cos.take(sel), mat.take(sel), color.take(sel, axis=1)
+        at = self._at
+        for code, sel in self._kinds(mat):
+            c, m, col = at(cos, sel), at(mat, sel), at(color, sel, 1)
             name = FRESNEL_KINDS[code]
             if name == "none":
                 continue
@@ -207,25 +230,25 @@ class MicrofacetReflection(BSDF):
     def _fresnel_average(self, si: ShadingPoint) -> np.ndarray:
         """F_ss (3, N), the hemispherical average of F (Cycles' *_Fss)."""
         mat, color = si.material, si.color
-        kind = self.fresnel.take(mat)
         f = color.copy()
-        for code in np.unique(kind):
-            sel = np.flatnonzero(kind == code)
-            m, col = mat.take(sel), color.take(sel, axis=1)
+        at = self._at
+        for code, sel in self._kinds(mat):
+            m, col = at(mat, sel), at(color, sel, 1)
+            count = len(m)
             name = FRESNEL_KINDS[code]
             if name == "dielectric":
                 f[:, sel] = col * fresnel_dielectric_average(self.ior.take(m))
             elif name == "conductor":
                 n, k = self.n.take(m, axis=1), self.k.take(m, axis=1)
-                f0 = fresnel_conductor(np.ones(len(sel)), n, k)
-                f82 = fresnel_conductor(np.full(len(sel), 1.0 / 7.0), n, k)
+                f0 = fresnel_conductor(np.ones(count), n, k)
+                f82 = fresnel_conductor(np.full(count, 1.0 / 7.0), n, k)
                 f[:, sel] = np.clip(f82_average(f0, f82_b_from_f82(f0, f82)), 0.0, 1.0)
             elif name == "f82":
                 f0 = np.clip(col, 0.0, 1.0)
                 f[:, sel] = f82_average(f0, f82_b(f0, np.clip(self.edge_tint.take(m, axis=1), 0.0, 1.0)))
             elif name == "interpolated":
                 ior = self.ior.take(m)
-                real0 = fresnel_dielectric(np.ones(len(sel)), ior)
+                real0 = fresnel_dielectric(np.ones(count), ior)
                 with np.errstate(divide="ignore", invalid="ignore"):
                     s = np.clip(np.where(real0 < 1.0, (fresnel_dielectric_average(ior) - real0) / (1.0 - real0), 1.0),
                                 0.0, 1.0)
@@ -235,9 +258,13 @@ class MicrofacetReflection(BSDF):
     def compensation(self, si: ShadingPoint, cos_o: np.ndarray) -> np.ndarray | None:
         """1 + F_ms (1 - E) / E (3, N) for the hits whose material compensates, 1 elsewhere; None
         if none does."""
+        return self.compensation_terms(si, cos_o)[0]
+
+    def compensation_terms(self, si: ShadingPoint, cos_o: np.ndarray):
+        """(compensation, E(cos_o) (N,) of the albedo table): both None if no material compensates."""
         on = self.compensate.take(si.material)
         if not on.any():
-            return None
+            return None, None
         rough = self.table_roughness(si)
         e = albedo_tables.albedo(rough, np.clip(cos_o, 0.0, 1.0))
         e_avg = albedo_tables.average_albedo(rough)
@@ -245,12 +272,21 @@ class MicrofacetReflection(BSDF):
         f_ms = f_ss * e_avg / (1.0 - f_ss * (1.0 - e_avg))
         with np.errstate(divide="ignore", invalid="ignore"):
             scale = 1.0 + f_ms * np.where(e > 0.0, (1.0 - e) / e, 0.0)
-        return np.where(on, scale, 1.0)
+        return np.where(on, scale, 1.0), e
+
+    def _compensation_terms_at(self, si: ShadingPoint):
+        return si.memo((self, "compensation"),
+                       lambda at: self.compensation_terms(at, dot(at.wo, specular_normal_at(at))))
 
     def compensation_at(self, si: ShadingPoint) -> np.ndarray | None:
         """compensation at cos_o = dot(wo, n) (wo's local z), once per hit for the sample and the
         evals at the same hits (ShadingPoint.memo)."""
-        return si.memo((self, "compensation"), lambda at: self.compensation(at, dot(at.wo, specular_normal_at(at))))
+        return self._compensation_terms_at(si)[0]
+
+    def albedo_at(self, si: ShadingPoint) -> np.ndarray | None:
+        """E (N,) of the albedo table at the lobe's normal (clip(dot(wo, n), 0, 1)), as compensation_at
+        reads it; None if no material compensates."""
+        return self._compensation_terms_at(si)[1]
 
     def _frame_at(self, si: ShadingPoint):
         return si.memo((self, "frame"), self._frame)
@@ -272,6 +308,13 @@ class MicrofacetReflection(BSDF):
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
         ax, ay, beckmann = self._alphas(si)
         x, y, n = self._frame_at(si)
+        if self.compiled is not None and not beckmann.any():
+            wi, cos_h, pdf, ratio = self.compiled.ggx_sample(si.wo, x, y, n, ax, ay, u[0], u[1])
+            value = self._fresnel(si, cos_h) * ratio
+            scale = self.compensation_at(si)
+            if scale is not None:
+                value = value * scale
+            return BSDFSample(wi, np.nan_to_num(value), pdf, np.full(len(si), LOBE, dtype=np.int8))
         wo_l = to_local(si.wo, x, y, n)
         h = np.empty_like(wo_l)
         for dist, mask in ((GGX, ~beckmann), (BECKMANN, beckmann)):
@@ -296,6 +339,11 @@ class MicrofacetReflection(BSDF):
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ax, ay, beckmann = self._alphas(si)
         x, y, n = self._frame_at(si)
+        if self.compiled is not None and not beckmann.any():
+            cos, pdf, g = self.compiled.ggx_eval(si.wo, wi, x, y, n, ax, ay)
+            f_cos = self._fresnel(si, cos) * g
+            scale = self.compensation_at(si)
+            return (f_cos if scale is None else f_cos * scale), pdf
         wo_l, wi_l = to_local(si.wo, x, y, n), to_local(wi, x, y, n)
         ok = (wo_l[2] > 0.0) & (wi_l[2] > 0.0)
         half = wo_l + wi_l

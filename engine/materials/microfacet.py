@@ -65,9 +65,12 @@ def shading_frame(n: np.ndarray, tangent: np.ndarray | None = None) -> tuple[np.
     t = np.broadcast_to(np.asarray(tangent, dtype=np.float64).reshape(3, -1), n.shape)
     x = t - dot(t, n) * n
     length = np.sqrt(dot(x, x))
-    fallback_x, _ = orthonormal_basis(n)
+    tangent_ok = length > 1e-9
     with np.errstate(invalid="ignore", divide="ignore"):
-        x = np.where(length > 1e-9, x / length, fallback_x)
+        if tangent_ok.all():                # no fallback needed: np.where's numbers
+            x = x / length
+        else:
+            x = np.where(tangent_ok, x / length, orthonormal_basis(n)[0])
     return x, cross(n, x)
 
 

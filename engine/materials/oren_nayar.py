@@ -127,25 +127,42 @@ class _FujiiOrenNayar(BSDF):
     def _pdf_rough(self, cos_i):
         raise NotImplementedError
 
+    cosine_sampled = False          # the rough lobe samples (and has the pdf of) the cosine: as Lambert
+
+    def _pdf(self, rough, cos):
+        """pdf of directions with cos = wi.n: the rough lobe's where rough, Lambert's elsewhere."""
+        lambert = np.maximum(cos, 0.0) * (1.0 / np.pi)
+        if self.cosine_sampled or not rough.any():          # the same numbers as np.where(rough, ...)
+            return lambert
+        return np.where(rough, self._pdf_rough(cos), lambert)
+
     # -- the protocol -------------------------------------------------------------------------------
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         rough, _ = self._rough(si)
-        cos_i = dot(wi, si.n)
-        lambert = np.maximum(cos_i, 0.0) * (1.0 / np.pi)
-        return np.where(rough, self._pdf_rough(cos_i), lambert)
+        return self._pdf(rough, dot(wi, si.n))
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         rough, sigma = self._rough(si)
-        pdf = self.pdf(si, wi)
-        cos_i = np.maximum(dot(wi, si.n), 0.0)
-        f_cos = np.where(rough, self._f(si, wi, cos_i, sigma) * cos_i, si.color * (cos_i * (1.0 / np.pi)))
-        return f_cos, pdf
+        cos = dot(wi, si.n)
+        pdf = self._pdf(rough, cos)
+        cos_i = np.maximum(cos, 0.0)
+        lambert = si.color * (cos_i * (1.0 / np.pi))
+        if not rough.any():                                 # Lambert everywhere: np.where's numbers
+            return lambert, pdf
+        return np.where(rough, self._f(si, wi, cos_i, sigma) * cos_i, lambert), pdf
 
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
         rough, sigma = self._rough(si)
-        wi = np.where(rough, self._sample_rough(u, si.n), cosine_directions(u[0], u[1], si.n))
-        pdf = self.pdf(si, wi)
-        cos_i = np.maximum(dot(wi, si.n), 0.0)
+        cosine = cosine_directions(u[0], u[1], si.n)
+        if self.cosine_sampled or not rough.any():          # np.where(rough, ...) of equal directions
+            wi = cosine
+        else:
+            wi = np.where(rough, self._sample_rough(u, si.n), cosine)
+        cos = dot(wi, si.n)
+        pdf = self._pdf(rough, cos)
+        if not rough.any():                                 # Lambert: rho exactly (eq. 2.14)
+            return BSDFSample(wi, si.color.copy(), pdf, np.full(len(si), LOBE, dtype=np.int8))
+        cos_i = np.maximum(cos, 0.0)
         f_cos = self._f(si, wi, cos_i, sigma) * cos_i
         with np.errstate(divide="ignore", invalid="ignore"):
             weight = np.where(pdf > 0.0, f_cos / pdf, 0.0)
@@ -166,6 +183,7 @@ class OrenNayar34(_FujiiOrenNayar):
 class EnergyPreservingOrenNayar(_FujiiOrenNayar):
     """Cycles 4.3+'s energy-preserving Oren-Nayar (EON): FON plus the multiple-scatter lobe,
     sampled by the cosine-weighted hemisphere."""
+    cosine_sampled = True
 
     def _sample_rough(self, u, n):
         return cosine_directions(u[0], u[1], n)

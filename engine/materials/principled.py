@@ -311,13 +311,17 @@ class PrincipledV2(BSDF):
         metal, specular = si.memo((self, "views"), views)
         return metal, specular, si
 
-    def _darkening(self, lobe: MicrofacetReflection, si: ShadingPoint, cos_o: np.ndarray) -> np.ndarray:
+    def _darkening(self, lobe: MicrofacetReflection, si: ShadingPoint, cos_o: np.ndarray,
+                   at_lobe_normal: bool = False) -> np.ndarray:
         """E + F_ms (1 - E) (3, N): what microfacet_ggx_preserve_energy multiplies the closure
-        weight by (its compensation times E); 1 where the material does not compensate."""
+        weight by (its compensation times E); 1 where the material does not compensate.
+        at_lobe_normal: cos_o is the lobe's own (dot(wo, specular_normal_at)), whose E its
+        compensation has read already."""
         scale = lobe.compensation_at(si)            # cos_o is clip(dot(wo, n)): compensation clips
         if scale is None:
             return np.ones((3, len(si)))
-        e = albedo_tables.albedo(lobe.table_roughness(si), np.clip(cos_o, 0.0, 1.0))
+        e = (lobe.albedo_at(si) if at_lobe_normal
+             else albedo_tables.albedo(lobe.table_roughness(si), np.clip(cos_o, 0.0, 1.0)))
         return np.where(lobe.compensate.take(si.material), scale * e, 1.0)
 
     def _textured_s(self, si: ShadingPoint, mu: np.ndarray, s_metal: np.ndarray, s_spec: np.ndarray):
@@ -354,8 +358,8 @@ class PrincipledV2(BSDF):
         mu = np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0)   # the lobes' normal (bsdf_albedo)
         rows = si.material
         s_metal, s_spec = self._textured_s(si, mu, _read(self.s_metal, rows, mu), _read(self.s_specular, rows, mu))
-        a_metal = self._darkening(self.metal, metal, mu) * (metal.color + (1.0 - metal.color) * s_metal)
-        a_spec = self._darkening(self.specular, specular, mu) * (specular.color + (1.0 - specular.color) * s_spec)
+        a_metal = self._darkening(self.metal, metal, mu, True) * (metal.color + (1.0 - metal.color) * s_metal)
+        a_spec = self._darkening(self.specular, specular, mu, True) * (specular.color + (1.0 - specular.color) * s_spec)
         return a_metal, np.where(self.has_specular.take(rows), a_spec, 0.0)
 
     def lobe_weights(self, si: ShadingPoint, sample_total: bool = False):
@@ -390,6 +394,11 @@ class PrincipledV2(BSDF):
         for lobe, view, w, p in zip((self.metal, self.specular, self.diffuse), self._views(si), weights, prob):
             idx = np.flatnonzero(w > 0.0)
             if not len(idx):
+                continue
+            if len(idx) == len(si):                 # every hit: no gathers, the same numbers
+                f_l, pdf_l = lobe.eval(view, wi)
+                f_cos += w * f_l
+                pdf += p * pdf_l
                 continue
             f_l, pdf_l = lobe.eval(view.take(idx), wi.take(idx, axis=1))
             f_cos[:, idx] += w.take(idx) * f_l
@@ -474,6 +483,11 @@ class PrincipledV2(BSDF):
         for lobe, view, w, p in zip(lobes, views, weights[2:], prob[3:]):
             idx = np.flatnonzero(w.max(axis=0) > 0.0)
             if not len(idx):
+                continue
+            if len(idx) == len(si):                 # every hit: no gathers, the same numbers
+                f_l, pdf_l = lobe.eval(view, wi)
+                f_cos += w * f_l
+                pdf += p * pdf_l
                 continue
             f_l, pdf_l = lobe.eval(view.take(idx), wi.take(idx, axis=1))
             f_cos[:, idx] += w.take(idx, axis=1) * f_l

@@ -216,6 +216,14 @@ class BSDF:
         """rho (3, N) if f = rho / pi for every pair of directions, else None (see above)."""
         return None
 
+    def use_backend(self, backends: dict) -> None:
+        """Run the kernels that have compiled twins on the render's backends (engine/core/backend.py;
+        backends: effect name -> "numba" | "numpy", the effect plan's); the BSDFs held as this
+        one's attributes (its lobes) follow.  The default: NumPy, nothing to choose."""
+        for part in vars(self).values():
+            if isinstance(part, BSDF):
+                part.use_backend(backends)
+
 
 def delta_eval(si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """eval of a BSDF with delta lobes only: no given direction meets them."""

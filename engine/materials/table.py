@@ -107,3 +107,8 @@ class MaterialTable:
         self.non_delta = [has_non_delta(b.flags) for b in self.bsdfs]
         # Whether any material's BSDF sends non-delta glossy or transmission rays (its flags say).
         self.glossy = any(sends_glossy_rays(self.bsdfs[row].flags) for row in np.unique(self.kind))
+
+    def use_backend(self, backends: dict) -> None:
+        """The BSDFs' kernels on the render's backends (engine/materials/protocol.py BSDF.use_backend)."""
+        for bsdf in self.bsdfs:
+            bsdf.use_backend(backends)

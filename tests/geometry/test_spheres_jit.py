@@ -45,3 +45,43 @@ def test_hard_cases_and_pairs():
     assert np.array_equal(intersect_sphere(o2, d2, centers, radii, bound), compiled(o2, d2, centers, radii, bound))
     # Control: the comparison sees a sphere 1 ulp larger.
     assert not np.array_equal(t, compiled(o, d, center, np.nextafter(radius, 1.0)))
+
+
+def test_all_spheres_in_one_loop_match_the_loop_over_spheres():
+    """spheres_jit nearest_spheres / occluded_by_spheres against SceneGeometry's NumPy loop over the
+    spheres (nearer replaces; equal distances keep the lower number; each test bounded by the t so far)."""
+    require_compiled()
+    from engine.geometry.shapes.spheres import sphere_loop_kernels
+    nearest, occluded = sphere_loop_kernels("numba")
+    assert sphere_loop_kernels("numpy") is None
+    rng = np.random.default_rng(5)
+    centers = rng.random((3, 12)) * 4.0
+    centers[:, 11] = centers[:, 10]                                    # a duplicate: the lower number wins
+    radii = rng.random(12) * 0.6 + 0.05
+    radii[11] = radii[10]
+    m = 6000
+    o = rng.random((3, m)) * 4.0
+    d = rng.normal(size=(3, m))
+    d /= np.linalg.norm(d, axis=0)
+    t0 = np.where(rng.random(m) < 0.3, rng.random(m) * 2.0, np.inf)    # some nearer triangle hits already
+    t, kind, prim = t0.copy(), np.zeros(m, np.int8), np.full(m, -1, np.int64)
+    for k in range(12):                                                # SceneGeometry._nearest's loop
+        tk = intersect_sphere(o, d, centers[:, k], radii[k], t)
+        closer = tk < t
+        t = np.where(closer, tk, t)
+        kind[closer], prim[closer] = 2, k
+    kind_b, prim_b = np.zeros(m, np.int8), np.full(m, -1, np.int64)
+    t_b = nearest(o, d, centers, radii, t0, kind_b, prim_b, 2)
+    assert np.isfinite(t).sum() > 1000 and (prim == 10).any() and not (prim == 11).any()
+    assert np.array_equal(t, t_b) and np.array_equal(kind, kind_b) and np.array_equal(prim, prim_b)
+    tmax = rng.random(m) * 3.0
+    hit = np.zeros(m, dtype=bool)
+    for k in range(12):
+        hit |= intersect_sphere(o, d, centers[:, k], radii[k], tmax) < tmax
+    hit_b = np.zeros(m, dtype=bool)
+    occluded(o, d, centers, radii, tmax, hit_b)
+    assert 500 < hit.sum() < m - 500 and np.array_equal(hit, hit_b)
+    # Control: one radius 1 ulp larger is told apart.
+    bigger = radii.copy()
+    bigger[3] = np.nextafter(bigger[3], 1.0)
+    assert not np.array_equal(t, nearest(o, d, centers, bigger, t0, kind_b, prim_b, 2))

@@ -70,6 +70,16 @@ def sphere_kernel(backend: str = "numpy"):
     return intersect_sphere
 
 
+def sphere_loop_kernels(backend: str = "numpy"):
+    """(nearest_spheres, occluded_by_spheres) of the compiled twin (engine/geometry/shapes/spheres_jit.py):
+    every sphere against a ray in one loop, the numbers of engine/geometry/scene_geometry.py's loop
+    over the spheres; None on the NumPy backend (that loop runs)."""
+    if backend == "numba":
+        from .spheres_jit import nearest_spheres, occluded_by_spheres
+        return nearest_spheres, occluded_by_spheres
+    return None
+
+
 def surface_point(o, d, t, centers, radii):
     """Hit point projected back onto the sphere, outward unit normal (rows), offset distance.
 

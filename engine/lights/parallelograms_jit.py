@@ -1,0 +1,131 @@
+"""engine/lights/parallelograms.py's spherical-rectangle arithmetic compiled with numba: the local
+frame and edge-plane normals of each light seen from x (`_frame` up to the arcsines) and the point
+the pair (u1, u2) maps to (`_spherical_point`), one loop over the receivers each.  The arcsines
+stay NumPy's (its vectorised arcsin and the C library's differ in the last bit), called between the
+two loops; everything else repeats the NumPy path's float64 operations in the same order (+, -, *,
+/, sqrt, and the C library's cos and sin, which NumPy also calls): the same points and densities
+bit for bit (tests/lights/test_parallelograms_jit.py).  Imported only through engine/core/backend.py's
+choice (it imports numba)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.backend import numba_module
+
+nb = numba_module()
+jit = nb.njit(cache=True, error_model="numpy", nogil=True)
+
+BIG = np.finfo(np.float64).max          # what np.nan_to_num makes of +inf
+
+
+@jit
+def _clip(v, lo, hi):
+    """np.clip(v, lo, hi) as NumPy's clip loop: min(max(v, lo), hi) by > and <, NaN kept."""
+    if v != v:
+        return v
+    m = v if v > lo else lo
+    if m != m:
+        return m
+    return m if m < hi else hi
+
+
+@jit
+def _frame(x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, az_out, f, args, cdist):
+    """Per receiver i of light j: f rows x0, y0, x1, y1, z0, e0, e2; az_out the flipped z axis; args
+    the four arcsine arguments clip(-e_a e_b, -1, 1); cdist |centre - x|."""
+    for i in range(x.shape[1]):
+        j = 0 if one else idx[i]
+        r0, r1, r2 = v0[0, j] - x[0, i], v0[1, j] - x[1, i], v0[2, j] - x[2, i]
+        z0 = r0 * axis3[0, j] + r1 * axis3[1, j] + r2 * axis3[2, j]
+        flip = -1.0 if z0 > 0.0 else 1.0
+        az_out[0, i], az_out[1, i], az_out[2, i] = axis3[0, j] * flip, axis3[1, j] * flip, axis3[2, j] * flip
+        z0 = z0 * flip
+        x0 = r0 * axis1[0, j] + r1 * axis1[1, j] + r2 * axis1[2, j]
+        y0 = r0 * axis2[0, j] + r1 * axis2[1, j] + r2 * axis2[2, j]
+        x1, y1 = x0 + len1[j], y0 + len2[j]
+        z2 = z0 * z0
+        e0 = -y0 / np.sqrt(y0 * y0 + z2)
+        e1 = x1 / np.sqrt(x1 * x1 + z2)
+        e2 = y1 / np.sqrt(y1 * y1 + z2)
+        e3 = -x0 / np.sqrt(x0 * x0 + z2)
+        args[0, i] = _clip(-e0 * e1, -1.0, 1.0)
+        args[1, i] = _clip(-e1 * e2, -1.0, 1.0)
+        args[2, i] = _clip(-e2 * e3, -1.0, 1.0)
+        args[3, i] = _clip(-e3 * e0, -1.0, 1.0)
+        f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i], f[6, i] = x0, y0, x1, y1, z0, e0, e2
+        c0, c1, c2 = center[0, j] - x[0, i], center[1, j] - x[1, i], center[2, j] - x[2, i]
+        cdist[i] = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+
+
+@jit
+def _point(x, idx, one, axis1, axis2, az, f, omega, g23, u1, u2, out):
+    for i in range(x.shape[1]):
+        j = 0 if one else idx[i]
+        x0, y0, x1, y1, z0, e0, e2 = f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i], f[6, i]
+        au = u1[i] * omega[i] + g23[i]
+        fu = (np.cos(au) * e0 + e2) / np.sin(au)
+        cu = _clip(np.copysign(1.0, fu) / np.sqrt(fu * fu + e0 * e0), -1.0, 1.0)
+        s = np.sqrt(1.0 - cu * cu)
+        if not (s >= 1e-300 or s != s):                  # np.maximum(s, 1e-300)
+            s = 1e-300
+        xu = _clip(-(cu * z0) / s, x0, x1)
+        d2 = xu * xu + z0 * z0
+        h0 = y0 / np.sqrt(d2 + y0 * y0)
+        h1 = y1 / np.sqrt(d2 + y1 * y1)
+        hv = h0 + u2[i] * (h1 - h0)
+        if hv * hv < 1.0 - 1e-12:
+            yv = hv * np.sqrt(d2) / np.sqrt(1.0 - hv * hv)
+        else:
+            yv = y1
+        if yv != yv:                                     # np.nan_to_num
+            yv = 0.0
+        elif yv == np.inf:
+            yv = BIG
+        elif yv == -np.inf:
+            yv = -BIG
+        yv = _clip(yv, y0, y1)
+        for c in range(3):
+            out[c, i] = x[c, i] + xu * axis1[c, j] + yv * axis2[c, j] + z0 * az[c, i]
+
+
+def _c(a):
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def frame_terms(lights, x, idx):
+    """(az (3, N), f (7, N): x0 y0 x1 y1 z0 e0 e2, args (4, N), cdist (N,)) of lights (a
+    Parallelograms) seen from x (rows) for the lights idx (an int array, or one light)."""
+    n = x.shape[1]
+    one = np.ndim(idx) == 0 or lights.count == 1
+    index = np.zeros(1, np.int64) if one else np.ascontiguousarray(idx, dtype=np.int64)
+    if one and np.ndim(idx) == 0:
+        index[0] = int(idx)
+    az, f, args, cdist = np.empty((3, n)), np.empty((7, n)), np.empty((4, n)), np.empty(n)
+    _frame(_c(x), index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
+           az, f, args, cdist)
+    return az, f, args, cdist
+
+
+def spherical_point(lights, x, idx, az, f, omega, g23, u1, u2):
+    """The point of each rectangle that (u1, u2) maps to (parallelograms.py _spherical_point)."""
+    n = x.shape[1]
+    one = np.ndim(idx) == 0 or lights.count == 1
+    index = np.zeros(1, np.int64) if one else np.ascontiguousarray(idx, dtype=np.int64)
+    if one and np.ndim(idx) == 0:
+        index[0] = int(idx)
+    out = np.empty((3, n))
+    _point(_c(x), index, one, lights.axis1, lights.axis2, az, f, _c(omega), _c(g23),
+           _c(np.broadcast_to(u1, (n,))), _c(np.broadcast_to(u2, (n,))), out)
+    return out
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels for the types a render passes."""
+    from types import SimpleNamespace
+    rows = np.eye(3)[:, :, None].repeat(2, axis=2)             # two unit squares at z = 2
+    lights = SimpleNamespace(count=2, axis1=rows[0], axis2=rows[1], axis3=rows[2], len1=np.ones(2), len2=np.ones(2),
+                             v0=np.array([[0.0, 1.0], [0.0, 0.0], [2.0, 2.0]]),
+                             center=np.array([[0.5, 1.5], [0.5, 0.5], [2.0, 2.0]]))
+    x, idx = np.zeros((3, 2)), np.array([0, 1])
+    az, f, args, cdist = frame_terms(lights, x, idx)
+    spherical_point(lights, x, idx, az, f, np.ones(2), np.zeros(2), np.full(2, 0.5), np.full(2, 0.5))

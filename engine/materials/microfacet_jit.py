@@ -1,0 +1,186 @@
+"""The GGX lobe's geometry (engine/materials/glossy.py MicrofacetReflection: its eval and sample at
+the GGX hits, without the Fresnel and the energy compensation) compiled with numba: one loop over
+the hits and no temporaries.  Every hit repeats the NumPy path's float64 operations in the same
+order (to_local, the half vector, engine/materials/microfacet.py ggx_d, ggx_lambda and
+ggx_sample_vndf, the nan_to_num of the results), with only +, -, *, /, sqrt, cos and sin, which
+NumPy and numba compute alike (IEEE 754 and the C library's cos and sin): the same numbers bit for
+bit (tests/materials/test_microfacet_jit.py).  Imported only through engine/core/backend.py's
+choice (it imports numba)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.backend import numba_module
+
+nb = numba_module()
+jit = nb.njit(cache=True, error_model="numpy", nogil=True)
+
+BIG = np.finfo(np.float64).max          # what np.nan_to_num makes of +inf
+TWO_PI = 2.0 * np.pi
+PI = np.pi
+
+
+@jit
+def _finite(v):
+    """np.nan_to_num of a scalar: NaN -> 0, +-inf -> +-BIG."""
+    if v != v:
+        return 0.0
+    if v == np.inf:
+        return BIG
+    if v == -np.inf:
+        return -BIG
+    return v
+
+
+@jit
+def _lambda(w0, w1, w2, ax, ay):
+    """ggx_lambda of one direction (slope_term: inf where w2 = 0)."""
+    if w2 != 0.0:
+        a, b = ax * w0, ay * w1
+        s = (a * a + b * b) / (w2 * w2)
+    else:
+        s = np.inf
+    return 0.5 * (np.sqrt(1.0 + s) - 1.0)
+
+
+@jit
+def _d(h0, h1, h2, ax, ay):
+    """ggx_d of one normal: 0 below the surface."""
+    a, b = h0 / ax, h1 / ay
+    t = a * a + b * b + h2 * h2
+    if h2 > 0.0:
+        return 1.0 / (PI * ax * ay * t * t)
+    return 0.0
+
+
+@jit
+def _max0(v):
+    """np.maximum(0.0, v) (NaN stays NaN, -0.0 becomes 0.0)."""
+    if v != v:
+        return v
+    return 0.0 if 0.0 >= v else v
+
+
+@jit
+def _clip01(v):
+    """np.clip(v, 0, 1) (NaN stays NaN)."""
+    if v < 0.0:
+        return 0.0
+    if v > 1.0:
+        return 1.0
+    return v
+
+
+@jit
+def _eval(wo, wi, x, y, n, ax, ay, cos_out, pdf_out, g_out):
+    for i in range(wo.shape[1]):
+        a_x, a_y = ax[i], ay[i]
+        o0 = wo[0, i] * x[0, i] + wo[1, i] * x[1, i] + wo[2, i] * x[2, i]
+        o1 = wo[0, i] * y[0, i] + wo[1, i] * y[1, i] + wo[2, i] * y[2, i]
+        o2 = wo[0, i] * n[0, i] + wo[1, i] * n[1, i] + wo[2, i] * n[2, i]
+        i0 = wi[0, i] * x[0, i] + wi[1, i] * x[1, i] + wi[2, i] * x[2, i]
+        i1 = wi[0, i] * y[0, i] + wi[1, i] * y[1, i] + wi[2, i] * y[2, i]
+        i2 = wi[0, i] * n[0, i] + wi[1, i] * n[1, i] + wi[2, i] * n[2, i]
+        ok = (o2 > 0.0) and (i2 > 0.0)
+        f0, f1, f2 = o0 + i0, o1 + i1, o2 + i2
+        length = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+        if not length > 0.0:
+            length = 1.0
+        h0, h1, h2 = f0 / length, f1 / length, f2 / length
+        d = _d(h0, h1, h2, a_x, a_y)
+        lo = _lambda(o0, o1, o2, a_x, a_y)
+        li = _lambda(i0, i1, i2, a_x, a_y)
+        common = d / (4.0 * o2) if ok else 0.0
+        pdf_out[i] = _finite(common / (1.0 + lo))
+        g_out[i] = _finite(common / (1.0 + lo + li))
+        cos_out[i] = _clip01(o0 * h0 + o1 * h1 + o2 * h2)
+
+
+@jit
+def _normalized(a0, a1, a2):
+    length = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    return a0 / length, a1 / length, a2 / length
+
+
+@jit
+def _sample(wo, x, y, n, ax, ay, u1, u2, wi_out, cos_out, pdf_out, ratio_out):
+    for i in range(wo.shape[1]):
+        a_x, a_y = ax[i], ay[i]
+        o0 = wo[0, i] * x[0, i] + wo[1, i] * x[1, i] + wo[2, i] * x[2, i]
+        o1 = wo[0, i] * y[0, i] + wo[1, i] * y[1, i] + wo[2, i] * y[2, i]
+        o2 = wo[0, i] * n[0, i] + wo[1, i] * n[1, i] + wo[2, i] * n[2, i]
+        # ggx_sample_vndf: stretch, sample the projected hemisphere, unstretch
+        v0, v1, v2 = _normalized(a_x * o0, a_y * o1, o2)
+        lensq = v0 * v0 + v1 * v1
+        if lensq > 1e-14:
+            inv = 1.0 / np.sqrt(lensq)
+            t0, t1, t2 = -v1 * inv, v0 * inv, 0.0
+        else:
+            t0, t1, t2 = 1.0, 0.0, 0.0
+        s0, s1, s2 = v1 * t2 - v2 * t1, v2 * t0 - v0 * t2, v0 * t1 - v1 * t0
+        r = np.sqrt(u1[i])
+        phi = TWO_PI * u2[i]
+        p1, p2 = r * np.cos(phi), r * np.sin(phi)
+        s = 0.5 * (1.0 + v2)
+        p2 = (1.0 - s) * np.sqrt(_max0(1.0 - p1 * p1)) + s * p2
+        pz = np.sqrt(_max0(1.0 - p1 * p1 - p2 * p2))
+        m0 = p1 * t0 + p2 * s0 + pz * v0
+        m1 = p1 * t1 + p2 * s1 + pz * v1
+        m2 = p1 * t2 + p2 * s2 + pz * v2
+        h0, h1, h2 = _normalized(a_x * m0, a_y * m1, _max0(m2))
+        # the reflected direction and its weight
+        cos_h = o0 * h0 + o1 * h1 + o2 * h2
+        w0, w1, w2 = 2.0 * cos_h * h0 - o0, 2.0 * cos_h * h1 - o1, 2.0 * cos_h * h2 - o2
+        ok = (o2 > 0.0) and (w2 > 0.0)
+        d = _d(h0, h1, h2, a_x, a_y)
+        lo = _lambda(o0, o1, o2, a_x, a_y)
+        li = _lambda(w0, w1, w2, a_x, a_y)
+        if ok:
+            pdf_out[i] = _finite(d / (4.0 * o2 * (1.0 + lo)))
+            ratio_out[i] = (1.0 + lo) / (1.0 + lo + li)
+        else:
+            pdf_out[i] = 0.0
+            ratio_out[i] = 0.0
+        cos_out[i] = _clip01(cos_h)
+        e0 = w0 * x[0, i] + w1 * y[0, i] + w2 * n[0, i]
+        e1 = w0 * x[1, i] + w1 * y[1, i] + w2 * n[1, i]
+        e2 = w0 * x[2, i] + w1 * y[2, i] + w2 * n[2, i]
+        wi_out[0, i], wi_out[1, i], wi_out[2, i] = _normalized(e0, e1, e2)
+
+
+def _rows(a):
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _per_hit(a, count):
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64), (count,)))
+
+
+def ggx_eval(wo, wi, x, y, n, ax, ay):
+    """(cos = clip(wo.h, 0, 1), pdf, g) (N,) each of GGX reflection in the frame (x, y, n): pdf =
+    D / (4 cos_o (1 + Lambda(wo))) and g = D / (4 cos_o (1 + Lambda(wo) + Lambda(wi))) where both
+    directions are above (0 elsewhere), as MicrofacetReflection.eval computes them."""
+    count = wo.shape[1]
+    cos, pdf, g = np.empty(count), np.empty(count), np.empty(count)
+    _eval(_rows(wo), _rows(wi), _rows(x), _rows(y), _rows(n), _per_hit(ax, count), _per_hit(ay, count), cos, pdf, g)
+    return cos, pdf, g
+
+
+def ggx_sample(wo, x, y, n, ax, ay, u1, u2):
+    """(wi (3, N) world, cos = clip(wo.h, 0, 1), pdf, G2 / G1(wo)) of a GGX visible-normal sample,
+    as MicrofacetReflection.sample computes them (pdf after its nan_to_num)."""
+    count = wo.shape[1]
+    wi = np.empty((3, count))
+    cos, pdf, ratio = np.empty(count), np.empty(count), np.empty(count)
+    _sample(_rows(wo), _rows(x), _rows(y), _rows(n), _per_hit(ax, count), _per_hit(ay, count),
+            _per_hit(u1, count), _per_hit(u2, count), wi, cos, pdf, ratio)
+    return wi, cos, pdf, ratio
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels for the types a render passes."""
+    w = np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]])
+    frame = np.eye(3)[:, :, None].repeat(2, axis=2)
+    a = np.array([0.25, 0.5])
+    ggx_eval(w, w[::-1].copy(), frame[0], frame[1], frame[2], a, a)
+    ggx_sample(w, frame[0], frame[1], frame[2], a, a, np.array([0.3, 0.6]), np.array([0.2, 0.9]))
