@@ -1,0 +1,306 @@
+"""Blender's Sky Texture (Nishita single scattering: 3.4's NISHITA, 5.0's SINGLE_SCATTERING) as
+Cycles renders it, in NumPy: the sky's precomputed table, its lookup per direction, the sun disc, and
+the bake into an equirectangular image for the image world (engine/lights/environment.py).
+
+Cycles does it in three steps, ported here in float64 with the same constants and quadratures:
+1. `single_scattering_table`: at shader compile time a 512 x 256 float table of CIE XYZ radiance
+   (Cycles' SKY_single_scattering_precompute_texture): row y >= 128 looks at elevation
+   pi/2 ((y - 128) / 128)^2 (more rows near the horizon), column x at azimuth 2 pi x / 512 - pi from
+   the sun; single in-scattering along the view ray in 32 segments (Rayleigh, Mie with g = 0.76,
+   ozone absorption; 21 wavelengths 380..780 nm), the sun's optical depth by an 8-node
+   Gauss-Laguerre quadrature.  Rows below the horizon repeat the horizon row faded by
+   (1 - 2.5 sin e)^3 (0 from sin e = 0.4 on).
+2. `sun_pixels`: the sun's XYZ radiance at the bottom and the top of its disc (the sun's
+   transmittance along those directions over its solid angle).
+3. `SkyTexture.radiance`: per direction (Cycles' sky_radiance_nishita): the table looked up with
+   linear interpolation and extension Extend at x = fract((-atan2(dy, dx) - pi/2 + rotation) / 2 pi),
+   y = sign(e) sqrt(|e| / (pi/2)) / 2 + 1/2; inside the sun disc (above the Earth's edge, seen from
+   the altitude) the disc's radiance between bottom and top with limb darkening 0.6, times
+   Sun Intensity; XYZ -> the working space's RGB (engine/nodes/converter.py), clamped at 0.
+
+The world in this tracer: `bake` evaluates the sky without the disc at the centres of an
+equirectangular image (the image world's importance sampler and MIS follow), and `sun_light` is
+the disc as a distant light of the disc's angle with the irradiance the disc gives (its radiance
+integrated over the disc), which engine/lights/distant.py samples by its cone.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..nodes.converter import xyz_to_rgb
+
+RAYLEIGH_SCALE = 8e3           # m
+MIE_SCALE = 1.2e3              # m
+MIE_COEFF = 2e-5               # 1/m
+MIE_G = 0.76
+EARTH_RADIUS = 6360e3          # m
+ATMOSPHERE_RADIUS = 6420e3     # m
+STEPS = 32                     # segments of the view ray
+TABLE_WIDTH, TABLE_HEIGHT = 512, 256
+STEP_LAMBDA = (780 - 380) / 20.0
+# Sun irradiance at the top of the atmosphere (W m^-2 nm^-1), 380..780 nm in steps of 20 nm.
+IRRADIANCE = np.array([
+    1.45756829855592995315, 1.56596305559738380175, 1.65148449067670455293, 1.71496242737209314555,
+    1.75797983805020541226, 1.78256407885924539336, 1.79095108475838560302, 1.78541550133410664714,
+    1.76815554864306845317, 1.74122069647250410362, 1.70647127164943679389, 1.66556087452739887134,
+    1.61993437242451854274, 1.57083597368892080581, 1.51932335059305478886, 1.46628494965214395407,
+    1.41245852740172450623, 1.35844961970384092709, 1.30474913844739281998, 1.25174963272610817455,
+    1.19975998755420620867])
+RAYLEIGH_COEFF = np.array([
+    5.424820087636473e-05, 4.418549866505454e-05, 3.635151910165377e-05, 3.017929012024763e-05,
+    2.526320226989157e-05, 2.130859310621843e-05, 1.809838025320633e-05, 1.547057129129042e-05,
+    1.330284977336850e-05, 1.150184784075764e-05, 9.99557429990163e-06, 8.72799973630707e-06,
+    7.65513700977967e-06, 6.74217203751443e-06, 5.96134125832052e-06, 5.29034598065810e-06,
+    4.71115687557433e-06, 4.20910481110487e-06, 3.77218381260133e-06, 3.39051255477280e-06,
+    3.05591531679811e-06])
+OZONE_COEFF = np.array([
+    3.25126849861e-09, 5.85395365047e-09, 1.977191155085e-08, 7.309568762914e-08, 2.0084561514287e-07,
+    4.0383958096161e-07, 6.3551335912363e-07, 9.6707041180970e-07, 1.54797400424410e-06,
+    2.09038647223331e-06, 2.46128056164565e-06, 2.73551299461512e-06, 2.15125863128643e-06,
+    1.59051840791988e-06, 1.12356197979857e-06, 7.3527551487574e-07, 4.6450130357806e-07,
+    3.3096079921048e-07, 2.2512612292678e-07, 1.4879129266490e-07, 1.6828623364192e-07])
+CMF_XYZ = np.array([   # CIE 1931 colour matching functions at the 21 wavelengths
+    [0.00136800000, 0.00003900000, 0.00645000100], [0.01431000000, 0.00039600000, 0.06785001000],
+    [0.13438000000, 0.00400000000, 0.64560000000], [0.34828000000, 0.02300000000, 1.74706000000],
+    [0.29080000000, 0.06000000000, 1.66920000000], [0.09564000000, 0.13902000000, 0.81295010000],
+    [0.00490000000, 0.32300000000, 0.27200000000], [0.06327000000, 0.71000000000, 0.07824999000],
+    [0.29040000000, 0.95400000000, 0.02030000000], [0.59450000000, 0.99500000000, 0.00390000000],
+    [0.91630000000, 0.87000000000, 0.00165000100], [1.06220000000, 0.63100000000, 0.00080000000],
+    [0.85444990000, 0.38100000000, 0.00019000000], [0.44790000000, 0.17500000000, 0.00002000000],
+    [0.16490000000, 0.06100000000, 0.00000000000], [0.04677000000, 0.01700000000, 0.00000000000],
+    [0.01135916000, 0.00410200000, 0.00000000000], [0.00289932700, 0.00104700000, 0.00000000000],
+    [0.00069007860, 0.00024920000, 0.00000000000], [0.00016615050, 0.00006000000, 0.00000000000],
+    [0.00004150994, 0.00001499000, 0.00000000000]])
+# Gauss-Laguerre (8 nodes) on [0, 25] scaled to the ray's length, exp(x) folded into the weights.
+QUADRATURE_NODES = np.array([0.006811185292, 0.03614807107, 0.09004346519, 0.1706680068,
+                             0.2818362161, 0.4303406404, 0.6296271457, 0.9145252695])
+QUADRATURE_WEIGHTS = np.array([0.01750893642, 0.04135477391, 0.06678839063, 0.09507698807,
+                               0.1283416365, 0.1707430204, 0.2327233347, 0.3562490486])
+LIMB_DARKENING = 0.6
+
+
+def geographical_to_direction(lat, lon):
+    lat, lon = np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64)
+    return np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat) + 0 * lon], axis=-1)
+
+
+def _densities(height):
+    """(..., 3) Rayleigh, Mie and ozone density factors at heights above sea level (m)."""
+    ozone = np.maximum(0.0, 1.0 - np.abs(height - 25000.0) / 15000.0)
+    return np.stack([np.exp(-height / RAYLEIGH_SCALE), np.exp(-height / MIE_SCALE), ozone], axis=-1)
+
+
+def _to_atmosphere(pos, d):
+    """(...,) distance from points pos along unit directions d to the atmosphere's top."""
+    b = 2.0 * np.sum(d * pos, axis=-1)
+    c = np.sum(pos * pos, axis=-1) - ATMOSPHERE_RADIUS ** 2
+    return 0.5 * (-b + np.sqrt(b * b - 4.0 * c))
+
+
+def _optical_depth(pos, d):
+    """(..., 3) Rayleigh, Mie, ozone optical depth factors from pos along d out of the atmosphere."""
+    length = _to_atmosphere(pos, d)
+    p = pos[..., None, :] + QUADRATURE_NODES[:, None] * (length[..., None] * 1.0)[..., None] * d[..., None, :]
+    height = np.linalg.norm(p, axis=-1) - EARTH_RADIUS
+    return np.einsum("...qk,q->...k", _densities(height), QUADRATURE_WEIGHTS) * length[..., None]
+
+
+def _phases(mu):
+    rayleigh = (0.1875 / math.pi) * (1.0 + mu * mu)
+    g2 = MIE_G * MIE_G
+    mie = 3.0 * (1.0 - g2) * (1.0 + mu * mu) / (8.0 * math.pi * (2.0 + g2) * (1.0 + g2 - 2.0 * MIE_G * mu) ** 1.5)
+    return rayleigh, mie
+
+
+def _spectrum_to_xyz(spectrum):
+    return (spectrum @ CMF_XYZ) * STEP_LAMBDA
+
+
+def single_scattering(dirs, sun_dir, altitude, air, aerosol, ozone):
+    """(N, 3) XYZ in-scattered radiance along unit view directions dirs (N, 3) from altitude (m)."""
+    cam = np.array([0.0, 0.0, EARTH_RADIUS + altitude])
+    length = _to_atmosphere(np.broadcast_to(cam, dirs.shape), dirs)
+    seg = length / STEPS                                            # (N,)
+    t = (np.arange(STEPS) + 0.5)[None, :] * seg[:, None]           # segment middles (N, S)
+    p = cam + t[..., None] * dirs[:, None, :]                       # (N, S, 3)
+    scale = np.array([air, aerosol, ozone])
+    density = scale * _densities(np.linalg.norm(p, axis=-1) - EARTH_RADIUS)     # (N, S, 3)
+    depth = np.cumsum(density, axis=1) * seg[:, None, None]        # up to and including the segment
+    # The Earth in the way of the sun (Cycles' surface_intersection).
+    if sun_dir[2] >= 0.0:
+        lit = np.ones(p.shape[:2], dtype=bool)
+    else:
+        b = 2.0 * np.einsum("nsk,k->ns", p, sun_dir)
+        lit = b * b - 4.0 * (np.sum(p * p, axis=-1) - EARTH_RADIUS ** 2) < 0.0
+    light = scale * _optical_depth(p, np.broadcast_to(sun_dir, p.shape))         # (N, S, 3)
+    total = depth + light
+    coeff = np.stack([RAYLEIGH_COEFF, np.full(21, 1.11 * MIE_COEFF), OZONE_COEFF])  # (3, 21)
+    attenuation = np.exp(-(total @ coeff))                                          # (N, S, 21)
+    rayleigh, mie = _phases(dirs @ sun_dir)                                          # (N,)
+    scatter = (density[..., 0:1] * rayleigh[:, None, None] * RAYLEIGH_COEFF
+               + density[..., 1:2] * (mie[:, None, None] * MIE_COEFF))               # (N, S, 21)
+    spectrum = np.sum(np.where(lit[..., None], attenuation * scatter, 0.0), axis=1) * IRRADIANCE * seg[:, None]
+    return _spectrum_to_xyz(spectrum)
+
+
+def single_scattering_table(sun_elevation, altitude, air, aerosol, ozone,
+                            width: int = TABLE_WIDTH, height: int = TABLE_HEIGHT):
+    """(height, width, 3) XYZ: Cycles' single-scattering sky table (row 0 is the lowest)."""
+    altitude = min(max(altitude, 1.0), 59999.0)
+    half_w, half_h = width // 2, height // 2
+    sun_dir = geographical_to_direction(sun_elevation, 0.0)
+    table = np.zeros((height, width, 3))
+    lat = 0.5 * np.pi * (np.arange(half_h, height) / half_h - 1.0) ** 2
+    lon = (2.0 * np.pi / width) * np.arange(half_w) - np.pi
+    dirs = geographical_to_direction(lat[:, None], lon[None, :]).reshape(-1, 3)
+    xyz = np.concatenate([single_scattering(chunk, sun_dir, altitude, air, aerosol, ozone)
+                          for chunk in np.array_split(dirs, max(1, len(dirs) // 2048))])
+    xyz = xyz.reshape(height - half_h, half_w, 3)
+    table[half_h:, :half_w] = xyz
+    table[half_h:, half_w:] = xyz[:, ::-1]                           # the sky is mirrored about the sun
+    z = np.sin(0.5 * np.pi * (np.arange(half_h) / half_h - 1.0) ** 2)
+    fade = np.where(z < 0.4, (1.0 - 2.5 * z) ** 3, 0.0)
+    table[:half_h] = table[half_h][None] * fade[:, None, None]
+    return table
+
+
+def sun_pixels(sun_elevation, angular_diameter, altitude, air, aerosol):
+    """(bottom, top) XYZ radiance of the sun disc's lowest and highest points (0 below the horizon)."""
+    altitude = min(max(altitude, 1.0), 59999.0)
+    half = 0.5 * angular_diameter
+    solid_angle = 2.0 * np.pi * (1.0 - math.cos(half))
+    bottom, top = max(sun_elevation - half, 0.0), max(sun_elevation + half, 0.0)
+    if not top > 0.0:
+        return np.zeros(3), np.zeros(3)
+    cam = np.array([[0.0, 0.0, EARTH_RADIUS + altitude]] * 2)
+    depth = _optical_depth(cam, geographical_to_direction(np.array([bottom, top]), 0.0))   # (2, 3)
+    tau = np.outer(depth[:, 0] * air, RAYLEIGH_COEFF) + (depth[:, 1] * aerosol * 1.11 * MIE_COEFF)[:, None]
+    xyz = _spectrum_to_xyz(IRRADIANCE * np.exp(-tau) / solid_angle)
+    return xyz[0], xyz[1]
+
+
+def earth_intersection_angle(altitude):
+    """The angle below the horizon at which the Earth's edge is seen from `altitude` (m)
+    (Cycles' SKY_earth_intersection_angle, with its Earth of 6371 km)."""
+    return 0.5 * math.pi - math.asin(6371.0 / (6371.0 + altitude / 1000.0))
+
+
+def wrapped_sun(elevation, rotation):
+    """Cycles' SkyTextureNode::simplify_settings: elevation into [-pi/2, pi/2] (the rotation turned
+    by pi when it wraps over the zenith), then the kernel's rotation 2 pi - rotation."""
+    e, r = math.fmod(elevation, 2.0 * math.pi), rotation
+    if abs(e) >= math.pi:
+        e -= math.copysign(2.0, e) * math.pi
+    if e >= 0.5 * math.pi or e <= -0.5 * math.pi:
+        e = math.copysign(math.pi, e) - e
+        r += math.pi
+    r = math.fmod(r, 2.0 * math.pi)
+    if r < 0.0:
+        r += 2.0 * math.pi
+    return e, 2.0 * math.pi - r
+
+
+def _lookup_extend(table, x, y):
+    """Bilinear lookup with extension Extend, texel centres at (i + 1/2) / size (Cycles' kernel)."""
+    h, w = table.shape[:2]
+    fx, fy = x * w - 0.5, y * h - 0.5
+    ix, iy = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
+    tx, ty = (fx - ix)[:, None], (fy - iy)[:, None]
+    x0, x1 = np.clip(ix, 0, w - 1), np.clip(ix + 1, 0, w - 1)
+    y0, y1 = np.clip(iy, 0, h - 1), np.clip(iy + 1, 0, h - 1)
+    return ((1 - ty) * ((1 - tx) * table[y0, x0] + tx * table[y0, x1])
+            + ty * ((1 - tx) * table[y1, x0] + tx * table[y1, x1]))
+
+
+def _precise_angle(a, b):
+    return 2.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
+
+
+@dataclass
+class SkyParameters:
+    """The Sky Texture node's settings (radians, metres) as Blender stores them."""
+    sun_elevation: float = math.radians(15.0)
+    sun_rotation: float = 0.0
+    sun_disc: bool = True
+    sun_size: float = 0.009512
+    sun_intensity: float = 1.0
+    altitude: float = 100.0
+    air_density: float = 1.0
+    aerosol_density: float = 1.0
+    ozone_density: float = 1.0
+
+
+class SkyTexture:
+    """One Sky Texture node as Cycles renders it: `radiance(d)` RGB along world directions."""
+
+    def __init__(self, params: SkyParameters, cycles_version=(5, 0), table_size=(TABLE_WIDTH, TABLE_HEIGHT)):
+        """table_size: Cycles' 512 x 256; smaller only for fast structural tests."""
+        self.params, self.cycles_version = params, tuple(cycles_version)[:2]
+        self.elevation, self.rotation = wrapped_sun(params.sun_elevation, params.sun_rotation)
+        self.sun_size = max(params.sun_size, 0.0005)                # Cycles' get_sun_size
+        self.table = single_scattering_table(self.elevation, params.altitude, params.air_density,
+                                             params.aerosol_density, params.ozone_density, *table_size)
+        self.bottom, self.top = sun_pixels(self.elevation, self.sun_size, params.altitude,
+                                           params.air_density, params.aerosol_density)
+        self.earth_angle = -earth_intersection_angle(params.altitude)
+        e, r = self.elevation, self.rotation - 0.5 * math.pi
+        # spherical_to_direction(e - pi/2, rotation - pi/2)
+        self.sun_direction = np.array([-math.cos(e) * math.cos(r), -math.cos(e) * math.sin(r), math.sin(e)])
+
+    def _xyz(self, d, sun: bool):
+        """(N, 3) XYZ along unit directions d (N, 3): the table, and the disc when `sun`."""
+        d = np.asarray(d, dtype=np.float64)
+        theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+        phi = np.arctan2(d[:, 1], d[:, 0])
+        elevation = 0.5 * np.pi - theta
+        x = (-phi - 0.5 * np.pi + self.rotation) / (2.0 * np.pi)
+        x = x - np.floor(x)
+        y = np.copysign(np.sqrt(np.abs(elevation) * (2.0 / np.pi)), elevation) * 0.5 + 0.5
+        xyz = _lookup_extend(self.table, x, y)
+        if sun and self.params.sun_disc:
+            half = 0.5 * self.sun_size
+            angle = _precise_angle(d, self.sun_direction[None, :])
+            inside = (angle < half) & (elevation > self.earth_angle)
+            if inside.any():
+                t = ((elevation[inside] - self.elevation) / self.sun_size + 0.5)[:, None]
+                limb = 1.0 - LIMB_DARKENING * (1.0 - np.sqrt(1.0 - (angle[inside] / half) ** 2))
+                disc = ((1.0 - t) * self.bottom + t * self.top) * (self.params.sun_intensity * limb)[:, None]
+                xyz[inside] += disc
+        return xyz
+
+    def radiance(self, d, sun: bool = True):
+        """(N, 3) linear RGB along unit world directions d (N, 3), as Cycles' kernel gives it."""
+        return np.maximum(xyz_to_rgb(self._xyz(d, sun).T, self.cycles_version).T, 0.0)
+
+    def bake(self, width: int = 2048, height: int = 1024):
+        """(height, width, 3) float32 equirectangular image (bottom row first, the image world's
+        convention: engine/lights/environment.py) of the sky without the sun disc."""
+        from .environment import equirectangular_to_direction
+        u = (np.arange(width) + 0.5) / width
+        v = (np.arange(height) + 0.5) / height
+        d, _ = equirectangular_to_direction(np.tile(u, height), np.repeat(v, width))
+        return self.radiance(d.T, sun=False).reshape(height, width, 3).astype(np.float32)
+
+    def sun_irradiance(self, n: int = 64):
+        """(3,) RGB irradiance [W/m^2] on a surface facing the sun from its disc (Cycles' disc
+        radiance minus the sky under it, integrated over the disc by an n x n midpoint rule); 0
+        without a disc or when it is below the Earth's edge."""
+        if not self.params.sun_disc:
+            return np.zeros(3)
+        half = 0.5 * self.sun_size
+        s = self.sun_direction
+        a = np.cross(s, [0.0, 0.0, 1.0]) if abs(s[2]) < 0.999 else np.cross(s, [1.0, 0.0, 0.0])
+        a /= np.linalg.norm(a)
+        b = np.cross(s, a)
+        cos_max = math.cos(half)
+        # uniform over the cone: cos alpha in [cos_max, 1], azimuth in [0, 2 pi)
+        c = 1.0 - (np.arange(n) + 0.5) / n * (1.0 - cos_max)
+        p = (np.arange(n) + 0.5) / n * 2.0 * np.pi
+        c, p = np.meshgrid(c, p, indexing="ij")
+        sin = np.sqrt(1.0 - c * c)
+        d = (c[..., None] * s + sin[..., None] * (np.cos(p)[..., None] * a + np.sin(p)[..., None] * b)).reshape(-1, 3)
+        disc = self.radiance(d, sun=True) - self.radiance(d, sun=False)
+        return disc.mean(axis=0) * 2.0 * np.pi * (1.0 - cos_max)
