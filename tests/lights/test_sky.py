@@ -1,5 +1,5 @@
 """The Sky Texture's port (engine/lights/sky.py): the structure of its table, its bake and its sun.
-Cycles' per-pixel agreement is in tests/lights/test_sky_cycles.py (slow)."""
+Cycles' per-pixel agreement and the sky-lit scene: tests/addon/test_agreement_sky.py (slow)."""
 import math
 
 import numpy as np
