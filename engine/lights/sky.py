@@ -1,8 +1,10 @@
-"""Blender's Sky Texture (Nishita single scattering: 3.4's NISHITA, 5.0's SINGLE_SCATTERING) as
-Cycles renders it, in NumPy: the sky's precomputed table, its lookup per direction, the sun disc, and
-the bake into an equirectangular image for the image world (engine/lights/environment.py).
+"""Blender 5.0's Sky Texture, types Single Scattering (the Nishita model; 3.4's NISHITA computes its
+table differently and is not ported) and Multiple Scattering (5.0's default), as Cycles renders it, in
+NumPy: the sky's precomputed table, its lookup per direction, the sun disc, and the bake into an
+equirectangular image for the image world (engine/lights/environment.py).
 
-Cycles does it in three steps, ported here in float64 with the same constants and quadratures:
+Cycles does it in three steps, ported here in float64 with the same constants and quadratures
+(Single Scattering described; Multiple Scattering's table below `MultipleScattering`):
 1. `single_scattering_table`: at shader compile time a 512 x 256 float table of CIE XYZ radiance
    (Cycles' SKY_single_scattering_precompute_texture): row y >= 128 looks at elevation
    pi/2 ((y - 128) / 128)^2 (more rows near the horizon), column x at azimuth 2 pi x / 512 - pi from
@@ -182,6 +184,170 @@ def sun_pixels(sun_elevation, angular_diameter, altitude, air, aerosol):
     return xyz[0], xyz[1]
 
 
+# -- Blender 5.0's Multiple Scattering (Cycles' sky_multiple_scattering.cpp, after F. Garcia Linan) ----
+# Four wavelengths (630, 560, 490, 430 nm) -> XYZ by a fitted matrix, lengths in km; a 256 x 64 table
+# of the transmittance to the sun (zenith cosine x altitude, 64 steps each); per table texel 64 steps
+# along the view ray (to the atmosphere's top or the ground) of single scattering from the sun through
+# that table plus a fitted multiple-scattering term and the ground's (albedo 0.3) second order,
+# integrated per step as exp(-extinction dt) (Hillaire's energy-conserving step).  Rows span the
+# whole sphere (elevation sign(l) l^2 pi/2), no fade below the horizon.
+MS_EARTH_RADIUS = 6371.0
+MS_ATMOSPHERE_RADIUS = MS_EARTH_RADIUS + 100.0
+MS_STEPS = 64
+MS_LUT_X, MS_LUT_Y = 256, 64
+MS_G = 0.8
+MS_GROUND_ALBEDO = 0.3
+SUN_SPECTRAL_IRRADIANCE = np.array([1.679, 1.828, 1.986, 1.307])
+MOLECULAR_SCATTERING_BASE = np.array([6.605e-3, 1.067e-2, 1.842e-2, 3.156e-2])
+OZONE_ABSORPTION_CROSS_SECTION = np.array([3.472e-25, 3.914e-25, 1.349e-25, 11.03e-27])
+OZONE_MEAN_DOBSON = 334.5
+AEROSOL_ABSORPTION_CROSS_SECTION = np.array([2.8722e-24, 4.6168e-24, 7.9706e-24, 1.3578e-23])
+AEROSOL_SCATTERING_CROSS_SECTION = np.array([1.5908e-22, 1.7711e-22, 2.0942e-22, 2.4033e-22])
+AEROSOL_BASE_DENSITY, AEROSOL_BACKGROUND_DENSITY, AEROSOL_HEIGHT_SCALE = 1.3681e20, 2e6, 0.73
+SPECTRAL_XYZ = np.array([   # rows: the four wavelengths' X, Y, Z
+    [53.386917738564668023, 22.981337506691024754, 0.0],
+    [43.904844466369358263, 71.347795700053393866, 0.102506867965741307],
+    [1.6137278251608962005, 18.422960591455485011, 31.742921188390805758],
+    [20.762668673810577145, 2.3614213523314368527, 110.48009643252140334]])
+MS_FIT = 0.02 * np.array([0.217, 0.347, 0.594, 1.0])
+
+
+def _ray_sphere(pos, d, radius):
+    """(...,) Cycles' sky ray_sphere_intersection: the nearer hit ahead, the far one from inside, -1 for none."""
+    b = np.sum(pos * d, axis=-1)
+    c = np.sum(pos * pos, axis=-1) - radius * radius
+    disc = b * b - c
+    root = np.sqrt(np.maximum(disc, 0.0))
+    t = np.where(disc >= b * b, -b + root, -b - root)
+    return np.where(((c > 0.0) & (b > 0.0)) | (disc < 0.0), -1.0, t)
+
+
+class MultipleScattering:
+    """The atmosphere of Blender 5.0's Multiple Scattering sky: (..., 4) spectra in its four
+    wavelengths; the transmittance table is made on construction (Cycles' precompute_lut)."""
+
+    def __init__(self, air, aerosol, ozone):
+        self.air, self.aerosol, self.ozone = air, aerosol, ozone
+        u = np.arange(MS_LUT_X) / (MS_LUT_X - 1)
+        v = np.arange(MS_LUT_Y) / (MS_LUT_Y - 1)
+        self.lut = self.transmittance(2.0 * u[None, :] - 1.0, v[:, None])          # (Y, X, 4)
+
+    def extinction_and_scattering(self, h):
+        """(extinction, molecular scattering, aerosol scattering), each (..., 4), at altitudes h (km)."""
+        h = np.asarray(h, dtype=np.float64)[..., None]
+        aerosol = AEROSOL_BASE_DENSITY * (np.exp(-h / AEROSOL_HEIGHT_SCALE)
+                                          + AEROSOL_BACKGROUND_DENSITY / AEROSOL_BASE_DENSITY) * self.aerosol
+        log_h = np.log(np.maximum(h, 1e-4))
+        ozone = 3.78547397e20 * np.exp(-(log_h - 3.22261) ** 2 * 5.55555555 - log_h)
+        molecular_abs = OZONE_ABSORPTION_CROSS_SECTION * OZONE_MEAN_DOBSON * ozone * self.ozone
+        molecular = MOLECULAR_SCATTERING_BASE * np.exp(-0.07771971 * h ** 1.16364243) * self.air
+        aerosol_sca = AEROSOL_SCATTERING_CROSS_SECTION * aerosol
+        return AEROSOL_ABSORPTION_CROSS_SECTION * aerosol + aerosol_sca + molecular_abs + molecular, molecular, aerosol_sca
+
+    def transmittance(self, cos_theta, normalized_altitude):
+        """(..., 4) transmittance to the sun at zenith cosine cos_theta from an altitude in [0, 1] (Cycles' get_transmittance)."""
+        cos_theta, normalized_altitude = np.broadcast_arrays(np.asarray(cos_theta, np.float64),
+                                                             np.asarray(normalized_altitude, np.float64))
+        d = np.stack([-np.sqrt(np.maximum(1.0 - cos_theta ** 2, 0.0)), 0.0 * cos_theta, cos_theta], axis=-1)
+        r = MS_EARTH_RADIUS + (MS_ATMOSPHERE_RADIUS - MS_EARTH_RADIUS) * normalized_altitude
+        origin = np.stack([0.0 * r, 0.0 * r, r], axis=-1)
+        step = _ray_sphere(origin, d, MS_ATMOSPHERE_RADIUS) / MS_STEPS
+        total = np.zeros(cos_theta.shape + (4,))
+        for i in range(MS_STEPS):
+            x = origin + d * ((i + 0.5) * step)[..., None]
+            h = np.maximum(np.linalg.norm(x, axis=-1) - MS_EARTH_RADIUS, 0.0)
+            total += self.extinction_and_scattering(h)[0] * step[..., None]
+        return np.exp(-total)
+
+    def _lut(self, cos_theta, normalized_altitude):
+        """Cycles' lookup_transmittance (bilinear, corner-aligned texels, clamped)."""
+        x = (MS_LUT_X - 1) * np.clip(cos_theta * 0.5 + 0.5, 0.0, 1.0)
+        y = (MS_LUT_Y - 1) * np.clip(normalized_altitude, 0.0, 1.0)
+        x1, y1 = x.astype(np.int64), y.astype(np.int64)
+        x2, y2 = np.minimum(x1 + 1, MS_LUT_X - 1), np.minimum(y1 + 1, MS_LUT_Y - 1)
+        fx, fy = (x - x1)[..., None], (y - y1)[..., None]
+        lut = self.lut
+        bottom = lut[y1, x1] * (1 - fx) + lut[y1, x2] * fx
+        top = lut[y2, x1] * (1 - fx) + lut[y2, x2] * fx
+        return bottom * (1 - fy) + top * fy
+
+    def _multiscattering(self, cos_theta, normalized_altitude, distance):
+        omega = 2.0 * np.pi * (1.0 - np.sqrt(np.maximum(1.0 - (MS_EARTH_RADIUS / distance) ** 2, 0.0)))
+        to_ground = self._lut(cos_theta, 0.0 * cos_theta)
+        ground_to_sample = (self._lut(np.ones_like(cos_theta), 0.0 * cos_theta)
+                            / self._lut(np.ones_like(cos_theta), normalized_altitude))
+        ground = ((1.0 / (4.0 * np.pi)) * omega[..., None] * (MS_GROUND_ALBEDO / np.pi) * to_ground
+                  * ground_to_sample * cos_theta[..., None])
+        fit = MS_FIT * (1.0 / (1.0 + 5.0 * np.exp(-17.92 * cos_theta)))[..., None]
+        return fit + ground
+
+    def inscattering(self, sun_dir, origin, dirs, t_d):
+        """(N, 4) in-scattered radiance along unit dirs (N, 3) from origin (3,) over distances t_d (N,)."""
+        cos = -(dirs @ sun_dir)
+        molecular_phase = (3.0 / 16.0 / np.pi) * (1.0 + cos * cos)
+        den = 1.0 + MS_G * MS_G + 2.0 * MS_G * cos
+        aerosol_phase = (1.0 / (4.0 * np.pi)) * (1.0 - MS_G * MS_G) / (den * np.sqrt(den))
+        dt = t_d / MS_STEPS
+        radiance = np.zeros((len(dirs), 4))
+        transmittance = np.ones((len(dirs), 4))
+        for i in range(MS_STEPS):
+            x = origin + dirs * ((i + 0.5) * dt)[:, None]
+            r = np.linalg.norm(x, axis=-1)
+            h = np.maximum(r - MS_EARTH_RADIUS, 0.0)
+            hn = h / (MS_ATMOSPHERE_RADIUS - MS_EARTH_RADIUS)
+            sample_cos = (x @ sun_dir) / r
+            extinction, molecular, aerosol = self.extinction_and_scattering(h)
+            to_sun = self._lut(sample_cos, hn)
+            ms = self._multiscattering(sample_cos, hn, r)
+            source = SUN_SPECTRAL_IRRADIANCE * (molecular * (molecular_phase[:, None] * to_sun + ms)
+                                                + aerosol * (aerosol_phase[:, None] * to_sun + ms))
+            step = np.exp(-dt[:, None] * extinction)
+            radiance += transmittance * (source - source * step) / np.maximum(extinction, 1e-7)
+            transmittance *= step
+        return radiance
+
+
+def multiple_scattering_table(sun_elevation, altitude, air, aerosol, ozone,
+                              width: int = TABLE_WIDTH, height: int = TABLE_HEIGHT):
+    """(height, width, 3) XYZ: Cycles' Multiple Scattering sky table (row 0 looks straight down,
+    row y at elevation sign(l) l^2 pi/2, l = 2 (y + 1/2) / height - 1; column x at azimuth
+    2 pi (x + 1/2) / width, the sun at azimuth pi)."""
+    atmosphere = MultipleScattering(air, aerosol, ozone)
+    altitude = min(max(altitude, 1.0), 99999.0) / 1000.0
+    half_w = width // 2
+    cos_sun = math.cos(0.5 * math.pi - sun_elevation)
+    sun_dir = np.array([-math.sqrt(max(1.0 - cos_sun * cos_sun, 0.0)), 0.0, cos_sun])
+    l = 2.0 * (np.arange(height) + 0.5) / height - 1.0
+    elevation = np.copysign(l * l, l) * (0.5 * np.pi)
+    azimuth = 2.0 * np.pi * (np.arange(half_w) + 0.5) / width
+    e, a = np.meshgrid(elevation, azimuth, indexing="ij")
+    dirs = np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], axis=-1).reshape(-1, 3)
+    origin = np.array([0.0, 0.0, MS_EARTH_RADIUS + altitude])
+    # The distances in float32 as Cycles computes them: a ray that meets the ground near the viewer
+    # loses digits in -b - sqrt(b^2 - c), and Cycles' sky below the horizon carries that.
+    o, d32 = np.broadcast_to(origin, dirs.shape).astype(np.float32), dirs.astype(np.float32)
+    atmos = _ray_sphere(o, d32, np.float32(MS_ATMOSPHERE_RADIUS)).astype(np.float64)
+    ground = _ray_sphere(o, d32, np.float32(MS_EARTH_RADIUS)).astype(np.float64)
+    t_d = np.where(ground < 0.0, atmos, ground)
+    chunks = np.array_split(np.arange(len(dirs)), max(1, len(dirs) // 4096))
+    xyz = np.concatenate([atmosphere.inscattering(sun_dir, origin, dirs[c], t_d[c]) for c in chunks]) @ SPECTRAL_XYZ
+    half = xyz.reshape(height, half_w, 3)
+    return np.concatenate([half, half[:, ::-1]], axis=1)
+
+
+def multiple_scattering_sun_pixels(sun_elevation, angular_diameter, altitude, air, aerosol, ozone):
+    """(bottom, top) XYZ radiance of the sun disc's lowest and highest points (Multiple Scattering)."""
+    atmosphere = MultipleScattering.__new__(MultipleScattering)
+    atmosphere.air, atmosphere.aerosol, atmosphere.ozone = air, aerosol, ozone
+    altitude = min(max(altitude, 1.0), 99999.0) / 1000.0
+    half = 0.5 * angular_diameter
+    solid_angle = 2.0 * np.pi * (1.0 - math.cos(half))
+    cos = np.cos(0.5 * np.pi - np.array([sun_elevation - half, sun_elevation + half]))
+    t = atmosphere.transmittance(cos, np.full(2, altitude / (MS_ATMOSPHERE_RADIUS - MS_EARTH_RADIUS)))
+    xyz = (SUN_SPECTRAL_IRRADIANCE * t / solid_angle) @ SPECTRAL_XYZ
+    return xyz[0], xyz[1]
+
+
 def earth_intersection_angle(altitude):
     """The angle below the horizon at which the Earth's edge is seen from `altitude` (m)
     (Cycles' SKY_earth_intersection_angle, with its Earth of 6371 km)."""
@@ -222,6 +388,7 @@ def _precise_angle(a, b):
 @dataclass
 class SkyParameters:
     """The Sky Texture node's settings (radians, metres) as Blender stores them."""
+    sky_type: str = "SINGLE_SCATTERING"            # or "MULTIPLE_SCATTERING" (Blender 5.0's default)
     sun_elevation: float = math.radians(15.0)
     sun_rotation: float = 0.0
     sun_disc: bool = True
@@ -241,10 +408,15 @@ class SkyTexture:
         self.params, self.cycles_version = params, tuple(cycles_version)[:2]
         self.elevation, self.rotation = wrapped_sun(params.sun_elevation, params.sun_rotation)
         self.sun_size = max(params.sun_size, 0.0005)                # Cycles' get_sun_size
-        self.table = single_scattering_table(self.elevation, params.altitude, params.air_density,
-                                             params.aerosol_density, params.ozone_density, *table_size)
-        self.bottom, self.top = sun_pixels(self.elevation, self.sun_size, params.altitude,
-                                           params.air_density, params.aerosol_density)
+        atmosphere = (params.altitude, params.air_density, params.aerosol_density, params.ozone_density)
+        if params.sky_type == "MULTIPLE_SCATTERING":
+            self.table = multiple_scattering_table(self.elevation, *atmosphere, *table_size)
+            self.bottom, self.top = multiple_scattering_sun_pixels(self.elevation, self.sun_size, *atmosphere)
+        elif params.sky_type == "SINGLE_SCATTERING":
+            self.table = single_scattering_table(self.elevation, *atmosphere, *table_size)
+            self.bottom, self.top = sun_pixels(self.elevation, self.sun_size, *atmosphere[:3])
+        else:
+            raise ValueError(f"sky type {params.sky_type!r} is not ported")
         self.earth_angle = -earth_intersection_angle(params.altitude)
         e, r = self.elevation, self.rotation - 0.5 * math.pi
         # spherical_to_direction(e - pi/2, rotation - pi/2)

@@ -1,10 +1,12 @@
 """The Sky Texture (engine/lights/sky.py) against Cycles 5.0: the sky seen by an equirectangular
-panoramic camera, per pixel, and an agreement render of the `sky` sample scene
-(sample_blends/make_samples.py make_sky) lit by it.
+panoramic camera, per pixel, for Blender 5.0's Single and Multiple Scattering, and agreement renders
+of the `sky` (Multiple Scattering, 5.0's default) and `sky_single` sample scenes
+(sample_blends/make_samples.py make_sky) lit by them; the control moves the exported sun light 10
+degrees lower.
 
 Per pixel: each pixel's direction is Cycles' own (a first render of the Generated texture
 coordinate), a 0.01-pixel filter; away from the horizon (|elevation| > 2 degrees, where the table's
-rows change fastest) and the sun disc, our radiance is within 0.2 % of Cycles'.  Controls: the
+rows change fastest) and the sun disc (2 degrees), our radiance is within 0.2 % of Cycles'.  Controls: the
 air density 10 % off, the altitude off (100 m -> 2 km) and the sun 2 degrees lower all fail.
 """
 import math
@@ -48,27 +50,28 @@ SKY = dict(sun_elevation=math.radians(20.0), sun_rotation=math.radians(50.0), al
            air_density=1.0, aerosol_density=1.3, ozone_density=0.8, sun_intensity=1.0)
 
 
-@pytest.fixture(scope="module")
-def cycles_sky(tmp_path_factory, addon):
+@pytest.fixture(scope="module", params=["SINGLE_SCATTERING", "MULTIPLE_SCATTERING"])
+def cycles_sky(tmp_path_factory, addon, request):
     tmp = tmp_path_factory.mktemp("sky")
+    kind = request.param
 
     def directions(tree, bg):
         tree.links.new(tree.nodes.new("ShaderNodeTexCoord").outputs["Generated"], bg.inputs["Color"])
 
     def sky(tree, bg):
         node = tree.nodes.new("ShaderNodeTexSky")
-        node.sky_type = "SINGLE_SCATTERING"
+        node.sky_type = kind
         for key, value in SKY.items():
             setattr(node, key, value)
         tree.links.new(node.outputs["Color"], bg.inputs["Color"])
 
     d = _render(directions, tmp / "d.exr").reshape(-1, 3)
-    return d / np.linalg.norm(d, axis=1, keepdims=True), _render(sky, tmp / "s.exr").reshape(-1, 3)
+    return d / np.linalg.norm(d, axis=1, keepdims=True), _render(sky, tmp / "s.exr").reshape(-1, 3), kind
 
 
-def _worst(d, cycles, **change):
+def _worst(d, cycles, kind, **change):
     from engine.lights.sky import SkyParameters, SkyTexture
-    sky = SkyTexture(SkyParameters(**{**SKY, **change}))
+    sky = SkyTexture(SkyParameters(sky_type=kind, **{**SKY, **change}))
     ours = sky.radiance(d)
     elevation = np.degrees(np.arcsin(d[:, 2]))
     away = (np.abs(elevation) > 2.0) & (np.degrees(np.arccos(d @ sky.sun_direction)) > 2.0)
@@ -78,7 +81,7 @@ def _worst(d, cycles, **change):
 
 def test_sky_agrees_with_cycles_per_pixel(cycles_sky):
     worst = _worst(*cycles_sky)
-    print(f"sky per pixel: worst relative difference {worst:.2e}")
+    print(f"{cycles_sky[2]} sky per pixel: worst relative difference {worst:.2e}")
     assert worst < TOLERANCE
 
 
@@ -86,24 +89,25 @@ def test_sky_agrees_with_cycles_per_pixel(cycles_sky):
                                     dict(sun_elevation=math.radians(18.0))])
 def test_per_pixel_comparison_catches_a_changed_sky(cycles_sky, change):
     worst = _worst(*cycles_sky, **change)
-    print(f"sky with {change}: worst relative difference {worst:.2e}")
+    print(f"{cycles_sky[2]} sky with {change}: worst relative difference {worst:.2e}")
     assert worst > 10 * TOLERANCE
 
 
-def test_sky_scene_agrees_with_cycles(samples):
+@pytest.mark.parametrize("name", ["sky", "sky_single"])
+def test_sky_scene_agrees_with_cycles(samples, name):
     import copy
     from imagecompare import compare_runs
     from rendering import RES, cycles_reference, export_blend, tncg15_agreement_runs, to_png
-    exported = export_blend(samples["sky"], RES)
+    exported = export_blend(samples[name], RES)
     assert exported.warnings == [], exported.warnings
     scene = exported.scene
     assert scene.environment is not None and len(scene.suns) == 1
-    ref = cycles_reference(samples["sky"], "sky")
+    ref = cycles_reference(samples[name], name)
     ours = tncg15_agreement_runs(scene)
-    to_png(ours.mean(axis=0), "/tmp/sky_tncg15.png", 4)
-    to_png(ref.mean(axis=0), "/tmp/sky_cycles.png", 4)
+    to_png(ours.mean(axis=0), f"/tmp/{name}_tncg15.png", 4)
+    to_png(ref.mean(axis=0), f"/tmp/{name}_cycles.png", 4)
     result = compare_runs(ours, ref, tau=0.02)
-    print(f"sky scene: {result.summary()}")
+    print(f"{name} scene: {result.summary()}")
     assert result.passed, result.summary()
     # Control: the sun light 10 degrees lower (the shadows and the floor's brightness move).
     wrong = copy.deepcopy(scene)
@@ -114,5 +118,5 @@ def test_sky_scene_agrees_with_cycles(samples):
     el = math.atan2(-d[2], h) - a
     sun.direction = (d[0] / h * math.cos(el), d[1] / h * math.cos(el), -math.sin(el))
     control = compare_runs(tncg15_agreement_runs(wrong, first_seed=2000), ref, tau=0.02)
-    print(f"sky scene, sun 10 degrees lower: {control.summary()}")
+    print(f"{name} scene, sun 10 degrees lower: {control.summary()}")
     assert not control.passed, control.summary()
