@@ -348,6 +348,43 @@ def multiple_scattering_sun_pixels(sun_elevation, angular_diameter, altitude, ai
     return xyz[0], xyz[1]
 
 
+# -- Blender 3.4's Nishita (Cycles 3.4's sky_nishita.cpp and kernel) -------------------------------------
+# The same single scattering (the node clamps the altitude to [1, 59999] m as 5.0) except a 512 x 128
+# table of the upper hemisphere only (row y at elevation (pi/2 + pi/512) (y/128)^2), and the kernel's own
+# lookup, ground fade and sun (see SkyTexture._xyz_34).  The sun's optical depth is the 8-node
+# Gauss-Laguerre quadrature, as 5.0's: measured in Blender 3.4.1's Cycles (a panoramic render agrees to
+# 1e-3; the 16 midpoint segments of the Cycles 3.4.0 sources would be 3 % brighter at the horizon).
+NISHITA34_WIDTH, NISHITA34_HEIGHT = 512, 128
+
+
+def nishita34_table(sun_elevation, altitude, air, dust, ozone,
+                    width: int = NISHITA34_WIDTH, height: int = NISHITA34_HEIGHT):
+    """(height, width, 3) XYZ: Cycles 3.4's Nishita table (SKY_nishita_skymodel_precompute_texture)."""
+    altitude = min(max(altitude, 1.0), 59999.0)
+    half_w = width // 2
+    sun_dir = geographical_to_direction(sun_elevation, 0.0)
+    lat = (0.5 * np.pi + 0.25 * np.pi / height) * (np.arange(height) / height) ** 2
+    lon = (2.0 * np.pi / width) * np.arange(half_w) - np.pi
+    dirs = geographical_to_direction(lat[:, None], lon[None, :]).reshape(-1, 3)
+    xyz = np.concatenate([single_scattering(chunk, sun_dir, altitude, air, dust, ozone)
+                          for chunk in np.array_split(dirs, max(1, len(dirs) // 2048))])
+    half = xyz.reshape(height, half_w, 3)
+    return np.concatenate([half, half[:, ::-1]], axis=1)
+
+
+def nishita34_sun_pixels(sun_elevation, angular_diameter, altitude, air, dust):
+    """(bottom, top) XYZ radiance of the sun disc's lowest and highest points (each at least at the horizon)."""
+    altitude = min(max(altitude, 1.0), 59999.0)
+    half = 0.5 * angular_diameter
+    solid_angle = 2.0 * np.pi * (1.0 - math.cos(half))
+    elevations = np.array([max(sun_elevation - half, 0.0), max(sun_elevation + half, 0.0)])
+    cam = np.array([[0.0, 0.0, EARTH_RADIUS + altitude]] * 2)
+    depth = _optical_depth(cam, geographical_to_direction(elevations, 0.0))
+    tau = np.outer(depth[:, 0] * air, RAYLEIGH_COEFF) + (depth[:, 1] * dust * 1.11 * MIE_COEFF)[:, None]
+    xyz = _spectrum_to_xyz(IRRADIANCE * np.exp(-tau) / solid_angle)
+    return xyz[0], xyz[1]
+
+
 def earth_intersection_angle(altitude):
     """The angle below the horizon at which the Earth's edge is seen from `altitude` (m)
     (Cycles' SKY_earth_intersection_angle, with its Earth of 6371 km)."""
@@ -388,7 +425,7 @@ def _precise_angle(a, b):
 @dataclass
 class SkyParameters:
     """The Sky Texture node's settings (radians, metres) as Blender stores them."""
-    sky_type: str = "SINGLE_SCATTERING"            # or "MULTIPLE_SCATTERING" (Blender 5.0's default)
+    sky_type: str = "SINGLE_SCATTERING"   # or "MULTIPLE_SCATTERING" (5.0's default), "NISHITA" (3.4's)
     sun_elevation: float = math.radians(15.0)
     sun_rotation: float = 0.0
     sun_disc: bool = True
@@ -403,12 +440,22 @@ class SkyParameters:
 class SkyTexture:
     """One Sky Texture node as Cycles renders it: `radiance(d)` RGB along world directions."""
 
-    def __init__(self, params: SkyParameters, cycles_version=(5, 0), table_size=(TABLE_WIDTH, TABLE_HEIGHT)):
-        """table_size: Cycles' 512 x 256; smaller only for fast structural tests."""
+    def __init__(self, params: SkyParameters, cycles_version=(5, 0), table_size=None):
+        """table_size: Cycles' (512 x 256, 3.4's Nishita 512 x 128); smaller only for fast structural tests."""
         self.params, self.cycles_version = params, tuple(cycles_version)[:2]
-        self.elevation, self.rotation = wrapped_sun(params.sun_elevation, params.sun_rotation)
+        if table_size is None:
+            table_size = (NISHITA34_WIDTH, NISHITA34_HEIGHT) if params.sky_type == "NISHITA" else (TABLE_WIDTH, TABLE_HEIGHT)
         self.sun_size = max(params.sun_size, 0.0005)                # Cycles' get_sun_size
         atmosphere = (params.altitude, params.air_density, params.aerosol_density, params.ozone_density)
+        self.legacy = params.sky_type == "NISHITA"
+        if self.legacy:      # Cycles 3.4: the elevation as it is, the rotation 2 pi - (rotation mod 2 pi)
+            r = math.fmod(params.sun_rotation, 2.0 * math.pi)
+            self.elevation, self.rotation = params.sun_elevation, 2.0 * math.pi - (r + 2.0 * math.pi if r < 0.0 else r)
+            self.table = nishita34_table(self.elevation, *atmosphere, *table_size)
+            self.bottom, self.top = nishita34_sun_pixels(self.elevation, self.sun_size, *atmosphere[:3])
+            self.sun_direction = geographical_to_direction(self.elevation, self.rotation + 0.5 * math.pi)
+            return
+        self.elevation, self.rotation = wrapped_sun(params.sun_elevation, params.sun_rotation)
         if params.sky_type == "MULTIPLE_SCATTERING":
             self.table = multiple_scattering_table(self.elevation, *atmosphere, *table_size)
             self.bottom, self.top = multiple_scattering_sun_pixels(self.elevation, self.sun_size, *atmosphere)
@@ -422,9 +469,36 @@ class SkyTexture:
         # spherical_to_direction(e - pi/2, rotation - pi/2)
         self.sun_direction = np.array([-math.cos(e) * math.cos(r), -math.cos(e) * math.sin(r), math.sin(e)])
 
+    def _xyz_34(self, d, sun: bool):
+        """Cycles 3.4's sky_radiance_nishita: x = (atan2(dx, dy) + pi + rotation) / 2 pi (less 1 once
+        above 1), y = sqrt(e / (pi/2)); inside the disc its radiance replaces the sky's; below the
+        horizon the table's lowest row (looked up at y = -0.5) faded by (1 + 2.5 z)^3, 0 below z = -0.4."""
+        theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+        x = (np.arctan2(d[:, 0], d[:, 1]) + np.pi + self.rotation) / (2.0 * np.pi)
+        x = np.where(x > 1.0, x - 1.0, x)
+        up = d[:, 2] >= 0.0
+        y = np.where(up, np.sqrt(np.maximum((0.5 * np.pi - theta) / (0.5 * np.pi), 0.0)), -0.5)
+        xyz = _lookup_extend(self.table, x, y)
+        fade = np.where(d[:, 2] < -0.4, 0.0, np.maximum(1.0 + 2.5 * d[:, 2], 0.0) ** 3)
+        xyz = np.where(up[:, None], xyz, xyz * fade[:, None])
+        if sun and self.params.sun_disc:
+            half = 0.5 * self.sun_size
+            angle = _precise_angle(d, self.sun_direction[None, :])
+            inside = up & (angle < half)
+            bottom, top = self.elevation - half, self.elevation + half
+            if inside.any() and top > 0.0:
+                e = 0.5 * np.pi - theta[inside]
+                t = ((e - self.elevation) / self.sun_size + 0.5) if bottom > 0.0 else e / top
+                limb = 1.0 - LIMB_DARKENING * (1.0 - np.sqrt(1.0 - (angle[inside] / half) ** 2))
+                xyz[inside] = (((1.0 - t)[:, None] * self.bottom + t[:, None] * self.top)
+                               * (self.params.sun_intensity * limb)[:, None])
+        return xyz
+
     def _xyz(self, d, sun: bool):
         """(N, 3) XYZ along unit directions d (N, 3): the table, and the disc when `sun`."""
         d = np.asarray(d, dtype=np.float64)
+        if self.legacy:
+            return self._xyz_34(d, sun)
         theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
         phi = np.arctan2(d[:, 1], d[:, 0])
         elevation = 0.5 * np.pi - theta

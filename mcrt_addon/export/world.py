@@ -167,9 +167,9 @@ class WorldReader:
         (engine/lights/sky.py), its sun disc appended to the export's suns; None (a warning) for
         the sky types not ported (the Background's unlinked colour is used)."""
         kind = getattr(node, "sky_type", "")
-        if kind not in ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING"):
+        if kind not in ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "NISHITA"):
             self.warn(node, f"(Sky Texture, type {kind}) is not supported (only Blender 5.0's Single and "
-                            "Multiple Scattering); the Background's unlinked colour is used")
+                            "Multiple Scattering and 3.4's Nishita); the Background's unlinked colour is used")
             return None
         from .. import bridge
         sky = bridge.module("lights.sky")
@@ -177,7 +177,8 @@ class WorldReader:
             sky_type=kind, sun_elevation=float(node.sun_elevation), sun_rotation=float(node.sun_rotation),
             sun_disc=bool(node.sun_disc), sun_size=float(node.sun_size),
             sun_intensity=float(node.sun_intensity), altitude=float(node.altitude),
-            air_density=float(node.air_density), aerosol_density=float(node.aerosol_density),
+            air_density=float(node.air_density),
+            aerosol_density=float(getattr(node, "aerosol_density", getattr(node, "dust_density", 1.0))),
             ozone_density=float(node.ozone_density))
         import bpy
         texture = sky.SkyTexture(params, tuple(bpy.app.version[:2]))

@@ -10,9 +10,12 @@ rows change fastest) and the sun disc (2 degrees), our radiance is within 0.2 % 
 air density 10 % off, the altitude off (100 m -> 2 km) and the sun 2 degrees lower all fail.
 """
 import math
+import os
 
 import numpy as np
 import pytest
+
+from blender34 import BLENDER34
 
 pytestmark = pytest.mark.slow
 W, H = 128, 64
@@ -119,4 +122,28 @@ def test_sky_scene_agrees_with_cycles(samples, name):
     sun.direction = (d[0] / h * math.cos(el), d[1] / h * math.cos(el), -math.sin(el))
     control = compare_runs(tncg15_agreement_runs(wrong, first_seed=2000), ref, tau=0.02)
     print(f"{name} scene, sun 10 degrees lower: {control.summary()}")
+    assert not control.passed, control.summary()
+
+
+@pytest.mark.skipif(BLENDER34 is None and os.environ.get("CI") != "true",
+                    reason="no `blender` binary (apt-get install blender)")
+def test_sky_scene_exports_and_agrees_in_blender34(tmp_path_factory):
+    """The `sky` sample built in Blender 3.4 (its Nishita sky), exported there and rendered by Cycles 3.4."""
+    import copy
+    from blender34 import blender34_run, tracer_runs
+    from imagecompare import compare_runs
+    from rendering import to_png
+    run = blender34_run("sky", tmp_path_factory.mktemp("blender34_sky"))
+    assert run.blender[:2] == (3, 4) and run.warnings == [], run.warnings
+    assert run.scene.environment is not None and len(run.scene.suns) == 1
+    ours = tracer_runs(run.scene)
+    to_png(ours.mean(axis=0), "/tmp/sky34_tncg15.png", 4)
+    to_png(run.cycles.mean(axis=0), "/tmp/sky34_cycles.png", 4)
+    result = compare_runs(ours, run.cycles, tau=0.02)
+    print(f"sky, Blender 3.4: {result.summary()}")
+    assert result.passed, result.summary()
+    wrong = copy.deepcopy(run.scene)
+    wrong.suns[0].irradiance = tuple(0.9 * c for c in wrong.suns[0].irradiance)
+    control = compare_runs(tracer_runs(wrong, first_seed=2000), run.cycles, tau=0.02)
+    print(f"sky, Blender 3.4, the sun 10 % dimmer: {control.summary()}")
     assert not control.passed, control.summary()
