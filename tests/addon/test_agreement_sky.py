@@ -1,7 +1,8 @@
 """The Sky Texture (engine/lights/sky.py) against Cycles 5.0: the sky seen by an equirectangular
-panoramic camera, per pixel, for Blender 5.0's Single and Multiple Scattering, and agreement renders
+panoramic camera, per pixel, for Blender 5.0's Single and Multiple Scattering (and Blender 3.4's Nishita,
+tests/addon/sky_pano34.py), and agreement renders
 of the `sky` (Multiple Scattering, 5.0's default) and `sky_single` sample scenes
-(sample_blends/make_samples.py make_sky) lit by them; the control moves the exported sun light 10
+(sample_blends/make_samples.py make_sky) lit by them, in 5.0 and in 3.4; the control moves the exported sun light 10
 degrees lower.
 
 Per pixel: each pixel's direction is Cycles' own (a first render of the Generated texture
@@ -74,7 +75,7 @@ def cycles_sky(tmp_path_factory, addon, request):
 
 def _worst(d, cycles, kind, **change):
     from engine.lights.sky import SkyParameters, SkyTexture
-    sky = SkyTexture(SkyParameters(sky_type=kind, **{**SKY, **change}))
+    sky = SkyTexture(SkyParameters(sky_type=kind, **{**SKY, **change}), (3, 4) if kind == "NISHITA" else (5, 0))
     ours = sky.radiance(d)
     elevation = np.degrees(np.arcsin(d[:, 2]))
     away = (np.abs(elevation) > 2.0) & (np.degrees(np.arccos(d @ sky.sun_direction)) > 2.0)
@@ -123,6 +124,35 @@ def test_sky_scene_agrees_with_cycles(samples, name):
     control = compare_runs(tncg15_agreement_runs(wrong, first_seed=2000), ref, tau=0.02)
     print(f"{name} scene, sun 10 degrees lower: {control.summary()}")
     assert not control.passed, control.summary()
+
+
+@pytest.fixture(scope="module")
+def cycles34_sky(tmp_path_factory):
+    """Blender 3.4's panoramic renders (tests/addon/sky_pano34.py) of its Nishita sky with SKY's settings."""
+    import json
+    import subprocess
+    from blender34 import blender_environment
+    from rendering import read_exr
+    if BLENDER34 is None:
+        pytest.skip("no `blender` binary (apt-get install blender)")
+    out = str(tmp_path_factory.mktemp("sky34"))
+    props = {("dust_density" if k == "aerosol_density" else k): v for k, v in SKY.items()}
+    r = subprocess.run([BLENDER34, "-b", "--factory-startup", "--python-use-system-env", "--python",
+                        os.path.join(os.path.dirname(__file__), "sky_pano34.py"), "--", out, str(W), str(H),
+                        json.dumps(props)], capture_output=True, text=True, timeout=600, env=blender_environment())
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    d = read_exr(os.path.join(out, "directions.exr")).reshape(-1, 3).astype(np.float64)
+    sky = read_exr(os.path.join(out, "sky.exr")).reshape(-1, 3).astype(np.float64)
+    return d / np.linalg.norm(d, axis=1, keepdims=True), sky, "NISHITA"
+
+
+def test_blender34_nishita_sky_agrees_per_pixel(cycles34_sky):
+    worst = _worst(*cycles34_sky)
+    print(f"NISHITA (Blender 3.4) sky per pixel: worst relative difference {worst:.2e}")
+    assert worst < TOLERANCE
+    worst = _worst(*cycles34_sky, air_density=1.1)
+    print(f"NISHITA (Blender 3.4) sky with air density 1.1: worst relative difference {worst:.2e}")
+    assert worst > 10 * TOLERANCE
 
 
 @pytest.mark.skipif(BLENDER34 is None and os.environ.get("CI") != "true",
