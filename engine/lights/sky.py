@@ -550,3 +550,68 @@ class SkyTexture:
         d = (c[..., None] * s + sin[..., None] * (np.cos(p)[..., None] * a + np.sin(p)[..., None] * b)).reshape(-1, 3)
         disc = self.radiance(d, sun=True) - self.radiance(d, sun=False)
         return disc.mean(axis=0) * 2.0 * np.pi * (1.0 - cos_max)
+
+
+# -- Preetham (Cycles' sky_texture_precompute_preetham and sky_radiance_preetham) ------------------------
+def _perez(lam, theta, gamma):
+    return ((1.0 + lam[0] * np.exp(lam[1] / np.cos(theta)))
+            * (1.0 + lam[2] * np.exp(lam[3] * gamma) + lam[4] * np.cos(gamma) ** 2))
+
+
+class PreethamSky:
+    """The Preetham et al. daylight model of Blender's Sky Texture type PREETHAM (Sun Direction,
+    Turbidity; no sun disc): zenith x, y, Y and the Perez coefficients of the sun's zenith angle,
+    per direction xyY = zenith x perez(theta, gamma) / perez(0, theta_sun), theta clamped to the horizon
+    less 0.001 (the sky below the horizon repeats the horizon's)."""
+
+    sun_size = 0.0
+
+    def __init__(self, sun_direction, turbidity: float, cycles_version=(5, 0)):
+        self.cycles_version = tuple(cycles_version)[:2]
+        s = np.asarray(sun_direction, dtype=np.float64)
+        n = np.linalg.norm(s)
+        self.sun_direction = s / n if n > 0 else np.array([0.0, 0.0, 1.0])     # Blender normalises it
+        s = self.sun_direction
+        self.theta = math.acos(min(max(float(s[2]), -1.0), 1.0))
+        self.phi = math.atan2(float(s[0]), float(s[1]))
+        t, th = float(turbidity), self.theta
+        th2, th3, t2 = th * th, th ** 3, t * t
+        chi = (4.0 / 9.0 - t / 120.0) * (math.pi - 2.0 * th)
+        zenith_Y = ((4.0453 * t - 4.9710) * math.tan(chi) - 0.2155 * t + 2.4192) * 0.06
+        zenith_x = ((0.00166 * th3 - 0.00375 * th2 + 0.00209 * th) * t2
+                    + (-0.02903 * th3 + 0.06377 * th2 - 0.03202 * th + 0.00394) * t
+                    + (0.11693 * th3 - 0.21196 * th2 + 0.06052 * th + 0.25886))
+        zenith_y = ((0.00275 * th3 - 0.00610 * th2 + 0.00317 * th) * t2
+                    + (-0.04214 * th3 + 0.08970 * th2 - 0.04153 * th + 0.00516) * t
+                    + (0.15346 * th3 - 0.26756 * th2 + 0.06670 * th + 0.26688))
+        self.perez_Y = [0.1787 * t - 1.4630, -0.3554 * t + 0.4275, -0.0227 * t + 5.3251,
+                        0.1206 * t - 2.5771, -0.0670 * t + 0.3703]
+        self.perez_x = [-0.0193 * t - 0.2592, -0.0665 * t + 0.0008, -0.0004 * t + 0.2125,
+                        -0.0641 * t - 0.8989, -0.0033 * t + 0.0452]
+        self.perez_y = [-0.0167 * t - 0.2608, -0.0950 * t + 0.0092, -0.0079 * t + 0.2102,
+                        -0.0441 * t - 1.6537, -0.0109 * t + 0.0529]
+        self.zenith = [z / float(_perez(p, 0.0, th)) for z, p in
+                       ((zenith_Y, self.perez_Y), (zenith_x, self.perez_x), (zenith_y, self.perez_y))]
+
+    def radiance(self, d, sun: bool = True):
+        """(N, 3) linear RGB along unit world directions d (N, 3)."""
+        d = np.asarray(d, dtype=np.float64)
+        theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+        phi = np.arctan2(d[:, 0], d[:, 1])
+        cos_gamma = (np.sin(self.theta) * np.sin(theta) * np.cos(phi - self.phi)
+                     + np.cos(self.theta) * np.cos(theta))
+        gamma = np.arccos(np.clip(cos_gamma, -1.0, 1.0))
+        theta = np.minimum(theta, 0.5 * np.pi - 0.001)
+        Y = self.zenith[0] * _perez(self.perez_Y, theta, gamma)
+        x = self.zenith[1] * _perez(self.perez_x, theta, gamma)
+        y = self.zenith[2] * _perez(self.perez_y, theta, gamma)
+        safe = np.where(y != 0.0, y, 1.0)
+        xyz = np.stack([np.where(y != 0.0, x / safe * Y, 0.0), Y,
+                        np.where(y != 0.0, (1.0 - x - y) / safe * Y, 0.0)])
+        return np.maximum(xyz_to_rgb(xyz, self.cycles_version).T, 0.0)
+
+    def bake(self, width: int = 2048, height: int = 1024):
+        return SkyTexture.bake(self, width, height)
+
+    def sun_irradiance(self, n: int = 64):
+        return np.zeros(3)

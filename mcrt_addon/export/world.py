@@ -167,12 +167,16 @@ class WorldReader:
         (engine/lights/sky.py), its sun disc appended to the export's suns; None (a warning) for
         the sky types not ported (the Background's unlinked colour is used)."""
         kind = getattr(node, "sky_type", "")
-        if kind not in ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "NISHITA"):
+        if kind not in ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "NISHITA", "PREETHAM"):
             self.warn(node, f"(Sky Texture, type {kind}) is not supported (only Blender 5.0's Single and "
-                            "Multiple Scattering and 3.4's Nishita); the Background's unlinked colour is used")
+                            "Multiple Scattering, 3.4's Nishita and Preetham); the Background's unlinked colour is used")
             return None
         from .. import bridge
+        import bpy
         sky = bridge.module("lights.sky")
+        if kind == "PREETHAM":
+            texture = sky.PreethamSky(tuple(node.sun_direction), float(node.turbidity), tuple(bpy.app.version[:2]))
+            return self.baked(node, texture, strength)
         params = sky.SkyParameters(
             sky_type=kind, sun_elevation=float(node.sun_elevation), sun_rotation=float(node.sun_rotation),
             sun_disc=bool(node.sun_disc), sun_size=float(node.sun_size),
@@ -180,8 +184,10 @@ class WorldReader:
             air_density=float(node.air_density),
             aerosol_density=float(getattr(node, "aerosol_density", getattr(node, "dust_density", 1.0))),
             ozone_density=float(node.ozone_density))
-        import bpy
-        texture = sky.SkyTexture(params, tuple(bpy.app.version[:2]))
+        return self.baked(node, sky.SkyTexture(params, tuple(bpy.app.version[:2])), strength)
+
+    def baked(self, node, texture, strength):
+        """The Environment fields of a sky model baked (engine/lights/sky.py), its sun disc appended to the suns."""
         self.images.textures.append(self.images.ImageTexture(
             name=f"{self.world.name}: {node.name}", pixels=texture.bake(), colorspace="Linear", is_float=True))
         matrix = self.coordinates(node)

@@ -54,10 +54,14 @@ SKY = dict(sun_elevation=math.radians(20.0), sun_rotation=math.radians(50.0), al
            air_density=1.0, aerosol_density=1.3, ozone_density=0.8, sun_intensity=1.0)
 
 
-@pytest.fixture(scope="module", params=["SINGLE_SCATTERING", "MULTIPLE_SCATTERING"])
+PREETHAM = dict(sun_direction=(0.4, 0.6, 0.5), turbidity=3.0)
+
+
+@pytest.fixture(scope="module", params=["SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM"])
 def cycles_sky(tmp_path_factory, addon, request):
     tmp = tmp_path_factory.mktemp("sky")
     kind = request.param
+    settings = PREETHAM if kind == "PREETHAM" else SKY
 
     def directions(tree, bg):
         tree.links.new(tree.nodes.new("ShaderNodeTexCoord").outputs["Generated"], bg.inputs["Color"])
@@ -65,7 +69,7 @@ def cycles_sky(tmp_path_factory, addon, request):
     def sky(tree, bg):
         node = tree.nodes.new("ShaderNodeTexSky")
         node.sky_type = kind
-        for key, value in SKY.items():
+        for key, value in settings.items():
             setattr(node, key, value)
         tree.links.new(node.outputs["Color"], bg.inputs["Color"])
 
@@ -74,7 +78,11 @@ def cycles_sky(tmp_path_factory, addon, request):
 
 
 def _worst(d, cycles, kind, **change):
-    from engine.lights.sky import SkyParameters, SkyTexture
+    from engine.lights.sky import PreethamSky, SkyParameters, SkyTexture
+    if kind == "PREETHAM":
+        sky = PreethamSky(**{**PREETHAM, **change})
+        rel = np.abs(sky.radiance(d) - cycles) / np.maximum(cycles, 1e-3)
+        return float(rel[np.abs(np.degrees(np.arcsin(d[:, 2]))) > 2.0].max())
     sky = SkyTexture(SkyParameters(sky_type=kind, **{**SKY, **change}), (3, 4) if kind == "NISHITA" else (5, 0))
     ours = sky.radiance(d)
     elevation = np.degrees(np.arcsin(d[:, 2]))
@@ -92,6 +100,8 @@ def test_sky_agrees_with_cycles_per_pixel(cycles_sky):
 @pytest.mark.parametrize("change", [dict(air_density=1.1), dict(altitude=2000.0),
                                     dict(sun_elevation=math.radians(18.0))])
 def test_per_pixel_comparison_catches_a_changed_sky(cycles_sky, change):
+    if cycles_sky[2] == "PREETHAM":
+        change = dict(turbidity=3.3) if "air_density" in change else dict(sun_direction=(0.4, 0.6, 0.45))
     worst = _worst(*cycles_sky, **change)
     print(f"{cycles_sky[2]} sky with {change}: worst relative difference {worst:.2e}")
     assert worst > 10 * TOLERANCE
