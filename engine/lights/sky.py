@@ -1,7 +1,8 @@
-"""Blender 5.0's Sky Texture, types Single Scattering (the Nishita model; 3.4's NISHITA computes its
-table differently and is not ported) and Multiple Scattering (5.0's default), as Cycles renders it, in
-NumPy: the sky's precomputed table, its lookup per direction, the sun disc, and the bake into an
-equirectangular image for the image world (engine/lights/environment.py).
+"""Blender's Sky Texture as Cycles renders it, in NumPy: 5.0's Single Scattering (the Nishita model)
+and Multiple Scattering (5.0's default), 3.4's Nishita (its own table layout and kernel, below) and
+Preetham (`PreethamSky`, closed form); Hosek / Wilkie is not ported.  For each: the sky's precomputed
+table, its lookup per direction, the sun disc, and the bake into an equirectangular image for the
+image world (engine/lights/environment.py); docs/world.md "Sky Texture".
 
 Cycles does it in three steps, ported here in float64 with the same constants and quadratures
 (Single Scattering described; Multiple Scattering's table below `MultipleScattering`):
