@@ -915,6 +915,33 @@ def environment_world(scene, image, strength=1.0, rotation_z=0.0):
     return env
 
 
+def sky_world(scene, strength=0.03, elevation=25.0, rotation=40.0, kind="MULTIPLE_SCATTERING"):
+    """A Sky Texture world (Blender 5.0's `kind`, 3.4's Nishita; sun disc on) -> Background (strength)."""
+    black_world(scene)
+    tree = scene.world.node_tree
+    bg = next(n for n in tree.nodes if n.type == "BACKGROUND")
+    bg.inputs["Strength"].default_value = strength
+    sky = tree.nodes.new("ShaderNodeTexSky")
+    sky.sky_type = kind if bpy.app.version >= (5, 0, 0) else "NISHITA"
+    sky.sun_elevation, sky.sun_rotation = math.radians(elevation), math.radians(rotation)
+    tree.links.new(sky.outputs["Color"], bg.inputs["Color"])
+    return sky
+
+
+def make_sky(scene, res, kind="MULTIPLE_SCATTERING"):
+    """A sky-lit object: a Principled ball and a box on a floor under a Sky Texture (5.0's default
+    Multiple Scattering, or `kind`; sun 25 degrees up, turned 40 degrees) of strength 0.03; no lamp."""
+    white = diffuse("White", (0.7, 0.7, 0.7))
+    plane(scene, "Floor", [(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)], white)
+    mesh_object(scene, "Ball", lambda bm: uv_sphere(bm, 0.45), principled("Ball", (0.8, 0.45, 0.2), roughness=0.4),
+                location=(-0.35, 0.2, 0.45), smooth=True)
+    mesh_object(scene, "Box", lambda bm: cube(bm, 1.0), white, location=(0.6, 0.5, 0.15),
+                rotation=(0, 0, math.radians(20)), scale=(0.3, 0.3, 0.3))
+    camera(scene, lens=35.0, location=(0.0, -3.6, 1.4), target=(0.0, 0.3, 0.5))
+    sky_world(scene, kind=kind)
+    settings(scene, res)
+
+
 def sky_image():
     """The sample sky of scripts/make_sample_hdr.py as a float image packed into the .blend."""
     from scripts.make_sample_hdr import HEIGHT, WIDTH, sky_texel
@@ -1040,6 +1067,8 @@ def node_lamp_material():
 
 SCENES = {
     "cornell": lambda s, r: make_cornell(s, r),
+    "sky": make_sky,
+    "sky_single": lambda s, r: make_sky(s, r, "SINGLE_SCATTERING"),
     "suzanne_5k": lambda s, r: make_suzanne(s, r, 1),
     "suzanne_100k": lambda s, r: make_suzanne(s, r, 3),
     "mirror_glass": make_mirror_glass,

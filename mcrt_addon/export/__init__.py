@@ -338,7 +338,8 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
     for m in materials:                     # the IndexMA pass: Material > Settings > Pass Index
         source = bpy.data.materials.get(m.name)
         m.pass_index = int(source.pass_index) if source is not None else 0
-    background, environment = export_world(scene.world, warnings, images, getattr(sm, "Environment", None))
+    background, environment = export_world(scene.world, warnings, images, getattr(sm, "Environment", None),
+                                          suns, getattr(sm, "SunLight", None))
     result = sm.Scene(camera=cam, materials=materials, meshes=meshes, spheres=spheres, quads=[],
                       background=background, environment=environment, resolution=out_res, name=name or scene.name,
                       lights=lights, points=points, suns=suns, textures=images.textures, cycles_version=version[:2],

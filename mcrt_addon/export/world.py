@@ -17,15 +17,18 @@ value through a Group Input is the group node's input value.
 """
 import math
 
+import numpy as np
+
 from .util import linked_from, socket, uses_nodes
 
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
 
-def export_world(world, warnings, images=None, Environment=None):
+def export_world(world, warnings, images=None, Environment=None, suns=None, SunLight=None):
     """(background colour, Environment or None).  images: the export's ImageTable
     (mcrt_addon/export/images.py) and Environment the scene model's class; without them only the
-    constant colour is exported."""
+    constant colour is exported.  suns: the export's list of SunLight (the scene model's class)
+    that a Sky Texture's sun disc is appended to."""
     if world is None:
         return (0.0, 0.0, 0.0), None
     tree = world.node_tree if uses_nodes(world) else None
@@ -34,6 +37,7 @@ def export_world(world, warnings, images=None, Environment=None):
         return tuple(max(float(c), 0.0) for c in world.color[:3]), None
     output = tree.get_output_node("CYCLES")
     reader = WorldReader(world, warnings, images, Environment)
+    reader.suns, reader.SunLight = suns, SunLight
     node = reader.source(output.inputs.get("Surface"), output) if output is not None else None
     if node is None:
         return (0.0, 0.0, 0.0), None
@@ -53,6 +57,7 @@ class WorldReader:
         self.world, self.warnings, self.images, self.Environment = world, warnings, images, Environment
         self.graph = _groups(self)           # node_graph.GraphCompiler for resolve(), None without the tracer
         self.paths = {}                      # a node found through groups -> the group nodes around it
+        self.suns, self.SunLight = None, None  # where a Sky Texture's sun disc goes (export_world)
 
     def warn(self, node, text):
         self.warnings.append(f"World '{self.world.name}': node '{node.name}' {text}")
@@ -140,6 +145,9 @@ class WorldReader:
         if not color_sock.is_linked or hasattr(self.feed(color_sock, node), "value"):
             return colour, None
         source = self.source(color_sock, node)
+        if source is not None and source.bl_idname == "ShaderNodeTexSky" and self.images is not None:
+            image = self.sky(source, strength)
+            return colour, image
         if source is None or source.bl_idname != "ShaderNodeTexEnvironment" or self.images is None:
             name = "" if source is None else f" from '{source.name}' ({source.bl_idname})"
             self.warn(node, f"has its Color linked{name}: only an Environment Texture is supported; "
@@ -153,6 +161,46 @@ class WorldReader:
             return colour, None
         image["strength"] = strength
         return colour, image
+
+    def sky(self, node, strength):
+        """The Environment fields (with strength) of a Sky Texture baked into an equirectangular image
+        (engine/lights/sky.py), its sun disc appended to the export's suns; None (a warning) for
+        the sky types not ported (the Background's unlinked colour is used)."""
+        kind = getattr(node, "sky_type", "")
+        if kind not in ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "NISHITA", "PREETHAM"):
+            self.warn(node, f"(Sky Texture, type {kind}) is not supported (only Blender 5.0's Single and "
+                            "Multiple Scattering, 3.4's Nishita and Preetham); the Background's unlinked colour is used")
+            return None
+        from .. import bridge
+        import bpy
+        sky = bridge.module("lights.sky")
+        if kind == "PREETHAM":
+            texture = sky.PreethamSky(tuple(node.sun_direction), float(node.turbidity), tuple(bpy.app.version[:2]))
+            return self.baked(node, texture, strength)
+        params = sky.SkyParameters(
+            sky_type=kind, sun_elevation=float(node.sun_elevation), sun_rotation=float(node.sun_rotation),
+            sun_disc=bool(node.sun_disc), sun_size=float(node.sun_size),
+            sun_intensity=float(node.sun_intensity), altitude=float(node.altitude),
+            air_density=float(node.air_density),
+            aerosol_density=float(getattr(node, "aerosol_density", getattr(node, "dust_density", 1.0))),
+            ozone_density=float(node.ozone_density))
+        return self.baked(node, sky.SkyTexture(params, tuple(bpy.app.version[:2])), strength)
+
+    def baked(self, node, texture, strength):
+        """The Environment fields of a sky model baked (engine/lights/sky.py), its sun disc appended to the suns."""
+        self.images.textures.append(self.images.ImageTexture(
+            name=f"{self.world.name}: {node.name}", pixels=texture.bake(), colorspace="Linear", is_float=True))
+        matrix = self.coordinates(node)
+        irradiance = texture.sun_irradiance() * strength
+        if self.suns is not None and self.SunLight is not None and float(irradiance.max()) > 0.0:
+            to_sun = np.linalg.solve(np.asarray(matrix, dtype=np.float64), texture.sun_direction)
+            to_sun /= np.linalg.norm(to_sun)
+            self.suns.append(self.SunLight(name=f"{self.world.name}: {node.name} (sun disc)",
+                                           direction=tuple(float(c) for c in -to_sun),
+                                           irradiance=tuple(float(c) for c in irradiance),
+                                           angle=float(texture.sun_size)))
+        return dict(texture=len(self.images.textures) - 1, projection="equirectangular",
+                    interpolation="Linear", matrix=matrix, strength=strength)
 
     def texture(self, node):
         """The Environment fields of an Environment Texture node (without strength), or None."""

@@ -77,7 +77,8 @@ def test_unsupported_worlds_warn_and_fall_back(empty_scene, ms, sky):
     assert exported is not None and len(warnings) == 1 and "World 'World'" in warnings[0] and env.name in warnings[0]
     bg = next(n for n in tree.nodes if n.type == "BACKGROUND")
     sky_node = tree.nodes.new("ShaderNodeTexSky")
+    sky_node.sky_type = "HOSEK_WILKIE"         # not ported (engine/lights/sky.py)
     tree.links.new(sky_node.outputs["Color"], bg.inputs["Color"])
     colour, exported, warnings, _ = export(world)
-    assert exported is None and colour == pytest.approx((0.0, 0.0, 0.0)) and bg.name in warnings[0]
-    assert "ShaderNodeTexSky" in warnings[0]
+    assert exported is None and colour == pytest.approx((0.0, 0.0, 0.0)) and sky_node.name in warnings[0]
+    assert "World 'World'" in warnings[0] and "HOSEK_WILKIE" in warnings[0]
