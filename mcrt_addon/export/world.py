@@ -22,6 +22,10 @@ import numpy as np
 from .util import linked_from, socket, uses_nodes
 
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+# Baked Sky Textures by model and parameters: baking takes 1-7 s of CPU (docs/world.md "Sky Texture"),
+# and the viewport exports the world again after every edit; the few last skies are kept.
+SKY_BAKES_KEPT = 4
+_SKY_BAKES = {}
 
 
 def export_world(world, warnings, images=None, Environment=None, suns=None, SunLight=None):
@@ -174,9 +178,10 @@ class WorldReader:
         from .. import bridge
         import bpy
         sky = bridge.module("lights.sky")
+        version = tuple(bpy.app.version[:2])
         if kind == "PREETHAM":
-            texture = sky.PreethamSky(tuple(node.sun_direction), float(node.turbidity), tuple(bpy.app.version[:2]))
-            return self.baked(node, texture, strength)
+            key = (kind, tuple(node.sun_direction), float(node.turbidity), version)
+            return self.baked(node, key, lambda: sky.PreethamSky(key[1], key[2], version), strength)
         params = sky.SkyParameters(
             sky_type=kind, sun_elevation=float(node.sun_elevation), sun_rotation=float(node.sun_rotation),
             sun_disc=bool(node.sun_disc), sun_size=float(node.sun_size),
@@ -184,21 +189,29 @@ class WorldReader:
             air_density=float(node.air_density),
             aerosol_density=float(getattr(node, "aerosol_density", getattr(node, "dust_density", 1.0))),
             ozone_density=float(node.ozone_density))
-        return self.baked(node, sky.SkyTexture(params, tuple(bpy.app.version[:2])), strength)
+        return self.baked(node, (kind, repr(params), version), lambda: sky.SkyTexture(params, version), strength)
 
-    def baked(self, node, texture, strength):
-        """The Environment fields of a sky model baked (engine/lights/sky.py), its sun disc appended to the suns."""
+    def baked(self, node, key, make_texture, strength):
+        """The Environment fields of a sky model baked (engine/lights/sky.py), its sun disc appended to the
+        suns; `key` names the model and its parameters: a sky is baked once per key (_SKY_BAKES)."""
+        if key not in _SKY_BAKES:
+            texture = make_texture()
+            if len(_SKY_BAKES) >= SKY_BAKES_KEPT:
+                _SKY_BAKES.pop(next(iter(_SKY_BAKES)))
+            _SKY_BAKES[key] = (texture.bake(), texture.sun_irradiance(), np.asarray(texture.sun_direction, dtype=np.float64),
+                               float(texture.sun_size))
+        pixels, sun_irradiance, sun_direction, sun_size = _SKY_BAKES[key]
         self.images.textures.append(self.images.ImageTexture(
-            name=f"{self.world.name}: {node.name}", pixels=texture.bake(), colorspace="Linear", is_float=True))
+            name=f"{self.world.name}: {node.name}", pixels=pixels.copy(), colorspace="Linear", is_float=True))
         matrix = self.coordinates(node)
-        irradiance = texture.sun_irradiance() * strength
+        irradiance = sun_irradiance * strength
         if self.suns is not None and self.SunLight is not None and float(irradiance.max()) > 0.0:
-            to_sun = np.linalg.solve(np.asarray(matrix, dtype=np.float64), texture.sun_direction)
+            to_sun = np.linalg.solve(np.asarray(matrix, dtype=np.float64), sun_direction)
             to_sun /= np.linalg.norm(to_sun)
             self.suns.append(self.SunLight(name=f"{self.world.name}: {node.name} (sun disc)",
                                            direction=tuple(float(c) for c in -to_sun),
                                            irradiance=tuple(float(c) for c in irradiance),
-                                           angle=float(texture.sun_size)))
+                                           angle=sun_size))
         return dict(texture=len(self.images.textures) - 1, projection="equirectangular",
                     interpolation="Linear", matrix=matrix, strength=strength)
 

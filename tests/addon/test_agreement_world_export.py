@@ -5,6 +5,7 @@ two strengths of one image, and the warnings (naming world and node) for what it
 each falling back to the constant colour."""
 import math
 
+import numpy as np
 import bpy
 import pytest
 
@@ -82,3 +83,33 @@ def test_unsupported_worlds_warn_and_fall_back(empty_scene, ms, sky):
     colour, exported, warnings, _ = export(world)
     assert exported is None and colour == pytest.approx((0.0, 0.0, 0.0)) and sky_node.name in warnings[0]
     assert "World 'World'" in warnings[0] and "HOSEK_WILKIE" in warnings[0]
+
+
+def test_a_sky_is_baked_once_per_parameter_set(empty_scene, monkeypatch):
+    """The viewport exports the world after every edit: the same Sky Texture is not baked again,
+    another turbidity is (mcrt_addon/export/world.py _SKY_BAKES)."""
+    import mcrt_addon.export.world as world_export
+    sky = bridge.module("lights.sky")
+    bakes = []
+
+    class Counted(sky.PreethamSky):
+        def bake(self, width=2048, height=1024):
+            bakes.append(self.turbidity if hasattr(self, "turbidity") else None)
+            return super().bake(16, 8)
+
+    monkeypatch.setattr(sky, "PreethamSky", Counted)
+    monkeypatch.setattr(world_export, "_SKY_BAKES", {})
+    world = bpy.data.worlds.new("sky world")
+    empty_scene.world = world
+    world.use_nodes = True
+    tree = world.node_tree
+    node = tree.nodes.new("ShaderNodeTexSky")
+    node.sky_type = "PREETHAM"
+    bg = next(n for n in tree.nodes if n.type == "BACKGROUND")
+    tree.links.new(node.outputs["Color"], bg.inputs["Color"])
+    first, second = export(world), export(world)
+    assert len(bakes) == 1 and first[1] is not None and second[1] is not None
+    assert np.array_equal(first[3].textures[first[1].texture].pixels, second[3].textures[second[1].texture].pixels)
+    node.turbidity = 3.0
+    export(world)
+    assert len(bakes) == 2                                     # control: another sky is baked
