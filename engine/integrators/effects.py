@@ -267,13 +267,17 @@ def _plan_photons(settings, set_effect, users, receivers, emitters) -> None:
     toggled = not (settings.caustics_reflective and settings.caustics_refractive)
     import importlib.util
     scipy = importlib.util.find_spec("scipy") is not None          # the gather's kD-tree (photon_map.py)
-    on = method != "path" and bool(specular) and bool(receivers) and bool(emitters) and not toggled and scipy
+    report = method == "auto" and settings.estimator == "report"     # the report's estimator, kept as it is
+    on = (method != "path" and not report and bool(specular) and bool(receivers) and bool(emitters) and not toggled
+          and scipy)
     set_effect("photon_caustics", on,
                f"caustics_method {method}: {settings.photons_per_pass} photons per pass aimed at the specular "
                f"{_names(specular)}, gathered on the non-specular {_names(receivers)} (radius "
                f"{'auto' if settings.photon_radius <= 0 else format(settings.photon_radius, 'g')}, alpha "
                f"{settings.photon_alpha:.3g}); the path tracer leaves L S+ D paths to them" if on else
                "caustics_method path: caustics by path tracing alone" if method == "path" else
+               "caustics_method auto, report estimator: caustics by path tracing, as the report computes them"
+               if report else
                f"caustics_method {method}, but scipy (its kD-tree) is not installed: caustics by path tracing"
                if not scipy else
                f"caustics_method {method}, but Cycles' caustics options leave caustics out" if toggled else
