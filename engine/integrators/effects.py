@@ -268,8 +268,11 @@ def _plan_photons(settings, set_effect, users, receivers, emitters) -> None:
     import importlib.util
     scipy = importlib.util.find_spec("scipy") is not None          # the gather's kD-tree (photon_map.py)
     report = method == "auto" and settings.estimator == "report"     # the report's estimator, kept as it is
-    on = (method != "path" and not report and bool(specular) and bool(receivers) and bool(emitters) and not toggled
-          and scipy)
+    # Cycles' clamp cuts the caustic paths' rare large samples, which a photon map would keep: auto
+    # leaves clamped renders to the path tracer, whose clamp is Cycles' (docs/photons.md).
+    clamped = method == "auto" and (settings.clamp_direct > 0 or settings.clamp_indirect > 0)
+    on = (method != "path" and not report and not clamped and bool(specular) and bool(receivers) and bool(emitters)
+          and not toggled and scipy)
     set_effect("photon_caustics", on,
                f"caustics_method {method}: {settings.photons_per_pass} photons per pass aimed at the specular "
                f"{_names(specular)}, gathered on the non-specular {_names(receivers)} (radius "
@@ -278,6 +281,8 @@ def _plan_photons(settings, set_effect, users, receivers, emitters) -> None:
                "caustics_method path: caustics by path tracing alone" if method == "path" else
                "caustics_method auto, report estimator: caustics by path tracing, as the report computes them"
                if report else
+               "caustics_method auto, clamping on: caustics by path tracing, clamped as Cycles clamps them"
+               if clamped else
                f"caustics_method {method}, but scipy (its kD-tree) is not installed: caustics by path tracing"
                if not scipy else
                f"caustics_method {method}, but Cycles' caustics options leave caustics out" if toggled else

@@ -153,11 +153,14 @@ def test_the_photon_pass_runs_where_asked_and_useful():
     assert not toggled.photon_caustics and "leave caustics out" in toggled.reason["photon_caustics"]
 
 
-def test_auto_is_the_default_and_the_report_estimator_keeps_path_tracing():
+def test_auto_is_the_default_and_the_report_estimator_and_clamping_keep_path_tracing():
     assert RenderSettings().caustics_method == "auto"
     assert plan_effects(cornell_scene((8, 8)), RenderSettings()).photon_caustics
     report = plan_effects(cornell_scene((8, 8)), RenderSettings(estimator="report"))
     assert not report.photon_caustics and "report estimator" in report.reason["photon_caustics"]
+    clamped = plan_effects(cornell_scene((8, 8)), RenderSettings(clamp_indirect=10.0))
+    assert not clamped.photon_caustics and "clamping on" in clamped.reason["photon_caustics"]
+    assert plan_effects(cornell_scene((8, 8)), RenderSettings(clamp_indirect=10.0, caustics_method="photons")).photon_caustics
 
 
 def test_a_photons_chain_counts_its_bounces_but_the_first():
