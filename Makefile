@@ -18,7 +18,7 @@ $(STAMP): requirements.txt
 # The sample Cornell .blend rendered by Blender (the bpy module) with the TNCG15 MC engine.
 render: $(STAMP)
 	$(PY) -m mcrt_addon render sample_blends/cornell.blend -o renders/cornell.exr --png renders/cornell.png \
-	    --samples 64 --resolution 256 256
+	    --samples 64 --resolution 256 256 --caustics-method auto
 
 test: $(STAMP)
 	$(PY) -m pytest -q -m "not slow" tests

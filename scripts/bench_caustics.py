@@ -1,7 +1,10 @@
-"""Caustics by the photon map against path tracing (`mis`) at equal time, in one run.
+"""Caustics by the photon map against path tracing (`mis`) at equal time, and both against Cycles, in one run.
 
   python scripts/bench_caustics.py [--resolution N] [--seconds T] [--reference-spp S] [--photons P] [--radius R]
+         [--parts equal-time cycles] [--cycles-samples S] [--cycles-reference-samples S] [--threads N]
   make bench-caustics
+
+Part "equal-time":
 
 The caustic room of engine/scene/builtin.py (a glass ball on a diffuse floor under a small lamp)
 at N x N: a converged reference by path tracing alone (S samples per pixel, cached in
@@ -12,6 +15,18 @@ where the reference with Cycles' refractive caustics on exceeds the one with the
 less the reference's own noise (estimated from two independent references),
 and the ratios path / photons (targets: >= 10 inside the caustic, >= 3 over the image; the machine's
 load drifts between runs, only the ratios of one run mean anything).
+
+Part "cycles": efficiency 1 / (MSE t) against Cycles (mcrt_addon/bench_estimators.py, the machinery
+of `make bench-materials`), on the sample Cornell box with its glass and mirror balls and on the
+caustic room (sample_blends/make_samples.py `cornell`, `caustic`) at N x N, max depth 12: a Cycles
+reference with the fair settings of mcrt_addon/reference.py (cached in renders/reference/), Cycles
+at --cycles-samples with --threads threads, then TNCG15 MC in-process (threads, as in Blender) at
+the same samples with `caustics_method path` and with the default `auto` (the photon map where the
+effect plan turns it on), one run each after a short warm-up.  Printed per row: wall seconds,
+process CPU seconds (all threads), MSE, efficiency and its ratio to Cycles'; the load average
+before and after.  The MSE includes the reference's own noise (about MSE_cycles x samples /
+reference samples, printed; the last column takes it out of every MSE) and the model difference of
+implicit against tessellated balls.
 """
 from __future__ import annotations
 
@@ -49,14 +64,11 @@ def reference(scene, spp, tag, seed=99, **settings):
     return image
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--resolution", type=int, default=96)
-    ap.add_argument("--seconds", type=float, default=20.0)
-    ap.add_argument("--reference-spp", type=int, default=16384)
-    ap.add_argument("--photons", type=int, default=RenderSettings().photons_per_pass)
-    ap.add_argument("--radius", type=float, default=0.0, help="the photon map's first radius (0: auto)")
-    args = ap.parse_args(argv)
+CYCLES_SCENES = ("cornell", "caustic")       # sample_blends/make_samples.py: glass and mirror balls; the caustic room
+CYCLES_DEPTH = 12
+
+
+def equal_time(args):
     scene = caustic_scene((args.resolution, args.resolution))
     # Two independent references: their mean is the reference, their difference its noise.
     a, b = (reference(scene, args.reference_spp, "full", seed, caustics_method="path") for seed in (99, 98))
@@ -85,6 +97,89 @@ def main(argv=None):
     whole, caustic = (rows["path"][i] / rows["photons"][i] for i in range(2))
     print(f"relMSE path / photons: caustic region {caustic:.1f}x (target >= 10), whole image {whole:.1f}x "
           f"(target >= 3)")
+
+
+def render_ours(scene, method, samples, seed, threads, photons, radius):
+    """One TNCG15 MC render in-process: (image, wall seconds, process CPU seconds, stats)."""
+    from mcrt_addon import bridge
+    settings = bridge.settings_class()(samples=samples, max_depth=CYCLES_DEPTH, seed=seed, threads=threads,
+                                       fresnel="exact", caustics_method=method, photons_per_pass=photons,
+                                       photon_radius=radius)
+    c0, t0 = time.process_time(), time.perf_counter()
+    result = bridge.render_function()(scene, settings, log=lambda *a, **k: None)
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return np.asarray(result.image, dtype=np.float64)[..., :3], seconds, cpu, dict(result.stats or {})
+
+
+def against_cycles(args, log=print):
+    """Efficiency 1 / (MSE t) of Cycles, TNCG15 MC path tracing and TNCG15 MC's default (auto)."""
+    import platform
+
+    from mcrt_addon import bench_estimators as be
+    res = (args.resolution, args.resolution)
+    cache = os.path.abspath(os.path.join("renders", "reference"))
+    make_samples = be.load_make_samples()
+    load_before = os.getloadavg()
+    lines = ["| scene | renderer | spp | wall [s] | CPU [s] | MSE | eff. 1/(MSE t) | eff. / Cycles | eff. CPU / Cycles "
+             "| eff. / Cycles, ref. noise out |", "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for name in args.scenes:
+        label, blend, identity = be.scene_blend(name, os.path.join(cache, "blends"), make_samples)
+        reference, _ = be.reference_image(label, blend, identity, cache_dir=cache, resolution=res,
+                                          samples=args.cycles_reference_samples, max_depth=CYCLES_DEPTH, log=log)
+        scene = be.open_blend(blend, res)
+        be.render_cycles(scene, samples=1, max_depth=CYCLES_DEPTH, seed=0, threads=args.threads)     # warm-up
+        image, seconds, cpu = be.render_cycles(scene, samples=args.cycles_samples, max_depth=CYCLES_DEPTH, seed=1,
+                                               threads=args.threads)
+        rows = [("cycles", image, seconds, cpu, {})]
+        exported = be.export_tracer_scene(scene, res).scene
+        for method in ("path", "auto"):
+            render_ours(exported, method, 4, 0, args.threads, args.photons, args.radius)                   # warm-up
+            rows.append((f"tncg15 {method}",) + render_ours(exported, method, args.cycles_samples, 1, args.threads,
+                                                            args.photons, args.radius))
+        mse = {key: be.error_metrics(img, reference)["mse"] for key, img, *_ in rows}
+        eff = {key: 1.0 / (mse[key] * t) for key, _, t, _, _ in rows}
+        eff_cpu = {key: 1.0 / (mse[key] * c) for key, _, _, c, _ in rows}
+        floor = mse["cycles"] * args.cycles_samples / args.cycles_reference_samples
+        eff_net = {key: 1.0 / (max(mse[key] - floor, 1e-30) * t) for key, _, t, _, _ in rows}
+        log(f"{label}: {res[0]}x{res[1]}, {args.cycles_samples} spp, depth {CYCLES_DEPTH}, {args.threads} threads; "
+            f"reference Cycles {args.cycles_reference_samples} spp (its own noise: MSE about {floor:.2e})")
+        for key, _, t, c, stats in rows:
+            extra = ""
+            if "photons" in stats:
+                ph = stats["photons"]
+                extra = (f"  photons: stored {ph['photons_stored']}, radius {ph['radius_first']:.3g} -> "
+                         f"{ph['radius_last']:.3g}, trace {ph['trace_seconds']:.1f} s, gather {ph['gather_seconds']:.1f} s")
+            log(f"  {key:14s} wall {t:6.2f} s  CPU {c:6.2f} s  MSE {mse[key]:.3e}  eff {eff[key]:.4g}  "
+                f"eff / Cycles {eff[key] / eff['cycles']:.2f}x (CPU: {eff_cpu[key] / eff_cpu['cycles']:.2f}x; the "
+                f"reference's noise out: {eff_net[key] / eff_net['cycles']:.2f}x){extra}")
+            lines.append(f"| {label} | {key} | {args.cycles_samples} | {t:.2f} | {c:.2f} | {mse[key]:.3e} | "
+                         f"{eff[key]:.4g} | {eff[key] / eff['cycles']:.2f} | {eff_cpu[key] / eff_cpu['cycles']:.2f} | "
+                         f"{eff_net[key] / eff_net['cycles']:.2f} |")
+    load_after = os.getloadavg()
+    log("")
+    log("\n".join(lines))
+    log(f"\n{platform.node()} {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"{time.strftime('%Y-%m-%d %H:%M')}; load average (1, 5, 15 min) before "
+        f"{' '.join(f'{v:.2f}' for v in load_before)}, after {' '.join(f'{v:.2f}' for v in load_after)}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--resolution", type=int, default=96)
+    ap.add_argument("--seconds", type=float, default=20.0)
+    ap.add_argument("--reference-spp", type=int, default=16384)
+    ap.add_argument("--photons", type=int, default=RenderSettings().photons_per_pass)
+    ap.add_argument("--radius", type=float, default=0.0, help="the photon map's first radius (0: auto)")
+    ap.add_argument("--parts", nargs="+", choices=("equal-time", "cycles"), default=("equal-time", "cycles"))
+    ap.add_argument("--scenes", nargs="+", default=CYCLES_SCENES, help="sample scenes of the Cycles part")
+    ap.add_argument("--cycles-samples", type=int, default=256)
+    ap.add_argument("--cycles-reference-samples", type=int, default=8192)
+    ap.add_argument("--threads", type=int, default=2, help="threads of both renderers in the Cycles part")
+    args = ap.parse_args(argv)
+    if "equal-time" in args.parts:
+        equal_time(args)
+    if "cycles" in args.parts:
+        against_cycles(args)
 
 
 if __name__ == "__main__":

@@ -212,7 +212,8 @@ SETTINGS = (
             stats=STATS_AS_SET),
     Setting("caustics_method", CHOICE, "path", "caustics (light through mirrors and glass onto diffuse "
             "surfaces): path tracing alone, a progressive caustic photon map beside it (docs/photons.md), or auto "
-            "(photons where there are specular objects and non-specular receivers)", flag="--caustics-method",
+            "(photons where there are specular objects and non-specular receivers, path tracing under the report "
+            "estimator)", flag="--caustics-method",
             noun="caustics method", label="Method", description="How caustics are rendered",
             panel="Light Paths > Caustics", stats=STATS_AS_SET,
             choices=(Choice("auto", "Auto", "A photon map where the scene has specular objects and receivers"),

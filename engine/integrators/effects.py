@@ -266,13 +266,22 @@ def _plan_photons(settings, set_effect, users, receivers, emitters) -> None:
     specular = users(lambda m: scatter_kind(m) in delta_kinds)
     method = settings.caustics_method
     toggled = not (settings.caustics_reflective and settings.caustics_refractive)
-    on = method != "path" and bool(specular) and bool(receivers) and bool(emitters) and not toggled
+    report = method == "auto" and settings.estimator == "report"     # the report's estimator, kept as it is
+    # Cycles' clamp cuts the caustic paths' rare large samples, which a photon map would keep: auto
+    # leaves clamped renders to the path tracer, whose clamp is Cycles' (docs/photons.md).
+    clamped = method == "auto" and (settings.clamp_direct > 0 or settings.clamp_indirect > 0)
+    on = (method != "path" and not report and not clamped and bool(specular) and bool(receivers) and bool(emitters)
+          and not toggled)
     set_effect("photon_caustics", on,
                f"caustics_method {method}: {settings.photons_per_pass} photons per pass aimed at the specular "
                f"{_names(specular)}, gathered on the non-specular {_names(receivers)} (radius "
                f"{'auto' if settings.photon_radius <= 0 else format(settings.photon_radius, 'g')}, alpha "
                f"{settings.photon_alpha:.3g}); the path tracer leaves L S+ D paths to them" if on else
                "caustics_method path: caustics by path tracing alone" if method == "path" else
+               "caustics_method auto, report estimator: caustics by path tracing, as the report computes them"
+               if report else
+               "caustics_method auto, clamping on: caustics by path tracing, clamped as Cycles clamps them"
+               if clamped else
                f"caustics_method {method}, but Cycles' caustics options leave caustics out" if toggled else
                f"caustics_method {method}, but no specular surface (mirror, smooth glass, pass-through)"
                if not specular else

@@ -114,6 +114,17 @@ class LightPaths:
         """(N,) the paths whose last bounce took a type past its limit: their next hit only emits."""
         return (counts > self.limits[:, None]).any(axis=0)
 
+    def chain_budget(self, counts: np.ndarray, receiver_flags: int) -> np.ndarray:
+        """(3, N) the glossy, transmission and transparent bounces a caustic photon's specular chain
+        may make, but its first (engine/integrators/photons/), at a receiver whose paths have made
+        `counts` (4, N) bounces: the receiver's own bounce (diffuse where its BSDF has a diffuse lobe,
+        else glossy) and each bounce of the chain before the last must keep every type within its
+        limit; the last may pass it (its next hit, the light, only emits)."""
+        made = counts.astype(np.int64)
+        made[DIFFUSE_BOUNCE if receiver_flags & BSDFFlags.DIFFUSE else GLOSSY_BOUNCE] += 1
+        budget = self.limits[:, None] - made
+        return np.where((budget < 0).any(axis=0), -1, budget[1:])
+
     # -- clamping ---------------------------------------------------------------------------------
     def clamp(self, contribution: np.ndarray, direct: np.ndarray) -> np.ndarray:
         """contribution (3, N) clamped by Clamp Direct where `direct` (N,), else by Clamp Indirect."""

@@ -703,7 +703,9 @@ class PathTracer:
             # The path tracer's paths have up to max_depth + 1 segments; this vertex ends bounce + 1.
             caustic = self.photons.radiance(p.sample[span], self.bsdfs[g], si[span], surf.point[:, span],
                                             facing[:, span], counters, self.settings.max_depth - p.bounce[span],
-                                            p.caustic[span] == AFTER_RECEIVER)
+                                            p.caustic[span] == AFTER_RECEIVER,
+                                            None if p.counts is None else self.light_paths.chain_budget(
+                                                p.counts[:, span], self.bsdfs[g].flags))
             p.radiance[:, span] += p.beta[:, span] * caustic
 
     # -- Cycles' Light Paths options (engine/integrators/light_paths.py) ---------------------------

@@ -193,4 +193,4 @@ class PhotonScheduler:
 def stored_bytes(stored) -> int:
     """The bytes of a batch's stored photons (engine/integrators/photons/tracing.py Stored)."""
     return sum(a.nbytes for a in (stored.position, stored.incoming, stored.flux, stored.normal, stored.segments,
-                                  stored.label))
+                                  stored.label, stored.chain) if a is not None)

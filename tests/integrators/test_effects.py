@@ -22,6 +22,14 @@ class CallCounter:
         self.calls += 1
         return self.fn(*a, **kw)
 
+    @staticmethod
+    def counting(counter, fn):
+        """fn, each call counted in `counter`."""
+        def counted(*a, **kw):
+            counter.calls += 1
+            return fn(*a, **kw)
+        return counted
+
 
 @pytest.fixture
 def spies(monkeypatch):
@@ -31,8 +39,14 @@ def spies(monkeypatch):
     def counted_kernel(backend="numpy"):
         sphere.fn = kernel(backend)
         return sphere
+    loops = engine.geometry.scene_geometry.sphere_loop_kernels     # numba: every sphere in one loop
+
+    def counted_loops(backend="numpy"):
+        found = loops(backend)
+        return None if found is None else tuple(CallCounter.counting(sphere, fn) for fn in found)
     refract = CallCounter(engine.materials.glass.refract_cos)
     monkeypatch.setattr(engine.geometry.scene_geometry, "sphere_kernel", counted_kernel)
+    monkeypatch.setattr(engine.geometry.scene_geometry, "sphere_loop_kernels", counted_loops)
     monkeypatch.setattr(engine.materials.glass, "refract_cos", refract)
     return sphere, refract
 

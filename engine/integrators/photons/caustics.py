@@ -170,12 +170,14 @@ class CausticPhotons:
                     self.cached_bytes += made.nbytes
             return found
 
-    def radiance(self, sample, bsdf, si, points, facing, counters, segments=None, secondary=None) -> np.ndarray:
+    def radiance(self, sample, bsdf, si, points, facing, counters, segments=None, secondary=None,
+                 budget=None) -> np.ndarray:
         """(3, M) the caustic radiance at the M camera-path vertices (rows `points`, ShadingPoint si
         of `bsdf`, facing geometric normals) of the camera samples `sample` (M,), each from its
         pass's map; segments (M,): the most photon segments each may take (None: any); secondary
         (M,) bool: the vertices after a non-delta bounce, which gather with SECONDARY_SCALE x the
-        radius (None: none)."""
+        radius (None: none); budget (3, M): the bounce limits per type left to the photons' chains
+        (engine/integrators/photons/photon_map.py PhotonMap.radiance; None: none)."""
         out = np.zeros((3, points.shape[1]))
         passes = sample // SAMPLES_PER_PASS
         wide = np.zeros(len(sample), bool) if secondary is None else secondary
@@ -189,7 +191,8 @@ class CausticPhotons:
                 out[:, mine] = photon_map.radiance(bsdf, si.take(mine), points.take(mine, axis=1),
                                                    facing.take(mine, axis=1),
                                                    None if segments is None else segments.take(mine),
-                                                   SECONDARY_SCALE if is_wide else 1.0)
+                                                   SECONDARY_SCALE if is_wide else 1.0,
+                                                   None if budget is None else budget.take(mine, axis=1))
             counters.photons["gather_seconds"] = counters.photons.get("gather_seconds", 0.0) + \
                 time.perf_counter() - start
         return out

@@ -86,6 +86,7 @@ class PhotonMap:
         self.position, self.incoming, self.flux, self.normal = (a[:, keep] for a in (
             stored.position, stored.incoming, stored.flux, stored.normal))
         self.segments = stored.segments[keep]
+        self.chain = stored.chain[:, keep]
         self.count = self.position.shape[1]
         self.radius = float(radius)
         self.tree = cKDTree(self.position.T) if self.count and cKDTree is not None else None
@@ -103,12 +104,14 @@ class PhotonMap:
         found = cKDTree(points.T).sparse_distance_matrix(self.tree, radius, output_type="ndarray")
         return found["i"].astype(np.int64), found["j"].astype(np.int64)
 
-    def radiance(self, bsdf, si, points, facing, segments=None, scale: float = 1.0) -> np.ndarray:
+    def radiance(self, bsdf, si, points, facing, segments=None, scale: float = 1.0, budget=None) -> np.ndarray:
         """(3, M) the caustic radiance towards si.wo at the M points (rows) of the ShadingPoint si
         (engine/materials/protocol.py) whose BSDF is `bsdf`; facing: their geometric normals on the
         viewer's side; segments (M,): the most segments a photon's path may have at each point
         (the camera path's depth limit; None: any); scale: of the radius (vertices seen after a
-        diffuse bounce gather over a wider disk)."""
+        diffuse bounce gather over a wider disk); budget (3, M): the most glossy, transmission and
+        transparent bounces a photon's chain may make but its first (Cycles' bounce limits per type
+        left over by the camera path, engine/integrators/light_paths.py; None: any)."""
         m = points.shape[1]
         out = np.zeros((3, m))
         radius = self.radius * scale
@@ -118,6 +121,8 @@ class PhotonMap:
         same = dot(facing.take(query, axis=1), self.normal.take(photon, axis=1)) > SAME_SIDE_COS
         if segments is not None:
             same &= self.segments.take(photon) <= segments.take(query)
+        if budget is not None:
+            same &= (self.chain.take(photon, axis=1) <= budget.take(query, axis=1)).all(axis=0)
         query, photon = query[same], photon[same]
         if not len(query):
             return out

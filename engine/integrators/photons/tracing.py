@@ -21,6 +21,7 @@ import numpy as np
 from ...core.vec import dot, max3
 from ...materials.protocol import BSDFFlags, ShadingPoint
 from ...materials.table import ABSORB, N_SCATTER_GROUPS, PASS_THROUGH
+from ..light_paths import bounce_type
 
 
 @dataclass
@@ -31,6 +32,8 @@ class Stored:
     normal: np.ndarray      # (3, M) unit geometric normal on the photon's side
     segments: np.ndarray    # (M,) the photon path's segments from the light to it (bounces + 1)
     label: np.ndarray       # (M,) the label its emitted photon had (its pass)
+    chain: np.ndarray = None  # (3, M) its glossy, transmission and transparent bounces but the first
+                              # (engine/integrators/light_paths.py's types; the first is the camera path's last)
     traced: int = 0         # photons traced (after emission's culling)
     rays: int = 0           # rays cast
 
@@ -57,7 +60,7 @@ def trace_photons(tracer, origin, direction, flux, counters, rng, max_depth: int
             return None
         parts.append(part)
     arrays = [np.concatenate([getattr(p, name) for p in parts], axis=-1)
-              for name in ("position", "incoming", "flux", "normal", "segments", "label")]
+              for name in ("position", "incoming", "flux", "normal", "segments", "label", "chain")]
     return Stored(*arrays, traced=sum(p.traced for p in parts), rays=sum(p.rays for p in parts))
 
 
@@ -67,8 +70,9 @@ def _trace(tracer, origin, direction, flux, counters, rng, max_depth: int, label
     start = np.maximum(max3(flux), 1e-300)
     bounce = np.zeros(o.shape[1], dtype=np.int32)
     tag = np.zeros(o.shape[1], dtype=np.int64) if label is None else np.asarray(label, dtype=np.int64)
+    chain = np.zeros((3, o.shape[1]), dtype=np.int16)
     out = Stored(*(np.zeros((3, 0)) for _ in range(4)), np.zeros(0, np.int32), np.zeros(0, np.int64),
-                 traced=o.shape[1])
+                 np.zeros((3, 0), np.int16), traced=o.shape[1])
     parts = []
     while o.shape[1]:
         if cancel is not None and cancel.is_set():
@@ -79,8 +83,9 @@ def _trace(tracer, origin, direction, flux, counters, rng, max_depth: int, label
         if cancel is not None and cancel.is_set():          # the query is about half of a bounce
             return None
         idx = hits.index
-        o, d, phi, bounce, start, tag = (o.take(idx, axis=1), d.take(idx, axis=1), phi.take(idx, axis=1),
-                                         bounce.take(idx), start.take(idx), tag.take(idx))
+        o, d, phi, bounce, start, tag, chain = (o.take(idx, axis=1), d.take(idx, axis=1), phi.take(idx, axis=1),
+                                                bounce.take(idx), start.take(idx), tag.take(idx),
+                                                chain.take(idx, axis=1))
         surf = geometry.surface(o, d, hits)
         bounds = [s for s, _ in hits.groups] + [hits.groups[-1][1]]
         alive = bounds[ABSORB]
@@ -95,7 +100,7 @@ def _trace(tracer, origin, direction, flux, counters, rng, max_depth: int, label
         keep = np.flatnonzero(non_delta.take(group) & (bounce >= 1))
         if len(keep):
             parts.append((surf.point.take(keep, axis=1), -d.take(keep, axis=1), phi.take(keep, axis=1),
-                          facing.take(keep, axis=1), bounce.take(keep) + 1, tag.take(keep)))
+                          facing.take(keep, axis=1), bounce.take(keep) + 1, tag.take(keep), chain.take(keep, axis=1)))
         color = mats.color.take(surf.material, axis=1)
         if textures is not None:
             color = textures.color(color, surf.material, hits.kind, hits.prim, hits.u, hits.v)
@@ -129,6 +134,9 @@ def _trace(tracer, origin, direction, flux, counters, rng, max_depth: int, label
         nxt_start = start.take(go)
         nxt_bounce = bounce.take(go) + 1
         nxt_tag = tag.take(go)
+        nxt_chain = chain.take(go, axis=1)
+        later = np.flatnonzero(bounce.take(go) >= 1)            # every bounce but the photon's first
+        nxt_chain[bounce_type(flags.take(go).take(later)) - 1, later] += 1
         if len(through):                    # Area lights: on through them, unchanged
             p = surf.point.take(through, axis=1)
             dt = d.take(through, axis=1)
@@ -138,10 +146,12 @@ def _trace(tracer, origin, direction, flux, counters, rng, max_depth: int, label
             nxt_start = np.concatenate([nxt_start, start.take(through)])
             nxt_bounce = np.concatenate([nxt_bounce, bounce.take(through)])
             nxt_tag = np.concatenate([nxt_tag, tag.take(through)])
-        o, d, phi, start, bounce, tag = nxt_o, nxt_d, nxt_phi, nxt_start, nxt_bounce, nxt_tag
+            nxt_chain = np.concatenate([nxt_chain, chain.take(through, axis=1)], axis=1)
+        o, d, phi, start, bounce, tag, chain = nxt_o, nxt_d, nxt_phi, nxt_start, nxt_bounce, nxt_tag, nxt_chain
     if parts:
         out.position, out.incoming, out.flux, out.normal = (np.concatenate([p[i] for p in parts], axis=1)
                                                             for i in range(4))
         out.segments = np.concatenate([p[4] for p in parts])
         out.label = np.concatenate([p[5] for p in parts])
+        out.chain = np.concatenate([p[6] for p in parts], axis=1)
     return out
