@@ -34,7 +34,7 @@ import traceback
 from ..core.paths import TRACER_DIR, worker_environment
 from .faults import POLL, Dispatch, Worker
 from .protocol import Pool
-from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, start_workers
+from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, send_to_live, start_workers
 
 START_TIMEOUT = 120.0                     # seconds for imports + scene + BVH before a worker is given up
 CLOSE_SECONDS = 2.0                       # EOF, then SIGKILL
@@ -187,16 +187,10 @@ class SubprocessPool(Pool):
 
     def share_photons(self, batch, stored):
         """A photon batch to every live worker, encoded once (engine/rendering/photon_passes.py)."""
-        payload = encode(("share", batch, stored))
-        for w in self.workers:
-            if w.alive:
-                w.send(payload)
+        send_to_live(self.workers, ("share", batch, stored))
 
     def forget_photons(self, batches):
-        payload = encode(("forget", list(batches)))
-        for w in self.workers:
-            if w.alive:
-                w.send(payload)
+        send_to_live(self.workers, ("forget", list(batches)))
 
     def cancel(self):
         if self.dispatch.cancelled:

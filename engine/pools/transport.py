@@ -64,6 +64,14 @@ def encode(obj) -> bytes:
     return HEADER.pack(len(data)) + data
 
 
+def send_to_live(workers, message) -> None:
+    """`message` to every live worker (WorkerProcess) of `workers`, encoded once."""
+    payload = encode(message)
+    for w in workers:
+        if w.alive:
+            w.send(payload)
+
+
 def read_frame(stream) -> bytes | None:
     """One frame's bytes, or None at end of stream."""
     head = stream.read(HEADER.size)

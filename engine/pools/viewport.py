@@ -62,7 +62,7 @@ from ..core.errors import SceneError
 from ..core.paths import TRACER_DIR, worker_environment
 from . import faults
 from .protocol import Pool
-from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, start_workers
+from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, send_to_live, start_workers
 
 START_RESOLUTION = 64           # Cycles' default Start Pixels: the first frame has at most 64² pixels
 IN_FLIGHT = 2                   # units queued per worker, so none waits for the next
@@ -415,16 +415,10 @@ class ViewportPool(Pool):
     def share_photons(self, batch, stored):
         """A photon batch to every live worker, encoded once (a worker started again later traces
         the batches it was not given itself: the same photons)."""
-        payload = encode(("share", batch, stored))
-        for w in self.workers:
-            if w.alive:
-                w.send(payload)
+        send_to_live(self.workers, ("share", batch, stored))
 
     def forget_photons(self, batches):
-        payload = encode(("forget", list(batches)))
-        for w in self.workers:
-            if w.alive:
-                w.send(payload)
+        send_to_live(self.workers, ("forget", list(batches)))
 
     def cancel(self):
         """Units in flight stop within a bounce (answered None); prepare() starts the next render."""
