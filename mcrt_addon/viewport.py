@@ -44,6 +44,25 @@ LOG_LENGTH = 4000               # callbacks kept in ViewportState.update_log / d
 CONTROL = set(filter(None, os.environ.get("TNCG15_VIEWPORT_CONTROL", "").split(",")))   # a test's control only
 CONTROL_WAIT = 10.0             # seconds the "wait" control waits for a picture
 ACTIVE = weakref.WeakSet()      # the ViewportStates of live Rendered viewports (tests, diagnostics)
+# GPU textures let go of on another thread (a state closed or collected there): a GPU object may only
+# be freed where Blender's GL context is, the UI thread, so they wait here until its next callback.
+GPU_ORPHANS = []
+
+
+def on_ui_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+def let_go_of_texture(texture) -> None:
+    """Drop a GPUTexture: now on the UI thread, else at the UI thread's next viewport callback."""
+    if texture is not None and not on_ui_thread():
+        GPU_ORPHANS.append(texture)
+
+
+def free_orphans() -> None:
+    """UI thread: free the GPU textures let go of on other threads."""
+    if GPU_ORPHANS and on_ui_thread():
+        GPU_ORPHANS.clear()
 
 
 # -- the view as a tracer camera -------------------------------------------------------------------
@@ -197,6 +216,7 @@ class ViewportState:
 
     def poll(self):
         """UI thread, every POLL_SECONDS: redraw Rendered viewports when a new frame arrived."""
+        free_orphans()
         if self.closed:
             return None
         version = self.workers.version if self.workers is not None else -1
@@ -210,7 +230,16 @@ class ViewportState:
         self.closed = True
         if self.workers is not None:
             threading.Thread(target=self.workers.close, daemon=True, name="viewport close").start()
-        self.texture = None
+        texture, self.texture = self.texture, None
+        let_go_of_texture(texture)
+
+    def __del__(self):
+        # collected on another thread (a cycle found by a collection that thread's allocations set off):
+        # its texture still waits for the UI thread
+        try:
+            let_go_of_texture(self.__dict__.get("texture"))
+        except TypeError:                    # at interpreter exit this module's names are None
+            pass
 
 
 def logged(log, entry):
@@ -307,6 +336,7 @@ def viewport_worker_count(settings):
 
 
 def view_draw(engine, context, depsgraph):
+    free_orphans()
     st = getattr(engine, "viewport_state", None)
     if st is None:
         return

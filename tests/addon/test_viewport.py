@@ -274,3 +274,27 @@ def test_viewport_settings_sit_under_sampling_as_in_cycles(addon):
     assert bpy.types.RenderEngine.bl_rna.properties["bl_use_preview"] is not None
     from mcrt_addon.render_engine import TNCG15RenderEngine
     assert TNCG15RenderEngine.bl_use_preview
+
+
+def test_a_texture_let_go_of_on_another_thread_is_freed_on_the_ui_thread():
+    """GPU objects may only be freed where Blender's GL context is: a ViewportState closed or
+    collected on a worker's thread hands its texture to the UI thread (viewport.GPU_ORPHANS)."""
+    import threading
+    import weakref as wr
+    from mcrt_addon import viewport as vp
+
+    class Texture:                               # stands in for a gpu.types.GPUTexture
+        pass
+    st = vp.ViewportState()
+    st.texture = Texture()
+    gone = wr.ref(st.texture)
+    worker = threading.Thread(target=st.close)
+    worker.start()
+    worker.join()
+    assert st.texture is None and gone() is not None          # not freed on the worker's thread
+    vp.free_orphans()                                          # the UI thread's next callback
+    assert gone() is None
+    st.texture = Texture()                                     # control: closed on the UI thread
+    gone = wr.ref(st.texture)
+    st.close()
+    assert gone() is None and not vp.GPU_ORPHANS
