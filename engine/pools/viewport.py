@@ -479,6 +479,7 @@ class ViewportRender:
         self.request = None                       # (gen, scene, settings, target, tag, start_resolution, pixel_size)
         self.target = 1
         self.level = -1                           # of the picture shown (0: coarse, 1: the view)
+        self.frame = None                         # the Frame of the picture shown (its plan, stats: diagnostics)
         self.version = 0                          # changes whenever the picture does
         self.error = None
         self.latest = Picture(0, None, 0, None, -1, None)   # the picture shown (snapshot, picture)
@@ -514,7 +515,7 @@ class ViewportRender:
             self.gen += 1
             self.request = (self.gen, scene, settings, target, tag, start_resolution, pixel_size)
             self.target = target
-            self.level, self.error = -1, None
+            self.level, self.error, self.frame = -1, None, None
             self.version += 1
             self.latest = Picture(self.version, None, 0, None, -1, None, tag)
             self.gen_started, self.first_frame_seconds = time.perf_counter(), None
@@ -576,7 +577,7 @@ class ViewportRender:
             noise = relative_error(film) if level == 1 else None
             with self.lock:
                 if gen == self.gen and level >= self.level:
-                    self.level = level
+                    self.level, self.frame = level, frame
                     self.version += 1
                     self.latest = Picture(self.version, rgba, samples, noise, level, None, tag, divider)
                     if self.first_frame_seconds is None:
