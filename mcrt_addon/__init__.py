@@ -21,7 +21,7 @@ if "bpy" in locals():                     # "Reload Scripts": reload sub-modules
         if _name in locals():
             importlib.reload(locals()[_name])
 
-import bpy  # noqa: E402
+import bpy  # noqa: E402,F401  (its name in locals() tells "Reload Scripts" apart, above)
 
 from . import worker_python  # noqa: E402
 

@@ -1,7 +1,7 @@
 """Small analytic test scenes shared by the engine tests."""
 import numpy as np
 
-from engine.scene.model import DIFFUSE, GLASS, MIRROR, Camera, Material, Quad, Scene, Sphere, TriangleMesh
+from engine.scene.model import DIFFUSE, Camera, Material, Quad, Scene, Sphere, TriangleMesh
 
 
 def camera_inside_sphere_scene(albedo=0.8, emission=1.0, resolution=(8, 8)):

@@ -1,5 +1,4 @@
 """The effect plan: kernels a scene does not need never run."""
-import numpy as np
 import pytest
 
 import engine.geometry.scene_geometry

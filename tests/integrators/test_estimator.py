@@ -128,7 +128,7 @@ def test_one_sided_area_light_matches_form_factor_and_is_dark_behind():
 
 
 def test_area_light_is_invisible_to_camera_and_casts_no_shadow():
-    from engine.scene.model import AreaLight, Camera
+    from engine.scene.model import Camera
     scene = _floor_under_area_light(True)
     # Camera above the light looking down through it at the floor.
     scene.camera = Camera.look_at((0, 0, 3.0), (0, 0, 0), up=(0, 1, 0), lens=20000.0)

@@ -12,12 +12,10 @@ from engine.materials.glass import SmoothGlass
 from engine.materials.glossy import MicrofacetReflection
 from engine.materials.lambert import Lambertian
 from engine.materials.mirror import PerfectMirror
-from engine.materials.mix import MixBSDF
 from engine.materials.principled import PrincipledV2
-from engine.materials.principled_v1 import PrincipledV1
 from engine.materials.protocol import BSDFFlags, ShadingPoint, has_non_delta
 from engine.materials.oren_nayar import RoughDiffuse
-from engine.materials.table import KIND_CODE, NON_DELTA_KINDS, PRINCIPLED_V1, ROUGH_DIFFUSE, SCATTERING, MaterialTable
+from engine.materials.table import KIND_CODE, NON_DELTA_KINDS, ROUGH_DIFFUSE, SCATTERING, MaterialTable
 from engine.scene.model import DIFFUSE, GLASS, GLOSSY, MIRROR, PRINCIPLED, Material
 
 N = 4000
