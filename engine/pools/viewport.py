@@ -14,7 +14,8 @@ settings is not prepared again: the workers get the new camera (no BVH rebuild).
                        ("share", batch, stored) | ("forget", batches)   photon batches (engine/rendering/photon_passes.py)
                        ("cancel",)                            the units before it stop within a bounce
                        ("warm",)                              idle workers started ahead (mcrt_addon/warm.py):
-                                                           load numba's kernels from a warm cache now (warm_kernels)
+                                                           import numba, load its kernels from a warm cache
+                                                           now or once it is warm (warm_kernels)
     worker -> parent   ("ready", number, TracerFacts) | ("failed", number, one line)
                        ("result", unit, UnitResult | None)    None: cancelled
                        ("error", unit, traceback text)
@@ -72,6 +73,8 @@ START_TIMEOUT = 120.0           # seconds for imports + scene + BVH before the w
 CLOSE_SECONDS = 1.0             # EOF, then SIGKILL
 MAX_RESTARTS = 4                # dead workers started again, per pool (a worker that keeps dying stays dead)
 NOTICE_SECONDS = 15.0           # the viewport's header shows a worker's death this long
+WARM_POLL_SECONDS = 2.0         # a worker started ahead looks this often for numba's warm cache ...
+WARM_WAIT_SECONDS = 300.0       # ... this long at most (watch_for_warm_cache)
 
 
 class ViewportWorkerError(SceneError):
@@ -125,17 +128,38 @@ def one_line(exc) -> str:
 
 
 # -- the worker -----------------------------------------------------------------------------------
-def warm_kernels() -> None:
-    """Load the compiled kernels (engine/core/backend.py) now when numba's cache is warm: a worker
-    started ahead of its first scene then prepares it without numba's import and loads (0.6 CPU s
-    of the first preparation otherwise).  What a render runs is unchanged: the backend setting
-    picks numba or NumPy as before (backend.resolve), loading only comes earlier."""
+def warm_kernels() -> bool:
+    """A worker started ahead of its first scene (mcrt_addon/warm.py) imports numba and, when its
+    cache is warm, loads the compiled kernels (engine/core/backend.py) now: the first preparation
+    then does neither (0.6 CPU s otherwise).  What a render runs is unchanged: the backend setting
+    picks numba or NumPy as before (backend.resolve), loading only comes earlier.  False when the
+    cache is not warm yet (a compile in the background may be under way)."""
     from ..core import backend
     try:
+        if backend.numba_module() is None:
+            return True                         # nothing to load, ever
         if backend.is_warm():
             backend.load_kernels()
+            return True
     except Exception:                           # noqa: BLE001 - the first prepare says why (backend.resolve)
-        pass
+        return True
+    return False
+
+
+def watch_for_warm_cache(inbox: queue.Queue) -> None:
+    """Until numba's cache is warm (a compile another process started, engine/core/backend.py
+    start_warm_up), look for its stamp every WARM_POLL_SECONDS for at most WARM_WAIT_SECONDS (one
+    stat of a few files each time); then ("warm",) to the worker's own inbox, which loads them."""
+    from ..core import backend
+
+    def watch():
+        deadline = time.monotonic() + WARM_WAIT_SECONDS
+        while time.monotonic() < deadline:
+            time.sleep(WARM_POLL_SECONDS)
+            if backend.is_warm():
+                inbox.put(("warm",))
+                return
+    threading.Thread(target=watch, daemon=True, name="warm cache watch").start()
 
 
 def viewport_worker_main(parent_pid: int) -> int:
@@ -162,7 +186,7 @@ def viewport_worker_main(parent_pid: int) -> int:
                 return
 
     threading.Thread(target=read, daemon=True).start()
-    prepared = None
+    prepared, watching = None, False
     while True:
         message = inbox.get()
         if message is None:
@@ -186,7 +210,9 @@ def viewport_worker_main(parent_pid: int) -> int:
         elif kind == "view":
             prepared.set_view(message[1], message[2])
         elif kind == "warm":
-            warm_kernels()
+            if not warm_kernels() and not watching:
+                watching = True
+                watch_for_warm_cache(inbox)
         elif kind == "share" and prepared is not None:
             prepared.share_photons(message[1], message[2])
         elif kind == "forget" and prepared is not None:
