@@ -7,14 +7,15 @@ a timer on the UI thread (every TICK_SECONDS; it reads a few properties) keeps o
 viewport workers (engine/pools/viewport.py ViewportPool) started and idle: imported, numba's
 kernels loaded from a warm cache (ViewportPool.warm), blocked on their pipes, using no CPU.  The viewport (mcrt_addon/viewport.py) and a final render with
 Persistent Data (mcrt_addon/persistent.py) `take` it when it has the workers they would start
-(same Python, count and paths); the next one is started once no viewport renders and no render
-runs.  A warm pool renders exactly what a new one would (the image does not depend on the pool,
+(same Python, count and paths); the next one is started after QUIET_TICKS ticks in which no
+viewport rendered and no render or material preview ran.  A warm pool renders exactly what a new one would (the image does not depend on the pool,
 engine/pools/protocol.py).
 
 The pool is stopped when the scene's engine is no longer TNCG15 MC or no 3D view is left, when a
 file is loaded (load_pre), and when the add-on is unregistered; its workers also exit with Blender
 (they watch their parent).  Never in background mode (``blender -b``): no window, no viewport.
-Processes start and stop on a thread of their own: the UI thread never waits for them.
+Processes start and stop on a thread of their own: the UI thread never waits for them; that thread
+also imports the modules the first export and frame import in Blender's process (PREIMPORT).
 """
 import os
 import threading
@@ -24,10 +25,17 @@ import bpy
 from . import bridge, worker_python
 
 TICK_SECONDS = 1.0
+QUIET_TICKS = 2         # a start waits until this many ticks in a row wanted it (a file just opened
+                        # often renders its material previews first: the warm start would slow them)
 ENGINE = "TNCG15_MC"
 
+# The tracer's modules the viewport's first export and frame import in Blender's process
+# (mcrt_addon/viewport.py export, engine/pools/viewport.py ViewportRender._frame).
+PREIMPORT = ("scene.model", "core.settings", "pools.denoiser", "rendering.frame", "rendering.units")
+
 _lock = threading.Lock()
-_state = {"pool": None, "key": None, "busy": False}   # busy: a thread is starting or stopping a pool
+_state = {"pool": None, "key": None, "busy": False,   # busy: a thread is starting or stopping a pool
+          "quiet": 0}                                  # ticks in a row that wanted a start
 started = []            # keys of the pools started here (tests, diagnostics)
 
 
@@ -56,12 +64,12 @@ def wanted_key(windows, preferred=""):
 
 
 def busy_elsewhere(windows) -> bool:
-    """A Rendered viewport or a render runs: a warm start now would take CPU from it."""
+    """A Rendered viewport, a render or a material preview runs: a warm start now would take CPU from it."""
     if any(a.type == "VIEW_3D" and a.spaces.active.shading.type == "RENDERED"
            for w in windows for a in w.screen.areas):
         return True
     running = getattr(bpy.app, "is_job_running", None)
-    return bool(running is not None and running("RENDER"))
+    return bool(running is not None and (running("RENDER") or running("RENDER_PREVIEW")))
 
 
 def alive(pool) -> bool:
@@ -84,7 +92,9 @@ def tick():
     try:
         wm = bpy.context.window_manager
         key = None if bpy.app.background or wm is None else wanted_key(wm.windows, worker_python.preferred_python())
-        update(key, key is not None and not busy_elsewhere(wm.windows))
+        start = key is not None and not busy_elsewhere(wm.windows)
+        _state["quiet"] = _state["quiet"] + 1 if start else 0
+        update(key, start and _state["quiet"] >= QUIET_TICKS)
     except (AttributeError, ReferenceError, RuntimeError):     # no window yet, a scene being freed
         pass
     return TICK_SECONDS
@@ -110,6 +120,9 @@ def _start(key):
     try:
         pool = bridge.module("pools.viewport").ViewportPool(python, count, extra, log=lambda *a: None)
         pool.warm()                         # numba's kernels loaded while nobody waits
+        for name in PREIMPORT:              # what entering Rendered imports here (0.2 CPU s) imported now
+            bridge.module(name)
+        from . import export  # noqa: F401
     except Exception:                       # noqa: BLE001 - the viewport reports a failed start itself
         pool = None
     with _lock:
