@@ -6,7 +6,8 @@ the tracer's imports, most of the 1.3 s before the first coarse picture: docs/pe
 a timer on the UI thread (every TICK_SECONDS; it reads a few properties) keeps one pool of
 viewport workers (engine/pools/viewport.py ViewportPool) started and idle: imported, numba's
 kernels loaded from a warm cache (ViewportPool.warm), blocked on their pipes, using no CPU.  The viewport (mcrt_addon/viewport.py) and a final render with
-Persistent Data (mcrt_addon/persistent.py) `take` it when it has the workers they would start
+Persistent Data (mcrt_addon/persistent.py) `take` it, and a final render without it uses it for
+one render (`render_pool`), when it has the workers they would start
 (same Python, count and paths); the next one is started after QUIET_TICKS ticks in which no
 viewport rendered and no render or material preview ran.  A warm pool renders exactly what a new one would (the image does not depend on the pool,
 engine/pools/protocol.py).
@@ -85,6 +86,17 @@ def take(python, count, extra_paths):
             return None
         _state["pool"] = _state["key"] = None
         return pool
+
+
+def render_pool(python, count, extra_paths, log=print):
+    """A final render's pool made of the warm workers when they fit (engine/pools/kept.py KeptPool
+    for one render: its close() stops them), else None (the render starts its own)."""
+    pool = take(python, count, extra_paths)
+    if pool is None:
+        return None
+    pool.log = log
+    # checked: render_engine validates every exported scene before rendering it
+    return bridge.module("pools.kept").KeptPool(pool, checked=True, keep=False)
 
 
 def tick():

@@ -48,8 +48,16 @@ class FakeWorker:
 
 
 class FakePool:
+    python = "python"
+
     def __init__(self, *args, **kwargs):
         self.workers, self.closed, self.warmed = [FakeWorker(), FakeWorker()], False, False
+
+    def outstanding(self):
+        return 0
+
+    def stats(self):
+        return {}
 
     def warm(self):
         self.warmed = True
@@ -159,3 +167,22 @@ def test_a_warm_pool_idles_without_cpu_is_taken_by_the_viewport_and_renders_the_
     finally:
         taken.close()
         cold.close()
+
+
+def test_a_final_render_uses_the_warm_pool_for_one_render_only(warm, monkeypatch):
+    from engine.pools.kept import KeptPool
+    modules = {"pools.viewport": SimpleNamespace(ViewportPool=FakePool), "pools.kept": SimpleNamespace(KeptPool=KeptPool)}
+    monkeypatch.setattr(warm.bridge, "module", lambda name: modules.get(name, SimpleNamespace()))
+    key = ("python", 2, ())
+    assert warm.render_pool("python", 2, ()) is None                # none started: the render starts its own
+    warm.update(key, start=True)
+    settle(warm)
+    inner = warm.pool()
+    pool = warm.render_pool("python", 2, (), log=print)
+    assert pool.inner is inner and warm.pool() is None and inner.log is print
+    assert pool.stats()["persistent_data"] is False
+    pool.close()                                                    # the render is over: so are its workers
+    assert inner.closed
+    kept = KeptPool(FakePool(), checked=True)                       # control: Persistent Data's pool stays
+    kept.close()
+    assert not kept.inner.closed and kept.stats()["persistent_data"] is True
