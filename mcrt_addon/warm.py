@@ -31,8 +31,10 @@ QUIET_TICKS = 2         # a start waits until this many ticks in a row wanted it
 ENGINE = "TNCG15_MC"
 
 # The tracer's modules the viewport's first export and frame import in Blender's process
-# (mcrt_addon/viewport.py export, engine/pools/viewport.py ViewportRender._frame).
-PREIMPORT = ("scene.model", "core.settings", "pools.denoiser", "rendering.frame", "rendering.units")
+# (mcrt_addon/viewport.py export, engine/pools/viewport.py ViewportRender._frame; Frame.scheduled
+# imports the photon passes, and with them scipy: 0.28 CPU s).
+PREIMPORT = ("scene.model", "core.settings", "pools.denoiser", "rendering.frame", "rendering.units",
+             "rendering.photon_passes")
 
 _lock = threading.Lock()
 _state = {"pool": None, "key": None, "busy": False,   # busy: a thread is starting or stopping a pool
@@ -132,11 +134,14 @@ def _start(key):
     try:
         pool = bridge.module("pools.viewport").ViewportPool(python, count, extra, log=lambda *a: None)
         pool.warm()                         # numba's kernels loaded while nobody waits
-        for name in PREIMPORT:              # what entering Rendered imports here (0.2 CPU s) imported now
-            bridge.module(name)
-        from . import export  # noqa: F401
     except Exception:                       # noqa: BLE001 - the viewport reports a failed start itself
         pool = None
+    try:
+        for name in PREIMPORT:              # what entering Rendered imports here (0.5 CPU s) imported now
+            bridge.module(name)
+        from . import export  # noqa: F401
+    except Exception:                       # noqa: BLE001 - the viewport's first frame says why
+        pass
     with _lock:
         _state["busy"] = False
         if pool is not None and _state["key"] == key:
