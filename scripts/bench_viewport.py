@@ -169,7 +169,7 @@ def main():
 
 def warm_ahead(scene):
     """The pool mcrt_addon/warm.py keeps for a 3D view of this scene, started and waited for until
-    its workers are idle (imports and numba's loads done: their CPU seconds stop growing)."""
+    its workers are idle (imports and numba's loads done: ViewportPool.warmed); their CPU seconds."""
     from mcrt_addon import warm, worker_python
     window = SimpleNamespace(scene=scene, screen=SimpleNamespace(areas=[SimpleNamespace(type="VIEW_3D")]))
     key = warm.wanted_key([window])
@@ -177,14 +177,10 @@ def warm_ahead(scene):
     warm.update(key, start=True)
     while warm.pool() is None:
         time.sleep(0.01)
-    pids, last = [w.pid for w in warm.pool().workers], -1.0
-    while True:
-        now = sum((int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK") for f in
-                  (open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split() for p in pids))
-        if now - last < 0.02:
-            break
-        last = now
-        time.sleep(0.5)
+    while not warm.pool().warmed():
+        time.sleep(0.01)
+    now = sum((int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK") for f in
+              (open(f"/proc/{w.pid}/stat").read().rsplit(")", 1)[1].split() for w in warm.pool().workers))
     print(f"workers started ahead (mcrt_addon/warm.py): idle after {time.perf_counter() - t:.1f} s, "
           f"{now:.2f} CPU s ({worker_python.worker_python('')[0]})")
     return now

@@ -17,6 +17,7 @@ settings is not prepared again: the workers get the new camera (no BVH rebuild).
                                                            import numba, load its kernels from a warm cache
                                                            now or once it is warm (warm_kernels)
     worker -> parent   ("ready", number, TracerFacts) | ("failed", number, one line)
+                       ("warmed", loaded)                     after ("warm",): kernels loaded, or nothing to load
                        ("result", unit, UnitResult | None)    None: cancelled
                        ("error", unit, traceback text)
 
@@ -133,7 +134,8 @@ def warm_kernels() -> bool:
     cache is warm, loads the compiled kernels (engine/core/backend.py) now: the first preparation
     then does neither (0.6 CPU s otherwise).  What a render runs is unchanged: the backend setting
     picks numba or NumPy as before (backend.resolve), loading only comes earlier.  False when the
-    cache is not warm yet (a compile in the background may be under way)."""
+    cache is not warm yet: the compile in the background that a render would start is started
+    (backend.start_warm_up; none when one runs already)."""
     from ..core import backend
     try:
         if backend.numba_module() is None:
@@ -141,6 +143,7 @@ def warm_kernels() -> bool:
         if backend.is_warm():
             backend.load_kernels()
             return True
+        backend.start_warm_up(log=lambda *a: None)   # as the first render would (one compile per machine)
     except Exception:                           # noqa: BLE001 - the first prepare says why (backend.resolve)
         return True
     return False
@@ -210,7 +213,9 @@ def viewport_worker_main(parent_pid: int) -> int:
         elif kind == "view":
             prepared.set_view(message[1], message[2])
         elif kind == "warm":
-            if not warm_kernels() and not watching:
+            loaded = warm_kernels()
+            end.send(("warmed", loaded))
+            if not loaded and not watching:
                 watching = True
                 watch_for_warm_cache(inbox)
         elif kind == "share" and prepared is not None:
@@ -231,6 +236,7 @@ class _Worker(WorkerProcess):
         self.number = number
         self.in_flight: list = []
         self.alive, self.prepared = True, None          # the preparation number it is ready for
+        self.warmed = False                             # answered ("warm",) with its kernels loaded
         self.busy_since = time.perf_counter()           # since when it holds units and answered none
         self.overdue = None                             # why it was killed, when the pool killed it
         super().__init__(python, [os.path.basename(TRACER_DIR) + ".pools.viewport"], env,
@@ -325,6 +331,9 @@ class ViewportPool(Pool):
                 self._feed(worker)
             return None
         if kind == "failed":
+            return None
+        if kind == "warmed":
+            worker.warmed = bool(event[1])
             return None
         if kind == "died":
             worker.alive = False
@@ -466,6 +475,17 @@ class ViewportPool(Pool):
     def warm(self):
         """Workers started ahead of their first scene load the compiled kernels now (warm_kernels)."""
         send_to_live(self.workers, ("warm",))
+
+    def warmed(self) -> bool:
+        """Whether every live worker has answered warm() with its kernels loaded (or with nothing to
+        load).  It reads the pool's events itself: only for a pool nothing renders on yet."""
+        while True:
+            try:
+                worker, event = self.events.get_nowait()
+            except queue.Empty:
+                break
+            self._event(worker, event)
+        return all(w.warmed for w in self.workers if w.alive)
 
     def cancel(self):
         """Units in flight stop within a bounce (answered None); prepare() starts the next render."""

@@ -51,7 +51,7 @@ class FakePool:
     python = "python"
 
     def __init__(self, *args, **kwargs):
-        self.workers, self.closed, self.warmed = [FakeWorker(), FakeWorker()], False, False
+        self.workers, self.closed, self.warm_sent = [FakeWorker(), FakeWorker()], False, False
 
     def outstanding(self):
         return 0
@@ -60,7 +60,7 @@ class FakePool:
         return {}
 
     def warm(self):
-        self.warmed = True
+        self.warm_sent = True
 
     def close(self):
         self.closed = True
@@ -81,7 +81,7 @@ def test_one_warm_pool_is_started_handed_over_only_when_it_fits_and_stopped(warm
     warm.update(key, start=True)
     settle(warm)
     pool = warm.pool()
-    assert isinstance(pool, FakePool) and pool.warmed
+    assert isinstance(pool, FakePool) and pool.warm_sent
     warm.update(key, start=True)                        # kept, not started again
     settle(warm)
     assert warm.pool() is pool
@@ -138,13 +138,10 @@ def test_a_warm_pool_idles_without_cpu_is_taken_by_the_viewport_and_renders_the_
     pool = warm.pool()
     assert isinstance(pool, ViewportPool)
     pids = [w.pid for w in pool.workers]
-    deadline, last = time.monotonic() + 90, -1.0
-    while time.monotonic() < deadline:                  # imports and numba's loads done
-        now = worker_cpu(pids)
-        if now - last < 0.02:
-            break
-        last = now
-        time.sleep(0.5)
+    deadline = time.monotonic() + 120
+    while not pool.warmed():                            # imports and numba's loads done
+        assert time.monotonic() < deadline, "the workers started ahead never finished loading"
+        time.sleep(0.05)
     before = worker_cpu(pids)
     time.sleep(1.0)
     assert worker_cpu(pids) - before < 0.02, "idle warm workers must not use CPU"

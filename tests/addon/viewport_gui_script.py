@@ -103,7 +103,7 @@ def cpu_seconds(pids):
 
 def warm_workers():
     """Wait for the viewport workers mcrt_addon/warm.py starts ahead (as a user who opened the file
-    seconds before switching to Rendered): started, imports and loads done (their CPU settled)."""
+    seconds before switching to Rendered): started, imports and loads done (ViewportPool.warmed)."""
     warm = sys.modules["tncg15_mc.warm"]
     t = time.perf_counter()
     while warm.pool() is None:
@@ -111,10 +111,10 @@ def warm_workers():
             raise RuntimeError("no viewport workers were started ahead (mcrt_addon/warm.py)")
         yield 0.1
     pids = [w.pid for w in warm.pool().workers]
-    last = -1.0
-    while cpu_seconds(pids) - last > 0.02 and time.perf_counter() - t < HANG:
-        last = cpu_seconds(pids)
-        yield 0.5
+    while not warm.pool().warmed():                 # imports and numba's loads done
+        if time.perf_counter() - t > 3 * HANG:
+            raise RuntimeError("the viewport workers started ahead never finished loading")
+        yield 0.1
     out["warm_pids"], out["warm_wait_seconds"] = pids, time.perf_counter() - t
     before = cpu_seconds(pids)
     yield 1.0
