@@ -1,16 +1,16 @@
 """Viewport workers started ahead: Rendered mode's first picture without a worker start.
 
-Entering Rendered mode used to start the viewport's worker processes then (a Python start and
-the tracer's imports, most of the 1.3 s before the first coarse picture: docs/performance.md
-"The Rendered viewport").  While TNCG15 MC is the scene's engine and a window shows a 3D view,
-a timer on the UI thread (every TICK_SECONDS; it reads a few properties) keeps one pool of
-viewport workers (engine/pools/viewport.py ViewportPool) started and idle: imported, numba's
-kernels loaded from a warm cache (ViewportPool.warm), blocked on their pipes, using no CPU.  The viewport (mcrt_addon/viewport.py) and a final render with
-Persistent Data (mcrt_addon/persistent.py) `take` it, and a final render without it uses it for
-one render (`render_pool`), when it has the workers they would start
-(same Python, count and paths); the next one is started after QUIET_TICKS ticks in which no
-viewport rendered and no render or material preview ran.  A warm pool renders exactly what a new one would (the image does not depend on the pool,
-engine/pools/protocol.py).
+Entering Rendered mode used to start the viewport's worker processes then (a Python start, the
+tracer's imports, numba's loads: most of the 1.3 s before the first coarse picture,
+docs/performance.md "The Rendered viewport").  While TNCG15 MC is the scene's engine and a window
+shows a 3D view, a timer on the UI thread (every TICK_SECONDS; it reads a few properties) keeps one
+pool of viewport workers (engine/pools/viewport.py ViewportPool) started and idle: imported, numba's
+kernels loaded (ViewportPool.warm), blocked on their pipes, using no CPU.  The viewport
+(mcrt_addon/viewport.py) and a final render with Persistent Data (mcrt_addon/persistent.py) `take`
+it, and a final render without it uses it for that render (`render_pool`), when it has the workers
+they would start (same Python, count and paths); the next one is started after QUIET_TICKS ticks in
+which no viewport rendered and no render or material preview ran.  A warm pool renders exactly what
+a new one would (the image does not depend on the pool, engine/pools/protocol.py).
 
 The pool is stopped when the scene's engine is no longer TNCG15 MC or no 3D view is left, when a
 file is loaded (load_pre), and when the add-on is unregistered; its workers also exit with Blender
