@@ -168,7 +168,8 @@ def test_a_warm_pool_idles_without_cpu_is_taken_by_the_viewport_and_renders_the_
 
 def test_a_final_render_uses_the_warm_pool_for_one_render_only(warm, monkeypatch):
     from engine.pools.kept import KeptPool
-    modules = {"pools.viewport": SimpleNamespace(ViewportPool=FakePool), "pools.kept": SimpleNamespace(KeptPool=KeptPool)}
+    modules = {"pools.viewport": SimpleNamespace(ViewportPool=FakePool),
+               "pools.kept": SimpleNamespace(KeptPool=KeptPool)}
     monkeypatch.setattr(warm.bridge, "module", lambda name: modules.get(name, SimpleNamespace()))
     key = ("python", 2, ())
     assert warm.render_pool("python", 2, ()) is None                # none started: the render starts its own
