@@ -17,7 +17,7 @@ bl_info = {
 
 if "bpy" in locals():                     # "Reload Scripts": reload sub-modules too
     import importlib
-    for _name in ("bridge", "worker_python", "denoiser_install", "properties", "ui", "viewport", "persistent", "render_engine", "estimate"):
+    for _name in ("bridge", "worker_python", "denoiser_install", "properties", "ui", "viewport", "warm", "persistent", "render_engine", "estimate"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
@@ -27,9 +27,9 @@ from . import worker_python  # noqa: E402
 
 worker_python.ensure_numpy()      # before anything imports numpy (Blender 3.4)
 
-from . import bridge, denoiser_install, persistent, properties, ui, render_engine, estimate  # noqa: E402,F401
+from . import bridge, denoiser_install, persistent, properties, ui, render_engine, estimate, warm  # noqa: E402,F401
 
-_modules = (worker_python, denoiser_install, properties, persistent, render_engine, estimate, ui)
+_modules = (worker_python, denoiser_install, properties, persistent, warm, render_engine, estimate, ui)
 
 
 def register():

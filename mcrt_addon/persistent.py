@@ -15,7 +15,7 @@ reports as updated are read again, the others (an object that only moved) are no
 """
 import bpy
 
-from . import bridge
+from . import bridge, warm
 from .viewport import classify, forget_meshes
 
 _kept = []          # at most one KeptPool
@@ -37,7 +37,12 @@ def render_pool(scene, python, threads, extra_paths, log=print):
     if _kept and (_kept[0].key != key or not _kept[0].usable):
         free()
     if not _kept:
-        inner = bridge.module("api").make_pool(f"viewport:{python}", threads, log=log, extra_paths=extra_paths)
+        # the viewport workers started ahead when they are the same (mcrt_addon/warm.py)
+        inner = warm.take(python, threads, extra_paths)
+        if inner is not None:
+            inner.log = log
+        else:
+            inner = bridge.module("api").make_pool(f"viewport:{python}", threads, log=log, extra_paths=extra_paths)
         # checked: render_engine validates every exported scene before rendering it
         _kept.append(bridge.module("pools.kept").KeptPool(inner, key, checked=True))
     return _kept[0]

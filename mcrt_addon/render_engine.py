@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import bridge, persistent, viewport, worker_python
+from . import bridge, persistent, viewport, warm, worker_python
 from . import passes as addon_passes
 
 # Stop requests besides Esc: callables polled with test_break() (the command line's SIGINT/SIGTERM).
@@ -363,7 +363,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
 
     def _start_workers(self, scene, settings):
         """The worker pool (started, not yet given the scene), or (None, why) without a worker Python:
-        with Persistent Data the one the last render left (mcrt_addon/persistent.py)."""
+        with Persistent Data the one the last render left (mcrt_addon/persistent.py), else the
+        viewport workers started ahead when they fit (mcrt_addon/warm.py)."""
         python, why = worker_python.worker_python(worker_python.preferred_python())
         if python is None:
             if worker_python.preferred_python():
@@ -371,6 +372,8 @@ class TNCG15RenderEngine(bpy.types.RenderEngine):
             return None, why
         kept = None if self.is_preview else persistent.render_pool(
             scene, python, settings.resolved_threads(), worker_python.extra_paths())
+        if kept is None and not self.is_preview:        # the viewport workers started ahead (warm.py)
+            kept = warm.render_pool(python, settings.resolved_threads(), worker_python.extra_paths())
         return kept or start_worker_pool(python, settings), None
 
     @staticmethod

@@ -36,7 +36,7 @@ import weakref
 
 import bpy
 
-from . import bridge, worker_python
+from . import bridge, warm, worker_python
 
 MAX_HALF = 65000.0              # half floats overflow above 65504
 POLL_SECONDS = 0.02             # redraw poller (a version compare: costs microseconds)
@@ -207,8 +207,9 @@ class ViewportState:
             raise RuntimeError(f"the viewport needs render worker processes: {why}")
         extra = worker_python.extra_paths()
 
-        def make_pool():
-            return bridge.module("api").make_pool(f"viewport:{python}", count, log=lambda *a: None, extra_paths=extra)
+        def make_pool():           # the workers started ahead when they are the same (mcrt_addon/warm.py)
+            return warm.take(python, count, extra) or bridge.module("api").make_pool(
+                f"viewport:{python}", count, log=lambda *a: None, extra_paths=extra)
         denoiser = bridge.module("pools.denoiser")       # Viewport > Denoise: OIDN in a process of its own
         self.workers = denoiser.DenoisedView(bridge.module("pools.viewport").ViewportRender(make_pool=make_pool),
                                              lambda: denoiser.DenoiserProcess(python, extra))

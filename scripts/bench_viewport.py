@@ -1,6 +1,6 @@
 """Viewport restart latencies in a big scene, through the bpy 5.0 module (prints figures; no targets).
 
-    .venv/bin/python scripts/bench_viewport.py [--triangles 1000000] [--size 320 240]
+    .venv/bin/python scripts/bench_viewport.py [--triangles 1000000] [--size 320 240] [--warm]
 
 A room with one mesh of about N triangles and a point light; the viewport's view_update /
 view_draw bodies are called as Blender calls them (mcrt_addon/viewport.py, stub engine and
@@ -11,7 +11,9 @@ mesh read again) it prints the time spent on Blender's UI thread, the meshes rea
 until the workers' first frame of the change; for entering Rendered mode also the time to the
 first full-resolution picture and the sample rate after it (samples of the whole frame per second,
 until --samples are there) with the worker processes' CPU seconds (--threads: worker processes,
-0 = one a core as the viewport starts them).
+0 = one a core as the viewport starts them).  --warm: Rendered mode entered with the workers that
+mcrt_addon/warm.py starts ahead (once they are idle), as in Blender's window; without it the
+workers start when Rendered mode is entered.
 """
 import argparse
 import os
@@ -32,6 +34,8 @@ def main():
     ap.add_argument("--samples", type=int, default=16, help="the viewport's max samples")
     ap.add_argument("--threads", type=int, default=0, help="viewport worker processes (0: one a core)")
     ap.add_argument("--orbit", type=int, default=30, help="views of the orbit, 30 ms apart")
+    ap.add_argument("--warm", action="store_true", help="enter Rendered with the workers started ahead "
+                    "(mcrt_addon/warm.py, as Blender's timer starts them), once they are idle")
     args = ap.parse_args()
     import mcrt_addon
     from mcrt_addon.headless import ensure_registered
@@ -95,11 +99,14 @@ def main():
 
     print(f"{tris:,} triangles, viewport {w}x{h}, {viewport.viewport_worker_count(scene.tncg15.to_settings(__import__('engine.core.settings', fromlist=['x']).RenderSettings))} worker(s), "
           f"load {os.getloadavg()[0]:.2f}")
+    ahead = warm_ahead(scene) if args.warm else 0.0
     ctx = context()
-    t = time.perf_counter()
+    t, cpu = time.perf_counter(), time.process_time()
     viewport.view_update(engine, ctx, bpy.context.evaluated_depsgraph_get())
     st = engine.viewport_state
     row("enter Rendered (export)", time.perf_counter() - t, st, len(reads))
+    print(f"{'':<34} CPU s until the first frame: this process {time.process_time() - cpu:.3f}, the workers "
+          f"{worker_cpu(st) - ahead:.3f}" + (" (beyond their start ahead)" if args.warm else ""))
     try:
         full, samples = None, []                     # (time, samples) of every full-resolution picture
         while not st.workers.converged():
@@ -158,6 +165,25 @@ def main():
             bpy.app.handlers.depsgraph_update_post.remove(handler)
     finally:
         viewport.free(engine)
+
+
+def warm_ahead(scene):
+    """The pool mcrt_addon/warm.py keeps for a 3D view of this scene, started and waited for until
+    its workers are idle (imports and numba's loads done: ViewportPool.warmed); their CPU seconds."""
+    from mcrt_addon import warm, worker_python
+    window = SimpleNamespace(scene=scene, screen=SimpleNamespace(areas=[SimpleNamespace(type="VIEW_3D")]))
+    key = warm.wanted_key([window])
+    t = time.perf_counter()
+    warm.update(key, start=True)
+    while warm.pool() is None:
+        time.sleep(0.01)
+    while not warm.pool().warmed():
+        time.sleep(0.01)
+    now = sum((int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK") for f in
+              (open(f"/proc/{w.pid}/stat").read().rsplit(")", 1)[1].split() for w in warm.pool().workers))
+    print(f"workers started ahead (mcrt_addon/warm.py): idle after {time.perf_counter() - t:.1f} s, "
+          f"{now:.2f} CPU s ({worker_python.worker_python('')[0]})")
+    return now
 
 
 if __name__ == "__main__":

@@ -63,16 +63,19 @@ class KeptPool(Pool):
 
     takes_rounds = True
 
-    def __init__(self, inner, key=None, checked: bool = False):
+    def __init__(self, inner, key=None, checked: bool = False, keep: bool = True):
         """checked: the caller validates every scene before it renders it (the add-on's final render,
-        mcrt_addon/render_engine.py), so the workers do not validate it again."""
-        self.inner, self.key, self.checked = inner, key, checked
+        mcrt_addon/render_engine.py), so the workers do not validate it again.  keep=False: one
+        render only, close() also shuts the workers down (a render given workers started ahead,
+        mcrt_addon/warm.py, without Persistent Data)."""
+        self.inner, self.key, self.checked, self.keep = inner, key, checked, keep
         self.scene = None               # the scene last prepared (its objects are what the workers hold)
         self.renders = 0                # renders prepared on this pool
         self.view_only = 0              # of them, how many sent only a new camera
         self.prepare_seconds = 0.0      # the last render's prepare(): until the first worker was ready
         self.is_shut = False
-        self.describe = f"{len(inner.workers)} worker process(es) ({inner.python}) kept across renders (Persistent Data)"
+        self.describe = (f"{len(inner.workers)} worker process(es) ({inner.python}) "
+                         + ("kept across renders (Persistent Data)" if keep else "started ahead"))
 
     @property
     def usable(self) -> bool:
@@ -118,7 +121,7 @@ class KeptPool(Pool):
             self.inner.cancel()
         while self.inner.outstanding() and time.perf_counter() < deadline:
             self.inner.next_result(0.1)
-        if self.inner.outstanding():
+        if self.inner.outstanding() or not self.keep:
             self.shutdown()
 
     def shutdown(self) -> None:
@@ -128,7 +131,7 @@ class KeptPool(Pool):
 
     def stats(self) -> dict:
         stats = dict(self.inner.stats())
-        stats.update(persistent_data=True, renders_on_pool=self.renders, renders_view_only=self.view_only,
+        stats.update(persistent_data=self.keep, renders_on_pool=self.renders, renders_view_only=self.view_only,
                      prepare_seconds=self.prepare_seconds)
         return stats
 

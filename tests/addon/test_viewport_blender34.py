@@ -16,7 +16,9 @@ legacy zip installed as a user installs it (tests/addon/viewport_gui_script.py d
   picture of the new view and when it was drawn are printed.  Negative control: the same run with
   TNCG15_VIEWPORT_CONTROL=export,wait (a UI thread that exports and waits for the workers) fails
   the export and view_draw bounds, and an orbit drawing any picture ("stale") fails the stale check;
-* leaving Rendered mode, or quitting Blender while it renders, stops the viewport's worker processes.
+* leaving Rendered mode, or quitting Blender while it renders, stops the viewport's worker processes;
+* the viewport workers started ahead (mcrt_addon/warm.py) idle without CPU and are the ones Rendered
+  mode renders with.
 
 How soon things happen (first frame, restart, timer gaps) is printed, not required: the limits
 below are margins over what a loaded 2-core machine measured (other test runs beside this one),
@@ -190,6 +192,15 @@ def test_viewport_is_progressive_and_matches_f12(gui_run):
           f"{r['first_frame_seconds']:.2f} s (coarse), {r['viewport_resolution']} px at 8 spp in "
           f"{r['converged_seconds']:.1f} s, noise estimate ±{100 * r['noise']:.0f} %")
     assert diff < TOLERANCE and mean_diff < 0.03, (diff, mean_diff)
+
+
+def test_rendered_mode_renders_with_the_workers_started_ahead(gui_run):
+    r = gui_run
+    print(f"workers started ahead: ready {r['warm_wait_seconds']:.1f} s after F12, idle CPU "
+          f"{r['warm_idle_cpu']:.2f} s in 1 s; first frame {r['first_frame_seconds']:.3f} s after "
+          f"switching to Rendered (load {os.getloadavg()[0]:.1f})")
+    assert r["pids"] == r["warm_pids"], (r["pids"], r["warm_pids"])
+    assert r["warm_idle_cpu"] < 0.05
 
 
 def test_moving_the_light_restarts_and_shows_it(gui_run):

@@ -90,6 +90,38 @@ def state():
 last_tick = [time.perf_counter()]
 
 
+def cpu_seconds(pids):
+    total = 0
+    for p in pids:
+        try:
+            fields = open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()
+            total += int(fields[11]) + int(fields[12])
+        except OSError:
+            pass
+    return total / os.sysconf("SC_CLK_TCK")
+
+
+def warm_workers():
+    """Wait for the viewport workers mcrt_addon/warm.py starts ahead (as a user who opened the file
+    seconds before switching to Rendered): started, imports and loads done (ViewportPool.warmed)."""
+    warm = sys.modules["tncg15_mc.warm"]
+    t = time.perf_counter()
+    while warm.pool() is None:
+        if time.perf_counter() - t > HANG:
+            raise RuntimeError("no viewport workers were started ahead (mcrt_addon/warm.py)")
+        yield 0.1
+    pids = [w.pid for w in warm.pool().workers]
+    while not warm.pool().warmed():                 # imports and numba's loads done
+        if time.perf_counter() - t > 3 * HANG:
+            raise RuntimeError("the viewport workers started ahead never finished loading")
+        yield 0.1
+    out["warm_pids"], out["warm_wait_seconds"] = pids, time.perf_counter() - t
+    before = cpu_seconds(pids)
+    yield 1.0
+    out["warm_idle_cpu"] = cpu_seconds(pids) - before
+    log(f"warm workers {pids} ready after {out['warm_wait_seconds']:.1f} s; idle CPU {out['warm_idle_cpu']:.2f} s in 1 s")
+
+
 def tick():
     now = time.perf_counter()
     out["ticks"].append(now - last_tick[0])
@@ -305,6 +337,7 @@ def steps():
     with bpy.context.temp_override(window=win, screen=win.screen, area=area, region=region):
         bpy.ops.view3d.view_center_camera()
     yield 0.2
+    yield from warm_workers()
     out["ticks"].clear()
     last_tick[0] = time.perf_counter()
     bpy.app.timers.register(tick, first_interval=0.02)

@@ -8,6 +8,7 @@ from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
 from ...core.errors import SceneError
+from . import embree_buffers
 
 try:
     import resource                     # POSIX only: without it there is no RLIMIT_AS to check
@@ -90,7 +91,11 @@ class EmbreeAccelerator:
         self.count = len(triangles)
         if self.count:
             probe_room(self.count)
-            TriangleMesh(self.scene, np.ascontiguousarray(triangles, dtype=np.float32))
+            triangles = np.ascontiguousarray(triangles, dtype=np.float32)
+            if embree_buffers.available():      # the same buffers as TriangleMesh, copied as arrays
+                embree_buffers.attach_triangles(self.scene, triangles)
+            else:
+                TriangleMesh(self.scene, triangles)
             # Build the BVH now: the build uses Embree's thread pool, which a forked render worker
             # does not have.
             build(self.scene, self.count)
