@@ -53,12 +53,13 @@ def pool_key(python, count, extra_paths):
     return (python, int(count), tuple(extra_paths))
 
 
-def wanted_key(windows, preferred=""):
-    """The key of the pool to keep warm for these windows, or None when none is wanted: no window
-    shows a 3D view of a scene whose engine is TNCG15 MC, or no worker Python is there."""
+def wanted_key(windows, preferred="", ahead=True):
+    """The key of the pool to keep warm for these windows, or None when none is wanted: the
+    preference Start Workers Ahead is off, no window shows a 3D view of a scene whose engine is
+    TNCG15 MC, or no worker Python is there."""
     scenes = [w.scene for w in windows if w.scene is not None and w.scene.render.engine == ENGINE
               and any(a.type == "VIEW_3D" for a in w.screen.areas)]
-    if not scenes:
+    if not scenes or not ahead:
         return None
     python, _ = worker_python.worker_python(preferred)
     if python is None or worker_python.NUMPY_PROBLEM:
@@ -105,7 +106,8 @@ def tick():
     """bpy.app.timers, on the UI thread: update() with what Blender's windows want now."""
     try:
         wm = bpy.context.window_manager
-        key = None if bpy.app.background or wm is None else wanted_key(wm.windows, worker_python.preferred_python())
+        key = None if bpy.app.background or wm is None else wanted_key(wm.windows, worker_python.preferred_python(),
+                                                                        worker_python.start_ahead())
         start = key is not None and not busy_elsewhere(wm.windows)
         _state["quiet"] = _state["quiet"] + 1 if start else 0
         update(key, start and _state["quiet"] >= QUIET_TICKS)

@@ -18,7 +18,7 @@ import os
 import sys
 
 import bpy
-from bpy.props import StringProperty
+from bpy.props import BoolProperty, StringProperty
 
 ADDON_DIR = os.path.dirname(os.path.abspath(__file__))
 VENDOR_NUMPY = os.path.join(ADDON_DIR, "vendor", "numpy")
@@ -120,6 +120,13 @@ def render_cluster(context=None) -> str:
     return getattr(addon.preferences, "render_cluster", "") if addon and addon.preferences else ""
 
 
+def start_ahead(context=None) -> bool:
+    """Whether viewport workers may be started ahead (mcrt_addon/warm.py): the preference, on by default."""
+    context = context or bpy.context
+    addon = context.preferences.addons.get(__package__)
+    return bool(getattr(addon.preferences, "start_workers_ahead", True)) if addon and addon.preferences else True
+
+
 def preferred_python(context=None) -> str:
     context = context or bpy.context
     addon = context.preferences.addons.get(__package__)
@@ -137,6 +144,11 @@ class TNCG15Preferences(bpy.types.AddonPreferences):
         name="Render Cluster", default="",
         description="Dask scheduler address (tcp://HOST:8786) whose workers render the work units; empty: "
                     "worker processes on this machine.  Blender's Python needs dask and distributed")
+    start_workers_ahead: BoolProperty(
+        name="Start Workers Ahead", default=True,
+        description="While a 3D view shows a TNCG15 MC scene, keep the viewport's worker processes started "
+                    "and idle (no CPU; the memory of one Python per worker), so that Rendered mode and F12 "
+                    "begin at once")
 
     def draw(self, context):
         import textwrap
@@ -144,6 +156,7 @@ class TNCG15Preferences(bpy.types.AddonPreferences):
         layout.use_property_split = True                # labels left, fields right: never cut short
         layout.prop(self, "worker_python")
         layout.prop(self, "render_cluster")
+        layout.prop(self, "start_workers_ahead")
         path, why = worker_python(self.worker_python)
         col = layout.column(align=True)                 # a long path or reason wraps, not truncated
         for i, line in enumerate(textwrap.wrap(f"Workers run: {path}" if path else why, 70) or [""]):

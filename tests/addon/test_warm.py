@@ -36,6 +36,7 @@ def test_warm_workers_are_wanted_for_a_3d_view_of_a_tncg15_scene_only(warm):
     assert warm.wanted_key([window(engine="CYCLES")]) is None
     assert warm.wanted_key([window(areas=("PROPERTIES", "OUTLINER"))]) is None
     assert warm.wanted_key([]) is None
+    assert warm.wanted_key([window()], ahead=False) is None                # the preference turned off
     assert warm.wanted_key([window(engine="CYCLES"), window(areas=("VIEW_3D", "IMAGE_EDITOR"))]) is not None
     assert not warm.busy_elsewhere([window()])
     assert warm.busy_elsewhere([window(), window(shading="RENDERED")])     # a viewport renders: no start now
