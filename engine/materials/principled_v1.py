@@ -334,7 +334,7 @@ class PrincipledV1(BSDF):
         x, y = si.memo((self, "frame"), self._frame)
         return self._mixture(si, to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n), weights, prob)
 
-    def diffuse_eval(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+    def diffuse_part(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         """f cos (3, N) of the diffuse and sheen closures alone (Cycles' CLOSURE_IS_BSDF_DIFFUSE, whose
         bump shadowing differs: engine/nodes/normals.py bump_shadowing)."""
         weights, prob = si.memo((self, "closures"), self.closures)
