@@ -46,6 +46,7 @@ JIT_MODULES = {
     "sampling.sobol_jit": ("sobol",),
     "materials.microfacet_jit": ("glossy", "principled", "mix"),
     "materials.principled_jit": ("principled", "mix"),
+    "materials.principled_v1_jit": ("principled", "mix"),
     "lights.parallelograms_jit": ("emission",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
