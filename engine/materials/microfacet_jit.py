@@ -159,6 +159,18 @@ def _sample(wo, x, y, n, ax, ay, u1, u2, wi_out, cos_out, pdf_out, ratio_out):
             wo, x, y, n, i, ax[i], ay[i], u1[i], u2[i])
 
 
+@jit
+def _tinted_eval(index, wo, wi, x, y, n, ax, ay, colour, comp, f_out, pdf_out):
+    """f cos = colour x g x compensation and pdf of the pairs (hit index[k], wi[:, k]): the lobe of
+    Fresnel "none" (MicrofacetReflection.eval's numbers)."""
+    for k in range(index.shape[0]):
+        j = index[k]
+        _, pdf, g = eval_hit(wo, wi, x, y, n, j, k, ax[j], ay[j])
+        for ch in range(3):
+            f_out[ch, k] = colour[ch, j] * g * comp[ch, j]
+        pdf_out[k] = pdf
+
+
 def _rows(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
@@ -188,6 +200,18 @@ def ggx_sample(wo, x, y, n, ax, ay, u1, u2):
     return wi, cos, pdf, ratio
 
 
+def tinted_eval(hits, index, wi):
+    """(f cos (3, K), pdf (K,)) of a GGX lobe whose Fresnel is its colour at the pairs (hit index[k],
+    wi[:, k]); hits: the per-hit arrays of engine/materials/glossy.py `_tinted_hits`, index None for
+    the hits themselves."""
+    count = wi.shape[1]
+    index = np.arange(count) if index is None else np.ascontiguousarray(index, dtype=np.int64)
+    f_cos, pdf = np.empty((3, count)), np.empty(count)
+    _tinted_eval(index, hits.wo, _rows(wi), hits.x, hits.y, hits.n, hits.ax, hits.ay, hits.colour, hits.comp,
+                 f_cos, pdf)
+    return f_cos, pdf
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     w = np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]])
@@ -195,3 +219,8 @@ def warm_up() -> None:
     a = np.array([0.25, 0.5])
     ggx_eval(w, w[::-1].copy(), frame[0], frame[1], frame[2], a, a)
     ggx_sample(w, frame[0], frame[1], frame[2], a, a, np.array([0.3, 0.6]), np.array([0.2, 0.9]))
+    from types import SimpleNamespace
+    hits = SimpleNamespace(wo=w, x=frame[0].copy(), y=frame[1].copy(), n=frame[2].copy(), ax=a, ay=a,
+                           colour=np.ones((3, 2)), comp=np.ones((3, 2)))
+    tinted_eval(hits, None, w[::-1].copy())
+    tinted_eval(hits, np.array([1, 0]), w.copy())
