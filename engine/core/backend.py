@@ -45,6 +45,8 @@ JIT_MODULES = {
     "geometry.shapes.light_polygons_jit": ("area_lights",),
     "sampling.sobol_jit": ("sobol",),
     "materials.microfacet_jit": ("glossy", "principled", "mix"),
+    "materials.principled_jit": ("principled", "mix"),
+    "materials.principled_v1_jit": ("principled", "mix"),
     "lights.parallelograms_jit": ("emission",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)

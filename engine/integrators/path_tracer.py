@@ -640,12 +640,13 @@ class PathTracer:
                 continue
             s = self.bsdfs[g].sample(si[span], u_lobe[span], u_dir[g])
             new_d[:, span], value[:, span], flags[span] = s.wi, s.value, s.flags
-            if normals and hasattr(self.bsdfs[g], "diffuse_eval"):
+            part = self.bsdfs[g].diffuse_part(si[span], s.wi) if normals else None
+            if part is not None:
                 if split is None:
                     split, diffuse_part = np.zeros(alive, dtype=bool), np.zeros((3, alive))
                 split[span] = True
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    diffuse_part[:, span] = np.where(s.pdf > 0.0, self.bsdfs[g].diffuse_eval(si[span], s.wi) / s.pdf, 0.0)
+                    diffuse_part[:, span] = np.where(s.pdf > 0.0, part / s.pdf, 0.0)
             if pdf is not None:
                 pdf[span] = s.pdf
             if self.mis and self.mats.non_delta[g]:          # MIS: the vertex and pdf of non-delta samples
@@ -869,13 +870,14 @@ class PathTracer:
             diffuse = ~self.mats.specular_normal.take(si.material)
             shadowing = self.bump_shadowing(si, w, np.repeat(diffuse, ns) if ns > 1 else diffuse, True, ns)
             weight *= shadowing
-            if f_cos is not None and len(valid) and hasattr(bsdf, "diffuse_eval"):
+            part = bsdf.diffuse_part(at_valid(), pick(w, 1)) if f_cos is not None and len(valid) else None
+            if part is not None:
                 # Diffuse and glossy closures in one BSDF (the Principled): the diffuse ones take the
                 # diffuse term, per closure as Cycles' bsdf_eval
                 soft = self.bump_shadowing(si, w, np.ones(k, dtype=bool), True, ns)
                 with np.errstate(divide="ignore", invalid="ignore"):
                     scale = np.where(shadowing > 0.0, soft / shadowing - 1.0, 0.0)
-                f_cos[:, valid] += pick(scale) * bsdf.diffuse_eval(at_valid(), pick(w, 1))
+                f_cos[:, valid] += pick(scale) * part
         contrib = ls.radiance * weight if albedo is not None else ls.radiance * weight * f_cos
         mean = contrib.reshape(3, m, ns).sum(axis=2) / ns if ns > 1 else contrib
         if albedo is None:

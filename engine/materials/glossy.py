@@ -31,6 +31,8 @@ at the hits that have one (engine/materials/textures.py per_hit, hit_tangent).
 """
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 
 from ..core.backend import JIT_MODULES, NUMBA
@@ -140,6 +142,8 @@ class MicrofacetReflection(BSDF):
         self.rotation = np.array([getattr(x, "rotation", 0.0) for x in materials], dtype=np.float64)
         self.compensate = np.array([getattr(x, "multiscatter", True) and getattr(x, "distribution", GGX) == GGX
                                     for x in materials], dtype=bool)
+        # every Fresnel is the colour (the Glossy BSDF node): the compiled eval takes the colour as F
+        self.tinted = bool(m) and bool((self.fresnel == FRESNEL_KINDS.index("none")).all())
 
     def use_backend(self, backends: dict) -> None:
         """The GGX geometry of eval and sample compiled (engine/materials/microfacet_jit.py, the
@@ -336,7 +340,24 @@ class MicrofacetReflection(BSDF):
         wi = normalize(to_world(wi_l, x, y, n))
         return BSDFSample(wi, np.nan_to_num(value), np.nan_to_num(pdf), np.full(len(si), LOBE, dtype=np.int8))
 
+    def _tinted_hits(self, si: ShadingPoint):
+        """What the compiled eval of a lobe whose Fresnel is its colour reads per hit (C-contiguous):
+        wo, the frame x, y, n, the alphas, the colour and the compensation (1 where none); None
+        where a hit is Beckmann."""
+        ax, ay, beckmann = self._alphas(si)
+        if beckmann.any():
+            return None
+        x, y, n = self._frame_at(si)
+        scale = self.compensation_at(si)
+        rows = np.ascontiguousarray
+        return SimpleNamespace(wo=rows(si.wo), x=rows(x), y=rows(y), n=rows(n), ax=rows(ax), ay=rows(ay),
+                               colour=rows(si.color), comp=rows(np.ones((3, len(si))) if scale is None else scale))
+
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.compiled is not None and self.tinted:        # the Glossy BSDF: reads its hits by index
+            hits, index = si.memo_at((self, "tinted"), self._tinted_hits)
+            if hits is not None:
+                return self.compiled.tinted_eval(hits, index, wi)
         ax, ay, beckmann = self._alphas(si)
         x, y, n = self._frame_at(si)
         if self.compiled is not None and not beckmann.any():

@@ -72,28 +72,32 @@ def _clip01(v):
 
 
 @jit
+def eval_hit(wo, wi, x, y, n, j, k, a_x, a_y):
+    """(cos, pdf, g) of GGX reflection for the hit j (wo, frame x, y, n: its column j) and the
+    direction wi[:, k] (the body of `ggx_eval`; engine/materials/principled_jit.py calls it too)."""
+    o0 = wo[0, j] * x[0, j] + wo[1, j] * x[1, j] + wo[2, j] * x[2, j]
+    o1 = wo[0, j] * y[0, j] + wo[1, j] * y[1, j] + wo[2, j] * y[2, j]
+    o2 = wo[0, j] * n[0, j] + wo[1, j] * n[1, j] + wo[2, j] * n[2, j]
+    i0 = wi[0, k] * x[0, j] + wi[1, k] * x[1, j] + wi[2, k] * x[2, j]
+    i1 = wi[0, k] * y[0, j] + wi[1, k] * y[1, j] + wi[2, k] * y[2, j]
+    i2 = wi[0, k] * n[0, j] + wi[1, k] * n[1, j] + wi[2, k] * n[2, j]
+    ok = (o2 > 0.0) and (i2 > 0.0)
+    f0, f1, f2 = o0 + i0, o1 + i1, o2 + i2
+    length = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    if not length > 0.0:
+        length = 1.0
+    h0, h1, h2 = f0 / length, f1 / length, f2 / length
+    d = _d(h0, h1, h2, a_x, a_y)
+    lo = _lambda(o0, o1, o2, a_x, a_y)
+    li = _lambda(i0, i1, i2, a_x, a_y)
+    common = d / (4.0 * o2) if ok else 0.0
+    return _clip01(o0 * h0 + o1 * h1 + o2 * h2), _finite(common / (1.0 + lo)), _finite(common / (1.0 + lo + li))
+
+
+@jit
 def _eval(wo, wi, x, y, n, ax, ay, cos_out, pdf_out, g_out):
     for i in range(wo.shape[1]):
-        a_x, a_y = ax[i], ay[i]
-        o0 = wo[0, i] * x[0, i] + wo[1, i] * x[1, i] + wo[2, i] * x[2, i]
-        o1 = wo[0, i] * y[0, i] + wo[1, i] * y[1, i] + wo[2, i] * y[2, i]
-        o2 = wo[0, i] * n[0, i] + wo[1, i] * n[1, i] + wo[2, i] * n[2, i]
-        i0 = wi[0, i] * x[0, i] + wi[1, i] * x[1, i] + wi[2, i] * x[2, i]
-        i1 = wi[0, i] * y[0, i] + wi[1, i] * y[1, i] + wi[2, i] * y[2, i]
-        i2 = wi[0, i] * n[0, i] + wi[1, i] * n[1, i] + wi[2, i] * n[2, i]
-        ok = (o2 > 0.0) and (i2 > 0.0)
-        f0, f1, f2 = o0 + i0, o1 + i1, o2 + i2
-        length = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
-        if not length > 0.0:
-            length = 1.0
-        h0, h1, h2 = f0 / length, f1 / length, f2 / length
-        d = _d(h0, h1, h2, a_x, a_y)
-        lo = _lambda(o0, o1, o2, a_x, a_y)
-        li = _lambda(i0, i1, i2, a_x, a_y)
-        common = d / (4.0 * o2) if ok else 0.0
-        pdf_out[i] = _finite(common / (1.0 + lo))
-        g_out[i] = _finite(common / (1.0 + lo + li))
-        cos_out[i] = _clip01(o0 * h0 + o1 * h1 + o2 * h2)
+        cos_out[i], pdf_out[i], g_out[i] = eval_hit(wo, wi, x, y, n, i, i, ax[i], ay[i])
 
 
 @jit
@@ -103,49 +107,68 @@ def _normalized(a0, a1, a2):
 
 
 @jit
+def sample_hit(wo, x, y, n, i, a_x, a_y, u1, u2):
+    """(wi (world, 3 scalars), cos, pdf, G2 / G1(wo)) of a GGX visible-normal sample at hit i with
+    the uniforms u1, u2 (the body of `ggx_sample`; engine/materials/principled_jit.py calls it too)."""
+    o0 = wo[0, i] * x[0, i] + wo[1, i] * x[1, i] + wo[2, i] * x[2, i]
+    o1 = wo[0, i] * y[0, i] + wo[1, i] * y[1, i] + wo[2, i] * y[2, i]
+    o2 = wo[0, i] * n[0, i] + wo[1, i] * n[1, i] + wo[2, i] * n[2, i]
+    # ggx_sample_vndf: stretch, sample the projected hemisphere, unstretch
+    v0, v1, v2 = _normalized(a_x * o0, a_y * o1, o2)
+    lensq = v0 * v0 + v1 * v1
+    if lensq > 1e-14:
+        inv = 1.0 / np.sqrt(lensq)
+        t0, t1, t2 = -v1 * inv, v0 * inv, 0.0
+    else:
+        t0, t1, t2 = 1.0, 0.0, 0.0
+    s0, s1, s2 = v1 * t2 - v2 * t1, v2 * t0 - v0 * t2, v0 * t1 - v1 * t0
+    r = np.sqrt(u1)
+    phi = TWO_PI * u2
+    p1, p2 = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + v2)
+    p2 = (1.0 - s) * np.sqrt(_max0(1.0 - p1 * p1)) + s * p2
+    pz = np.sqrt(_max0(1.0 - p1 * p1 - p2 * p2))
+    m0 = p1 * t0 + p2 * s0 + pz * v0
+    m1 = p1 * t1 + p2 * s1 + pz * v1
+    m2 = p1 * t2 + p2 * s2 + pz * v2
+    h0, h1, h2 = _normalized(a_x * m0, a_y * m1, _max0(m2))
+    # the reflected direction and its weight
+    cos_h = o0 * h0 + o1 * h1 + o2 * h2
+    w0, w1, w2 = 2.0 * cos_h * h0 - o0, 2.0 * cos_h * h1 - o1, 2.0 * cos_h * h2 - o2
+    ok = (o2 > 0.0) and (w2 > 0.0)
+    d = _d(h0, h1, h2, a_x, a_y)
+    lo = _lambda(o0, o1, o2, a_x, a_y)
+    li = _lambda(w0, w1, w2, a_x, a_y)
+    if ok:
+        pdf = _finite(d / (4.0 * o2 * (1.0 + lo)))
+        ratio = (1.0 + lo) / (1.0 + lo + li)
+    else:
+        pdf = 0.0
+        ratio = 0.0
+    e0 = w0 * x[0, i] + w1 * y[0, i] + w2 * n[0, i]
+    e1 = w0 * x[1, i] + w1 * y[1, i] + w2 * n[1, i]
+    e2 = w0 * x[2, i] + w1 * y[2, i] + w2 * n[2, i]
+    d0, d1, d2 = _normalized(e0, e1, e2)
+    return d0, d1, d2, _clip01(cos_h), pdf, ratio
+
+
+@jit
 def _sample(wo, x, y, n, ax, ay, u1, u2, wi_out, cos_out, pdf_out, ratio_out):
     for i in range(wo.shape[1]):
-        a_x, a_y = ax[i], ay[i]
-        o0 = wo[0, i] * x[0, i] + wo[1, i] * x[1, i] + wo[2, i] * x[2, i]
-        o1 = wo[0, i] * y[0, i] + wo[1, i] * y[1, i] + wo[2, i] * y[2, i]
-        o2 = wo[0, i] * n[0, i] + wo[1, i] * n[1, i] + wo[2, i] * n[2, i]
-        # ggx_sample_vndf: stretch, sample the projected hemisphere, unstretch
-        v0, v1, v2 = _normalized(a_x * o0, a_y * o1, o2)
-        lensq = v0 * v0 + v1 * v1
-        if lensq > 1e-14:
-            inv = 1.0 / np.sqrt(lensq)
-            t0, t1, t2 = -v1 * inv, v0 * inv, 0.0
-        else:
-            t0, t1, t2 = 1.0, 0.0, 0.0
-        s0, s1, s2 = v1 * t2 - v2 * t1, v2 * t0 - v0 * t2, v0 * t1 - v1 * t0
-        r = np.sqrt(u1[i])
-        phi = TWO_PI * u2[i]
-        p1, p2 = r * np.cos(phi), r * np.sin(phi)
-        s = 0.5 * (1.0 + v2)
-        p2 = (1.0 - s) * np.sqrt(_max0(1.0 - p1 * p1)) + s * p2
-        pz = np.sqrt(_max0(1.0 - p1 * p1 - p2 * p2))
-        m0 = p1 * t0 + p2 * s0 + pz * v0
-        m1 = p1 * t1 + p2 * s1 + pz * v1
-        m2 = p1 * t2 + p2 * s2 + pz * v2
-        h0, h1, h2 = _normalized(a_x * m0, a_y * m1, _max0(m2))
-        # the reflected direction and its weight
-        cos_h = o0 * h0 + o1 * h1 + o2 * h2
-        w0, w1, w2 = 2.0 * cos_h * h0 - o0, 2.0 * cos_h * h1 - o1, 2.0 * cos_h * h2 - o2
-        ok = (o2 > 0.0) and (w2 > 0.0)
-        d = _d(h0, h1, h2, a_x, a_y)
-        lo = _lambda(o0, o1, o2, a_x, a_y)
-        li = _lambda(w0, w1, w2, a_x, a_y)
-        if ok:
-            pdf_out[i] = _finite(d / (4.0 * o2 * (1.0 + lo)))
-            ratio_out[i] = (1.0 + lo) / (1.0 + lo + li)
-        else:
-            pdf_out[i] = 0.0
-            ratio_out[i] = 0.0
-        cos_out[i] = _clip01(cos_h)
-        e0 = w0 * x[0, i] + w1 * y[0, i] + w2 * n[0, i]
-        e1 = w0 * x[1, i] + w1 * y[1, i] + w2 * n[1, i]
-        e2 = w0 * x[2, i] + w1 * y[2, i] + w2 * n[2, i]
-        wi_out[0, i], wi_out[1, i], wi_out[2, i] = _normalized(e0, e1, e2)
+        wi_out[0, i], wi_out[1, i], wi_out[2, i], cos_out[i], pdf_out[i], ratio_out[i] = sample_hit(
+            wo, x, y, n, i, ax[i], ay[i], u1[i], u2[i])
+
+
+@jit
+def _tinted_eval(index, wo, wi, x, y, n, ax, ay, colour, comp, f_out, pdf_out):
+    """f cos = colour x g x compensation and pdf of the pairs (hit index[k], wi[:, k]): the lobe of
+    Fresnel "none" (MicrofacetReflection.eval's numbers)."""
+    for k in range(index.shape[0]):
+        j = index[k]
+        _, pdf, g = eval_hit(wo, wi, x, y, n, j, k, ax[j], ay[j])
+        for ch in range(3):
+            f_out[ch, k] = colour[ch, j] * g * comp[ch, j]
+        pdf_out[k] = pdf
 
 
 def _rows(a):
@@ -177,6 +200,18 @@ def ggx_sample(wo, x, y, n, ax, ay, u1, u2):
     return wi, cos, pdf, ratio
 
 
+def tinted_eval(hits, index, wi):
+    """(f cos (3, K), pdf (K,)) of a GGX lobe whose Fresnel is its colour at the pairs (hit index[k],
+    wi[:, k]); hits: the per-hit arrays of engine/materials/glossy.py `_tinted_hits`, index None for
+    the hits themselves."""
+    count = wi.shape[1]
+    index = np.arange(count) if index is None else np.ascontiguousarray(index, dtype=np.int64)
+    f_cos, pdf = np.empty((3, count)), np.empty(count)
+    _tinted_eval(index, hits.wo, _rows(wi), hits.x, hits.y, hits.n, hits.ax, hits.ay, hits.colour, hits.comp,
+                 f_cos, pdf)
+    return f_cos, pdf
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     w = np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]])
@@ -184,3 +219,8 @@ def warm_up() -> None:
     a = np.array([0.25, 0.5])
     ggx_eval(w, w[::-1].copy(), frame[0], frame[1], frame[2], a, a)
     ggx_sample(w, frame[0], frame[1], frame[2], a, a, np.array([0.3, 0.6]), np.array([0.2, 0.9]))
+    from types import SimpleNamespace
+    hits = SimpleNamespace(wo=w, x=frame[0].copy(), y=frame[1].copy(), n=frame[2].copy(), ax=a, ay=a,
+                           colour=np.ones((3, 2)), comp=np.ones((3, 2)))
+    tinted_eval(hits, None, w[::-1].copy())
+    tinted_eval(hits, np.array([1, 0]), w.copy())

@@ -81,10 +81,12 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ..core.backend import JIT_MODULES, NUMBA
 from ..core.vec import dot
+from ..sampling.warps import cosine_directions
 from ..scene.model import PRINCIPLED, Principled, PrincipledV1
 from . import albedo_tables
-from .glossy import MicrofacetReflection, fresnel_dielectric, fresnel_dielectric_average
+from .glossy import MicrofacetReflection, f82_b, fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import GGX, clamp_alpha, ggx_sample_vndf
 from .oren_nayar import EnergyPreservingOrenNayar
 from .principled_glass import FLAGS as GLASS_LOBES, PrincipledGlass
@@ -212,6 +214,7 @@ class PrincipledV2(BSDF):
     """The Principled BSDF v2 of every material (engine/scene/model.py Principled): metallic,
     specular and diffuse lobes, weighted and sampled as Cycles does (see the module)."""
     flags = FLAGS
+    compiled = None                     # engine/materials/principled_jit.py when the backend is numba
 
     def __init__(self, materials, settings):
         params = [p if isinstance(p := getattr(m, "principled", None), Principled) else None for m in materials]
@@ -298,6 +301,52 @@ class PrincipledV2(BSDF):
         self.any_transmission = bool(np.any(self.glass.transmission > 0.0))
         if self.any_transmission:
             self.flags = self.flags | GLASS_LOBES
+
+    def use_backend(self, backends: dict) -> None:
+        """The base's eval and sample compiled (engine/materials/principled_jit.py, the same numbers)
+        when the render runs the Principled effects on numba and no material has layers, a
+        transmission or a rough diffuse (those keep the NumPy lobes)."""
+        super().use_backend(backends)
+        fusable = not self.any_layers and not bool((self.diffuse.roughness > 0.0).any())
+        if fusable and any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.principled_jit"]):
+            from . import principled_jit
+            self.compiled = principled_jit
+        else:
+            self.compiled = None
+
+    def _fused_hits(self, si: ShadingPoint):
+        """What the compiled base reads per hit (C-contiguous, over the hits on the last axis): wo;
+        the microfacet frame x, y, n and alphas ax, ay the metallic and specular lobes share (both
+        are set up from the material's roughness, anisotropy, tangent and rotation); the metal's F0
+        and F82 b, the specular colour, eta and F0; both compensations (1 where none); the diffuse
+        normal nd and colour; the lobe weights and probabilities.  None where a diffuse roughness
+        texture may make the diffuse lobe rough (the NumPy lobes then)."""
+        if textured_mask(si, self.diffuse.roughness_input) is not None:
+            return None
+        metal, specular, _ = self._views(si)
+        (w_metal, w_spec, w_diffuse), prob = self._lobes_at(si)
+        x, y, n = self.metal._frame_at(metal)
+        ax, ay, _ = self.metal._alphas(metal)
+        ones = None
+
+        def compensation(lobe, view):
+            nonlocal ones
+            scale = lobe.compensation_at(view)
+            if scale is None:
+                ones = np.ones((3, len(si))) if ones is None else ones
+                return ones
+            return scale
+        f0_metal = np.clip(metal.color, 0.0, 1.0)
+        eta = self.specular.ior.take(si.material)
+        rows = np.ascontiguousarray
+        return SimpleNamespace(
+            wo=rows(si.wo), x=rows(x), y=rows(y), n=rows(n), ax=rows(ax), ay=rows(ay),
+            f0_metal=rows(f0_metal),
+            b_metal=rows(f82_b(f0_metal, np.clip(self.metal.edge_tint.take(si.material, axis=1), 0.0, 1.0))),
+            comp_metal=rows(compensation(self.metal, metal)), spec_colour=rows(specular.color), eta=rows(eta),
+            f0_spec=rows(f0_from_ior(eta)), comp_spec=rows(compensation(self.specular, specular)),
+            nd=rows(si.n), colour=rows(si.color), w_metal=rows(w_metal), w_spec=rows(w_spec),
+            w_diffuse=rows(w_diffuse), prob=rows(prob), any_metal=bool((w_metal > 0.0).any()))
 
     # -- the layers at the hits ---------------------------------------------------------------
     def _views(self, si: ShadingPoint):
@@ -566,13 +615,17 @@ class PrincipledV2(BSDF):
 
     # -- the protocol -------------------------------------------------------------------------
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.compiled is not None:
+            hits, index = si.memo_at((self, "fused"), self._fused_hits)
+            if hits is not None:
+                return self.compiled.base_eval(hits, index, wi)
         if self.any_layers:
             layers, weights, prob = self._lobes_at(si)
             return self._layered_mixture(si, wi, layers, weights, prob)
         weights, prob = self._lobes_at(si)
         return self._mixture(si, wi, weights, prob)
 
-    def diffuse_eval(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+    def diffuse_part(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         """f cos (3, N) of the diffuse and sheen lobes alone, as weighted in eval: the closures Cycles
         counts as diffuse (CLOSURE_IS_BSDF_DIFFUSE), whose bump shadowing differs from the glossy
         ones' (engine/nodes/normals.py bump_shadowing; engine/integrators/path_tracer.py)."""
@@ -587,6 +640,10 @@ class PrincipledV2(BSDF):
         return self.eval(si, wi)[1]
 
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+        if self.compiled is not None:
+            hits = si.memo((self, "fused"), self._fused_hits)
+            if hits is not None:
+                return self._compiled_sample(si, hits, u_lobe, u)
         if self.any_layers:
             return self._layered_sample(si, u_lobe, u)
         weights, prob = self._lobes_at(si)
@@ -603,6 +660,17 @@ class PrincipledV2(BSDF):
             wi[:, idx] = s.wi
             flags[idx] = s.flags
         f_cos, pdf = self._mixture(si, wi, weights, prob)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
+        return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
+
+
+    def _compiled_sample(self, si: ShadingPoint, hits, u_lobe, u) -> BSDFSample:
+        """sample() of the base on the compiled kernels: the same picks, directions and numbers."""
+        wi, flags, diffuse = self.compiled.base_pick(hits, u_lobe, u[0], u[1])
+        if len(diffuse):                            # the diffuse lobe's cosine directions (NumPy's sin, cos)
+            wi[:, diffuse] = cosine_directions(u[0].take(diffuse), u[1].take(diffuse), si.n.take(diffuse, axis=1))
+        f_cos, pdf = self.compiled.base_eval(hits, None, wi)
         with np.errstate(divide="ignore", invalid="ignore"):
             value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
         return BSDFSample(wi, np.nan_to_num(value), pdf, flags)

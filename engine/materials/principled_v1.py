@@ -48,6 +48,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ..core.backend import JIT_MODULES, NUMBA
 from ..core.vec import dot, normalize
 from ..sampling.warps import cosine_hemisphere
 from ..scene.model import PrincipledV1 as Params
@@ -125,6 +126,7 @@ class PrincipledV1(BSDF):
     """Blender 3.4's Principled BSDF of every material (engine/scene/model.py PrincipledV1):
     diffuse, sheen, specular and clearcoat closures (see the module)."""
     flags = FLAGS
+    compiled = None                     # engine/materials/principled_v1_jit.py when the backend is numba
 
     def __init__(self, materials, settings):
         m = len(materials)
@@ -156,6 +158,52 @@ class PrincipledV1(BSDF):
         self.glass = PrincipledV1Glass(materials, params)
         if self.glass.any:                          # light from the far side too
             self.flags = FLAGS | REFLECTED | REFRACTED
+
+    def use_backend(self, backends: dict) -> None:
+        """The closures' eval and sample compiled (engine/materials/principled_v1_jit.py, the same
+        numbers) when the render runs the Principled effects on numba and no material has a clearcoat
+        or a transmission (those keep the NumPy closures)."""
+        super().use_backend(backends)
+        fusable = not self.glass.any and not bool((self.clearcoat > WEIGHT_CUTOFF).any())
+        if fusable and any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.principled_v1_jit"]):
+            from . import principled_v1_jit
+            self.compiled = principled_v1_jit
+        else:
+            self.compiled = None
+
+    def _fused_hits(self, si: ShadingPoint) -> SimpleNamespace:
+        """What the compiled closures read per hit (C-contiguous, over the hits on the last axis): wo,
+        the frame x, y, n, the alphas, "Multiscatter GGX" flags and roughness, eta and the Fresnel's
+        F0, cspec0, the specular compensation, the closure weights and probabilities."""
+        weights, prob = si.memo((self, "closures"), self.closures)
+        x, y = si.memo((self, "frame"), self._frame)
+        hit = self._inputs(si)
+        eta = self.eta.take(si.material)
+        compensation = si.memo((self, "compensation"), lambda at: self._compensation(at, dot(at.wo, at.n)))
+        rows = np.ascontiguousarray
+        return SimpleNamespace(
+            wo=rows(si.wo), x=rows(x), y=rows(y), n=rows(si.n), ax=rows(hit.ax), ay=rows(hit.ay),
+            multi=rows(hit.multi), roughness=rows(hit.roughness), eta=rows(eta),
+            f0=rows(fresnel_dielectric(np.ones(len(si)), eta)), cspec0=rows(self.cspec0(si)),
+            comp=rows(compensation), w_diffuse=rows(weights[0]), w_sheen=rows(weights[1]), w_spec=rows(weights[2]),
+            prob=rows(prob))
+
+    def _compiled_sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+        """sample() on the compiled kernels: the same picks, directions and numbers."""
+        hits = si.memo((self, "fused"), self._fused_hits)
+        wi, choice = self.compiled.closures_pick(hits, u_lobe, u[0], u[1])
+        flags = np.where(choice < 2, np.int8(DIFFUSE_LOBE), np.int8(GLOSSY_LOBE))
+        for idx, code in ((np.flatnonzero(choice < 2), 0), (np.flatnonzero(choice == 3), 3)):
+            if not len(idx):                        # cosine directions (NumPy's sin, cos), the clearcoat's
+                continue
+            x, y, n = (a.take(idx, axis=1) for a in (hits.x, hits.y, hits.n))
+            wo_l = to_local(hits.wo.take(idx, axis=1), x, y, n) if code == 3 else None
+            wi_l = self._sample_lobe(code, si.take(idx), wo_l, u[0].take(idx), u[1].take(idx))
+            wi[:, idx] = normalize(to_world(wi_l, x, y, n))
+        f_cos, pdf = self.compiled.closures_eval(hits, None, wi)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
+        return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
 
     # -- per hit ------------------------------------------------------------------------------------
     def inputs(self, si: ShadingPoint) -> SimpleNamespace:
@@ -330,11 +378,14 @@ class PrincipledV1(BSDF):
 
     # -- the protocol -------------------------------------------------------------------------------
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.compiled is not None:
+            hits, index = si.memo_at((self, "fused"), self._fused_hits)
+            return self.compiled.closures_eval(hits, index, wi)
         weights, prob = si.memo((self, "closures"), self.closures)
         x, y = si.memo((self, "frame"), self._frame)
         return self._mixture(si, to_local(si.wo, x, y, si.n), to_local(wi, x, y, si.n), weights, prob)
 
-    def diffuse_eval(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
+    def diffuse_part(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         """f cos (3, N) of the diffuse and sheen closures alone (Cycles' CLOSURE_IS_BSDF_DIFFUSE, whose
         bump shadowing differs: engine/nodes/normals.py bump_shadowing)."""
         weights, prob = si.memo((self, "closures"), self.closures)
@@ -346,6 +397,8 @@ class PrincipledV1(BSDF):
         return self.eval(si, wi)[1]
 
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+        if self.compiled is not None:
+            return self._compiled_sample(si, u_lobe, u)
         weights, prob = si.memo((self, "closures"), self.closures)
         x, y = si.memo((self, "frame"), self._frame)
         wo_l = to_local(si.wo, x, y, si.n)

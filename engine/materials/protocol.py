@@ -145,21 +145,52 @@ class ShadingPoint:
         return view
 
     def take(self, index: np.ndarray) -> "ShadingPoint":
-        """The hits `index` (copies, the medium stacks too: for evaluating directions only)."""
-        def cols(a):
-            return a.take(index, axis=1)
-        media = None if self.media is None else type(self.media)(self.media.media.take(index, axis=0),
-                                                                 self.media.depth.take(index))
-        taken = ShadingPoint(cols(self.wo), cols(self.n), cols(self.ng), cols(self.normal), cols(self.color),
-                             self.material.take(index), self.smooth, media,
-                             None if self.lookup is None else self.lookup.take(index),
-                             *(None if a is None else a.take(index) for a in (self.alpha_floor, self.glossy_off)))
+        """The hits `index` (copies, the medium stacks too: for evaluating directions only).  The
+        rows and the material ids are gathered when first read (a BSDF that reads its per-hit values
+        through `memo_at` reads none of them; Lambert reads only n); the medium stacks, which a
+        scattering updates in place, and the fields with defaults at once."""
+        taken = object.__new__(ShadingPoint)
+        state = taken.__dict__
+        state.update(smooth=self.smooth, _memo={}, _spans={}, _shared=False, _source=None,
+                     _lazy=(self, index), _count=len(index))
+        state["media"] = None if self.media is None else type(self.media)(self.media.media.take(index, axis=0),
+                                                                          self.media.depth.take(index))
+        for name in ("lookup", "alpha_floor", "glossy_off"):      # fields with defaults: never lazy
+            value = getattr(self, name)
+            state[name] = None if value is None else value.take(index)
         if self._shared or self._source is not None:
-            object.__setattr__(taken, "_source", (self, index))
+            state["_source"] = (self, index)
         return taken
 
+    def __getattr__(self, name):
+        """A field of a take (`take`), gathered from the ShadingPoint it was taken from on first read."""
+        lazy = self.__dict__.get("_lazy")
+        if lazy is None or name not in _GATHERED:
+            raise AttributeError(name)
+        source, index = lazy
+        value = getattr(source, name)
+        if value is not None:
+            value = value.take(index, axis=1) if name in _ROWS else value.take(index)
+        self.__dict__[name] = value
+        return value
+
     def __len__(self) -> int:
-        return self.wo.shape[1]
+        count = self.__dict__.get("_count")
+        return self.wo.shape[1] if count is None else count
+
+    def memo_at(self, key, compute):
+        """(value, index): `memo`'s value for the hits these were taken from (the span's view: no
+        gather) and the index of these hits in it, None where these hits are the ones it holds.
+        For a compiled kernel that reads per-hit values by index."""
+        if self._source is None:
+            return self.memo(key, compute), None
+        source, index = self._source
+        value, inner = source.memo_at(key, compute)
+        return value, (index if inner is None else inner.take(index))
+
+
+_ROWS = ("wo", "n", "ng", "normal", "color")                      # (3, N) rows
+_GATHERED = _ROWS + ("material",)       # a take's fields read lazily (those without a class default)
 
 
 def take_hits(value, index: np.ndarray):
@@ -214,6 +245,13 @@ class BSDF:
 
     def lambert_albedo(self, si: ShadingPoint) -> np.ndarray | None:
         """rho (3, N) if f = rho / pi for every pair of directions, else None (see above)."""
+        return None
+
+    def diffuse_part(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray | None:
+        """f cos (3, N) of the lobes Cycles counts as diffuse (CLOSURE_IS_BSDF_DIFFUSE), as weighted
+        in eval, for a BSDF that has glossy lobes beside them: a Normal input shadows the two kinds
+        differently (engine/nodes/normals.py bump_shadowing; engine/integrators/path_tracer.py).
+        None for a BSDF whose lobes are all of one kind (the default)."""
         return None
 
     def use_backend(self, backends: dict) -> None:

@@ -77,3 +77,32 @@ def test_principled_lobes_follow_the_backend():
     assert bsdf.metal.compiled is not None and bsdf.specular.compiled is not None and bsdf.coat.compiled is not None
     bsdf.use_backend({"principled": "numpy"})
     assert bsdf.metal.compiled is None
+
+
+def test_a_lobe_whose_fresnel_is_its_colour_is_bit_identical_on_a_take():
+    """The Glossy BSDF's compiled eval (MicrofacetReflection.tinted) reads its hits by index: on the
+    hits and on a take of a span's view, as the light samples evaluate."""
+    require_compiled()
+    materials = _materials()
+    for m in materials:
+        m.fresnel = "none"
+    numpy_lobe, compiled = _pair(materials)
+    assert compiled.tinted and not _pair(_materials())[1].tinted
+    rng = np.random.default_rng(3)
+
+    def hits():
+        return _hits(np.random.default_rng(9), len(materials), 2000)[0:2000]
+    wi = rng.normal(size=(3, 2000))
+    wi /= np.linalg.norm(wi, axis=0)
+    idx = np.sort(rng.integers(0, 2000, 1000))
+    for take in (None, idx):
+        at_a, at_b = hits(), hits()
+        w = wi if take is None else wi.take(take, axis=1)
+        f_a, p_a = numpy_lobe.eval(at_a if take is None else at_a.take(take), w)
+        f_b, p_b = compiled.eval(at_b if take is None else at_b.take(take), w)
+        assert (p_a > 0).sum() > 300 and np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+    # Control: a colour 1 ulp brighter is told apart.
+    reference = compiled.eval(hits(), wi)[0]
+    at = hits()
+    at.color = np.nextafter(at.color, 2.0)
+    assert not np.array_equal(compiled.eval(at, wi)[0], reference)

@@ -1,0 +1,181 @@
+"""The Principled BSDF v2's base (engine/materials/principled.py PrincipledV2 without layers: the
+metallic and specular GGX lobes over the Lambertian diffuse) compiled with numba: its eval and pdf
+as one pass over the (hit, direction) pairs that reads the per-hit values (frame, alphas, Fresnel
+inputs, compensation, lobe weights and probabilities, computed once per scatter group by NumPy) by
+index, so a light sample's eval gathers nothing, and its sample (the lobe pick and the GGX
+direction) as one pass over the hits.
+
+The two microfacet lobes share their geometry (the same frame, alphas and half vector: both are set
+up from the same material, engine/materials/principled.py `_fused_hits`), so D and the Lambdas are
+computed once.  Every number repeats the NumPy path's float64 operations in the same order
+(engine/materials/glossy.py MicrofacetReflection.eval and sample with the GGX kernels of
+engine/materials/microfacet_jit.py, fresnel_f82, fresnel_dielectric, principled.py real_fresnel_s
+and _mixture, oren_nayar.py's Lambert case) with only +, -, *, /, sqrt, cos and sin; the one power
+(the F82 Fresnel's (1 - cos)^5) and the cosine directions of the diffuse picks (float32 sin and cos)
+stay NumPy, between the passes.  The same bits as backend=numpy (tests/materials/test_principled_jit.py).
+Imported only through engine/core/backend.py's choice (it imports numba)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.backend import numba_module
+from .microfacet_jit import _clip01, eval_hit, sample_hit
+
+nb = numba_module()
+jit = nb.njit(cache=True, error_model="numpy", nogil=True)
+
+INV_PI = 1.0 / np.pi
+GLOSSY = 9                  # BSDFFlags.GLOSSY | REFLECTION (engine/materials/protocol.py)
+DIFFUSE = 5                 # BSDFFlags.DIFFUSE | REFLECTION
+
+
+@jit
+def _max_keep_nan(v):
+    """np.maximum(v, 0.0) (NaN stays NaN; the sign of a zero never reaches the sums)."""
+    if v != v:
+        return v
+    return v if v >= 0.0 else 0.0
+
+
+@jit
+def _fresnel_dielectric(cos, ior):
+    """engine/materials/glossy.py fresnel_dielectric of one hit."""
+    g2 = ior * ior - 1.0 + cos * cos
+    if g2 < 0.0:
+        return 1.0
+    g = np.sqrt(g2)
+    a = (g - cos) / (g + cos)
+    b = (cos * (g + cos) - 1.0) / (cos * (g - cos) + 1.0)
+    f = 0.5 * a * a * (1.0 + b * b)
+    if f != f:
+        return 1.0
+    return _clip01(f)
+
+
+@jit
+def _geometry(index, wo, wi, x, y, n, ax, ay, w_metal, w_spec, cos_out, pdf_out, g_out):
+    """GGX (cos, pdf, g) of each pair (hit index[k], wi[:, k]) where a microfacet lobe is set up."""
+    for k in range(index.shape[0]):
+        j = index[k]
+        if w_metal[j] > 0.0 or w_spec[j] > 0.0:
+            cos_out[k], pdf_out[k], g_out[k] = eval_hit(wo, wi, x, y, n, j, k, ax[j], ay[j])
+        else:
+            cos_out[k], pdf_out[k], g_out[k] = 0.0, 0.0, 0.0
+
+
+@jit
+def _combine(index, wi, cos, pdf_g, g, s5, nd, w_metal, w_spec, w_diffuse, prob, f0_metal, b_metal, comp_metal,
+             spec_colour, eta, f0_spec, comp_spec, colour, f_out, pdf_out):
+    """f cos (3, K) and pdf (K,) of the base: metal, specular, diffuse, summed in that order."""
+    for k in range(index.shape[0]):
+        j = index[k]
+        f_r, f_g, f_b, pdf = 0.0, 0.0, 0.0, 0.0
+        w = w_metal[j]
+        if w > 0.0:
+            c = cos[k]
+            s = _clip01(1.0 - c)
+            t5 = s5[k]
+            gk = g[k]
+            out = [0.0, 0.0, 0.0]
+            for ch in range(3):
+                f0 = f0_metal[ch, j]
+                fr = _clip01(f0 + (1.0 - f0) * t5 - b_metal[ch, j] * c * t5 * s)
+                out[ch] = w * (fr * gk * comp_metal[ch, j])
+            f_r, f_g, f_b = f_r + out[0], f_g + out[1], f_b + out[2]
+            pdf = pdf + prob[0, j] * pdf_g[k]
+        w = w_spec[j]
+        if w > 0.0:
+            f0 = f0_spec[j]
+            s = (_fresnel_dielectric(cos[k], eta[j]) - f0) / (1.0 - f0)
+            if s != s:
+                s = 1.0
+            s = _clip01(s)
+            gk = g[k]
+            out = [0.0, 0.0, 0.0]
+            for ch in range(3):
+                col = spec_colour[ch, j]
+                out[ch] = w * ((col + (1.0 - col) * s) * gk * comp_spec[ch, j])
+            f_r, f_g, f_b = f_r + out[0], f_g + out[1], f_b + out[2]
+            pdf = pdf + prob[1, j] * pdf_g[k]
+        w = w_diffuse[j]
+        if w > 0.0:
+            cos_d = wi[0, k] * nd[0, j] + wi[1, k] * nd[1, j] + wi[2, k] * nd[2, j]
+            cos_i = _max_keep_nan(cos_d)
+            pdf_d = cos_i * INV_PI
+            f_r = f_r + w * (colour[0, j] * pdf_d)
+            f_g = f_g + w * (colour[1, j] * pdf_d)
+            f_b = f_b + w * (colour[2, j] * pdf_d)
+            pdf = pdf + prob[2, j] * pdf_d
+        f_out[0, k], f_out[1, k], f_out[2, k] = f_r, f_g, f_b
+        pdf_out[k] = pdf
+
+
+@jit
+def _pick(wo, x, y, n, ax, ay, prob, u_lobe, u1, u2, wi_out, flags_out):
+    """The lobe pick (0 metal, 1 specular, 2 diffuse by the cdf of prob; diffuse where prob sums to
+    0) and the GGX direction of the hits that picked a microfacet lobe; returns their count."""
+    glossy = 0
+    for i in range(wo.shape[1]):
+        p0 = prob[0, i]
+        c1 = p0 + prob[1, i]
+        choice = (1 if u_lobe[i] >= p0 else 0) + (1 if u_lobe[i] >= c1 else 0)
+        if not c1 + prob[2, i] > 0.0:
+            choice = 2
+        if choice < 2:
+            d0, d1, d2, _, _, _ = sample_hit(wo, x, y, n, i, ax[i], ay[i], u1[i], u2[i])
+            wi_out[0, i], wi_out[1, i], wi_out[2, i] = d0, d1, d2
+            flags_out[i] = GLOSSY
+            glossy += 1
+        else:
+            flags_out[i] = DIFFUSE
+    return glossy
+
+
+def base_eval(hits, index, wi):
+    """(f cos (3, K), pdf (K,)) of the base lobes at the pairs (hit index[k], wi[:, k]); hits: the
+    per-hit arrays of principled.py `_fused_hits`, index None for the hits themselves."""
+    count = wi.shape[1]
+    if index is None:
+        index = np.arange(count)
+    index = np.ascontiguousarray(index, dtype=np.int64)
+    wi = np.ascontiguousarray(wi, dtype=np.float64)
+    cos, pdf_g, g = np.empty(count), np.empty(count), np.empty(count)
+    _geometry(index, hits.wo, wi, hits.x, hits.y, hits.n, hits.ax, hits.ay, hits.w_metal, hits.w_spec,
+              cos, pdf_g, g)
+    s5 = np.clip(1.0 - cos, 0.0, 1.0) ** 5 if hits.any_metal else cos     # fresnel_f82's power, NumPy's
+    f_cos, pdf = np.empty((3, count)), np.empty(count)
+    _combine(index, wi, cos, pdf_g, g, s5, hits.nd, hits.w_metal, hits.w_spec, hits.w_diffuse, hits.prob,
+             hits.f0_metal, hits.b_metal, hits.comp_metal, hits.spec_colour, hits.eta, hits.f0_spec, hits.comp_spec,
+             hits.colour, f_cos, pdf)
+    return f_cos, pdf
+
+
+def base_pick(hits, u_lobe, u1, u2):
+    """(wi (3, N) with the GGX directions of the glossy picks, flags (N,) int8, the diffuse picks'
+    indices) at the hits themselves."""
+    count = hits.wo.shape[1]
+    wi = np.empty((3, count))
+    flags = np.empty(count, dtype=np.int8)
+    u_lobe, u1, u2 = (np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64), (count,)))
+                      for a in (u_lobe, u1, u2))
+    glossy = _pick(hits.wo, hits.x, hits.y, hits.n, hits.ax, hits.ay, hits.prob, u_lobe, u1, u2, wi, flags)
+    diffuse = np.flatnonzero(flags == DIFFUSE) if glossy < count else np.empty(0, dtype=np.int64)
+    return wi, flags, diffuse
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels for the types a render passes."""
+    from types import SimpleNamespace
+    frame = np.eye(3)[:, :, None].repeat(2, axis=2)
+    wo = np.ascontiguousarray(np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]]))
+    ones = np.ones((3, 2))
+    hits = SimpleNamespace(wo=wo, x=frame[0].copy(), y=frame[1].copy(), n=frame[2].copy(), nd=frame[2].copy(),
+                           ax=np.array([0.25, 0.5]), ay=np.array([0.25, 0.5]), w_metal=np.array([1.0, 0.0]),
+                           w_spec=np.array([0.0, 1.0]), w_diffuse=np.array([0.0, 0.5]),
+                           prob=np.ascontiguousarray(np.array([[1.0, 0.0], [0.0, 0.5], [0.0, 0.5]])),
+                           f0_metal=ones * 0.5, b_metal=ones * 0.1, comp_metal=ones, spec_colour=ones * 0.04,
+                           eta=np.array([1.5, 1.5]), f0_spec=np.array([0.04, 0.04]), comp_spec=ones, colour=ones * 0.8,
+                           any_metal=True)
+    base_eval(hits, None, wo[::-1].copy())
+    base_eval(hits, np.array([1, 0]), wo.copy())
+    base_pick(hits, np.array([0.3, 0.6]), np.array([0.3, 0.6]), np.array([0.2, 0.9]))

@@ -1,0 +1,100 @@
+"""The compiled Principled v2 base (engine/materials/principled_jit.py) against the NumPy path of
+engine/materials/principled.py PrincipledV2: eval (on a span's hits and on a take of them, as the light
+samples evaluate) and sample bit for bit, over metallic 0 to 1, roughness 0.02 to 1, anisotropy, specular
+IOR level 0 (no specular lobe) to 1, tints, compensation on and off, colours above 1, Filter Glossy's
+alpha floor and Reflective Caustics off, directions below the surface and at grazing.  Control: one
+ulp of alpha is told apart.  Layered materials keep the NumPy lobes."""
+import numpy as np
+
+from engine.core.settings import RenderSettings
+from engine.materials.principled import PrincipledV2
+from engine.materials.protocol import ShadingPoint
+from engine.scene.model import Material, Principled
+from tests.backend_capture import require_compiled
+
+TWIN = "engine.materials.principled_jit"        # imported by use_backend, not here: numba may be missing
+NUMBA = {"principled": "numba"}
+
+
+def _materials():
+    out = []
+    for i, (metallic, rough, aniso, level) in enumerate([(0.0, 0.02, 0.0, 0.5), (1.0, 0.3, 0.0, 0.5),
+                                                         (0.5, 1.0, 0.6, 0.8), (0.0, 0.5, 0.0, 0.0),
+                                                         (0.3, 0.15, 0.9, 1.0), (1.0, 0.7, 0.2, 0.5)]):
+        out.append(Material(f"m{i}", kind="principled", color=(0.9, 0.5 + 0.2 * i, 0.2), roughness=rough,
+                            anisotropy=aniso, rotation=0.1 * i, multiscatter=i != 4,
+                            principled=Principled(metallic=metallic, specular_ior_level=level,
+                                                  specular_tint=(1.0, 0.8 + 0.05 * i, 0.7))))
+    return out
+
+
+def _hits(rng, m, count, extras=False):
+    n = rng.normal(size=(3, count))
+    n /= np.linalg.norm(n, axis=0)
+    wo = rng.normal(size=(3, count))
+    wo /= np.linalg.norm(wo, axis=0)
+    wo = np.where((wo * n).sum(axis=0) < 0.0, -wo, wo)
+    wo[:, :50] = n[:, :50]                                          # normal incidence
+    graze = np.cross(n[:, 50:100].T, rng.normal(size=(50, 3))).T    # in the tangent plane
+    wo[:, 50:100] = graze / np.linalg.norm(graze, axis=0)
+    si = ShadingPoint(wo, n, n, n, 1.1 * rng.random((3, count)), rng.integers(0, m, count))
+    if extras:
+        si.alpha_floor = np.where(rng.random(count) < 0.5, 0.3, 0.0)
+        si.glossy_off = rng.random(count) < 0.3
+    return si[0:count]                          # a span's view: takes of it read its memo
+
+
+def _pair(materials):
+    numpy_bsdf = PrincipledV2(materials, RenderSettings())
+    numpy_bsdf.use_backend({"principled": "numpy"})
+    compiled = PrincipledV2(materials, RenderSettings())
+    compiled.use_backend(NUMBA)
+    return numpy_bsdf, compiled
+
+
+def _check(numpy_bsdf, compiled, make_hits, rng, count=1500):
+    wi = rng.normal(size=(3, count))
+    wi /= np.linalg.norm(wi, axis=0)                                # half of them below the surface
+    f_a, p_a = numpy_bsdf.eval(make_hits(), wi)
+    f_b, p_b = compiled.eval(make_hits(), wi)
+    assert (p_a > 0).sum() > 500 and np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+    idx = np.sort(rng.integers(0, count, count // 2))               # a take, as the light samples' hits
+    f_a, p_a = numpy_bsdf.eval(make_hits().take(idx), wi.take(idx, axis=1))
+    hits = make_hits()
+    hits.memo((compiled, "fused"), compiled._fused_hits)            # the span's values, read by index
+    f_b, p_b = compiled.eval(hits.take(idx), wi.take(idx, axis=1))
+    assert np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+    u_lobe, u = rng.random(count), (rng.random(count), rng.random(count))
+    a, b = numpy_bsdf.sample(make_hits(), u_lobe, u), compiled.sample(make_hits(), u_lobe, u)
+    assert (a.pdf > 0).sum() > 500 and len(np.unique(a.flags)) == 2
+    for x, y in ((a.wi, b.wi), (a.value, b.value), (a.pdf, b.pdf), (a.flags, b.flags)):
+        assert np.array_equal(x, y)
+    return wi
+
+
+def test_eval_and_sample_are_bit_identical():
+    require_compiled()
+    materials = _materials()
+    numpy_bsdf, compiled = _pair(materials)
+    assert numpy_bsdf.compiled is None and compiled.compiled.__name__ == TWIN
+    for extras in (False, True):
+        wi = _check(numpy_bsdf, compiled, lambda: _hits(np.random.default_rng(11), len(materials), 1500, extras),
+                    np.random.default_rng(5))
+    # Control: a base 1 ulp rougher is told apart.
+    hits = _hits(np.random.default_rng(11), len(materials), 1500)
+    p_a = compiled.eval(hits, wi)[1]
+    compiled.metal.ax = np.nextafter(compiled.metal.ax, 1.0)
+    assert not np.array_equal(compiled.eval(_hits(np.random.default_rng(11), len(materials), 1500), wi)[1], p_a)
+
+
+def test_layers_keep_the_numpy_lobes():
+    require_compiled()
+    coated = Material("c", kind="principled", principled=Principled(coat_weight=0.5))
+    bsdf = PrincipledV2(_materials() + [coated], RenderSettings())
+    bsdf.use_backend(NUMBA)
+    assert bsdf.compiled is None and bsdf.metal.compiled is not None
+    plain = PrincipledV2(_materials(), RenderSettings())
+    plain.use_backend(NUMBA)
+    assert plain.compiled is not None
+    plain.use_backend({"principled": "numpy"})
+    assert plain.compiled is None
