@@ -18,8 +18,8 @@ file is loaded (load_pre), and when the add-on is unregistered; its workers also
 Processes start and stop on a thread of their own: the UI thread never waits for them; that thread
 also imports the modules the first export and frame import in Blender's process (PREIMPORT).
 """
-import os
 import threading
+from types import SimpleNamespace
 
 import bpy
 
@@ -36,17 +36,22 @@ ENGINE = "TNCG15_MC"
 PREIMPORT = ("scene.model", "core.settings", "pools.denoiser", "rendering.frame", "rendering.units",
              "rendering.photon_passes")
 
+MAX_FAILURES = 2        # a key whose workers failed to start or died this often is not started again
+                        # (until the key changes: another Python, thread count or paths)
+
 _lock = threading.Lock()
 _state = {"pool": None, "key": None, "busy": False,   # busy: a thread is starting or stopping a pool
-          "quiet": 0}                                  # ticks in a row that wanted a start
+          "quiet": 0,                                  # ticks in a row that wanted a start
+          "failures": {}, "said": False}               # key -> failed starts or deaths; a tick's error told
 started = []            # keys of the pools started here (tests, diagnostics)
 
 
 def worker_count(scene) -> int:
-    """The viewport's worker count for `scene` (mcrt_addon/viewport.py viewport_worker_count)
-    from the Threads property alone: the tracer is not imported on the UI thread for it."""
+    """The viewport's worker count for `scene` (mcrt_addon/viewport.py viewport_worker_count, the
+    one rule) from the Threads property alone: the tracer is not imported on the UI thread for it."""
+    from .viewport import viewport_worker_count
     threads = int(getattr(getattr(scene, "tncg15", None), "threads", 0) or 0)
-    return threads if threads > 0 else max(1, os.cpu_count() or 1)
+    return viewport_worker_count(SimpleNamespace(threads=threads))
 
 
 def pool_key(python, count, extra_paths):
@@ -102,40 +107,68 @@ def render_pool(python, count, extra_paths, log=print):
     return bridge.module("pools.kept").KeptPool(pool, checked=True, keep=False)
 
 
+def kept_elsewhere(key) -> bool:
+    """Persistent Data keeps a pool of these workers (mcrt_addon/persistent.py): a warm one beside
+    it would double the idle processes."""
+    from . import persistent
+    kept = persistent.kept()
+    return kept is not None and getattr(kept, "key", None) == key and getattr(kept, "usable", False)
+
+
 def tick():
-    """bpy.app.timers, on the UI thread: update() with what Blender's windows want now."""
+    """bpy.app.timers, on the UI thread: update() with what Blender's windows want now.  It never
+    raises (Blender drops a timer that does)."""
     try:
         wm = bpy.context.window_manager
         key = None if bpy.app.background or wm is None else wanted_key(wm.windows, worker_python.preferred_python(),
                                                                         worker_python.start_ahead())
+        if key is not None and kept_elsewhere(key):
+            key = None
         start = key is not None and not busy_elsewhere(wm.windows)
         _state["quiet"] = _state["quiet"] + 1 if start else 0
-        update(key, start and _state["quiet"] >= QUIET_TICKS)
+        update(key, start and _state["quiet"] >= QUIET_TICKS, load_kernels=numba_wanted(wm.windows))
     except (AttributeError, ReferenceError, RuntimeError):     # no window yet, a scene being freed
         pass
+    except Exception as exc:                # noqa: BLE001 - told once; the timer keeps running
+        if not _state["said"]:
+            _state["said"] = True
+            print(f"TNCG15 MC: workers started ahead: {type(exc).__name__}: {exc}")
     return TICK_SECONDS
 
 
-def update(key, start: bool) -> None:
+def numba_wanted(windows) -> bool:
+    """Whether the workers started ahead may load numba's kernels (and start their compile on a cold
+    cache): not when the scene's Backend is NumPy."""
+    scenes = [w.scene for w in windows if w.scene is not None and w.scene.render.engine == ENGINE]
+    return not scenes or getattr(getattr(scenes[0], "tncg15", None), "backend", "auto") != "numpy"
+
+
+def update(key, start: bool, load_kernels: bool = True) -> None:
     """Stop the warm pool unless it is the one of `key` with every worker alive; start that one
-    (on a thread) when there is none and `start` (nothing else runs)."""
+    (on a thread) when there is none and `start` (nothing else runs), unless its workers failed
+    MAX_FAILURES times (a start that raised, a worker that died)."""
     with _lock:
         pool = _state["pool"]
         if _state["busy"]:
             return
+        failures = _state["failures"]
         if pool is not None and (_state["key"] != key or not alive(pool)):
+            if _state["key"] == key:        # a worker died
+                failures[key] = failures.get(key, 0) + 1
             _stop_locked()                  # the engine or settings changed, or a worker died
-        elif pool is None and start and key is not None:
-            _state["busy"], _state["key"] = True, key
-            threading.Thread(target=_start, args=(key,), daemon=True, name="viewport warm start").start()
+        elif pool is None and start and key is not None and failures.get(key, 0) < MAX_FAILURES:
+            _state["busy"], _state["key"], _state["quiet"] = True, key, 0
+            threading.Thread(target=_start, args=(key, load_kernels), daemon=True,
+                             name="viewport warm start").start()
 
 
-def _start(key):
+def _start(key, load_kernels=True):
     python, count, extra = key
     pool = None
     try:
         pool = bridge.module("pools.viewport").ViewportPool(python, count, extra, log=lambda *a: None)
-        pool.warm()                         # numba's kernels loaded while nobody waits
+        if load_kernels:
+            pool.warm()                     # numba's kernels loaded while nobody waits
     except Exception:                       # noqa: BLE001 - the viewport reports a failed start itself
         pool = None
     try:
@@ -146,6 +179,8 @@ def _start(key):
         pass
     with _lock:
         _state["busy"] = False
+        if pool is None:
+            _state["failures"][key] = _state["failures"].get(key, 0) + 1
         if pool is not None and _state["key"] == key:
             _state["pool"] = pool
             started.append(key)

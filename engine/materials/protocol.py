@@ -107,6 +107,8 @@ class ShadingPoint:
 
     def __setattr__(self, name, value):
         object.__setattr__(self, name, value)
+        if name[0] != "_":
+            self.__dict__.pop("_count", None)                 # a take's count: the rows tell from now on
         if name[0] != "_" and "_source" in self.__dict__:     # a field changed after __init__: other hits
             object.__setattr__(self, "_memo", {})
             object.__setattr__(self, "_spans", {})
@@ -145,10 +147,12 @@ class ShadingPoint:
         return view
 
     def take(self, index: np.ndarray) -> "ShadingPoint":
-        """The hits `index` (copies, the medium stacks too: for evaluating directions only).  The
-        rows and the material ids are gathered when first read (a BSDF that reads its per-hit values
-        through `memo_at` reads none of them; Lambert reads only n); the medium stacks, which a
-        scattering updates in place, and the fields with defaults at once."""
+        """The hits `index` (for evaluating directions only).  The rows and the material ids are
+        gathered when first read (a BSDF that reads its per-hit values through `memo_at` reads none
+        of them; Lambert reads only n), so a row written in place in these hits' source after the
+        take and before that read shows in the take (nothing in the tracer does that: a bounce's
+        hits are written once, before their takes); the medium stacks, which a scattering updates in
+        place, and the fields with defaults are copied at once."""
         taken = object.__new__(ShadingPoint)
         state = taken.__dict__
         state.update(smooth=self.smooth, _memo={}, _spans={}, _shared=False, _source=None,
@@ -185,6 +189,8 @@ class ShadingPoint:
         if self._source is None:
             return self.memo(key, compute), None
         source, index = self._source
+        if len(index) and (index.min() < 0 or index.max() >= len(source)):
+            raise IndexError(f"a take of {len(source)} hits at {index.min()}..{index.max()}")  # kernels read unchecked
         value, inner = source.memo_at(key, compute)
         return value, (index if inner is None else inner.take(index))
 

@@ -114,8 +114,12 @@ class KeptPool(Pool):
         self.inner.cancel()
 
     def close(self) -> None:
-        """The render is over: units it left in flight (an exception in the frame side) are drained;
-        a pool that cannot drain them within DRAIN_SECONDS is shut down."""
+        """The render is over: a pool for one render (keep False) is shut down; a kept one drains the
+        units the render left in flight (an exception in the frame side) and is shut down when it
+        cannot drain them within DRAIN_SECONDS."""
+        if not self.keep:                       # a pool for one render: nothing to keep, no drain
+            self.shutdown()
+            return
         deadline = time.perf_counter() + DRAIN_SECONDS
         if self.inner.outstanding():
             self.inner.cancel()

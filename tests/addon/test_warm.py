@@ -110,6 +110,51 @@ def test_one_warm_pool_is_started_handed_over_only_when_it_fits_and_stopped(warm
     assert third.closed
 
 
+def test_workers_that_fail_to_start_or_die_are_not_started_again_and_again(warm, monkeypatch):
+    made = []
+
+    class Failing(FakePool):
+        def __init__(self, *args, **kwargs):
+            made.append(self)
+            raise OSError("no such Python")
+
+    monkeypatch.setattr(warm.bridge, "module", lambda name: SimpleNamespace(ViewportPool=Failing))
+    warm._state["failures"].clear()
+    key = ("python", 2, ())
+    for _ in range(5):
+        warm.update(key, start=True)
+        settle(warm)
+    assert len(made) == warm.MAX_FAILURES and warm.pool() is None     # not one start a second forever
+    monkeypatch.setattr(warm.bridge, "module", lambda name: SimpleNamespace(ViewportPool=FakePool))
+    other = ("python", 3, ())                           # another key (the Threads setting changed): tried
+    warm.update(other, start=True)
+    settle(warm)
+    pool = warm.pool()
+    assert isinstance(pool, FakePool)
+    for _ in range(warm.MAX_FAILURES):                  # its workers die, each new pool too
+        warm.pool().workers[0].code = -11
+        warm.update(other, start=True)                  # stops the dead one
+        warm.update(other, start=True)                  # starts another while under the limit
+        settle(warm)
+    assert warm.pool() is None
+    warm.update(other, start=True)
+    settle(warm)
+    assert warm.pool() is None                          # control: below the limit a start happened above
+    warm._state["failures"].clear()
+
+
+def test_no_kernels_are_loaded_ahead_for_a_scene_on_the_numpy_backend(warm, monkeypatch):
+    monkeypatch.setattr(warm.bridge, "module", lambda name: SimpleNamespace(ViewportPool=FakePool))
+    win = window()
+    win.scene.tncg15.backend = "numpy"
+    assert not warm.numba_wanted([win])
+    warm.update(("python", 2, ()), start=True, load_kernels=warm.numba_wanted([win]))
+    settle(warm)
+    assert warm.pool() is not None and not warm.pool().warm_sent
+    win.scene.tncg15.backend = "auto"                   # control: the default loads them
+    assert warm.numba_wanted([win])
+
+
 def worker_cpu(pids):
     ticks = 0
     for p in pids:

@@ -60,10 +60,12 @@ def _check(numpy_bsdf, compiled, make_hits, rng, count=1500):
     assert (p_a > 0).sum() > 500 and np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
     idx = np.sort(rng.integers(0, count, count // 2))               # a take, as the light samples' hits
     f_a, p_a = numpy_bsdf.eval(make_hits().take(idx), wi.take(idx, axis=1))
-    hits = make_hits()
-    hits.memo((compiled, "fused"), compiled._fused_hits)            # the span's values, read by index
-    f_b, p_b = compiled.eval(hits.take(idx), wi.take(idx, axis=1))
-    assert np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+    for filled in (True, False):       # the span's values computed before the take, or by the take's eval
+        hits = make_hits()
+        if filled:
+            hits.memo((compiled, "fused"), compiled._fused_hits)    # the span's values, read by index
+        f_b, p_b = compiled.eval(hits.take(idx), wi.take(idx, axis=1))
+        assert np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
     u_lobe, u = rng.random(count), (rng.random(count), rng.random(count))
     a, b = numpy_bsdf.sample(make_hits(), u_lobe, u), compiled.sample(make_hits(), u_lobe, u)
     assert (a.pdf > 0).sum() > 500 and len(np.unique(a.flags)) == 2

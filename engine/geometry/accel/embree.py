@@ -93,7 +93,10 @@ class EmbreeAccelerator:
             probe_room(self.count)
             triangles = np.ascontiguousarray(triangles, dtype=np.float32)
             if embree_buffers.available():      # the same buffers as TriangleMesh, copied as arrays
-                embree_buffers.attach_triangles(self.scene, triangles)
+                try:
+                    embree_buffers.attach_triangles(self.scene, triangles)
+                except MemoryError as exc:
+                    raise SceneError(_message(self.count, str(exc))) from None
             else:
                 TriangleMesh(self.scene, triangles)
             # Build the BVH now: the build uses Embree's thread pool, which a forked render worker

@@ -30,6 +30,9 @@ RTC_FORMAT_UINT3 = 0x5003           # embree4/rtcore_common.h
 RTC_FORMAT_FLOAT3 = 0x9003
 VERTEX_STRIDE = 16                  # bytes: embreex's Vertex (x, y, z, r), as TriangleMesh asks
 MARKER = 0x5A17C0DE                 # written into is_committed to find it
+# The embreex releases whose EmbreeScene layout (rtcore_scene.pxd: scene_i, then is_committed) and
+# TriangleMesh buffers this module was checked against; any other falls back to TriangleMesh.
+CHECKED_EMBREEX = ("4.4.0.post1",)
 
 _state: dict = {}
 
@@ -73,9 +76,13 @@ def available() -> bool:
     """Whether attach_triangles can be used with this embreex (checked once per process)."""
     if "ok" not in _state:
         try:
+            from importlib.metadata import version
+            if version("embreex") not in CHECKED_EMBREEX:
+                _state["ok"] = False
+                return False
             _state["lib"], _state["offset"] = _library(), _layout()
             _state["ok"] = _state["lib"] is not None and _state["offset"] is not None
-        except (ImportError, OSError, AttributeError, ValueError):
+        except Exception:                   # noqa: BLE001 - anything unexpected: embreex's own TriangleMesh
             _state["ok"] = False
     return _state["ok"]
 
@@ -94,12 +101,20 @@ def attach_triangles(scene, triangles: np.ndarray) -> None:
     device = lib.rtcGetSceneDevice(handle)      # retains the device
     geometry = lib.rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE)
     lib.rtcReleaseDevice(device)
+    if not geometry:
+        raise MemoryError(f"Embree could not make a geometry of {n} triangles")
     address = lib.rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                           VERTEX_STRIDE, 3 * n)
+    if not address:
+        lib.rtcReleaseGeometry(geometry)
+        raise MemoryError(f"Embree could not allocate the vertex buffer of {n} triangles")
     vertices = np.ctypeslib.as_array((ctypes.c_float * (4 * 3 * n)).from_address(address)).reshape(3 * n, 4)
     vertices[:, :3] = triangles.reshape(3 * n, 3)
     vertices[:, 3] = 0.0
     address = lib.rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, n)
+    if not address:
+        lib.rtcReleaseGeometry(geometry)
+        raise MemoryError(f"Embree could not allocate the index buffer of {n} triangles")
     indices = np.ctypeslib.as_array((ctypes.c_uint32 * (3 * n)).from_address(address))
     indices[:] = np.arange(3 * n, dtype=np.uint32)
     lib.rtcCommitGeometry(geometry)
