@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
-from .qmc import _KEY_SALTS, _dim_hash
+from .qmc import _DIM_HASHES, _DIM_SALT, _KEY_SALTS, _dim_hash
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -16,6 +16,8 @@ jit = nb.njit(cache=True, error_model="numpy", nogil=True)
 M32 = 0xFFFFFFFF
 SALT0, SALT1, SALT2 = (int(s) for s in _KEY_SALTS)
 TO_UNIT = 1.0 / 4294967296.0
+DIM_SALT = int(_DIM_SALT)
+DIM_HASHES = np.ascontiguousarray(_DIM_HASHES, np.uint32)     # hash32(dim + DIM_SALT) of dims below 1024
 
 
 @jit
@@ -90,6 +92,35 @@ def _sample_2d(index, pixel_seed, dim_hash, bits):
     return x_out, y_out
 
 
+@jit
+def _sample_2d_seeded(index, pixel, seed_table, dim, dim_table, bits):
+    n = index.shape[0]
+    each = dim.shape[0] > 1
+    x_out = np.empty(n, np.float64)
+    y_out = np.empty(n, np.float64)
+    for k in range(n):
+        dk = dim[k if each else 0]
+        dim_hash = dim_table[dk] if 0 <= dk < dim_table.shape[0] else _hash32((dk + DIM_SALT) & M32)
+        seed = _hash32(np.int64(seed_table[pixel[k]]) ^ np.int64(dim_hash))
+        i = _permute(index[k] & M32, bits, _hash32(SALT0 ^ seed))
+        x_out[k] = _reverse_bits(_laine_karras(i, _hash32(SALT1 ^ seed))) * TO_UNIT
+        y_out[k] = _reverse_bits(_laine_karras(_dim1_reversed(i), _hash32(SALT2 ^ seed))) * TO_UNIT
+    return x_out, y_out
+
+
+def _int64(a):
+    a = np.asarray(a)
+    return a if a.dtype == np.int64 and a.flags.c_contiguous else np.ascontiguousarray(a, np.int64)
+
+
+def sample_2d_seeded(index, pixel, seed_table, dim, count: int = 1 << 16):
+    """sample_2d(index, seed_table.take(pixel), dim, count) without the gather: each path's pixel seed
+    and dimension hash are read inside the loop (qmc.SobolSampler.pair's compiled form)."""
+    bits = max(int(count - 1).bit_length(), 0)
+    index, pixel = _int64(index).reshape(-1), _int64(pixel).reshape(-1)
+    return _sample_2d_seeded(index, pixel, seed_table, _int64(dim).reshape(-1), DIM_HASHES, bits)
+
+
 def sample_2d(index, pixel_seed, dim, count: int = 1 << 16):
     """As qmc.sample_2d (index and pixel_seed (N,) arrays; dim an int or (N,))."""
     bits = max(int(count - 1).bit_length(), 0)
@@ -103,3 +134,5 @@ def warm_up() -> None:
     """Compile (or load) the kernel for the types a render passes."""
     sample_2d(np.arange(4), np.arange(4, dtype=np.uint32), 3, 16)
     sample_2d(np.arange(4), np.arange(4, dtype=np.uint32), np.arange(4), 16)
+    sample_2d_seeded(np.arange(4), np.arange(4), np.arange(4, dtype=np.uint32), 3, 16)
+    sample_2d_seeded(np.arange(4), np.arange(4), np.arange(4, dtype=np.uint32), np.arange(4), 16)

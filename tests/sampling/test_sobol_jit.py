@@ -48,3 +48,23 @@ def test_a_render_sampler_gives_the_same_pairs():
     other = qmc.SobolSampler(4, 64, 0, 128, 64, 16, 2)
     other.kernel = sample_2d
     assert not np.array_equal(numpy_sampler.pair(pixel, index, 0)[0], other.pair(pixel, index, 0)[0])
+
+
+def test_the_seeded_kernel_gives_the_same_pairs():
+    """sample_2d_seeded (the pixel seed and the dimension hash read inside the loop) against
+    SobolSampler.pair's NumPy gather and qmc.sample_2d: int32 and int64 dims inside and beyond the
+    dimension-hash table, a single dim, light nets; control: a neighbouring pixel's seeds differ."""
+    require_compiled()
+    from engine.sampling.sobol_jit import sample_2d_seeded
+    rng = np.random.default_rng(2)
+    numpy_sampler = qmc.SobolSampler(7, 0, 32, 64, 96, 64, 4)
+    seeded = qmc.SobolSampler(7, 0, 32, 64, 96, 64, 4)
+    seeded.seeded_kernel = sample_2d_seeded
+    n = 30000
+    pixel, index = rng.integers(0, 64 * 64, n), rng.integers(0, 256, n)
+    for dim, light in ((0, False), (1023, True), (1024, False), (rng.integers(0, 40, n).astype(np.int32), False),
+                       (rng.integers(0, 3000, n), True), (1 + 4 * rng.integers(0, 9, n).astype(np.int32), False)):
+        a, b = numpy_sampler.pair(pixel, index, dim, light), seeded.pair(pixel, index, dim, light)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    shifted = sample_2d_seeded(index, (pixel + 1) % (64 * 64), numpy_sampler.pixel_seed, 5, 64)
+    assert not np.array_equal(numpy_sampler.pair(pixel, index, 5)[0], shifted[0])
