@@ -49,6 +49,7 @@ JIT_MODULES = {
     "lights.parallelograms_jit": ("emission",),
     "geometry.hits_jit": ("wavefront",),
     "integrators.wavefront_jit": ("wavefront",),
+    "scene.camera_rays_jit": ("wavefront",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 

@@ -117,6 +117,10 @@ class PreparedScene:
             from ..sampling.sobol_jit import sample_2d as compiled_sample_2d, sample_2d_seeded
             self.sobol_kernel = compiled_sample_2d
             self.sobol_seeded_kernel = sample_2d_seeded
+        self.camera_rays_jit = None                  # the primary rays compiled (engine/scene/camera_rays_jit.py)
+        if self.plan.backends.get("wavefront") == "numba":
+            from ..scene import camera_rays_jit
+            self.camera_rays_jit = camera_rays_jit
         if scene.lights and not self.plan.area_lights and settings.shadow_rays == 0:
             self.warnings.append(f"{len(scene.lights)} area light(s) are reached by shadow rays only here: "
                                  "with 0 shadow rays they light nothing")
@@ -208,6 +212,7 @@ class PreparedScene:
                 samples = MaskedTileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1,
                                             tile.y1, stop, sampler, unpack_mask(unit.mask, tile.pixels), first,
                                             pixel_filter=self.pixel_filter)
+            samples.compiled = self.camera_rays_jit
             film = Film(tile.x1 - tile.x0, tile.y1 - tile.y0, transparent)
             films.append(film)
             # The film's sums in sample order, whatever the wavefront (engine/film/ordered_samples.py).
