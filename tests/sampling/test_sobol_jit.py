@@ -68,3 +68,17 @@ def test_the_seeded_kernel_gives_the_same_pairs():
         assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
     shifted = sample_2d_seeded(index, (pixel + 1) % (64 * 64), numpy_sampler.pixel_seed, 5, 64)
     assert not np.array_equal(numpy_sampler.pair(pixel, index, 5)[0], shifted[0])
+
+
+@pytest.mark.parametrize("count", [1, 2, 1000, 1 << 20])
+def test_the_seeded_kernel_at_every_net_size(count):
+    """Nets of 1 point (no index bits: qmc.permute's zeros), 2, 1000 and 2^20 (a 32-bit key's shifts)."""
+    require_compiled()
+    from engine.sampling.sobol_jit import sample_2d_seeded
+    rng = np.random.default_rng(count)
+    n = 4096
+    table = rng.integers(0, 2**32, 300, dtype=np.uint64).astype(np.uint32)
+    pixel, index = rng.integers(0, 300, n), rng.integers(0, count, n)
+    for dim in (0, 2000, rng.integers(0, 5000, n)):
+        a, b = qmc.sample_2d(index, table.take(pixel), dim, count), sample_2d_seeded(index, pixel, table, dim, count)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
