@@ -161,6 +161,8 @@ def _seeds(index, pixel, seed_table, dim):
     seeds = np.empty(n, np.uint32)
     idx = np.empty(n, np.uint32)
     dim_salt = _u32(DIM_SALT)
+    if n == 0:                  # (dim may be empty too: nothing to read)
+        return seeds, idx
     if dim.shape[0] > 1:
         for k in range(n):
             seeds[k] = _u32(seed_table[pixel[k]] ^ _hash32_u32(_u32(_u32(dim[k]) + dim_salt)))

@@ -82,3 +82,11 @@ def test_the_seeded_kernel_at_every_net_size(count):
     for dim in (0, 2000, rng.integers(0, 5000, n)):
         a, b = qmc.sample_2d(index, table.take(pixel), dim, count), sample_2d_seeded(index, pixel, table, dim, count)
         assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+
+
+def test_the_seeded_kernel_on_no_paths():
+    require_compiled()
+    from engine.sampling.sobol_jit import sample_2d_seeded
+    empty = np.zeros(0, np.int64)
+    x, y = sample_2d_seeded(empty, empty, np.arange(4, dtype=np.uint32), empty, 16)
+    assert x.shape == (0,) and y.shape == (0,)
