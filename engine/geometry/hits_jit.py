@@ -1,13 +1,15 @@
 """engine/geometry/scene_geometry.py's glue around the intersection kernels compiled with numba: the
 sort of a batch's nearest hits into (scatter group, primitive kind) runs, and the surface points of
-triangle hits.  Imported only through engine/core/backend.py's choice (it imports numba).
+triangle and sphere hits.  Imported only through engine/core/backend.py's choice (it imports numba).
 
 * `sort_hits`: `nearest_hits`' material lookup, group and key per ray, its stable argsort by key and
   the gathers of the hits' t, kind, prim, u, v and material, as one counting sort (a count per key,
   their prefix sums, then each ray written to the next place of its key, in ray order): the same
   order (a stable sort by a small integer key is unique) and the same bounds as np.searchsorted's.
 * `triangle_surface`: `_triangle_surface`'s point v0 + u e1 + v e2 (the same float64 products and
-  sums in the same order), normal and offset in one loop over the hits instead of nine gathers.
+  sums in the same order), normal and offset in one loop over the hits instead of nine gathers;
+  `sphere_surface`: engine/geometry/shapes/spheres.py `surface_point` (the point o + t d moved
+  onto the sphere along its normal, and the offset) in one loop.
 
 Both give the same arrays bit for bit (tests/geometry/test_hits_jit.py)."""
 from __future__ import annotations
@@ -111,6 +113,36 @@ def triangle_surface(prim, u, v, v0, e1, e2, normal, scale, offset_scale):
                              np.ascontiguousarray(v, np.float64), v0, e1, e2, normal, scale, float(offset_scale))
 
 
+@jit
+def _sphere_surface(o, d, t, a, prim, center, radius, eps64):
+    m = prim.shape[0]
+    point = np.empty((3, m))
+    nrm = np.empty((3, m))
+    offset = np.empty(m)
+    scale = 64.0 * eps64
+    for j in range(m):
+        i, k = a + j, prim[j]
+        r0 = (o[0, i] + t[i] * d[0, i]) - center[0, k]
+        r1 = (o[1, i] + t[i] * d[1, i]) - center[1, k]
+        r2 = (o[2, i] + t[i] * d[2, i]) - center[2, k]
+        length = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        n0, n1, n2 = r0 / length, r1 / length, r2 / length
+        r = radius[k]
+        x, y, z = center[0, k] + r * n0, center[1, k] + r * n1, center[2, k] + r * n2
+        point[0, j], point[1, j], point[2, j] = x, y, z
+        nrm[0, j], nrm[1, j], nrm[2, j] = n0, n1, n2
+        offset[j] = scale * (_max(_max(abs(x), abs(y)), abs(z)) + r)
+    return point, nrm, offset
+
+
+def sphere_surface(o, d, t, a, prim, center, radius, eps64):
+    """spheres.surface_point of the hits a .. a + len(prim) of rows o, d and distances t (sphere prim[j]
+    for hit a + j): the same operations in one loop, without the slices' copies."""
+    return _sphere_surface(np.ascontiguousarray(o, np.float64), np.ascontiguousarray(d, np.float64),
+                           np.ascontiguousarray(t, np.float64), int(a), np.ascontiguousarray(prim, np.int64),
+                           center, radius, float(eps64))
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     n = 4
@@ -121,3 +153,4 @@ def warm_up() -> None:
         sort_hits(t, kind, prim, uv, uv, pm, base, group, forced, 2, True, 3)
     rows = np.zeros((3, 1))
     triangle_surface(np.zeros(n, np.int64), uv, uv, rows, rows, rows, rows, np.zeros(1), 1e-6)
+    sphere_surface(np.zeros((3, n)), np.ones((3, n)), np.ones(n), 1, np.zeros(2, np.int64), rows, np.ones(1), 1e-16)

@@ -22,7 +22,7 @@ from .shapes.box_tree import BoxTree, padded_boxes
 from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
-from .shapes.spheres import sphere_kernel, sphere_loop_kernels, surface_point
+from .shapes.spheres import EPS64, sphere_kernel, sphere_loop_kernels, surface_point
 from ..core.vec import aos, max_abs3, rows
 
 NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
@@ -345,6 +345,9 @@ class SceneGeometry:
                 pt, nrm, off = self._triangle_surface(prim, hits.u[a:b], hits.v[a:b])
                 if self.smooth is not None:
                     shading.append((len(parts), self.smooth.shading(prim, hits.u[a:b], hits.v[a:b], nrm)))
+            elif k == SPHERE and self.hits_jit is not None:       # the same operations in one loop
+                pt, nrm, off = self.hits_jit.sphere_surface(o, d, hits.t, a, prim, self.sphere_center,
+                                                            self.sphere_radius, EPS64)
             elif k == SPHERE:
                 pt, nrm, off = surface_point(o[:, a:b], d[:, a:b], hits.t[a:b],
                                              self.sphere_center.take(prim, axis=1), self.sphere_radius.take(prim))

@@ -146,3 +146,31 @@ def test_triangle_points_with_nan_and_large_coordinates():
     assert np.isnan(reference[2]).any()
     # Control: a point one ulp off differs.
     assert not np.array_equal(reference[0], np.nextafter(compiled[0], np.inf))
+
+
+@pytest.mark.parametrize("scene", ["cornell", "caustic"])
+def test_surface_data_of_every_kind_is_the_same(scene):
+    """SceneGeometry.surface with the compiled triangle and sphere points against NumPy's, on rays from
+    the camera's position in every direction (walls, spheres, the lamp's quad)."""
+    require_compiled()
+    from engine.geometry import hits_jit
+    from engine.geometry.scene_geometry import Counters, SceneGeometry
+    s = BUILTIN_SCENES[scene]((8, 8))
+    geometry = SceneGeometry(s, "embree")
+    rng = np.random.default_rng(9)
+    n = 20000
+    d = rng.normal(size=(3, n))
+    d /= np.sqrt((d * d).sum(axis=0))
+    o = np.repeat(s.camera.matrix[:3, 3:4], n, axis=1) * 0.5
+    hits = geometry.nearest_hits(o, d, Counters())
+    assert {TRIANGLE, SPHERE} <= {k for (_, k) in hits.runs}
+    oh, dh = o.take(hits.index, axis=1), d.take(hits.index, axis=1)
+    reference = geometry.surface(oh, dh, hits)
+    geometry.hits_jit = hits_jit
+    compiled = geometry.surface(oh, dh, hits)
+    for name in ("point", "normal", "offset", "shading"):
+        assert np.array_equal(getattr(reference, name), getattr(compiled, name)), name
+    # Control: a ray one ulp longer moves some sphere points.
+    geometry.hits_jit = None
+    hits.t = np.nextafter(hits.t, np.inf)
+    assert not np.array_equal(reference.point, geometry.surface(oh, dh, hits).point)
