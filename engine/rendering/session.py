@@ -113,6 +113,7 @@ class PreparedScene:
                    + (["sobol"] if settings.sampler == "sobol" else []))
         self.plan.use_backend(*resolve_backend(settings.backend, log, kernels), kernels)
         self.sobol_kernel = None                     # qmc.sample_2d; its numba twin where the backend says
+        self.sobol_seeded_kernel = None              # with it, the sampler's kernel that reads the seeds itself
         if self.plan.backends.get("sobol") == "numba":
             from ..sampling.sobol_jit import sample_2d as compiled_sample_2d, sample_2d_seeded
             self.sobol_kernel = compiled_sample_2d
