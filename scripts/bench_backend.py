@@ -108,6 +108,13 @@ def kernels(args):
     def run_jit_sobol():
         for index, seeds, dim, count in sobol:
             sample_2d_jit(index, seeds, dim, count)
+    from engine.sampling.sobol_jit import sample_2d_seeded
+    seeded = [(index, np.arange(len(seeds)), np.ascontiguousarray(seeds, np.uint32), dim, count)
+              for index, seeds, dim, count in sobol]
+
+    def run_seeded_sobol():                 # the render's kernel (its seeds read through the pixel numbers)
+        for index, pixel, table, dim, count in seeded:
+            sample_2d_seeded(index, pixel, table, dim, count)
     rays = lambda calls, i: sum(len(c[i]) if np.ndim(c[i]) == 1 else c[i].shape[1] for c in calls)  # noqa: E731
 
     def run_numpy_sample():
@@ -147,7 +154,9 @@ def kernels(args):
                                      ("light tree pmf", pmfs, run_numpy_pmf, run_jit_pmf, rays(pmfs, 3)),
                                      ("sphere test", spheres, run_numpy_sphere, run_jit_sphere, rays(spheres, 0)),
                                      ("quad test", quads, run_numpy_quad, run_jit_quad, rays(quads, 3)),
-                                     ("Sobol' sample_2d", sobol, run_numpy_sobol, run_jit_sobol, rays(sobol, 0))):
+                                     ("Sobol' sample_2d", sobol, run_numpy_sobol, run_jit_sobol, rays(sobol, 0)),
+                                     ("Sobol' sample_2d_seeded (uint32)", sobol, run_numpy_sobol, run_seeded_sobol,
+                                      rays(sobol, 0))):
         b()                                               # loaded from the cache before timing
         t_np, t_nb = best_cpu(a, args.repeats), best_cpu(b, args.repeats)
         rows.append((name, len(calls), count, t_np, t_nb))

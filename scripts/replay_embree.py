@@ -163,7 +163,7 @@ STAGES = (                       # (row, function name, file ending): cumulative
     ("    light sampling (pick + shape)", "sample", "light_set.py"),
     ("    shadow rays: occluded", "occluded", "scene_geometry.py"),
     ("  scatter (BSDF sampling)", "scatter", "path_tracer.py"),
-    ("  Sobol' sample_2d (every caller)", "sample_2d", "qmc.py"),
+    ("  Sobol' points (SobolSampler.pair, every caller)", "pair", "qmc.py"),
     ("  take / extend of the path state", "take", "path_tracer.py"),
     ("Embree calls (EmbreeAccelerator: EmbreeScene.run and its casts)", "intersect occluded", "accel/embree.py"),
 )

@@ -37,7 +37,8 @@ from .paths import TRACER_BASE, TRACER_DIR
 NUMPY, NUMBA, AUTO = "numpy", "numba", "auto"        # the setting's values (engine/core/settings.py)
 
 # The compiled twins, relative to the tracer package, and the kernels each one serves: effects of
-# the plan (engine/integrators/effects.py), and "sobol" for the Sobol' sampler.
+# the plan (engine/integrators/effects.py), "sobol" for the Sobol' sampler and "wavefront" for the
+# path tracer's own glue that every render runs (the hit sort, the compaction of the paths).
 JIT_MODULES = {
     "lights.selection_jit": ("light_tree",),
     "geometry.shapes.spheres_jit": ("spheres",),
@@ -48,6 +49,9 @@ JIT_MODULES = {
     "materials.principled_jit": ("principled", "mix"),
     "materials.principled_v1_jit": ("principled", "mix"),
     "lights.parallelograms_jit": ("emission",),
+    "geometry.hits_jit": ("wavefront",),
+    "integrators.wavefront_jit": ("wavefront",),
+    "scene.camera_rays_jit": ("wavefront",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 

@@ -22,7 +22,7 @@ from .shapes.box_tree import BoxTree, padded_boxes
 from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
-from .shapes.spheres import sphere_kernel, sphere_loop_kernels, surface_point
+from .shapes.spheres import EPS64, sphere_kernel, sphere_loop_kernels, surface_point
 from ..core.vec import aos, max_abs3, rows
 
 NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
@@ -130,6 +130,10 @@ class SceneGeometry:
 
         self.intersect_sphere = sphere_kernel(backends.get("spheres", "numpy"))
         self.sphere_loops = sphere_loop_kernels(backends.get("spheres", "numpy"))    # compiled: all in one loop
+        self.hits_jit = None            # the hit sort and triangle surfaces compiled (engine/geometry/hits_jit.py)
+        if backends.get("wavefront", "numpy") == "numba":
+            from . import hits_jit
+            self.hits_jit = hits_jit
 
         def kernel(name, present):
             return bool(present) if plan is None else bool(plan.enabled[name])
@@ -213,6 +217,12 @@ class SceneGeometry:
         `material_group` maps material ids to 0 .. n_groups-1 (default: one group); rays with
         forced_group >= 0 go to that group instead; hits on Area lights form group `light_group`."""
         t, kind, prim, u, v = self.intersect(o, d, counters, ray_kind=ray_kind)
+        kinds = len(KINDS)
+        if self.hits_jit is not None:       # the same order, bounds and arrays in one counting sort
+            order, bounds, t_h, kind_h, prim_h, u_h, v_h, material_h = self.hits_jit.sort_hits(
+                t, kind, prim, u, v, self.primitive_material, self.kind_base, material_group, forced_group,
+                light_group, self.lights.count > 0, n_groups)
+            return self._hit_set(order, bounds, n_groups, t_h, kind_h, prim_h, u_h, v_h, material_h)
         material = self.primitive_material.take(prim + self.kind_base.take(kind))   # misses: ignored
         group = (np.zeros(len(kind), np.int8) if material_group is None
                  else material_group.take(material).astype(np.int8))
@@ -220,10 +230,18 @@ class SceneGeometry:
             group = np.where(forced_group >= 0, forced_group, group).astype(np.int8)
         if self.lights.count:
             group = np.where(kind == LIGHT, np.int8(light_group), group)
-        kinds = len(KINDS)
         key = np.where(kind == NONE, 0, 1 + group * kinds + (kind - 1)).astype(np.int8)
         order = np.argsort(key, kind="stable")
         bounds = np.searchsorted(key.take(order), np.arange(2 + n_groups * kinds))
+        index = order[bounds[1]:]
+        return self._hit_set(order, bounds, n_groups, t.take(index), kind.take(index), prim.take(index),
+                             u.take(index), v.take(index), material.take(index))
+
+    @staticmethod
+    def _hit_set(order, bounds, n_groups, t, kind, prim, u, v, material) -> HitSet:
+        """The HitSet of rays `order` (misses first, then the hits sorted by key), `bounds` the first
+        place of each key (0: miss, 1 + group x kinds + kind - 1), and the hits' arrays in order."""
+        kinds = len(KINDS)
         first = bounds[1]
         miss, index = order[:first], order[first:]
         runs = {}
@@ -233,8 +251,7 @@ class SceneGeometry:
                 if bounds[slot + 1] > bounds[slot]:
                     runs[(g, k)] = (bounds[slot] - first, bounds[slot + 1] - first)
         groups = [(bounds[1 + g * kinds] - first, bounds[1 + (g + 1) * kinds] - first) for g in range(n_groups)]
-        return HitSet(index, miss, t.take(index), kind.take(index), prim.take(index),
-                      u.take(index), v.take(index), material.take(index), runs, groups)
+        return HitSet(index, miss, t, kind, prim, u, v, material, runs, groups)
 
     def occluded(self, o, d, tmax, counters: Counters):
         """True where something lies on the segment (0, tmax) of the ray (rows o, d)."""
@@ -328,6 +345,9 @@ class SceneGeometry:
                 pt, nrm, off = self._triangle_surface(prim, hits.u[a:b], hits.v[a:b])
                 if self.smooth is not None:
                     shading.append((len(parts), self.smooth.shading(prim, hits.u[a:b], hits.v[a:b], nrm)))
+            elif k == SPHERE and self.hits_jit is not None:       # the same operations in one loop
+                pt, nrm, off = self.hits_jit.sphere_surface(o, d, hits.t, a, prim, self.sphere_center,
+                                                            self.sphere_radius, EPS64)
             elif k == SPHERE:
                 pt, nrm, off = surface_point(o[:, a:b], d[:, a:b], hits.t[a:b],
                                              self.sphere_center.take(prim, axis=1), self.sphere_radius.take(prim))
@@ -371,6 +391,9 @@ class SceneGeometry:
         """(point, normal, offset) of triangle hits."""
         # Barycentric interpolation in float64 puts the point on the triangle's plane
         # (pbrt): the float32 error of o + t d would be along the ray instead.
+        if self.hits_jit is not None:       # the same operations in one loop (engine/geometry/hits_jit.py)
+            return self.hits_jit.triangle_surface(prim, u, v, self.tri_v0, self.tri_e1, self.tri_e2,
+                                                  self.tri_normal, self.tri_scale, TRIANGLE_OFFSET)
         point = (self.tri_v0.take(prim, axis=1) + u * self.tri_e1.take(prim, axis=1)
                  + v * self.tri_e2.take(prim, axis=1))
         offset = TRIANGLE_OFFSET * np.maximum(max_abs3(point), self.tri_scale.take(prim))

@@ -134,8 +134,7 @@ class Paths:
         return paths
 
     def _fields(self):
-        return [(f.name, 1 if f.name in VECTOR_FIELDS else 0) for f in fields(self)
-                if getattr(self, f.name) is not None]
+        return [(name, axis) for name, axis in _FIELD_AXES if getattr(self, name) is not None]
 
     def take(self, index, replaced=()) -> "Paths":
         """The paths `index`; the fields named in `replaced` are left None, for the caller to set."""
@@ -145,6 +144,17 @@ class Paths:
     def extend(self, other: "Paths") -> "Paths":
         return Paths(**{name: np.concatenate([getattr(self, name), getattr(other, name)], axis=axis)
                         for name, axis in self._fields()})
+
+
+_FIELD_AXES = tuple((f.name, 1 if f.name in VECTOR_FIELDS else 0) for f in fields(Paths))   # the paths' axis
+
+
+def next_rays(keep, point, side, offset, facing, new_d, beta):
+    """(o, d, beta) rows of the surviving paths `keep`: their hit point moved off the surface by
+    `offset` along `facing` to the side they leave on (side +1 or -1), their new direction and
+    throughput.  (The same in one loop: engine/integrators/wavefront_jit.py.)"""
+    return (point.take(keep, axis=1) + (side.take(keep) * offset.take(keep)) * facing.take(keep, axis=1),
+            new_d.take(keep, axis=1), beta.take(keep, axis=1))
 
 
 def group_of(spans, n) -> np.ndarray:
@@ -193,6 +203,10 @@ class PathTracer:
         self.light_paths = light_paths if light_paths.on else None       # Cycles' Light Paths options
         self.photons = None     # engine/integrators/photons/caustics.py CausticPhotons (set by the session's prepass)
         self.deferred_rr = bool(plan.enabled.get("deferred_roulette"))
+        self.wavefront_jit = None       # the compaction compiled (engine/integrators/wavefront_jit.py)
+        if getattr(plan, "backends", {}).get("wavefront", "numpy") == "numba":
+            from . import wavefront_jit
+            self.wavefront_jit = wavefront_jit
 
     # -- the wavefront -----------------------------------------------------------------
     def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None,
@@ -362,10 +376,9 @@ class PathTracer:
                         np.concatenate([f[2] for f in finished]))
         keep = np.flatnonzero(keep)
         survivors = p.take(keep, replaced=("o", "d", "beta"))
-        survivors.o = (surf.point.take(keep, axis=1)
-                       + (side.take(keep) * surf.offset.take(keep)) * facing.take(keep, axis=1))
-        survivors.d = new_d.take(keep, axis=1)
-        survivors.beta = beta.take(keep, axis=1)
+        survivors.o, survivors.d, survivors.beta = (next_rays if self.wavefront_jit is None else
+                                                    self.wavefront_jit.next_rays)(
+            keep, surf.point, side, surf.offset, facing, new_d, beta)
         survivors.bounce = survivors.bounce + 1
         return survivors if passing is None else survivors.extend(passing)
 

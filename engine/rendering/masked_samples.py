@@ -51,3 +51,4 @@ class MaskedTileSamples:
         return self.rays(pixel, sample)
 
     rays = TileSamples.rays
+    compiled = None     # as TileSamples

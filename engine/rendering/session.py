@@ -109,12 +109,19 @@ class PreparedScene:
         n_tri = sum(len(m.triangles) for m in scene.meshes)
         self.accelerator, self.accelerator_reason = choose_accelerator(settings.accelerator, n_tri)
         self.plan = plan_effects(scene, settings, self.accelerator)
-        kernels = [k for k, on in self.plan.enabled.items() if on] + (["sobol"] if settings.sampler == "sobol" else [])
+        kernels = ([k for k, on in self.plan.enabled.items() if on] + ["wavefront"]
+                   + (["sobol"] if settings.sampler == "sobol" else []))
         self.plan.use_backend(*resolve_backend(settings.backend, log, kernels), kernels)
         self.sobol_kernel = None                     # qmc.sample_2d; its numba twin where the backend says
+        self.sobol_seeded_kernel = None              # with it, the sampler's kernel that reads the seeds itself
         if self.plan.backends.get("sobol") == "numba":
-            from ..sampling.sobol_jit import sample_2d as compiled_sample_2d
+            from ..sampling.sobol_jit import sample_2d as compiled_sample_2d, sample_2d_seeded
             self.sobol_kernel = compiled_sample_2d
+            self.sobol_seeded_kernel = sample_2d_seeded
+        self.camera_rays_jit = None                  # the primary rays compiled (engine/scene/camera_rays_jit.py)
+        if self.plan.backends.get("wavefront") == "numba":
+            from ..scene import camera_rays_jit
+            self.camera_rays_jit = camera_rays_jit
         if scene.lights and not self.plan.area_lights and settings.shadow_rays == 0:
             self.warnings.append(f"{len(scene.lights)} area light(s) are reached by shadow rays only here: "
                                  "with 0 shadow rays they light nothing")
@@ -188,7 +195,7 @@ class PreparedScene:
                                 s.shadow_rays)
                    if s.sampler == "sobol" else RandomSampler(rng))
         if self.sobol_kernel is not None:
-            sampler.kernel = self.sobol_kernel
+            sampler.kernel, sampler.seeded_kernel = self.sobol_kernel, self.sobol_seeded_kernel
         features = (TileFeatures(tile.pixels, self.scene.camera, surface=bool({"albedo", "normal"} & set(s.passes)),
                                  first_hit=self.first_hit)
                     if self.plan.passes else None)
@@ -206,6 +213,7 @@ class PreparedScene:
                 samples = MaskedTileSamples(self.scene.camera, width, height, tile.x0, tile.y0, tile.x1,
                                             tile.y1, stop, sampler, unpack_mask(unit.mask, tile.pixels), first,
                                             pixel_filter=self.pixel_filter)
+            samples.compiled = self.camera_rays_jit
             film = Film(tile.x1 - tile.x0, tile.y1 - tile.y0, transparent)
             films.append(film)
             # The film's sums in sample order, whatever the wavefront (engine/film/ordered_samples.py).

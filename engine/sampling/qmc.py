@@ -155,6 +155,8 @@ class SobolSampler:
     the ray's number, for light samples), dim: the dimension pair (engine/integrators/path_tracer.py)."""
     name = "sobol"
     kernel = staticmethod(sample_2d)   # or its numba twin engine/sampling/sobol_jit.py (engine/rendering/session.py)
+    # With numba: sobol_jit.sample_2d_seeded, which reads each path's pixel seed itself (no gather).
+    seeded_kernel = None
 
     def __init__(self, seed: int, x0: int, y0: int, x1: int, y1: int, samples: int, shadow_rays: int):
         tile_width = x1 - x0
@@ -165,7 +167,10 @@ class SobolSampler:
 
     def pair(self, pixel, index, dim, light=False):
         """light: the index runs over the shadow rays of all samples (a larger net)."""
-        return self.kernel(index, self.pixel_seed.take(pixel), dim, self.light_count if light else self.count)
+        count = self.light_count if light else self.count
+        if self.seeded_kernel is not None:
+            return self.seeded_kernel(index, pixel, self.pixel_seed, dim, count)
+        return self.kernel(index, self.pixel_seed.take(pixel), dim, count)
 
 
 class RandomSampler:

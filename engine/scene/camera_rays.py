@@ -57,6 +57,8 @@ class TileSamples:
     moved by `pixel_filter` (engine/film/pixel_filter.py PixelFilter.offsets, None: the box).
     """
 
+    compiled = None     # engine/scene/camera_rays_jit.py where the backend is numba (engine/rendering/session.py)
+
     def __init__(self, camera, width: int, height: int, x0: int, y0: int, x1: int, y1: int,
                  spp: int, sampler, first: int = 0, pixel_filter=None):
         """Samples first .. spp-1 of every pixel (a work unit's sample range)."""
@@ -88,6 +90,10 @@ class TileSamples:
         jx, jy = self.sampler.pair(pixel, sample, 0)
         if self.pixel_filter is not None:
             jx, jy = self.pixel_filter.offsets(jx), self.pixel_filter.offsets(jy)
+        if self.compiled is not None:           # the same rays in one loop
+            origins, directions = self.compiled.tile_rays(self.camera, self.width, self.height, self.tile_width,
+                                                          self.x0, self.y0, pixel, jx, jy)
+            return pixel, sample.astype(np.int64), origins, directions
         sx = (pixel % self.tile_width + self.x0) + jx
         sy = (pixel // self.tile_width + self.y0) + jy
         origins, directions = camera_rays(self.camera, self.width, self.height, sx, sy)

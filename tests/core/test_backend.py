@@ -73,8 +73,8 @@ def test_renders_are_bit_identical_on_both_backends(name):
     require_compiled()
     a, b = render(name, "numpy"), render(name, "numba")
     assert b.stats["backend"] == "numba" and a.stats["backend"] == "numpy"
-    expected = {"cornell": {"spheres", "quads", "sobol", "emission"},
-                "many_lights": {"spheres", "light_tree", "sobol", "emission"}}[name]
+    expected = {"cornell": {"spheres", "quads", "sobol", "emission", "wavefront"},
+                "many_lights": {"spheres", "light_tree", "sobol", "emission", "wavefront"}}[name]
     assert set(b.stats["kernel_backends"]) == expected and set(b.stats["kernel_backends"].values()) == {"numba"}
     assert np.array_equal(a.image, b.image)
 
