@@ -29,6 +29,7 @@ def test_accelerator_agrees_with_cycles(samples, room_reference, accelerator):
     assert result.passed, result.summary()
 
 
+@pytest.mark.slow          # with its positive test above (its Cycles runs are this module's setup)
 def test_accelerator_comparison_fails_on_a_wrong_scene(samples, room_reference):
     scene = export_blend(samples["diffuse_room"], RES).scene
     for m in scene.materials:

@@ -31,7 +31,9 @@ TAU = {"cornell": 0.05, "mirror_glass": 0.05, "principled": 0.05, "diffuse_room"
 # principled (tests/materials/test_principled*.py in `make test`).
 SLOW = {"smooth", "textured", "spot_light", "many_lights", "suzanne_100k", "light_x1.3", "fov_lens_x1.1",
         "mirror_as_diffuse", "suzanne_5k", "diffuse_room", "area_light", "area_mirror", "nested_glass",
-        "near_lamp", "sun_window", "point_light", "principled"}
+        "near_lamp", "sun_window", "point_light", "principled",
+        # caustic: its glass ball and lamp are cornell's subjects, its caustic tests/integrators/photons/
+        "caustic"}
 
 
 def marked(*names):
@@ -108,7 +110,8 @@ def test_comparison_passes_renderer_against_itself(samples):
     assert result.passed, result.summary()
 
 
-@pytest.mark.parametrize("name, how", [("point_light", "intensity_x2"), ("sun_window", "irradiance_x0.8"),
+@pytest.mark.parametrize("name, how", [("point_light", "intensity_x2"),
+                                       pytest.param("sun_window", "irradiance_x0.8", marks=pytest.mark.slow),
                                        pytest.param("spot_light", "cone_x1.25", marks=pytest.mark.slow),
                                        pytest.param("spot_light", "no_spot_falloff", marks=pytest.mark.slow),
                                        ("sky_lit", "world_x1.2")])

@@ -219,7 +219,7 @@ def test_non_planar_quad_renders_as_two_triangles(empty_scene, make_samples_modu
     assert last_report().stats["nonfinite_samples"] == 0
 
 
-@pytest.mark.parametrize("emissive", [False, True])
+@pytest.mark.parametrize("emissive", [pytest.param(False, marks=pytest.mark.slow), True])   # the emissive one in `make test`
 def test_empty_mesh_is_skipped_with_a_warning(empty_scene, make_samples_module, tmp_path, capfd, emissive):
     room(make_samples_module, empty_scene)
     me = bpy.data.meshes.new("Nothing")

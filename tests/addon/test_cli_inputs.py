@@ -46,7 +46,12 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("name, args, fragment", CASES, ids=[c[0] for c in CASES])
+# Two of the four in `make test-slow` (.ci/run runs it): the texture and the .blend stay in `make test`.
+SLOW_CASES = {"stats-onto-the-library", "output-onto-the-texture"}
+
+
+@pytest.mark.parametrize("name, args, fragment", [
+    pytest.param(*c, id=c[0], marks=[pytest.mark.slow] if c[0] in SLOW_CASES else []) for c in CASES])
 def test_an_output_onto_a_file_the_render_reads_is_refused(linked, name, args, fragment):
     args = [a.replace("{dir}", str(linked)) for a in args]
     output = [] if "-o" in args else ["-o", str(linked / "out.exr")]
