@@ -65,6 +65,6 @@ def test_control_a_changed_table_is_seen():
     x, n = rng.random((3, 500)) * 4.0, np.tile([[0.0], [0.0], [1.0]], 500)
     light = rng.integers(0, 37, 500)
     tables = TreeTables(tree)
-    tables.table[14, 0] *= 1.5
+    tables.nodes[0, 14] *= 1.5
     assert not np.array_equal(tree._tree_pmf(x.astype(np.float32), n.astype(np.float32), light),
                               tables.pmf(x, n, light))
