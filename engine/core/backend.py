@@ -46,6 +46,7 @@ JIT_MODULES = {
     "sampling.sobol_jit": ("sobol",),
     "materials.microfacet_jit": ("glossy", "principled", "mix"),
     "lights.parallelograms_jit": ("emission",),
+    "lights.light_set_jit": ("emission",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 
