@@ -142,6 +142,23 @@ def _sample(x, idx, one, axis1, axis2, v0, e1, e2, normal, area, rectangle, omeg
         direction[0, i], direction[1, i], direction[2, i] = w0 / dist, w1 / dist, w2 / dist
 
 
+@jit
+def _pdf(x, idx, one, normal, area, rectangle, omega_min, grazing, f, g, cdist, point, pdf):
+    """pdf_li after the arcsines, one receiver at a time: 1 / Omega where `use` holds (as _sample),
+    else area_pdf of `point`."""
+    for i in range(x.shape[1]):
+        j = 0 if one else idx[i]
+        omega = -(g[0, i] + g[1, i] + g[2, i] + g[3, i])
+        if rectangle[j] and omega >= omega_min and np.isfinite(omega) and -f[4, i] >= grazing * cdist[i]:
+            pdf[i] = 1.0 / omega
+        else:
+            w0, w1, w2 = point[0, i] - x[0, i], point[1, i] - x[1, i], point[2, i] - x[2, i]
+            d2 = w0 * w0 + w1 * w1 + w2 * w2
+            cos_y = np.abs(normal[0, j] * w0 + normal[1, j] * w1 + normal[2, j] * w2)
+            p = d2 * np.sqrt(d2) / (area[j] * cos_y)
+            pdf[i] = p if np.isfinite(p) else 0.0
+
+
 def _c(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
@@ -193,6 +210,23 @@ def sample_li(lights, x, idx, u1, u2):
     return point, direction, distance, pdf
 
 
+def pdf_li(lights, x, idx, point):
+    """Parallelograms.pdf_li by solid angle: the frame's loop, NumPy's arcsines, then _pdf."""
+    n = x.shape[1]
+    x = _c(x)
+    one = np.ndim(idx) == 0 or lights.count == 1
+    index = np.zeros(1, np.int64) if one else np.ascontiguousarray(idx, dtype=np.int64)
+    if one and np.ndim(idx) == 0:
+        index[0] = int(idx)
+    az, f, args, cdist = np.empty((3, n)), np.empty((7, n)), np.empty((4, n)), np.empty(n)
+    _frame(x, index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
+           az, f, args, cdist)
+    pdf = np.empty(n)
+    _pdf(x, index, one, lights.normal, lights.area, lights.rectangle, OMEGA_MIN, GRAZING, f, np.arcsin(args), cdist,
+         _c(point), pdf)
+    return pdf
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     from types import SimpleNamespace
@@ -204,4 +238,5 @@ def warm_up() -> None:
     x, idx = np.zeros((3, 2)), np.array([0, 1])
     az, f, args, cdist = frame_terms(lights, x, idx)
     sample_li(lights, x, idx, np.full(2, 0.5), np.full(2, 0.5))
+    pdf_li(lights, x, idx, np.ones((3, 2)))
     spherical_point(lights, x, idx, az, f, np.ones(2), np.zeros(2), np.full(2, 0.5), np.full(2, 0.5))

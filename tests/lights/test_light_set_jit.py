@@ -1,5 +1,5 @@
-"""The compiled shadow rays (engine/lights/light_set_jit.py) and parallelogram samples
-(engine/lights/parallelograms_jit.py `sample_li`) against the NumPy path of engine/lights/light_set.py
+"""The compiled shadow rays (engine/lights/light_set_jit.py) and parallelogram samples and densities
+(engine/lights/parallelograms_jit.py `sample_li`, `pdf_li`) against the NumPy path of engine/lights/light_set.py
 and parallelograms.py, on inputs recorded from a render of the built-in Cornell box
 (tests/backend_capture.py) and on the hard cases: lights at infinity, the shadow-terminator
 lift, subsets of the samples; a control that moves one input by an ulp must differ."""
@@ -48,10 +48,12 @@ def test_captured_rectangle_samples_are_bit_identical(calls):
         lights.use_backend("numba")
         try:
             b = lights.sample_li(x, idx, u1, u2)
+            pdf_b = lights.pdf_li(x, idx, a.point)
         finally:
             lights.use_backend("numpy")
         for name in ("point", "direction", "distance", "normal", "radiance", "pdf"):
             assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True), name
+        assert np.array_equal(lights.pdf_li(x, idx, a.point), pdf_b)
 
 
 def _random_samples(rng, k):
