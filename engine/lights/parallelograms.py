@@ -127,7 +127,7 @@ class Parallelograms(EmittingSurface):
         if not solid_angle:
             return self._li(x, idx, *self._area_sample(x, idx, u1, u2, normal))
         if self.compiled is not None:                          # all of the below in two loops
-            point, direction, distance, pdf = self.compiled.sample_li(self, x, idx, u1, u2)
+            point, direction, distance, pdf = self.compiled.sample_li(self, x, idx, u1, u2, OMEGA_MIN, GRAZING)
             return LiSample(point, direction, distance, normal, self.radiance.take(idx, axis=1), pdf)
         f = self._frame(x, idx)
         point = self._spherical_point(x, f, u1, u2)
@@ -150,7 +150,7 @@ class Parallelograms(EmittingSurface):
     def pdf_li(self, x, idx, point, n=None, direction=None, solid_angle: bool = True):
         """p_w at x of the direction towards `point` on light idx (the density `sample_li` has)."""
         if solid_angle and self.compiled is not None:          # the same numbers in two loops
-            return self.compiled.pdf_li(self, x, idx, point)
+            return self.compiled.pdf_li(self, x, idx, point, OMEGA_MIN, GRAZING)
         pdf = area_pdf(x, point, gather(self.normal, idx), gather(self.area, idx))
         if solid_angle:
             f = self._frame(x, idx)

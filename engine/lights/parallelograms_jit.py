@@ -11,7 +11,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
-from .parallelograms import GRAZING, OMEGA_MIN
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -190,9 +189,10 @@ def spherical_point(lights, x, idx, az, f, omega, g23, u1, u2):
     return out
 
 
-def sample_li(lights, x, idx, u1, u2):
+def sample_li(lights, x, idx, u1, u2, omega_min, grazing):
     """(point, direction, distance, pdf) of Parallelograms.sample_li by solid angle: the frame's loop,
-    NumPy's arcsines of the four arguments, then the rest in one loop (_sample)."""
+    NumPy's arcsines of the four arguments, then the rest in one loop (_sample); omega_min, grazing:
+    parallelograms.py's OMEGA_MIN and GRAZING."""
     n = x.shape[1]
     x = _c(x)
     one = np.ndim(idx) == 0 or lights.count == 1
@@ -205,12 +205,12 @@ def sample_li(lights, x, idx, u1, u2):
     g = np.arcsin(args)
     point, direction, distance, pdf = np.empty((3, n)), np.empty((3, n)), np.empty(n), np.empty(n)
     _sample(x, index, one, lights.axis1, lights.axis2, lights.v0, lights.e1, lights.e2, lights.normal, lights.area,
-            lights.rectangle, OMEGA_MIN, GRAZING, az, f, g, cdist, _c(np.broadcast_to(u1, (n,))),
+            lights.rectangle, omega_min, grazing, az, f, g, cdist, _c(np.broadcast_to(u1, (n,))),
             _c(np.broadcast_to(u2, (n,))), point, direction, distance, pdf)
     return point, direction, distance, pdf
 
 
-def pdf_li(lights, x, idx, point):
+def pdf_li(lights, x, idx, point, omega_min, grazing):
     """Parallelograms.pdf_li by solid angle: the frame's loop, NumPy's arcsines, then _pdf."""
     n = x.shape[1]
     x = _c(x)
@@ -222,7 +222,7 @@ def pdf_li(lights, x, idx, point):
     _frame(x, index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
            az, f, args, cdist)
     pdf = np.empty(n)
-    _pdf(x, index, one, lights.normal, lights.area, lights.rectangle, OMEGA_MIN, GRAZING, f, np.arcsin(args), cdist,
+    _pdf(x, index, one, lights.normal, lights.area, lights.rectangle, omega_min, grazing, f, np.arcsin(args), cdist,
          _c(point), pdf)
     return pdf
 
@@ -237,6 +237,6 @@ def warm_up() -> None:
                              center=np.array([[0.5, 1.5], [0.5, 0.5], [2.0, 2.0]]))
     x, idx = np.zeros((3, 2)), np.array([0, 1])
     az, f, args, cdist = frame_terms(lights, x, idx)
-    sample_li(lights, x, idx, np.full(2, 0.5), np.full(2, 0.5))
-    pdf_li(lights, x, idx, np.ones((3, 2)))
+    sample_li(lights, x, idx, np.full(2, 0.5), np.full(2, 0.5), 1e-6, 1e-5)
+    pdf_li(lights, x, idx, np.ones((3, 2)), 1e-6, 1e-5)
     spherical_point(lights, x, idx, az, f, np.ones(2), np.zeros(2), np.full(2, 0.5), np.full(2, 0.5))

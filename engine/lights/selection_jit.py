@@ -224,9 +224,12 @@ def _rows64(a):
 
 
 def warm_up() -> None:
-    """Compile (or load) the kernels for the types a render passes (a tree of two lights)."""
-    from .selection import LightTree
-    tables = TreeTables(LightTree(np.eye(3)[:2], np.ones(2), np.eye(3)[1:], np.zeros(2), np.ones(2), np.ones(2)))
+    """Compile (or load) the kernels for the types a render passes (the tables of a tree of two lights)."""
+    tables = TreeTables.__new__(TreeTables)
+    tables.nodes, tables.power, tables.empty = np.ones((2, 17), np.float32), np.ones(2), np.zeros(2, np.bool_)
+    tables.oriented, tables.base, tables.depth, tables.count = np.array([False, True]), np.zeros(2, np.int64), 1, 2
+    tables.light_at = tables.position_of = np.arange(2, dtype=np.int64)
+    tables.prob, tables.cdf = np.full(2, 0.5), np.array([0.5, 1.0])
     x, n, u = np.zeros((3, 4)), np.ones((3, 4)), np.linspace(0.0, 0.9, 4)
     light, _ = tables.sample(x, n, u)
     tables.pmf(x, n, light)
