@@ -3,8 +3,8 @@
     python scripts/bench_backend.py [--resolution 96] [--samples 16] [--repeats 3] [--no-blend]
 
 1. Per kernel, on inputs recorded from real renders (tests/backend_capture.py: the light tree's
-   walks in the built-in many-lights room, the sphere and quad tests and the Sobol' points of the
-   built-in Cornell box): CPU time
+   picks and walks in the built-in many-lights room, the parallelogram samples, shadow rays, sphere
+   and quad tests and the Sobol' points of the built-in Cornell box): CPU time
    of every recorded call through the NumPy kernel and through its twin, best of --repeats, and
    the speed-up NumPy / numba.  The twin run alone on two threads with `prange` as well (an upper
    bound of what `parallel=True` could give; a render already keeps both cores busy with two
@@ -62,24 +62,13 @@ def parallel_tree_sample():
     nb = backend.numba_module()
 
     @nb.njit(parallel=True, error_model="numpy", nogil=True)
-    def tree_sample(x, n, u, table, power, empty, oriented, base, depth, count, light_at):
+    def tree_sample(x, n, u, nodes, power, empty, oriented, base, depth, count, light_at):
         m = u.shape[0]
         light = np.empty(m, np.int64)
         pmf = np.empty(m, np.float64)
         for i in nb.prange(m):
-            node, q, ui = 0, 1.0, u[i]
-            for level in range(1, depth + 1):
-                left = 2 * node
-                p = sj._left_probability(x, n, i, level, left, table, power, empty, oriented, base)
-                go_left = ui < p
-                ui = ui / p if go_left else (ui - p) / (1.0 - p)
-                if ui != ui:
-                    ui = 0.0
-                ui = min(max(ui, 0.0), sj.BELOW_ONE)
-                q *= p if go_left else 1.0 - p
-                node = left if go_left else left + 1
-            light[i] = light_at[(count * node) >> depth]
-            pmf[i] = q
+            light[i], pmf[i] = sj._walk(x[0, i], x[1, i], x[2, i], n[0, i], n[1, i], n[2, i], u[i], nodes, power,
+                                        empty, oriented, base, depth, count, light_at)
         return light, pmf
     return tree_sample
 
@@ -150,7 +139,42 @@ def kernels(args):
         for q, k, prim, o, d, b in quads:
             c = compiled_quads[id(q)]
             c.intersect_one(k, o, d, b) if prim is None else c.intersect_pairs(prim, o, d, b)
-    for name, calls, a, b, count in (("light tree sample", samples, run_numpy_sample, run_jit_sample, rays(samples, 3)),
+    from engine.lights import light_set_jit
+    from engine.lights.selection import DEFENSIVE
+    picks, rectangles, shadows = many["pick"], cornell["rectangle"], cornell["shadow"]
+
+    def run_numpy_pick():
+        for t, x, n, u in picks:
+            t.sample(x, n, u)
+
+    def run_jit_pick():
+        for t, x, n, u in picks:
+            tables[id(t)].select(x, n, u, DEFENSIVE)
+    for t, *_ in picks:
+        tables.setdefault(id(t), TreeTables(t))
+
+    def run_rectangles(backend):
+        for lights, x, idx, u1, u2 in rectangles:
+            lights.use_backend(backend)
+            lights.sample_li(x, idx, u1, u2)
+            lights.use_backend("numpy")
+
+    def run_numpy_shadows():
+        for light_set, call in shadows:
+            saved, light_set.compiled_shadows = light_set.compiled_shadows, None
+            light_set.shadow_rays(*call)
+            light_set.compiled_shadows = saved
+
+    def run_jit_shadows():
+        for _, call in shadows:
+            light_set_jit.shadow_rays(*call)
+    for name, calls, a, b, count in (("light pick (tree walk and defensive mixing)", picks, run_numpy_pick,
+                                      run_jit_pick, rays(picks, 3)),
+                                     ("parallelogram sample_li", rectangles, lambda: run_rectangles("numpy"),
+                                      lambda: run_rectangles("numba"), rays(rectangles, 3)),
+                                     ("shadow rays (LightSet.shadow_rays)", shadows, run_numpy_shadows, run_jit_shadows,
+                                      sum(c[1][2].shape[1] for c in shadows)),
+                                     ("light tree sample", samples, run_numpy_sample, run_jit_sample, rays(samples, 3)),
                                      ("light tree pmf", pmfs, run_numpy_pmf, run_jit_pmf, rays(pmfs, 3)),
                                      ("sphere test", spheres, run_numpy_sphere, run_jit_sphere, rays(spheres, 0)),
                                      ("quad test", quads, run_numpy_quad, run_jit_quad, rays(quads, 3)),
@@ -172,7 +196,7 @@ def kernels(args):
 
         def run(fn):
             for tb, x, n, u in args_of:
-                fn(np.ascontiguousarray(x, np.float32), np.ascontiguousarray(n, np.float32), u, tb.table, tb.power,
+                fn(np.ascontiguousarray(x, np.float32), np.ascontiguousarray(n, np.float32), u, tb.nodes, tb.power,
                    tb.empty, tb.oriented, tb.base, tb.depth, tb.count, tb.light_at)
         from engine.lights.selection_jit import tree_sample
         run(par)

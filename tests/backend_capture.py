@@ -10,18 +10,43 @@ from engine.core.settings import RenderSettings
 from engine.geometry import scene_geometry
 from engine.geometry.shapes.quads import QuadSet
 from engine.sampling.qmc import SobolSampler, sample_2d
+from engine.lights.light_set import LightSet
+from engine.lights.parallelograms import Parallelograms
 from engine.lights.selection import LightTree
 from engine.scene.builtin import BUILTIN_SCENES
 
 
 def capture(scene_name: str, resolution=16, samples=2, limit=64):
     """{"sample": [(tree, x, n, u)], "pmf": [(tree, x, n, light)], "sphere": [(o, d, center, radius,
-    t_best)], "quad": [(quads, k, prim, o, d, t_best)], "sobol": [(index, pixel_seed, dim, count)]}: up to `limit` calls of each, recorded while
-    rendering a built-in scene."""
-    calls = {"sample": [], "pmf": [], "sphere": [], "quad": [], "sobol": []}
+    t_best)], "quad": [(quads, k, prim, o, d, t_best)], "sobol": [(index, pixel_seed, dim, count)],
+    "pick": [(tree, x, n, u)] (LightTree.sample), "rectangle": [(lights, x, idx, u1, u2)]
+    (Parallelograms.sample_li), "shadow": [(light set, args)] (LightSet.shadow_rays)}: up to `limit`
+    calls of each, recorded while rendering a built-in scene."""
+    calls = {"sample": [], "pmf": [], "sphere": [], "quad": [], "sobol": [], "pick": [], "rectangle": [], "shadow": []}
     sample, pmf, kernel = LightTree._tree_sample, LightTree._tree_pmf, scene_geometry.sphere_kernel
     one, pairs = QuadSet.intersect_one, QuadSet.intersect_pairs
     sobol = SobolSampler.kernel
+    pick, rectangle, shadow = LightTree.sample, Parallelograms.sample_li, LightSet.shadow_rays
+
+    def copied(a):
+        return a.copy() if isinstance(a, np.ndarray) else a
+
+    def rec_pick(self, x, n, u):
+        if len(calls["pick"]) < limit:
+            calls["pick"].append((self, x.copy(), n.copy(), u.copy()))
+        return pick(self, x, n, u)
+
+    def rec_rectangle(self, x, idx, u1, u2, n=None, solid_angle=True):
+        if len(calls["rectangle"]) < limit and solid_angle:
+            calls["rectangle"].append((self, x.copy(), copied(idx), u1.copy(), u2.copy()))
+        return rectangle(self, x, idx, u1, u2, n, solid_angle)
+
+    def rec_shadow(self, ls, valid, x, lift, ng, cos_ly, raised=None):
+        if len(calls["shadow"]) < limit:
+            calls["shadow"].append((self, (type(ls)(*(copied(getattr(ls, f)) for f in ls.__dataclass_fields__)),
+                                           copied(valid), x.copy(), copied(lift), ng.copy(), cos_ly.copy(),
+                                           None if raised is None else tuple(a.copy() for a in raised))))
+        return shadow(self, ls, valid, x, lift, ng, cos_ly, raised)
 
     def rec_sobol(index, pixel_seed, dim, count):
         if len(calls["sobol"]) < limit:
@@ -62,6 +87,7 @@ def capture(scene_name: str, resolution=16, samples=2, limit=64):
     LightTree._tree_sample, LightTree._tree_pmf, scene_geometry.sphere_kernel = rec_sample, rec_pmf, rec_kernel
     QuadSet.intersect_one, QuadSet.intersect_pairs = rec_one, rec_pairs
     SobolSampler.kernel = staticmethod(rec_sobol)
+    LightTree.sample, Parallelograms.sample_li, LightSet.shadow_rays = rec_pick, rec_rectangle, rec_shadow
     try:
         settings = RenderSettings(samples=samples, threads=1, backend="numpy")
         api.render(BUILTIN_SCENES[scene_name]((resolution, resolution)), settings, log=lambda m: None)
@@ -69,6 +95,7 @@ def capture(scene_name: str, resolution=16, samples=2, limit=64):
         LightTree._tree_sample, LightTree._tree_pmf, scene_geometry.sphere_kernel = sample, pmf, kernel
         QuadSet.intersect_one, QuadSet.intersect_pairs = one, pairs
         SobolSampler.kernel = staticmethod(sobol)
+        LightTree.sample, Parallelograms.sample_li, LightSet.shadow_rays = pick, rectangle, shadow
     return calls
 
 

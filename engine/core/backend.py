@@ -52,6 +52,7 @@ JIT_MODULES = {
     "geometry.hits_jit": ("wavefront",),
     "integrators.wavefront_jit": ("wavefront",),
     "scene.camera_rays_jit": ("wavefront",),
+    "lights.light_set_jit": ("emission",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 

@@ -852,17 +852,12 @@ class PathTracer:
         weight = np.zeros(k)
         f_cos = None if albedo is not None else np.zeros((3, k))
         if len(valid):
-            origin = pick(x, 1) + pick(off_x if side is None else off_x * side) * pick(ng, 1)
-            if amount is not None:                  # grazing light on a smooth triangle: lifted origin
-                origin = origin + pick(amount) * pick(s_vec, 1)
-            # End point pulled off the light towards x, so the light never occludes itself;
-            # the world is at infinity: its shadow rays run to t = inf.
-            pull = np.copysign(1.0, pick(cos_ly)) * pick(ls.offset)
-            seg = pick(ls.point, 1) - pull * pick(ls.normal, 1) - origin
-            finite = np.isfinite(pick(ls.distance))
-            with np.errstate(invalid="ignore"):
-                seg_len = np.where(finite, np.sqrt(dot(seg, seg)), np.inf)
-                direction = np.where(finite, seg / seg_len, pick(w, 1))
+            # From the point lifted off its surface (grazing light on a smooth triangle: lifted by the
+            # terminator offset too) to the light's point pulled off the light towards x, so the light
+            # never occludes itself; the world is at infinity: its shadow rays run to t = inf.
+            origin, direction, seg_len = self.lights.shadow_rays(
+                ls, None if everything else valid, x, off_x if side is None else off_x * side, ng, cos_ly,
+                None if amount is None else (amount, s_vec))
             counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
             cos, pdf = pick(cos_x), pick(ls.pdf)
@@ -871,12 +866,17 @@ class PathTracer:
                 return si if everything and ns == 1 else si.take(valid // ns)
             if albedo is not None:                  # Lambertian: f = rho / pi comes in after the mean
                 sample = cos / pdf                                              # cos V / p_l
-                p_b = bsdf.pdf(at_valid(), pick(w, 1)) if self.mis else None
+                p_b = None
+                if self.mis and ns == 1:            # its pdf is per ray: at every sample, then picked
+                    with np.errstate(invalid="ignore", over="ignore"):     # (no copy of the hits)
+                        p_b = pick(bsdf.pdf(si, w))
+                elif self.mis:
+                    p_b = bsdf.pdf(at_valid(), pick(w, 1))
             else:
                 f_cos[:, valid], p_b = bsdf.eval(at_valid(), pick(w, 1))
                 sample = 1.0 / pdf                                              # V / p_l
             if self.mis:                            # lights a BSDF sample cannot reach: weight 1
-                p_bsdf = np.where(pick(self.lights.bsdf_reachable.take(ls.light)), p_b, 0.0)
+                p_bsdf = np.where(self.lights.bsdf_reachable.take(pick(ls.light)), p_b, 0.0)
                 sample *= power_heuristic(float(ns), pdf, 1.0, p_bsdf)
             weight[valid] = np.where(blocked, 0.0, sample)
         if si.lookup is not None and si.lookup.has_normals:     # a Normal input: Cycles' bump shadowing

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.vec import max_abs3
+from ..core.vec import dot, max_abs3
 from .emitters import SceneEmitters
 from .protocol import LiSample
 from .seen import SeenLamps
@@ -125,6 +125,10 @@ class LightSet:
         for kind in self.kinds:                # shapes_backend: the kinds with compiled sampling (parallelograms)
             if hasattr(kind, "use_backend"):
                 kind.use_backend(shapes_backend)
+        self.compiled_shadows = None           # and the shadow rays (engine/lights/light_set_jit.py)
+        if shapes_backend == "numba":
+            from . import light_set_jit
+            self.compiled_shadows = light_set_jit
         start = 0
         for kind in self.kinds:                                   # each kind's range of light numbers
             kind.first, start = start, start + kind.count
@@ -222,6 +226,29 @@ class LightSet:
         direction d (MIS for a bounce ray that escapes)."""
         picked = self.distant.selection.prob[self.world.first - self.distant.first]
         return self.distant.share * self.world.pdf_li(None, None, None, n, d, pmf=picked)
+
+    def shadow_rays(self, ls: LightSample, valid, x, lift, ng, cos_ly, raised=None):
+        """The shadow rays of the light samples `valid` (indices into ls; None: all of them), as
+        (origin, unit direction, length) rows: from x + lift ng (receivers x, their geometric normals
+        ng and offsets along them, lift; raised = (amount, s): plus amount s, the shadow-terminator
+        offset) to the sample's point pulled off the light along its normal by ls.offset, on the
+        side cos_ly = <normal, direction> says, so the light never occludes itself; lights at
+        infinity: along the sample's direction to length inf.  Arrays are per sample (all of ls)."""
+        if self.compiled_shadows is not None:                 # the same numbers in one loop
+            return self.compiled_shadows.shadow_rays(ls, valid, x, lift, ng, cos_ly, raised)
+
+        def pick(a, axis=0):
+            return a if valid is None else a.take(valid, axis=axis)
+        origin = pick(x, 1) + pick(lift) * pick(ng, 1)
+        if raised is not None:
+            origin = origin + pick(raised[0]) * pick(raised[1], 1)
+        pull = np.copysign(1.0, pick(cos_ly)) * pick(ls.offset)
+        seg = pick(ls.point, 1) - pull * pick(ls.normal, 1) - origin
+        finite = np.isfinite(pick(ls.distance))
+        with np.errstate(invalid="ignore"):
+            length = np.where(finite, np.sqrt(dot(seg, seg)), np.inf)
+            direction = np.where(finite, seg / length, pick(ls.direction, 1))
+        return origin, direction, length
 
     def kind_names(self) -> list[str]:
         return [kind.name for kind in self.kinds]

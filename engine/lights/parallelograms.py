@@ -22,7 +22,7 @@ import numpy as np
 
 from ..core.vec import cross, dot, gather, rows
 from .emitting_surface import EmittingSurface
-from .protocol import LightBounds
+from .protocol import LightBounds, LiSample
 
 OMEGA_MIN = 1e-6          # sr: below this area sampling is as good and cheaper
 GRAZING = 1e-5            # |plane distance| / distance to the centre below which x is "in the plane"
@@ -126,6 +126,9 @@ class Parallelograms(EmittingSurface):
         normal = np.broadcast_to(gather(self.normal, idx), (3, m))
         if not solid_angle:
             return self._li(x, idx, *self._area_sample(x, idx, u1, u2, normal))
+        if self.compiled is not None:                          # all of the below in two loops
+            point, direction, distance, pdf = self.compiled.sample_li(self, x, idx, u1, u2, OMEGA_MIN, GRAZING)
+            return LiSample(point, direction, distance, normal, self.radiance.take(idx, axis=1), pdf)
         f = self._frame(x, idx)
         point = self._spherical_point(x, f, u1, u2)
         with np.errstate(divide="ignore"):
@@ -146,6 +149,8 @@ class Parallelograms(EmittingSurface):
 
     def pdf_li(self, x, idx, point, n=None, direction=None, solid_angle: bool = True):
         """p_w at x of the direction towards `point` on light idx (the density `sample_li` has)."""
+        if solid_angle and self.compiled is not None:          # the same numbers in two loops
+            return self.compiled.pdf_li(self, x, idx, point, OMEGA_MIN, GRAZING)
         pdf = area_pdf(x, point, gather(self.normal, idx), gather(self.area, idx))
         if solid_angle:
             f = self._frame(x, idx)

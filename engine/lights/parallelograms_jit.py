@@ -88,6 +88,76 @@ def _point(x, idx, one, axis1, axis2, az, f, omega, g23, u1, u2, out):
             out[c, i] = x[c, i] + xu * axis1[c, j] + yv * axis2[c, j] + z0 * az[c, i]
 
 
+@jit
+def _sample(x, idx, one, axis1, axis2, v0, e1, e2, normal, area, rectangle, omega_min, grazing, az, f, g, cdist,
+            u1, u2, point, direction, distance, pdf):
+    """sample_li after the arcsines, one receiver at a time: Omega and the `use` predicate of
+    Parallelograms._frame, the spherical point (_point) and 1 / Omega where it holds, else the area
+    point and area_pdf; then finite_sample's direction and distance."""
+    for i in range(x.shape[1]):
+        j = 0 if one else idx[i]
+        omega = -(g[0, i] + g[1, i] + g[2, i] + g[3, i])
+        g23 = g[2, i] + g[3, i]
+        z0 = f[4, i]
+        use = (rectangle[j] and omega >= omega_min and np.isfinite(omega) and -z0 >= grazing * cdist[i])
+        if use:
+            x0, y0, x1, y1, e0, e2_ = f[0, i], f[1, i], f[2, i], f[3, i], f[5, i], f[6, i]
+            au = u1[i] * omega + g23
+            fu = (np.cos(au) * e0 + e2_) / np.sin(au)
+            cu = _clip(np.copysign(1.0, fu) / np.sqrt(fu * fu + e0 * e0), -1.0, 1.0)
+            s = np.sqrt(1.0 - cu * cu)
+            if not (s >= 1e-300 or s != s):              # np.maximum(s, 1e-300)
+                s = 1e-300
+            xu = _clip(-(cu * z0) / s, x0, x1)
+            d2 = xu * xu + z0 * z0
+            h0 = y0 / np.sqrt(d2 + y0 * y0)
+            h1 = y1 / np.sqrt(d2 + y1 * y1)
+            hv = h0 + u2[i] * (h1 - h0)
+            if hv * hv < 1.0 - 1e-12:
+                yv = hv * np.sqrt(d2) / np.sqrt(1.0 - hv * hv)
+            else:
+                yv = y1
+            if yv != yv:                                 # np.nan_to_num
+                yv = 0.0
+            elif yv == np.inf:
+                yv = BIG
+            elif yv == -np.inf:
+                yv = -BIG
+            yv = _clip(yv, y0, y1)
+            for c in range(3):
+                point[c, i] = x[c, i] + xu * axis1[c, j] + yv * axis2[c, j] + z0 * az[c, i]
+            pdf[i] = 1.0 / omega
+        else:                                            # area sampling: the point and area_pdf
+            for c in range(3):
+                point[c, i] = v0[c, j] + u1[i] * e1[c, j] + u2[i] * e2[c, j]
+            w0, w1, w2 = point[0, i] - x[0, i], point[1, i] - x[1, i], point[2, i] - x[2, i]
+            d2 = w0 * w0 + w1 * w1 + w2 * w2
+            cos_y = np.abs(normal[0, j] * w0 + normal[1, j] * w1 + normal[2, j] * w2)
+            p = d2 * np.sqrt(d2) / (area[j] * cos_y)
+            pdf[i] = p if np.isfinite(p) else 0.0
+        w0, w1, w2 = point[0, i] - x[0, i], point[1, i] - x[1, i], point[2, i] - x[2, i]
+        dist = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        distance[i] = dist
+        direction[0, i], direction[1, i], direction[2, i] = w0 / dist, w1 / dist, w2 / dist
+
+
+@jit
+def _pdf(x, idx, one, normal, area, rectangle, omega_min, grazing, f, g, cdist, point, pdf):
+    """pdf_li after the arcsines, one receiver at a time: 1 / Omega where `use` holds (as _sample),
+    else area_pdf of `point`."""
+    for i in range(x.shape[1]):
+        j = 0 if one else idx[i]
+        omega = -(g[0, i] + g[1, i] + g[2, i] + g[3, i])
+        if rectangle[j] and omega >= omega_min and np.isfinite(omega) and -f[4, i] >= grazing * cdist[i]:
+            pdf[i] = 1.0 / omega
+        else:
+            w0, w1, w2 = point[0, i] - x[0, i], point[1, i] - x[1, i], point[2, i] - x[2, i]
+            d2 = w0 * w0 + w1 * w1 + w2 * w2
+            cos_y = np.abs(normal[0, j] * w0 + normal[1, j] * w1 + normal[2, j] * w2)
+            p = d2 * np.sqrt(d2) / (area[j] * cos_y)
+            pdf[i] = p if np.isfinite(p) else 0.0
+
+
 def _c(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
@@ -119,13 +189,54 @@ def spherical_point(lights, x, idx, az, f, omega, g23, u1, u2):
     return out
 
 
+def sample_li(lights, x, idx, u1, u2, omega_min, grazing):
+    """(point, direction, distance, pdf) of Parallelograms.sample_li by solid angle: the frame's loop,
+    NumPy's arcsines of the four arguments, then the rest in one loop (_sample); omega_min, grazing:
+    parallelograms.py's OMEGA_MIN and GRAZING."""
+    n = x.shape[1]
+    x = _c(x)
+    one = np.ndim(idx) == 0 or lights.count == 1
+    index = np.zeros(1, np.int64) if one else np.ascontiguousarray(idx, dtype=np.int64)
+    if one and np.ndim(idx) == 0:
+        index[0] = int(idx)
+    az, f, args, cdist = np.empty((3, n)), np.empty((7, n)), np.empty((4, n)), np.empty(n)
+    _frame(x, index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
+           az, f, args, cdist)
+    g = np.arcsin(args)
+    point, direction, distance, pdf = np.empty((3, n)), np.empty((3, n)), np.empty(n), np.empty(n)
+    _sample(x, index, one, lights.axis1, lights.axis2, lights.v0, lights.e1, lights.e2, lights.normal, lights.area,
+            lights.rectangle, omega_min, grazing, az, f, g, cdist, _c(np.broadcast_to(u1, (n,))),
+            _c(np.broadcast_to(u2, (n,))), point, direction, distance, pdf)
+    return point, direction, distance, pdf
+
+
+def pdf_li(lights, x, idx, point, omega_min, grazing):
+    """Parallelograms.pdf_li by solid angle: the frame's loop, NumPy's arcsines, then _pdf."""
+    n = x.shape[1]
+    x = _c(x)
+    one = np.ndim(idx) == 0 or lights.count == 1
+    index = np.zeros(1, np.int64) if one else np.ascontiguousarray(idx, dtype=np.int64)
+    if one and np.ndim(idx) == 0:
+        index[0] = int(idx)
+    az, f, args, cdist = np.empty((3, n)), np.empty((7, n)), np.empty((4, n)), np.empty(n)
+    _frame(x, index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
+           az, f, args, cdist)
+    pdf = np.empty(n)
+    _pdf(x, index, one, lights.normal, lights.area, lights.rectangle, omega_min, grazing, f, np.arcsin(args), cdist,
+         _c(point), pdf)
+    return pdf
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     from types import SimpleNamespace
     rows = np.eye(3)[:, :, None].repeat(2, axis=2)             # two unit squares at z = 2
     lights = SimpleNamespace(count=2, axis1=rows[0], axis2=rows[1], axis3=rows[2], len1=np.ones(2), len2=np.ones(2),
+                             e1=rows[0], e2=rows[1], normal=rows[2], area=np.ones(2), rectangle=np.ones(2, np.bool_),
                              v0=np.array([[0.0, 1.0], [0.0, 0.0], [2.0, 2.0]]),
                              center=np.array([[0.5, 1.5], [0.5, 0.5], [2.0, 2.0]]))
     x, idx = np.zeros((3, 2)), np.array([0, 1])
     az, f, args, cdist = frame_terms(lights, x, idx)
+    sample_li(lights, x, idx, np.full(2, 0.5), np.full(2, 0.5), 1e-6, 1e-5)
+    pdf_li(lights, x, idx, np.ones((3, 2)), 1e-6, 1e-5)
     spherical_point(lights, x, idx, az, f, np.ones(2), np.zeros(2), np.full(2, 0.5), np.full(2, 0.5))

@@ -199,6 +199,8 @@ class LightTree:
     def sample(self, x, n, u):
         if self.count == 1:
             return np.zeros(len(u), dtype=np.int64), np.ones(len(u))
+        if self._compiled is not None:                   # all of the below in one loop
+            return self._compiled.select(x, n, u, DEFENSIVE)
         x, n = x.astype(np.float32), n.astype(np.float32)
         defensive = u < DEFENSIVE
         light, tree_pmf = self._tree_sample(x, n, np.where(defensive, 0.0, (u - DEFENSIVE) / (1.0 - DEFENSIVE)))
@@ -211,5 +213,7 @@ class LightTree:
     def pmf(self, x, n, light):
         if self.count == 1:
             return np.ones(len(light))
+        if self._compiled is not None:
+            return self._compiled.mixed_pmf(x, n, light, DEFENSIVE)
         x, n = x.astype(np.float32), n.astype(np.float32)
         return DEFENSIVE * self.fallback.pmf(x, n, light) + (1.0 - DEFENSIVE) * self._tree_pmf(x, n, light)

@@ -35,6 +35,8 @@ def _compare(count, seed):
         if va is not None:
             assert np.array_equal(va, vb, equal_nan=True), name
     assert np.array_equal(a.pdf_li(x, idx, sa.point), b.pdf_li(x, idx, sa.point))
+    anywhere = rng.normal(size=(3, m)) * 3.0                        # points off the lights: area_pdf's cases
+    assert np.array_equal(a.pdf_li(x, idx, anywhere), b.pdf_li(x, idx, anywhere))
     assert np.array_equal(a.solid_angle(x, idx), b.solid_angle(x, idx), equal_nan=True)
     return a, b, x, idx, u1, u2, sa
 

@@ -28,6 +28,18 @@ def test_captured_walks_are_bit_identical(calls):
         assert np.array_equal(tree._tree_pmf(x, n, light), TreeTables(tree).pmf(x, n, light))
 
 
+def test_captured_picks_are_bit_identical(calls):
+    """LightTree.sample in one compiled loop (TreeTables.select: the defensive mixing too)."""
+    from engine.lights.selection import DEFENSIVE
+    from engine.lights.selection_jit import TreeTables
+    assert calls["pick"]
+    for tree, x, n, u in calls["pick"]:
+        light, pmf = tree.sample(x, n, u)
+        light_c, pmf_c = TreeTables(tree).select(x, n, u, DEFENSIVE)
+        assert np.array_equal(light, light_c) and np.array_equal(pmf, pmf_c)
+        assert np.array_equal(tree.pmf(x, n, light), TreeTables(tree).mixed_pmf(x, n, light, DEFENSIVE))
+
+
 def random_tree(rng, k, backend):
     c = rng.random((k, 3)) * 4.0
     axis = rng.normal(size=(k, 3))
@@ -65,6 +77,6 @@ def test_control_a_changed_table_is_seen():
     x, n = rng.random((3, 500)) * 4.0, np.tile([[0.0], [0.0], [1.0]], 500)
     light = rng.integers(0, 37, 500)
     tables = TreeTables(tree)
-    tables.table[14, 0] *= 1.5
+    tables.nodes[0, 14] *= 1.5
     assert not np.array_equal(tree._tree_pmf(x.astype(np.float32), n.astype(np.float32), light),
                               tables.pmf(x, n, light))

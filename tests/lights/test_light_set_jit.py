@@ -1,0 +1,94 @@
+"""The compiled shadow rays (engine/lights/light_set_jit.py) and parallelogram samples and densities
+(engine/lights/parallelograms_jit.py `sample_li`, `pdf_li`) against the NumPy path of engine/lights/light_set.py
+and parallelograms.py, on inputs recorded from a render of the built-in Cornell box
+(tests/backend_capture.py) and on the hard cases: lights at infinity, the shadow-terminator
+lift, subsets of the samples; a control that moves one input by an ulp must differ."""
+import numpy as np
+import pytest
+
+from engine.lights.light_set import LightSample
+from tests.backend_capture import capture, require_compiled
+
+TWIN = "engine.lights.light_set_jit"          # imported after require_compiled(): numba may be missing
+
+
+@pytest.fixture(scope="module")
+def calls():
+    require_compiled()
+    return capture("cornell")
+
+
+def _same(a, b):
+    return all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b))
+
+
+def _numpy_and_compiled(light_set, args):
+    from engine.lights import light_set_jit
+    saved = light_set.compiled_shadows
+    light_set.compiled_shadows = None
+    try:
+        reference = light_set.shadow_rays(*args)
+    finally:
+        light_set.compiled_shadows = saved
+    return reference, light_set_jit.shadow_rays(*args)
+
+
+def test_captured_shadow_rays_are_bit_identical(calls):
+    assert len(calls["shadow"]) >= 8
+    for light_set, args in calls["shadow"]:
+        reference, compiled = _numpy_and_compiled(light_set, args)
+        assert _same(reference, compiled)
+
+
+def test_captured_rectangle_samples_are_bit_identical(calls):
+    assert calls["rectangle"]
+    for lights, x, idx, u1, u2 in calls["rectangle"]:
+        assert lights.compiled is None
+        a = lights.sample_li(x, idx, u1, u2)
+        lights.use_backend("numba")
+        try:
+            b = lights.sample_li(x, idx, u1, u2)
+            pdf_b = lights.pdf_li(x, idx, a.point)
+        finally:
+            lights.use_backend("numpy")
+        for name in ("point", "direction", "distance", "normal", "radiance", "pdf"):
+            assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True), name
+        assert np.array_equal(lights.pdf_li(x, idx, a.point), pdf_b)
+
+
+def _random_samples(rng, k):
+    point = rng.normal(size=(3, k)) * 3.0
+    normal = rng.normal(size=(3, k))
+    normal /= np.linalg.norm(normal, axis=0)
+    distance = rng.random(k) * 4.0
+    distance[::5] = np.inf                                       # lights at infinity
+    direction = rng.normal(size=(3, k))
+    direction /= np.linalg.norm(direction, axis=0)
+    return LightSample(point, direction, distance, normal, np.ones((3, k)), rng.random(k), np.zeros(k, np.int64),
+                       2.0 ** -20 * np.abs(point).max(axis=0), np.zeros(k, bool))
+
+
+def test_hard_cases_and_control():
+    require_compiled()
+    from engine.lights.light_set import LightSet
+    from engine.scene.builtin import BUILTIN_SCENES
+    light_set = LightSet(BUILTIN_SCENES["cornell"]((8, 8)), shapes_backend="numba")
+    rng = np.random.default_rng(7)
+    k = 2000
+    ls = _random_samples(rng, k)
+    x, ng = rng.normal(size=(3, k)), rng.normal(size=(3, k))
+    lift = rng.random(k) * 1e-4 * np.where(rng.random(k) < 0.3, -1.0, 1.0)       # the far side too
+    cos_ly = rng.normal(size=k)
+    cos_ly[:7] = 0.0
+    valid = np.flatnonzero(rng.random(k) < 0.7)
+    raised = (rng.random(k) * np.where(rng.random(k) < 0.5, 0.0, 1.0), rng.normal(size=(3, k)))
+    for args in [(ls, None, x, lift, ng, cos_ly), (ls, valid, x, lift, ng, cos_ly),
+                 (ls, valid, x, lift, ng, cos_ly, raised), (ls, valid[:1], x, np.zeros(k), ng, cos_ly)]:
+        reference, compiled = _numpy_and_compiled(light_set, args)
+        assert _same(reference, compiled)
+    # Control: one receiver moved by an ulp is seen.
+    moved = x.copy()
+    moved[0, valid[1]] = np.nextafter(moved[0, valid[1]], 9.0)
+    reference, _ = _numpy_and_compiled(light_set, (ls, valid, x, lift, ng, cos_ly))
+    _, compiled = _numpy_and_compiled(light_set, (ls, valid, moved, lift, ng, cos_ly))
+    assert not _same(reference, compiled)
