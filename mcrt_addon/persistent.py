@@ -45,6 +45,8 @@ def render_pool(scene, python, threads, extra_paths, log=print):
             inner = bridge.module("api").make_pool(f"viewport:{python}", threads, log=log, extra_paths=extra_paths)
         # checked: render_engine validates every exported scene before rendering it
         _kept.append(bridge.module("pools.kept").KeptPool(inner, key, checked=True))
+        kept_pool = _kept[0]
+        warm.hold(key, lambda: bool(kept_pool.usable) and bool(_kept) and _kept[0] is kept_pool)
     return _kept[0]
 
 
@@ -72,6 +74,7 @@ def kept():
 def free(*_args):
     """Shut the kept pool down (also a bpy.app.handlers.load_pre handler)."""
     _meshes.clear()
+    warm.hold(None, None)
     while _kept:
         _kept.pop().shutdown()
 

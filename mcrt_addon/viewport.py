@@ -331,9 +331,8 @@ def denoise_start(props):
 
 
 def viewport_worker_count(settings):
-    """Threads setting, or one worker process a core (as Cycles' viewport uses every thread: the
-    UI thread only hands views on and draws, docs/performance.md "The Rendered viewport")."""
-    return settings.threads if settings.threads > 0 else max(1, os.cpu_count() or 1)
+    """Threads setting, or one worker process a core (worker_python.viewport_worker_count)."""
+    return worker_python.viewport_worker_count(settings.threads)
 
 
 def view_draw(engine, context, depsgraph):

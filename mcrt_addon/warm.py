@@ -19,7 +19,6 @@ Processes start and stop on a thread of their own: the UI thread never waits for
 also imports the modules the first export and frame import in Blender's process (PREIMPORT).
 """
 import threading
-from types import SimpleNamespace
 
 import bpy
 
@@ -42,16 +41,15 @@ MAX_FAILURES = 2        # a key whose workers failed to start or died this often
 _lock = threading.Lock()
 _state = {"pool": None, "key": None, "busy": False,   # busy: a thread is starting or stopping a pool
           "quiet": 0,                                  # ticks in a row that wanted a start
-          "failures": {}, "said": False}               # key -> failed starts or deaths; a tick's error told
+          "failures": {}, "said": False,               # key -> failed starts or deaths; a tick's error told
+          "held": None}                                # (key, usable) of the pool Persistent Data keeps
 started = []            # keys of the pools started here (tests, diagnostics)
 
 
 def worker_count(scene) -> int:
-    """The viewport's worker count for `scene` (mcrt_addon/viewport.py viewport_worker_count, the
-    one rule) from the Threads property alone: the tracer is not imported on the UI thread for it."""
-    from .viewport import viewport_worker_count
-    threads = int(getattr(getattr(scene, "tncg15", None), "threads", 0) or 0)
-    return viewport_worker_count(SimpleNamespace(threads=threads))
+    """The viewport's worker count for `scene` (worker_python.viewport_worker_count, the one rule)
+    from the Threads property alone: the tracer is not imported on the UI thread for it."""
+    return worker_python.viewport_worker_count(int(getattr(getattr(scene, "tncg15", None), "threads", 0) or 0))
 
 
 def pool_key(python, count, extra_paths):
@@ -108,11 +106,16 @@ def render_pool(python, count, extra_paths, log=print):
 
 
 def kept_elsewhere(key) -> bool:
-    """Persistent Data keeps a pool of these workers (mcrt_addon/persistent.py): a warm one beside
-    it would double the idle processes."""
-    from . import persistent
-    kept = persistent.kept()
-    return kept is not None and getattr(kept, "key", None) == key and getattr(kept, "usable", False)
+    """Persistent Data keeps a pool of these workers (mcrt_addon/persistent.py tells `hold`): a warm
+    one beside it would double the idle processes."""
+    held = _state["held"]
+    return held is not None and held[0] == key and held[1]()
+
+
+def hold(key, usable) -> None:
+    """Persistent Data keeps the workers of `key` while usable() (mcrt_addon/persistent.py), or
+    nothing (key None): no warm pool of that key is started beside them."""
+    _state["held"] = None if key is None else (key, usable)
 
 
 def tick():

@@ -120,6 +120,14 @@ def render_cluster(context=None) -> str:
     return getattr(addon.preferences, "render_cluster", "") if addon and addon.preferences else ""
 
 
+def viewport_worker_count(threads: int) -> int:
+    """The Rendered viewport's worker processes for a Threads setting: the setting, or one a core
+    (as Cycles' viewport uses every thread: the UI thread only hands views on and draws,
+    docs/performance.md "The Rendered viewport").  mcrt_addon/viewport.py starts them and
+    mcrt_addon/warm.py starts them ahead: one rule, so that the two pools are the same."""
+    return threads if threads > 0 else max(1, os.cpu_count() or 1)
+
+
 def start_ahead(context=None) -> bool:
     """Whether viewport workers may be started ahead (mcrt_addon/warm.py): the preference, on by default."""
     context = context or bpy.context

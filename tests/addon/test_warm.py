@@ -155,6 +155,19 @@ def test_no_kernels_are_loaded_ahead_for_a_scene_on_the_numpy_backend(warm, monk
     assert warm.numba_wanted([win])
 
 
+def test_no_warm_pool_beside_the_workers_persistent_data_keeps(warm):
+    key = ("python", 2, ())
+    usable = {"now": True}
+    warm.hold(key, lambda: usable["now"])
+    try:
+        assert warm.kept_elsewhere(key) and not warm.kept_elsewhere(("python", 3, ()))
+        usable["now"] = False                           # the kept pool lost a worker: a warm one may start
+        assert not warm.kept_elsewhere(key)
+    finally:
+        warm.hold(None, None)
+    assert not warm.kept_elsewhere(key)
+
+
 def worker_cpu(pids):
     ticks = 0
     for p in pids:
