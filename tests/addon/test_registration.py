@@ -213,8 +213,8 @@ def test_preferences_link_the_user_guide(addon):
             operators.append((name, kw.get("text"), op))
             return op
     layout = Layout(props)
-    prefs = types.SimpleNamespace(worker_python="", render_cluster="")
+    prefs = types.SimpleNamespace(worker_python="", render_cluster="", start_workers_ahead=True)
     worker_python.TNCG15Preferences.draw(types.SimpleNamespace(layout=layout, **vars(prefs)), None)
-    assert props == ["worker_python", "render_cluster"]
+    assert props == ["worker_python", "render_cluster", "start_workers_ahead"]
     assert [(n, t) for n, t, _ in operators] == [("tncg15.install_denoiser", None), ("wm.url_open", "Documentation")]
     assert operators[1][2].url == "file://" + guide
