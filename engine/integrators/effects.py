@@ -20,7 +20,8 @@ from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
 from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
 from ..materials.principled_v1 import SINGLE_SCATTER_ROUGHNESS
 from ..materials.principled_v1_glass import SINGLE_SCATTER_ROUGHNESS as GLASS_SINGLE_SCATTER_ROUGHNESS
-from ..materials.table import NON_DELTA_KINDS, ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION, scatter_kind
+from ..materials.table import (NON_DELTA_KINDS, PRINCIPLED_V1, ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION,
+                               scatter_kind)
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
@@ -296,6 +297,7 @@ def _plan_light_paths(settings, set_effect, users) -> None:
     glass = users(lambda m: m.kind in (GLASS, REFRACTION))
     glossy = users(lambda m: m.kind == GLOSSY)
     principled = users(lambda m: kind_of(m) == PRINCIPLED)         # v2 (the v1 closures keep theirs)
+    principled_v1 = users(lambda m: kind_of(m) == PRINCIPLED_V1)   # Filter Glossy only: Cycles 3.4's bsdf_blur
     passing = users(lambda m: m.kind == TRANSPARENT or (kind_of(m) == PRINCIPLED
                                                           and getattr(m.principled, "alpha", 1.0) < 1.0))
     depth = settings.max_depth
@@ -314,7 +316,7 @@ def _plan_light_paths(settings, set_effect, users) -> None:
                    part for part in (f"direct to {direct:g}" if direct > 0 else "",
                                      f"indirect to {indirect:g}" if indirect > 0 else "") if part)
                if direct > 0 or indirect > 0 else "no clamping (Clamp Direct and Indirect 0)")
-    lobes = glossy + principled + users(lambda m: kind_of(m) in (ROUGH_GLASS, ROUGH_REFRACTION))
+    lobes = glossy + principled + principled_v1 + users(lambda m: kind_of(m) in (ROUGH_GLASS, ROUGH_REFRACTION))
     blur = settings.filter_glossy > 0 and bool(lobes)
     delta = [m for m in mirror + glass if m not in lobes]
     sharp = " (perfect mirrors and smooth glass stay sharp; Cycles blurs them too)" if delta else ""

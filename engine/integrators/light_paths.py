@@ -19,8 +19,10 @@ integrator/surface_shader.h, svm/closure.h).  docs/user-guide.md "Light paths" d
   smallest pdf of its non-delta bounces (Cycles' min_ray_pdf; delta bounces leave it, as Cycles'
   singular pdf of 1e6 does); at a later hit with blur = min_pdf / filter < 1 the microfacet lobes'
   alphas are raised to at least sqrt(1 - blur) / 2 (ShadingPoint.alpha_floor, read by
-  engine/materials/glossy.py).  The energy compensation and the Principled layer weights keep the
-  closure's own roughness, as Cycles' (they are set up before the blur).  The tracer's perfect
+  engine/materials/glossy.py, dielectric.py, principled_glass.py and the Principled v1's
+  principled_v1.py, principled_v1_glass.py).  The energy compensation and the Principled layer
+  weights keep the closure's own roughness, as Cycles' (they are set up before the blur); the v1's
+  multiscatter compensation follows the raised alphas, as Cycles 3.4's random walk.  The tracer's perfect
   mirrors and smooth glass stay delta lobes (Cycles blurs them too: the one difference).
 * Caustics (svm/closure.h CAUSTICS_TRICKS): after a diffuse bounce (a diffuse reflection or
   transmission, Paths.after_diffuse; a straight pass-through keeps the state), Reflective Caustics off leaves

@@ -23,7 +23,9 @@ transmission_weight x (1 - metallic) x W, W the weight left by alpha, sheen and 
 At roughness 0 Cycles' closure is singular (a delta); here alpha is floored as every lobe's
 (engine/materials/dielectric_lobe.py dielectric_alpha): the narrowest lobe.  An index-matched
 interface (|eta - 1| < 1e-4) passes light straight through with weight T at normal incidence (a
-delta, flags PASSED), as Cycles' singular refraction there.
+delta, flags PASSED), as Cycles' singular refraction there.  Filter Glossy raises alpha to at least
+ShadingPoint.alpha_floor (Cycles' bsdf_blur takes CLOSURE_BSDF_MICROFACET_GGX_GLASS_ID); the
+compensation keeps the material's roughness (set up before the blur, as Cycles').
 
 The closure's sampling weight (its share when the Principled picks a closure) is its weight's mean
 times mean(R + T) at wo.n, the smooth-surface estimate (Cycles' bsdf_microfacet_estimate_albedo
@@ -92,6 +94,13 @@ class PrincipledGlass:
             return None
         return np.where(on, energy_scale(self.roughness.take(mat), mu, eta, tint), 1.0)
 
+    def _alpha(self, si: ShadingPoint, mat) -> np.ndarray:
+        """Each hit's alpha, at least si.alpha_floor (Filter Glossy, engine/integrators/light_paths.py:
+        the running Blender's Cycles blurs this GGX glass closure too); the compensation keeps the
+        material's roughness (set up before the blur)."""
+        alpha = self.alpha.take(mat)
+        return alpha if si.alpha_floor is None else np.maximum(alpha, si.alpha_floor)
+
     def sample_weight(self, si: ShadingPoint) -> np.ndarray:
         """mean(R + T) (N,) at wo.n: the closure's albedo estimate (without its weight)."""
         mat, eta, _, _, f0, tint = self._setup(si)
@@ -102,7 +111,7 @@ class PrincipledGlass:
         """(f cos (3, N), pdf (N,)) of the closure without its weight; wi on either side."""
         mat, eta, _, frame, f0, tint = self._setup(si)
         wo_l, wi_l = to_local(si.wo, *frame), to_local(wi, *frame)
-        f, pdf = self.lobe.eval(wo_l, wi_l, self.alpha.take(mat), eta, np.zeros(len(si), bool),
+        f, pdf = self.lobe.eval(wo_l, wi_l, self._alpha(si, mat), eta, np.zeros(len(si), bool),
                                 fresnel=self._fresnel(eta, f0, tint))
         scale = self._scale(mat, wo_l[2], eta, tint)
         if scale is not None:
@@ -119,7 +128,7 @@ class PrincipledGlass:
         mat, eta, entering, frame, f0, tint = self._setup(si)
         wo = to_local(si.wo, *frame)
         fresnel = self._fresnel(eta, f0, tint)
-        wi_l, weight, pdf, refracted, ok = self.lobe.sample(wo, self.alpha.take(mat), eta, np.zeros(len(si), bool),
+        wi_l, weight, pdf, refracted, ok = self.lobe.sample(wo, self._alpha(si, mat), eta, np.zeros(len(si), bool),
                                                             u_lobe, u1, u2, fresnel=fresnel)
         wi = normalize(to_world(wi_l, *frame))
         scale = self._scale(mat, wo[2], eta, tint)

@@ -33,6 +33,11 @@ metallic)) where a material has it; with transmission t the diffuse and sheen we
   Cycles', BSDF-sampled clearcoat reflections of other surfaces are the GTR1 lobe's (Cycles': the
   sharper GGX lobe's; the lobe's weight is at most 0.25 F).
 
+Filter Glossy (ShadingPoint.alpha_floor, engine/integrators/light_paths.py) raises the alphas of the
+specular, the clearcoat and the glass closures to at least the floor, as Cycles 3.4's bsdf_blur
+(docs/cycles34-filter-glossy.md); Burley's roughness and the single-or-multiple-scattering choice keep
+the node's roughness, the multiscatter compensation follows the raised alphas (`blur_specular`).
+
 Not here: subsurface (the exporter renders it as this diffuse, with a warning), clearcoat normal,
 alpha.
 
@@ -116,6 +121,18 @@ def gtr1_sample(alpha, u1, u2):
     sin = np.sqrt(1.0 - cos2)
     phi = 2.0 * np.pi * u2
     return np.stack([sin * np.cos(phi), sin * np.sin(phi), np.sqrt(cos2)])
+
+
+def blur_specular(hit: SimpleNamespace, floor: np.ndarray) -> None:
+    """Filter Glossy on the specular closure's inputs (PrincipledV1.inputs): alphas raised to at least
+    `floor` (N,) (Cycles 3.4 bsdf_blur, docs/cycles34-filter-glossy.md: fmaxf(roughness, alpha) on the
+    (multi-)GGX closures), the albedo tables' roughness following the raised alphas where the floor
+    raised them (3.4's random walk runs on the raised alphas, so our compensation of the walk's energy
+    does too); the "Multiscatter GGX" choice and the Burley roughness keep the material's."""
+    ax, ay = np.maximum(hit.ax, floor), np.maximum(hit.ay, floor)
+    raised = (ax != hit.ax) | (ay != hit.ay)
+    hit.table = np.where(raised, np.sqrt(np.sqrt(ax * ay)), hit.table)
+    hit.ax, hit.ay = ax, ay
 
 
 def _iso_lambda(w, alpha):
@@ -211,22 +228,32 @@ class PrincipledV1(BSDF):
         0.075) and the roughness of the albedo tables (N,) each: the materials' own, or read per hit
         from their Roughness / Metallic image textures or node programs (engine/materials/textures.py
         per_hit; the exporter gives them only to materials without transmission, whose glass
-        closures keep the material's)."""
+        closures keep the material's); the alphas and the tables' roughness raised by Filter Glossy
+        (`blur_specular`).  The compiled closures read these too."""
         mat = si.material
         metallic = np.clip(per_hit(si, self.metallic, "metallic"), 0.0, 1.0)
         out = SimpleNamespace(roughness=self.roughness.take(mat), metallic=metallic, ax=self.ax.take(mat),
                               ay=self.ay.take(mat), multi=self.multiscatter.take(mat),
                               table=self.roughness_of_table.take(mat))
         textured = textured_mask(si, "roughness")
-        if textured is None:
-            return out
-        r = np.clip(per_hit(si, self.roughness, "roughness"), 0.0, 1.0)
-        ax, ay = principled_alpha_rows(r, self.anisotropy.take(mat))
-        out.roughness = np.where(textured, r, out.roughness)
-        out.ax, out.ay = np.where(textured, ax, out.ax), np.where(textured, ay, out.ay)
-        out.multi = np.where(textured, self.multiscatter_menu.take(mat) & (r > SINGLE_SCATTER_ROUGHNESS), out.multi)
-        out.table = np.where(textured, np.sqrt(np.sqrt(out.ax * out.ay)), out.table)
+        if textured is not None:
+            r = np.clip(per_hit(si, self.roughness, "roughness"), 0.0, 1.0)
+            ax, ay = principled_alpha_rows(r, self.anisotropy.take(mat))
+            out.roughness = np.where(textured, r, out.roughness)
+            out.ax, out.ay = np.where(textured, ax, out.ax), np.where(textured, ay, out.ay)
+            out.multi = np.where(textured, self.multiscatter_menu.take(mat) & (r > SINGLE_SCATTER_ROUGHNESS),
+                                 out.multi)
+            out.table = np.where(textured, np.sqrt(np.sqrt(out.ax * out.ay)), out.table)
+        if si.alpha_floor is not None:
+            blur_specular(out, si.alpha_floor)
         return out
+
+    def clearcoat_alpha(self, si: ShadingPoint) -> np.ndarray:
+        """The clearcoat's GTR1 alpha (N,) at the hits: the material's, at least si.alpha_floor (Filter
+        Glossy: bsdf_blur raises CLOSURE_BSDF_MICROFACET_GGX_CLEARCOAT_ID's alpha_x, the GTR1's alpha;
+        the masking keeps its fixed 0.25)."""
+        alpha = self.cc_alpha.take(si.material)
+        return alpha if si.alpha_floor is None else np.maximum(alpha, si.alpha_floor)
 
     def _inputs(self, si: ShadingPoint) -> SimpleNamespace:
         return si.memo((self, "inputs"), self.inputs)
@@ -337,7 +364,7 @@ class PrincipledV1(BSDF):
 
     def _clearcoat(self, si, wo_l, wi_l):
         mat = si.material
-        alpha = self.cc_alpha.take(mat)
+        alpha = self.clearcoat_alpha(si)
         ok = (wo_l[2] > 0.0) & (wi_l[2] > 0.0)
         h = normalize(wo_l + wi_l)
         d = gtr1_d(h[2], alpha)
@@ -351,14 +378,13 @@ class PrincipledV1(BSDF):
 
     def _sample_lobe(self, code, si, wo_l, u1, u2):
         """A local direction drawn from lobe `code` (the lobe's own density)."""
-        mat = si.material
         if code in (0, 1):
             return cosine_hemisphere(u1, u2)
         if code == 2:
             hit = self._inputs(si)
             h = ggx_sample_vndf(wo_l, hit.ax, hit.ay, u1, u2)
         else:
-            h = gtr1_sample(self.cc_alpha.take(mat), u1, u2)
+            h = gtr1_sample(self.clearcoat_alpha(si), u1, u2)
         return 2.0 * dot(wo_l, h) * h - wo_l
 
     def _mixture(self, si, wo_l, wi_l, weights, prob):

@@ -27,6 +27,9 @@ F = F_d(wo.n, eta), the dielectric Fresnel at the shading normal (the "macro" Fr
   1 + F_ms (1 - E) / E from the glass albedo tables, F_ms from the base colour.  Sampling weight:
   W_g x mean(mix(cspec0, 1, s(wo.n))) (bsdf_microfacet_fresnel_color).
 
+Filter Glossy raises the reflection, refraction and multiscatter glass alphas to at least
+ShadingPoint.alpha_floor (Cycles 3.4's bsdf_blur, docs/cycles34-filter-glossy.md; `alphas`).
+
 Either way the light crossing the glass is tinted by the base colour at each refraction (twice
 through a ball: base^2, where 4.x's glass tints by sqrt(base) each time).  3.4's refraction eval
 returns a value for any pair of directions on opposite sides, also where no microfacet refracts
@@ -110,6 +113,20 @@ class PrincipledV1Glass:
         eta, entering = refraction_eta(si, self.ior.take(mat))
         return mat, eta, entering
 
+    def alphas(self, si):
+        """(reflection alpha, refraction alpha, roughness of the multiscatter glass's albedo tables) (N,)
+        at the hits: the material's, the alphas at least si.alpha_floor (Filter Glossy: Cycles 3.4's
+        bsdf_blur raises the alphas of the GGX reflection, GGX refraction and multi-GGX glass closures,
+        docs/cycles34-filter-glossy.md); the tables' roughness follows a raised alpha (3.4's random
+        walk runs on it), the single-or-multiscatter choice keeps the material's roughness."""
+        mat = si.material
+        alpha, alpha_t, rough = self.alpha.take(mat), self.alpha_refraction.take(mat), self.roughness.take(mat)
+        floor = si.alpha_floor
+        if floor is None:
+            return alpha, alpha_t, rough
+        rough = np.where(floor > alpha, np.sqrt(floor), rough)
+        return np.maximum(alpha, floor), np.maximum(alpha_t, floor), rough
+
     def _multi_fresnel(self, eta, cspec0, base):
         def split(cos):
             f = fresnel_dielectric(cos, eta)
@@ -118,32 +135,34 @@ class PrincipledV1Glass:
 
     def eval(self, code, si, wo_l, wi_l):
         """(f cos (3, N) without the closure weight, pdf (N,)) of closure `code` (local directions)."""
-        mat, eta, _ = self._setup(si)
+        _, eta, _ = self._setup(si)
+        alpha, alpha_t, rough = self.alphas(si)
         beckmann = np.zeros(len(si), dtype=bool)
         separable = np.ones(len(si), dtype=bool)
         if code == 0:
             cspec0 = self.cspec0(si)
-            f, pdf = self.reflect.eval(wo_l, wi_l, self.alpha.take(mat), eta, beckmann, separable,
+            f, pdf = self.reflect.eval(wo_l, wi_l, alpha, eta, beckmann, separable,
                                        fresnel=lambda c: (interpolated_fresnel(c, eta, cspec0), np.zeros_like(cspec0)))
             return f, pdf
         if code == 1:
-            f, pdf = self.refract.eval(wo_l, wi_l, self.alpha_refraction.take(mat), eta, beckmann, separable)
+            f, pdf = self.refract.eval(wo_l, wi_l, alpha_t, eta, beckmann, separable)
             return f[None, :] * np.ones((3, 1)), pdf
         base = np.clip(si.color, 0.0, 1.0)
-        f, pdf = self.both.eval(wo_l, wi_l, self.alpha.take(mat), eta, beckmann,
+        f, pdf = self.both.eval(wo_l, wi_l, alpha, eta, beckmann,
                                 fresnel=self._multi_fresnel(eta, self.cspec0(si), base))
-        return f * energy_scale(self.roughness.take(mat), wo_l[2], eta, base), pdf
+        return f * energy_scale(rough, wo_l[2], eta, base), pdf
 
     def sample(self, code, si, wo_l, u_fresnel, u1, u2):
         """(wi_l (3, N), refracted (N,), entering (N,)) drawn from closure `code` (its own density)."""
-        mat, eta, entering = self._setup(si)
+        _, eta, entering = self._setup(si)
+        alpha, alpha_t, _ = self.alphas(si)
         beckmann = np.zeros(len(si), dtype=bool)
         if code == 0:
-            lobe, alpha = self.reflect, self.alpha.take(mat)
+            lobe = self.reflect
         elif code == 1:
-            lobe, alpha = self.refract, self.alpha_refraction.take(mat)
+            lobe, alpha = self.refract, alpha_t
         else:
-            lobe, alpha = self.both, self.alpha.take(mat)
+            lobe = self.both
         fresnel = self._multi_fresnel(eta, self.cspec0(si), np.clip(si.color, 0.0, 1.0)) if code == 2 else None
         wi_l, _, _, refracted, ok = lobe.sample(wo_l, alpha, eta, beckmann, u_fresnel, u1, u2, fresnel=fresnel)
         return np.where(ok, wi_l, 0.0), refracted & ok, entering

@@ -3,7 +3,8 @@ numba for materials without clearcoat and transmission: the diffuse (Burley), sh
 (GGX, interpolated Fresnel, compensation) closures' eval and pdf as one pass over the (hit,
 direction) pairs that reads the per-hit values (frame, alphas, Fresnel inputs, compensation, closure
 weights and probabilities, computed once per scatter group by NumPy) by index, and the closure pick
-with the specular lobe's GGX direction as one pass over the hits.
+with the specular lobe's GGX direction as one pass over the hits.  The alphas and the compensation
+are PrincipledV1.inputs', already raised by Filter Glossy (ShadingPoint.alpha_floor) where it is on.
 
 Every number repeats the NumPy path's float64 operations in the same order (principled_v1.py
 _mixture, _diffuse, _sheen, _specular, schlick_weight, burley_diffuse; principled_v1_glass.py

@@ -41,17 +41,21 @@ def blender_environment() -> dict:
     return env
 
 
-def blender34_run(name, outdir, distribution=None, timeout=900, no_light_sampling=()) -> Blender34Run:
+def blender34_run(name, outdir, distribution=None, timeout=900, no_light_sampling=(), edit=None,
+                  light_paths=None) -> Blender34Run:
     """Scene `name` ("startup_cube" or a make_samples.py scene) built, exported and rendered by Cycles
     in Blender 3.4, once per session for each (name, distribution, no_light_sampling: materials whose
-    emission Cycles does not light-sample, tests/addon/blender34_reference.py)."""
+    emission Cycles does not light-sample, edit: an edit of the scene before the export, light_paths:
+    the references' Light Paths options as {name: value}; tests/addon/blender34_reference.py)."""
     import time
 
     from engine.scene.files import load_scene
-    key = (name, distribution, tuple(no_light_sampling))
+    options = sorted((light_paths or {}).items())
+    key = (name, distribution, tuple(no_light_sampling), edit, tuple(options))
     if key in _runs:
         return _runs[key]
-    tag = name + (f"-{distribution.lower()}" if distribution else "")
+    tag = name + (f"-{distribution.lower()}" if distribution else "") + (f"-{edit}" if edit else "") + \
+        "".join(f"-{k}{v:g}" for k, v in options)
     out = os.path.join(str(outdir), tag)
     args = [BLENDER34, "-b", "--factory-startup", "--python-use-system-env",
             "--python", os.path.join(HERE, "blender34_reference.py"), "--",
@@ -61,6 +65,10 @@ def blender34_run(name, outdir, distribution=None, timeout=900, no_light_samplin
         args += ["--distribution", distribution]
     if no_light_sampling:
         args += ["--no-light-sampling", *no_light_sampling]
+    if edit:
+        args += ["--edit", edit]
+    if options:
+        args += ["--light-paths", *(f"{k}={v!r}" for k, v in options)]
     t0 = time.perf_counter()
     r = subprocess.run(args, capture_output=True, text=True, timeout=timeout, env=blender_environment())
     seconds = time.perf_counter() - t0
@@ -81,11 +89,12 @@ def read_exr(path):
     return np.asarray(buf.get_pixels(oiio.FLOAT), dtype=np.float64)[..., :3]
 
 
-def tracer_runs(scene, first_seed=1000, threads=0):
-    """The tracer's K runs of `scene` with the method's settings (exact Fresnel, as Cycles)."""
+def tracer_runs(scene, first_seed=1000, threads=0, **options):
+    """The tracer's K runs of `scene` with the method's settings (exact Fresnel, as Cycles) and
+    `options` (RenderSettings fields, e.g. Light Paths options)."""
     from engine import RenderSettings, render
     out = []
     for seed in range(first_seed, first_seed + K):
-        settings = RenderSettings(samples=SPP, max_depth=DEPTH, seed=seed, fresnel="exact", threads=threads)
+        settings = RenderSettings(samples=SPP, max_depth=DEPTH, seed=seed, fresnel="exact", threads=threads, **options)
         out.append(np.asarray(render(scene, settings, log=lambda *a: None).image, dtype=np.float64))
     return np.stack(out)

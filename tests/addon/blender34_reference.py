@@ -14,6 +14,10 @@ GGX) before the export.
 these materials off for the references only (the exporter does not read it): their emission reaches
 Cycles 3.4 through BSDF-sampled rays alone, the same converged image without Cycles 3.x's
 light-sampling error on textured emissive triangles (docs/nodes.md "Agreement with Cycles").
+--edit sharp_principled_plates replaces every Glossy BSDF node by a Principled BSDF (metallic 1, the
+Glossy's colour, roughness 0.05, GGX) before the export (the glossy_plates scene as sharp v1 metal).
+--light-paths NAME=VALUE ... sets Light Paths options of the references (mcrt_addon/reference.py
+setup_cycles_reference's names, e.g. filter_glossy=1).
 Writes DIR/NAME.blend, DIR/NAME.json (the exported scene; cycles_version is the running Blender's),
 DIR/NAME.warnings.json (the exporter's warnings) and DIR/NAME.cycles.SEED.exr per seed.
 """
@@ -50,6 +54,26 @@ def build(name, outdir, resolution):
     return make_samples.make(name, outdir, tuple(resolution))
 
 
+def sharp_principled_plates():
+    """Every Glossy BSDF node replaced by a Principled BSDF: metallic 1, roughness 0.05, its colour."""
+    for mat in bpy.data.materials:
+        tree = mat.node_tree
+        for node in list(tree.nodes if tree else ()):
+            if node.bl_idname != "ShaderNodeBsdfGlossy":
+                continue
+            principled = tree.nodes.new("ShaderNodeBsdfPrincipled")
+            principled.distribution = "GGX"
+            principled.inputs["Base Color"].default_value = node.inputs["Color"].default_value
+            principled.inputs["Metallic"].default_value = 1.0
+            principled.inputs["Roughness"].default_value = 0.05
+            for link in list(node.outputs[0].links):
+                tree.links.new(principled.outputs[0], link.to_socket)
+            tree.nodes.remove(node)
+
+
+EDITS = {"sharp_principled_plates": sharp_principled_plates}
+
+
 def main(argv):
     parser = argparse.ArgumentParser()
     parser.add_argument("--scene", required=True)
@@ -60,6 +84,8 @@ def main(argv):
     parser.add_argument("--seeds", type=int, nargs="*", default=[1, 2, 3, 4])
     parser.add_argument("--distribution", default=None)
     parser.add_argument("--no-light-sampling", nargs="*", default=[])
+    parser.add_argument("--edit", choices=sorted(EDITS), default=None)
+    parser.add_argument("--light-paths", nargs="*", default=[])
     args = parser.parse_args(argv)
     os.makedirs(args.outdir, exist_ok=True)
     path = build(args.scene, args.outdir, args.resolution)
@@ -72,6 +98,9 @@ def main(argv):
             for node in (mat.node_tree.nodes if mat.node_tree else ()):
                 if node.bl_idname in DISTRIBUTION_NODES:
                     node.distribution = args.distribution
+    if args.edit:
+        EDITS[args.edit]()
+    light_paths = {k: float(v) for k, v in (item.split("=") for item in args.light_paths)}
 
     import mcrt_addon
     from mcrt_addon import bridge
@@ -87,7 +116,7 @@ def main(argv):
     for name in args.no_light_sampling:
         bpy.data.materials[name].cycles.sample_as_light = False
     for seed in args.seeds:
-        setup_cycles_reference(scene, samples=args.samples, max_depth=args.depth, seed=seed)
+        setup_cycles_reference(scene, samples=args.samples, max_depth=args.depth, seed=seed, **light_paths)
         scene.cycles.use_denoising = False
         set_exr_output(scene, f"{stem}.cycles.{seed}.exr")
         bpy.ops.render.render(write_still=True)

@@ -1,7 +1,8 @@
 """TNCG15 MC agrees with Cycles of the running Blender when both render with the same Light Paths
 options (engine/integrators/light_paths.py; Cycles gets them through mcrt_addon/reference.py as
 `python -m mcrt_addon render --engine CYCLES` hands them over): bounce limits per type, caustics
-off (also on Principled v2 balls with coat and sheen), clamping, Filter Glossy, the transparent
+off (also on Principled v2 balls with coat and sheen), clamping, Filter Glossy (also on the
+Principled v2's transmission), the transparent
 limit on alpha.  Each comparison has a control that must fail: TNCG15 MC without the
 option against Cycles with it.
 
@@ -46,6 +47,8 @@ CASES = {            # name: (sample file, the options in the tracer's terms, an
     "caustics": ("mirror_glass", dict(caustics_reflective=False, caustics_refractive=False), None),
     "clamp": ("mirror_glass", dict(clamp_direct=4.0, clamp_indirect=0.25), None),
     "filter_glossy": ("glossy_plates", dict(filter_glossy=1.0), sharp_plates),
+    # the Principled v2's transmission (engine/materials/principled_glass.py) blurred as well
+    "filter_glossy_principled_glass": ("principled_glass", dict(filter_glossy=1.0), None),
     "transparent": ("principled_grid", dict(transparent_bounces=1), veiled),
     "caustics_principled": ("principled_grid", dict(caustics_reflective=False), None),
     # Cycles' Light Paths defaults but the total (the method's 8): what F12 renders in a new file; on
