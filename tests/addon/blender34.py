@@ -84,8 +84,10 @@ def read_exr(path):
 def tracer_runs(scene, first_seed=1000, threads=0):
     """The tracer's K runs of `scene` with the method's settings (exact Fresnel, as Cycles)."""
     from engine import RenderSettings, render
+    from imagecompare import independent_seed
     out = []
     for seed in range(first_seed, first_seed + K):
-        settings = RenderSettings(samples=SPP, max_depth=DEPTH, seed=seed, fresnel="exact", threads=threads)
+        settings = RenderSettings(samples=SPP, max_depth=DEPTH, seed=independent_seed(seed), fresnel="exact",
+                                  threads=threads)
         out.append(np.asarray(render(scene, settings, log=lambda *a: None).image, dtype=np.float64))
     return np.stack(out)

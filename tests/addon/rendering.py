@@ -81,11 +81,14 @@ def export_blend(blend, resolution):
 
 
 def tncg15_runs(tracer_scene, samples, max_depth, seeds, fresnel="exact", threads=0, **extra):
+    """K renders of the tracer at the run labels `seeds`, each at its independent seed
+    (tests/addon/imagecompare.py independent_seed)."""
+    from imagecompare import independent_seed
     render = bridge.render_function()
     Settings = bridge.settings_class()
     out = []
     for seed in seeds:
-        settings = Settings(samples=samples, max_depth=max_depth, seed=seed, fresnel=fresnel,
+        settings = Settings(samples=samples, max_depth=max_depth, seed=independent_seed(seed), fresnel=fresnel,
                             threads=threads, **extra)
         result = render(tracer_scene, settings, log=lambda *a: None)
         out.append(np.asarray(result.image, dtype=np.float64))
