@@ -29,6 +29,11 @@ def independent_seed(label: int) -> int:
     return label * SEED_STRIDE
 
 
+def run_seeds(first: int, k: int) -> list:
+    """The tracer seeds of the K runs labelled first .. first + k - 1 (independent_seed)."""
+    return [independent_seed(first + i) for i in range(k)]
+
+
 @dataclass
 class Comparison:
     passed: bool

@@ -16,6 +16,7 @@ from mcrt_addon import bridge  # noqa: E402
 from mcrt_addon import render_engine as engine_module  # noqa: E402
 from mcrt_addon.headless import ensure_registered, export_as_rendered, set_exr_output  # noqa: E402
 from mcrt_addon.reference import setup_cycles_reference  # noqa: E402
+from imagecompare import run_seeds  # noqa: E402
 
 
 REPORTS = []                                     # every render's RenderReport (mcrt_addon/render_engine.py)
@@ -81,14 +82,11 @@ def export_blend(blend, resolution):
 
 
 def tncg15_runs(tracer_scene, samples, max_depth, seeds, fresnel="exact", threads=0, **extra):
-    """K renders of the tracer at the run labels `seeds`, each at its independent seed
-    (tests/addon/imagecompare.py independent_seed)."""
-    from imagecompare import independent_seed
     render = bridge.render_function()
     Settings = bridge.settings_class()
     out = []
     for seed in seeds:
-        settings = Settings(samples=samples, max_depth=max_depth, seed=independent_seed(seed), fresnel=fresnel,
+        settings = Settings(samples=samples, max_depth=max_depth, seed=seed, fresnel=fresnel,
                             threads=threads, **extra)
         result = render(tracer_scene, settings, log=lambda *a: None)
         out.append(np.asarray(result.image, dtype=np.float64))
@@ -125,4 +123,4 @@ def cycles_reference(blend, name=None):
 
 def tncg15_agreement_runs(scene, first_seed=1000):
     """TNCG15 MC's K runs of an exported scene with the agreement settings (exact Fresnel, as Cycles)."""
-    return tncg15_runs(scene, SPP, DEPTH, seeds=range(first_seed, first_seed + K), fresnel="exact")
+    return tncg15_runs(scene, SPP, DEPTH, seeds=run_seeds(first_seed, K), fresnel="exact")
