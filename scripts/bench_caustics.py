@@ -70,8 +70,10 @@ CYCLES_DEPTH = 12
 
 def equal_time(args):
     scene = caustic_scene((args.resolution, args.resolution))
-    # Two independent references: their mean is the reference, their difference its noise.
-    a, b = (reference(scene, args.reference_spp, "full", seed, caustics_method="path") for seed in (99, 98))
+    # Two independent references: their mean is the reference, their difference its noise (seeds 2^16
+    # apart: seeds s and s + 1 share camera samples a pixel row apart, tests/addon/imagecompare.py).
+    a, b = (reference(scene, args.reference_spp, "full", seed, caustics_method="path")
+            for seed in (99, 99 + (1 << 16)))
     ref, noise = 0.5 * (a + b), 0.25 * (a - b) ** 2
     no_caustics = reference(scene, max(args.reference_spp // 8, 64), "no_refractive_caustics",
                             caustics_method="path", caustics_refractive=False)

@@ -93,8 +93,10 @@ def tracer_runs(scene, first_seed=1000, threads=0, **options):
     """The tracer's K runs of `scene` with the method's settings (exact Fresnel, as Cycles) and
     `options` (RenderSettings fields, e.g. Light Paths options)."""
     from engine import RenderSettings, render
+    from imagecompare import independent_seed
     out = []
     for seed in range(first_seed, first_seed + K):
-        settings = RenderSettings(samples=SPP, max_depth=DEPTH, seed=seed, fresnel="exact", threads=threads, **options)
+        settings = RenderSettings(samples=SPP, max_depth=DEPTH, seed=independent_seed(seed), fresnel="exact",
+                                  threads=threads, **options)
         out.append(np.asarray(render(scene, settings, log=lambda *a: None).image, dtype=np.float64))
     return np.stack(out)

@@ -1,6 +1,8 @@
 """Noise-aware comparison of two renderers (docs/hard-cases.md §3.5, region-mean test).
 
-Each renderer is run K times with independent seeds.  Pixels are independent in both renderers
+Each renderer is run K times with independent seeds (TNCG15 MC's seeds through `independent_seed`: its
+seeds s and s + 1 give the same camera samples one pixel row apart, engine/sampling/qmc.py pixel_seeds,
+so consecutive seeds make correlated runs and too small a spread between them).  Pixels are independent in both renderers
 (box filter of width 1), so the variance of a block mean is the block average of the per-pixel
 variances of the K-run means, divided by the block's pixel count; the per-pixel variances come
 from the K runs (K-1 degrees of freedom each, pooled over the block's pixels).
@@ -14,6 +16,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import norm
+
+SEED_STRIDE = 1 << 16       # more pixel rows than any image has: no two runs share a pixel seed
+
+
+def independent_seed(label: int) -> int:
+    """The tracer seed of run `label` (0 <= label < 2^15; the tests number their runs first_seed,
+    first_seed + 1, ...): label x 2^16, so the seeds of any two labels differ by more than an image's
+    rows and their runs share no camera samples (see the module's docstring)."""
+    if not 0 <= label < 1 << 15:
+        raise ValueError(f"run label {label} outside [0, 2^15)")
+    return label * SEED_STRIDE
+
+
+def run_seeds(first: int, k: int) -> list:
+    """The tracer seeds of the K runs labelled first .. first + k - 1 (independent_seed)."""
+    return [independent_seed(first + i) for i in range(k)]
 
 
 @dataclass

@@ -16,6 +16,7 @@ from mcrt_addon import bridge  # noqa: E402
 from mcrt_addon import render_engine as engine_module  # noqa: E402
 from mcrt_addon.headless import ensure_registered, export_as_rendered, set_exr_output  # noqa: E402
 from mcrt_addon.reference import setup_cycles_reference  # noqa: E402
+from imagecompare import run_seeds  # noqa: E402
 
 
 REPORTS = []                                     # every render's RenderReport (mcrt_addon/render_engine.py)
@@ -122,4 +123,4 @@ def cycles_reference(blend, name=None):
 
 def tncg15_agreement_runs(scene, first_seed=1000):
     """TNCG15 MC's K runs of an exported scene with the agreement settings (exact Fresnel, as Cycles)."""
-    return tncg15_runs(scene, SPP, DEPTH, seeds=range(first_seed, first_seed + K), fresnel="exact")
+    return tncg15_runs(scene, SPP, DEPTH, seeds=run_seeds(first_seed, K), fresnel="exact")

@@ -5,7 +5,7 @@ Kept small (the octree runs ~10^4 rays/s in Python): the diffuse room at 24x24, 
 """
 import pytest
 
-from imagecompare import compare_runs
+from imagecompare import compare_runs, run_seeds
 from rendering import cycles_runs, export_blend, tncg15_runs
 
 RES = (24, 24)
@@ -23,7 +23,7 @@ def room_reference(samples):
 @pytest.mark.parametrize("accelerator", ["octree", "embree"])
 def test_accelerator_agrees_with_cycles(samples, room_reference, accelerator):
     scene = export_blend(samples["diffuse_room"], RES).scene
-    ours = tncg15_runs(scene, SPP, DEPTH, seeds=range(500, 500 + K), accelerator=accelerator)
+    ours = tncg15_runs(scene, SPP, DEPTH, seeds=run_seeds(500, K), accelerator=accelerator)
     result = compare_runs(ours, room_reference, tau=0.02)
     print(f"{accelerator}: {result.summary()}")
     assert result.passed, result.summary()
@@ -34,5 +34,5 @@ def test_accelerator_comparison_fails_on_a_wrong_scene(samples, room_reference):
     scene = export_blend(samples["diffuse_room"], RES).scene
     for m in scene.materials:
         m.emission = tuple(1.2 * e for e in m.emission)
-    ours = tncg15_runs(scene, SPP, DEPTH, seeds=range(600, 600 + K), accelerator="octree")
+    ours = tncg15_runs(scene, SPP, DEPTH, seeds=run_seeds(600, K), accelerator="octree")
     assert not compare_runs(ours, room_reference, tau=0.02).passed

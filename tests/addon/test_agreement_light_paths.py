@@ -12,7 +12,7 @@ Method and settings as tests/addon/test_agreement.py: 64 x 64, 32 spp, max depth
 import numpy as np
 import pytest
 
-from imagecompare import compare_runs
+from imagecompare import compare_runs, run_seeds
 import bpy
 from rendering import DEPTH, K, RES, SPP, open_blend, render_operator, tncg15_runs
 from engine.core.settings import CYCLES, LIGHT_PATH_SPEEDUPS, preset_values
@@ -84,7 +84,7 @@ def cycles_with(samples, case):
 def ours_with(samples, case, options, first_seed=1000):
     opened(samples, case)
     scene = export_scene(bpy.context.evaluated_depsgraph_get(), resolution=RES).scene
-    return tncg15_runs(scene, SPP, DEPTH, seeds=range(first_seed, first_seed + K), fresnel="exact", **options)
+    return tncg15_runs(scene, SPP, DEPTH, seeds=run_seeds(first_seed, K), fresnel="exact", **options)
 
 
 @pytest.mark.parametrize("case", list(CASES))

@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 import pytest
 
-from imagecompare import compare_runs
+from imagecompare import compare_runs, run_seeds
 from rendering import export_blend, tncg15_runs
 
 RES, SPP, K, DEPTH = (32, 32), 16, 4, 8
@@ -32,7 +32,7 @@ def moved_export(blend, offset):
 
 
 def runs(exported, first_seed):
-    return tncg15_runs(exported.scene, SPP, DEPTH, seeds=range(first_seed, first_seed + K))
+    return tncg15_runs(exported.scene, SPP, DEPTH, seeds=run_seeds(first_seed, K))
 
 
 @pytest.mark.slow       # 12 renders per scene (about 2 s each scene)

@@ -57,7 +57,7 @@ def test_comparison_catches_an_inverted_bump(lit):
 def test_normals_facing_away_agree_with_cycles(tmp_path_factory):
     """The Wave Texture's colour itself into the Normal Map: its dark bands (colour ~0) give normals
     pointing into the ball, which Cycles' Diffuse keeps and its bump shadowing term darkens."""
-    from imagecompare import compare_runs
+    from imagecompare import compare_runs, run_seeds
     from rendering import DEPTH, K, SPP, tncg15_runs
     from tests.nodes import normal_scene
     exported, reference = against_cycles(
@@ -70,7 +70,7 @@ def test_normals_facing_away_agree_with_cycles(tmp_path_factory):
     saved = normals.bump_shadowing
     try:
         normals.bump_shadowing = lambda smooth, n, wi, *a: np.ones(wi.shape[1])
-        ours = tncg15_runs(scene, SPP, DEPTH, seeds=range(2000, 2000 + K), fresnel="exact", threads=1)   # in-process
+        ours = tncg15_runs(scene, SPP, DEPTH, seeds=run_seeds(2000, K), fresnel="exact", threads=1)   # in-process
         control = compare_runs(ours, reference, tau=TAU)
     finally:
         normals.bump_shadowing = saved

@@ -25,6 +25,7 @@ import time
 
 import numpy as np
 
+from ...sampling.qmc import hash32
 from .emission import emit
 from .photon_map import PhotonMap, radius_of_pass
 from .targets import specular_targets
@@ -37,6 +38,24 @@ CACHE_BYTES = 512 << 20
 SECONDARY_SCALE = 4.0         # the radius at vertices after a non-delta bounce: their caustics are seen
                               # blurred anyway, and a wider disk holds 16 x the photons (less noise)
 AUTO_RADIUS_PIXELS = 1.0      # the automatic first radius: this many pixel footprints at the targets
+SECONDARY_GATHER = 0.25       # the probability that a vertex after a non-delta bounce gathers (weight 1 / it):
+                              # those gathers were 85 % of the gather's time (docs/photons.md "Measured")
+GATHER_SALT = 0x67617468      # 'gath': the secondary gathers' coin, apart from every other stream
+
+
+def gather_coins(seed: int, sample: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(M,) uniform numbers in [0, 1) for the vertices at `points` (3, M) of the camera samples `sample`
+    (M,): a hash of the seed, the sample number and the point's coordinates' bits, so the same vertex
+    draws the same coin on every worker (the image stays bit-identical on every pool) and no coin
+    depends on the photons."""
+    bits = np.ascontiguousarray(points, dtype=np.float64).view(np.uint64)
+    folded = ((bits ^ (bits >> np.uint64(32))) & np.uint64(0xFFFFFFFF)).astype(np.uint32)
+    with np.errstate(over="ignore"):
+        h = hash32(folded[0] ^ np.uint32(GATHER_SALT ^ (seed & 0xFFFFFFFF)))
+        h = hash32(h ^ folded[1])
+        h = hash32(h ^ folded[2])
+        h = hash32(h ^ np.asarray(sample, dtype=np.uint32))
+    return h * (1.0 / 4294967296.0)
 
 
 def batches_of(start: int, stop: int) -> range:
@@ -176,16 +195,19 @@ class CausticPhotons:
         of `bsdf`, facing geometric normals) of the camera samples `sample` (M,), each from its
         pass's map; segments (M,): the most photon segments each may take (None: any); secondary
         (M,) bool: the vertices after a non-delta bounce, which gather with SECONDARY_SCALE x the
-        radius (None: none); budget (3, M): the bounce limits per type left to the photons' chains
+        radius, each with probability SECONDARY_GATHER and weight 1 / SECONDARY_GATHER (None: none); budget (3, M): the bounce limits per type left to the photons' chains
         (engine/integrators/photons/photon_map.py PhotonMap.radiance; None: none)."""
         out = np.zeros((3, points.shape[1]))
         passes = sample // SAMPLES_PER_PASS
         wide = np.zeros(len(sample), bool) if secondary is None else secondary
+        skip = np.zeros(len(sample), bool)
+        if SECONDARY_GATHER < 1.0 and wide.any():
+            skip[wide] = gather_coins(self.settings.seed, sample[wide], points[:, wide]) >= SECONDARY_GATHER
         for k in np.unique(passes):
             photon_map = self.map_of(int(k), counters)
             start = time.perf_counter()
             for is_wide in (False, True):
-                mine = np.flatnonzero((passes == k) & (wide == is_wide))
+                mine = np.flatnonzero((passes == k) & (wide == is_wide) & ~skip)
                 if not len(mine):
                     continue
                 out[:, mine] = photon_map.radiance(bsdf, si.take(mine), points.take(mine, axis=1),
@@ -193,6 +215,8 @@ class CausticPhotons:
                                                    None if segments is None else segments.take(mine),
                                                    SECONDARY_SCALE if is_wide else 1.0,
                                                    None if budget is None else budget.take(mine, axis=1))
+                if is_wide and SECONDARY_GATHER < 1.0:
+                    out[:, mine] *= 1.0 / SECONDARY_GATHER
             counters.photons["gather_seconds"] = counters.photons.get("gather_seconds", 0.0) + \
                 time.perf_counter() - start
         return out

@@ -257,3 +257,47 @@ def test_lights_at_infinity_aim_at_a_target_disk(kind, flux):
     rel = ball.center - e.origin
     along = (rel * e.direction).sum(axis=0)
     assert ((rel * rel).sum(axis=0) - along ** 2 <= 0.25 * (1 + 1e-9)).all() and (along > 0).all()
+
+
+class _FlatMap:
+    """A photon map whose radiance is 1 at every point it is asked about (and counts them)."""
+
+    def __init__(self):
+        self.asked = 0
+
+    def radiance(self, bsdf, si, points, facing, segments, scale, budget):
+        self.asked += points.shape[1]
+        return np.ones((3, points.shape[1]))
+
+
+def _secondary_gather(monkeypatch, q, m=20000):
+    monkeypatch.setattr(caustics_module, "SECONDARY_GATHER", q)
+    photons = CausticPhotons.__new__(CausticPhotons)
+    photons.settings = RenderSettings(seed=3)
+    flat = _FlatMap()
+    photons.map_of = lambda k, counters, cancel=None: flat
+    points = np.random.default_rng(1).random((3, m))
+    si = ShadingPoint(*(np.zeros((3, m)) for _ in range(5)), np.zeros(m, np.int64), False, None, None)
+    secondary = np.arange(m) % 2 == 1
+    out = photons.radiance(np.zeros(m, np.int64), None, si, points, points, Counters(), secondary=secondary)
+    return out[0], secondary, flat.asked
+
+
+@pytest.mark.parametrize("q", [0.25, 1.0])
+def test_vertices_after_a_diffuse_bounce_gather_with_probability_q_and_weight_one_over_q(monkeypatch, q):
+    out, secondary, asked = _secondary_gather(monkeypatch, q)
+    assert np.all(out[~secondary] == 1.0)                                  # first vertices: always, weight 1
+    assert set(np.unique(out[secondary])) <= {0.0, 1.0 / q}
+    n = secondary.sum()
+    assert abs(out[secondary].mean() - 1.0) < 4.0 * np.sqrt((1.0 - q) / (q * n)) + 1e-12   # unbiased
+    assert asked == (~secondary).sum() + (out[secondary] > 0).sum()        # the skipped ones cost nothing
+
+
+def test_the_gather_coins_are_a_function_of_seed_sample_and_point():
+    points = np.random.default_rng(2).random((3, 1000))
+    sample = np.arange(1000)
+    a = caustics_module.gather_coins(7, sample, points)
+    assert np.array_equal(a, caustics_module.gather_coins(7, sample, points.copy()))
+    assert not np.array_equal(a, caustics_module.gather_coins(8, sample, points))          # control: the seed
+    assert not np.array_equal(a, caustics_module.gather_coins(7, sample + 1, points))
+    assert np.all((0.0 <= a) & (a < 1.0)) and abs(a.mean() - 0.5) < 0.05
