@@ -264,14 +264,14 @@ class SceneGeometry:
             t0 = time.perf_counter()
             blocked |= self.accelerator.occluded(o_aos, d_aos, tmax)
             counters.seconds_in_accelerator += time.perf_counter() - t0
-        if self.has_spheres or self.has_quads:
+        loops = self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None
+        if loops:            # compiled: every sphere in one loop per ray, on all rays (it skips the blocked ones)
+            self.sphere_loops[1](o, d, self.sphere_center, self.sphere_radius, tmax, blocked)
+        if (self.has_spheres and not loops) or self.has_quads:
             rest = np.flatnonzero(~blocked)
             if len(rest) < len(blocked):
                 o, d, tmax = o.take(rest, axis=1), d.take(rest, axis=1), tmax.take(rest)
             hit = np.zeros(len(rest), dtype=bool)
-            loops = self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None
-            if loops:                           # compiled: every sphere in one loop per ray
-                self.sphere_loops[1](o, d, self.sphere_center, self.sphere_radius, tmax, hit)
             for tree, count, test in ((self.sphere_tree, 0 if loops else len(self.sphere_radius), self._sphere_test(o, d)),
                                       (self.quad_tree, self.quads.count, self._quad_test(o, d))):
                 if tree is None:

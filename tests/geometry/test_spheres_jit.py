@@ -85,3 +85,48 @@ def test_all_spheres_in_one_loop_match_the_loop_over_spheres():
     bigger = radii.copy()
     bigger[3] = np.nextafter(bigger[3], 1.0)
     assert not np.array_equal(t, nearest(o, d, centers, bigger, t0, kind_b, prim_b, 2))
+
+
+def test_one_loop_pretests_keep_grazing_and_inside_rays_and_reject_nan():
+    """The loops' branch-free pre-tests (spheres_jit._candidates) on the hard cases of docs/hard-cases.md
+    H9-H10: tiny spheres far away and rays grazing them, origins inside a sphere looking away from its
+    centre (hits that only the pre-test's `c <= 0` lets through: counted, so a pre-test that dropped it
+    fails), and NaN directions (never a hit)."""
+    require_compiled()
+    from engine.geometry.shapes.spheres import sphere_loop_kernels
+    nearest, occluded = sphere_loop_kernels("numba")
+    rng = np.random.default_rng(11)
+    s, m = 6, 8000
+    centers = np.array([1e4, 0.0, 0.0])[:, None] + rng.normal(size=(3, s)) * 3e-3
+    radii = 1e-3 * (1.0 + rng.random(s))
+    which = rng.integers(0, s, m)
+    u = rng.normal(size=(3, m))
+    u[0, : m // 2] = 0.0                                     # half of them at the silhouette, seen from 0
+    u /= np.linalg.norm(u, axis=0)
+    target = centers[:, which] + u * radii[which] * (1.0 + 1e-3 * rng.normal(size=m))
+    o = np.zeros((3, m))
+    o[:, -500:] = centers[:, which[-500:]] + 0.5 * radii[which[-500:]] * u[:, -500:]   # inside a sphere
+    d = target - o
+    d[:, -500:] = rng.normal(size=(3, 500))                  # in any direction
+    d /= np.linalg.norm(d, axis=0)
+    d[:, :50] = np.nan
+    t, kind, prim = np.full(m, np.inf), np.zeros(m, np.int8), np.full(m, -1, np.int64)
+    leaving = 0
+    for k in range(s):
+        tk = intersect_sphere(o, d, centers[:, k], radii[k], t)
+        f = o - centers[:, k:k + 1]
+        leaving += int((np.isfinite(tk) & ((f * d).sum(axis=0) > 0.0)).sum())
+        closer = tk < t
+        t = np.where(closer, tk, t)
+        kind[closer], prim[closer] = 2, k
+    kind_b, prim_b = np.zeros(m, np.int8), np.full(m, -1, np.int64)
+    t_b = nearest(o, d, centers, radii, np.full(m, np.inf), kind_b, prim_b, 2)
+    assert leaving > 100 and 1000 < np.isfinite(t).sum() < m - 1000 and np.isinf(t[:50]).all()
+    assert np.array_equal(t, t_b) and np.array_equal(kind, kind_b) and np.array_equal(prim, prim_b)
+    tmax = np.where(rng.random(m) < 0.5, 2e4, 9999.99)
+    hit = np.zeros(m, dtype=bool)
+    for k in range(s):
+        hit |= intersect_sphere(o, d, centers[:, k], radii[k], tmax) < tmax
+    hit_b = np.zeros(m, dtype=bool)
+    occluded(o, d, centers, radii, tmax, hit_b)
+    assert 500 < hit.sum() < m - 500 and np.array_equal(hit, hit_b)

@@ -70,29 +70,68 @@ def _intersect(o, d, center, radius, t_best, bounded):
 
 
 @jit
+def _pretest_constants(radius):
+    """r * r and the pre-test's margin -1e-6 * r * r of every sphere: _ray_t's own products."""
+    rr, margin = np.empty(radius.shape[0]), np.empty(radius.shape[0])
+    for k in range(radius.shape[0]):
+        r = radius[k]
+        rr[k] = r * r
+        margin[k] = -1e-6 * r * r
+    return rr, margin
+
+
+@nb.njit(cache=True, error_model="numpy", nogil=True, inline="always")
+def _candidates(o, d, i, center, rr, margin, maybe):
+    """_ray_t's two cheap pre-tests of ray i against every sphere at once, into maybe[k] (False: _ray_t
+    returns inf); True if any passed.  The same float64 operations, evaluated without branches so the
+    loop over the spheres runs in SIMD lanes: most (ray, sphere) pairs end here (docs/performance.md
+    "Analytic spheres")."""
+    ox, oy, oz = o[0, i], o[1, i], o[2, i]
+    d0, d1, d2 = d[0, i], d[1, i], d[2, i]
+    some = False
+    for k in range(rr.shape[0]):
+        fx, fy, fz = ox - center[0, k], oy - center[1, k], oz - center[2, k]
+        half_b = fx * d0 + fy * d1 + fz * d2
+        c = fx * fx + fy * fy + fz * fz - rr[k]
+        m = ((half_b * half_b - c) >= margin[k]) & ((c <= 0.0) | (half_b <= 0.0))
+        maybe[k] = m
+        some |= m
+    return some
+
+
+@jit
 def _nearest(o, d, center, radius, t, kind, prim, kind_id):
     """Every sphere against every ray, one after the other as engine/geometry/scene_geometry.py
     SceneGeometry._nearest folds them (bounded by the nearest t so far; nearer replaces, so of
-    equal distances the lowest number wins): t updated in place, kind and prim where a sphere won."""
+    equal distances the lowest number wins): t updated in place, kind and prim where a sphere won.
+    Only the spheres that pass the pre-tests (_candidates) go through _ray_t, in the same order."""
+    rr, margin = _pretest_constants(radius)
+    maybe = np.empty(radius.shape[0], np.bool_)
     for i in range(o.shape[1]):
+        if not _candidates(o, d, i, center, rr, margin, maybe):
+            continue
         best = t[i]
         for k in range(radius.shape[0]):
-            tk = _ray_t(o, d, i, center, radius, k, best, True)
-            if tk < best:
-                best = tk
-                kind[i] = kind_id
-                prim[i] = k
+            if maybe[k]:
+                tk = _ray_t(o, d, i, center, radius, k, best, True)
+                if tk < best:
+                    best = tk
+                    kind[i] = kind_id
+                    prim[i] = k
         t[i] = best
 
 
 @jit
 def _occluded(o, d, center, radius, tmax, hit):
-    """hit[i] |= some sphere is met before tmax[i] (each tested bounded by tmax, as the NumPy loop)."""
+    """hit[i] |= some sphere is met before tmax[i] (each tested bounded by tmax, as the NumPy loop;
+    only the spheres that pass the pre-tests, _candidates)."""
+    rr, margin = _pretest_constants(radius)
+    maybe = np.empty(radius.shape[0], np.bool_)
     for i in range(o.shape[1]):
-        if hit[i]:
+        if hit[i] or not _candidates(o, d, i, center, rr, margin, maybe):
             continue
         for k in range(radius.shape[0]):
-            if _ray_t(o, d, i, center, radius, k, tmax[i], True) < tmax[i]:
+            if maybe[k] and _ray_t(o, d, i, center, radius, k, tmax[i], True) < tmax[i]:
                 hit[i] = True
                 break
 
