@@ -57,33 +57,41 @@ def _frame(x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, az_out, f, 
         cdist[i] = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
 
 
+@nb.njit(cache=True, error_model="numpy", nogil=True, inline="always")
+def _rectangle_point(f, i, omega, g23, u1, u2):
+    """The point (u1, u2) maps to on receiver i's spherical rectangle (f's rows x0, y0, x1, y1, z0,
+    e0, e2; Omega and g2 + g3 of its frame), as (xu, yv, z0) in the light's frame: _point and
+    _sample share it (parallelograms.py _spherical_point)."""
+    x0, y0, x1, y1, z0, e0, e2 = f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i], f[6, i]
+    au = u1 * omega + g23
+    fu = (np.cos(au) * e0 + e2) / np.sin(au)
+    cu = _clip(np.copysign(1.0, fu) / np.sqrt(fu * fu + e0 * e0), -1.0, 1.0)
+    s = np.sqrt(1.0 - cu * cu)
+    if not (s >= 1e-300 or s != s):                      # np.maximum(s, 1e-300)
+        s = 1e-300
+    xu = _clip(-(cu * z0) / s, x0, x1)
+    d2 = xu * xu + z0 * z0
+    h0 = y0 / np.sqrt(d2 + y0 * y0)
+    h1 = y1 / np.sqrt(d2 + y1 * y1)
+    hv = h0 + u2 * (h1 - h0)
+    if hv * hv < 1.0 - 1e-12:
+        yv = hv * np.sqrt(d2) / np.sqrt(1.0 - hv * hv)
+    else:
+        yv = y1
+    if yv != yv:                                         # np.nan_to_num
+        yv = 0.0
+    elif yv == np.inf:
+        yv = BIG
+    elif yv == -np.inf:
+        yv = -BIG
+    return xu, _clip(yv, y0, y1), z0
+
+
 @jit
 def _point(x, idx, one, axis1, axis2, az, f, omega, g23, u1, u2, out):
     for i in range(x.shape[1]):
         j = 0 if one else idx[i]
-        x0, y0, x1, y1, z0, e0, e2 = f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i], f[6, i]
-        au = u1[i] * omega[i] + g23[i]
-        fu = (np.cos(au) * e0 + e2) / np.sin(au)
-        cu = _clip(np.copysign(1.0, fu) / np.sqrt(fu * fu + e0 * e0), -1.0, 1.0)
-        s = np.sqrt(1.0 - cu * cu)
-        if not (s >= 1e-300 or s != s):                  # np.maximum(s, 1e-300)
-            s = 1e-300
-        xu = _clip(-(cu * z0) / s, x0, x1)
-        d2 = xu * xu + z0 * z0
-        h0 = y0 / np.sqrt(d2 + y0 * y0)
-        h1 = y1 / np.sqrt(d2 + y1 * y1)
-        hv = h0 + u2[i] * (h1 - h0)
-        if hv * hv < 1.0 - 1e-12:
-            yv = hv * np.sqrt(d2) / np.sqrt(1.0 - hv * hv)
-        else:
-            yv = y1
-        if yv != yv:                                     # np.nan_to_num
-            yv = 0.0
-        elif yv == np.inf:
-            yv = BIG
-        elif yv == -np.inf:
-            yv = -BIG
-        yv = _clip(yv, y0, y1)
+        xu, yv, z0 = _rectangle_point(f, i, omega[i], g23[i], u1[i], u2[i])
         for c in range(3):
             out[c, i] = x[c, i] + xu * axis1[c, j] + yv * axis2[c, j] + z0 * az[c, i]
 
@@ -101,29 +109,7 @@ def _sample(x, idx, one, axis1, axis2, v0, e1, e2, normal, area, rectangle, omeg
         z0 = f[4, i]
         use = (rectangle[j] and omega >= omega_min and np.isfinite(omega) and -z0 >= grazing * cdist[i])
         if use:
-            x0, y0, x1, y1, e0, e2_ = f[0, i], f[1, i], f[2, i], f[3, i], f[5, i], f[6, i]
-            au = u1[i] * omega + g23
-            fu = (np.cos(au) * e0 + e2_) / np.sin(au)
-            cu = _clip(np.copysign(1.0, fu) / np.sqrt(fu * fu + e0 * e0), -1.0, 1.0)
-            s = np.sqrt(1.0 - cu * cu)
-            if not (s >= 1e-300 or s != s):              # np.maximum(s, 1e-300)
-                s = 1e-300
-            xu = _clip(-(cu * z0) / s, x0, x1)
-            d2 = xu * xu + z0 * z0
-            h0 = y0 / np.sqrt(d2 + y0 * y0)
-            h1 = y1 / np.sqrt(d2 + y1 * y1)
-            hv = h0 + u2[i] * (h1 - h0)
-            if hv * hv < 1.0 - 1e-12:
-                yv = hv * np.sqrt(d2) / np.sqrt(1.0 - hv * hv)
-            else:
-                yv = y1
-            if yv != yv:                                 # np.nan_to_num
-                yv = 0.0
-            elif yv == np.inf:
-                yv = BIG
-            elif yv == -np.inf:
-                yv = -BIG
-            yv = _clip(yv, y0, y1)
+            xu, yv, z0 = _rectangle_point(f, i, omega, g23, u1[i], u2[i])
             for c in range(3):
                 point[c, i] = x[c, i] + xu * axis1[c, j] + yv * axis2[c, j] + z0 * az[c, i]
             pdf[i] = 1.0 / omega
