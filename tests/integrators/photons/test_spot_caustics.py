@@ -1,9 +1,10 @@
-"""A spot light's caustic photons (issue 25): the ceiling over a flat mirror gets the mirrored spot's
-irradiance R I a(theta) cos / d^2 (tests/integrators/photons/scenes.py), in the cone's core and in its
-blend, with the spot on the mirror's normal and rotated off it, with and without a radius.  The
-controls are emissions that are wrong in one way: a spot's direction pdf 5 % off, the blend left out
-of the photons' weight (a hard edge), the cone kept on the unrotated axis.  And the same over a mirror
-ball (sample_blends/spot_light.blend's setting), against the ball's ring-to-ring Jacobian."""
+"""A spot light's caustic photons (sample_blends/spot_light.blend's mirror-ball caustic): the ceiling
+over a flat mirror gets the mirrored spot's irradiance R I a(theta) cos / d^2
+(tests/integrators/photons/scenes.py), in the cone's core and in its blend, with the spot on the
+mirror's normal and rotated off it, with and without a radius.  The controls are emissions that are
+wrong in one way: a spot's direction pdf 5 % off, the blend left out of the photons' weight (a hard
+edge), the cone kept on the unrotated axis.  And the same over a mirror ball (the sample scene's
+setting), against the ball's ring-to-ring Jacobian."""
 from __future__ import annotations
 
 import numpy as np
