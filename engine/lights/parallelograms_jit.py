@@ -148,27 +148,36 @@ def _c(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
-def frame_terms(lights, x, idx):
-    """(az (3, N), f (7, N): x0 y0 x1 y1 z0 e0 e2, args (4, N), cdist (N,)) of lights (a
-    Parallelograms) seen from x (rows) for the lights idx (an int array, or one light)."""
-    n = x.shape[1]
+def _light_index(lights, idx):
+    """(one, index): whether every receiver sees the same light, and the int64 light index the
+    kernels read (one entry when `one`)."""
     one = np.ndim(idx) == 0 or lights.count == 1
     index = np.zeros(1, np.int64) if one else np.ascontiguousarray(idx, dtype=np.int64)
     if one and np.ndim(idx) == 0:
         index[0] = int(idx)
+    return one, index
+
+
+def _frame_of(lights, x, one, index):
+    """_frame's outputs (az, f, args, cdist) for contiguous receivers x."""
+    n = x.shape[1]
     az, f, args, cdist = np.empty((3, n)), np.empty((7, n)), np.empty((4, n)), np.empty(n)
-    _frame(_c(x), index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
+    _frame(x, index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
            az, f, args, cdist)
     return az, f, args, cdist
+
+
+def frame_terms(lights, x, idx):
+    """(az (3, N), f (7, N): x0 y0 x1 y1 z0 e0 e2, args (4, N), cdist (N,)) of lights (a
+    Parallelograms) seen from x (rows) for the lights idx (an int array, or one light)."""
+    one, index = _light_index(lights, idx)
+    return _frame_of(lights, _c(x), one, index)
 
 
 def spherical_point(lights, x, idx, az, f, omega, g23, u1, u2):
     """The point of each rectangle that (u1, u2) maps to (parallelograms.py _spherical_point)."""
     n = x.shape[1]
-    one = np.ndim(idx) == 0 or lights.count == 1
-    index = np.zeros(1, np.int64) if one else np.ascontiguousarray(idx, dtype=np.int64)
-    if one and np.ndim(idx) == 0:
-        index[0] = int(idx)
+    one, index = _light_index(lights, idx)
     out = np.empty((3, n))
     _point(_c(x), index, one, lights.axis1, lights.axis2, az, f, _c(omega), _c(g23),
            _c(np.broadcast_to(u1, (n,))), _c(np.broadcast_to(u2, (n,))), out)
@@ -181,13 +190,8 @@ def sample_li(lights, x, idx, u1, u2, omega_min, grazing):
     parallelograms.py's OMEGA_MIN and GRAZING."""
     n = x.shape[1]
     x = _c(x)
-    one = np.ndim(idx) == 0 or lights.count == 1
-    index = np.zeros(1, np.int64) if one else np.ascontiguousarray(idx, dtype=np.int64)
-    if one and np.ndim(idx) == 0:
-        index[0] = int(idx)
-    az, f, args, cdist = np.empty((3, n)), np.empty((7, n)), np.empty((4, n)), np.empty(n)
-    _frame(x, index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
-           az, f, args, cdist)
+    one, index = _light_index(lights, idx)
+    az, f, args, cdist = _frame_of(lights, x, one, index)
     g = np.arcsin(args)
     point, direction, distance, pdf = np.empty((3, n)), np.empty((3, n)), np.empty(n), np.empty(n)
     _sample(x, index, one, lights.axis1, lights.axis2, lights.v0, lights.e1, lights.e2, lights.normal, lights.area,
@@ -200,13 +204,8 @@ def pdf_li(lights, x, idx, point, omega_min, grazing):
     """Parallelograms.pdf_li by solid angle: the frame's loop, NumPy's arcsines, then _pdf."""
     n = x.shape[1]
     x = _c(x)
-    one = np.ndim(idx) == 0 or lights.count == 1
-    index = np.zeros(1, np.int64) if one else np.ascontiguousarray(idx, dtype=np.int64)
-    if one and np.ndim(idx) == 0:
-        index[0] = int(idx)
-    az, f, args, cdist = np.empty((3, n)), np.empty((7, n)), np.empty((4, n)), np.empty(n)
-    _frame(x, index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
-           az, f, args, cdist)
+    one, index = _light_index(lights, idx)
+    az, f, args, cdist = _frame_of(lights, x, one, index)
     pdf = np.empty(n)
     _pdf(x, index, one, lights.normal, lights.area, lights.rectangle, omega_min, grazing, f, np.arcsin(args), cdist,
          _c(point), pdf)
