@@ -23,7 +23,7 @@ from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
 from .shapes.spheres import EPS64, sphere_kernel, sphere_loop_kernels, surface_point
-from ..core.vec import aos, cross, max_abs3, norm, rows, triangle_rows
+from ..core.vec import aos, cross_rows, max_abs3, norm, rows, triangle_rows
 
 NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
 KINDS = (TRIANGLE, SPHERE, QUAD, LIGHT)
@@ -120,7 +120,7 @@ class SceneGeometry:
         self.tri_v0, self.tri_e1, self.tri_e2, self.tri_scale = (
             (np.concatenate(part, axis=-1) for part in zip(*tables)) if tables
             else (np.zeros((3, 0)), np.zeros((3, 0)), np.zeros((3, 0)), np.zeros(0)))
-        normal = cross(self.tri_e1, self.tri_e2)
+        normal = cross_rows(self.tri_e1, self.tri_e2)
         self.tri_normal = normal / np.maximum(norm(normal), 1e-300)
 
         self.sphere_center = rows([s.center for s in scene.spheres])      # (3, S)

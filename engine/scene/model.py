@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import SceneError
-from ..core.vec import cross, norm, triangle_rows
+from ..core.vec import cross_rows, norm, triangle_rows
 from .checks import LENS_RANGE, check_magnitude, check_resolution, check_vector, validate_quads
 
 # Material kinds: how a surface scatters (emission is independent of kind).
@@ -499,7 +499,7 @@ class TriangleMesh:
         # |(v1 - v0) x (v2 - v0)| and the largest corner coordinate of each triangle (as rows: the
         # same values as np.linalg.norm(np.cross(...), axis=1) on vertices[triangles], faster)
         _, e1, e2, scale = triangle_rows(self.vertices, self.triangles)
-        doubled_area = norm(cross(e1, e2))
+        doubled_area = norm(cross_rows(e1, e2))
         scale = scale + 1e-300
         keep = doubled_area > (scale * 1e-12) ** 2 * 16  # area ~ 0 relative to float64 resolution
         dropped = int((~keep).sum())

@@ -1,7 +1,7 @@
 """engine/core/vec.py: the triangle tables as rows give the (T, 3) formulas' values bit for bit."""
 import numpy as np
 
-from engine.core.vec import cross, norm, triangle_rows
+from engine.core.vec import cross, cross_rows, norm, triangle_rows
 
 
 def random_mesh(seed=5, n_vertices=4000, n_triangles=9000):
@@ -21,6 +21,7 @@ def test_triangle_rows_are_the_corner_formulas_bit_for_bit():
         assert np.array_equal(got, want.T)
     assert np.array_equal(scale, np.abs(v).max(axis=(1, 2)))
     assert np.array_equal(cross(e1, e2), np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]).T)
+    assert np.array_equal(cross_rows(e1, e2), cross(e1, e2)) and cross_rows(e1, e2).flags.c_contiguous
     assert np.array_equal(norm(cross(e1, e2)),
                           np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1))
     # control: another order of the same sum is not the same bits on this data (the check can fail)
