@@ -79,6 +79,7 @@ if engine == "TNCG15_MC":
         reports.append({"render_seconds": r.stats.get("render_seconds"), "wall": r.wall_seconds,
                         "export": r.stats.get("export_seconds"), "prepare": r.stats.get("prepare_seconds"),
                         "setup": r.stats.get("setup_seconds"), "build": r.stats.get("build_seconds"),
+                        "setup_cpu": r.stats.get("setup_cpu_seconds"),
                         "meshes_read": (r.export or {}).get("meshes_read")})
     tncg.REPORT_LISTENERS.append(listen)
 bpy.app.handlers.render_pre.append(lambda *a: marks.append(("pre", time.perf_counter(), own_cpu(), cpu_of(pids))))
@@ -128,7 +129,7 @@ def summary(t):
            "worker_cpu": mean(t["worker_cpu"][later]), "load": t["load"]}
     if t["reports"]:
         reps = t["reports"][later]
-        for key in ("render_seconds", "wall", "export", "prepare", "setup", "build", "meshes_read"):
+        for key in ("render_seconds", "wall", "export", "prepare", "setup", "build", "setup_cpu", "meshes_read"):
             row[key] = mean([r[key] for r in reps])
         row["ratio"] = row["frame"] / row["render_seconds"]
     return row
@@ -148,7 +149,7 @@ def main():
     print(f"{a.scene}.blend, {a.frames} frames, one object moving, {a.size}^2, {a.samples} spp, frames 2-{a.frames}, "
           f"best of {a.repeat}")
     head = (f"{'Blender':<8}{'run':<16}{'frame s':>8}{'tracing':>8}{'ratio':>7}{'export':>8}{'prepare':>8}"
-            f"{'w.setup':>8}{'w.build':>8}{'rest':>7}{'Blender':>8}{'read':>5}{'cpu B':>7}{'cpu W':>7}{'load':>11}")
+            f"{'w.setup':>8}{'w.build':>8}{'w.cpu':>7}{'rest':>7}{'Blender':>8}{'read':>5}{'cpu B':>7}{'cpu W':>7}{'load':>11}")
     print(head)
     for blender in a.blender.split(","):
         cases = {"off": ("TNCG15_MC", "off"), "on": ("TNCG15_MC", "on"), "cycles": ("CYCLES", "off")}
@@ -162,16 +163,16 @@ def main():
                 rest = r["wall"] - r["export"] - (r["prepare"] if r["prepare"] == r["prepare"] else 0) - r["render_seconds"]
                 prepare = "" if r["prepare"] != r["prepare"] else f"{r['prepare']:.3f}"
                 print(f"{blender:<8}{name:<16}{r['frame']:>8.3f}{r['render_seconds']:>8.3f}{r['ratio']:>7.2f}"
-                      f"{r['export']:>8.3f}{prepare:>8}{r['setup']:>8.3f}{r['build']:>8.3f}{rest:>7.3f}"
+                      f"{r['export']:>8.3f}{prepare:>8}{r['setup']:>8.3f}{r['build']:>8.3f}{r['setup_cpu']:>7.3f}{rest:>7.3f}"
                       f"{r['frame'] - r['wall']:>8.3f}{r['meshes_read']:>5.0f}{r['blender_cpu']:>7.2f}"
                       f"{r['worker_cpu'] if persistent == 'on' else float('nan'):>7.2f}{load:>11}")
             else:
-                print(f"{blender:<8}{name:<16}{r['frame']:>8.3f}{'':>8}{'':>7}{'':>8}{'':>8}{'':>8}{'':>8}{'':>7}"
+                print(f"{blender:<8}{name:<16}{r['frame']:>8.3f}{'':>8}{'':>7}{'':>8}{'':>8}{'':>8}{'':>8}{'':>7}{'':>7}"
                       f"{'':>8}{'':>5}{r['blender_cpu']:>7.2f}{'':>7}{load:>11}")
             sys.stdout.flush()
     print("ratio = frame / tracing within one run; export: the add-on until the scene is exported and checked; "
           "prepare: until the first worker is ready (sent, the workers' checks and BVH); w.setup, w.build: the "
-          "workers' own (wall); rest: the add-on's render() after tracing (result, passes); Blender: frame minus "
+          "workers' own (wall); w.cpu: a worker's CPU seconds of its setup; rest: the add-on's render() after tracing (result, passes); Blender: frame minus "
           "the add-on's render() (PD off: rest also holds starting the workers and preparing them); read: meshes "
           "read from Blender per frame; cpu B / W: CPU seconds per frame of Blender's process and of the kept workers")
 

@@ -96,11 +96,15 @@ def numba_error() -> str | None:
 
 
 def _numba_version() -> str:
-    try:
-        from importlib.metadata import version
-        return version("numba")
-    except Exception:
-        return "unknown"
+    """numba's installed version, read once per process (reading the package metadata costs 3 ms,
+    paid by every preparation of a kept worker otherwise: backend.resolve asks is_warm)."""
+    if "numba_version" not in _state:
+        try:
+            from importlib.metadata import version
+            _state["numba_version"] = version("numba")
+        except Exception:
+            _state["numba_version"] = "unknown"
+    return _state["numba_version"]
 
 
 def jit_files() -> list:

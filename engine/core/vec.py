@@ -43,6 +43,15 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
+def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """cross(a, b) of two (3, N) float64 rows, written into one new array (the same values; no
+    np.stack of three temporaries: 2.7 -> 1 ms for 93k triangles)."""
+    out = np.empty((3, a.shape[1]))
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.subtract(a[i] * b[j], a[j] * b[i], out=out[k])
+    return out
+
+
 def rows(vectors) -> np.ndarray:
     """(3, N) float64 rows from (N, 3) vectors (the layout of scene data and tests)."""
     return np.ascontiguousarray(np.asarray(vectors, dtype=np.float64).reshape(-1, 3).T)
@@ -53,6 +62,22 @@ def aos(a: np.ndarray, dtype=np.float64) -> np.ndarray:
     out = np.empty((a.shape[1], 3), dtype=dtype)
     out[:, 0], out[:, 1], out[:, 2] = a[0], a[1], a[2]
     return out
+
+
+def triangle_rows(vertices: np.ndarray, triangles: np.ndarray):
+    """Rows (3, T) of the first corner v0 and the edges v1 - v0, v2 - v0 of indexed triangles
+    ((V, 3) vertices, (T, 3) corner indices), and each triangle's largest absolute coordinate (T,):
+    the values of ``v = vertices[triangles]; v[:, 0], v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]`` and
+    ``np.abs(v).max(axis=(1, 2))`` bit for bit (the same subtractions; a maximum is exact in any
+    order), without (T, 3) arrays whose short last axis NumPy is slow on (a third of the time for
+    93k triangles)."""
+    coords = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)       # (3, V)
+    i0, i1, i2 = (np.ascontiguousarray(triangles[:, k]) for k in range(3))
+    v0 = coords.take(i0, axis=1)
+    e1, e2 = coords.take(i1, axis=1) - v0, coords.take(i2, axis=1) - v0
+    corner = max_abs3(coords)                                                      # (V,)
+    scale = np.maximum(np.maximum(corner.take(i0), corner.take(i1)), corner.take(i2))
+    return v0, e1, e2, scale
 
 
 def gather(a: np.ndarray, index: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
 from .shapes.spheres import EPS64, sphere_kernel, sphere_loop_kernels, surface_point
-from ..core.vec import aos, max_abs3, rows
+from ..core.vec import aos, cross_rows, max_abs3, norm, rows, triangle_rows
 
 NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
 KINDS = (TRIANGLE, SPHERE, QUAD, LIGHT)
@@ -106,18 +106,22 @@ class SceneGeometry:
     def __init__(self, scene, accelerator: str = "embree", plan=None):
         """plan: the effect plan (engine/integrators/effects.py) that switches kernels on; None = every
         kernel whose primitives the scene has (tests of geometry alone)."""
-        tris, tri_mats = [], []
+        tris, tri_mats, tables = [], [], []
         for mesh in scene.meshes:
             if len(mesh.triangles):
                 tris.append(mesh.vertices[mesh.triangles])
                 tri_mats.append(mesh.material_ids)
+                tables.append(triangle_rows(mesh.vertices, mesh.triangles))
         self.triangles = np.concatenate(tris) if tris else np.zeros((0, 3, 3))
         self.triangle_material = np.concatenate(tri_mats) if tri_mats else np.zeros(0, np.int64)
-        v0, v1, v2 = self.triangles[:, 0], self.triangles[:, 1], self.triangles[:, 2]
-        normal = np.cross(v1 - v0, v2 - v0)
-        normal = normal / np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
-        self.tri_v0, self.tri_e1, self.tri_e2, self.tri_normal = (rows(a) for a in (v0, v1 - v0, v2 - v0, normal))
-        self.tri_scale = np.abs(self.triangles).max(axis=(1, 2)) if len(self.triangles) else np.zeros(0)
+        # rows v0, v1 - v0, v2 - v0, the unit normal and the largest coordinate of each triangle,
+        # computed as rows (engine/core/vec.py triangle_rows: the values of the (T, 3) formulas
+        # np.cross, np.linalg.norm(axis=1), np.abs(...).max(axis=(1, 2)) bit for bit, faster)
+        self.tri_v0, self.tri_e1, self.tri_e2, self.tri_scale = (
+            (np.concatenate(part, axis=-1) for part in zip(*tables)) if tables
+            else (np.zeros((3, 0)), np.zeros((3, 0)), np.zeros((3, 0)), np.zeros(0)))
+        normal = cross_rows(self.tri_e1, self.tri_e2)
+        self.tri_normal = normal / np.maximum(norm(normal), 1e-300)
 
         self.sphere_center = rows([s.center for s in scene.spheres])      # (3, S)
         self.sphere_radius = np.array([s.radius for s in scene.spheres], dtype=np.float64)

@@ -54,8 +54,11 @@ def same_but_the_view(scene, other) -> bool:
     """`scene` equals `other` in everything but the camera and resolution."""
     if other is None or type(scene) is not type(other):
         return False
-    return all(same_content(getattr(scene, f.name), getattr(other, f.name)) for f in dataclasses.fields(scene)
-               if f.name not in ("camera", "resolution"))
+    # the meshes first: an animation's frames differ there, and all() stops at the first difference
+    # (the materials' many fields compared first took 4 ms of a frame of a moving mesh)
+    names = sorted((f.name for f in dataclasses.fields(scene) if f.name not in ("camera", "resolution")),
+                   key=lambda name: name != "meshes")
+    return all(same_content(getattr(scene, name), getattr(other, name)) for name in names)
 
 
 class KeptPool(Pool):

@@ -234,6 +234,7 @@ class Frame:
         stats = {
             "engine": ENGINE_NAME, "engine_version": ENGINE_VERSION,
             "render_seconds": seconds, "setup_seconds": facts.setup_seconds, "build_seconds": facts.build_seconds,
+            "setup_cpu_seconds": getattr(facts, "setup_cpu_seconds", None),
             **stats_of(s), "resolution": [width, height], "threads": s.resolved_threads(),
             "tile_size": self.tile_size, "units": len(self.units), "units_done": self.film.units_added,
             "progressive": self.progressive, "parallelism": pool,

@@ -86,6 +86,7 @@ class TracerFacts:
     warnings: list = field(default_factory=list)
     python: str = sys.version.split()[0]
     pid: int = 0
+    setup_cpu_seconds: float = 0.0      # CPU seconds of the preparation (its process's, all threads)
 
 
 class PreparedScene:
@@ -98,7 +99,7 @@ class PreparedScene:
         Persistent Data, engine/pools/kept.py)."""
         settings = settings or RenderSettings()
         settings.validate()
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         self.warnings = [] if checked else scene.validate()
         # Positions relative to the camera when the scene stands far from the world origin
         # (engine/scene/tracing_origin.py); None: world coordinates, the scene as it is.
@@ -141,6 +142,7 @@ class PreparedScene:
                           if self.plan.passes and set(EXTRA + CRYPTO) & set(settings.passes) else None)
         self.prepass()
         self.setup_seconds = time.perf_counter() - start
+        self.setup_cpu_seconds = time.process_time() - start_cpu
 
     def prepass(self) -> None:
         """The hook for work done once per prepared scene before any unit, wherever the scene is
@@ -178,7 +180,8 @@ class PreparedScene:
 
     def facts(self) -> TracerFacts:
         return TracerFacts(self.accelerator, self.accelerator_reason, self.plan, self.geometry.build_seconds,
-                           self.setup_seconds, list(self.warnings), pid=os.getpid())
+                           self.setup_seconds, list(self.warnings), pid=os.getpid(),
+                           setup_cpu_seconds=self.setup_cpu_seconds)
 
     # -- one unit -------------------------------------------------------------------------
     def render_unit(self, unit: WorkUnit, cancel=None) -> UnitResult | None:

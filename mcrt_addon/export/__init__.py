@@ -215,6 +215,7 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                 cache[(key, uv_map, need, colours, pass_uvs)] = arrays
             if kept is not None:
                 mesh_cache[kept] = arrays
+                mesh_cache.pop(kept + ("sphere_fit",), None)      # the fit of the arrays read before
         verts, tris, slots, uvs, shading, local_tangents, corner_colours, local_signs = arrays
         if len(tris) == 0:
             if otype == "MESH" and ob.name not in skipped:
@@ -227,7 +228,14 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
                 and not has_programs([table.materials[i] for i in slot_ids])
                 else "NEVER")                       # spheres have no UVs, no tangents, no object for nodes
         if mode != "NEVER":
-            fit = sphere_fit(verts, tris, slots)
+            # a function of the mesh arrays alone: kept with them (the cache forgets both together)
+            fit_key = kept + ("sphere_fit",) if kept is not None else None
+            if fit_key is not None and fit_key in mesh_cache:
+                fit = mesh_cache[fit_key]
+            else:
+                fit = sphere_fit(verts, tris, slots)
+                if fit_key is not None:
+                    mesh_cache[fit_key] = fit
             scale = uniform_scale(matrix)
             if mode == "ALWAYS" and (fit is None or scale is None):
                 if len(np.unique(mat_ids)) > 1:

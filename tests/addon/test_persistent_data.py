@@ -174,3 +174,40 @@ def test_animation_keeps_workers_and_meshes_and_renders_each_frame_as_a_fresh_re
     assert not np.array_equal(stale[2][0], fresh[2][0])
     scene.render.use_persistent_data = False
     render_operator(scene)                                   # the kept workers stop
+
+
+def test_kept_mesh_arrays_keep_their_sphere_fit_and_forget_it_with_them(scene, ms, monkeypatch):
+    """The exporter keeps a mesh's implicit-sphere fit with its cached arrays (a moved sphere is not
+    fitted again) and fits it again whenever the arrays are read again."""
+    import mcrt_addon.export as exporter
+    from mcrt_addon.viewport import forget_meshes
+    from tests.addon.exporting import export
+
+    ball = ms.mesh_object(scene, "Ball", lambda bm: ms.uv_sphere(bm, 0.5, 32, 16), ms.diffuse("D", (0.5, 0.5, 0.5)))
+    cache = {}
+    first = export(mesh_cache=cache)
+    assert [s.radius for s in first.scene.spheres] == [pytest.approx(0.5, rel=1e-5)]
+    stale = {k: v for k, v in cache.items() if k[-1] == "sphere_fit"}
+    assert len(stale) == 1
+
+    def no_fit(*args):
+        raise AssertionError("a kept mesh was fitted again")
+    ball.location.x += 0.3                                    # moved only: arrays and fit from the cache
+    with monkeypatch.context() as m:
+        m.setattr(exporter, "sphere_fit", no_fit)
+        moved = export(mesh_cache=cache)
+    assert moved.info["meshes_read"] == 0
+    assert moved.scene.spheres[0].radius == first.scene.spheres[0].radius
+    assert moved.scene.spheres[0].center[0] == pytest.approx(first.scene.spheres[0].center[0] + 0.3)
+
+    # the mesh grows: the add-on forgets its arrays (persistent.mesh_cache); the fit goes with them,
+    # and is fitted again even when an old fit is left in the cache (control: it would be 0.5)
+    for v in ball.data.vertices:
+        v.co *= 2.0
+    ball.data.update()
+    forget_meshes(cache, {"Ball"})
+    assert not any(k[-1] == "sphere_fit" for k in cache)
+    cache.update(stale)
+    grown = export(mesh_cache=cache)
+    assert grown.info["meshes_read"] == 1
+    assert [s.radius for s in grown.scene.spheres] == [pytest.approx(1.0, rel=1e-5)]
