@@ -309,7 +309,8 @@ class PathTracer:
             p.beta[:, :alive] *= p.rr_after[:alive]
             p.rr_after[:alive] = 1.0
         # 4. Area lights: the ray goes on through them, as it was.
-        passing = self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
+        passing = (self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
+                   if through.stop > through.start else None)
         # 5. Direct light at hits with a non-delta BSDF (eq. 2.11).
         towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
         facing = surf.normal * towards                                      # towards the ray
@@ -352,7 +353,8 @@ class PathTracer:
                 p.radiance[:, span] += light
         # 6. Scatter: the next direction and throughput of every scattering path (non-delta lobes
         # draw their direction from the BSDF_UV pair, delta lobes need none).
-        u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1)) if non_delta else None
+        u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1))
+                  if non_delta and span.stop > span.start else None       # (scatter skips empty spans)
                   for span, non_delta in zip(spans, self.mats.non_delta)]
         new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf)
         if before_light is not None:        # the shadow rays' light, by the lobe the vertex sampled
