@@ -823,6 +823,9 @@ class PathTracer:
         ls = self.lights.sample(x, nx, u_pick, u1, u2)
         if self.textures is not None:                   # textured emitters: Le at the sampled point
             ls.radiance = self.textures.light_radiance(ls.radiance, ls.light, ls.point)
+        if (self.wavefront_jit is not None and albedo is not None and ns == 1 and not si.smooth
+                and not transmits_non_delta(bsdf.flags) and (si.lookup is None or not si.lookup.has_normals)):
+            return self.lambert_direct_light(bsdf, si, point, offset, ls, counters, albedo)
         w = ls.direction
         cos_x = dot(nx, w)
         # A non-delta transmission lobe takes light from the far side too: side -1 there, and the
@@ -898,3 +901,23 @@ class PathTracer:
         if albedo is None:
             return mean
         return mean * albedo * (1.0 / np.pi)                            # f_r = colour / pi (eq. 2.13a)
+
+    def lambert_direct_light(self, bsdf, si, point, offset, ls, counters, albedo):
+        """direct_light's Lambertian case with one shadow ray per hit, flat shading and no Normal
+        input, for the light samples ls: the same tests, shadow rays and weights in two compiled
+        loops around the shadow rays (engine/integrators/wavefront_jit.py light_tests and
+        lambert_light), the same numbers."""
+        jit = self.wavefront_jit
+        cos_x, cos_ly, valid = jit.light_tests(si.n, ls, self.lights.any_one_sided)
+        k = len(cos_x)
+        blocked, p_b = np.zeros(0, dtype=bool), None
+        if len(valid):
+            origin, direction, seg_len = self.lights.shadow_rays(ls, None if len(valid) == k else valid, point,
+                                                                 offset, si.n, cos_ly)
+            counters.rays["shadow"] += len(valid)
+            blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
+            if self.mis:
+                with np.errstate(invalid="ignore", over="ignore"):
+                    p_b = bsdf.pdf(si, ls.direction)
+        return jit.lambert_light(valid, blocked, cos_x, ls, 0.0 if p_b is None else p_b, self.lights.bsdf_reachable,
+                                 self.mis, albedo)
