@@ -91,8 +91,16 @@ def _lambert_light(valid, blocked, cos_x, pdf, p_b, light, reachable, mis, radia
             out[c, i] = radiance[c, i] * weight[i] * albedo[c, i] * inv_pi
 
 
+def _fit(a, shape, dtype=np.float64):
+    """a as a contiguous array of `shape` (np.broadcast_to only when needed: its Python costs more
+    than these loops' work on small batches)."""
+    if isinstance(a, np.ndarray) and a.shape == shape:
+        return np.ascontiguousarray(a, dtype)
+    return np.ascontiguousarray(np.broadcast_to(a, shape), dtype)
+
+
 def _rows(a, k):
-    return np.ascontiguousarray(np.broadcast_to(a, (3, k)), np.float64)
+    return _fit(a, (3, k))
 
 
 def light_tests(n, ls, any_one_sided):
@@ -102,7 +110,7 @@ def light_tests(n, ls, any_one_sided):
     cos_x, cos_ly = np.empty(k), np.empty(k)
     valid = _light_tests(_rows(n, k), _rows(ls.direction, k), _rows(ls.normal, k),
                          np.ascontiguousarray(ls.pdf, np.float64), np.ascontiguousarray(ls.distance, np.float64),
-                         np.ascontiguousarray(np.broadcast_to(ls.one_sided, (k,)), np.bool_), bool(any_one_sided),
+                         _fit(ls.one_sided, (k,), np.bool_), bool(any_one_sided),
                          cos_x, cos_ly)
     return cos_x, cos_ly, valid
 
@@ -115,7 +123,7 @@ def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo):
     out = np.empty((3, k))
     _lambert_light(np.ascontiguousarray(valid, np.int64), np.ascontiguousarray(blocked, np.bool_), cos_x,
                    np.ascontiguousarray(ls.pdf, np.float64),
-                   np.ascontiguousarray(np.broadcast_to(p_b, (k,)), np.float64),
+                   _fit(p_b, (k,)),
                    np.ascontiguousarray(ls.light, np.int64), np.ascontiguousarray(reachable, np.bool_), bool(mis),
                    _rows(ls.radiance, k), _rows(albedo, k), out)
     return out
