@@ -1,10 +1,12 @@
 """The light tree's walk (engine/lights/selection.py `LightTree._tree_sample` and `_tree_pmf`)
-compiled with numba: one loop over the rays, each walking down the levels, instead of one NumPy
-pass over the whole wavefront per level and per bound.
+compiled with numba: the rays' walks down the levels in compiled loops, instead of one NumPy pass
+over the whole wavefront per level and per bound.
 
 The arithmetic is that of `importance`, `box_distance2` and `LightTree._left_probability`, in
 the same order and the same precision (float32 for the importance, float64 for the probabilities),
 so the lights drawn and the pmfs are the same bit for bit (tests/lights/test_selection_jit.py).
+The walks of BLOCK rays go side by side, level by level (`_walks`), the importances of a level in
+a loop LLVM vectorises (`_lane_importances`).
 Imported only through engine/core/backend.py's choice (it imports numba).
 """
 from __future__ import annotations
@@ -29,87 +31,105 @@ def _max(a, b):
     return a if (a >= b or a != a) else b
 
 
-@inline
-def _importance(x0, x1, x2, n0, n1, n2, t, oriented):
-    """selection.importance of the node whose row of the node table is t (columns as
-    selection.LightTree's level tables, then SIN_O).  Every branch is a select (both sides computed:
-    the same numbers, no mispredicted jumps: 1.45x the branching form on a many-lights render's walks)."""
-    w0, w1, w2 = t[0] - x0, t[1] - x1, t[2] - x2
-    inv_d = F1 / np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    s = t[12] * inv_d
-    inside = not s < F1
-    sin_u = F0 if inside else s
-    cos_u = -F1 if inside else np.sqrt(F1 - s * s)
-    cos_i = (n0 * w0 + n1 * w1 + n2 * w2) * inv_d
-    sin_i = np.sqrt(_max(F1 - cos_i * cos_i, F0))
-    cos_r = F1 if (inside or cos_i > cos_u) else cos_i * cos_u + sin_i * sin_u
-    g0 = _max(_max(t[3] - x0, x0 - t[6]), F0)
-    g1 = _max(_max(t[4] - x1, x1 - t[7]), F0)
-    g2 = _max(_max(t[5] - x2, x2 - t[8]), F0)
-    near2 = g0 * g0 + g1 * g1 + g2 * g2
-    result = t[14] * _max(cos_r, F0) / _max(_max(near2, t[15]), TINY)
-    cos_o, sin_o = t[13], t[SIN_O]
-    cos_t = -(t[9] * w0 + t[10] * w1 + t[11] * w2) * inv_d
-    sin_t = np.sqrt(_max(F1 - cos_t * cos_t, F0))
-    beyond = cos_t <= cos_o
-    cos_a = cos_t * cos_o + sin_t * sin_o if beyond else F1
-    sin_a = sin_t * cos_o - cos_t * sin_o if beyond else F0
-    cos_e = F1 if (inside or cos_a > cos_u) else cos_a * cos_u + sin_a * sin_u
-    emitter_side = result * _max(cos_e, F0)
-    return emitter_side if oriented else result
+BLOCK = 64                               # rays walked together, level by level
+ROWS = 6 + 17                            # a block's lane rows: x (3), n (3), then a node's 17 columns
 
 
 @jit
-def _left_probability(x0, x1, x2, n0, n1, n2, c, nodes, power, empty, oriented):
-    """LightTree._left_probability for a receiver (float32) and the left child, node c of the table,
-    of a level whose emitter-side test is `oriented`."""
-    i_left = _importance(x0, x1, x2, n0, n1, n2, nodes[c], oriented)
-    i_right = _importance(x0, x1, x2, n0, n1, n2, nodes[c + 1], oriented)
-    total = i_left + i_right
-    p_left, p_right = power[c], power[c + 1]
-    by_power = p_left / _max(p_left + p_right, 1e-300) if p_left + p_right > 0.0 else 0.5
-    p = np.float64(i_left / total) if total > F0 else by_power
-    return 1.0 if empty[c + 1] else (0.0 if empty[c] else p)
+def _lane_importances(lane, size, oriented, out):
+    """selection.importance for lanes b < size of a block: lane[k * BLOCK + b] holds row k (x0 x1 x2
+    n0 n1 n2 of the receiver, then the columns of the node's row of the node table).  Every branch
+    is a select, so both sides are computed (the same numbers).  One flat array whose rows are
+    at constant offsets: LLVM then needs one overlap check against `out` and vectorises the loop
+    (rows of several arrays at runtime strides exceed its limit of runtime checks: scalar code)."""
+    for b in range(size):
+        x0, x1, x2 = lane[b], lane[BLOCK + b], lane[2 * BLOCK + b]
+        n0, n1, n2 = lane[3 * BLOCK + b], lane[4 * BLOCK + b], lane[5 * BLOCK + b]
+        t = 6 * BLOCK + b                        # column k of the node: lane[t + k * BLOCK]
+        w0, w1, w2 = lane[t] - x0, lane[t + BLOCK] - x1, lane[t + 2 * BLOCK] - x2
+        inv_d = F1 / np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        s = lane[t + 12 * BLOCK] * inv_d
+        inside = not s < F1
+        sin_u = F0 if inside else s
+        cos_u = -F1 if inside else np.sqrt(F1 - s * s)
+        cos_i = (n0 * w0 + n1 * w1 + n2 * w2) * inv_d
+        sin_i = np.sqrt(_max(F1 - cos_i * cos_i, F0))
+        cos_r = F1 if (inside or cos_i > cos_u) else cos_i * cos_u + sin_i * sin_u
+        g0 = _max(_max(lane[t + 3 * BLOCK] - x0, x0 - lane[t + 6 * BLOCK]), F0)
+        g1 = _max(_max(lane[t + 4 * BLOCK] - x1, x1 - lane[t + 7 * BLOCK]), F0)
+        g2 = _max(_max(lane[t + 5 * BLOCK] - x2, x2 - lane[t + 8 * BLOCK]), F0)
+        near2 = g0 * g0 + g1 * g1 + g2 * g2
+        result = lane[t + 14 * BLOCK] * _max(cos_r, F0) / _max(_max(near2, lane[t + 15 * BLOCK]), TINY)
+        cos_o, sin_o = lane[t + 13 * BLOCK], lane[t + SIN_O * BLOCK]
+        cos_t = -(lane[t + 9 * BLOCK] * w0 + lane[t + 10 * BLOCK] * w1 + lane[t + 11 * BLOCK] * w2) * inv_d
+        sin_t = np.sqrt(_max(F1 - cos_t * cos_t, F0))
+        beyond = cos_t <= cos_o
+        cos_a = cos_t * cos_o + sin_t * sin_o if beyond else F1
+        sin_a = sin_t * cos_o - cos_t * sin_o if beyond else F0
+        cos_e = F1 if (inside or cos_a > cos_u) else cos_a * cos_u + sin_a * sin_u
+        emitter_side = result * _max(cos_e, F0)
+        out[b] = emitter_side if oriented else result
 
 
 @jit
-def _walk(x0, x1, x2, n0, n1, n2, ui, nodes, power, empty, oriented, base, depth, count, light_at):
-    """(light, tree pmf) of one receiver drawn with ui: LightTree._tree_sample's walk."""
-    node, q = 0, 1.0
-    for level in range(1, depth + 1):
-        left = 2 * node
-        p = _left_probability(x0, x1, x2, n0, n1, n2, base[level] + left, nodes, power, empty, oriented[level])
-        go_left = ui < p
-        ui = ui / p if go_left else (ui - p) / (1.0 - p)
-        ui = 0.0 if ui != ui else ui                     # np.nan_to_num, then np.clip
-        ui = min(max(ui, 0.0), BELOW_ONE)
-        q *= p if go_left else 1.0 - p
-        node = left if go_left else left + 1
-    return light_at[(count * node) >> depth], q
-
-
-@jit
-def _walk_pmf(x0, x1, x2, n0, n1, n2, position, nodes, power, empty, oriented, base, depth, count):
-    """The tree pmf of the light at sorted `position` for one receiver: LightTree._tree_pmf's walk."""
-    node, q = 0, 1.0
-    for level in range(1, depth + 1):
-        left = 2 * node
-        go_left = position < (count * (left + 1)) >> level
-        p = _left_probability(x0, x1, x2, n0, n1, n2, base[level] + left, nodes, power, empty, oriented[level])
-        q *= p if go_left else 1.0 - p
-        node = left if go_left else left + 1
-    return q
+def _walks(x, n, ui, target, nodes, power, empty, oriented, base, depth, count, node, q):
+    """The tree walks of all receivers (x, n rows, rounded to float32 per ray), BLOCK at a time and
+    level by level: a receiver with target < 0 draws with ui (LightTree._tree_sample: ui is rescaled
+    in place), one with a sorted light position `target` walks towards it (LightTree._tree_pmf);
+    node gets each walk's leaf, q its tree pmf.  Per level: the two children's node-table rows
+    copied into the lanes and their importances (_lane_importances), then LightTree._left_probability's rest
+    and the step, per receiver the operations of the NumPy walk in its order (the same bits).  The
+    block's walks side by side instead of one walk's chain of dependent square roots and divisions
+    at a time: 2x one walk after another on many_lights' picks."""
+    m = ui.shape[0]
+    lane = np.empty(ROWS * BLOCK, np.float32)
+    il, ir = np.empty(BLOCK, np.float32), np.empty(BLOCK, np.float32)
+    for start in range(0, m, BLOCK):
+        size = min(BLOCK, m - start)
+        for b in range(size):
+            for c in range(3):
+                lane[c * BLOCK + b] = np.float32(x[c, start + b])
+                lane[(3 + c) * BLOCK + b] = np.float32(n[c, start + b])
+            node[start + b], q[start + b] = 0, 1.0
+        for level in range(1, depth + 1):
+            orient, c0 = oriented[level], base[level]
+            for side in range(2):
+                for b in range(size):
+                    c = c0 + 2 * node[start + b] + side
+                    for k in range(17):
+                        lane[(6 + k) * BLOCK + b] = nodes[c, k]
+                _lane_importances(lane, size, orient, il if side == 0 else ir)
+            for b in range(size):
+                i = start + b
+                left = 2 * node[i]
+                c = c0 + left
+                i_left = il[b]
+                total = i_left + ir[b]
+                p_left, p_right = power[c], power[c + 1]
+                by_power = p_left / _max(p_left + p_right, 1e-300) if p_left + p_right > 0.0 else 0.5
+                p = np.float64(i_left / total) if total > F0 else by_power
+                p = 1.0 if empty[c + 1] else (0.0 if empty[c] else p)     # never into an empty child
+                if target[i] >= 0:
+                    go_left = target[i] < (count * (left + 1)) >> level
+                else:
+                    w = ui[i]
+                    go_left = w < p
+                    w = w / p if go_left else (w - p) / (1.0 - p)
+                    w = 0.0 if w != w else w             # np.nan_to_num, then np.clip
+                    ui[i] = min(max(w, 0.0), BELOW_ONE)
+                q[i] *= p if go_left else 1.0 - p
+                node[i] = left if go_left else left + 1
 
 
 @jit
 def tree_sample(x, n, u, nodes, power, empty, oriented, base, depth, count, light_at):
     """(light, tree pmf) per ray: LightTree._tree_sample (x, n float32 rows)."""
     m = u.shape[0]
+    node, pmf = np.empty(m, np.int64), np.empty(m, np.float64)
+    _walks(x, n, u.copy(), np.full(m, -1, np.int64), nodes, power, empty, oriented, base, depth, count, node, pmf)
     light = np.empty(m, np.int64)
-    pmf = np.empty(m, np.float64)
     for i in range(m):
-        light[i], pmf[i] = _walk(x[0, i], x[1, i], x[2, i], n[0, i], n[1, i], n[2, i], u[i], nodes, power, empty,
-                                 oriented, base, depth, count, light_at)
+        light[i] = light_at[(count * node[i]) >> depth]
     return light, pmf
 
 
@@ -117,113 +137,54 @@ def tree_sample(x, n, u, nodes, power, empty, oriented, base, depth, count, ligh
 def tree_pmf(x, n, light, nodes, power, empty, oriented, base, depth, count, position_of):
     """The tree pmf of each ray's light: LightTree._tree_pmf (x, n float32 rows)."""
     m = light.shape[0]
-    pmf = np.empty(m, np.float64)
+    node, pmf = np.empty(m, np.int64), np.empty(m, np.float64)
+    target = np.empty(m, np.int64)
     for i in range(m):
-        pmf[i] = _walk_pmf(x[0, i], x[1, i], x[2, i], n[0, i], n[1, i], n[2, i], position_of[light[i]], nodes,
-                           power, empty, oriented, base, depth, count)
+        target[i] = position_of[light[i]]
+    _walks(x, n, np.zeros(m), target, nodes, power, empty, oriented, base, depth, count, node, pmf)
     return pmf
-
-
-BLOCK = 64                               # rays walked together, level by level (select, mixed_pmf)
-
-
-@jit
-def _walk_block(xs, size, node, target, ui, q, il, ir, nodes, power, empty, oriented, base, depth, count):
-    """The walks of `size` receivers (xs: their float32 x and n rows) together, level by level:
-    per level one loop of the two children's importances over the block, then one of
-    _left_probability's rest and _walk's (target < 0: by ui) or _walk_pmf's (towards sorted
-    position target) step.  Each receiver's numbers are those of _walk and _walk_pmf; only the
-    order of the receivers' operations changes (independent walks side by side instead of one
-    walk's chain of dependent square roots and divisions at a time: 1.4x on many_lights' walks)."""
-    for level in range(1, depth + 1):
-        orient, c0 = oriented[level], base[level]
-        for b in range(size):
-            c = c0 + 2 * node[b]
-            il[b] = _importance(xs[0, b], xs[1, b], xs[2, b], xs[3, b], xs[4, b], xs[5, b], nodes[c], orient)
-            ir[b] = _importance(xs[0, b], xs[1, b], xs[2, b], xs[3, b], xs[4, b], xs[5, b], nodes[c + 1], orient)
-        for b in range(size):
-            left = 2 * node[b]
-            c = c0 + left
-            i_left = il[b]
-            total = i_left + ir[b]
-            p_left, p_right = power[c], power[c + 1]
-            by_power = p_left / _max(p_left + p_right, 1e-300) if p_left + p_right > 0.0 else 0.5
-            p = np.float64(i_left / total) if total > F0 else by_power
-            p = 1.0 if empty[c + 1] else (0.0 if empty[c] else p)
-            if target[b] >= 0:
-                go_left = target[b] < (count * (left + 1)) >> level
-            else:
-                w = ui[b]
-                go_left = w < p
-                w = w / p if go_left else (w - p) / (1.0 - p)
-                w = 0.0 if w != w else w                 # np.nan_to_num, then np.clip
-                ui[b] = min(max(w, 0.0), BELOW_ONE)
-            q[b] *= p if go_left else 1.0 - p
-            node[b] = left if go_left else left + 1
 
 
 @jit
 def select(x, n, u, nodes, power, empty, oriented, base, depth, count, light_at, position_of, prob, cdf, defensive):
-    """LightTree.sample, BLOCK rays at a time (x, n float64 rows, rounded to float32 per ray as the
-    NumPy path's astype): u < defensive picks by the power pmf (PowerSelection.sample on u /
-    defensive) and walks the tree for that light's pmf, else the tree's walk on the rescaled u;
-    the pmf mixed as there (_walk_block)."""
+    """LightTree.sample (x, n float64 rows, rounded to float32 per ray as the NumPy path's astype):
+    u < defensive picks by the power pmf (PowerSelection.sample on u / defensive) and walks the tree
+    for that light's pmf, else the tree's walk on the rescaled u; the pmf mixed as there."""
     m = u.shape[0]
-    light = np.empty(m, np.int64)
-    pmf = np.empty(m, np.float64)
+    light, target = np.empty(m, np.int64), np.full(m, -1, np.int64)
+    ui, node, q = np.zeros(m), np.empty(m, np.int64), np.empty(m, np.float64)
     last = cdf[count - 1]
-    xs = np.empty((6, BLOCK), np.float32)
-    node, target = np.empty(BLOCK, np.int64), np.empty(BLOCK, np.int64)
-    ui, q = np.empty(BLOCK, np.float64), np.empty(BLOCK, np.float64)
-    il, ir = np.empty(BLOCK, np.float32), np.empty(BLOCK, np.float32)
-    for start in range(0, m, BLOCK):
-        size = min(BLOCK, m - start)
-        for b in range(size):
-            i = start + b
-            for c in range(3):
-                xs[c, b], xs[3 + c, b] = np.float32(x[c, i]), np.float32(n[c, i])
-            node[b], q[b], ui[b], target[b] = 0, 1.0, 0.0, -1
-            if u[i] < defensive:
-                v = u[i] / defensive * last              # np.searchsorted(cdf, v, side="right"), then min
-                lo, hi = 0, count
-                while lo < hi:
-                    mid = (lo + hi) >> 1
-                    if v < cdf[mid]:
-                        hi = mid
-                    else:
-                        lo = mid + 1
-                k = min(lo, count - 1)
-                light[i], target[b] = k, position_of[k]
-            else:
-                ui[b] = (u[i] - defensive) / (1.0 - defensive)
-        _walk_block(xs, size, node, target, ui, q, il, ir, nodes, power, empty, oriented, base, depth, count)
-        for b in range(size):
-            i = start + b
-            if target[b] < 0:
-                light[i] = light_at[(count * node[b]) >> depth]
-            pmf[i] = defensive * prob[light[i]] + (1.0 - defensive) * q[b]
+    for i in range(m):
+        if u[i] < defensive:
+            v = u[i] / defensive * last              # np.searchsorted(cdf, v, side="right"), then min
+            lo, hi = 0, count
+            while lo < hi:
+                mid = (lo + hi) >> 1
+                if v < cdf[mid]:
+                    hi = mid
+                else:
+                    lo = mid + 1
+            k = min(lo, count - 1)
+            light[i], target[i] = k, position_of[k]
+        else:
+            ui[i] = (u[i] - defensive) / (1.0 - defensive)
+    _walks(x, n, ui, target, nodes, power, empty, oriented, base, depth, count, node, q)
+    pmf = np.empty(m, np.float64)
+    for i in range(m):
+        if target[i] < 0:
+            light[i] = light_at[(count * node[i]) >> depth]
+        pmf[i] = defensive * prob[light[i]] + (1.0 - defensive) * q[i]
     return light, pmf
 
 
 @jit
 def mixed_pmf(x, n, light, nodes, power, empty, oriented, base, depth, count, position_of, prob, defensive):
-    """LightTree.pmf, BLOCK rays at a time (x, n float64 rows, rounded to float32 per ray)."""
+    """LightTree.pmf (x, n float64 rows, rounded to float32 per ray)."""
     m = light.shape[0]
+    q = tree_pmf(x, n, light, nodes, power, empty, oriented, base, depth, count, position_of)
     pmf = np.empty(m, np.float64)
-    xs = np.empty((6, BLOCK), np.float32)
-    node, target = np.empty(BLOCK, np.int64), np.empty(BLOCK, np.int64)
-    ui, q = np.empty(BLOCK, np.float64), np.empty(BLOCK, np.float64)
-    il, ir = np.empty(BLOCK, np.float32), np.empty(BLOCK, np.float32)
-    for start in range(0, m, BLOCK):
-        size = min(BLOCK, m - start)
-        for b in range(size):
-            i = start + b
-            for c in range(3):
-                xs[c, b], xs[3 + c, b] = np.float32(x[c, i]), np.float32(n[c, i])
-            node[b], q[b], ui[b], target[b] = 0, 1.0, 0.0, position_of[light[i]]
-        _walk_block(xs, size, node, target, ui, q, il, ir, nodes, power, empty, oriented, base, depth, count)
-        for b in range(size):
-            pmf[start + b] = defensive * prob[light[start + b]] + (1.0 - defensive) * q[b]
+    for i in range(m):
+        pmf[i] = defensive * prob[light[i]] + (1.0 - defensive) * q[i]
     return pmf
 
 
