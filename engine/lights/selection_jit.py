@@ -32,20 +32,20 @@ def _max(a, b):
 
 
 BLOCK = 64                               # rays walked together, level by level
-ROWS = 6 + 17                            # a block's lane rows: x (3), n (3), then a node's 17 columns
+ROWS = 6 + 2 * 17 + 2                    # lane rows: x (3), n (3), two children's 17 columns, their importances
 
 
 @jit
-def _lane_importances(lane, size, oriented, out):
-    """selection.importance for lanes b < size of a block: lane[k * BLOCK + b] holds row k (x0 x1 x2
-    n0 n1 n2 of the receiver, then the columns of the node's row of the node table).  Every branch
-    is a select, so both sides are computed (the same numbers).  One flat array whose rows are
-    at constant offsets: LLVM then needs one overlap check against `out` and vectorises the loop
-    (rows of several arrays at runtime strides exceed its limit of runtime checks: scalar code)."""
+def _lane_importances(lane, size, oriented, col, dst):
+    """selection.importance for lanes b < size of a block, into lane row dst: lane[k * BLOCK + b]
+    holds row k (x0 x1 x2 n0 n1 n2 of the receiver; from row col on the columns of the node's row of
+    the node table).  Every branch is a select, so both sides are computed (the same numbers).  One
+    flat array whose rows are at constant offsets: LLVM vectorises the loop (rows of several arrays
+    at runtime strides need more runtime overlap checks than its limit: scalar code)."""
     for b in range(size):
         x0, x1, x2 = lane[b], lane[BLOCK + b], lane[2 * BLOCK + b]
         n0, n1, n2 = lane[3 * BLOCK + b], lane[4 * BLOCK + b], lane[5 * BLOCK + b]
-        t = 6 * BLOCK + b                        # column k of the node: lane[t + k * BLOCK]
+        t = col * BLOCK + b                      # column k of the node: lane[t + k * BLOCK]
         w0, w1, w2 = lane[t] - x0, lane[t + BLOCK] - x1, lane[t + 2 * BLOCK] - x2
         inv_d = F1 / np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
         s = lane[t + 12 * BLOCK] * inv_d
@@ -68,7 +68,36 @@ def _lane_importances(lane, size, oriented, out):
         sin_a = sin_t * cos_o - cos_t * sin_o if beyond else F0
         cos_e = F1 if (inside or cos_a > cos_u) else cos_a * cos_u + sin_a * sin_u
         emitter_side = result * _max(cos_e, F0)
-        out[b] = emitter_side if oriented else result
+        lane[dst * BLOCK + b] = emitter_side if oriented else result
+
+
+IL, IR = 6 + 2 * 17, 6 + 2 * 17 + 1      # the lane rows of the children's importances
+UI, Q, PL, PR = 0, 1, 2, 3               # rows of the float64 state lanes
+NODE, TARGET, EL, ER = 0, 1, 2, 3        # rows of the int64 state lanes
+
+
+@jit
+def _lane_steps(lane, st, it, size, level, count):
+    """One level's step of each lane: LightTree._left_probability's rest and _walk's (target < 0: by
+    ui) or _walk_pmf's step, both sides computed and selected (a loop LLVM vectorises: three lane
+    arrays, rows at constant offsets)."""
+    for b in range(size):
+        left = 2 * it[NODE * BLOCK + b]
+        i_left = lane[IL * BLOCK + b]
+        total = i_left + lane[IR * BLOCK + b]
+        p_left, p_right = st[PL * BLOCK + b], st[PR * BLOCK + b]
+        by_power = p_left / _max(p_left + p_right, 1e-300) if p_left + p_right > 0.0 else 0.5
+        p = np.float64(i_left / total) if total > F0 else by_power
+        p = 1.0 if it[ER * BLOCK + b] != 0 else (0.0 if it[EL * BLOCK + b] != 0 else p)   # never an empty child
+        target = it[TARGET * BLOCK + b]
+        w = st[UI * BLOCK + b]
+        go_left = (target < (count * (left + 1)) >> level) if target >= 0 else w < p
+        w = w / p if go_left else (w - p) / (1.0 - p)
+        w = 0.0 if w != w else w                         # np.nan_to_num, then np.clip
+        w = min(max(w, 0.0), BELOW_ONE)
+        st[UI * BLOCK + b] = st[UI * BLOCK + b] if target >= 0 else w
+        st[Q * BLOCK + b] *= p if go_left else 1.0 - p
+        it[NODE * BLOCK + b] = left if go_left else left + 1
 
 
 @jit
@@ -76,49 +105,38 @@ def _walks(x, n, ui, target, nodes, power, empty, oriented, base, depth, count, 
     """The tree walks of all receivers (x, n rows, rounded to float32 per ray), BLOCK at a time and
     level by level: a receiver with target < 0 draws with ui (LightTree._tree_sample: ui is rescaled
     in place), one with a sorted light position `target` walks towards it (LightTree._tree_pmf);
-    node gets each walk's leaf, q its tree pmf.  Per level: the two children's node-table rows
-    copied into the lanes and their importances (_lane_importances), then LightTree._left_probability's rest
-    and the step, per receiver the operations of the NumPy walk in its order (the same bits).  The
-    block's walks side by side instead of one walk's chain of dependent square roots and divisions
-    at a time: 2x one walk after another on many_lights' picks."""
+    node gets each walk's leaf, q its tree pmf.  Per level: the two children's node-table rows,
+    powers and emptiness copied into the lanes, their importances (_lane_importances), then the
+    steps (_lane_steps): per receiver the operations of the NumPy walk in its order (the same bits),
+    the block's walks side by side in vectorised loops instead of one walk's chain of dependent
+    square roots and divisions at a time."""
     m = ui.shape[0]
     lane = np.empty(ROWS * BLOCK, np.float32)
-    il, ir = np.empty(BLOCK, np.float32), np.empty(BLOCK, np.float32)
+    st = np.empty(4 * BLOCK, np.float64)
+    it = np.zeros(4 * BLOCK, np.int64)
     for start in range(0, m, BLOCK):
         size = min(BLOCK, m - start)
         for b in range(size):
             for c in range(3):
                 lane[c * BLOCK + b] = np.float32(x[c, start + b])
                 lane[(3 + c) * BLOCK + b] = np.float32(n[c, start + b])
-            node[start + b], q[start + b] = 0, 1.0
+            it[NODE * BLOCK + b], it[TARGET * BLOCK + b] = 0, target[start + b]
+            st[UI * BLOCK + b], st[Q * BLOCK + b] = ui[start + b], 1.0
         for level in range(1, depth + 1):
-            orient, c0 = oriented[level], base[level]
-            for side in range(2):
-                for b in range(size):
-                    c = c0 + 2 * node[start + b] + side
-                    for k in range(17):
-                        lane[(6 + k) * BLOCK + b] = nodes[c, k]
-                _lane_importances(lane, size, orient, il if side == 0 else ir)
+            c0 = base[level]
             for b in range(size):
-                i = start + b
-                left = 2 * node[i]
-                c = c0 + left
-                i_left = il[b]
-                total = i_left + ir[b]
-                p_left, p_right = power[c], power[c + 1]
-                by_power = p_left / _max(p_left + p_right, 1e-300) if p_left + p_right > 0.0 else 0.5
-                p = np.float64(i_left / total) if total > F0 else by_power
-                p = 1.0 if empty[c + 1] else (0.0 if empty[c] else p)     # never into an empty child
-                if target[i] >= 0:
-                    go_left = target[i] < (count * (left + 1)) >> level
-                else:
-                    w = ui[i]
-                    go_left = w < p
-                    w = w / p if go_left else (w - p) / (1.0 - p)
-                    w = 0.0 if w != w else w             # np.nan_to_num, then np.clip
-                    ui[i] = min(max(w, 0.0), BELOW_ONE)
-                q[i] *= p if go_left else 1.0 - p
-                node[i] = left if go_left else left + 1
+                c = c0 + 2 * it[NODE * BLOCK + b]
+                for k in range(17):
+                    lane[(6 + k) * BLOCK + b] = nodes[c, k]
+                    lane[(23 + k) * BLOCK + b] = nodes[c + 1, k]
+                st[PL * BLOCK + b], st[PR * BLOCK + b] = power[c], power[c + 1]
+                it[EL * BLOCK + b], it[ER * BLOCK + b] = empty[c], empty[c + 1]
+            _lane_importances(lane, size, oriented[level], 6, IL)
+            _lane_importances(lane, size, oriented[level], 23, IR)
+            _lane_steps(lane, st, it, size, level, count)
+        for b in range(size):
+            node[start + b], q[start + b] = it[NODE * BLOCK + b], st[Q * BLOCK + b]
+            ui[start + b] = st[UI * BLOCK + b]
 
 
 @jit
