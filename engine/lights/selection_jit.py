@@ -78,9 +78,9 @@ NODE, TARGET, EL, ER = 0, 1, 2, 3        # rows of the int64 state lanes
 
 @jit
 def _lane_steps(lane, st, it, size, level, count):
-    """One level's step of each lane: LightTree._left_probability's rest and _walk's (target < 0: by
-    ui) or _walk_pmf's step, both sides computed and selected (a loop LLVM vectorises: three lane
-    arrays, rows at constant offsets)."""
+    """One level's step of each lane: LightTree._left_probability's rest and _tree_sample's (target
+    < 0: by ui) or _tree_pmf's step, both sides computed and selected (a loop LLVM vectorises: three
+    lane arrays, rows at constant offsets)."""
     for b in range(size):
         left = 2 * it[NODE * BLOCK + b]
         i_left = lane[IL * BLOCK + b]
