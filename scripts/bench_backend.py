@@ -64,11 +64,13 @@ def parallel_tree_sample():
     @nb.njit(parallel=True, error_model="numpy", nogil=True)
     def tree_sample(x, n, u, nodes, power, empty, oriented, base, depth, count, light_at):
         m = u.shape[0]
-        light = np.empty(m, np.int64)
-        pmf = np.empty(m, np.float64)
-        for i in nb.prange(m):
-            light[i], pmf[i] = sj._walk(x[0, i], x[1, i], x[2, i], n[0, i], n[1, i], n[2, i], u[i], nodes, power,
-                                        empty, oriented, base, depth, count, light_at)
+        light, node, pmf = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.float64)
+        for c in nb.prange((m + 4095) // 4096):          # chunks of blocks (sj._walks) on the threads
+            a, b = c * 4096, min(m, (c + 1) * 4096)
+            sj._walks(x[:, a:b], n[:, a:b], u[a:b].copy(), np.full(b - a, -1, np.int64), nodes, power, empty,
+                      oriented, base, depth, count, node[a:b], pmf[a:b])
+        for i in range(m):
+            light[i] = light_at[(count * node[i]) >> depth]
         return light, pmf
     return tree_sample
 

@@ -309,7 +309,8 @@ class PathTracer:
             p.beta[:, :alive] *= p.rr_after[:alive]
             p.rr_after[:alive] = 1.0
         # 4. Area lights: the ray goes on through them, as it was.
-        passing = self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
+        passing = (self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
+                   if through.stop > through.start else None)
         # 5. Direct light at hits with a non-delta BSDF (eq. 2.11).
         towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
         facing = surf.normal * towards                                      # towards the ray
@@ -352,7 +353,8 @@ class PathTracer:
                 p.radiance[:, span] += light
         # 6. Scatter: the next direction and throughput of every scattering path (non-delta lobes
         # draw their direction from the BSDF_UV pair, delta lobes need none).
-        u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1)) if non_delta else None
+        u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1))
+                  if non_delta and span.stop > span.start else None       # (scatter skips empty spans)
                   for span, non_delta in zip(spans, self.mats.non_delta)]
         new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf)
         if before_light is not None:        # the shadow rays' light, by the lobe the vertex sampled
@@ -821,6 +823,9 @@ class PathTracer:
         ls = self.lights.sample(x, nx, u_pick, u1, u2)
         if self.textures is not None:                   # textured emitters: Le at the sampled point
             ls.radiance = self.textures.light_radiance(ls.radiance, ls.light, ls.point)
+        if (self.wavefront_jit is not None and albedo is not None and ns == 1 and not si.smooth
+                and not transmits_non_delta(bsdf.flags) and (si.lookup is None or not si.lookup.has_normals)):
+            return self.lambert_direct_light(bsdf, si, point, offset, ls, counters, albedo)
         w = ls.direction
         cos_x = dot(nx, w)
         # A non-delta transmission lobe takes light from the far side too: side -1 there, and the
@@ -896,3 +901,23 @@ class PathTracer:
         if albedo is None:
             return mean
         return mean * albedo * (1.0 / np.pi)                            # f_r = colour / pi (eq. 2.13a)
+
+    def lambert_direct_light(self, bsdf, si, point, offset, ls, counters, albedo):
+        """direct_light's Lambertian case with one shadow ray per hit, flat shading and no Normal
+        input, for the light samples ls: the same tests, shadow rays and weights in two compiled
+        loops around the shadow rays (engine/integrators/wavefront_jit.py light_tests and
+        lambert_light), the same numbers."""
+        jit = self.wavefront_jit
+        cos_x, cos_ly, valid = jit.light_tests(si.n, ls, self.lights.any_one_sided)
+        k = len(cos_x)
+        blocked, p_b = np.zeros(0, dtype=bool), None
+        if len(valid):
+            origin, direction, seg_len = self.lights.shadow_rays(ls, None if len(valid) == k else valid, point,
+                                                                 offset, si.n, cos_ly)
+            counters.rays["shadow"] += len(valid)
+            blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
+            if self.mis:
+                with np.errstate(invalid="ignore", over="ignore"):
+                    p_b = bsdf.pdf(si, ls.direction)
+        return jit.lambert_light(valid, blocked, cos_x, ls, 0.0 if p_b is None else p_b, self.lights.bsdf_reachable,
+                                 self.mis, albedo)

@@ -1,9 +1,16 @@
-"""engine/integrators/path_tracer.py's compaction of the surviving paths compiled with numba: their
-next ray origins (the hit point moved off the surface, to the side they leave on), directions and
-throughputs gathered in one loop, instead of nine gathers and the temporaries of the origin's
-arithmetic.  The origin is the same float64 sum of the same products in the same order, so the same
-bits (tests/integrators/test_wavefront_jit.py).  Imported only through engine/core/backend.py's
-choice (it imports numba)."""
+"""engine/integrators/path_tracer.py's glue compiled with numba:
+
+* the compaction of the surviving paths (`next_rays`): their next ray origins (the hit point moved
+  off the surface, to the side they leave on), directions and throughputs gathered in one loop,
+  instead of nine gathers and the temporaries of the origin's arithmetic;
+* the direct light of a Lambertian BSDF with one shadow ray per hit, flat shading and no Normal
+  input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
+  the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
+  (`lambert_light`), one loop each instead of some twenty NumPy passes.
+
+The float64 operations are those of the NumPy path in the same order, so the same bits
+(tests/integrators/test_wavefront_jit.py).  Imported only through engine/core/backend.py's choice
+(it imports numba)."""
 from __future__ import annotations
 
 import numpy as np
@@ -37,7 +44,97 @@ def next_rays(keep, point, side, offset, facing, new_d, beta):
                       np.ascontiguousarray(offset, np.float64), rows[1], rows[2], rows[3])
 
 
+@jit
+def _light_tests(n, w, normal, pdf, distance, one_sided, any_one_sided, cos_x, cos_ly):
+    """cos_x = <n, w>, cos_ly = <light normal, w> and the samples kept (direct_light's `ok`:
+    light on the viewer's side, not edge-on, a density, a distance, a one-sided light's front)."""
+    k = pdf.shape[0]
+    valid = np.empty(k, np.int64)
+    count = 0
+    for i in range(k):
+        c = n[0, i] * w[0, i] + n[1, i] * w[1, i] + n[2, i] * w[2, i]
+        cl = normal[0, i] * w[0, i] + normal[1, i] * w[1, i] + normal[2, i] * w[2, i]
+        cos_x[i], cos_ly[i] = c, cl
+        ok = c > 0.0 and cl != 0.0 and pdf[i] > 0.0 and distance[i] > 0.0
+        if any_one_sided and one_sided[i] and cl >= 0.0:
+            ok = False
+        if ok:
+            valid[count] = i
+            count += 1
+    return valid[:count]
+
+
+@jit
+def _lambert_light(valid, blocked, cos_x, pdf, p_b, light, reachable, mis, radiance, albedo, out):
+    """out = Le weight rho / pi: weight = cos / p_l (times the power heuristic's light weight
+    against p_b under MIS, with p_b 0 for lights a BSDF sample cannot reach) where unblocked,
+    0 elsewhere; the products in direct_light's order ((Le weight) rho) (1 / pi)."""
+    k = pdf.shape[0]
+    weight = np.zeros(k)
+    for j in range(valid.shape[0]):
+        i = valid[j]
+        sample = cos_x[i] / pdf[i]
+        if mis:                                  # path_tracer.power_heuristic(1, p_l, 1, p_bsdf)
+            p_g = p_b[i] if reachable[light[i]] else 0.0
+            p_f = pdf[i]
+            r = (1.0 * p_g) / (1.0 * p_f)
+            h = 1.0 / (1.0 + r * r)
+            if not p_f > 0.0:
+                h = 0.0
+            elif h != h:                         # np.nan_to_num (h is never infinite)
+                h = 0.0
+            sample *= h
+        weight[i] = 0.0 if blocked[j] else sample
+    inv_pi = 1.0 / np.pi
+    for i in range(k):
+        for c in range(3):
+            out[c, i] = radiance[c, i] * weight[i] * albedo[c, i] * inv_pi
+
+
+def _fit(a, shape, dtype=np.float64):
+    """a as a contiguous array of `shape` (np.broadcast_to only when needed: its Python costs more
+    than these loops' work on small batches)."""
+    if isinstance(a, np.ndarray) and a.shape == shape:
+        return np.ascontiguousarray(a, dtype)
+    return np.ascontiguousarray(np.broadcast_to(a, shape), dtype)
+
+
+def _rows(a, k):
+    return _fit(a, (3, k))
+
+
+def light_tests(n, ls, any_one_sided):
+    """(cos_x, cos_ly, valid) of light samples ls (engine/lights/light_set.py LightSample) at receivers
+    with facing normals n (rows): direct_light's two cosines and the indices of its kept samples."""
+    k = ls.pdf.shape[0]
+    cos_x, cos_ly = np.empty(k), np.empty(k)
+    valid = _light_tests(_rows(n, k), _rows(ls.direction, k), _rows(ls.normal, k),
+                         np.ascontiguousarray(ls.pdf, np.float64), np.ascontiguousarray(ls.distance, np.float64),
+                         _fit(ls.one_sided, (k,), np.bool_), bool(any_one_sided),
+                         cos_x, cos_ly)
+    return cos_x, cos_ly, valid
+
+
+def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo):
+    """(3, k) Le weight rho / pi of the samples ls (direct_light's Lambertian return, one shadow ray):
+    valid from light_tests, blocked (len(valid),) from the shadow rays, p_b the BSDF's pdf of each
+    sample's direction (read only under mis), reachable per light (LightSet.bsdf_reachable)."""
+    k = cos_x.shape[0]
+    out = np.empty((3, k))
+    _lambert_light(np.ascontiguousarray(valid, np.int64), np.ascontiguousarray(blocked, np.bool_), cos_x,
+                   np.ascontiguousarray(ls.pdf, np.float64),
+                   _fit(p_b, (k,)),
+                   np.ascontiguousarray(ls.light, np.int64), np.ascontiguousarray(reachable, np.bool_), bool(mis),
+                   _rows(ls.radiance, k), _rows(albedo, k), out)
+    return out
+
+
 def warm_up() -> None:
-    """Compile (or load) the kernel for the types a render passes."""
+    """Compile (or load) the kernels for the types a render passes."""
+    from types import SimpleNamespace
     rows = np.ones((3, 3))
     next_rays(np.array([0, 2]), rows, np.ones(3), np.ones(3), rows, rows, rows)
+    ls = SimpleNamespace(direction=rows, normal=-rows, pdf=np.ones(3), distance=np.ones(3),
+                         one_sided=np.ones(3, np.bool_), light=np.zeros(3, np.int64), radiance=rows)
+    cos_x, _, valid = light_tests(rows, ls, True)
+    lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, np.ones(3), np.ones(1, np.bool_), True, rows)

@@ -148,6 +148,14 @@ def _c(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
+def _per_receiver(a, n):
+    """a (an array of n, or one number for all) as n contiguous float64 (np.broadcast_to only when
+    needed: its Python costs more than the kernels' loops on small batches)."""
+    if isinstance(a, np.ndarray) and a.shape == (n,):
+        return _c(a)
+    return _c(np.broadcast_to(a, (n,)))
+
+
 def _light_index(lights, idx):
     """(one, index): whether every receiver sees the same light, and the int64 light index the
     kernels read (one entry when `one`)."""
@@ -180,7 +188,7 @@ def spherical_point(lights, x, idx, az, f, omega, g23, u1, u2):
     one, index = _light_index(lights, idx)
     out = np.empty((3, n))
     _point(_c(x), index, one, lights.axis1, lights.axis2, az, f, _c(omega), _c(g23),
-           _c(np.broadcast_to(u1, (n,))), _c(np.broadcast_to(u2, (n,))), out)
+           _per_receiver(u1, n), _per_receiver(u2, n), out)
     return out
 
 
@@ -195,8 +203,8 @@ def sample_li(lights, x, idx, u1, u2, omega_min, grazing):
     g = np.arcsin(args)
     point, direction, distance, pdf = np.empty((3, n)), np.empty((3, n)), np.empty(n), np.empty(n)
     _sample(x, index, one, lights.axis1, lights.axis2, lights.v0, lights.e1, lights.e2, lights.normal, lights.area,
-            lights.rectangle, omega_min, grazing, az, f, g, cdist, _c(np.broadcast_to(u1, (n,))),
-            _c(np.broadcast_to(u2, (n,))), point, direction, distance, pdf)
+            lights.rectangle, omega_min, grazing, az, f, g, cdist, _per_receiver(u1, n),
+            _per_receiver(u2, n), point, direction, distance, pdf)
     return point, direction, distance, pdf
 
 

@@ -1,10 +1,12 @@
 """The light tree's walk (engine/lights/selection.py `LightTree._tree_sample` and `_tree_pmf`)
-compiled with numba: one loop over the rays, each walking down the levels, instead of one NumPy
-pass over the whole wavefront per level and per bound.
+compiled with numba: the rays' walks down the levels in compiled loops, instead of one NumPy pass
+over the whole wavefront per level and per bound.
 
 The arithmetic is that of `importance`, `box_distance2` and `LightTree._left_probability`, in
 the same order and the same precision (float32 for the importance, float64 for the probabilities),
 so the lights drawn and the pmfs are the same bit for bit (tests/lights/test_selection_jit.py).
+The walks of BLOCK rays go side by side, level by level (`_walks`), the importances of a level in
+a loop LLVM vectorises (`_lane_importances`).
 Imported only through engine/core/backend.py's choice (it imports numba).
 """
 from __future__ import annotations
@@ -29,87 +31,123 @@ def _max(a, b):
     return a if (a >= b or a != a) else b
 
 
-@inline
-def _importance(x0, x1, x2, n0, n1, n2, t, oriented):
-    """selection.importance of the node whose row of the node table is t (columns as
-    selection.LightTree's level tables, then SIN_O).  Every branch is a select (both sides computed:
-    the same numbers, no mispredicted jumps: 1.45x the branching form on a many-lights render's walks)."""
-    w0, w1, w2 = t[0] - x0, t[1] - x1, t[2] - x2
-    inv_d = F1 / np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    s = t[12] * inv_d
-    inside = not s < F1
-    sin_u = F0 if inside else s
-    cos_u = -F1 if inside else np.sqrt(F1 - s * s)
-    cos_i = (n0 * w0 + n1 * w1 + n2 * w2) * inv_d
-    sin_i = np.sqrt(_max(F1 - cos_i * cos_i, F0))
-    cos_r = F1 if (inside or cos_i > cos_u) else cos_i * cos_u + sin_i * sin_u
-    g0 = _max(_max(t[3] - x0, x0 - t[6]), F0)
-    g1 = _max(_max(t[4] - x1, x1 - t[7]), F0)
-    g2 = _max(_max(t[5] - x2, x2 - t[8]), F0)
-    near2 = g0 * g0 + g1 * g1 + g2 * g2
-    result = t[14] * _max(cos_r, F0) / _max(_max(near2, t[15]), TINY)
-    cos_o, sin_o = t[13], t[SIN_O]
-    cos_t = -(t[9] * w0 + t[10] * w1 + t[11] * w2) * inv_d
-    sin_t = np.sqrt(_max(F1 - cos_t * cos_t, F0))
-    beyond = cos_t <= cos_o
-    cos_a = cos_t * cos_o + sin_t * sin_o if beyond else F1
-    sin_a = sin_t * cos_o - cos_t * sin_o if beyond else F0
-    cos_e = F1 if (inside or cos_a > cos_u) else cos_a * cos_u + sin_a * sin_u
-    emitter_side = result * _max(cos_e, F0)
-    return emitter_side if oriented else result
+BLOCK = 64                               # rays walked together, level by level
+ROWS = 6 + 2 * 17 + 2                    # lane rows: x (3), n (3), two children's 17 columns, their importances
 
 
 @jit
-def _left_probability(x0, x1, x2, n0, n1, n2, c, nodes, power, empty, oriented):
-    """LightTree._left_probability for a receiver (float32) and the left child, node c of the table,
-    of a level whose emitter-side test is `oriented`."""
-    i_left = _importance(x0, x1, x2, n0, n1, n2, nodes[c], oriented)
-    i_right = _importance(x0, x1, x2, n0, n1, n2, nodes[c + 1], oriented)
-    total = i_left + i_right
-    p_left, p_right = power[c], power[c + 1]
-    by_power = p_left / _max(p_left + p_right, 1e-300) if p_left + p_right > 0.0 else 0.5
-    p = np.float64(i_left / total) if total > F0 else by_power
-    return 1.0 if empty[c + 1] else (0.0 if empty[c] else p)
+def _lane_importances(lane, size, oriented, col, dst):
+    """selection.importance for lanes b < size of a block, into lane row dst: lane[k * BLOCK + b]
+    holds row k (x0 x1 x2 n0 n1 n2 of the receiver; from row col on the columns of the node's row of
+    the node table).  Every branch is a select, so both sides are computed (the same numbers).  One
+    flat array whose rows are at constant offsets: LLVM vectorises the loop (rows of several arrays
+    at runtime strides need more runtime overlap checks than its limit: scalar code)."""
+    for b in range(size):
+        x0, x1, x2 = lane[b], lane[BLOCK + b], lane[2 * BLOCK + b]
+        n0, n1, n2 = lane[3 * BLOCK + b], lane[4 * BLOCK + b], lane[5 * BLOCK + b]
+        t = col * BLOCK + b                      # column k of the node: lane[t + k * BLOCK]
+        w0, w1, w2 = lane[t] - x0, lane[t + BLOCK] - x1, lane[t + 2 * BLOCK] - x2
+        inv_d = F1 / np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        s = lane[t + 12 * BLOCK] * inv_d
+        inside = not s < F1
+        sin_u = F0 if inside else s
+        cos_u = -F1 if inside else np.sqrt(F1 - s * s)
+        cos_i = (n0 * w0 + n1 * w1 + n2 * w2) * inv_d
+        sin_i = np.sqrt(_max(F1 - cos_i * cos_i, F0))
+        cos_r = F1 if (inside or cos_i > cos_u) else cos_i * cos_u + sin_i * sin_u
+        g0 = _max(_max(lane[t + 3 * BLOCK] - x0, x0 - lane[t + 6 * BLOCK]), F0)
+        g1 = _max(_max(lane[t + 4 * BLOCK] - x1, x1 - lane[t + 7 * BLOCK]), F0)
+        g2 = _max(_max(lane[t + 5 * BLOCK] - x2, x2 - lane[t + 8 * BLOCK]), F0)
+        near2 = g0 * g0 + g1 * g1 + g2 * g2
+        result = lane[t + 14 * BLOCK] * _max(cos_r, F0) / _max(_max(near2, lane[t + 15 * BLOCK]), TINY)
+        cos_o, sin_o = lane[t + 13 * BLOCK], lane[t + SIN_O * BLOCK]
+        cos_t = -(lane[t + 9 * BLOCK] * w0 + lane[t + 10 * BLOCK] * w1 + lane[t + 11 * BLOCK] * w2) * inv_d
+        sin_t = np.sqrt(_max(F1 - cos_t * cos_t, F0))
+        beyond = cos_t <= cos_o
+        cos_a = cos_t * cos_o + sin_t * sin_o if beyond else F1
+        sin_a = sin_t * cos_o - cos_t * sin_o if beyond else F0
+        cos_e = F1 if (inside or cos_a > cos_u) else cos_a * cos_u + sin_a * sin_u
+        emitter_side = result * _max(cos_e, F0)
+        lane[dst * BLOCK + b] = emitter_side if oriented else result
+
+
+IL, IR = 6 + 2 * 17, 6 + 2 * 17 + 1      # the lane rows of the children's importances
+UI, Q, PL, PR = 0, 1, 2, 3               # rows of the float64 state lanes
+NODE, TARGET, EL, ER = 0, 1, 2, 3        # rows of the int64 state lanes
 
 
 @jit
-def _walk(x0, x1, x2, n0, n1, n2, ui, nodes, power, empty, oriented, base, depth, count, light_at):
-    """(light, tree pmf) of one receiver drawn with ui: LightTree._tree_sample's walk."""
-    node, q = 0, 1.0
-    for level in range(1, depth + 1):
-        left = 2 * node
-        p = _left_probability(x0, x1, x2, n0, n1, n2, base[level] + left, nodes, power, empty, oriented[level])
-        go_left = ui < p
-        ui = ui / p if go_left else (ui - p) / (1.0 - p)
-        ui = 0.0 if ui != ui else ui                     # np.nan_to_num, then np.clip
-        ui = min(max(ui, 0.0), BELOW_ONE)
-        q *= p if go_left else 1.0 - p
-        node = left if go_left else left + 1
-    return light_at[(count * node) >> depth], q
+def _lane_steps(lane, st, it, size, level, count):
+    """One level's step of each lane: LightTree._left_probability's rest and _tree_sample's (target
+    < 0: by ui) or _tree_pmf's step, both sides computed and selected (a loop LLVM vectorises: three
+    lane arrays, rows at constant offsets)."""
+    for b in range(size):
+        left = 2 * it[NODE * BLOCK + b]
+        i_left = lane[IL * BLOCK + b]
+        total = i_left + lane[IR * BLOCK + b]
+        p_left, p_right = st[PL * BLOCK + b], st[PR * BLOCK + b]
+        by_power = p_left / _max(p_left + p_right, 1e-300) if p_left + p_right > 0.0 else 0.5
+        p = np.float64(i_left / total) if total > F0 else by_power
+        p = 1.0 if it[ER * BLOCK + b] != 0 else (0.0 if it[EL * BLOCK + b] != 0 else p)   # never an empty child
+        target = it[TARGET * BLOCK + b]
+        w = st[UI * BLOCK + b]
+        go_left = (target < (count * (left + 1)) >> level) if target >= 0 else w < p
+        w = w / p if go_left else (w - p) / (1.0 - p)
+        w = 0.0 if w != w else w                         # np.nan_to_num, then np.clip
+        w = min(max(w, 0.0), BELOW_ONE)
+        st[UI * BLOCK + b] = st[UI * BLOCK + b] if target >= 0 else w
+        st[Q * BLOCK + b] *= p if go_left else 1.0 - p
+        it[NODE * BLOCK + b] = left if go_left else left + 1
 
 
 @jit
-def _walk_pmf(x0, x1, x2, n0, n1, n2, position, nodes, power, empty, oriented, base, depth, count):
-    """The tree pmf of the light at sorted `position` for one receiver: LightTree._tree_pmf's walk."""
-    node, q = 0, 1.0
-    for level in range(1, depth + 1):
-        left = 2 * node
-        go_left = position < (count * (left + 1)) >> level
-        p = _left_probability(x0, x1, x2, n0, n1, n2, base[level] + left, nodes, power, empty, oriented[level])
-        q *= p if go_left else 1.0 - p
-        node = left if go_left else left + 1
-    return q
+def _walks(x, n, ui, target, nodes, power, empty, oriented, base, depth, count, node, q):
+    """The tree walks of all receivers (x, n rows, rounded to float32 per ray), BLOCK at a time and
+    level by level: a receiver with target < 0 draws with ui (LightTree._tree_sample: ui is rescaled
+    in place), one with a sorted light position `target` walks towards it (LightTree._tree_pmf);
+    node gets each walk's leaf, q its tree pmf.  Per level: the two children's node-table rows,
+    powers and emptiness copied into the lanes, their importances (_lane_importances), then the
+    steps (_lane_steps): per receiver the operations of the NumPy walk in its order (the same bits),
+    the block's walks side by side in vectorised loops instead of one walk's chain of dependent
+    square roots and divisions at a time."""
+    m = ui.shape[0]
+    lane = np.empty(ROWS * BLOCK, np.float32)
+    st = np.empty(4 * BLOCK, np.float64)
+    it = np.zeros(4 * BLOCK, np.int64)
+    for start in range(0, m, BLOCK):
+        size = min(BLOCK, m - start)
+        for b in range(size):
+            for c in range(3):
+                lane[c * BLOCK + b] = np.float32(x[c, start + b])
+                lane[(3 + c) * BLOCK + b] = np.float32(n[c, start + b])
+            it[NODE * BLOCK + b], it[TARGET * BLOCK + b] = 0, target[start + b]
+            st[UI * BLOCK + b], st[Q * BLOCK + b] = ui[start + b], 1.0
+        for level in range(1, depth + 1):
+            c0 = base[level]
+            for b in range(size):
+                c = c0 + 2 * it[NODE * BLOCK + b]
+                for k in range(17):
+                    lane[(6 + k) * BLOCK + b] = nodes[c, k]
+                    lane[(23 + k) * BLOCK + b] = nodes[c + 1, k]
+                st[PL * BLOCK + b], st[PR * BLOCK + b] = power[c], power[c + 1]
+                it[EL * BLOCK + b], it[ER * BLOCK + b] = empty[c], empty[c + 1]
+            _lane_importances(lane, size, oriented[level], 6, IL)
+            _lane_importances(lane, size, oriented[level], 23, IR)
+            _lane_steps(lane, st, it, size, level, count)
+        for b in range(size):
+            node[start + b], q[start + b] = it[NODE * BLOCK + b], st[Q * BLOCK + b]
+            ui[start + b] = st[UI * BLOCK + b]
 
 
 @jit
 def tree_sample(x, n, u, nodes, power, empty, oriented, base, depth, count, light_at):
     """(light, tree pmf) per ray: LightTree._tree_sample (x, n float32 rows)."""
     m = u.shape[0]
+    node, pmf = np.empty(m, np.int64), np.empty(m, np.float64)
+    _walks(x, n, u.copy(), np.full(m, -1, np.int64), nodes, power, empty, oriented, base, depth, count, node, pmf)
     light = np.empty(m, np.int64)
-    pmf = np.empty(m, np.float64)
     for i in range(m):
-        light[i], pmf[i] = _walk(x[0, i], x[1, i], x[2, i], n[0, i], n[1, i], n[2, i], u[i], nodes, power, empty,
-                                 oriented, base, depth, count, light_at)
+        light[i] = light_at[(count * node[i]) >> depth]
     return light, pmf
 
 
@@ -117,25 +155,24 @@ def tree_sample(x, n, u, nodes, power, empty, oriented, base, depth, count, ligh
 def tree_pmf(x, n, light, nodes, power, empty, oriented, base, depth, count, position_of):
     """The tree pmf of each ray's light: LightTree._tree_pmf (x, n float32 rows)."""
     m = light.shape[0]
-    pmf = np.empty(m, np.float64)
+    node, pmf = np.empty(m, np.int64), np.empty(m, np.float64)
+    target = np.empty(m, np.int64)
     for i in range(m):
-        pmf[i] = _walk_pmf(x[0, i], x[1, i], x[2, i], n[0, i], n[1, i], n[2, i], position_of[light[i]], nodes,
-                           power, empty, oriented, base, depth, count)
+        target[i] = position_of[light[i]]
+    _walks(x, n, np.zeros(m), target, nodes, power, empty, oriented, base, depth, count, node, pmf)
     return pmf
 
 
 @jit
 def select(x, n, u, nodes, power, empty, oriented, base, depth, count, light_at, position_of, prob, cdf, defensive):
-    """LightTree.sample in one loop (x, n float64 rows, rounded to float32 per ray as the NumPy path's
-    astype): u < defensive picks by the power pmf (PowerSelection.sample on u / defensive) and walks
-    the tree for that light's pmf, else the tree's walk on the rescaled u; the pmf mixed as there."""
+    """LightTree.sample (x, n float64 rows, rounded to float32 per ray as the NumPy path's astype):
+    u < defensive picks by the power pmf (PowerSelection.sample on u / defensive) and walks the tree
+    for that light's pmf, else the tree's walk on the rescaled u; the pmf mixed as there."""
     m = u.shape[0]
-    light = np.empty(m, np.int64)
-    pmf = np.empty(m, np.float64)
+    light, target = np.empty(m, np.int64), np.full(m, -1, np.int64)
+    ui, node, q = np.zeros(m), np.empty(m, np.int64), np.empty(m, np.float64)
     last = cdf[count - 1]
     for i in range(m):
-        x0, x1, x2 = np.float32(x[0, i]), np.float32(x[1, i]), np.float32(x[2, i])
-        n0, n1, n2 = np.float32(n[0, i]), np.float32(n[1, i]), np.float32(n[2, i])
         if u[i] < defensive:
             v = u[i] / defensive * last              # np.searchsorted(cdf, v, side="right"), then min
             lo, hi = 0, count
@@ -146,26 +183,26 @@ def select(x, n, u, nodes, power, empty, oriented, base, depth, count, light_at,
                 else:
                     lo = mid + 1
             k = min(lo, count - 1)
-            q = _walk_pmf(x0, x1, x2, n0, n1, n2, position_of[k], nodes, power, empty, oriented, base, depth, count)
+            light[i], target[i] = k, position_of[k]
         else:
-            k, q = _walk(x0, x1, x2, n0, n1, n2, (u[i] - defensive) / (1.0 - defensive), nodes, power, empty,
-                         oriented, base, depth, count, light_at)
-        light[i] = k
-        pmf[i] = defensive * prob[k] + (1.0 - defensive) * q
+            ui[i] = (u[i] - defensive) / (1.0 - defensive)
+    _walks(x, n, ui, target, nodes, power, empty, oriented, base, depth, count, node, q)
+    pmf = np.empty(m, np.float64)
+    for i in range(m):
+        if target[i] < 0:
+            light[i] = light_at[(count * node[i]) >> depth]
+        pmf[i] = defensive * prob[light[i]] + (1.0 - defensive) * q[i]
     return light, pmf
 
 
 @jit
 def mixed_pmf(x, n, light, nodes, power, empty, oriented, base, depth, count, position_of, prob, defensive):
-    """LightTree.pmf in one loop (x, n float64 rows, rounded to float32 per ray)."""
+    """LightTree.pmf (x, n float64 rows, rounded to float32 per ray)."""
     m = light.shape[0]
+    q = tree_pmf(x, n, light, nodes, power, empty, oriented, base, depth, count, position_of)
     pmf = np.empty(m, np.float64)
     for i in range(m):
-        k = light[i]
-        q = _walk_pmf(np.float32(x[0, i]), np.float32(x[1, i]), np.float32(x[2, i]), np.float32(n[0, i]),
-                      np.float32(n[1, i]), np.float32(n[2, i]), position_of[k], nodes, power, empty, oriented,
-                      base, depth, count)
-        pmf[i] = defensive * prob[k] + (1.0 - defensive) * q
+        pmf[i] = defensive * prob[light[i]] + (1.0 - defensive) * q[i]
     return pmf
 
 

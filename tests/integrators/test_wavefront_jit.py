@@ -1,6 +1,7 @@
 """The compiled compaction (engine/integrators/wavefront_jit.py next_rays) against the NumPy one
 (engine/integrators/path_tracer.py next_rays), on the inputs of real renders of built-in scenes and
-on made-up ones with NaN and huge offsets; and a render whose only compiled kernel is this one."""
+on made-up ones with NaN and huge offsets; and renders whose only compiled kernels are this module's
+(the compaction and the Lambertian direct light, light_tests and lambert_light), with a control."""
 import numpy as np
 import pytest
 
@@ -61,21 +62,75 @@ def test_made_up_paths_with_nan_and_both_sides():
     assert not same(a, (unsided,) + a[1:])
 
 
-def test_a_render_with_the_compiled_compaction_alone_is_the_same():
-    require_compiled()
-    from engine.integrators import wavefront_jit
+def render_with(scene, twin, size=24):
+    """The image of a one-thread NumPy-backend render of a built-in scene with `twin` as the path
+    tracer's wavefront_jit (None: NumPy's glue)."""
     from engine.rendering import session
-    scene = BUILTIN_SCENES["caustic"]((24, 24))
-    settings = RenderSettings(samples=4, threads=1, backend="numpy")
-    reference = api.render(scene, settings, log=lambda m: None).image
     original = session.PathTracer.__init__
 
     def with_twin(self, *args, **kwargs):
         original(self, *args, **kwargs)
-        self.wavefront_jit = wavefront_jit
+        self.wavefront_jit = twin
     session.PathTracer.__init__ = with_twin
     try:
-        compiled = api.render(BUILTIN_SCENES["caustic"]((24, 24)), settings, log=lambda m: None).image
+        return api.render(BUILTIN_SCENES[scene]((size, size)), RenderSettings(samples=4, threads=1, backend="numpy"),
+                          log=lambda m: None).image
     finally:
         session.PathTracer.__init__ = original
-    assert np.array_equal(reference, compiled)
+
+
+@pytest.mark.parametrize("scene", ["caustic", "many_lights"])
+def test_a_render_with_this_modules_kernels_alone_is_the_same(scene):
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    assert np.array_equal(render_with(scene, None), render_with(scene, wavefront_jit))
+
+
+def test_a_render_with_a_direct_light_slightly_off_differs():
+    """Control: the Lambertian direct light's kernel with its result 2^-20 too large changes the
+    (float32) image."""
+    require_compiled()
+    from types import SimpleNamespace
+    from engine.integrators import wavefront_jit
+
+    def off(*args):
+        return wavefront_jit.lambert_light(*args) * (1.0 + 2.0 ** -20)
+    wrong = SimpleNamespace(next_rays=wavefront_jit.next_rays, light_tests=wavefront_jit.light_tests, lambert_light=off)
+    assert not np.array_equal(render_with("cornell", None, 16), render_with("cornell", wrong, 16))
+
+
+@pytest.mark.parametrize("scene", ["cornell", "many_lights"])
+def test_recorded_direct_light_calls_are_bit_identical(scene):
+    """PathTracer.direct_light on the calls of a real render, with and without this module (its
+    Lambertian case compiled): the same float64 light, bit for bit; a control an ulp off differs."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    from engine.rendering import session
+    calls, original = [], session.PathTracer.direct_light
+
+    def recording(self, *args, **kwargs):
+        calls.append((self, args, kwargs))
+        return original(self, *args, **kwargs)
+    session.PathTracer.direct_light = recording
+    try:
+        render_with(scene, None, 16)
+    finally:
+        session.PathTracer.direct_light = original
+    assert len(calls) >= 4
+    fused, lambert = [], session.PathTracer.lambert_direct_light
+
+    def counted(self, *args):
+        fused.append(1)
+        return lambert(self, *args)
+    session.PathTracer.lambert_direct_light = counted
+    try:
+        for tracer, args, kwargs in calls[:6]:
+            tracer.wavefront_jit = None
+            reference = original(tracer, *args, **kwargs)
+            tracer.wavefront_jit = wavefront_jit
+            compiled = original(tracer, *args, **kwargs)
+            assert reference.dtype == compiled.dtype == np.float64 and np.array_equal(reference, compiled)
+            assert (reference > 0).any() and not np.array_equal(reference, np.nextafter(compiled, np.inf))
+    finally:
+        session.PathTracer.lambert_direct_light = lambert
+    assert len(fused) == min(len(calls), 6)            # the compiled case ran every time
