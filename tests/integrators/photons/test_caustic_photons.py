@@ -289,3 +289,17 @@ def test_the_gather_coins_are_a_function_of_seed_sample_and_point():
     assert not np.array_equal(a, caustics_module.gather_coins(8, sample, points))          # control: the seed
     assert not np.array_equal(a, caustics_module.gather_coins(7, sample + 1, points))
     assert np.all((0.0 <= a) & (a < 1.0)) and abs(a.mean() - 0.5) < 0.05
+
+
+def test_the_automatic_photon_count_follows_the_pixels():
+    """photons_per_pass 0: a quarter of the render's pixels a pass, within 1000 and 50 000; a count
+    set is kept."""
+    from engine.integrators.photons.caustics import photons_per_pass
+    auto = RenderSettings()
+    assert auto.photons_per_pass == 0
+    assert photons_per_pass(auto, caustic_scene((96, 96))) == 2304
+    assert photons_per_pass(auto, caustic_scene((256, 128))) == 8192
+    assert photons_per_pass(auto, caustic_scene((16, 16))) == 1000
+    assert photons_per_pass(auto, caustic_scene((1920, 1080))) == 50000
+    assert photons_per_pass(RenderSettings(photons_per_pass=3000), caustic_scene((96, 96))) == 3000
+    assert prepared(caustic_scene((96, 96))).tracer.photons.photons == 2304
