@@ -90,6 +90,7 @@ class BatchMaps:
             order.append(mine[k].take(sort))
             keys.append(s * PASS_STRIDE + key.take(sort))
         order = np.concatenate(order) if order else np.zeros(0, np.int64)
+        self.source = order                 # each photon's index in the stored batch
         self.keys = np.ascontiguousarray(np.concatenate(keys) if keys else np.zeros(0, np.int64), np.int64)
         self.offsets = np.concatenate([[0], np.cumsum([len(o) for o in keys])]).astype(np.int64)
         self.position, self.incoming, self.flux, self.normal = (

@@ -57,9 +57,10 @@ def brute_pairs(maps, stored, points, facing, local, radius, segments, budget):
 
 
 def stored_index(maps, stored, photon):
-    """The stored photon each of the maps' photons is (their positions are distinct)."""
-    where = {tuple(x): i for i, x in enumerate(stored.position.T)}
-    return np.array([where[tuple(x)] for x in maps.position[:, photon].T], np.int64)
+    """The stored photon each of the maps' photons is (checked by its position)."""
+    index = maps.source.take(photon)
+    assert np.array_equal(stored.position.take(index, axis=1), maps.position.take(photon, axis=1))
+    return index
 
 
 def test_the_pairs_are_every_photon_within_the_radius_under_the_rules():
