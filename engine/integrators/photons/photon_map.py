@@ -101,7 +101,7 @@ class BatchMaps:
         self.chain = np.ascontiguousarray(chain.take(order, axis=1), np.int64)
         self.count = len(order)
         self.nbytes = sum(a.nbytes for a in (self.position, self.incoming, self.flux, self.normal, self.segments,
-                                             self.chain, self.keys))
+                                             self.chain, self.keys, self.source))
 
     def slot(self, k: int, scale: float = 1.0) -> int:
         """The slot of pass k whose grid is scale's (the grid of the largest scale up to it)."""
