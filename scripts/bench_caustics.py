@@ -1,7 +1,8 @@
 """Caustics by the photon map against path tracing (`mis`) at equal time, and both against Cycles, in one run.
 
   python scripts/bench_caustics.py [--resolution N] [--seconds T] [--reference-spp S] [--photons P] [--radius R]
-         [--parts equal-time cycles] [--cycles-samples S] [--cycles-reference-samples S] [--threads N]
+         [--parts equal-time cycles photon-count] [--cycles-samples S] [--cycles-reference-samples S] [--threads N]
+         [--scenes ...] [--photon-counts N ...] [--count-samples S]
   make bench-caustics
 
 Part "equal-time":
@@ -27,6 +28,16 @@ process CPU seconds (all threads), MSE, efficiency and its ratio to Cycles'; the
 before and after.  The MSE includes the reference's own noise (about MSE_cycles x samples /
 reference samples, printed; the last column takes it out of every MSE) and the model difference of
 implicit against tessellated balls.
+
+Part "photon-count" (not in the default parts): the photons per pass against the render's variance
+at equal time, on the sample scenes --scenes (cornell, point_caustic, caustic: the Cornell box's
+glass and mirror balls, a point light's caustic through a glass ball, the caustic room) at N x N:
+for each count of --photon-counts, TNCG15 MC with `auto` at --count-samples twice, at independent
+seeds (1 and 1 + 2^16: seeds s and s + 1 share camera samples, tests/addon/imagecompare.py), in
+process with --threads threads; variance = mean (a - b)^2 / 2 over the pixels, CPU = the process's
+CPU seconds per render; printed: each count's variance, CPU seconds and efficiency 1 / (variance
+CPU) relative to the first count's.  No reference needed: the photon count changes no bias (the
+radius does not depend on it).
 """
 from __future__ import annotations
 
@@ -165,23 +176,64 @@ def against_cycles(args, log=print):
         f"{' '.join(f'{v:.2f}' for v in load_before)}, after {' '.join(f'{v:.2f}' for v in load_after)}")
 
 
+def photon_count(args, log=print):
+    """Variance at equal time for each photon count of `args.photon_counts` (see the module's docstring)."""
+    from mcrt_addon import bench_estimators as be
+    res = (args.resolution, args.resolution)
+    cache = os.path.abspath(os.path.join("renders", "reference"))
+    make_samples = be.load_make_samples()
+    load_before = os.getloadavg()
+    lines = ["| scene | photons per pass | spp | CPU [s] (two renders) | variance | eff. 1/(var CPU) / first |",
+             "|---|---:|---:|---:|---:|---:|"]
+    for name in args.scenes:
+        label, blend, _ = be.scene_blend(name, os.path.join(cache, "blends"), make_samples)
+        exported = be.export_tracer_scene(be.open_blend(blend, res), res).scene
+        render_ours(exported, "auto", 4, 0, args.threads, args.photon_counts[0], args.radius)        # warm-up
+        first = None
+        for count in args.photon_counts:
+            runs = [render_ours(exported, "auto", args.count_samples, seed, args.threads, count, args.radius)
+                    for seed in (1, 1 + (1 << 16))]
+            (a, _, ca, stats), (b, _, cb, _) = runs
+            variance = float(np.mean((a - b) ** 2) / 2.0)
+            cpu = 0.5 * (ca + cb)
+            eff = 1.0 / (variance * cpu)
+            first = first or eff
+            on = "photons" in stats
+            log(f"{label}: {count:6d} photons per pass, {args.count_samples} spp: CPU {ca:6.2f} + {cb:6.2f} s, "
+                f"variance {variance:.4e}, efficiency / first {eff / first:.2f}x" + ("" if on else " (no photon pass)"))
+            lines.append(f"| {label} | {count} | {args.count_samples} | {ca:.2f} + {cb:.2f} | {variance:.4e} | "
+                         f"{eff / first:.2f} |")
+    load_after = os.getloadavg()
+    log("")
+    log("\n".join(lines))
+    log(f"\n{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC; load average (1, 5, 15 min) before "
+        f"{' '.join(f'{v:.2f}' for v in load_before)}, after {' '.join(f'{v:.2f}' for v in load_after)}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--resolution", type=int, default=96)
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--reference-spp", type=int, default=16384)
-    ap.add_argument("--photons", type=int, default=RenderSettings().photons_per_pass)
+    ap.add_argument("--photons", type=int, default=RenderSettings().photons_per_pass,
+                    help="photons per pass (0: the setting's automatic count)")
     ap.add_argument("--radius", type=float, default=0.0, help="the photon map's first radius (0: auto)")
-    ap.add_argument("--parts", nargs="+", choices=("equal-time", "cycles"), default=("equal-time", "cycles"))
+    ap.add_argument("--parts", nargs="+", choices=("equal-time", "cycles", "photon-count"),
+                    default=("equal-time", "cycles"))
     ap.add_argument("--scenes", nargs="+", default=CYCLES_SCENES, help="sample scenes of the Cycles part")
     ap.add_argument("--cycles-samples", type=int, default=256)
     ap.add_argument("--cycles-reference-samples", type=int, default=8192)
     ap.add_argument("--threads", type=int, default=2, help="threads of both renderers in the Cycles part")
+    ap.add_argument("--photon-counts", nargs="+", type=int, default=(10000, 5000, 2500, 1250),
+                    help="photons per pass of the photon-count part")
+    ap.add_argument("--count-samples", type=int, default=64, help="samples per pixel of the photon-count part")
     args = ap.parse_args(argv)
     if "equal-time" in args.parts:
         equal_time(args)
     if "cycles" in args.parts:
         against_cycles(args)
+    if "photon-count" in args.parts:
+        photon_count(args)
 
 
 if __name__ == "__main__":

@@ -53,6 +53,7 @@ JIT_MODULES = {
     "integrators.wavefront_jit": ("wavefront",),
     "scene.camera_rays_jit": ("wavefront",),
     "lights.light_set_jit": ("emission",),
+    "integrators.photons.gather_jit": ("photon_caustics",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 

@@ -219,9 +219,11 @@ SETTINGS = (
             choices=(Choice("auto", "Auto", "A photon map where the scene has specular objects and receivers"),
                      Choice("path", "Path Tracing", "Path tracing alone (point-light caustics stay black)"),
                      Choice("photons", "Photon Map", "A progressive caustic photon map beside the path tracer"))),
-    Setting("photons_per_pass", INT, 10000, "caustic photons emitted per photon pass (one pass per sample "
-            "per pixel)", limits=(1, INT32_MAX), flag="--photons-per-pass", label="Photons per Pass",
-            description="Caustic photons emitted per pass (one pass per sample)", bpy_options={"soft_max": 2000000},
+    Setting("photons_per_pass", INT, 0, "caustic photons emitted per photon pass (one pass per sample "
+            "per pixel; 0 = auto: a quarter of the render's pixels, 1000 to 50000)", limits=(0, INT32_MAX),
+            flag="--photons-per-pass", label="Photons per Pass",
+            description="Caustic photons emitted per pass (one pass per sample; 0: a quarter of the pixels)",
+            bpy_options={"soft_max": 2000000},
             panel="Light Paths > Caustics", stats=STATS_AS_SET),
     Setting("photon_radius", FLOAT, 0.0, "the caustic photon map's first gather radius (0 = auto: one pixel "
             "footprint at the specular objects)", limits=(0.0, 1e30), flag="--photon-radius", metavar="R",

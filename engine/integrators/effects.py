@@ -274,7 +274,7 @@ def _plan_photons(settings, set_effect, users, receivers, emitters) -> None:
     on = (method != "path" and not report and not clamped and bool(specular) and bool(receivers) and bool(emitters)
           and not toggled)
     set_effect("photon_caustics", on,
-               f"caustics_method {method}: {settings.photons_per_pass} photons per pass aimed at the specular "
+               f"caustics_method {method}: {settings.photons_per_pass or 'auto'} photons per pass aimed at the specular "
                f"{_names(specular)}, gathered on the non-specular {_names(receivers)} (radius "
                f"{'auto' if settings.photon_radius <= 0 else format(settings.photon_radius, 'g')}, alpha "
                f"{settings.photon_alpha:.3g}); the path tracer leaves L S+ D paths to them" if on else

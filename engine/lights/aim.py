@@ -58,6 +58,12 @@ class SphereTargets:
             w[:, inside] = uniform_sphere(u1[inside], u2[inside])
         return w, self.pdf(x, w)
 
+    def solid_angle(self, x) -> float:
+        """The sum of the targets' cones' solid angles from the point x (3,): the directions a ray
+        aimed from x spreads over (4 pi for a target holding x; overlaps counted twice)."""
+        axis, one_minus, inside = self._cone(np.repeat(np.reshape(x, (3, 1)), self.count, axis=1), np.arange(self.count))
+        return float(np.sum(np.where(inside, 4.0 * np.pi, 2.0 * np.pi * one_minus)))
+
     def pdf(self, x, w):
         """(N,) mixture density of the unit directions w from the points x."""
         total = np.zeros(w.shape[1])

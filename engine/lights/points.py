@@ -14,7 +14,12 @@ light's: the falloff only scales what a sample carries.
 
 Rays leaving a point light (sample_emission): directions uniform over the sphere (a spot light's:
 uniform in its cone), from a point uniform on the disk of radius r that faces the direction (the
-disk every receiver in that direction sees).
+disk every receiver in that direction sees).  Aimed at target spheres (caustic photons,
+engine/lights/aim.py), the directions are the targets' from the light's centre, each sphere grown by
+the light's radius: a ray from any point of the disk that meets a sphere of radius R is within
+R + r of its centre, so the grown cones hold every such ray; a spot's falloff then scales (or
+zeroes) what each ray carries.  A spot light whose cone is narrower than the targets' (their solid
+angles) keeps its cone instead.
 """
 from __future__ import annotations
 
@@ -22,6 +27,7 @@ import numpy as np
 
 from ..sampling.warps import orthonormal_basis, uniform_cone, uniform_sphere, unit_circle
 from ..core.vec import dot, gather, rows
+from .aim import SphereTargets
 from .protocol import EmissionSample, LightBounds, finite_sample
 
 
@@ -134,17 +140,23 @@ class PointLights:
         its cone (pdf_dir 1 / (2 pi (1 - cos(size / 2)))); origin uniform on the disk of radius r
         facing it (u3, u4; pdf_pos 1 / (pi r^2); a point without a radius: the centre, pdf_pos 1,
         radiance its intensity), so radiance / (pdf_pos pdf_dir) = 4 pi I x falloff for a point
-        light (the falloff's solid angle for a spot)."""
+        light (the falloff's solid angle for a spot).  With `targets` (engine/lights/aim.py
+        SphereTargets) the direction is aimed from the centre at the targets grown by the light's
+        radius, pdf_dir their mixture density."""
         direction = uniform_sphere(u1, u2)
         pdf_dir = np.full(len(u1), 1.0 / (4.0 * np.pi))
+        aim = np.zeros(len(idx), bool) if targets is None else self._aims(idx, targets)
         if len(self.spots):
             slot = self.spot_slot.take(idx)
-            sel = np.flatnonzero(slot >= 0)
+            sel = np.flatnonzero((slot >= 0) & ~aim)
             if len(sel):
                 k = slot.take(sel)
                 one_minus = 1.0 - self.spot_cos_half.take(k)
                 direction[:, sel], _ = uniform_cone(u1.take(sel), u2.take(sel), gather(self.spot_axis, k), one_minus)
                 pdf_dir[sel] = 1.0 / (2.0 * np.pi * one_minus)
+        if aim.any():
+            sel = np.flatnonzero(aim)
+            direction[:, sel], pdf_dir[sel] = self._aimed(idx.take(sel), u1.take(sel), u2.take(sel), targets)
         t1, t2 = orthonormal_basis(direction)
         cphi, sphi = unit_circle(u4)
         r = gather(self.radius, idx)
@@ -152,3 +164,28 @@ class PointLights:
         origin = gather(self.center, idx) + s * (cphi * t1 + sphi * t2)
         pdf_pos = np.broadcast_to(np.where(r > 0, 1.0 / np.maximum(np.pi * r * r, 1e-300), 1.0), (len(u1),)).copy()
         return EmissionSample(origin, direction, direction, self.le(idx, origin, -direction), pdf_pos, pdf_dir)
+
+    def _aims(self, idx, targets):
+        """(N,) whether the rays of lights idx are aimed at the targets: a point light's always; a
+        spot light's when the targets' cones (grown by its radius) span less solid angle than its
+        own cone, else they fill its cone (either draws every ray that carries light into a target)."""
+        aim = np.ones(len(idx), bool)
+        if not len(self.spots):
+            return aim
+        for light in np.unique(idx.take(np.flatnonzero(self.spot_slot.take(idx) >= 0))):
+            grown = SphereTargets(targets.center, targets.radius + self.radius[light])
+            cone = 2.0 * np.pi * (1.0 - self.spot_cos_half[self.spot_slot[light]])
+            aim[idx == light] = grown.solid_angle(self.center[:, light]) < cone
+        return aim
+
+    def _aimed(self, idx, u1, u2, targets):
+        """(directions (3, N), their density per unit solid angle) aimed from the lights' centres at
+        the target spheres grown by each light's radius."""
+        direction, pdf = np.zeros((3, len(idx))), np.zeros(len(idx))
+        radius = self.radius.take(idx)
+        for r in np.unique(radius):
+            sel = np.flatnonzero(radius == r)
+            grown = SphereTargets(targets.center, targets.radius + r)
+            direction[:, sel], pdf[sel] = grown.directions(gather(self.center, idx.take(sel)), u1.take(sel),
+                                                           u2.take(sel))
+        return direction, pdf

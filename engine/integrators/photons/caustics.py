@@ -2,19 +2,22 @@
 radiance at camera-path vertices.
 
 Pass k holds the camera samples k S .. (k + 1) S - 1 of every pixel (S = SAMPLES_PER_PASS) and one
-photon map of `photons_per_pass` photons with radius r_k (engine/integrators/photons/photon_map.py).
+photon map of `photons_per_pass` photons (the setting's, or automatic from the render's pixels) with
+radius r_k (engine/integrators/photons/photon_map.py).
 A pass's map is a function of (seed, k) and the scene only: its photons are emitted from their own
 stream, and traced together with those of the other passes of its batch of PASSES_PER_BATCH (passes
 8 b .. 8 b + 7, with the batch's stream for the bounces), so every worker that renders samples of
 pass k builds the same map, whatever unit, worker or order asks for it, and images stay
-bit-identical on every pool.  Maps are kept while the cache
-holds less than CACHE_BYTES; a map made after that is used and dropped (rebuilt, identically, when
-asked for again).  Units run through their passes in order, tile after tile, so keeping the first
-maps (rather than the latest, which such a sweep would always evict) saves the most tracing.
+bit-identical on every pool.  A batch's maps (photon_map.py BatchMaps: its passes' grids) are
+kept while the cache holds less than CACHE_BYTES; maps made after that are used and dropped
+(rebuilt, identically, when asked for again).  Units run through their passes in order, tile after
+tile, so keeping the first maps (rather than the latest, which such a sweep would always evict)
+saves the most tracing.  The gather of every pass of a batch is one call of gather.py's kernels
+(or of their numba twins, gather_jit.py, with the backend's choice: the same bits).
 
 Batches as work (engine/rendering/photon_passes.py): a render session has one worker trace a batch
 (`trace_batch`, a photon unit) and hands its stored photons to every worker (`share`): each worker
-then builds its maps from them (a kD-tree, milliseconds) instead of tracing the batch itself, and
+then builds its maps from them (a grid, milliseconds) instead of tracing the batch itself, and
 drops them with `forget` once no unit needs them.  A batch that was not shared is traced where it is
 needed, as above: the photons are the same either way, so the image is too.
 """
@@ -27,7 +30,8 @@ import numpy as np
 
 from ...sampling.qmc import hash32
 from .emission import emit
-from .photon_map import PhotonMap, radius_of_pass
+from . import gather
+from .photon_map import BatchMaps, PhotonMap, radius_of_pass
 from .targets import specular_targets
 from .tracing import trace_photons
 
@@ -41,6 +45,20 @@ AUTO_RADIUS_PIXELS = 1.0      # the automatic first radius: this many pixel foot
 SECONDARY_GATHER = 0.25       # the probability that a vertex after a non-delta bounce gathers (weight 1 / it):
                               # those gathers were 85 % of the gather's time (docs/photons.md "Measured")
 GATHER_SALT = 0x67617468      # 'gath': the secondary gathers' coin, apart from every other stream
+AUTO_PHOTONS_PER_PIXEL = 0.25 # photons_per_pass 0: this many photons a pass per pixel of the render ...
+AUTO_PHOTONS = (1000, 50000)  # ... within these bounds (docs/photons.md "Photons per pass")
+
+
+def photons_per_pass(settings, scene) -> int:
+    """The photons a pass emits: the setting, or (0: auto) AUTO_PHOTONS_PER_PIXEL x the scene's pixels
+    within AUTO_PHOTONS.  A pass's variance from its photons grows with the pixels that share them
+    (the radius is a pixel's footprint) and its camera paths' cost with the pixels too, so the best
+    count per pixel is about the same at every resolution (measured on the Cornell box, the point
+    light's caustic and the caustic room at 96 x 96 and 256 x 256)."""
+    if settings.photons_per_pass > 0:
+        return int(settings.photons_per_pass)
+    width, height = scene.resolution
+    return int(min(max(round(AUTO_PHOTONS_PER_PIXEL * width * height), AUTO_PHOTONS[0]), AUTO_PHOTONS[1]))
 
 
 def gather_coins(seed: int, sample: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -95,12 +113,18 @@ class CausticPhotons:
         """tracer: the PathTracer whose geometry, lights and materials the photons meet."""
         self.tracer, self.settings = tracer, settings
         self.targets = specular_targets(scene, tracer.mats)
-        self.photons = int(settings.photons_per_pass)
+        self.photons = photons_per_pass(settings, scene)    # fixed at preparation (the viewport: its first view)
         self.alpha = float(settings.photon_alpha)
         self.first_radius = (float(settings.photon_radius) if settings.photon_radius > 0 or self.targets is None
                              else auto_radius(scene, self.targets))
-        self.maps = {}
+        self.maps = {}                   # batch -> BatchMaps
         self.cached_bytes = 0
+        backend = getattr(getattr(tracer, "plan", None), "backends", {}).get("photon_caustics", "numpy")
+        if backend == "numba":           # the gather compiled (engine/integrators/photons/gather_jit.py)
+            from . import gather_jit
+            self.kernels = gather_jit
+        else:
+            self.kernels = gather
         self.shared = {}                 # batch -> Stored handed over by the session (share)
         self.lock = threading.Lock()     # threads of one worker: a map is built (or its batch traced) once
 
@@ -156,38 +180,36 @@ class CausticPhotons:
         with self.lock:
             for b in batches:
                 self.shared.pop(b, None)
-                for j in range(b * PASSES_PER_BATCH, (b + 1) * PASSES_PER_BATCH):
-                    made = self.maps.pop(j, None)
-                    if made is not None:
-                        self.cached_bytes -= made.nbytes
+                made = self.maps.pop(b, None)
+                if made is not None:
+                    self.cached_bytes -= made.nbytes
 
-    def map_of(self, k: int, counters, cancel=None) -> PhotonMap | None:
-        """Pass k's photon map: from the cache, built from its batch's shared photons, or traced now
-        with the other passes of its batch (None: cancelled while tracing)."""
-        found = self.maps.get(k)
+    def maps_of(self, b: int, counters, cancel=None) -> BatchMaps | None:
+        """Batch b's photon maps (every pass's): from the cache, built from its shared photons, or
+        traced now (None: cancelled while tracing)."""
+        found = self.maps.get(b)
         if found is not None:
             return found
         with self.lock:
-            found = self.maps.get(k)
+            found = self.maps.get(b)
             if found is not None:
                 return found
-            b = k // PASSES_PER_BATCH
             stored = self.shared.get(b)
             if stored is None:
                 stored = self.trace_batch(b, counters, cancel)
                 if stored is None:
                     return None
-                passes = range(b * PASSES_PER_BATCH, (b + 1) * PASSES_PER_BATCH)
-            else:
-                passes = (k,)                # the others are built from it when asked for
-            for j in passes:
-                made = PhotonMap(stored, self.radius(j), label=j)
-                if j == k:
-                    found = made
-                if self.cached_bytes + made.nbytes <= CACHE_BYTES:
-                    self.maps[j] = made
-                    self.cached_bytes += made.nbytes
+            passes = range(b * PASSES_PER_BATCH, (b + 1) * PASSES_PER_BATCH)
+            found = BatchMaps(stored, passes, [self.radius(j) for j in passes], (1.0, SECONDARY_SCALE))
+            if self.cached_bytes + found.nbytes <= CACHE_BYTES:
+                self.maps[b] = found
+                self.cached_bytes += found.nbytes
             return found
+
+    def map_of(self, k: int, counters, cancel=None) -> PhotonMap | None:
+        """Pass k's photon map (its batch's maps_of)."""
+        maps = self.maps_of(k // PASSES_PER_BATCH, counters, cancel)
+        return None if maps is None else PhotonMap(maps, k)
 
     def radiance(self, sample, bsdf, si, points, facing, counters, segments=None, secondary=None,
                  budget=None) -> np.ndarray:
@@ -195,28 +217,34 @@ class CausticPhotons:
         of `bsdf`, facing geometric normals) of the camera samples `sample` (M,), each from its
         pass's map; segments (M,): the most photon segments each may take (None: any); secondary
         (M,) bool: the vertices after a non-delta bounce, which gather with SECONDARY_SCALE x the
-        radius, each with probability SECONDARY_GATHER and weight 1 / SECONDARY_GATHER (None: none); budget (3, M): the bounce limits per type left to the photons' chains
-        (engine/integrators/photons/photon_map.py PhotonMap.radiance; None: none)."""
-        out = np.zeros((3, points.shape[1]))
+        radius, each with probability SECONDARY_GATHER and weight 1 / SECONDARY_GATHER (None: none);
+        budget (3, M): the bounce limits per type left to the photons' chains
+        (engine/integrators/photons/photon_map.py BatchMaps.radiance; None: none).  The points of
+        every pass of a batch are gathered in one call."""
+        m = points.shape[1]
+        out = np.zeros((3, m))
         passes = sample // SAMPLES_PER_PASS
-        wide = np.zeros(len(sample), bool) if secondary is None else secondary
-        skip = np.zeros(len(sample), bool)
+        wide = np.zeros(m, bool) if secondary is None else np.asarray(secondary, bool)
+        gathering = np.ones(m, bool)
         if SECONDARY_GATHER < 1.0 and wide.any():
-            skip[wide] = gather_coins(self.settings.seed, sample[wide], points[:, wide]) >= SECONDARY_GATHER
-        for k in np.unique(passes):
-            photon_map = self.map_of(int(k), counters)
+            gathering[wide] = gather_coins(self.settings.seed, sample[wide], points[:, wide]) < SECONDARY_GATHER
+        batch = passes // PASSES_PER_BATCH
+        everyone = gathering.all()
+        for b in np.unique(batch if everyone else batch[gathering]):
+            maps = self.maps_of(int(b), counters)
             start = time.perf_counter()
-            for is_wide in (False, True):
-                mine = np.flatnonzero((passes == k) & (wide == is_wide) & ~skip)
-                if not len(mine):
-                    continue
-                out[:, mine] = photon_map.radiance(bsdf, si.take(mine), points.take(mine, axis=1),
-                                                   facing.take(mine, axis=1),
-                                                   None if segments is None else segments.take(mine),
-                                                   SECONDARY_SCALE if is_wide else 1.0,
-                                                   None if budget is None else budget.take(mine, axis=1))
-                if is_wide and SECONDARY_GATHER < 1.0:
-                    out[:, mine] *= 1.0 / SECONDARY_GATHER
+            rows = np.flatnonzero((batch == b) & gathering)
+            whole = len(rows) == m
+            part = (lambda a: a) if whole else (lambda a: a.take(rows, axis=-1))
+            is_wide = part(wide)
+            local = part(passes) - maps.passes[0] + np.where(is_wide, len(maps.passes), 0)   # the wide grids' slots
+            radius = maps.radius.take(local) * np.where(is_wide, SECONDARY_SCALE, 1.0)
+            found = maps.radiance(bsdf, si if whole else si.take(rows), part(points), part(facing), local, radius,
+                                  None if segments is None else part(segments),
+                                  None if budget is None else part(budget), self.kernels)
+            if SECONDARY_GATHER < 1.0 and is_wide.any():
+                found[:, is_wide] *= 1.0 / SECONDARY_GATHER
+            out[:, rows] = found
             counters.photons["gather_seconds"] = counters.photons.get("gather_seconds", 0.0) + \
                 time.perf_counter() - start
         return out

@@ -1,13 +1,14 @@
-"""One pass's caustic photons and the density estimate over them (Jensen 1996, eq. of the photon
-map's radiance estimate):
+"""The caustic photons of a batch of passes and the density estimate over them (Jensen 1996, eq. of
+the photon map's radiance estimate):
 
     L_c(x, wo) = 1 / (pi r^2)  sum over photons p within r of x  f(x, wo, wi_p) Phi_p
 
 with a disk kernel of the pass's radius r, over the photons whose surface faces the same way
 (facing normals within 60 degrees: photons on the other side of a thin wall, or on a
-perpendicular wall within r, are not gathered).  The photons are held in scipy's cKDTree; where
-scipy is missing (Blender's own Python, which the add-on's render workers run) a uniform grid of
-NumPy arrays finds the same pairs (`grid_pairs`).
+perpendicular wall within r, are not gathered).  `BatchMaps` holds the stored photons of a batch
+of passes, each pass's in a uniform grid of cells of at least its radius; the search and the sums
+are engine/integrators/photons/gather.py's (NumPy) or gather_jit.py's (numba, the same bits), for
+every pass of the batch in one call.  No scipy needed (Blender's own Python runs it).
 
 The radius schedule: r_k^2 = r_1^2 prod_{i=1}^{k-1} (i + alpha) / (i + 1) for pass k = 1, 2, ...
 (SPPM's reduction, Hachisuka & Jensen 2009, as a global per-pass radius: probabilistic
@@ -18,22 +19,23 @@ over the passes, whose bias falls as n^(alpha - 1) and variance as n^(-alpha): c
 """
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
 
 from ...core.vec import dot
 
+from . import gather
+from .gather import SAME_SIDE_COS  # noqa: F401  (the rule's constant, where it was)
+
 try:
-    from scipy.spatial import cKDTree
     from scipy.special import gammaln
-except ImportError:             # Blender's Python: the grid below, and the standard library's log Gamma
-    cKDTree = None
+except ImportError:             # Blender's Python: the standard library's log Gamma
     gammaln = math.lgamma
 
-SAME_SIDE_COS = 0.5
-GRID_CELLS = 1 << 20            # the grid's cells per axis at most (its int64 keys)
+GRID_CELLS = 1 << 16            # a pass's grid has at most this many cells per axis (+ 1) ...
+PASS_STRIDE = 1 << 50           # ... so its keys are below 2^49, and a batch's keys stride * pass + key
+MAX_PASSES = 1 << 12            # passes of one BatchMaps at most (its keys below 2^62)
 
 
 def radius_of_pass(r1: float, k: int, alpha: float) -> float:
@@ -43,95 +45,87 @@ def radius_of_pass(r1: float, k: int, alpha: float) -> float:
     return float(r1 * np.exp(0.5 * log_ratio))
 
 
-def grid_pairs(points, photons, radius):
-    """(query index, photon index) of every photon (rows `photons`) within `radius` of each point
-    (rows `points`), as cKDTree.sparse_distance_matrix finds them (distance <= radius), in another
-    order: the photons sorted into cubic cells of at least the radius, each point against the 27
-    cells around its own."""
-    lo = np.minimum(points.min(axis=1), photons.min(axis=1))
-    extent = float(np.max(np.maximum(points.max(axis=1), photons.max(axis=1)) - lo))
-    cell = max(radius, extent / GRID_CELLS, 1e-300)
-    pc = np.floor((photons - lo[:, None]) / cell).astype(np.int64) + 1
-    qc = np.floor((points - lo[:, None]) / cell).astype(np.int64) + 1
-    dims = np.maximum(pc.max(axis=1), qc.max(axis=1)) + 2
-
-    def key(c):
-        return (c[0] * dims[1] + c[1]) * dims[2] + c[2]
-    order = np.argsort(key(pc), kind="stable")
-    keys = key(pc)[order]
-    m = points.shape[1]
-    found_i, found_j = [], []
-    for step in itertools.product((-1, 0, 1), repeat=3):
-        k = key(qc + np.array(step)[:, None])
-        first = np.searchsorted(keys, k, "left")
-        count = np.searchsorted(keys, k, "right") - first
-        total = int(count.sum())
-        if not total:
-            continue
-        i = np.repeat(np.arange(m), count)
-        j = order[np.repeat(first - (np.cumsum(count) - count), count) + np.arange(total)]
-        near = ((points.take(i, axis=1) - photons.take(j, axis=1)) ** 2).sum(axis=0) <= radius * radius
-        found_i.append(i[near])
-        found_j.append(j[near])
-    if not found_i:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(found_i).astype(np.int64), np.concatenate(found_j).astype(np.int64)
 
 
-class PhotonMap:
-    def __init__(self, stored, radius: float, label=None):
-        """stored: engine/integrators/photons/tracing.py Stored; radius: this pass's; label: keep only
-        the stored photons of that label (None: all)."""
-        keep = slice(None) if label is None else np.flatnonzero(stored.label == label)
-        self.position, self.incoming, self.flux, self.normal = (a[:, keep] for a in (
-            stored.position, stored.incoming, stored.flux, stored.normal))
-        self.segments = stored.segments[keep]
-        self.chain = stored.chain[:, keep]
-        self.count = self.position.shape[1]
-        self.radius = float(radius)
-        self.tree = cKDTree(self.position.T) if self.count and cKDTree is not None else None
-        # The tree's nodes and index: about 40 bytes a photon more.
-        self.nbytes = sum(a.nbytes for a in (self.position, self.incoming, self.flux, self.normal)) + 40 * self.count
+def pass_grid(position: np.ndarray, radius: float):
+    """(lo (3,), cell, dims (3,) int64, keys (N,) int64) of a uniform grid over the photons at
+    `position` (3, N): cubic cells of at least `radius` (and of 1 / GRID_CELLS of the photons' extent)
+    from their lowest corner, a photon's key (x dims_y + y) dims_z + z of its cell."""
+    if position.shape[1] == 0:
+        return np.zeros(3), max(float(radius), 1e-300), np.ones(3, np.int64), np.zeros(0, np.int64)
+    lo = position.min(axis=1)
+    span = position.max(axis=1) - lo
+    cell = max(float(radius), float(span.max()) / GRID_CELLS, 1e-300)
+    dims = np.floor(span / cell).astype(np.int64) + 1
+    c = np.minimum(np.floor((position - lo[:, None]) / cell).astype(np.int64), (dims - 1)[:, None])
+    return lo, cell, dims, (c[0] * dims[1] + c[1]) * dims[2] + c[2]
 
-    def pairs(self, points, radius):
-        """(query index, photon index) of every photon within the radius of each point (rows): the
-        pairs of a tree over the points against the photons' (cKDTree.sparse_distance_matrix, which
-        returns them as arrays)."""
-        if self.count == 0 or points.shape[1] == 0:
-            return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        if self.tree is None:
-            return grid_pairs(points, self.position, radius)
-        found = cKDTree(points.T).sparse_distance_matrix(self.tree, radius, output_type="ndarray")
-        return found["i"].astype(np.int64), found["j"].astype(np.int64)
 
-    def radiance(self, bsdf, si, points, facing, segments=None, scale: float = 1.0, budget=None) -> np.ndarray:
+class BatchMaps:
+    """The photon maps of the passes `passes` (labels of the stored photons), with radii `radii`,
+    each in one grid per scale of `scales` (cells of at least scale x the pass's radius: a query
+    over that scale x the radius looks at a few cells): a slot per (scale, pass), slot
+    s = scale's place x len(passes) + pass's place.  A slot holds its pass's stored photons, sorted
+    by their cell's key in its grid (stable: within a cell in their stored order); the slots come
+    one after the other, `offsets` (slots + 1,) bound them."""
+
+    def __init__(self, stored, passes, radii, scales=(1.0,)):
+        """stored: engine/integrators/photons/tracing.py Stored."""
+        passes = tuple(int(j) for j in passes)
+        self.passes, self.scales, self.stride = passes, tuple(float(x) for x in scales), PASS_STRIDE
+        p = len(passes)
+        slots = p * len(self.scales)
+        if slots > MAX_PASSES:
+            raise ValueError(f"{slots} grids in one BatchMaps: at most {MAX_PASSES}")
+        self.radius = np.tile(np.array([float(r) for r in radii]), len(self.scales))     # per slot: its pass's
+        self.lo, self.cell, self.dims = np.zeros((3, slots)), np.zeros(slots), np.zeros((3, slots), np.int64)
+        order, keys = [], []
+        mine = [np.flatnonzero(stored.label == j) for j in passes]
+        for s in range(slots):
+            k = s % p
+            lo, cell, dims, key = pass_grid(stored.position.take(mine[k], axis=1),
+                                            self.radius[s] * self.scales[s // p])
+            self.lo[:, s], self.cell[s], self.dims[:, s] = lo, cell, dims
+            sort = np.argsort(key, kind="stable")
+            order.append(mine[k].take(sort))
+            keys.append(s * PASS_STRIDE + key.take(sort))
+        order = np.concatenate(order) if order else np.zeros(0, np.int64)
+        self.source = order                 # each photon's index in the stored batch
+        self.keys = np.ascontiguousarray(np.concatenate(keys) if keys else np.zeros(0, np.int64), np.int64)
+        self.offsets = np.concatenate([[0], np.cumsum([len(o) for o in keys])]).astype(np.int64)
+        self.position, self.incoming, self.flux, self.normal = (
+            np.ascontiguousarray(a.take(order, axis=1), np.float64)
+            for a in (stored.position, stored.incoming, stored.flux, stored.normal))
+        self.segments = np.ascontiguousarray(stored.segments.take(order), np.int64)
+        chain = stored.chain if stored.chain is not None else np.zeros((3, len(stored.label)), np.int16)
+        self.chain = np.ascontiguousarray(chain.take(order, axis=1), np.int64)
+        self.count = len(order)
+        self.nbytes = sum(a.nbytes for a in (self.position, self.incoming, self.flux, self.normal, self.segments,
+                                             self.chain, self.keys, self.source))
+
+    def slot(self, k: int, scale: float = 1.0) -> int:
+        """The slot of pass k whose grid is scale's (the grid of the largest scale up to it)."""
+        fits = [i for i, x in enumerate(self.scales) if x <= scale] or [0]
+        return max(fits, key=lambda i: self.scales[i]) * len(self.passes) + self.passes.index(int(k))
+
+    def radiance(self, bsdf, si, points, facing, local, radius, segments=None, budget=None, kernels=gather):
         """(3, M) the caustic radiance towards si.wo at the M points (rows) of the ShadingPoint si
         (engine/materials/protocol.py) whose BSDF is `bsdf`; facing: their geometric normals on the
-        viewer's side; segments (M,): the most segments a photon's path may have at each point
-        (the camera path's depth limit; None: any); scale: of the radius (vertices seen after a
-        diffuse bounce gather over a wider disk); budget (3, M): the most glossy, transmission and
-        transparent bounces a photon's chain may make but its first (Cycles' bounce limits per type
-        left over by the camera path, engine/integrators/light_paths.py; None: any)."""
+        viewer's side; local (M,): each point's slot (its pass and grid: `slot`); radius (M,): its
+        radius (vertices seen after a diffuse bounce gather over a wider disk); segments (M,): the
+        most segments a photon's path may have at each point (the camera path's depth limit; None:
+        any); budget (3, M): the most glossy, transmission and transparent bounces a photon's chain
+        may make but its first (Cycles' bounce limits per type left over by the camera path,
+        engine/integrators/light_paths.py; None: any); kernels: gather.py or gather_jit.py."""
         m = points.shape[1]
-        out = np.zeros((3, m))
-        radius = self.radius * scale
-        query, photon = self.pairs(points, radius)
-        if not len(query):
-            return out
-        same = dot(facing.take(query, axis=1), self.normal.take(photon, axis=1)) > SAME_SIDE_COS
-        if segments is not None:
-            same &= self.segments.take(photon) <= segments.take(query)
-        if budget is not None:
-            same &= (self.chain.take(photon, axis=1) <= budget.take(query, axis=1)).all(axis=0)
-        query, photon = query[same], photon[same]
-        if not len(query):
-            return out
         albedo = bsdf.lambert_albedo(si)
         if albedo is not None:              # f = rho / pi for every direction: sum the flux per point first
-            flux = self.flux.take(photon, axis=1)
-            for c in range(3):
-                out[c] = np.bincount(query, flux[c], minlength=m)
+            out = kernels.flux_sums(self, points, facing, local, radius, segments, budget)
             return out * albedo * (1.0 / (np.pi * np.pi * radius * radius))
+        out = np.zeros((3, m))
+        query, photon = kernels.pairs(self, points, facing, local, radius, segments, budget)
+        if not len(query):
+            return out
         at = si.take(query)
         wi = self.incoming.take(photon, axis=1)
         f_cos, _ = bsdf.eval(at, wi)
@@ -141,3 +135,23 @@ class PhotonMap:
         for c in range(3):
             out[c] = np.bincount(query, contrib[c], minlength=m)
         return out * (1.0 / (np.pi * radius * radius))
+
+
+class PhotonMap:
+    """One pass of a BatchMaps: its photons (views) and its density estimate."""
+
+    def __init__(self, maps: BatchMaps, k: int):
+        self.maps, self.k = maps, int(k)
+        first = maps.slot(k)
+        span = slice(int(maps.offsets[first]), int(maps.offsets[first + 1]))
+        self.position, self.incoming, self.flux, self.normal = (
+            a[:, span] for a in (maps.position, maps.incoming, maps.flux, maps.normal))
+        self.count = span.stop - span.start
+        self.radius = float(maps.radius[first])
+
+    def radiance(self, bsdf, si, points, facing, segments=None, scale: float = 1.0, budget=None,
+                 kernels=gather) -> np.ndarray:
+        """BatchMaps.radiance at points all of this pass, over `scale` x its radius."""
+        m = points.shape[1]
+        return self.maps.radiance(bsdf, si, points, facing, np.full(m, self.maps.slot(self.k, scale), np.int64),
+                                  np.full(m, self.radius * scale), segments, budget, kernels)

@@ -215,21 +215,6 @@ def test_photons_leave_a_mesh_lamp():
     assert photons.map_of(0, Counters()).count > 0.8 * 5000
 
 
-def test_without_scipy_a_numpy_grid_finds_the_same_photons():
-    """Blender's own Python has no scipy: the gather's pairs then come from photon_map.py's grid,
-    the same set as cKDTree's (the caustic photons of a pass around points of the floor), and the
-    photon pass stays on."""
-    from engine.integrators.photons.photon_map import grid_pairs
-    photon_map = prepared(caustic_scene((8, 8)), photons_per_pass=3000).tracer.photons.map_of(0, Counters())
-    rng = np.random.default_rng(2)
-    points = photon_map.position[:, rng.integers(0, photon_map.count, 500)] + rng.normal(0, 0.02, (3, 500))
-    kd = set(zip(*(a.tolist() for a in photon_map.pairs(points, 0.05))))
-    grid = set(zip(*(a.tolist() for a in grid_pairs(points, photon_map.position, 0.05))))
-    assert len(kd) > 1000 and grid == kd
-    control = set(zip(*(a.tolist() for a in grid_pairs(points, photon_map.position, 0.049))))
-    assert control < kd                       # a radius a bit smaller finds fewer: the check can fail
-
-
 def test_the_stats_count_the_photon_passes():
     from engine.api import render
     r = render(caustic_scene((16, 16)), RenderSettings(samples=3, caustics_method="photons", photons_per_pass=1000,
@@ -259,13 +244,15 @@ def test_lights_at_infinity_aim_at_a_target_disk(kind, flux):
     assert ((rel * rel).sum(axis=0) - along ** 2 <= 0.25 * (1 + 1e-9)).all() and (along > 0).all()
 
 
-class _FlatMap:
-    """A photon map whose radiance is 1 at every point it is asked about (and counts them)."""
+class _FlatMaps:
+    """A batch's photon maps whose radiance is 1 at every point they are asked about (and count them)."""
+    passes = tuple(range(8))
+    radius = np.ones(16)
 
     def __init__(self):
         self.asked = 0
 
-    def radiance(self, bsdf, si, points, facing, segments, scale, budget):
+    def radiance(self, bsdf, si, points, facing, local, radius, segments, budget, kernels):
         self.asked += points.shape[1]
         return np.ones((3, points.shape[1]))
 
@@ -274,8 +261,9 @@ def _secondary_gather(monkeypatch, q, m=20000):
     monkeypatch.setattr(caustics_module, "SECONDARY_GATHER", q)
     photons = CausticPhotons.__new__(CausticPhotons)
     photons.settings = RenderSettings(seed=3)
-    flat = _FlatMap()
-    photons.map_of = lambda k, counters, cancel=None: flat
+    photons.kernels = None
+    flat = _FlatMaps()
+    photons.maps_of = lambda b, counters, cancel=None: flat
     points = np.random.default_rng(1).random((3, m))
     si = ShadingPoint(*(np.zeros((3, m)) for _ in range(5)), np.zeros(m, np.int64), False, None, None)
     secondary = np.arange(m) % 2 == 1
@@ -301,3 +289,17 @@ def test_the_gather_coins_are_a_function_of_seed_sample_and_point():
     assert not np.array_equal(a, caustics_module.gather_coins(8, sample, points))          # control: the seed
     assert not np.array_equal(a, caustics_module.gather_coins(7, sample + 1, points))
     assert np.all((0.0 <= a) & (a < 1.0)) and abs(a.mean() - 0.5) < 0.05
+
+
+def test_the_automatic_photon_count_follows_the_pixels():
+    """photons_per_pass 0: a quarter of the render's pixels a pass, within 1000 and 50 000; a count
+    set is kept."""
+    from engine.integrators.photons.caustics import photons_per_pass
+    auto = RenderSettings()
+    assert auto.photons_per_pass == 0
+    assert photons_per_pass(auto, caustic_scene((96, 96))) == 2304
+    assert photons_per_pass(auto, caustic_scene((256, 128))) == 8192
+    assert photons_per_pass(auto, caustic_scene((16, 16))) == 1000
+    assert photons_per_pass(auto, caustic_scene((1920, 1080))) == 50000
+    assert photons_per_pass(RenderSettings(photons_per_pass=3000), caustic_scene((96, 96))) == 3000
+    assert prepared(caustic_scene((96, 96))).tracer.photons.photons == 2304

@@ -1,0 +1,165 @@
+"""The gather's search and sums (engine/integrators/photons/gather.py) and their numba twin
+(gather_jit.py): the pairs are every photon within the radius under the gather's rules (a brute
+force over all pairs, with controls), sorted by query then photon; the twin gives the same pairs and
+the same sums bit for bit on the calls of a real render, and on made-up queries outside the grid."""
+import numpy as np
+import pytest
+
+import engine.integrators.photons.caustics as caustics_module
+from engine import api
+from engine.core.settings import RenderSettings
+from engine.geometry.scene_geometry import Counters
+from engine.integrators.photons import gather
+from engine.integrators.photons.photon_map import BatchMaps
+from engine.integrators.photons.tracing import Stored
+from engine.rendering.session import PreparedScene
+from engine.scene.builtin import caustic_scene
+from tests.backend_capture import require_compiled
+
+
+def made_up_maps(n=20000, seed=5, scales=(1.0, 4.0)):
+    """Two passes of photons on a floor and a wall, with chains and segments."""
+    rng = np.random.default_rng(seed)
+    position = rng.random((3, n)) * [[1.0], [1.0], [0.02]]
+    wall = rng.random(n) < 0.3
+    position[2, wall] = rng.random(wall.sum())
+    position[1, wall] = 0.5 + rng.normal(0, 0.01, wall.sum())
+    normal = np.where(wall, [[0.0], [1.0], [0.0]], [[0.0], [0.0], [1.0]])
+    normal[:, rng.random(n) < 0.1] *= -1.0
+    stored = Stored(position, -normal, rng.random((3, n)), normal, rng.integers(2, 6, n).astype(np.int32),
+                    rng.integers(0, 2, n), rng.integers(0, 3, (3, n)).astype(np.int16))
+    return BatchMaps(stored, (0, 1), (0.05, 0.04), scales), stored
+
+
+def made_up_queries(maps, m=400, seed=6):
+    rng = np.random.default_rng(seed)
+    points = maps.position[:, rng.integers(0, maps.count, m)] + rng.normal(0, 0.02, (3, m))
+    points[:, :10] += 5.0                                      # outside every grid
+    facing = np.where(rng.random(m) < 0.8, [[0.0], [0.0], [1.0]], [[0.0], [1.0], [0.0]])
+    local = rng.integers(0, len(maps.offsets) - 1, m)
+    radius = maps.radius.take(local) * np.where(local >= len(maps.passes), 4.0, 1.0)
+    return points, facing, local, radius, rng.integers(2, 6, m), rng.integers(-1, 3, (3, m))
+
+
+def brute_pairs(maps, stored, points, facing, local, radius, segments, budget):
+    """Every (query, stored photon) under the rules, by brute force over the stored photons."""
+    found = set()
+    p = len(maps.passes)
+    for q in range(points.shape[1]):
+        label = maps.passes[local[q] % p]
+        d = stored.position - points[:, q:q + 1]
+        ok = (stored.label == label) & ((d * d).sum(axis=0) <= radius[q] ** 2)
+        ok &= (facing[:, q:q + 1] * stored.normal).sum(axis=0) > gather.SAME_SIDE_COS
+        ok &= stored.segments <= segments[q]
+        ok &= (stored.chain <= budget[:, q:q + 1]).all(axis=0)
+        found.update((q, j) for j in np.flatnonzero(ok))
+    return found
+
+
+def stored_index(maps, stored, photon):
+    """The stored photon each of the maps' photons is (checked by its position)."""
+    index = maps.source.take(photon)
+    assert np.array_equal(stored.position.take(index, axis=1), maps.position.take(photon, axis=1))
+    return index
+
+
+def test_the_pairs_are_every_photon_within_the_radius_under_the_rules():
+    maps, stored = made_up_maps()
+    args = made_up_queries(maps)
+    query, photon = gather.pairs(maps, *args)
+    got = set(zip(query.tolist(), stored_index(maps, stored, photon).tolist()))
+    expected = brute_pairs(maps, stored, *args)
+    assert len(expected) > 1000 and got == expected
+    assert np.all(np.diff(query) >= 0) and np.all(np.diff(photon)[np.diff(query) == 0] > 0)     # the sums' order
+    points, facing, local, radius, segments, budget = args
+    control = set(zip(*(a.tolist() for a in gather.pairs(maps, points, facing, local, radius * 0.97, segments,
+                                                          budget))))
+    assert len(control) < len(got)                           # a smaller radius finds fewer: the check can fail
+
+
+def test_the_flux_sums_add_each_querys_photons_in_the_order_of_the_pairs():
+    maps, _ = made_up_maps()
+    args = made_up_queries(maps)
+    query, photon = gather.pairs(maps, *args)
+    sums = gather.flux_sums(maps, *args)
+    expected = np.zeros_like(sums)
+    for q, j in zip(query, photon):
+        expected[:, q] += maps.flux[:, j]
+    assert np.array_equal(sums, expected)
+    flipped = np.zeros_like(sums)                            # control: the other order is other bits somewhere
+    for q, j in zip(query[::-1], photon[::-1]):
+        flipped[:, q] += maps.flux[:, j]
+    assert not np.array_equal(flipped, expected)
+
+
+def recorded_calls(limit=24):
+    """The arguments of the gather's calls in a caustic-room render (NumPy backend)."""
+    calls, real = [], gather.pairs
+
+    def recording(maps, *args):
+        if len(calls) < limit:
+            calls.append((maps,) + tuple(None if a is None else np.array(a, copy=True) for a in args))
+        return real(maps, *args)
+    gather.pairs = recording
+    try:
+        api.render(caustic_scene((24, 24)), RenderSettings(samples=10, threads=1, backend="numpy", photons_per_pass=2000,
+                                                           caustics_method="photons"), log=lambda m: None)
+    finally:
+        gather.pairs = real
+    return calls
+
+
+def test_the_twin_gives_the_same_pairs_and_sums_bit_for_bit():
+    require_compiled()
+    from engine.integrators.photons import gather_jit
+    maps, _ = made_up_maps()
+    calls = [(maps,) + made_up_queries(maps), (maps,) + made_up_queries(maps)[:4] + (None, None)]
+    calls += recorded_calls()
+    assert sum(len(gather.pairs(*c)[0]) for c in calls) > 5000
+    for c in calls:
+        for a, b in zip(gather.pairs(*c), gather_jit.pairs(*c)):
+            assert a.dtype == b.dtype and np.array_equal(a, b)
+        assert np.array_equal(gather.flux_sums(*c), gather_jit.flux_sums(*c))
+    maps, points, facing, local, radius, segments, budget = calls[0]
+    nudged = points.copy()                       # control: a query moved by an ulp onto a photon changes a sum
+    q, j = gather.pairs(maps, points, facing, local, radius, segments, budget)
+    nudged[:, q[0]] = maps.position[:, j[0]] + np.spacing(maps.position[:, j[0]])
+    assert not np.array_equal(gather_jit.flux_sums(maps, nudged, facing, local, radius, segments, budget),
+                              gather.flux_sums(maps, points, facing, local, radius, segments, budget))
+
+
+def test_a_render_is_the_same_on_both_backends():
+    require_compiled()
+    images = [api.render(caustic_scene((12, 12)), RenderSettings(samples=5, threads=1, backend=b, photons_per_pass=1500,
+                                                                 caustics_method="photons"), log=lambda m: None).image
+              for b in ("numpy", "numba")]
+    assert np.array_equal(images[0], images[1])
+
+
+def test_a_batch_gathers_every_pass_in_one_call(monkeypatch):
+    """The points of the eight passes of a batch, narrow and wide, go to one call of the kernels."""
+    prepared = PreparedScene(caustic_scene((8, 8)), RenderSettings(caustics_method="photons", photons_per_pass=1000,
+                                                                   backend="numpy"), log=lambda *a: None)
+    photons = prepared.tracer.photons
+    calls = []
+    real = gather.flux_sums
+    monkeypatch.setattr(gather, "flux_sums", lambda maps, *a: calls.append(a[2].copy()) or real(maps, *a))
+    monkeypatch.setattr(caustics_module, "SECONDARY_GATHER", 1.0)
+    maps = photons.maps_of(0, Counters())
+    m = 64
+    from engine.materials.lambert import Lambertian
+    from engine.materials.protocol import ShadingPoint
+    up = np.tile([[0.0], [0.0], [1.0]], (1, m))
+    si = ShadingPoint(up.copy(), up.copy(), up.copy(), up.copy(), np.ones((3, m)), np.zeros(m, np.int64), False, None,
+                      None)
+    points = maps.position[:, :m]
+    sample = np.arange(m) % 8
+    out = photons.radiance(sample, Lambertian([], None), si, points, up, Counters(), secondary=np.arange(m) % 3 == 0)
+    assert len(calls) == 1 and set(calls[0].tolist()) == set(range(16)) and (out > 0).any()
+    one = [photons.map_of(k, Counters()).radiance(Lambertian([], None), si.take(np.flatnonzero(sample == k)),
+                                                  points[:, sample == k], up[:, sample == k],
+                                                  scale=1.0) for k in range(8)]
+    narrow = np.arange(m) % 3 != 0
+    for k in range(8):
+        mine = sample == k
+        assert np.array_equal(out[:, mine & narrow], one[k][:, narrow[mine]])     # one call = pass by pass
