@@ -94,9 +94,10 @@ def test_materials_bench_reads_the_workers_cpu_seconds():
     import sys
     import time
     from mcrt_addon import bench_materials as bm
-    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; print('up', flush=True); time.sleep(30)"],
+                               stdout=subprocess.PIPE, text=True)
     try:
-        time.sleep(0.3)
+        assert sleeper.stdout.readline() == "up\n"                 # started: its start-up CPU is behind it
         me, other = bm.process_cpu_seconds([os.getpid()]), bm.process_cpu_seconds([sleeper.pid])
         end = time.process_time() + 0.3
         while time.process_time() < end:
