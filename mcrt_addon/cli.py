@@ -11,7 +11,9 @@ export benchmark.  Runs in the ``bpy`` module (Blender 5.0.1 as a Python package
          (light-sampling estimators vs Cycles; see mcrt_addon/bench_estimators.py)
   python -m mcrt_addon bench-materials [--scenes ...] [--resolution W H] [--samples N]
          [--reference-samples N] [--max-depth N] [--out docs/materials-efficiency.json]
-         (the material sample scenes vs Cycles; see mcrt_addon/bench_materials.py)
+         [--tncg15-pool workers|threads]
+         (the material sample scenes vs Cycles, TNCG15 MC timed as F12 renders on the add-on's
+         worker processes, or on threads in Blender's process; see mcrt_addon/bench_materials.py)
 
 The settings (--samples, --max-depth, --noise-target, ...) are the rows of the settings table
 (engine/core/settings.py; listed in docs/settings.md); a flag not given keeps the file's value.

@@ -84,3 +84,54 @@ def test_materials_bench_diffuse_stand_in_and_table():
     table = bm.markdown_table({"plates": dict(rows=rows, efficiency_vs_cycles=rows[1]["efficiency_vs_cycles"],
                                                rough_over_diffuse_seconds=2.0)}).splitlines()
     assert table[2] == ("| plates | 2.00 | 1.000e-02 | 50 | 0.50 | 2.000e-02 | 100 | 2 | 0.25 | 2.00 |"), table[2]
+
+
+def test_materials_bench_reads_the_workers_cpu_seconds():
+    """bench_materials.process_cpu_seconds: the user + system seconds of live processes by pid, growing
+    with their work (control: a process that only sleeps gains none); None for a pid that is gone."""
+    import os
+    import subprocess
+    import sys
+    import time
+    from mcrt_addon import bench_materials as bm
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; print('up', flush=True); time.sleep(30)"],
+                               stdout=subprocess.PIPE, text=True)
+    try:
+        assert sleeper.stdout.readline() == "up\n"                 # started: its start-up CPU is behind it
+        me, other = bm.process_cpu_seconds([os.getpid()]), bm.process_cpu_seconds([sleeper.pid])
+        end = time.process_time() + 0.3
+        while time.process_time() < end:
+            pass
+        assert bm.process_cpu_seconds([os.getpid()]) - me >= 0.2
+        assert bm.process_cpu_seconds([sleeper.pid]) - other <= 0.05
+    finally:
+        sleeper.kill()
+        sleeper.wait()
+    assert bm.process_cpu_seconds([sleeper.pid]) is None
+
+
+def test_materials_bench_pool_argument():
+    from mcrt_addon import bench_materials as bm
+    parser = argparse.ArgumentParser()
+    bm.add_arguments(parser)
+    assert parser.parse_args([]).tncg15_pool == "workers"
+    assert parser.parse_args(["--tncg15-pool", "threads"]).tncg15_pool == "threads"
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--tncg15-pool", "forks"])
+
+
+@pytest.mark.slow
+def test_materials_bench_on_workers_renders_the_threads_image(tmp_path):
+    """--tncg15-pool workers (the add-on's warm worker processes, export timed) gives the image of the
+    in-process render, and counts the workers' CPU seconds."""
+    from mcrt_addon import bench_materials as bm
+    make_samples = be.load_make_samples()
+    _, blend, _ = be.scene_blend("principled_default", str(tmp_path), make_samples)
+    scene = be.open_blend(blend, (24, 16))
+    kw = dict(samples=4, max_depth=6, seed=1, threads=2, estimator="mis")
+    image, seconds, cpu, stats = bm.render_on_workers(scene, (24, 16), diffuse=False, **kw)
+    reference = be.render_tncg15(be.export_tracer_scene(scene, (24, 16)).scene, **kw)[0]
+    assert np.array_equal(image, reference) and image.mean() > 0.0
+    assert stats["workers_cpu_seconds"] > 0.0 and cpu >= stats["workers_cpu_seconds"] and seconds > 0.0
+    diffuse = bm.render_on_workers(scene, (24, 16), diffuse=True, **kw)[0]
+    assert not np.array_equal(diffuse, image)                     # control: the stand-in's materials differ
