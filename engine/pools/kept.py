@@ -37,8 +37,7 @@ def same_content(a, b) -> bool:
     if type(a) is not type(b):
         return False
     if isinstance(a, np.ndarray):
-        return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(
-            a, b, equal_nan=a.dtype.kind in "fc")
+        return a.shape == b.shape and a.dtype == b.dtype and _same_array(a, b)
     if dataclasses.is_dataclass(a):
         return all(same_content(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
     if isinstance(a, (list, tuple)):
@@ -48,6 +47,21 @@ def same_content(a, b) -> bool:
     if isinstance(a, float) and a != a:
         return b != b
     return bool(a == b)
+
+
+def _same_array(a: np.ndarray, b: np.ndarray) -> bool:
+    """Element by element, NaN equal to NaN (np.array_equal(a, b, equal_nan=True) for floats), but
+    a moved mesh's vertices are told apart at their first difference: array_equal's NaN masks copied
+    all of them (1.2 ms for 47k vertices, on every frame of an animation)."""
+    equal = a == b
+    if equal.all():
+        return True
+    if a.dtype.kind not in "fc":
+        return False
+    first = np.unravel_index(int(np.argmin(equal)), equal.shape)     # the first element that differs
+    if not (np.isnan(a[first]) and np.isnan(b[first])):
+        return False
+    return bool((equal | (np.isnan(a) & np.isnan(b))).all())
 
 
 def same_but_the_view(scene, other) -> bool:
