@@ -572,15 +572,20 @@ class PrincipledV2(BSDF):
         return si.memo((self, "lobes"), self._layered_lobes if self.any_layers else self.lobe_weights)
 
     def _layered_sample(self, si: ShadingPoint, u_lobe, u, hits=None) -> BSDFSample:
-        """sample() with the layers: the lobe pick and each lobe's directions in NumPy, the mixture at
-        them compiled where `hits` (principled_jit.py base_eval, the same numbers)."""
+        """sample() with the layers.  Where `hits` (the compiled kernels, principled_jit.py, the same
+        numbers): the lobe pick and the GGX directions by layered_pick, the sheen's and the diffuse
+        lobe's directions in NumPy (their sin and cos), the mixture by base_eval."""
         layers, weights, prob = self._lobes_at(si)
-        cdf = np.cumsum(prob, axis=0)
-        choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
         n = len(si)
-        wi = np.zeros((3, n))
-        flags = np.zeros(n, dtype=np.int8)
         failed = np.zeros(n, dtype=bool)            # samples their own lobe rejected: value 0
+        if hits is not None:                        # the pick and the GGX directions compiled
+            cdf = None
+            wi, flags, choice = self.compiled.layered_pick(hits, u_lobe, u[0], u[1])
+        else:
+            cdf = np.cumsum(prob, axis=0)
+            choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
+            wi = np.zeros((3, n))
+            flags = np.zeros(n, dtype=np.int8)
         through = np.flatnonzero(choice == 0)
         wi[:, through] = -si.wo[:, through]
         flags[through] = PASS_LOBE
@@ -589,17 +594,25 @@ class PrincipledV2(BSDF):
             wi[:, idx] = self.sheen.sample(si.take(idx), u[0].take(idx), u[1].take(idx),
                                            layers.sheen_a.take(idx), layers.sheen_b.take(idx))
             flags[idx] = SHEEN_LOBE
-        views = (layers.coat_view,) + self._views(si)
-        for code, (lobe, view) in enumerate(zip((self.coat, self.metal, self.specular, self.diffuse), views), start=2):
-            idx = np.flatnonzero(choice == code)
-            if not len(idx):
-                continue
-            s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
-            wi[:, idx] = s.wi
-            flags[idx] = s.flags
-            if self.any_transmission:               # a failed sample may point through the surface
-                failed[idx] = s.pdf <= 0.0
-        passed = self._sample_glass(si, np.flatnonzero(choice == 6), u_lobe, u, cdf, prob, weights, wi, flags, failed)
+        passed = None
+        if hits is not None:                        # the diffuse picks' cosine directions (NumPy's sin, cos)
+            idx = np.flatnonzero(choice == 5)
+            if len(idx):
+                wi[:, idx] = cosine_directions(u[0].take(idx), u[1].take(idx), si.n.take(idx, axis=1))
+        else:
+            views = (layers.coat_view,) + self._views(si)
+            for code, (lobe, view) in enumerate(zip((self.coat, self.metal, self.specular, self.diffuse), views),
+                                                start=2):
+                idx = np.flatnonzero(choice == code)
+                if not len(idx):
+                    continue
+                s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
+                wi[:, idx] = s.wi
+                flags[idx] = s.flags
+                if self.any_transmission:           # a failed sample may point through the surface
+                    failed[idx] = s.pdf <= 0.0
+            passed = self._sample_glass(si, np.flatnonzero(choice == 6), u_lobe, u, cdf, prob, weights, wi, flags,
+                                        failed)
         if hits is not None:
             f_cos, pdf = self.compiled.base_eval(hits, None, wi)
         else:

@@ -160,6 +160,31 @@ def _pick(wo, x, y, n, ax, ay, prob, u_lobe, u1, u2, wi_out, flags_out):
     return glossy
 
 
+@jit
+def _layered_pick(wo, x, y, n, ax, ay, cx, cy, cn, cax, cay, prob, u_lobe, u1, u2, wi_out, flags_out, choice_out):
+    """The lobe pick of principled.py _layered_sample (0 pass-through, 1 sheen, 2 coat, 3 metal,
+    4 specular, 5 diffuse: u_lobe against the running sum of prob, as np.cumsum) and the GGX
+    directions of the coat (its frame cx, cy, cn) and of the base's microfacet lobes."""
+    rows = prob.shape[0]
+    for i in range(wo.shape[1]):
+        c = 0.0
+        choice = 0
+        for r in range(rows - 1):
+            c = c + prob[r, i] if r > 0 else prob[r, i]
+            if u_lobe[i] >= c:
+                choice += 1
+        choice_out[i] = choice
+        if choice == 2:
+            d0, d1, d2, _, _, _ = sample_hit(wo, cx, cy, cn, i, cax[i], cay[i], u1[i], u2[i])
+        elif choice == 3 or choice == 4:
+            d0, d1, d2, _, _, _ = sample_hit(wo, x, y, n, i, ax[i], ay[i], u1[i], u2[i])
+        else:
+            flags_out[i] = DIFFUSE
+            continue
+        wi_out[0, i], wi_out[1, i], wi_out[2, i] = d0, d1, d2
+        flags_out[i] = GLOSSY
+
+
 def base_eval(hits, index, wi):
     """(f cos (3, K), pdf (K,)) of the lobes at the pairs (hit index[k], wi[:, k]): the sheen and the
     coat where hits.layered, then the base; hits: the per-hit arrays of principled.py `_fused_hits`,
@@ -199,6 +224,22 @@ def base_pick(hits, u_lobe, u1, u2):
     return wi, flags, diffuse
 
 
+def layered_pick(hits, u_lobe, u1, u2):
+    """(wi (3, N) with the GGX directions of the coat, metal and specular picks, flags (N,) int8 (those
+    glossy, the rest diffuse: principled.py sets the pass-through's), the choices (N,)) at the hits
+    themselves (hits.layered)."""
+    count = hits.wo.shape[1]
+    wi = np.empty((3, count))
+    flags = np.empty(count, dtype=np.int8)
+    choice = np.empty(count, dtype=np.int64)
+    u_lobe, u1, u2 = (np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64), (count,)))
+                      for a in (u_lobe, u1, u2))
+    c = hits.coat
+    _layered_pick(hits.wo, hits.x, hits.y, hits.n, hits.ax, hits.ay, c.x, c.y, c.n, c.ax, c.ay, hits.prob, u_lobe,
+                  u1, u2, wi, flags, choice)
+    return wi, flags, choice
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     from types import SimpleNamespace
@@ -225,3 +266,4 @@ def warm_up() -> None:
                                  w=ones * 0.5, on=on)
     base_eval(hits, None, wo[::-1].copy())
     base_eval(hits, np.array([1, 0]), wo.copy())
+    layered_pick(hits, np.array([0.3, 0.9]), np.array([0.3, 0.6]), np.array([0.2, 0.9]))
