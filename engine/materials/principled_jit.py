@@ -1,18 +1,21 @@
-"""The Principled BSDF v2's base (engine/materials/principled.py PrincipledV2 without layers: the
-metallic and specular GGX lobes over the Lambertian diffuse) compiled with numba: its eval and pdf
-as one pass over the (hit, direction) pairs that reads the per-hit values (frame, alphas, Fresnel
-inputs, compensation, lobe weights and probabilities, computed once per scatter group by NumPy) by
-index, so a light sample's eval gathers nothing, and its sample (the lobe pick and the GGX
-direction) as one pass over the hits.
+"""The Principled BSDF v2 (engine/materials/principled.py PrincipledV2: the metallic and specular GGX
+lobes over the Lambertian diffuse, and over them the sheen and the coat) compiled with numba: its
+eval and pdf as passes over the (hit, direction) pairs that read the per-hit values (frames, alphas,
+Fresnel inputs, compensation, the sheen's LTC a and b, lobe weights and probabilities, computed once
+per scatter group by NumPy, principled.py `_fused_hits`) by index, so a light sample's eval gathers
+nothing, and its sample's lobe pick with the GGX directions as one pass over the hits.
 
-The two microfacet lobes share their geometry (the same frame, alphas and half vector: both are set
-up from the same material, engine/materials/principled.py `_fused_hits`), so D and the Lambdas are
-computed once.  Every number repeats the NumPy path's float64 operations in the same order
-(engine/materials/glossy.py MicrofacetReflection.eval and sample with the GGX kernels of
-engine/materials/microfacet_jit.py, fresnel_f82, fresnel_dielectric, principled.py real_fresnel_s
-and _mixture, oren_nayar.py's Lambert case) with only +, -, *, /, sqrt, cos and sin; the one power
-(the F82 Fresnel's (1 - cos)^5) and the cosine directions of the diffuse picks (float32 sin and cos)
-stay NumPy, between the passes.  The same bits as backend=numpy (tests/materials/test_principled_jit.py).
+The base's two microfacet lobes share their geometry (the same frame, alphas and half vector: both
+are set up from the same material), so D and the Lambdas are computed once; the coat has its own
+(its roughness, isotropic, on the same normal), one more GGX pass where a material is coated.  Every
+number repeats the NumPy path's float64 operations in the same order (engine/materials/glossy.py
+MicrofacetReflection.eval and sample with the GGX kernels of engine/materials/microfacet_jit.py,
+fresnel_f82, fresnel_dielectric, sheen.py ltc_value, principled.py real_fresnel_s, _mixture and
+_layered_mixture: sheen, coat, metal, specular, diffuse, each added to the running sum from 0,
+oren_nayar.py's Lambert case) with only +, -, *, /, sqrt, cos and sin; the one power (the F82
+Fresnel's (1 - cos)^5) and the directions that take NumPy's sin and cos (the diffuse picks' cosine
+directions, the sheen's disk) stay NumPy, between the passes; so do the per-hit layer weights (the
+coat tint's power).  The same bits as backend=numpy (tests/materials/test_principled_jit.py).
 Imported only through engine/core/backend.py's choice (it imports numba)."""
 from __future__ import annotations
 

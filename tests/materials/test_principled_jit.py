@@ -1,9 +1,11 @@
-"""The compiled Principled v2 base (engine/materials/principled_jit.py) against the NumPy path of
+"""The compiled Principled v2 (engine/materials/principled_jit.py) against the NumPy path of
 engine/materials/principled.py PrincipledV2: eval (on a span's hits and on a take of them, as the light
 samples evaluate) and sample bit for bit, over metallic 0 to 1, roughness 0.02 to 1, anisotropy, specular
 IOR level 0 (no specular lobe) to 1, tints, compensation on and off, colours above 1, Filter Glossy's
 alpha floor and Reflective Caustics off, directions below the surface and at grazing.  Control: one
-ulp of alpha is told apart.  Layered materials keep the NumPy lobes."""
+ulp of alpha is told apart.  The same with sheens and coats (tinted, of other IORs and roughnesses)
+and alpha below 1 over those bases (controls: one ulp of the sheen's LTC a, of the coat's alpha);
+a transmission keeps the NumPy lobes."""
 import numpy as np
 
 from engine.core.settings import RenderSettings
