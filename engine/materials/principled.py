@@ -303,11 +303,12 @@ class PrincipledV2(BSDF):
             self.flags = self.flags | GLASS_LOBES
 
     def use_backend(self, backends: dict) -> None:
-        """The base's eval and sample compiled (engine/materials/principled_jit.py, the same numbers)
-        when the render runs the Principled effects on numba and no material has layers, a
-        transmission or a rough diffuse (those keep the NumPy lobes)."""
+        """The eval (the base and the sheen and coat over it) and the base's sample compiled
+        (engine/materials/principled_jit.py, the same numbers) when the render runs the Principled
+        effects on numba and no material has a transmission or a rough diffuse (those keep the
+        NumPy lobes)."""
         super().use_backend(backends)
-        fusable = not self.any_layers and not bool((self.diffuse.roughness > 0.0).any())
+        fusable = not self.any_transmission and not bool((self.diffuse.roughness > 0.0).any())
         if fusable and any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.principled_jit"]):
             from . import principled_jit
             self.compiled = principled_jit
@@ -324,7 +325,14 @@ class PrincipledV2(BSDF):
         if textured_mask(si, self.diffuse.roughness_input) is not None:
             return None
         metal, specular, _ = self._views(si)
-        (w_metal, w_spec, w_diffuse), prob = self._lobes_at(si)
+        n_hits = len(si)
+        layers = None
+        if self.any_layers:
+            layers, weights, prob = self._lobes_at(si)
+            w_metal, w_spec, w_diffuse = weights[2:5]
+        else:
+            (w_metal, w_spec, w_diffuse), prob = self._lobes_at(si)
+            w_metal, w_spec, w_diffuse = (np.broadcast_to(w, (3, n_hits)) for w in (w_metal, w_spec, w_diffuse))
         x, y, n = self.metal._frame_at(metal)
         ax, ay, _ = self.metal._alphas(metal)
         ones = None
@@ -333,20 +341,35 @@ class PrincipledV2(BSDF):
             nonlocal ones
             scale = lobe.compensation_at(view)
             if scale is None:
-                ones = np.ones((3, len(si))) if ones is None else ones
+                ones = np.ones((3, n_hits)) if ones is None else ones
                 return ones
             return scale
         f0_metal = np.clip(metal.color, 0.0, 1.0)
         eta = self.specular.ior.take(si.material)
         rows = np.ascontiguousarray
-        return SimpleNamespace(
+        on_metal, on_spec, on_diffuse = (w.max(axis=0) > 0.0 for w in (w_metal, w_spec, w_diffuse))
+        hits = SimpleNamespace(
             wo=rows(si.wo), x=rows(x), y=rows(y), n=rows(n), ax=rows(ax), ay=rows(ay),
             f0_metal=rows(f0_metal),
             b_metal=rows(f82_b(f0_metal, np.clip(self.metal.edge_tint.take(si.material, axis=1), 0.0, 1.0))),
             comp_metal=rows(compensation(self.metal, metal)), spec_colour=rows(specular.color), eta=rows(eta),
             f0_spec=rows(f0_from_ior(eta)), comp_spec=rows(compensation(self.specular, specular)),
             nd=rows(si.n), colour=rows(si.color), w_metal=rows(w_metal), w_spec=rows(w_spec),
-            w_diffuse=rows(w_diffuse), prob=rows(prob), any_metal=bool((w_metal > 0.0).any()))
+            w_diffuse=rows(w_diffuse), on_metal=on_metal, on_spec=on_spec, on_diffuse=on_diffuse, prob=rows(prob),
+            base_row=0, any_metal=bool(on_metal.any()), layered=layers is not None)
+        if layers is not None:
+            hits.base_row = 3
+            coat_view = layers.coat_view
+            cx, cy, cn = self.coat._frame_at(coat_view)
+            cax, cay, _ = self.coat._alphas(coat_view)
+            sx, sy = self.sheen.frame(si)
+            hits.coat = SimpleNamespace(x=rows(cx), y=rows(cy), n=rows(cn), ax=rows(cax), ay=rows(cay),
+                                        w=rows(weights[1]), on=weights[1].max(axis=0) > 0.0,
+                                        eta=rows(self.coat.ior.take(si.material)),
+                                        comp=rows(compensation(self.coat, coat_view)))
+            hits.sheen = SimpleNamespace(x=rows(sx), y=rows(sy), n=rows(si.n), a=rows(layers.sheen_a),
+                                         b=rows(layers.sheen_b), w=rows(weights[0]), on=weights[0].max(axis=0) > 0.0)
+        return hits
 
     # -- the layers at the hits ---------------------------------------------------------------
     def _views(self, si: ShadingPoint):
@@ -548,14 +571,21 @@ class PrincipledV2(BSDF):
         its eval and its sample (ShadingPoint.memo)."""
         return si.memo((self, "lobes"), self._layered_lobes if self.any_layers else self.lobe_weights)
 
-    def _layered_sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+    def _layered_sample(self, si: ShadingPoint, u_lobe, u, hits=None) -> BSDFSample:
+        """sample() with the layers.  Where `hits` (the compiled kernels, principled_jit.py, the same
+        numbers): the lobe pick and the GGX directions by layered_pick, the sheen's and the diffuse
+        lobe's directions in NumPy (their sin and cos), the mixture by base_eval."""
         layers, weights, prob = self._lobes_at(si)
-        cdf = np.cumsum(prob, axis=0)
-        choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
         n = len(si)
-        wi = np.zeros((3, n))
-        flags = np.zeros(n, dtype=np.int8)
         failed = np.zeros(n, dtype=bool)            # samples their own lobe rejected: value 0
+        if hits is not None:                        # the pick and the GGX directions compiled
+            cdf = None
+            wi, flags, choice = self.compiled.layered_pick(hits, u_lobe, u[0], u[1])
+        else:
+            cdf = np.cumsum(prob, axis=0)
+            choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
+            wi = np.zeros((3, n))
+            flags = np.zeros(n, dtype=np.int8)
         through = np.flatnonzero(choice == 0)
         wi[:, through] = -si.wo[:, through]
         flags[through] = PASS_LOBE
@@ -564,18 +594,29 @@ class PrincipledV2(BSDF):
             wi[:, idx] = self.sheen.sample(si.take(idx), u[0].take(idx), u[1].take(idx),
                                            layers.sheen_a.take(idx), layers.sheen_b.take(idx))
             flags[idx] = SHEEN_LOBE
-        views = (layers.coat_view,) + self._views(si)
-        for code, (lobe, view) in enumerate(zip((self.coat, self.metal, self.specular, self.diffuse), views), start=2):
-            idx = np.flatnonzero(choice == code)
-            if not len(idx):
-                continue
-            s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
-            wi[:, idx] = s.wi
-            flags[idx] = s.flags
-            if self.any_transmission:               # a failed sample may point through the surface
-                failed[idx] = s.pdf <= 0.0
-        passed = self._sample_glass(si, np.flatnonzero(choice == 6), u_lobe, u, cdf, prob, weights, wi, flags, failed)
-        f_cos, pdf = self._layered_mixture(si, wi, layers, weights, prob)
+        passed = None
+        if hits is not None:                        # the diffuse picks' cosine directions (NumPy's sin, cos)
+            idx = np.flatnonzero(choice == 5)
+            if len(idx):
+                wi[:, idx] = cosine_directions(u[0].take(idx), u[1].take(idx), si.n.take(idx, axis=1))
+        else:
+            views = (layers.coat_view,) + self._views(si)
+            for code, (lobe, view) in enumerate(zip((self.coat, self.metal, self.specular, self.diffuse), views),
+                                                start=2):
+                idx = np.flatnonzero(choice == code)
+                if not len(idx):
+                    continue
+                s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
+                wi[:, idx] = s.wi
+                flags[idx] = s.flags
+                if self.any_transmission:           # a failed sample may point through the surface
+                    failed[idx] = s.pdf <= 0.0
+            passed = self._sample_glass(si, np.flatnonzero(choice == 6), u_lobe, u, cdf, prob, weights, wi, flags,
+                                        failed)
+        if hits is not None:
+            f_cos, pdf = self.compiled.base_eval(hits, None, wi)
+        else:
+            f_cos, pdf = self._layered_mixture(si, wi, layers, weights, prob)
         with np.errstate(divide="ignore", invalid="ignore"):
             value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
             p_through = prob[0].take(through)
@@ -643,6 +684,8 @@ class PrincipledV2(BSDF):
         if self.compiled is not None:
             hits = si.memo((self, "fused"), self._fused_hits)
             if hits is not None:
+                if self.any_layers:
+                    return self._layered_sample(si, u_lobe, u, hits)
                 return self._compiled_sample(si, hits, u_lobe, u)
         if self.any_layers:
             return self._layered_sample(si, u_lobe, u)

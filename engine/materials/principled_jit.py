@@ -1,25 +1,28 @@
-"""The Principled BSDF v2's base (engine/materials/principled.py PrincipledV2 without layers: the
-metallic and specular GGX lobes over the Lambertian diffuse) compiled with numba: its eval and pdf
-as one pass over the (hit, direction) pairs that reads the per-hit values (frame, alphas, Fresnel
-inputs, compensation, lobe weights and probabilities, computed once per scatter group by NumPy) by
-index, so a light sample's eval gathers nothing, and its sample (the lobe pick and the GGX
-direction) as one pass over the hits.
+"""The Principled BSDF v2 (engine/materials/principled.py PrincipledV2: the metallic and specular GGX
+lobes over the Lambertian diffuse, and over them the sheen and the coat) compiled with numba: its
+eval and pdf as passes over the (hit, direction) pairs that read the per-hit values (frames, alphas,
+Fresnel inputs, compensation, the sheen's LTC a and b, lobe weights and probabilities, computed once
+per scatter group by NumPy, principled.py `_fused_hits`) by index, so a light sample's eval gathers
+nothing, and its sample's lobe pick with the GGX directions as one pass over the hits.
 
-The two microfacet lobes share their geometry (the same frame, alphas and half vector: both are set
-up from the same material, engine/materials/principled.py `_fused_hits`), so D and the Lambdas are
-computed once.  Every number repeats the NumPy path's float64 operations in the same order
-(engine/materials/glossy.py MicrofacetReflection.eval and sample with the GGX kernels of
-engine/materials/microfacet_jit.py, fresnel_f82, fresnel_dielectric, principled.py real_fresnel_s
-and _mixture, oren_nayar.py's Lambert case) with only +, -, *, /, sqrt, cos and sin; the one power
-(the F82 Fresnel's (1 - cos)^5) and the cosine directions of the diffuse picks (float32 sin and cos)
-stay NumPy, between the passes.  The same bits as backend=numpy (tests/materials/test_principled_jit.py).
+The base's two microfacet lobes share their geometry (the same frame, alphas and half vector: both
+are set up from the same material), so D and the Lambdas are computed once; the coat has its own
+(its roughness, isotropic, on the same normal), one more GGX pass where a material is coated.  Every
+number repeats the NumPy path's float64 operations in the same order (engine/materials/glossy.py
+MicrofacetReflection.eval and sample with the GGX kernels of engine/materials/microfacet_jit.py,
+fresnel_f82, fresnel_dielectric, sheen.py ltc_value, principled.py real_fresnel_s, _mixture and
+_layered_mixture: sheen, coat, metal, specular, diffuse, each added to the running sum from 0,
+oren_nayar.py's Lambert case) with only +, -, *, /, sqrt, cos and sin; the one power (the F82
+Fresnel's (1 - cos)^5) and the directions that take NumPy's sin and cos (the diffuse picks' cosine
+directions, the sheen's disk) stay NumPy, between the passes; so do the per-hit layer weights (the
+coat tint's power).  The same bits as backend=numpy (tests/materials/test_principled_jit.py).
 Imported only through engine/core/backend.py's choice (it imports numba)."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..core.backend import numba_module
-from .microfacet_jit import _clip01, eval_hit, sample_hit
+from .microfacet_jit import PI, _clip01, _finite, eval_hit, sample_hit
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -53,25 +56,56 @@ def _fresnel_dielectric(cos, ior):
 
 
 @jit
-def _geometry(index, wo, wi, x, y, n, ax, ay, w_metal, w_spec, cos_out, pdf_out, g_out):
-    """GGX (cos, pdf, g) of each pair (hit index[k], wi[:, k]) where a microfacet lobe is set up."""
+def _geometry(index, wo, wi, x, y, n, ax, ay, on_a, on_b, cos_out, pdf_out, g_out):
+    """GGX (cos, pdf, g) of each pair (hit index[k], wi[:, k]) where a lobe on_a or on_b is set up."""
     for k in range(index.shape[0]):
         j = index[k]
-        if w_metal[j] > 0.0 or w_spec[j] > 0.0:
+        if on_a[j] or on_b[j]:
             cos_out[k], pdf_out[k], g_out[k] = eval_hit(wo, wi, x, y, n, j, k, ax[j], ay[j])
         else:
             cos_out[k], pdf_out[k], g_out[k] = 0.0, 0.0, 0.0
 
 
 @jit
-def _combine(index, wi, cos, pdf_g, g, s5, nd, w_metal, w_spec, w_diffuse, prob, f0_metal, b_metal, comp_metal,
-             spec_colour, eta, f0_spec, comp_spec, colour, f_out, pdf_out):
-    """f cos (3, K) and pdf (K,) of the base: metal, specular, diffuse, summed in that order."""
+def _layers(index, wi, sx, sy, sn, sheen_a, sheen_b, w_sheen, on_sheen, cos, pdf_g, g, w_coat, on_coat, coat_eta,
+            comp_coat, prob, f_out, pdf_out):
+    """f cos (3, K) and pdf (K,) of the layers over the base: the sheen (engine/materials/sheen.py
+    ltc_value in its frame sx, sy, sn), then the coat (GGX, dielectric Fresnel of coat_eta, colour
+    1), as principled.py _layered_mixture sums them (from 0)."""
     for k in range(index.shape[0]):
         j = index[k]
         f_r, f_g, f_b, pdf = 0.0, 0.0, 0.0, 0.0
-        w = w_metal[j]
-        if w > 0.0:
+        if on_sheen[j]:
+            l0 = wi[0, k] * sx[0, j] + wi[1, k] * sx[1, j] + wi[2, k] * sx[2, j]
+            l1 = wi[0, k] * sy[0, j] + wi[1, k] * sy[1, j] + wi[2, k] * sy[2, j]
+            l2 = wi[0, k] * sn[0, j] + wi[1, k] * sn[1, j] + wi[2, k] * sn[2, j]
+            a, b = sheen_a[j], sheen_b[j]
+            t0, t1 = a * l0 + b * l2, a * l1
+            ratio = a / (t0 * t0 + t1 * t1 + l2 * l2)
+            d = _finite(_max_keep_nan(l2) / PI * (ratio * ratio))
+            f_r = f_r + w_sheen[0, j] * d
+            f_g = f_g + w_sheen[1, j] * d
+            f_b = f_b + w_sheen[2, j] * d
+            pdf = pdf + prob[1, j] * d
+        if on_coat[j]:
+            fg = _fresnel_dielectric(cos[k], coat_eta[j]) * g[k]
+            f_r = f_r + w_coat[0, j] * (fg * comp_coat[0, j])
+            f_g = f_g + w_coat[1, j] * (fg * comp_coat[1, j])
+            f_b = f_b + w_coat[2, j] * (fg * comp_coat[2, j])
+            pdf = pdf + prob[2, j] * pdf_g[k]
+        f_out[0, k], f_out[1, k], f_out[2, k] = f_r, f_g, f_b
+        pdf_out[k] = pdf
+
+
+@jit
+def _combine(index, wi, cos, pdf_g, g, s5, nd, w_metal, w_spec, w_diffuse, on_metal, on_spec, on_diffuse, prob, row,
+             f0_metal, b_metal, comp_metal, spec_colour, eta, f0_spec, comp_spec, colour, f_out, pdf_out):
+    """The base's metal, specular and diffuse (weights (3, N), probabilities prob[row:row + 3])
+    added in that order to f cos (3, K) and pdf (K,) (zeros, or the layers over the base)."""
+    for k in range(index.shape[0]):
+        j = index[k]
+        f_r, f_g, f_b, pdf = f_out[0, k], f_out[1, k], f_out[2, k], pdf_out[k]
+        if on_metal[j]:
             c = cos[k]
             s = _clip01(1.0 - c)
             t5 = s5[k]
@@ -80,11 +114,10 @@ def _combine(index, wi, cos, pdf_g, g, s5, nd, w_metal, w_spec, w_diffuse, prob,
             for ch in range(3):
                 f0 = f0_metal[ch, j]
                 fr = _clip01(f0 + (1.0 - f0) * t5 - b_metal[ch, j] * c * t5 * s)
-                out[ch] = w * (fr * gk * comp_metal[ch, j])
+                out[ch] = w_metal[ch, j] * (fr * gk * comp_metal[ch, j])
             f_r, f_g, f_b = f_r + out[0], f_g + out[1], f_b + out[2]
-            pdf = pdf + prob[0, j] * pdf_g[k]
-        w = w_spec[j]
-        if w > 0.0:
+            pdf = pdf + prob[row, j] * pdf_g[k]
+        if on_spec[j]:
             f0 = f0_spec[j]
             s = (_fresnel_dielectric(cos[k], eta[j]) - f0) / (1.0 - f0)
             if s != s:
@@ -94,18 +127,17 @@ def _combine(index, wi, cos, pdf_g, g, s5, nd, w_metal, w_spec, w_diffuse, prob,
             out = [0.0, 0.0, 0.0]
             for ch in range(3):
                 col = spec_colour[ch, j]
-                out[ch] = w * ((col + (1.0 - col) * s) * gk * comp_spec[ch, j])
+                out[ch] = w_spec[ch, j] * ((col + (1.0 - col) * s) * gk * comp_spec[ch, j])
             f_r, f_g, f_b = f_r + out[0], f_g + out[1], f_b + out[2]
-            pdf = pdf + prob[1, j] * pdf_g[k]
-        w = w_diffuse[j]
-        if w > 0.0:
+            pdf = pdf + prob[row + 1, j] * pdf_g[k]
+        if on_diffuse[j]:
             cos_d = wi[0, k] * nd[0, j] + wi[1, k] * nd[1, j] + wi[2, k] * nd[2, j]
             cos_i = _max_keep_nan(cos_d)
             pdf_d = cos_i * INV_PI
-            f_r = f_r + w * (colour[0, j] * pdf_d)
-            f_g = f_g + w * (colour[1, j] * pdf_d)
-            f_b = f_b + w * (colour[2, j] * pdf_d)
-            pdf = pdf + prob[2, j] * pdf_d
+            f_r = f_r + w_diffuse[0, j] * (colour[0, j] * pdf_d)
+            f_g = f_g + w_diffuse[1, j] * (colour[1, j] * pdf_d)
+            f_b = f_b + w_diffuse[2, j] * (colour[2, j] * pdf_d)
+            pdf = pdf + prob[row + 2, j] * pdf_d
         f_out[0, k], f_out[1, k], f_out[2, k] = f_r, f_g, f_b
         pdf_out[k] = pdf
 
@@ -131,22 +163,54 @@ def _pick(wo, x, y, n, ax, ay, prob, u_lobe, u1, u2, wi_out, flags_out):
     return glossy
 
 
+@jit
+def _layered_pick(wo, x, y, n, ax, ay, cx, cy, cn, cax, cay, prob, u_lobe, u1, u2, wi_out, flags_out, choice_out):
+    """The lobe pick of principled.py _layered_sample (0 pass-through, 1 sheen, 2 coat, 3 metal,
+    4 specular, 5 diffuse: u_lobe against the running sum of prob, as np.cumsum) and the GGX
+    directions of the coat (its frame cx, cy, cn) and of the base's microfacet lobes."""
+    rows = prob.shape[0]
+    for i in range(wo.shape[1]):
+        c = 0.0
+        choice = 0
+        for r in range(rows - 1):
+            c = c + prob[r, i] if r > 0 else prob[r, i]
+            if u_lobe[i] >= c:
+                choice += 1
+        choice_out[i] = choice
+        if choice == 2:
+            d0, d1, d2, _, _, _ = sample_hit(wo, cx, cy, cn, i, cax[i], cay[i], u1[i], u2[i])
+        elif choice == 3 or choice == 4:
+            d0, d1, d2, _, _, _ = sample_hit(wo, x, y, n, i, ax[i], ay[i], u1[i], u2[i])
+        else:
+            flags_out[i] = DIFFUSE
+            continue
+        wi_out[0, i], wi_out[1, i], wi_out[2, i] = d0, d1, d2
+        flags_out[i] = GLOSSY
+
+
 def base_eval(hits, index, wi):
-    """(f cos (3, K), pdf (K,)) of the base lobes at the pairs (hit index[k], wi[:, k]); hits: the
-    per-hit arrays of principled.py `_fused_hits`, index None for the hits themselves."""
+    """(f cos (3, K), pdf (K,)) of the lobes at the pairs (hit index[k], wi[:, k]): the sheen and the
+    coat where hits.layered, then the base; hits: the per-hit arrays of principled.py `_fused_hits`,
+    index None for the hits themselves."""
     count = wi.shape[1]
     if index is None:
         index = np.arange(count)
     index = np.ascontiguousarray(index, dtype=np.int64)
     wi = np.ascontiguousarray(wi, dtype=np.float64)
+    f_cos, pdf = np.zeros((3, count)), np.zeros(count)
     cos, pdf_g, g = np.empty(count), np.empty(count), np.empty(count)
-    _geometry(index, hits.wo, wi, hits.x, hits.y, hits.n, hits.ax, hits.ay, hits.w_metal, hits.w_spec,
+    if hits.layered:
+        c = hits.coat
+        _geometry(index, hits.wo, wi, c.x, c.y, c.n, c.ax, c.ay, c.on, c.on, cos, pdf_g, g)
+        s = hits.sheen
+        _layers(index, wi, s.x, s.y, s.n, s.a, s.b, s.w, s.on, cos, pdf_g, g, c.w, c.on, c.eta, c.comp, hits.prob,
+                f_cos, pdf)
+    _geometry(index, hits.wo, wi, hits.x, hits.y, hits.n, hits.ax, hits.ay, hits.on_metal, hits.on_spec,
               cos, pdf_g, g)
     s5 = np.clip(1.0 - cos, 0.0, 1.0) ** 5 if hits.any_metal else cos     # fresnel_f82's power, NumPy's
-    f_cos, pdf = np.empty((3, count)), np.empty(count)
-    _combine(index, wi, cos, pdf_g, g, s5, hits.nd, hits.w_metal, hits.w_spec, hits.w_diffuse, hits.prob,
-             hits.f0_metal, hits.b_metal, hits.comp_metal, hits.spec_colour, hits.eta, hits.f0_spec, hits.comp_spec,
-             hits.colour, f_cos, pdf)
+    _combine(index, wi, cos, pdf_g, g, s5, hits.nd, hits.w_metal, hits.w_spec, hits.w_diffuse, hits.on_metal,
+             hits.on_spec, hits.on_diffuse, hits.prob, hits.base_row, hits.f0_metal, hits.b_metal, hits.comp_metal,
+             hits.spec_colour, hits.eta, hits.f0_spec, hits.comp_spec, hits.colour, f_cos, pdf)
     return f_cos, pdf
 
 
@@ -163,19 +227,46 @@ def base_pick(hits, u_lobe, u1, u2):
     return wi, flags, diffuse
 
 
+def layered_pick(hits, u_lobe, u1, u2):
+    """(wi (3, N) with the GGX directions of the coat, metal and specular picks, flags (N,) int8 (those
+    glossy, the rest diffuse: principled.py sets the pass-through's), the choices (N,)) at the hits
+    themselves (hits.layered)."""
+    count = hits.wo.shape[1]
+    wi = np.empty((3, count))
+    flags = np.empty(count, dtype=np.int8)
+    choice = np.empty(count, dtype=np.int64)
+    u_lobe, u1, u2 = (np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64), (count,)))
+                      for a in (u_lobe, u1, u2))
+    c = hits.coat
+    _layered_pick(hits.wo, hits.x, hits.y, hits.n, hits.ax, hits.ay, c.x, c.y, c.n, c.ax, c.ay, hits.prob, u_lobe,
+                  u1, u2, wi, flags, choice)
+    return wi, flags, choice
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     from types import SimpleNamespace
     frame = np.eye(3)[:, :, None].repeat(2, axis=2)
     wo = np.ascontiguousarray(np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]]))
     ones = np.ones((3, 2))
+    on = np.array([True, True])
     hits = SimpleNamespace(wo=wo, x=frame[0].copy(), y=frame[1].copy(), n=frame[2].copy(), nd=frame[2].copy(),
-                           ax=np.array([0.25, 0.5]), ay=np.array([0.25, 0.5]), w_metal=np.array([1.0, 0.0]),
-                           w_spec=np.array([0.0, 1.0]), w_diffuse=np.array([0.0, 0.5]),
-                           prob=np.ascontiguousarray(np.array([[1.0, 0.0], [0.0, 0.5], [0.0, 0.5]])),
+                           ax=np.array([0.25, 0.5]), ay=np.array([0.25, 0.5]), w_metal=ones * [1.0, 0.0],
+                           w_spec=ones * [0.0, 1.0], w_diffuse=ones * [0.0, 0.5], on_metal=np.array([True, False]),
+                           on_spec=np.array([False, True]), on_diffuse=np.array([False, True]),
+                           prob=np.ascontiguousarray(np.array([[1.0, 0.0], [0.0, 0.5], [0.0, 0.5]])), base_row=0,
                            f0_metal=ones * 0.5, b_metal=ones * 0.1, comp_metal=ones, spec_colour=ones * 0.04,
                            eta=np.array([1.5, 1.5]), f0_spec=np.array([0.04, 0.04]), comp_spec=ones, colour=ones * 0.8,
-                           any_metal=True)
+                           any_metal=True, layered=False)
     base_eval(hits, None, wo[::-1].copy())
     base_eval(hits, np.array([1, 0]), wo.copy())
     base_pick(hits, np.array([0.3, 0.6]), np.array([0.3, 0.6]), np.array([0.2, 0.9]))
+    hits.layered, hits.base_row = True, 3
+    hits.prob = np.ascontiguousarray(np.vstack([np.zeros((3, 2)), hits.prob]))
+    hits.coat = SimpleNamespace(x=hits.x, y=hits.y, n=hits.n, ax=hits.ax, ay=hits.ay, w=ones * 0.5, on=on,
+                                eta=np.array([1.5, 1.5]), comp=ones)
+    hits.sheen = SimpleNamespace(x=hits.x, y=hits.y, n=hits.n, a=np.array([0.5, 0.5]), b=np.array([0.1, 0.1]),
+                                 w=ones * 0.5, on=on)
+    base_eval(hits, None, wo[::-1].copy())
+    base_eval(hits, np.array([1, 0]), wo.copy())
+    layered_pick(hits, np.array([0.3, 0.9]), np.array([0.3, 0.6]), np.array([0.2, 0.9]))

@@ -1,9 +1,11 @@
-"""The compiled Principled v2 base (engine/materials/principled_jit.py) against the NumPy path of
+"""The compiled Principled v2 (engine/materials/principled_jit.py) against the NumPy path of
 engine/materials/principled.py PrincipledV2: eval (on a span's hits and on a take of them, as the light
 samples evaluate) and sample bit for bit, over metallic 0 to 1, roughness 0.02 to 1, anisotropy, specular
 IOR level 0 (no specular lobe) to 1, tints, compensation on and off, colours above 1, Filter Glossy's
 alpha floor and Reflective Caustics off, directions below the surface and at grazing.  Control: one
-ulp of alpha is told apart.  Layered materials keep the NumPy lobes."""
+ulp of alpha is told apart.  The same with sheens and coats (tinted, of other IORs and roughnesses)
+and alpha below 1 over those bases (controls: one ulp of the sheen's LTC a, of the coat's alpha);
+a transmission keeps the NumPy lobes."""
 import numpy as np
 
 from engine.core.settings import RenderSettings
@@ -89,14 +91,75 @@ def test_eval_and_sample_are_bit_identical():
     assert not np.array_equal(compiled.eval(_hits(np.random.default_rng(11), len(materials), 1500), wi)[1], p_a)
 
 
-def test_layers_keep_the_numpy_lobes():
+def _layered_materials():
+    """The base's materials under coats (tinted, rough, of other IORs), sheens, alpha below 1, and
+    both together."""
+    out = _materials()
+    for i, (coat, sheen, alpha) in enumerate([(0.5, 0.0, 1.0), (1.0, 0.7, 1.0), (0.0, 1.0, 1.0), (0.3, 0.4, 0.6),
+                                              (2.0, 0.0, 1.0)]):
+        base = out[i % len(out)]
+        out.append(Material(f"l{i}", kind="principled", color=base.color, roughness=base.roughness,
+                            anisotropy=base.anisotropy, rotation=base.rotation, multiscatter=base.multiscatter,
+                            principled=Principled(metallic=base.principled.metallic, specular_tint=(1.0, 0.9, 0.8),
+                                                  coat_weight=coat, coat_roughness=0.05 + 0.2 * i, coat_ior=1.3 + 0.2 * i,
+                                                  coat_tint=(1.0, 1.0, 1.0) if i % 2 else (0.8, 0.6, 0.9),
+                                                  sheen_weight=sheen, sheen_roughness=0.1 + 0.2 * i,
+                                                  sheen_tint=(1.0, 0.7, 0.5), alpha=alpha)))
+    return out
+
+
+def test_layers_are_bit_identical():
+    """The sheen and the coat over the base, compiled: eval (on the span and on a take) and the
+    sample's mixture, the same bits as backend=numpy."""
     require_compiled()
-    coated = Material("c", kind="principled", principled=Principled(coat_weight=0.5))
-    bsdf = PrincipledV2(_materials() + [coated], RenderSettings())
+    materials = _layered_materials()
+    numpy_bsdf, compiled = _pair(materials)
+    assert numpy_bsdf.compiled is None and compiled.compiled.__name__ == TWIN and compiled.any_layers
+    count = 1500
+    for extras in (False, True):
+        def make_hits():
+            return _hits(np.random.default_rng(13), len(materials), count, extras)
+        rng = np.random.default_rng(9)
+        wi = rng.normal(size=(3, count))
+        wi /= np.linalg.norm(wi, axis=0)
+        f_a, p_a = numpy_bsdf.eval(make_hits(), wi)
+        f_b, p_b = compiled.eval(make_hits(), wi)
+        assert (p_a > 0).sum() > 500 and np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+        idx = np.sort(rng.integers(0, count, count // 2))
+        f_a, p_a = numpy_bsdf.eval(make_hits().take(idx), wi.take(idx, axis=1))
+        for filled in (True, False):
+            hits = make_hits()
+            if filled:
+                hits.memo((compiled, "fused"), compiled._fused_hits)
+            f_b, p_b = compiled.eval(hits.take(idx), wi.take(idx, axis=1))
+            assert np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+        u_lobe, u = rng.random(count), (rng.random(count), rng.random(count))
+        a, b = numpy_bsdf.sample(make_hits(), u_lobe, u), compiled.sample(make_hits(), u_lobe, u)
+        assert (a.pdf > 0).sum() > 500 and len(np.unique(a.flags)) >= 3
+        for x, y in ((a.wi, b.wi), (a.value, b.value), (a.pdf, b.pdf), (a.flags, b.flags)):
+            assert np.array_equal(x, y)
+    # Controls: a sheen 1 ulp flatter (its LTC a), a coat 1 ulp rougher, are told apart.
+    hits = make_hits()
+    f_a = compiled.eval(hits, wi)[0]
+    for lobe_change in ("sheen", "coat"):
+        other = _pair(materials)[1]
+        if lobe_change == "coat":
+            other.coat.ax = np.nextafter(other.coat.ax, 1.0)
+        else:
+            table = other.sheen.params
+            other.sheen.params = lambda si, r: (lambda a, b, c: (np.nextafter(a, 2.0), b, c))(*table(si, r))
+        assert not np.array_equal(other.eval(make_hits(), wi)[0], f_a), lobe_change
+
+
+def test_transmission_keeps_the_numpy_lobes():
+    require_compiled()
+    glass = Material("g", kind="principled", principled=Principled(transmission_weight=0.5))
+    bsdf = PrincipledV2(_materials() + [glass], RenderSettings())
     bsdf.use_backend(NUMBA)
     assert bsdf.compiled is None and bsdf.metal.compiled is not None
-    plain = PrincipledV2(_materials(), RenderSettings())
-    plain.use_backend(NUMBA)
-    assert plain.compiled is not None
-    plain.use_backend({"principled": "numpy"})
-    assert plain.compiled is None
+    coated = Material("c", kind="principled", principled=Principled(coat_weight=0.5))
+    layered = PrincipledV2(_materials() + [coated], RenderSettings())
+    layered.use_backend(NUMBA)
+    assert layered.compiled is not None
+    layered.use_backend({"principled": "numpy"})
+    assert layered.compiled is None
