@@ -126,9 +126,11 @@ def warm_worker_pool(threads):
     return pool, time.perf_counter() - t0
 
 
-def render_on_workers(blender_scene, resolution, *, diffuse, samples, max_depth, seed, threads, estimator):
+def render_on_workers(blender_scene, resolution, *, diffuse, samples, max_depth, seed, threads, estimator,
+                      extra=None):
     """One TNCG15 MC render timed as F12 (--tncg15-pool workers, module docstring): (image, wall
-    seconds, CPU seconds of Blender's process and the workers, stats)."""
+    seconds, CPU seconds of Blender's process and the workers, stats).  extra: more RenderSettings
+    fields (scripts/bench_caustics.py: the caustics method and the photon map's)."""
     from mcrt_addon import bridge
     pool, start_seconds = warm_worker_pool(threads)
     pids = [w.pid for w in pool.inner.workers]
@@ -141,7 +143,7 @@ def render_on_workers(blender_scene, resolution, *, diffuse, samples, max_depth,
     pool.close = close_measured
     name, _, sampler = estimator.partition("/")
     settings = be.tracer_settings(samples=samples, max_depth=max_depth, seed=seed, threads=threads,
-                                  fresnel="exact", estimator=name, sampler=sampler or "sobol")
+                                  fresnel="exact", estimator=name, sampler=sampler or "sobol", **(extra or {}))
     c0, t0 = time.process_time(), time.perf_counter()
     try:
         exported = be.export_tracer_scene(blender_scene, resolution)

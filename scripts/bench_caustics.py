@@ -1,7 +1,7 @@
 """Caustics by the photon map against path tracing (`mis`) at equal time, and both against Cycles, in one run.
 
   python scripts/bench_caustics.py [--resolution N] [--seconds T] [--reference-spp S] [--photons P] [--radius R]
-         [--parts equal-time cycles photon-count] [--cycles-samples S] [--cycles-reference-samples S] [--threads N]
+         [--parts equal-time cycles photon-count] [--cycles-samples S] [--cycles-reference-samples S] [--threads N] [--tncg15-pool workers|threads]
          [--scenes ...] [--photon-counts N ...] [--count-samples S]
   make bench-caustics
 
@@ -21,10 +21,13 @@ Part "cycles": efficiency 1 / (MSE t) against Cycles (mcrt_addon/bench_estimator
 of `make bench-materials`), on the sample Cornell box with its glass and mirror balls and on the
 caustic room (sample_blends/make_samples.py `cornell`, `caustic`) at N x N, max depth 12: a Cycles
 reference with the fair settings of mcrt_addon/reference.py (cached in renders/reference/), Cycles
-at --cycles-samples with --threads threads, then TNCG15 MC in-process (threads, as in Blender) at
-the same samples with `caustics_method path` and with the default `auto` (the photon map where the
-effect plan turns it on), one run each after a short warm-up.  Printed per row: wall seconds,
-process CPU seconds (all threads), MSE, efficiency and its ratio to Cycles'; the load average
+at --cycles-samples with --threads threads, then TNCG15 MC at the same samples with
+`caustics_method path` and with `auto` (the photon map where the effect plan turns it on), one run
+each after a short warm-up, timed as F12 renders (--tncg15-pool workers, the default: the add-on's
+worker processes started ahead, the export, the scene's transfer and the workers' CPU seconds
+counted, as `make bench-materials`) or on threads in Blender's process (--tncg15-pool threads, the
+mode of the figures before 2026-12-05).  Printed per row: wall seconds, CPU seconds (all threads
+and workers), MSE, efficiency and its ratio to Cycles'; the load average
 before and after.  The MSE includes the reference's own noise (about MSE_cycles x samples /
 reference samples, printed; the last column takes it out of every MSE) and the model difference of
 implicit against tessellated balls.
@@ -146,6 +149,14 @@ def against_cycles(args, log=print):
         rows = [("cycles", image, seconds, cpu, {})]
         exported = be.export_tracer_scene(scene, res).scene
         for method in ("path", "auto"):
+            if args.tncg15_pool == "workers":       # as F12: the add-on's worker processes (bench_materials.py)
+                from mcrt_addon.bench_materials import render_on_workers
+                extra = dict(caustics_method=method, photons_per_pass=args.photons, photon_radius=args.radius)
+                kw = dict(diffuse=False, max_depth=CYCLES_DEPTH, threads=args.threads, estimator="mis", extra=extra)
+                render_on_workers(scene, res, samples=4, seed=0, **kw)                                      # warm-up
+                rows.append((f"tncg15 {method}",) + render_on_workers(scene, res, samples=args.cycles_samples, seed=1,
+                                                                      **kw))
+                continue
             render_ours(exported, method, 4, 0, args.threads, args.photons, args.radius)                   # warm-up
             rows.append((f"tncg15 {method}",) + render_ours(exported, method, args.cycles_samples, 1, args.threads,
                                                             args.photons, args.radius))
@@ -224,6 +235,10 @@ def main(argv=None):
     ap.add_argument("--cycles-samples", type=int, default=256)
     ap.add_argument("--cycles-reference-samples", type=int, default=8192)
     ap.add_argument("--threads", type=int, default=2, help="threads of both renderers in the Cycles part")
+    ap.add_argument("--tncg15-pool", choices=("workers", "threads"), default="workers",
+                    help="the Cycles part: TNCG15 MC timed as F12 renders, on the add-on's worker processes "
+                         "started ahead (export, transfer and their CPU seconds counted), or on threads in "
+                         "Blender's process (the GIL lets two reach about 1.7 cores)")
     ap.add_argument("--photon-counts", nargs="+", type=int, default=(10000, 5000, 2500, 1250),
                     help="photons per pass of the photon-count part")
     ap.add_argument("--count-samples", type=int, default=64, help="samples per pixel of the photon-count part")
