@@ -142,7 +142,8 @@ def main():
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--samples", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=3, help="runs of each case; the one of the smallest ratio is shown")
-    ap.add_argument("--blender", default="3.4,5.0", help="3.4 (the blender binary), 5.0 (the bpy module), or both")
+    ap.add_argument("--blender", default="3.4,5.0",
+                    help="3.4 (the blender binary), 5.0 (the bpy module), or 3.4,5.0 (both, the default)")
     ap.add_argument("--cases", default="off,on,cycles", help="Persistent Data off, on, Cycles: which to run")
     a = ap.parse_args()
     blend = os.path.join(REPO, "sample_blends", a.scene + ".blend")
@@ -151,7 +152,10 @@ def main():
     head = (f"{'Blender':<8}{'run':<16}{'frame s':>8}{'tracing':>8}{'ratio':>7}{'export':>8}{'prepare':>8}"
             f"{'w.setup':>8}{'w.build':>8}{'w.cpu':>7}{'rest':>7}{'Blender':>8}{'read':>5}{'cpu B':>7}{'cpu W':>7}{'load':>11}")
     print(head)
-    for blender in a.blender.split(","):
+    blenders = a.blender.split(",")
+    if set(blenders) - {"3.4", "5.0"}:
+        ap.error(f"--blender {a.blender}: expected 3.4, 5.0 or 3.4,5.0")
+    for blender in blenders:
         cases = {"off": ("TNCG15_MC", "off"), "on": ("TNCG15_MC", "on"), "cycles": ("CYCLES", "off")}
         for engine, persistent in (cases[c] for c in a.cases.split(",")):
             rows = [summary(run(blender, blend, a.frames, a.size, a.samples, engine, persistent))
