@@ -167,6 +167,21 @@ def interpolation_factor(roughness: float, eta: float | None) -> np.ndarray:
     return np.clip(out, 0.0, 1.0)
 
 
+
+def _sample_lobes(lobes, views, choice, first, u, wi, flags, failed=None):
+    """Each lobe's directions for the hits that picked it (choice == first + its place in `lobes`),
+    written into wi and flags; failed (when given): where the lobe's sample failed (a failed
+    sample may point through the surface)."""
+    for code, (lobe, view) in enumerate(zip(lobes, views), start=first):
+        idx = np.flatnonzero(choice == code)
+        if not len(idx):
+            continue
+        s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
+        wi[:, idx] = s.wi
+        flags[idx] = s.flags
+        if failed is not None:
+            failed[idx] = s.pdf <= 0.0
+
 class _SpecularLayer(MicrofacetReflection):
     """The Principled BSDF's dielectric specular lobe: F = mix(F0 x tint, 1, s(h)) (hits' colour =
     F0 x tint clamped to 1, set by PrincipledV2), at the per-material eta in `self.ior`."""
@@ -601,16 +616,8 @@ class PrincipledV2(BSDF):
                 wi[:, idx] = cosine_directions(u[0].take(idx), u[1].take(idx), si.n.take(idx, axis=1))
         else:
             views = (layers.coat_view,) + self._views(si)
-            for code, (lobe, view) in enumerate(zip((self.coat, self.metal, self.specular, self.diffuse), views),
-                                                start=2):
-                idx = np.flatnonzero(choice == code)
-                if not len(idx):
-                    continue
-                s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
-                wi[:, idx] = s.wi
-                flags[idx] = s.flags
-                if self.any_transmission:           # a failed sample may point through the surface
-                    failed[idx] = s.pdf <= 0.0
+            _sample_lobes((self.coat, self.metal, self.specular, self.diffuse), views, choice, 2, u, wi, flags,
+                          failed if self.any_transmission else None)
             passed = self._sample_glass(si, np.flatnonzero(choice == 6), u_lobe, u, cdf, prob, weights, wi, flags,
                                         failed)
         if hits is not None:
@@ -695,13 +702,7 @@ class PrincipledV2(BSDF):
         choice = np.where(prob.sum(axis=0) > 0.0, choice, 2)
         wi = np.zeros((3, len(si)))
         flags = np.zeros(len(si), dtype=np.int8)
-        for code, (lobe, view) in enumerate(zip((self.metal, self.specular, self.diffuse), self._views(si))):
-            idx = np.flatnonzero(choice == code)
-            if not len(idx):
-                continue
-            s = lobe.sample(view.take(idx), None, (u[0].take(idx), u[1].take(idx)))
-            wi[:, idx] = s.wi
-            flags[idx] = s.flags
+        _sample_lobes((self.metal, self.specular, self.diffuse), self._views(si), choice, 0, u, wi, flags)
         f_cos, pdf = self._mixture(si, wi, weights, prob)
         with np.errstate(divide="ignore", invalid="ignore"):
             value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
