@@ -9,9 +9,10 @@
 Part "equal-time":
 
 The caustic room of engine/scene/builtin.py (a glass ball on a diffuse floor under a small lamp)
-at N x N: a converged reference by path tracing alone (the mean of --references renders of S samples
-per pixel at independent seeds, cached in renders/reference/), then `caustics_method path` and `caustics_method photons` with the same time
-limit T, each as the tracer renders by default (2 local workers).  Printed: relMSE
+at N x N: a converged reference by path tracing alone (the mean of --references renders of S
+samples per pixel at independent seeds, cached in renders/reference/), then `caustics_method path`
+and `caustics_method photons` with the same time limit T, each as the tracer renders by default
+(2 local workers).  Printed: relMSE
 (mean (x - ref)^2 / (ref^2 + 0.01)) over the whole image and inside the caustic region (the pixels
 where the reference with Cycles' refractive caustics on exceeds the one with them off by 10 %),
 less the reference's own noise (estimated from the spread of the independent references),
