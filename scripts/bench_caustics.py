@@ -1,6 +1,7 @@
 """Caustics by the photon map against path tracing (`mis`) at equal time, and both against Cycles, in one run.
 
   python scripts/bench_caustics.py [--resolution N] [--seconds T] [--reference-spp S] [--photons P] [--radius R]
+         [--clock wall|cpu] [--pilot-spp S] [--repeats K]
          [--parts equal-time cycles photon-count] [--cycles-samples S] [--cycles-reference-samples S] [--threads N] [--tncg15-pool workers|threads]
          [--scenes ...] [--photon-counts N ...] [--count-samples S]
   make bench-caustics
@@ -8,14 +9,20 @@
 Part "equal-time":
 
 The caustic room of engine/scene/builtin.py (a glass ball on a diffuse floor under a small lamp)
-at N x N: a converged reference by path tracing alone (S samples per pixel, cached in
-renders/reference/), then `caustics_method path` and `caustics_method photons` with the same time
-limit T, each as the tracer renders by default (2 local workers).  Printed: relMSE
+at N x N: a converged reference by path tracing alone (the mean of --references renders of S
+samples per pixel at independent seeds, cached in renders/reference/), then `caustics_method path`
+and `caustics_method photons` with the same time limit T, each as the tracer renders by default
+(2 local workers).  Printed: relMSE
 (mean (x - ref)^2 / (ref^2 + 0.01)) over the whole image and inside the caustic region (the pixels
 where the reference with Cycles' refractive caustics on exceeds the one with them off by 10 %),
-less the reference's own noise (estimated from two independent references),
+less the reference's own noise (estimated from the spread of the independent references),
 and the ratios path / photons (targets: >= 10 inside the caustic, >= 3 over the image; the machine's
-load drifts between runs, only the ratios of one run mean anything).
+load drifts between runs, only the ratios of one run mean anything).  --clock cpu gives each method
+T x workers CPU seconds (this process's and its forked workers'): the samples from a pilot render's
+rate, the relMSE scaled by the CPU seconds used over the budget (the error is the variance, which
+falls as 1 / samples: the photon render's bias is not measurable here, docs/photons.md), so the
+other jobs on a shared machine change little.  --repeats K renders K pairs (path, photons), one
+after the other, at independent seeds, and prints the ratios' medians.
 
 Part "cycles": efficiency 1 / (MSE t) against Cycles (mcrt_addon/bench_estimators.py, the machinery
 of `make bench-materials`), on the sample Cornell box with its glass and mirror balls and on the
@@ -82,37 +89,74 @@ CYCLES_SCENES = ("cornell", "caustic")       # sample_blends/make_samples.py: gl
 CYCLES_DEPTH = 12
 
 
+def cpu_seconds() -> float:
+    """CPU seconds of this process and of its reaped children (the local pool's forked workers are
+    joined when a render ends), user + system."""
+    import resource
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def timed_render(scene, settings):
+    """(result, wall seconds, CPU seconds) of one render."""
+    c0, t0 = cpu_seconds(), time.perf_counter()
+    result = render(scene, settings)
+    return result, time.perf_counter() - t0, cpu_seconds() - c0
+
+
 def equal_time(args):
     scene = caustic_scene((args.resolution, args.resolution))
-    # Two independent references: their mean is the reference, their difference its noise (seeds 2^16
-    # apart: seeds s and s + 1 share camera samples a pixel row apart, tests/addon/imagecompare.py).
-    a, b = (reference(scene, args.reference_spp, "full", seed, caustics_method="path")
-            for seed in (99, 99 + (1 << 16)))
-    ref, noise = 0.5 * (a + b), 0.25 * (a - b) ** 2
+    # Independent references: their mean is the reference, their spread its noise (seeds 2^16 apart:
+    # seeds s and s + 1 share camera samples a pixel row apart, tests/addon/imagecompare.py).
+    refs = np.stack([reference(scene, args.reference_spp, "full", 99 + (k << 16), caustics_method="path")
+                     for k in range(args.references)])
+    ref = refs.mean(axis=0)
+    noise = refs.var(axis=0, ddof=1) / len(refs)      # the variance of their mean, per pixel (unbiased)
     no_caustics = reference(scene, max(args.reference_spp // 8, 64), "no_refractive_caustics",
                             caustics_method="path", caustics_refractive=False)
     region = ref.mean(axis=2) > 1.1 * no_caustics.mean(axis=2)
-    print(f"caustic room {args.resolution}x{args.resolution}, {args.seconds:g} s each; caustic region "
+    workers = RenderSettings().resolved_threads()
+    budget = args.seconds * workers
+    clock = (f"{args.seconds:g} s of wall each" if args.clock == "wall" else
+             f"{budget:g} CPU s each ({args.seconds:g} s x {workers} workers; samples from a {args.pilot_spp}-spp "
+             f"pilot, relMSE scaled to the budget: relMSE x CPU / budget)")
+    print(f"caustic room {args.resolution}x{args.resolution}, {clock}; caustic region "
           f"{int(region.sum())} pixels; the reference's own relMSE (subtracted): image {rel_mse(ref, ref, None, -noise):.2e}, "
           f"caustic {rel_mse(ref, ref, region, -noise):.2e}")
-    rows = {}
-    for method in ("path", "photons"):
-        s = RenderSettings(samples=1 << 20, time_limit=args.seconds, caustics_method=method, seed=1,
-                           photons_per_pass=args.photons, photon_radius=args.radius)
-        r = render(scene, s)
-        spp = r.stats["samples_per_pixel"]["mean"]
-        rows[method] = (rel_mse(r.image, ref, noise=noise), rel_mse(r.image, ref, region, noise))
-        extra = ""
-        if "photons" in r.stats:
-            ph = r.stats["photons"]
-            extra = (f"; photon passes {ph['photon_passes']}, traced {ph['photons_traced']}, stored {ph['photons_stored']}, "
-                     f"radius {ph['radius_first']:.4g} -> {ph['radius_last']:.4g}, trace {ph['trace_seconds']:.1f} s, "
-                     f"gather {ph['gather_seconds']:.1f} s (worker seconds)")
-        print(f"  {method:8s} {r.stats['render_seconds']:5.1f} s, {spp:7.1f} spp: relMSE image {rows[method][0]:.3e}, "
-              f"caustic {rows[method][1]:.3e}{extra}")
-    whole, caustic = (rows["path"][i] / rows["photons"][i] for i in range(2))
-    print(f"relMSE path / photons: caustic region {caustic:.1f}x (target >= 10), whole image {whole:.1f}x "
-          f"(target >= 3)")
+    methods = ("path", "photons")
+    ratios = []
+    for k in range(args.repeats):          # path, photons, path, photons, ...: the load drifts alike for both
+        rows = {}
+        load = os.getloadavg()[0]
+        for method in methods:
+            common = dict(caustics_method=method, seed=1 + (k << 16), photons_per_pass=args.photons,
+                          photon_radius=args.radius)
+            if args.clock == "wall":
+                r, wall, cpu = timed_render(scene, RenderSettings(samples=1 << 20, time_limit=args.seconds, **common))
+                scale = 1.0
+            else:
+                _, _, pilot = timed_render(scene, RenderSettings(samples=args.pilot_spp, **common))
+                spp = max(1, int(round(args.pilot_spp * budget / max(pilot, 1e-9))))
+                r, wall, cpu = timed_render(scene, RenderSettings(samples=spp, **common))
+                scale = cpu / budget           # variance ~ 1 / samples ~ 1 / CPU seconds
+            spp = r.stats["samples_per_pixel"]["mean"]
+            rows[method] = (scale * rel_mse(r.image, ref, noise=noise), scale * rel_mse(r.image, ref, region, noise))
+            extra = ""
+            if "photons" in r.stats:
+                ph = r.stats["photons"]
+                extra = (f"; photon passes {ph['photon_passes']}, traced {ph['photons_traced']}, stored {ph['photons_stored']}, "
+                         f"radius {ph['radius_first']:.4g} -> {ph['radius_last']:.4g}, trace {ph['trace_seconds']:.1f} s, "
+                         f"gather {ph['gather_seconds']:.1f} s (worker seconds)")
+            print(f"  {method:8s} {wall:5.1f} s wall, {cpu:5.1f} CPU s, {spp:7.1f} spp: relMSE image {rows[method][0]:.3e}, "
+                  f"caustic {rows[method][1]:.3e}{extra}", flush=True)
+        whole, caustic = (rows["path"][i] / rows["photons"][i] for i in range(2))
+        ratios.append((caustic, whole))
+        print(f"relMSE path / photons: caustic region {caustic:.1f}x (target >= 10), whole image {whole:.1f}x "
+              f"(target >= 3); load average before {load:.2f}, after {os.getloadavg()[0]:.2f}, "
+              f"{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC", flush=True)
+    if args.repeats > 1:
+        caustic, whole = (float(np.median([r[i] for r in ratios])) for i in range(2))
+        print(f"median of {args.repeats} pairs: caustic region {caustic:.1f}x, whole image {whole:.1f}x")
 
 
 def render_ours(scene, method, samples, seed, threads, photons, radius):
@@ -226,6 +270,16 @@ def main(argv=None):
     ap.add_argument("--resolution", type=int, default=96)
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--reference-spp", type=int, default=16384)
+    ap.add_argument("--references", type=int, default=2,
+                    help="equal-time: independent path-traced references (cached), at least 2: their mean is the "
+                         "reference, their spread its noise")
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                    help="equal-time: each method gets --seconds of wall, or --seconds x workers CPU seconds "
+                         "(this process's and its workers', from a pilot render's rate; robust to the machine's load)")
+    ap.add_argument("--pilot-spp", type=int, default=128, help="equal-time, --clock cpu: the pilot render's samples")
+    ap.add_argument("--repeats", type=int, default=1,
+                    help="equal-time: pairs (path, photons) rendered one after the other at independent seeds; "
+                         "the ratios' medians printed")
     ap.add_argument("--photons", type=int, default=RenderSettings().photons_per_pass,
                     help="photons per pass (0: the setting's automatic count)")
     ap.add_argument("--radius", type=float, default=0.0, help="the photon map's first radius (0: auto)")

@@ -42,8 +42,10 @@ CACHE_BYTES = 512 << 20
 SECONDARY_SCALE = 4.0         # the radius at vertices after a non-delta bounce: their caustics are seen
                               # blurred anyway, and a wider disk holds 16 x the photons (less noise)
 AUTO_RADIUS_PIXELS = 1.0      # the automatic first radius: this many pixel footprints at the targets
-SECONDARY_GATHER = 0.25       # the probability that a vertex after a non-delta bounce gathers (weight 1 / it):
-                              # those gathers were 85 % of the gather's time (docs/photons.md "Measured")
+SECONDARY_GATHER = 1.0        # the probability that a vertex after a non-delta bounce gathers (weight 1 / it):
+                              # 1/4 saved 10 % of the CPU but quadrupled the caustic's variance, a vertex seen
+                              # through the glass after a diffuse bounce carries much of it (docs/photons.md
+                              # "Equal time against path tracing")
 GATHER_SALT = 0x67617468      # 'gath': the secondary gathers' coin, apart from every other stream
 AUTO_PHOTONS_PER_PIXEL = 0.25 # photons_per_pass 0: this many photons a pass per pixel of the render ...
 AUTO_PHOTONS = (1000, 50000)  # ... within these bounds (docs/photons.md "Photons per pass")
