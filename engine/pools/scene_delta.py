@@ -19,9 +19,9 @@ ARRAYS = ("vertices", "triangles", "material_ids", "uvs", "normals", "smooth", "
 
 
 def _same(a, b) -> bool:
-    """Equal arrays: dtype, shape and every element (a NaN never counts as unchanged)."""
+    """Equal arrays: the same object, or dtype, shape and every element (NaN is unequal)."""
     return (isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and a.dtype == b.dtype
-            and a.shape == b.shape and bool(np.array_equal(a, b)))
+            and a.shape == b.shape and (a is b or bool(np.array_equal(a, b))))
 
 
 def without_unchanged(scene, last, base: int):
