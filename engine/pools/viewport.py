@@ -66,6 +66,7 @@ from ..core.errors import SceneError
 from ..core.paths import TRACER_DIR, worker_environment
 from . import faults
 from .protocol import Pool
+from .scene_delta import with_unchanged, without_unchanged
 from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, send_to_live, start_workers
 
 START_RESOLUTION = 64           # Cycles' default Start Pixels: the first frame has at most 64² pixels
@@ -190,6 +191,7 @@ def viewport_worker_main(parent_pid: int) -> int:
 
     threading.Thread(target=read, daemon=True).start()
     prepared, watching = None, False
+    received, received_number = None, None     # the last scene sent (engine/pools/scene_delta.py)
     while True:
         message = inbox.get()
         if message is None:
@@ -201,9 +203,12 @@ def viewport_worker_main(parent_pid: int) -> int:
                 if cancels["reached"] == cancels["received"]:
                     cancel.clear()
         elif kind == "prepare":
-            _, number, scene, settings, checked = message
-            prepared = None
+            _, number, scene, settings, checked, kept = message
+            prepared, received_was, number_was = None, received, received_number
             try:
+                received, received_number = None, None      # until this one is complete
+                scene = with_unchanged(scene, kept, received_was, number_was)
+                received, received_number = scene, number
                 prepared = PreparedScene(scene, settings, log=log_to_stderr, checked=checked)
                 end.send(("ready", number, prepared.facts()))
             except Exception as exc:            # noqa: BLE001 - one line for the viewport's header
@@ -271,6 +276,7 @@ class ViewportPool(Pool):
         self.preparation = 0                            # number of the last scene sent
         self.scene = self.settings = self.facts = None  # the scene prepared (its view: the last sent)
         self.checked = False                            # whether the caller validated it (prepare)
+        self.sent = None                                # (number, scene) every worker holds (scene_delta.py)
         self.builds = 0                                 # scenes sent to be prepared, summed over the workers
         self.reports: list[str] = []                    # workers that died, by name
         self.report_times: list[float] = []
@@ -293,7 +299,11 @@ class ViewportPool(Pool):
             return self.facts
         self.preparation += 1
         self.scene, self.settings, self.facts, self.checked = scene, settings, None, checked
-        payload = encode(("prepare", self.preparation, scene, settings, checked))
+        shipped, kept = scene, (None, [])
+        if checked and self.sent is not None:           # the arrays that did not change stay out
+            shipped, kept = without_unchanged(scene, self.sent[1], self.sent[0])
+        payload = encode(("prepare", self.preparation, shipped, settings, checked, kept))
+        self.sent = (self.preparation, scene)
         for w in self.workers:
             w.prepared = None
             w.send(payload)
@@ -331,6 +341,7 @@ class ViewportPool(Pool):
                 self._feed(worker)
             return None
         if kind == "failed":
+            self.sent = None            # the next scene goes whole (this worker may hold none)
             return None
         if kind == "warmed":
             worker.warmed = bool(event[1])
@@ -387,8 +398,10 @@ class ViewportPool(Pool):
         self.restarts += 1
         self.workers[self.workers.index(dead)] = worker
         if self.scene is not None:
-            worker.send(("prepare", self.preparation, self.scene, self.settings, self.checked))
+            worker.send(("prepare", self.preparation, self.scene, self.settings, self.checked, (None, [])))
             self.builds += 1
+        else:                                           # it holds no scene the next one could refer to
+            self.sent = None
         return worker
 
     def _check(self):

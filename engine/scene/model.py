@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import SceneError
-from ..core.vec import cross_rows, norm, triangle_rows
+from ..core.vec import cross_rows, norm, triangle_rows_chunks
 from .checks import LENS_RANGE, check_magnitude, check_resolution, check_vector, validate_quads
 
 # Material kinds: how a surface scatters (emission is independent of kind).
@@ -497,11 +497,14 @@ class TriangleMesh:
         if len(self.material_ids) and (self.material_ids.min() < 0 or self.material_ids.max() >= n_materials):
             raise SceneError(f"Object '{self.name}': material index out of range")
         # |(v1 - v0) x (v2 - v0)| and the largest corner coordinate of each triangle (as rows: the
-        # same values as np.linalg.norm(np.cross(...), axis=1) on vertices[triangles], faster)
-        _, e1, e2, scale = triangle_rows(self.vertices, self.triangles)
-        doubled_area = norm(cross_rows(e1, e2))
-        scale = scale + 1e-300
-        keep = doubled_area > (scale * 1e-12) ** 2 * 16  # area ~ 0 relative to float64 resolution
+        # same values as np.linalg.norm(np.cross(...), axis=1) on vertices[triangles], faster),
+        # piece by piece (engine/core/vec.py triangle_rows_chunks: no page faults per frame)
+        keep = np.empty(len(self.triangles), dtype=bool)
+        for start, (_, e1, e2, scale) in triangle_rows_chunks(self.vertices, self.triangles):
+            doubled_area = norm(cross_rows(e1, e2))
+            scale = scale + 1e-300
+            # area ~ 0 relative to float64 resolution
+            np.greater(doubled_area, (scale * 1e-12) ** 2 * 16, out=keep[start:start + len(scale)])
         dropped = int((~keep).sum())
         if emissive is not None and len(self.material_ids):
             lit = emissive[self.material_ids]

@@ -195,7 +195,10 @@ def export_scene(depsgraph, *, resolution, camera=None, crop=None, test_break=No
         def read(me):
             nonlocal n_read
             n_read += 1
-            base = mesh_arrays(me)
+            verts, tris, slots = mesh_arrays(me)
+            # the triangles as the scene's validation keeps them (int64): a kept mesh's are not
+            # converted again on every frame (2.2 MB of new memory for 93k triangles)
+            base = verts, tris.astype(np.int64), slots
             read_map = "" if pass_uvs and len(me.uv_layers) else uv_map
             return base + (corner_uvs(me, read_map, label, warnings), mesh_normals(me),
                            corner_tangents(me, need, base[0], base[1], label, warnings),
