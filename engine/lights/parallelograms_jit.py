@@ -8,7 +8,8 @@ bit for bit (tests/lights/test_parallelograms_jit.py).  sample_li's loop after t
 BLOCK receivers at a time (`_sample_blocks`): the cos and sin in a scalar loop that copies the
 block's inputs into one flat lane array, the square roots and divisions of the spherical point and
 of the directions in loops LLVM vectorises (`_lane_spherical`, `_lane_directions`: every branch a
-select), the area fallback per receiver where it applies.  Imported only through
+select), the area fallback per receiver where it applies; `_frame_blocks` likewise runs `_frame`'s
+arithmetic in the vectorised `_lane_frame`.  Imported only through
 engine/core/backend.py's choice (it imports numba)."""
 from __future__ import annotations
 
@@ -60,6 +61,83 @@ def _frame(x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, az_out, f, 
         f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i], f[6, i] = x0, y0, x1, y1, z0, e0, e2
         c0, c1, c2 = center[0, j] - x[0, i], center[1, j] - x[1, i], center[2, j] - x[2, i]
         cdist[i] = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+
+
+# _frame_blocks' lane rows: the receiver, its light's corner, axes, edge lengths and centre; then the
+# outputs: the flipped z axis, the frame's rows (f), the arcsine arguments and |centre - x|.
+FX, FV0, FA1, FA2, FA3, FLEN1, FLEN2, FC = 0, 3, 6, 9, 12, 15, 16, 17
+FAZ, FF, FARGS, FCD = 20, 23, 30, 34
+FROWS = 35
+FRAME_BLOCK = 64
+
+
+@jit
+def _lane_frame(lane, size):
+    """_frame's arithmetic for lanes b < size (rows at constant offsets of FRAME_BLOCK), the same
+    operations in the same order, branches as selects: a loop LLVM vectorises."""
+    B = FRAME_BLOCK
+    for b in range(size):
+        x0_, x1_, x2_ = lane[FX * B + b], lane[(FX + 1) * B + b], lane[(FX + 2) * B + b]
+        r0, r1, r2 = lane[FV0 * B + b] - x0_, lane[(FV0 + 1) * B + b] - x1_, lane[(FV0 + 2) * B + b] - x2_
+        a0, a1, a2 = lane[FA3 * B + b], lane[(FA3 + 1) * B + b], lane[(FA3 + 2) * B + b]
+        z0 = r0 * a0 + r1 * a1 + r2 * a2
+        flip = -1.0 if z0 > 0.0 else 1.0
+        lane[FAZ * B + b], lane[(FAZ + 1) * B + b], lane[(FAZ + 2) * B + b] = a0 * flip, a1 * flip, a2 * flip
+        z0 = z0 * flip
+        x0 = r0 * lane[FA1 * B + b] + r1 * lane[(FA1 + 1) * B + b] + r2 * lane[(FA1 + 2) * B + b]
+        y0 = r0 * lane[FA2 * B + b] + r1 * lane[(FA2 + 1) * B + b] + r2 * lane[(FA2 + 2) * B + b]
+        x1, y1 = x0 + lane[FLEN1 * B + b], y0 + lane[FLEN2 * B + b]
+        z2 = z0 * z0
+        e0 = -y0 / np.sqrt(y0 * y0 + z2)
+        e1 = x1 / np.sqrt(x1 * x1 + z2)
+        e2 = y1 / np.sqrt(y1 * y1 + z2)
+        e3 = -x0 / np.sqrt(x0 * x0 + z2)
+        lane[FARGS * B + b] = _clip_select(-e0 * e1, -1.0, 1.0)
+        lane[(FARGS + 1) * B + b] = _clip_select(-e1 * e2, -1.0, 1.0)
+        lane[(FARGS + 2) * B + b] = _clip_select(-e2 * e3, -1.0, 1.0)
+        lane[(FARGS + 3) * B + b] = _clip_select(-e3 * e0, -1.0, 1.0)
+        lane[FF * B + b], lane[(FF + 1) * B + b], lane[(FF + 2) * B + b], lane[(FF + 3) * B + b] = x0, y0, x1, y1
+        lane[(FF + 4) * B + b], lane[(FF + 5) * B + b], lane[(FF + 6) * B + b] = z0, e0, e2
+        c0, c1, c2 = lane[FC * B + b] - x0_, lane[(FC + 1) * B + b] - x1_, lane[(FC + 2) * B + b] - x2_
+        lane[FCD * B + b] = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+
+
+@jit
+def _fill_frame_light(lane, b, j, axis1, axis2, axis3, v0, len1, len2, center):
+    B = FRAME_BLOCK
+    for c in range(3):
+        lane[(FV0 + c) * B + b], lane[(FA1 + c) * B + b] = v0[c, j], axis1[c, j]
+        lane[(FA2 + c) * B + b], lane[(FA3 + c) * B + b] = axis2[c, j], axis3[c, j]
+        lane[(FC + c) * B + b] = center[c, j]
+    lane[FLEN1 * B + b], lane[FLEN2 * B + b] = len1[j], len2[j]
+
+
+@jit
+def _frame_blocks(x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, az_out, f, args, cdist):
+    """_frame's outputs, FRAME_BLOCK receivers at a time through the lanes of _lane_frame."""
+    B = FRAME_BLOCK
+    lane = np.zeros(FROWS * B)
+    if one:
+        for b in range(B):
+            _fill_frame_light(lane, b, 0, axis1, axis2, axis3, v0, len1, len2, center)
+    n = x.shape[1]
+    for start in range(0, n, B):
+        size = min(B, n - start)
+        for b in range(size):
+            i = start + b
+            if not one:
+                _fill_frame_light(lane, b, idx[i], axis1, axis2, axis3, v0, len1, len2, center)
+            lane[FX * B + b], lane[(FX + 1) * B + b], lane[(FX + 2) * B + b] = x[0, i], x[1, i], x[2, i]
+        _lane_frame(lane, size)
+        for b in range(size):
+            i = start + b
+            for c in range(3):
+                az_out[c, i] = lane[(FAZ + c) * B + b]
+            for k in range(7):
+                f[k, i] = lane[(FF + k) * B + b]
+            for k in range(4):
+                args[k, i] = lane[(FARGS + k) * B + b]
+            cdist[i] = lane[FCD * B + b]
 
 
 @nb.njit(cache=True, error_model="numpy", nogil=True, inline="always")
@@ -266,7 +344,7 @@ def _frame_of(lights, x, one, index):
     """_frame's outputs (az, f, args, cdist) for contiguous receivers x."""
     n = x.shape[1]
     az, f, args, cdist = np.empty((3, n)), np.empty((7, n)), np.empty((4, n)), np.empty(n)
-    _frame(x, index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
+    _frame_blocks(x, index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2, lights.center,
            az, f, args, cdist)
     return az, f, args, cdist
 
