@@ -118,6 +118,11 @@ class RecordingAccelerator:
         self._keep("INTERSECT", aos(o), aos(d), tmax)
         return self.inner.intersect_rows(o, d, tmax, compiled)
 
+    def nearest_rows(self, o, d, t, compiled=None):
+        from engine.core.vec import aos
+        self._keep("INTERSECT", aos(o), aos(d), t)
+        return self.inner.nearest_rows(o, d, t, compiled)
+
     def occluded_rows(self, o, d, tmax, compiled=None):
         from engine.core.vec import aos
         self._keep("OCCLUDED", aos(o), aos(d), tmax)

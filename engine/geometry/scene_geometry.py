@@ -164,7 +164,7 @@ class SceneGeometry:
         # instead of embreex on float32 copies; None: the accelerator's own intersect / occluded.
         self.accel_jit = None
         if (backends.get("wavefront", "numpy") == "numba" and self.accelerator is not None
-                and hasattr(self.accelerator, "intersect_rows")):
+                and hasattr(self.accelerator, "nearest_rows")):
             from .accel import embree_jit
             self.accel_jit = embree_jit if embree_jit.bind() else None
         r = self.sphere_radius[:, None]
@@ -190,16 +190,17 @@ class SceneGeometry:
         u = v = np.zeros(n)
         if self.has_triangles:
             t0 = time.perf_counter()                        # the accelerator call only
-            if hasattr(self.accelerator, "intersect_rows"):     # Embree: it takes the rows
-                tt, tp, u, v = self.accelerator.intersect_rows(o, d, t, self.accel_jit)
+            if hasattr(self.accelerator, "nearest_rows"):       # Embree: it takes the rows and t
+                t, kind, prim, u, v = self.accelerator.nearest_rows(o, d, t, self.accel_jit)
+                counters.seconds_in_accelerator += time.perf_counter() - t0
             else:
                 dtype = self.accelerator.ray_dtype
                 tt, tp, u, v = self.accelerator.intersect(aos(o, dtype), aos(d, dtype), t)
-            counters.seconds_in_accelerator += time.perf_counter() - t0
-            closer = tt < t
-            t = np.where(closer, tt, t)
-            kind = closer.astype(np.int8)                   # TRIANGLE where closer
-            prim = np.where(closer, tp, prim)
+                counters.seconds_in_accelerator += time.perf_counter() - t0
+                closer = tt < t
+                t = np.where(closer, tt, t)
+                kind = closer.astype(np.int8)                   # TRIANGLE where closer
+                prim = np.where(closer, tp, prim)
         if self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None:
             t = self.sphere_loops[0](o, d, self.sphere_center, self.sphere_radius, t, kind, prim, SPHERE)
         elif self.has_spheres:

@@ -1,5 +1,6 @@
 """engine/geometry/accel/embree_jit.py: Embree called by the compiled loop answers every ray as
-embreex's EmbreeScene.run does (EmbreeAccelerator's NumPy path), on the rays of real renders
+embreex's EmbreeScene.run does (EmbreeAccelerator's NumPy path), and folds them into the nearest
+hits so far as SceneGeometry's NumPy lines do (nearest_rows), on the rays of real renders
 (recorded from SceneGeometry) and on random rays with finite and infinite tmax."""
 import numpy as np
 import pytest
@@ -55,7 +56,14 @@ def same_hits(a, b):
 
 
 def answers(accelerator, query, o, d, tmax, jit):
-    return getattr(accelerator, f"{query}_rows")(o, d, tmax, jit)
+    return getattr(accelerator, f"{query}_rows")(o, d, tmax.copy(), jit)
+
+
+def same_nearest(a, b):
+    """nearest_rows' (t, kind, prim, u, v): the same everywhere but u, v, the same at triangle hits."""
+    tri = a[1] == 1
+    return (all(x.dtype == y.dtype for x, y in zip(a, b)) and all(np.array_equal(x, y) for x, y in zip(a[:3], b[:3]))
+            and np.array_equal(a[3][tri], b[3][tri]) and np.array_equal(a[4][tri], b[4][tri]))
 
 
 @pytest.mark.parametrize("scene", ["cornell", "many_lights", "caustic"])
@@ -67,6 +75,8 @@ def test_recorded_rays_hit_the_same(scene):
         ref, ours = answers(accelerator, query, o, d, tmax, None), answers(accelerator, query, o, d, tmax, jit)
         if query == "intersect":
             assert same_hits(ref, ours)
+            assert same_nearest(answers(accelerator, "nearest", o, d, tmax, None),
+                                answers(accelerator, "nearest", o, d, tmax, jit))
         else:
             assert ours.dtype == ref.dtype and np.array_equal(ours, ref)
 
@@ -82,9 +92,13 @@ def test_random_rays_and_the_control():
     ref = answers(accelerator, "intersect", o, d, tmax, None)
     assert (ref[1] >= 0).sum() > 2000 and np.isfinite(tmax).sum() > 5000
     assert same_hits(ref, answers(accelerator, "intersect", o, d, tmax, jit))
+    nearest = answers(accelerator, "nearest", o, d, tmax, None)
+    assert 0 < (nearest[1] == 1).sum() < (ref[1] >= 0).sum() + 1
+    assert same_nearest(nearest, answers(accelerator, "nearest", o, d, tmax, jit))
     blocked = answers(accelerator, "occluded", o, d, tmax, None)
     assert 0 < blocked.sum() < n and np.array_equal(blocked, answers(accelerator, "occluded", o, d, tmax, jit))
     # control: origins one float32 step away (what a float64 rounding of its own would give) change answers
     moved = np.nextafter(o.astype(np.float32), np.float32(np.inf)).astype(np.float64)
     assert not same_hits(ref, answers(accelerator, "intersect", moved, d, tmax, jit))
+    assert not same_nearest(nearest, answers(accelerator, "nearest", moved, d, tmax, jit))
     assert embree_buffers.scene_handle(accelerator.scene) == accelerator.handle()

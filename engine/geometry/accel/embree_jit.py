@@ -95,6 +95,27 @@ def _intersect(scene, o, d, tmax, ray, t, prim, u, v):
 
 
 @jit
+def _nearest(scene, o, d, t, ray, kind, prim, u, v):
+    """_intersect's hits folded into SceneGeometry.intersect's nearest so far, in place: where the
+    triangle's t is below t, t, kind 1 (TRIANGLE) and prim take it (NumPy: closer = tt < t and its
+    np.where's); u and v are the hit's wherever Embree hit (as intersect's arrays)."""
+    word = ray.view(np.uint32)
+    address = ray.ctypes.data
+    for i in range(o.shape[1]):
+        _fill_ray(ray, word, o, d, t, i)
+        _rtc_intersect1(scene, address, 0)
+        if word[PRIM_ID] == np.uint32(INVALID):
+            kind[i], prim[i], u[i], v[i] = 0, -1, 0.0, 0.0
+        else:
+            tt = np.float64(ray[TFAR])
+            u[i], v[i] = np.float64(ray[U]), np.float64(ray[V])
+            if tt < t[i]:
+                t[i], kind[i], prim[i] = tt, 1, np.int64(word[PRIM_ID])
+            else:
+                kind[i], prim[i] = 0, -1
+
+
+@jit
 def _occluded(scene, o, d, tmax, ray, blocked):
     word = ray.view(np.uint32)
     address = ray.ctypes.data
@@ -124,6 +145,16 @@ def intersect(handle: int, o, d, tmax):
     return t, prim, u, v
 
 
+def nearest(handle: int, o, d, t):
+    """(t, kind, prim, u, v) of SceneGeometry.intersect after its triangles: t (a float64 array of
+    the rays' bounds, written in place) lowered to the triangle hits nearer than it, kind int8 1 there
+    else 0, prim the triangle there else -1."""
+    n = o.shape[1]
+    kind, prim, u, v = np.empty(n, np.int8), np.empty(n, np.int64), np.empty(n), np.empty(n)
+    _nearest(handle, _c(o), _c(d), t, _ray_buffer(), kind, prim, u, v)
+    return t, kind, prim, u, v
+
+
 def occluded(handle: int, o, d, tmax):
     """EmbreeAccelerator.occluded for the rays (rows o, d) up to tmax (N,)."""
     blocked = np.empty(o.shape[1], np.bool_)
@@ -142,4 +173,5 @@ def warm_up() -> None:
     rows = np.zeros((3, 2))
     d = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, -1.0]])
     intersect(handle, rows, d, np.full(2, np.inf))
+    nearest(handle, rows, d, np.full(2, np.inf))
     occluded(handle, rows, d, np.full(2, 2.0))
