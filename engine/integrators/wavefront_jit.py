@@ -20,7 +20,7 @@ import numpy as np
 
 from ..core.backend import numba_module
 from ..materials.protocol import BSDFFlags
-from .path_tracer import CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY
+from ..geometry.shapes.light_polygons import RAY_KINDS
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -28,6 +28,9 @@ jit = nb.njit(cache=True, error_model="numpy", nogil=True)
 TRANSMISSION, DELTA, DIFFUSE, STRAIGHT = (int(BSDFFlags.TRANSMISSION), int(BSDFFlags.DELTA), int(BSDFFlags.DIFFUSE),
                                           int(BSDFFlags.STRAIGHT))
 NO_ROWS = np.zeros((3, 0))
+# path_tracer.py's ray kinds (not imported from it: it imports this module), LightPolygons' order
+CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = (RAY_KINDS.index(k) for k in
+                                                         ("camera", "diffuse", "glossy", "transmission"))
 
 
 @jit

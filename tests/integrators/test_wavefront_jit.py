@@ -199,3 +199,10 @@ def test_made_up_roulettes_and_the_control():
     # control: the survival probability's division one ulp off changes the throughputs
     wrong = wavefront_jit.roulette(beta * (1.0 + 2.0 ** -52), bounce, delta, u, 8, True, True, 3)
     assert not same(a, wrong)
+
+
+def test_the_ray_kinds_are_the_path_tracers():
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    names = ("CAMERA_RAY", "DIFFUSE_RAY", "GLOSSY_RAY", "TRANSMISSION_RAY")
+    assert [getattr(wavefront_jit, n) for n in names] == [getattr(path_tracer, n) for n in names]
