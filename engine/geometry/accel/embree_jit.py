@@ -23,8 +23,6 @@ float32 buffer of 32 words (room for Embree 4's instPrimID) with a uint32 view o
 """
 from __future__ import annotations
 
-import ctypes
-
 import numpy as np
 
 from . import embree_buffers
@@ -57,9 +55,8 @@ def bind() -> bool:
         _state["bound"] = False
         if embree_buffers.available():
             import llvmlite.binding as llvm
-            lib = embree_buffers._state["lib"]
             for ours, theirs in SYMBOLS.items():
-                llvm.add_symbol(ours, ctypes.cast(getattr(lib, theirs), ctypes.c_void_p).value)
+                llvm.add_symbol(ours, embree_buffers.function_address(theirs))
             _state["bound"] = True
     return _state["bound"]
 
