@@ -113,6 +113,21 @@ class RecordingAccelerator:
         self._keep("OCCLUDED", origins, directions, tmax)
         return self.inner.occluded(origins, directions, tmax)
 
+    def intersect_rows(self, o, d, tmax, compiled=None):        # the rays as (3, N) rows
+        from engine.core.vec import aos
+        self._keep("INTERSECT", aos(o), aos(d), tmax)
+        return self.inner.intersect_rows(o, d, tmax, compiled)
+
+    def nearest_rows(self, o, d, t, compiled=None):
+        from engine.core.vec import aos
+        self._keep("INTERSECT", aos(o), aos(d), t)
+        return self.inner.nearest_rows(o, d, t, compiled)
+
+    def occluded_rows(self, o, d, tmax, compiled=None):
+        from engine.core.vec import aos
+        self._keep("OCCLUDED", aos(o), aos(d), tmax)
+        return self.inner.occluded_rows(o, d, tmax, compiled)
+
 
 def trace_units(scene, settings, prepared=None, record=False):
     """(CPU seconds, wall seconds, prepared scene, recorder or None) of the frame's units traced here."""

@@ -162,6 +162,13 @@ class SceneGeometry:
                                   dtype=np.int64)                   # a miss (prim -1) -> slot 0
         start = time.perf_counter()
         self.accelerator = build_accelerator(accelerator, self.triangles) if self.has_triangles else None
+        # Embree called on the rays' rows by a compiled loop (engine/geometry/accel/embree_jit.py)
+        # instead of embreex on float32 copies; None: the accelerator's own intersect / occluded.
+        self.accel_jit = None
+        if (backends.get("wavefront", "numpy") == "numba" and self.accelerator is not None
+                and hasattr(self.accelerator, "nearest_rows")):
+            from .accel import embree_jit
+            self.accel_jit = embree_jit if embree_jit.bind() else None
         r = self.sphere_radius[:, None]
         self.sphere_tree = (BoxTree(*padded_boxes(self.sphere_center.T - r, self.sphere_center.T + r))
                             if self.has_spheres and len(r) > LOOP_MAX["spheres"] else None)
@@ -184,15 +191,18 @@ class SceneGeometry:
         prim = np.full(n, -1, dtype=np.int64)
         u = v = np.zeros(n)
         if self.has_triangles:
-            dtype = self.accelerator.ray_dtype
-            o_aos, d_aos = aos(o, dtype), aos(d, dtype)
             t0 = time.perf_counter()                        # the accelerator call only
-            tt, tp, u, v = self.accelerator.intersect(o_aos, d_aos, t)
-            counters.seconds_in_accelerator += time.perf_counter() - t0
-            closer = tt < t
-            t = np.where(closer, tt, t)
-            kind = closer.astype(np.int8)                   # TRIANGLE where closer
-            prim = np.where(closer, tp, prim)
+            if hasattr(self.accelerator, "nearest_rows"):       # Embree: it takes the rows and t
+                t, kind, prim, u, v = self.accelerator.nearest_rows(o, d, t, self.accel_jit)
+                counters.seconds_in_accelerator += time.perf_counter() - t0
+            else:
+                dtype = self.accelerator.ray_dtype
+                tt, tp, u, v = self.accelerator.intersect(aos(o, dtype), aos(d, dtype), t)
+                counters.seconds_in_accelerator += time.perf_counter() - t0
+                closer = tt < t
+                t = np.where(closer, tt, t)
+                kind = closer.astype(np.int8)                   # TRIANGLE where closer
+                prim = np.where(closer, tp, prim)
         if self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None:
             t = self.sphere_loops[0](o, d, self.sphere_center, self.sphere_radius, t, kind, prim, SPHERE)
         elif self.has_spheres:
@@ -265,10 +275,12 @@ class SceneGeometry:
         start = time.perf_counter()
         blocked = np.zeros(o.shape[1], dtype=bool)
         if self.has_triangles:
-            dtype = self.accelerator.ray_dtype
-            o_aos, d_aos = aos(o, dtype), aos(d, dtype)
             t0 = time.perf_counter()
-            blocked |= self.accelerator.occluded(o_aos, d_aos, tmax)
+            if hasattr(self.accelerator, "occluded_rows"):
+                blocked |= self.accelerator.occluded_rows(o, d, tmax, self.accel_jit)
+            else:
+                dtype = self.accelerator.ray_dtype
+                blocked |= self.accelerator.occluded(aos(o, dtype), aos(d, dtype), tmax)
             counters.seconds_in_accelerator += time.perf_counter() - t0
         loops = self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None
         if loops:            # compiled: every sphere in one loop per ray, on all rays (it skips the blocked ones)

@@ -676,6 +676,10 @@ class PathTracer:
                 p.prev_bsdf_pdf[sampled] = s.pdf[local]
         if self.light_paths is not None:
             value = self.scatter_light_paths(p, spans, flags, pdf, value)
+        if self.wavefront_jit is not None and p.lobe is None and p.caustic is None and not normals:
+            side, beta = self.wavefront_jit.scatter_tail(flags, p.prev_delta[:alive], p.ray_kind[:alive], p.beta,
+                                                         value, new_d, si.ng if si.smooth else None)
+            return new_d, side, beta             # the lines below in one loop
         transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
         if p.lobe is not None:
             self.first_lobe(p, flags)
@@ -766,6 +770,9 @@ class PathTracer:
         """Which paths go on (report 2.4) and their throughput after the survival division.
         Under `mis` a non-delta bounce at the depth limit goes on for its emission (see `bounce`)."""
         s = self.settings
+        if self.wavefront_jit is not None:      # the lines below in one loop
+            return self.wavefront_jit.roulette(beta, bounce, delta, u, s.max_depth, self.final_rays,
+                                               s.russian_roulette, s.rr_start_depth)
         within = bounce < s.max_depth
         if self.final_rays:
             within |= (bounce == s.max_depth) & ~delta

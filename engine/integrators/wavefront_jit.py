@@ -3,6 +3,9 @@
 * the compaction of the surviving paths (`next_rays`): their next ray origins (the hit point moved
   off the surface, to the side they leave on), directions and throughputs gathered in one loop,
   instead of nine gathers and the temporaries of the origin's arithmetic;
+* the end of the scatter stage (`scatter_tail`: the paths' delta flag and ray kind, the side they leave
+  on, beta x value) and the Russian roulette (`roulette`: which paths go on and their throughput after
+  the survival division), one loop each instead of some ten NumPy passes each;
 * the direct light of a Lambertian BSDF with one shadow ray per hit, flat shading and no Normal
   input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
   the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
@@ -16,9 +19,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
+from ..materials.protocol import BSDFFlags
+from ..geometry.shapes.light_polygons import RAY_KINDS
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
+
+TRANSMISSION, DELTA, DIFFUSE, STRAIGHT = (int(BSDFFlags.TRANSMISSION), int(BSDFFlags.DELTA), int(BSDFFlags.DIFFUSE),
+                                          int(BSDFFlags.STRAIGHT))
+NO_ROWS = np.zeros((3, 0))
+# path_tracer.py's ray kinds (not imported from it: it imports this module), LightPolygons' order
+CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = (RAY_KINDS.index(k) for k in
+                                                         ("camera", "diffuse", "glossy", "transmission"))
 
 
 @jit
@@ -129,6 +141,73 @@ def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo):
     return out
 
 
+@jit
+def _scatter_tail(flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, side, beta_out):
+    """PathTracer.scatter after the BSDFs' samples (no Light Paths options, light passes, caustic
+    photons or Normal inputs): the paths' delta flag and ray kind, the side they leave on and
+    beta x value, 0 where a smooth-shaded direction lies on the wrong side of the geometric surface."""
+    for i in range(flags.shape[0]):
+        f = flags[i]
+        transmitted = (f & TRANSMISSION) != 0
+        prev_delta[i] = (f & DELTA) != 0
+        kind = TRANSMISSION_RAY if transmitted else (DIFFUSE_RAY if (f & DIFFUSE) != 0 else GLOSSY_RAY)
+        if (f & STRAIGHT) != 0 and ray_kind[i] == CAMERA_RAY:
+            kind = CAMERA_RAY
+        ray_kind[i] = kind
+        s = -1.0 if transmitted else 1.0
+        side[i] = s
+        wrong = smooth and (new_d[0, i] * ng[0, i] + new_d[1, i] * ng[1, i] + new_d[2, i] * ng[2, i]) * s <= 0.0
+        for c in range(3):
+            beta_out[c, i] = 0.0 if wrong else beta[c, i] * value[c, i]
+
+
+def scatter_tail(flags, prev_delta, ray_kind, beta, value, new_d, ng):
+    """(side, beta) of PathTracer.scatter's tail for the first len(flags) paths (beta: the paths' rows,
+    of which those are read), writing their prev_delta and ray_kind in place; ng: the geometric normals
+    under smooth shading, else None."""
+    alive = flags.shape[0]
+    side, beta_out = np.empty(alive), np.empty((3, alive))
+    smooth = ng is not None
+    _scatter_tail(np.ascontiguousarray(flags, np.int8), prev_delta, ray_kind, np.ascontiguousarray(beta),
+                  np.ascontiguousarray(value), smooth, np.ascontiguousarray(new_d),
+                  np.ascontiguousarray(ng) if smooth else NO_ROWS, side, beta_out)
+    return side, beta_out
+
+
+@jit
+def _max(a, b):
+    """np.maximum of two scalars (NaN wins)."""
+    return a if (a >= b or a != a) else b
+
+
+@jit
+def _roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, keep, beta_out):
+    for i in range(bounce.shape[0]):
+        within = bounce[i] < max_depth
+        if final_rays:
+            within = within or (bounce[i] == max_depth and not delta[i])
+        m = _max(_max(beta[0, i], beta[1, i]), beta[2, i])
+        k = m > 0.0 and within
+        divisor = 1.0
+        if russian_roulette:
+            survive = (m if (m <= 1.0 or m != m) else 1.0) if bounce[i] + 1 >= rr_start_depth else 1.0   # np.minimum
+            k = k and u[i] < survive
+            divisor = survive if k else 1.0
+        keep[i] = k
+        for c in range(3):
+            beta_out[c, i] = beta[c, i] / divisor if russian_roulette else beta[c, i]
+
+
+def roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth):
+    """(keep, beta) of PathTracer.roulette for rows beta (3, N), bounce, delta and u (N,)."""
+    n = bounce.shape[0]
+    keep, beta_out = np.empty(n, np.bool_), np.empty((3, n))
+    _roulette(np.ascontiguousarray(beta, np.float64), np.ascontiguousarray(bounce, np.int32),
+              np.ascontiguousarray(delta, np.bool_), np.ascontiguousarray(u, np.float64), int(max_depth),
+              bool(final_rays), bool(russian_roulette), int(rr_start_depth), keep, beta_out)
+    return keep, beta_out
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     from types import SimpleNamespace
@@ -138,3 +217,7 @@ def warm_up() -> None:
                          one_sided=np.ones(3, np.bool_), light=np.zeros(3, np.int64), radiance=rows)
     cos_x, _, valid = light_tests(rows, ls, True)
     lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, np.ones(3), np.ones(1, np.bool_), True, rows)
+    flags = np.array([int(BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION), DELTA | TRANSMISSION, DELTA], np.int8)
+    for ng in (None, rows):
+        scatter_tail(flags, np.zeros(3, np.bool_), np.zeros(3, np.int8), rows, rows, rows, ng)
+    roulette(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3)

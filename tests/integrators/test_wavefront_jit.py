@@ -1,7 +1,12 @@
 """The compiled compaction (engine/integrators/wavefront_jit.py next_rays) against the NumPy one
 (engine/integrators/path_tracer.py next_rays), on the inputs of real renders of built-in scenes and
 on made-up ones with NaN and huge offsets; and renders whose only compiled kernels are this module's
-(the compaction and the Lambertian direct light, light_tests and lambert_light), with a control."""
+(the compaction and the Lambertian direct light, light_tests and lambert_light), with a control; the
+scatter stage's tail and the roulette (scatter_tail, roulette) against PathTracer's NumPy lines on
+recorded and made-up paths."""
+import copy
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -95,7 +100,8 @@ def test_a_render_with_a_direct_light_slightly_off_differs():
 
     def off(*args):
         return wavefront_jit.lambert_light(*args) * (1.0 + 2.0 ** -20)
-    wrong = SimpleNamespace(next_rays=wavefront_jit.next_rays, light_tests=wavefront_jit.light_tests, lambert_light=off)
+    wrong = SimpleNamespace(next_rays=wavefront_jit.next_rays, light_tests=wavefront_jit.light_tests, lambert_light=off,
+                            scatter_tail=wavefront_jit.scatter_tail, roulette=wavefront_jit.roulette)
     assert not np.array_equal(render_with("cornell", None, 16), render_with("cornell", wrong, 16))
 
 
@@ -134,3 +140,69 @@ def test_recorded_direct_light_calls_are_bit_identical(scene):
     finally:
         session.PathTracer.lambert_direct_light = lambert
     assert len(fused) == min(len(calls), 6)            # the compiled case ran every time
+
+
+def capture_scatters(scene_name, limit=6):
+    """[(tracer, args)] deep copies of PathTracer.scatter's calls in a 16 x 16, 2 spp NumPy render."""
+    calls, reference = [], path_tracer.PathTracer.scatter
+
+    def recording(self, *args):
+        if len(calls) < limit:
+            calls.append(copy.deepcopy((None, args)))
+        return reference(self, *args)
+    path_tracer.PathTracer.scatter = recording
+    try:
+        api.render(BUILTIN_SCENES[scene_name]((16, 16)), RenderSettings(samples=2, threads=1, backend="numpy"),
+                   log=lambda m: None)
+    finally:
+        path_tracer.PathTracer.scatter = reference
+    return calls
+
+
+@pytest.mark.parametrize("scene", ["cornell", "caustic"])
+def test_recorded_scatter_tails_are_bit_identical(scene, monkeypatch):
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    tracers, init = [], path_tracer.PathTracer.__init__
+
+    def keeping(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        tracers.append(self)
+    monkeypatch.setattr(path_tracer.PathTracer, "__init__", keeping)
+    calls = capture_scatters(scene)
+    assert len(calls) >= 3 and tracers
+    for _, args in calls:
+        outs = []
+        for jit in (None, wavefront_jit):
+            p, *rest = copy.deepcopy(args)
+            tracers[0].wavefront_jit = jit
+            new_d, side, beta = tracers[0].scatter(p, *rest)
+            outs.append((new_d, side, beta, p.prev_delta, p.ray_kind))
+        assert same(*outs)
+
+
+def test_made_up_roulettes_and_the_control():
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    rng = np.random.default_rng(9)
+    n = 4000
+    beta = rng.choice([0.0, -0.0, 0.3, 1.0, 1.7, np.nan, np.inf, 1e-300], (3, n))
+    bounce, delta, u = rng.integers(0, 10, n).astype(np.int32), rng.random(n) < 0.5, rng.random(n)
+    for final_rays in (False, True):
+        for rr in (False, True):
+            settings = SimpleNamespace(max_depth=8, russian_roulette=rr, rr_start_depth=3)
+            tracer = SimpleNamespace(settings=settings, final_rays=final_rays, wavefront_jit=None)
+            a = path_tracer.PathTracer.roulette(tracer, beta, bounce, delta, u)
+            tracer.wavefront_jit = wavefront_jit
+            b = path_tracer.PathTracer.roulette(tracer, beta, bounce, delta, u)
+            assert 0 < a[0].sum() < n and same(a, b)
+    # control: the survival probability's division one ulp off changes the throughputs
+    wrong = wavefront_jit.roulette(beta * (1.0 + 2.0 ** -52), bounce, delta, u, 8, True, True, 3)
+    assert not same(a, wrong)
+
+
+def test_the_ray_kinds_are_the_path_tracers():
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    names = ("CAMERA_RAY", "DIFFUSE_RAY", "GLOSSY_RAY", "TRANSMISSION_RAY")
+    assert [getattr(wavefront_jit, n) for n in names] == [getattr(path_tracer, n) for n in names]

@@ -8,6 +8,7 @@ from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
 from ...core.errors import SceneError
+from ...core.vec import aos
 from . import embree_buffers
 
 try:
@@ -118,6 +119,35 @@ class EmbreeAccelerator:
         hit = prim >= 0
         t = np.where(hit, result["tfar"].astype(np.float64), np.inf)
         return t, np.where(hit, prim, -1), result["u"].astype(np.float64), result["v"].astype(np.float64)
+
+    def intersect_rows(self, o, d, tmax, compiled=None):
+        """intersect() of the rays as (3, N) float64 rows: through embreex on float32 copies, or with
+        `compiled` (engine/geometry/accel/embree_jit.py, bound) Embree called on the rows themselves:
+        the same answers."""
+        if compiled is None or self.count == 0 or o.shape[1] == 0:
+            return self.intersect(aos(o, np.float32), aos(d, np.float32), tmax)
+        return compiled.intersect(self.handle(), o, d, tmax)
+
+    def nearest_rows(self, o, d, t, compiled=None):
+        """(t, kind, prim, u, v): the bounds t (float64, written in place) lowered to the triangle hits
+        nearer than them, kind 1 (TRIANGLE) there else 0, prim the triangle there else -1, and u, v of
+        intersect(), for SceneGeometry.intersect: as NumPy below, or in the compiled loop itself."""
+        if compiled is not None and self.count and o.shape[1]:
+            return compiled.nearest(self.handle(), o, d, t)
+        tt, tp, u, v = self.intersect_rows(o, d, t, compiled)
+        closer = tt < t
+        t[:] = np.where(closer, tt, t)
+        return t, closer.astype(np.int8), np.where(closer, tp, -1), u, v
+
+    def occluded_rows(self, o, d, tmax, compiled=None):
+        """occluded() of the rays as (3, N) float64 rows (as intersect_rows)."""
+        if compiled is None or self.count == 0 or o.shape[1] == 0:
+            return self.occluded(aos(o, np.float32), aos(d, np.float32), tmax)
+        return compiled.occluded(self.handle(), o, d, tmax)
+
+    def handle(self) -> int:
+        """The RTCScene of this accelerator's scene (embree_buffers.scene_handle)."""
+        return embree_buffers.scene_handle(self.scene)
 
     def occluded(self, origins, directions, tmax):
         n = len(origins)

@@ -87,6 +87,12 @@ def available() -> bool:
     return _state["ok"]
 
 
+def function_address(name: str) -> int:
+    """The address of Embree's C function `name` in the library embreex loaded (available() must be
+    True): embree_jit.py calls rtcIntersect1 and rtcOccluded1 through it."""
+    return ctypes.cast(getattr(_state["lib"], name), ctypes.c_void_p).value
+
+
 def scene_handle(scene) -> int:
     """The RTCScene of an embreex EmbreeScene (available() must be True)."""
     return ctypes.c_void_p.from_address(id(scene) + _state["offset"]).value
