@@ -109,3 +109,13 @@ def test_a_render_of_split_units_has_the_same_film_bit_for_bit(monkeypatch):
     for name in ("sum", "sum_sq", "count"):
         assert np.array_equal(getattr(a.film, name), getattr(b.film, name))
     assert not np.array_equal(results["random", False].image, results["random", True].image)
+
+
+def test_a_band_travels_to_dask_workers_whole():
+    """A Dask task carries a unit as plain values (engine/pools/dask_cluster.py plain_unit): a band's
+    part and parts with it.  Control: a unit of the whole tile is another unit."""
+    from engine.pools.dask_cluster import plain_unit, unit_from_plain
+    band = frame_units(96, 96, 256)[-1]
+    assert band.parts == 2 and unit_from_plain(plain_unit(band)) == band
+    whole = frame_units(96, 96, 256, balance=False)[-1]
+    assert unit_from_plain(plain_unit(whole)) == whole != band
