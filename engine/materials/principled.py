@@ -76,16 +76,19 @@ alone (the same arithmetic as before the layers existed: their images are bit-id
 """
 from __future__ import annotations
 
+import sys
 from functools import lru_cache
 from types import SimpleNamespace
 
 import numpy as np
 
+from ..core import table_cache, vec
 from ..core.backend import JIT_MODULES, NUMBA
 from ..core.vec import dot
+from ..sampling import warps
 from ..sampling.warps import cosine_directions
 from ..scene.model import PRINCIPLED, Principled, PrincipledV1
-from . import albedo_tables
+from . import albedo_tables, glossy, microfacet
 from .glossy import MicrofacetReflection, f82_b, fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import GGX, clamp_alpha, ggx_sample_vndf
 from .oren_nayar import EnergyPreservingOrenNayar
@@ -150,7 +153,21 @@ def interpolation_factor(roughness: float, eta: float | None) -> np.ndarray:
     """s at mu_points() (MU_POINTS,): the mean over GGX visible normals (alpha = roughness^2) of the
     Fresnel's interpolation factor s(h), 0 where the reflection leaves below the surface (as
     Cycles' precompute_ggx_gen_schlick_s).  eta: the real-Fresnel factor of that IOR; None: the
-    Schlick factor (1 - wo.h)^5 (Cycles' ggx_gen_schlick_s at exponent 5)."""
+    Schlick factor (1 - wo.h)^5 (Cycles' ggx_gen_schlick_s at exponent 5).  Each table costs 10-30
+    ms, paid by every worker at its start for every material: read from the per-user cache of
+    tables where an earlier process computed it with this code (engine/core/table_cache.py)."""
+    inputs = (float(roughness), None if eta is None else float(eta), MU_POINTS, ESTIMATE_STRATA)
+    return table_cache.cached("principled_s", _s_table_sources(), inputs,
+                              lambda: estimate_interpolation_factor(roughness, eta))
+
+
+def _s_table_sources() -> tuple:
+    """The source files of the code estimate_interpolation_factor runs (its cache key)."""
+    return tuple(module.__file__ for module in (sys.modules[__name__], glossy, microfacet, vec, warps))
+
+
+def estimate_interpolation_factor(roughness: float, eta: float | None) -> np.ndarray:
+    """interpolation_factor computed: our Monte Carlo of 64 x 64 jittered samples per point."""
     alpha = max(roughness * roughness, 1e-8)
     rng = np.random.default_rng(20240)
     i = np.arange(ESTIMATE_STRATA * ESTIMATE_STRATA)

@@ -160,15 +160,16 @@ def prepare_task(blob: bytes, key: str, client_version: str):
 
 def plain_unit(unit) -> tuple:
     """A work unit as plain Python values: the scheduler unpickles every task and has no copy of
-    the engine, so a unit travels as (index, tile fields, chunk, start, stop, mask, halves)."""
+    the engine, so a unit travels as (index, tile fields, chunk, start, stop, mask, halves, part, parts)."""
     t = unit.tile
-    return (unit.index, (t.index, t.x0, t.y0, t.x1, t.y1), unit.chunk, unit.start, unit.stop, unit.mask, unit.halves)
+    return (unit.index, (t.index, t.x0, t.y0, t.x1, t.y1), unit.chunk, unit.start, unit.stop, unit.mask, unit.halves,
+            unit.part, unit.parts)
 
 
 def unit_from_plain(fields):
     from ..rendering.units import Tile, WorkUnit
-    index, tile, chunk, start, stop, mask, halves = fields
-    return WorkUnit(index, Tile(*tile), chunk, start, stop, mask, halves)
+    index, tile, chunk, start, stop, mask, halves, part, parts = fields
+    return WorkUnit(index, Tile(*tile), chunk, start, stop, mask, halves, part, parts)
 
 
 def render_unit_task(blob: bytes, key: str, unit: tuple, client_version: str, *photons):

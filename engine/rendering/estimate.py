@@ -45,9 +45,9 @@ import numpy as np
 
 from ..film.error_estimate import BLOCK, rel_terms
 from .stopping import effective_min_samples, round_schedule
+from .units import TAIL_PATHS, makespan
 
 PILOT_SAMPLES = 64
-TAIL_PATHS = 8192
 
 
 def block_sums(values: np.ndarray, block: int = BLOCK):
@@ -145,16 +145,6 @@ def tile_costs(units, fallback: float):
     total = sum(work.values())
     mean = sum(seconds.values()) / total if total > 0 else fallback
     return lambda tile: seconds[tile] / work[tile] if work.get(tile) else mean
-
-
-def makespan(costs, workers: int) -> float:
-    """When the last of `costs` (seconds, in dispatch order) ends on `workers` workers that each take
-    the next unit as soon as they are free (engine/pools/local.py)."""
-    free = [0.0] * max(workers, 1)
-    for c in costs:
-        i = free.index(min(free))
-        free[i] += c
-    return max(free)
 
 
 def tiles_of_blocks(shape, tile_size: int, block: int = BLOCK) -> np.ndarray:

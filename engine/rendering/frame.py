@@ -56,23 +56,29 @@ class FrameFilm(Film):
         self.sum_a = np.zeros((height, width, 3))
         self.count_a = np.zeros((height, width))
         self.next_chunk = {}                    # tile index -> next chunk to add
-        self.pending = {}                       # (tile index, chunk) -> UnitResult
+        self.pending = {}                       # (tile index, chunk, part) -> UnitResult
+        self.parts_added = {}                   # (tile index, chunk) -> its parts merged so far
         self.units_total = len(units)
         self.units_added = 0
         self.features = None                    # FrameFeatures when a traced pass is on
         self._error = None                      # (units_added, estimated_rel_error) last computed
 
     def add(self, result) -> list[Tile]:
-        """Merge a unit's result; returns the tiles whose pixels changed."""
+        """Merge a unit's result; returns the tiles (or bands of a split chunk) whose pixels changed.
+        The parts of a split chunk (engine/rendering/units.py balance_units) cover apart rows of the
+        tile: each merges once its chunk is next, and the chunk after waits for all of them."""
         unit = result.unit
-        self.pending[(unit.tile.index, unit.chunk)] = result
-        changed = []
-        key = (unit.tile.index, self.next_chunk.get(unit.tile.index, 0))
-        while key in self.pending:
-            t = self._merge(self.pending.pop(key))
-            key = (t.index, key[1] + 1)
-            changed = [t]
-        return changed
+        index = unit.tile.index
+        self.pending[(index, unit.chunk, unit.part)] = result
+        changed = {}
+        while True:
+            chunk = self.next_chunk.get(index, 0)
+            ready = sorted(k for k in self.pending if k[0] == index and k[1] == chunk)
+            for key in ready:
+                t = self._merge(self.pending.pop(key))
+                changed[(t.x0, t.y0, t.x1, t.y1)] = t
+            if not ready or self.next_chunk.get(index, 0) == chunk:
+                return list(changed.values())
 
     def flush(self) -> list[Tile]:
         """Merge the results still waiting for an earlier chunk of their tile that will not come
@@ -80,11 +86,11 @@ class FrameFilm(Film):
         changed = {}
         for key in sorted(self.pending):
             t = self._merge(self.pending.pop(key))
-            changed[t.index] = t
+            changed[(t.x0, t.y0, t.x1, t.y1)] = t
         return list(changed.values())
 
     def _merge(self, r) -> Tile:
-        t = r.unit.tile
+        t, unit = r.unit.tile, r.unit
         h, w = t.y1 - t.y0, t.x1 - t.x0
         self.add_sums(t.x0, t.y0, r.sum.reshape(h, w, 3), r.sum_sq.reshape(h, w, 3), r.count.reshape(h, w),
                       None if r.transparent is None else r.transparent.reshape(h, w))
@@ -94,7 +100,9 @@ class FrameFilm(Film):
         if self.features is not None and r.features is not None:
             self.features.add(t, r.features)
         self.units_added += 1
-        self.next_chunk[t.index] = max(self.next_chunk.get(t.index, 0), r.unit.chunk + 1)
+        parts = self.parts_added[(t.index, unit.chunk)] = self.parts_added.get((t.index, unit.chunk), 0) + 1
+        if parts == unit.parts:
+            self.next_chunk[t.index] = max(self.next_chunk.get(t.index, 0), unit.chunk + 1)
         return t
 
     @property

@@ -193,7 +193,8 @@ class PreparedScene:
         start = time.perf_counter()
         width, height = self.scene.resolution
         counters = Counters()
-        rng = np.random.default_rng([s.seed, tile.index, unit.start])
+        # A band of a split unit (engine/rendering/units.py balance_units) draws its own numbers.
+        rng = np.random.default_rng([s.seed, tile.index, unit.start] + ([unit.part] if unit.parts > 1 else []))
         sampler = (SobolSampler(s.seed, tile.x0, tile.y0, tile.x1, tile.y1, s.sample_net or s.samples,
                                 s.shadow_rays)
                    if s.sampler == "sobol" else RandomSampler(rng))

@@ -10,6 +10,10 @@ from ..integrators import path_tracer
 MIN_TILES = 4                     # so that both cores of a small frame have work
 UNIT_PATHS = 1 << 18              # camera samples per work unit, about: each unit ends with a tail of
                                   # a few paths, so units much smaller than this cost time (1 << 16: +25 %)
+TAIL_PATHS = 8192                 # what a unit's tail costs, in paths (engine/rendering/estimate.py)
+BALANCE_WORKERS = (1, 2, 3, 4)    # the worker counts balance_units weighs (the units never see the workers)
+MOST_BALANCE_SPLITS = 12          # at most this many units split in two by balance_units
+MOST_BALANCED_UNITS = 400         # frames of more units lose under 1 % to their last round on 4 workers
 PHOTON_UNIT_SAMPLES = 16          # at most, per unit, with caustic photons: each sample of a pixel is one
                                   # photon pass (engine/integrators/photons/caustics.py), which a unit traces
 
@@ -29,7 +33,9 @@ class Tile:
 
 @dataclass(frozen=True)
 class WorkUnit:
-    """Samples start .. stop-1 of every pixel of one tile; `chunk` numbers it within the tile."""
+    """Samples start .. stop-1 of every pixel of one tile; `chunk` numbers it within the tile.
+    With parts > 1 the tile's chunk is split in `parts` bands of rows (balance_units) and the unit
+    renders band `part`: its `tile` is then that band (x0, y0, x1, y1) under the tile's index."""
     index: int
     tile: Tile
     chunk: int
@@ -37,6 +43,12 @@ class WorkUnit:
     stop: int
     mask: bytes | None = None    # packed active pixels of the tile (adaptive sampling); None = all
     halves: bool = False         # render [start, mid) and [mid, stop) apart: the half buffers
+    part: int = 0
+    parts: int = 1
+
+    @property
+    def paths(self) -> int:
+        return self.tile.pixels * (self.stop - self.start)
 
 
 @dataclass(frozen=True)
@@ -86,12 +98,15 @@ def chunk_starts(samples: int, step: int, growing: bool) -> list[int]:
     return starts
 
 
-def make_units(tiles, samples: int, order: str = "tiles", max_samples: int | None = None) -> list[WorkUnit]:
+def make_units(tiles, samples: int, order: str = "tiles", max_samples: int | None = None,
+               balance: bool = True) -> list[WorkUnit]:
     """Each tile's samples in chunks of about UNIT_PATHS camera samples.  order "tiles": a tile's
     chunks one after the other (the frame fills tile by tile); "frame": chunk 0 of every tile,
     then chunk 1, ... (the whole frame refines); "growing": as "frame", with chunks of 1, 1, 2, 4,
     ... samples up to that size (the viewport: a picture of the whole frame after one sample,
-    big units after that, engine/pools/viewport.py).  max_samples: a cap on a unit's samples."""
+    big units after that, engine/pools/viewport.py).  max_samples: a cap on a unit's samples.
+    balance: the last units split in bands of rows where that keeps workers busier (balance_units;
+    never in the growing order, whose units are small on purpose)."""
     if order not in ORDERS:
         raise ValueError(f"progressive order {order!r}: expected one of {', '.join(ORDERS)}")
     per_tile = []
@@ -110,7 +125,59 @@ def make_units(tiles, samples: int, order: str = "tiles", max_samples: int | Non
         chunks = [units[d] for d in range(max(map(len, per_tile))) for units in per_tile if d < len(units)]
     else:
         chunks = [u for units in per_tile for u in units]
-    return [WorkUnit(i, tile, c, start, stop) for i, (tile, c, start, stop) in enumerate(chunks)]
+    units = [WorkUnit(i, tile, c, start, stop) for i, (tile, c, start, stop) in enumerate(chunks)]
+    return balance_units(units) if balance and order != "growing" else units
+
+
+def makespan(costs, workers: int) -> float:
+    """When the last of `costs` (in dispatch order) ends on `workers` workers that each take the
+    next unit as soon as they are free (engine/pools/faults.py Dispatch.feed)."""
+    free = [0.0] * max(workers, 1)
+    for c in costs:
+        i = free.index(min(free))
+        free[i] += c
+    return max(free)
+
+
+def split_rows(unit: WorkUnit) -> list[WorkUnit]:
+    """The unit as two units of the same samples on the upper and lower half of its tile's rows."""
+    t = unit.tile
+    mid = t.y0 + (t.y1 - t.y0) // 2
+    bands = (Tile(t.index, t.x0, t.y0, t.x1, mid), Tile(t.index, t.x0, mid, t.x1, t.y1))
+    return [WorkUnit(unit.index, band, unit.chunk, unit.start, unit.stop, part=p, parts=2)
+            for p, band in enumerate(bands)]
+
+
+def balance_units(units: list[WorkUnit]) -> list[WorkUnit]:
+    """A frame of few units leaves workers idle at its end (9 equal units on 2 workers: 5 rounds, one
+    worker idle in the last).  Split the last k of the units that make two halves of at least
+    UNIT_PATHS / 2 paths each in two bands of rows (split_rows), k = 0 .. MOST_BALANCE_SPLITS: the k
+    whose makespans (each unit costing its paths plus TAIL_PATHS) summed over BALANCE_WORKERS are
+    least, the fewest splits on a tie.  The units depend on the frame only, never on the workers
+    that render them.  A band keeps every pixel's sample ranges, and each pixel's sums and random
+    numbers (the Sobol' sampler seeds per frame pixel, engine/sampling/qmc.py) depend on nothing
+    else: the image is the same bit for bit (tests/rendering/test_units.py; the random sampler
+    seeds per unit and band, engine/rendering/session.py).  Frames of more than MOST_BALANCED_UNITS
+    units are left as they are (and the search stays short)."""
+    if len(units) > MOST_BALANCED_UNITS:
+        return units
+    splittable = [i for i, u in enumerate(units)
+                  if u.parts == 1 and u.tile.y1 - u.tile.y0 >= 2
+                  and (u.tile.y1 - u.tile.y0) // 2 * (u.tile.x1 - u.tile.x0) * (u.stop - u.start) >= UNIT_PATHS // 2]
+    best, best_cost = 0, None
+    for k in range(min(len(splittable), MOST_BALANCE_SPLITS) + 1):
+        split = set(splittable[len(splittable) - k:])
+        costs = [c for i, u in enumerate(units)
+                 for c in ([u.paths / 2 + TAIL_PATHS] * 2 if i in split else [u.paths + TAIL_PATHS])]
+        cost = sum(makespan(costs, w) for w in BALANCE_WORKERS)
+        if best_cost is None or cost < best_cost:
+            best, best_cost = k, cost
+    split = set(splittable[len(splittable) - best:])
+    if not split:
+        return units
+    out = [p for i, u in enumerate(units) for p in (split_rows(u) if i in split else [u])]
+    return [WorkUnit(i, u.tile, u.chunk, u.start, u.stop, u.mask, u.halves, u.part, u.parts)
+            for i, u in enumerate(out)]
 
 
 def next_outcome(pool, timeout: float):
