@@ -242,7 +242,8 @@ def cmd_study(args) -> int:
 
 def cmd_worker(args) -> int:
     from ..pools.processes import worker_main
-    return worker_main(args.parent_pid)
+    from ..pools.transport import exit_worker
+    exit_worker(worker_main(args.parent_pid))
 
 
 def build_parser() -> argparse.ArgumentParser:

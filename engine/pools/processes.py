@@ -225,4 +225,5 @@ def start_failure(python: str, worker) -> str:
 
 
 if __name__ == "__main__":
-    sys.exit(worker_main(int(sys.argv[1])))
+    from .transport import exit_worker
+    exit_worker(worker_main(int(sys.argv[1])))

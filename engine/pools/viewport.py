@@ -67,7 +67,8 @@ from ..core.paths import TRACER_DIR, worker_environment
 from . import faults
 from .protocol import Pool
 from .scene_delta import with_unchanged, without_unchanged
-from .transport import WorkerEnd, WorkerProcess, close_all, encode, log_to_stderr, send_to_live, start_workers
+from .transport import (WorkerEnd, WorkerProcess, close_all, encode, exit_worker, log_to_stderr, send_to_live,
+                        start_workers)
 
 START_RESOLUTION = 64           # Cycles' default Start Pixels: the first frame has at most 64² pixels
 IN_FLIGHT = 2                   # units queued per worker, so none waits for the next
@@ -709,4 +710,4 @@ class ViewportRender:
 
 
 if __name__ == "__main__":
-    sys.exit(viewport_worker_main(int(sys.argv[1])))
+    exit_worker(viewport_worker_main(int(sys.argv[1])))

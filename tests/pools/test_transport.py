@@ -90,3 +90,17 @@ def test_a_worker_process_of_another_build_is_refused_naming_both(tmp_path, monk
     message = str(err.value)
     assert "\n" not in message and "refused" in message, message
     assert f"the parent build {BUILD_HASH[:12]}" in message and "runs engine build" in message, message
+
+
+def test_a_worker_ends_at_once_with_its_streams_flushed():
+    """exit_worker skips the interpreter's teardown (os._exit) but not what the worker wrote: text
+    still in stdout's buffer (a pipe: block-buffered) reaches the parent, and the code is kept."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}     # stdout buffered as a worker's
+    code = ("import sys; from engine.pools.transport import exit_worker; "
+            "sys.stdout.write('last words'); sys.stderr.write('to stderr'); exit_worker(3)")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, timeout=120,
+                          env=env)
+    assert (proc.returncode, proc.stdout, proc.stderr) == (3, b"last words", b"to stderr")
+    control = subprocess.run([sys.executable, "-c", "import os, sys; sys.stdout.write('lost'); os._exit(3)"],
+                             capture_output=True, timeout=120, env=env)
+    assert (control.returncode, control.stdout) == (3, b"")      # without the flush the text is lost
