@@ -184,7 +184,6 @@ def estimate_interpolation_factor(roughness: float, eta: float | None) -> np.nda
     return np.clip(out, 0.0, 1.0)
 
 
-
 def _sample_lobes(lobes, views, choice, first, u, wi, flags, failed=None):
     """Each lobe's directions for the hits that picked it (choice == first + its place in `lobes`),
     written into wi and flags; failed (when given): where the lobe's sample failed (a failed
