@@ -16,7 +16,8 @@ directory (and any bundled wheels) on PYTHONPATH (engine/core/paths.py worker_en
   (the parent reports those once) are echoed with the worker's name.
 * Close: EOF on stdin, then SIGKILL after a grace period.  A worker dies with its parent (Linux
   prctl PDEATHSIG) and ignores SIGINT (a terminal's Ctrl-C reaches the whole process group: the
-  parent decides).
+  parent decides).  Linux sends PDEATHSIG when the *thread* that started the worker ends, so every
+  worker is started from one thread that lives as long as the parent process (spawn()).
 """
 from __future__ import annotations
 
@@ -176,6 +177,40 @@ def log_to_stderr(message) -> None:
 
 
 # -- the parent's end -----------------------------------------------------------------------------
+_spawner = {"pid": None, "requests": None}
+_spawner_lock = threading.Lock()
+
+
+def _serve_spawns(requests: queue.Queue) -> None:
+    while True:
+        args, kwargs, answer = requests.get()
+        try:
+            answer.put((subprocess.Popen(*args, **kwargs), None))
+        except BaseException as exc:           # noqa: BLE001 - raised again in the caller's thread
+            answer.put((None, exc))
+
+
+def spawn(*args, **kwargs) -> subprocess.Popen:
+    """subprocess.Popen(*args, **kwargs) run by one thread of this process that never ends.  A
+    worker asks the kernel for SIGKILL when its parent dies (die_with_parent: prctl PR_SET_PDEATHSIG),
+    and for Linux the parent is the *thread* that forked it: a worker started from a thread that then
+    ended (the add-on's warm start, mcrt_addon/warm.py; a Blender render job's thread, whose kept
+    workers outlive it with Persistent Data) was killed as that thread ended, measured 2026-12-05:
+    3 warm starts in 6 lost one or both workers.  The OS error of a failed start is raised here."""
+    with _spawner_lock:
+        if _spawner["pid"] != os.getpid():     # first use, or a forked child: its own thread
+            _spawner["pid"], _spawner["requests"] = os.getpid(), queue.Queue()
+            threading.Thread(target=_serve_spawns, args=(_spawner["requests"],), daemon=True,
+                             name="tncg15 worker spawner").start()
+        requests = _spawner["requests"]
+    answer: queue.Queue = queue.Queue(maxsize=1)
+    requests.put((args, kwargs, answer))
+    proc, error = answer.get()
+    if error is not None:
+        raise error
+    return proc
+
+
 def describe_exit(code) -> str:
     if code is None:
         return "stopped answering"
@@ -199,8 +234,8 @@ class WorkerProcess:
 
     def __init__(self, python: str, module: list, env: dict, label: str, on_message, on_exit,
                  tail_lines: int = 30):
-        self.proc = subprocess.Popen([python, "-m", *module, str(os.getpid())], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, close_fds=True)
+        self.proc = spawn([python, "-m", *module, str(os.getpid())], stdin=subprocess.PIPE,
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, close_fds=True)
         self.pid = self.proc.pid
         self.name = f"{label} (pid {self.pid})"
         self.on_message, self.on_exit = on_message, on_exit

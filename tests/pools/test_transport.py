@@ -1,14 +1,19 @@
 """engine/pools/transport.py: the frames, the package-name remapping, the version handshake of a
-real worker process, and how a worker's exit is described."""
+real worker process, how a worker's exit is described, and that a worker outlives the thread that
+started it."""
 import io
 import os
+import signal
 import subprocess
 import sys
+import threading
+import time
 
 import pytest
 
 from engine.core.errors import SceneError
 from engine.core.version import ENGINE_VERSION
+from engine.pools import transport
 from engine.pools.transport import REFUSED, decode, describe_exit, encode, read_frame
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -104,3 +109,42 @@ def test_a_worker_ends_at_once_with_its_streams_flushed():
     control = subprocess.run([sys.executable, "-c", "import os, sys; sys.stdout.write('lost'); os._exit(3)"],
                              capture_output=True, timeout=120, env=env)
     assert (control.returncode, control.stdout) == (3, b"")      # without the flush the text is lost
+
+
+CHILD = ("import sys; sys.path.insert(0, {root!r}); from engine.pools.transport import die_with_parent; "
+         "die_with_parent(int(sys.argv[1])); print('ready', flush=True); sys.stdin.read()")
+
+
+def started_from_a_thread_that_ends(start):
+    """A worker (die_with_parent, then waits for EOF) started by start(argv, **popen) on a thread that
+    ends once the worker is ready; returns the process half a second after that thread ended."""
+    out = {}
+
+    def run():
+        proc = start([sys.executable, "-c", CHILD.format(root=ROOT), str(os.getpid())], stdin=subprocess.PIPE,
+                     stdout=subprocess.PIPE)
+        proc.stdout.readline()                          # its prctl has been made
+        out["proc"] = proc
+    thread = threading.Thread(target=run)
+    thread.start()
+    thread.join(timeout=120)
+    time.sleep(0.5)
+    return out["proc"]
+
+
+def test_a_worker_outlives_the_thread_that_started_it():
+    """Linux sends PDEATHSIG when the parent *thread* ends: spawn() starts workers from a thread that
+    lives as long as this process (the add-on's warm workers are started on a thread that ends)."""
+    proc = started_from_a_thread_that_ends(transport.spawn)
+    try:
+        assert proc.poll() is None                      # alive
+    finally:
+        proc.stdin.close()
+        assert proc.wait(timeout=60) == 0               # ends at EOF
+    control = started_from_a_thread_that_ends(subprocess.Popen)
+    assert control.wait(timeout=60) == -signal.SIGKILL  # Popen on that thread: killed as it ended
+
+
+def test_spawn_raises_the_os_error_of_a_failed_start_in_the_callers_thread():
+    with pytest.raises(FileNotFoundError):
+        transport.spawn(["/nonexistent/python3", "-c", "pass"])
