@@ -284,6 +284,7 @@ class ViewportPool(Pool):
         self.restarts = 0
         self.slowest = 0.0                              # seconds of the slowest unit answered so far
         self.cancelled_at = None
+        self.warming = False                            # warm() was asked: a restarted worker is asked too
 
     # -- preparation ----------------------------------------------------------------------------
     def prepare(self, scene, settings, timeout: float = START_TIMEOUT, checked: bool = False):
@@ -398,6 +399,8 @@ class ViewportPool(Pool):
             return None
         self.restarts += 1
         self.workers[self.workers.index(dead)] = worker
+        if self.warming:                                # else warmed() would wait for it for ever
+            worker.send(("warm",))
         if self.scene is not None:
             worker.send(("prepare", self.preparation, self.scene, self.settings, self.checked, (None, [])))
             self.builds += 1
@@ -488,6 +491,7 @@ class ViewportPool(Pool):
 
     def warm(self):
         """Workers started ahead of their first scene load the compiled kernels now (warm_kernels)."""
+        self.warming = True
         send_to_live(self.workers, ("warm",))
 
     def warmed(self) -> bool:

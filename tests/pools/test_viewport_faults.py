@@ -106,3 +106,26 @@ def test_a_new_view_after_a_cancel_does_not_wait_for_a_stopped_viewport_worker(p
     expected = render(view, replace(SETTINGS, threads=1), log=lambda *a: None).image
     assert np.array_equal(frame.film.mean(), expected)
     assert any(f"pid {stopped}) died: did not stop" in r for r in pool.stats()["worker_reports"])
+
+
+@pytest.mark.slow          # starts a worker twice and loads the kernels twice (about 5 s)
+def test_a_worker_restarted_before_any_scene_is_warmed_too():
+    """A warm pool (mcrt_addon/warm.py) whose worker died before its first scene: the replacement is
+    asked to load the kernels as well, else warmed() waits for it for ever (bench-materials' 300 s)."""
+    p = make_pool("viewport", 1, log=lambda *a: None)
+    try:
+        p.warm()
+        deadline = time.monotonic() + HANG
+        while not p.warmed():
+            assert time.monotonic() < deadline, "the worker never answered warm"
+            time.sleep(0.02)
+        first = p.workers[0]
+        os.kill(first.pid, signal.SIGKILL)
+        while not p.warmed() or p.workers[0] is first:        # warmed() reads the pool's events
+            assert time.monotonic() < deadline + HANG, (p.reports, [w.warmed for w in p.workers])
+            time.sleep(0.02)
+        assert p.restarts == 1 and p.workers[0].warmed and p.workers[0].alive
+    finally:
+        pids = [w.pid for w in p.workers]
+        p.close()
+    assert not any(alive(pid) for pid in pids)
