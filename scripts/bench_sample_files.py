@@ -54,6 +54,7 @@ TIME_TARGET = 0.6                  # TNCG15 MC's per-sample time / Cycles' at mo
 EFFICIENCY_TARGET = 2.0            # TNCG15 MC's 1/(MSE t) / Cycles' at least this
 DEFAULT_SAMPLES = {96: (16, 64), 256: (4, 16)}
 SEED = 1
+MSE_NOTE = 2.0                     # a note when TNCG15 MC's MSE at S2 is above this x Cycles' (bias, fireflies)
 RENDERERS = ("cycles", "tncg15")
 
 
@@ -113,6 +114,10 @@ def summarise(row):
                                                      row[f"cycles_efficiency_{clock}"])
         row["efficiency_met"] = meets_efficiency(row["efficiency_ratio_wall"])
         row["efficiency_met_cpu"] = meets_efficiency(row["efficiency_ratio_cpu"])
+        row["mse_ratio"] = ratio(row["tncg15_mse"], row["cycles_mse"])
+        note = f"MSE {row['mse_ratio']:.1f}x Cycles' at S2"
+        if row["mse_ratio"] > MSE_NOTE and note not in row["notes"]:    # more than noise: a bias?
+            row["notes"].append(note)
     return row
 
 

@@ -65,6 +65,9 @@ def test_efficiency_ratio_and_its_flag():
     assert r["efficiency_ratio_wall"] == pytest.approx(4.0) and r["efficiency_met"] is True
     r = row(bench, cycles_spp=0.01, tncg_spp=0.01, cycles_setup=1.0, tncg_setup=1.0, mse=(1.5e-3, 1e-3))
     assert r["efficiency_ratio_wall"] == pytest.approx(1.5) and r["efficiency_met"] is False
+    assert r["notes"] == []
+    r = row(bench, cycles_spp=0.01, tncg_spp=0.01, mse=(1e-3, 5e-3))      # 5x Cycles' MSE: noted
+    assert r["notes"] == ["MSE 5.0x Cycles' at S2"] and bench.summarise(r)["notes"] == r["notes"]
 
 
 def test_table_marks_rows_and_keeps_errors():
