@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BLENDER ?= blender
 
-.PHONY: setup render test test-slow test-all bench bench-primitives bench-animation bench-backend bench-speed bench-caustics bench-estimators bench-materials study extension samples clean
+.PHONY: setup render test test-slow test-all bench bench-primitives bench-animation bench-backend bench-speed bench-caustics bench-estimators bench-materials bench-files study extension samples clean
 
 setup: $(STAMP)
 
@@ -68,6 +68,12 @@ bench-estimators: $(STAMP)
 # docs/materials-efficiency.json; Cycles references cached in renders/reference/.
 bench-materials: $(STAMP)
 	$(PY) -m mcrt_addon bench-materials --out docs/materials-efficiency.json
+
+# Every sample_blends/*.blend against Cycles at 96^2 and 256^2, 2 threads: per-sample time (target <= 0.6x
+# Cycles') and efficiency 1/(MSE t) (target >= 2x) (docs/performance.md "Against Cycles per sample file");
+# Cycles references cached in renders/reference-files/, JSON in renders/.  FILES="cornell caustic" for some.
+bench-files: $(STAMP)
+	$(PY) scripts/bench_sample_files.py $(if $(FILES),--files $(FILES))
 
 study: $(STAMP)
 	$(PY) -m engine study --full

@@ -126,12 +126,14 @@ def open_blend(path, resolution):
     return scene
 
 
-def render_cycles(scene, *, samples, max_depth, seed, threads):
-    """One Cycles render with the fair reference settings: (image, wall seconds, process CPU seconds)."""
+def render_cycles(scene, *, samples, max_depth, seed, threads, **cycles_options):
+    """One Cycles render with the fair reference settings: (image, wall seconds, process CPU seconds).
+    `cycles_options`: setup_cycles_reference's film and Light Paths options (mcrt_addon/reference.py)."""
     import bpy
     from mcrt_addon.headless import set_exr_output
     from mcrt_addon.reference import setup_cycles_reference
-    setup_cycles_reference(scene, samples=samples, max_depth=max_depth, seed=seed, threads=threads)
+    setup_cycles_reference(scene, samples=samples, max_depth=max_depth, seed=seed, threads=threads,
+                           **cycles_options)
     fd, path = tempfile.mkstemp(suffix=".exr")
     os.close(fd)
     os.remove(path)
@@ -206,12 +208,18 @@ def scene_blend(name, blend_dir, make_samples):
     return name, path, make_samples.SOURCE_SHA
 
 
-def reference_image(label, blend, identity, *, cache_dir, resolution, samples, max_depth, log):
+def reference_image(label, blend, identity, *, cache_dir, resolution, samples, max_depth, log,
+                    cycles_options=None):
+    """The cached Cycles reference (image, sidecar dict); `cycles_options` as render_cycles', kept in
+    the sidecar (a reference made with other options is rendered again)."""
     import bpy
+    cycles_options = dict(cycles_options or {})
     w, h = resolution
     stem = os.path.join(cache_dir, f"{label}_{w}x{h}_{samples}_{max_depth}")
     meta = dict(scene=label, scene_sha=identity, resolution=[w, h], samples=samples, max_depth=max_depth,
                 seed=REFERENCE_SEED, blender=bpy.app.version_string)
+    if cycles_options:
+        meta["cycles_options"] = json.loads(json.dumps(cycles_options, default=_json_default))
     exr, side = stem + ".exr", stem + ".json"
     if os.path.isfile(exr) and os.path.isfile(side):
         with open(side) as fh:
@@ -222,7 +230,7 @@ def reference_image(label, blend, identity, *, cache_dir, resolution, samples, m
     log(f"  reference: Cycles {samples} spp at {w}x{h}, depth {max_depth} ...")
     scene = open_blend(blend, resolution)
     image, seconds, _ = render_cycles(scene, samples=samples, max_depth=max_depth, seed=REFERENCE_SEED,
-                                      threads=0)
+                                      threads=0, **cycles_options)
     os.makedirs(cache_dir, exist_ok=True)
     write_exr(exr, image)
     meta["seconds"] = seconds
@@ -351,6 +359,8 @@ def bench_estimators(args, log=print):
 
 
 def _json_default(value):
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return dataclasses.asdict(value)
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, np.ndarray):
