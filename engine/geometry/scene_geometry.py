@@ -210,7 +210,9 @@ class SceneGeometry:
         elif self.has_spheres:
             t = self._nearest(SPHERE, self.sphere_tree, len(self.sphere_radius), self._sphere_test(o, d), o, d, t, kind,
                               prim)
-        if self.has_quads:
+        if self.has_quads and self.quad_tree is None and self.quads.loops is not None:    # compiled, as spheres
+            t = self.quads.loops[0](self.quads, o, d, t, kind, prim, QUAD)
+        elif self.has_quads:
             t = self._nearest(QUAD, self.quad_tree, self.quads.count, self._quad_test(o, d), o, d, t, kind, prim)
         sees = self.lights.rays_that_see_any(ray_kind) if self.lights.count else None
         if self.lights.count and sees is None:
@@ -288,13 +290,16 @@ class SceneGeometry:
         loops = self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None
         if loops:            # compiled: every sphere in one loop per ray, on all rays (it skips the blocked ones)
             self.sphere_loops[1](o, d, self.sphere_center, self.sphere_radius, tmax, blocked)
-        if (self.has_spheres and not loops) or self.has_quads:
+        quad_loops = self.has_quads and self.quad_tree is None and self.quads.loops is not None
+        if quad_loops:
+            self.quads.loops[1](self.quads, o, d, tmax, blocked)
+        if (self.has_spheres and not loops) or (self.has_quads and not quad_loops):
             rest = np.flatnonzero(~blocked)
             if len(rest) < len(blocked):
                 o, d, tmax = o.take(rest, axis=1), d.take(rest, axis=1), tmax.take(rest)
             hit = np.zeros(len(rest), dtype=bool)
             for tree, count, test in ((self.sphere_tree, 0 if loops else len(self.sphere_radius), self._sphere_test(o, d)),
-                                      (self.quad_tree, self.quads.count, self._quad_test(o, d))):
+                                      (self.quad_tree, 0 if quad_loops else self.quads.count, self._quad_test(o, d))):
                 if tree is None:
                     everyone = np.arange(len(rest))
                     for k in range(count):
