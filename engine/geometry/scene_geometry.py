@@ -23,7 +23,7 @@ from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
 from .shapes.spheres import EPS64, sphere_kernel, sphere_loop_kernels, surface_point
-from ..core.vec import aos, cross_rows, max_abs3, norm, rows, triangle_rows
+from ..core.vec import cross_rows, max_abs3, norm, rows, triangle_rows
 
 NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
 KINDS = (TRIANGLE, SPHERE, QUAD, LIGHT)
@@ -168,7 +168,7 @@ class SceneGeometry:
         # instead of embreex on float32 copies; None: the accelerator's own intersect / occluded.
         self.accel_jit = None
         if (backends.get("wavefront", "numpy") == "numba" and self.accelerator is not None
-                and hasattr(self.accelerator, "nearest_rows")):
+                and self.accelerator.compiled_rows):
             from .accel import embree_jit
             self.accel_jit = embree_jit if embree_jit.bind() else None
         r = self.sphere_radius[:, None]
@@ -194,17 +194,8 @@ class SceneGeometry:
         u = v = np.zeros(n)
         if self.has_triangles:
             t0 = time.perf_counter()                        # the accelerator call only
-            if hasattr(self.accelerator, "nearest_rows"):       # Embree: it takes the rows and t
-                t, kind, prim, u, v = self.accelerator.nearest_rows(o, d, t, self.accel_jit)
-                counters.seconds_in_accelerator += time.perf_counter() - t0
-            else:
-                dtype = self.accelerator.ray_dtype
-                tt, tp, u, v = self.accelerator.intersect(aos(o, dtype), aos(d, dtype), t)
-                counters.seconds_in_accelerator += time.perf_counter() - t0
-                closer = tt < t
-                t = np.where(closer, tt, t)
-                kind = closer.astype(np.int8)                   # TRIANGLE where closer
-                prim = np.where(closer, tp, prim)
+            t, kind, prim, u, v = self.accelerator.nearest_rows(o, d, t, self.accel_jit)    # kind: TRIANGLE or NONE
+            counters.seconds_in_accelerator += time.perf_counter() - t0
         if self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None:
             t = self.sphere_loops[0](o, d, self.sphere_center, self.sphere_radius, t, kind, prim, SPHERE)
         elif self.has_spheres:
@@ -281,11 +272,7 @@ class SceneGeometry:
         blocked = np.zeros(o.shape[1], dtype=bool)
         if self.has_triangles:
             t0 = time.perf_counter()
-            if hasattr(self.accelerator, "occluded_rows"):
-                blocked |= self.accelerator.occluded_rows(o, d, tmax, self.accel_jit)
-            else:
-                dtype = self.accelerator.ray_dtype
-                blocked |= self.accelerator.occluded(aos(o, dtype), aos(d, dtype), tmax)
+            blocked |= self.accelerator.occluded_rows(o, d, tmax, self.accel_jit)
             counters.seconds_in_accelerator += time.perf_counter() - t0
         loops = self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None
         if loops:            # compiled: every sphere in one loop per ray, on all rays (it skips the blocked ones)
