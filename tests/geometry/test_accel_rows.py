@@ -9,7 +9,7 @@ from engine.geometry.accel import BruteForceAccelerator, EmbreeAccelerator, Octr
 from engine.geometry.accel.rows import RowQueries
 
 
-def scene(rng, k=200):
+def scene(rng, k=100):
     centres = rng.uniform(-2, 2, (k, 1, 3))
     return centres + rng.normal(0, 0.3, (k, 3, 3))
 
@@ -17,7 +17,7 @@ def scene(rng, k=200):
 def test_rows_queries_of_every_accelerator():
     rng = np.random.default_rng(4)
     tris = scene(rng)
-    n = 3000
+    n = 1200
     o = rng.uniform(-3, 3, (3, n))
     d = rng.normal(size=(3, n))
     d /= np.linalg.norm(d, axis=0)
@@ -36,7 +36,7 @@ def test_rows_queries_of_every_accelerator():
         blocked = accel.occluded_rows(o, d, np.full(n, 1.5))
         answers[cls.__name__] = (kind, prim, t, blocked)
     brute, octree, embree = answers.values()
-    assert brute[0].sum() > 200 and brute[3].sum() > 200
+    assert brute[0].sum() > 50 and brute[3].sum() > 50
     for other in (octree, embree):
         same_hit = (brute[0] == other[0]).mean()
         assert same_hit > 0.99 and (brute[3] == other[3]).mean() > 0.99
