@@ -45,6 +45,8 @@ JIT_MODULES = {
     "geometry.shapes.quads_jit": ("quads",),
     "geometry.shapes.light_polygons_jit": ("area_lights",),
     "sampling.sobol_jit": ("sobol",),
+    "materials.lambert_jit": ("wavefront",),
+    "materials.glass_jit": ("wavefront",),
     "materials.microfacet_jit": ("glossy", "principled", "mix"),
     "materials.principled_jit": ("principled", "mix"),
     "materials.principled_v1_jit": ("principled", "mix"),

@@ -10,6 +10,9 @@ triangle and sphere hits.  Imported only through engine/core/backend.py's choice
   sums in the same order), normal and offset in one loop over the hits instead of nine gathers;
   `sphere_surface`: engine/geometry/shapes/spheres.py `surface_point` (the point o + t d moved
   onto the sphere along its normal, and the offset) in one loop.
+* `surfaces`: the two above and quads.QuadSet.surface for all the hits of a batch in one loop (kind by
+  kind as each hit's kind says), written into the batch's arrays at once instead of run by run and
+  concatenated, with the normal facing the ray that PathTracer.bounce takes (`SurfaceHits.facing`).
 
 Both give the same arrays bit for bit (tests/geometry/test_hits_jit.py)."""
 from __future__ import annotations
@@ -22,7 +25,7 @@ nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
 
 KINDS = 4          # scene_geometry.KINDS: TRIANGLE, SPHERE, QUAD, LIGHT (1 .. 4); NONE is 0
-LIGHT = 4
+TRIANGLE, SPHERE, LIGHT = 1, 2, 4
 
 
 @jit
@@ -143,6 +146,57 @@ def sphere_surface(o, d, t, a, prim, center, radius, eps64):
                            center, radius, float(eps64))
 
 
+@jit
+def _surfaces(o, d, t, kind, prim, u, v, v0, e1, e2, tri_normal, tri_scale, tri_offset, center, radius, eps64,
+              quad_normal, quad_v00, quad_scale, point, nrm, offset, facing):
+    """Every hit's point, normal and offset by its kind (triangles, spheres, quads: the loops above and
+    quads.QuadSet.surface, the same operations), and the normal facing the ray (PathTracer.bounce's)."""
+    scale = 64.0 * eps64
+    for j in range(kind.shape[0]):
+        k, p = kind[j], prim[j]
+        if k == TRIANGLE:
+            uj, vj = u[j], v[j]
+            x = v0[0, p] + uj * e1[0, p] + vj * e2[0, p]
+            y = v0[1, p] + uj * e1[1, p] + vj * e2[1, p]
+            z = v0[2, p] + uj * e1[2, p] + vj * e2[2, p]
+            n0, n1, n2 = tri_normal[0, p], tri_normal[1, p], tri_normal[2, p]
+            off = tri_offset * _max(_max(_max(abs(x), abs(y)), abs(z)), tri_scale[p])
+        elif k == SPHERE:
+            r0 = (o[0, j] + t[j] * d[0, j]) - center[0, p]
+            r1 = (o[1, j] + t[j] * d[1, j]) - center[1, p]
+            r2 = (o[2, j] + t[j] * d[2, j]) - center[2, p]
+            length = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+            n0, n1, n2 = r0 / length, r1 / length, r2 / length
+            r = radius[p]
+            x, y, z = center[0, p] + r * n0, center[1, p] + r * n1, center[2, p] + r * n2
+            off = scale * (_max(_max(abs(x), abs(y)), abs(z)) + r)
+        else:                                           # QUAD (the caller sends no LIGHT hits)
+            n0, n1, n2 = quad_normal[0, p], quad_normal[1, p], quad_normal[2, p]
+            x, y, z = o[0, j] + t[j] * d[0, j], o[1, j] + t[j] * d[1, j], o[2, j] + t[j] * d[2, j]
+            along = (x - quad_v00[0, p]) * n0 + (y - quad_v00[1, p]) * n1 + (z - quad_v00[2, p]) * n2
+            x, y, z = x - along * n0, y - along * n1, z - along * n2
+            off = scale * _max(_max(_max(abs(x), abs(y)), abs(z)), quad_scale[p])
+        point[0, j], point[1, j], point[2, j] = x, y, z
+        nrm[0, j], nrm[1, j], nrm[2, j] = n0, n1, n2
+        offset[j] = off
+        towards = 1.0 if d[0, j] * n0 + d[1, j] * n1 + d[2, j] * n2 < 0.0 else -1.0
+        facing[0, j], facing[1, j], facing[2, j] = n0 * towards, n1 * towards, n2 * towards
+
+
+def surfaces(o, d, t, kind, prim, u, v, v0, e1, e2, tri_normal, tri_scale, tri_offset, center, radius, eps64,
+             quad_normal, quad_v00, quad_scale):
+    """(point, normal, offset, facing) of hits on triangles, spheres and quads (no Area lights) in one loop:
+    scene_geometry.surface's runs concatenated, and facing = normal * (1 if dot(d, normal) < 0 else -1)."""
+    m = kind.shape[0]
+    point, nrm, offset, facing = np.empty((3, m)), np.empty((3, m)), np.empty(m), np.empty((3, m))
+    _surfaces(np.ascontiguousarray(o, np.float64), np.ascontiguousarray(d, np.float64),
+              np.ascontiguousarray(t, np.float64), np.ascontiguousarray(kind, np.int8),
+              np.ascontiguousarray(prim, np.int64), np.ascontiguousarray(u, np.float64),
+              np.ascontiguousarray(v, np.float64), v0, e1, e2, tri_normal, tri_scale, float(tri_offset),
+              center, radius, float(eps64), quad_normal, quad_v00, quad_scale, point, nrm, offset, facing)
+    return point, nrm, offset, facing
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     n = 4
@@ -154,3 +208,5 @@ def warm_up() -> None:
     rows = np.zeros((3, 1))
     triangle_surface(np.zeros(n, np.int64), uv, uv, rows, rows, rows, rows, np.zeros(1), 1e-6)
     sphere_surface(np.zeros((3, n)), np.ones((3, n)), np.ones(n), 1, np.zeros(2, np.int64), rows, np.ones(1), 1e-16)
+    surfaces(np.zeros((3, n)), np.ones((3, n)), np.ones(n), np.array([1, 2, 3, 3], np.int8), np.zeros(n, np.int64),
+             uv, uv, rows, rows, rows, rows, np.zeros(1), 1e-6, rows, np.ones(1), 1e-16, rows, rows, np.zeros(1))

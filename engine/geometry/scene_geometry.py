@@ -23,7 +23,7 @@ from .shapes.light_polygons import LightPolygons
 from .shapes.quads import QuadSet
 from .shading_normals import SmoothNormals, has_smooth
 from .shapes.spheres import EPS64, sphere_kernel, sphere_loop_kernels, surface_point
-from ..core.vec import aos, cross_rows, max_abs3, norm, rows, triangle_rows
+from ..core.vec import cross_rows, max_abs3, norm, rows, triangle_rows
 
 NONE, TRIANGLE, SPHERE, QUAD, LIGHT = 0, 1, 2, 3, 4
 KINDS = (TRIANGLE, SPHERE, QUAD, LIGHT)
@@ -46,6 +46,7 @@ class SurfaceHits:
     material: np.ndarray   # (M,) material index
     offset: np.ndarray     # (M,) distance along the normal that clears the surface
     shading: np.ndarray | None = None   # (3, M) unit shading normal (smooth triangles); else `normal`
+    facing: np.ndarray | None = None    # (3, M) `normal` turned towards the ray, when computed with it
 
     def __post_init__(self):
         if self.shading is None:
@@ -72,6 +73,7 @@ class HitSet:
     material: np.ndarray
     runs: dict
     groups: list
+    kinds: set = frozenset(KINDS)       # the kinds that have hits (those of `runs`)
 
 
 def check_rows(o, d) -> None:
@@ -166,7 +168,7 @@ class SceneGeometry:
         # instead of embreex on float32 copies; None: the accelerator's own intersect / occluded.
         self.accel_jit = None
         if (backends.get("wavefront", "numpy") == "numba" and self.accelerator is not None
-                and hasattr(self.accelerator, "nearest_rows")):
+                and self.accelerator.compiled_rows):
             from .accel import embree_jit
             self.accel_jit = embree_jit if embree_jit.bind() else None
         r = self.sphere_radius[:, None]
@@ -192,23 +194,16 @@ class SceneGeometry:
         u = v = np.zeros(n)
         if self.has_triangles:
             t0 = time.perf_counter()                        # the accelerator call only
-            if hasattr(self.accelerator, "nearest_rows"):       # Embree: it takes the rows and t
-                t, kind, prim, u, v = self.accelerator.nearest_rows(o, d, t, self.accel_jit)
-                counters.seconds_in_accelerator += time.perf_counter() - t0
-            else:
-                dtype = self.accelerator.ray_dtype
-                tt, tp, u, v = self.accelerator.intersect(aos(o, dtype), aos(d, dtype), t)
-                counters.seconds_in_accelerator += time.perf_counter() - t0
-                closer = tt < t
-                t = np.where(closer, tt, t)
-                kind = closer.astype(np.int8)                   # TRIANGLE where closer
-                prim = np.where(closer, tp, prim)
+            t, kind, prim, u, v = self.accelerator.nearest_rows(o, d, t, self.accel_jit)    # kind: TRIANGLE or NONE
+            counters.seconds_in_accelerator += time.perf_counter() - t0
         if self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None:
             t = self.sphere_loops[0](o, d, self.sphere_center, self.sphere_radius, t, kind, prim, SPHERE)
         elif self.has_spheres:
             t = self._nearest(SPHERE, self.sphere_tree, len(self.sphere_radius), self._sphere_test(o, d), o, d, t, kind,
                               prim)
-        if self.has_quads:
+        if self.has_quads and self.quad_tree is None and self.quads.loops is not None:    # compiled, as spheres
+            t = self.quads.loops[0](self.quads, o, d, t, kind, prim, QUAD)
+        elif self.has_quads:
             t = self._nearest(QUAD, self.quad_tree, self.quads.count, self._quad_test(o, d), o, d, t, kind, prim)
         sees = self.lights.rays_that_see_any(ray_kind) if self.lights.count else None
         if self.lights.count and sees is None:
@@ -258,8 +253,9 @@ class SceneGeometry:
         """The HitSet of rays `order` (misses first, then the hits sorted by key), `bounds` the first
         place of each key (0: miss, 1 + group x kinds + kind - 1), and the hits' arrays in order."""
         kinds = len(KINDS)
-        first = bounds[1]
+        first = int(bounds[1])
         miss, index = order[:first], order[first:]
+        bounds = bounds.tolist()                # Python ints: the loop below costs ~10x less than on NumPy's
         runs = {}
         for g in range(n_groups):
             for k in KINDS:
@@ -267,7 +263,7 @@ class SceneGeometry:
                 if bounds[slot + 1] > bounds[slot]:
                     runs[(g, k)] = (bounds[slot] - first, bounds[slot + 1] - first)
         groups = [(bounds[1 + g * kinds] - first, bounds[1 + (g + 1) * kinds] - first) for g in range(n_groups)]
-        return HitSet(index, miss, t, kind, prim, u, v, material, runs, groups)
+        return HitSet(index, miss, t, kind, prim, u, v, material, runs, groups, {k for _, k in runs})
 
     def occluded(self, o, d, tmax, counters: Counters):
         """True where something lies on the segment (0, tmax) of the ray (rows o, d)."""
@@ -276,22 +272,21 @@ class SceneGeometry:
         blocked = np.zeros(o.shape[1], dtype=bool)
         if self.has_triangles:
             t0 = time.perf_counter()
-            if hasattr(self.accelerator, "occluded_rows"):
-                blocked |= self.accelerator.occluded_rows(o, d, tmax, self.accel_jit)
-            else:
-                dtype = self.accelerator.ray_dtype
-                blocked |= self.accelerator.occluded(aos(o, dtype), aos(d, dtype), tmax)
+            blocked |= self.accelerator.occluded_rows(o, d, tmax, self.accel_jit)
             counters.seconds_in_accelerator += time.perf_counter() - t0
         loops = self.has_spheres and self.sphere_tree is None and self.sphere_loops is not None
         if loops:            # compiled: every sphere in one loop per ray, on all rays (it skips the blocked ones)
             self.sphere_loops[1](o, d, self.sphere_center, self.sphere_radius, tmax, blocked)
-        if (self.has_spheres and not loops) or self.has_quads:
+        quad_loops = self.has_quads and self.quad_tree is None and self.quads.loops is not None
+        if quad_loops:
+            self.quads.loops[1](self.quads, o, d, tmax, blocked)
+        if (self.has_spheres and not loops) or (self.has_quads and not quad_loops):
             rest = np.flatnonzero(~blocked)
             if len(rest) < len(blocked):
                 o, d, tmax = o.take(rest, axis=1), d.take(rest, axis=1), tmax.take(rest)
             hit = np.zeros(len(rest), dtype=bool)
             for tree, count, test in ((self.sphere_tree, 0 if loops else len(self.sphere_radius), self._sphere_test(o, d)),
-                                      (self.quad_tree, self.quads.count, self._quad_test(o, d))):
+                                      (self.quad_tree, 0 if quad_loops else self.quads.count, self._quad_test(o, d))):
                 if tree is None:
                     everyone = np.arange(len(rest))
                     for k in range(count):
@@ -356,6 +351,14 @@ class SceneGeometry:
 
     def surface(self, o, d, hits: HitSet) -> SurfaceHits:
         """Shading data for the hit rays; rows o and d already in hits.index order."""
+        if self.hits_jit is not None and self.smooth is None and LIGHT not in hits.kinds:
+            # every hit in one compiled loop, the same numbers as the runs below, and the facing normal
+            quads = self.quads
+            point, normal, offset, facing = self.hits_jit.surfaces(
+                o, d, hits.t, hits.kind, hits.prim, hits.u, hits.v, self.tri_v0, self.tri_e1, self.tri_e2,
+                self.tri_normal, self.tri_scale, TRIANGLE_OFFSET, self.sphere_center, self.sphere_radius, EPS64,
+                quads.normal_rows, quads.v00_rows, quads.scale)
+            return SurfaceHits(point, normal, hits.material, offset, facing=facing)
         parts, shading = [], []
         for (_, k), (a, b) in hits.runs.items():             # in index order (nearest_hits)
             prim = hits.prim[a:b]

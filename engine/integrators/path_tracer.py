@@ -312,12 +312,15 @@ class PathTracer:
         passing = (self.pass_through(p.take(np.arange(through.start, through.stop), replaced=("o",)), surf, through)
                    if through.stop > through.start else None)
         # 5. Direct light at hits with a non-delta BSDF (eq. 2.11).
-        towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
-        facing = surf.normal * towards                                      # towards the ray
-        # Smooth shading: the shading normal on the geometric normal's side of the ray (shading
-        # only; offsets and side tests keep `facing`).  Flat-only scenes: the same array.
         smooth = surf.shading is not surf.normal
-        shade = surf.shading * towards if smooth else facing
+        if surf.facing is not None and not smooth:      # computed with the points (the same numbers)
+            facing = shade = surf.facing
+        else:
+            towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
+            facing = surf.normal * towards                                  # towards the ray
+            # Smooth shading: the shading normal on the geometric normal's side of the ray (shading
+            # only; offsets and side tests keep `facing`).  Flat-only scenes: the same array.
+            shade = surf.shading * towards if smooth else facing
         if lookup is not None and lookup.has_normals:       # a BSDF's Normal input (Normal Map, Bump)
             shade = lookup.normal(shade, surf.material, facing, -p.d, self.mats.raised_normal)
             smooth = True

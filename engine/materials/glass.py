@@ -24,9 +24,22 @@ class SmoothGlass(BSDF):
         self.ior = np.array([m.ior for m in materials], dtype=np.float64)
         self.fresnel = FRESNEL[settings.fresnel]
 
+    jit = None          # the sampling compiled (engine/materials/glass_jit.py), when the render runs numba
+
+    def use_backend(self, backends: dict) -> None:
+        self.jit = None
+        if backends.get("wavefront", "numpy") == "numba":
+            from . import glass_jit
+            self.jit = glass_jit
+
     def sample(self, si: ShadingPoint, u_lobe, u=None) -> BSDFSample:
         """u_lobe < R reflects, else the ray refracts; a refraction moves the path into or out
         of the surface's medium on si.media."""
+        if self.jit is not None and si.media is None and not si.smooth:    # the lines below, the same numbers
+            cos_i, cos_t, eta, tir = self.jit.cosines(si.wo, si.normal, si.material, self.ior)
+            wi, pdf, flags = self.jit.directions(si.wo, si.n, cos_i, cos_t, eta, self.fresnel(cos_i, cos_t, eta, tir),
+                                                 u_lobe, REFLECTED, TRANSMITTED)
+            return BSDFSample(wi, si.color, pdf, flags)
         facing = specular_normal(si)
         d = -si.wo                                                        # the ray's direction
         cos_in = dot(d, si.normal)                                        # its sign: entering or leaving

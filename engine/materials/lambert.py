@@ -16,7 +16,18 @@ class Lambertian(BSDF):
     """Diffuse reflection with albedo si.color."""
     flags = LOBE
 
+    jit = None          # the sampling compiled (engine/materials/lambert_jit.py), when the render runs numba
+
+    def use_backend(self, backends: dict) -> None:
+        self.jit = None
+        if backends.get("wavefront", "numpy") == "numba":
+            from . import lambert_jit
+            self.jit = lambert_jit
+
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+        if self.jit is not None:                        # the lines below in one loop, the same numbers
+            wi, pdf = self.jit.sample(u[0], u[1], si.n)
+            return BSDFSample(wi, si.color, pdf, np.full(len(si), LOBE, dtype=np.int8))
         wi = cosine_directions(u[0], u[1], si.n)                          # eq. 2.13b
         # f cos / pdf = (rho / pi) cos / (cos / pi) = rho (eq. 2.14): the colour itself, exactly.
         return BSDFSample(wi, si.color, self.pdf(si, wi), np.full(len(si), LOBE, dtype=np.int8))

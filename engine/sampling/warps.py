@@ -33,11 +33,18 @@ def unit_circle(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     faster than float64 here); the float64 pair is then renormalised, so only the
     angle carries float32 error (~1e-7 rad), not the length.
     """
-    phi = (2.0 * np.pi * u).astype(np.float32)
-    c = np.cos(phi).astype(np.float64)
-    s = np.sin(phi).astype(np.float64)
+    c32, s32 = circle_float32(u)
+    c = c32.astype(np.float64)
+    s = s32.astype(np.float64)
     inv = 1.0 / np.sqrt(c * c + s * s)
     return c * inv, s * inv
+
+
+def circle_float32(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """unit_circle's float32 cos and sin of phi = 2 pi u, before the renormalisation.  NumPy's own
+    vectorised float32 cos / sin: a compiled twin takes these (libm's cosf / sinf give other bits)."""
+    phi = (2.0 * np.pi * u).astype(np.float32)
+    return np.cos(phi), np.sin(phi)
 
 
 def _cosine_local(u1: np.ndarray, u2: np.ndarray):

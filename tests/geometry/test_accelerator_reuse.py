@@ -32,7 +32,7 @@ def test_a_light_edit_keeps_the_bvh_and_renders_as_a_fresh_build():
     d /= np.linalg.norm(d, axis=0)
     from engine.geometry.accel import ACCELERATOR_CLASSES
     fresh = ACCELERATOR_CLASSES["embree"](b.geometry.triangles)
-    from engine.geometry.scene_geometry import aos
+    from engine.core.vec import aos
     dt = fresh.ray_dtype
     for x, y in zip(fresh.intersect(aos(o, dt), aos(d, dt), np.full(64, np.inf)),
                     b.geometry.accelerator.intersect(aos(o, dt), aos(d, dt), np.full(64, np.inf))):

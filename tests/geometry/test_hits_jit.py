@@ -7,7 +7,7 @@ import pytest
 from engine import api
 from engine.core.settings import RenderSettings
 from engine.geometry import scene_geometry
-from engine.geometry.scene_geometry import LIGHT, NONE, SPHERE, TRIANGLE
+from engine.geometry.scene_geometry import LIGHT, NONE, QUAD, SPHERE, TRIANGLE
 from engine.materials.table import ABSORB, N_SCATTER_GROUPS, PASS_THROUGH
 from engine.scene.builtin import BUILTIN_SCENES
 from tests.backend_capture import require_compiled
@@ -162,14 +162,20 @@ def test_surface_data_of_every_kind_is_the_same(scene):
     d = rng.normal(size=(3, n))
     d /= np.sqrt((d * d).sum(axis=0))
     o = np.repeat(s.camera.matrix[:3, 3:4], n, axis=1) * 0.5
+    o[:, ::10] = geometry.sphere_center[:, :1]             # and from inside a sphere: back faces
     hits = geometry.nearest_hits(o, d, Counters())
-    assert {TRIANGLE, SPHERE} <= {k for (_, k) in hits.runs}
+    assert {TRIANGLE, SPHERE} | ({QUAD} if scene == "cornell" else set()) <= {k for (_, k) in hits.runs}
     oh, dh = o.take(hits.index, axis=1), d.take(hits.index, axis=1)
     reference = geometry.surface(oh, dh, hits)
     geometry.hits_jit = hits_jit
     compiled = geometry.surface(oh, dh, hits)
     for name in ("point", "normal", "offset", "shading"):
         assert np.array_equal(getattr(reference, name), getattr(compiled, name)), name
+    # the facing normal of PathTracer.bounce, which the one loop (hits_jit.surfaces) writes too
+    assert reference.facing is None and compiled.facing is not None
+    towards = np.where((dh * reference.normal).sum(axis=0) < 0.0, 1.0, -1.0)
+    assert np.array_equal(compiled.facing, reference.normal * towards)
+    assert (towards < 0.0).any() and (towards > 0.0).any()
     # Control: a ray one ulp longer moves some sphere points.
     geometry.hits_jit = None
     hits.t = np.nextafter(hits.t, np.inf)

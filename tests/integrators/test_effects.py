@@ -1,4 +1,6 @@
 """The effect plan: kernels a scene does not need never run."""
+from types import SimpleNamespace
+
 import pytest
 
 import engine.geometry.scene_geometry
@@ -47,6 +49,14 @@ def spies(monkeypatch):
     monkeypatch.setattr(engine.geometry.scene_geometry, "sphere_kernel", counted_kernel)
     monkeypatch.setattr(engine.geometry.scene_geometry, "sphere_loop_kernels", counted_loops)
     monkeypatch.setattr(engine.materials.glass, "refract_cos", refract)
+    use_backend = engine.materials.glass.SmoothGlass.use_backend
+
+    def counted_backend(self, backends):            # numba: Snell's law in engine/materials/glass_jit.py
+        use_backend(self, backends)
+        if self.jit is not None:
+            self.jit = SimpleNamespace(cosines=CallCounter.counting(refract, self.jit.cosines),
+                                       directions=self.jit.directions)
+    monkeypatch.setattr(engine.materials.glass.SmoothGlass, "use_backend", counted_backend)
     return sphere, refract
 
 

@@ -8,9 +8,10 @@ answers, for arrays of rays:
         u, v: barycentrics of vertices 1 and 2.
     occluded(origins, directions, tmax) -> bool array
 
-The Embree accelerator also answers for rays as (3, N) float64 rows (`intersect_rows`, `nearest_rows`,
-`occluded_rows`): through embreex on float32 copies, or, given the compiled loop of embree_jit.py
-(backend numba), with Embree called on the rows themselves; the same answers.
+Every accelerator also answers for rays as (3, N) float64 rows (`nearest_rows`, `occluded_rows`:
+rows.py RowQueries, through the two above on copies); the Embree accelerator's (and its
+`intersect_rows`) go through embreex on float32 copies, or, given the compiled loop of embree_jit.py
+(backend numba, `compiled_rows`), call Embree on the rows themselves; the same answers.
 
 Rays start at t = 0 (embreex cannot set tnear): callers offset the origins.
 Spheres and quads are not in the accelerator (embreex takes triangles only): they are

@@ -4,12 +4,13 @@ from __future__ import annotations
 import numpy as np
 
 from .triangles import TriangleArrays, moller_trumbore
+from .rows import RowQueries
 
 # Pairs (rays x triangles) per chunk, to bound memory.
 PAIRS_PER_CHUNK = 1 << 20
 
 
-class BruteForceAccelerator:
+class BruteForceAccelerator(RowQueries):
     ray_dtype = np.float64               # what intersect() and occluded() take
     name = "brute"
 

@@ -10,6 +10,7 @@ from embreex.mesh_construction import TriangleMesh
 from ...core.errors import SceneError
 from ...core.vec import aos
 from . import embree_buffers
+from .rows import RowQueries
 
 try:
     import resource                     # POSIX only: without it there is no RLIMIT_AS to check
@@ -82,9 +83,10 @@ def address_space_limit() -> int | None:
     return None if soft == resource.RLIM_INFINITY or soft < 0 else soft
 
 
-class EmbreeAccelerator:
+class EmbreeAccelerator(RowQueries):
     ray_dtype = np.float32               # what intersect() and occluded() take
     name = "embree"
+    compiled_rows = True                 # the queries on rows take embree_jit.py's loop (RowQueries)
 
     def __init__(self, triangles: np.ndarray):
         # RTC_SCENE_FLAG_ROBUST: no cracks along shared edges (docs/hard-cases.md H4).

@@ -17,13 +17,14 @@ from __future__ import annotations
 import numpy as np
 
 from .triangles import TriangleArrays, moller_trumbore
+from .rows import RowQueries
 
 LEAF_SIZE = 8
 MAX_DEPTH = 10
 GAMMA3 = 3 * 2.0 ** -53 / (1 - 3 * 2.0 ** -53)
 
 
-class OctreeAccelerator:
+class OctreeAccelerator(RowQueries):
     ray_dtype = np.float64               # what intersect() and occluded() take
     name = "octree"
 

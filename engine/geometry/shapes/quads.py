@@ -33,9 +33,11 @@ class QuadSet:
         self.normal_rows, self.v00_rows = rows(self.normal), rows(self.v00)
         self.vector_rows = [rows(a) for a in (self.v00, self.v10, self.v11, self.v01, self.normal, self.center)]
         self.compiled = None
+        self.loops = None       # compiled: (nearest, occluded) of all quads in one loop per ray
         if backend == "numba":
             from . import quads_jit
             self.compiled = quads_jit.intersect
+            self.loops = quads_jit.nearest_quads, quads_jit.occluded_by_quads
 
     def intersect_one(self, k: int, o: np.ndarray, d: np.ndarray,
                       t_best: np.ndarray | None = None) -> np.ndarray:
