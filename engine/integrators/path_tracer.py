@@ -63,7 +63,8 @@ from ..sampling.qmc import RandomSampler
 from .light_paths import LightPaths
 from .light_paths import after_diffuse as lp_after_diffuse
 
-WAVEFRONT_SIZE = 1 << 15       # paths advanced together; 32768 measured fastest here
+WAVEFRONT_SIZE = 1 << 16       # paths advanced together: 65536 measured 0.89-0.91x the time of 32768 at 256²
+                               # (docs/performance.md "Speed"); images do not depend on it
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
 
 

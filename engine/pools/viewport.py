@@ -139,11 +139,13 @@ def warm_kernels() -> bool:
     cache is not warm yet: the compile in the background that a render would start is started
     (backend.start_warm_up; none when one runs already)."""
     from ..core import backend
+    from ..core.collector import collector_paused
     try:
         if backend.numba_module() is None:
             return True                         # nothing to load, ever
         if backend.is_warm():
-            backend.load_kernels()
+            with collector_paused():            # long-lived objects only (engine/core/collector.py)
+                backend.load_kernels()
             return True
         backend.start_warm_up(log=lambda *a: None)   # as the first render would (one compile per machine)
     except Exception:                           # noqa: BLE001 - the first prepare says why (backend.resolve)

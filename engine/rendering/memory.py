@@ -14,8 +14,9 @@ with `python -m engine bench-memory` (engine/cli/bench_memory.py: peak VmHWM of 
 of a render, summed; 200k-1M triangles, 64²-2048²) and are documented with its table in
 docs/performance.md:
 * PROCESS_BYTES: a Python that has imported the tracer (NumPy, embreex): about 50 MiB;
-* WORKER_BYTES: what tracing adds per worker (wavefront of 32,768 paths and its temporaries,
-  the tile's film): about 40 MiB;
+* WORKER_BYTES: what tracing adds per worker (wavefront of 65,536 paths and its temporaries,
+  the tile's film): about 72 MiB (a one-worker 256², 64 spp Cornell render's VmHWM over the
+  prepared scene's: 73 MiB; 45 MiB with the former wavefront of 32,768 paths);
 * BYTES_PER_PIXEL: the frame's film (sums, squares, counts, half buffers, variance) and the
   result image, held where the render was asked for; writing EXR and PNG adds nothing above it
   (a 2048² CLI render: 1.03 GiB peak against 0.09 GiB at 256²): about 240 bytes;
@@ -42,7 +43,7 @@ from ..geometry.shading_normals import has_smooth
 
 MIB = 1 << 20
 PROCESS_BYTES = 50 * MIB
-WORKER_BYTES = 40 * MIB
+WORKER_BYTES = 72 * MIB
 BYTES_PER_PIXEL = 240
 SCENE_BYTES_PER_TRIANGLE = 64
 MESSAGE_BYTES_PER_TRIANGLE = 44

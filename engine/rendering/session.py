@@ -44,6 +44,7 @@ from ..film.passes import CRYPTO, EXTRA, FirstHitTables, TileFeatures
 from ..sampling.qmc import RandomSampler, SobolSampler
 from ..core.settings import RenderSettings
 from ..core.backend import resolve as resolve_backend
+from ..core.collector import collector_paused
 from ..materials.textures import load_textures
 from ..core.version import ENGINE_VERSION
 from .units import PhotonUnit, WorkUnit
@@ -97,6 +98,10 @@ class PreparedScene:
         """checked: `scene` was validated where it was made (its warnings reported there) and has
         not changed since; Scene.validate is idempotent, so it is not run again (the kept workers of
         Persistent Data, engine/pools/kept.py)."""
+        with collector_paused():            # long-lived objects only (engine/core/collector.py)
+            self._prepare(scene, settings, log, checked)
+
+    def _prepare(self, scene, settings, log, checked) -> None:
         settings = settings or RenderSettings()
         settings.validate()
         start, start_cpu = time.perf_counter(), time.process_time()
