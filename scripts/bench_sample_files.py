@@ -3,6 +3,7 @@
   .venv/bin/python scripts/bench_sample_files.py [--files cornell caustic ...] [--resolutions 96 256]
          [--samples 96=16,64 256=4,16] [--threads 2] [--efficiency-resolutions 96]
          [--reference-samples 1024] [--cache-dir renders/reference-files] [--references-only]
+         [--tncg15-pool workers|in-process]
          [--out renders/bench-sample-files.json]
 
 Targets (docs/performance.md "Against Cycles per sample file"): on every sample_blends/*.blend (used
@@ -14,8 +15,10 @@ Per file and resolution, each renderer renders the file as the user has it at tw
 S1 < S2 (seed 1) after one untimed warm-up (Cycles 1 spp; TNCG15 MC S1 spp: the first render of a
 size pays for its work arrays' page faults, mcrt_addon/bench_estimators.py):
 * TNCG15 MC: the file's own TNCG15 MC settings (scene.tncg15.to_settings: what F12 renders) with
-  only samples, seed and threads set, in-process (engine.api.render on the exported render
-  depsgraph, the export excluded from the clock, as bench_estimators does);
+  only samples, seed and threads set, engine.api.render on the exported render depsgraph (the export
+  excluded from the clock, as bench_estimators does) on the pool F12 takes: one worker process per
+  thread started ahead with its kernels loaded (--tncg15-pool workers, the default; their CPU
+  seconds read from /proc) or in this process's threads (--tncg15-pool in-process);
 * Cycles: the fair settings of mcrt_addon/reference.py (no adaptive sampling, denoising or light
   threshold; CPU) given the same max depth, Light Paths and film (filter, exposure) as TNCG15 MC,
   as `python -m mcrt_addon render --engine CYCLES` does; its clock covers bpy.ops.render.render.
@@ -31,8 +34,9 @@ the whole render's wall seconds at S2, ratio to Cycles'.  The reference's own no
 MSEs: about MSE_cycles x S2 / reference-samples (`ref_noise_share` = that over Cycles' MSE).
 
 A file that fails in either renderer gives a row with the error.  On a shared machine wall seconds
-move with other load; CPU seconds less so (but TNCG15 MC's two threads share the GIL and reach
-fewer cores than Cycles' two, so its CPU ratio flatters it: the target is in wall seconds).
+move with other load; CPU seconds less so (with --tncg15-pool in-process TNCG15 MC's two threads
+share the GIL and reach fewer cores than Cycles' two, so its CPU ratio flatters it: the target is in
+wall seconds, and F12's worker processes are the default).
 """
 import argparse
 import dataclasses
@@ -160,7 +164,8 @@ def markdown_table(rows):
 def header(meta):
     return (f"bench_sample_files: {meta['utc']} UTC, load average {meta['load_start']} at the start, "
             f"{meta.get('load_end', '?')} at the end; {meta['cpu_count']} cores, {meta['platform']}; "
-            f"Blender {meta['blender']}; {meta['threads']} threads; reference {meta['reference_samples']} spp")
+            f"Blender {meta['blender']}; {meta['threads']} threads; TNCG15 MC {meta.get('tncg15_pool', 'in-process')}; "
+            f"reference {meta['reference_samples']} spp")
 
 
 def summary_lines(rows):
@@ -189,6 +194,35 @@ def timed(fn):
     c0, t0 = cpu_seconds(), time.perf_counter()
     value = fn()
     return value, dict(wall=time.perf_counter() - t0, cpu=cpu_seconds() - c0)
+
+
+def on_workers(render, spp, threads):
+    """render(spp, pool) on the pool F12 takes when the add-on started its workers ahead (one worker
+    process per thread, kernels loaded: mcrt_addon/bench_materials.py warm_worker_pool), started
+    before the clock; (image, {wall, cpu}) with cpu = this process's and the workers' CPU seconds
+    of the render (read from /proc before the pool closes)."""
+    from mcrt_addon import bench_materials as bm
+    pool, _ = bm.warm_worker_pool(threads)
+    pids = [w.pid for w in pool.inner.workers]
+    workers = {"before": bm.process_cpu_seconds(pids), "after": None}
+    close = pool.close
+
+    def close_measured():
+        workers["after"] = bm.process_cpu_seconds(pids)
+        close()
+    pool.close = close_measured
+    c0, t0 = time.process_time(), time.perf_counter()
+    try:
+        image = render(spp, pool)
+    except BaseException:
+        pool.shutdown()
+        raise
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    if workers["after"] is None:            # the render did not close it (it always does)
+        close_measured()
+    if workers["before"] is None or workers["after"] is None:
+        raise RuntimeError("the workers' CPU seconds cannot be read (/proc)")
+    return image, dict(wall=wall, cpu=cpu + workers["after"] - workers["before"])
 
 
 def load_average():
@@ -261,14 +295,19 @@ def measure(path, res, args, log):
         render = bridge.render_function()
         tnc, stats = {}, {}
 
-        def tncg15(spp):
-            result = render(exported.scene, dataclasses.replace(settings, samples=spp), log=lambda *a, **k: None)
+        def tncg15(spp, pool=None):
+            result = render(exported.scene, dataclasses.replace(settings, samples=spp), pool=pool,
+                            log=lambda *a, **k: None)
             stats.update(result.stats or {})
             return np.asarray(result.image, dtype=np.float64)[..., :3]
 
-        tncg15(s1)                                                 # warm-up
+        if args.tncg15_pool == "workers":
+            tncg15_timed = lambda spp: on_workers(tncg15, spp, args.threads)       # noqa: E731
+        else:
+            tncg15_timed = lambda spp: timed(lambda: tncg15(spp))                  # noqa: E731
+        tncg15_timed(s1)                                           # warm-up
         for spp in (s1, s2):
-            images[("tncg15", spp)], tnc[str(spp)] = timed(lambda: tncg15(spp))
+            images[("tncg15", spp)], tnc[str(spp)] = tncg15_timed(spp)
         row["tncg15"] = tnc
         if stats.get("photons"):
             row["notes"].append("photons on")
@@ -322,6 +361,10 @@ def build_parser():
     p.add_argument("--samples", nargs="+", default=[f"{r}={a},{b}" for r, (a, b) in DEFAULT_SAMPLES.items()],
                    help="RES=S1,S2 per resolution (others: the nearest one's, scaled by the pixel count)")
     p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--tncg15-pool", choices=("workers", "in-process"), default="workers",
+                   help="TNCG15 MC on F12's worker processes started ahead (default: what a user's F12 "
+                        "gets, one process per thread) or in this process's threads (the GIL: about "
+                        "1.5 cores of 2)")
     p.add_argument("--efficiency-resolutions", type=int, nargs="*", default=[96],
                    help="resolutions with the efficiency against a cached Cycles reference (none: timing only)")
     p.add_argument("--reference-samples", type=int, default=1024,
@@ -346,7 +389,7 @@ def main(argv=None):
     import bpy
     meta = dict(utc=time.strftime("%Y-%m-%d %H:%M", time.gmtime()), load_start=load_average(),
                 cpu_count=os.cpu_count(), platform=platform.platform(), blender=bpy.app.version_string,
-                threads=args.threads, reference_samples=args.reference_samples,
+                threads=args.threads, reference_samples=args.reference_samples, tncg15_pool=args.tncg15_pool,
                 samples={str(k): v for k, v in args.samples.items()}, resolutions=args.resolutions,
                 efficiency_resolutions=args.efficiency_resolutions)
     log(header(meta))
