@@ -15,6 +15,7 @@ LOBE = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION
 class Lambertian(BSDF):
     """Diffuse reflection with albedo si.color."""
     flags = LOBE
+    cosine_pdf = True                 # pdf below (engine/materials/protocol.py BSDF.cosine_pdf)
 
     def sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
         wi = cosine_directions(u[0], u[1], si.n)                          # eq. 2.13b
