@@ -921,14 +921,15 @@ class PathTracer:
         jit = self.wavefront_jit
         cos_x, cos_ly, valid = jit.light_tests(si.n, ls, self.lights.any_one_sided)
         k = len(cos_x)
-        blocked, p_b = np.zeros(0, dtype=bool), None
+        blocked, p_b = np.zeros(0, dtype=bool), 0.0
         if len(valid):
             origin, direction, seg_len = self.lights.shadow_rays(ls, None if len(valid) == k else valid, point,
                                                                  offset, si.n, cos_ly)
             counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
-            if self.mis:
+            if self.mis and bsdf.cosine_pdf:        # the kernel takes it from cos_x (the same numbers)
+                p_b = None
+            elif self.mis:
                 with np.errstate(invalid="ignore", over="ignore"):
                     p_b = bsdf.pdf(si, ls.direction)
-        return jit.lambert_light(valid, blocked, cos_x, ls, 0.0 if p_b is None else p_b, self.lights.bsdf_reachable,
-                                 self.mis, albedo)
+        return jit.lambert_light(valid, blocked, cos_x, ls, p_b, self.lights.bsdf_reachable, self.mis, albedo)

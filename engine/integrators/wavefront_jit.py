@@ -77,17 +77,20 @@ def _light_tests(n, w, normal, pdf, distance, one_sided, any_one_sided, cos_x, c
 
 
 @jit
-def _lambert_light(valid, blocked, cos_x, pdf, p_b, light, reachable, mis, radiance, albedo, out):
+def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable, mis, radiance, albedo, out):
     """out = Le weight rho / pi: weight = cos / p_l (times the power heuristic's light weight
     against p_b under MIS, with p_b 0 for lights a BSDF sample cannot reach) where unblocked,
-    0 elsewhere; the products in direct_light's order ((Le weight) rho) (1 / pi)."""
+    0 elsewhere; the products in direct_light's order ((Le weight) rho) (1 / pi).  cosine_pdf:
+    p_b is the Lambertian's max(cos, 0) (1 / pi) (engine/materials/lambert.py pdf), computed here
+    from cos_x (the same products and sum: <n, w> = <w, n>; cos > 0 for every kept sample)."""
     k = pdf.shape[0]
     weight = np.zeros(k)
     for j in range(valid.shape[0]):
         i = valid[j]
         sample = cos_x[i] / pdf[i]
         if mis:                                  # path_tracer.power_heuristic(1, p_l, 1, p_bsdf)
-            p_g = p_b[i] if reachable[light[i]] else 0.0
+            p_bsdf = cos_x[i] * (1.0 / np.pi) if cosine_pdf else p_b[i]
+            p_g = p_bsdf if reachable[light[i]] else 0.0
             p_f = pdf[i]
             r = (1.0 * p_g) / (1.0 * p_f)
             h = 1.0 / (1.0 + r * r)
@@ -130,12 +133,13 @@ def light_tests(n, ls, any_one_sided):
 def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo):
     """(3, k) Le weight rho / pi of the samples ls (direct_light's Lambertian return, one shadow ray):
     valid from light_tests, blocked (len(valid),) from the shadow rays, p_b the BSDF's pdf of each
-    sample's direction (read only under mis), reachable per light (LightSet.bsdf_reachable)."""
+    sample's direction (read only under mis; None: the Lambertian's, from cos_x), reachable per
+    light (LightSet.bsdf_reachable)."""
     k = cos_x.shape[0]
     out = np.empty((3, k))
     _lambert_light(np.ascontiguousarray(valid, np.int64), np.ascontiguousarray(blocked, np.bool_), cos_x,
                    np.ascontiguousarray(ls.pdf, np.float64),
-                   _fit(p_b, (k,)),
+                   _fit(0.0 if p_b is None else p_b, (k,)), p_b is None,
                    np.ascontiguousarray(ls.light, np.int64), np.ascontiguousarray(reachable, np.bool_), bool(mis),
                    _rows(ls.radiance, k), _rows(albedo, k), out)
     return out

@@ -193,7 +193,12 @@ class LightSet:
         point on the light."""
         m = len(u_pick)
         q = self.distant_share
-        far = u_pick < q if q > 0 else np.zeros(m, bool)
+        if q == 0:                           # no lights at infinity: every ray's is local (no index arrays)
+            s, light = self.local.sample(x, n, u_pick, u1, u2, self.solid_angle)
+            s.pdf = s.pdf * self.local.share
+            return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, s.pdf, light,
+                               LIGHT_OFFSET * max_abs3(s.point), self.one_sided.take(light))
+        far = u_pick < q
         parts, lights = [], []
         for group, rays in ((self.local, np.flatnonzero(~far)), (self.distant, np.flatnonzero(far))):
             if len(rays) == m:                                     # the whole wavefront: no copies

@@ -32,7 +32,11 @@ def _max(a, b):
 
 
 BLOCK = 64                               # rays walked together, level by level
-ROWS = 6 + 2 * 17 + 2                    # lane rows: x (3), n (3), two children's 17 columns, their importances
+COLS = 17                                # columns of a node's row (TreeTables)
+LEFT, RIGHT = 6, 6 + COLS                # lane rows of the two children's columns
+ROOT, ROOT_RIGHT = 6 + 2 * COLS + 2, 6 + 3 * COLS + 2   # the root's two children's, filled once per call
+ROWS = ROOT + 2 * COLS                   # lane rows: x (3), n (3), two children's 17 columns, their
+#                                          importances, the root's children (level 1: every walk's pair)
 
 
 @jit
@@ -71,7 +75,7 @@ def _lane_importances(lane, size, oriented, col, dst):
         lane[dst * BLOCK + b] = emitter_side if oriented else result
 
 
-IL, IR = 6 + 2 * 17, 6 + 2 * 17 + 1      # the lane rows of the children's importances
+IL, IR = 6 + 2 * COLS, 6 + 2 * COLS + 1  # the lane rows of the children's importances
 UI, Q, PL, PR = 0, 1, 2, 3               # rows of the float64 state lanes
 NODE, TARGET, EL, ER = 0, 1, 2, 3        # rows of the int64 state lanes
 
@@ -100,6 +104,24 @@ def _lane_steps(lane, st, it, size, level, count):
         it[NODE * BLOCK + b] = left if go_left else left + 1
 
 
+@inline
+def _fill_node(lane, row, b, nodes, c, oriented):
+    """Node c's columns into lane b from lane row `row` on: centre, lo, hi (0-8), radius (12), power
+    (14) and min2 (15), and on an oriented level the cone's axis (9-11), cos_o (13) and SIN_O too
+    (else those lanes keep numbers the importance computes with and then drops: `emitter_side if
+    oriented else result`).  Written as ranges: a loop over a tuple of columns cost 40 % more."""
+    for k in range(9):
+        lane[(row + k) * BLOCK + b] = nodes[c, k]
+    for k in range(12, 16, 2):
+        lane[(row + k) * BLOCK + b] = nodes[c, k]
+    lane[(row + 15) * BLOCK + b] = nodes[c, 15]
+    if oriented:
+        for k in range(9, 12):
+            lane[(row + k) * BLOCK + b] = nodes[c, k]
+        lane[(row + 13) * BLOCK + b] = nodes[c, 13]
+        lane[(row + SIN_O) * BLOCK + b] = nodes[c, SIN_O]
+
+
 @jit
 def _walks(x, n, ui, target, nodes, power, empty, oriented, base, depth, count, node, q):
     """The tree walks of all receivers (x, n rows, rounded to float32 per ray), BLOCK at a time and
@@ -109,30 +131,44 @@ def _walks(x, n, ui, target, nodes, power, empty, oriented, base, depth, count, 
     powers and emptiness copied into the lanes, their importances (_lane_importances), then the
     steps (_lane_steps): per receiver the operations of the NumPy walk in its order (the same bits),
     the block's walks side by side in vectorised loops instead of one walk's chain of dependent
-    square roots and divisions at a time."""
+    square roots and divisions at a time.
+    The copies into the lanes cost more than the importances, so only the needed ones are made:
+    level 1's pair (the root's children, every walk's) is copied once per call into lane rows of
+    its own (ROOT); a pair with an empty child is not copied (the step takes the other child
+    whatever the importances); a level of two-sided nodes copies no cone (_fill_node)."""
     m = ui.shape[0]
-    lane = np.empty(ROWS * BLOCK, np.float32)
+    lane = np.zeros(ROWS * BLOCK, np.float32)       # zeros: no NaN or denormal in lanes never filled
     st = np.empty(4 * BLOCK, np.float64)
     it = np.zeros(4 * BLOCK, np.int64)
+    if depth >= 1:
+        for b in range(BLOCK):
+            for k in range(COLS):
+                lane[(ROOT + k) * BLOCK + b] = nodes[base[1], k]
+                lane[(ROOT_RIGHT + k) * BLOCK + b] = nodes[base[1] + 1, k]
     for start in range(0, m, BLOCK):
         size = min(BLOCK, m - start)
-        for b in range(size):
-            for c in range(3):
+        for c in range(3):
+            for b in range(size):
                 lane[c * BLOCK + b] = np.float32(x[c, start + b])
                 lane[(3 + c) * BLOCK + b] = np.float32(n[c, start + b])
+        for b in range(size):
             it[NODE * BLOCK + b], it[TARGET * BLOCK + b] = 0, target[start + b]
             st[UI * BLOCK + b], st[Q * BLOCK + b] = ui[start + b], 1.0
         for level in range(1, depth + 1):
             c0 = base[level]
             for b in range(size):
                 c = c0 + 2 * it[NODE * BLOCK + b]
-                for k in range(17):
-                    lane[(6 + k) * BLOCK + b] = nodes[c, k]
-                    lane[(23 + k) * BLOCK + b] = nodes[c + 1, k]
                 st[PL * BLOCK + b], st[PR * BLOCK + b] = power[c], power[c + 1]
                 it[EL * BLOCK + b], it[ER * BLOCK + b] = empty[c], empty[c + 1]
-            _lane_importances(lane, size, oriented[level], 6, IL)
-            _lane_importances(lane, size, oriented[level], 23, IR)
+                if level > 1 and not (empty[c] or empty[c + 1]):
+                    _fill_node(lane, LEFT, b, nodes, c, oriented[level])
+                    _fill_node(lane, RIGHT, b, nodes, c + 1, oriented[level])
+            if level == 1:          # (the rows as literals, each call compiled for its own: vectorised)
+                _lane_importances(lane, size, oriented[level], ROOT, IL)
+                _lane_importances(lane, size, oriented[level], ROOT_RIGHT, IR)
+            else:
+                _lane_importances(lane, size, oriented[level], LEFT, IL)
+                _lane_importances(lane, size, oriented[level], RIGHT, IR)
             _lane_steps(lane, st, it, size, level, count)
         for b in range(size):
             node[start + b], q[start + b] = it[NODE * BLOCK + b], st[Q * BLOCK + b]

@@ -15,6 +15,7 @@ LOBE = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION
 class Lambertian(BSDF):
     """Diffuse reflection with albedo si.color."""
     flags = LOBE
+    cosine_pdf = True                 # pdf below (engine/materials/protocol.py BSDF.cosine_pdf)
 
     jit = None          # the sampling compiled (engine/materials/lambert_jit.py), when the render runs numba
 

@@ -231,6 +231,10 @@ class BSDF:
     engine/materials/table.py).  Subclasses set `flags` (the union of their lobes) and are made
     from the scene's materials and the render settings: `cls(materials, settings)`."""
     flags: BSDFFlags = BSDFFlags.NONE
+    # True when pdf(si, wi) is max(<wi, si.n>, 0) * (1 / pi), in that order (the Lambertian's): the
+    # compiled Lambertian direct light then computes it from the cosine it has (engine/integrators/
+    # wavefront_jit.py lambert_light) instead of calling pdf.
+    cosine_pdf: bool = False
 
     def __init__(self, materials, settings):
         pass

@@ -206,3 +206,21 @@ def test_the_ray_kinds_are_the_path_tracers():
     from engine.integrators import wavefront_jit
     names = ("CAMERA_RAY", "DIFFUSE_RAY", "GLOSSY_RAY", "TRANSMISSION_RAY")
     assert [getattr(wavefront_jit, n) for n in names] == [getattr(path_tracer, n) for n in names]
+
+
+def test_cosine_pdf_is_the_lambertians_pdf_of_the_cosine_the_kernel_has():
+    """lambert_light computes a cosine_pdf BSDF's pdf as cos_x (1 / pi) (cos_x as light_tests sums
+    it): the Lambertian's pdf gives those bits for random directions; control: a pdf an ulp off
+    (what a BSDF wrongly marked cosine_pdf would give) does not."""
+    from engine.materials.lambert import Lambertian
+    from engine.materials.protocol import BSDF, ShadingPoint
+    assert Lambertian.cosine_pdf and not BSDF.cosine_pdf
+    rng = np.random.default_rng(3)
+    n, w = rng.normal(size=(3, 500)), rng.normal(size=(3, 500))
+    n, w = n / np.linalg.norm(n, axis=0), w / np.linalg.norm(w, axis=0)
+    cos_x = n[0] * w[0] + n[1] * w[1] + n[2] * w[2]                 # _light_tests' sum
+    si = ShadingPoint(n, n, n, n, np.ones((3, 500)), np.zeros(500, np.int64))
+    kept = cos_x > 0.0
+    pdf = Lambertian.__new__(Lambertian).pdf(si, w)
+    assert np.array_equal(pdf[kept], cos_x[kept] * (1.0 / np.pi))
+    assert not np.array_equal(np.nextafter(pdf, 1.0)[kept], cos_x[kept] * (1.0 / np.pi))

@@ -40,22 +40,24 @@ def test_captured_picks_are_bit_identical(calls):
         assert np.array_equal(tree.pmf(x, n, light), TreeTables(tree).mixed_pmf(x, n, light, DEFENSIVE))
 
 
-def random_tree(rng, k, backend):
+def random_tree(rng, k, backend, two_sided=0.3):
     c = rng.random((k, 3)) * 4.0
     axis = rng.normal(size=(k, 3))
     axis /= np.linalg.norm(axis, axis=1)[:, None]
-    cos_o = np.where(rng.random(k) < 0.3, -1.0, rng.random(k))       # some two-sided
+    cos_o = np.where(rng.random(k) < two_sided, -1.0, rng.random(k))       # some two-sided
     power = rng.random(k) + 0.01
     power[k // 2] = 0.0
     return LightTree(c, rng.random(k) * 0.2, axis, cos_o, power, power, backend=backend), c
 
 
-@pytest.mark.parametrize("k", [2, 3, 37, 300])
-def test_random_trees_sample_and_pmf_agree(k):
+@pytest.mark.parametrize("k, two_sided", [(2, 0.3), (3, 0.3), (37, 0.3), (300, 0.3), (3, 1.0), (36, 1.0)])
+def test_random_trees_sample_and_pmf_agree(k, two_sided):
+    """two_sided 1.0: every level without a cone (the walk copies no cone columns into its lanes)."""
     require_compiled()
     rng = np.random.default_rng(k)
-    tree, c = random_tree(rng, k, "numpy")
-    compiled, _ = random_tree(np.random.default_rng(k), k, "numba")
+    tree, c = random_tree(rng, k, "numpy", two_sided)
+    compiled, _ = random_tree(np.random.default_rng(k), k, "numba", two_sided)
+    assert two_sided < 1.0 or not any(level["oriented"] for level in compiled.levels[1:])
     m = 4000
     x = rng.random((3, m)) * 4.0
     x[:, :k] = c[:m].T[:, :k]                         # receivers at lamp centres (inside the bounds)
