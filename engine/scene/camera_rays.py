@@ -88,12 +88,12 @@ class TileSamples:
         """(pixel, sample, origins, directions): the jittered camera rays of these tile pixels'
         samples (jitter from dimension pair 0 of the sampler, through the pixel filter)."""
         jx, jy = self.sampler.pair(pixel, sample, 0)
+        if self.compiled is not None:           # the same rays in one loop, the filter's table read there
+            origins, directions = self.compiled.tile_rays(self.camera, self.width, self.height, self.tile_width,
+                                                          self.x0, self.y0, pixel, jx, jy, self.pixel_filter)
+            return pixel, sample.astype(np.int64), origins, directions
         if self.pixel_filter is not None:
             jx, jy = self.pixel_filter.offsets(jx), self.pixel_filter.offsets(jy)
-        if self.compiled is not None:           # the same rays in one loop
-            origins, directions = self.compiled.tile_rays(self.camera, self.width, self.height, self.tile_width,
-                                                          self.x0, self.y0, pixel, jx, jy)
-            return pixel, sample.astype(np.int64), origins, directions
         sx = (pixel % self.tile_width + self.x0) + jx
         sy = (pixel // self.tile_width + self.y0) + jy
         origins, directions = camera_rays(self.camera, self.width, self.height, sx, sy)

@@ -1,6 +1,7 @@
 """The compiled primary rays (engine/scene/camera_rays_jit.py) against engine/scene/camera_rays.py
 TileSamples: the built-in scenes' cameras and made-up ones (each sensor fit, shifts, a scaled and
-rotated matrix), tiles away from the corner, a Gaussian pixel filter and masked samples."""
+rotated matrix), tiles away from the corner, pixel filters (Gaussian, Blackman-Harris, a wide box) and
+masked samples; the filter's table read as np.interp reads it (filter_offset)."""
 import numpy as np
 import pytest
 
@@ -47,7 +48,8 @@ def same(a, b):
 
 
 @pytest.mark.parametrize("pixel_filter, masked", [(None, False), (PixelFilter("gaussian", 1.5), False),
-                                                  (None, True)])
+                                                  (None, True), (PixelFilter("blackman-harris", 1.5), True),
+                                                  (PixelFilter("box", 2.0), False)])
 def test_rays_are_bit_identical(pixel_filter, masked):
     require_compiled()
     from engine.scene import camera_rays_jit
@@ -58,3 +60,34 @@ def test_rays_are_bit_identical(pixel_filter, masked):
     other = cameras()[-1]
     other.lens = np.nextafter(other.lens, np.inf)
     assert not same(reference, tiles(camera_rays_jit, other, pixel_filter, masked))
+
+
+def filter_inputs(uniform):
+    """Filter numbers u: every knot of the table (u = j / 1022 and its neighbours), both ends, 0, the
+    largest u below 1, values outside [0, 1] (clipped), `uniform` random ones and the jitters of a
+    real tile (the Sobol' sampler's dimension pair 0, as TileSamples takes them)."""
+    knots = np.arange(1023) / 1022.0
+    assert np.array_equal(knots * 1022.0, np.arange(1023))      # the knots are hit exactly: x = 0 .. 1022
+    sampler = SobolSampler(5, 0, 0, 32, 32, 16, 1)
+    jitter = sampler.pair(np.tile(np.arange(32 * 32), 16), np.repeat(np.arange(16), 32 * 32), 0)
+    return np.concatenate([knots, np.nextafter(knots, -1.0), np.nextafter(knots, 2.0),
+                           [0.0, -0.0, 1.0 - 2.0 ** -53, 1.0, -1e-300, -0.5, 1.0 + 2.0 ** -52, 7.0],
+                           np.random.default_rng(26).random(uniform), *jitter])
+
+
+@pytest.mark.parametrize("pixel_filter, uniform", [(PixelFilter("blackman-harris", 1.5), 10 ** 6),
+                                                   (PixelFilter("gaussian", 1.5), 10 ** 4),
+                                                   (PixelFilter("blackman-harris", 0.7), 10 ** 4)])
+def test_filter_offsets_are_bit_identical(pixel_filter, uniform):
+    require_compiled()
+    from engine.scene.camera_rays_jit import filter_offset, filter_offsets
+    u = filter_inputs(uniform)
+    reference = pixel_filter.offsets(u)
+    assert np.array_equal(reference, filter_offsets(u, pixel_filter.table))
+    assert np.array_equal(reference[:5000], [filter_offset(v, pixel_filter.table) for v in u[:5000]])
+    # Control: the same interpolation as a lerp, (1 - t) a + t b, is off by an ulp here and there.
+    table, x = pixel_filter.table, np.clip(u, 0.0, 1.0) * 1022.0
+    j = np.minimum(x.astype(np.int64), 1021)
+    lerp = (1.0 - (x - j)) * table[j] + (x - j) * table[j + 1]
+    assert not np.array_equal(reference, lerp)
+    assert np.max(np.abs(reference - lerp)) < 1e-15          # offsets are below 2.5: a few ulps
