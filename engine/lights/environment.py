@@ -11,7 +11,13 @@ ImageInfiniteLight with its PiecewiseConstant2D).
 * Sampling: a piecewise-constant density over the image's cells, each weighted by the luminance
   averaged over the cell (bilinear lookups reach the neighbouring texels: weights 1/8, 3/4, 1/8
   per axis, so every cell where the radiance is not 0 has a weight), times sin theta for the
-  equirectangular map (its cells near the poles cover less solid angle).  Per unit solid angle:
+  equirectangular map (its cells near the poles cover less solid angle).  An image narrower than
+  Cycles' importance map (MAP_WIDTH, its World > Settings > Map Resolution default) has its
+  Linear lookup's luminance taken at the centres of K x K sub-cells per texel (K even, so that
+  no centre lies on a line of texel centres: every sub-cell where the bilinear radiance is not 0
+  has a weight), as Cycles evaluates its map: a small bright sun's bilinear edge then no longer
+  spreads over cells of one density (light samples' radiance / pdf 6x less variable on the
+  `hdri` sample's floor, docs/accuracy.md "MSE against Cycles by sample count").  Per unit solid angle:
   equirectangular p_w = p_uv / (2 pi^2 sin theta); mirror ball p_w = p_uv / 16 (the mirror ball
   is an equal-area map: d omega = 16 du dv over the disk; samples outside the disk fail, pdf 0);
   a matrix M adds the Jacobian |det M| / |M d|^3.
@@ -35,6 +41,7 @@ from .protocol import infinite_sample
 
 CELL_KERNEL = np.array([0.125, 0.75, 0.125])       # a bilinear lookup's mean over a cell, per axis
 MOST_CELLS = 1 << 22                                 # larger images are summed 2 x 2 for the density
+MAP_WIDTH = 1024                                     # Cycles' default importance map width
 
 
 # -- Cycles' projections ---------------------------------------------------------------------------
@@ -154,13 +161,32 @@ class EnvironmentMap:
         self.mean = np.maximum(mean, 0.0) * self.strength          # mean radiance over the sphere
         lum = (colour @ LUMINANCE.astype(np.float32)).astype(np.float64)
         del colour
-        if env.interpolation != "Closest":              # a bilinear lookup's mean over each cell
+        k = self._sub_cells(*lum.shape)
+        if env.interpolation != "Closest" and k > 1:    # the bilinear luminance at sub-cell centres
+            lum = self._fine_luminance(pixels, k)
+        elif env.interpolation != "Closest":            # a bilinear lookup's mean over each cell
             lum = sum(k * np.roll(lum, s, axis=0) for k, s in zip(CELL_KERNEL, (1, 0, -1)))
             lum = sum(k * np.roll(lum, s, axis=1) for k, s in zip(CELL_KERNEL, (1, 0, -1)))
         while lum.size > MOST_CELLS and lum.shape[0] % 2 == 0 and lum.shape[1] % 2 == 0:
             lum = 0.25 * (lum[0::2, 0::2] + lum[1::2, 0::2] + lum[0::2, 1::2] + lum[1::2, 1::2])
         weight = lum * self._cell_areas(*lum.shape) if sin_theta_in_density or not self.equirectangular else lum
         self.distribution = PiecewiseConstant2D(weight)
+
+    @staticmethod
+    def _sub_cells(h, w):
+        """K (1 or even) sub-cells per texel side: the map at least MAP_WIDTH wide, at most MOST_CELLS."""
+        k = 2 * -(-MAP_WIDTH // (2 * w)) if w < MAP_WIDTH else 1
+        while k > 1 and h * w * k * k > MOST_CELLS:
+            k -= 2
+        return k
+
+    def _fine_luminance(self, pixels, k):
+        """(h k, w k) the Linear lookup's luminance (no strength) at the sub-cell centres."""
+        h, w = pixels.shape[0] * k, pixels.shape[1] * k
+        u = np.tile((np.arange(w) + 0.5) / w, h)
+        v = np.repeat((np.arange(h) + 0.5) / h, w)
+        colour = np.maximum(self._linear(lookup(pixels, u, v, "Linear", "REPEAT")), 0.0)
+        return (colour @ LUMINANCE.astype(np.float64)).reshape(h, w)
 
     def _cell_areas(self, h, w):
         """(h, w) the relative solid angle of each cell: sin theta of its centre (equirectangular), or
