@@ -1,6 +1,7 @@
 """Inputs of the kernels that have compiled twins, recorded from real renders (engine.api.render,
 one thread, NumPy backend): the light tree's walks, the sphere and quad tests, the Sobol' points.  Used by the twins' tests
-(tests/lights/test_selection_jit.py, tests/geometry/test_spheres_jit.py) and scripts/bench_backend.py."""
+(tests/lights/test_selection_jit.py, tests/geometry/test_spheres_jit.py) and scripts/bench_backend.py; recorded()
+and same_bsdf_sample() for the twins of a single method (tests/materials/test_lambert_jit.py ...)."""
 from __future__ import annotations
 
 import numpy as np
@@ -97,6 +98,33 @@ def capture(scene_name: str, resolution=16, samples=2, limit=64):
         SobolSampler.kernel = staticmethod(sobol)
         LightTree.sample, Parallelograms.sample_li, LightSet.shadow_rays = pick, rectangle, shadow
     return calls
+
+
+def recorded(owner, name: str, scene_name: str, record, limit: int = 8) -> list:
+    """What record(*args) keeps (None: nothing) of up to `limit` calls of owner.name (a method of a
+    class or a function of a module), recorded while a 16 x 16, 2 spp NumPy render of a built-in
+    scene runs; owner.name is restored after."""
+    calls, original = [], getattr(owner, name)
+
+    def recording(*args, **kwargs):
+        if len(calls) < limit:
+            kept = record(*args, **kwargs)
+            if kept is not None:
+                calls.append(kept)
+        return original(*args, **kwargs)
+    setattr(owner, name, recording)
+    try:
+        api.render(BUILTIN_SCENES[scene_name]((16, 16)), RenderSettings(samples=2, threads=1, backend="numpy"),
+                   log=lambda m: None)
+    finally:
+        setattr(owner, name, original)
+    return calls
+
+
+def same_bsdf_sample(a, b) -> bool:
+    """Two BSDFSamples (engine/materials/protocol.py) the same bit for bit, dtypes included."""
+    return all(x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True)
+               for x, y in ((a.wi, b.wi), (a.pdf, b.pdf), (a.value, b.value), (a.flags, b.flags)))
 
 
 def require_compiled():

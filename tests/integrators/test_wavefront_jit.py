@@ -14,25 +14,15 @@ from engine import api
 from engine.core.settings import RenderSettings
 from engine.integrators import path_tracer
 from engine.scene.builtin import BUILTIN_SCENES
-from tests.backend_capture import require_compiled
+from tests.backend_capture import recorded, require_compiled
 
 TWIN = "engine.integrators.wavefront_jit"       # imported after require_compiled(): numba may be missing
 
 
 def capture_next_rays(scene_name, limit=8):
-    calls, reference = [], path_tracer.next_rays
-
-    def recording(*args):
-        if len(calls) < limit:
-            calls.append(tuple(np.array(a, copy=True) for a in args))
-        return reference(*args)
-    path_tracer.next_rays = recording
-    try:
-        api.render(BUILTIN_SCENES[scene_name]((16, 16)), RenderSettings(samples=2, threads=1, backend="numpy"),
-                   log=lambda m: None)
-    finally:
-        path_tracer.next_rays = reference
-    return calls
+    """[the arguments, copied] of path_tracer.next_rays in a 16 x 16, 2 spp NumPy render."""
+    return recorded(path_tracer, "next_rays", scene_name,
+                    lambda *args: tuple(np.array(a, copy=True) for a in args), limit)
 
 
 def same(a, b):

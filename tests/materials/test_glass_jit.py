@@ -8,32 +8,21 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from engine import api
 from engine.core.settings import RenderSettings
 from engine.materials.glass import SmoothGlass
 from engine.materials.protocol import ShadingPoint
-from engine.scene.builtin import BUILTIN_SCENES
-from tests.backend_capture import require_compiled
+from tests.backend_capture import recorded, require_compiled, same_bsdf_sample
 
 TWIN = "engine.materials.glass_jit"         # imported by use_backend, not here: numba may be missing
 
 
 def capture(scene_name, limit=8):
     """[(bsdf, ShadingPoint fields, u_lobe)] of SmoothGlass.sample in a 16 x 16, 2 spp NumPy render."""
-    calls, sample = [], SmoothGlass.sample
-
-    def recording(self, si, u_lobe, u=None):
-        if len(calls) < limit and si.media is None and not si.smooth:
-            calls.append((self, tuple(np.array(a) for a in (si.wo, si.n, si.ng, si.normal, si.color, si.material)),
-                          u_lobe.copy()))
-        return sample(self, si, u_lobe, u)
-    SmoothGlass.sample = recording
-    try:
-        api.render(BUILTIN_SCENES[scene_name]((16, 16)), RenderSettings(samples=2, threads=1, backend="numpy"),
-                   log=lambda m: None)
-    finally:
-        SmoothGlass.sample = sample
-    return calls
+    def record(self, si, u_lobe, u=None):
+        if si.media is None and not si.smooth:
+            return self, tuple(np.array(a) for a in (si.wo, si.n, si.ng, si.normal, si.color, si.material)), u_lobe.copy()
+        return None
+    return recorded(SmoothGlass, "sample", scene_name, record, limit)
 
 
 def both(bsdf, fields, u_lobe, sliced=False):
@@ -51,9 +40,7 @@ def both(bsdf, fields, u_lobe, sliced=False):
         bsdf.jit = None
 
 
-def same(a, b):
-    return all(x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True)
-               for x, y in ((a.wi, b.wi), (a.pdf, b.pdf), (a.value, b.value), (a.flags, b.flags)))
+same = same_bsdf_sample
 
 
 @pytest.mark.parametrize("scene", ["cornell", "caustic"])

@@ -5,31 +5,18 @@ and -0.0, z = +-1, u near 1, a NaN normal); a control shows the comparison sees 
 import numpy as np
 import pytest
 
-from engine import api
 from engine.core.settings import RenderSettings
 from engine.materials.lambert import Lambertian
 from engine.materials.protocol import ShadingPoint
-from engine.scene.builtin import BUILTIN_SCENES
-from tests.backend_capture import require_compiled
+from tests.backend_capture import recorded, require_compiled, same_bsdf_sample
 
 TWIN = "engine.materials.lambert_jit"       # imported by use_backend, not here: numba may be missing
 
 
 def capture(scene_name, limit=8):
     """[(shading normals, u1, u2)] of Lambertian.sample in a 16 x 16, 2 spp NumPy render."""
-    calls, sample = [], Lambertian.sample
-
-    def recording(self, si, u_lobe, u):
-        if len(calls) < limit:
-            calls.append((np.array(si.n), u[0].copy(), u[1].copy()))
-        return sample(self, si, u_lobe, u)
-    Lambertian.sample = recording
-    try:
-        api.render(BUILTIN_SCENES[scene_name]((16, 16)), RenderSettings(samples=2, threads=1, backend="numpy"),
-                   log=lambda m: None)
-    finally:
-        Lambertian.sample = sample
-    return calls
+    return recorded(Lambertian, "sample", scene_name,
+                    lambda self, si, u_lobe, u: (np.array(si.n), u[0].copy(), u[1].copy()), limit)
 
 
 def both(n, u1, u2):
@@ -43,9 +30,7 @@ def both(n, u1, u2):
     return reference, bsdf.sample(si, None, (u1, u2))
 
 
-def same(a, b):
-    return all(x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True)
-               for x, y in ((a.wi, b.wi), (a.pdf, b.pdf), (a.value, b.value), (a.flags, b.flags)))
+same = same_bsdf_sample
 
 
 @pytest.mark.parametrize("scene", ["cornell", "caustic"])
