@@ -209,13 +209,19 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
     env = getattr(scene, "environment", None)
     image = env is not None and env.lighting
     sky = max(scene.background) > 0 or image
-    world = bool(sky and lit and settings.shadow_rays > 0 and not report)
+    # Under mis a constant colour beside other emitters is found by bounce rays alone, as Cycles disables
+    # the light of a background without spatial variation: a light sample spent on it (cosine
+    # directions, what a diffuse BSDF sample draws anyway) is one the sun or lamps miss, and that
+    # pick's variance is 4-5x Cycles' on sample_blends/normal_map.blend (docs/accuracy.md).
+    beside = bool(emitters) and not image and settings.estimator == "mis"     # (solid-angle: no final rays)
+    world = bool(sky and lit and settings.shadow_rays > 0 and not report and not beside)
     set_effect("world_light", world,
                ("the environment image is sampled as a light (by its luminance, engine/lights/environment.py)"
                 if image else "the background is sampled as a light (cosine directions, shadow rays to infinity)")
                if world else
                "black background" if not sky else "report estimator: the background is found by bounce rays"
-               if report else "no diffuse surface or no shadow rays: the background is found by bounce rays")
+               if report else "no diffuse surface or no shadow rays: the background is found by bounce rays"
+               if not beside else "a constant background beside other emitters: found by bounce rays (as Cycles)")
     nee = bool(lit and (emitters or world) and settings.shadow_rays > 0)     # hits with a non-delta BSDF
     set_effect("direct_light", nee,
                f"{settings.shadow_rays} shadow ray(s) per {'diffuse or glossy' if glossy or principled else 'diffuse'} hit (eq. 2.11)"
@@ -231,7 +237,9 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                if nee and not report and n_lights > 1 else
                "report estimator: lights picked by power" if nee and report and n_lights > 1 else
                "one light: no light selection" if nee else "no direct light")
-    reachable = bool(surface_emitters) or plan.enabled["area_lights"] or world
+    # The background found by bounce rays alone is reached too: the depth limit's final BSDF rays
+    # (engine/integrators/path_tracer.py final_rays) must still find it, as when it is a light.
+    reachable = bool(surface_emitters) or plan.enabled["area_lights"] or world or (sky and beside)
     mis = nee and settings.estimator == "mis" and reachable
     set_effect("mis", mis,
                "light and cosine BSDF samples weighted by the power heuristic (Veach & Guibas 1995)" if mis else
