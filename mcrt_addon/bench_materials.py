@@ -126,21 +126,29 @@ def warm_worker_pool(threads):
     return pool, time.perf_counter() - t0
 
 
+def measured_warm_pool(threads):
+    """warm_worker_pool's (pool, start seconds) and a dict whose "before" and "after" are its workers'
+    CPU seconds now and when the pool closes (read from /proc before close() ends them; None where
+    /proc cannot be read)."""
+    pool, start_seconds = warm_worker_pool(threads)
+    pids = [w.pid for w in pool.inner.workers]
+    workers_cpu = {"before": process_cpu_seconds(pids), "after": None}
+    close = pool.close
+
+    def close_measured():
+        workers_cpu["after"] = process_cpu_seconds(pids)
+        close()
+    pool.close = close_measured
+    return pool, start_seconds, workers_cpu
+
+
 def render_on_workers(blender_scene, resolution, *, diffuse, samples, max_depth, seed, threads, estimator,
                       extra=None):
     """One TNCG15 MC render timed as F12 (--tncg15-pool workers, module docstring): (image, wall
     seconds, CPU seconds of Blender's process and the workers, stats).  extra: more RenderSettings
     fields (scripts/bench_caustics.py: the caustics method and the photon map's)."""
     from mcrt_addon import bridge
-    pool, start_seconds = warm_worker_pool(threads)
-    pids = [w.pid for w in pool.inner.workers]
-    workers_cpu = {"before": process_cpu_seconds(pids), "after": None}
-    close = pool.close
-
-    def close_measured():                  # the workers' CPU seconds before close() ends them
-        workers_cpu["after"] = process_cpu_seconds(pids)
-        close()
-    pool.close = close_measured
+    pool, start_seconds, workers_cpu = measured_warm_pool(threads)
     name, _, sampler = estimator.partition("/")
     settings = be.tracer_settings(samples=samples, max_depth=max_depth, seed=seed, threads=threads,
                                   fresnel="exact", estimator=name, sampler=sampler or "sobol", **(extra or {}))

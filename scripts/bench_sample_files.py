@@ -198,19 +198,11 @@ def timed(fn):
 
 def on_workers(render, spp, threads):
     """render(spp, pool) on the pool F12 takes when the add-on started its workers ahead (one worker
-    process per thread, kernels loaded: mcrt_addon/bench_materials.py warm_worker_pool), started
+    process per thread, kernels loaded: mcrt_addon/bench_materials.py measured_warm_pool), started
     before the clock; (image, {wall, cpu}) with cpu = this process's and the workers' CPU seconds
     of the render (read from /proc before the pool closes)."""
     from mcrt_addon import bench_materials as bm
-    pool, _ = bm.warm_worker_pool(threads)
-    pids = [w.pid for w in pool.inner.workers]
-    workers = {"before": bm.process_cpu_seconds(pids), "after": None}
-    close = pool.close
-
-    def close_measured():
-        workers["after"] = bm.process_cpu_seconds(pids)
-        close()
-    pool.close = close_measured
+    pool, _, workers = bm.measured_warm_pool(threads)
     c0, t0 = time.process_time(), time.perf_counter()
     try:
         image = render(spp, pool)
@@ -219,7 +211,7 @@ def on_workers(render, spp, threads):
         raise
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     if workers["after"] is None:            # the render did not close it (it always does)
-        close_measured()
+        pool.close()
     if workers["before"] is None or workers["after"] is None:
         raise RuntimeError("the workers' CPU seconds cannot be read (/proc)")
     return image, dict(wall=wall, cpu=cpu + workers["after"] - workers["before"])
