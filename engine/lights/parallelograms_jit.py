@@ -135,6 +135,16 @@ def _lane_angles(lane, size):
 
 
 @jit
+def _lane_omega(lane, size):
+    """Omega alone (_lane_angles without the drawn angle: pdf_li)."""
+    B = BLOCK
+    for b in range(size):
+        g0, g1 = _asin(lane[LARGS * B + b]), _asin(lane[(LARGS + 1) * B + b])
+        g2, g3 = _asin(lane[(LARGS + 2) * B + b]), _asin(lane[(LARGS + 3) * B + b])
+        lane[LOMEGA * B + b] = -(g0 + g1 + g2 + g3)
+
+
+@jit
 def _lane_spherical(lane, size, omega_min, grazing):
     """sample_li's `use` predicate, spherical point (_spherical_point after the cos and sin) and
     1 / Omega for lanes b < size, every receiver's (the area fallback is _sample_blocks')."""
@@ -193,9 +203,8 @@ def _fill_light(lane, b, j, axis1, axis2, axis3, v0, len1, len2, center, rectang
 
 
 @jit
-def _fill_block(lane, start, size, x, idx, one, u1, u2, axis1, axis2, axis3, v0, len1, len2, center, rectangle):
-    """A block's receivers, uniforms and (unless one light for all, filled once) lights into the lanes,
-    row by row."""
+def _fill_block(lane, start, size, x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, rectangle):
+    """A block's receivers and (unless one light for all, filled once) lights into the lanes, row by row."""
     B = BLOCK
     if not one:
         for b in range(size):
@@ -203,10 +212,6 @@ def _fill_block(lane, start, size, x, idx, one, u1, u2, axis1, axis2, axis3, v0,
     for c in range(3):
         for b in range(size):
             lane[(LX + c) * B + b] = x[c, start + b]
-    for b in range(size):
-        lane[LU1 * B + b] = u1[start + b]
-    for b in range(size):
-        lane[LU2 * B + b] = u2[start + b]
 
 
 @jit
@@ -234,7 +239,11 @@ def _sample_blocks(x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, e1,
     n = x.shape[1]
     for start in range(0, n, B):
         size = min(B, n - start)
-        _fill_block(lane, start, size, x, idx, one, u1, u2, axis1, axis2, axis3, v0, len1, len2, center, rectangle)
+        _fill_block(lane, start, size, x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, rectangle)
+        for b in range(size):
+            lane[LU1 * B + b] = u1[start + b]
+        for b in range(size):
+            lane[LU2 * B + b] = u2[start + b]
         _lane_frame(lane, size)
         _lane_angles(lane, size)
         _lane_spherical(lane, size, omega_min, grazing)
@@ -276,13 +285,11 @@ def _pdf_blocks(x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, normal
             _fill_light(lane, b, 0, axis1, axis2, axis3, v0, len1, len2, center, rectangle)
     p = np.empty(3)
     n = x.shape[1]
-    zeros = np.zeros(n)
     for start in range(0, n, B):
         size = min(B, n - start)
-        _fill_block(lane, start, size, x, idx, one, zeros, zeros, axis1, axis2, axis3, v0, len1, len2, center,
-                    rectangle)
+        _fill_block(lane, start, size, x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, rectangle)
         _lane_frame(lane, size)
-        _lane_angles(lane, size)
+        _lane_omega(lane, size)
         for b in range(size):
             i = start + b
             j = 0 if one else idx[i]
