@@ -13,6 +13,12 @@ pio2_1, pio2_1t; exact for |k| < 2^20) and evaluates the __kernel_sin and __kern
 library's on [-1, 1]; sin and cos within one unit on [-3.3, 3.3] except near their zeros at k pi/2
 (k != 0), where it is absolute, below 1e-25 (pi/2 carries 86 bits), against the result's rounding of ~1e-16.
 NaN gives NaN; arguments outside [-1, 1] (asin) are not expected (the callers clip them).
+
+The constants and the order of the operations follow fdlibm, whose notice reads:
+    Copyright (C) 1993 by Sun Microsystems, Inc. All rights reserved.
+    Developed at SunSoft, a Sun Microsystems, Inc. business.
+    Permission to use, copy, modify, and distribute this software is freely granted, provided that
+    this notice is preserved.
 """
 from __future__ import annotations
 
