@@ -72,6 +72,13 @@ class LightGroup:
     def sample(self, x, n, u_pick, u1, u2, solid_angle: bool):
         """(LiSample with pdf P(k | x, n) p_w, light numbers in the set) for u_pick in the group's
         interval (rescaled to [0, 1) to pick the light)."""
+        s, light, pmf = self.sample_unpicked(x, n, u_pick, u1, u2, solid_angle)
+        s.pdf = s.pdf * pmf
+        return s, light
+
+    def sample_unpicked(self, x, n, u_pick, u1, u2, solid_angle: bool):
+        """(LiSample with pdf p_w, light numbers in the set, P(k | x, n)): `sample` before its pdf is
+        multiplied by the pick's."""
         light, pmf = self.selection.sample(x, n, u_pick if self.share == 1.0 else (u_pick - self.lo) / self.share)
         if len(self.kinds) == 1:
             s = self.kinds[0].sample_li(x, light, u1, u2, n, solid_angle)
@@ -83,8 +90,7 @@ class LightGroup:
                     parts.append((sel, kind.sample_li(x.take(sel, axis=1), self.in_kind.take(light.take(sel)),
                                                       u1.take(sel), u2.take(sel), n.take(sel, axis=1), solid_angle)))
             s = _gather_samples(len(u_pick), parts)
-        s.pdf = s.pdf * pmf
-        return s, (light + self.first if self.first else light)
+        return s, (light + self.first if self.first else light), pmf
 
     def pdf(self, x, n, light, point, solid_angle: bool):
         """P(k | x, n) p_w of the directions from x to `point` on lights `light` (set numbers)."""
@@ -125,7 +131,7 @@ class LightSet:
         for kind in self.kinds:                # shapes_backend: the kinds with compiled sampling (parallelograms)
             if hasattr(kind, "use_backend"):
                 kind.use_backend(shapes_backend)
-        self.compiled_shadows = None           # and the shadow rays (engine/lights/light_set_jit.py)
+        self.compiled_shadows = None           # and the shadow rays, samples' tails (engine/lights/light_set_jit.py)
         if shapes_backend == "numba":
             from . import light_set_jit
             self.compiled_shadows = light_set_jit
@@ -194,8 +200,13 @@ class LightSet:
         m = len(u_pick)
         q = self.distant_share
         if q == 0:                           # no lights at infinity: every ray's is local (no index arrays)
-            s, light = self.local.sample(x, n, u_pick, u1, u2, self.solid_angle)
-            s.pdf = s.pdf * self.local.share
+            s, light, pmf = self.local.sample_unpicked(x, n, u_pick, u1, u2, self.solid_angle)
+            if self.compiled_shadows is not None:         # the rest in one loop, the same numbers
+                pdf, offset, one_sided = self.compiled_shadows.finish_sample(s.pdf, pmf, self.local.share, s.point, light,
+                                                                             self.one_sided, LIGHT_OFFSET)
+                return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, pdf, light, offset,
+                                   one_sided)
+            s.pdf = s.pdf * pmf * self.local.share
             return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, s.pdf, light,
                                LIGHT_OFFSET * max_abs3(s.point), self.one_sided.take(light))
         far = u_pick < q

@@ -1,6 +1,7 @@
 """engine/lights/light_set.py's `LightSet.shadow_rays` compiled with numba: each shadow ray's origin,
 direction and length in one loop over the samples, instead of a take per input and a pass per
-operation.  The float64 operations are those of the NumPy path in the same order (+, -, *, /, sqrt,
+operation; and the tail of `LightSet.sample` (the pdf times the pick's pmf and the group's share,
+the offset off the light, the sides) in one loop (`finish_sample`).  The float64 operations are those of the NumPy path in the same order (+, -, *, /, sqrt,
 copysign), so the rays are the same bit for bit (tests/lights/test_light_set_jit.py).  Imported
 only through engine/core/backend.py's choice (it imports numba)."""
 from __future__ import annotations
@@ -37,6 +38,33 @@ def _shadow_rays(valid, x, lift, ng, cos_ly, offset, point, normal, distance, w,
             direction[0, r], direction[1, r], direction[2, r] = w[0, i], w[1, i], w[2, i]
 
 
+@jit
+def _maximum(a, b):
+    """np.maximum of two numbers (NaN if either is)."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a >= b else b
+
+
+@jit
+def _finish_sample(pdf, pmf, share, point, light, one_sided_of, scale, pdf_out, offset, one_sided):
+    for i in range(pdf.shape[0]):
+        pdf_out[i] = pdf[i] * pmf[i] * share
+        offset[i] = scale * _maximum(_maximum(np.abs(point[0, i]), np.abs(point[1, i])), np.abs(point[2, i]))
+        one_sided[i] = one_sided_of[light[i]]
+
+
+def finish_sample(pdf, pmf, share, point, light, one_sided_of, scale):
+    """LightSet.sample's tail: (pdf * pmf * share, scale * max_abs3(point), one_sided_of.take(light))."""
+    n = len(pdf)
+    pdf_out, offset, one_sided = np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_)
+    _finish_sample(_c(pdf), _c(pmf), float(share), _c(point), np.ascontiguousarray(light, dtype=np.int64),
+                   np.ascontiguousarray(one_sided_of, dtype=np.bool_), float(scale), pdf_out, offset, one_sided)
+    return pdf_out, offset, one_sided
+
+
 def _c(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
@@ -62,3 +90,4 @@ def warm_up() -> None:
                          distance=np.array([1.0, np.inf]), direction=np.ones((3, 2)))
     shadow_rays(ls, None, x, np.ones(2), x, np.ones(2))
     shadow_rays(ls, np.array([1]), x, np.ones(2), x, np.ones(2), (np.ones(2), x))
+    finish_sample(np.ones(2), np.ones(2), 1.0, x, np.zeros(2, np.int64), np.zeros(1, np.bool_), 2.0 ** -20)

@@ -8,7 +8,9 @@ A light is v0 + s e1 + t e2, s, t in [0, 1].  Two ways to draw a point y on it:
   "An Area-Preserving Parametrization for Spherical Rectangles" (EGSR 2013), as Cycles'
   `area_light_rect_sample`: directions uniform over the rectangle's solid angle Omega,
   p_w = 1 / Omega.  Omega comes from the edge-plane normals in the arcsin form (no
-  cancellation against 2 pi; docs/light-sampling.md §2).
+  cancellation against 2 pi; docs/light-sampling.md §2).  The arcsines and the cos and sin of
+  the drawn angle are engine/lights/trig.py's (+ - * / sqrt only), which the compiled twin
+  (engine/lights/parallelograms_jit.py) repeats bit for bit in vectorised loops.
 
 `use` (of `_frame`) is the one predicate both `sample_li` and `pdf_li` consult, so the pdf of a
 BSDF-sampled direction is the density the light set really has there.  Where the
@@ -23,6 +25,7 @@ import numpy as np
 from ..core.vec import cross, dot, gather, rows
 from .emitting_surface import EmittingSurface
 from .protocol import LightBounds, LiSample
+from .trig import asin, sincos
 
 OMEGA_MIN = 1e-6          # sr: below this area sampling is as good and cheaper
 GRAZING = 1e-5            # |plane distance| / distance to the centre below which x is "in the plane"
@@ -65,8 +68,6 @@ class Parallelograms(EmittingSurface):
     def _frame(self, x, idx):
         """Local coordinates of each light seen from x (Urena et al., section 3), its solid
         angle and `use`: the predicate that sample_li() and pdf_li() share."""
-        if self.compiled is not None:
-            return self._compiled_frame(x, idx)
         ax, ay = gather(self.axis1, idx), gather(self.axis2, idx)
         az = gather(self.axis3, idx)
         rel = gather(self.v0, idx) - x
@@ -81,7 +82,7 @@ class Parallelograms(EmittingSurface):
             e1 = x1 / np.sqrt(x1 * x1 + z2)
             e2 = y1 / np.sqrt(y1 * y1 + z2)
             e3 = -x0 / np.sqrt(x0 * x0 + z2)
-        g = [np.arcsin(np.clip(-a * b, -1.0, 1.0)) for a, b in ((e0, e1), (e1, e2), (e2, e3), (e3, e0))]
+            g = [asin(np.clip(-a * b, -1.0, 1.0)) for a, b in ((e0, e1), (e1, e2), (e2, e3), (e3, e0))]
         omega = -(g[0] + g[1] + g[2] + g[3])         # spherical excess, arcsin form
         centre = gather(self.center, idx) - x
         use = (gather(self.rectangle, idx) & (omega >= OMEGA_MIN) & np.isfinite(omega)
@@ -89,25 +90,12 @@ class Parallelograms(EmittingSurface):
         return dict(ax=ax, ay=ay, az=az, x0=x0, y0=y0, x1=x1, y1=y1, z0=z0, e0=e0, e2=e2,
                     g23=g[2] + g[3], omega=omega, use=use)
 
-    def _compiled_frame(self, x, idx):
-        """_frame by the compiled twin: its loop up to the arcsines, NumPy's arcsines (the same
-        function on the same arguments as above), the same sums and predicate."""
-        az, terms, args, cdist = self.compiled.frame_terms(self, x, idx)
-        x0, y0, x1, y1, z0, e0, e2 = terms
-        g = [np.arcsin(args[k]) for k in range(4)]
-        omega = -(g[0] + g[1] + g[2] + g[3])         # spherical excess, arcsin form
-        use = (gather(self.rectangle, idx) & (omega >= OMEGA_MIN) & np.isfinite(omega) & (-z0 >= GRAZING * cdist))
-        return dict(ax=gather(self.axis1, idx), ay=gather(self.axis2, idx), az=az, x0=x0, y0=y0, x1=x1, y1=y1,
-                    z0=z0, e0=e0, e2=e2, g23=g[2] + g[3], omega=omega, use=use, terms=terms, idx=idx)
-
     def _spherical_point(self, x, f, u1, u2):
         """The point of the rectangle in the direction that (u1, u2) maps to (Cycles' form)."""
-        if "terms" in f:
-            return self.compiled.spherical_point(self, x, f["idx"], f["az"], f["terms"], f["omega"], f["g23"], u1, u2)
         e0, z0 = f["e0"], f["z0"]
         with np.errstate(divide="ignore", invalid="ignore"):
-            au = u1 * f["omega"] + f["g23"]
-            fu = (np.cos(au) * e0 + f["e2"]) / np.sin(au)
+            sin, cos = sincos(u1 * f["omega"] + f["g23"])
+            fu = (cos * e0 + f["e2"]) / sin
             cu = np.clip(np.copysign(1.0, fu) / np.sqrt(fu * fu + e0 * e0), -1.0, 1.0)
             xu = np.clip(-(cu * z0) / np.maximum(np.sqrt(1.0 - cu * cu), 1e-300), f["x0"], f["x1"])
             d2 = xu * xu + z0 * z0
@@ -126,9 +114,9 @@ class Parallelograms(EmittingSurface):
         normal = np.broadcast_to(gather(self.normal, idx), (3, m))
         if not solid_angle:
             return self._li(x, idx, *self._area_sample(x, idx, u1, u2, normal))
-        if self.compiled is not None:                          # all of the below in two loops
-            point, direction, distance, pdf = self.compiled.sample_li(self, x, idx, u1, u2, OMEGA_MIN, GRAZING)
-            return LiSample(point, direction, distance, normal, self.radiance.take(idx, axis=1), pdf)
+        if self.compiled is not None:                          # all of the below in one compiled call
+            point, direction, distance, pdf, radiance = self.compiled.sample_li(self, x, idx, u1, u2, OMEGA_MIN, GRAZING)
+            return LiSample(point, direction, distance, normal, radiance, pdf)
         f = self._frame(x, idx)
         point = self._spherical_point(x, f, u1, u2)
         with np.errstate(divide="ignore"):
@@ -149,7 +137,7 @@ class Parallelograms(EmittingSurface):
 
     def pdf_li(self, x, idx, point, n=None, direction=None, solid_angle: bool = True):
         """p_w at x of the direction towards `point` on light idx (the density `sample_li` has)."""
-        if solid_angle and self.compiled is not None:          # the same numbers in two loops
+        if solid_angle and self.compiled is not None:          # the same numbers, compiled
             return self.compiled.pdf_li(self, x, idx, point, OMEGA_MIN, GRAZING)
         pdf = area_pdf(x, point, gather(self.normal, idx), gather(self.area, idx))
         if solid_angle:
@@ -159,6 +147,8 @@ class Parallelograms(EmittingSurface):
 
     def solid_angle(self, x, idx):
         """Omega of each light seen from x (for tests)."""
+        if self.compiled is not None:
+            return self.compiled.solid_angle(self, x, idx)
         return self._frame(x, idx)["omega"]
 
     def bounds(self):
