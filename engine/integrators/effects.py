@@ -20,8 +20,8 @@ from ..materials.oren_nayar import ENERGY_PRESERVING_SINCE
 from ..materials.principled import DIFFUSE_ROUGHNESS_CUTOFF, WEIGHT_CUTOFF, specular_eta_f0
 from ..materials.principled_v1 import SINGLE_SCATTER_ROUGHNESS
 from ..materials.principled_v1_glass import SINGLE_SCATTER_ROUGHNESS as GLASS_SINGLE_SCATTER_ROUGHNESS
-from ..materials.table import (NON_DELTA_KINDS, PRINCIPLED_V1, ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION,
-                               scatter_kind)
+from ..materials.table import (BLURRED_ROWS, NON_DELTA_KINDS, PRINCIPLED_V1, ROUGH_DIFFUSE, ROUGH_GLASS,
+                               ROUGH_REFRACTION, scatter_kind)
 from ..materials.textures import textured_materials
 
 EFFECTS = ("triangles", "smooth_normals", "spheres", "quads", "area_lights", "diffuse", "mirror", "glass",
@@ -261,8 +261,8 @@ def plan_effects(scene, settings, accelerator: str = "embree") -> EffectPlan:
                    f"on the emission of {_names(glowing)} (light samples read the texture)" if glowing else "")
                    if part) + ": texture lookups at triangle hits (UVs interpolated)"
                if colored or glowing else "no image textures: no UVs, no texture lookups")
-    _plan_light_paths(settings, set_effect, users)
     _plan_photons(settings, set_effect, users, lit, emitters + (["the world"] if world else []))
+    _plan_light_paths(settings, set_effect, users, plan.enabled["photon_caustics"])
     return plan
 
 
@@ -298,8 +298,9 @@ def _plan_photons(settings, set_effect, users, receivers, emitters) -> None:
                f"caustics_method {method}, but no lights")
 
 
-def _plan_light_paths(settings, set_effect, users) -> None:
-    """Cycles' Light Paths options (engine/integrators/light_paths.py): on where they change the image."""
+def _plan_light_paths(settings, set_effect, users, photons=False) -> None:
+    """Cycles' Light Paths options (engine/integrators/light_paths.py): on where they change the image.
+    photons: whether the caustic photon pass runs (Filter Glossy then leaves delta lobes sharp)."""
     kind_of = scatter_kind
     mirror = users(lambda m: m.kind == MIRROR)
     glass = users(lambda m: m.kind in (GLASS, REFRACTION))
@@ -325,12 +326,21 @@ def _plan_light_paths(settings, set_effect, users) -> None:
                                      f"indirect to {indirect:g}" if indirect > 0 else "") if part)
                if direct > 0 or indirect > 0 else "no clamping (Clamp Direct and Indirect 0)")
     lobes = glossy + principled + principled_v1 + users(lambda m: kind_of(m) in (ROUGH_GLASS, ROUGH_REFRACTION))
-    blur = settings.filter_glossy > 0 and bool(lobes)
-    delta = [m for m in mirror + glass if m not in lobes]
-    sharp = " (perfect mirrors and smooth glass stay sharp; Cycles blurs them too)" if delta else ""
+    # Delta lobes Cycles blurs (engine/integrators/delta_blur.py): mirrors, smooth glass and refraction
+    # but Blender 3.x's Sharp closures, which its bsdf_blur leaves alone.  The caustic photons carry
+    # the light of sharp specular chains (L S+ D): with them the path tracer keeps its delta lobes sharp,
+    # else light through a blurred lobe would count twice.
+    blurrable = users(lambda m: kind_of(m) in BLURRED_ROWS and not m.sharp_closure)
+    blurred = [] if photons else blurrable
+    blur = settings.filter_glossy > 0 and bool(lobes or blurred)
+    delta = [m for m in mirror + glass if m not in lobes + blurred]
+    sharp = (f" (the caustic photons' specular {_names(blurrable)} stay sharp)" if photons and blurrable else "") + (
+        f" ({_names([m for m in delta if m not in blurrable])}: Blender 3.x's Sharp closures, left sharp as"
+        " Cycles 3.4)" if [m for m in delta if m not in blurrable] else "")
     set_effect("filter_glossy", blur,
-               f"Filter Glossy {settings.filter_glossy:g}: microfacet lobes of {_names(lobes)} widened after "
-               "blurry bounces (alpha >= sqrt(1 - min pdf / filter) / 2)" + sharp if blur else
+               f"Filter Glossy {settings.filter_glossy:g}: microfacet lobes of {_names(lobes + blurred)} widened after "
+               "blurry bounces (alpha >= sqrt(1 - min pdf / filter) / 2"
+               + (f"; {_names(blurred)} as GGX lobes of that alpha" if blurred else "") + ")" + sharp if blur else
                "Filter Glossy 0: no roughness widened" if settings.filter_glossy <= 0 else
                "no microfacet material: Filter Glossy widens nothing" + sharp)
     reflective = [] if settings.caustics_reflective else mirror + glass + glossy + principled

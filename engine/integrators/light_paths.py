@@ -22,8 +22,12 @@ integrator/surface_shader.h, svm/closure.h).  docs/user-guide.md "Light paths" d
   engine/materials/glossy.py, dielectric.py, principled_glass.py and the Principled v1's
   principled_v1.py, principled_v1_glass.py).  The energy compensation and the Principled layer
   weights keep the closure's own roughness, as Cycles' (they are set up before the blur); the v1's
-  multiscatter compensation follows the raised alphas, as Cycles 3.4's random walk.  The tracer's perfect
-  mirrors and smooth glass stay delta lobes (Cycles blurs them too: the one difference).
+  multiscatter compensation follows the raised alphas, as Cycles 3.4's random walk.  Perfect mirrors,
+  smooth glass and smooth refraction (Cycles' microfacet closures of alpha 0) are blurred too: their
+  hits become GGX lobes of the floor's alpha (engine/integrators/delta_blur.py), but Blender 3.x's
+  Sharp closures, which Cycles 3.4 leaves sharp, and delta lobes under caustic photons, which carry
+  that light already (the effect plan says which).  The one difference left: a mirror or glass leaf
+  of a Mix shader (engine/materials/mix.py) stays sharp.
 * Caustics (svm/closure.h CAUSTICS_TRICKS): after a diffuse bounce (a diffuse reflection or
   transmission, Paths.after_diffuse; a straight pass-through keeps the state), Reflective Caustics off leaves
   out the glossy and mirror reflection closures, Refractive Caustics off the refraction ones.  A
@@ -90,6 +94,8 @@ class LightPaths:
         self.limit_direct = settings.clamp_direct if settings.clamp_direct > 0 else np.inf
         self.limit_indirect = settings.clamp_indirect if settings.clamp_indirect > 0 else np.inf
         self.filter_glossy = settings.filter_glossy if plan.enabled.get("filter_glossy") else 0.0
+        # Filter Glossy blurs delta lobes too (engine/integrators/delta_blur.py), but with caustic photons.
+        self.blur_delta = self.filter_glossy > 0 and not plan.enabled.get("photon_caustics")
         self.caustics = bool(plan.enabled.get("caustics"))
         self.reflective, self.refractive = settings.caustics_reflective, settings.caustics_refractive
         flags = [int(b.flags) for b in bsdfs]

@@ -60,6 +60,7 @@ from ..materials.media import MEDIUM_STACK_DEPTH, MediumStack
 from ..materials.protocol import BSDFFlags, ShadingPoint, transmits_non_delta
 from ..materials.table import ABSORB, N_SCATTER_GROUPS, PASS_THROUGH, MaterialTable
 from ..sampling.qmc import RandomSampler
+from .delta_blur import DeltaBlur
 from .light_paths import LightPaths
 from .light_paths import after_diffuse as lp_after_diffuse
 
@@ -202,6 +203,11 @@ class PathTracer:
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
         light_paths = LightPaths(settings, plan, self.bsdfs)
         self.light_paths = light_paths if light_paths.on else None       # Cycles' Light Paths options
+        # Filter Glossy on mirrors and smooth glass: their hits after blurry bounces scatter as GGX
+        # lobes (engine/integrators/delta_blur.py), whose glossy rays leave round lamps to the shadow rays.
+        self.delta_blur = DeltaBlur.of(self.mats, self.light_paths, N_SCATTER_GROUPS)
+        if self.delta_blur is not None:
+            self.mats.glossy = True
         self.photons = None     # engine/integrators/photons/caustics.py CausticPhotons (set by the session's prepass)
         self.deferred_rr = bool(plan.enabled.get("deferred_roulette"))
         self.wavefront_jit = None       # the compaction compiled (engine/integrators/wavefront_jit.py)
@@ -274,6 +280,8 @@ class PathTracer:
                                           light_group=PASS_THROUGH, ray_kind=p.ray_kind,
                                           forced_group=None if final is None or not final.any()
                                           else np.where(final, ABSORB, -1))
+        if self.delta_blur is not None:     # blurred mirror and glass hits: to their non-delta rows
+            hits = self.delta_blur.regroup(hits, p.min_pdf)
         # 2. Round lamps and suns met by mirror and glass rays (engine/lights/seen.py).
         if self.seen_lamps is not None:
             self.lamps_seen(p, hits)

@@ -12,7 +12,10 @@ materials with a diffuse roughness above 0 (`scatter_kind`); those of roughness 
 The MIX row (engine/materials/mix.py) scatters through the other rows: a mix's leaves are
 materials of the table too, with ids after the scene's (engine/scene/model.py with_mix_leaves).
 ROUGH_GLASS and ROUGH_REFRACTION take the glass and refraction materials with a roughness above 0;
-those of roughness 0 stay delta (smooth glass, smooth refraction).
+those of roughness 0 stay delta (smooth glass, smooth refraction).  Filter Glossy's blurred delta
+hits (engine/integrators/delta_blur.py) scatter in `blurred_group`'s rows: BLURRED_MIRROR for
+mirrors, ROUGH_GLASS and ROUGH_REFRACTION (at the material's roughness 0) for smooth glass and
+refraction.
 """
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ from .dielectric import RoughGlass, RoughRefraction, SmoothRefraction
 from .glass import SmoothGlass
 from .glossy import MicrofacetReflection
 from .lambert import Lambertian
-from .mirror import PerfectMirror
+from .mirror import BlurredMirror, PerfectMirror
 from .mix import MixBSDF
 from .principled import PrincipledV2
 from .principled_v1 import PrincipledV1
@@ -40,11 +43,13 @@ ROUGH_DIFFUSE = "rough diffuse"     # a scatter row, not a material kind: see sc
 PRINCIPLED_V1 = "principled v1"     # a scatter row: Principled materials whose `principled` is a PrincipledV1
 ROUGH_GLASS = "rough glass"         # a scatter row: glass of roughness above 0
 ROUGH_REFRACTION = "rough refraction"
+BLURRED_MIRROR = "blurred mirror"   # a scatter row: mirror hits Filter Glossy blurs (engine/integrators/delta_blur.py)
 SCATTERING = ((DIFFUSE, Lambertian), (MIRROR, PerfectMirror), (GLASS, SmoothGlass),
               (GLOSSY, MicrofacetReflection), (PRINCIPLED, PrincipledV2),
               (ROUGH_DIFFUSE, RoughDiffuse), (MIX, MixBSDF), (PRINCIPLED_V1, PrincipledV1),
               (ROUGH_GLASS, RoughGlass), (REFRACTION, SmoothRefraction),
-              (ROUGH_REFRACTION, RoughRefraction), (TRANSPARENT, Transparent), (TRANSLUCENT, Translucent))
+              (ROUGH_REFRACTION, RoughRefraction), (TRANSPARENT, Transparent), (TRANSLUCENT, Translucent),
+              (BLURRED_MIRROR, BlurredMirror))
 KIND_CODE = {kind: group for group, (kind, _) in enumerate(SCATTERING)}
 ABSORB = len(SCATTERING)            # black surfaces: absorb everything
 PASS_THROUGH = ABSORB + 1           # Area lights: emission, then the ray goes on
@@ -53,6 +58,8 @@ N_SCATTER_GROUPS = PASS_THROUGH + 1
 NON_DELTA_KINDS = frozenset(kind for kind, bsdf in SCATTERING if has_non_delta(bsdf.flags))
 ROUGH_ROWS = {GLASS: ROUGH_GLASS, REFRACTION: ROUGH_REFRACTION}     # kind -> its row at roughness > 0
 VERSIONED_ROWS = (ROUGH_DIFFUSE, ROUGH_GLASS, ROUGH_REFRACTION)    # BSDFs made with Scene.cycles_version
+# The delta rows Filter Glossy blurs, and the non-delta row that scatters their blurred hits.
+BLURRED_ROWS = {MIRROR: BLURRED_MIRROR, GLASS: ROUGH_GLASS, REFRACTION: ROUGH_REFRACTION}
 
 
 def scatter_kind(material) -> str:
@@ -100,6 +107,12 @@ class MaterialTable:
         scatters = scatters | (self.kind == KIND_CODE[PRINCIPLED]) | (self.kind == KIND_CODE[PRINCIPLED_V1])
         scatters = scatters | (self.kind == KIND_CODE[MIX])            # its leaves have their own colours
         self.scatter_group = np.where(scatters, self.kind, ABSORB).astype(np.int8)
+        # Each material's row where Filter Glossy blurs its hits, -1 where it stays as it is: a
+        # scattering mirror, smooth glass or refraction that is no Sharp closure of Blender 3.x.
+        twins = [KIND_CODE[BLURRED_ROWS[scatter_kind(m)]]
+                 if scatter_kind(m) in BLURRED_ROWS and not getattr(m, "sharp_closure", False) else -1
+                 for m in materials]
+        self.blurred_group = np.where(scatters, np.array(twins, dtype=np.int8), -1).astype(np.int8)
         self.bsdfs = [bsdf(materials, settings, cycles_version) if kind in VERSIONED_ROWS else bsdf(materials, settings)
                       for kind, bsdf in SCATTERING]
         self.bsdfs[KIND_CODE[MIX]].bind(self, leaf_ids)

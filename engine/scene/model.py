@@ -171,6 +171,11 @@ class Material:
     # per hit, the program's value replaces the field (the field is the value where none runs).
     programs: dict = field(default_factory=dict)
     pass_index: int = 0           # Blender's Material > Settings > Pass Index (the IndexMA pass)
+    # Mirror, glass and refraction of roughness 0 made by Blender 3.x's Sharp distribution (Cycles 3.4's
+    # REFLECTION, REFRACTION and SHARP_GLASS closures, which its Filter Glossy leaves sharp:
+    # docs/cycles34-filter-glossy.md); False: a microfacet closure of alpha 0, which it blurs
+    # (engine/integrators/delta_blur.py).
+    sharp_closure: bool = False
 
     def __post_init__(self):
         if self.roughness is None:

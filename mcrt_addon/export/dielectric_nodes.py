@@ -53,7 +53,7 @@ def _dielectric(table, mat, node, kind, ior_default):
         table.warn(mat, node, f"input 'Thin Film Thickness' {thin_film:g} is not modelled")
     _normal_warning(table, mat, node)
     return table.Material(name=mat.name, kind=kind, color=color, ior=ior, roughness=roughness,
-                          distribution=distribution)
+                          distribution=distribution, sharp_closure=name == "SHARP")
 
 
 def glass(table, mat, node):

@@ -92,9 +92,12 @@ def glossy(table, mat, node):
     """Glossy BSDF (3.4's Glossy and Anisotropic, 4.0+'s Glossy): fresnel 'none', the colour a tint."""
     color = _clamp01(table.read_color(mat, node, "Color"))
     roughness = table.read_float(mat, node, "Roughness", default=0.5, role="roughness")
-    if getattr(node, "distribution", "GGX") == "SHARP" or (roughness <= 0.0 and "roughness" not in table._slots):
+    sharp = getattr(node, "distribution", "GGX") == "SHARP"
+    if sharp or (roughness <= 0.0 and "roughness" not in table._slots):
         table._slots.pop("roughness", None)
-        return table.Material(name=mat.name, kind=table.MIRROR, color=color)
+        # the distribution Filter Glossy blurs a GGX / Beckmann mirror with; Sharp stays sharp (3.x)
+        return table.Material(name=mat.name, kind=table.MIRROR, color=color, sharp_closure=sharp,
+                              distribution=DISTRIBUTIONS.get(getattr(node, "distribution", "GGX"), ("ggx",))[0])
     dist, multiscatter = distribution(table, mat, node)
     return table.Material(name=mat.name, kind=table.GLOSSY, color=color, roughness=min(roughness, 1.0),
                           distribution=dist, multiscatter=multiscatter, fresnel="none",

@@ -92,7 +92,8 @@ mcrt_addon.register()
 from mcrt_addon.export import export_scene
 out = sys.argv[sys.argv.index("--") + 1]
 res = export_scene(bpy.context.evaluated_depsgraph_get(), resolution=(16, 16))
-json.dump({"materials": {m.name: [m.kind, m.roughness, m.distribution, m.ior] for m in res.scene.materials},
+json.dump({"materials": {m.name: [m.kind, m.roughness, m.distribution, m.ior, m.sharp_closure]
+                         for m in res.scene.materials},
            "warnings": res.warnings}, open(out, "w"))
 '''
 MAKE_34 = r'''
@@ -108,7 +109,11 @@ multi = ms.node_material("Multi", "ShaderNodeBsdfGlass", Roughness=0.25)
 next(n for n in multi.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfGlass").distribution = "MULTI_GGX"
 sharp = ms.node_material("Sharp", "ShaderNodeBsdfRefraction", Roughness=0.5)
 next(n for n in sharp.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfRefraction").distribution = "SHARP"
-for k, mat in enumerate((default, multi, sharp)):
+sharp_mirror = ms.node_material("Sharp mirror", "ShaderNodeBsdfGlossy", Roughness=0.0)
+next(n for n in sharp_mirror.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfGlossy").distribution = "SHARP"
+ggx_mirror = ms.node_material("GGX mirror", "ShaderNodeBsdfGlossy", Roughness=0.0)
+next(n for n in ggx_mirror.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfGlossy").distribution = "BECKMANN"
+for k, mat in enumerate((default, multi, sharp, sharp_mirror, ggx_mirror)):
     ms.plane(scene, f"P{k}", [(k, 0, 0), (k + 1, 0, 0), (k + 1, 1, 0), (k, 1, 0)], mat)
 bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
 '''
@@ -117,8 +122,9 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
 @pytest.mark.slow
 @pytest.mark.skipif(BLENDER is None and os.environ.get("CI") != "true", reason="no `blender` binary")
 def test_blender34_glass_vocabulary(tmp_path):
-    """Blender 3.4: the Glass BSDF defaults to Beckmann and IOR 1.45; SHARP is smooth; MULTI_GGX (a random
-    walk in 3.x) is named as approximated."""
+    """Blender 3.4: the Glass BSDF defaults to Beckmann and IOR 1.45; SHARP is smooth (and a Sharp closure,
+    as a Sharp Glossy's mirror; a Beckmann Glossy at roughness 0 is none); MULTI_GGX (a random walk in
+    3.x) is named as approximated."""
     import sysconfig
     repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([repo, sysconfig.get_paths()["purelib"]]))
@@ -138,4 +144,8 @@ def test_blender34_glass_vocabulary(tmp_path):
     assert mats["Default glass"][1] == pytest.approx(0.25) and mats["Default glass"][3] == pytest.approx(1.45)
     assert mats["Multi"][2] == "multi_ggx"
     assert mats["Sharp"][0] == "refraction" and mats["Sharp"][1] == 0.0
+    # Filter Glossy (engine/integrators/delta_blur.py): 3.4 leaves the Sharp closures sharp, blurs the others
+    assert mats["Sharp"][4] and not mats["Default glass"][4]
+    assert mats["Sharp mirror"][0] == mats["GGX mirror"][0] == "mirror"
+    assert mats["Sharp mirror"][4] and not mats["GGX mirror"][4] and mats["GGX mirror"][2] == "beckmann"
     assert any("Material 'Multi'" in w and "random walk" in w for w in data["warnings"]), data["warnings"]

@@ -86,10 +86,11 @@ def test_caustics_leave_out_the_lobes_of_each_bsdf():
     assert gone() == set()
     assert not lp.LightPaths(RenderSettings(caustics_reflective=False), plan_effects(BUILTIN_SCENES["cornell"](),
                              RenderSettings()), [type("NoLobes", (), {"flags": BSDFFlags.NONE})()]).specular_only[0]
-    assert gone(caustics_reflective=False) == {"mirror", "glossy"}
+    assert gone(caustics_reflective=False) == {"mirror", "glossy", "blurred mirror"}
     assert gone(caustics_refractive=False) == {"refraction", "rough refraction"}
     assert gone(caustics_reflective=False, caustics_refractive=False) == {
-        "mirror", "glossy", "glass", "rough glass", "refraction", "rough refraction"}   # never transparent
+        "mirror", "glossy", "glass", "rough glass", "refraction", "rough refraction",
+        "blurred mirror"}   # never transparent
 
 
 def test_alpha_floor_widens_the_microfacet_lobe():
@@ -128,10 +129,12 @@ def test_fair_settings_run_no_light_path_code():
             cycles.transparent_bounces, cycles.clamp_direct, cycles.clamp_indirect, cycles.filter_glossy,
             cycles.caustics_reflective, cycles.caustics_refractive) == (12, 4, 4, 12, 8, 0.0, 10.0, 1.0, True, True)
     plan = plan_effects(scene, cycles)
-    assert plan.enabled["bounce_limits"] and plan.enabled["clamp"] and not plan.enabled["filter_glossy"]
+    assert plan.enabled["bounce_limits"] and plan.enabled["clamp"] and plan.enabled["filter_glossy"]
     assert "diffuse at most 4, glossy at most 4 (of 12 in all)" in plan.reason["bounce_limits"]
     assert "indirect to 10" in plan.reason["clamp"]
-    assert "no microfacet material" in plan.reason["filter_glossy"]
+    assert "'Mirror', 'Glass' as GGX lobes" in plan.reason["filter_glossy"]      # engine/integrators/delta_blur.py
+    plan = plan_effects(diffuse_cornell(8), cycles)
+    assert not plan.enabled["filter_glossy"] and "no microfacet material" in plan.reason["filter_glossy"]
 
 
 def test_options_that_act_after_a_bounce_leave_direct_light_alone():
@@ -275,7 +278,7 @@ def test_path_tracer_keeps_no_light_path_state_at_fair_values():
     from engine.rendering.session import PreparedScene
     fair = PreparedScene(scene, RenderSettings(threads=1))
     assert isinstance(fair.tracer, PathTracer) and fair.tracer.light_paths is None
-    scene = copy.deepcopy(scene)
+    scene = diffuse_cornell(8)
     on = PreparedScene(scene, RenderSettings(threads=1, diffuse_bounces=2, filter_glossy=1.0))
     assert on.tracer.light_paths.bounce_limits and on.tracer.light_paths.filter_glossy == 0.0   # no glossy
 
