@@ -335,3 +335,29 @@ def test_normal_pass_is_the_shading_normal():
     assert np.allclose(r.passes["normal"], axes.T @ np.array([np.sin(t), 0.0, np.cos(t)]), atol=1e-6)
     assert not np.allclose(axes.T @ np.array([0.0, 0.0, 1.0]), axes.T @ np.array([np.sin(t), 0.0, np.cos(t)]),
                            atol=0.1)                                     # control: the flat answer differs
+
+
+def test_terminator_lift_has_the_numbers_of_the_two_bounds_made_apart():
+    """smooth_surface_offset makes the dot products of both tangent-plane bounds once (sign * d is
+    exact): the lift is bit for bit the form with the bounds made apart on the corner views."""
+    from engine.geometry.shading_normals import tangent_plane_bound
+    rng = np.random.default_rng(6)
+    m = 300
+    V = rng.normal(size=(m, 3, 3))
+    N = rng.normal(size=(m, 3, 3))
+    N /= np.linalg.norm(N, axis=2)[:, :, None]
+    u, v = rng.random(m) * 0.5, rng.random(m) * 0.5
+    ng = rng.normal(size=(3, m))
+    w0, w1, w2 = 1.0 - u - v, u, v
+    v0, v1, v2 = V[:, 0].T, V[:, 1].T, V[:, 2].T
+    n0, n1, n2 = N[:, 0].T, N[:, 1].T, N[:, 2].T
+    p = v0 * w0 + v1 * w1 + v2 * w2
+    n = n0 * w0 + n1 * w1 + n2 * w2
+    a, b, c = dot(n2 - n0, v0 - v2), dot(n2 - n1, v1 - v2), dot(n1 - n0, v1 - v0)
+    h = a * w0 * (w0 - 1.0) + (a + b + c) * w0 * w1 + b * w1 * (w1 - 1.0)
+    front = np.maximum(tangent_plane_bound(p, (v0, v1, v2), (n0, n1, n2), 1.0), h * 0.5)
+    back = np.minimum(-tangent_plane_bound(p, (v0, v1, v2), (n0, n1, n2), -1.0), h * 0.5)
+    expected = n * np.where(dot(n, ng) > 0.0, front, back)
+    lift = smooth_surface_offset(V, N, u, v, ng)
+    assert np.array_equal(lift, expected)
+    assert not np.array_equal(smooth_surface_offset(V, N, u, np.nextafter(v, 1.0), ng), expected)   # control
