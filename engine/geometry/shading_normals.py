@@ -44,6 +44,20 @@ def interpolate(corners: np.ndarray, u: np.ndarray, v: np.ndarray, fallback=None
     the corners cancel (opposite normals: a zero sum) the `fallback` rows (the geometric normal)."""
     w0 = 1.0 - u - v
     n = (w0[:, None] * corners[:, 0] + u[:, None] * corners[:, 1] + v[:, None] * corners[:, 2]).T
+    return _unit_or(n, fallback)
+
+
+def interpolate_rows(rows: np.ndarray, u: np.ndarray, v: np.ndarray, fallback=None) -> np.ndarray:
+    """interpolate with the corner normals as rows (9, M) (corner c's component x in row 3 c + x):
+    the same numbers, from contiguous rows."""
+    w0 = 1.0 - u - v
+    n = w0 * rows[0:3]
+    n += u * rows[3:6]
+    n += v * rows[6:9]
+    return _unit_or(n, fallback)
+
+
+def _unit_or(n, fallback):
     length = np.sqrt(dot(n, n))
     n = n / np.maximum(length, 1e-300)
     if fallback is not None:
@@ -94,6 +108,12 @@ class SmoothNormals:
                 cutoff[i] = cut.take(on)
         return lift, cutoff
 
+    def rows(self) -> np.ndarray:
+        """The corner normals as rows (9, count) (made on first use)."""
+        if getattr(self, "_rows", None) is None:
+            self._rows = np.ascontiguousarray(self.corners.reshape(-1, 9).T)
+        return self._rows
+
     def shading(self, prim, u, v, geometric: np.ndarray) -> np.ndarray:
         """Shading normals (rows) of triangle hits: interpolated on smooth triangles, the
         geometric normal (a copy of its columns) on flat ones."""
@@ -101,8 +121,8 @@ class SmoothNormals:
         row = self.index.take(prim)
         smooth = np.flatnonzero(row >= 0)
         if len(smooth):
-            out[:, smooth] = interpolate(self.corners.take(row.take(smooth), axis=0), u.take(smooth), v.take(smooth),
-                                         out[:, smooth])
+            out[:, smooth] = interpolate_rows(self.rows().take(row.take(smooth), axis=1), u.take(smooth),
+                                              v.take(smooth), out[:, smooth])
         return out
 
 

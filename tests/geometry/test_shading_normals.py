@@ -361,3 +361,18 @@ def test_terminator_lift_has_the_numbers_of_the_two_bounds_made_apart():
     lift = smooth_surface_offset(V, N, u, v, ng)
     assert np.array_equal(lift, expected)
     assert not np.array_equal(smooth_surface_offset(V, N, u, np.nextafter(v, 1.0), ng), expected)   # control
+
+
+def test_phong_normals_from_corner_rows_are_the_same_numbers():
+    from engine.geometry.shading_normals import interpolate_rows
+    rng = np.random.default_rng(7)
+    corners = rng.normal(size=(500, 3, 3))
+    corners[:5, 1] = -corners[:5, 0]                                    # some cancel: the fallback
+    corners[:5, 2] = 0.0
+    u, v = rng.random(500) * 0.5, rng.random(500) * 0.5
+    u[:5], v[:5] = 0.5, 0.0
+    fallback = rng.normal(size=(3, 500))
+    rows_ = np.ascontiguousarray(corners.reshape(-1, 9).T)
+    for fb in (None, fallback):
+        assert np.array_equal(interpolate_rows(rows_, u, v, fb), interpolate(corners, u, v, fb))
+    assert not np.array_equal(interpolate_rows(rows_, v, u, fallback), interpolate(corners, u, v, fallback))  # control
