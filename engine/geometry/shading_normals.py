@@ -44,6 +44,20 @@ def interpolate(corners: np.ndarray, u: np.ndarray, v: np.ndarray, fallback=None
     the corners cancel (opposite normals: a zero sum) the `fallback` rows (the geometric normal)."""
     w0 = 1.0 - u - v
     n = (w0[:, None] * corners[:, 0] + u[:, None] * corners[:, 1] + v[:, None] * corners[:, 2]).T
+    return _unit_or(n, fallback)
+
+
+def interpolate_rows(rows: np.ndarray, u: np.ndarray, v: np.ndarray, fallback=None) -> np.ndarray:
+    """interpolate with the corner normals as rows (9, M) (corner c's component x in row 3 c + x):
+    the same numbers, from contiguous rows."""
+    w0 = 1.0 - u - v
+    n = w0 * rows[0:3]
+    n += u * rows[3:6]
+    n += v * rows[6:9]
+    return _unit_or(n, fallback)
+
+
+def _unit_or(n, fallback):
     length = np.sqrt(dot(n, n))
     n = n / np.maximum(length, 1e-300)
     if fallback is not None:
@@ -94,6 +108,12 @@ class SmoothNormals:
                 cutoff[i] = cut.take(on)
         return lift, cutoff
 
+    def rows(self) -> np.ndarray:
+        """The corner normals as rows (9, count) (made on first use)."""
+        if getattr(self, "_rows", None) is None:
+            self._rows = np.ascontiguousarray(self.corners.reshape(-1, 9).T)
+        return self._rows
+
     def shading(self, prim, u, v, geometric: np.ndarray) -> np.ndarray:
         """Shading normals (rows) of triangle hits: interpolated on smooth triangles, the
         geometric normal (a copy of its columns) on flat ones."""
@@ -101,8 +121,8 @@ class SmoothNormals:
         row = self.index.take(prim)
         smooth = np.flatnonzero(row >= 0)
         if len(smooth):
-            out[:, smooth] = interpolate(self.corners.take(row.take(smooth), axis=0), u.take(smooth), v.take(smooth),
-                                         out[:, smooth])
+            out[:, smooth] = interpolate_rows(self.rows().take(row.take(smooth), axis=1), u.take(smooth),
+                                              v.take(smooth), out[:, smooth])
         return out
 
 
@@ -110,15 +130,23 @@ def tangent_plane_bound(p, corners, normals, sign: float) -> np.ndarray:
     """The smallest over the corners i of max(sign n_i.(v_i - p) + e_i, 0), e_i = max(0, sign
     n_i.(v_j - v_i) over the other corners j): how far the corners' tangent planes (normals times
     `sign`) let the lift go (Cycles' shadow_ray_smooth_surface_offset)."""
-    bound = None
+    return _plane_bounds(p, corners, normals, (sign,))[0]
+
+
+def _plane_bounds(p, corners, normals, signs) -> list:
+    """tangent_plane_bound for each sign of `signs` (+1.0 and / or -1.0), the dot products made once:
+    sign * d is d or -d exactly, so each bound has the numbers it has alone."""
+    bounds = [None] * len(signs)
     for i, (vi, ni) in enumerate(zip(corners, normals)):
-        edge = 0.0
-        for j, vj in enumerate(corners):
-            if j != i:
-                edge = np.maximum(edge, sign * dot(vj - vi, ni))
-        gi = np.maximum(sign * dot(vi - p, ni) + edge, 0.0)
-        bound = gi if bound is None else np.minimum(bound, gi)
-    return bound
+        edges = [dot(vj - vi, ni) for j, vj in enumerate(corners) if j != i]
+        to_p = dot(vi - p, ni)
+        for k, sign in enumerate(signs):
+            edge = 0.0
+            for d in edges:
+                edge = np.maximum(edge, sign * d)
+            gi = np.maximum(sign * to_p + edge, 0.0)
+            bounds[k] = gi if bounds[k] is None else np.minimum(bounds[k], gi)
+    return bounds
 
 
 def smooth_surface_offset(V, N, u, v, ng) -> np.ndarray:
@@ -128,8 +156,10 @@ def smooth_surface_offset(V, N, u, v, ng) -> np.ndarray:
     envelope).  V, N: (M, 3, 3) corner positions and unit corner normals; ng: geometric normals
     (rows) on the side the shadow ray leaves from."""
     w0, w1, w2 = 1.0 - u - v, u, v                          # weights of corners 0, 1, 2
-    v0, v1, v2 = V[:, 0].T, V[:, 1].T, V[:, 2].T
-    n0, n1, n2 = N[:, 0].T, N[:, 1].T, N[:, 2].T
+    rows_v = np.ascontiguousarray(np.asarray(V).reshape(-1, 9).T)     # rows: contiguous components
+    rows_n = np.ascontiguousarray(np.asarray(N).reshape(-1, 9).T)
+    v0, v1, v2 = rows_v[0:3], rows_v[3:6], rows_v[6:9]
+    n0, n1, n2 = rows_n[0:3], rows_n[3:6], rows_n[6:9]
     p = v0 * w0 + v1 * w1 + v2 * w2
     n = n0 * w0 + n1 * w1 + n2 * w2                          # not normalised (as Cycles)
     a = dot(n2 - n0, v0 - v2)
@@ -139,8 +169,9 @@ def smooth_surface_offset(V, N, u, v, ng) -> np.ndarray:
     front = dot(n, ng) > 0.0
     # Front: the corners' tangent planes bound the lift from above (local linear envelope); back:
     # the same with the normals flipped against the side the ray leaves from.
-    h_front = np.maximum(tangent_plane_bound(p, (v0, v1, v2), (n0, n1, n2), 1.0), h * 0.5)
-    h_back = np.minimum(-tangent_plane_bound(p, (v0, v1, v2), (n0, n1, n2), -1.0), h * 0.5)
+    above, below = _plane_bounds(p, (v0, v1, v2), (n0, n1, n2), (1.0, -1.0))
+    h_front = np.maximum(above, h * 0.5)
+    h_back = np.minimum(-below, h * 0.5)
     return n * np.where(front, h_front, h_back)
 
 

@@ -155,6 +155,33 @@ class HitPoints:
         return self._map(lambda a: a.take(index, axis=a.ndim - 1))
 
 
+def object_points(m, points) -> np.ndarray:
+    """m (k or 1, 3, 4) world-to-object matrices, points rows (3, k) -> the object-space rows: the
+    numbers of einsum("kij,jk->ik", m[:, :, :3], points) + m[:, :, 3].T, without gathering a matrix
+    per point.  That einsum sums the three products in an order set by the points' layout: (0 + 1) + 2
+    when a point's components are apart (rows), (0 + 2) + 1 when they are adjacent (the (k, 3) form's
+    transpose: its unrolled contiguous loop); it starts from 0.0, so "+ 0.0" turns the -0.0 that
+    all-zero terms give here into its 0.0.  Other layouts: the einsum itself."""
+    k = points.shape[1]
+    item = points.itemsize
+    if points.strides[0] == item and k > 0:
+        order = (0, 2, 1)
+    elif points.strides[1] == item or k <= 1:
+        order = (0, 1, 2)
+    else:
+        full = np.broadcast_to(m, (k, 3, 4))
+        return np.einsum("kij,jk->ik", full[:, :, :3], points) + full[:, :, 3].T
+    first, second, third = order
+    out = np.empty((3, k))
+    for i in range(3):
+        np.multiply(m[:, i, first], points[first], out=out[i])
+        out[i] += m[:, i, second] * points[second]
+        out[i] += m[:, i, third] * points[third]
+        out[i] += m[:, i, 3]
+    out += 0.0
+    return out
+
+
 class SceneAttributes:
     """A scene's per-triangle data for the input nodes, gathered once per prepared scene: the corner
     UVs and colour attributes, each triangle's object (its inverse matrix, texture space, location,
@@ -218,6 +245,14 @@ class SceneAttributes:
             self.camera_pixel = (m[:3, 0:1] / np.linalg.norm(m[:3, 0]),
                                  m[:3, 1:2] / np.linalg.norm(m[:3, 1]), -m[:3, 2:3] / np.linalg.norm(m[:3, 2]), size)
 
+    def rows(self, name: str) -> np.ndarray:
+        """The (T, 3, 3) corner array `name` (triangles, tri_tangent) as rows (9, T), corner c's
+        component x in row 3 c + x (made on first use: gathers of rows are cheaper)."""
+        cache = self.__dict__.setdefault("_rows", {})
+        if name not in cache:
+            cache[name] = np.ascontiguousarray(getattr(self, name).reshape(-1, 9).T)
+        return cache[name]
+
     def context(self, kind, prim, b1, b2, points, cycles_version, images, triangle_kind) -> NodeContext:
         """The NodeContext of some hits (kind, prim, b1, b2 (N,); points: a HitPoints or None, e.g. at
         light samples: then positions and normals come from the triangles)."""
@@ -227,6 +262,7 @@ class SceneAttributes:
         b1t, b2t = b1.take(tri), b2.take(tri)
         all_tri = len(tri) == n
         obj = self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(len(tri), np.int64)
+        one_object = len(self.centre) == 1 or (len(obj) > 0 and obj.min() == obj.max())
 
         def on_triangles(values_t, rest=0.0):
             """Rows (k, N) with the triangle hits' values; `rest` elsewhere."""
@@ -236,15 +272,19 @@ class SceneAttributes:
             out[..., tri] = values_t
             return out
 
-        def bary(corners):          # corners (T, 3, 3) -> rows (3, len(tri))
-            c = corners[prim_t]
+        def bary(rows):             # rows (9, T): corner c's component x in row 3 c + x -> rows (3, len(tri))
+            c = rows.take(prim_t, axis=1)
             b0 = 1.0 - b1t - b2t
-            return (b0[:, None] * c[:, 0] + b1t[:, None] * c[:, 1] + b2t[:, None] * c[:, 2]).T
+            out = np.empty((len(tri), 3)).T     # the layout the (k, 3) form of this sum had
+            np.multiply(b0, c[0:3], out=out)
+            out += b1t * c[3:6]
+            out += b2t * c[6:9]
+            return out
 
         def position():
             if points is not None and points.point is not None:
                 return points.point
-            return on_triangles(bary(self.triangles))
+            return on_triangles(bary(self.rows("triangles")))
 
         def geometric():
             c = self.triangles[prim_t]
@@ -269,13 +309,19 @@ class SceneAttributes:
                 return ctx.attr("true_normal")
             return -points.direction
 
+        def per_object(table):
+            """table (O, ...) at the triangle hits' objects: one row when they all have one object
+            (the products with it are the same numbers), else (k, ...)."""
+            return table[obj[0]][None] if one_object else table.take(obj, axis=0)
+
         def obj_pos():
             p = ctx.attr("position")
             if not len(tri):
                 return p
-            m = self.to_object[obj]                                   # (k, 3, 4)
             pt = p[:, tri] if not all_tri else p
-            local = np.einsum("kij,jk->ik", m[:, :, :3], pt) + m[:, :, 3].T
+            local = object_points(per_object(self.to_object), pt)
+            if all_tri:
+                return local
             out = p.copy()
             out[:, tri] = local
             return out
@@ -284,8 +330,11 @@ class SceneAttributes:
             o = ctx.attr("object")
             if not len(tri):
                 return o
+            centre, size = per_object(self.centre).T, per_object(self.size).T
+            if all_tri:
+                return (o - centre) / (2.0 * size) + 0.5
             out = o.copy()
-            out[:, tri] = (o[:, tri] - self.centre[obj].T) / (2.0 * self.size[obj].T) + 0.5
+            out[:, tri] = (o[:, tri] - centre) / (2.0 * size) + 0.5
             return out
 
         def object_normal():
@@ -325,7 +374,7 @@ class SceneAttributes:
                 if getattr(points, field) is not None:
                     attrs[name] = getattr(points, field)
         for name, rows in self.colors.items():
-            attrs[f"color:{name}"] = (lambda rows=rows: on_triangles(bary(rows.T.reshape(-1, 3, 3))))
+            attrs[f"color:{name}"] = (lambda rows=rows: on_triangles(bary(rows)))
         def tangent_sign():
             if self.tri_sign is None or not len(tri):
                 return np.zeros(n)
@@ -341,7 +390,7 @@ class SceneAttributes:
             return out / np.maximum(np.sqrt((out * out).sum(axis=0)), 1e-300)
 
         attrs["tangent"] = lambda: (np.zeros((3, n)) if self.tri_tangent is None or not len(tri)
-                                    else on_triangles(bary(self.tri_tangent)))
+                                    else on_triangles(bary(self.rows("tri_tangent"))))
         attrs["tangent_sign"] = tangent_sign
         attrs["has_tangent"] = lambda: ((ctx.attr("tangent_sign") != 0.0)
                                         & ((ctx.attr("tangent") ** 2).sum(axis=0) > 0.0))

@@ -197,14 +197,30 @@ def bump_shadowing(smooth, n, wi, diffuse, is_eval, cycles_version=(5, 0)):
     tan^2(n, Ns) / 8 at cos(Ns, wi) (Conty Estevez et al.); Blender 3.x: diffuse lobes only, Chiang
     et al.'s g = cos(Ns, wi) / (cos(n, wi) cos(Ns, n)) smoothed as -g^3 + g^2 + g."""
     same = (smooth == n).all(axis=0)
+    if tuple(cycles_version) >= (4, 0):
+        # Only where the normal changed (per point: the same numbers as over every point).
+        out = np.ones(len(same))
+        changed = np.flatnonzero(~same)
+        if len(changed) == len(same):
+            out[:] = _bump_term_4x(smooth, n, wi, diffuse, is_eval)
+        elif len(changed):
+            diffuse = np.asarray(diffuse)
+            out[changed] = _bump_term_4x(smooth.take(changed, axis=1), n.take(changed, axis=1),
+                                         wi.take(changed, axis=1),
+                                         diffuse.take(changed) if diffuse.ndim else diffuse, is_eval)
+        return out
     cos_si, cos_sn, cos_ni = _dot(smooth, wi), _dot(smooth, n), _dot(n, wi)
-    if tuple(cycles_version) < (4, 0):
-        ng = np.where(cos_ni < 0.0, -smooth, smooth)
-        den = cos_ni * _dot(ng, n)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            g = np.where(den != 0.0, _dot(ng, wi) / np.where(den != 0.0, den, 1.0), 0.0)
-        term = np.where(g >= 1.0, 1.0, np.where(g < 0.0, 0.0, -g ** 3 + g * g + g))
-        return np.where(same | ~diffuse, 1.0, term)
+    ng = np.where(cos_ni < 0.0, -smooth, smooth)
+    den = cos_ni * _dot(ng, n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.where(den != 0.0, _dot(ng, wi) / np.where(den != 0.0, den, 1.0), 0.0)
+    term = np.where(g >= 1.0, 1.0, np.where(g < 0.0, 0.0, -g ** 3 + g * g + g))
+    return np.where(same | ~diffuse, 1.0, term)
+
+
+def _bump_term_4x(smooth, n, wi, diffuse, is_eval):
+    """bump_shadowing's term under Blender 4.x / 5.0 at points whose normal n is not the smooth one."""
+    cos_si, cos_sn, cos_ni = _dot(smooth, wi), _dot(smooth, n), _dot(n, wi)
     reject = (cos_si * cos_sn * cos_ni < 0.0) & (is_eval | diffuse)
     cos_i, cos_d = np.abs(cos_si), np.abs(cos_sn)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -214,5 +230,4 @@ def bump_shadowing(smooth, n, wi, diffuse, is_eval, cycles_version=(5, 0)):
         lam = 0.5 * (np.sqrt(1.0 + alpha2 * (1.0 - c2) / c2) - 1.0)
         soft = 1.0 / (1.0 + lam)
     soft = np.where((cos_d >= 1.0) | (cos_i >= 1.0), 1.0, np.where(cos_i < 1e-6, 0.0, soft))
-    term = np.where(reject, 0.0, np.where(diffuse, soft, 1.0))
-    return np.where(same, 1.0, term)
+    return np.where(reject, 0.0, np.where(diffuse, soft, 1.0))

@@ -119,7 +119,7 @@ def box_room(smooth_ball: bool, ball_material=0):
 
 def test_flat_scene_never_interpolates(monkeypatch):
     calls = []
-    for name in ("interpolate", "ensure_valid_reflection"):
+    for name in ("interpolate", "interpolate_rows", "ensure_valid_reflection"):
         original = getattr(engine.geometry.shading_normals, name)
         monkeypatch.setattr(engine.geometry.shading_normals, name, lambda *a, _o=original, _n=name: calls.append(_n) or _o(*a))
     monkeypatch.setattr("engine.materials.specular.ensure_valid_reflection",
@@ -130,7 +130,7 @@ def test_flat_scene_never_interpolates(monkeypatch):
     smooth = render(box_room(True, 2), RenderSettings(samples=2, parallelism="threads"), **SILENT)
     assert smooth.stats["effects"]["smooth_normals"] is True
     assert "132 smooth-shaded triangles in 'Ball'" in smooth.stats["effects_reason"]["smooth_normals"]
-    assert "interpolate" in calls and "reflect" in calls
+    assert {"interpolate", "interpolate_rows"} & set(calls) and "reflect" in calls
 
 
 # -- scene files and bad input --------------------------------------------------------------------
@@ -335,3 +335,44 @@ def test_normal_pass_is_the_shading_normal():
     assert np.allclose(r.passes["normal"], axes.T @ np.array([np.sin(t), 0.0, np.cos(t)]), atol=1e-6)
     assert not np.allclose(axes.T @ np.array([0.0, 0.0, 1.0]), axes.T @ np.array([np.sin(t), 0.0, np.cos(t)]),
                            atol=0.1)                                     # control: the flat answer differs
+
+
+def test_terminator_lift_has_the_numbers_of_the_two_bounds_made_apart():
+    """smooth_surface_offset makes the dot products of both tangent-plane bounds once (sign * d is
+    exact): the lift is bit for bit the form with the bounds made apart on the corner views."""
+    from engine.geometry.shading_normals import tangent_plane_bound
+    rng = np.random.default_rng(6)
+    m = 300
+    V = rng.normal(size=(m, 3, 3))
+    N = rng.normal(size=(m, 3, 3))
+    N /= np.linalg.norm(N, axis=2)[:, :, None]
+    u, v = rng.random(m) * 0.5, rng.random(m) * 0.5
+    ng = rng.normal(size=(3, m))
+    w0, w1, w2 = 1.0 - u - v, u, v
+    v0, v1, v2 = V[:, 0].T, V[:, 1].T, V[:, 2].T
+    n0, n1, n2 = N[:, 0].T, N[:, 1].T, N[:, 2].T
+    p = v0 * w0 + v1 * w1 + v2 * w2
+    n = n0 * w0 + n1 * w1 + n2 * w2
+    a, b, c = dot(n2 - n0, v0 - v2), dot(n2 - n1, v1 - v2), dot(n1 - n0, v1 - v0)
+    h = a * w0 * (w0 - 1.0) + (a + b + c) * w0 * w1 + b * w1 * (w1 - 1.0)
+    front = np.maximum(tangent_plane_bound(p, (v0, v1, v2), (n0, n1, n2), 1.0), h * 0.5)
+    back = np.minimum(-tangent_plane_bound(p, (v0, v1, v2), (n0, n1, n2), -1.0), h * 0.5)
+    expected = n * np.where(dot(n, ng) > 0.0, front, back)
+    lift = smooth_surface_offset(V, N, u, v, ng)
+    assert np.array_equal(lift, expected)
+    assert not np.array_equal(smooth_surface_offset(V, N, u, np.nextafter(v, 1.0), ng), expected)   # control
+
+
+def test_phong_normals_from_corner_rows_are_the_same_numbers():
+    from engine.geometry.shading_normals import interpolate_rows
+    rng = np.random.default_rng(7)
+    corners = rng.normal(size=(500, 3, 3))
+    corners[:5, 1] = -corners[:5, 0]                                    # some cancel: the fallback
+    corners[:5, 2] = 0.0
+    u, v = rng.random(500) * 0.5, rng.random(500) * 0.5
+    u[:5], v[:5] = 0.5, 0.0
+    fallback = rng.normal(size=(3, 500))
+    rows_ = np.ascontiguousarray(corners.reshape(-1, 9).T)
+    for fb in (None, fallback):
+        assert np.array_equal(interpolate_rows(rows_, u, v, fb), interpolate(corners, u, v, fb))
+    assert not np.array_equal(interpolate_rows(rows_, v, u, fallback), interpolate(corners, u, v, fallback))  # control
