@@ -201,6 +201,11 @@ class PathTracer:
         self.seen_lamps = lights.seen if plan.enabled.get("seen_lamps") else None
         self.light_of_kind = {TRIANGLE: lights.triangle_light, SPHERE: lights.sphere_light,
                               QUAD: lights.quad_light, LIGHT: lights.area_light_light}
+        # The same as one table for the compiled emission: light_of_kind[k][prim] = light_table[kind_base[k] + prim]
+        tables = [np.asarray(self.light_of_kind.get(k, np.zeros(0)), np.int64) for k in range(max(self.light_of_kind) + 1)]
+        self.light_table = np.concatenate(tables)
+        self.light_kind_base = np.array([-1 if k not in self.light_of_kind else sum(len(t) for t in tables[:k])
+                                         for k in range(len(tables))], np.int64)
         light_paths = LightPaths(settings, plan, self.bsdfs)
         self.light_paths = light_paths if light_paths.on else None       # Cycles' Light Paths options
         # Filter Glossy on mirrors and smooth glass: their hits after blurry bounces scatter as GGX
@@ -482,7 +487,9 @@ class PathTracer:
     def emission(self, p, surf, hits, surfaces, lookup=None):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
         the camera or a delta bounce or without shadow rays; after a non-delta bounce 0 under
-        `report`/`solid-angle`, the power-heuristic weight under `mis`."""
+        `report`/`solid-angle`, the power-heuristic weight under `mis`.  Compiled (without Light
+        Paths options, caustic photons and textures): the weights and the sum in
+        engine/integrators/wavefront_jit.py (emitter_lights, add_emission), the same numbers."""
         mat = surf.material
         lit = np.flatnonzero(self.mats.is_emissive.take(mat[:surfaces]))
         parts = [(lit, self.mats.emission.take(mat.take(lit), axis=1))] if len(lit) else []
@@ -498,11 +505,33 @@ class PathTracer:
                 idx = np.arange(a, b)[front]
                 if len(idx):
                     parts.append((idx, lamps.radiance.take(prim[front], axis=1)))
+        jit = self.wavefront_jit
+        if jit is not None and p.caustic is None and self.light_paths is None and self.textures is None:
+            for idx, le in parts:
+                self.add_emission(jit, p, surf, hits, idx, le)
+            return
         for idx, le in parts:
             weight = self.emission_weight(p, surf, hits, idx)
             if p.caustic is not None:
                 weight = np.where(self.photons_own(p, idx), 0.0, weight)
             p.radiance[:, idx] += self.clamped(p.beta.take(idx, axis=1) * le * weight, p.bounce.take(idx))
+
+    def add_emission(self, jit, p, surf, hits, idx, le):
+        """emission's sum of le (3, len(idx)) into the paths idx weighted by emission_weight, in
+        wavefront_jit's loops: the lights' pdfs are the one call between them."""
+        mode, places, p_light = 0, np.zeros(0, np.int64), np.zeros(0)
+        if self.use_nee and not self.mis:
+            mode = 1
+        elif self.use_nee:
+            mode = 2
+            places, light = jit.emitter_lights(idx, p.prev_delta, hits.kind, hits.prim, self.light_table,
+                                               self.light_kind_base)
+            if len(places):
+                h = idx.take(places)
+                p_light = self.lights.pdf(p.prev_p.take(h, axis=1), p.prev_n.take(h, axis=1), light,
+                                          surf.point.take(h, axis=1))
+        jit.add_emission(p.radiance, p.beta, idx, le, p.prev_delta, p.prev_bsdf_pdf, places, p_light, mode,
+                         self.settings.shadow_rays)
 
     def emission_weight(self, p, surf, hits, idx):
         delta = p.prev_delta.take(idx)

@@ -9,7 +9,10 @@
 * the direct light of a Lambertian BSDF with one shadow ray per hit, flat shading and no Normal
   input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
   the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
-  (`lambert_light`), one loop each instead of some twenty NumPy passes.
+  (`lambert_light`), one loop each instead of some twenty NumPy passes;
+* the emission a ray reaches (`PathTracer.emission` and `emission_weight` without Light Paths options,
+  caustic photons or textures): the emitters' light numbers (`emitter_lights`) and the MIS-weighted
+  sum into the radiance (`add_emission`), two loops instead of some thirty NumPy calls on a few rays.
 
 The float64 operations are those of the NumPy path in the same order, so the same bits
 (tests/integrators/test_wavefront_jit.py).  Imported only through engine/core/backend.py's choice
@@ -212,6 +215,78 @@ def roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr
     return keep, beta_out
 
 
+@jit
+def _emitter_lights(idx, prev_delta, kind, prim, light_table, kind_base):
+    """(places j of idx whose path's last bounce was not a delta and whose primitive is a light the
+    sampler has, their lights): emission_weight's sel, light, known."""
+    m = idx.shape[0]
+    places = np.empty(m, np.int64)
+    lights = np.empty(m, np.int64)
+    count = 0
+    for j in range(m):
+        i = idx[j]
+        if prev_delta[i]:
+            continue
+        k = kind[i]
+        light = light_table[kind_base[k] + prim[i]] if kind_base[k] >= 0 else -1
+        if light >= 0:
+            places[count], lights[count] = j, light
+            count += 1
+    return places[:count], lights[:count]
+
+
+def emitter_lights(idx, prev_delta, kind, prim, light_table, kind_base):
+    """emission_weight's non-delta hits idx on emitters the light sampler has: (their places in idx,
+    their lights); the light of (kind, prim) is light_table[kind_base[kind] + prim] (kind_base -1: none)."""
+    return _emitter_lights(np.ascontiguousarray(idx, np.int64), prev_delta, np.ascontiguousarray(kind, np.int8),
+                           np.ascontiguousarray(prim, np.int64), light_table, kind_base)
+
+
+@jit
+def _add_emission(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light):
+    """radiance[:, idx] += (beta[:, idx] le) weight, weight per path: mode 0 one, 1 its delta flag (0 or 1),
+    2 one after a delta bounce else the power heuristic's of the BSDF sample against n_light light samples
+    with p_light at `places` (0 elsewhere)."""
+    m = idx.shape[0]
+    w = np.ones(m)
+    if mode == 1:
+        for j in range(m):
+            w[j] = 1.0 if prev_delta[idx[j]] else 0.0
+    elif mode == 2:
+        p_l = np.zeros(m)
+        for q in range(places.shape[0]):
+            p_l[places[q]] = p_light[q]
+        for j in range(m):
+            i = idx[j]
+            if prev_delta[i]:
+                continue
+            p_f = bsdf_pdf[i]                   # path_tracer.power_heuristic(1, p_f, n_light, p_l)
+            r = (n_light * p_l[j]) / (1.0 * p_f)
+            h = 1.0 / (1.0 + r * r)
+            if not p_f > 0.0:
+                h = 0.0
+            elif h != h:                         # np.nan_to_num (h is never infinite)
+                h = 0.0
+            w[j] = h
+    for j in range(m):
+        i = idx[j]
+        for c in range(3):
+            radiance[c, i] += beta[c, i] * le[c, j] * w[j]
+
+
+def add_emission(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light):
+    """PathTracer.emission's sum of the emission le (3, len(idx)) the paths idx reach, into the rows
+    radiance in place, weighted as emission_weight (mode: 0 weight 1, 1 the delta flag, 2 MIS with the
+    lights' pdfs p_light at `places` from emitter_lights); bsdf_pdf read only in mode 2."""
+    _add_emission(radiance, np.ascontiguousarray(beta, np.float64), np.ascontiguousarray(idx, np.int64),
+                  _rows(le, len(idx)), prev_delta, NO_PDF if bsdf_pdf is None else bsdf_pdf,
+                  np.ascontiguousarray(places, np.int64), np.ascontiguousarray(p_light, np.float64), int(mode),
+                  float(n_light))
+
+
+NO_PDF = np.zeros(0)
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     from types import SimpleNamespace
@@ -225,3 +300,9 @@ def warm_up() -> None:
     for ng in (None, rows):
         scatter_tail(flags, np.zeros(3, np.bool_), np.zeros(3, np.int8), rows, rows, rows, ng)
     roulette(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3)
+    idx, delta = np.array([0, 2], np.int64), np.array([True, False, False])
+    places, lights = emitter_lights(idx, delta, np.ones(3, np.int8), np.zeros(3, np.int64), np.zeros(1, np.int64),
+                                    np.array([-1, 0, -1, -1, -1], np.int64))
+    for mode in (0, 1, 2):
+        add_emission(np.zeros((3, 3)), rows, idx, rows[:, :2], delta, np.ones(3), places, np.ones(len(places)),
+                     mode, 1)

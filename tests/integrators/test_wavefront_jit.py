@@ -91,7 +91,8 @@ def test_a_render_with_a_direct_light_slightly_off_differs():
     def off(*args):
         return wavefront_jit.lambert_light(*args) * (1.0 + 2.0 ** -20)
     wrong = SimpleNamespace(next_rays=wavefront_jit.next_rays, light_tests=wavefront_jit.light_tests, lambert_light=off,
-                            scatter_tail=wavefront_jit.scatter_tail, roulette=wavefront_jit.roulette)
+                            scatter_tail=wavefront_jit.scatter_tail, roulette=wavefront_jit.roulette,
+                            emitter_lights=wavefront_jit.emitter_lights, add_emission=wavefront_jit.add_emission)
     assert not np.array_equal(render_with("cornell", None, 16), render_with("cornell", wrong, 16))
 
 
@@ -214,3 +215,48 @@ def test_cosine_pdf_is_the_lambertians_pdf_of_the_cosine_the_kernel_has():
     pdf = Lambertian.__new__(Lambertian).pdf(si, w)
     assert np.array_equal(pdf[kept], cos_x[kept] * (1.0 / np.pi))
     assert not np.array_equal(np.nextafter(pdf, 1.0)[kept], cos_x[kept] * (1.0 / np.pi))
+
+
+@pytest.mark.parametrize("scene,estimator", [("cornell", "mis"), ("cornell", "report"), ("many_lights", "mis"),
+                                             ("near_lamp", "mis")])
+def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
+    """PathTracer.emission on deep copies of the calls of a real render, with NumPy's weights and sum and
+    with this module's (emitter_lights, add_emission): the same radiance bit for bit; controls: a MIS
+    weight or an emission 2^-40 off, or every weight 1, differ."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    calls, original = [], path_tracer.PathTracer.emission
+
+    def recording(self, *args):
+        if len(calls) < 6:
+            calls.append((self, copy.deepcopy(args)))
+        return original(self, *args)
+    monkeypatch.setattr(path_tracer.PathTracer, "emission", recording)
+    api.render(BUILTIN_SCENES[scene]((16, 16)), RenderSettings(samples=4, threads=1, backend="numpy",
+                                                               estimator=estimator), log=lambda m: None)
+    monkeypatch.setattr(path_tracer.PathTracer, "emission", original)
+    assert len(calls) >= 4
+
+    def radiance(tracer, args, jit):
+        p, *rest = copy.deepcopy(args)
+        tracer.wavefront_jit = jit
+        original(tracer, p, *rest)
+        return p.radiance
+
+    def mis_off(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n):
+        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light * (1.0 + 2.0 ** -40), mode, n)
+
+    def le_off(radiance_, beta, idx, le, *rest):
+        wavefront_jit.add_emission(radiance_, beta, idx, le * (1.0 + 2.0 ** -40), *rest)
+
+    def weight_one(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n):
+        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light, 0, n)
+    controls = [SimpleNamespace(emitter_lights=wavefront_jit.emitter_lights, add_emission=f)
+                for f in (mis_off, le_off, weight_one)]
+    differs = [False] * len(controls)
+    for tracer, args in calls:
+        reference, compiled = radiance(tracer, args, None), radiance(tracer, args, wavefront_jit)
+        assert compiled.dtype == np.float64 and np.array_equal(reference, compiled, equal_nan=True)
+        for k, control in enumerate(controls):
+            differs[k] |= not np.array_equal(reference, radiance(tracer, args, control), equal_nan=True)
+    assert differs[1] and differs[2] and (differs[0] or estimator != "mis")    # p_light is read under MIS only
