@@ -158,7 +158,16 @@ class MicrofacetReflection(BSDF):
     # -- per hit ------------------------------------------------------------------------------
     def alphas(self, si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
         """(alpha_x, alpha_y) (N,): the material's, or from the roughness texture at textured hits;
-        the material's own roughness (energy compensation, layer weights: `table_roughness`)."""
+        the material's own roughness (energy compensation, layer weights: `table_roughness`).  Hits of
+        a span read a texture or node program once for the sample, the evals and the compensation
+        (ShadingPoint.memo); hits of no span (tests may set a field between calls) each time."""
+        if textured_mask(si, self.roughness_input) is None:
+            return self.ax.take(si.material), self.ay.take(si.material)
+        if si._shared or si._source is not None:
+            return si.memo((self, "alphas"), self._alphas_read)
+        return self._alphas_read(si)
+
+    def _alphas_read(self, si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
         mat = si.material
         ax, ay = self.ax.take(mat), self.ay.take(mat)
         textured = textured_mask(si, self.roughness_input)

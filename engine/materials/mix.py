@@ -35,6 +35,12 @@ DEAD = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION     # the flags of a hit whose w
 
 
 
+def _ids_in(ids: np.ndarray) -> np.ndarray:
+    """np.unique of non-negative integer ids (material ids, table rows): the same sorted values,
+    counted instead of sorted."""
+    return np.flatnonzero(np.bincount(ids)) if len(ids) else np.empty(0, dtype=np.int64)
+
+
 def factor_value(factor, si: ShadingPoint) -> np.ndarray:
     """The factor (engine/scene/model.py MixFactor) at the hits `si`, clamped to [0, 1] as a Mix
     Shader's Fac (constants: as given), inverted for a Mix Shader's first input."""
@@ -95,7 +101,7 @@ class MixBSDF(BSDF):
         """Every (hit, leaf) pair of the hits, hit-major: (hit (P,), row (P,), weight (P,),
         probability (P,), total weight x albedo per hit (N,), the leaves as ShadingPoint of the pairs)."""
         hit, leaf, row, weight = [], [], [], []
-        for m in np.unique(si.material):
+        for m in _ids_in(si.material):
             idx = np.flatnonzero(si.material == m)
             at = si.take(idx) if len(idx) != len(si) else si
             for leaf_id, r, factors in self.closures[int(m)]:
@@ -120,6 +126,32 @@ class MixBSDF(BSDF):
             prob = np.where(total.take(hit) > 0.0, rate / total.take(hit), 0.0)
         return hit, row, weight, prob, total, leaves
 
+    def _pairs_at(self, si: ShadingPoint):
+        """_pairs of the hits `si`, computed once per span (ShadingPoint.memo_at: the light samples'
+        eval and the sample of a bounce read the same factors, texture lookups and leaves) and
+        gathered for a take of it: the taken hits' pairs in the same order, so every per-hit sum is
+        the same.  The leaves' medium stacks are copied from si's now, as a take of si would.  Hits of
+        no span (tests, which may set a field of them between calls) compute their own each time."""
+        if not (si._shared or si._source is not None):
+            return self._pairs(si)
+        (hit, row, weight, prob, total, leaves, start, count), index = si.memo_at((self, "pairs"), self._span_pairs)
+        if index is not None:
+            c = count.take(index)
+            hit = np.repeat(np.arange(len(index)), c)
+            pairs = np.repeat(start.take(index) - (np.cumsum(c) - c), c) + np.arange(len(hit))
+            row, weight, prob, leaves = row.take(pairs), weight.take(pairs), prob.take(pairs), leaves.take(pairs)
+            total = total.take(index)
+        if si.media is not None:
+            leaves.media = type(si.media)(si.media.media.take(hit, axis=0), si.media.depth.take(hit))
+        return hit, row, weight, prob, total, leaves
+
+    def _span_pairs(self, si: ShadingPoint):
+        """_pairs and, per hit, where its pairs start and how many it has (not per-hit arrays: read
+        through _pairs_at only)."""
+        hit, row, weight, prob, total, leaves = self._pairs(si)
+        count = np.bincount(hit, minlength=len(si))
+        return hit, row, weight, prob, total, leaves, np.cumsum(count) - count, count
+
     def _sum(self, hit, rows_of_pairs, n):
         """Per-hit sums of (3, P) rows."""
         return np.stack([np.bincount(hit, weights=r, minlength=n) for r in rows_of_pairs])
@@ -128,7 +160,7 @@ class MixBSDF(BSDF):
         """(f cos (3, P), pdf (P,)) of the leaves at wi (per pair); `only`: the pairs to evaluate."""
         f_cos, pdf = np.zeros(wi_pairs.shape), np.zeros(wi_pairs.shape[1])
         chosen = np.arange(len(row)) if only is None else only
-        for r in np.unique(row.take(chosen)):
+        for r in _ids_in(row.take(chosen)):
             sel = chosen[row.take(chosen) == r]
             if not self.table.non_delta[r]:
                 continue                                    # delta leaves: no given direction meets them
@@ -138,7 +170,7 @@ class MixBSDF(BSDF):
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = len(si)
-        hit, row, weight, prob, _, leaves = self._pairs(si)
+        hit, row, weight, prob, _, leaves = self._pairs_at(si)
         f_cos, pdf = self._eval_pairs(row, leaves, wi.take(hit, axis=1))
         return self._sum(hit, f_cos * weight, n), np.bincount(hit, weights=pdf * prob, minlength=n)
 
@@ -147,7 +179,7 @@ class MixBSDF(BSDF):
 
     def sample(self, si: ShadingPoint, u_lobe: np.ndarray, u) -> BSDFSample:
         n = len(si)
-        hit, row, weight, prob, total, leaves = self._pairs(si)
+        hit, row, weight, prob, total, leaves = self._pairs_at(si)
         # Pick one pair per hit by u_lobe over its probabilities; u_lobe rescaled for the leaf.
         start = np.searchsorted(hit, np.arange(n))
         stop = np.append(start[1:], len(hit))
@@ -163,7 +195,7 @@ class MixBSDF(BSDF):
         pdf, flags = np.zeros(n), np.full(n, DEAD, dtype=np.int8)
         wi[:] = si.n
         delta = np.zeros(n, dtype=bool)
-        for r in np.unique(row.take(chosen)):
+        for r in _ids_in(row.take(chosen)):
             mine = np.flatnonzero((row.take(chosen) == r) & (p_c > 0.0))     # hits that picked a row-r leaf
             if not len(mine):
                 continue

@@ -336,10 +336,11 @@ class PrincipledV2(BSDF):
     def use_backend(self, backends: dict) -> None:
         """The eval (the base and the sheen and coat over it) and the base's sample compiled
         (engine/materials/principled_jit.py, the same numbers) when the render runs the Principled
-        effects on numba and no material has a transmission or a rough diffuse (those keep the
-        NumPy lobes)."""
+        effects on numba and no material has a rough diffuse (that keeps the NumPy lobes).  The
+        transmission closure stays NumPy's (principled_glass.py), added after the compiled lobes
+        as _layered_mixture adds it last (`_add_glass`)."""
         super().use_backend(backends)
-        fusable = not self.any_transmission and not bool((self.diffuse.roughness > 0.0).any())
+        fusable = not bool((self.diffuse.roughness > 0.0).any())
         if fusable and any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.principled_jit"]):
             from . import principled_jit
             self.compiled = principled_jit
@@ -351,8 +352,10 @@ class PrincipledV2(BSDF):
         the microfacet frame x, y, n and alphas ax, ay the metallic and specular lobes share (both
         are set up from the material's roughness, anisotropy, tangent and rotation); the metal's F0
         and F82 b, the specular colour, eta and F0; both compensations (1 where none); the diffuse
-        normal nd and colour; the lobe weights and probabilities.  None where a diffuse roughness
-        texture may make the diffuse lobe rough (the NumPy lobes then)."""
+        normal nd and colour; the lobe weights and probabilities; where any material transmits,
+        `glass`: the transmission closure's weight w (3, N), probability p (N,) and where it is set
+        up, on (N,) (its lobe is NumPy's, `_add_glass`).  None where a diffuse roughness texture may
+        make the diffuse lobe rough (the NumPy lobes then)."""
         if textured_mask(si, self.diffuse.roughness_input) is not None:
             return None
         metal, specular, _ = self._views(si)
@@ -387,19 +390,25 @@ class PrincipledV2(BSDF):
             f0_spec=rows(f0_from_ior(eta)), comp_spec=rows(compensation(self.specular, specular)),
             nd=rows(si.n), colour=rows(si.color), w_metal=rows(w_metal), w_spec=rows(w_spec),
             w_diffuse=rows(w_diffuse), on_metal=on_metal, on_spec=on_spec, on_diffuse=on_diffuse, prob=rows(prob),
-            base_row=0, any_metal=bool(on_metal.any()), layered=layers is not None)
+            base_row=0, any_metal=bool(on_metal.any()), layered=layers is not None, glass=None)
+        if self.any_transmission:
+            hits.glass = SimpleNamespace(w=weights[5], p=prob[6], on=weights[5].max(axis=0) > 0.0)
         if layers is not None:
             hits.base_row = 3
-            coat_view = layers.coat_view
-            cx, cy, cn = self.coat._frame_at(coat_view)
-            cax, cay, _ = self.coat._alphas(coat_view)
-            sx, sy = self.sheen.frame(si)
+            coat_on, sheen_on = weights[1].max(axis=0) > 0.0, weights[0].max(axis=0) > 0.0
+            if coat_on.any():
+                coat_view = layers.coat_view
+                cx, cy, cn = self.coat._frame_at(coat_view)
+                cax, cay, _ = self.coat._alphas(coat_view)
+                comp_coat = compensation(self.coat, coat_view)
+            else:                   # no coat here: the kernels read none of its values (only where on)
+                cx, cy, cn, cax, cay, comp_coat = hits.x, hits.y, hits.n, hits.ax, hits.ay, hits.comp_metal
+            sx, sy = self.sheen.frame(si) if sheen_on.any() else (hits.x, hits.y)
             hits.coat = SimpleNamespace(x=rows(cx), y=rows(cy), n=rows(cn), ax=rows(cax), ay=rows(cay),
-                                        w=rows(weights[1]), on=weights[1].max(axis=0) > 0.0,
-                                        eta=rows(self.coat.ior.take(si.material)),
-                                        comp=rows(compensation(self.coat, coat_view)))
+                                        w=rows(weights[1]), on=coat_on, eta=rows(self.coat.ior.take(si.material)),
+                                        comp=rows(comp_coat))
             hits.sheen = SimpleNamespace(x=rows(sx), y=rows(sy), n=rows(si.n), a=rows(layers.sheen_a),
-                                         b=rows(layers.sheen_b), w=rows(weights[0]), on=weights[0].max(axis=0) > 0.0)
+                                         b=rows(layers.sheen_b), w=rows(weights[0]), on=sheen_on)
         return hits
 
     # -- the layers at the hits ---------------------------------------------------------------
@@ -519,7 +528,7 @@ class PrincipledV2(BSDF):
         alpha = self.alpha.take(rows)
         w = np.tile(alpha, (3, 1))
         sheen_w = self.sheen_weight.take(rows)
-        a, b, r = self.sheen.params(si, self.sheen_roughness.take(rows))
+        a, b, r = self._sheen_params(si, sheen_w)
         r = np.where(sheen_w > 0.0, r, 0.0)
         sheen = sheen_w * self.sheen_tint.take(rows, axis=1) * r * w
         w = w * np.clip(1.0 - (sheen_w * self.sheen_tint.take(rows, axis=1) * r).max(axis=0), 0.0, 1.0)
@@ -530,11 +539,14 @@ class PrincipledV2(BSDF):
         coat = coat_on * w
         coat_view = si.recolour(np.ones((3, n)))
         ior = self.coat_ior.take(rows)
-        f0 = f0_from_ior(ior)
-        s_coat = _read(self.s_coat, rows, mu)
-        a_coat = self._darkening(self.coat, coat_view, mu)[0] * (f0 + (1.0 - f0) * s_coat)
-        a_coat = np.where(coat_on > 0.0, a_coat, 0.0)
-        w = w * np.clip(1.0 - coat_on * a_coat, 0.0, 1.0)
+        if np.any(coat_on > 0.0):
+            f0 = f0_from_ior(ior)
+            s_coat = _read(self.s_coat, rows, mu)
+            a_coat = self._darkening(self.coat, coat_view, mu)[0] * (f0 + (1.0 - f0) * s_coat)
+            a_coat = np.where(coat_on > 0.0, a_coat, 0.0)
+            w = w * np.clip(1.0 - coat_on * a_coat, 0.0, 1.0)
+        else:                                       # no coat here: a_coat 0, w x clip(1 - 0 x 0) = w
+            a_coat = np.zeros(n)
         tinted = self.coat_tinted.take(rows)
         if tinted.any():
             cos_t = np.sqrt(np.maximum(1.0 - (1.0 - mu * mu) / (ior * ior), 0.0))
@@ -543,6 +555,19 @@ class PrincipledV2(BSDF):
             w = np.where(tinted, w * (1.0 + coat_w * (absorbed - 1.0)), w)
         return SimpleNamespace(through=1.0 - alpha, sheen=sheen, sheen_a=a, sheen_b=b, coat=coat, base=w,
                                sheen_albedo=r, coat_albedo=a_coat, coat_view=coat_view)
+
+    def _sheen_params(self, si: ShadingPoint, sheen_w: np.ndarray):
+        """The sheen's (a, b, R) (N,) each where sheen_w > 0, 0 elsewhere (nothing reads them there:
+        layer_weights sets R to 0, and the sheen's weight and probability are 0)."""
+        on = sheen_w > 0.0
+        rough = self.sheen_roughness.take(si.material)
+        if on.all():
+            return self.sheen.params(si, rough)
+        a, b, r = np.zeros(len(si)), np.zeros(len(si)), np.zeros(len(si))
+        idx = np.flatnonzero(on)
+        if len(idx):
+            a[idx], b[idx], r[idx] = self.sheen.params(si.take(idx), rough.take(idx))
+        return a, b, r
 
     def _layered_lobes(self, si: ShadingPoint):
         """(layers, closure weights (3, N) of sheen, coat, metal, specular, diffuse (and glass where
@@ -558,7 +583,7 @@ class PrincipledV2(BSDF):
             m = self.metallic.take(si.material)
             w_glass = self.glass.transmission.take(si.material) * np.where(1.0 - m > WEIGHT_CUTOFF, 1.0 - m, 0.0)
             weights.append(w_glass * base)
-            sample = np.vstack([sample, w_glass * base.mean(axis=0) * self.glass.sample_weight(si)])
+            sample = np.vstack([sample, w_glass * base.mean(axis=0) * self._glass_sample_weight(si, w_glass)])
         total = sample.sum(axis=0)
         alpha = 1.0 - layers.through
         opaque = np.where(total > 0.0, alpha, 0.0)
@@ -597,6 +622,18 @@ class PrincipledV2(BSDF):
             pdf[idx] += p.take(idx) * pdf_l
         return f_cos, pdf
 
+    def _glass_sample_weight(self, si: ShadingPoint, w_glass: np.ndarray) -> np.ndarray:
+        """The transmission closure's albedo estimate (N,) where w_glass > 0, 0 elsewhere: there
+        w_glass (0) x the base's mean x it is 0 either way (the estimate is finite and at least 0)."""
+        on = w_glass > 0.0
+        if on.all():
+            return self.glass.sample_weight(si)
+        out = np.zeros(len(si))
+        idx = np.flatnonzero(on)
+        if len(idx):
+            out[idx] = self.glass.sample_weight(si.take(idx))
+        return out
+
     def _lobes_at(self, si: ShadingPoint):
         """_layered_lobes or lobe_weights at the hits (they depend on the hits, not on wi): once per hit for
         its eval and its sample (ShadingPoint.memo)."""
@@ -611,7 +648,9 @@ class PrincipledV2(BSDF):
         failed = np.zeros(n, dtype=bool)            # samples their own lobe rejected: value 0
         if hits is not None:                        # the pick and the GGX directions compiled
             cdf = None
-            wi, flags, choice = self.compiled.layered_pick(hits, u_lobe, u[0], u[1])
+            wi, flags, choice, ggx_failed = self.compiled.layered_pick(hits, u_lobe, u[0], u[1])
+            if self.any_transmission:
+                failed = ggx_failed
         else:
             cdf = np.cumsum(prob, axis=0)
             choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
@@ -629,15 +668,24 @@ class PrincipledV2(BSDF):
         if hits is not None:                        # the diffuse picks' cosine directions (NumPy's sin, cos)
             idx = np.flatnonzero(choice == 5)
             if len(idx):
-                wi[:, idx] = cosine_directions(u[0].take(idx), u[1].take(idx), si.n.take(idx, axis=1))
+                n_d = si.n.take(idx, axis=1)
+                d = cosine_directions(u[0].take(idx), u[1].take(idx), n_d)
+                wi[:, idx] = d
+                if self.any_transmission:           # the Lambertian's pdf (oren_nayar.py _pdf) not positive
+                    failed[idx] = np.maximum(dot(d, n_d), 0.0) * (1.0 / np.pi) <= 0.0
+            glass = np.flatnonzero(choice == 6)
+            if len(glass):                          # np.cumsum's row 5 at those hits: the same sums
+                passed = self._sample_glass(si, glass, u_lobe, u, np.cumsum(prob.take(glass, axis=1), axis=0)[5],
+                                            prob, weights, wi, flags, failed)
         else:
             views = (layers.coat_view,) + self._views(si)
             _sample_lobes((self.coat, self.metal, self.specular, self.diffuse), views, choice, 2, u, wi, flags,
                           failed if self.any_transmission else None)
-            passed = self._sample_glass(si, np.flatnonzero(choice == 6), u_lobe, u, cdf, prob, weights, wi, flags,
-                                        failed)
+            glass = np.flatnonzero(choice == 6)
+            passed = self._sample_glass(si, glass, u_lobe, u, cdf[5].take(glass), prob, weights, wi, flags, failed)
         if hits is not None:
             f_cos, pdf = self.compiled.base_eval(hits, None, wi)
+            self._add_glass(si, hits, None, wi, f_cos, pdf)
         else:
             f_cos, pdf = self._layered_mixture(si, wi, layers, weights, prob)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -655,16 +703,16 @@ class PrincipledV2(BSDF):
             value[:, failed], pdf[failed] = 0.0, 0.0
         return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
 
-    def _sample_glass(self, si, idx, u_lobe, u, cdf, prob, weights, wi, flags, failed):
+    def _sample_glass(self, si, idx, u_lobe, u, below, prob, weights, wi, flags, failed):
         """Directions of the hits idx that picked the transmission closure (into wi, flags, failed), with
-        the closure-choice uniform rescaled to pick reflection or refraction; the refracted paths
-        cross the surface on their medium stacks.  Returns (indices, weight) of the delta
-        pass-throughs, or None."""
+        the closure-choice uniform rescaled to pick reflection or refraction (below: the cdf of the
+        lobes before it at idx); the refracted paths cross the surface on their medium stacks.
+        Returns (indices, weight) of the delta pass-throughs, or None."""
         if not len(idx):
             return None
         p = prob[6].take(idx)
         with np.errstate(divide="ignore", invalid="ignore"):
-            u_fresnel = np.clip(np.nan_to_num((np.asarray(u_lobe).take(idx) - cdf[5].take(idx)) / p), 0.0, 1.0 - 1e-12)
+            u_fresnel = np.clip(np.nan_to_num((np.asarray(u_lobe).take(idx) - below) / p), 0.0, 1.0 - 1e-12)
         at = si.take(idx)
         d, weight, _, sampled, refracted, entering = self.glass.sample(at, u_fresnel, u[0].take(idx), u[1].take(idx))
         wi[:, idx] = d
@@ -677,12 +725,32 @@ class PrincipledV2(BSDF):
         delta = np.flatnonzero((sampled & BSDFFlags.DELTA) != 0)
         return (idx.take(delta), weight.take(delta, axis=1)) if len(delta) else None
 
+    def _add_glass(self, si: ShadingPoint, hits, index, wi: np.ndarray, f_cos: np.ndarray, pdf: np.ndarray):
+        """The transmission closure's f cos and pdf added into the compiled lobes' sums (in place) at
+        the pairs (hit index[k], wi[:, k]) whose material transmits, as _layered_mixture adds it:
+        last, on a take of the hits where it is set up."""
+        if hits.glass is None:
+            return
+        on = hits.glass.on if index is None else hits.glass.on.take(index)
+        k = np.flatnonzero(on)
+        if not len(k):
+            return
+        at = k if index is None else index.take(k)
+        if len(k) == len(si):                       # every pair: no gathers, the same numbers
+            f_l, pdf_l = self.glass.eval(si, wi)
+        else:
+            f_l, pdf_l = self.glass.eval(si.take(k), wi.take(k, axis=1))
+        f_cos[:, k] += hits.glass.w.take(at, axis=1) * f_l
+        pdf[k] += hits.glass.p.take(at) * pdf_l
+
     # -- the protocol -------------------------------------------------------------------------
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.compiled is not None:
             hits, index = si.memo_at((self, "fused"), self._fused_hits)
             if hits is not None:
-                return self.compiled.base_eval(hits, index, wi)
+                f_cos, pdf = self.compiled.base_eval(hits, index, wi)
+                self._add_glass(si, hits, index, wi, f_cos, pdf)
+                return f_cos, pdf
         if self.any_layers:
             layers, weights, prob = self._lobes_at(si)
             return self._layered_mixture(si, wi, layers, weights, prob)

@@ -164,10 +164,13 @@ def _pick(wo, x, y, n, ax, ay, prob, u_lobe, u1, u2, wi_out, flags_out):
 
 
 @jit
-def _layered_pick(wo, x, y, n, ax, ay, cx, cy, cn, cax, cay, prob, u_lobe, u1, u2, wi_out, flags_out, choice_out):
+def _layered_pick(wo, x, y, n, ax, ay, cx, cy, cn, cax, cay, prob, u_lobe, u1, u2, wi_out, flags_out, choice_out,
+                  failed_out):
     """The lobe pick of principled.py _layered_sample (0 pass-through, 1 sheen, 2 coat, 3 metal,
-    4 specular, 5 diffuse: u_lobe against the running sum of prob, as np.cumsum) and the GGX
-    directions of the coat (its frame cx, cy, cn) and of the base's microfacet lobes."""
+    4 specular, 5 diffuse, 6 the transmission closure where prob has its row: u_lobe against the
+    running sum of prob, as np.cumsum) and the GGX directions of the coat (its frame cx, cy, cn)
+    and of the base's microfacet lobes; failed_out: where such a GGX sample's pdf is not positive
+    (principled.py _sample_lobes' `failed`), False elsewhere."""
     rows = prob.shape[0]
     for i in range(wo.shape[1]):
         c = 0.0
@@ -177,15 +180,17 @@ def _layered_pick(wo, x, y, n, ax, ay, cx, cy, cn, cax, cay, prob, u_lobe, u1, u
             if u_lobe[i] >= c:
                 choice += 1
         choice_out[i] = choice
+        failed_out[i] = False
         if choice == 2:
-            d0, d1, d2, _, _, _ = sample_hit(wo, cx, cy, cn, i, cax[i], cay[i], u1[i], u2[i])
+            d0, d1, d2, _, pdf, _ = sample_hit(wo, cx, cy, cn, i, cax[i], cay[i], u1[i], u2[i])
         elif choice == 3 or choice == 4:
-            d0, d1, d2, _, _, _ = sample_hit(wo, x, y, n, i, ax[i], ay[i], u1[i], u2[i])
+            d0, d1, d2, _, pdf, _ = sample_hit(wo, x, y, n, i, ax[i], ay[i], u1[i], u2[i])
         else:
             flags_out[i] = DIFFUSE
             continue
         wi_out[0, i], wi_out[1, i], wi_out[2, i] = d0, d1, d2
         flags_out[i] = GLOSSY
+        failed_out[i] = pdf <= 0.0
 
 
 def base_eval(hits, index, wi):
@@ -229,18 +234,20 @@ def base_pick(hits, u_lobe, u1, u2):
 
 def layered_pick(hits, u_lobe, u1, u2):
     """(wi (3, N) with the GGX directions of the coat, metal and specular picks, flags (N,) int8 (those
-    glossy, the rest diffuse: principled.py sets the pass-through's), the choices (N,)) at the hits
-    themselves (hits.layered)."""
+    glossy, the rest diffuse: principled.py sets the pass-through's, the sheen's and the
+    transmission's), the choices (N,), where a GGX pick's pdf is not positive (N,) bool) at the
+    hits themselves (hits.layered)."""
     count = hits.wo.shape[1]
     wi = np.empty((3, count))
     flags = np.empty(count, dtype=np.int8)
     choice = np.empty(count, dtype=np.int64)
+    failed = np.empty(count, dtype=np.bool_)
     u_lobe, u1, u2 = (np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64), (count,)))
                       for a in (u_lobe, u1, u2))
     c = hits.coat
     _layered_pick(hits.wo, hits.x, hits.y, hits.n, hits.ax, hits.ay, c.x, c.y, c.n, c.ax, c.ay, hits.prob, u_lobe,
-                  u1, u2, wi, flags, choice)
-    return wi, flags, choice
+                  u1, u2, wi, flags, choice, failed)
+    return wi, flags, choice, failed
 
 
 def warm_up() -> None:

@@ -8,12 +8,15 @@ textured material without its texture (the unlinked value) renders another image
 anisotropic plate whose corner tangents are the y axis against a material whose fixed tangent is y.
 """
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from engine import RenderSettings, render
 from engine.core.errors import SceneError
+from engine.materials.glossy import MicrofacetReflection
+from engine.materials.protocol import ShadingPoint
 from engine.materials.textures import per_hit
 from engine.scene.files import load_scene, save_scene
 from engine.scene.model import (DIFFUSE, GLASS, GLOSSY, PRINCIPLED, Camera, Material, Principled, PrincipledV1, Quad,
@@ -164,3 +167,54 @@ def test_per_hit_without_lookups_is_the_material_value():
     si = ShadingPoint(z, z, z, z, z, np.array([1, 0, 1]))
     values = np.array([0.25, 0.75])
     assert np.array_equal(per_hit(si, values, "roughness"), values.take(si.material))
+
+
+class CountingLookup:
+    """A roughness texture's values at hits (what HitLookup.input gives), counting its reads."""
+    def __init__(self, values, reads, textured):
+        self.values, self.reads = np.asarray(values, dtype=np.float64), reads
+        self.textures = SimpleNamespace(textures=SimpleNamespace(has_input={"roughness": textured}))
+
+    def take(self, index):
+        return CountingLookup(self.values.take(index), self.reads, self.textures.textures.has_input["roughness"])
+
+    def __getitem__(self, span):
+        return CountingLookup(self.values[span], self.reads, self.textures.textures.has_input["roughness"])
+
+    def input(self, name, values, material):
+        self.reads.append(len(self.values))
+        return np.where(self.textures.textures.has_input[name].take(material), self.values, values)
+
+
+def test_a_span_reads_a_roughness_texture_once():
+    """The alphas of a span's hits from a roughness texture: read once for the span (its takes gather
+    them), the same numbers as hits of no span, which read it at every call.  Control: a second span
+    reads it again."""
+    materials = [Material("G", GLOSSY, (0.9, 0.9, 0.9), roughness=0.5, input_textures={"roughness": SLOT}),
+                 Material("H", GLOSSY, (0.9, 0.9, 0.9), roughness=0.3, anisotropy=0.4)]
+    lobe = MicrofacetReflection(materials, RenderSettings())
+    n, rng = 40, np.random.default_rng(3)
+    up = np.tile([[0.0], [0.0], [1.0]], (1, n))
+    material, rough = rng.integers(0, 2, n), rng.random(n)
+    textured = np.array([True, False])
+
+    def make(reads):
+        si = ShadingPoint(up.copy(), up.copy(), up.copy(), up.copy(), np.ones((3, n)), material.copy())
+        si.lookup = CountingLookup(rough, reads, textured)
+        return si
+
+    alone_reads, span_reads = [], []
+    alone = make(alone_reads)
+    expected = lobe.alphas(alone)
+    idx = np.sort(rng.choice(n, n // 2, replace=False))
+    taken = lobe.alphas(alone.take(idx))
+    assert len(alone_reads) == 2
+    span = make(span_reads)[0:n]
+    got_taken = lobe.alphas(span.take(idx))
+    got = lobe.alphas(span)
+    assert span_reads == [n]
+    for a, b in zip(expected + taken, got + got_taken):
+        assert np.array_equal(a, b)
+    assert not np.array_equal(expected[0], lobe.ax.take(material))      # the texture is read
+    lobe.alphas(make(span_reads)[0:n])
+    assert span_reads == [n, n]

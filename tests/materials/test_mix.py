@@ -361,3 +361,42 @@ def test_the_effect_plan_names_the_mixed_lobes():
     delta_only = plan_effects(textured_floor_scene(mixed(leaf(Material("M", MIRROR)), leaf(Material("G", GLASS)))),
                               RenderSettings())
     assert not delta_only.enabled["direct_light"] and delta_only.enabled["glass"]
+
+
+def test_a_span_reads_its_pairs_once_for_the_light_samples_and_the_sample():
+    """The pairs of a span (factors, leaves) computed once and gathered for a take of
+    it (the light samples' eval) give the same eval and sample, medium stacks included, as pairs
+    computed on those hits alone.  Control: the take reads the span's pairs (scaled ones show)."""
+    materials = [MIXES[k] for k in ("diffuse+glossy", "diffuse+glass", "fresnel diffuse+glossy", "layer weight",
+                                    "glossy+mirror")]
+    bsdf = MaterialTable(materials, RenderSettings(fresnel="exact")).bsdfs[KIND_CODE[MIX]]
+    n, rng = 2000, np.random.default_rng(23)
+    normal = rng.normal(size=(3, n))
+    normal /= np.linalg.norm(normal, axis=0)
+    wo = rng.normal(size=(3, n))
+    wo /= np.linalg.norm(wo, axis=0)
+    facing = np.where((wo * normal).sum(axis=0) < 0.0, -normal, normal)
+    material = rng.integers(0, len(materials), n)
+    wi = rng.normal(size=(3, n))
+    wi /= np.linalg.norm(wi, axis=0)
+    u_lobe, u = rng.random(n), (rng.random(n), rng.random(n))
+    idx = np.sort(rng.choice(n, n // 2, replace=False))
+
+    def make():
+        si = ShadingPoint(wo.copy(), facing.copy(), facing.copy(), normal.copy(), np.ones((3, n)), material.copy())
+        si.media = MediumStack.empty(n)
+        return si
+
+    alone = make()
+    f_a, p_a = bsdf.eval(alone.take(idx), wi.take(idx, axis=1))    # hits of no span: their own pairs
+    s_a = bsdf.sample(alone, u_lobe, u)
+    span = make()[0:n]
+    f_b, p_b = bsdf.eval(span.take(idx), wi.take(idx, axis=1))     # the span's pairs, gathered
+    s_b = bsdf.sample(span, u_lobe, u)                               # the same pairs again
+    assert (p_a > 0).sum() > n // 4 and np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+    for x, y in ((s_a.wi, s_b.wi), (s_a.value, s_b.value), (s_a.pdf, s_b.pdf), (s_a.flags, s_b.flags),
+                 (alone.media.media, span.media.media), (alone.media.depth, span.media.depth)):
+        assert np.array_equal(x, y)
+    assert (s_a.flags & BSDFFlags.TRANSMISSION).any()
+    span.memo_at((bsdf, "pairs"), None)[0][2][:] *= 1.5             # control: the weights of the span's pairs
+    assert not np.array_equal(bsdf.eval(span.take(idx), wi.take(idx, axis=1))[0], f_b)

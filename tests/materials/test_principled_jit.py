@@ -5,7 +5,7 @@ IOR level 0 (no specular lobe) to 1, tints, compensation on and off, colours abo
 alpha floor and Reflective Caustics off, directions below the surface and at grazing.  Control: one
 ulp of alpha is told apart.  The same with sheens and coats (tinted, of other IORs and roughnesses)
 and alpha below 1 over those bases (controls: one ulp of the sheen's LTC a, of the coat's alpha);
-a transmission keeps the NumPy lobes."""
+the transmission closure (NumPy's lobe) added to them; a rough diffuse keeps the NumPy lobes."""
 import numpy as np
 
 from engine.core.settings import RenderSettings
@@ -151,10 +151,61 @@ def test_layers_are_bit_identical():
         assert not np.array_equal(other.eval(make_hits(), wi)[0], f_a), lobe_change
 
 
-def test_transmission_keeps_the_numpy_lobes():
+def _transmitting_materials():
+    """The layered materials and Principled glasses beside them: clear and rough, half transmitting
+    over a metal or under a coat, index-matched (the delta pass-through), a rough diffuse of 0."""
+    out = _layered_materials()
+    for i, (t, rough, metallic, coat, ior) in enumerate([(1.0, 0.0, 0.0, 0.0, 1.45), (1.0, 0.3, 0.0, 0.0, 1.5),
+                                                         (0.5, 0.2, 0.3, 0.0, 1.33), (0.7, 0.5, 0.0, 0.6, 1.6),
+                                                         (1.0, 0.4, 0.0, 0.0, 1.0)]):
+        out.append(Material(f"t{i}", kind="principled", color=(0.9, 0.7, 0.5 + 0.1 * i), roughness=rough, ior=ior,
+                            multiscatter=i != 2,
+                            principled=Principled(metallic=metallic, transmission_weight=t, coat_weight=coat,
+                                                  specular_tint=(1.0, 0.9, 0.95))))
+    return out
+
+
+def test_transmission_is_bit_identical():
+    """The transmission closure (NumPy's lobe) added to the compiled lobes: eval (on the span and on
+    a take) and sample, the glass picks and the failed samples of every lobe, the same bits as
+    backend=numpy.  Control: one ulp of the glass's alpha is told apart."""
     require_compiled()
-    glass = Material("g", kind="principled", principled=Principled(transmission_weight=0.5))
-    bsdf = PrincipledV2(_materials() + [glass], RenderSettings())
+    materials = _transmitting_materials()
+    numpy_bsdf, compiled = _pair(materials)
+    assert numpy_bsdf.compiled is None and compiled.compiled.__name__ == TWIN and compiled.any_transmission
+    count = 3000
+    for extras in (False, True):
+        def make_hits():
+            return _hits(np.random.default_rng(17), len(materials), count, extras)
+        rng = np.random.default_rng(19)
+        wi = rng.normal(size=(3, count))
+        wi /= np.linalg.norm(wi, axis=0)
+        f_a, p_a = numpy_bsdf.eval(make_hits(), wi)
+        f_b, p_b = compiled.eval(make_hits(), wi)
+        assert (p_a > 0).sum() > 1200 and np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+        idx = np.sort(rng.integers(0, count, count // 2))
+        f_a, p_a = numpy_bsdf.eval(make_hits().take(idx), wi.take(idx, axis=1))
+        for filled in (True, False):
+            hits = make_hits()
+            if filled:
+                hits.memo((compiled, "fused"), compiled._fused_hits)
+            f_b, p_b = compiled.eval(hits.take(idx), wi.take(idx, axis=1))
+            assert np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+        u_lobe, u = rng.random(count), (rng.random(count), rng.random(count))
+        a, b = numpy_bsdf.sample(make_hits(), u_lobe, u), compiled.sample(make_hits(), u_lobe, u)
+        assert (a.pdf > 0).sum() > 1200 and len(np.unique(a.flags)) >= 5
+        assert ((a.pdf == 0.0) & (a.flags != 0)).sum() > 10          # failed samples of some lobe
+        for x, y in ((a.wi, b.wi), (a.value, b.value), (a.pdf, b.pdf), (a.flags, b.flags)):
+            assert np.array_equal(x, y)
+    other = _pair(materials)[1]
+    other.glass.alpha = np.nextafter(other.glass.alpha, 1.0)
+    assert not np.array_equal(other.eval(make_hits(), wi)[0], compiled.eval(make_hits(), wi)[0])
+
+
+def test_a_rough_diffuse_keeps_the_numpy_lobes():
+    require_compiled()
+    rough = Material("r", kind="principled", diffuse_roughness=0.5, principled=Principled())
+    bsdf = PrincipledV2(_materials() + [rough], RenderSettings())
     bsdf.use_backend(NUMBA)
     assert bsdf.compiled is None and bsdf.metal.compiled is not None
     coated = Material("c", kind="principled", principled=Principled(coat_weight=0.5))
