@@ -67,7 +67,7 @@ def clamp_contribution(contribution: np.ndarray, limit: np.ndarray) -> np.ndarra
     (limit inf: unchanged)."""
     total = np.abs(contribution).sum(axis=0)
     bound = CLAMP_SCALE * limit
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):    # (a tiny total: where() keeps 1)
         scale = np.where(total > bound, bound / total, 1.0)
     return contribution * scale
 

@@ -53,6 +53,18 @@ def test_clamp_scales_the_rgb_sum_down_to_three_times_the_clamp():
     np.testing.assert_array_equal(out[:, 1:], c[:, 1:])             # 3 <= 6, and no limit
 
 
+def test_clamp_of_a_tiny_contribution_keeps_it_and_warns_nothing():
+    """A denormal |R|+|G|+|B| makes bound / total overflow in the branch where() drops: no
+    RuntimeWarning on the user's console (the workers printed one per render)."""
+    import warnings
+    c = np.array([[5e-324, 1.0], [0.0, 0.0], [0.0, 0.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = lp.clamp_contribution(c, np.array([1e10, 1e10]))
+    np.testing.assert_array_equal(out, c)
+    with pytest.warns(RuntimeWarning), np.errstate(over="warn"):       # the control: that division warns
+        np.array([3e10]) / np.array([5e-324])
+
 def test_blur_alpha_is_cycles_widening():
     np.testing.assert_allclose(lp.blur_alpha(np.array([np.inf, 0.36, 2.0]), 1.0), [0.0, 0.4, 0.0])
     np.testing.assert_allclose(lp.blur_alpha(np.array([0.36]), 0.5), [np.sqrt(1 - 0.72) / 2])
