@@ -2,7 +2,8 @@
 
 A compiled twin whose warm_up misses a type a render passes (a float32 array, a non-contiguous
 view, a new keyword) is compiled by numba at the first call of that render, in every worker
-process: seconds in the way of the first tile, the cost issue 26 caps at 1 s after the first run.
+process: seconds in the way of the first tile (docs/performance.md "Compiled kernels": at most 1 s
+of compile or cache load after the first run).
 This script loads the kernels as a worker does (engine/core/backend.py load_kernels), counts each
 dispatcher's compiled signatures, renders the built-in scenes and every sample_blends/*.blend
 (exported by bpy as F12 exports it, the file's own TNCG15 MC settings, backend numba, in this

@@ -1,6 +1,6 @@
 """scripts/check_warm_up.py: backend.warm_up compiles every kernel, for every type, that the renders
 of the built-in scenes and the sample files call (else each worker compiles it in the first
-render's way: issue 26 caps that at 1 s after the first run); its control (a kernel called with a
+render's way: docs/performance.md "Compiled kernels"); its control (a kernel called with a
 type no render passes) is reported."""
 import os
 import subprocess
