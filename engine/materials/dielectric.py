@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.backend import JIT_MODULES, NUMBA
 from ..core.vec import dot, normalize
 from . import glass_albedo
 from .dielectric_lobe import PASSED, REFLECTED, REFRACTED, MicrofacetDielectric, dielectric_alpha, refraction_eta
@@ -77,6 +78,17 @@ class RoughDielectric(BSDF):
         # then, is approximated by 4.x's compensation of the height-correlated lobe).
         self.separable = np.full(len(materials), tuple(cycles_version) < HEIGHT_CORRELATED_SINCE) & ~self.compensate
         self.lobe = MicrofacetDielectric(reflection=self.reflection, transmission=True)
+
+    def use_backend(self, backends: dict) -> None:
+        """The GGX lobe's sample and eval compiled (engine/materials/dielectric_jit.py, the same
+        numbers) when the render runs the rough glass, refraction or Filter Glossy's blurred glass
+        on numba."""
+        if any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.dielectric_jit"]):
+            from . import dielectric_jit
+            self.lobe.compiled = dielectric_jit
+        else:
+            self.lobe.compiled = None
+        super().use_backend(backends)
 
     def _rough(self, si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
         """(roughness, alpha) (N,) at the hits: the material's, a roughness texture's where it has one."""

@@ -39,8 +39,14 @@ class MicrofacetDielectric:
     (isotropic), eta = n_far / n_near and distribution (beckmann: bool per hit, else GGX).
     reflection / transmission: which lobes exist (glass: both; Cycles' Refraction BSDF: transmission)."""
 
+    compiled = None     # engine/materials/dielectric_jit.py when the render runs the lobe on numba
+
     def __init__(self, reflection: bool = True, transmission: bool = True):
         self.reflection, self.transmission = reflection, transmission
+
+    def _compiles(self, beckmann, fresnel, refraction_side=True) -> bool:
+        """Whether the compiled twin computes these hits: all GGX, the dielectric Fresnel."""
+        return self.compiled is not None and fresnel is None and refraction_side and not beckmann.any()
 
     def split(self, cos_h: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(R, T): the weights of the reflected and refracted lobe at a microfacet with wo.h = cos_h."""
@@ -94,6 +100,8 @@ class MicrofacetDielectric:
         function of wo.h giving the lobes' weights (R, T), each (N,) or coloured (3, N); coloured,
         the reflection is picked with probability mean(R) / mean(R + T) (Cycles' pdf_reflect) and
         the weight is (3, N)."""
+        if self._compiles(beckmann, fresnel, refraction_side):          # the lines below, the same numbers
+            return self.compiled.sample(wo, alpha, eta, u_lobe, u1, u2, separable, self.reflection, self.transmission)
         h = np.empty_like(wo)
         for dist, mask in ((GGX, ~beckmann), (BECKMANN, beckmann)):
             sel = np.flatnonzero(mask)
@@ -124,6 +132,8 @@ class MicrofacetDielectric:
     def eval(self, wo, wi, alpha, eta, beckmann, separable=None, fresnel=None):
         """(f cos / tint, pdf) per hit for local directions wo (above) and wi (either side);
         fresnel as in `sample` (coloured: f cos is (3, N))."""
+        if self._compiles(beckmann, fresnel):                           # the lines below, the same numbers
+            return self.compiled.eval(wo, wi, alpha, eta, separable, self.reflection, self.transmission)
         refracted = wi[2] < 0.0
         half = np.where(refracted, -(wo + eta * wi), wo + wi)
         length = np.sqrt(dot(half, half))

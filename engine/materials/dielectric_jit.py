@@ -1,0 +1,195 @@
+"""The rough dielectric lobe (engine/materials/dielectric_lobe.py MicrofacetDielectric: its sample
+and eval at GGX hits with the dielectric Fresnel, in the local frame) compiled with numba: one loop
+over the hits and no temporaries.  Every hit repeats the NumPy path's float64 operations in the same
+order (engine/materials/microfacet.py ggx_sample_vndf, ggx_d, ggx_lambda; engine/materials/glossy.py
+fresnel_dielectric; the lobe's split, _jacobian, _g2 and the nan_to_num of its results), with only
++, -, *, /, sqrt, cos and sin, as engine/materials/microfacet_jit.py does (whose scalar helpers it
+uses): the same numbers bit for bit (tests/materials/test_dielectric_jit.py).  The Beckmann lobe,
+coloured Fresnel weights (the Principled BSDF's glass closure) and the albedo tables' sampling stay
+NumPy's.  Imported only through the lobe's backend choice (it imports numba)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .microfacet_jit import _clip01, _d, _finite, _lambda, _max0, _normalized, jit
+
+
+@jit
+def _fresnel(cos, eta):
+    """fresnel_dielectric of one cosine (1 under total internal reflection; NaN -> 1, clipped)."""
+    g2 = eta * eta - 1.0 + cos * cos
+    if g2 < 0.0:
+        return 1.0
+    g = np.sqrt(_max0(g2))
+    a = (g - cos) / (g + cos)
+    b = (cos * (g + cos) - 1.0) / (cos * (g - cos) + 1.0)
+    f = 0.5 * a * a * (1.0 + b * b)
+    if f != f:
+        return 1.0
+    return _clip01(f)
+
+
+@jit
+def _split(cos_h, eta, reflection, transmission):
+    """MicrofacetDielectric.split: (R, T)."""
+    f = _fresnel(cos_h, eta)
+    if not transmission:
+        return f, 0.0
+    if not reflection:
+        return 0.0, (0.0 if f >= 1.0 else 1.0)
+    return f, 1.0 - f
+
+
+@jit
+def _jacobian(cos_ho, cos_hi, eta, refracted):
+    if refracted:
+        s = cos_hi + cos_ho / eta
+        return abs(cos_ho * cos_hi) / (s * s)
+    return 0.25
+
+
+@jit
+def _g2(lo, li, separable):
+    if separable:
+        return 1.0 / ((1.0 + lo) * (1.0 + li))
+    return 1.0 / (1.0 + lo + li)
+
+
+@jit
+def _vndf(o0, o1, o2, a, u1, u2):
+    """ggx_sample_vndf of one direction (isotropic alpha a)."""
+    v0, v1, v2 = _normalized(a * o0, a * o1, o2)
+    lensq = v0 * v0 + v1 * v1
+    if lensq > 1e-14:
+        inv = 1.0 / np.sqrt(lensq)
+        t0, t1, t2 = -v1 * inv, v0 * inv, 0.0
+    else:
+        t0, t1, t2 = 1.0, 0.0, 0.0
+    s0, s1, s2 = v1 * t2 - v2 * t1, v2 * t0 - v0 * t2, v0 * t1 - v1 * t0
+    r = np.sqrt(u1)
+    phi = 2.0 * np.pi * u2
+    p1, p2 = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + v2)
+    p2 = (1.0 - s) * np.sqrt(_max0(1.0 - p1 * p1)) + s * p2
+    pz = np.sqrt(_max0(1.0 - p1 * p1 - p2 * p2))
+    m0 = p1 * t0 + p2 * s0 + pz * v0
+    m1 = p1 * t1 + p2 * s1 + pz * v1
+    m2 = p1 * t2 + p2 * s2 + pz * v2
+    return _normalized(a * m0, a * m1, _max0(m2))
+
+
+@jit
+def _sample(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, transmission,
+            wi_out, weight_out, pdf_out, refracted_out, ok_out):
+    for i in range(wo.shape[1]):
+        o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
+        a, e = alpha[i], eta[i]
+        h0, h1, h2 = _vndf(o0, o1, o2, a, u1[i], u2[i])
+        cos_ho = _clip01(o0 * h0 + o1 * h1 + o2 * h2)
+        r, t = _split(cos_ho, e, reflection, transmission)
+        total = r + t
+        p_reflect = r / total if total > 0.0 else 0.0
+        cos_t = np.sqrt(_max0(1.0 - (1.0 - cos_ho * cos_ho) / (e * e)))
+        refracted = u_lobe[i] >= p_reflect
+        if refracted:
+            k = cos_ho / e - cos_t
+            w0, w1, w2 = -o0 / e + k * h0, -o1 / e + k * h1, -o2 / e + k * h2
+        else:
+            c = 2.0 * cos_ho
+            w0, w1, w2 = c * h0 - o0, c * h1 - o1, c * h2 - o2
+        w0, w1, w2 = _normalized(w0, w1, w2)
+        ok = (o2 > 0.0) and (total > 0.0) and ((w2 < 0.0) if refracted else (w2 > 0.0))
+        d = _d(h0, h1, h2, a, a)
+        lo = _lambda(o0, o1, o2, a, a)
+        li = _lambda(w0, w1, abs(w2), a, a)
+        cos_hi = w0 * h0 + w1 * h1 + w2 * h2
+        lobe = 1.0 - p_reflect if refracted else p_reflect
+        if ok:
+            common = d / o2 * _jacobian(cos_ho, cos_hi, e, refracted)
+            pdf = lobe * common / (1.0 + lo)
+            weight = (t if refracted else r) / lobe * (1.0 + lo) * _g2(lo, li, separable[i])
+        else:
+            pdf, weight = 0.0, 0.0
+        wi_out[0, i], wi_out[1, i], wi_out[2, i] = w0, w1, w2
+        weight_out[i], pdf_out[i] = _finite(weight), _finite(pdf)
+        refracted_out[i] = refracted
+        ok_out[i] = ok and pdf > 0.0
+
+
+@jit
+def _eval(wo, wi, alpha, eta, separable, reflection, transmission, f_out, pdf_out):
+    for i in range(wo.shape[1]):
+        o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
+        i0, i1, i2 = wi[0, i], wi[1, i], wi[2, i]
+        a, e = alpha[i], eta[i]
+        refracted = i2 < 0.0
+        if refracted:
+            f0, f1, f2 = -(o0 + e * i0), -(o1 + e * i1), -(o2 + e * i2)
+        else:
+            f0, f1, f2 = o0 + i0, o1 + i1, o2 + i2
+        length = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+        scale = length if length > 0.0 else 1.0
+        h0, h1, h2 = f0 / scale, f1 / scale, f2 / scale
+        if h2 < 0.0:
+            h0, h1, h2 = h0 * -1.0, h1 * -1.0, h2 * -1.0
+        cos_ho = o0 * h0 + o1 * h1 + o2 * h2
+        cos_hi = i0 * h0 + i1 * h1 + i2 * h2
+        ok = ((o2 > 0.0) and (i2 != 0.0) and (length > 0.0) and (cos_ho > 0.0)
+              and ((cos_hi < 0.0) if refracted else (cos_hi > 0.0)))
+        if transmission and not reflection:
+            ok = ok and refracted
+        if not transmission:
+            ok = ok and not refracted
+        if not ok:
+            f_out[i], pdf_out[i] = 0.0, 0.0
+            continue
+        r, t = _split(_clip01(cos_ho), e, reflection, transmission)
+        total = r + t
+        d = _d(h0, h1, h2, a, a)
+        lo = _lambda(o0, o1, o2, a, a)
+        li = _lambda(i0, i1, abs(i2), a, a)
+        p_reflect = r / total if total > 0.0 else 0.0
+        lobe = 1.0 - p_reflect if refracted else p_reflect
+        common = d / o2 * _jacobian(cos_ho, cos_hi, e, refracted)
+        pdf_out[i] = _finite(lobe * common / (1.0 + lo))
+        f_out[i] = _finite((t if refracted else r) * common * _g2(lo, li, separable[i]))
+
+
+def _rows(a):
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _flags(separable, count):
+    if separable is None:
+        return np.zeros(count, dtype=np.bool_)
+    return np.require(np.broadcast_to(np.asarray(separable, dtype=np.bool_), (count,)), requirements=("C", "W"))
+
+
+def sample(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, transmission):
+    """(wi, weight, pdf, refracted, ok) of MicrofacetDielectric.sample at GGX hits, fresnel None."""
+    count = wo.shape[1]
+    wi = np.empty((3, count))
+    weight, pdf = np.empty(count), np.empty(count)
+    refracted, ok = np.empty(count, dtype=np.bool_), np.empty(count, dtype=np.bool_)
+    _sample(_rows(wo), _rows(alpha), _rows(eta), _rows(u_lobe), _rows(u1), _rows(u2), _flags(separable, count),
+            bool(reflection), bool(transmission), wi, weight, pdf, refracted, ok)
+    return wi, weight, pdf, refracted, ok
+
+
+def eval(wo, wi, alpha, eta, separable, reflection, transmission):
+    """(f cos / tint, pdf) of MicrofacetDielectric.eval at GGX hits, fresnel None."""
+    count = wo.shape[1]
+    f_cos, pdf = np.empty(count), np.empty(count)
+    _eval(_rows(wo), _rows(wi), _rows(alpha), _rows(eta), _flags(separable, count), bool(reflection),
+          bool(transmission), f_cos, pdf)
+    return f_cos, pdf
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels for the types a render passes."""
+    wo = np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]])
+    wi = np.array([[0.1, 0.3], [-0.2, 0.0], [0.9, -0.95]])
+    a, e, u = np.array([0.25, 0.5]), np.array([1.5, 1.0 / 1.5]), np.array([0.3, 0.7])
+    for reflection in (True, False):
+        sample(wo, a, e, u, u, u[::-1], None, reflection, True)
+        eval(wo, wi, a, e, np.array([True, False]), reflection, True)

@@ -1,0 +1,138 @@
+"""The compiled rough dielectric lobe (engine/materials/dielectric_jit.py) against the NumPy path of
+engine/materials/dielectric_lobe.py MicrofacetDielectric: sample and eval bit for bit over alpha
+from the floor to 1, entering and leaving (eta > 1 and < 1, total internal reflection), separable
+and height-correlated G2, glass and the Refraction BSDF, normal and grazing incidence, directions
+on both sides; the glass BSDFs' use_backend reaches the lobe."""
+import numpy as np
+
+from engine.core.settings import RenderSettings
+from engine.materials.dielectric import RoughGlass, RoughRefraction
+from engine.materials.dielectric_lobe import MicrofacetDielectric
+from engine.scene.model import Material
+from tests.backend_capture import require_compiled
+
+
+def _inputs(rng, count):
+    wo = rng.normal(size=(3, count))
+    wo[2] = np.abs(wo[2])
+    wo /= np.linalg.norm(wo, axis=0)
+    wo[:, :40] = [[0.0], [0.0], [1.0]]                          # normal incidence
+    wo[:, 40:80] = [[1.0], [0.0], [0.0]]                        # grazing
+    wo[:, 80:100] = -wo[:, 80:100]                              # below: invalid
+    wi = rng.normal(size=(3, count))
+    wi /= np.linalg.norm(wi, axis=0)                            # half below: refraction
+    alpha = np.clip(rng.random(count) ** 2, 1e-4, 1.0)
+    eta = np.where(rng.random(count) < 0.5, 1.45, 1.0 / 1.45) * (1.0 + 0.3 * rng.random(count))
+    separable = rng.random(count) < 0.3
+    u = rng.random((3, count))
+    return wo, wi, alpha, eta, separable, u
+
+
+def _pair(reflection):
+    from engine.materials import dielectric_jit
+    numpy_lobe = MicrofacetDielectric(reflection=reflection)
+    compiled = MicrofacetDielectric(reflection=reflection)
+    compiled.compiled = dielectric_jit
+    return numpy_lobe, compiled
+
+
+def test_sample_and_eval_are_bit_identical():
+    require_compiled()
+    rng = np.random.default_rng(11)
+    wo, wi, alpha, eta, separable, u = _inputs(rng, 2000)
+    no_beckmann = np.zeros(2000, bool)
+    for reflection in (True, False):
+        numpy_lobe, compiled = _pair(reflection)
+        for sep in (None, separable):
+            a = numpy_lobe.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2], separable=sep)
+            b = compiled.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2], separable=sep)
+            assert a[4].sum() > 600 and a[3][a[4]].sum() > 150
+            for x, y in zip(a, b):
+                assert x.dtype == y.dtype and np.array_equal(x, y)
+            f_a, p_a = numpy_lobe.eval(wo, wi, alpha, eta, no_beckmann, sep)
+            f_b, p_b = compiled.eval(wo, wi, alpha, eta, no_beckmann, sep)
+            assert (p_a > 0).sum() > 100 and np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+    # Control: a lobe 1 ulp rougher is told apart.
+    rougher = np.nextafter(alpha, 2.0)
+    assert not np.array_equal(compiled.eval(wo, wi, rougher, eta, no_beckmann)[1],
+                              numpy_lobe.eval(wo, wi, alpha, eta, no_beckmann)[1])
+    assert not np.array_equal(compiled.sample(wo, rougher, eta, no_beckmann, u[0], u[1], u[2])[1],
+                              numpy_lobe.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2])[1])
+
+
+def test_beckmann_and_coloured_fresnel_stay_numpy():
+    require_compiled()
+    rng = np.random.default_rng(3)
+    wo, wi, alpha, eta, separable, u = _inputs(rng, 200)
+    numpy_lobe, compiled = _pair(True)
+    beckmann = rng.random(200) < 0.5
+    a = numpy_lobe.sample(wo, alpha, eta, beckmann, u[0], u[1], u[2])
+    b = compiled.sample(wo, alpha, eta, beckmann, u[0], u[1], u[2])
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+
+    def fresnel(c):
+        return np.stack([c, c, c]), np.stack([1.0 - c] * 3)
+    no_beckmann = np.zeros(200, bool)
+    f_a = numpy_lobe.eval(wo, wi, alpha, eta, no_beckmann, fresnel=fresnel)[0]
+    assert f_a.shape == (3, 200) and np.array_equal(f_a, compiled.eval(wo, wi, alpha, eta, no_beckmann,
+                                                                         fresnel=fresnel)[0])
+
+
+def test_glass_bsdfs_follow_the_backend():
+    require_compiled()
+    for cls in (RoughGlass, RoughRefraction):
+        bsdf = cls([Material("g", kind="glass", roughness=0.3, ior=1.5)], RenderSettings())
+        for name in ("rough_glass", "refraction", "filter_glossy"):
+            bsdf.use_backend({name: "numba"})
+            assert bsdf.lobe.compiled is not None
+            bsdf.use_backend({name: "numpy"})
+            assert bsdf.lobe.compiled is None
+
+
+def _recorded_calls(limit=6):
+    """Up to `limit` calls of MicrofacetDielectric.sample and .eval (their arguments, copied) from a
+    16 x 16, 2 spp NumPy render of the built-in Cornell box with Filter Glossy 1 (its glass after a
+    blurry bounce scatters as this lobe: engine/integrators/delta_blur.py)."""
+    from engine import api
+    from engine.scene.builtin import BUILTIN_SCENES
+    calls = {"sample": [], "eval": []}
+    originals = {name: getattr(MicrofacetDielectric, name) for name in calls}
+
+    def recorder(name):
+        def record(self, *args, **kwargs):
+            if len(calls[name]) < limit:
+                copied = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
+                calls[name].append((self.reflection, self.transmission, copied, dict(kwargs)))
+            return originals[name](self, *args, **kwargs)
+        return record
+    for name in calls:
+        setattr(MicrofacetDielectric, name, recorder(name))
+    try:
+        api.render(BUILTIN_SCENES["cornell"]((16, 16)),
+                   RenderSettings(samples=2, threads=1, backend="numpy", filter_glossy=1.0), log=lambda m: None)
+    finally:
+        for name, original in originals.items():
+            setattr(MicrofacetDielectric, name, original)
+    return calls
+
+
+def test_recorded_render_inputs_are_bit_identical():
+    require_compiled()
+    from engine.materials import dielectric_jit
+    calls = _recorded_calls()
+    assert calls["sample"] and calls["eval"]
+    for name, recorded in calls.items():
+        for reflection, transmission, args, kwargs in recorded:
+            numpy_lobe = MicrofacetDielectric(reflection, transmission)
+            compiled = MicrofacetDielectric(reflection, transmission)
+            compiled.compiled = dielectric_jit
+            a = getattr(numpy_lobe, name)(*args, **kwargs)
+            b = getattr(compiled, name)(*args, **kwargs)
+            assert all(x.dtype == y.dtype and np.array_equal(x, y) for x, y in zip(a, b))
+    # Control: the recorded hits 1 ulp rougher are told apart.
+    reflection, transmission, args, kwargs = calls["eval"][0]
+    lobe = MicrofacetDielectric(reflection, transmission)
+    lobe.compiled = dielectric_jit
+    rougher = [args[0], args[1], np.nextafter(args[2], 2.0)] + args[3:]
+    assert not np.array_equal(lobe.eval(*rougher, **kwargs)[1], MicrofacetDielectric(reflection, transmission).eval(
+        *args, **kwargs)[1])
