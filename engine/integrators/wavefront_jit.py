@@ -109,12 +109,23 @@ def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable
             out[c, i] = radiance[c, i] * weight[i] * albedo[c, i] * inv_pi
 
 
+def _read_only(a):
+    """a, or a read-only view of it: the kernels' inputs always reach numba read-only, so one compiled
+    signature (warm_up's) serves both the callers' writable arrays and their read-only ones
+    (np.broadcast_to views, e.g. engine/lights/parallelograms.py's light normals), instead of a
+    compilation in each worker's first render (scripts/check_warm_up.py)."""
+    if a.flags.writeable:
+        a = a.view()
+        a.flags.writeable = False
+    return a
+
+
 def _fit(a, shape, dtype=np.float64):
-    """a as a contiguous array of `shape` (np.broadcast_to only when needed: its Python costs more
-    than these loops' work on small batches)."""
+    """a as a contiguous read-only array of `shape` (np.broadcast_to only when needed: its Python costs
+    more than these loops' work on small batches)."""
     if isinstance(a, np.ndarray) and a.shape == shape:
-        return np.ascontiguousarray(a, dtype)
-    return np.ascontiguousarray(np.broadcast_to(a, shape), dtype)
+        return _read_only(np.ascontiguousarray(a, dtype))
+    return _read_only(np.ascontiguousarray(np.broadcast_to(a, shape), dtype))
 
 
 def _rows(a, k):
@@ -127,7 +138,7 @@ def light_tests(n, ls, any_one_sided):
     k = ls.pdf.shape[0]
     cos_x, cos_ly = np.empty(k), np.empty(k)
     valid = _light_tests(_rows(n, k), _rows(ls.direction, k), _rows(ls.normal, k),
-                         np.ascontiguousarray(ls.pdf, np.float64), np.ascontiguousarray(ls.distance, np.float64),
+                         _fit(ls.pdf, (k,)), _fit(ls.distance, (k,)),
                          _fit(ls.one_sided, (k,), np.bool_), bool(any_one_sided),
                          cos_x, cos_ly)
     return cos_x, cos_ly, valid
@@ -141,7 +152,7 @@ def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo):
     k = cos_x.shape[0]
     out = np.empty((3, k))
     _lambert_light(np.ascontiguousarray(valid, np.int64), np.ascontiguousarray(blocked, np.bool_), cos_x,
-                   np.ascontiguousarray(ls.pdf, np.float64),
+                   _fit(ls.pdf, (k,)),
                    _fit(0.0 if p_b is None else p_b, (k,)), p_b is None,
                    np.ascontiguousarray(ls.light, np.int64), np.ascontiguousarray(reachable, np.bool_), bool(mis),
                    _rows(ls.radiance, k), _rows(albedo, k), out)

@@ -66,7 +66,14 @@ def finish_sample(pdf, pmf, share, point, light, one_sided_of, scale):
 
 
 def _c(a):
-    return np.ascontiguousarray(a, dtype=np.float64)
+    """a as a contiguous read-only float64 array: the kernels' inputs always reach numba read-only, so
+    warm_up's signature serves the callers' writable arrays and their read-only ones (np.broadcast_to
+    views, e.g. engine/lights/parallelograms.py's light normals) alike (scripts/check_warm_up.py)."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    if a.flags.writeable:
+        a = a.view()
+        a.flags.writeable = False
+    return a
 
 
 def shadow_rays(ls, valid, x, lift, ng, cos_ly, raised=None):

@@ -303,8 +303,19 @@ def _pdf_blocks(x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, normal
                 pdf[i] = _area_pdf(x, i, p, j, normal, area)
 
 
+def _read_only(a):
+    """a, or a read-only view of it: the kernels' inputs always reach numba read-only, so warm_up's
+    signature serves writable arrays and read-only ones (a light radiance from np.broadcast_to,
+    engine/lights/emitting_surface.py) alike, instead of a compilation in each worker's first render
+    (scripts/check_warm_up.py)."""
+    if a.flags.writeable:
+        a = a.view()
+        a.flags.writeable = False
+    return a
+
+
 def _c(a):
-    return np.ascontiguousarray(a, dtype=np.float64)
+    return _read_only(np.ascontiguousarray(a, dtype=np.float64))
 
 
 def _per_receiver(a, n):
@@ -335,7 +346,7 @@ def sample_li(lights, x, idx, u1, u2, omega_min, grazing):
     radiance = np.empty((3, n))
     _sample_blocks(_c(x), index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2,
                    lights.center, lights.e1, lights.e2, lights.normal, lights.area, lights.rectangle,
-                   lights.radiance, omega_min, grazing, _per_receiver(u1, n), _per_receiver(u2, n),
+                   _read_only(lights.radiance), omega_min, grazing, _per_receiver(u1, n), _per_receiver(u2, n),
                    point, direction, distance, pdf, radiance)
     return point, direction, distance, pdf, radiance
 

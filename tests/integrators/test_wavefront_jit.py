@@ -260,3 +260,30 @@ def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
         for k, control in enumerate(controls):
             differs[k] |= not np.array_equal(reference, radiance(tracer, args, control), equal_nan=True)
     assert differs[1] and differs[2] and (differs[0] or estimator != "mis")    # p_light is read under MIS only
+
+
+def test_read_only_inputs_need_no_compilation_after_warm_up():
+    """Callers hand the direct light read-only arrays (np.broadcast_to views: a light's normals) or
+    writable ones: both must run warm_up's signatures (scripts/check_warm_up.py), with the same bits.
+    Control: numba types a read-only array apart from a writable one (so a wrapper passing each
+    as it comes would add a signature here)."""
+    require_compiled()
+    from engine.integrators import wavefront_jit as wj
+    wj.warm_up()
+    before = {k: len(k_.signatures) for k, k_ in (("t", wj._light_tests), ("l", wj._lambert_light))}
+    rows = np.array([[0.0, 0.1, 0.3], [0.0, 0.2, -0.1], [1.0, 0.9, 0.8]])
+    frozen = np.broadcast_to(np.array([[0.0], [0.0], [-1.0]]), (3, 3)).copy()
+    frozen.flags.writeable = False
+    p_b = np.full(3, 0.25)
+    frozen_p_b = p_b.copy()
+    frozen_p_b.flags.writeable = False
+    results = []
+    for normal, p_b in ((frozen.copy(), p_b), (frozen, frozen_p_b)):
+        ls = SimpleNamespace(direction=rows, normal=normal, pdf=np.ones(3), distance=np.ones(3),
+                             one_sided=np.ones(3, np.bool_), light=np.zeros(3, np.int64), radiance=rows)
+        cos_x, cos_ly, valid = wj.light_tests(rows, ls, True)
+        results.append((cos_x, cos_ly, valid, wj.lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, p_b,
+                                                               np.ones(1, np.bool_), True, rows)))
+    assert len(results[0][2]) == 3 and all(np.array_equal(a, b) for a, b in zip(*results))
+    assert {"t": len(wj._light_tests.signatures), "l": len(wj._lambert_light.signatures)} == before
+    assert wj.nb.typeof(frozen) != wj.nb.typeof(frozen.copy())

@@ -122,3 +122,23 @@ def test_light_set_samples_are_bit_identical():
     assert np.isnan(offset[2]) and np.array_equal(offset[[0, 1, 3]], (2.0 ** -20 * np.abs(point).max(axis=0))[[0, 1, 3]])
     assert not np.array_equal(pdf, light_set_jit.finish_sample(np.ones(4), np.nextafter(pmf, 1.0), 0.9, point,
                                                                np.zeros(4, np.int64), np.zeros(1, bool), 1.0)[0])
+
+
+def test_read_only_inputs_need_no_compilation_after_warm_up():
+    """Shadow rays from read-only arrays (np.broadcast_to views, as engine/lights/parallelograms.py's
+    light normals) run warm_up's signature with the writable arrays' bits (scripts/check_warm_up.py);
+    control: numba types a read-only array apart from a writable one."""
+    require_compiled()
+    from types import SimpleNamespace
+    from engine.lights import light_set_jit as lj
+    lj.warm_up()
+    count = len(lj._shadow_rays.signatures)
+    x = np.array([[0.0, 1.0], [0.0, 0.5], [0.0, 0.0]])
+    normal = np.broadcast_to(np.array([[0.0], [0.0], [-1.0]]), (3, 2))
+    out = []
+    for n in (normal.copy(), normal):
+        ls = SimpleNamespace(offset=np.full(2, 1e-6), point=x + 2.0, normal=n, distance=np.array([1.0, np.inf]),
+                             direction=np.ones((3, 2)))
+        out.append(lj.shadow_rays(ls, None, x, np.broadcast_to(1e-4, (2,)), x[::-1].copy(), np.ones(2)))
+    assert _same(*out) and len(lj._shadow_rays.signatures) == count
+    assert lj.nb.typeof(normal) != lj.nb.typeof(normal.copy())

@@ -47,3 +47,24 @@ def test_sample_and_pdf_are_bit_identical():
     a, b, x, idx, u1, u2, sa = _compare(7, 4)
     # Control: the comparison sees u2 moved by 1 ulp.
     assert not np.array_equal(sa.point, b.sample_li(x, idx, u1, np.nextafter(u2, 1.0)).point)
+
+
+def test_a_read_only_radiance_needs_no_compilation_after_warm_up():
+    """A light radiance from np.broadcast_to (read-only) runs warm_up's signature with the bits of a
+    writable one (scripts/check_warm_up.py); control: numba types the two apart."""
+    require_compiled()
+    from engine.lights import parallelograms_jit as pj
+    pj.warm_up()
+    count = len(pj._sample_blocks.signatures)
+    rng = np.random.default_rng(5)
+    lights = Parallelograms(*_lights(3, rng))
+    x, idx, u = rng.normal(size=(3, 70)) * 3.0, np.arange(70) % 3, np.linspace(0.01, 0.99, 70)
+    writable = np.array(lights.radiance, order="C")
+    frozen = np.broadcast_to(writable, writable.shape)
+    out = []
+    for radiance in (writable, frozen):
+        lights.radiance = radiance
+        out.append(pj.sample_li(lights, x, idx, u, u[::-1].copy(), 1e-6, 1e-5))
+    assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(*out))
+    assert len(pj._sample_blocks.signatures) == count
+    assert pj.nb.typeof(frozen) != pj.nb.typeof(writable)
