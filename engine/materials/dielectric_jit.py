@@ -11,28 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .microfacet_jit import _clip01, _d, _finite, _lambda, _max0, _normalized, jit
-
-
-@jit
-def _fresnel(cos, eta):
-    """fresnel_dielectric of one cosine (1 under total internal reflection; NaN -> 1, clipped)."""
-    g2 = eta * eta - 1.0 + cos * cos
-    if g2 < 0.0:
-        return 1.0
-    g = np.sqrt(_max0(g2))
-    a = (g - cos) / (g + cos)
-    b = (cos * (g + cos) - 1.0) / (cos * (g - cos) + 1.0)
-    f = 0.5 * a * a * (1.0 + b * b)
-    if f != f:
-        return 1.0
-    return _clip01(f)
+from .microfacet_jit import _clip01, _d, _finite, _lambda, _max0, _normalized, jit, vndf
+from .principled_jit import _fresnel_dielectric
 
 
 @jit
 def _split(cos_h, eta, reflection, transmission):
     """MicrofacetDielectric.split: (R, T)."""
-    f = _fresnel(cos_h, eta)
+    f = _fresnel_dielectric(cos_h, eta)
     if not transmission:
         return f, 0.0
     if not reflection:
@@ -56,35 +42,12 @@ def _g2(lo, li, separable):
 
 
 @jit
-def _vndf(o0, o1, o2, a, u1, u2):
-    """ggx_sample_vndf of one direction (isotropic alpha a)."""
-    v0, v1, v2 = _normalized(a * o0, a * o1, o2)
-    lensq = v0 * v0 + v1 * v1
-    if lensq > 1e-14:
-        inv = 1.0 / np.sqrt(lensq)
-        t0, t1, t2 = -v1 * inv, v0 * inv, 0.0
-    else:
-        t0, t1, t2 = 1.0, 0.0, 0.0
-    s0, s1, s2 = v1 * t2 - v2 * t1, v2 * t0 - v0 * t2, v0 * t1 - v1 * t0
-    r = np.sqrt(u1)
-    phi = 2.0 * np.pi * u2
-    p1, p2 = r * np.cos(phi), r * np.sin(phi)
-    s = 0.5 * (1.0 + v2)
-    p2 = (1.0 - s) * np.sqrt(_max0(1.0 - p1 * p1)) + s * p2
-    pz = np.sqrt(_max0(1.0 - p1 * p1 - p2 * p2))
-    m0 = p1 * t0 + p2 * s0 + pz * v0
-    m1 = p1 * t1 + p2 * s1 + pz * v1
-    m2 = p1 * t2 + p2 * s2 + pz * v2
-    return _normalized(a * m0, a * m1, _max0(m2))
-
-
-@jit
 def _sample(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, transmission,
             wi_out, weight_out, pdf_out, refracted_out, ok_out):
     for i in range(wo.shape[1]):
         o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
         a, e = alpha[i], eta[i]
-        h0, h1, h2 = _vndf(o0, o1, o2, a, u1[i], u2[i])
+        h0, h1, h2 = vndf(o0, o1, o2, a, a, u1[i], u2[i])
         cos_ho = _clip01(o0 * h0 + o1 * h1 + o2 * h2)
         r, t = _split(cos_ho, e, reflection, transmission)
         total = r + t

@@ -107,13 +107,9 @@ def _normalized(a0, a1, a2):
 
 
 @jit
-def sample_hit(wo, x, y, n, i, a_x, a_y, u1, u2):
-    """(wi (world, 3 scalars), cos, pdf, G2 / G1(wo)) of a GGX visible-normal sample at hit i with
-    the uniforms u1, u2 (the body of `ggx_sample`; engine/materials/principled_jit.py calls it too)."""
-    o0 = wo[0, i] * x[0, i] + wo[1, i] * x[1, i] + wo[2, i] * x[2, i]
-    o1 = wo[0, i] * y[0, i] + wo[1, i] * y[1, i] + wo[2, i] * y[2, i]
-    o2 = wo[0, i] * n[0, i] + wo[1, i] * n[1, i] + wo[2, i] * n[2, i]
-    # ggx_sample_vndf: stretch, sample the projected hemisphere, unstretch
+def vndf(o0, o1, o2, a_x, a_y, u1, u2):
+    """ggx_sample_vndf of one direction in the local frame: stretch, sample the projected
+    hemisphere, unstretch (engine/materials/dielectric_jit.py samples its glass with it too)."""
     v0, v1, v2 = _normalized(a_x * o0, a_y * o1, o2)
     lensq = v0 * v0 + v1 * v1
     if lensq > 1e-14:
@@ -131,7 +127,17 @@ def sample_hit(wo, x, y, n, i, a_x, a_y, u1, u2):
     m0 = p1 * t0 + p2 * s0 + pz * v0
     m1 = p1 * t1 + p2 * s1 + pz * v1
     m2 = p1 * t2 + p2 * s2 + pz * v2
-    h0, h1, h2 = _normalized(a_x * m0, a_y * m1, _max0(m2))
+    return _normalized(a_x * m0, a_y * m1, _max0(m2))
+
+
+@jit
+def sample_hit(wo, x, y, n, i, a_x, a_y, u1, u2):
+    """(wi (world, 3 scalars), cos, pdf, G2 / G1(wo)) of a GGX visible-normal sample at hit i with
+    the uniforms u1, u2 (the body of `ggx_sample`; engine/materials/principled_jit.py calls it too)."""
+    o0 = wo[0, i] * x[0, i] + wo[1, i] * x[1, i] + wo[2, i] * x[2, i]
+    o1 = wo[0, i] * y[0, i] + wo[1, i] * y[1, i] + wo[2, i] * y[2, i]
+    o2 = wo[0, i] * n[0, i] + wo[1, i] * n[1, i] + wo[2, i] * n[2, i]
+    h0, h1, h2 = vndf(o0, o1, o2, a_x, a_y, u1, u2)
     # the reflected direction and its weight
     cos_h = o0 * h0 + o1 * h1 + o2 * h2
     w0, w1, w2 = 2.0 * cos_h * h0 - o0, 2.0 * cos_h * h1 - o1, 2.0 * cos_h * h2 - o2
