@@ -9,7 +9,8 @@ compiles them and writes them to its cache (`cache=True`).
   per-user directory (`cache_dir`: $NUMBA_CACHE_DIR if set, else $XDG_CACHE_HOME or ~/.cache,
   then tncg15_mc/numba), so every process of a render (threads, forked and worker processes)
   reads and writes the same cache.
-* Compiling takes 2-20 s once per machine (and again when a kernel's source or numba changes);
+* Compiling takes 20-35 s once per machine (about 19 s on two cores: `load_kernels(parallel=True)`;
+  and again when a kernel's source or numba changes);
   loading from the cache well under a second.  A stamp file in the cache directory
   (`stamp_path`: named by numba's and Python's versions and the twins' paths, sizes and
   modification times, which is what numba's own cache index checks) says the cache is warm.
@@ -131,16 +132,51 @@ def is_warm() -> bool:
     return os.path.exists(stamp_path())
 
 
-def load_kernels(log=None) -> float:
+def load_modules(names) -> None:
+    """Compile or load from the cache the kernels of the twin modules `names` (warm_up of each)."""
+    for name in names:
+        importlib.import_module(f"{TRACER_BASE}.{name}").warm_up()
+
+
+# A cold compile on two cores: the modules from this one on are compiled by a second Python into the
+# shared cache while this process compiles the ones before (about half the compile time each,
+# numba's import and LLVM's start paid by both), then loaded from the cache here.
+SECOND_HALF_FROM = "materials.principled_jit"
+
+
+def _compile_second_half():
+    """A child Python compiling the second half of JIT_MODULES into the cache (None where this
+    process is not a Python interpreter, or has one core)."""
+    if "python" not in os.path.basename(sys.executable).lower() or (os.cpu_count() or 1) < 2:
+        return None
+    names = list(JIT_MODULES)
+    half = names[names.index(SECOND_HALF_FROM):]
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir())
+    env["PYTHONPATH"] = os.pathsep.join([os.path.dirname(TRACER_DIR)] + [p for p in sys.path if p])
+    code = f"import {TRACER_BASE}.core.backend as b\nb.load_modules({half!r})\n"
+    try:
+        return subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL), set(half)
+    except OSError:
+        return None
+
+
+def load_kernels(log=None, parallel: bool = False) -> float:
     """Compile or load from the cache every twin's kernels in this process, once (before the local
-    pool forks, so its workers inherit them); returns the seconds it took.  Raises ImportError when
-    numba is missing."""
+    pool forks, so its workers inherit them); returns the seconds it took.  parallel: a cold cache
+    is compiled by this process and a second Python at once (`_compile_second_half`), whose half
+    this process then loads from the cache (or compiles, if the child failed).  Raises ImportError
+    when numba is missing."""
     if numba_module() is None:
         raise ImportError(f"numba cannot be imported ({numba_error()})")
     start = time.perf_counter()
     if not _state.get("loaded"):
+        helper = _compile_second_half() if parallel and not is_warm() else None
         for i, name in enumerate(JIT_MODULES, 1):
-            importlib.import_module(f"{TRACER_BASE}.{name}").warm_up()
+            if helper is not None and name in helper[1]:
+                helper[0].wait()               # its half is in the cache now (or compiled below)
+                helper = None
+            load_modules([name])
             if log:
                 log(f"numba: kernels {i}/{len(JIT_MODULES)} ready ({name}, {time.perf_counter() - start:.1f} s)")
         _state["loaded"] = True
@@ -149,8 +185,9 @@ def load_kernels(log=None) -> float:
 
 def warm_up(log=print) -> float:
     """Compile (or load from the cache) every twin's kernels in this process and stamp the cache
-    warm; returns the seconds it took.  Raises ImportError when numba is missing."""
-    seconds = load_kernels(log)
+    warm; returns the seconds it took (on two cores or more two Pythons compile: load_kernels'
+    `parallel`).  Raises ImportError when numba is missing."""
+    seconds = load_kernels(log, parallel=True)
     stamp = stamp_path()
     with open(stamp + ".tmp", "w") as fh:
         fh.write(f"{seconds:.3f}\n")
@@ -182,7 +219,7 @@ def start_warm_up(log=print):
             running = _state["warming"] = None          # it ended (and is reaped): the stamp says how
         if running is not None or not _take_lock():
             return None
-        log("numba: compiling the kernels in the background (once per machine, 2-20 s); "
+        log("numba: compiling the kernels in the background (once per machine, 20-35 s); "
             "until then renders use NumPy")
         lock = stamp_path() + ".lock"
         if "python" in os.path.basename(sys.executable).lower():
@@ -222,7 +259,7 @@ def resolve(setting: str, log=print, kernels=KERNELS) -> tuple:
         return NUMBA, (f"numba, compiled kernels from the cache ({seconds:.2f} s)"
                        + (" (as set)" if setting == NUMBA else ""))
     if setting == NUMBA:
-        log("numba: compiling the kernels (once per machine, 2-20 s)...")
+        log("numba: compiling the kernels (once per machine, 20-35 s)...")
         seconds = warm_up(log)
         return NUMBA, f"numba (as set; compiled in {seconds:.1f} s)"
     start_warm_up(log)

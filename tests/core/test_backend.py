@@ -124,3 +124,32 @@ def test_background_warm_up_stamps_the_cache(monkeypatch, tmp_path):
 def test_a_scene_without_compiled_kernels_never_imports_numba(numba_missing):
     assert backend.resolve("numba", kernels=["triangles", "diffuse"]) == (
         "numpy", "no kernel of this scene has a compiled twin")
+
+
+def test_a_cold_compile_shares_the_modules_with_a_second_python(monkeypatch):
+    """load_kernels(parallel=True) on a cold cache: a child compiles the second half of the modules
+    while this process compiles the first; this process waits for it before loading the second
+    half (from the cache), in JIT_MODULES' order.  Control: parallel=False starts no child."""
+    events = []
+
+    class Child:
+        def wait(self):
+            events.append("wait")
+
+    names = list(backend.JIT_MODULES)
+    half = set(names[names.index(backend.SECOND_HALF_FROM):])
+    monkeypatch.setattr(backend, "numba_module", lambda: object())
+    monkeypatch.setattr(backend, "is_warm", lambda: False)
+    monkeypatch.setattr(backend, "load_modules", lambda ns: events.extend(ns))
+    for parallel in (True, False):
+        events.clear()
+        started = []
+        monkeypatch.setattr(backend, "_compile_second_half", lambda: started.append(1) or (Child(), half))
+        monkeypatch.setattr(backend, "_state", dict(backend._state, loaded=False))
+        backend.load_kernels(parallel=parallel)
+        assert [e for e in events if e != "wait"] == names
+        if parallel:
+            assert started and events.count("wait") == 1 and 0 < len(half) < len(names)
+            assert events.index("wait") == names.index(backend.SECOND_HALF_FROM)   # just before its half
+        else:
+            assert not started and "wait" not in events
