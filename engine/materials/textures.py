@@ -467,24 +467,37 @@ class HitTextures:
         """`values` (N,) with the hits whose material has a texture on input `name` read from it
         (triangle hits only: spheres and quads have no UVs), or a node program (any hit); `values`
         itself when none has."""
+        return apply_writes(values, self.input_writes(name, material, kind, prim, b1, b2, points))
+
+    def input_writes(self, name, material, kind, prim, b1, b2, points=None) -> list:
+        """What `input` writes over the per-material values: [(hits, values)] in order (node
+        programs first, then image textures), empty when no hit reads either."""
         from ..geometry.scene_geometry import TRIANGLE
-        values = self._programs(name, values, material, kind, prim, b1, b2, points)
+        writes = []
+        has = self.textures.has_program[name]
+        if self.attributes is not None and has.any():
+            sel = np.flatnonzero(has.take(material))
+            if len(sel):
+                mat = material.take(sel)
+                programs = self.textures.programs[name]
+                for m in np.unique(mat):
+                    idx = sel.take(np.flatnonzero(mat == m))
+                    writes.append((idx, self.run_program(programs[m], kind, prim, b1, b2, points, idx)))
         has = self.textures.has_input[name]
         if self.attributes is not None:
             has = has & np.array([s is not None for s in self.textures.inputs[name]], dtype=bool)
         if not has.any():
-            return values
+            return writes
         sel = np.flatnonzero(has.take(material) & (kind == TRIANGLE))
         if not len(sel):
-            return values
-        out = np.array(values, dtype=np.float64)
+            return writes
         mat = material.take(sel)
         u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
         slots = self.textures.inputs[name]
         for m in np.unique(mat):
             mine = np.flatnonzero(mat == m)
-            out[sel.take(mine)] = self.textures.value(slots[m], u.take(mine), v.take(mine))
-        return out
+            writes.append((sel.take(mine), self.textures.value(slots[m], u.take(mine), v.take(mine))))
+        return writes
 
     def normal(self, shading, material, kind, prim, b1, b2, points, ng, incoming, specular):
         """Shading normals rows (3, N) (on the viewer's side) with the hits of materials with a normal
@@ -561,15 +574,24 @@ class HitTextures:
 class HitLookup:
     """The texture lookups of some hits (a ShadingPoint's `lookup`, engine/materials/protocol.py):
     the hits' primitive kinds, primitives and barycentrics with the scene's HitTextures, and for
-    node programs their HitPoints (engine/nodes/context.py; None without programs)."""
+    node programs their HitPoints (engine/nodes/context.py; None without programs).
 
-    def __init__(self, textures: HitTextures, kind, prim, b1, b2, points=None):
+    A float input (`input`: roughness, metallic, ...) is read once per material ids at these hits:
+    the views of one span (`lookup[span]`, as ShadingPoint.__getitem__ makes them for the direct
+    light and the scatter of a scatter group) share what they read, so the Principled BSDF's metal
+    and specular lobes and its layer weights run a roughness texture or program once per bounce.
+    Takes (`take`) read afresh."""
+
+    def __init__(self, textures: HitTextures, kind, prim, b1, b2, points=None, memo=None):
         self.textures, self.kind, self.prim, self.b1, self.b2 = textures, kind, prim, b1, b2
         self.points = points
+        self._memo = {} if memo is None else memo       # input name -> (material ids, input_writes)
+        self._spans = {}                                # span -> its views' memo
 
     def __getitem__(self, span) -> "HitLookup":
         return HitLookup(self.textures, self.kind[span], self.prim[span], self.b1[span], self.b2[span],
-                         None if self.points is None else self.points[span])
+                         None if self.points is None else self.points[span],
+                         self._spans.setdefault((span.start, span.stop, span.step), {}))
 
     def take(self, index) -> "HitLookup":
         return HitLookup(self.textures, self.kind.take(index), self.prim.take(index), self.b1.take(index),
@@ -591,7 +613,14 @@ class HitLookup:
                                          np.arange(len(self.kind)))
 
     def input(self, name, values, material):
-        return self.textures.input(name, values, material, self.kind, self.prim, self.b1, self.b2, self.points)
+        """`values` (N,) with the hits that read input `name` from an image or a program replaced
+        (HitTextures.input), read once per material ids at these hits."""
+        known = self._memo.get(name)
+        if known is not None and (known[0] is material or np.array_equal(known[0], material)):
+            return apply_writes(values, known[1])
+        writes = self.textures.input_writes(name, material, self.kind, self.prim, self.b1, self.b2, self.points)
+        self._memo[name] = (material, writes)
+        return apply_writes(values, writes)
 
     def normal(self, shading, material, ng, incoming, specular):
         """The shading normals of these hits with the materials' normal programs (HitTextures.normal)."""
@@ -604,6 +633,16 @@ class HitLookup:
 
     def tangent(self, tangents, material):
         return self.textures.tangent(tangents, material, self.kind, self.prim, self.b1, self.b2)
+
+
+def apply_writes(values, writes):
+    """`values` itself without writes, else a float64 copy with each (hits, new values) written in order."""
+    if not writes:
+        return values
+    out = np.array(values, dtype=np.float64)
+    for idx, new in writes:
+        out[idx] = new
+    return out
 
 
 def per_hit(si, values, name) -> np.ndarray:
