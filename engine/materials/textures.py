@@ -141,8 +141,13 @@ class TextureSet:
     A texture that cannot be read gives one warning naming the image and the materials that use
     it; those materials render with their unlinked colour."""
 
-    def __init__(self, scene):
+    def __init__(self, scene, backend: str = "numpy"):
         self.warnings: list[str] = []
+        # The image lookups' kernel: `lookup` here, or its numba twin (engine/materials/textures_jit.py).
+        self.compiled = None
+        if backend == "numba":
+            from . import textures_jit
+            self.compiled = textures_jit
         self.loaded: list[LoadedTexture | None] = [self._load(t, scene) for t in scene.textures]
         mats, _ = with_mix_leaves(scene.materials)        # mix leaves: material ids after the scene's
         self.color = [self._usable(m.color_texture) for m in mats]
@@ -192,7 +197,16 @@ class TextureSet:
         color = self.evaluate(TextureSlot(texture, interpolation, extension), u, v)
         if not alpha or tex.pixels.shape[2] < 4:
             return color, np.ones(len(u))
-        return color, lookup(tex.pixels[:, :, 3:4], u, v, interpolation, extension)[:, 0]
+        return color, self.lookup(tex.pixels, u, v, interpolation, extension, (3, 1))[:, 0]
+
+    def lookup(self, pixels, u, v, interpolation, extension, channels=None) -> np.ndarray:
+        """`lookup` of loaded pixels (H, W, C), on this set's backend; `channels`: (first, count) of
+        the channels to read (default all)."""
+        if self.compiled is not None:
+            return self.compiled.lookup(pixels, u, v, interpolation, extension, channels)
+        if channels is not None:
+            pixels = pixels[:, :, channels[0]:channels[0] + channels[1]]
+        return lookup(pixels, u, v, interpolation, extension)
 
     def _usable(self, slot):
         return slot if slot is not None and self.loaded[slot.texture] is not None else None
@@ -222,9 +236,9 @@ class TextureSet:
         """Linear colour rows (3, N) of `slot` at texture coordinates (u, v), times its scale."""
         tex = self.loaded[slot.texture]
         if tex.decode_after and slot.interpolation == "Closest":      # decode(texel): decoded once
-            return rgb(lookup(tex.decoded, u, v, "Closest", slot.extension)).T * \
+            return rgb(self.lookup(tex.decoded, u, v, "Closest", slot.extension)).T * \
                 np.asarray(slot.scale, dtype=np.float64)[:, None]
-        value = rgb(lookup(tex.pixels, u, v, slot.interpolation, slot.extension))
+        value = rgb(self.lookup(tex.pixels, u, v, slot.interpolation, slot.extension))
         if tex.decode_after:
             value = srgb_to_linear(value)
         return value.T * np.asarray(slot.scale, dtype=np.float64)[:, None]
@@ -693,7 +707,7 @@ def load_textures(scene, plan, log=print, warnings=None):
     Blender)."""
     if not plan.enabled.get("textures"):
         return None, scene
-    textures = TextureSet(scene)
+    textures = TextureSet(scene, getattr(plan, "backends", {}).get("textures", "numpy"))
     for warning in textures.warnings:
         log(f"warning: {warning}")
         if warnings is not None:
