@@ -270,6 +270,22 @@ def triangle_tangents(scene):
     return np.ascontiguousarray(np.concatenate(parts).T), np.concatenate(has)
 
 
+def by_material(mat):
+    """[(material id, the positions of its hits in `mat`, None when they are all of them)], ids
+    ascending (np.unique's order) without sorting the hits."""
+    if not len(mat):
+        return []
+    lowest = mat.min()
+    if lowest == mat.max():
+        return [(lowest, None)]
+    return [(m, np.flatnonzero(mat == m)) for m in np.flatnonzero(np.bincount(mat))]
+
+
+def picked(values, positions):
+    """values.take(positions) on the last axis; `values` itself for None (all of them)."""
+    return values if positions is None else values.take(positions, axis=-1)
+
+
 def interpolate_uv(tri_uv, prim, b1, b2):
     """(u, v) at barycentrics (b1, b2) of vertices 1 and 2 of triangles `prim` (Embree's u, v);
     tri_uv: corner UVs (T, 3, 2), or as rows (6, T) (u0 v0 u1 v1 u2 v2, faster to gather)."""
@@ -414,9 +430,8 @@ class HitTextures:
         values = np.array(values, dtype=np.float64)
         mat = material.take(sel)
         u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
-        for m in np.unique(mat):
-            mine = np.flatnonzero(mat == m)
-            values[:, sel.take(mine)] = self.textures.evaluate(slots[m], u.take(mine), v.take(mine))
+        for m, mine in by_material(mat):
+            values[:, picked(sel, mine)] = self.textures.evaluate(slots[m], picked(u, mine), picked(v, mine))
         return values
 
     def color(self, color, material, kind, prim, b1, b2, points=None):
@@ -459,8 +474,8 @@ class HitTextures:
         values = np.array(values, dtype=np.float64)
         mat = material.take(sel)
         programs = self.textures.programs[role]
-        for m in np.unique(mat):
-            idx = sel.take(np.flatnonzero(mat == m))
+        for m, mine in by_material(mat):
+            idx = picked(sel, mine)
             out = self.run_program(programs[m], kind, prim, b1, b2, points, idx)
             values[..., idx] = out if low is None else np.maximum(out, low)
         return values
@@ -494,8 +509,8 @@ class HitTextures:
             if len(sel):
                 mat = material.take(sel)
                 programs = self.textures.programs[name]
-                for m in np.unique(mat):
-                    idx = sel.take(np.flatnonzero(mat == m))
+                for m, mine in by_material(mat):
+                    idx = picked(sel, mine)
                     writes.append((idx, self.run_program(programs[m], kind, prim, b1, b2, points, idx)))
         has = self.textures.has_input[name]
         if self.attributes is not None:
@@ -508,9 +523,8 @@ class HitTextures:
         mat = material.take(sel)
         u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
         slots = self.textures.inputs[name]
-        for m in np.unique(mat):
-            mine = np.flatnonzero(mat == m)
-            writes.append((sel.take(mine), self.textures.value(slots[m], u.take(mine), v.take(mine))))
+        for m, mine in by_material(mat):
+            writes.append((picked(sel, mine), self.textures.value(slots[m], picked(u, mine), picked(v, mine))))
         return writes
 
     def normal(self, shading, material, kind, prim, b1, b2, points, ng, incoming, specular):
@@ -530,8 +544,8 @@ class HitTextures:
         mat = material.take(sel)
         programs = self.textures.programs["normal"]
         version = self.textures.cycles_version
-        for m in np.unique(mat):
-            idx = sel.take(np.flatnonzero(mat == m))
+        for m, mine in by_material(mat):
+            idx = picked(sel, mine)
             n = safe_normalize(self.run_program(programs[m], kind, prim, b1, b2, points, idx))
             n = np.where((np.abs(n) > 0).any(axis=0) & np.isfinite(n).all(axis=0), n, out[:, idx])
             if version < (4, 0) or specular[m]:
