@@ -350,3 +350,15 @@ def test_views_of_one_span_read_a_float_input_once(monkeypatch):
     taken = lookup.take(np.arange(5, 30))
     assert np.array_equal(taken.input("roughness", values[span], material[span]), fresh[span])
     assert len(reads) == 5
+
+
+def test_by_material_groups_hits_as_np_unique_does():
+    from engine.materials.textures import by_material, picked
+    rng = np.random.default_rng(9)
+    for mat in (rng.integers(0, 6, 200), np.full(30, 4), np.array([2, 0, 2, 5]), np.zeros(0, np.int64)):
+        groups = by_material(mat)
+        assert [int(m) for m, _ in groups] == np.unique(mat).tolist()
+        for m, mine in groups:
+            assert np.array_equal(picked(np.arange(len(mat)), mine), np.flatnonzero(mat == m))
+    # control: a wrong grouping is told apart
+    assert [int(m) for m, _ in by_material(np.array([1, 3]))] != [1]
