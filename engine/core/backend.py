@@ -64,6 +64,7 @@ JIT_MODULES = {
     "scene.camera_rays_jit": ("wavefront",),
     "lights.light_set_jit": ("emission",),
     "integrators.photons.gather_jit": ("photon_caustics",),
+    "materials.textures_jit": ("textures",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 
