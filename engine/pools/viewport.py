@@ -386,14 +386,13 @@ class ViewportPool(Pool):
         return unit, event[2], None
 
     def _feed(self, worker, limit: int = IN_FLIGHT):
-        """Send `worker` units until it holds `limit`; a second one only while more units are pending
-        than workers are alive, as engine/pools/faults.py Dispatch.feed: a unit queued on a busy
-        worker waits for it even when another is idle (a final render on the workers started
-        ahead, mcrt_addon/warm.py: 5 units of 96x96 at 64 spp left one worker idle for 0.3-0.5 s
-        of 3-3.5 s, docs/performance.md "A render's fixed cost")."""
+        """Send `worker` units until it holds `limit`, a second one only where engine/pools/faults.py
+        queues_another says (as Dispatch.feed): a unit queued on a busy worker waits for it even
+        when another is idle (a final render on the workers started ahead, mcrt_addon/warm.py)."""
         alive = sum(w.alive for w in self.workers)
         while (worker.alive and worker.prepared == self.preparation and not self.cancelled and self.pending
-               and len(worker.in_flight) < limit and (not worker.in_flight or len(self.pending) > alive)):
+               and len(worker.in_flight) < limit
+               and faults.queues_another(len(worker.in_flight), len(self.pending), alive)):
             unit = self.pending.pop(0)
             if not worker.in_flight:
                 worker.busy_since = time.perf_counter()

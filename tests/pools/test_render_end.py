@@ -36,21 +36,35 @@ def units(n):
     return [SimpleNamespace(index=i) for i in range(n)]
 
 
-def test_a_second_unit_goes_to_a_worker_only_while_more_units_than_workers_are_pending():
+def test_a_second_unit_goes_to_a_worker_only_while_many_units_are_pending():
     a, b = FakeWorker(), FakeWorker()
     pool = pool_of([a, b])
     pool.start(units(5))
-    # first one each, then a second to a while 3 > 2 were pending; b's would leave 1 for 2 workers
-    assert [u.index for u in a.in_flight] == [0, 2] and [u.index for u in b.in_flight] == [1]
-    assert [u.index for u in pool.pending] == [3, 4]
+    # one each; 3 pending are not more than 2 per worker: none queued, the next goes to whoever is free
+    assert [u.index for u in a.in_flight] == [0] and [u.index for u in b.in_flight] == [1]
+    assert [u.index for u in pool.pending] == [2, 3, 4]
     b.in_flight.clear()                     # b answered: it takes the next, alone
     pool._feed(b)
-    assert [u.index for u in b.in_flight] == [3] and [u.index for u in pool.pending] == [4]
+    assert [u.index for u in b.in_flight] == [2] and [u.index for u in pool.pending] == [3, 4]
     # control: many units pending: both hold two (the viewport's small units keep their queue)
     c, d = FakeWorker(), FakeWorker()
     many = pool_of([c, d])
     many.start(units(9))
-    assert len(c.in_flight) == len(d.in_flight) == 2
+    assert [len(c.in_flight), len(d.in_flight), len(many.pending)] == [2, 2, 5]
+
+
+def test_the_dispatch_of_the_other_process_pools_follows_the_same_rule():
+    from engine.pools.faults import Dispatch, Worker
+
+    class Sent(Worker):
+        def send_unit(self, unit):
+            pass
+    workers = [Sent(), Sent()]
+    dispatch = Dispatch(workers, log=lambda *a: None)
+    dispatch.start(units(5))
+    assert [len(w.in_flight) for w in workers] == [1, 1] and len(dispatch.pending) == 3
+    dispatch.finished(workers[1], workers[1].in_flight[0])
+    assert [u.index for u in workers[1].in_flight] == [2]
 
 
 def test_close_all_without_wait_returns_before_the_workers_end_and_reaps_them():
