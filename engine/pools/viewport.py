@@ -140,8 +140,8 @@ def warm_kernels() -> bool:
     (backend.start_warm_up; none when one runs already)."""
     from ..core import backend
     from ..core.collector import collector_paused
-    preimport()
     try:
+        preimport()
         if backend.numba_module() is None:
             return True                         # nothing to load, ever
         if backend.is_warm():
