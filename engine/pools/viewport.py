@@ -181,7 +181,9 @@ def watch_for_warm_cache(inbox: queue.Queue) -> None:
 
 def viewport_worker_main(parent_pid: int) -> int:
     from ..core.allocator import tune_malloc
+    from ..lights.environment import keep_last_map
     from ..rendering.session import PreparedScene
+    keep_last_map()                         # a new preparation of the same world reuses its tables
     end = WorkerEnd(parent_pid)
     if not end.handshake():
         return end.exit_code

@@ -52,3 +52,34 @@ def test_control_the_kernel_summed_in_another_order_is_told_apart():
     expected = E.cell_mean(lum, 1)
     flipped = sum(k * np.roll(lum, s, axis=1) for k, s in zip(E.CELL_KERNEL, (-1, 0, 1)))
     assert np.allclose(flipped, expected) and not np.array_equal(flipped, expected)
+
+
+@pytest.fixture
+def kept():
+    E.keep_last_map()
+    yield
+    E.keep_last_map(False)
+
+
+def world(pixels, strength=1.0):
+    from types import SimpleNamespace
+    from engine.scene.model import Environment
+    from engine.scene.textures import ImageTexture
+    return SimpleNamespace(environment=Environment(texture=0, strength=strength),
+                           textures=[ImageTexture("sky", pixels=pixels.copy(), colorspace="Linear Rec.709",
+                                                  is_float=True)])
+
+
+def test_a_process_that_keeps_its_last_map_gives_it_back_for_an_equal_world(kept):
+    pixels = np.random.default_rng(5).random((8, 16, 3), dtype=np.float32)
+    first = E.EnvironmentMap.of(world(pixels))
+    assert E.EnvironmentMap.of(world(pixels)) is first              # new objects, the same values
+    changed = pixels.copy()
+    changed[3, 4, 1] += 1.0
+    other = E.EnvironmentMap.of(world(changed))                      # one texel: another map
+    assert other is not first and not np.array_equal(other.distribution.density, first.distribution.density)
+    assert E.EnvironmentMap.of(world(changed, strength=2.0)) is not other     # the world's strength
+    again = E.EnvironmentMap.of(world(changed, strength=2.0))
+    assert again is E.EnvironmentMap.of(world(changed, strength=2.0))
+    E.keep_last_map(False)                                           # control: not kept, built each time
+    assert E.EnvironmentMap.of(world(pixels)) is not E.EnvironmentMap.of(world(pixels))
