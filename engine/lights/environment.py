@@ -121,12 +121,73 @@ class PiecewiseConstant2D:
 
 
 # -- the map -------------------------------------------------------------------------------------------
+def _axis(t, n):
+    """engine/materials/textures.py lookup's Linear REPEAT weights along one axis of n texels at
+    coordinates t: (weight of the next texel, texel, next texel)."""
+    x = t * n - 0.5
+    f = np.floor(x)
+    i = f.astype(np.int64)
+    return x - f, np.mod(i, n), np.mod(i + 1, n)
+
+
+def cell_mean(lum, axis):
+    """sum(k * np.roll(lum, s, axis) for k, s in zip(CELL_KERNEL, (1, 0, -1))), bit for bit (the
+    same products and sums in the same order, 0 + the first), in two buffers instead of nine: a
+    2048 x 1024 map's construction is bound by memory (tests/lights/test_environment_build.py)."""
+    out, term = np.empty_like(lum), np.empty_like(lum)
+    for weight, shift in zip(CELL_KERNEL, (1, 0, -1)):
+        target = out if shift == 1 else term
+        if shift == 0:
+            np.multiply(weight, lum, out=target)
+        else:
+            _roll_into(lum, shift, axis, target)
+            np.multiply(weight, target, out=target)
+        if shift == 1:
+            np.add(0, out, out=out)
+        else:
+            np.add(out, term, out=out)
+    return out
+
+
+def _roll_into(a, shift, axis, out) -> None:
+    """out[...] = np.roll(a, shift, axis) for shift +1 or -1."""
+    head, tail = [slice(None)] * a.ndim, [slice(None)] * a.ndim
+    if shift == 1:
+        head[axis], tail[axis] = slice(1, None), slice(None, -1)
+        out[tuple(head)] = a[tuple(tail)]
+        head[axis], tail[axis] = slice(0, 1), slice(-1, None)
+    else:
+        head[axis], tail[axis] = slice(None, -1), slice(1, None)
+        out[tuple(head)] = a[tuple(tail)]
+        head[axis], tail[axis] = slice(-1, None), slice(0, 1)
+    out[tuple(head)] = a[tuple(tail)]
+
+
+def fine_lookup(pixels, us, vs):
+    """(len(vs) * len(us), C) float64: lookup(pixels, u, v, "Linear", "REPEAT") at every (u, v) of the
+    grid of columns `us` and rows `vs` (row by row), bit for bit.  The bilinear weights of a grid
+    depend on the column or the row only, so each texel row is blended along u once, then pairs of
+    those rows along v: the same operations on the same numbers as lookup's
+    (1 - ty)((1 - tx) p00 + tx p10) + ty((1 - tx) p01 + tx p11), without reading 4 texels per
+    point (a 128 x 64 world at 8 x 8 sub-cells: 0.2 -> 0.03 CPU s, docs/performance.md "A render's
+    fixed cost"; tests/lights/test_environment.py)."""
+    tx, x0, x1 = _axis(np.asarray(us, dtype=np.float64), pixels.shape[1])
+    ty, y0, y1 = _axis(np.asarray(vs, dtype=np.float64), pixels.shape[0])
+    texels = pixels.astype(np.float64)
+    tx = tx[None, :, None]
+    along_u = (1 - tx) * texels[:, x0] + tx * texels[:, x1]             # (H, len(us), C)
+    ty = ty[:, None, None]
+    out = (1 - ty) * along_u[y0] + ty * along_u[y1]                      # (len(vs), len(us), C)
+    return out.reshape(-1, pixels.shape[2])
+
+
 def load_pixels(tex):
     """(pixels (H, W, C) float32 bottom row first, decode_after: 8-bit sRGB decoded after the
     lookup) of an engine/scene/textures.py ImageTexture, as engine/materials/textures.py loads it;
     raises OSError when it cannot be read."""
     if tex.pixels is not None:
-        pixels, is_float = as_float(tex.pixels), tex.is_float
+        pixels = np.asarray(tex.pixels)                 # float32 as it is (only read here): no copy
+        pixels, is_float = (pixels if pixels.dtype == np.float32 else as_float(pixels)), tex.is_float
     else:
         if not tex.path or not os.path.isfile(tex.path):
             raise OSError("file not found")
@@ -137,6 +198,29 @@ def load_pixels(tex):
     if tex.is_srgb and is_float:
         pixels = srgb_to_linear(pixels).astype(np.float32)
     return np.ascontiguousarray(pixels), decode_after
+
+
+_LAST = {"keep": False, "key": None, "map": None}       # keep_last_map's (world, image) and map
+
+
+def keep_last_map(keep: bool = True) -> None:
+    """For a process that prepares scene after scene (the viewport's and Persistent Data's workers,
+    engine/pools/viewport.py): EnvironmentMap.of gives the last map back for a world and image
+    equal to the last ones (values compared, not objects: every preparation unpickles new ones),
+    so a frame of an animation whose objects moved does not build the image world's tables again
+    (sky.blend's 2048 x 1024 map: 0.08-0.6 CPU s per worker and frame).  The map is a function of
+    those two alone, and nothing changes it after it is built.  Images given as a file are not kept."""
+    _LAST.update(keep=keep, key=None, map=None)
+
+
+def _same_world(env, texture, last_env, last_texture) -> bool:
+    """Whether (env, texture) equal (last_env, last_texture): every field of the world, and the
+    image's pixels (dtype, shape, values), colour space and kind."""
+    if env != last_env or texture.pixels is None or last_texture.pixels is None:
+        return False
+    a, b = np.asarray(texture.pixels), np.asarray(last_texture.pixels)
+    return (texture.colorspace == last_texture.colorspace and texture.is_float == last_texture.is_float
+            and a.dtype == b.dtype and a.shape == b.shape and (a is b or bool(np.array_equal(a, b))))
 
 
 class EnvironmentMap:
@@ -165,11 +249,12 @@ class EnvironmentMap:
         if env.interpolation != "Closest" and k > 1:    # the bilinear luminance at sub-cell centres
             lum = self._fine_luminance(pixels, k)
         elif env.interpolation != "Closest":            # a bilinear lookup's mean over each cell
-            lum = sum(k * np.roll(lum, s, axis=0) for k, s in zip(CELL_KERNEL, (1, 0, -1)))
-            lum = sum(k * np.roll(lum, s, axis=1) for k, s in zip(CELL_KERNEL, (1, 0, -1)))
+            lum = cell_mean(cell_mean(lum, 0), 1)
         while lum.size > MOST_CELLS and lum.shape[0] % 2 == 0 and lum.shape[1] % 2 == 0:
             lum = 0.25 * (lum[0::2, 0::2] + lum[1::2, 0::2] + lum[0::2, 1::2] + lum[1::2, 1::2])
-        weight = lum * self._cell_areas(*lum.shape) if sin_theta_in_density or not self.equirectangular else lum
+        if lum.shape != area.shape:
+            area = self._cell_areas(*lum.shape)
+        weight = lum * area if sin_theta_in_density or not self.equirectangular else lum
         self.distribution = PiecewiseConstant2D(weight)
 
     @staticmethod
@@ -183,9 +268,8 @@ class EnvironmentMap:
     def _fine_luminance(self, pixels, k):
         """(h k, w k) the Linear lookup's luminance (no strength) at the sub-cell centres."""
         h, w = pixels.shape[0] * k, pixels.shape[1] * k
-        u = np.tile((np.arange(w) + 0.5) / w, h)
-        v = np.repeat((np.arange(h) + 0.5) / h, w)
-        colour = np.maximum(self._linear(lookup(pixels, u, v, "Linear", "REPEAT")), 0.0)
+        values = fine_lookup(pixels, (np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)
+        colour = np.maximum(self._linear(values), 0.0)
         return (colour @ LUMINANCE.astype(np.float64)).reshape(h, w)
 
     def _cell_areas(self, h, w):
@@ -202,15 +286,22 @@ class EnvironmentMap:
     @classmethod
     def of(cls, scene):
         """The scene's map, or None: no environment, or its image cannot be read (Scene.validate
-        warned about a missing file; the constant background is used)."""
+        warned about a missing file; the constant background is used).  In a process that keeps
+        its last map (keep_last_map), the last one when the world and its image are the same."""
         env = getattr(scene, "environment", None)
         if env is None:
             return None
+        texture = scene.textures[env.texture]
+        if _LAST["keep"] and _LAST["key"] is not None and _same_world(env, texture, *_LAST["key"]):
+            return _LAST["map"]
         try:
-            pixels, decode_after = load_pixels(scene.textures[env.texture])
-            return cls(env, pixels, decode_after)
+            pixels, decode_after = load_pixels(texture)
+            built = cls(env, pixels, decode_after)
         except (OSError, RuntimeError, ValueError):
             return None
+        if _LAST["keep"] and texture.pixels is not None:     # a file's content may change under its name
+            _LAST.update(key=(env, texture), map=built)
+        return built
 
     @property
     def lights(self) -> bool:

@@ -5,7 +5,7 @@ same deadline through its scheduler (engine/pools/dask_watch.py).  One `Dispatch
 holds, and what happens when a worker fails.
 
 * Dispatch: each worker gets its first unit before any gets a second; at most IN_FLIGHT units are
-  queued on a worker (see `Dispatch.feed`).
+  queued on a worker, a second only while many are pending (`queues_another`).
 * A worker that dies (its process exits, its pipe ends) is named in the render's warnings and the
   units it held are queued again at the front, for the other workers.  Units are deterministic
   (engine/rendering/units.py: a unit's random numbers depend on the frame only), so the image is
@@ -35,6 +35,18 @@ DEADLINE_MIN = 30.0      # seconds: a worker finishing no unit for this long (at
 DEADLINE_FACTOR = 10.0   # ... or for this many times the slowest unit so far, if longer
 CANCEL_SECONDS = 1.0     # after a cancel, a worker still holding units this long is killed
 POLL = 0.1               # seconds between deadline checks while a pool waits for a result
+QUEUE_AHEAD_ROUNDS = 2   # a second unit is queued only while more than this many per worker are pending
+
+
+def queues_another(held: int, pending: int, alive: int) -> bool:
+    """Whether a worker holding `held` units is sent one more (below its IN_FLIGHT): its first
+    always; another only while more than QUEUE_AHEAD_ROUNDS units per live worker are pending.  A
+    queued unit waits for its worker even when another is idle, so the last units of a render go
+    one at a time to whichever worker is free (a round of few units of the stopping rules ended
+    when the worker holding two big ones did, docs/performance.md "Worker processes"; a final render
+    of 5 units of unequal tiles, 96x96 at 64 spp, left one worker idle 0.3-0.6 s with the rule of
+    one unit per worker, "A render's fixed cost")."""
+    return held == 0 or pending > QUEUE_AHEAD_ROUNDS * alive
 
 
 def unit_deadline(slowest: float) -> float:
@@ -91,14 +103,11 @@ class Dispatch:
             self.feed(w)
 
     def feed(self, worker, limit: int = IN_FLIGHT) -> None:
-        """Send `worker` units until it has `limit` in flight.  A second unit is queued only while
-        more units than live workers are pending: a queued unit waits for its worker even when
-        another is idle, and a round of few units (adaptive rounds: one per tile still active) then
-        ended when the worker holding two big ones did (measured: docs/performance.md, "Worker
-        processes")."""
+        """Send `worker` units until it has `limit` in flight, a second one only where
+        queues_another says."""
         alive = len(self.alive())
         while (worker.alive and not self.cancelled and self.pending and len(worker.in_flight) < limit
-               and (not worker.in_flight or len(self.pending) > alive)):
+               and queues_another(len(worker.in_flight), len(self.pending), alive)):
             unit = self.pending.popleft()
             if not worker.in_flight:
                 worker.busy_since = time.perf_counter()

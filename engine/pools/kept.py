@@ -134,8 +134,8 @@ class KeptPool(Pool):
         """The render is over: a pool for one render (keep False) is shut down; a kept one drains the
         units the render left in flight (an exception in the frame side) and is shut down when it
         cannot drain them within DRAIN_SECONDS."""
-        if not self.keep:                       # a pool for one render: nothing to keep, no drain
-            self.shutdown()
+        if not self.keep:                       # a pool for one render: nothing to keep, no drain,
+            self.shutdown(wait=False)           # and no wait for the workers' ends (ViewportPool.close)
             return
         deadline = time.perf_counter() + DRAIN_SECONDS
         if self.inner.outstanding():
@@ -145,10 +145,10 @@ class KeptPool(Pool):
         if self.inner.outstanding() or not self.keep:
             self.shutdown()
 
-    def shutdown(self) -> None:
+    def shutdown(self, wait: bool = True) -> None:
         if not self.is_shut:
             self.is_shut = True
-            self.inner.close()
+            self.inner.close(wait=wait)
 
     def stats(self) -> dict:
         stats = dict(self.inner.stats())

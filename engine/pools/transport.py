@@ -110,7 +110,7 @@ def exit_worker(code: int):
     wrote is flushed already): no interpreter teardown.  Tearing down an interpreter that loaded
     numba's kernels, Embree and a scene took a worker 0.1-0.2 s (two warm workers closed in
     0.22 s, after a render 0.37 s; with this 0.01 s, 2026-12-05), and a pool for one render
-    (F12) waits for its workers' ends before the render returns (close_all).  Nothing of a
+    (F12) used to wait for its workers' ends before the render returned (close_all).  Nothing of a
     worker's needs the teardown: its files (numba's cache, engine/core/table_cache.py) are written
     whole and renamed when they are made."""
     for stream in (sys.stdout, sys.stderr):
@@ -339,11 +339,23 @@ def start_workers(make, count: int, grace: float, fail):
     return workers
 
 
-def close_all(workers, grace: float) -> None:
-    """EOF to every worker, then SIGKILL to those still running after `grace` seconds in all."""
+def close_all(workers, grace: float, wait: bool = True) -> None:
+    """EOF to every worker, then SIGKILL to those still running after `grace` seconds in all.
+    wait=False: return after the EOFs; a thread of this process waits for the ends (and kills
+    after `grace`).  For workers that hold no unit and end as soon as they read the EOF: a render
+    then returns without waiting for its workers' teardown (an interpreter with numba's kernels
+    and a scene: 50-120 ms of every F12 on the workers started ahead, docs/performance.md "A
+    render's fixed cost")."""
     import time
+    workers = list(workers)
     for w in workers:
         w.close()
     deadline = time.perf_counter() + grace
-    for w in workers:
-        w.wait(deadline - time.perf_counter())
+
+    def reap():
+        for w in workers:
+            w.wait(deadline - time.perf_counter())
+    if wait:
+        reap()
+    else:
+        threading.Thread(target=reap, daemon=True, name="tncg15 worker reaper").start()

@@ -141,6 +141,7 @@ def warm_kernels() -> bool:
     from ..core import backend
     from ..core.collector import collector_paused
     try:
+        preimport()
         if backend.numba_module() is None:
             return True                         # nothing to load, ever
         if backend.is_warm():
@@ -151,6 +152,15 @@ def warm_kernels() -> bool:
     except Exception:                           # noqa: BLE001 - the first prepare says why (backend.resolve)
         return True
     return False
+
+
+def preimport() -> None:
+    """Import now what a worker's first preparation would import (a worker started ahead is
+    idle): the node programs' evaluator and its node modules, which engine/materials/textures.py
+    imports at the first scene with a node program (22 modules, 30-50 CPU ms of that render in
+    each worker, docs/performance.md "A render's fixed cost")."""
+    from ..nodes import evaluator, registry          # noqa: F401 - the evaluator's own imports
+    registry.kernels()                               # every node module
 
 
 def watch_for_warm_cache(inbox: queue.Queue) -> None:
@@ -171,7 +181,9 @@ def watch_for_warm_cache(inbox: queue.Queue) -> None:
 
 def viewport_worker_main(parent_pid: int) -> int:
     from ..core.allocator import tune_malloc
+    from ..lights.environment import keep_last_map
     from ..rendering.session import PreparedScene
+    keep_last_map()                         # a new preparation of the same world reuses its tables
     end = WorkerEnd(parent_pid)
     if not end.handshake():
         return end.exit_code
@@ -376,8 +388,13 @@ class ViewportPool(Pool):
         return unit, event[2], None
 
     def _feed(self, worker, limit: int = IN_FLIGHT):
+        """Send `worker` units until it holds `limit`, a second one only where engine/pools/faults.py
+        queues_another says (as Dispatch.feed): a unit queued on a busy worker waits for it even
+        when another is idle (a final render on the workers started ahead, mcrt_addon/warm.py)."""
+        alive = sum(w.alive for w in self.workers)
         while (worker.alive and worker.prepared == self.preparation and not self.cancelled and self.pending
-               and len(worker.in_flight) < limit):
+               and len(worker.in_flight) < limit
+               and faults.queues_another(len(worker.in_flight), len(self.pending), alive)):
             unit = self.pending.pop(0)
             if not worker.in_flight:
                 worker.busy_since = time.perf_counter()
@@ -515,9 +532,12 @@ class ViewportPool(Pool):
                 if w.alive and w.in_flight:
                     w.send(("cancel",))
 
-    def close(self):
+    def close(self, wait: bool = True):
+        """End the workers.  wait=False: without waiting for their ends when every worker is alive
+        and holds no unit (engine/pools/transport.py close_all), else as wait=True."""
+        clean = not self.outstanding() and all(w.alive for w in self.workers)
         self.cancelled = True
-        close_all(self.workers, CLOSE_SECONDS)
+        close_all(self.workers, CLOSE_SECONDS, wait=wait or not clean)
 
     def stats(self) -> dict:
         return {"worker_python": self.python, "worker_pids": [w.pid for w in self.workers],

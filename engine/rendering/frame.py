@@ -148,8 +148,11 @@ class Frame:
         self.tile_size = tile_size_for(width, height, settings.tile_size)
         self.tiles = make_tiles(width, height, self.tile_size)
         photons = facts.plan.enabled.get("photon_caustics", False)        # each sample a photon pass: shorter units
+        # Sobol' numbers depend on the pixel and sample only: the units may be balanced for the
+        # render's worker count (one per thread on every pool but Dask's), the image stays the same.
+        workers = settings.resolved_threads() if settings.sampler == "sobol" else None
         self.units = make_units(self.tiles, settings.samples, progressive,
-                                max_samples=PHOTON_UNIT_SAMPLES if photons else None)
+                                max_samples=PHOTON_UNIT_SAMPLES if photons else None, workers=workers)
         self.film = FrameFilm(width, height, self.units, settings.film_transparent, settings.film_exposure)
         if traced(settings.passes):
             self.film.features = FrameFeatures(width, height)

@@ -14,6 +14,8 @@ TAIL_PATHS = 8192                 # what a unit's tail costs, in paths (engine/r
 BALANCE_WORKERS = (1, 2, 3, 4)    # the worker counts balance_units weighs (the units never see the workers)
 MOST_BALANCE_SPLITS = 12          # at most this many units split in two by balance_units
 MOST_BALANCED_UNITS = 400         # frames of more units lose under 1 % to their last round on 4 workers
+SMALLEST_BAND_PATHS = 1 << 14     # balance_units for a known worker count: bands down to this (the
+                                  # TAIL_PATHS of each unit in its cost keeps them from being many)
 PHOTON_UNIT_SAMPLES = 16          # at most, per unit, with caustic photons: each sample of a pixel is one
                                   # photon pass (engine/integrators/photons/caustics.py), which a unit traces
 
@@ -99,14 +101,14 @@ def chunk_starts(samples: int, step: int, growing: bool) -> list[int]:
 
 
 def make_units(tiles, samples: int, order: str = "tiles", max_samples: int | None = None,
-               balance: bool = True) -> list[WorkUnit]:
+               balance: bool = True, workers: int | None = None) -> list[WorkUnit]:
     """Each tile's samples in chunks of about UNIT_PATHS camera samples.  order "tiles": a tile's
     chunks one after the other (the frame fills tile by tile); "frame": chunk 0 of every tile,
     then chunk 1, ... (the whole frame refines); "growing": as "frame", with chunks of 1, 1, 2, 4,
     ... samples up to that size (the viewport: a picture of the whole frame after one sample,
     big units after that, engine/pools/viewport.py).  max_samples: a cap on a unit's samples.
     balance: the last units split in bands of rows where that keeps workers busier (balance_units;
-    never in the growing order, whose units are small on purpose)."""
+    never in the growing order, whose units are small on purpose); workers: see balance_units."""
     if order not in ORDERS:
         raise ValueError(f"progressive order {order!r}: expected one of {', '.join(ORDERS)}")
     per_tile = []
@@ -126,7 +128,7 @@ def make_units(tiles, samples: int, order: str = "tiles", max_samples: int | Non
     else:
         chunks = [u for units in per_tile for u in units]
     units = [WorkUnit(i, tile, c, start, stop) for i, (tile, c, start, stop) in enumerate(chunks)]
-    return balance_units(units) if balance and order != "growing" else units
+    return balance_units(units, workers) if balance and order != "growing" else units
 
 
 def makespan(costs, workers: int) -> float:
@@ -148,7 +150,7 @@ def split_rows(unit: WorkUnit) -> list[WorkUnit]:
             for p, band in enumerate(bands)]
 
 
-def balance_units(units: list[WorkUnit]) -> list[WorkUnit]:
+def balance_units(units: list[WorkUnit], workers: int | None = None) -> list[WorkUnit]:
     """A frame of few units leaves workers idle at its end (9 equal units on 2 workers: 5 rounds, one
     worker idle in the last).  Split the last k of the units that make two halves of at least
     UNIT_PATHS / 2 paths each in two bands of rows (split_rows), k = 0 .. MOST_BALANCE_SPLITS: the k
@@ -158,18 +160,27 @@ def balance_units(units: list[WorkUnit]) -> list[WorkUnit]:
     numbers (the Sobol' sampler seeds per frame pixel, engine/sampling/qmc.py) depend on nothing
     else: the image is the same bit for bit (tests/rendering/test_units.py; the random sampler
     seeds per unit and band, engine/rendering/session.py).  Frames of more than MOST_BALANCED_UNITS
-    units are left as they are (and the search stays short)."""
+    units are left as they are (and the search stays short).
+
+    workers: the number of workers the render will have, for a sampler whose numbers depend on the
+    frame pixel and the sample only (the Sobol' sampler: engine/rendering/frame.py passes it), whose
+    images no split changes: the makespan on that many workers alone is weighed, and bands down to
+    SMALLEST_BAND_PATHS paths (96x96 at 64 spp, 2 workers: the 32x32 corner tile split, not the
+    64x64 one: makespan 1.19 -> 1.08 x the paths' even share; docs/performance.md "A render's fixed
+    cost").  None: the counts of BALANCE_WORKERS and bands of at least UNIT_PATHS / 2."""
     if len(units) > MOST_BALANCED_UNITS:
         return units
+    smallest = UNIT_PATHS // 2 if workers is None else SMALLEST_BAND_PATHS
+    weighed = BALANCE_WORKERS if workers is None else (max(1, workers),)
     splittable = [i for i, u in enumerate(units)
                   if u.parts == 1 and u.tile.y1 - u.tile.y0 >= 2
-                  and (u.tile.y1 - u.tile.y0) // 2 * (u.tile.x1 - u.tile.x0) * (u.stop - u.start) >= UNIT_PATHS // 2]
+                  and (u.tile.y1 - u.tile.y0) // 2 * (u.tile.x1 - u.tile.x0) * (u.stop - u.start) >= smallest]
     best, best_cost = 0, None
     for k in range(min(len(splittable), MOST_BALANCE_SPLITS) + 1):
         split = set(splittable[len(splittable) - k:])
         costs = [c for i, u in enumerate(units)
                  for c in ([u.paths / 2 + TAIL_PATHS] * 2 if i in split else [u.paths + TAIL_PATHS])]
-        cost = sum(makespan(costs, w) for w in BALANCE_WORKERS)
+        cost = sum(makespan(costs, w) for w in weighed)
         if best_cost is None or cost < best_cost:
             best, best_cost = k, cost
     split = set(splittable[len(splittable) - best:])

@@ -63,8 +63,8 @@ class FakePool:
     def warm(self):
         self.warm_sent = True
 
-    def close(self):
-        self.closed = True
+    def close(self, wait=True):
+        self.closed, self.waited = True, wait
 
 
 def settle(warm):
@@ -239,7 +239,7 @@ def test_a_final_render_uses_the_warm_pool_for_one_render_only(warm, monkeypatch
     assert pool.inner is inner and warm.pool() is None and inner.log is print
     assert pool.stats()["persistent_data"] is False
     pool.close()                                                    # the render is over: so are its workers
-    assert inner.closed
+    assert inner.closed and inner.waited is False                   # ... without waiting for their ends
     kept = KeptPool(FakePool(), checked=True)                       # control: Persistent Data's pool stays
     kept.close()
     assert not kept.inner.closed and kept.stats()["persistent_data"] is True
