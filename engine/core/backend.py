@@ -75,16 +75,22 @@ _state = {"checked": False, "module": None, "error": None, "warming": None}
 _lock = threading.Lock()
 
 
-def cache_dir() -> str:
-    """The per-user directory of numba's cache for today's twin sources (created when missing):
-    the folder `sources_digest()` in $NUMBA_CACHE_DIR or the per-user default.  A process started
-    with NUMBA_CACHE_DIR already naming that folder (a worker, the warm-up's Python) keeps it."""
+def cache_root() -> str:
+    """The per-user directory holding numba's caches, one folder per version of the twins' sources:
+    $NUMBA_CACHE_DIR, else $XDG_CACHE_HOME or ~/.cache, then tncg15_mc/numba.  A process started
+    with NUMBA_CACHE_DIR already naming today's folder (a worker, the warm-up's Python) gets its parent."""
     root = os.environ.get("NUMBA_CACHE_DIR")
     if not root:
         base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
         root = os.path.join(base, "tncg15_mc", "numba")
-    name = sources_digest()
-    path = root if os.path.basename(os.path.normpath(root)) == name else os.path.join(root, name)
+    root = os.path.normpath(root)
+    return os.path.dirname(root) if os.path.basename(root) == sources_digest() else root
+
+
+def cache_dir() -> str:
+    """The directory of numba's cache for today's twin sources (created when missing): the folder
+    `sources_digest()` in `cache_root()`."""
+    path = os.path.join(cache_root(), sources_digest())
     os.makedirs(path, exist_ok=True)
     return path
 
@@ -253,7 +259,7 @@ def prune_old_caches(days: float = PRUNE_AFTER_DAYS) -> list:
     paths.  Runs after a warm-up, the one moment a new folder fills."""
     import shutil
     here = cache_dir()
-    root, cutoff, removed = os.path.dirname(here), time.time() - days * 86400.0, []
+    root, cutoff, removed = cache_root(), time.time() - days * 86400.0, []
     for name in os.listdir(root):
         path = os.path.join(root, name)
         if not name.startswith("twins-") or path == here or not os.path.isdir(path):

@@ -20,11 +20,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from .backend import cache_dir
+from .backend import cache_root
 
 
 def tables_dir() -> str:
-    path = os.path.join(os.path.dirname(cache_dir()), "tables")
+    path = os.path.join(os.path.dirname(cache_root()), "tables")
     os.makedirs(path, exist_ok=True)
     return path
 
