@@ -337,15 +337,24 @@ class PrincipledV2(BSDF):
         """The eval (the base and the sheen and coat over it) and the base's sample compiled
         (engine/materials/principled_jit.py, the same numbers) when the render runs the Principled
         effects on numba and no material has a rough diffuse (that keeps the NumPy lobes).  The
-        transmission closure stays NumPy's (principled_glass.py), added after the compiled lobes
-        as _layered_mixture adds it last (`_add_glass`)."""
+        transmission closure's setup stays NumPy's (principled_glass.py), added after the compiled
+        lobes as _layered_mixture adds it last (`_add_glass`); its GGX lobe with the coloured Fresnel
+        is compiled too (engine/materials/dielectric_jit.py `sample_coloured`, `eval_coloured`),
+        rough diffuse or not."""
         super().use_backend(backends)
+        on_numba = any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.principled_jit"])
         fusable = not bool((self.diffuse.roughness > 0.0).any())
-        if fusable and any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.principled_jit"]):
+        if fusable and on_numba:
             from . import principled_jit
             self.compiled = principled_jit
         else:
             self.compiled = None
+        if self.any_transmission:                   # its GGX glass lobe with the coloured Fresnel
+            if on_numba:
+                from . import dielectric_jit
+                self.glass.lobe.compiled = dielectric_jit
+            else:
+                self.glass.lobe.compiled = None
 
     def _fused_hits(self, si: ShadingPoint):
         """What the compiled base reads per hit (C-contiguous, over the hits on the last axis): wo;
