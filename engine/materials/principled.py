@@ -478,7 +478,12 @@ class PrincipledV2(BSDF):
         metal, specular, _ = self._views(si)
         mu = np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0)   # the lobes' normal (bsdf_albedo)
         rows = si.material
-        s_metal, s_spec = self._textured_s(si, mu, _read(self.s_metal, rows, mu), _read(self.s_specular, rows, mu))
+        textured = textured_mask(si, self.specular.roughness_input) is not None
+        if not textured and not self.has_specular.any():     # no specular lobe: a_spec is np.where's 0 everywhere
+            s_metal = _read(self.s_metal, rows, mu)
+            a_metal = self._darkening(self.metal, metal, mu, True) * (metal.color + (1.0 - metal.color) * s_metal)
+            return a_metal, np.zeros((3, len(si)))
+        s_metal, s_spec = self._textured_s(si, mu, *_read_both(self.s_metal, self.s_specular, rows, mu))
         a_metal = self._darkening(self.metal, metal, mu, True) * (metal.color + (1.0 - metal.color) * s_metal)
         a_spec = self._darkening(self.specular, specular, mu, True) * (specular.color + (1.0 - specular.color) * s_spec)
         return a_metal, np.where(self.has_specular.take(rows), a_spec, 0.0)
@@ -533,15 +538,20 @@ class PrincipledV2(BSDF):
         base's weight W (3, N), and the albedo estimates sheen_albedo (N,) and coat_albedo (N,)."""
         rows = si.material
         n = len(si)
-        mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)
         alpha = self.alpha.take(rows)
         w = np.tile(alpha, (3, 1))
         sheen_w = self.sheen_weight.take(rows)
+        coat_w = self.coat_weight.take(rows)
+        if not (sheen_w.any() or coat_w.any()):     # neither layer at these hits: the lines below give this
+            zeros = np.zeros((3, n))                # (0 x finite = +0, w x clip(1 - 0) = w, no tint
+            return SimpleNamespace(through=1.0 - alpha, sheen=zeros, sheen_a=np.zeros(n), sheen_b=np.zeros(n),
+                                   coat=zeros.copy(), base=w, sheen_albedo=np.zeros(n), coat_albedo=np.zeros(n),
+                                   coat_view=si.recolour(np.ones((3, n))))      # without a coat weight)
+        mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)
         a, b, r = self._sheen_params(si, sheen_w)
         r = np.where(sheen_w > 0.0, r, 0.0)
         sheen = sheen_w * self.sheen_tint.take(rows, axis=1) * r * w
         w = w * np.clip(1.0 - (sheen_w * self.sheen_tint.take(rows, axis=1) * r).max(axis=0), 0.0, 1.0)
-        coat_w = self.coat_weight.take(rows)
         # Reflective Caustics off (engine/integrators/light_paths.py): no coat closure, nor its
         # darkening of the base; its tint stays (closure.h)
         coat_on = coat_w if si.glossy_off is None else np.where(si.glossy_off, 0.0, coat_w)
@@ -820,10 +830,25 @@ def _scatter(values: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def _read(table: np.ndarray, rows: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """table (M, MU_POINTS) at each hit's material row and mu (N,), linear in sqrt(mu)."""
+def _read_at(rows: np.ndarray, mu: np.ndarray):
+    """Where _read reads the tables: (flat index of the lower point, of the upper, weight t) (N,) each."""
     x = np.sqrt(np.clip(mu, 0.0, 1.0)) * (MU_POINTS - 1)
     j = np.minimum(x.astype(np.int64), MU_POINTS - 1)
     k = np.minimum(j + 1, MU_POINTS - 1)
     t = x - j
-    return (1.0 - t) * table[rows, j] + t * table[rows, k]
+    base = rows * MU_POINTS
+    return base + j, base + k, t
+
+
+def _read(table: np.ndarray, rows: np.ndarray, mu: np.ndarray, at=None) -> np.ndarray:
+    """table (M, MU_POINTS) at each hit's material row and mu (N,), linear in sqrt(mu) (`at`: _read_at's,
+    when another table of the same shape is read at the same points)."""
+    low, high, t = _read_at(rows, mu) if at is None else at
+    flat = table.ravel()
+    return (1.0 - t) * flat.take(low) + t * flat.take(high)
+
+
+def _read_both(first: np.ndarray, second: np.ndarray, rows: np.ndarray, mu: np.ndarray):
+    """_read of two tables at the same rows and mu (the points found once)."""
+    at = _read_at(rows, mu)
+    return _read(first, rows, mu, at), _read(second, rows, mu, at)

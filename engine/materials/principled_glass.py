@@ -96,7 +96,9 @@ class PrincipledGlass:
 
     def sample_weight(self, si: ShadingPoint) -> np.ndarray:
         """mean(R + T) (N,) at wo.n: the closure's albedo estimate (without its weight)."""
-        mat, eta, _, _, f0, tint = self._setup(si)
+        mat = si.material                           # _setup's eta, F0 and tint (not its frame)
+        eta, _ = refraction_eta(si, self.ior.take(mat))
+        f0, tint = self.f0.take(mat, axis=1), np.sqrt(np.clip(si.color, 0.0, 1.0))
         r, t = self._fresnel(eta, f0, tint)(np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0))
         return (r + t).mean(axis=0)
 
