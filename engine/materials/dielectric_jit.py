@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .microfacet_jit import _clip01, _d, _finite, _lambda, _max0, _normalized, jit, vndf
+from .microfacet_jit import _clip01, _d, _finite, _lambda, _max0, _normalized, frame, jit, vndf  # noqa: F401 (frame: the glass BSDFs')
 from .principled_jit import _fresnel_dielectric
 
 

@@ -72,7 +72,7 @@ class PrincipledGlass:
         mat = si.material
         eta, entering = refraction_eta(si, self.ior.take(mat))
         n = specular_normal_at(si)
-        frame = (*shading_frame(n), n)
+        frame = (*(shading_frame(n) if self.lobe.compiled is None else self.lobe.compiled.frame(n)), n)
         tint = np.sqrt(np.clip(si.color, 0.0, 1.0))
         return mat, eta, entering, frame, self.f0.take(mat, axis=1), tint
 
