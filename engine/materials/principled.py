@@ -594,13 +594,20 @@ class PrincipledV2(BSDF):
         metal, specular, diffuse (, glass))."""
         layers = self.layer_weights(si)
         (w_metal, w_spec, w_diffuse), base_prob = self.lobe_weights(si, sample_total=True)
+        if self.compiled is not None:               # the lines below in one pass (principled_jit.py)
+            if not self.any_transmission:
+                weights, prob = self.compiled.layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_prob)
+                return layers, weights, prob
+            w_glass = self._glass_weight(si)
+            weights, prob = self.compiled.layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_prob,
+                                                                w_glass, self._glass_sample_weight(si, w_glass))
+            return layers, weights, prob
         base = layers.base
         weights = [layers.sheen, layers.coat, w_metal * base, w_spec * base, w_diffuse * base]
         coat_sample = layers.coat.mean(axis=0) * layers.coat_albedo
         sample = np.vstack([layers.sheen.mean(axis=0), coat_sample, base_prob * base.mean(axis=0)])
         if self.any_transmission:                   # the transmission closure: t (1 - metallic) W
-            m = self.metallic.take(si.material)
-            w_glass = self.glass.transmission.take(si.material) * np.where(1.0 - m > WEIGHT_CUTOFF, 1.0 - m, 0.0)
+            w_glass = self._glass_weight(si)
             weights.append(w_glass * base)
             sample = np.vstack([sample, w_glass * base.mean(axis=0) * self._glass_sample_weight(si, w_glass)])
         total = sample.sum(axis=0)
@@ -640,6 +647,11 @@ class PrincipledV2(BSDF):
             f_cos[:, idx] += w.take(idx, axis=1) * f_l
             pdf[idx] += p.take(idx) * pdf_l
         return f_cos, pdf
+
+    def _glass_weight(self, si: ShadingPoint) -> np.ndarray:
+        """The transmission closure's scalar weight t (1 - metallic) (N,), before W."""
+        m = self.metallic.take(si.material)
+        return self.glass.transmission.take(si.material) * np.where(1.0 - m > WEIGHT_CUTOFF, 1.0 - m, 0.0)
 
     def _glass_sample_weight(self, si: ShadingPoint, w_glass: np.ndarray) -> np.ndarray:
         """The transmission closure's albedo estimate (N,) where w_glass > 0, 0 elsewhere: there
