@@ -4,9 +4,12 @@ over the hits and no temporaries.  Every hit repeats the NumPy path's float64 op
 order (engine/materials/microfacet.py ggx_sample_vndf, ggx_d, ggx_lambda; engine/materials/glossy.py
 fresnel_dielectric; the lobe's split, _jacobian, _g2 and the nan_to_num of its results), with only
 +, -, *, /, sqrt, cos and sin, as engine/materials/microfacet_jit.py does (whose scalar helpers it
-uses): the same numbers bit for bit (tests/materials/test_dielectric_jit.py).  The Beckmann lobe,
-coloured Fresnel weights (the Principled BSDF's glass closure) and the albedo tables' sampling stay
-NumPy's.  Imported only through the lobe's backend choice (it imports numba)."""
+uses): the same numbers bit for bit (tests/materials/test_dielectric_jit.py).  The Principled
+BSDF's glass closure's coloured Fresnel (dielectric_lobe.py RealFresnel: R and T per channel, the
+reflection picked by their channel means) has kernels of its own (`sample_coloured`,
+`eval_coloured`); the Beckmann lobe, other Fresnel functions and the albedo tables' sampling stay
+NumPy's.  `frame` (microfacet_jit.py's shading_frame twin) is the glass BSDFs' frame.  Imported only
+through the lobe's backend choice (it imports numba)."""
 from __future__ import annotations
 
 import numpy as np
