@@ -170,7 +170,23 @@ def kernels(args):
     def run_jit_shadows():
         for _, call in shadows:
             light_set_jit.shadow_rays(*call)
-    for name, calls, a, b, count in (("light pick (tree walk and defensive mixing)", picks, run_numpy_pick,
+    from engine.materials import textures_jit
+    from engine.materials.textures import lookup as numpy_lookup
+    rng = np.random.default_rng(0)                 # image lookups: no built-in scene has textures
+    texels = rng.random((512, 512, 4)).astype(np.float32)
+    lookups = [(texels, rng.uniform(-1.0, 2.0, 20000), rng.uniform(-1.0, 2.0, 20000), interpolation)
+               for interpolation in ("Linear", "Closest")]
+
+    def run_numpy_lookup():
+        for pixels, u, v, interpolation in lookups:
+            numpy_lookup(pixels, u, v, interpolation, "REPEAT")
+
+    def run_jit_lookup():
+        for pixels, u, v, interpolation in lookups:
+            textures_jit.lookup(pixels, u, v, interpolation, "REPEAT")
+    for name, calls, a, b, count in (("image lookup (512^2 RGBA float32, Linear and Closest)", lookups,
+                                      run_numpy_lookup, run_jit_lookup, sum(len(c[1]) for c in lookups)),
+                                     ("light pick (tree walk and defensive mixing)", picks, run_numpy_pick,
                                       run_jit_pick, rays(picks, 3)),
                                      ("parallelogram sample_li", rectangles, lambda: run_rectangles("numpy"),
                                       lambda: run_rectangles("numba"), rays(rectangles, 3)),

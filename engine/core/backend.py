@@ -7,8 +7,12 @@ compiles them and writes them to its cache (`cache=True`).
 
 * numba is imported only here (`numba_module`), after NUMBA_CACHE_DIR is set to a writable
   per-user directory (`cache_dir`: $NUMBA_CACHE_DIR if set, else $XDG_CACHE_HOME or ~/.cache,
-  then tncg15_mc/numba), so every process of a render (threads, forked and worker processes)
-  reads and writes the same cache.
+  then tncg15_mc/numba; in it a folder named by the digest of the twins' sources), so every
+  process of a render (threads, forked and worker processes) reads and writes the same cache.
+  numba's own index checks only each module's own source: a twin calling another module's kernel
+  (principled_jit -> microfacet_jit) or reading its constants (parallelograms_jit -> trig) would
+  keep machine code built from the old callee.  The digest (`sources_digest`: the twins and the
+  tracer modules they import) gives every version of the sources a cache of its own.
 * Compiling takes 20-35 s once per machine (about 19 s on two cores: `load_kernels(parallel=True)`;
   and again when a kernel's source or numba changes);
   loading from the cache well under a second.  A stamp file in the cache directory
@@ -28,6 +32,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import os
+import re
 import subprocess
 import sys
 import threading
@@ -59,9 +64,11 @@ JIT_MODULES = {
     "scene.camera_rays_jit": ("wavefront",),
     "lights.light_set_jit": ("emission",),
     "integrators.photons.gather_jit": ("photon_caustics",),
+    "materials.textures_jit": ("textures",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 
+PRUNE_AFTER_DAYS = 30.0                           # another twin-source cache unused this long is removed
 STALE_LOCK_SECONDS = 600.0                        # a warm-up lock older than this was left by a dead process
 
 _state = {"checked": False, "module": None, "error": None, "warming": None}
@@ -69,13 +76,57 @@ _lock = threading.Lock()
 
 
 def cache_dir() -> str:
-    """The per-user directory of numba's cache (created when missing)."""
-    path = os.environ.get("NUMBA_CACHE_DIR")
-    if not path:
+    """The per-user directory of numba's cache for today's twin sources (created when missing):
+    the folder `sources_digest()` in $NUMBA_CACHE_DIR or the per-user default.  A process started
+    with NUMBA_CACHE_DIR already naming that folder (a worker, the warm-up's Python) keeps it."""
+    root = os.environ.get("NUMBA_CACHE_DIR")
+    if not root:
         base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-        path = os.path.join(base, "tncg15_mc", "numba")
+        root = os.path.join(base, "tncg15_mc", "numba")
+    name = sources_digest()
+    path = root if os.path.basename(os.path.normpath(root)) == name else os.path.join(root, name)
     os.makedirs(path, exist_ok=True)
     return path
+
+
+_RELATIVE_IMPORT = re.compile(r"^[ \t]*from[ \t]+(\.+)([\w.]*)[ \t]+import[ \t]+(\([^)]*\)|[^\n]*)", re.M)
+
+
+def _imported_tracer_files(path: str) -> list:
+    """The tracer's own modules a source file imports (relative imports: `from . import trig`,
+    `from .microfacet_jit import vndf`, `from ..core.backend import numba_module`).  A regular
+    expression, not the ast module: this runs in every process that imports numba."""
+    with open(path, encoding="utf-8") as fh:
+        text = fh.read()
+    found = []
+    for dots, module, names in _RELATIVE_IMPORT.findall(text):
+        base = os.path.dirname(path)
+        for _ in range(len(dots) - 1):
+            base = os.path.dirname(base)
+        if module:
+            targets = [module.split(".")]
+        else:
+            targets = [[name.split()[0]] for name in names.strip("()").replace("\n", " ").split(",") if name.strip()]
+        for target in targets:
+            candidate = os.path.join(base, *target) + ".py"
+            if os.path.isfile(candidate):
+                found.append(os.path.normpath(candidate))
+    return found
+
+
+def sources_digest() -> str:
+    """"twins-" and a digest of the twins' sources and of the tracer modules they import (their
+    contents and paths), computed once per process."""
+    if "digest" not in _state:
+        files = []
+        for path in jit_files():
+            files += [path] + _imported_tracer_files(path)
+        digest = hashlib.sha1()
+        for path in sorted(set(files)):
+            with open(path, "rb") as fh:
+                digest.update(path.encode() + b"\0" + fh.read() + b"\0")
+        _state["digest"] = "twins-" + digest.hexdigest()[:16]
+    return _state["digest"]
 
 
 def numba_module():
@@ -192,7 +243,30 @@ def warm_up(log=print) -> float:
     with open(stamp + ".tmp", "w") as fh:
         fh.write(f"{seconds:.3f}\n")
     os.replace(stamp + ".tmp", stamp)
+    prune_old_caches()
     return seconds
+
+
+def prune_old_caches(days: float = PRUNE_AFTER_DAYS) -> list:
+    """Remove the caches of other twin sources (sibling `twins-*` folders: an older version of the
+    add-on, a checkout since edited) whose warm stamps are all older than `days`; returns their
+    paths.  Runs after a warm-up, the one moment a new folder fills."""
+    import shutil
+    here = cache_dir()
+    root, cutoff, removed = os.path.dirname(here), time.time() - days * 86400.0, []
+    for name in os.listdir(root):
+        path = os.path.join(root, name)
+        if not name.startswith("twins-") or path == here or not os.path.isdir(path):
+            continue
+        try:
+            used = max([os.path.getmtime(path)] + [os.path.getmtime(os.path.join(path, f))
+                                                   for f in os.listdir(path) if f.startswith("warm-")])
+        except OSError:
+            continue
+        if used < cutoff:
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
+    return removed
 
 
 def _take_lock() -> bool:

@@ -141,8 +141,13 @@ class TextureSet:
     A texture that cannot be read gives one warning naming the image and the materials that use
     it; those materials render with their unlinked colour."""
 
-    def __init__(self, scene):
+    def __init__(self, scene, backend: str = "numpy"):
         self.warnings: list[str] = []
+        # The image lookups' kernel: `lookup` here, or its numba twin (engine/materials/textures_jit.py).
+        self.compiled = None
+        if backend == "numba":
+            from . import textures_jit
+            self.compiled = textures_jit
         self.loaded: list[LoadedTexture | None] = [self._load(t, scene) for t in scene.textures]
         mats, _ = with_mix_leaves(scene.materials)        # mix leaves: material ids after the scene's
         self.color = [self._usable(m.color_texture) for m in mats]
@@ -192,7 +197,16 @@ class TextureSet:
         color = self.evaluate(TextureSlot(texture, interpolation, extension), u, v)
         if not alpha or tex.pixels.shape[2] < 4:
             return color, np.ones(len(u))
-        return color, lookup(tex.pixels[:, :, 3:4], u, v, interpolation, extension)[:, 0]
+        return color, self.lookup(tex.pixels, u, v, interpolation, extension, (3, 1))[:, 0]
+
+    def lookup(self, pixels, u, v, interpolation, extension, channels=None) -> np.ndarray:
+        """`lookup` of loaded pixels (H, W, C), on this set's backend; `channels`: (first, count) of
+        the channels to read (default all)."""
+        if self.compiled is not None:
+            return self.compiled.lookup(pixels, u, v, interpolation, extension, channels)
+        if channels is not None:
+            pixels = pixels[:, :, channels[0]:channels[0] + channels[1]]
+        return lookup(pixels, u, v, interpolation, extension)
 
     def _usable(self, slot):
         return slot if slot is not None and self.loaded[slot.texture] is not None else None
@@ -222,9 +236,9 @@ class TextureSet:
         """Linear colour rows (3, N) of `slot` at texture coordinates (u, v), times its scale."""
         tex = self.loaded[slot.texture]
         if tex.decode_after and slot.interpolation == "Closest":      # decode(texel): decoded once
-            return rgb(lookup(tex.decoded, u, v, "Closest", slot.extension)).T * \
+            return rgb(self.lookup(tex.decoded, u, v, "Closest", slot.extension)).T * \
                 np.asarray(slot.scale, dtype=np.float64)[:, None]
-        value = rgb(lookup(tex.pixels, u, v, slot.interpolation, slot.extension))
+        value = rgb(self.lookup(tex.pixels, u, v, slot.interpolation, slot.extension))
         if tex.decode_after:
             value = srgb_to_linear(value)
         return value.T * np.asarray(slot.scale, dtype=np.float64)[:, None]
@@ -254,6 +268,22 @@ def triangle_tangents(scene):
     if not parts:
         return np.zeros((9, 0)), np.zeros(0, dtype=bool)
     return np.ascontiguousarray(np.concatenate(parts).T), np.concatenate(has)
+
+
+def by_material(mat):
+    """[(material id, the positions of its hits in `mat`, None when they are all of them)], ids
+    ascending (np.unique's order) without sorting the hits."""
+    if not len(mat):
+        return []
+    lowest = mat.min()
+    if lowest == mat.max():
+        return [(lowest, None)]
+    return [(m, np.flatnonzero(mat == m)) for m in np.flatnonzero(np.bincount(mat))]
+
+
+def picked(values, positions):
+    """values.take(positions) on the last axis; `values` itself for None (all of them)."""
+    return values if positions is None else values.take(positions, axis=-1)
 
 
 def interpolate_uv(tri_uv, prim, b1, b2):
@@ -400,9 +430,8 @@ class HitTextures:
         values = np.array(values, dtype=np.float64)
         mat = material.take(sel)
         u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
-        for m in np.unique(mat):
-            mine = np.flatnonzero(mat == m)
-            values[:, sel.take(mine)] = self.textures.evaluate(slots[m], u.take(mine), v.take(mine))
+        for m, mine in by_material(mat):
+            values[:, picked(sel, mine)] = self.textures.evaluate(slots[m], picked(u, mine), picked(v, mine))
         return values
 
     def color(self, color, material, kind, prim, b1, b2, points=None):
@@ -445,8 +474,8 @@ class HitTextures:
         values = np.array(values, dtype=np.float64)
         mat = material.take(sel)
         programs = self.textures.programs[role]
-        for m in np.unique(mat):
-            idx = sel.take(np.flatnonzero(mat == m))
+        for m, mine in by_material(mat):
+            idx = picked(sel, mine)
             out = self.run_program(programs[m], kind, prim, b1, b2, points, idx)
             values[..., idx] = out if low is None else np.maximum(out, low)
         return values
@@ -467,24 +496,36 @@ class HitTextures:
         """`values` (N,) with the hits whose material has a texture on input `name` read from it
         (triangle hits only: spheres and quads have no UVs), or a node program (any hit); `values`
         itself when none has."""
+        return apply_writes(values, self.input_writes(name, material, kind, prim, b1, b2, points))
+
+    def input_writes(self, name, material, kind, prim, b1, b2, points=None) -> list:
+        """What `input` writes over the per-material values: [(hits, values)] in order (node
+        programs first, then image textures), empty when no hit reads either."""
         from ..geometry.scene_geometry import TRIANGLE
-        values = self._programs(name, values, material, kind, prim, b1, b2, points)
+        writes = []
+        has = self.textures.has_program[name]
+        if self.attributes is not None and has.any():
+            sel = np.flatnonzero(has.take(material))
+            if len(sel):
+                mat = material.take(sel)
+                programs = self.textures.programs[name]
+                for m, mine in by_material(mat):
+                    idx = picked(sel, mine)
+                    writes.append((idx, self.run_program(programs[m], kind, prim, b1, b2, points, idx)))
         has = self.textures.has_input[name]
         if self.attributes is not None:
             has = has & np.array([s is not None for s in self.textures.inputs[name]], dtype=bool)
         if not has.any():
-            return values
+            return writes
         sel = np.flatnonzero(has.take(material) & (kind == TRIANGLE))
         if not len(sel):
-            return values
-        out = np.array(values, dtype=np.float64)
+            return writes
         mat = material.take(sel)
         u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
         slots = self.textures.inputs[name]
-        for m in np.unique(mat):
-            mine = np.flatnonzero(mat == m)
-            out[sel.take(mine)] = self.textures.value(slots[m], u.take(mine), v.take(mine))
-        return out
+        for m, mine in by_material(mat):
+            writes.append((picked(sel, mine), self.textures.value(slots[m], picked(u, mine), picked(v, mine))))
+        return writes
 
     def normal(self, shading, material, kind, prim, b1, b2, points, ng, incoming, specular):
         """Shading normals rows (3, N) (on the viewer's side) with the hits of materials with a normal
@@ -503,8 +544,8 @@ class HitTextures:
         mat = material.take(sel)
         programs = self.textures.programs["normal"]
         version = self.textures.cycles_version
-        for m in np.unique(mat):
-            idx = sel.take(np.flatnonzero(mat == m))
+        for m, mine in by_material(mat):
+            idx = picked(sel, mine)
             n = safe_normalize(self.run_program(programs[m], kind, prim, b1, b2, points, idx))
             n = np.where((np.abs(n) > 0).any(axis=0) & np.isfinite(n).all(axis=0), n, out[:, idx])
             if version < (4, 0) or specular[m]:
@@ -561,15 +602,24 @@ class HitTextures:
 class HitLookup:
     """The texture lookups of some hits (a ShadingPoint's `lookup`, engine/materials/protocol.py):
     the hits' primitive kinds, primitives and barycentrics with the scene's HitTextures, and for
-    node programs their HitPoints (engine/nodes/context.py; None without programs)."""
+    node programs their HitPoints (engine/nodes/context.py; None without programs).
 
-    def __init__(self, textures: HitTextures, kind, prim, b1, b2, points=None):
+    A float input (`input`: roughness, metallic, ...) is read once per material ids at these hits:
+    the views of one span (`lookup[span]`, as ShadingPoint.__getitem__ makes them for the direct
+    light and the scatter of a scatter group) share what they read, so the Principled BSDF's metal
+    and specular lobes and its layer weights run a roughness texture or program once per bounce.
+    Takes (`take`) read afresh."""
+
+    def __init__(self, textures: HitTextures, kind, prim, b1, b2, points=None, memo=None):
         self.textures, self.kind, self.prim, self.b1, self.b2 = textures, kind, prim, b1, b2
         self.points = points
+        self._memo = {} if memo is None else memo       # input name -> (material ids, input_writes)
+        self._spans = {}                                # span -> its views' memo
 
     def __getitem__(self, span) -> "HitLookup":
         return HitLookup(self.textures, self.kind[span], self.prim[span], self.b1[span], self.b2[span],
-                         None if self.points is None else self.points[span])
+                         None if self.points is None else self.points[span],
+                         self._spans.setdefault((span.start, span.stop, span.step), {}))
 
     def take(self, index) -> "HitLookup":
         return HitLookup(self.textures, self.kind.take(index), self.prim.take(index), self.b1.take(index),
@@ -591,7 +641,14 @@ class HitLookup:
                                          np.arange(len(self.kind)))
 
     def input(self, name, values, material):
-        return self.textures.input(name, values, material, self.kind, self.prim, self.b1, self.b2, self.points)
+        """`values` (N,) with the hits that read input `name` from an image or a program replaced
+        (HitTextures.input), read once per material ids at these hits."""
+        known = self._memo.get(name)
+        if known is not None and (known[0] is material or np.array_equal(known[0], material)):
+            return apply_writes(values, known[1])
+        writes = self.textures.input_writes(name, material, self.kind, self.prim, self.b1, self.b2, self.points)
+        self._memo[name] = (material, writes)
+        return apply_writes(values, writes)
 
     def normal(self, shading, material, ng, incoming, specular):
         """The shading normals of these hits with the materials' normal programs (HitTextures.normal)."""
@@ -604,6 +661,16 @@ class HitLookup:
 
     def tangent(self, tangents, material):
         return self.textures.tangent(tangents, material, self.kind, self.prim, self.b1, self.b2)
+
+
+def apply_writes(values, writes):
+    """`values` itself without writes, else a float64 copy with each (hits, new values) written in order."""
+    if not writes:
+        return values
+    out = np.array(values, dtype=np.float64)
+    for idx, new in writes:
+        out[idx] = new
+    return out
 
 
 def per_hit(si, values, name) -> np.ndarray:
@@ -654,7 +721,7 @@ def load_textures(scene, plan, log=print, warnings=None):
     Blender)."""
     if not plan.enabled.get("textures"):
         return None, scene
-    textures = TextureSet(scene)
+    textures = TextureSet(scene, getattr(plan, "backends", {}).get("textures", "numpy"))
     for warning in textures.warnings:
         log(f"warning: {warning}")
         if warnings is not None:

@@ -258,9 +258,9 @@ class SceneAttributes:
         light samples: then positions and normals come from the triangles)."""
         n = len(kind)
         tri = np.flatnonzero(kind == triangle_kind)
-        prim_t = prim.take(tri)
-        b1t, b2t = b1.take(tri), b2.take(tri)
         all_tri = len(tri) == n
+        # The triangle hits' primitives and barycentrics (all of the hits: the arrays themselves).
+        prim_t, b1t, b2t = (prim, b1, b2) if all_tri else (prim.take(tri), b1.take(tri), b2.take(tri))
         obj = self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(len(tri), np.int64)
         one_object = len(self.centre) == 1 or (len(obj) > 0 and obj.min() == obj.max())
 

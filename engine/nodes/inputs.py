@@ -5,6 +5,8 @@ Window is the point's place in the camera's frame (context.py camera_window); ou
 are not modelled here (Pointiness, Tangent, Object Info's Color) are named by the exporter (mcrt_addon/export/node_graph.py) and read 0 (Pointiness 0.5)."""
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .context import Varying
@@ -95,6 +97,14 @@ def euler_matrix(euler):
                      [-sy, cy * sx, cy * cx]])
 
 
+@functools.lru_cache(maxsize=64)
+def _one_rotation(x, y, z):
+    """euler_matrix of one rotation as (3, 3, 1), made once per angles (read only)."""
+    m = euler_matrix(np.array([x, y, z]))[:, :, None]
+    m.flags.writeable = False
+    return m
+
+
 def _apply(m, v):                 # m (3, 3, N) or (3, 3, 1), v (3, N)
     if m.shape[2] == 1:
         return m[:, :, 0] @ v
@@ -114,14 +124,14 @@ def _safe_divide(a, b):
 
 def mapping(inputs, props, ctx):
     """ShaderNodeMapping (Cycles' svm_mapping): POINT, TEXTURE, VECTOR, NORMAL."""
-    v = inputs.get("Vector", ctx.zeros3())
-    loc = inputs.get("Location", ctx.zeros3())
-    euler = inputs.get("Rotation", ctx.zeros3())
+    v = inputs["Vector"] if "Vector" in inputs else ctx.zeros3()
+    loc = inputs["Location"] if "Location" in inputs else ctx.zeros3()
+    euler = inputs["Rotation"] if "Rotation" in inputs else ctx.zeros3()
     if euler.shape[1] and (euler == euler[:, :1]).all():        # one rotation for every point (the usual)
-        rot = euler_matrix(euler[:, 0])[:, :, None]
+        rot = _one_rotation(*(float(a) for a in euler[:, 0]))
     else:
         rot = euler_matrix(euler)
-    scale = inputs.get("Scale", np.ones((3, ctx.n)))
+    scale = inputs["Scale"] if "Scale" in inputs else np.ones((3, ctx.n))
     kind = props.get("vector_type", "POINT")
     if kind == "POINT":
         out = _apply(rot, v * scale) + loc

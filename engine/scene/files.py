@@ -15,7 +15,8 @@
                    "transmission_roughness": 0, "alpha": 1}, each key optional; kind "mix": "mix", the leaves and
                    their weights, engine/scene/mix_fields.py; kinds "glass" and "refraction":
                    "roughness" (default 0, smooth) and "distribution" (ggx, beckmann, multi_ggx); kinds
-                   "transparent" and "translucent": the colour only)
+                   "transparent" and "translucent": the colour only; "sharp_closure": true on a mirror or smooth
+                   glass made by Blender 3.x's Sharp distribution, which Filter Glossy leaves sharp)
      "meshes": [{"name": "Floor", "vertices": [[..]] or "@key", "triangles": [[..]] or "@key",
                  "material": "White"  or  "material_ids": [..] or "@key",
                  "normals": [[..] x 3T] or "@key", "smooth": [0/1 x T] or "@key",  (optional)
@@ -307,7 +308,7 @@ def load_scene(path: str) -> Scene:
                         emission_texture=read_slot(m, "emission_texture", textures),
                         input_textures=read_input_slots(m, textures),
                         mix=read_mix(m, textures, material), programs=read_programs(m),
-                        **_glossy_fields(m), **_principled_fields(m))
+                        **_glossy_fields(m), **_principled_fields(m), **_flags(m, ("sharp_closure",)))
     for i, entry in enumerate(top.objects("materials")):
         m, material_name = _named(entry, "Material", f"#{i}", required=True)
         materials.append(material(m, material_name))
@@ -434,7 +435,7 @@ def save_scene(scene: Scene, path: str) -> None:
                     **{key: slot_json(slot) for key, slot in (("color_texture", m.color_texture),
                                                               ("emission_texture", m.emission_texture))
                        if slot is not None}, **input_slots_json(m), **mix_json(m, material_json),
-                    **programs_json(m))
+                    **programs_json(m), **({"sharp_closure": True} if m.sharp_closure else {}))
     data = {
         "format": FORMAT, "name": scene.name,
         "version": SMOOTH_VERSION if any(m.normals is not None for m in scene.meshes) else SMOOTH_VERSION - 1,

@@ -4,6 +4,7 @@ backend of each kernel)."""
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -45,9 +46,51 @@ def test_numba_missing_falls_back_to_numpy(numba_missing):
 def test_cache_dir_is_per_user(monkeypatch, tmp_path):
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    assert backend.cache_dir() == str(tmp_path / "tncg15_mc" / "numba") and os.path.isdir(backend.cache_dir())
+    digest = backend.sources_digest()
+    assert backend.cache_dir() == str(tmp_path / "tncg15_mc" / "numba" / digest) and os.path.isdir(backend.cache_dir())
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "given"))
-    assert backend.cache_dir() == str(tmp_path / "given")
+    assert backend.cache_dir() == str(tmp_path / "given" / digest)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", backend.cache_dir())           # a worker given the folder keeps it
+    assert backend.cache_dir() == str(tmp_path / "given" / digest)
+
+
+def test_cache_follows_the_sources_a_twin_calls(monkeypatch, tmp_path):
+    """numba's index checks a module's own source only: the cache folder must change when a module
+    a twin imports (its callee's kernels, constants) changes, and not for a module it does not import."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "callee_jit.py").write_text("K = 1.0\n")
+    (pkg / "caller_jit.py").write_text("from .callee_jit import K\nfrom . import (\n    consts,\n)\n")
+    (pkg / "consts.py").write_text("C = 2.0\n")
+    (pkg / "unrelated.py").write_text("U = 3.0\n")
+    monkeypatch.setattr(backend, "jit_files", lambda: [str(pkg / "caller_jit.py")])
+
+    def digest():
+        monkeypatch.delitem(backend._state, "digest", raising=False)
+        return backend.sources_digest()
+    before = digest()
+    (pkg / "unrelated.py").write_text("U = 4.0\n")
+    assert digest() == before                                          # control: not imported
+    (pkg / "callee_jit.py").write_text("K = 1.5\n")
+    after_callee = digest()
+    assert after_callee != before
+    (pkg / "consts.py").write_text("C = 2.5\n")
+    assert digest() != after_callee
+
+
+def test_old_caches_of_other_sources_are_pruned(monkeypatch, tmp_path):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    here = backend.cache_dir()
+    old, recent = tmp_path / "twins-0000000000000000", tmp_path / "twins-1111111111111111"
+    other = tmp_path / "not-ours"
+    for folder in (old, recent, other):
+        folder.mkdir()
+        (folder / "warm-x.stamp").write_text("1\n")
+    long_ago = time.time() - 40 * 86400
+    for path in (old, old / "warm-x.stamp", other, other / "warm-x.stamp"):
+        os.utime(path, (long_ago, long_ago))
+    assert backend.prune_old_caches() == [str(old)]
+    assert not old.exists() and recent.exists() and other.exists() and os.path.isdir(here)
 
 
 def test_auto_on_a_cold_cache_renders_numpy_and_warms_in_the_background(monkeypatch, tmp_path):
@@ -101,7 +144,8 @@ def test_cold_compile_then_cache_load(tmp_path):
                              capture_output=True, text=True, timeout=300)
         assert out.returncode == 0, out.stderr
         assert f"kernels {len(backend.JIT_MODULES)}/{len(backend.JIT_MODULES)} ready" in out.stdout
-    assert any(n.startswith("warm-") and n.endswith(".stamp") for n in os.listdir(tmp_path))
+    folder = tmp_path / backend.sources_digest()
+    assert any(n.startswith("warm-") and n.endswith(".stamp") for n in os.listdir(folder))
 
 
 @pytest.mark.slow

@@ -305,3 +305,60 @@ def test_albedo_pass_reads_textured_colour_and_emission():
         albedo = render(scene, RenderSettings(samples=4, passes=("albedo",)), log=lambda *x: None).passes["albedo"]
         left, right = albedo[:, :3].mean(axis=(0, 1)), albedo[:, -3:].mean(axis=(0, 1))
         assert left == pytest.approx(pixels[0, 0], abs=1e-6) and right == pytest.approx(pixels[0, 1], abs=1e-6), role
+
+
+# -- a float input read once per span of hits (HitLookup.input) --------------------------------------
+def test_views_of_one_span_read_a_float_input_once(monkeypatch):
+    """The Principled BSDF's lobes and layer weights read a roughness texture through views of one
+    span (ShadingPoint.__getitem__): the texture is looked up once, and every view gets the numbers
+    of a fresh read.  Other hits, other material ids and takes read afresh (controls)."""
+    from engine.geometry.scene_geometry import TRIANGLE
+    from engine.materials.textures import HitTextures, HitLookup
+    pixels = np.random.default_rng(1).random((3, 5, 1)).astype(np.float32)
+    slot = TextureSlot(0, "Linear", "REPEAT")
+    scene = texture_scene([ImageTexture("rough", pixels=pixels, colorspace="Non-Color", is_float=True)], None,
+                          input_textures={"roughness": slot})
+    scene.materials.append(Material("Plain", color=(0.5, 0.5, 0.5)))
+    triangles = np.array([m.vertices[t] for m in scene.meshes for t in m.triangles])
+    hits = HitTextures(TextureSet(scene), scene, triangles, np.zeros(2, np.int64))
+    rng = np.random.default_rng(2)
+    n = 40
+    kind, prim = np.full(n, TRIANGLE, np.int8), rng.integers(0, 2, n)
+    b1 = rng.random(n) * 0.5
+    b2 = rng.random(n) * 0.5
+    material = rng.integers(0, 2, n)
+    values = np.array([0.3, 0.6]).take(material)
+    reads = []
+    original = TextureSet.value
+    monkeypatch.setattr(TextureSet, "value", lambda self, *a: reads.append(1) or original(self, *a))
+    fresh = hits.input("roughness", values, material, kind, prim, b1, b2)
+    assert len(reads) == 1 and not np.array_equal(fresh, values)
+    lookup = HitLookup(hits, kind, prim, b1, b2)
+    span = slice(5, 30)
+    first = lookup[span].input("roughness", values[span], material[span])
+    again = lookup[span].input("roughness", values[span] * 2.0, material[span])     # another view, other fallback
+    assert len(reads) == 2
+    assert np.array_equal(first, fresh[span])
+    textured = material[span] == 0
+    assert np.array_equal(again[textured], fresh[span][textured])
+    assert np.array_equal(again[~textured], 2.0 * values[span][~textured])
+    # Controls: another span, other material ids at the same hits, a take: each reads again.
+    lookup[slice(5, 31)].input("roughness", values[5:31], material[5:31])
+    assert len(reads) == 3
+    lookup[span].input("roughness", values[span], 1 - material[span])
+    assert len(reads) == 4
+    taken = lookup.take(np.arange(5, 30))
+    assert np.array_equal(taken.input("roughness", values[span], material[span]), fresh[span])
+    assert len(reads) == 5
+
+
+def test_by_material_groups_hits_as_np_unique_does():
+    from engine.materials.textures import by_material, picked
+    rng = np.random.default_rng(9)
+    for mat in (rng.integers(0, 6, 200), np.full(30, 4), np.array([2, 0, 2, 5]), np.zeros(0, np.int64)):
+        groups = by_material(mat)
+        assert [int(m) for m, _ in groups] == np.unique(mat).tolist()
+        for m, mine in groups:
+            assert np.array_equal(picked(np.arange(len(mat)), mine), np.flatnonzero(mat == m))
+    # control: a wrong grouping is told apart
+    assert [int(m) for m, _ in by_material(np.array([1, 3]))] != [1]

@@ -164,3 +164,21 @@ def test_quads_checked_all_at_once_fail_as_one_by_one(name, corners, material):
     with pytest.raises(SceneError, match=re.escape(str(alone.value))):
         base_scene(quads=[Quad("a", good, 0), bad, Quad("b", good + 2, 0)]).validate()
     assert base_scene(quads=[Quad("a", good, 0), Quad("b", good + 2, 1)]).validate() is not None
+
+
+def test_scene_file_round_trip_keeps_blender_3_sharp_closures(tmp_path):
+    """A 3.x Sharp mirror stays sharp under Filter Glossy after a save and load (control: a mirror
+    without the flag stays blurrable, and files without the key load unflagged)."""
+    from engine.scene.model import MIRROR
+    scene = base_scene()
+    scene.materials += [Material("Sharp", kind=MIRROR, sharp_closure=True), Material("Plain", kind=MIRROR)]
+    path = str(tmp_path / "sharp.json")
+    save_scene(scene, path)
+    entries = {m["name"]: m for m in json.load(open(path))["materials"]}
+    assert entries["Sharp"]["sharp_closure"] is True and "sharp_closure" not in entries["Plain"]
+    again = {m.name: m.sharp_closure for m in load_scene(path).materials}
+    assert again == {"White": False, "Lamp": False, "Sharp": True, "Plain": False}
+    entries["Plain"]["sharp_closure"] = "yes"
+    json.dump({**json.load(open(path)), "materials": list(entries.values())}, open(path, "w"))
+    with pytest.raises(SceneError, match="Material 'Plain': sharp_closure must be true or false"):
+        load_scene(path)
