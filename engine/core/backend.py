@@ -54,7 +54,7 @@ JIT_MODULES = {
     "materials.lambert_jit": ("wavefront",),
     "materials.glass_jit": ("wavefront",),
     "materials.microfacet_jit": ("glossy", "principled", "mix"),
-    "materials.dielectric_jit": ("rough_glass", "refraction", "filter_glossy", "mix"),
+    "materials.dielectric_jit": ("rough_glass", "refraction", "filter_glossy", "principled", "mix"),
     "materials.principled_jit": ("principled", "mix"),
     "materials.principled_v1_jit": ("principled", "mix"),
     "lights.parallelograms_jit": ("emission",),

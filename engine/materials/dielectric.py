@@ -104,7 +104,7 @@ class RoughDielectric(BSDF):
         mat = si.material
         eta, entering = refraction_eta(si, self.ior.take(mat))
         n = specular_normal_at(si)
-        x, y = shading_frame(n)
+        x, y = shading_frame(n) if self.lobe.compiled is None else self.lobe.compiled.frame(n)   # the same numbers
         return mat, eta, entering, (x, y, n)
 
     def _scale(self, si, mat, mu, eta):

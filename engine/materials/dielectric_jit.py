@@ -4,14 +4,17 @@ over the hits and no temporaries.  Every hit repeats the NumPy path's float64 op
 order (engine/materials/microfacet.py ggx_sample_vndf, ggx_d, ggx_lambda; engine/materials/glossy.py
 fresnel_dielectric; the lobe's split, _jacobian, _g2 and the nan_to_num of its results), with only
 +, -, *, /, sqrt, cos and sin, as engine/materials/microfacet_jit.py does (whose scalar helpers it
-uses): the same numbers bit for bit (tests/materials/test_dielectric_jit.py).  The Beckmann lobe,
-coloured Fresnel weights (the Principled BSDF's glass closure) and the albedo tables' sampling stay
-NumPy's.  Imported only through the lobe's backend choice (it imports numba)."""
+uses): the same numbers bit for bit (tests/materials/test_dielectric_jit.py).  The Principled
+BSDF's glass closure's coloured Fresnel (dielectric_lobe.py RealFresnel: R and T per channel, the
+reflection picked by their channel means) has kernels of its own (`sample_coloured`,
+`eval_coloured`); the Beckmann lobe, other Fresnel functions and the albedo tables' sampling stay
+NumPy's.  `frame` (microfacet_jit.py's shading_frame twin) is the glass BSDFs' frame.  Imported only
+through the lobe's backend choice (it imports numba)."""
 from __future__ import annotations
 
 import numpy as np
 
-from .microfacet_jit import _clip01, _d, _finite, _lambda, _max0, _normalized, jit, vndf
+from .microfacet_jit import _clip01, _d, _finite, _lambda, _max0, _normalized, frame, jit, vndf  # noqa: F401 (frame: the glass BSDFs')
 from .principled_jit import _fresnel_dielectric
 
 
@@ -118,6 +121,117 @@ def _eval(wo, wi, alpha, eta, separable, reflection, transmission, f_out, pdf_ou
         f_out[i] = _finite((t if refracted else r) * common * _g2(lo, li, separable[i]))
 
 
+@jit
+def _real_fresnel(cos_h, eta, f0, tint, i):
+    """dielectric_lobe.py RealFresnel at hit i: (R_r, R_g, R_b, T_r, T_g, T_b), and the channel means
+    of R and of R + T (dielectric_lobe._mean: (c0 + c1 + c2) / 3, NumPy's row-wise sum then divide)."""
+    q = (eta - 1.0) / (eta + 1.0)
+    f0_real = q * q
+    s = (_fresnel_dielectric(cos_h, eta) - f0_real) / (1.0 - f0_real)
+    if s != s:
+        s = 1.0
+    s = _clip01(s)
+    r0 = f0[0, i] + (1.0 - f0[0, i]) * s
+    r1 = f0[1, i] + (1.0 - f0[1, i]) * s
+    r2 = f0[2, i] + (1.0 - f0[2, i]) * s
+    t0, t1, t2 = (1.0 - r0) * tint[0, i], (1.0 - r1) * tint[1, i], (1.0 - r2) * tint[2, i]
+    mean_r = (r0 + r1 + r2) / 3.0
+    total = ((r0 + t0) + (r1 + t1) + (r2 + t2)) / 3.0
+    return r0, r1, r2, t0, t1, t2, mean_r, total
+
+
+@jit
+def _sample_coloured(wo, alpha, eta, u_lobe, u1, u2, separable, feta, f0, tint,
+                     wi_out, weight_out, pdf_out, refracted_out, ok_out):
+    """_sample with RealFresnel's coloured (R, T): the weight (3, N); reflection and refraction both."""
+    for i in range(wo.shape[1]):
+        o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
+        a, e = alpha[i], eta[i]
+        h0, h1, h2 = vndf(o0, o1, o2, a, a, u1[i], u2[i])
+        cos_ho = _clip01(o0 * h0 + o1 * h1 + o2 * h2)
+        r0, r1, r2, t0, t1, t2, mean_r, total = _real_fresnel(cos_ho, feta[i], f0, tint, i)
+        p_reflect = mean_r / total if total > 0.0 else 0.0
+        cos_t = np.sqrt(_max0(1.0 - (1.0 - cos_ho * cos_ho) / (e * e)))
+        refracted = u_lobe[i] >= p_reflect
+        if refracted:
+            k = cos_ho / e - cos_t
+            w0, w1, w2 = -o0 / e + k * h0, -o1 / e + k * h1, -o2 / e + k * h2
+        else:
+            c = 2.0 * cos_ho
+            w0, w1, w2 = c * h0 - o0, c * h1 - o1, c * h2 - o2
+        w0, w1, w2 = _normalized(w0, w1, w2)
+        ok = (o2 > 0.0) and (total > 0.0) and ((w2 < 0.0) if refracted else (w2 > 0.0))
+        d = _d(h0, h1, h2, a, a)
+        lo = _lambda(o0, o1, o2, a, a)
+        li = _lambda(w0, w1, abs(w2), a, a)
+        cos_hi = w0 * h0 + w1 * h1 + w2 * h2
+        lobe = 1.0 - p_reflect if refracted else p_reflect
+        if ok:
+            common = d / o2 * _jacobian(cos_ho, cos_hi, e, refracted)
+            pdf = lobe * common / (1.0 + lo)
+            g2 = _g2(lo, li, separable[i])
+            if refracted:
+                x0, x1, x2 = t0, t1, t2
+            else:
+                x0, x1, x2 = r0, r1, r2
+            weight_out[0, i] = _finite(x0 / lobe * (1.0 + lo) * g2)
+            weight_out[1, i] = _finite(x1 / lobe * (1.0 + lo) * g2)
+            weight_out[2, i] = _finite(x2 / lobe * (1.0 + lo) * g2)
+        else:
+            pdf = 0.0
+            weight_out[0, i], weight_out[1, i], weight_out[2, i] = 0.0, 0.0, 0.0
+        wi_out[0, i], wi_out[1, i], wi_out[2, i] = w0, w1, w2
+        pdf_out[i] = _finite(pdf)
+        refracted_out[i] = refracted
+        ok_out[i] = ok and pdf > 0.0
+
+
+@jit
+def _eval_coloured(wo, wi, alpha, eta, separable, reflection, transmission, feta, f0, tint, f_out, pdf_out):
+    """_eval with RealFresnel's coloured (R, T): f cos (3, N)."""
+    for i in range(wo.shape[1]):
+        o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
+        i0, i1, i2 = wi[0, i], wi[1, i], wi[2, i]
+        a, e = alpha[i], eta[i]
+        refracted = i2 < 0.0
+        if refracted:
+            f0_, f1_, f2_ = -(o0 + e * i0), -(o1 + e * i1), -(o2 + e * i2)
+        else:
+            f0_, f1_, f2_ = o0 + i0, o1 + i1, o2 + i2
+        length = np.sqrt(f0_ * f0_ + f1_ * f1_ + f2_ * f2_)
+        scale = length if length > 0.0 else 1.0
+        h0, h1, h2 = f0_ / scale, f1_ / scale, f2_ / scale
+        if h2 < 0.0:
+            h0, h1, h2 = h0 * -1.0, h1 * -1.0, h2 * -1.0
+        cos_ho = o0 * h0 + o1 * h1 + o2 * h2
+        cos_hi = i0 * h0 + i1 * h1 + i2 * h2
+        ok = ((o2 > 0.0) and (i2 != 0.0) and (length > 0.0) and (cos_ho > 0.0)
+              and ((cos_hi < 0.0) if refracted else (cos_hi > 0.0)))
+        if transmission and not reflection:
+            ok = ok and refracted
+        if not transmission:
+            ok = ok and not refracted
+        if not ok:
+            f_out[0, i], f_out[1, i], f_out[2, i], pdf_out[i] = 0.0, 0.0, 0.0, 0.0
+            continue
+        r0, r1, r2, t0, t1, t2, mean_r, total = _real_fresnel(_clip01(cos_ho), feta[i], f0, tint, i)
+        d = _d(h0, h1, h2, a, a)
+        lo = _lambda(o0, o1, o2, a, a)
+        li = _lambda(i0, i1, abs(i2), a, a)
+        p_reflect = mean_r / total if total > 0.0 else 0.0
+        lobe = 1.0 - p_reflect if refracted else p_reflect
+        common = d / o2 * _jacobian(cos_ho, cos_hi, e, refracted)
+        pdf_out[i] = _finite(lobe * common / (1.0 + lo))
+        g2 = _g2(lo, li, separable[i])
+        if refracted:
+            x0, x1, x2 = t0, t1, t2
+        else:
+            x0, x1, x2 = r0, r1, r2
+        f_out[0, i] = _finite(x0 * common * g2)
+        f_out[1, i] = _finite(x1 * common * g2)
+        f_out[2, i] = _finite(x2 * common * g2)
+
+
 def _rows(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
@@ -148,6 +262,35 @@ def eval(wo, wi, alpha, eta, separable, reflection, transmission):
     return f_cos, pdf
 
 
+def _fresnel_rows(fresnel, count):
+    """RealFresnel's eta (N,), f0 and tint (3, N), C-contiguous float64."""
+    return (_rows(np.broadcast_to(fresnel.eta, (count,))), _rows(np.broadcast_to(fresnel.f0, (3, count))),
+            _rows(np.broadcast_to(fresnel.tint, (3, count))))
+
+
+def sample_coloured(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, transmission, fresnel):
+    """(wi, weight (3, N), pdf, refracted, ok) of MicrofacetDielectric.sample at GGX hits with
+    fresnel a dielectric_lobe.RealFresnel (both lobes: the Principled glass closure)."""
+    if not (reflection and transmission):
+        raise ValueError("the coloured Fresnel's compiled sample is the glass's: reflection and transmission")
+    count = wo.shape[1]
+    wi, weight = np.empty((3, count)), np.empty((3, count))
+    pdf = np.empty(count)
+    refracted, ok = np.empty(count, dtype=np.bool_), np.empty(count, dtype=np.bool_)
+    _sample_coloured(_rows(wo), _rows(alpha), _rows(eta), _rows(u_lobe), _rows(u1), _rows(u2),
+                     _flags(separable, count), *_fresnel_rows(fresnel, count), wi, weight, pdf, refracted, ok)
+    return wi, weight, pdf, refracted, ok
+
+
+def eval_coloured(wo, wi, alpha, eta, separable, reflection, transmission, fresnel):
+    """(f cos (3, N), pdf) of MicrofacetDielectric.eval at GGX hits with fresnel a RealFresnel."""
+    count = wo.shape[1]
+    f_cos, pdf = np.empty((3, count)), np.empty(count)
+    _eval_coloured(_rows(wo), _rows(wi), _rows(alpha), _rows(eta), _flags(separable, count), bool(reflection),
+                   bool(transmission), *_fresnel_rows(fresnel, count), f_cos, pdf)
+    return f_cos, pdf
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     wo = np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]])
@@ -156,3 +299,7 @@ def warm_up() -> None:
     for reflection in (True, False):
         sample(wo, a, e, u, u, u[::-1], None, reflection, True)
         eval(wo, wi, a, e, np.array([True, False]), reflection, True)
+    from .dielectric_lobe import RealFresnel
+    fresnel = RealFresnel(e, np.full((3, 2), 0.04), np.full((3, 2), 0.9))
+    sample_coloured(wo, a, e, u, u, u[::-1], None, True, True, fresnel)
+    eval_coloured(wo, wi, a, e, None, True, True, fresnel)

@@ -34,6 +34,27 @@ def refraction_eta(si: ShadingPoint, ior: np.ndarray) -> tuple[np.ndarray, np.nd
     return 1.0 / si.media.eta(entering, ior), entering
 
 
+class RealFresnel:
+    """(R, T) (3, N) each at wo.h = cos: Cycles' generalized Schlick in its "real Fresnel" mode with a
+    coloured F0 and a transmission tint, the Principled BSDF's glass closure's
+    (engine/materials/principled_glass.py): s = (F_d(cos, eta) - F0(eta)) / (1 - F0(eta)) clamped to
+    [0, 1] (NaN: 1), R = f0 + (1 - f0) s, T = (1 - R) tint; eta (N,), f0 and tint (3, N).  A class
+    rather than a closure so that the compiled lobe (engine/materials/dielectric_jit.py) reads its
+    inputs and repeats it."""
+
+    def __init__(self, eta: np.ndarray, f0: np.ndarray, tint: np.ndarray):
+        self.eta, self.f0, self.tint = eta, f0, tint
+
+    def __call__(self, cos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        eta = np.asarray(self.eta, dtype=np.float64)
+        f0_real = ((eta - 1.0) / (eta + 1.0)) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = (fresnel_dielectric(cos, self.eta) - f0_real) / (1.0 - f0_real)
+        s = np.clip(np.nan_to_num(s, nan=1.0), 0.0, 1.0)
+        r = self.f0 + (1.0 - self.f0) * s
+        return r, (1.0 - r) * self.tint
+
+
 class MicrofacetDielectric:
     """The microfacet interface lobe(s) in the local frame, vectorised over hits with per-hit alpha
     (isotropic), eta = n_far / n_near and distribution (beckmann: bool per hit, else GGX).
@@ -45,8 +66,9 @@ class MicrofacetDielectric:
         self.reflection, self.transmission = reflection, transmission
 
     def _compiles(self, beckmann, fresnel, refraction_side=True) -> bool:
-        """Whether the compiled twin computes these hits: all GGX, the dielectric Fresnel."""
-        return self.compiled is not None and fresnel is None and refraction_side and not beckmann.any()
+        """Whether the compiled twin computes these hits: all GGX, the dielectric Fresnel or RealFresnel."""
+        return (self.compiled is not None and (fresnel is None or isinstance(fresnel, RealFresnel))
+                and refraction_side and not beckmann.any())
 
     def split(self, cos_h: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(R, T): the weights of the reflected and refracted lobe at a microfacet with wo.h = cos_h."""
@@ -101,6 +123,9 @@ class MicrofacetDielectric:
         the reflection is picked with probability mean(R) / mean(R + T) (Cycles' pdf_reflect) and
         the weight is (3, N)."""
         if self._compiles(beckmann, fresnel, refraction_side):          # the lines below, the same numbers
+            if fresnel is not None:
+                return self.compiled.sample_coloured(wo, alpha, eta, u_lobe, u1, u2, separable, self.reflection,
+                                                     self.transmission, fresnel)
             return self.compiled.sample(wo, alpha, eta, u_lobe, u1, u2, separable, self.reflection, self.transmission)
         h = np.empty_like(wo)
         for dist, mask in ((GGX, ~beckmann), (BECKMANN, beckmann)):
@@ -133,6 +158,9 @@ class MicrofacetDielectric:
         """(f cos / tint, pdf) per hit for local directions wo (above) and wi (either side);
         fresnel as in `sample` (coloured: f cos is (3, N))."""
         if self._compiles(beckmann, fresnel):                           # the lines below, the same numbers
+            if fresnel is not None:
+                return self.compiled.eval_coloured(wo, wi, alpha, eta, separable, self.reflection, self.transmission,
+                                                   fresnel)
             return self.compiled.eval(wo, wi, alpha, eta, separable, self.reflection, self.transmission)
         refracted = wi[2] < 0.0
         half = np.where(refracted, -(wo + eta * wi), wo + wi)

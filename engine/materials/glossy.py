@@ -196,7 +196,10 @@ class MicrofacetReflection(BSDF):
     def _frame(self, si: ShadingPoint):
         mat = si.material
         n = specular_normal_at(si)
-        x, y = shading_frame(n, hit_tangent(si, self.tangent))
+        if self.compiled is not None:               # microfacet_jit.frame: shading_frame's numbers
+            x, y = self.compiled.frame(n, hit_tangent(si, self.tangent))
+        else:
+            x, y = shading_frame(n, hit_tangent(si, self.tangent))
         turn = 2.0 * np.pi * self.rotation.take(mat)
         if np.any(turn != 0.0):
             c, s = np.cos(turn), np.sin(turn)

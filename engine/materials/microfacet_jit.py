@@ -8,6 +8,8 @@ bit (tests/materials/test_microfacet_jit.py).  Imported only through engine/core
 choice (it imports numba)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..core.backend import numba_module
@@ -177,6 +179,50 @@ def _tinted_eval(index, wo, wi, x, y, n, ax, ay, colour, comp, f_out, pdf_out):
         pdf_out[k] = pdf
 
 
+@jit
+def _basis(n0, n1, n2):
+    """engine/sampling/warps.py orthonormal_basis of one normal (Duff et al.): (tangent, bitangent)."""
+    sign = math.copysign(1.0, n2)
+    a = -1.0 / (sign + n2)
+    b = n0 * n1 * a
+    return (1.0 + sign * n0 * n0 * a, sign * b, -sign * n0), (b, sign + n1 * n1 * a, -n1)
+
+
+@jit
+def _frame(n, t, x_out, y_out):
+    """engine/materials/microfacet.py shading_frame(n, t) per hit: t made orthogonal to n (Gram-Schmidt),
+    orthonormal_basis's tangent where that is shorter than 1e-9 (or NaN); y = n x x."""
+    for i in range(n.shape[1]):
+        n0, n1, n2 = n[0, i], n[1, i], n[2, i]
+        if t.shape[1] == 0:                         # no tangent: orthonormal_basis
+            (x0, x1, x2), (y0, y1, y2) = _basis(n0, n1, n2)
+            x_out[0, i], x_out[1, i], x_out[2, i] = x0, x1, x2
+            y_out[0, i], y_out[1, i], y_out[2, i] = y0, y1, y2
+            continue
+        t0, t1, t2 = t[0, i], t[1, i], t[2, i]
+        d = t0 * n0 + t1 * n1 + t2 * n2
+        x0, x1, x2 = t0 - d * n0, t1 - d * n1, t2 - d * n2
+        length = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        if length > 1e-9:
+            x0, x1, x2 = x0 / length, x1 / length, x2 / length
+        else:
+            (x0, x1, x2), _ = _basis(n0, n1, n2)
+        x_out[0, i], x_out[1, i], x_out[2, i] = x0, x1, x2
+        y_out[0, i] = n1 * x2 - n2 * x1
+        y_out[1, i] = n2 * x0 - n0 * x2
+        y_out[2, i] = n0 * x1 - n1 * x0
+
+
+def frame(n, tangent=None):
+    """(x, y) (3, N) each of engine/materials/microfacet.py shading_frame(n, tangent), tangent (3, N)
+    or None: the same numbers."""
+    count = n.shape[1]
+    x, y = np.empty((3, count)), np.empty((3, count))
+    t = np.empty((3, 0)) if tangent is None else _rows(np.broadcast_to(np.reshape(tangent, (3, -1)), (3, count)))
+    _frame(_rows(n), t, x, y)
+    return x, y
+
+
 def _rows(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
@@ -221,12 +267,14 @@ def tinted_eval(hits, index, wi):
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     w = np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]])
-    frame = np.eye(3)[:, :, None].repeat(2, axis=2)
+    eye = np.eye(3)[:, :, None].repeat(2, axis=2)
     a = np.array([0.25, 0.5])
-    ggx_eval(w, w[::-1].copy(), frame[0], frame[1], frame[2], a, a)
-    ggx_sample(w, frame[0], frame[1], frame[2], a, a, np.array([0.3, 0.6]), np.array([0.2, 0.9]))
+    ggx_eval(w, w[::-1].copy(), eye[0], eye[1], eye[2], a, a)
+    ggx_sample(w, eye[0], eye[1], eye[2], a, a, np.array([0.3, 0.6]), np.array([0.2, 0.9]))
     from types import SimpleNamespace
-    hits = SimpleNamespace(wo=w, x=frame[0].copy(), y=frame[1].copy(), n=frame[2].copy(), ax=a, ay=a,
+    hits = SimpleNamespace(wo=w, x=eye[0].copy(), y=eye[1].copy(), n=eye[2].copy(), ax=a, ay=a,
                            colour=np.ones((3, 2)), comp=np.ones((3, 2)))
     tinted_eval(hits, None, w[::-1].copy())
     tinted_eval(hits, np.array([1, 0]), w.copy())
+    frame(w, np.array([[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]]))
+    frame(w)

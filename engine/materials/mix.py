@@ -157,15 +157,18 @@ class MixBSDF(BSDF):
         return np.stack([np.bincount(hit, weights=r, minlength=n) for r in rows_of_pairs])
 
     def _eval_pairs(self, row, leaves, wi_pairs, only=None):
-        """(f cos (3, P), pdf (P,)) of the leaves at wi (per pair); `only`: the pairs to evaluate."""
+        """(f cos (3, P), pdf (P,)) of the leaves at wi (per pair); `only`: the pairs to evaluate,
+        wi_pairs then theirs alone and the results theirs alone (3, len(only)), (len(only),): no
+        full-length temporaries where a sample's mixture needs some hits' pairs."""
         f_cos, pdf = np.zeros(wi_pairs.shape), np.zeros(wi_pairs.shape[1])
-        chosen = np.arange(len(row)) if only is None else only
-        for r in _ids_in(row.take(chosen)):
-            sel = chosen[row.take(chosen) == r]
+        rows = row if only is None else row.take(only)
+        for r in _ids_in(rows):
             if not self.table.non_delta[r]:
                 continue                                    # delta leaves: no given direction meets them
-            f, p = self.table.bsdfs[r].eval(leaves.take(sel), wi_pairs.take(sel, axis=1))
-            f_cos[:, sel], pdf[sel] = f, p
+            k = np.flatnonzero(rows == r)                   # places in wi_pairs; the pairs themselves:
+            sel = k if only is None else only.take(k)
+            f, p = self.table.bsdfs[r].eval(leaves.take(sel), wi_pairs.take(k, axis=1))
+            f_cos[:, k], pdf[k] = f, p
         return f_cos, pdf
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -221,10 +224,11 @@ class MixBSDF(BSDF):
         if len(spread):
             of = np.zeros(n, dtype=bool)
             of[spread] = True
-            pairs = np.flatnonzero(of.take(hit))
-            f_cos, p = self._eval_pairs(row, leaves, wi.take(hit, axis=1), only=pairs)
-            f_sum = self._sum(hit, f_cos * weight, n).take(spread, axis=1)
-            p_sum = np.bincount(hit, weights=p * prob, minlength=n).take(spread)
+            pairs = np.flatnonzero(of.take(hit))            # every pair of those hits: their sums whole
+            at = hit.take(pairs)
+            f_cos, p = self._eval_pairs(row, leaves, wi.take(at, axis=1), only=pairs)
+            f_sum = self._sum(at, f_cos * weight.take(pairs), n).take(spread, axis=1)
+            p_sum = np.bincount(at, weights=p * prob.take(pairs), minlength=n).take(spread)
             with np.errstate(divide="ignore", invalid="ignore"):
                 value[:, spread] = np.where(p_sum > 0.0, f_sum / p_sum, 0.0)
             pdf[spread] = p_sum

@@ -192,11 +192,21 @@ class EnergyPreservingOrenNayar(_FujiiOrenNayar):
         return np.maximum(cos_i, 0.0) * (1.0 / np.pi)
 
     def _multiple_scatter(self, si, cos_i, cos_o, a, b):
-        albedo = np.clip(si.color, 0.0, 1.0)
-        e_avg = fon_average_albedo(a, b)
-        e_ms = (1.0 / np.pi) * albedo * albedo * (e_avg / (1.0 - e_avg)) / (1.0 - albedo * (1.0 - e_avg))
-        loss = (1.0 - fon_albedo(cos_i, a, b)) * (1.0 - fon_albedo(cos_o, a, b))
+        e_ms, loss_o = self._at_hits(si)
+        loss = (1.0 - fon_albedo(cos_i, a, b)) * loss_o
         return si.color * e_ms * loss                         # times the closure weight, as Cycles
+
+    def _at_hits(self, si: ShadingPoint):
+        """(E_ms (3, N), 1 - E(cos_o) (N,)): the multiple-scatter terms of wo alone, once per hit for
+        its sample and its evals (ShadingPoint.memo), from the roughness and cos_o that _f reads."""
+        def terms(at):
+            a, b = fon_coefficients(self._rough(at)[1])
+            cos_o = np.maximum(dot(at.wo, at.n), 0.0)
+            albedo = np.clip(at.color, 0.0, 1.0)
+            e_avg = fon_average_albedo(a, b)
+            e_ms = (1.0 / np.pi) * albedo * albedo * (e_avg / (1.0 - e_avg)) / (1.0 - albedo * (1.0 - e_avg))
+            return e_ms, 1.0 - fon_albedo(cos_o, a, b)
+        return si.memo((self, "multiple_scatter"), terms)
 
 
 ENERGY_PRESERVING_SINCE = (4, 3)     # Cycles' switch to the EON model (Blender 4.3)

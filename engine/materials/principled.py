@@ -337,15 +337,24 @@ class PrincipledV2(BSDF):
         """The eval (the base and the sheen and coat over it) and the base's sample compiled
         (engine/materials/principled_jit.py, the same numbers) when the render runs the Principled
         effects on numba and no material has a rough diffuse (that keeps the NumPy lobes).  The
-        transmission closure stays NumPy's (principled_glass.py), added after the compiled lobes
-        as _layered_mixture adds it last (`_add_glass`)."""
+        transmission closure's setup stays NumPy's (principled_glass.py), added after the compiled
+        lobes as _layered_mixture adds it last (`_add_glass`); its GGX lobe with the coloured Fresnel
+        is compiled too (engine/materials/dielectric_jit.py `sample_coloured`, `eval_coloured`),
+        rough diffuse or not."""
         super().use_backend(backends)
+        on_numba = any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.principled_jit"])
         fusable = not bool((self.diffuse.roughness > 0.0).any())
-        if fusable and any(backends.get(k) == NUMBA for k in JIT_MODULES["materials.principled_jit"]):
+        if fusable and on_numba:
             from . import principled_jit
             self.compiled = principled_jit
         else:
             self.compiled = None
+        if self.any_transmission:                   # its GGX glass lobe with the coloured Fresnel
+            if on_numba:
+                from . import dielectric_jit
+                self.glass.lobe.compiled = dielectric_jit
+            else:
+                self.glass.lobe.compiled = None
 
     def _fused_hits(self, si: ShadingPoint):
         """What the compiled base reads per hit (C-contiguous, over the hits on the last axis): wo;
@@ -469,7 +478,12 @@ class PrincipledV2(BSDF):
         metal, specular, _ = self._views(si)
         mu = np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0)   # the lobes' normal (bsdf_albedo)
         rows = si.material
-        s_metal, s_spec = self._textured_s(si, mu, _read(self.s_metal, rows, mu), _read(self.s_specular, rows, mu))
+        textured = textured_mask(si, self.specular.roughness_input) is not None
+        if not textured and not self.has_specular.any():     # no specular lobe: a_spec is np.where's 0 everywhere
+            s_metal = _read(self.s_metal, rows, mu)
+            a_metal = self._darkening(self.metal, metal, mu, True) * (metal.color + (1.0 - metal.color) * s_metal)
+            return a_metal, np.zeros((3, len(si)))
+        s_metal, s_spec = self._textured_s(si, mu, *_read_both(self.s_metal, self.s_specular, rows, mu))
         a_metal = self._darkening(self.metal, metal, mu, True) * (metal.color + (1.0 - metal.color) * s_metal)
         a_spec = self._darkening(self.specular, specular, mu, True) * (specular.color + (1.0 - specular.color) * s_spec)
         return a_metal, np.where(self.has_specular.take(rows), a_spec, 0.0)
@@ -524,15 +538,20 @@ class PrincipledV2(BSDF):
         base's weight W (3, N), and the albedo estimates sheen_albedo (N,) and coat_albedo (N,)."""
         rows = si.material
         n = len(si)
-        mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)
         alpha = self.alpha.take(rows)
         w = np.tile(alpha, (3, 1))
         sheen_w = self.sheen_weight.take(rows)
+        coat_w = self.coat_weight.take(rows)
+        if not (sheen_w.any() or coat_w.any()):     # neither layer at these hits: the lines below give this
+            zeros = np.zeros((3, n))                # (0 x finite = +0, w x clip(1 - 0) = w, no tint
+            return SimpleNamespace(through=1.0 - alpha, sheen=zeros, sheen_a=np.zeros(n), sheen_b=np.zeros(n),
+                                   coat=zeros.copy(), base=w, sheen_albedo=np.zeros(n), coat_albedo=np.zeros(n),
+                                   coat_view=si.recolour(np.ones((3, n))))      # without a coat weight)
+        mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)
         a, b, r = self._sheen_params(si, sheen_w)
         r = np.where(sheen_w > 0.0, r, 0.0)
         sheen = sheen_w * self.sheen_tint.take(rows, axis=1) * r * w
         w = w * np.clip(1.0 - (sheen_w * self.sheen_tint.take(rows, axis=1) * r).max(axis=0), 0.0, 1.0)
-        coat_w = self.coat_weight.take(rows)
         # Reflective Caustics off (engine/integrators/light_paths.py): no coat closure, nor its
         # darkening of the base; its tint stays (closure.h)
         coat_on = coat_w if si.glossy_off is None else np.where(si.glossy_off, 0.0, coat_w)
@@ -575,13 +594,20 @@ class PrincipledV2(BSDF):
         metal, specular, diffuse (, glass))."""
         layers = self.layer_weights(si)
         (w_metal, w_spec, w_diffuse), base_prob = self.lobe_weights(si, sample_total=True)
+        if self.compiled is not None:               # the lines below in one pass (principled_jit.py)
+            if not self.any_transmission:
+                weights, prob = self.compiled.layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_prob)
+                return layers, weights, prob
+            w_glass = self._glass_weight(si)
+            weights, prob = self.compiled.layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_prob,
+                                                                w_glass, self._glass_sample_weight(si, w_glass))
+            return layers, weights, prob
         base = layers.base
         weights = [layers.sheen, layers.coat, w_metal * base, w_spec * base, w_diffuse * base]
         coat_sample = layers.coat.mean(axis=0) * layers.coat_albedo
         sample = np.vstack([layers.sheen.mean(axis=0), coat_sample, base_prob * base.mean(axis=0)])
         if self.any_transmission:                   # the transmission closure: t (1 - metallic) W
-            m = self.metallic.take(si.material)
-            w_glass = self.glass.transmission.take(si.material) * np.where(1.0 - m > WEIGHT_CUTOFF, 1.0 - m, 0.0)
+            w_glass = self._glass_weight(si)
             weights.append(w_glass * base)
             sample = np.vstack([sample, w_glass * base.mean(axis=0) * self._glass_sample_weight(si, w_glass)])
         total = sample.sum(axis=0)
@@ -621,6 +647,11 @@ class PrincipledV2(BSDF):
             f_cos[:, idx] += w.take(idx, axis=1) * f_l
             pdf[idx] += p.take(idx) * pdf_l
         return f_cos, pdf
+
+    def _glass_weight(self, si: ShadingPoint) -> np.ndarray:
+        """The transmission closure's scalar weight t (1 - metallic) (N,), before W."""
+        m = self.metallic.take(si.material)
+        return self.glass.transmission.take(si.material) * np.where(1.0 - m > WEIGHT_CUTOFF, 1.0 - m, 0.0)
 
     def _glass_sample_weight(self, si: ShadingPoint, w_glass: np.ndarray) -> np.ndarray:
         """The transmission closure's albedo estimate (N,) where w_glass > 0, 0 elsewhere: there
@@ -811,10 +842,25 @@ def _scatter(values: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def _read(table: np.ndarray, rows: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """table (M, MU_POINTS) at each hit's material row and mu (N,), linear in sqrt(mu)."""
+def _read_at(rows: np.ndarray, mu: np.ndarray):
+    """Where _read reads the tables: (flat index of the lower point, of the upper, weight t) (N,) each."""
     x = np.sqrt(np.clip(mu, 0.0, 1.0)) * (MU_POINTS - 1)
     j = np.minimum(x.astype(np.int64), MU_POINTS - 1)
     k = np.minimum(j + 1, MU_POINTS - 1)
     t = x - j
-    return (1.0 - t) * table[rows, j] + t * table[rows, k]
+    base = rows * MU_POINTS
+    return base + j, base + k, t
+
+
+def _read(table: np.ndarray, rows: np.ndarray, mu: np.ndarray, at=None) -> np.ndarray:
+    """table (M, MU_POINTS) at each hit's material row and mu (N,), linear in sqrt(mu) (`at`: _read_at's,
+    when another table of the same shape is read at the same points)."""
+    low, high, t = _read_at(rows, mu) if at is None else at
+    flat = table.ravel()
+    return (1.0 - t) * flat.take(low) + t * flat.take(high)
+
+
+def _read_both(first: np.ndarray, second: np.ndarray, rows: np.ndarray, mu: np.ndarray):
+    """_read of two tables at the same rows and mu (the points found once)."""
+    at = _read_at(rows, mu)
+    return _read(first, rows, mu, at), _read(second, rows, mu, at)

@@ -37,9 +37,9 @@ import numpy as np
 
 from ..core.vec import dot, normalize
 from .dielectric import energy_scale
-from .dielectric_lobe import PASSED, REFLECTED, REFRACTED, MicrofacetDielectric, dielectric_alpha, refraction_eta
+from .dielectric_lobe import (PASSED, REFLECTED, REFRACTED, MicrofacetDielectric, RealFresnel, dielectric_alpha,
+                              refraction_eta)
 from .fresnel import INDEX_MATCHED
-from .glossy import fresnel_dielectric
 from .microfacet import shading_frame, to_local, to_world
 from .protocol import ShadingPoint
 from .specular import specular_normal_at
@@ -72,21 +72,14 @@ class PrincipledGlass:
         mat = si.material
         eta, entering = refraction_eta(si, self.ior.take(mat))
         n = specular_normal_at(si)
-        frame = (*shading_frame(n), n)
+        frame = (*(shading_frame(n) if self.lobe.compiled is None else self.lobe.compiled.frame(n)), n)
         tint = np.sqrt(np.clip(si.color, 0.0, 1.0))
         return mat, eta, entering, frame, self.f0.take(mat, axis=1), tint
 
     @staticmethod
-    def _fresnel(eta, f0, tint):
+    def _fresnel(eta, f0, tint) -> RealFresnel:
         """cos -> (R, T) (3, N) each: the generalized Schlick's real-Fresnel mode (see the module)."""
-        def split(cos):
-            f0_real = _f0(eta)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = (fresnel_dielectric(cos, eta) - f0_real) / (1.0 - f0_real)
-            s = np.clip(np.nan_to_num(s, nan=1.0), 0.0, 1.0)
-            r = f0 + (1.0 - f0) * s
-            return r, (1.0 - r) * tint
-        return split
+        return RealFresnel(eta, f0, tint)
 
     def _scale(self, mat, mu, eta, tint):
         on = self.compensate.take(mat)
@@ -103,7 +96,9 @@ class PrincipledGlass:
 
     def sample_weight(self, si: ShadingPoint) -> np.ndarray:
         """mean(R + T) (N,) at wo.n: the closure's albedo estimate (without its weight)."""
-        mat, eta, _, _, f0, tint = self._setup(si)
+        mat = si.material                           # _setup's eta, F0 and tint (not its frame)
+        eta, _ = refraction_eta(si, self.ior.take(mat))
+        f0, tint = self.f0.take(mat, axis=1), np.sqrt(np.clip(si.color, 0.0, 1.0))
         r, t = self._fresnel(eta, f0, tint)(np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0))
         return (r + t).mean(axis=0)
 

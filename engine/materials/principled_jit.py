@@ -15,7 +15,8 @@ _layered_mixture: sheen, coat, metal, specular, diffuse, each added to the runni
 oren_nayar.py's Lambert case) with only +, -, *, /, sqrt, cos and sin; the one power (the F82
 Fresnel's (1 - cos)^5) and the directions that take NumPy's sin and cos (the diffuse picks' cosine
 directions, the sheen's disk) stay NumPy, between the passes; so do the per-hit layer weights (the
-coat tint's power).  The same bits as backend=numpy (tests/materials/test_principled_jit.py).
+coat tint's power), whose closure weights and lobe probabilities are then combined in one pass
+(`layered_probabilities`).  The same bits as backend=numpy (tests/materials/test_principled_jit.py).
 Imported only through engine/core/backend.py's choice (it imports numba)."""
 from __future__ import annotations
 
@@ -193,6 +194,58 @@ def _layered_pick(wo, x, y, n, ax, ay, cx, cy, cn, cax, cay, prob, u_lobe, u1, u
         failed_out[i] = pdf <= 0.0
 
 
+@jit
+def _layered_probabilities(sheen, coat, coat_albedo, base, base_sample, w_metal, w_spec, w_diffuse, w_glass,
+                           glass_weight, through, weights_out, prob_out):
+    """principled.py _layered_lobes after its layer and lobe weights: the base lobes' closure weights
+    (3, N) each into weights_out (metal, specular, diffuse, and the glass where w_glass has hits),
+    the probabilities (6 or 7, N) of pass-through, sheen, coat, metal, specular, diffuse (, glass):
+    NumPy's channel means (c0 + c1 + c2) / 3, its row sums in row order, np.where's choices."""
+    rows = prob_out.shape[0] - 1
+    sample = np.empty(6)
+    for i in range(base.shape[1]):
+        mean_base = (base[0, i] + base[1, i] + base[2, i]) / 3.0
+        sample[0] = (sheen[0, i] + sheen[1, i] + sheen[2, i]) / 3.0
+        sample[1] = (coat[0, i] + coat[1, i] + coat[2, i]) / 3.0 * coat_albedo[i]
+        sample[2] = base_sample[0, i] * mean_base
+        sample[3] = base_sample[1, i] * mean_base
+        sample[4] = base_sample[2, i] * mean_base
+        for c in range(3):
+            weights_out[0, c, i] = w_metal[i] * base[c, i]
+            weights_out[1, c, i] = w_spec[i] * base[c, i]
+            weights_out[2, c, i] = w_diffuse[i] * base[c, i]
+        if rows == 6:
+            sample[5] = w_glass[i] * mean_base * glass_weight[i]
+            for c in range(3):
+                weights_out[3, c, i] = w_glass[i] * base[c, i]
+        total = sample[0]
+        for r in range(1, rows):
+            total = total + sample[r]
+        opaque = 1.0 - through[i] if total > 0.0 else 0.0
+        prob_out[0, i] = 1.0 - opaque
+        for r in range(rows):
+            prob_out[r + 1, i] = opaque * sample[r] / total if total > 0.0 else 0.0
+
+
+def layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_sample, w_glass=None, glass_weight=None):
+    """(closure weights [sheen, coat, metal, specular, diffuse (, glass)] (3, N) each, probabilities
+    (6 or 7, N)) of principled.py _layered_lobes from its layers (layer_weights) and the base's lobe
+    weights and sample weights (lobe_weights(sample_total=True)); w_glass, glass_weight (N,): the
+    transmission closure's weight and albedo estimate where any material transmits."""
+    count = layers.base.shape[1]
+    rows = np.ascontiguousarray
+    glass = w_glass is not None
+    out = np.empty((4 if glass else 3, 3, count))
+    prob = np.empty((7 if glass else 6, count))
+    none = np.empty(0)
+    _layered_probabilities(rows(layers.sheen), rows(layers.coat), rows(layers.coat_albedo, dtype=np.float64),
+                           rows(layers.base), rows(base_sample), rows(w_metal, dtype=np.float64),
+                           rows(w_spec, dtype=np.float64), rows(w_diffuse, dtype=np.float64),
+                           rows(w_glass) if glass else none, rows(glass_weight) if glass else none,
+                           rows(layers.through, dtype=np.float64), out, prob)
+    return [layers.sheen, layers.coat, *out], prob
+
+
 def base_eval(hits, index, wi):
     """(f cos (3, K), pdf (K,)) of the lobes at the pairs (hit index[k], wi[:, k]): the sheen and the
     coat where hits.layered, then the base; hits: the per-hit arrays of principled.py `_fused_hits`,
@@ -277,3 +330,8 @@ def warm_up() -> None:
     base_eval(hits, None, wo[::-1].copy())
     base_eval(hits, np.array([1, 0]), wo.copy())
     layered_pick(hits, np.array([0.3, 0.9]), np.array([0.3, 0.6]), np.array([0.2, 0.9]))
+    layers = SimpleNamespace(sheen=ones * 0.1, coat=ones * 0.2, coat_albedo=np.array([0.1, 0.2]), base=ones * 0.5,
+                             through=np.array([0.0, 0.5]))
+    w = np.array([0.5, 0.25])
+    layered_probabilities(layers, w, w, w, ones * 0.3)
+    layered_probabilities(layers, w, w, w, ones * 0.3, w, np.array([1.0, 0.9]))

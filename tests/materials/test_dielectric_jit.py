@@ -2,12 +2,13 @@
 engine/materials/dielectric_lobe.py MicrofacetDielectric: sample and eval bit for bit over alpha
 from the floor to 1, entering and leaving (eta > 1 and < 1, total internal reflection), separable
 and height-correlated G2, glass and the Refraction BSDF, normal and grazing incidence, directions
-on both sides; the glass BSDFs' use_backend reaches the lobe."""
+on both sides; the Principled glass closure's coloured RealFresnel; the glass BSDFs' and the
+Principled BSDF's use_backend reach the lobe."""
 import numpy as np
 
 from engine.core.settings import RenderSettings
 from engine.materials.dielectric import RoughGlass, RoughRefraction
-from engine.materials.dielectric_lobe import MicrofacetDielectric
+from engine.materials.dielectric_lobe import MicrofacetDielectric, RealFresnel
 from engine.scene.model import Material
 from tests.backend_capture import require_compiled
 
@@ -60,7 +61,61 @@ def test_sample_and_eval_are_bit_identical():
                               numpy_lobe.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2])[1])
 
 
-def test_beckmann_and_coloured_fresnel_stay_numpy():
+def _real_fresnel(rng, eta, count):
+    """RealFresnel (the Principled glass closure's) of a coloured F0 and tint; some hits untinted
+    (T = 0) and index-matched (eta 1: F0 0)."""
+    f0 = np.clip(rng.random((3, count)) * 0.2, 0.0, 1.0)
+    tint = np.sqrt(rng.random((3, count)))
+    tint[:, 100:150] = 0.0
+    eta = eta.copy()
+    eta[150:170] = 1.0
+    return eta, RealFresnel(eta, f0, tint)
+
+
+def test_coloured_real_fresnel_is_bit_identical():
+    require_compiled()
+    rng = np.random.default_rng(17)
+    wo, wi, alpha, eta, separable, u = _inputs(rng, 3000)
+    eta, fresnel = _real_fresnel(rng, eta, 3000)
+    no_beckmann = np.zeros(3000, bool)
+    numpy_lobe, compiled = _pair(True)
+    for sep in (None, separable):
+        a = numpy_lobe.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2], separable=sep, fresnel=fresnel)
+        b = compiled.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2], separable=sep, fresnel=fresnel)
+        assert a[1].shape == (3, 3000) and a[4].sum() > 900 and a[3][a[4]].sum() > 300
+        for x, y in zip(a, b):
+            assert x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y)
+        for reflection in (True, False):
+            numpy_lobe, compiled = _pair(reflection)
+            f_a, p_a = numpy_lobe.eval(wo, wi, alpha, eta, no_beckmann, sep, fresnel=fresnel)
+            f_b, p_b = compiled.eval(wo, wi, alpha, eta, no_beckmann, sep, fresnel=fresnel)
+            assert f_a.shape == f_b.shape == (3, 3000) and (p_a > 0).sum() > 200
+            assert np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+        numpy_lobe, compiled = _pair(True)
+    # Controls: an F0 one ulp larger, a tint one ulp smaller are told apart.
+    brighter = RealFresnel(fresnel.eta, np.nextafter(fresnel.f0, 2.0), fresnel.tint)
+    assert not np.array_equal(compiled.eval(wo, wi, alpha, eta, no_beckmann, fresnel=brighter)[0],
+                              numpy_lobe.eval(wo, wi, alpha, eta, no_beckmann, fresnel=fresnel)[0])
+    darker = RealFresnel(fresnel.eta, fresnel.f0, np.nextafter(fresnel.tint, -1.0))
+    assert not np.array_equal(compiled.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2], fresnel=darker)[1],
+                              numpy_lobe.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2], fresnel=fresnel)[1])
+
+
+def test_principled_glass_follows_the_backend():
+    require_compiled()
+    from engine.materials.principled import PrincipledV2
+    from engine.scene.model import Principled
+    glass = Material("g", kind="principled", roughness=0.3, ior=1.5,
+                     principled=Principled(transmission_weight=1.0))
+    bsdf = PrincipledV2([glass], RenderSettings())
+    for name in ("principled", "mix"):
+        bsdf.use_backend({name: "numba"})
+        assert bsdf.glass.lobe.compiled is not None
+        bsdf.use_backend({name: "numpy"})
+        assert bsdf.glass.lobe.compiled is None
+
+
+def test_beckmann_and_other_fresnels_stay_numpy():
     require_compiled()
     rng = np.random.default_rng(3)
     wo, wi, alpha, eta, separable, u = _inputs(rng, 200)

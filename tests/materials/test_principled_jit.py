@@ -214,3 +214,26 @@ def test_a_rough_diffuse_keeps_the_numpy_lobes():
     assert layered.compiled is not None
     layered.use_backend({"principled": "numpy"})
     assert layered.compiled is None
+
+
+def test_layered_probabilities_are_bit_identical():
+    """_layered_lobes' closure weights and lobe probabilities from principled_jit.layered_probabilities
+    against NumPy's, with and without a transmission closure and Reflective Caustics off; control: a
+    layer 1 ulp more transparent is told apart."""
+    require_compiled()
+    for materials in (_layered_materials(), _transmitting_materials()):
+        numpy_bsdf, compiled = _pair(materials)
+        for extras in (False, True):
+            layers_a, w_a, p_a = numpy_bsdf._layered_lobes(_hits(np.random.default_rng(29), len(materials), 2000,
+                                                                 extras))
+            layers_b, w_b, p_b = compiled._layered_lobes(_hits(np.random.default_rng(29), len(materials), 2000,
+                                                               extras))
+            assert len(w_a) == len(w_b) and p_a.shape == p_b.shape and np.array_equal(p_a, p_b)
+            assert all(np.array_equal(x, y) for x, y in zip(w_a, w_b))
+            assert (p_a[1:] > 0).sum(axis=1).min() > 20             # every lobe picked somewhere
+        from engine.materials import principled_jit
+        layers_b.through = np.nextafter(layers_b.through, 2.0)
+        (w_metal, w_spec, w_diffuse), base = numpy_bsdf.lobe_weights(_hits(np.random.default_rng(29), len(materials),
+                                                                           2000, True), sample_total=True)
+        assert not np.array_equal(principled_jit.layered_probabilities(layers_b, w_metal, w_spec, w_diffuse, base)[1],
+                                  p_a[:6])
