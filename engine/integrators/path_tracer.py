@@ -138,8 +138,13 @@ class Paths:
     def _fields(self):
         return [(name, axis) for name, axis in _FIELD_AXES if getattr(self, name) is not None]
 
-    def take(self, index, replaced=()) -> "Paths":
-        """The paths `index`; the fields named in `replaced` are left None, for the caller to set."""
+    def take(self, index, replaced=(), jit=None) -> "Paths":
+        """The paths `index`; the fields named in `replaced` are left None, for the caller to set.
+        jit: engine/integrators/wavefront_jit.py, whose compiled gathers then take them (the same arrays)."""
+        if jit is not None:
+            names = [(name, axis) for name, axis in self._fields() if name not in replaced]
+            taken = jit.take([(getattr(self, name), axis) for name, axis in names], index)
+            return Paths(**{name: None for name in replaced}, **{name: a for (name, _), a in zip(names, taken)})
         return Paths(**{name: None if name in replaced else getattr(self, name).take(index, axis=axis)
                         for name, axis in self._fields()})
 
@@ -300,7 +305,7 @@ class PathTracer:
                                   features)
             if start_radiance is not None:
                 self.ray_light(p, hits.miss, finished[-1][1] - start_radiance.take(hits.miss, axis=1), features)
-        p = p.take(hits.index)
+        p = p.take(hits.index, jit=self.wavefront_jit)
         surf = self.geometry.surface(p.o, p.d, hits)
         bounds = [start for start, _ in hits.groups] + [hits.groups[-1][1]]
         alive = bounds[ABSORB]                # the paths at a BSDF scatter on
@@ -341,7 +346,8 @@ class PathTracer:
         color = self.mats.color.take(surf.material, axis=1)
         if lookup is not None:
             color = lookup.color(color, surf.material)
-        dim = 1 + DIMS_PER_BOUNCE * p.bounce[:alive]                        # this hit's dimensions
+        # this hit's dimensions (int64, as the compiled sampler reads them: no copy per call)
+        dim = np.multiply(p.bounce[:alive], DIMS_PER_BOUNCE, dtype=np.int64) + 1
         u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
         if features is not None:
             self.surface_features(p, surf, shade, color, bounds, features, hits, lookup)   # Cycles: the shading normal
@@ -381,23 +387,30 @@ class PathTracer:
                 vertex = vertex - caustic_light
             self.vertex_light(p, vertex, features)
         # 7. Russian roulette and the depth limit.
-        if p.rr_after is None:
-            keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
+        rays = None                         # the survivors' next (o, d, beta), when 7 makes them
+        if p.rr_after is None and self.wavefront_jit is not None:     # 7 and 8's rays in one compiled pass
+            s = self.settings
+            keep, ended, *rays = self.wavefront_jit.survivors(
+                beta, p.bounce[:alive], p.prev_delta[:alive], u_rr, s.max_depth, self.final_rays, s.russian_roulette,
+                s.rr_start_depth, surf.point, side, surf.offset, facing, new_d)
         else:
-            keep, p.rr_after[:alive] = self.deferred_roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
+            if p.rr_after is None:
+                keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
+            else:
+                keep, p.rr_after[:alive] = self.deferred_roulette(beta, p.bounce[:alive], p.prev_delta[:alive],
+                                                                  u_rr)
+            keep, ended = np.flatnonzero(keep), np.flatnonzero(~keep)
         # 8. Compaction: hand finished paths to the film, keep the rest.
-        ended = np.flatnonzero(~keep)
         finished += [(p.pixel.take(ended), p.radiance.take(ended, axis=1), p.sample.take(ended)),
                      (p.pixel[alive:surfaces], p.radiance[:, alive:surfaces], p.sample[alive:surfaces])]
         pixel = np.concatenate([f[0] for f in finished])
         if len(pixel):
             on_finished(pixel, np.concatenate([f[1] for f in finished], axis=1),
                         np.concatenate([f[2] for f in finished]))
-        keep = np.flatnonzero(keep)
-        survivors = p.take(keep, replaced=("o", "d", "beta"))
-        survivors.o, survivors.d, survivors.beta = (next_rays if self.wavefront_jit is None else
-                                                    self.wavefront_jit.next_rays)(
-            keep, surf.point, side, surf.offset, facing, new_d, beta)
+        survivors = p.take(keep, replaced=("o", "d", "beta"), jit=self.wavefront_jit)
+        survivors.o, survivors.d, survivors.beta = rays if rays is not None else (
+            (next_rays if self.wavefront_jit is None else self.wavefront_jit.next_rays)(
+                keep, surf.point, side, surf.offset, facing, new_d, beta))
         survivors.bounce = survivors.bounce + 1
         return survivors if passing is None else survivors.extend(passing)
 
@@ -868,12 +881,15 @@ class PathTracer:
         off_x = np.repeat(offset, ns) if ns > 1 else offset
         ng = nx if not si.smooth else (np.repeat(si.ng, ns, axis=1) if ns > 1 else si.ng)
         u_pick, u1, u2 = u if u is not None else (rng.random(k), rng.random(k), rng.random(k))
+        compiled = (self.wavefront_jit is not None and albedo is not None and ns == 1 and not si.smooth
+                    and not transmits_non_delta(bsdf.flags) and (si.lookup is None or not si.lookup.has_normals))
+        if compiled:        # the compiled kernels read contiguous rows: one copy of a span's, not one per kernel
+            x, nx = np.ascontiguousarray(x), np.ascontiguousarray(nx)
         ls = self.lights.sample(x, nx, u_pick, u1, u2)
         if self.textures is not None:                   # textured emitters: Le at the sampled point
             ls.radiance = self.textures.light_radiance(ls.radiance, ls.light, ls.point)
-        if (self.wavefront_jit is not None and albedo is not None and ns == 1 and not si.smooth
-                and not transmits_non_delta(bsdf.flags) and (si.lookup is None or not si.lookup.has_normals)):
-            return self.lambert_direct_light(bsdf, si, point, offset, ls, counters, albedo)
+        if compiled:
+            return self.lambert_direct_light(bsdf, si, x, nx, offset, ls, counters, albedo)
         w = ls.direction
         cos_x = dot(nx, w)
         # A non-delta transmission lobe takes light from the far side too: side -1 there, and the
@@ -950,18 +966,18 @@ class PathTracer:
             return mean
         return mean * albedo * (1.0 / np.pi)                            # f_r = colour / pi (eq. 2.13a)
 
-    def lambert_direct_light(self, bsdf, si, point, offset, ls, counters, albedo):
+    def lambert_direct_light(self, bsdf, si, point, n, offset, ls, counters, albedo):
         """direct_light's Lambertian case with one shadow ray per hit, flat shading and no Normal
         input, for the light samples ls: the same tests, shadow rays and weights in two compiled
         loops around the shadow rays (engine/integrators/wavefront_jit.py light_tests and
-        lambert_light), the same numbers."""
+        lambert_light), the same numbers.  point, n: the hits' points and si.n as contiguous rows."""
         jit = self.wavefront_jit
-        cos_x, cos_ly, valid = jit.light_tests(si.n, ls, self.lights.any_one_sided)
+        cos_x, cos_ly, valid = jit.light_tests(n, ls, self.lights.any_one_sided)
         k = len(cos_x)
         blocked, p_b = np.zeros(0, dtype=bool), 0.0
         if len(valid):
             origin, direction, seg_len = self.lights.shadow_rays(ls, None if len(valid) == k else valid, point,
-                                                                 offset, si.n, cos_ly)
+                                                                 offset, n, cos_ly)
             counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
             if self.mis and bsdf.cosine_pdf:        # the kernel takes it from cos_x (the same numbers)

@@ -5,14 +5,17 @@
   instead of nine gathers and the temporaries of the origin's arithmetic;
 * the end of the scatter stage (`scatter_tail`: the paths' delta flag and ray kind, the side they leave
   on, beta x value) and the Russian roulette (`roulette`: which paths go on and their throughput after
-  the survival division), one loop each instead of some ten NumPy passes each;
+  the survival division), one loop each instead of some ten NumPy passes each; the roulette and the
+  compaction in one pass (`survivors`: no throughput rows and keep flags between them);
 * the direct light of a Lambertian BSDF with one shadow ray per hit, flat shading and no Normal
   input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
   the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
   (`lambert_light`), one loop each instead of some twenty NumPy passes;
 * the emission a ray reaches (`PathTracer.emission` and `emission_weight` without Light Paths options,
   caustic photons or textures): the emitters' light numbers (`emitter_lights`) and the MIS-weighted
-  sum into the radiance (`add_emission`), two loops instead of some thirty NumPy calls on a few rays.
+  sum into the radiance (`add_emission`), two loops instead of some thirty NumPy calls on a few rays;
+* the gathers of the path state (`take`: `Paths.take`'s fields, twice a bounce): a plain loop per row,
+  which costs 0.55-0.75x NumPy 1.26's `take` (its per-element index checks) on the same indices.
 
 The float64 operations are those of the NumPy path in the same order, so the same bits
 (tests/integrators/test_wavefront_jit.py).  Imported only through engine/core/backend.py's choice
@@ -60,15 +63,17 @@ def next_rays(keep, point, side, offset, facing, new_d, beta):
 
 
 @jit
-def _light_tests(n, w, normal, pdf, distance, one_sided, any_one_sided, cos_x, cos_ly):
+def _light_tests(n, w, normal, step, pdf, distance, one_sided, any_one_sided, cos_x, cos_ly):
     """cos_x = <n, w>, cos_ly = <light normal, w> and the samples kept (direct_light's `ok`:
-    light on the viewer's side, not edge-on, a density, a distance, a one-sided light's front)."""
+    light on the viewer's side, not edge-on, a density, a distance, a one-sided light's front).
+    Sample i's light normal is column i x step (step 0: one normal for all)."""
     k = pdf.shape[0]
     valid = np.empty(k, np.int64)
     count = 0
     for i in range(k):
         c = n[0, i] * w[0, i] + n[1, i] * w[1, i] + n[2, i] * w[2, i]
-        cl = normal[0, i] * w[0, i] + normal[1, i] * w[1, i] + normal[2, i] * w[2, i]
+        q = i * step
+        cl = normal[0, q] * w[0, i] + normal[1, q] * w[1, i] + normal[2, q] * w[2, i]
         cos_x[i], cos_ly[i] = c, cl
         ok = c > 0.0 and cl != 0.0 and pdf[i] > 0.0 and distance[i] > 0.0
         if any_one_sided and one_sided[i] and cl >= 0.0:
@@ -132,12 +137,20 @@ def _rows(a, k):
     return _fit(a, (3, k))
 
 
+def _columns(a, k):
+    """(rows, step) of rows a (3, k): column i is rows[:, i x step]; step 0 for one column broadcast
+    to all (np.broadcast_to, e.g. one light's normal), which is then not copied k times."""
+    if isinstance(a, np.ndarray) and a.shape == (3, k) and k > 0 and a.strides[1] == 0:
+        return _rows(a[:, :1], 1), 0
+    return _rows(a, k), 1
+
+
 def light_tests(n, ls, any_one_sided):
     """(cos_x, cos_ly, valid) of light samples ls (engine/lights/light_set.py LightSample) at receivers
     with facing normals n (rows): direct_light's two cosines and the indices of its kept samples."""
     k = ls.pdf.shape[0]
     cos_x, cos_ly = np.empty(k), np.empty(k)
-    valid = _light_tests(_rows(n, k), _rows(ls.direction, k), _rows(ls.normal, k),
+    valid = _light_tests(_rows(n, k), _rows(ls.direction, k), *_columns(ls.normal, k),
                          _fit(ls.pdf, (k,)), _fit(ls.distance, (k,)),
                          _fit(ls.one_sided, (k,), np.bool_), bool(any_one_sided),
                          cos_x, cos_ly)
@@ -227,6 +240,66 @@ def roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr
 
 
 @jit
+def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
+               facing, new_d):
+    """_roulette and _next_rays in one: which paths go on (their indices, and those of the others in
+    order) and the kept paths' next origin, direction and throughput after the survival division."""
+    n = bounce.shape[0]
+    divisor = np.empty(n)
+    kept = np.empty(n, np.bool_)
+    count = 0
+    for i in range(n):                           # _roulette's tests, the same operations
+        within = bounce[i] < max_depth
+        if final_rays:
+            within = within or (bounce[i] == max_depth and not delta[i])
+        m = _max(_max(beta[0, i], beta[1, i]), beta[2, i])
+        k = m > 0.0 and within
+        dv = 1.0
+        if russian_roulette:
+            survive = (m if (m <= 1.0 or m != m) else 1.0) if bounce[i] + 1 >= rr_start_depth else 1.0   # np.minimum
+            k = k and u[i] < survive
+            dv = survive if k else 1.0
+        kept[i] = k
+        divisor[i] = dv
+        if k:
+            count += 1
+    keep = np.empty(count, np.int64)
+    ended = np.empty(n - count, np.int64)
+    o = np.empty((3, count))
+    d = np.empty((3, count))
+    b = np.empty((3, count))
+    j = 0
+    e = 0
+    for i in range(n):
+        if not kept[i]:
+            ended[e] = i
+            e += 1
+            continue
+        keep[j] = i
+        s = side[i] * offset[i]                  # _next_rays' operations
+        for c in range(3):
+            o[c, j] = point[c, i] + s * facing[c, i]
+            d[c, j] = new_d[c, i]
+            b[c, j] = beta[c, i] / divisor[i] if russian_roulette else beta[c, i]
+        j += 1
+    return keep, ended, o, d, b
+
+
+def survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
+              facing, new_d):
+    """(keep, ended, o, d, beta): PathTracer.roulette's paths that go on (indices, `keep`) and those that
+    end (`ended`), then next_rays(keep, point, side, offset, facing, new_d, the roulette's beta) in one
+    pass: the same arrays as roulette, np.flatnonzero and next_rays."""
+    f64 = np.float64
+    return _survivors(_read_only(np.ascontiguousarray(beta, f64)), _read_only(np.ascontiguousarray(bounce, np.int32)),
+                      _read_only(np.ascontiguousarray(delta, np.bool_)), _read_only(np.ascontiguousarray(u, f64)),
+                      int(max_depth), bool(final_rays), bool(russian_roulette), int(rr_start_depth),
+                      _read_only(np.ascontiguousarray(point, f64)), _read_only(np.ascontiguousarray(side, f64)),
+                      _read_only(np.ascontiguousarray(offset, f64)), _read_only(np.ascontiguousarray(facing, f64)),
+                      _read_only(np.ascontiguousarray(new_d, f64)))
+
+
+@jit
 def _emitter_lights(idx, prev_delta, kind, prim, light_table, kind_base):
     """(places j of idx whose path's last bounce was not a delta and whose primitive is a light the
     sampler has, their lights): emission_weight's sel, light, known."""
@@ -298,6 +371,48 @@ def add_emission(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light,
 NO_PDF = np.zeros(0)
 
 
+@jit
+def _take_rows(a, index, out):
+    for c in range(a.shape[0]):
+        for j in range(index.shape[0]):
+            out[c, j] = a[c, index[j]]
+
+
+@jit
+def _take_1d(a, index, out):
+    for j in range(index.shape[0]):
+        out[j] = a[index[j]]
+
+
+# The path state's 1-D dtypes (Paths: pixel and sample int64, bounce int32, ray_kind int8, flags bool, pdfs)
+TAKE_DTYPES = tuple(np.dtype(t) for t in (np.float64, np.int64, np.int32, np.int8, np.bool_))
+
+
+def take(arrays, index):
+    """[a.take(index, axis=axis) for a, axis in arrays] of path-state arrays: compiled for C-contiguous
+    float64 rows (axis 1) and 1-D arrays of TAKE_DTYPES with int64 indices in range (what Paths.take
+    passes; NumPy's take for anything else)."""
+    index = np.asarray(index)
+    compiled = index.dtype == np.int64 and index.ndim == 1
+    if compiled:
+        index = _read_only(np.ascontiguousarray(index))
+    out = []
+    for a, axis in arrays:
+        if compiled and a.flags.c_contiguous:
+            if a.ndim == 2 and axis == 1 and a.dtype == np.float64:
+                rows = np.empty((a.shape[0], index.shape[0]))
+                _take_rows(_read_only(a), index, rows)
+                out.append(rows)
+                continue
+            if a.ndim == 1 and a.dtype in TAKE_DTYPES:
+                values = np.empty(index.shape[0], a.dtype)
+                _take_1d(_read_only(a), index, values)
+                out.append(values)
+                continue
+        out.append(a.take(index, axis=axis))
+    return out
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     from types import SimpleNamespace
@@ -317,3 +432,7 @@ def warm_up() -> None:
     for mode in (0, 1, 2):
         add_emission(np.zeros((3, 3)), rows, idx, rows[:, :2], delta, np.ones(3), places, np.ones(len(places)),
                      mode, 1)
+    for flag in (True, False):
+        survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, flag, flag, 3, rows,
+                  np.ones(3), np.ones(3), rows, rows)
+    take([(rows, 1)] + [(np.zeros(3, dtype), 0) for dtype in TAKE_DTYPES], idx)

@@ -92,7 +92,8 @@ def test_a_render_with_a_direct_light_slightly_off_differs():
         return wavefront_jit.lambert_light(*args) * (1.0 + 2.0 ** -20)
     wrong = SimpleNamespace(next_rays=wavefront_jit.next_rays, light_tests=wavefront_jit.light_tests, lambert_light=off,
                             scatter_tail=wavefront_jit.scatter_tail, roulette=wavefront_jit.roulette,
-                            emitter_lights=wavefront_jit.emitter_lights, add_emission=wavefront_jit.add_emission)
+                            emitter_lights=wavefront_jit.emitter_lights, add_emission=wavefront_jit.add_emission,
+                            survivors=wavefront_jit.survivors, take=wavefront_jit.take)
     assert not np.array_equal(render_with("cornell", None, 16), render_with("cornell", wrong, 16))
 
 
@@ -287,3 +288,48 @@ def test_read_only_inputs_need_no_compilation_after_warm_up():
     assert len(results[0][2]) == 3 and all(np.array_equal(a, b) for a, b in zip(*results))
     assert {"t": len(wj._light_tests.signatures), "l": len(wj._lambert_light.signatures)} == before
     assert wj.nb.typeof(frozen) != wj.nb.typeof(frozen.copy())
+
+
+def test_survivors_are_the_roulette_then_the_compaction():
+    """wavefront_jit.survivors against PathTracer.roulette's NumPy lines, np.flatnonzero and
+    path_tracer.next_rays on made-up paths (NaN, inf, -0 throughputs, both sides, every flag), with a
+    control: the survival division one ulp off."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    rng = np.random.default_rng(11)
+    n = 4000
+    beta = rng.choice([0.0, -0.0, 0.3, 1.0, 1.7, np.nan, np.inf, 1e-300], (3, n))
+    bounce, delta, u = rng.integers(0, 10, n).astype(np.int32), rng.random(n) < 0.5, rng.random(n)
+    point, facing, new_d = (rng.normal(0, 1e3, (3, n)) for _ in range(3))
+    side, offset = np.where(rng.random(n) < 0.5, -1.0, 1.0), 10.0 ** rng.uniform(-12, 3, n)
+    for final_rays in (False, True):
+        for rr in (False, True):
+            settings = SimpleNamespace(max_depth=8, russian_roulette=rr, rr_start_depth=3)
+            tracer = SimpleNamespace(settings=settings, final_rays=final_rays, wavefront_jit=None)
+            keep, beta_rr = path_tracer.PathTracer.roulette(tracer, beta, bounce, delta, u)
+            ended, keep = np.flatnonzero(~keep), np.flatnonzero(keep)
+            expected = (keep, ended) + path_tracer.next_rays(keep, point, side, offset, facing, new_d, beta_rr)
+            got = wavefront_jit.survivors(beta, bounce, delta, u, 8, final_rays, rr, 3, point, side, offset, facing,
+                                          new_d)
+            assert 0 < len(keep) < n and same(expected, got)
+    wrong = wavefront_jit.survivors(beta * (1.0 + 2.0 ** -52), bounce, delta, u, 8, True, True, 3, point, side,
+                                    offset, facing, new_d)
+    assert same(expected[:2], wrong[:2]) and not same(expected, wrong)
+
+
+def test_take_is_numpys_take():
+    """wavefront_jit.take against ndarray.take for every dtype of the path state, on a sorting
+    permutation and a compaction, and NumPy's own take for what it does not compile (an int32 index,
+    an axis-0 2-D array); control: the index shifted by one gives other arrays."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    rng = np.random.default_rng(12)
+    n = 3000
+    arrays = [(rng.normal(size=(3, n)), 1), (rng.normal(size=n), 0), (rng.integers(0, 1 << 40, n), 0),
+              (rng.integers(0, 9, n).astype(np.int32), 0), (rng.integers(-3, 4, n).astype(np.int8), 0),
+              (rng.random(n) < 0.5, 0), (rng.normal(size=(n, 4)), 0), (rng.integers(0, 9, (4, n)).astype(np.int32), 1)]
+    for index in (np.argsort(rng.integers(0, 6, n), kind="stable"), np.flatnonzero(rng.random(n) < 0.7),
+                  np.arange(n - 5, dtype=np.int32)):
+        expected = [a.take(index, axis=axis) for a, axis in arrays]
+        assert same(expected, wavefront_jit.take(arrays, index))
+        assert not same(expected[:6], wavefront_jit.take(arrays[:6], (index + 1) % n))
