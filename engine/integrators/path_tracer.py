@@ -145,8 +145,9 @@ class Paths:
             names = [(name, axis) for name, axis in self._fields() if name not in replaced]
             taken = jit.take([(getattr(self, name), axis) for name, axis in names], index)
             return Paths(**{name: None for name in replaced}, **{name: a for (name, _), a in zip(names, taken)})
-        return Paths(**{name: None if name in replaced else getattr(self, name).take(index, axis=axis)
-                        for name, axis in self._fields()})
+        return Paths(**{name: None for name in replaced},
+                     **{name: getattr(self, name).take(index, axis=axis) for name, axis in self._fields()
+                        if name not in replaced})
 
     def extend(self, other: "Paths") -> "Paths":
         return Paths(**{name: np.concatenate([getattr(self, name), getattr(other, name)], axis=axis)
@@ -305,8 +306,10 @@ class PathTracer:
                                   features)
             if start_radiance is not None:
                 self.ray_light(p, hits.miss, finished[-1][1] - start_radiance.take(hits.miss, axis=1), features)
-        p = p.take(hits.index, jit=self.wavefront_jit)
-        surf = self.geometry.surface(p.o, p.d, hits)
+        # The hits' paths in hits.index order; the origins only for the surface, which reads them in the
+        # rays' order (compiled: through hits.index, no gather of them here).
+        origins, p = p.o, p.take(hits.index, replaced=("o",), jit=self.wavefront_jit)
+        surf = self.geometry.surface(origins, p.d, hits, rays_order=True)
         bounds = [start for start, _ in hits.groups] + [hits.groups[-1][1]]
         alive = bounds[ABSORB]                # the paths at a BSDF scatter on
         surfaces = bounds[PASS_THROUGH]       # absorbing surfaces end the path here
