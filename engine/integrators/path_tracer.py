@@ -368,10 +368,15 @@ class PathTracer:
                 caustic_light = p.radiance[:, :alive] - before
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
-                light = p.beta[:, span] * self.direct_light(
+                # (compiled Lambertian hits without Light Paths options: the sum below in place, None)
+                light = self.direct_light(
                     bsdf, si[span], surf.point[:, span], surf.offset[span], None, counters,
                     u=self.light_uniforms(sampler, p.pixel[span], p.sample[span], dim[span], u_choice[span]),
-                    lift=self.geometry.terminator_lift(hits, span, facing) if smooth else None)
+                    lift=self.geometry.terminator_lift(hits, span, facing) if smooth else None,
+                    into=(p.radiance, p.beta, span.start) if self.light_paths is None else None)
+                if light is None:
+                    continue
+                light = p.beta[:, span] * light
                 if self.light_paths is not None:
                     light = self.light_paths.clamp(light, p.bounce[span] == 0)
                     if no_light is not None:
@@ -858,7 +863,7 @@ class PathTracer:
         return keep, after
 
     # -- direct light, eq. 2.11 ---------------------------------------------------------
-    def direct_light(self, bsdf, si, point, offset, rng, counters, u=None, lift=None) -> np.ndarray:
+    def direct_light(self, bsdf, si, point, offset, rng, counters, u=None, lift=None, into=None):
         """<L_direct> with N_s shadow rays per point, divided by N_s: rows (3, M).
 
         bsdf: the BSDF of the M hits `si` (an engine/materials/protocol.py ShadingPoint), whose
@@ -873,7 +878,9 @@ class PathTracer:
         drawn from rng.  Smooth shading (si.smooth): shadow rays start off the geometric surface
         si.ng and directions below it count 0 (no light leaks, engine/geometry/shading_normals.py).
         lift: (lift rows, cutoff) per point, the shadow-terminator geometry offset of smooth
-        triangles (Cycles' shadow_ray_offset)."""
+        triangles (Cycles' shadow_ray_offset).  into: (radiance, beta, start), the path state's rows and
+        the first path of these hits: where the compiled Lambertian case runs (lambert_direct_light) it adds
+        beta x its light into radiance in place (the caller's product and sum) and returns None."""
         ns = self.settings.shadow_rays
         m = point.shape[1]
         k = m * ns
@@ -892,7 +899,7 @@ class PathTracer:
         if self.textures is not None:                   # textured emitters: Le at the sampled point
             ls.radiance = self.textures.light_radiance(ls.radiance, ls.light, ls.point)
         if compiled:
-            return self.lambert_direct_light(bsdf, si, x, nx, offset, ls, counters, albedo)
+            return self.lambert_direct_light(bsdf, si, x, nx, offset, ls, counters, albedo, into)
         w = ls.direction
         cos_x = dot(nx, w)
         # A non-delta transmission lobe takes light from the far side too: side -1 there, and the
@@ -969,11 +976,12 @@ class PathTracer:
             return mean
         return mean * albedo * (1.0 / np.pi)                            # f_r = colour / pi (eq. 2.13a)
 
-    def lambert_direct_light(self, bsdf, si, point, n, offset, ls, counters, albedo):
+    def lambert_direct_light(self, bsdf, si, point, n, offset, ls, counters, albedo, into=None):
         """direct_light's Lambertian case with one shadow ray per hit, flat shading and no Normal
         input, for the light samples ls: the same tests, shadow rays and weights in two compiled
         loops around the shadow rays (engine/integrators/wavefront_jit.py light_tests and
-        lambert_light), the same numbers.  point, n: the hits' points and si.n as contiguous rows."""
+        lambert_light), the same numbers.  point, n: the hits' points and si.n as contiguous rows; into:
+        direct_light's (None unless the path state's rows are C-contiguous)."""
         jit = self.wavefront_jit
         cos_x, cos_ly, valid = jit.light_tests(n, ls, self.lights.any_one_sided)
         k = len(cos_x)
@@ -988,4 +996,6 @@ class PathTracer:
             elif self.mis:
                 with np.errstate(invalid="ignore", over="ignore"):
                     p_b = bsdf.pdf(si, ls.direction)
-        return jit.lambert_light(valid, blocked, cos_x, ls, p_b, self.lights.bsdf_reachable, self.mis, albedo)
+        if into is not None and not (into[0].flags.c_contiguous and into[1].flags.c_contiguous):
+            into = None
+        return jit.lambert_light(valid, blocked, cos_x, ls, p_b, self.lights.bsdf_reachable, self.mis, albedo, into)

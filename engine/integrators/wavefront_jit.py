@@ -85,10 +85,12 @@ def _light_tests(n, w, normal, step, pdf, distance, one_sided, any_one_sided, co
 
 
 @jit
-def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable, mis, radiance, albedo, out):
+def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable, mis, radiance, albedo, out,
+                   add, beta, start):
     """out = Le weight rho / pi: weight = cos / p_l (times the power heuristic's light weight
     against p_b under MIS, with p_b 0 for lights a BSDF sample cannot reach) where unblocked,
-    0 elsewhere; the products in direct_light's order ((Le weight) rho) (1 / pi).  cosine_pdf:
+    0 elsewhere; the products in direct_light's order ((Le weight) rho) (1 / pi).  With `add`,
+    out[:, start + i] += beta[:, start + i] x that instead (PathTracer.bounce's sum).  cosine_pdf:
     p_b is the Lambertian's max(cos, 0) (1 / pi) (engine/materials/lambert.py pdf), computed here
     from cos_x (the same products and sum: <n, w> = <w, n>; cos > 0 for every kept sample)."""
     k = pdf.shape[0]
@@ -109,6 +111,11 @@ def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable
             sample *= h
         weight[i] = 0.0 if blocked[j] else sample
     inv_pi = 1.0 / np.pi
+    if add:
+        for i in range(k):
+            for c in range(3):
+                out[c, start + i] += beta[c, start + i] * (radiance[c, i] * weight[i] * albedo[c, i] * inv_pi)
+        return
     for i in range(k):
         for c in range(3):
             out[c, i] = radiance[c, i] * weight[i] * albedo[c, i] * inv_pi
@@ -157,19 +164,24 @@ def light_tests(n, ls, any_one_sided):
     return cos_x, cos_ly, valid
 
 
-def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo):
+def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=None):
     """(3, k) Le weight rho / pi of the samples ls (direct_light's Lambertian return, one shadow ray):
     valid from light_tests, blocked (len(valid),) from the shadow rays, p_b the BSDF's pdf of each
     sample's direction (read only under mis; None: the Lambertian's, from cos_x), reachable per
-    light (LightSet.bsdf_reachable)."""
+    light (LightSet.bsdf_reachable).  into: (radiance, beta, start), C-contiguous rows of the path
+    state: radiance[:, start:start + k] += beta[:, start:start + k] x that, in place (returns None)."""
     k = cos_x.shape[0]
-    out = np.empty((3, k))
+    if into is None:
+        out, beta, start = np.empty((3, k)), _read_only(NO_ROWS), 0
+    else:
+        out, beta, start = into
+        beta = _read_only(beta)
     _lambert_light(np.ascontiguousarray(valid, np.int64), np.ascontiguousarray(blocked, np.bool_), cos_x,
                    _fit(ls.pdf, (k,)),
                    _fit(0.0 if p_b is None else p_b, (k,)), p_b is None,
                    np.ascontiguousarray(ls.light, np.int64), np.ascontiguousarray(reachable, np.bool_), bool(mis),
-                   _rows(ls.radiance, k), _rows(albedo, k), out)
-    return out
+                   _rows(ls.radiance, k), _rows(albedo, k), out, into is not None, beta, int(start))
+    return out if into is None else None
 
 
 @jit
@@ -421,7 +433,9 @@ def warm_up() -> None:
     ls = SimpleNamespace(direction=rows, normal=-rows, pdf=np.ones(3), distance=np.ones(3),
                          one_sided=np.ones(3, np.bool_), light=np.zeros(3, np.int64), radiance=rows)
     cos_x, _, valid = light_tests(rows, ls, True)
-    lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, np.ones(3), np.ones(1, np.bool_), True, rows)
+    for into in (None, (np.zeros((3, 4)), np.ones((3, 4)), 1)):
+        lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, np.ones(3), np.ones(1, np.bool_), True, rows,
+                      into)
     flags = np.array([int(BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION), DELTA | TRANSMISSION, DELTA], np.int8)
     for ng in (None, rows):
         scatter_tail(flags, np.zeros(3, np.bool_), np.zeros(3, np.int8), rows, rows, rows, ng)

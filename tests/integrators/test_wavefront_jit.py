@@ -82,14 +82,15 @@ def test_a_render_with_this_modules_kernels_alone_is_the_same(scene):
 
 
 def test_a_render_with_a_direct_light_slightly_off_differs():
-    """Control: the Lambertian direct light's kernel with its result 2^-20 too large changes the
+    """Control: the Lambertian direct light's kernel with its albedo 2^-20 too large changes the
     (float32) image."""
     require_compiled()
     from types import SimpleNamespace
     from engine.integrators import wavefront_jit
 
-    def off(*args):
-        return wavefront_jit.lambert_light(*args) * (1.0 + 2.0 ** -20)
+    def off(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=None):
+        return wavefront_jit.lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo * (1.0 + 2.0 ** -20),
+                                           into)
     wrong = SimpleNamespace(next_rays=wavefront_jit.next_rays, light_tests=wavefront_jit.light_tests, lambert_light=off,
                             scatter_tail=wavefront_jit.scatter_tail, roulette=wavefront_jit.roulette,
                             emitter_lights=wavefront_jit.emitter_lights, add_emission=wavefront_jit.add_emission,
@@ -122,16 +123,29 @@ def test_recorded_direct_light_calls_are_bit_identical(scene):
         return lambert(self, *args)
     session.PathTracer.lambert_direct_light = counted
     try:
+        rng = np.random.default_rng(5)
         for tracer, args, kwargs in calls[:6]:
+            kwargs = dict(kwargs, into=None)        # (the render's own into: its path state, since changed)
             tracer.wavefront_jit = None
             reference = original(tracer, *args, **kwargs)
             tracer.wavefront_jit = wavefront_jit
             compiled = original(tracer, *args, **kwargs)
             assert reference.dtype == compiled.dtype == np.float64 and np.array_equal(reference, compiled)
             assert (reference > 0).any() and not np.array_equal(reference, np.nextafter(compiled, np.inf))
+            # The sum into the path state in place (PathTracer.bounce's): radiance += beta x light over the
+            # hits' columns, the same as NumPy's; control: beta an ulp off.
+            m = reference.shape[1]
+            start, beta = rng.random((3, m + 7)), rng.random((3, m + 7))
+            expected = start.copy()
+            expected[:, 5:5 + m] += beta[:, 5:5 + m] * reference
+            radiance, off = start.copy(), start.copy()
+            assert original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5))) is None
+            assert np.array_equal(radiance, expected)
+            original(tracer, *args, **dict(kwargs, into=(off, np.nextafter(beta, 2.0), 5)))
+            assert not np.array_equal(off, expected)
     finally:
         session.PathTracer.lambert_direct_light = lambert
-    assert len(fused) == min(len(calls), 6)            # the compiled case ran every time
+    assert len(fused) == 3 * min(len(calls), 6)        # the compiled case ran every time
 
 
 def capture_scatters(scene_name, limit=6):
