@@ -387,7 +387,8 @@ class PathTracer:
         u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1))
                   if non_delta and span.stop > span.start else None       # (scatter skips empty spans)
                   for span, non_delta in zip(spans, self.mats.non_delta)]
-        new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf)
+        fused = self.wavefront_jit is not None and p.rr_after is None     # 6's tail, 7 and 8's rays in one pass
+        new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf, defer_tail=fused)
         if before_light is not None:        # the shadow rays' light, by the lobe the vertex sampled
             vertex = p.radiance[:, :alive] - before_light
             if caustic_light is not None:
@@ -396,11 +397,12 @@ class PathTracer:
             self.vertex_light(p, vertex, features)
         # 7. Russian roulette and the depth limit.
         rays = None                         # the survivors' next (o, d, beta), when 7 makes them
-        if p.rr_after is None and self.wavefront_jit is not None:     # 7 and 8's rays in one compiled pass
+        if fused:                           # (side None: scatter left its tail to this pass)
             s = self.settings
             keep, ended, *rays = self.wavefront_jit.survivors(
-                beta, p.bounce[:alive], p.prev_delta[:alive], u_rr, s.max_depth, self.final_rays, s.russian_roulette,
-                s.rr_start_depth, surf.point, side, surf.offset, facing, new_d)
+                p.beta if side is None else beta, p.bounce[:alive], p.prev_delta[:alive], u_rr, s.max_depth,
+                self.final_rays, s.russian_roulette, s.rr_start_depth, surf.point, side, surf.offset, facing, new_d,
+                beta if side is None else None)
         else:
             if p.rr_after is None:
                 keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
@@ -696,7 +698,7 @@ class PathTracer:
         pick, _ = sampler.pair(pixel, sample, dim + (LIGHT_PICK - 1), light=True)
         return pick, u1, u2
 
-    def scatter(self, p, point, si, spans, u_lobe, u_dir):
+    def scatter(self, p, point, si, spans, u_lobe, u_dir, defer_tail=False):
         """New directions, the side to leave on (+1 facing, -1 through) and throughputs of the
         paths at a BSDF (the first len(si) of `p`): bsdfs[g].sample on the hits spans[g], with the
         lobe uniforms u_lobe and the direction pairs u_dir[g] (None for delta-only BSDFs); updates
@@ -704,7 +706,10 @@ class PathTracer:
 
         Under smooth shading a direction on the wrong side of the geometric surface for its lobe
         (a reflection below it, a transmission not through it) ends the path
-        (engine/geometry/shading_normals.py)."""
+        (engine/geometry/shading_normals.py).
+
+        defer_tail: where the compiled tail (wavefront_jit.scatter_tail) would run, return
+        (new_d, None, its other inputs) instead, for wavefront_jit.survivors to run it in its pass."""
         alive = len(si)
         new_d = np.empty((3, alive))
         value = np.empty((3, alive))
@@ -739,6 +744,8 @@ class PathTracer:
         if self.light_paths is not None:
             value = self.scatter_light_paths(p, spans, flags, pdf, value)
         if self.wavefront_jit is not None and p.lobe is None and p.caustic is None and not normals:
+            if defer_tail:                       # the lines below in the compaction's pass (bounce)
+                return new_d, None, (flags, p.ray_kind[:alive], value, si.ng if si.smooth else None)
             side, beta = self.wavefront_jit.scatter_tail(flags, p.prev_delta[:alive], p.ray_kind[:alive], p.beta,
                                                          value, new_d, si.ng if si.smooth else None)
             return new_d, side, beta             # the lines below in one loop

@@ -252,19 +252,44 @@ def roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr
 
 
 @jit
+def _tail_at(i, flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, write):
+    """_scatter_tail's lines for path i: (side, the three beta x value); with `write`, its delta flag and ray
+    kind written too."""
+    f = flags[i]
+    transmitted = (f & TRANSMISSION) != 0
+    if write:
+        prev_delta[i] = (f & DELTA) != 0
+        kind = TRANSMISSION_RAY if transmitted else (DIFFUSE_RAY if (f & DIFFUSE) != 0 else GLOSSY_RAY)
+        if (f & STRAIGHT) != 0 and ray_kind[i] == CAMERA_RAY:
+            kind = CAMERA_RAY
+        ray_kind[i] = kind
+    s = -1.0 if transmitted else 1.0
+    wrong = smooth and (new_d[0, i] * ng[0, i] + new_d[1, i] * ng[1, i] + new_d[2, i] * ng[2, i]) * s <= 0.0
+    if wrong:
+        return s, 0.0, 0.0, 0.0
+    return s, beta[0, i] * value[0, i], beta[1, i] * value[1, i], beta[2, i] * value[2, i]
+
+
+@jit
 def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
-               facing, new_d):
+               facing, new_d, has_tail, flags, ray_kind, value, smooth, ng):
     """_roulette and _next_rays in one: which paths go on (their indices, and those of the others in
-    order) and the kept paths' next origin, direction and throughput after the survival division."""
+    order) and the kept paths' next origin, direction and throughput after the survival division.
+    has_tail: _scatter_tail's lines first (beta: the rows before the scatter; delta and ray_kind
+    written), their side and throughput computed again where the compaction needs them, not stored."""
     n = bounce.shape[0]
     divisor = np.empty(n)
     kept = np.empty(n, np.bool_)
     count = 0
-    for i in range(n):                           # _roulette's tests, the same operations
-        within = bounce[i] < max_depth
+    for i in range(n):
+        if has_tail:
+            _, b0, b1, b2 = _tail_at(i, flags, delta, ray_kind, beta, value, smooth, new_d, ng, True)
+        else:
+            b0, b1, b2 = beta[0, i], beta[1, i], beta[2, i]
+        within = bounce[i] < max_depth           # _roulette's tests, the same operations
         if final_rays:
             within = within or (bounce[i] == max_depth and not delta[i])
-        m = _max(_max(beta[0, i], beta[1, i]), beta[2, i])
+        m = _max(_max(b0, b1), b2)
         k = m > 0.0 and within
         dv = 1.0
         if russian_roulette:
@@ -288,27 +313,49 @@ def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, 
             e += 1
             continue
         keep[j] = i
-        s = side[i] * offset[i]                  # _next_rays' operations
+        if has_tail:
+            si, b0, b1, b2 = _tail_at(i, flags, delta, ray_kind, beta, value, smooth, new_d, ng, False)
+        else:
+            si, b0, b1, b2 = side[i], beta[0, i], beta[1, i], beta[2, i]
+        s = si * offset[i]                       # _next_rays' operations
         for c in range(3):
             o[c, j] = point[c, i] + s * facing[c, i]
             d[c, j] = new_d[c, i]
-            b[c, j] = beta[c, i] / divisor[i] if russian_roulette else beta[c, i]
+        if russian_roulette:
+            b[0, j], b[1, j], b[2, j] = b0 / divisor[i], b1 / divisor[i], b2 / divisor[i]
+        else:
+            b[0, j], b[1, j], b[2, j] = b0, b1, b2
         j += 1
     return keep, ended, o, d, b
 
 
+NO_FLAGS = np.zeros(0, np.int8)
+NO_KINDS = np.zeros(0, np.int8)
+
+
 def survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
-              facing, new_d):
+              facing, new_d, tail=None):
     """(keep, ended, o, d, beta): PathTracer.roulette's paths that go on (indices, `keep`) and those that
     end (`ended`), then next_rays(keep, point, side, offset, facing, new_d, the roulette's beta) in one
-    pass: the same arrays as roulette, np.flatnonzero and next_rays."""
+    pass: the same arrays as roulette, np.flatnonzero and next_rays.  tail: (flags, ray_kind, value, ng):
+    scatter_tail(flags, delta, ray_kind, beta, value, new_d, ng) first, in the same pass (beta: the paths'
+    rows before it, of which the first len(bounce) are read; side unused; delta and ray_kind are written)."""
     f64 = np.float64
+    n = bounce.shape[0]
+    has_tail = tail is not None
+    flags, ray_kind, value, ng = tail if has_tail else (NO_FLAGS, NO_KINDS, NO_ROWS, None)
+    smooth = ng is not None
     return _survivors(_read_only(np.ascontiguousarray(beta, f64)), _read_only(np.ascontiguousarray(bounce, np.int32)),
-                      _read_only(np.ascontiguousarray(delta, np.bool_)), _read_only(np.ascontiguousarray(u, f64)),
+                      delta if has_tail else np.ascontiguousarray(delta, np.bool_),
+                      _read_only(np.ascontiguousarray(u, f64)),
                       int(max_depth), bool(final_rays), bool(russian_roulette), int(rr_start_depth),
-                      _read_only(np.ascontiguousarray(point, f64)), _read_only(np.ascontiguousarray(side, f64)),
+                      _read_only(np.ascontiguousarray(point, f64)),
+                      _read_only(np.ascontiguousarray(side if not has_tail else np.zeros(0), f64)),
                       _read_only(np.ascontiguousarray(offset, f64)), _read_only(np.ascontiguousarray(facing, f64)),
-                      _read_only(np.ascontiguousarray(new_d, f64)))
+                      _read_only(np.ascontiguousarray(new_d, f64)), has_tail,
+                      _read_only(np.ascontiguousarray(flags, np.int8)), ray_kind,
+                      _read_only(np.ascontiguousarray(value, f64)), smooth,
+                      _read_only(np.ascontiguousarray(ng, f64) if smooth else NO_ROWS))
 
 
 @jit
@@ -449,4 +496,7 @@ def warm_up() -> None:
     for flag in (True, False):
         survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, flag, flag, 3, rows,
                   np.ones(3), np.ones(3), rows, rows)
+    for ng in (None, rows):
+        survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3, rows,
+                  None, np.ones(3), rows, rows, (flags, np.zeros(3, np.int8), rows, ng))
     take([(rows, 1)] + [(np.zeros(3, dtype), 0) for dtype in TAKE_DTYPES], idx)

@@ -152,10 +152,10 @@ def capture_scatters(scene_name, limit=6):
     """[(tracer, args)] deep copies of PathTracer.scatter's calls in a 16 x 16, 2 spp NumPy render."""
     calls, reference = [], path_tracer.PathTracer.scatter
 
-    def recording(self, *args):
+    def recording(self, *args, **kwargs):
         if len(calls) < limit:
             calls.append(copy.deepcopy((None, args)))
-        return reference(self, *args)
+        return reference(self, *args, **kwargs)
     path_tracer.PathTracer.scatter = recording
     try:
         api.render(BUILTIN_SCENES[scene_name]((16, 16)), RenderSettings(samples=2, threads=1, backend="numpy"),
@@ -185,6 +185,46 @@ def test_recorded_scatter_tails_are_bit_identical(scene, monkeypatch):
             new_d, side, beta = tracers[0].scatter(p, *rest)
             outs.append((new_d, side, beta, p.prev_delta, p.ray_kind))
         assert same(*outs)
+
+
+@pytest.mark.parametrize("scene", ["cornell", "caustic"])
+def test_recorded_scatter_tails_in_the_compaction_are_bit_identical(scene, monkeypatch):
+    """PathTracer.scatter(defer_tail=True) and wavefront_jit.survivors with its tail against NumPy's scatter,
+    roulette, np.flatnonzero and next_rays, on recorded scatters (made-up roulette numbers and origins);
+    control: the tail's throughput one ulp off."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    tracers, init = [], path_tracer.PathTracer.__init__
+
+    def keeping(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        tracers.append(self)
+    monkeypatch.setattr(path_tracer.PathTracer, "__init__", keeping)
+    calls = capture_scatters(scene)
+    assert len(calls) >= 3 and tracers
+    tracer, rng = tracers[0], np.random.default_rng(13)
+    s = tracer.settings
+    for _, args in calls:
+        alive = len(args[2])
+        u, offset, facing = rng.random(alive), 10.0 ** rng.uniform(-9, -3, alive), rng.normal(size=(3, alive))
+        p, *rest = copy.deepcopy(args)
+        tracer.wavefront_jit = None
+        new_d, side, beta = tracer.scatter(p, *rest)
+        keep, beta = tracer.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u)
+        keep, ended = np.flatnonzero(keep), np.flatnonzero(~keep)
+        expected = (keep, ended) + path_tracer.next_rays(keep, rest[0], side, offset, facing, new_d, beta) + (
+            p.prev_delta, p.ray_kind)
+        results = []
+        for scale in (1.0, 1.0 + 2.0 ** -52):
+            p, *rest = copy.deepcopy(args)
+            tracer.wavefront_jit = wavefront_jit
+            new_d, side, tail = tracer.scatter(p, *rest, defer_tail=True)
+            assert side is None
+            got = wavefront_jit.survivors(p.beta * scale, p.bounce[:alive], p.prev_delta[:alive], u, s.max_depth,
+                                          tracer.final_rays, s.russian_roulette, s.rr_start_depth, rest[0], None,
+                                          offset, facing, new_d, tail)
+            results.append(tuple(got) + (p.prev_delta, p.ray_kind))
+        assert len(keep) and same(expected, results[0]) and not same(expected, results[1])
 
 
 def test_made_up_roulettes_and_the_control():
