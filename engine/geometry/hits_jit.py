@@ -147,13 +147,15 @@ def sphere_surface(o, d, t, a, prim, center, radius, eps64):
 
 
 @jit
-def _surfaces(o, d, t, kind, prim, u, v, v0, e1, e2, tri_normal, tri_scale, tri_offset, center, radius, eps64,
-              quad_normal, quad_v00, quad_scale, point, nrm, offset, facing):
+def _surfaces(o, order, has_order, d, t, kind, prim, u, v, v0, e1, e2, tri_normal, tri_scale, tri_offset, center,
+              radius, eps64, quad_normal, quad_v00, quad_scale, point, nrm, offset, facing):
     """Every hit's point, normal and offset by its kind (triangles, spheres, quads: the loops above and
-    quads.QuadSet.surface, the same operations), and the normal facing the ray (PathTracer.bounce's)."""
+    quads.QuadSet.surface, the same operations), and the normal facing the ray (PathTracer.bounce's).
+    has_order: hit j's origin is o's column order[j] (o in ray order), else column j."""
     scale = 64.0 * eps64
     for j in range(kind.shape[0]):
         k, p = kind[j], prim[j]
+        q = order[j] if has_order else j
         if k == TRIANGLE:
             uj, vj = u[j], v[j]
             x = v0[0, p] + uj * e1[0, p] + vj * e2[0, p]
@@ -162,9 +164,9 @@ def _surfaces(o, d, t, kind, prim, u, v, v0, e1, e2, tri_normal, tri_scale, tri_
             n0, n1, n2 = tri_normal[0, p], tri_normal[1, p], tri_normal[2, p]
             off = tri_offset * _max(_max(_max(abs(x), abs(y)), abs(z)), tri_scale[p])
         elif k == SPHERE:
-            r0 = (o[0, j] + t[j] * d[0, j]) - center[0, p]
-            r1 = (o[1, j] + t[j] * d[1, j]) - center[1, p]
-            r2 = (o[2, j] + t[j] * d[2, j]) - center[2, p]
+            r0 = (o[0, q] + t[j] * d[0, j]) - center[0, p]
+            r1 = (o[1, q] + t[j] * d[1, j]) - center[1, p]
+            r2 = (o[2, q] + t[j] * d[2, j]) - center[2, p]
             length = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
             n0, n1, n2 = r0 / length, r1 / length, r2 / length
             r = radius[p]
@@ -172,7 +174,7 @@ def _surfaces(o, d, t, kind, prim, u, v, v0, e1, e2, tri_normal, tri_scale, tri_
             off = scale * (_max(_max(abs(x), abs(y)), abs(z)) + r)
         else:                                           # QUAD (the caller sends no LIGHT hits)
             n0, n1, n2 = quad_normal[0, p], quad_normal[1, p], quad_normal[2, p]
-            x, y, z = o[0, j] + t[j] * d[0, j], o[1, j] + t[j] * d[1, j], o[2, j] + t[j] * d[2, j]
+            x, y, z = o[0, q] + t[j] * d[0, j], o[1, q] + t[j] * d[1, j], o[2, q] + t[j] * d[2, j]
             along = (x - quad_v00[0, p]) * n0 + (y - quad_v00[1, p]) * n1 + (z - quad_v00[2, p]) * n2
             x, y, z = x - along * n0, y - along * n1, z - along * n2
             off = scale * _max(_max(_max(abs(x), abs(y)), abs(z)), quad_scale[p])
@@ -184,17 +186,24 @@ def _surfaces(o, d, t, kind, prim, u, v, v0, e1, e2, tri_normal, tri_scale, tri_
 
 
 def surfaces(o, d, t, kind, prim, u, v, v0, e1, e2, tri_normal, tri_scale, tri_offset, center, radius, eps64,
-             quad_normal, quad_v00, quad_scale):
+             quad_normal, quad_v00, quad_scale, order=None):
     """(point, normal, offset, facing) of hits on triangles, spheres and quads (no Area lights) in one loop:
-    scene_geometry.surface's runs concatenated, and facing = normal * (1 if dot(d, normal) < 0 else -1)."""
+    scene_geometry.surface's runs concatenated, and facing = normal * (1 if dot(d, normal) < 0 else -1).
+    order: hit j's origin is o's column order[j] (None: column j)."""
     m = kind.shape[0]
     point, nrm, offset, facing = np.empty((3, m)), np.empty((3, m)), np.empty(m), np.empty((3, m))
-    _surfaces(np.ascontiguousarray(o, np.float64), np.ascontiguousarray(d, np.float64),
+    has_order = order is not None
+    _surfaces(np.ascontiguousarray(o, np.float64),
+              np.ascontiguousarray(order, np.int64) if has_order else NO_ORDER, has_order,
+              np.ascontiguousarray(d, np.float64),
               np.ascontiguousarray(t, np.float64), np.ascontiguousarray(kind, np.int8),
               np.ascontiguousarray(prim, np.int64), np.ascontiguousarray(u, np.float64),
               np.ascontiguousarray(v, np.float64), v0, e1, e2, tri_normal, tri_scale, float(tri_offset),
               center, radius, float(eps64), quad_normal, quad_v00, quad_scale, point, nrm, offset, facing)
     return point, nrm, offset, facing
+
+
+NO_ORDER = np.zeros(0, np.int64)
 
 
 def warm_up() -> None:
@@ -208,5 +217,7 @@ def warm_up() -> None:
     rows = np.zeros((3, 1))
     triangle_surface(np.zeros(n, np.int64), uv, uv, rows, rows, rows, rows, np.zeros(1), 1e-6)
     sphere_surface(np.zeros((3, n)), np.ones((3, n)), np.ones(n), 1, np.zeros(2, np.int64), rows, np.ones(1), 1e-16)
-    surfaces(np.zeros((3, n)), np.ones((3, n)), np.ones(n), np.array([1, 2, 3, 3], np.int8), np.zeros(n, np.int64),
-             uv, uv, rows, rows, rows, rows, np.zeros(1), 1e-6, rows, np.ones(1), 1e-16, rows, rows, np.zeros(1))
+    for order in (None, np.arange(n)):
+        surfaces(np.zeros((3, n)), np.ones((3, n)), np.ones(n), np.array([1, 2, 3, 3], np.int8), np.zeros(n, np.int64),
+                 uv, uv, rows, rows, rows, rows, np.zeros(1), 1e-6, rows, np.ones(1), 1e-16, rows, rows, np.zeros(1),
+                 order)

@@ -349,16 +349,19 @@ class SceneGeometry:
                                                None if ray_kind is None else ray_kind.take(ray))
         return test
 
-    def surface(self, o, d, hits: HitSet) -> SurfaceHits:
-        """Shading data for the hit rays; rows o and d already in hits.index order."""
+    def surface(self, o, d, hits: HitSet, rays_order: bool = False) -> SurfaceHits:
+        """Shading data for the hit rays; rows d in hits.index order, o too or, with rays_order, in
+        the rays' order (hit j's origin is o[:, hits.index[j]])."""
         if self.hits_jit is not None and self.smooth is None and LIGHT not in hits.kinds:
             # every hit in one compiled loop, the same numbers as the runs below, and the facing normal
             quads = self.quads
             point, normal, offset, facing = self.hits_jit.surfaces(
                 o, d, hits.t, hits.kind, hits.prim, hits.u, hits.v, self.tri_v0, self.tri_e1, self.tri_e2,
                 self.tri_normal, self.tri_scale, TRIANGLE_OFFSET, self.sphere_center, self.sphere_radius, EPS64,
-                quads.normal_rows, quads.v00_rows, quads.scale)
+                quads.normal_rows, quads.v00_rows, quads.scale, hits.index if rays_order else None)
             return SurfaceHits(point, normal, hits.material, offset, facing=facing)
+        if rays_order:
+            o = o.take(hits.index, axis=1)
         parts, shading = [], []
         for (_, k), (a, b) in hits.runs.items():             # in index order (nearest_hits)
             prim = hits.prim[a:b]

@@ -138,10 +138,16 @@ class Paths:
     def _fields(self):
         return [(name, axis) for name, axis in _FIELD_AXES if getattr(self, name) is not None]
 
-    def take(self, index, replaced=()) -> "Paths":
-        """The paths `index`; the fields named in `replaced` are left None, for the caller to set."""
-        return Paths(**{name: None if name in replaced else getattr(self, name).take(index, axis=axis)
-                        for name, axis in self._fields()})
+    def take(self, index, replaced=(), jit=None) -> "Paths":
+        """The paths `index`; the fields named in `replaced` are left None, for the caller to set.
+        jit: engine/integrators/wavefront_jit.py, whose compiled gathers then take them (the same arrays)."""
+        if jit is not None:
+            names = [(name, axis) for name, axis in self._fields() if name not in replaced]
+            taken = jit.take([(getattr(self, name), axis) for name, axis in names], index)
+            return Paths(**{name: None for name in replaced}, **{name: a for (name, _), a in zip(names, taken)})
+        return Paths(**{name: None for name in replaced},
+                     **{name: getattr(self, name).take(index, axis=axis) for name, axis in self._fields()
+                        if name not in replaced})
 
     def extend(self, other: "Paths") -> "Paths":
         return Paths(**{name: np.concatenate([getattr(self, name), getattr(other, name)], axis=axis)
@@ -300,8 +306,10 @@ class PathTracer:
                                   features)
             if start_radiance is not None:
                 self.ray_light(p, hits.miss, finished[-1][1] - start_radiance.take(hits.miss, axis=1), features)
-        p = p.take(hits.index)
-        surf = self.geometry.surface(p.o, p.d, hits)
+        # The hits' paths in hits.index order; the origins only for the surface, which reads them in the
+        # rays' order (compiled: through hits.index, no gather of them here).
+        origins, p = p.o, p.take(hits.index, replaced=("o",), jit=self.wavefront_jit)
+        surf = self.geometry.surface(origins, p.d, hits, rays_order=True)
         bounds = [start for start, _ in hits.groups] + [hits.groups[-1][1]]
         alive = bounds[ABSORB]                # the paths at a BSDF scatter on
         surfaces = bounds[PASS_THROUGH]       # absorbing surfaces end the path here
@@ -341,7 +349,8 @@ class PathTracer:
         color = self.mats.color.take(surf.material, axis=1)
         if lookup is not None:
             color = lookup.color(color, surf.material)
-        dim = 1 + DIMS_PER_BOUNCE * p.bounce[:alive]                        # this hit's dimensions
+        # this hit's dimensions (int64, as the compiled sampler reads them: no copy per call)
+        dim = np.multiply(p.bounce[:alive], DIMS_PER_BOUNCE, dtype=np.int64) + 1
         u_choice, u_rr = sampler.pair(p.pixel[:alive], p.sample[:alive], dim + (CHOICES - 1))
         if features is not None:
             self.surface_features(p, surf, shade, color, bounds, features, hits, lookup)   # Cycles: the shading normal
@@ -359,10 +368,15 @@ class PathTracer:
                 caustic_light = p.radiance[:, :alive] - before
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
-                light = p.beta[:, span] * self.direct_light(
+                # (compiled Lambertian hits without Light Paths options: the sum below in place, None)
+                light = self.direct_light(
                     bsdf, si[span], surf.point[:, span], surf.offset[span], None, counters,
                     u=self.light_uniforms(sampler, p.pixel[span], p.sample[span], dim[span], u_choice[span]),
-                    lift=self.geometry.terminator_lift(hits, span, facing) if smooth else None)
+                    lift=self.geometry.terminator_lift(hits, span, facing) if smooth else None,
+                    into=(p.radiance, p.beta, span.start) if self.light_paths is None else None)
+                if light is None:
+                    continue
+                light = p.beta[:, span] * light
                 if self.light_paths is not None:
                     light = self.light_paths.clamp(light, p.bounce[span] == 0)
                     if no_light is not None:
@@ -373,7 +387,8 @@ class PathTracer:
         u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1))
                   if non_delta and span.stop > span.start else None       # (scatter skips empty spans)
                   for span, non_delta in zip(spans, self.mats.non_delta)]
-        new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf)
+        fused = self.wavefront_jit is not None and p.rr_after is None     # 6's tail, 7 and 8's rays in one pass
+        new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf, defer_tail=fused)
         if before_light is not None:        # the shadow rays' light, by the lobe the vertex sampled
             vertex = p.radiance[:, :alive] - before_light
             if caustic_light is not None:
@@ -381,23 +396,31 @@ class PathTracer:
                 vertex = vertex - caustic_light
             self.vertex_light(p, vertex, features)
         # 7. Russian roulette and the depth limit.
-        if p.rr_after is None:
-            keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
+        rays = None                         # the survivors' next (o, d, beta), when 7 makes them
+        if fused:                           # (side None: scatter left its tail to this pass)
+            s = self.settings
+            keep, ended, *rays = self.wavefront_jit.survivors(
+                p.beta if side is None else beta, p.bounce[:alive], p.prev_delta[:alive], u_rr, s.max_depth,
+                self.final_rays, s.russian_roulette, s.rr_start_depth, surf.point, side, surf.offset, facing, new_d,
+                beta if side is None else None)
         else:
-            keep, p.rr_after[:alive] = self.deferred_roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
+            if p.rr_after is None:
+                keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
+            else:
+                keep, p.rr_after[:alive] = self.deferred_roulette(beta, p.bounce[:alive], p.prev_delta[:alive],
+                                                                  u_rr)
+            keep, ended = np.flatnonzero(keep), np.flatnonzero(~keep)
         # 8. Compaction: hand finished paths to the film, keep the rest.
-        ended = np.flatnonzero(~keep)
         finished += [(p.pixel.take(ended), p.radiance.take(ended, axis=1), p.sample.take(ended)),
                      (p.pixel[alive:surfaces], p.radiance[:, alive:surfaces], p.sample[alive:surfaces])]
         pixel = np.concatenate([f[0] for f in finished])
         if len(pixel):
             on_finished(pixel, np.concatenate([f[1] for f in finished], axis=1),
                         np.concatenate([f[2] for f in finished]))
-        keep = np.flatnonzero(keep)
-        survivors = p.take(keep, replaced=("o", "d", "beta"))
-        survivors.o, survivors.d, survivors.beta = (next_rays if self.wavefront_jit is None else
-                                                    self.wavefront_jit.next_rays)(
-            keep, surf.point, side, surf.offset, facing, new_d, beta)
+        survivors = p.take(keep, replaced=("o", "d", "beta"), jit=self.wavefront_jit)
+        survivors.o, survivors.d, survivors.beta = rays if rays is not None else (
+            (next_rays if self.wavefront_jit is None else self.wavefront_jit.next_rays)(
+                keep, surf.point, side, surf.offset, facing, new_d, beta))
         survivors.bounce = survivors.bounce + 1
         return survivors if passing is None else survivors.extend(passing)
 
@@ -675,7 +698,7 @@ class PathTracer:
         pick, _ = sampler.pair(pixel, sample, dim + (LIGHT_PICK - 1), light=True)
         return pick, u1, u2
 
-    def scatter(self, p, point, si, spans, u_lobe, u_dir):
+    def scatter(self, p, point, si, spans, u_lobe, u_dir, defer_tail=False):
         """New directions, the side to leave on (+1 facing, -1 through) and throughputs of the
         paths at a BSDF (the first len(si) of `p`): bsdfs[g].sample on the hits spans[g], with the
         lobe uniforms u_lobe and the direction pairs u_dir[g] (None for delta-only BSDFs); updates
@@ -683,7 +706,10 @@ class PathTracer:
 
         Under smooth shading a direction on the wrong side of the geometric surface for its lobe
         (a reflection below it, a transmission not through it) ends the path
-        (engine/geometry/shading_normals.py)."""
+        (engine/geometry/shading_normals.py).
+
+        defer_tail: where the compiled tail (wavefront_jit.scatter_tail) would run, return
+        (new_d, None, its other inputs) instead, for wavefront_jit.survivors to run it in its pass."""
         alive = len(si)
         new_d = np.empty((3, alive))
         value = np.empty((3, alive))
@@ -718,6 +744,8 @@ class PathTracer:
         if self.light_paths is not None:
             value = self.scatter_light_paths(p, spans, flags, pdf, value)
         if self.wavefront_jit is not None and p.lobe is None and p.caustic is None and not normals:
+            if defer_tail:                       # the lines below in the compaction's pass (bounce)
+                return new_d, None, (flags, p.ray_kind[:alive], value, si.ng if si.smooth else None)
             side, beta = self.wavefront_jit.scatter_tail(flags, p.prev_delta[:alive], p.ray_kind[:alive], p.beta,
                                                          value, new_d, si.ng if si.smooth else None)
             return new_d, side, beta             # the lines below in one loop
@@ -842,7 +870,7 @@ class PathTracer:
         return keep, after
 
     # -- direct light, eq. 2.11 ---------------------------------------------------------
-    def direct_light(self, bsdf, si, point, offset, rng, counters, u=None, lift=None) -> np.ndarray:
+    def direct_light(self, bsdf, si, point, offset, rng, counters, u=None, lift=None, into=None):
         """<L_direct> with N_s shadow rays per point, divided by N_s: rows (3, M).
 
         bsdf: the BSDF of the M hits `si` (an engine/materials/protocol.py ShadingPoint), whose
@@ -857,7 +885,9 @@ class PathTracer:
         drawn from rng.  Smooth shading (si.smooth): shadow rays start off the geometric surface
         si.ng and directions below it count 0 (no light leaks, engine/geometry/shading_normals.py).
         lift: (lift rows, cutoff) per point, the shadow-terminator geometry offset of smooth
-        triangles (Cycles' shadow_ray_offset)."""
+        triangles (Cycles' shadow_ray_offset).  into: (radiance, beta, start), the path state's rows and
+        the first path of these hits: where the compiled Lambertian case runs (lambert_direct_light) it adds
+        beta x its light into radiance in place (the caller's product and sum) and returns None."""
         ns = self.settings.shadow_rays
         m = point.shape[1]
         k = m * ns
@@ -868,12 +898,15 @@ class PathTracer:
         off_x = np.repeat(offset, ns) if ns > 1 else offset
         ng = nx if not si.smooth else (np.repeat(si.ng, ns, axis=1) if ns > 1 else si.ng)
         u_pick, u1, u2 = u if u is not None else (rng.random(k), rng.random(k), rng.random(k))
+        compiled = (self.wavefront_jit is not None and albedo is not None and ns == 1 and not si.smooth
+                    and not transmits_non_delta(bsdf.flags) and (si.lookup is None or not si.lookup.has_normals))
+        if compiled:        # the compiled kernels read contiguous rows: one copy of a span's, not one per kernel
+            x, nx = np.ascontiguousarray(x), np.ascontiguousarray(nx)
         ls = self.lights.sample(x, nx, u_pick, u1, u2)
         if self.textures is not None:                   # textured emitters: Le at the sampled point
             ls.radiance = self.textures.light_radiance(ls.radiance, ls.light, ls.point)
-        if (self.wavefront_jit is not None and albedo is not None and ns == 1 and not si.smooth
-                and not transmits_non_delta(bsdf.flags) and (si.lookup is None or not si.lookup.has_normals)):
-            return self.lambert_direct_light(bsdf, si, point, offset, ls, counters, albedo)
+        if compiled:
+            return self.lambert_direct_light(bsdf, si, x, nx, offset, ls, counters, albedo, into)
         w = ls.direction
         cos_x = dot(nx, w)
         # A non-delta transmission lobe takes light from the far side too: side -1 there, and the
@@ -950,18 +983,19 @@ class PathTracer:
             return mean
         return mean * albedo * (1.0 / np.pi)                            # f_r = colour / pi (eq. 2.13a)
 
-    def lambert_direct_light(self, bsdf, si, point, offset, ls, counters, albedo):
+    def lambert_direct_light(self, bsdf, si, point, n, offset, ls, counters, albedo, into=None):
         """direct_light's Lambertian case with one shadow ray per hit, flat shading and no Normal
         input, for the light samples ls: the same tests, shadow rays and weights in two compiled
         loops around the shadow rays (engine/integrators/wavefront_jit.py light_tests and
-        lambert_light), the same numbers."""
+        lambert_light), the same numbers.  point, n: the hits' points and si.n as contiguous rows; into:
+        direct_light's (None unless the path state's rows are C-contiguous)."""
         jit = self.wavefront_jit
-        cos_x, cos_ly, valid = jit.light_tests(si.n, ls, self.lights.any_one_sided)
+        cos_x, cos_ly, valid = jit.light_tests(n, ls, self.lights.any_one_sided)
         k = len(cos_x)
         blocked, p_b = np.zeros(0, dtype=bool), 0.0
         if len(valid):
             origin, direction, seg_len = self.lights.shadow_rays(ls, None if len(valid) == k else valid, point,
-                                                                 offset, si.n, cos_ly)
+                                                                 offset, n, cos_ly)
             counters.rays["shadow"] += len(valid)
             blocked = self.geometry.occluded(origin, direction, seg_len * SHADOW_TMAX_SCALE, counters)
             if self.mis and bsdf.cosine_pdf:        # the kernel takes it from cos_x (the same numbers)
@@ -969,4 +1003,6 @@ class PathTracer:
             elif self.mis:
                 with np.errstate(invalid="ignore", over="ignore"):
                     p_b = bsdf.pdf(si, ls.direction)
-        return jit.lambert_light(valid, blocked, cos_x, ls, p_b, self.lights.bsdf_reachable, self.mis, albedo)
+        if into is not None and not (into[0].flags.c_contiguous and into[1].flags.c_contiguous):
+            into = None
+        return jit.lambert_light(valid, blocked, cos_x, ls, p_b, self.lights.bsdf_reachable, self.mis, albedo, into)

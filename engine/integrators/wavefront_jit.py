@@ -5,14 +5,17 @@
   instead of nine gathers and the temporaries of the origin's arithmetic;
 * the end of the scatter stage (`scatter_tail`: the paths' delta flag and ray kind, the side they leave
   on, beta x value) and the Russian roulette (`roulette`: which paths go on and their throughput after
-  the survival division), one loop each instead of some ten NumPy passes each;
+  the survival division), one loop each instead of some ten NumPy passes each; the roulette and the
+  compaction in one pass (`survivors`: no throughput rows and keep flags between them);
 * the direct light of a Lambertian BSDF with one shadow ray per hit, flat shading and no Normal
   input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
   the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
   (`lambert_light`), one loop each instead of some twenty NumPy passes;
 * the emission a ray reaches (`PathTracer.emission` and `emission_weight` without Light Paths options,
   caustic photons or textures): the emitters' light numbers (`emitter_lights`) and the MIS-weighted
-  sum into the radiance (`add_emission`), two loops instead of some thirty NumPy calls on a few rays.
+  sum into the radiance (`add_emission`), two loops instead of some thirty NumPy calls on a few rays;
+* the gathers of the path state (`take`: `Paths.take`'s fields, twice a bounce): a plain loop per row,
+  which costs 0.55-0.75x NumPy 1.26's `take` (its per-element index checks) on the same indices.
 
 The float64 operations are those of the NumPy path in the same order, so the same bits
 (tests/integrators/test_wavefront_jit.py).  Imported only through engine/core/backend.py's choice
@@ -60,15 +63,17 @@ def next_rays(keep, point, side, offset, facing, new_d, beta):
 
 
 @jit
-def _light_tests(n, w, normal, pdf, distance, one_sided, any_one_sided, cos_x, cos_ly):
+def _light_tests(n, w, normal, step, pdf, distance, one_sided, any_one_sided, cos_x, cos_ly):
     """cos_x = <n, w>, cos_ly = <light normal, w> and the samples kept (direct_light's `ok`:
-    light on the viewer's side, not edge-on, a density, a distance, a one-sided light's front)."""
+    light on the viewer's side, not edge-on, a density, a distance, a one-sided light's front).
+    Sample i's light normal is column i x step (step 0: one normal for all)."""
     k = pdf.shape[0]
     valid = np.empty(k, np.int64)
     count = 0
     for i in range(k):
         c = n[0, i] * w[0, i] + n[1, i] * w[1, i] + n[2, i] * w[2, i]
-        cl = normal[0, i] * w[0, i] + normal[1, i] * w[1, i] + normal[2, i] * w[2, i]
+        q = i * step
+        cl = normal[0, q] * w[0, i] + normal[1, q] * w[1, i] + normal[2, q] * w[2, i]
         cos_x[i], cos_ly[i] = c, cl
         ok = c > 0.0 and cl != 0.0 and pdf[i] > 0.0 and distance[i] > 0.0
         if any_one_sided and one_sided[i] and cl >= 0.0:
@@ -80,10 +85,12 @@ def _light_tests(n, w, normal, pdf, distance, one_sided, any_one_sided, cos_x, c
 
 
 @jit
-def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable, mis, radiance, albedo, out):
+def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable, mis, radiance, albedo, out,
+                   add, beta, start):
     """out = Le weight rho / pi: weight = cos / p_l (times the power heuristic's light weight
     against p_b under MIS, with p_b 0 for lights a BSDF sample cannot reach) where unblocked,
-    0 elsewhere; the products in direct_light's order ((Le weight) rho) (1 / pi).  cosine_pdf:
+    0 elsewhere; the products in direct_light's order ((Le weight) rho) (1 / pi).  With `add`,
+    out[:, start + i] += beta[:, start + i] x that instead (PathTracer.bounce's sum).  cosine_pdf:
     p_b is the Lambertian's max(cos, 0) (1 / pi) (engine/materials/lambert.py pdf), computed here
     from cos_x (the same products and sum: <n, w> = <w, n>; cos > 0 for every kept sample)."""
     k = pdf.shape[0]
@@ -104,6 +111,11 @@ def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable
             sample *= h
         weight[i] = 0.0 if blocked[j] else sample
     inv_pi = 1.0 / np.pi
+    if add:
+        for i in range(k):
+            for c in range(3):
+                out[c, start + i] += beta[c, start + i] * (radiance[c, i] * weight[i] * albedo[c, i] * inv_pi)
+        return
     for i in range(k):
         for c in range(3):
             out[c, i] = radiance[c, i] * weight[i] * albedo[c, i] * inv_pi
@@ -132,31 +144,44 @@ def _rows(a, k):
     return _fit(a, (3, k))
 
 
+def _columns(a, k):
+    """(rows, step) of rows a (3, k): column i is rows[:, i x step]; step 0 for one column broadcast
+    to all (np.broadcast_to, e.g. one light's normal), which is then not copied k times."""
+    if isinstance(a, np.ndarray) and a.shape == (3, k) and k > 0 and a.strides[1] == 0:
+        return _rows(a[:, :1], 1), 0
+    return _rows(a, k), 1
+
+
 def light_tests(n, ls, any_one_sided):
     """(cos_x, cos_ly, valid) of light samples ls (engine/lights/light_set.py LightSample) at receivers
     with facing normals n (rows): direct_light's two cosines and the indices of its kept samples."""
     k = ls.pdf.shape[0]
     cos_x, cos_ly = np.empty(k), np.empty(k)
-    valid = _light_tests(_rows(n, k), _rows(ls.direction, k), _rows(ls.normal, k),
+    valid = _light_tests(_rows(n, k), _rows(ls.direction, k), *_columns(ls.normal, k),
                          _fit(ls.pdf, (k,)), _fit(ls.distance, (k,)),
                          _fit(ls.one_sided, (k,), np.bool_), bool(any_one_sided),
                          cos_x, cos_ly)
     return cos_x, cos_ly, valid
 
 
-def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo):
+def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=None):
     """(3, k) Le weight rho / pi of the samples ls (direct_light's Lambertian return, one shadow ray):
     valid from light_tests, blocked (len(valid),) from the shadow rays, p_b the BSDF's pdf of each
     sample's direction (read only under mis; None: the Lambertian's, from cos_x), reachable per
-    light (LightSet.bsdf_reachable)."""
+    light (LightSet.bsdf_reachable).  into: (radiance, beta, start), C-contiguous rows of the path
+    state: radiance[:, start:start + k] += beta[:, start:start + k] x that, in place (returns None)."""
     k = cos_x.shape[0]
-    out = np.empty((3, k))
+    if into is None:
+        out, beta, start = np.empty((3, k)), _read_only(NO_ROWS), 0
+    else:
+        out, beta, start = into
+        beta = _read_only(beta)
     _lambert_light(np.ascontiguousarray(valid, np.int64), np.ascontiguousarray(blocked, np.bool_), cos_x,
                    _fit(ls.pdf, (k,)),
                    _fit(0.0 if p_b is None else p_b, (k,)), p_b is None,
                    np.ascontiguousarray(ls.light, np.int64), np.ascontiguousarray(reachable, np.bool_), bool(mis),
-                   _rows(ls.radiance, k), _rows(albedo, k), out)
-    return out
+                   _rows(ls.radiance, k), _rows(albedo, k), out, into is not None, beta, int(start))
+    return out if into is None else None
 
 
 @jit
@@ -224,6 +249,113 @@ def roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr
               np.ascontiguousarray(delta, np.bool_), np.ascontiguousarray(u, np.float64), int(max_depth),
               bool(final_rays), bool(russian_roulette), int(rr_start_depth), keep, beta_out)
     return keep, beta_out
+
+
+@jit
+def _tail_at(i, flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, write):
+    """_scatter_tail's lines for path i: (side, the three beta x value); with `write`, its delta flag and ray
+    kind written too."""
+    f = flags[i]
+    transmitted = (f & TRANSMISSION) != 0
+    if write:
+        prev_delta[i] = (f & DELTA) != 0
+        kind = TRANSMISSION_RAY if transmitted else (DIFFUSE_RAY if (f & DIFFUSE) != 0 else GLOSSY_RAY)
+        if (f & STRAIGHT) != 0 and ray_kind[i] == CAMERA_RAY:
+            kind = CAMERA_RAY
+        ray_kind[i] = kind
+    s = -1.0 if transmitted else 1.0
+    wrong = smooth and (new_d[0, i] * ng[0, i] + new_d[1, i] * ng[1, i] + new_d[2, i] * ng[2, i]) * s <= 0.0
+    if wrong:
+        return s, 0.0, 0.0, 0.0
+    return s, beta[0, i] * value[0, i], beta[1, i] * value[1, i], beta[2, i] * value[2, i]
+
+
+@jit
+def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
+               facing, new_d, has_tail, flags, ray_kind, value, smooth, ng):
+    """_roulette and _next_rays in one: which paths go on (their indices, and those of the others in
+    order) and the kept paths' next origin, direction and throughput after the survival division.
+    has_tail: _scatter_tail's lines first (beta: the rows before the scatter; delta and ray_kind
+    written), their side and throughput computed again where the compaction needs them, not stored."""
+    n = bounce.shape[0]
+    divisor = np.empty(n)
+    kept = np.empty(n, np.bool_)
+    count = 0
+    for i in range(n):
+        if has_tail:
+            _, b0, b1, b2 = _tail_at(i, flags, delta, ray_kind, beta, value, smooth, new_d, ng, True)
+        else:
+            b0, b1, b2 = beta[0, i], beta[1, i], beta[2, i]
+        within = bounce[i] < max_depth           # _roulette's tests, the same operations
+        if final_rays:
+            within = within or (bounce[i] == max_depth and not delta[i])
+        m = _max(_max(b0, b1), b2)
+        k = m > 0.0 and within
+        dv = 1.0
+        if russian_roulette:
+            survive = (m if (m <= 1.0 or m != m) else 1.0) if bounce[i] + 1 >= rr_start_depth else 1.0   # np.minimum
+            k = k and u[i] < survive
+            dv = survive if k else 1.0
+        kept[i] = k
+        divisor[i] = dv
+        if k:
+            count += 1
+    keep = np.empty(count, np.int64)
+    ended = np.empty(n - count, np.int64)
+    o = np.empty((3, count))
+    d = np.empty((3, count))
+    b = np.empty((3, count))
+    j = 0
+    e = 0
+    for i in range(n):
+        if not kept[i]:
+            ended[e] = i
+            e += 1
+            continue
+        keep[j] = i
+        if has_tail:
+            si, b0, b1, b2 = _tail_at(i, flags, delta, ray_kind, beta, value, smooth, new_d, ng, False)
+        else:
+            si, b0, b1, b2 = side[i], beta[0, i], beta[1, i], beta[2, i]
+        s = si * offset[i]                       # _next_rays' operations
+        for c in range(3):
+            o[c, j] = point[c, i] + s * facing[c, i]
+            d[c, j] = new_d[c, i]
+        if russian_roulette:
+            b[0, j], b[1, j], b[2, j] = b0 / divisor[i], b1 / divisor[i], b2 / divisor[i]
+        else:
+            b[0, j], b[1, j], b[2, j] = b0, b1, b2
+        j += 1
+    return keep, ended, o, d, b
+
+
+NO_FLAGS = np.zeros(0, np.int8)
+NO_KINDS = np.zeros(0, np.int8)
+
+
+def survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
+              facing, new_d, tail=None):
+    """(keep, ended, o, d, beta): PathTracer.roulette's paths that go on (indices, `keep`) and those that
+    end (`ended`), then next_rays(keep, point, side, offset, facing, new_d, the roulette's beta) in one
+    pass: the same arrays as roulette, np.flatnonzero and next_rays.  tail: (flags, ray_kind, value, ng):
+    scatter_tail(flags, delta, ray_kind, beta, value, new_d, ng) first, in the same pass (beta: the paths'
+    rows before it, of which the first len(bounce) are read; side unused; delta and ray_kind are written)."""
+    f64 = np.float64
+    n = bounce.shape[0]
+    has_tail = tail is not None
+    flags, ray_kind, value, ng = tail if has_tail else (NO_FLAGS, NO_KINDS, NO_ROWS, None)
+    smooth = ng is not None
+    return _survivors(_read_only(np.ascontiguousarray(beta, f64)), _read_only(np.ascontiguousarray(bounce, np.int32)),
+                      delta if has_tail else np.ascontiguousarray(delta, np.bool_),
+                      _read_only(np.ascontiguousarray(u, f64)),
+                      int(max_depth), bool(final_rays), bool(russian_roulette), int(rr_start_depth),
+                      _read_only(np.ascontiguousarray(point, f64)),
+                      _read_only(np.ascontiguousarray(side if not has_tail else np.zeros(0), f64)),
+                      _read_only(np.ascontiguousarray(offset, f64)), _read_only(np.ascontiguousarray(facing, f64)),
+                      _read_only(np.ascontiguousarray(new_d, f64)), has_tail,
+                      _read_only(np.ascontiguousarray(flags, np.int8)), ray_kind,
+                      _read_only(np.ascontiguousarray(value, f64)), smooth,
+                      _read_only(np.ascontiguousarray(ng, f64) if smooth else NO_ROWS))
 
 
 @jit
@@ -298,6 +430,48 @@ def add_emission(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light,
 NO_PDF = np.zeros(0)
 
 
+@jit
+def _take_rows(a, index, out):
+    for c in range(a.shape[0]):
+        for j in range(index.shape[0]):
+            out[c, j] = a[c, index[j]]
+
+
+@jit
+def _take_1d(a, index, out):
+    for j in range(index.shape[0]):
+        out[j] = a[index[j]]
+
+
+# The path state's 1-D dtypes (Paths: pixel and sample int64, bounce int32, ray_kind int8, flags bool, pdfs)
+TAKE_DTYPES = tuple(np.dtype(t) for t in (np.float64, np.int64, np.int32, np.int8, np.bool_))
+
+
+def take(arrays, index):
+    """[a.take(index, axis=axis) for a, axis in arrays] of path-state arrays: compiled for C-contiguous
+    float64 rows (axis 1) and 1-D arrays of TAKE_DTYPES with int64 indices in range (what Paths.take
+    passes; NumPy's take for anything else)."""
+    index = np.asarray(index)
+    compiled = index.dtype == np.int64 and index.ndim == 1
+    if compiled:
+        index = _read_only(np.ascontiguousarray(index))
+    out = []
+    for a, axis in arrays:
+        if compiled and a.flags.c_contiguous:
+            if a.ndim == 2 and axis == 1 and a.dtype == np.float64:
+                rows = np.empty((a.shape[0], index.shape[0]))
+                _take_rows(_read_only(a), index, rows)
+                out.append(rows)
+                continue
+            if a.ndim == 1 and a.dtype in TAKE_DTYPES:
+                values = np.empty(index.shape[0], a.dtype)
+                _take_1d(_read_only(a), index, values)
+                out.append(values)
+                continue
+        out.append(a.take(index, axis=axis))
+    return out
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     from types import SimpleNamespace
@@ -306,7 +480,9 @@ def warm_up() -> None:
     ls = SimpleNamespace(direction=rows, normal=-rows, pdf=np.ones(3), distance=np.ones(3),
                          one_sided=np.ones(3, np.bool_), light=np.zeros(3, np.int64), radiance=rows)
     cos_x, _, valid = light_tests(rows, ls, True)
-    lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, np.ones(3), np.ones(1, np.bool_), True, rows)
+    for into in (None, (np.zeros((3, 4)), np.ones((3, 4)), 1)):
+        lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, np.ones(3), np.ones(1, np.bool_), True, rows,
+                      into)
     flags = np.array([int(BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION), DELTA | TRANSMISSION, DELTA], np.int8)
     for ng in (None, rows):
         scatter_tail(flags, np.zeros(3, np.bool_), np.zeros(3, np.int8), rows, rows, rows, ng)
@@ -317,3 +493,10 @@ def warm_up() -> None:
     for mode in (0, 1, 2):
         add_emission(np.zeros((3, 3)), rows, idx, rows[:, :2], delta, np.ones(3), places, np.ones(len(places)),
                      mode, 1)
+    for flag in (True, False):
+        survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, flag, flag, 3, rows,
+                  np.ones(3), np.ones(3), rows, rows)
+    for ng in (None, rows):
+        survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3, rows,
+                  None, np.ones(3), rows, rows, (flags, np.zeros(3, np.int8), rows, ng))
+    take([(rows, 1)] + [(np.zeros(3, dtype), 0) for dtype in TAKE_DTYPES], idx)

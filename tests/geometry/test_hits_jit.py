@@ -171,6 +171,15 @@ def test_surface_data_of_every_kind_is_the_same(scene):
     compiled = geometry.surface(oh, dh, hits)
     for name in ("point", "normal", "offset", "shading"):
         assert np.array_equal(getattr(reference, name), getattr(compiled, name)), name
+    # The origins in the rays' order, read through hits.index (PathTracer.bounce's), compiled and not;
+    # control: origins in another order (the sphere centres elsewhere) move some points.
+    in_rays_order = geometry.surface(o, dh, hits, rays_order=True)
+    for name in ("point", "normal", "offset", "facing"):
+        assert np.array_equal(getattr(compiled, name), getattr(in_rays_order, name)), name
+    assert not np.array_equal(compiled.point, geometry.surface(o[:, ::-1], dh, hits, rays_order=True).point)
+    geometry.hits_jit = None
+    assert np.array_equal(reference.point, geometry.surface(o, dh, hits, rays_order=True).point)
+    geometry.hits_jit = hits_jit
     # the facing normal of PathTracer.bounce, which the one loop (hits_jit.surfaces) writes too
     assert reference.facing is None and compiled.facing is not None
     towards = np.where((dh * reference.normal).sum(axis=0) < 0.0, 1.0, -1.0)

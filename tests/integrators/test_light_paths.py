@@ -228,7 +228,7 @@ def caustic_scatters(scene, monkeypatch, **settings):
     counts = {GLOSSY_RAY: 0, TRANSMISSION_RAY: 0}
     scatter = PathTracer.scatter
 
-    def spy(self, p, point, si, spans, u_lobe, u_dir):
+    def spy(self, p, point, si, spans, u_lobe, u_dir, defer_tail=False):     # (the tail here, to read beta)
         before = p.ray_kind[:len(si)].copy()
         new_d, side, beta = scatter(self, p, point, si, spans, u_lobe, u_dir)
         went_on = (before == DIFFUSE_RAY) & (beta.max(axis=0) > 0.0)

@@ -82,17 +82,19 @@ def test_a_render_with_this_modules_kernels_alone_is_the_same(scene):
 
 
 def test_a_render_with_a_direct_light_slightly_off_differs():
-    """Control: the Lambertian direct light's kernel with its result 2^-20 too large changes the
+    """Control: the Lambertian direct light's kernel with its albedo 2^-20 too large changes the
     (float32) image."""
     require_compiled()
     from types import SimpleNamespace
     from engine.integrators import wavefront_jit
 
-    def off(*args):
-        return wavefront_jit.lambert_light(*args) * (1.0 + 2.0 ** -20)
+    def off(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=None):
+        return wavefront_jit.lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo * (1.0 + 2.0 ** -20),
+                                           into)
     wrong = SimpleNamespace(next_rays=wavefront_jit.next_rays, light_tests=wavefront_jit.light_tests, lambert_light=off,
                             scatter_tail=wavefront_jit.scatter_tail, roulette=wavefront_jit.roulette,
-                            emitter_lights=wavefront_jit.emitter_lights, add_emission=wavefront_jit.add_emission)
+                            emitter_lights=wavefront_jit.emitter_lights, add_emission=wavefront_jit.add_emission,
+                            survivors=wavefront_jit.survivors, take=wavefront_jit.take)
     assert not np.array_equal(render_with("cornell", None, 16), render_with("cornell", wrong, 16))
 
 
@@ -121,26 +123,39 @@ def test_recorded_direct_light_calls_are_bit_identical(scene):
         return lambert(self, *args)
     session.PathTracer.lambert_direct_light = counted
     try:
+        rng = np.random.default_rng(5)
         for tracer, args, kwargs in calls[:6]:
+            kwargs = dict(kwargs, into=None)        # (the render's own into: its path state, since changed)
             tracer.wavefront_jit = None
             reference = original(tracer, *args, **kwargs)
             tracer.wavefront_jit = wavefront_jit
             compiled = original(tracer, *args, **kwargs)
             assert reference.dtype == compiled.dtype == np.float64 and np.array_equal(reference, compiled)
             assert (reference > 0).any() and not np.array_equal(reference, np.nextafter(compiled, np.inf))
+            # The sum into the path state in place (PathTracer.bounce's): radiance += beta x light over the
+            # hits' columns, the same as NumPy's; control: beta an ulp off.
+            m = reference.shape[1]
+            start, beta = rng.random((3, m + 7)), rng.random((3, m + 7))
+            expected = start.copy()
+            expected[:, 5:5 + m] += beta[:, 5:5 + m] * reference
+            radiance, off = start.copy(), start.copy()
+            assert original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5))) is None
+            assert np.array_equal(radiance, expected)
+            original(tracer, *args, **dict(kwargs, into=(off, np.nextafter(beta, 2.0), 5)))
+            assert not np.array_equal(off, expected)
     finally:
         session.PathTracer.lambert_direct_light = lambert
-    assert len(fused) == min(len(calls), 6)            # the compiled case ran every time
+    assert len(fused) == 3 * min(len(calls), 6)        # the compiled case ran every time
 
 
 def capture_scatters(scene_name, limit=6):
     """[(tracer, args)] deep copies of PathTracer.scatter's calls in a 16 x 16, 2 spp NumPy render."""
     calls, reference = [], path_tracer.PathTracer.scatter
 
-    def recording(self, *args):
+    def recording(self, *args, **kwargs):
         if len(calls) < limit:
             calls.append(copy.deepcopy((None, args)))
-        return reference(self, *args)
+        return reference(self, *args, **kwargs)
     path_tracer.PathTracer.scatter = recording
     try:
         api.render(BUILTIN_SCENES[scene_name]((16, 16)), RenderSettings(samples=2, threads=1, backend="numpy"),
@@ -170,6 +185,46 @@ def test_recorded_scatter_tails_are_bit_identical(scene, monkeypatch):
             new_d, side, beta = tracers[0].scatter(p, *rest)
             outs.append((new_d, side, beta, p.prev_delta, p.ray_kind))
         assert same(*outs)
+
+
+@pytest.mark.parametrize("scene", ["cornell", "caustic"])
+def test_recorded_scatter_tails_in_the_compaction_are_bit_identical(scene, monkeypatch):
+    """PathTracer.scatter(defer_tail=True) and wavefront_jit.survivors with its tail against NumPy's scatter,
+    roulette, np.flatnonzero and next_rays, on recorded scatters (made-up roulette numbers and origins);
+    control: the tail's throughput one ulp off."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    tracers, init = [], path_tracer.PathTracer.__init__
+
+    def keeping(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        tracers.append(self)
+    monkeypatch.setattr(path_tracer.PathTracer, "__init__", keeping)
+    calls = capture_scatters(scene)
+    assert len(calls) >= 3 and tracers
+    tracer, rng = tracers[0], np.random.default_rng(13)
+    s = tracer.settings
+    for _, args in calls:
+        alive = len(args[2])
+        u, offset, facing = rng.random(alive), 10.0 ** rng.uniform(-9, -3, alive), rng.normal(size=(3, alive))
+        p, *rest = copy.deepcopy(args)
+        tracer.wavefront_jit = None
+        new_d, side, beta = tracer.scatter(p, *rest)
+        keep, beta = tracer.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u)
+        keep, ended = np.flatnonzero(keep), np.flatnonzero(~keep)
+        expected = (keep, ended) + path_tracer.next_rays(keep, rest[0], side, offset, facing, new_d, beta) + (
+            p.prev_delta, p.ray_kind)
+        results = []
+        for scale in (1.0, 1.0 + 2.0 ** -52):
+            p, *rest = copy.deepcopy(args)
+            tracer.wavefront_jit = wavefront_jit
+            new_d, side, tail = tracer.scatter(p, *rest, defer_tail=True)
+            assert side is None
+            got = wavefront_jit.survivors(p.beta * scale, p.bounce[:alive], p.prev_delta[:alive], u, s.max_depth,
+                                          tracer.final_rays, s.russian_roulette, s.rr_start_depth, rest[0], None,
+                                          offset, facing, new_d, tail)
+            results.append(tuple(got) + (p.prev_delta, p.ray_kind))
+        assert len(keep) and same(expected, results[0]) and not same(expected, results[1])
 
 
 def test_made_up_roulettes_and_the_control():
@@ -287,3 +342,48 @@ def test_read_only_inputs_need_no_compilation_after_warm_up():
     assert len(results[0][2]) == 3 and all(np.array_equal(a, b) for a, b in zip(*results))
     assert {"t": len(wj._light_tests.signatures), "l": len(wj._lambert_light.signatures)} == before
     assert wj.nb.typeof(frozen) != wj.nb.typeof(frozen.copy())
+
+
+def test_survivors_are_the_roulette_then_the_compaction():
+    """wavefront_jit.survivors against PathTracer.roulette's NumPy lines, np.flatnonzero and
+    path_tracer.next_rays on made-up paths (NaN, inf, -0 throughputs, both sides, every flag), with a
+    control: the survival division one ulp off."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    rng = np.random.default_rng(11)
+    n = 4000
+    beta = rng.choice([0.0, -0.0, 0.3, 1.0, 1.7, np.nan, np.inf, 1e-300], (3, n))
+    bounce, delta, u = rng.integers(0, 10, n).astype(np.int32), rng.random(n) < 0.5, rng.random(n)
+    point, facing, new_d = (rng.normal(0, 1e3, (3, n)) for _ in range(3))
+    side, offset = np.where(rng.random(n) < 0.5, -1.0, 1.0), 10.0 ** rng.uniform(-12, 3, n)
+    for final_rays in (False, True):
+        for rr in (False, True):
+            settings = SimpleNamespace(max_depth=8, russian_roulette=rr, rr_start_depth=3)
+            tracer = SimpleNamespace(settings=settings, final_rays=final_rays, wavefront_jit=None)
+            keep, beta_rr = path_tracer.PathTracer.roulette(tracer, beta, bounce, delta, u)
+            ended, keep = np.flatnonzero(~keep), np.flatnonzero(keep)
+            expected = (keep, ended) + path_tracer.next_rays(keep, point, side, offset, facing, new_d, beta_rr)
+            got = wavefront_jit.survivors(beta, bounce, delta, u, 8, final_rays, rr, 3, point, side, offset, facing,
+                                          new_d)
+            assert 0 < len(keep) < n and same(expected, got)
+    wrong = wavefront_jit.survivors(beta * (1.0 + 2.0 ** -52), bounce, delta, u, 8, True, True, 3, point, side,
+                                    offset, facing, new_d)
+    assert same(expected[:2], wrong[:2]) and not same(expected, wrong)
+
+
+def test_take_is_numpys_take():
+    """wavefront_jit.take against ndarray.take for every dtype of the path state, on a sorting
+    permutation and a compaction, and NumPy's own take for what it does not compile (an int32 index,
+    an axis-0 2-D array); control: the index shifted by one gives other arrays."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    rng = np.random.default_rng(12)
+    n = 3000
+    arrays = [(rng.normal(size=(3, n)), 1), (rng.normal(size=n), 0), (rng.integers(0, 1 << 40, n), 0),
+              (rng.integers(0, 9, n).astype(np.int32), 0), (rng.integers(-3, 4, n).astype(np.int8), 0),
+              (rng.random(n) < 0.5, 0), (rng.normal(size=(n, 4)), 0), (rng.integers(0, 9, (4, n)).astype(np.int32), 1)]
+    for index in (np.argsort(rng.integers(0, 6, n), kind="stable"), np.flatnonzero(rng.random(n) < 0.7),
+                  np.arange(n - 5, dtype=np.int32)):
+        expected = [a.take(index, axis=axis) for a, axis in arrays]
+        assert same(expected, wavefront_jit.take(arrays, index))
+        assert not same(expected[:6], wavefront_jit.take(arrays[:6], (index + 1) % n))
