@@ -31,7 +31,7 @@
                  "spot_size": 0.0, "spot_blend": 0.0, "spot_direction": [0, 0, -1],
                  "spot_falloff": "smoothstep"}],
      "suns": [{"name": "Sun", "direction": [..], "irradiance": [r, g, b], "angle": 0.01,
-               "sky_disc": false}],
+               "sky_disc": true (a Sky Texture's sun disc; absent: false)}],
      "environment": {"name": "World", "texture": "Sky" or 0, "strength": 1.0,          (optional: an image
                      "projection": "equirectangular", "interpolation": "Linear",        world, model.py
                      "matrix": [[..] x 3], "camera_strength": null, "camera_color": null,  Environment)
@@ -463,7 +463,8 @@ def save_scene(scene: Scene, path: str) -> None:
                     **{key: bool(getattr(p, key)) for key in LAMP_FLAGS}} for p in scene.points],
         "suns": [{"name": sun.name, "direction": [float(v) for v in sun.direction],
                   "irradiance": [float(v) for v in sun.irradiance], "angle": float(sun.angle),
-                  **{key: bool(getattr(sun, key)) for key in SUN_FLAGS}} for sun in scene.suns],
+                  **{key: bool(getattr(sun, key)) for key in LAMP_FLAGS},
+                  **({"sky_disc": True} if getattr(sun, "sky_disc", False) else {})} for sun in scene.suns],
         **_environment_json(getattr(scene, "environment", None)),
     }
     with open(path, "w") as fh:
