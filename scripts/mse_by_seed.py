@@ -1,8 +1,8 @@
 """MSE per sample against Cycles over several seeds, per sample file, with error maps.
 
   .venv/bin/python scripts/mse_by_seed.py --files sky glossy_plates [--seeds 1 2 3 4] [--samples 64]
-         [--resolution 96] [--cache-dir /work/main/renders/reference-files] [--save DIR]
-         [--set estimator=solid-angle ...] [--only tncg15|cycles]
+         [--resolution 96] [--cache-dir renders/reference-files] [--save DIR]
+         [--set estimator=solid-angle ...] [--max-depth 0] [--only tncg15|cycles] [--load-cycles DIR]
 
 bench_sample_files measures TNCG15 MC's and Cycles' MSE of one render each (seed 1) against the
 cached 1024-spp Cycles reference; one seed moves that ratio by 10-20 %.  This renders both at S
@@ -19,7 +19,10 @@ file_settings, cycles_options, reference), and prints per file:
   seeds (error maps: where the extra error is).
 
 --set NAME=VALUE changes a TNCG15 MC setting (a RenderSettings field) for the localisation runs
-(estimator=solid-angle, max_depth=0, ...); Cycles renders as the file has it.
+(estimator=solid-angle, backend=numpy, ...); Cycles renders as the file has it.  --max-depth sets
+both renderers' depth (0: direct light only; compare var_ratio, the reference has the file's
+depth).  --load-cycles DIR takes Cycles' images of the same seeds from an earlier --save DIR
+(before/after runs of TNCG15 MC against the same Cycles images).
 """
 import argparse
 import dataclasses
