@@ -82,6 +82,7 @@ class SunLights(DistantKind):
         self.one_sided = np.zeros(self.count, dtype=bool)
         self.flux = np.pi * r2 * irradiance.mean(axis=1)
         self.scene_radius = scene_radius
+        self.sky_disc = np.array([bool(getattr(s, "sky_disc", False)) for s in suns], dtype=bool)
 
     def sample_emission(self, idx, u1, u2, u3, u4, targets=None):
         """In the sun's cone (u1, u2), away from the sun, from the disk facing down its axis (u3, u4)."""

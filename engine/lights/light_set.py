@@ -121,6 +121,10 @@ class LightSet:
     mirror and glass rays meet (engine/lights/seen.py) or None."""
 
     DISTANT_SHARE = (0.1, 0.9)        # bounds of the suns' and world's selection probability beside lamps
+    # Cycles' sun-guided sky (scene/light.cpp device_update_background: sun_weight 4, map_weight 1):
+    # a light sample of a sky with one sun disc takes the disc's cone with probability 0.8 and the
+    # importance map (the disc in it too) with 0.2, so sky directions get 0.2 x the map's sky share.
+    SKY_MAP_WEIGHT = 0.2
 
     def __init__(self, scene, solid_angle: bool = True, spatial: bool = True, lamps_hittable: bool = False,
                  world: bool = False, backend: str = "numpy", shapes_backend: str = "numpy"):
@@ -189,8 +193,29 @@ class LightSet:
             self.distant_share = 1.0 if lamps <= 0 else float(np.clip(far / (far + lamps), *self.DISTANT_SHARE))
         q = self.distant_share
         self.local = LightGroup(local_kinds, 0, selection, q, 1.0 - q)
-        self.distant = LightGroup(distant_kinds, n_local, PowerSelection(self.distant_power), 0.0, q) \
+        self.distant = LightGroup(distant_kinds, n_local, PowerSelection(self.distant_weights(distant_kinds)), 0.0, q) \
             if distant_kinds else None
+
+    def distant_weights(self, distant_kinds):
+        """The selection weights of the lights at infinity: their flux, except for a Sky Texture's
+        world and its one sun disc, picked as Cycles' sun-guided sky does (SKY_MAP_WEIGHT): the
+        baked sky (without the disc) with SKY_MAP_WEIGHT x its share of the pair's flux, the disc
+        with the rest.  The pair keeps its flux against other suns.  The baked sky's directions are
+        then left mostly to BSDF samples (MIS), which find a smooth sky better than its map: the
+        light samples go to the sun, which BSDF samples almost never find."""
+        weights = self.distant_power.copy()
+        suns = [k for k in distant_kinds if k.name == "sun"]
+        env = [k for k in distant_kinds if k.name == "environment"]
+        if not (suns and env) or int(suns[0].sky_disc.sum()) != 1:
+            return weights
+        n_local = len(self.power)
+        disc = suns[0].first - n_local + int(np.flatnonzero(suns[0].sky_disc)[0])   # numbers in the group
+        sky = env[0].first - n_local
+        total = weights[disc] + weights[sky]
+        if total > 0:
+            weights[sky] = self.SKY_MAP_WEIGHT * weights[sky]
+            weights[disc] = total - weights[sky]
+        return weights
 
     # -- sampling --------------------------------------------------------------------------
     def sample(self, x, n, u_pick, u1, u2) -> LightSample:

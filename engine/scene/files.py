@@ -31,7 +31,8 @@
      "points": [{"name": "Bulb", "position": [..], "intensity": [r, g, b], "radius": 0.1,
                  "spot_size": 0.0, "spot_blend": 0.0, "spot_direction": [0, 0, -1],
                  "spot_falloff": "smoothstep"}],
-     "suns": [{"name": "Sun", "direction": [..], "irradiance": [r, g, b], "angle": 0.01}],
+     "suns": [{"name": "Sun", "direction": [..], "irradiance": [r, g, b], "angle": 0.01,
+               "sky_disc": true (a Sky Texture's sun disc; absent: false)}],
      "environment": {"name": "World", "texture": "Sky" or 0, "strength": 1.0,          (optional: an image
                      "projection": "equirectangular", "interpolation": "Linear",        world, model.py
                      "matrix": [[..] x 3], "camera_strength": null, "camera_color": null,  Environment)
@@ -67,6 +68,7 @@ SMOOTH_VERSION = 5                  # the first version with mesh normals; scene
 LIGHT_FLAGS = ("two_sided", "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
                "lights_diffuse")
 LAMP_FLAGS = ("lights_diffuse", "visible_glossy", "visible_transmission")     # point, spot and sun lights
+SUN_FLAGS = LAMP_FLAGS + ("sky_disc",)
 # A scene's JSON holds names and small lists; its arrays go in the NPZ (save_scene).  json.load holds
 # about ten times the file's size in memory, so a larger file is refused before it is read.
 LARGEST_JSON = 256 * 2**20
@@ -358,7 +360,7 @@ def load_scene(path: str) -> Scene:
     for i, entry in enumerate(top.objects("suns")):
         f, light_name = _named(entry, "Light", f"sun{i}")
         suns.append(SunLight(light_name, f.numbers("direction", 3), f.numbers("irradiance", 3),
-                             f.number("angle", 0.0), **_flags(f, LAMP_FLAGS)))
+                             f.number("angle", 0.0), **_flags(f, SUN_FLAGS)))
     return Scene(camera, materials, meshes, spheres, quads,
                  background=top.numbers("background", 3, (0.0, 0.0, 0.0)), environment=_environment(top, textures),
                  resolution=top.integers("resolution", 2, (256, 256)), name=name, lights=lights,
@@ -462,7 +464,8 @@ def save_scene(scene: Scene, path: str) -> None:
                     **{key: bool(getattr(p, key)) for key in LAMP_FLAGS}} for p in scene.points],
         "suns": [{"name": sun.name, "direction": [float(v) for v in sun.direction],
                   "irradiance": [float(v) for v in sun.irradiance], "angle": float(sun.angle),
-                  **{key: bool(getattr(sun, key)) for key in LAMP_FLAGS}} for sun in scene.suns],
+                  **{key: bool(getattr(sun, key)) for key in LAMP_FLAGS},
+                  **({"sky_disc": True} if getattr(sun, "sky_disc", False) else {})} for sun in scene.suns],
         **_environment_json(getattr(scene, "environment", None)),
     }
     with open(path, "w") as fh:

@@ -751,7 +751,9 @@ class SunLight:
     diameter, radians) about -`direction` (the direction the light travels), with irradiance
     `irradiance` [W/m^2] on a surface facing it.  Lights diffuse surfaces through shadow rays; with
     an angle it is seen in mirrors and through glass (engine/lights/seen.py).  The visibility flags
-    are Cycles' ray visibility of the light object, as for PointLight."""
+    are Cycles' ray visibility of the light object, as for PointLight.  `sky_disc`: the sun disc of
+    the world's Sky Texture (mcrt_addon/export/world.py), picked beside the baked sky as Cycles'
+    sun-guided sky (engine/lights/light_set.py SKY_MAP_WEIGHT)."""
     name: str
     direction: tuple
     irradiance: tuple
@@ -759,6 +761,7 @@ class SunLight:
     lights_diffuse: bool = True
     visible_glossy: bool = True
     visible_transmission: bool = True
+    sky_disc: bool = False
 
     def validate(self) -> None:
         direction = check_vector(f"Light '{self.name}'", "direction", self.direction)

@@ -208,10 +208,12 @@ class WorldReader:
         if self.suns is not None and self.SunLight is not None and float(irradiance.max()) > 0.0:
             to_sun = np.linalg.solve(np.asarray(matrix, dtype=np.float64), sun_direction)
             to_sun /= np.linalg.norm(to_sun)
+            fields = getattr(self.SunLight, "__dataclass_fields__", {})     # an older tracer's model has no sky_disc
             self.suns.append(self.SunLight(name=f"{self.world.name}: {node.name} (sun disc)",
                                            direction=tuple(float(c) for c in -to_sun),
                                            irradiance=tuple(float(c) for c in irradiance),
-                                           angle=sun_size))
+                                           angle=sun_size,
+                                           **({"sky_disc": True} if "sky_disc" in fields else {})))
         return dict(texture=len(self.images.textures) - 1, projection="equirectangular",
                     interpolation="Linear", matrix=matrix, strength=strength)
 

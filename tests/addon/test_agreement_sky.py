@@ -115,7 +115,7 @@ def test_sky_scene_agrees_with_cycles(samples, name):
     exported = export_blend(samples[name], RES)
     assert exported.warnings == [], exported.warnings
     scene = exported.scene
-    assert scene.environment is not None and len(scene.suns) == 1
+    assert scene.environment is not None and len(scene.suns) == 1 and scene.suns[0].sky_disc
     ref = cycles_reference(samples[name], name)
     ours = tncg15_agreement_runs(scene)
     to_png(ours.mean(axis=0), f"/tmp/{name}_tncg15.png", 4)

@@ -326,6 +326,7 @@ def test_point_and_sun_lights_are_exported_in_cycles_units(scene):
     assert point.intensity == pytest.approx((100 / (4 * math.pi), 50 / (4 * math.pi), 25 / (4 * math.pi)))
     s = res.scene.suns[0]
     assert s.direction == pytest.approx((0.0, 1.0, 0.0), abs=1e-6) and s.angle == pytest.approx(0.5)
+    assert not s.sky_disc                                   # a sun lamp, not a Sky Texture's disc
     factor = 1.0 if bpy.app.version >= (4, 0, 0) else 0.5 * (1 + math.cos(0.25))
     assert s.irradiance == pytest.approx((3.0 * factor,) * 3)
     cone = next(p for p in res.scene.points if p.name == "Spot")

@@ -71,11 +71,14 @@ def test_a_wrong_mis_weight_is_caught(light_only, monkeypatch):
 
 @pytest.mark.parametrize("estimator", ["report", "solid-angle", "mis"])
 def test_emitting_box_furnace(estimator):
-    """Every wall emits Le = 1 and reflects rho = 0.5: L = Le / (1 - rho) = 2 everywhere."""
+    """Every wall emits Le = 1 and reflects rho = 0.5: L = Le / (1 - rho) = 2 everywhere.  The report's
+    area sampling has a heavy tail (1/r^2 near the walls' edges): its standard error over seeds has a
+    median of 0.012-0.013 at 256 spp (16 seeds, on main's and on Kensler's index shuffle alike), so its
+    bound is 0.02; the others' 0.01."""
     result = render(emitting_box(), settings(samples=256, max_depth=400, estimator=estimator), **SILENT)
     mean = result.image.mean()
     se = np.sqrt(result.variance.sum()) / result.image.size
-    assert se < 0.01 and abs(mean - 2.0) < 4 * se, (estimator, mean, se)
+    assert se < (0.02 if estimator == "report" else 0.01) and abs(mean - 2.0) < 4 * se, (estimator, mean, se)
     assert result.stats["effects"]["light_tree"] == (estimator != "report")
     assert result.stats["nonfinite_samples"] == 0
 

@@ -93,7 +93,8 @@ def test_scene_file_round_trip_keeps_point_spot_and_sun_lights(tmp_path):
                                spot_direction=(0.1, 0.0, -1.0), spot_falloff="cosine-smoothstep",
                                visible_glossy=False)]
     scene.suns = [SunLight("Sun", (0.3, 0.2, -1.0), (1.0, 0.9, 0.8), 0.05, lights_diffuse=False,
-                           visible_transmission=False)]
+                           visible_transmission=False),
+                  SunLight("Sky's sun", (-0.3, 0.2, -1.0), (3.0, 2.9, 2.8), 0.01, sky_disc=True)]
     path = str(tmp_path / "lamps.json")
     save_scene(scene, path)
     again = load_scene(path)
