@@ -83,29 +83,38 @@ def _sample(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, transmission,
 
 
 @jit
+def _half_vector(o0, o1, o2, i0, i1, i2, e, reflection, transmission):
+    """The eval kernels' shared start: (ok, refracted, h, cos_ho, cos_hi) of the pair (wo, wi) at
+    relative eta e: the half vector of reflection (wo + wi) or refraction (-(wo + e wi)), turned to
+    the normal's side, and whether the pair is one the lobes allow."""
+    refracted = i2 < 0.0
+    if refracted:
+        f0, f1, f2 = -(o0 + e * i0), -(o1 + e * i1), -(o2 + e * i2)
+    else:
+        f0, f1, f2 = o0 + i0, o1 + i1, o2 + i2
+    length = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    scale = length if length > 0.0 else 1.0
+    h0, h1, h2 = f0 / scale, f1 / scale, f2 / scale
+    if h2 < 0.0:
+        h0, h1, h2 = h0 * -1.0, h1 * -1.0, h2 * -1.0
+    cos_ho = o0 * h0 + o1 * h1 + o2 * h2
+    cos_hi = i0 * h0 + i1 * h1 + i2 * h2
+    ok = ((o2 > 0.0) and (i2 != 0.0) and (length > 0.0) and (cos_ho > 0.0)
+          and ((cos_hi < 0.0) if refracted else (cos_hi > 0.0)))
+    if transmission and not reflection:
+        ok = ok and refracted
+    if not transmission:
+        ok = ok and not refracted
+    return ok, refracted, h0, h1, h2, cos_ho, cos_hi
+
+
+@jit
 def _eval(wo, wi, alpha, eta, separable, reflection, transmission, f_out, pdf_out):
     for i in range(wo.shape[1]):
         o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
         i0, i1, i2 = wi[0, i], wi[1, i], wi[2, i]
         a, e = alpha[i], eta[i]
-        refracted = i2 < 0.0
-        if refracted:
-            f0, f1, f2 = -(o0 + e * i0), -(o1 + e * i1), -(o2 + e * i2)
-        else:
-            f0, f1, f2 = o0 + i0, o1 + i1, o2 + i2
-        length = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
-        scale = length if length > 0.0 else 1.0
-        h0, h1, h2 = f0 / scale, f1 / scale, f2 / scale
-        if h2 < 0.0:
-            h0, h1, h2 = h0 * -1.0, h1 * -1.0, h2 * -1.0
-        cos_ho = o0 * h0 + o1 * h1 + o2 * h2
-        cos_hi = i0 * h0 + i1 * h1 + i2 * h2
-        ok = ((o2 > 0.0) and (i2 != 0.0) and (length > 0.0) and (cos_ho > 0.0)
-              and ((cos_hi < 0.0) if refracted else (cos_hi > 0.0)))
-        if transmission and not reflection:
-            ok = ok and refracted
-        if not transmission:
-            ok = ok and not refracted
+        ok, refracted, h0, h1, h2, cos_ho, cos_hi = _half_vector(o0, o1, o2, i0, i1, i2, e, reflection, transmission)
         if not ok:
             f_out[i], pdf_out[i] = 0.0, 0.0
             continue
@@ -193,24 +202,7 @@ def _eval_coloured(wo, wi, alpha, eta, separable, reflection, transmission, feta
         o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
         i0, i1, i2 = wi[0, i], wi[1, i], wi[2, i]
         a, e = alpha[i], eta[i]
-        refracted = i2 < 0.0
-        if refracted:
-            f0_, f1_, f2_ = -(o0 + e * i0), -(o1 + e * i1), -(o2 + e * i2)
-        else:
-            f0_, f1_, f2_ = o0 + i0, o1 + i1, o2 + i2
-        length = np.sqrt(f0_ * f0_ + f1_ * f1_ + f2_ * f2_)
-        scale = length if length > 0.0 else 1.0
-        h0, h1, h2 = f0_ / scale, f1_ / scale, f2_ / scale
-        if h2 < 0.0:
-            h0, h1, h2 = h0 * -1.0, h1 * -1.0, h2 * -1.0
-        cos_ho = o0 * h0 + o1 * h1 + o2 * h2
-        cos_hi = i0 * h0 + i1 * h1 + i2 * h2
-        ok = ((o2 > 0.0) and (i2 != 0.0) and (length > 0.0) and (cos_ho > 0.0)
-              and ((cos_hi < 0.0) if refracted else (cos_hi > 0.0)))
-        if transmission and not reflection:
-            ok = ok and refracted
-        if not transmission:
-            ok = ok and not refracted
+        ok, refracted, h0, h1, h2, cos_ho, cos_hi = _half_vector(o0, o1, o2, i0, i1, i2, e, reflection, transmission)
         if not ok:
             f_out[0, i], f_out[1, i], f_out[2, i], pdf_out[i] = 0.0, 0.0, 0.0, 0.0
             continue
