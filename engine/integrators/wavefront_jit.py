@@ -224,18 +224,27 @@ def _max(a, b):
 
 
 @jit
+def _survives(b0, b1, b2, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth):
+    """(kept, divisor) of one path in PathTracer.roulette: within the depth (a final non-delta ray at
+    max_depth too), a positive throughput, and Russian roulette's survival by its largest channel."""
+    within = bounce < max_depth
+    if final_rays:
+        within = within or (bounce == max_depth and not delta)
+    m = _max(_max(b0, b1), b2)
+    k = m > 0.0 and within
+    divisor = 1.0
+    if russian_roulette:
+        survive = (m if (m <= 1.0 or m != m) else 1.0) if bounce + 1 >= rr_start_depth else 1.0   # np.minimum
+        k = k and u < survive
+        divisor = survive if k else 1.0
+    return k, divisor
+
+
+@jit
 def _roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, keep, beta_out):
     for i in range(bounce.shape[0]):
-        within = bounce[i] < max_depth
-        if final_rays:
-            within = within or (bounce[i] == max_depth and not delta[i])
-        m = _max(_max(beta[0, i], beta[1, i]), beta[2, i])
-        k = m > 0.0 and within
-        divisor = 1.0
-        if russian_roulette:
-            survive = (m if (m <= 1.0 or m != m) else 1.0) if bounce[i] + 1 >= rr_start_depth else 1.0   # np.minimum
-            k = k and u[i] < survive
-            divisor = survive if k else 1.0
+        k, divisor = _survives(beta[0, i], beta[1, i], beta[2, i], bounce[i], delta[i], u[i], max_depth,
+                               final_rays, russian_roulette, rr_start_depth)
         keep[i] = k
         for c in range(3):
             beta_out[c, i] = beta[c, i] / divisor if russian_roulette else beta[c, i]
@@ -286,16 +295,8 @@ def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, 
             _, b0, b1, b2 = _tail_at(i, flags, delta, ray_kind, beta, value, smooth, new_d, ng, True)
         else:
             b0, b1, b2 = beta[0, i], beta[1, i], beta[2, i]
-        within = bounce[i] < max_depth           # _roulette's tests, the same operations
-        if final_rays:
-            within = within or (bounce[i] == max_depth and not delta[i])
-        m = _max(_max(b0, b1), b2)
-        k = m > 0.0 and within
-        dv = 1.0
-        if russian_roulette:
-            survive = (m if (m <= 1.0 or m != m) else 1.0) if bounce[i] + 1 >= rr_start_depth else 1.0   # np.minimum
-            k = k and u[i] < survive
-            dv = survive if k else 1.0
+        k, dv = _survives(b0, b1, b2, bounce[i], delta[i], u[i], max_depth, final_rays, russian_roulette,
+                          rr_start_depth)                # _roulette's tests, the same operations
         kept[i] = k
         divisor[i] = dv
         if k:
