@@ -2,7 +2,7 @@
 
   .venv/bin/python scripts/bench_sample_files.py [--files cornell caustic ...] [--resolutions 96 256]
          [--samples 96=16,64 256=4,16] [--threads 2] [--efficiency-resolutions 96]
-         [--reference-samples 1024] [--cache-dir renders/reference-files] [--references-only]
+         [--reference-samples 1024] [--cache-dir renders/reference-files] [--references-only] [--repeats 3]
          [--tncg15-pool workers|in-process]
          [--out renders/bench-sample-files.json]
 
@@ -22,6 +22,7 @@ size pays for its work arrays' page faults, mcrt_addon/bench_estimators.py):
 * Cycles: the fair settings of mcrt_addon/reference.py (no adaptive sampling, denoising or light
   threshold; CPU) given the same max depth, Light Paths and film (filter, exposure) as TNCG15 MC,
   as `python -m mcrt_addon render --engine CYCLES` does; its clock covers bpy.ops.render.render.
+With --repeats N each renderer renders S1, S2 N times alternated and each time is the median of its N.
 Per-sample time = (t(S2) - t(S1)) / (S2 - S1), in wall seconds and in process CPU seconds (user +
 system of this process, and of TNCG15 MC's workers read from /proc): the BVH build, scene sync and other per-render
 costs cancel.  `ratio` = TNCG15 MC / Cycles; `whole` = the ratio of the whole renders at S2.
@@ -75,6 +76,22 @@ def ratio(a, b):
     if a is None or b is None or not (math.isfinite(a) and math.isfinite(b)) or b <= 0:
         return float("nan")
     return a / b
+
+
+def median_timing(runs):
+    """{wall, cpu} of repeated timings of one render: each clock's median (a disturbed run, e.g. another
+    process's burst or a worker's page faults, moves a per-sample slope of two such renders by its whole
+    size; the median of 3 does not follow one), with the runs kept under `runs`."""
+    if not runs:
+        raise ValueError("no timings")
+    out = {}
+    for clock in ("wall", "cpu"):
+        values = sorted(r[clock] for r in runs)
+        n = len(values)
+        out[clock] = values[n // 2] if n % 2 else 0.5 * (values[n // 2 - 1] + values[n // 2])
+    if len(runs) > 1:
+        out["runs"] = [dict(r) for r in runs]
+    return out
 
 
 def efficiency(mse, seconds):
@@ -165,7 +182,7 @@ def header(meta):
     return (f"bench_sample_files: {meta['utc']} UTC, load average {meta['load_start']} at the start, "
             f"{meta.get('load_end', '?')} at the end; {meta['cpu_count']} cores, {meta['platform']}; "
             f"Blender {meta['blender']}; {meta['threads']} threads; TNCG15 MC {meta.get('tncg15_pool', 'in-process')}; "
-            f"reference {meta['reference_samples']} spp")
+            f"reference {meta['reference_samples']} spp; median of {meta.get('repeats', 1)} render(s) per point")
 
 
 def summary_lines(rows):
@@ -272,7 +289,6 @@ def measure(path, res, args, log):
         settings = file_settings(scene, samples=s1, threads=args.threads)
         options = cycles_options(settings)
         row["max_depth"] = settings.max_depth
-        cyc = {}
         images = {}
 
         def cycles(spp):
@@ -281,15 +297,19 @@ def measure(path, res, args, log):
             return image
 
         cycles(1)                                                  # warm-up
-        for spp in (s1, s2):
-            images[("cycles", spp)], cyc[str(spp)] = timed(lambda: cycles(spp))
+        runs = {spp: [] for spp in (s1, s2)}
+        for _ in range(args.repeats):
+            for spp in (s1, s2):
+                images[("cycles", spp)], t = timed(lambda: cycles(spp))
+                runs[spp].append(t)
+        cyc = {str(spp): median_timing(runs[spp]) for spp in (s1, s2)}
         row["cycles"] = cyc
 
         exported = be.export_tracer_scene(scene, (res, res))
         if exported.warnings:
             row["notes"].append(f"{len(exported.warnings)} export warning(s)")
         render = bridge.render_function()
-        tnc, stats = {}, {}
+        stats = {}
 
         def tncg15(spp, pool=None):
             result = render(exported.scene, dataclasses.replace(settings, samples=spp), pool=pool,
@@ -302,8 +322,12 @@ def measure(path, res, args, log):
         else:
             tncg15_timed = lambda spp: timed(lambda: tncg15(spp))                  # noqa: E731
         tncg15_timed(s1)                                           # warm-up
-        for spp in (s1, s2):
-            images[("tncg15", spp)], tnc[str(spp)] = tncg15_timed(spp)
+        runs = {spp: [] for spp in (s1, s2)}
+        for _ in range(args.repeats):
+            for spp in (s1, s2):
+                images[("tncg15", spp)], t = tncg15_timed(spp)
+                runs[spp].append(t)
+        tnc = {str(spp): median_timing(runs[spp]) for spp in (s1, s2)}
         row["tncg15"] = tnc
         if stats.get("photons"):
             row["notes"].append("photons on")
@@ -357,6 +381,9 @@ def build_parser():
     p.add_argument("--samples", nargs="+", default=[f"{r}={a},{b}" for r, (a, b) in DEFAULT_SAMPLES.items()],
                    help="RES=S1,S2 per resolution (others: the nearest one's, scaled by the pixel count)")
     p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--repeats", type=int, default=1,
+                   help="renders of each sample count per renderer (S1, S2 alternated); each clock's median "
+                        "is used (3: a single disturbed render no longer makes a row's slope)")
     p.add_argument("--tncg15-pool", choices=("workers", "in-process"), default="workers",
                    help="TNCG15 MC on F12's worker processes started ahead (default: what a user's F12 "
                         "gets, one process per thread) or in this process's threads (the GIL: about "
@@ -387,6 +414,7 @@ def main(argv=None):
                 cpu_count=os.cpu_count(), platform=platform.platform(), blender=bpy.app.version_string,
                 threads=args.threads, reference_samples=args.reference_samples, tncg15_pool=args.tncg15_pool,
                 samples={str(k): v for k, v in args.samples.items()}, resolutions=args.resolutions,
+                repeats=args.repeats,
                 efficiency_resolutions=args.efficiency_resolutions)
     log(header(meta))
     if args.references_only:

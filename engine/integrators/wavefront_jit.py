@@ -185,23 +185,32 @@ def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=N
 
 
 @jit
-def _scatter_tail(flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, side, beta_out):
-    """PathTracer.scatter after the BSDFs' samples (no Light Paths options, light passes, caustic
-    photons or Normal inputs): the paths' delta flag and ray kind, the side they leave on and
-    beta x value, 0 where a smooth-shaded direction lies on the wrong side of the geometric surface."""
-    for i in range(flags.shape[0]):
-        f = flags[i]
-        transmitted = (f & TRANSMISSION) != 0
+def _tail_at(i, flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, write):
+    """_scatter_tail's lines for path i: (side, the three beta x value); with `write`, its delta flag and ray
+    kind written too."""
+    f = flags[i]
+    transmitted = (f & TRANSMISSION) != 0
+    if write:
         prev_delta[i] = (f & DELTA) != 0
         kind = TRANSMISSION_RAY if transmitted else (DIFFUSE_RAY if (f & DIFFUSE) != 0 else GLOSSY_RAY)
         if (f & STRAIGHT) != 0 and ray_kind[i] == CAMERA_RAY:
             kind = CAMERA_RAY
         ray_kind[i] = kind
-        s = -1.0 if transmitted else 1.0
-        side[i] = s
-        wrong = smooth and (new_d[0, i] * ng[0, i] + new_d[1, i] * ng[1, i] + new_d[2, i] * ng[2, i]) * s <= 0.0
-        for c in range(3):
-            beta_out[c, i] = 0.0 if wrong else beta[c, i] * value[c, i]
+    s = -1.0 if transmitted else 1.0
+    wrong = smooth and (new_d[0, i] * ng[0, i] + new_d[1, i] * ng[1, i] + new_d[2, i] * ng[2, i]) * s <= 0.0
+    if wrong:
+        return s, 0.0, 0.0, 0.0
+    return s, beta[0, i] * value[0, i], beta[1, i] * value[1, i], beta[2, i] * value[2, i]
+
+
+@jit
+def _scatter_tail(flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, side, beta_out):
+    """PathTracer.scatter after the BSDFs' samples (no Light Paths options, light passes, caustic
+    photons or Normal inputs): the paths' delta flag and ray kind, the side they leave on and
+    beta x value, 0 where a smooth-shaded direction lies on the wrong side of the geometric surface."""
+    for i in range(flags.shape[0]):
+        side[i], beta_out[0, i], beta_out[1, i], beta_out[2, i] = _tail_at(
+            i, flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, True)
 
 
 def scatter_tail(flags, prev_delta, ray_kind, beta, value, new_d, ng):
@@ -258,25 +267,6 @@ def roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr
               np.ascontiguousarray(delta, np.bool_), np.ascontiguousarray(u, np.float64), int(max_depth),
               bool(final_rays), bool(russian_roulette), int(rr_start_depth), keep, beta_out)
     return keep, beta_out
-
-
-@jit
-def _tail_at(i, flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, write):
-    """_scatter_tail's lines for path i: (side, the three beta x value); with `write`, its delta flag and ray
-    kind written too."""
-    f = flags[i]
-    transmitted = (f & TRANSMISSION) != 0
-    if write:
-        prev_delta[i] = (f & DELTA) != 0
-        kind = TRANSMISSION_RAY if transmitted else (DIFFUSE_RAY if (f & DIFFUSE) != 0 else GLOSSY_RAY)
-        if (f & STRAIGHT) != 0 and ray_kind[i] == CAMERA_RAY:
-            kind = CAMERA_RAY
-        ray_kind[i] = kind
-    s = -1.0 if transmitted else 1.0
-    wrong = smooth and (new_d[0, i] * ng[0, i] + new_d[1, i] * ng[1, i] + new_d[2, i] * ng[2, i]) * s <= 0.0
-    if wrong:
-        return s, 0.0, 0.0, 0.0
-    return s, beta[0, i] * value[0, i], beta[1, i] * value[1, i], beta[2, i] * value[2, i]
 
 
 @jit

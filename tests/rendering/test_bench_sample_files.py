@@ -95,3 +95,18 @@ def test_samples_table_and_its_scaling():
     assert s1 < s2 <= 64
     with pytest.raises(Exception):
         bench.parse_samples(["96=64,16"])
+
+
+def test_repeated_timings_take_each_clocks_median():
+    bench = script()
+    quiet = [dict(wall=1.0, cpu=1.9), dict(wall=1.1, cpu=2.0)]
+    disturbed = dict(wall=4.0, cpu=2.1)                 # another process's burst: wall only
+    m = bench.median_timing(quiet + [disturbed])
+    assert m["wall"] == 1.1 and m["cpu"] == 2.0 and len(m["runs"]) == 3
+    # the mean (the control) follows the disturbed run; the slope of two medians does not
+    assert sum(r["wall"] for r in quiet + [disturbed]) / 3 > 2.0
+    assert bench.median_timing(quiet) == dict(wall=1.05, cpu=1.95, runs=quiet)
+    one = bench.median_timing([disturbed])
+    assert one == dict(wall=4.0, cpu=2.1)                # a single run: as before, no "runs"
+    with pytest.raises(ValueError):
+        bench.median_timing([])
