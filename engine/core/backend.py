@@ -75,16 +75,21 @@ _state = {"checked": False, "module": None, "error": None, "warming": None}
 _lock = threading.Lock()
 
 
+DIGEST_PREFIX = "twins-"         # the cache folders' names: this prefix and a digest of the sources
+
+
 def cache_root() -> str:
     """The per-user directory holding numba's caches, one folder per version of the twins' sources:
     $NUMBA_CACHE_DIR, else $XDG_CACHE_HOME or ~/.cache, then tncg15_mc/numba.  A process started
-    with NUMBA_CACHE_DIR already naming today's folder (a worker, the warm-up's Python) gets its parent."""
+    with NUMBA_CACHE_DIR already naming a twins folder (a worker, the warm-up's Python, or a child
+    running another checkout's sources: scripts/replay_embree.py --baseline) gets its parent, never a
+    cache nested inside another version's folder."""
     root = os.environ.get("NUMBA_CACHE_DIR")
     if not root:
         base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
         root = os.path.join(base, "tncg15_mc", "numba")
     root = os.path.normpath(root)
-    return os.path.dirname(root) if os.path.basename(root) == sources_digest() else root
+    return os.path.dirname(root) if os.path.basename(root).startswith(DIGEST_PREFIX) else root
 
 
 def cache_dir() -> str:
@@ -131,7 +136,7 @@ def sources_digest() -> str:
         for path in sorted(set(files)):
             with open(path, "rb") as fh:
                 digest.update(path.encode() + b"\0" + fh.read() + b"\0")
-        _state["digest"] = "twins-" + digest.hexdigest()[:16]
+        _state["digest"] = DIGEST_PREFIX + digest.hexdigest()[:16]
     return _state["digest"]
 
 
@@ -262,7 +267,7 @@ def prune_old_caches(days: float = PRUNE_AFTER_DAYS) -> list:
     root, cutoff, removed = cache_root(), time.time() - days * 86400.0, []
     for name in os.listdir(root):
         path = os.path.join(root, name)
-        if not name.startswith("twins-") or path == here or not os.path.isdir(path):
+        if not name.startswith(DIGEST_PREFIX) or path == here or not os.path.isdir(path):
             continue
         try:
             used = max([os.path.getmtime(path)] + [os.path.getmtime(os.path.join(path, f))

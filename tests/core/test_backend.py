@@ -52,6 +52,13 @@ def test_cache_dir_is_per_user(monkeypatch, tmp_path):
     assert backend.cache_dir() == str(tmp_path / "given" / digest)
     monkeypatch.setenv("NUMBA_CACHE_DIR", backend.cache_dir())           # a worker given the folder keeps it
     assert backend.cache_dir() == str(tmp_path / "given" / digest)
+    # a child running other sources (replay_embree --baseline's checkout) given this folder: a sibling,
+    # not a cache nested in this version's folder (which it would compile into, cold, every time)
+    other = backend.DIGEST_PREFIX + "0123456789abcdef"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "given" / other))
+    assert other != digest and backend.cache_dir() == str(tmp_path / "given" / digest)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "given" / "my-cache"))   # a user's own: kept
+    assert backend.cache_dir() == str(tmp_path / "given" / "my-cache" / digest)
 
 
 def test_cache_follows_the_sources_a_twin_calls(monkeypatch, tmp_path):
