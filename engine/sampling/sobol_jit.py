@@ -67,19 +67,26 @@ def _laine_karras(x, seed):
 def _permute(index, bits, key):
     if bits == 0:
         return 0
-    mask = (1 << bits) - 1
-    shift = max(1, (bits + 1) // 2)
-    x = index & mask
-    x = (x ^ key) & mask
-    x = (x * 0x2C1B3C6D) & mask
-    x ^= x >> shift
-    x = (x ^ (key >> 11)) & mask
-    x = (x * 0x297A2D39) & mask
-    x ^= x >> shift
-    x = (x ^ (key >> 22)) & mask
-    x = (x * 0x9E3779B9) & mask
-    x ^= x >> shift
-    return x
+    w = (1 << bits) - 1
+    i = index ^ key
+    i = (i * 0xE170893D) & M32
+    i ^= key >> 16
+    i ^= (i & w) >> 4
+    i ^= key >> 8
+    i = (i * 0x0929EB3F) & M32
+    i ^= key >> 23
+    i ^= (i & w) >> 1
+    i = (i * (1 | (key >> 27))) & M32
+    i = (i * 0x6935FA69) & M32
+    i ^= (i & w) >> 11
+    i = (i * 0x74DCB303) & M32
+    i ^= (i & w) >> 2
+    i = (i * 0x9E501CC3) & M32
+    i ^= (i & w) >> 2
+    i = (i * 0xC860A3DF) & M32
+    i &= w
+    i ^= i >> 5
+    return (i + key) & w
 
 
 @jit
@@ -139,18 +146,27 @@ def _laine_karras_u32(x, seed):
 
 
 @jit
-def _permute_u32(index, mask, shift, key):
-    """qmc.permute: with bits = 0 the mask 0 makes every step 0, as its zeros."""
-    x = _u32(index & mask)
-    x = _u32(_u32(x ^ key) & mask)
-    x = _u32(_u32(x * _u32(0x2C1B3C6D)) & mask)
-    x = _u32(x ^ _u32(x >> shift))
-    x = _u32(_u32(x ^ _u32(key >> _u32(11))) & mask)
-    x = _u32(_u32(x * _u32(0x297A2D39)) & mask)
-    x = _u32(x ^ _u32(x >> shift))
-    x = _u32(_u32(x ^ _u32(key >> _u32(22))) & mask)
-    x = _u32(_u32(x * _u32(0x9E3779B9)) & mask)
-    return _u32(x ^ _u32(x >> shift))
+def _permute_u32(index, w, key):
+    """qmc.permute: with bits = 0 the mask w = 0 gives its zeros."""
+    i = _u32(index ^ key)
+    i = _u32(i * _u32(0xE170893D))
+    i = _u32(i ^ _u32(key >> _u32(16)))
+    i = _u32(i ^ _u32(_u32(i & w) >> _u32(4)))
+    i = _u32(i ^ _u32(key >> _u32(8)))
+    i = _u32(i * _u32(0x0929EB3F))
+    i = _u32(i ^ _u32(key >> _u32(23)))
+    i = _u32(i ^ _u32(_u32(i & w) >> _u32(1)))
+    i = _u32(i * _u32(_u32(1) | _u32(key >> _u32(27))))
+    i = _u32(i * _u32(0x6935FA69))
+    i = _u32(i ^ _u32(_u32(i & w) >> _u32(11)))
+    i = _u32(i * _u32(0x74DCB303))
+    i = _u32(i ^ _u32(_u32(i & w) >> _u32(2)))
+    i = _u32(i * _u32(0x9E501CC3))
+    i = _u32(i ^ _u32(_u32(i & w) >> _u32(2)))
+    i = _u32(i * _u32(0xC860A3DF))
+    i = _u32(i & w)
+    i = _u32(i ^ _u32(i >> _u32(5)))
+    return _u32(_u32(i + key) & w)
 
 
 @jit
@@ -176,7 +192,7 @@ def _seeds(index, pixel, seed_table, dim):
 
 
 @jit
-def _points(seeds, idx, mask, shift):
+def _points(seeds, idx, mask):
     """The points of (pixel seed xor dimension hash, index) pairs, in uint32 arithmetic on contiguous
     arrays only: a loop LLVM vectorises (a kernel of its own: see the module's docstring)."""
     n = seeds.shape[0]
@@ -185,7 +201,7 @@ def _points(seeds, idx, mask, shift):
     salt0, salt1, salt2 = _u32(SALT0), _u32(SALT1), _u32(SALT2)
     for k in range(n):
         seed = _hash32_u32(seeds[k])
-        i = _permute_u32(idx[k], mask, shift, _hash32_u32(_u32(salt0 ^ seed)))
+        i = _permute_u32(idx[k], mask, _hash32_u32(_u32(salt0 ^ seed)))
         x_out[k] = np.float64(_reverse_bits_u32(_laine_karras_u32(i, _hash32_u32(_u32(salt1 ^ seed))))) * TO_UNIT
         y_out[k] = np.float64(_reverse_bits_u32(_laine_karras_u32(_dim1_reversed_u32(i),
                                                                   _hash32_u32(_u32(salt2 ^ seed))))) * TO_UNIT
@@ -197,20 +213,20 @@ def _int64(a):
     return a if a.dtype == np.int64 and a.flags.c_contiguous else np.ascontiguousarray(a, np.int64)
 
 
-_MASKS = {}     # count -> (mask, shift) of qmc.permute's bits, as uint32
+_MASKS = {}     # count -> the mask of qmc.permute's bits, as uint32
 
 
 def sample_2d_seeded(index, pixel, seed_table, dim, count: int = 1 << 16):
     """sample_2d(index, seed_table.take(pixel), dim, count) without the gather: each path's pixel seed
     and dimension hash are read inside the loop (qmc.SobolSampler.pair's compiled form)."""
-    bits_of = _MASKS.get(count)
-    if bits_of is None:
+    mask = _MASKS.get(count)
+    if mask is None:
         bits = max(int(count - 1).bit_length(), 0)
-        bits_of = _MASKS[count] = (np.uint32((1 << bits) - 1), np.uint32(max(1, (bits + 1) // 2)))
+        mask = _MASKS[count] = np.uint32((1 << bits) - 1)
     dim = _int64(dim)
     seeds, idx = _seeds(_int64(index).reshape(-1), _int64(pixel).reshape(-1), seed_table,
                         dim if dim.ndim == 1 else dim.reshape(-1))
-    return _points(seeds, idx, *bits_of)
+    return _points(seeds, idx, mask)
 
 
 def sample_2d(index, pixel_seed, dim, count: int = 1 << 16):

@@ -135,11 +135,9 @@ def test_a_denoiser_process_that_aborts_is_unavailable_not_fatal(tmp_path):
         process.close()
 
 
-@pytest.mark.slow
-def test_a_viewport_render_is_denoised_at_its_target():
-    """Viewport workers, the denoiser process and OIDN together: the converged view is shown
-    denoised (smoother than the render's own picture of the same samples)."""
-    pytest.importorskip("pyoidn", reason="pyoidn (requirements.txt) is not installed")
+def viewport_pictures(seed):
+    """(denoised, noisy) pictures of the built-in Cornell box at 8 samples in the viewport (rows bottom
+    first), through viewport workers, the denoiser process and OIDN together."""
     from engine.core.settings import RenderSettings
     from engine.pools.spec import make_pool
     from engine.pools.viewport import ViewportRender
@@ -148,7 +146,7 @@ def test_a_viewport_render_is_denoised_at_its_target():
     view = DenoisedView(render, lambda: DenoiserProcess(sys.executable))
     try:
         view.set_denoise(1)
-        view.set_scene(cornell_scene((40, 30)), RenderSettings(max_depth=3, seed=5, accelerator="embree"), 8)
+        view.set_scene(cornell_scene((40, 30)), RenderSettings(max_depth=3, seed=seed, accelerator="embree"), 8)
         deadline = time.perf_counter() + 120
         while time.perf_counter() < deadline and not (view.shown and view.shown[1] == 8):
             time.sleep(0.05)
@@ -158,11 +156,36 @@ def test_a_viewport_render_is_denoised_at_its_target():
         assert view.denoise_count <= 4, "1, 2, 4, 8 samples at most"
     finally:
         view.close()
+    return shown[..., :3], noisy[..., :3]
+
+
+# The denoised / noisy RMS error of one 8-sample view of 40 x 30 pixels spreads widely from seed to seed:
+# over 36 seeds (12 each with the Sobol' sampler's Kensler shuffle, its shuffle before, and the random
+# sampler; docs/performance.md "The index shuffle re-landed") it had mean 0.66-0.70 and standard deviation
+# 0.12-0.13 for every sampler, and one view's 0.70 bound failed 19 of the 36 (a coin flip).  Pooled over
+# SEEDS views (the root of the mean squared errors) the mean stays and the spread falls to 0.06: the
+# bound 0.90 is more than 3.5 standard deviations above every sampler's mean (a false failure about
+# once in 5000 runs), and a denoiser that removes less than a tenth of the error, or none, fails it.
+DENOISED_RMS_BOUND, SEEDS = 0.90, (5, 5 + (1 << 16), 5 + (2 << 16), 5 + (3 << 16))   # seeds 2^16 apart: no shared pixel seed
+
+
+@pytest.mark.slow
+def test_a_viewport_render_is_denoised_at_its_target():
+    """Viewport workers, the denoiser process and OIDN together: the converged view is shown
+    denoised (smoother than the render's own picture of the same samples), judged over SEEDS views
+    against a converged render of another seed (its samples none of the views')."""
+    pytest.importorskip("pyoidn", reason="pyoidn (requirements.txt) is not installed")
     from engine.api import render as render_image
-    settings = RenderSettings(max_depth=3, seed=5, accelerator="embree", samples=128)
+    from engine.core.settings import RenderSettings
+    from engine.scene.builtin import cornell_scene
+    settings = RenderSettings(max_depth=3, seed=1 << 30, accelerator="embree", samples=1024)
     ref = render_image(cornell_scene((40, 30)), settings, log=lambda *a: None).image[::-1]   # rows: bottom first
     ref = np.clip(ref, 0.0, 1.0)                     # as displayed: the lamp and fireflies do not dominate
-    err_shown = np.sqrt(np.mean((np.clip(shown[..., :3], 0.0, 1.0) - ref) ** 2))
-    err_noisy = np.sqrt(np.mean((np.clip(noisy[..., :3], 0.0, 1.0) - ref) ** 2))
-    print(f"viewport at 8 spp against 128 spp: RMS {err_noisy:.4f} noisy, {err_shown:.4f} denoised")
-    assert err_shown < 0.7 * err_noisy
+    sq_shown = sq_noisy = 0.0
+    for seed in SEEDS:
+        shown, noisy = viewport_pictures(seed)
+        sq_shown += np.mean((np.clip(shown, 0.0, 1.0) - ref) ** 2)
+        sq_noisy += np.mean((np.clip(noisy, 0.0, 1.0) - ref) ** 2)
+    err_shown, err_noisy = np.sqrt(sq_shown / len(SEEDS)), np.sqrt(sq_noisy / len(SEEDS))
+    print(f"viewport at 8 spp against 1024 spp, {len(SEEDS)} seeds: RMS {err_noisy:.4f} noisy, {err_shown:.4f} denoised")
+    assert err_shown < DENOISED_RMS_BOUND * err_noisy
