@@ -235,10 +235,11 @@ class TextureSet:
     def evaluate(self, slot: TextureSlot, u, v) -> np.ndarray:
         """Linear colour rows (3, N) of `slot` at texture coordinates (u, v), times its scale."""
         tex = self.loaded[slot.texture]
+        colour = (0, 3 if tex.pixels.shape[2] >= 3 else 1)          # the channels rgb keeps (no alpha)
         if tex.decode_after and slot.interpolation == "Closest":      # decode(texel): decoded once
-            return rgb(self.lookup(tex.decoded, u, v, "Closest", slot.extension)).T * \
+            return rgb(self.lookup(tex.decoded, u, v, "Closest", slot.extension, colour)).T * \
                 np.asarray(slot.scale, dtype=np.float64)[:, None]
-        value = rgb(self.lookup(tex.pixels, u, v, slot.interpolation, slot.extension))
+        value = rgb(self.lookup(tex.pixels, u, v, slot.interpolation, slot.extension, colour))
         if tex.decode_after:
             value = srgb_to_linear(value)
         return value.T * np.asarray(slot.scale, dtype=np.float64)[:, None]
@@ -484,7 +485,7 @@ class HitTextures:
         from ..nodes.evaluator import run
         if len(idx) != len(kind):
             kind, prim, b1, b2 = kind.take(idx), prim.take(idx), b1.take(idx), b2.take(idx)
-            points = None if points is None else points.take(idx)
+            points = None if points is None else points.taken(idx)
         ctx = self.attributes.context(kind, prim, b1, b2, points, self.textures.cycles_version, self.textures, TRIANGLE)
         return run(program, ctx)
 
