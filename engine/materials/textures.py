@@ -437,8 +437,10 @@ class HitTextures:
             self.light_b[tl[self.emitting]] = k                  # last one
             self.light_b[self.light_b == self.light_a] = -1
             self.barycentrics = Barycentrics(triangles[self.emitting])
-            # The compiled light_points (engine/materials/textures_jit.py) reads int64 materials.
+            # The compiled light_points (engine/materials/textures_jit.py) reads int64 materials and
+            # the corners (T, 3, 3) as float64.
             self.material_ids = np.ascontiguousarray(triangle_material, dtype=np.int64)
+            self.corners = np.ascontiguousarray(np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3))
 
     def _apply(self, values, slots, which, material, kind, prim, b1, b2, uv=None):
         """`values` with the hits of materials `which` flags read from their slot; `uv`: the (u, v)
@@ -608,14 +610,20 @@ class HitTextures:
         """Radiance rows of light samples: textured emitters evaluated at the sampled point."""
         if self.light_a is None:
             return radiance
-        uv = None
+        uv = points = None
         if self.textures.compiled is not None:        # the samples' triangles, barycentrics and UVs in one loop
-            sel, tri, material, b1, b2, u, v = self.textures.compiled.light_points(
+            programs = self.textures.has_program["emission"]
+            sel, tri, material, b1, b2, u, v, position = self.textures.compiled.light_points(
                 light, point, self.light_a, self.light_b, self.emitting, self.material_ids, self.barycentrics.terms,
-                self.tri_uv if self.has_emission.any() else None)
+                self.tri_uv if self.has_emission.any() else None, self.corners if programs.any() else None)
             if not len(sel):
                 return radiance
             uv = (u, v) if self.has_emission.any() else None
+            if position is not None and material.min() == material.max() and programs[material[0]]:
+                # One program at every sample: it runs on these arrays (no takes), so its positions
+                # may come from here (the numbers and layout of the context's own, engine/nodes/context.py).
+                from ..nodes.context import HitPoints
+                points = HitPoints(point=position)
         else:
             ok = light < len(self.light_a)
             a = np.where(ok, self.light_a.take(np.minimum(light, len(self.light_a) - 1)), -1)
@@ -638,7 +646,7 @@ class HitTextures:
         every = len(sel) == len(light)                  # every sample (sel is then 0 .. N-1)
         le = self._apply(radiance if every else radiance[:, sel], self.textures.emission, self.has_emission,
                          material, kind, tri, b1, b2, uv)
-        le = self._programs("emission", le, material, kind, tri, b1, b2, None, low=0.0)
+        le = self._programs("emission", le, material, kind, tri, b1, b2, points, low=0.0)
         if every:
             return np.asarray(le, dtype=np.float64)
         radiance = np.array(radiance, dtype=np.float64)

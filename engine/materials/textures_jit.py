@@ -112,9 +112,10 @@ def _bary(k, px, py, pz, v0, e1, e2, d11, d12, d22):
 
 @jit
 def _light_points(light, point, light_a, light_b, emitting, triangle_material, v0, e1, e2, d11, d12, d22,
-                  tri_uv, sel, tri, material, b1, b2, u, v):
+                  tri_uv, triangles, sel, tri, material, b1, b2, u, v, position):
     n_lights = light_a.shape[0]
     with_uv = u.shape[0] > 0
+    with_position = position.shape[0] > 0
     count = 0
     for i in range(light.shape[0]):
         lamp = light[i]
@@ -136,28 +137,38 @@ def _light_points(light, point, light_a, light_b, emitting, triangle_material, v
             c0 = (1.0 - c1) - c2
             u[count] = (c0 * tri_uv[0, t] + c1 * tri_uv[2, t]) + c2 * tri_uv[4, t]
             v[count] = (c0 * tri_uv[1, t] + c1 * tri_uv[3, t]) + c2 * tri_uv[5, t]
+        if with_position:                               # engine/nodes/context.py bary: b0 v0 + b1 v1 + b2 v2
+            c0 = (1.0 - c1) - c2
+            for x in range(3):
+                position[count, x] = (c0 * triangles[t, 0, x] + c1 * triangles[t, 1, x]) + c2 * triangles[t, 2, x]
         count += 1
     return count
 
 
-def light_points(light, point, light_a, light_b, emitting, triangle_material, terms, tri_uv=None):
+def light_points(light, point, light_a, light_b, emitting, triangle_material, terms, tri_uv=None, triangles=None):
     """(sel, tri, material, b1, b2, u, v) of the light samples (`light` (N,) light numbers, `point`
     rows (3, N)) that lie on a textured emitter: HitTextures.light_radiance's selection (light_a,
     light_b: the first and last of each light's triangles, numbers into `emitting`, -1 for none),
     the emitter's triangle each lies in (of a pair: the second where the first one's barycentrics
     fall outside it), its material, the barycentrics (b1, b2) there from textures.Barycentrics'
     `terms` (v0, e1, e2, d11, d12, d22), and with
-    `tri_uv` (rows (6, T)) interpolate_uv's (u, v) (else u and v are empty)."""
+    `tri_uv` (rows (6, T)) interpolate_uv's (u, v) (else u and v are empty); with `triangles` (T, 3, 3)
+    also the points' positions from the corners as engine/nodes/context.py's `bary` gives them (rows
+    (3, k) of a (k, 3) array, its layout), else None."""
     n = len(light)
     sel, tri, material = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.int64)
     b1, b2 = np.empty(n), np.empty(n)
     u, v = (np.empty(n), np.empty(n)) if tri_uv is not None else (np.empty(0), np.empty(0))
+    position = np.empty((n if triangles is not None else 0, 3))
     count = _light_points(np.ascontiguousarray(light, dtype=np.int64), np.ascontiguousarray(point, dtype=np.float64),
-                          light_a, light_b, emitting, triangle_material, *terms, np.zeros((6, 1)) if tri_uv is None else tri_uv,
-                          sel, tri, material, b1, b2, u, v)
+                          light_a, light_b, emitting, triangle_material, *terms,
+                          np.zeros((6, 1)) if tri_uv is None else tri_uv,
+                          np.zeros((1, 3, 3)) if triangles is None else triangles,
+                          sel, tri, material, b1, b2, u, v, position)
     if tri_uv is not None:
         u, v = u[:count], v[:count]
-    return sel[:count], tri[:count], material[:count], b1[:count], b2[:count], u, v
+    rows = position[:count].T if triangles is not None else None
+    return sel[:count], tri[:count], material[:count], b1[:count], b2[:count], u, v, rows
 
 
 def warm_up() -> None:
@@ -179,6 +190,7 @@ def _warm_light_points():
     terms = (rows, edges, edges.copy(), np.ones(2), np.zeros(2), np.ones(2))
     point = np.array([[0.75, 0.25], [0.25, 0.75], [0.0, 0.0]])
     one = np.zeros(1, np.int64)
-    for tri_uv in (None, np.ascontiguousarray(np.ones((6, 2)))):
+    corners = np.zeros((2, 3, 3))
+    for tri_uv, triangles in ((None, None), (np.ascontiguousarray(np.ones((6, 2))), corners)):
         light_points(np.zeros(2, np.int64), point, one, np.ones(1, np.int64), np.arange(2, dtype=np.int64),
-                     np.zeros(2, np.int64), terms, tri_uv)
+                     np.zeros(2, np.int64), terms, tri_uv, triangles)

@@ -22,10 +22,10 @@ def twin():
     return textures_jit
 
 
-def lamps(program: bool):
+def lamps(program: bool, alone: bool = False):
     """lamp_scene's image-textured lamp, beside it a lamp whose emission is a node program (its
     Generated coordinates x 12) or plain, and a plain lamp of another material (light numbers
-    without textured triangles)."""
+    without textured triangles); `alone`: the program's lamp only (one program at every sample)."""
     scene = lamp_scene(True)
     lamp = scene.meshes[0]
     mats = list(scene.materials)
@@ -38,7 +38,7 @@ def lamps(program: bool):
                                  material_ids=[2, 2], uvs=None)
     plain = dataclasses.replace(lamp, name="Plain lamp", vertices=lamp.vertices - np.array([0.0, 1.5, 0.0]),
                                 material_ids=[len(mats) - 1] * 2, uvs=None)
-    return dataclasses.replace(scene, materials=mats, meshes=[lamp, second, plain])
+    return dataclasses.replace(scene, materials=mats, meshes=[second] if alone else [lamp, second, plain])
 
 
 def recorded(scene):
@@ -73,9 +73,9 @@ def same(a, b) -> bool:
     return a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b, equal_nan=True)
 
 
-@pytest.mark.parametrize("program", [False, True])
-def test_recorded_light_samples_are_the_same(program):
-    calls = recorded(lamps(program))
+@pytest.mark.parametrize("program, alone", [(False, False), (True, False), (True, True)])
+def test_recorded_light_samples_are_the_same(program, alone):
+    calls = recorded(lamps(program, alone))
     assert sum(len(c[2]) for c in calls) > 100
     textured = 0
     for textures, radiance, light, point in calls:
@@ -111,10 +111,16 @@ def test_hand_made_points_are_the_same():
         reference, compiled = both(textures, radiance, light, point)
     assert same(reference, compiled)
     jit = twin()
-    sel, tri, material, b1, b2, u, v = jit.light_points(light, point, textures.light_a, textures.light_b,
-                                                        textures.emitting, textures.material_ids,
-                                                        textures.barycentrics.terms, textures.tri_uv)
+    sel, tri, material, b1, b2, u, v, rows = jit.light_points(light, point, textures.light_a, textures.light_b,
+                                                              textures.emitting, textures.material_ids,
+                                                              textures.barycentrics.terms, textures.tri_uv,
+                                                              textures.corners)
     assert len(sel) < len(light) and (tri == textures.emitting[1]).any() and (tri == textures.emitting[0]).any()
+    # the positions: the numbers and the layout of the node context's own at these points
+    from engine.geometry.scene_geometry import TRIANGLE
+    ctx = textures.attributes.context(np.full(len(sel), TRIANGLE, np.int8), tri, b1, b2, None, (5, 0), None, TRIANGLE)
+    position = ctx.attr("position")
+    assert same(rows, position) and rows.strides == position.strides
 
 
 def test_control_an_ulp_is_seen():
@@ -123,7 +129,7 @@ def test_control_an_ulp_is_seen():
     jit = twin()
     args = (textures.light_a, textures.light_b, textures.emitting, textures.material_ids, textures.barycentrics.terms,
             textures.tri_uv)
-    _, _, _, b1, b2, u, _ = jit.light_points(light, point, *args)
-    _, _, _, c1, c2, w, _ = jit.light_points(light, np.nextafter(point, np.inf), *args)
+    _, _, _, b1, b2, u, _, p = jit.light_points(light, point, *args, textures.corners)
+    _, _, _, c1, c2, w, _, q = jit.light_points(light, np.nextafter(point, np.inf), *args, textures.corners)
     assert not same(b1, c1) or not same(b2, c2)
-    assert not same(u, w)
+    assert not same(u, w) and not same(p, q)
