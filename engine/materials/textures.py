@@ -235,10 +235,11 @@ class TextureSet:
     def evaluate(self, slot: TextureSlot, u, v) -> np.ndarray:
         """Linear colour rows (3, N) of `slot` at texture coordinates (u, v), times its scale."""
         tex = self.loaded[slot.texture]
+        colour = (0, 3 if tex.pixels.shape[2] >= 3 else 1)          # the channels rgb keeps (no alpha)
         if tex.decode_after and slot.interpolation == "Closest":      # decode(texel): decoded once
-            return rgb(self.lookup(tex.decoded, u, v, "Closest", slot.extension)).T * \
+            return rgb(self.lookup(tex.decoded, u, v, "Closest", slot.extension, colour)).T * \
                 np.asarray(slot.scale, dtype=np.float64)[:, None]
-        value = rgb(self.lookup(tex.pixels, u, v, slot.interpolation, slot.extension))
+        value = rgb(self.lookup(tex.pixels, u, v, slot.interpolation, slot.extension, colour))
         if tex.decode_after:
             value = srgb_to_linear(value)
         return value.T * np.asarray(slot.scale, dtype=np.float64)[:, None]
@@ -286,6 +287,16 @@ def picked(values, positions):
     return values if positions is None else values.take(positions, axis=-1)
 
 
+def whole(values, new):
+    """A float64 copy of `values` with every value written from `new`: `new` itself when it is a new
+    float64 array of that shape (the same numbers), else the copy."""
+    if new.dtype == np.float64 and new.shape == np.shape(values):
+        return new
+    out = np.array(values, dtype=np.float64)
+    out[...] = new
+    return out
+
+
 def interpolate_uv(tri_uv, prim, b1, b2):
     """(u, v) at barycentrics (b1, b2) of vertices 1 and 2 of triangles `prim` (Embree's u, v);
     tri_uv: corner UVs (T, 3, 2), or as rows (6, T) (u0 v0 u1 v1 u2 v2, faster to gather)."""
@@ -305,6 +316,11 @@ class Barycentrics:
         inv = 1.0 / np.maximum(d11 * d22 - d12 * d12, 1e-300)
         self.v0, self.e1, self.e2 = tri[:, 0].T.copy(), e1.T.copy(), e2.T.copy()      # rows (3, K)
         self.d11, self.d12, self.d22 = d11 * inv, d12 * inv, d22 * inv
+
+    @property
+    def terms(self):
+        """(v0, e1, e2, d11, d12, d22): the per-triangle terms (engine/materials/textures_jit.py light_points)."""
+        return self.v0, self.e1, self.e2, self.d11, self.d12, self.d22
 
     def __call__(self, k, point):
         """(b1, b2) of points (rows (3, N)) in triangles k (N,) of the set."""
@@ -421,16 +437,28 @@ class HitTextures:
             self.light_b[tl[self.emitting]] = k                  # last one
             self.light_b[self.light_b == self.light_a] = -1
             self.barycentrics = Barycentrics(triangles[self.emitting])
+            # The compiled light_points (engine/materials/textures_jit.py) reads int64 materials and
+            # the corners (T, 3, 3) as float64.
+            self.material_ids = np.ascontiguousarray(triangle_material, dtype=np.int64)
+            self.corners = np.ascontiguousarray(np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3))
 
-    def _apply(self, values, slots, which, material, kind, prim, b1, b2):
+    def _apply(self, values, slots, which, material, kind, prim, b1, b2, uv=None):
+        """`values` with the hits of materials `which` flags read from their slot; `uv`: the (u, v)
+        of every hit when known (interpolate_uv's numbers)."""
         from ..geometry.scene_geometry import TRIANGLE
         sel = np.flatnonzero(which.take(material) & (kind == TRIANGLE))
         if not len(sel):
             return values
-        values = np.array(values, dtype=np.float64)
         mat = material.take(sel)
-        u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
-        for m, mine in by_material(mat):
+        if uv is not None:
+            u, v = uv if len(sel) == len(kind) else (uv[0].take(sel), uv[1].take(sel))
+        else:
+            u, v = interpolate_uv(self.tri_uv, prim.take(sel), b1.take(sel), b2.take(sel))
+        groups = by_material(mat)
+        if len(sel) == len(kind) and len(groups) == 1:          # one slot at every hit: its values
+            return whole(values, self.textures.evaluate(slots[groups[0][0]], u, v))
+        values = np.array(values, dtype=np.float64)
+        for m, mine in groups:
             values[:, picked(sel, mine)] = self.textures.evaluate(slots[m], picked(u, mine), picked(v, mine))
         return values
 
@@ -453,12 +481,14 @@ class HitTextures:
 
     # -- node programs (engine/nodes/evaluator.py) -----------------------------------------------
     def run_program(self, program, kind, prim, b1, b2, points, idx):
-        """A program's value at the hits idx of these arrays."""
+        """A program's value at the hits idx (ascending) of these arrays: all of them when idx has
+        their length (the arrays themselves, no takes)."""
         from ..geometry.scene_geometry import TRIANGLE
         from ..nodes.evaluator import run
-        ctx = self.attributes.context(kind.take(idx), prim.take(idx), b1.take(idx), b2.take(idx),
-                                      None if points is None else points.take(idx), self.textures.cycles_version,
-                                      self.textures, TRIANGLE)
+        if len(idx) != len(kind):
+            kind, prim, b1, b2 = kind.take(idx), prim.take(idx), b1.take(idx), b2.take(idx)
+            points = None if points is None else points.taken(idx)
+        ctx = self.attributes.context(kind, prim, b1, b2, points, self.textures.cycles_version, self.textures, TRIANGLE)
         return run(program, ctx)
 
     def _programs(self, role, values, material, kind, prim, b1, b2, points, low=None):
@@ -471,10 +501,14 @@ class HitTextures:
             sel = sel[kind.take(sel) == TRIANGLE]
         if not len(sel):
             return values
-        values = np.array(values, dtype=np.float64)
         mat = material.take(sel)
         programs = self.textures.programs[role]
-        for m, mine in by_material(mat):
+        groups = by_material(mat)
+        if len(sel) == len(kind) and len(groups) == 1 and low is not None:    # one program at every hit
+            return whole(values, np.maximum(self.run_program(programs[groups[0][0]], kind, prim, b1, b2, points, sel),
+                                            low))
+        values = np.array(values, dtype=np.float64)
+        for m, mine in groups:
             idx = picked(sel, mine)
             out = self.run_program(programs[m], kind, prim, b1, b2, points, idx)
             values[..., idx] = out if low is None else np.maximum(out, low)
@@ -576,24 +610,45 @@ class HitTextures:
         """Radiance rows of light samples: textured emitters evaluated at the sampled point."""
         if self.light_a is None:
             return radiance
-        ok = light < len(self.light_a)
-        a = np.where(ok, self.light_a.take(np.minimum(light, len(self.light_a) - 1)), -1)
-        sel = np.flatnonzero(a >= 0)
-        if not len(sel):
-            return radiance
-        a = a.take(sel)
-        b = self.light_b.take(light.take(sel))
-        p = point if len(sel) == point.shape[1] else point.take(sel, axis=1)
-        b1, b2 = self.barycentrics(a, p)
-        other = (b >= 0) & ((b1 < 0) | (b2 < 0) | (b1 + b2 > 1))    # the pair's second triangle
-        k = np.where(other, b, a)
-        if other.any():
-            o = np.flatnonzero(other)
-            b1[o], b2[o] = self.barycentrics(k.take(o), p.take(o, axis=1))
-        tri = self.emitting.take(k)
-        material = self.triangle_material.take(tri)
+        uv = points = None
+        if self.textures.compiled is not None:        # the samples' triangles, barycentrics and UVs in one loop
+            programs = self.textures.has_program["emission"]
+            sel, tri, material, b1, b2, u, v, position = self.textures.compiled.light_points(
+                light, point, self.light_a, self.light_b, self.emitting, self.material_ids, self.barycentrics.terms,
+                self.tri_uv if self.has_emission.any() else None, self.corners if programs.any() else None)
+            if not len(sel):
+                return radiance
+            uv = (u, v) if self.has_emission.any() else None
+            if position is not None and material.min() == material.max() and programs[material[0]]:
+                # One program at every sample: it runs on these arrays (no takes), so its positions
+                # may come from here (the numbers and layout of the context's own, engine/nodes/context.py).
+                from ..nodes.context import HitPoints
+                points = HitPoints(point=position)
+        else:
+            ok = light < len(self.light_a)
+            a = np.where(ok, self.light_a.take(np.minimum(light, len(self.light_a) - 1)), -1)
+            sel = np.flatnonzero(a >= 0)
+            if not len(sel):
+                return radiance
+            a = a.take(sel)
+            b = self.light_b.take(light.take(sel))
+            p = point if len(sel) == point.shape[1] else point.take(sel, axis=1)
+            b1, b2 = self.barycentrics(a, p)
+            other = (b >= 0) & ((b1 < 0) | (b2 < 0) | (b1 + b2 > 1))    # the pair's second triangle
+            k = np.where(other, b, a)
+            if other.any():
+                o = np.flatnonzero(other)
+                b1[o], b2[o] = self.barycentrics(k.take(o), p.take(o, axis=1))
+            tri = self.emitting.take(k)
+            material = self.triangle_material.take(tri)
         from ..geometry.scene_geometry import TRIANGLE
-        le = self.emission(radiance[:, sel], material, np.full(len(sel), TRIANGLE, np.int8), tri, b1, b2)
+        kind = np.full(len(sel), TRIANGLE, np.int8)
+        every = len(sel) == len(light)                  # every sample (sel is then 0 .. N-1)
+        le = self._apply(radiance if every else radiance[:, sel], self.textures.emission, self.has_emission,
+                         material, kind, tri, b1, b2, uv)
+        le = self._programs("emission", le, material, kind, tri, b1, b2, points, low=0.0)
+        if every:
+            return np.asarray(le, dtype=np.float64)
         radiance = np.array(radiance, dtype=np.float64)
         radiance[:, sel] = le
         return radiance

@@ -154,6 +154,33 @@ class HitPoints:
     def take(self, index) -> "HitPoints":
         return self._map(lambda a: a.take(index, axis=a.ndim - 1))
 
+    def taken(self, index) -> "HitPoints":
+        """take(index) with each field taken when it is first read (a program reads few of them); for a
+        context used at once: the fields read later are taken from the arrays as they are then."""
+        return _Taken(self, index)
+
+    def given(self, name: str) -> bool:
+        """Whether field `name` is given (not None), without taking it."""
+        return getattr(self, name) is not None
+
+
+class _Taken(HitPoints):
+    """HitPoints.taken: the fields of `source` at `index`, each taken on first use."""
+
+    def __init__(self, source: HitPoints, index):       # no fields set: __getattr__ takes them
+        self._source, self._index = source, index
+
+    def __getattr__(self, name):
+        if name not in HitPoints.FIELDS:
+            raise AttributeError(name)
+        a = getattr(self._source, name)
+        value = None if a is None else a.take(self._index, axis=a.ndim - 1)
+        setattr(self, name, value)
+        return value
+
+    def given(self, name: str) -> bool:
+        return self._source.given(name)
+
 
 def object_points(m, points) -> np.ndarray:
     """m (k or 1, 3, 4) world-to-object matrices, points rows (3, k) -> the object-space rows: the
@@ -368,11 +395,11 @@ class SceneAttributes:
                  "backfacing": lambda: (ctx.attr("_towards") < 0.0).astype(np.float64),
                  "object_location": lambda: on_triangles(self.location[obj].T),
                  "object_random": lambda: on_triangles(self.random[obj])}
-        attrs["ray_kind"], attrs["ray_depth"] = np.full(n, SHADOW_RAY), np.zeros(n)   # light samples
+        attrs["ray_kind"], attrs["ray_depth"] = lambda: np.full(n, SHADOW_RAY), lambda: np.zeros(n)   # light samples
         if points is not None:
             for name, field in (("ray_depth", "depth"), ("ray_kind", "ray_kind"), ("ray_length", "distance")):
-                if getattr(points, field) is not None:
-                    attrs[name] = getattr(points, field)
+                if points.given(field):
+                    attrs[name] = (lambda field=field: getattr(points, field))
         for name, rows in self.colors.items():
             attrs[f"color:{name}"] = (lambda rows=rows: on_triangles(bary(rows)))
         def tangent_sign():
