@@ -24,6 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..core.backend import NUMBA
 from ..core.vec import dot
 from ..scene.model import FRESNEL, LAYER_WEIGHT, PROGRAM, TEXTURE
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
@@ -33,6 +34,7 @@ ALBEDO_FLOOR = 0.05             # a leaf's albedo estimate is at least this (bla
 # Cycles' colour-to-float conversion (linear_rgb_to_gray): luminance of linear Rec.709 (rgb_to_y).
 LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])
 DEAD = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION     # the flags of a hit whose weights are all 0
+U_MAX = 1.0 - 1e-12             # the largest uniform the pick passes on
 READ = (FRESNEL, LAYER_WEIGHT, TEXTURE, PROGRAM)   # factors read at the hits (the other kind: constants)
 
 
@@ -150,6 +152,16 @@ class MixBSDF(BSDF):
     def __init__(self, materials, settings):
         self.materials = materials
         self.closures = {}
+        self.compiled = None
+
+    def use_backend(self, backends: dict) -> None:
+        """The pairs' pick and sums compiled (engine/materials/mix_jit.py, the same numbers) when the
+        render runs the mix on numba; the leaves are the material table's rows (their own choice)."""
+        if backends.get("mix") == NUMBA:
+            from . import mix_jit
+            self.compiled = mix_jit
+        else:
+            self.compiled = None
 
     def bind(self, table, leaf_ids) -> None:
         """Take the leaves' rows from the material table (engine/materials/table.py) and the leaf
@@ -227,9 +239,29 @@ class MixBSDF(BSDF):
         count = np.bincount(hit, minlength=len(si))
         return hit, row, weight, prob, total, leaves, np.cumsum(count) - count, count
 
-    def _sum(self, hit, rows_of_pairs, n):
-        """Per-hit sums of (3, P) rows."""
-        return np.stack([np.bincount(hit, weights=r, minlength=n) for r in rows_of_pairs])
+    def _sums(self, hit, f_cos, weight, pdf, prob, n):
+        """Per-hit sums over the pairs (hit (P,)) of f_cos x weight (3, n) and of pdf x prob (n,)."""
+        if self.compiled is not None:                       # mix_jit.sums: the same sums in the same order
+            return self.compiled.sums(hit, f_cos, weight, pdf, prob, n)
+        f_sum = np.stack([np.bincount(hit, weights=r, minlength=n) for r in f_cos * weight])
+        return f_sum, np.bincount(hit, weights=pdf * prob, minlength=n)
+
+    def _pick(self, hit, prob, total, u_lobe):
+        """One pair per hit by u_lobe over its pairs' probabilities (hit-major: the pairs of a hit
+        follow each other), u_lobe rescaled for the leaf: (chosen pair, its probability p_c, the
+        leaf's uniform) (N,) each."""
+        if self.compiled is not None:                       # mix_jit.pick: the same numbers
+            return self.compiled.pick(hit, prob, total, u_lobe, U_MAX)
+        start = np.searchsorted(hit, np.arange(len(total)))
+        stop = np.append(start[1:], len(hit))
+        cum = np.cumsum(prob)
+        base = cum.take(np.minimum(start, len(hit) - 1)) - prob.take(np.minimum(start, len(hit) - 1))
+        target = base + np.minimum(u_lobe, U_MAX) * np.where(total > 0.0, 1.0, 0.0)
+        chosen = np.clip(np.searchsorted(cum, target, side="right"), start, stop - 1)
+        p_c = prob.take(chosen)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u_leaf = np.clip((target - (cum.take(chosen) - p_c)) / p_c, 0.0, U_MAX)
+        return chosen, p_c, np.where(p_c > 0.0, u_leaf, 0.0)
 
     def _eval_pairs(self, row, leaves, wi_pairs, only=None):
         """(f cos (3, P), pdf (P,)) of the leaves at wi (per pair); `only`: the pairs to evaluate,
@@ -250,7 +282,7 @@ class MixBSDF(BSDF):
         n = len(si)
         hit, row, weight, prob, _, leaves = self._pairs_at(si)
         f_cos, pdf = self._eval_pairs(row, leaves, wi.take(hit, axis=1))
-        return self._sum(hit, f_cos * weight, n), np.bincount(hit, weights=pdf * prob, minlength=n)
+        return self._sums(hit, f_cos, weight, pdf, prob, n)
 
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         return self.eval(si, wi)[1]
@@ -258,17 +290,7 @@ class MixBSDF(BSDF):
     def sample(self, si: ShadingPoint, u_lobe: np.ndarray, u) -> BSDFSample:
         n = len(si)
         hit, row, weight, prob, total, leaves = self._pairs_at(si)
-        # Pick one pair per hit by u_lobe over its probabilities; u_lobe rescaled for the leaf.
-        start = np.searchsorted(hit, np.arange(n))
-        stop = np.append(start[1:], len(hit))
-        cum = np.cumsum(prob)
-        base = cum.take(np.minimum(start, len(hit) - 1)) - prob.take(np.minimum(start, len(hit) - 1))
-        target = base + np.minimum(u_lobe, 1.0 - 1e-12) * np.where(total > 0.0, 1.0, 0.0)
-        chosen = np.clip(np.searchsorted(cum, target, side="right"), start, stop - 1)
-        p_c = prob.take(chosen)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u_leaf = np.clip((target - (cum.take(chosen) - p_c)) / p_c, 0.0, 1.0 - 1e-12)
-        u_leaf = np.where(p_c > 0.0, u_leaf, 0.0)
+        chosen, p_c, u_leaf = self._pick(hit, prob, total, u_lobe)
         wi, value = np.zeros((3, n)), np.zeros((3, n))
         pdf, flags = np.zeros(n), np.full(n, DEAD, dtype=np.int8)
         wi[:] = si.n
@@ -303,8 +325,8 @@ class MixBSDF(BSDF):
             pairs = np.flatnonzero(of.take(hit))            # every pair of those hits: their sums whole
             at = hit.take(pairs)
             f_cos, p = self._eval_pairs(row, leaves, wi.take(at, axis=1), only=pairs)
-            f_sum = self._sum(at, f_cos * weight.take(pairs), n).take(spread, axis=1)
-            p_sum = np.bincount(at, weights=p * prob.take(pairs), minlength=n).take(spread)
+            f_sum, p_sum = self._sums(at, f_cos, weight.take(pairs), p, prob.take(pairs), n)
+            f_sum, p_sum = f_sum.take(spread, axis=1), p_sum.take(spread)
             with np.errstate(divide="ignore", invalid="ignore"):
                 value[:, spread] = np.where(p_sum > 0.0, f_sum / p_sum, 0.0)
             pdf[spread] = p_sum
