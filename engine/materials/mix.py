@@ -110,7 +110,9 @@ class _Leaves:
     reads its memo), and each pair's place in it (`slot`).  A leaf BSDF's per-hit values (frames,
     alphas, compensation: its ShadingPoint.memo) are then computed once per bounce for the light
     samples' eval, the sample and the sample's mixture eval, not once per call.  `media`: the pairs'
-    medium stacks as they were when the call began (a leaf's sample updates the paths' own), or None."""
+    medium stacks as they were when the call began (a leaf's sample updates the paths' own), or None;
+    a leaf's memo reads the stacks `rows[r]` was made with (the bounce's first call: before any of its
+    leaves crossed a surface, as the calls' own stacks are for every pair they evaluate)."""
 
     def __init__(self, rows, slot, media=None):
         self.rows, self.slot, self.media = rows, slot, media
