@@ -57,6 +57,7 @@ JIT_MODULES = {
     "materials.dielectric_jit": ("rough_glass", "refraction", "filter_glossy", "principled", "mix"),
     "materials.principled_jit": ("principled", "mix"),
     "materials.principled_v1_jit": ("principled", "mix"),
+    "materials.mix_jit": ("mix",),
     "lights.parallelograms_jit": ("emission",),
     "geometry.hits_jit": ("wavefront",),
     "geometry.accel.embree_jit": ("wavefront",),

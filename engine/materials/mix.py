@@ -20,8 +20,11 @@ knows none by name.  A glass leaf crosses the path's medium stack as a glass sur
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from ..core.backend import NUMBA
 from ..core.vec import dot
 from ..scene.model import FRESNEL, LAYER_WEIGHT, PROGRAM, TEXTURE
 from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
@@ -31,6 +34,8 @@ ALBEDO_FLOOR = 0.05             # a leaf's albedo estimate is at least this (bla
 # Cycles' colour-to-float conversion (linear_rgb_to_gray): luminance of linear Rec.709 (rgb_to_y).
 LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])
 DEAD = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION     # the flags of a hit whose weights are all 0
+U_MAX = 1.0 - 1e-12             # the largest uniform the pick passes on
+READ = (FRESNEL, LAYER_WEIGHT, TEXTURE, PROGRAM)   # factors read at the hits (the other kind: constants)
 
 
 
@@ -44,6 +49,14 @@ def _ids_in(ids: np.ndarray) -> np.ndarray:
 def factor_value(factor, si: ShadingPoint) -> np.ndarray:
     """The factor (engine/scene/model.py MixFactor) at the hits `si`, clamped to [0, 1] as a Mix
     Shader's Fac (constants: as given), inverted for a Mix Shader's first input."""
+    if factor.kind not in READ:
+        return np.full(len(si), factor.constant())
+    f = _factor_input(factor, si)
+    return 1.0 - f if factor.invert else f
+
+
+def _factor_input(factor, si: ShadingPoint) -> np.ndarray:
+    """A factor read at the hits (not a constant), clamped to [0, 1], before its invert."""
     n = len(si)
     if factor.kind == FRESNEL or factor.kind == LAYER_WEIGHT:
         cos = dot(si.wo, si.n)                               # Cycles: dot(sd->wi, N), N the shading normal
@@ -67,10 +80,71 @@ def factor_value(factor, si: ShadingPoint) -> np.ndarray:
             f = si.lookup.factor(factor.texture, factor.value)
     elif factor.kind == PROGRAM:                             # a node program (engine/nodes/evaluator.py)
         f = np.full(n, float(factor.value)) if si.lookup is None else si.lookup.program(factor.program)
-    else:
-        return np.full(n, factor.constant())
-    f = np.clip(f, 0.0, 1.0)
-    return 1.0 - f if factor.invert else f
+    return np.clip(f, 0.0, 1.0)
+
+
+def _same_input(a, b) -> bool:
+    """Whether factors a and b read the same value (they may differ in `invert` alone: the two
+    leaves of a Mix Shader, Fac and 1 - Fac)."""
+    return a.kind in READ and replace(a, invert=b.invert) == b
+
+
+def _first_readers(leaves) -> list:
+    """For each leaf, for each of its factors the first factor of the material's leaves that reads
+    the same value (itself if none before it does): `_pairs` reads each value once."""
+    seen, firsts = [], []
+    for leaf in leaves:
+        mine = []
+        for factor in leaf.factors:
+            first = next((known for known in seen if _same_input(known, factor)), None)
+            if first is None:
+                seen.append(factor)
+            mine.append(factor if first is None else first)
+        firsts.append(mine)
+    return firsts
+
+
+class _Leaves:
+    """The leaves of some (hit, leaf) pairs by table row: for row r a ShadingPoint of every pair of
+    a span with that row (`rows[r]`, a span's view for engine/materials/protocol.py: a take of it
+    reads its memo), and each pair's place in it (`slot`).  A leaf BSDF's per-hit values (frames,
+    alphas, compensation: its ShadingPoint.memo) are then computed once per bounce for the light
+    samples' eval, the sample and the sample's mixture eval, not once per call.  `media`: the pairs'
+    medium stacks as they were when the call began (a leaf's sample updates the paths' own), or None;
+    a leaf's memo reads the stacks `rows[r]` was made with (the bounce's first call: before any of its
+    leaves crossed a surface, as the calls' own stacks are for every pair they evaluate)."""
+
+    def __init__(self, rows, slot, media=None):
+        self.rows, self.slot, self.media = rows, slot, media
+
+    @classmethod
+    def of(cls, si: ShadingPoint, hit, row, leaf, color):
+        """The pairs (hit, row, leaf material, leaf colour) of the hits `si` (without `media`)."""
+        rows, slot = {}, np.empty(len(hit), dtype=np.int64)
+        for r in _ids_in(row):
+            sel = np.flatnonzero(row == r)
+            slot[sel] = np.arange(len(sel))
+            view = si.take(hit.take(sel))
+            view.color, view.material = color.take(sel, axis=1), leaf.take(sel)   # a ShadingPoint of its own
+            object.__setattr__(view, "_shared", True)                           # ... whose takes read its memo
+            rows[int(r)] = view
+        return cls(rows, slot)
+
+    def take(self, pairs, hit: np.ndarray, media) -> "_Leaves":
+        """The pairs `pairs` of these (None: all), now at the hits `hit` (per pair) of the medium
+        stacks `media` (or None): their stacks copied from those now, as a take of the hits would."""
+        stacks = None if media is None else type(media)(media.media.take(hit, axis=0), media.depth.take(hit))
+        return _Leaves(self.rows, self.slot if pairs is None else self.slot.take(pairs), stacks)
+
+    def at(self, r: int, pairs: np.ndarray, media=None) -> ShadingPoint:
+        """The row-r leaves of pairs `pairs` (all of row r), with the medium stacks `media` (default:
+        these pairs' own), set without starting the take's memo afresh (ShadingPoint.__setattr__)."""
+        view = self.rows[r].take(self.slot.take(pairs))
+        if media is None and self.media is not None:
+            media = type(self.media)(self.media.media.take(pairs, axis=0), self.media.depth.take(pairs))
+        if media is not None:
+            object.__setattr__(view, "media", media)
+        return view
 
 
 class MixBSDF(BSDF):
@@ -80,6 +154,16 @@ class MixBSDF(BSDF):
     def __init__(self, materials, settings):
         self.materials = materials
         self.closures = {}
+        self.compiled = None
+
+    def use_backend(self, backends: dict) -> None:
+        """The pairs' pick and sums compiled (engine/materials/mix_jit.py, the same numbers) when the
+        render runs the mix on numba; the leaves are the material table's rows (their own choice)."""
+        if backends.get("mix") == NUMBA:
+            from . import mix_jit
+            self.compiled = mix_jit
+        else:
+            self.compiled = None
 
     def bind(self, table, leaf_ids) -> None:
         """Take the leaves' rows from the material table (engine/materials/table.py) and the leaf
@@ -90,24 +174,31 @@ class MixBSDF(BSDF):
             if not ids:
                 continue
             leaves = self.materials[m].mix.leaves
-            self.closures[m] = [(leaf_id, int(table.kind[leaf_id]), leaf.factors)
-                                for leaf_id, leaf in zip(ids, leaves)]
-            for leaf_id, row, _ in self.closures[m]:
+            self.closures[m] = [(leaf_id, int(table.kind[leaf_id]), leaf.factors, firsts)
+                                for leaf_id, leaf, firsts in zip(ids, leaves, _first_readers(leaves))]
+            for leaf_id, row, _, _ in self.closures[m]:
                 flags |= table.bsdfs[row].flags
         self.flags = flags
 
     # -- the closures at some hits ----------------------------------------------------------------
     def _pairs(self, si: ShadingPoint):
         """Every (hit, leaf) pair of the hits, hit-major: (hit (P,), row (P,), weight (P,),
-        probability (P,), total weight x albedo per hit (N,), the leaves as ShadingPoint of the pairs)."""
+        probability (P,), total weight x albedo per hit (N,), the leaves of the pairs (_Leaves))."""
         hit, leaf, row, weight = [], [], [], []
         for m in _ids_in(si.material):
             idx = np.flatnonzero(si.material == m)
             at = si.take(idx) if len(idx) != len(si) else si
-            for leaf_id, r, factors in self.closures[int(m)]:
+            read = {}                                   # a factor's value, once for the leaves that share it
+            for leaf_id, r, factors, firsts in self.closures[int(m)]:
                 w = np.ones(len(idx))
-                for factor in factors:
-                    w = w * factor_value(factor, at)
+                for factor, first in zip(factors, firsts):
+                    if factor.kind not in READ:
+                        w = w * np.full(len(idx), factor.constant())
+                        continue
+                    if id(first) not in read:
+                        read[id(first)] = _factor_input(first, at)
+                    f = read[id(first)]
+                    w = w * (1.0 - f if factor.invert else f)
                 hit.append(idx)
                 leaf.append(np.full(len(idx), leaf_id))
                 row.append(np.full(len(idx), r))
@@ -115,11 +206,10 @@ class MixBSDF(BSDF):
         hit, leaf, row, weight = (np.concatenate(a) for a in (hit, leaf, row, weight))
         order = np.argsort(hit, kind="stable")
         hit, leaf, row, weight = hit[order], leaf[order], row[order], weight[order]
-        leaves = si.take(hit)
         color = self.table.color.take(leaf, axis=1)
         if si.lookup is not None:
-            color = leaves.lookup.color(color, leaf)
-        leaves.color, leaves.material = color, leaf
+            color = si.lookup.take(hit).color(color, leaf)
+        leaves = _Leaves.of(si, hit, row, leaf, color)
         rate = weight * np.maximum(color.mean(axis=0), ALBEDO_FLOOR)
         total = np.bincount(hit, weights=rate, minlength=len(si))
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -133,17 +223,16 @@ class MixBSDF(BSDF):
         the same.  The leaves' medium stacks are copied from si's now, as a take of si would.  Hits of
         no span (tests, which may set a field of them between calls) compute their own each time."""
         if not (si._shared or si._source is not None):
-            return self._pairs(si)
+            hit, row, weight, prob, total, leaves = self._pairs(si)
+            return hit, row, weight, prob, total, leaves.take(None, hit, si.media)
         (hit, row, weight, prob, total, leaves, start, count), index = si.memo_at((self, "pairs"), self._span_pairs)
         if index is not None:
             c = count.take(index)
             hit = np.repeat(np.arange(len(index)), c)
             pairs = np.repeat(start.take(index) - (np.cumsum(c) - c), c) + np.arange(len(hit))
-            row, weight, prob, leaves = row.take(pairs), weight.take(pairs), prob.take(pairs), leaves.take(pairs)
-            total = total.take(index)
-        if si.media is not None:
-            leaves.media = type(si.media)(si.media.media.take(hit, axis=0), si.media.depth.take(hit))
-        return hit, row, weight, prob, total, leaves
+            row, weight, prob = row.take(pairs), weight.take(pairs), prob.take(pairs)
+            return hit, row, weight, prob, total.take(index), leaves.take(pairs, hit, si.media)
+        return hit, row, weight, prob, total, leaves.take(None, hit, si.media)
 
     def _span_pairs(self, si: ShadingPoint):
         """_pairs and, per hit, where its pairs start and how many it has (not per-hit arrays: read
@@ -152,9 +241,29 @@ class MixBSDF(BSDF):
         count = np.bincount(hit, minlength=len(si))
         return hit, row, weight, prob, total, leaves, np.cumsum(count) - count, count
 
-    def _sum(self, hit, rows_of_pairs, n):
-        """Per-hit sums of (3, P) rows."""
-        return np.stack([np.bincount(hit, weights=r, minlength=n) for r in rows_of_pairs])
+    def _sums(self, hit, f_cos, weight, pdf, prob, n):
+        """Per-hit sums over the pairs (hit (P,)) of f_cos x weight (3, n) and of pdf x prob (n,)."""
+        if self.compiled is not None:                       # mix_jit.sums: the same sums in the same order
+            return self.compiled.sums(hit, f_cos, weight, pdf, prob, n)
+        f_sum = np.stack([np.bincount(hit, weights=r, minlength=n) for r in f_cos * weight])
+        return f_sum, np.bincount(hit, weights=pdf * prob, minlength=n)
+
+    def _pick(self, hit, prob, total, u_lobe):
+        """One pair per hit by u_lobe over its pairs' probabilities (hit-major: the pairs of a hit
+        follow each other), u_lobe rescaled for the leaf: (chosen pair, its probability p_c, the
+        leaf's uniform) (N,) each."""
+        if self.compiled is not None:                       # mix_jit.pick: the same numbers
+            return self.compiled.pick(hit, prob, total, u_lobe, U_MAX)
+        start = np.searchsorted(hit, np.arange(len(total)))
+        stop = np.append(start[1:], len(hit))
+        cum = np.cumsum(prob)
+        base = cum.take(np.minimum(start, len(hit) - 1)) - prob.take(np.minimum(start, len(hit) - 1))
+        target = base + np.minimum(u_lobe, U_MAX) * np.where(total > 0.0, 1.0, 0.0)
+        chosen = np.clip(np.searchsorted(cum, target, side="right"), start, stop - 1)
+        p_c = prob.take(chosen)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u_leaf = np.clip((target - (cum.take(chosen) - p_c)) / p_c, 0.0, U_MAX)
+        return chosen, p_c, np.where(p_c > 0.0, u_leaf, 0.0)
 
     def _eval_pairs(self, row, leaves, wi_pairs, only=None):
         """(f cos (3, P), pdf (P,)) of the leaves at wi (per pair); `only`: the pairs to evaluate,
@@ -167,7 +276,7 @@ class MixBSDF(BSDF):
                 continue                                    # delta leaves: no given direction meets them
             k = np.flatnonzero(rows == r)                   # places in wi_pairs; the pairs themselves:
             sel = k if only is None else only.take(k)
-            f, p = self.table.bsdfs[r].eval(leaves.take(sel), wi_pairs.take(k, axis=1))
+            f, p = self.table.bsdfs[r].eval(leaves.at(r, sel), wi_pairs.take(k, axis=1))
             f_cos[:, k], pdf[k] = f, p
         return f_cos, pdf
 
@@ -175,7 +284,7 @@ class MixBSDF(BSDF):
         n = len(si)
         hit, row, weight, prob, _, leaves = self._pairs_at(si)
         f_cos, pdf = self._eval_pairs(row, leaves, wi.take(hit, axis=1))
-        return self._sum(hit, f_cos * weight, n), np.bincount(hit, weights=pdf * prob, minlength=n)
+        return self._sums(hit, f_cos, weight, pdf, prob, n)
 
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
         return self.eval(si, wi)[1]
@@ -183,30 +292,21 @@ class MixBSDF(BSDF):
     def sample(self, si: ShadingPoint, u_lobe: np.ndarray, u) -> BSDFSample:
         n = len(si)
         hit, row, weight, prob, total, leaves = self._pairs_at(si)
-        # Pick one pair per hit by u_lobe over its probabilities; u_lobe rescaled for the leaf.
-        start = np.searchsorted(hit, np.arange(n))
-        stop = np.append(start[1:], len(hit))
-        cum = np.cumsum(prob)
-        base = cum.take(np.minimum(start, len(hit) - 1)) - prob.take(np.minimum(start, len(hit) - 1))
-        target = base + np.minimum(u_lobe, 1.0 - 1e-12) * np.where(total > 0.0, 1.0, 0.0)
-        chosen = np.clip(np.searchsorted(cum, target, side="right"), start, stop - 1)
-        p_c = prob.take(chosen)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u_leaf = np.clip((target - (cum.take(chosen) - p_c)) / p_c, 0.0, 1.0 - 1e-12)
-        u_leaf = np.where(p_c > 0.0, u_leaf, 0.0)
+        chosen, p_c, u_leaf = self._pick(hit, prob, total, u_lobe)
         wi, value = np.zeros((3, n)), np.zeros((3, n))
         pdf, flags = np.zeros(n), np.full(n, DEAD, dtype=np.int8)
         wi[:] = si.n
         delta = np.zeros(n, dtype=bool)
-        for r in _ids_in(row.take(chosen)):
-            mine = np.flatnonzero((row.take(chosen) == r) & (p_c > 0.0))     # hits that picked a row-r leaf
+        picked, live = row.take(chosen), p_c > 0.0
+        for r in _ids_in(picked):
+            mine = np.flatnonzero((picked == r) & live)     # hits that picked a row-r leaf
             if not len(mine):
                 continue
             pairs = chosen.take(mine)
-            at = leaves.take(pairs)
-            if si.media is not None:                        # glass leaves cross the paths' media
-                from .media import MediumStack
-                at.media = MediumStack(si.media.media[mine], si.media.depth[mine])
+            media = None                                    # glass leaves cross the paths' media
+            if si.media is not None:
+                media = type(si.media)(si.media.media[mine], si.media.depth[mine])
+            at = leaves.at(int(r), pairs, media)
             bsdf = self.table.bsdfs[r]
             uv = None if (u is None or not self.table.non_delta[r]) else (u[0].take(mine), u[1].take(mine))
             s = bsdf.sample(at, u_leaf.take(mine), uv)
@@ -227,8 +327,8 @@ class MixBSDF(BSDF):
             pairs = np.flatnonzero(of.take(hit))            # every pair of those hits: their sums whole
             at = hit.take(pairs)
             f_cos, p = self._eval_pairs(row, leaves, wi.take(at, axis=1), only=pairs)
-            f_sum = self._sum(at, f_cos * weight.take(pairs), n).take(spread, axis=1)
-            p_sum = np.bincount(at, weights=p * prob.take(pairs), minlength=n).take(spread)
+            f_sum, p_sum = self._sums(at, f_cos, weight.take(pairs), p, prob.take(pairs), n)
+            f_sum, p_sum = f_sum.take(spread, axis=1), p_sum.take(spread)
             with np.errstate(divide="ignore", invalid="ignore"):
                 value[:, spread] = np.where(p_sum > 0.0, f_sum / p_sum, 0.0)
             pdf[spread] = p_sum

@@ -1,0 +1,102 @@
+"""engine/materials/mix.py's pair bookkeeping compiled with numba: the sample's pick of one (hit,
+leaf) pair per hit and the per-hit sums of the pairs' weighted f cos and pdfs, each one loop instead
+of some fifteen NumPy passes over the pairs.  Imported only through engine/core/backend.py's choice
+(it imports numba).
+
+The same float64 operations in the same order: np.cumsum adds the probabilities one after another,
+np.bincount adds each pair's product to its hit's sum in the pairs' order from 0, np.searchsorted
+(side "right") counts the sums <= the target (NumPy's comparison: a NaN target counts them all), and
+np.minimum / np.clip keep a NaN (tests/materials/test_mix_jit.py)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.backend import numba_module
+
+nb = numba_module()
+jit = nb.njit(cache=True, error_model="numpy", nogil=True)
+
+
+@jit
+def _pick(hit, prob, total, u_lobe, u_max, chosen, p_c, u_leaf):
+    count, n = hit.shape[0], total.shape[0]
+    cum = np.empty(count)
+    acc = 0.0
+    for i in range(count):                                  # np.cumsum(prob)
+        acc = prob[i] if i == 0 else acc + prob[i]
+        cum[i] = acc
+    j = 0
+    for h in range(n):
+        while j < count and hit[j] < h:                     # start: np.searchsorted(hit, h) (hit sorted)
+            j += 1
+        start = j
+        k = j
+        while k < count and hit[k] < h + 1:                 # stop: the next hit's start
+            k += 1
+        stop = k
+        first = start if start < count - 1 else count - 1
+        base = cum[first] - prob[first]
+        u = u_lobe[h]
+        if not u != u and u > u_max:                        # np.minimum(u_lobe, u_max): NaN stays NaN
+            u = u_max
+        target = base + u * (1.0 if total[h] > 0.0 else 0.0)
+        lo, hi = 0, count                                   # np.searchsorted(cum, target, side="right")
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if target < cum[mid]:
+                hi = mid
+            else:
+                lo = mid + 1
+        c = lo if lo > start else start                     # np.clip(lo, start, stop - 1)
+        c = c if c < stop - 1 else stop - 1
+        chosen[h] = c
+        pc = prob[c]
+        p_c[h] = pc
+        if pc > 0.0:
+            x = (target - (cum[c] - pc)) / pc
+            if x == x:                                      # np.clip(x, 0, u_max): NaN stays NaN
+                x = x if x > 0.0 else 0.0
+                x = x if x < u_max else u_max
+            u_leaf[h] = x
+        else:
+            u_leaf[h] = 0.0
+
+
+def pick(hit, prob, total, u_lobe, u_max):
+    """(chosen pair (N,), its probability p_c (N,), the leaf's uniform u_leaf (N,)) as MixBSDF.sample
+    picks them: the pairs hit-major (hit sorted, every hit with a pair), u_max = 1 - 1e-12."""
+    n = len(total)
+    chosen, p_c, u_leaf = np.empty(n, dtype=np.int64), np.empty(n), np.empty(n)
+    _pick(np.ascontiguousarray(hit, np.int64), np.ascontiguousarray(prob, np.float64),
+          np.ascontiguousarray(total, np.float64), np.ascontiguousarray(u_lobe, np.float64), float(u_max),
+          chosen, p_c, u_leaf)
+    return chosen, p_c, u_leaf
+
+
+@jit
+def _sums(hit, f_cos, weight, pdf, prob, f_sum, p_sum):
+    for i in range(hit.shape[0]):
+        h = hit[i]
+        w = weight[i]
+        f_sum[0, h] += f_cos[0, i] * w
+        f_sum[1, h] += f_cos[1, i] * w
+        f_sum[2, h] += f_cos[2, i] * w
+        p_sum[h] += pdf[i] * prob[i]
+
+
+def sums(hit, f_cos, weight, pdf, prob, n):
+    """(sum of f_cos x weight (3, n), sum of pdf x prob (n,)) per hit over the pairs (hit (P,)): the
+    np.bincount sums of MixBSDF._sum and its pdf."""
+    f_sum, p_sum = np.zeros((3, n)), np.zeros(n)
+    rows = np.ascontiguousarray
+    _sums(rows(hit, np.int64), rows(f_cos, np.float64), rows(weight, np.float64), rows(pdf, np.float64),
+          rows(prob, np.float64), f_sum, p_sum)
+    return f_sum, p_sum
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels for the types a render passes."""
+    hit = np.array([0, 0, 1])
+    prob = np.array([0.25, 0.75, 1.0])
+    pick(hit, prob, np.ones(2), np.array([0.5, 0.5]), 1.0 - 1e-12)
+    sums(hit, np.ones((3, 3)), np.ones(3), np.ones(3), prob, 2)

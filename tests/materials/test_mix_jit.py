@@ -1,0 +1,116 @@
+"""The compiled pair bookkeeping of the Mix Shader (engine/materials/mix_jit.py) against the NumPy path
+of engine/materials/mix.py: the pick of one pair per hit (probabilities with zeros, hits whose weights
+are all 0, uniforms at 0, at 1 and on a cumulative sum's value) and the per-hit sums, bit for bit; a
+mix's eval and sample on both backends the same.  Controls: one ulp of one probability, and the sums
+taken in another order, are told apart."""
+import numpy as np
+import pytest
+
+from engine.materials.media import MediumStack
+from engine.materials.mix import U_MAX
+from engine.materials.protocol import ShadingPoint
+from engine.materials.table import KIND_CODE, MaterialTable
+from engine import RenderSettings
+from engine.scene.model import MIX
+from tests.backend_capture import require_compiled
+from tests.materials.test_mix import MIXES
+
+TWIN = "engine.materials.mix_jit"       # imported by use_backend, not here: numba may be missing
+
+
+def mix_pair():
+    """(NumPy's MixBSDF, the compiled one) of the test mixes."""
+    require_compiled()
+    materials = [MIXES[k] for k in ("diffuse+glossy", "diffuse+glass", "fresnel diffuse+glossy", "layer weight",
+                                    "glossy+mirror")]
+    settings = RenderSettings(fresnel="exact")
+    numpy_bsdf = MaterialTable(materials, settings).bsdfs[KIND_CODE[MIX]]
+    compiled = MaterialTable(materials, settings).bsdfs[KIND_CODE[MIX]]
+    compiled.use_backend({"mix": "numba"})
+    assert numpy_bsdf.compiled is None and compiled.compiled is not None
+    return numpy_bsdf, compiled, len(materials)
+
+
+def random_pairs(rng, n=3000):
+    """Hit-major pairs: 1-3 per hit, probabilities per hit summing to 1 (some 0, some hits all 0)."""
+    count = rng.integers(1, 4, n)
+    hit = np.repeat(np.arange(n), count)
+    rate = rng.random(len(hit)) * (rng.random(len(hit)) > 0.2)
+    rate[np.isin(hit, rng.choice(n, n // 20, replace=False))] = 0.0
+    total = np.bincount(hit, weights=rate, minlength=n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        prob = np.where(total.take(hit) > 0.0, rate / total.take(hit), 0.0)
+    u = rng.random(n)
+    u[:50], u[50:100] = 0.0, 1.0                                 # the ends
+    cum = np.cumsum(prob)                                        # on a cumulative sum: base + u = cum
+    first = np.searchsorted(hit, np.arange(n))
+    u[100:200] = (cum.take(first[100:200]) - (cum.take(first[100:200]) - prob.take(first[100:200])))
+    return hit, prob, total, u
+
+
+def test_the_pick_is_numpys():
+    numpy_bsdf, compiled, _ = mix_pair()
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        hit, prob, total, u = random_pairs(rng)
+        a = numpy_bsdf._pick(hit, prob, total, u)
+        b = compiled._pick(hit, prob, total, u)
+        assert all(np.array_equal(x, y) for x, y in zip(a, b))
+        assert (a[1] == 0.0).any() and (a[2] > 0.0).any()
+    # control: one ulp of one picked pair's probability is told apart
+    k = int(a[0][np.flatnonzero(a[1] > 0.0)[0]])
+    nudged = prob.copy()
+    nudged[k] = np.nextafter(nudged[k], 2.0)
+    c = compiled._pick(hit, nudged, total, u)
+    assert not all(np.array_equal(x, y) for x, y in zip(a, c))
+
+
+def test_the_sums_are_bincounts_in_the_pairs_order():
+    numpy_bsdf, compiled, _ = mix_pair()
+    rng = np.random.default_rng(9)
+    hit, prob, _, _ = random_pairs(rng)
+    n = hit[-1] + 1
+    f_cos, weight, pdf = rng.random((3, len(hit))) * 3.0, rng.random(len(hit)), rng.random(len(hit)) * 7.0
+    a = numpy_bsdf._sums(hit, f_cos, weight, pdf, prob, n)
+    b = compiled._sums(hit, f_cos, weight, pdf, prob, n)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    # control: the same pairs summed last to first differ in the last bit somewhere
+    back = slice(None, None, -1)
+    c = compiled._sums(hit[back], f_cos[:, back], weight[back], pdf[back], prob[back], n)
+    assert not (np.array_equal(a[0], c[0]) and np.array_equal(a[1], c[1]))
+
+
+def test_eval_and_sample_are_the_same_on_both_backends():
+    numpy_bsdf, compiled, kinds = mix_pair()
+    n, rng = 2000, np.random.default_rng(31)
+    normal = rng.normal(size=(3, n))
+    normal /= np.linalg.norm(normal, axis=0)
+    wo = rng.normal(size=(3, n))
+    wo /= np.linalg.norm(wo, axis=0)
+    facing = np.where((wo * normal).sum(axis=0) < 0.0, -normal, normal)
+    material = rng.integers(0, kinds, n)
+    wi = rng.normal(size=(3, n))
+    wi /= np.linalg.norm(wi, axis=0)
+    u_lobe, u = rng.random(n), (rng.random(n), rng.random(n))
+    idx = np.sort(rng.choice(n, n // 2, replace=False))
+    out = []
+    for bsdf in (numpy_bsdf, compiled):
+        si = ShadingPoint(wo.copy(), facing.copy(), facing.copy(), normal.copy(), np.ones((3, n)), material.copy())
+        si.media = MediumStack.empty(n)
+        span = si[0:n]
+        f, p = bsdf.eval(span.take(idx), wi.take(idx, axis=1))
+        s = bsdf.sample(span, u_lobe, u)
+        out.append((f, p, s.wi, s.value, s.pdf, s.flags, si.media.media, si.media.depth))
+    assert (out[0][1] > 0).sum() > len(idx) // 4
+    for x, y in zip(*out):
+        assert np.array_equal(x, y)
+
+
+@pytest.mark.parametrize("u_max", [U_MAX])
+def test_warm_up_covers_the_kernels(u_max):
+    require_compiled()
+    import importlib
+    twin = importlib.import_module(TWIN)
+    twin.warm_up()
+    chosen, p_c, u_leaf = twin.pick(np.array([0, 1]), np.array([1.0, 1.0]), np.ones(2), np.array([1.0, 0.0]), u_max)
+    assert list(chosen) == [0, 1] and u_leaf[0] == u_max and u_leaf[1] == 0.0
