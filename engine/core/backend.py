@@ -59,6 +59,8 @@ JIT_MODULES = {
     "materials.principled_v1_jit": ("principled", "mix"),
     "lights.parallelograms_jit": ("emission",),
     "geometry.hits_jit": ("wavefront",),
+    "geometry.shading_normals_jit": ("wavefront",),
+    "nodes.normals_jit": ("wavefront",),
     "geometry.accel.embree_jit": ("wavefront",),
     "integrators.wavefront_jit": ("wavefront",),
     "scene.camera_rays_jit": ("wavefront",),
