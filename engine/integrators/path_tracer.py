@@ -199,6 +199,8 @@ class PathTracer:
         self.final_rays = settings.estimator == "mis" and (self.mis or not self.use_nee)
         # The image world (engine/lights/environment.py EnvironmentMap) or None: the constant background.
         self.environment = getattr(lights, "environment", None)
+        if self.environment is not None:    # its image lookups on the wavefront's backend
+            self.environment.use_backend(getattr(plan, "backends", {}).get("wavefront", "numpy"))
         self.has_background = bool(self.background.max() > 0) or self.environment is not None
         self.world_nee = self.use_nee and lights.world is not None       # shadow rays sample the world
         self.scatter_group = self.mats.scatter_group      # of each material id

@@ -231,6 +231,7 @@ class EnvironmentMap:
     def __init__(self, env, pixels, decode_after: bool, sin_theta_in_density: bool = True):
         self.env = env
         self.pixels, self.decode_after = pixels, decode_after
+        self.compiled = None            # the lookup's compiled twin (use_backend)
         self.equirectangular = env.projection == "equirectangular"
         self.matrix = np.asarray(env.matrix, dtype=np.float64)
         self.identity = bool(np.array_equal(self.matrix, np.eye(3)))
@@ -320,11 +321,25 @@ class EnvironmentMap:
         length = np.sqrt(dot(t, t))
         return t / np.maximum(length, 1e-300), length
 
+    def use_backend(self, backend: str) -> None:
+        """The image lookups on `backend` ("numba": engine/materials/textures_jit.py's twin of lookup, the
+        same numbers; else NumPy's).  Set by each render's PathTracer: a kept map (keep_last_map) serves
+        the renders after it, whatever their backend."""
+        self.compiled = None
+        if backend == "numba" and self.pixels.dtype == np.float32 and self.pixels.flags.c_contiguous:
+            from ..materials import textures_jit
+            self.compiled = textures_jit
+
     def image(self, d):
         """(3, N) the image's linear colour (no strength) seen along unit directions d."""
         t, _ = self._texture_direction(d)
         u, v = direction_to_equirectangular(t) if self.equirectangular else direction_to_mirror_ball(t)
-        return self._linear(lookup(self.pixels, u, v, self.env.interpolation, "REPEAT")).T
+        if self.compiled is not None:       # the three colour channels read in one compiled loop
+            values = self.compiled.lookup(self.pixels, u, v, self.env.interpolation, "REPEAT",
+                                          (0, 3) if self.pixels.shape[2] >= 3 else None)
+        else:
+            values = lookup(self.pixels, u, v, self.env.interpolation, "REPEAT")
+        return self._linear(values).T
 
     def radiance(self, d):
         """(3, N) radiance along d for the rays that light the scene."""
