@@ -65,6 +65,7 @@ JIT_MODULES = {
     "integrators.wavefront_jit": ("wavefront",),
     "scene.camera_rays_jit": ("wavefront",),
     "lights.light_set_jit": ("emission",),
+    "lights.environment_jit": ("wavefront",),
     "integrators.photons.gather_jit": ("photon_caustics",),
     "materials.textures_jit": ("textures",),
 }

@@ -37,3 +37,28 @@ def test_compiled_lookups_are_numpys(channels, projection, interpolation):
         assert not np.array_equal(env.radiance(np.roll(d, 1, axis=1)), expected)          # control
         env.use_backend("numpy")
         assert env.compiled is None
+
+
+@pytest.mark.filterwarnings("ignore:invalid value encountered in cast")        # NaN coordinates' casts
+def test_compiled_sampler_is_numpys():
+    """PiecewiseConstant2D.sample and pdf (engine/lights/environment_jit.py): zero rows and columns (the
+    searches' ties), uniforms at 0 and just below 1, NaN, coordinates outside [0, 1)."""
+    require_compiled()
+    from engine.lights import environment_jit
+    from engine.lights.environment import PiecewiseConstant2D
+    rng = np.random.default_rng(5)
+    weights = rng.random((24, 40)) ** 4
+    weights[3], weights[:, 7], weights[-2:] = 0.0, 0.0, 0.0          # zero rows (the last ones too), a zero column
+    dist = PiecewiseConstant2D(weights)
+    u1, u2 = rng.random(5000), rng.random(5000)
+    u1[:4], u2[:4] = [0.0, np.nextafter(1.0, 0.0), np.nan, 0.5], [0.0, np.nextafter(1.0, 0.0), 0.5, np.nan]
+    expected = dist.sample(u1, u2)
+    u, v = rng.random(3000) * 1.4 - 0.2, rng.random(3000) * 1.4 - 0.2
+    u[:2], v[2:4] = np.nan, np.nan
+    expected_pdf = dist.pdf(u, v)
+    dist.jit = environment_jit
+    for a, b in zip(dist.sample(u1, u2), expected):
+        assert np.array_equal(a, b, equal_nan=True)
+    assert np.array_equal(dist.pdf(u, v), expected_pdf)
+    assert not np.array_equal(dist.sample(np.nextafter(u1, 1.0), u2)[0], expected[0], equal_nan=True)   # control
+    assert not np.array_equal(dist.pdf(u, np.roll(v, 1)), expected_pdf)                                  # control
