@@ -94,8 +94,10 @@ def pdf(dist, u, v):
 
 def warm_up() -> None:
     """Compile (or load) both kernels for the types a render passes."""
-    from .environment import PiecewiseConstant2D
-    dist = PiecewiseConstant2D(np.ones((2, 4)))
+    from types import SimpleNamespace             # PiecewiseConstant2D(np.ones((2, 4)))'s tables
+    conditional = np.tile(np.linspace(0.0, 1.0, 5), (2, 1))
+    dist = SimpleNamespace(marginal=np.array([0.0, 0.5, 1.0]), flat=(np.arange(2)[:, None] + conditional[:, 1:]).ravel(),
+                           conditional_flat=conditional.ravel(), density_flat=np.ones(8), w=4, h=2, last_row=1)
     u = np.array([0.25, 0.75])
     sample(dist, u, u)
     pdf(dist, u, u)
