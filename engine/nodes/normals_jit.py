@@ -5,7 +5,7 @@ imports numba; kernel name "wavefront").
 
 The float operations are the NumPy code's, in its order and precision (normals.py's _dot, a sum over the
 three rows, is (x + y) + z as engine/core/vec.py dot; x ** 2 is x * x; np.clip, np.maximum with their NaN
-rule): the same numbers bit for bit (tests/nodes/test_normals_jit.py)."""
+rule): the same numbers bit for bit (tests/geometry/test_shading_normals_jit.py)."""
 from __future__ import annotations
 
 import numpy as np
