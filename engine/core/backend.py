@@ -60,10 +60,13 @@ JIT_MODULES = {
     "materials.mix_jit": ("mix",),
     "lights.parallelograms_jit": ("emission",),
     "geometry.hits_jit": ("wavefront",),
+    "geometry.shading_normals_jit": ("wavefront",),
+    "nodes.normals_jit": ("wavefront",),
     "geometry.accel.embree_jit": ("wavefront",),
     "integrators.wavefront_jit": ("wavefront",),
     "scene.camera_rays_jit": ("wavefront",),
     "lights.light_set_jit": ("emission",),
+    "lights.environment_jit": ("wavefront",),
     "integrators.photons.gather_jit": ("photon_caustics",),
     "materials.textures_jit": ("textures",),
 }

@@ -153,6 +153,9 @@ class SceneGeometry:
         # Smooth shading: interpolated corner normals, only when the plan says a scene has them.
         self.smooth = (SmoothNormals(scene.meshes) if self.has_triangles and kernel("smooth_normals",
                        has_smooth(scene.meshes)) else None)
+        if self.smooth is not None and self.hits_jit is not None and self.triangles.dtype == np.float64:
+            from . import shading_normals_jit         # its Phong normals and terminator lift in one loop each
+            self.smooth.jit = shading_normals_jit
 
         # Material of (kind, prim) as one lookup: primitive_material[kind_base[kind] + prim];
         # light polygons have no material (slot 0: the caller groups them by kind).
@@ -401,6 +404,9 @@ class SceneGeometry:
         cutoff) for their shadow rays, or None when none of them is on a smooth triangle."""
         if self.smooth is None:
             return None
+        if self.smooth.jit is not None:     # the same numbers in one loop
+            return self.smooth.jit.terminator_lift(hits.kind, hits.prim, hits.u, hits.v, facing, span, self.smooth.index,
+                                                   self.smooth.cutoff, self.smooth.corners, self.triangles)
         tri = np.flatnonzero(hits.kind[span] == TRIANGLE)
         if not len(tri):
             return None

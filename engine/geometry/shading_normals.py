@@ -88,6 +88,7 @@ class SmoothNormals:
         self.corners = np.concatenate(corners) if corners else np.zeros((0, 3, 3))
         self.cutoff = np.concatenate(cutoff) if cutoff else np.zeros(0)    # geometry offset per smooth triangle
         self.count = start
+        self.jit = None         # the compiled twins (engine/geometry/shading_normals_jit.py), set by SceneGeometry
 
     def terminator_lift(self, prim, u, v, facing, triangles):
         """(lift rows (3, M), cutoff (M,)) for shadow rays from triangle hits (prim, u, v) with
@@ -117,6 +118,8 @@ class SmoothNormals:
     def shading(self, prim, u, v, geometric: np.ndarray) -> np.ndarray:
         """Shading normals (rows) of triangle hits: interpolated on smooth triangles, the
         geometric normal (a copy of its columns) on flat ones."""
+        if self.jit is not None:            # the same numbers in one loop
+            return self.jit.shading(prim, u, v, geometric, self.index, self.corners)
         out = np.array(geometric, dtype=np.float64, copy=True)
         row = self.index.take(prim)
         smooth = np.flatnonzero(row >= 0)

@@ -199,6 +199,8 @@ class PathTracer:
         self.final_rays = settings.estimator == "mis" and (self.mis or not self.use_nee)
         # The image world (engine/lights/environment.py EnvironmentMap) or None: the constant background.
         self.environment = getattr(lights, "environment", None)
+        if self.environment is not None:    # its image lookups on the wavefront's backend
+            self.environment.use_backend(getattr(plan, "backends", {}).get("wavefront", "numpy"))
         self.has_background = bool(self.background.max() > 0) or self.environment is not None
         self.world_nee = self.use_nee and lights.world is not None       # shadow rays sample the world
         self.scatter_group = self.mats.scatter_group      # of each material id
@@ -222,9 +224,11 @@ class PathTracer:
         self.photons = None     # engine/integrators/photons/caustics.py CausticPhotons (set by the session's prepass)
         self.deferred_rr = bool(plan.enabled.get("deferred_roulette"))
         self.wavefront_jit = None       # the compaction compiled (engine/integrators/wavefront_jit.py)
+        self.normals_jit = None         # bump shadowing compiled (engine/nodes/normals_jit.py)
         if getattr(plan, "backends", {}).get("wavefront", "numpy") == "numba":
             from . import wavefront_jit
-            self.wavefront_jit = wavefront_jit
+            from ..nodes import normals_jit
+            self.wavefront_jit, self.normals_jit = wavefront_jit, normals_jit
 
     # -- the wavefront -----------------------------------------------------------------
     def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None,
@@ -500,12 +504,16 @@ class PathTracer:
         points = si.lookup.points
         if points is None:
             return np.ones(wi.shape[1])
+        version = self.textures.textures.cycles_version
+        if self.normals_jit is not None and tuple(version) >= (4, 0):       # the lines below in one loop
+            return self.normals_jit.bump_shadowing(points.direction, points.normal, points.shading, si.n, wi,
+                                                   diffuse, is_eval, repeat)
         towards = np.where(dot(points.direction, points.normal) < 0.0, 1.0, -1.0)
         smooth = (points.shading if points.shading is not None else points.normal) * towards
         n = si.n
         if repeat > 1:
             smooth, n = np.repeat(smooth, repeat, axis=1), np.repeat(n, repeat, axis=1)
-        return bump_shadowing(smooth, n, wi, diffuse, is_eval, self.textures.textures.cycles_version)
+        return bump_shadowing(smooth, n, wi, diffuse, is_eval, version)
 
     def emission(self, p, surf, hits, surfaces, lookup=None):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after

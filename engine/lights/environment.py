@@ -100,9 +100,13 @@ class PiecewiseConstant2D:
         self.flat = (np.arange(self.h)[:, None] + self.conditional[:, 1:]).ravel()
         self.density = w * (self.h * self.w / total)
         self.last_row = int(np.flatnonzero(row > 0)[-1])
+        self.conditional_flat, self.density_flat = self.conditional.ravel(), self.density.ravel()   # views
+        self.jit = None         # the compiled twin (engine/lights/environment_jit.py), set by EnvironmentMap.use_backend
 
     def sample(self, u1, u2):
         """(u, v, density) from uniforms u1 (the column) and u2 (the row)."""
+        if self.jit is not None:            # the same numbers in one loop
+            return self.jit.sample(self, u1, u2)
         j = np.minimum(np.searchsorted(self.marginal, u2, side="right") - 1, self.last_row)
         lo, hi = self.marginal.take(j), self.marginal.take(j + 1)
         dv = np.clip((u2 - lo) / (hi - lo), 0.0, 1.0)
@@ -115,6 +119,8 @@ class PiecewiseConstant2D:
         return u, v, self.density.take(j * self.w + i)
 
     def pdf(self, u, v):
+        if self.jit is not None:
+            return self.jit.pdf(self, u, v)
         i = np.clip(np.floor(np.asarray(u) * self.w).astype(np.int64), 0, self.w - 1)
         j = np.clip(np.floor(np.asarray(v) * self.h).astype(np.int64), 0, self.h - 1)
         return self.density.take(j * self.w + i)
@@ -231,6 +237,7 @@ class EnvironmentMap:
     def __init__(self, env, pixels, decode_after: bool, sin_theta_in_density: bool = True):
         self.env = env
         self.pixels, self.decode_after = pixels, decode_after
+        self.compiled = None            # the lookup's compiled twin (use_backend)
         self.equirectangular = env.projection == "equirectangular"
         self.matrix = np.asarray(env.matrix, dtype=np.float64)
         self.identity = bool(np.array_equal(self.matrix, np.eye(3)))
@@ -320,11 +327,28 @@ class EnvironmentMap:
         length = np.sqrt(dot(t, t))
         return t / np.maximum(length, 1e-300), length
 
+    def use_backend(self, backend: str) -> None:
+        """The image lookups and the sampler on `backend` ("numba": engine/materials/textures_jit.py's twin of
+        lookup and engine/lights/environment_jit.py's of PiecewiseConstant2D, the same numbers; else NumPy's).  Set by each render's PathTracer: a kept map (keep_last_map) serves
+        the renders after it, whatever their backend."""
+        self.compiled = self.distribution.jit = None
+        if backend == "numba":                  # and the sampler's twin (engine/lights/environment_jit.py)
+            from . import environment_jit
+            self.distribution.jit = environment_jit
+        if backend == "numba" and self.pixels.dtype == np.float32 and self.pixels.flags.c_contiguous:
+            from ..materials import textures_jit
+            self.compiled = textures_jit
+
     def image(self, d):
         """(3, N) the image's linear colour (no strength) seen along unit directions d."""
         t, _ = self._texture_direction(d)
         u, v = direction_to_equirectangular(t) if self.equirectangular else direction_to_mirror_ball(t)
-        return self._linear(lookup(self.pixels, u, v, self.env.interpolation, "REPEAT")).T
+        if self.compiled is not None:       # the three colour channels read in one compiled loop
+            values = self.compiled.lookup(self.pixels, u, v, self.env.interpolation, "REPEAT",
+                                          (0, 3) if self.pixels.shape[2] >= 3 else None)
+        else:
+            values = lookup(self.pixels, u, v, self.env.interpolation, "REPEAT")
+        return self._linear(values).T
 
     def radiance(self, d):
         """(3, N) radiance along d for the rays that light the scene."""

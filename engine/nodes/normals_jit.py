@@ -1,0 +1,81 @@
+"""engine/nodes/normals.py's bump shadowing term (Blender 4.x / 5.0) compiled with numba: PathTracer.bump_shadowing's
+smooth normal towards the ray (repeated per shadow ray) and bump_shadowing / _bump_term_4x per direction in
+one loop instead of some thirty NumPy passes.  Imported only through engine/core/backend.py's choice (it
+imports numba; kernel name "wavefront").
+
+The float operations are the NumPy code's, in its order and precision (normals.py's _dot, a sum over the
+three rows, is (x + y) + z as engine/core/vec.py dot; x ** 2 is x * x; np.clip, np.maximum with their NaN
+rule): the same numbers bit for bit (tests/geometry/test_shading_normals_jit.py)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.backend import numba_module
+from ..geometry.shading_normals_jit import _dot3, _max, _min
+
+nb = numba_module()
+jit = nb.njit(cache=True, error_model="numpy", nogil=True)
+
+NO_ROWS = np.zeros((3, 1))
+
+
+@jit
+def _term_4x(sx, sy, sz, nx, ny, nz, wx, wy, wz, diffuse, is_eval):
+    cos_si = _dot3(sx, sy, sz, wx, wy, wz)
+    cos_sn = _dot3(sx, sy, sz, nx, ny, nz)
+    cos_ni = _dot3(nx, ny, nz, wx, wy, wz)
+    if cos_si * cos_sn * cos_ni < 0.0 and (is_eval or diffuse):
+        return 0.0
+    if not diffuse:
+        return 1.0
+    cos_i, cos_d = abs(cos_si), abs(cos_sn)
+    if cos_d >= 1.0 or cos_i >= 1.0:
+        return 1.0
+    if cos_i < 1e-6:
+        return 0.0
+    md = _max(cos_d, 1e-300)
+    tan2_d = 1.0 / (md * md) - 1.0
+    alpha2 = _min(_max(0.125 * tan2_d, 0.0), 1.0)
+    mi = _max(cos_i, 1e-300)
+    c2 = mi * mi
+    lam = 0.5 * (np.sqrt(1.0 + alpha2 * (1.0 - c2) / c2) - 1.0)
+    return 1.0 / (1.0 + lam)
+
+
+@jit
+def _bump_shadowing(direction, normal, shading, has_shading, n, wi, diffuse, is_eval, repeat):
+    k = wi.shape[1]
+    out = np.empty(k)
+    for c in range(k):
+        i = c // repeat
+        gx, gy, gz = normal[0, i], normal[1, i], normal[2, i]
+        towards = 1.0 if _dot3(direction[0, i], direction[1, i], direction[2, i], gx, gy, gz) < 0.0 else -1.0
+        if has_shading:
+            gx, gy, gz = shading[0, i], shading[1, i], shading[2, i]
+        sx, sy, sz = gx * towards, gy * towards, gz * towards
+        nx, ny, nz = n[0, i], n[1, i], n[2, i]
+        if sx == nx and sy == ny and sz == nz:
+            out[c] = 1.0
+        else:
+            out[c] = _term_4x(sx, sy, sz, nx, ny, nz, wi[0, c], wi[1, c], wi[2, c], diffuse[c], is_eval)
+    return out
+
+
+def bump_shadowing(direction, normal, shading, n, wi, diffuse, is_eval, repeat=1):
+    """PathTracer.bump_shadowing under Blender 4.x / 5.0: (K,) for the directions wi (3, K), K = M x
+    repeat, at M hits with ray directions `direction`, geometric normals `normal`, smooth normals
+    `shading` (None: flat) and the BSDF's normal n (rows (3, M)); diffuse (K,) bool or one bool."""
+    k = wi.shape[1]
+    diffuse = np.ascontiguousarray(np.broadcast_to(np.asarray(diffuse, dtype=np.bool_), (k,)))
+    has = shading is not None
+    c = np.ascontiguousarray
+    return _bump_shadowing(c(direction, np.float64), c(normal, np.float64),
+                           c(shading, np.float64) if has else NO_ROWS, has, c(n, np.float64), c(wi, np.float64),
+                           diffuse, bool(is_eval), int(repeat))
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels for the types a render passes."""
+    rows = np.tile(np.array([[0.0], [0.6], [0.8]]), (1, 3))
+    for shade in (rows, None):
+        bump_shadowing(-rows, rows, shade, rows[::-1].copy(), rows, np.ones(3, bool), True, 1)
