@@ -66,14 +66,14 @@ def test_normals_facing_away_agree_with_cycles(tmp_path_factory):
     result = compared(exported.scene, reference, "normals facing away")
     assert result.passed, result.summary()
     scene = copy.deepcopy(exported.scene)          # CONTROL: without the bump shadowing term
-    from engine.nodes import normals
-    saved = normals.bump_shadowing
+    from engine.integrators.path_tracer import PathTracer
+    saved = PathTracer.bump_shadowing              # the one entry on both backends (numba: normals_jit)
     try:
-        normals.bump_shadowing = lambda smooth, n, wi, *a: np.ones(wi.shape[1])
+        PathTracer.bump_shadowing = lambda self, si, wi, *a, **k: np.ones(wi.shape[1])
         ours = tncg15_runs(scene, SPP, DEPTH, seeds=run_seeds(2000, K), fresnel="exact", threads=1)   # in-process
         control = compare_runs(ours, reference, tau=TAU)
     finally:
-        normals.bump_shadowing = saved
+        PathTracer.bump_shadowing = saved
     print(f"normals facing away, no bump shadowing: {control.summary()}")
     assert not control.passed, control.summary()
 
