@@ -5,7 +5,7 @@ Imported only through engine/core/backend.py's choice (it imports numba; kernel 
 EnvironmentMap.use_backend hands it to its distribution.
 
 The same operations in the same order and precision: np.searchsorted(side="right") as its binary search
-with NumPy's NaN-last order, take's wrap of index -1, np.clip / np.minimum with their NaN rule, and the
+(engine/sampling/search_jit.py) with NumPy's NaN-last order, take's wrap of index -1, np.clip / np.minimum with their NaN rule, and the
 float -> int64 cast of engine/materials/textures_jit.py (`_int`), so the values are NumPy's bit for bit
 (tests/lights/test_environment_jit.py)."""
 from __future__ import annotations
@@ -14,25 +14,12 @@ import numpy as np
 
 from ..core.backend import numba_module
 from ..materials.textures_jit import _int
+from ..sampling.search_jit import search_right
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
 
 BELOW_ONE = np.nextafter(1.0, 0.0)
-
-
-@jit
-def _right(a, key):
-    """np.searchsorted(a, key, side="right"): the first index whose value is above key (NaN: the end)."""
-    lo, hi = 0, a.shape[0]
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        v = a[mid]
-        if key < v or (v != v and key == key):      # NumPy's order: NaN after every number
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
 
 
 @jit
@@ -51,11 +38,11 @@ def _sample(marginal, flat, conditional, density, w, h, last_row, u1, u2):
     c = conditional.shape[0]
     for k in range(n):
         a, b = u1[k], u2[k]
-        j = min(_right(marginal, b) - 1, last_row)
+        j = min(search_right(marginal, marginal.shape[0], b) - 1, last_row)
         lo = marginal[j if j >= 0 else j + m]
         hi = marginal[j + 1]
         dv = _clip((b - lo) / (hi - lo), 0.0, 1.0)
-        i = min(max(_right(flat, j + a) - j * w, 0), w - 1)
+        i = min(max(search_right(flat, flat.shape[0], j + a) - j * w, 0), w - 1)
         f = j * (w + 1) + i
         lo, hi = conditional[f if f >= 0 else f + c], conditional[f + 1 if f + 1 >= 0 else f + 1 + c]
         span = hi - lo

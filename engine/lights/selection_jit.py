@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
+from ..sampling.search_jit import search_right
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -211,14 +212,7 @@ def select(x, n, u, nodes, power, empty, oriented, base, depth, count, light_at,
     for i in range(m):
         if u[i] < defensive:
             v = u[i] / defensive * last              # np.searchsorted(cdf, v, side="right"), then min
-            lo, hi = 0, count
-            while lo < hi:
-                mid = (lo + hi) >> 1
-                if v < cdf[mid]:
-                    hi = mid
-                else:
-                    lo = mid + 1
-            k = min(lo, count - 1)
+            k = min(search_right(cdf, count, v), count - 1)
             light[i], target[i] = k, position_of[k]
         else:
             ui[i] = (u[i] - defensive) / (1.0 - defensive)

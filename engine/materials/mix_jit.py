@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
+from ..sampling.search_jit import search_right
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -40,13 +41,7 @@ def _pick(hit, prob, total, u_lobe, u_max, chosen, p_c, u_leaf):
         if not u != u and u > u_max:                        # np.minimum(u_lobe, u_max): NaN stays NaN
             u = u_max
         target = base + u * (1.0 if total[h] > 0.0 else 0.0)
-        lo, hi = 0, count                                   # np.searchsorted(cum, target, side="right")
-        while lo < hi:
-            mid = (lo + hi) >> 1
-            if target < cum[mid]:
-                hi = mid
-            else:
-                lo = mid + 1
+        lo = search_right(cum, count, target)               # np.searchsorted(cum, target, side="right")
         c = lo if lo > start else start                     # np.clip(lo, start, stop - 1)
         c = c if c < stop - 1 else stop - 1
         chosen[h] = c
