@@ -363,6 +363,22 @@ def test_the_effect_plan_names_the_mixed_lobes():
     assert not delta_only.enabled["direct_light"] and delta_only.enabled["glass"]
 
 
+def random_hits(rng, n, kinds):
+    """n random hits of `kinds` materials for comparing two mixes' eval and sample: (normal, wo, the
+    normal facing wo, material, wi, u_lobe, u, a sorted half of the indices), in this order of draws."""
+    normal = rng.normal(size=(3, n))
+    normal /= np.linalg.norm(normal, axis=0)
+    wo = rng.normal(size=(3, n))
+    wo /= np.linalg.norm(wo, axis=0)
+    facing = np.where((wo * normal).sum(axis=0) < 0.0, -normal, normal)
+    material = rng.integers(0, kinds, n)
+    wi = rng.normal(size=(3, n))
+    wi /= np.linalg.norm(wi, axis=0)
+    u_lobe, u = rng.random(n), (rng.random(n), rng.random(n))
+    idx = np.sort(rng.choice(n, n // 2, replace=False))
+    return normal, wo, facing, material, wi, u_lobe, u, idx
+
+
 def test_a_span_reads_its_pairs_once_for_the_light_samples_and_the_sample():
     """The pairs of a span (factors, leaves) computed once and gathered for a take of
     it (the light samples' eval) give the same eval and sample, medium stacks included, as pairs
@@ -371,16 +387,7 @@ def test_a_span_reads_its_pairs_once_for_the_light_samples_and_the_sample():
                                     "glossy+mirror")]
     bsdf = MaterialTable(materials, RenderSettings(fresnel="exact")).bsdfs[KIND_CODE[MIX]]
     n, rng = 2000, np.random.default_rng(23)
-    normal = rng.normal(size=(3, n))
-    normal /= np.linalg.norm(normal, axis=0)
-    wo = rng.normal(size=(3, n))
-    wo /= np.linalg.norm(wo, axis=0)
-    facing = np.where((wo * normal).sum(axis=0) < 0.0, -normal, normal)
-    material = rng.integers(0, len(materials), n)
-    wi = rng.normal(size=(3, n))
-    wi /= np.linalg.norm(wi, axis=0)
-    u_lobe, u = rng.random(n), (rng.random(n), rng.random(n))
-    idx = np.sort(rng.choice(n, n // 2, replace=False))
+    normal, wo, facing, material, wi, u_lobe, u, idx = random_hits(rng, n, len(materials))
 
     def make():
         si = ShadingPoint(wo.copy(), facing.copy(), facing.copy(), normal.copy(), np.ones((3, n)), material.copy())

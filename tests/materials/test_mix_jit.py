@@ -13,7 +13,7 @@ from engine.materials.table import KIND_CODE, MaterialTable
 from engine import RenderSettings
 from engine.scene.model import MIX
 from tests.backend_capture import require_compiled
-from tests.materials.test_mix import MIXES
+from tests.materials.test_mix import MIXES, random_hits
 
 TWIN = "engine.materials.mix_jit"       # imported by use_backend, not here: numba may be missing
 
@@ -83,16 +83,7 @@ def test_the_sums_are_bincounts_in_the_pairs_order():
 def test_eval_and_sample_are_the_same_on_both_backends():
     numpy_bsdf, compiled, kinds = mix_pair()
     n, rng = 2000, np.random.default_rng(31)
-    normal = rng.normal(size=(3, n))
-    normal /= np.linalg.norm(normal, axis=0)
-    wo = rng.normal(size=(3, n))
-    wo /= np.linalg.norm(wo, axis=0)
-    facing = np.where((wo * normal).sum(axis=0) < 0.0, -normal, normal)
-    material = rng.integers(0, kinds, n)
-    wi = rng.normal(size=(3, n))
-    wi /= np.linalg.norm(wi, axis=0)
-    u_lobe, u = rng.random(n), (rng.random(n), rng.random(n))
-    idx = np.sort(rng.choice(n, n // 2, replace=False))
+    normal, wo, facing, material, wi, u_lobe, u, idx = random_hits(rng, n, kinds)
     out = []
     for bsdf in (numpy_bsdf, compiled):
         si = ShadingPoint(wo.copy(), facing.copy(), facing.copy(), normal.copy(), np.ones((3, n)), material.copy())
