@@ -5,7 +5,9 @@ A limit in seconds is a guard against a hang, not a performance figure (those ar
 is prompt (a stop request), the limit scales with a time measured in the same run under the same
 load: how long the first work unit took to arrive.
 """
+import sys
 import threading
+import traceback
 
 PROMPT_SHARE = 0.3       # a stop may take this share of the time to the first unit ...
 PROMPT_FLOOR = 1.0       # ... and at least this many seconds (the limit on a quiet machine)
@@ -33,7 +35,14 @@ def guarded(hang: float, fn):
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
     thread.join(hang)
-    assert not thread.is_alive(), f"the render hung (no answer in {hang:.0f} s)"
+    assert not thread.is_alive(), f"the render hung (no answer in {hang:.0f} s)\n{thread_stacks()}"
     if "error" in out:
         raise out["error"]
     return out["value"]
+
+
+def thread_stacks() -> str:
+    """Every thread's stack now: what a hung render waits on, in the failure's message."""
+    names = {t.ident: t.name for t in threading.enumerate()}
+    return "\n".join(f"--- thread {names.get(ident, ident)}\n" + "".join(traceback.format_stack(frame))
+                     for ident, frame in sys._current_frames().items())

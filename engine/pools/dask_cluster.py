@@ -51,6 +51,7 @@ WORKERS_SECONDS = 10       # a scheduler without workers
 CANCEL_SECONDS = 10        # close() waits at most this for cancelled units to stop on the workers
 CLIENT_CLOSE_SECONDS = 2  # the client's own close (a lost scheduler: it gives up after this)
 PROBE_SECONDS = 0.5        # ... but gives up when the workers do not answer within this (one is stopped)
+GATHER_SECONDS = 0.5       # a finished unit's result is fetched in steps of this (a cancel drops it between steps)
 UNIT_RETRIES = 2           # exceptions; worker deaths are counted by the scheduler (allowed-failures)
 KEY_PREFIX = "tncg15"
 
@@ -365,6 +366,7 @@ class DaskPool(Pool):
         self.photon_futures = []                  # photon batches' tasks (their results stay on the workers)
         self.payload = None
         self.cancelled = False
+        self.fetch_stalled = False    # after a cancel, a result's fetch timed out: later ones are dropped unfetched
         self.finished: queue.Queue = queue.Queue()
         self.collector, self.collector_error = None, None
         self.answered: set = set()                # unit keys already answered (by the watch)
@@ -528,7 +530,7 @@ class DaskPool(Pool):
             unit = self.unit_of[future.key]
             try:
                 if future.status == "finished":
-                    answer = (unit, future.result(), None)
+                    answer = (unit, self._result(future), None)
                 elif future.status == "cancelled" and self.cancelled:
                     answer = (unit, None, None)
                 else:
@@ -536,6 +538,22 @@ class DaskPool(Pool):
             except BaseException as exc:          # CancelledError races, a lost scheduler, ...
                 answer = (unit, None, None if self.cancelled else self._error(unit, future, exc))
             self._answer(future.key, answer)
+
+    def _result(self, future):
+        """A finished unit's result, or None (dropped) once the render is cancelled while the worker that
+        holds it does not answer: a SIGSTOPped worker accepts the connection and never replies, and
+        the fetch would wait for it until the scheduler's worker-ttl (300 s), the render's cancel with
+        it.  After one such fetch, the cancelled render's other unfetched results are dropped without
+        a try (each would cost GATHER_SECONDS).  Not cancelled, it waits on: the unit deadline
+        (_watch) removes a worker that finishes nothing, and the scheduler computes its results again."""
+        from distributed import TimeoutError as FetchTimeout
+        while not (self.cancelled and self.fetch_stalled):
+            try:
+                return future.result(timeout=GATHER_SECONDS)
+            except FetchTimeout:
+                if self.cancelled:
+                    self.fetch_stalled = True
+        return None
 
     def _error(self, unit, future, exc=None):
         if exc is None:

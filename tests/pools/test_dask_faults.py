@@ -90,6 +90,34 @@ def test_a_worker_gone_from_the_scheduler_is_no_longer_watched(monkeypatch):
     assert clock.observe({}, 100.0) == [] and clock.held == {}
 
 
+class FetchNeverAnswers:
+    """A finished unit whose holder does not answer (a SIGSTOPped worker): every fetch times out."""
+    def __init__(self, pool, cancel_after=None, answer_after=None):
+        self.pool, self.cancel_after, self.answer_after, self.calls = pool, cancel_after, answer_after, 0
+
+    def result(self, timeout=None):
+        assert timeout is not None, "a fetch without a timeout waits for a stopped worker until worker-ttl"
+        self.calls += 1
+        if self.calls == self.cancel_after:
+            self.pool.cancelled = True
+        if self.calls == self.answer_after:
+            return "the unit's result"
+        raise TimeoutError
+
+
+def test_a_cancel_drops_a_finished_unit_whose_worker_does_not_answer():
+    from engine.pools.dask_cluster import DaskPool
+    pool = object.__new__(DaskPool)            # the results thread's fetch alone, no cluster
+    pool.cancelled = pool.fetch_stalled = False
+    fetch = FetchNeverAnswers(pool, cancel_after=3)
+    assert pool._result(fetch) is None and fetch.calls == 3       # dropped at the first step after the cancel
+    later = FetchNeverAnswers(pool)
+    assert pool._result(later) is None and later.calls == 0       # the next ones: dropped without a fetch
+    pool.cancelled = pool.fetch_stalled = False
+    fetch = FetchNeverAnswers(pool, answer_after=5)                # not cancelled: it waits for the answer
+    assert pool._result(fetch) == "the unit's result" and fetch.calls == 5
+
+
 # -- a cluster of real processes -------------------------------------------------------------------
 @pytest.mark.slow          # a cluster of processes and a 5 s deadline (today's main: hung for worker-ttl, 300 s)
 def test_a_stopped_dask_worker_is_removed_at_its_unit_deadline_and_the_image_is_bit_identical(
