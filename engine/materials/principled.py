@@ -491,7 +491,10 @@ class PrincipledV2(BSDF):
     def lobe_weights(self, si: ShadingPoint, sample_total: bool = False):
         """((w_metal, w_specular, w_diffuse) (N,) each: the lobes' scalar closure weights, and
         their sampling probabilities (3, N)), as closure.h and the closures' sample_weight
-        (sample_total: the sample weights themselves, unnormalised)."""
+        (sample_total: the sample weights themselves, unnormalised).  Compiled in one pass
+        (principled_jit.py lobe_weights, the same numbers) where the roughness is not textured."""
+        if self.compiled is not None and textured_mask(si, self.specular.roughness_input) is None:
+            return self._compiled_lobe_weights(si, sample_total)
         rows = si.material
         m = np.clip(per_hit(si, self.metallic, "metallic"), 0.0, 1.0)
         w_metal = np.where(m > WEIGHT_CUTOFF, m, 0.0)
@@ -513,6 +516,19 @@ class PrincipledV2(BSDF):
         with np.errstate(divide="ignore", invalid="ignore"):
             prob = np.where(total > 0.0, sample / total, 0.0)
         return (w_metal, w_spec, w_diffuse), prob
+
+    def _compiled_lobe_weights(self, si: ShadingPoint, sample_total: bool):
+        """lobe_weights by principled_jit.py lobe_weights: NumPy's per-hit inputs (the metallic, the
+        lobes' colours and darkening, each only where lobe_weights reads it) into one pass."""
+        metal, specular, _ = self._views(si)
+        any_specular = bool(self.has_specular.any())
+        dark = [None if not on or lobe.compensation_at(view) is None else self._darkening(lobe, view, None, True)
+                for lobe, view, on in ((self.metal, metal, True), (self.specular, specular, any_specular))]
+        return self.compiled.lobe_weights(
+            si.material, per_hit(si, self.metallic, "metallic"), si.wo, specular_normal_at(si), self.s_metal,
+            self.s_specular, metal.color, specular.color, *dark, self.has_specular,
+            self.glass.transmission if self.any_transmission else None, si.color, si.glossy_off, WEIGHT_CUTOFF,
+            not sample_total)
 
     def _mixture(self, si: ShadingPoint, wi: np.ndarray, weights, prob):
         """(f cos (3, N), pdf (N,)): the weighted lobes summed, each evaluated where it is set up."""

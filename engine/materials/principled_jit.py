@@ -262,6 +262,94 @@ def diffuse_directions(idx, u1, u2, n, wi, failed=None):
 
 
 @jit
+def _nan_max(a, b):
+    """np.maximum of two floats: a where a >= b or a is NaN, else b (NaN where b is)."""
+    if a != a or a >= b:
+        return a
+    return b
+
+
+@jit
+def _table(flat, row, mu, points):
+    """principled.py _read of one hit: the table row `row` (of `points` points over sqrt(mu), flat)
+    at mu clipped to [0, 1], linear between its points (NaN where mu is NaN, where NumPy's gather
+    raises)."""
+    x = np.sqrt(_clip01(mu)) * (points - 1)
+    if x != x:
+        return x
+    j = min(int(x), points - 1)
+    k = min(j + 1, points - 1)
+    t = x - j
+    return (1.0 - t) * flat[row * points + j] + t * flat[row * points + k]
+
+
+@jit
+def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, metal_colour, spec_colour, dark_metal, dark_spec,
+                  has_specular, transmission, colour, glossy_off, cutoff, points, normalise, w_out, sample_out):
+    """principled.py lobe_weights and layer_albedos (untextured roughness) per hit: the albedo
+    estimates darkening x (F0 + (1 - F0) s(mu)) of the metal and the specular lobe at mu = wo . ns
+    (dark_* empty: no compensation, a factor 1.0), the closure weights into w_out (3, N) and the
+    sample weights (or, where `normalise`, the probabilities) into sample_out (3, N)."""
+    dark_m, dark_s = dark_metal.shape[0] > 0, dark_spec.shape[0] > 0
+    transmits, off = transmission.shape[0] > 0, glossy_off.shape[0] > 0
+    a_m = np.empty(3)
+    a_s = np.empty(3)
+    for i in range(mat.shape[0]):
+        row = mat[i]
+        mu = wo[0, i] * ns[0, i] + wo[1, i] * ns[1, i] + wo[2, i] * ns[2, i]
+        sm = _table(s_metal, row, mu, points)
+        spec = has_specular[row]
+        ss = _table(s_spec, row, mu, points) if spec else 0.0
+        for c in range(3):
+            mc = metal_colour[c, i]
+            a_m[c] = (dark_metal[c, i] if dark_m else 1.0) * (mc + (1.0 - mc) * sm)
+            sc = spec_colour[c, i]
+            a_s[c] = (dark_spec[c, i] if dark_s else 1.0) * (sc + (1.0 - sc) * ss) if spec else 0.0
+        m = _clip01(metallic[i])
+        w_metal = m if m > cutoff else 0.0
+        w_rest = 1.0 - m
+        w_rest = w_rest if w_rest > cutoff else 0.0
+        if transmits:
+            w_rest = w_rest * (1.0 - transmission[row])
+        w_spec = w_rest if spec else 0.0
+        w_diffuse = w_rest * _clip01(1.0 - _nan_max(_nan_max(a_s[0], a_s[1]), a_s[2]))
+        if off and glossy_off[i]:
+            w_metal, w_spec, w_diffuse = 0.0, 0.0, w_rest
+        w_out[0, i], w_out[1, i], w_out[2, i] = w_metal, w_spec, w_diffuse
+        s0 = w_metal * ((a_m[0] + a_m[1] + a_m[2]) / 3.0)
+        s1 = w_spec * ((a_s[0] + a_s[1] + a_s[2]) / 3.0)
+        s2 = w_diffuse * ((abs(colour[0, i]) + abs(colour[1, i]) + abs(colour[2, i])) / 3.0)
+        if normalise:
+            total = s0 + s1 + s2
+            if total > 0.0:
+                s0, s1, s2 = s0 / total, s1 / total, s2 / total
+            else:
+                s0, s1, s2 = 0.0, 0.0, 0.0
+        sample_out[0, i], sample_out[1, i], sample_out[2, i] = s0, s1, s2
+
+
+def lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, metal_colour, spec_colour, dark_metal, dark_spec,
+                 has_specular, transmission, colour, glossy_off, cutoff, normalise):
+    """((w_metal, w_specular, w_diffuse) (N,) each, sample weights or probabilities (3, N)) of
+    principled.py lobe_weights at hits of untextured roughness: mat (N,) material ids, metallic (N,)
+    the hits' metallic, wo and ns (3, N) the view and the lobes' normal, s_metal and s_spec (M,
+    points) the s(mu) tables, metal_colour and spec_colour (3, N) the lobes' F0, dark_metal and
+    dark_spec (3, N) their darkening or None, has_specular (M,), transmission (M,) or None (no
+    transmission closure), colour (3, N), glossy_off (N,) or None, normalise: probabilities."""
+    count = len(mat)
+    w, sample = np.empty((3, count)), np.empty((3, count))
+    rows = np.ascontiguousarray
+    none = np.empty((0, 0))
+    _lobe_weights(rows(mat, dtype=np.int64), rows(metallic, dtype=np.float64), rows(wo), rows(ns), rows(s_metal).ravel(),
+                  rows(s_spec).ravel(), rows(metal_colour), rows(spec_colour),
+                  none if dark_metal is None else rows(dark_metal), none if dark_spec is None else rows(dark_spec),
+                  has_specular, np.empty(0) if transmission is None else transmission, rows(colour),
+                  np.empty(0, dtype=np.bool_) if glossy_off is None else glossy_off, cutoff, s_metal.shape[1],
+                  normalise, w, sample)
+    return (w[0], w[1], w[2]), sample
+
+
+@jit
 def _layered_probabilities(sheen, coat, coat_albedo, base, base_sample, w_metal, w_spec, w_diffuse, w_glass,
                            glass_weight, through, weights_out, prob_out):
     """principled.py _layered_lobes after its layer and lobe weights: the base lobes' closure weights
@@ -403,6 +491,11 @@ def warm_up() -> None:
     sample_values(f_cos, pdf, choice, hits.prob[0], np.array([0.0, 0.5]), failed)
     sample_values(f_cos, pdf)
     diffuse_directions(np.array([1]), np.array([0.3, 0.6]), np.array([0.2, 0.9]), hits.n, wi, failed)
+    for dark, off in ((None, None), (ones, np.array([True, False]))):
+        for normalise in (False, True):
+            lobe_weights(np.array([0, 1]), np.array([0.5, 1.0]), wo, frame[2].copy(), ones * 0.5, ones * 0.25,
+                         ones * 0.9, ones * 0.04, dark, dark, np.array([True, False]),
+                         None if dark is None else np.array([0.0, 0.5]), ones, off, 1e-5, normalise)
     layers = SimpleNamespace(sheen=ones * 0.1, coat=ones * 0.2, coat_albedo=np.array([0.1, 0.2]), base=ones * 0.5,
                              through=np.array([0.0, 0.5]))
     w = np.array([0.5, 0.25])
