@@ -472,6 +472,11 @@ class PrincipledV2(BSDF):
                 out[idx.take(mine)] = (1.0 - ti) * low + ti * high
         return s_metal, s_spec
 
+    def _s_at(self, si: ShadingPoint, mu: np.ndarray):
+        """(s_metal, s_spec) (N,) at the hits' mu: the material's tables, read at the hit's roughness
+        where it is textured (`_textured_s`)."""
+        return self._textured_s(si, mu, *_read_both(self.s_metal, self.s_specular, si.material, mu))
+
     def layer_albedos(self, si: ShadingPoint):
         """Cycles' albedo estimates (3, N) of the metallic and the specular lobe at wo (without
         their weights): darkening x mix(F0, 1, s(mu)) (bsdf_albedo)."""
@@ -483,7 +488,7 @@ class PrincipledV2(BSDF):
             s_metal = _read(self.s_metal, rows, mu)
             a_metal = self._darkening(self.metal, metal, mu, True) * (metal.color + (1.0 - metal.color) * s_metal)
             return a_metal, np.zeros((3, len(si)))
-        s_metal, s_spec = self._textured_s(si, mu, *_read_both(self.s_metal, self.s_specular, rows, mu))
+        s_metal, s_spec = self._s_at(si, mu)
         a_metal = self._darkening(self.metal, metal, mu, True) * (metal.color + (1.0 - metal.color) * s_metal)
         a_spec = self._darkening(self.specular, specular, mu, True) * (specular.color + (1.0 - specular.color) * s_spec)
         return a_metal, np.where(self.has_specular.take(rows), a_spec, 0.0)
@@ -492,8 +497,8 @@ class PrincipledV2(BSDF):
         """((w_metal, w_specular, w_diffuse) (N,) each: the lobes' scalar closure weights, and
         their sampling probabilities (3, N)), as closure.h and the closures' sample_weight
         (sample_total: the sample weights themselves, unnormalised).  Compiled in one pass
-        (principled_jit.py lobe_weights, the same numbers) where the roughness is not textured."""
-        if self.compiled is not None and textured_mask(si, self.specular.roughness_input) is None:
+        (principled_jit.py lobe_weights, the same numbers) on the numba backend."""
+        if self.compiled is not None:
             return self._compiled_lobe_weights(si, sample_total)
         rows = si.material
         m = np.clip(per_hit(si, self.metallic, "metallic"), 0.0, 1.0)
@@ -519,14 +524,18 @@ class PrincipledV2(BSDF):
 
     def _compiled_lobe_weights(self, si: ShadingPoint, sample_total: bool):
         """lobe_weights by principled_jit.py lobe_weights: NumPy's per-hit inputs (the metallic, the
-        lobes' colours and darkening, each only where lobe_weights reads it) into one pass."""
+        lobes' colours and darkening, each only where lobe_weights reads it; s(mu) at textured
+        roughness, `_textured_s`) into one pass."""
         metal, specular, _ = self._views(si)
+        s_hits = None
+        if textured_mask(si, self.specular.roughness_input) is not None:
+            s_hits = np.stack(self._s_at(si, np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0)))
         any_specular = bool(self.has_specular.any())
         dark = [None if not on or lobe.compensation_at(view) is None else self._darkening(lobe, view, None, True)
                 for lobe, view, on in ((self.metal, metal, True), (self.specular, specular, any_specular))]
         return self.compiled.lobe_weights(
             si.material, per_hit(si, self.metallic, "metallic"), si.wo, specular_normal_at(si), self.s_metal,
-            self.s_specular, metal.color, specular.color, *dark, self.has_specular,
+            self.s_specular, s_hits, metal.color, specular.color, *dark, self.has_specular,
             self.glass.transmission if self.any_transmission else None, si.color, si.glossy_off, WEIGHT_CUTOFF,
             not sample_total)
 

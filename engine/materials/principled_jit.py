@@ -284,22 +284,27 @@ def _table(flat, row, mu, points):
 
 
 @jit
-def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, metal_colour, spec_colour, dark_metal, dark_spec,
+def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
                   has_specular, transmission, colour, glossy_off, cutoff, points, normalise, w_out, sample_out):
-    """principled.py lobe_weights and layer_albedos (untextured roughness) per hit: the albedo
-    estimates darkening x (F0 + (1 - F0) s(mu)) of the metal and the specular lobe at mu = wo . ns
-    (dark_* empty: no compensation, a factor 1.0), the closure weights into w_out (3, N) and the
-    sample weights (or, where `normalise`, the probabilities) into sample_out (3, N)."""
+    """principled.py lobe_weights and layer_albedos per hit: the albedo estimates darkening x
+    (F0 + (1 - F0) s(mu)) of the metal and the specular lobe at mu = wo . ns (s from the tables, or
+    the hits' own s_hits (2, N) where not empty: textured roughness; dark_* empty: no compensation,
+    a factor 1.0), the closure weights into w_out (3, N) and the sample weights (or, where
+    `normalise`, the probabilities) into sample_out (3, N)."""
     dark_m, dark_s = dark_metal.shape[0] > 0, dark_spec.shape[0] > 0
+    own_s = s_hits.shape[0] > 0
     transmits, off = transmission.shape[0] > 0, glossy_off.shape[0] > 0
     a_m = np.empty(3)
     a_s = np.empty(3)
     for i in range(mat.shape[0]):
         row = mat[i]
-        mu = wo[0, i] * ns[0, i] + wo[1, i] * ns[1, i] + wo[2, i] * ns[2, i]
-        sm = _table(s_metal, row, mu, points)
         spec = has_specular[row]
-        ss = _table(s_spec, row, mu, points) if spec else 0.0
+        if own_s:
+            sm, ss = s_hits[0, i], s_hits[1, i]
+        else:
+            mu = wo[0, i] * ns[0, i] + wo[1, i] * ns[1, i] + wo[2, i] * ns[2, i]
+            sm = _table(s_metal, row, mu, points)
+            ss = _table(s_spec, row, mu, points) if spec else 0.0
         for c in range(3):
             mc = metal_colour[c, i]
             a_m[c] = (dark_metal[c, i] if dark_m else 1.0) * (mc + (1.0 - mc) * sm)
@@ -328,12 +333,12 @@ def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, metal_colour, spec_col
         sample_out[0, i], sample_out[1, i], sample_out[2, i] = s0, s1, s2
 
 
-def lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, metal_colour, spec_colour, dark_metal, dark_spec,
+def lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
                  has_specular, transmission, colour, glossy_off, cutoff, normalise):
     """((w_metal, w_specular, w_diffuse) (N,) each, sample weights or probabilities (3, N)) of
-    principled.py lobe_weights at hits of untextured roughness: mat (N,) material ids, metallic (N,)
-    the hits' metallic, wo and ns (3, N) the view and the lobes' normal, s_metal and s_spec (M,
-    points) the s(mu) tables, metal_colour and spec_colour (3, N) the lobes' F0, dark_metal and
+    principled.py lobe_weights: mat (N,) material ids, metallic (N,) the hits' metallic, wo and ns
+    (3, N) the view and the lobes' normal, s_metal and s_spec (M, points) the s(mu) tables, s_hits
+    (2, N) the hits' s of the metal and the specular lobe or None (read from the tables), metal_colour and spec_colour (3, N) the lobes' F0, dark_metal and
     dark_spec (3, N) their darkening or None, has_specular (M,), transmission (M,) or None (no
     transmission closure), colour (3, N), glossy_off (N,) or None, normalise: probabilities."""
     count = len(mat)
@@ -341,7 +346,7 @@ def lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, metal_colour, spec_colo
     rows = np.ascontiguousarray
     none = np.empty((0, 0))
     _lobe_weights(rows(mat, dtype=np.int64), rows(metallic, dtype=np.float64), rows(wo), rows(ns), rows(s_metal).ravel(),
-                  rows(s_spec).ravel(), rows(metal_colour), rows(spec_colour),
+                  rows(s_spec).ravel(), none if s_hits is None else rows(s_hits), rows(metal_colour), rows(spec_colour),
                   none if dark_metal is None else rows(dark_metal), none if dark_spec is None else rows(dark_spec),
                   has_specular, np.empty(0) if transmission is None else transmission, rows(colour),
                   np.empty(0, dtype=np.bool_) if glossy_off is None else glossy_off, cutoff, s_metal.shape[1],
@@ -494,7 +499,7 @@ def warm_up() -> None:
     for dark, off in ((None, None), (ones, np.array([True, False]))):
         for normalise in (False, True):
             lobe_weights(np.array([0, 1]), np.array([0.5, 1.0]), wo, frame[2].copy(), ones * 0.5, ones * 0.25,
-                         ones * 0.9, ones * 0.04, dark, dark, np.array([True, False]),
+                         None if dark is None else ones[:2] * 0.5, ones * 0.9, ones * 0.04, dark, dark, np.array([True, False]),
                          None if dark is None else np.array([0.0, 0.5]), ones, off, 1e-5, normalise)
     layers = SimpleNamespace(sheen=ones * 0.1, coat=ones * 0.2, coat_albedo=np.array([0.1, 0.2]), base=ones * 0.5,
                              through=np.array([0.0, 0.5]))
