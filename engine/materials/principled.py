@@ -712,8 +712,8 @@ class PrincipledV2(BSDF):
         return si.memo((self, "glass setup"), make)
 
     def _glass_rows(self, glass: SimpleNamespace, at: np.ndarray | None):
-        """The setup of `_glass_setup` at its hits `at` (None: all of them, every one set up), or None
-        where one of them has none (w 0: the transmission closure picked by rounding, see
+        """The setup of `_glass_setup` at its hits `at` (None: the hits it was set up at, in order), or
+        None where one of them has none (w 0: the transmission closure picked by rounding, see
         _compiled_layered_sample)."""
         if at is None:
             return glass.setup
@@ -838,7 +838,9 @@ class PrincipledV2(BSDF):
             return
         at = k if index is None else index.take(k)
         every = index is None and len(k) == len(si)
-        setup = self._glass_rows(hits.glass.setup, None if every else at)    # set up wherever on (w > 0)
+        # set up wherever on (w > 0); at the hits themselves, as many as set up: those, in order
+        same = index is None and len(k) == len(hits.glass.setup.setup.eta)
+        setup = self._glass_rows(hits.glass.setup, None if same else at)
         f_l, pdf_l = self.glass.eval(None, wi if every else wi.take(k, axis=1), setup)
         f_cos[:, k] += hits.glass.w.take(at, axis=1) * f_l
         pdf[k] += hits.glass.p.take(at) * pdf_l
