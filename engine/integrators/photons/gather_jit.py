@@ -2,7 +2,14 @@
 photons in the same order (ascending index in the sorted map), tests them with the same float
 operations and adds their flux in that order, so the sums and the pairs are gather.py's bit for bit
 (tests/integrators/photons/test_gather.py).  Imported only through engine/core/backend.py's choice
-(it imports numba)."""
+(it imports numba).
+
+Where gather.py searches the slot's keys for each column of a query's box, the twin reads the
+column's run from the slot's column table (photon_map.py BatchMaps.columns; a slot without one is
+searched as gather.py does): a row of the box's columns (x fixed, y0 .. y1) is one run too, so an
+empty row is passed over after two reads, and a column's z cells are searched only when its run
+has photons both in and outside them.  The same photons come out in the same order: only the
+search is cheaper (docs/performance.md, branch `photons3`)."""
 from __future__ import annotations
 
 import numpy as np
@@ -27,56 +34,80 @@ def _lower(keys, lo, hi, value):
 
 
 @jit
-def _walk(q, points, facing, local, radius, segments, budget, position, normal, flux, seg, chain, offsets, lo,
-          cell, dims, keys, stride, out, pair_q, pair_j, n_pairs):
-    """Query q's photons in order: their flux summed into out[:, q] (out not empty), or their pairs
-    written from n_pairs on (pair_q not empty), or only counted; returns the new n_pairs."""
-    k = local[q]
-    start, stop = offsets[k], offsets[k + 1]
-    if start == stop:
-        return n_pairs
-    r = radius[q]
-    c = cell[k]
-    x, y, z = points[0, q], points[1, q], points[2, q]
-    top_x, top_y, top_z = np.float64(dims[0, k] - 1), np.float64(dims[1, k] - 1), np.float64(dims[2, k] - 1)
-    fx, gx = np.floor((x - r - lo[0, k]) / c), np.floor((x + r - lo[0, k]) / c)
-    fy, gy = np.floor((y - r - lo[1, k]) / c), np.floor((y + r - lo[1, k]) / c)
-    fz, gz = np.floor((z - r - lo[2, k]) / c), np.floor((z + r - lo[2, k]) / c)
-    if gx < 0.0 or fx > top_x or gy < 0.0 or fy > top_y or gz < 0.0 or fz > top_z:
-        return n_pairs
-    x0, x1 = np.int64(min(max(fx, 0.0), top_x)), np.int64(min(max(gx, 0.0), top_x))
-    y0, y1 = np.int64(min(max(fy, 0.0), top_y)), np.int64(min(max(gy, 0.0), top_y))
-    z0, z1 = np.int64(min(max(fz, 0.0), top_z)), np.int64(min(max(gz, 0.0), top_z))
-    r2 = r * r
-    s0, s1, s2 = 0.0, 0.0, 0.0
-    limit = segments[q]
-    f0, f1, f2 = facing[0, q], facing[1, q], facing[2, q]
-    b0, b1, b2 = budget[0, q], budget[1, q], budget[2, q]
-    for ix in range(x0, x1 + 1):
-        for iy in range(y0, y1 + 1):
-            base = k * stride + (ix * dims[1, k] + iy) * dims[2, k]
-            j = _lower(keys, start, stop, base + z0)
-            end = _lower(keys, j, stop, base + z1 + 1)
-            while j < end:
-                d0 = x - position[0, j]
-                d1 = y - position[1, j]
-                d2 = z - position[2, j]
-                if (d0 * d0 + d1 * d1 + d2 * d2 <= r2
-                        and f0 * normal[0, j] + f1 * normal[1, j] + f2 * normal[2, j] > SAME_SIDE_COS
-                        and seg[j] <= limit and chain[0, j] <= b0 and chain[1, j] <= b1 and chain[2, j] <= b2):
-                    if out.shape[1]:
-                        s0 += flux[0, j]
-                        s1 += flux[1, j]
-                        s2 += flux[2, j]
-                    elif pair_q.shape[0]:
-                        pair_q[n_pairs] = q
-                        pair_j[n_pairs] = j
-                    n_pairs += 1
-                j += 1
-    if out.shape[1]:
-        out[0, q] = s0
-        out[1, q] = s1
-        out[2, q] = s2
+def _run(keys, lo, hi, first, last):
+    """(j, end): keys[j:end] are the keys of keys[lo:hi] within [first, last] (j == end: none); the
+    ends are looked at before any search (a column's photons often all lie in the z cells asked
+    for, or in none of them)."""
+    if lo == hi or keys[lo] > last or keys[hi - 1] < first:
+        return lo, lo
+    j = lo if keys[lo] >= first else _lower(keys, lo + 1, hi, first)
+    end = hi if keys[hi - 1] <= last else _lower(keys, j, hi - 1, last + 1)
+    return j, end
+
+
+@jit
+def _walk(order, points, facing, local, radius, segments, budget, position, normal, flux, seg, chain, offsets, lo,
+          cell, dims, keys, stride, columns, column_at, out, pair_q, pair_j):
+    """The queries `order` walk their photons in order: each query's flux summed into out[:, q] (out
+    not empty), or its pairs written one after the other (pair_q not empty), or only counted;
+    returns the number of pairs.  One call walks every query (a compiled call per query, with its
+    two dozen arguments, cost about 20 ns a query, as much as a query that finds nothing)."""
+    n_pairs = 0
+    for q in order:
+        k = local[q]
+        start, stop = offsets[k], offsets[k + 1]
+        if start == stop:
+            continue
+        r = radius[q]
+        c = cell[k]
+        x, y, z = points[0, q], points[1, q], points[2, q]
+        top_x, top_y, top_z = np.float64(dims[0, k] - 1), np.float64(dims[1, k] - 1), np.float64(dims[2, k] - 1)
+        fx, gx = np.floor((x - r - lo[0, k]) / c), np.floor((x + r - lo[0, k]) / c)
+        fy, gy = np.floor((y - r - lo[1, k]) / c), np.floor((y + r - lo[1, k]) / c)
+        fz, gz = np.floor((z - r - lo[2, k]) / c), np.floor((z + r - lo[2, k]) / c)
+        if not (gx >= 0.0 and fx <= top_x and gy >= 0.0 and fy <= top_y and gz >= 0.0 and fz <= top_z):
+            continue            # gather.py cell_ranges' `meets` (False for NaN too)
+        x0, x1 = np.int64(min(max(fx, 0.0), top_x)), np.int64(min(max(gx, 0.0), top_x))
+        y0, y1 = np.int64(min(max(fy, 0.0), top_y)), np.int64(min(max(gy, 0.0), top_y))
+        z0, z1 = np.int64(min(max(fz, 0.0), top_z)), np.int64(min(max(gz, 0.0), top_z))
+        r2 = r * r
+        s0, s1, s2 = 0.0, 0.0, 0.0
+        limit = segments[q]
+        f0, f1, f2 = facing[0, q], facing[1, q], facing[2, q]
+        b0, b1, b2 = budget[0, q], budget[1, q], budget[2, q]
+        table = column_at[k]
+        has_table = column_at[k + 1] > table
+        run_start, run_stop = start, stop
+        for ix in range(x0, x1 + 1):
+            row = ix * dims[1, k]
+            if has_table and columns[table + row + y0] == columns[table + row + y1 + 1]:
+                continue
+            for iy in range(y0, y1 + 1):
+                column = row + iy
+                if has_table:
+                    run_start, run_stop = start + columns[table + column], start + columns[table + column + 1]
+                base = k * stride + column * dims[2, k]
+                j, end = _run(keys, run_start, run_stop, base + z0, base + z1)
+                while j < end:
+                    d0 = x - position[0, j]
+                    d1 = y - position[1, j]
+                    d2 = z - position[2, j]
+                    if (d0 * d0 + d1 * d1 + d2 * d2 <= r2
+                            and f0 * normal[0, j] + f1 * normal[1, j] + f2 * normal[2, j] > SAME_SIDE_COS
+                            and seg[j] <= limit and chain[0, j] <= b0 and chain[1, j] <= b1 and chain[2, j] <= b2):
+                        if out.shape[1]:
+                            s0 += flux[0, j]
+                            s1 += flux[1, j]
+                            s2 += flux[2, j]
+                        elif pair_q.shape[0]:
+                            pair_q[n_pairs] = q
+                            pair_j[n_pairs] = j
+                        n_pairs += 1
+                    j += 1
+        if out.shape[1]:
+            out[0, q] = s0
+            out[1, q] = s1
+            out[2, q] = s2
     return n_pairs
 
 
@@ -98,33 +129,27 @@ def _by_slot(local, slots):
 
 @jit
 def _flux_sums(points, facing, local, radius, segments, budget, position, normal, flux, seg, chain, offsets, lo,
-               cell, dims, keys, stride):
-    m = points.shape[1]
-    out = np.zeros((3, m))
+               cell, dims, keys, stride, columns, column_at):
+    out = np.zeros((3, points.shape[1]))
     none = np.zeros(0, np.int64)
-    for q in _by_slot(local, offsets.shape[0] - 1):
-        _walk(q, points, facing, local, radius, segments, budget, position, normal, flux, seg, chain, offsets, lo,
-              cell, dims, keys, stride, out, none, none, 0)
+    _walk(_by_slot(local, offsets.shape[0] - 1), points, facing, local, radius, segments, budget, position, normal,
+          flux, seg, chain, offsets, lo, cell, dims, keys, stride, columns, column_at, out, none, none)
     return out
 
 
 @jit
 def _pairs(points, facing, local, radius, segments, budget, position, normal, flux, seg, chain, offsets, lo,
-           cell, dims, keys, stride):
-    m = points.shape[1]
+           cell, dims, keys, stride, columns, column_at):
+    order = np.arange(points.shape[1])
     empty = np.zeros((3, 0))
     none = np.zeros(0, np.int64)
-    total = 0
-    for q in range(m):
-        total = _walk(q, points, facing, local, radius, segments, budget, position, normal, flux, seg, chain,
-                      offsets, lo, cell, dims, keys, stride, empty, none, none, total)
+    total = _walk(order, points, facing, local, radius, segments, budget, position, normal, flux, seg, chain,
+                  offsets, lo, cell, dims, keys, stride, columns, column_at, empty, none, none)
     pair_q = np.empty(total, np.int64)
     pair_j = np.empty(total, np.int64)
     if total:
-        n = 0
-        for q in range(m):
-            n = _walk(q, points, facing, local, radius, segments, budget, position, normal, flux, seg, chain,
-                      offsets, lo, cell, dims, keys, stride, empty, pair_q, pair_j, n)
+        _walk(order, points, facing, local, radius, segments, budget, position, normal, flux, seg, chain, offsets,
+              lo, cell, dims, keys, stride, columns, column_at, empty, pair_q, pair_j)
     return pair_q, pair_j
 
 
@@ -135,7 +160,7 @@ def _arguments(maps, points, facing, local, radius, segments, budget):
     budget = np.full((3, m), NO_LIMIT, np.int64) if budget is None else np.ascontiguousarray(budget, np.int64)
     return (rows[0], rows[1], np.ascontiguousarray(local, np.int64), np.ascontiguousarray(radius, np.float64),
             segments, budget, maps.position, maps.normal, maps.flux, maps.segments, maps.chain, maps.offsets,
-            maps.lo, maps.cell, maps.dims, maps.keys, np.int64(maps.stride))
+            maps.lo, maps.cell, maps.dims, maps.keys, np.int64(maps.stride), maps.columns, maps.column_at)
 
 
 def flux_sums(maps, points, facing, local, radius, segments=None, budget=None):
