@@ -112,16 +112,16 @@ def _walk(order, points, facing, local, radius, segments, budget, position, norm
 
 
 @jit
-def _by_slot(local, slots):
-    """The queries in the order of their slots (a counting sort): one slot's photons stay in the cache
-    while its queries walk them.  The order of the queries changes no sum."""
+def _by_slot(local, rows, slots):
+    """The queries `rows` in the order of their slots (a counting sort): one slot's photons stay in
+    the cache while its queries walk them.  The order of the queries changes no sum."""
     count = np.zeros(slots + 1, np.int64)
-    for q in range(local.shape[0]):
+    for q in rows:
         count[local[q] + 1] += 1
     for s in range(slots):
         count[s + 1] += count[s]
-    order = np.empty(local.shape[0], np.int64)
-    for q in range(local.shape[0]):
+    order = np.empty(rows.shape[0], np.int64)
+    for q in rows:
         order[count[local[q]]] = q
         count[local[q]] += 1
     return order
@@ -132,9 +132,33 @@ def _flux_sums(points, facing, local, radius, segments, budget, position, normal
                cell, dims, keys, stride, columns, column_at):
     out = np.zeros((3, points.shape[1]))
     none = np.zeros(0, np.int64)
-    _walk(_by_slot(local, offsets.shape[0] - 1), points, facing, local, radius, segments, budget, position, normal,
-          flux, seg, chain, offsets, lo, cell, dims, keys, stride, columns, column_at, out, none, none)
+    _walk(_by_slot(local, np.arange(points.shape[1]), offsets.shape[0] - 1), points, facing, local, radius, segments,
+          budget, position, normal, flux, seg, chain, offsets, lo, cell, dims, keys, stride, columns, column_at, out,
+          none, none)
     return out
+
+
+@jit
+def _lambert_radiance(rows, passes, wide, first_pass, n_passes, wide_scale, slot_radius, albedo, out, points, facing,
+                      segments, budget, position, normal, flux, seg, chain, offsets, lo, cell, dims, keys, stride,
+                      columns, column_at):
+    """gather.py lambert_radiance: slots_of's slots and radii, the walk's sums, then out[:, q] =
+    sums x albedo x (1 / (pi pi r r)) with NumPy's operations in NumPy's order."""
+    m = points.shape[1]
+    local = np.zeros(m, np.int64)
+    radius = np.zeros(m)
+    for q in rows:
+        local[q] = passes[q] - first_pass + (n_passes if wide[q] else 0)
+        radius[q] = slot_radius[local[q]] * (wide_scale if wide[q] else 1.0)
+    sums = np.zeros((3, m))
+    none = np.zeros(0, np.int64)
+    _walk(_by_slot(local, rows, offsets.shape[0] - 1), points, facing, local, radius, segments, budget, position,
+          normal, flux, seg, chain, offsets, lo, cell, dims, keys, stride, columns, column_at, sums, none, none)
+    for q in rows:
+        scale = 1.0 / (np.pi * np.pi * radius[q] * radius[q])
+        out[0, q] = sums[0, q] * albedo[0, q] * scale
+        out[1, q] = sums[1, q] * albedo[1, q] * scale
+        out[2, q] = sums[2, q] * albedo[2, q] * scale
 
 
 @jit
@@ -153,14 +177,25 @@ def _pairs(points, facing, local, radius, segments, budget, position, normal, fl
     return pair_q, pair_j
 
 
-def _arguments(maps, points, facing, local, radius, segments, budget):
+def _queries(points, facing, segments, budget):
+    """The query arrays as the kernels take them: C-contiguous float64 rows, int64 limits (None: no limit)."""
     m = points.shape[1]
     rows = [np.ascontiguousarray(a, np.float64) for a in (points, facing)]
     segments = np.full(m, NO_LIMIT, np.int64) if segments is None else np.ascontiguousarray(segments, np.int64)
     budget = np.full((3, m), NO_LIMIT, np.int64) if budget is None else np.ascontiguousarray(budget, np.int64)
-    return (rows[0], rows[1], np.ascontiguousarray(local, np.int64), np.ascontiguousarray(radius, np.float64),
-            segments, budget, maps.position, maps.normal, maps.flux, maps.segments, maps.chain, maps.offsets,
-            maps.lo, maps.cell, maps.dims, maps.keys, np.int64(maps.stride), maps.columns, maps.column_at)
+    return rows[0], rows[1], segments, budget
+
+
+def _photons(maps):
+    """The maps' arrays as the kernels take them (BatchMaps makes them C-contiguous float64 and int64)."""
+    return (maps.position, maps.normal, maps.flux, maps.segments, maps.chain, maps.offsets, maps.lo, maps.cell,
+            maps.dims, maps.keys, np.int64(maps.stride), maps.columns, maps.column_at)
+
+
+def _arguments(maps, points, facing, local, radius, segments, budget):
+    points, facing, segments, budget = _queries(points, facing, segments, budget)
+    return (points, facing, np.ascontiguousarray(local, np.int64), np.ascontiguousarray(radius, np.float64),
+            segments, budget) + _photons(maps)
 
 
 def flux_sums(maps, points, facing, local, radius, segments=None, budget=None):
@@ -168,6 +203,16 @@ def flux_sums(maps, points, facing, local, radius, segments=None, budget=None):
     if points.shape[1] == 0 or maps.count == 0:
         return np.zeros((3, points.shape[1]))
     return _flux_sums(*_arguments(maps, points, facing, local, radius, segments, budget))
+
+
+def lambert_radiance(maps, rows, points, facing, passes, wide, wide_scale, segments, budget, albedo, out):
+    """gather.py lambert_radiance (out: C-contiguous float64)."""
+    if len(rows) == 0:
+        return
+    _lambert_radiance(np.ascontiguousarray(rows, np.int64), np.ascontiguousarray(passes, np.int64),
+                      np.ascontiguousarray(wide, np.bool_), np.int64(maps.passes[0]), np.int64(len(maps.passes)),
+                      np.float64(wide_scale), maps.radius, np.ascontiguousarray(albedo, np.float64), out,
+                      *_queries(points, facing, segments, budget), *_photons(maps))
 
 
 def pairs(maps, points, facing, local, radius, segments=None, budget=None):
@@ -191,3 +236,6 @@ def warm_up() -> None:
     local = np.array([0, 1, 2, 3])
     flux_sums(maps, points, unit[:, :4], local, np.full(4, 0.3))
     pairs(maps, points, unit[:, :4], local, np.full(4, 0.3), np.full(4, 3), np.full((3, 4), 2))
+    for segments, budget in ((None, None), (np.full(4, 3), np.full((3, 4), 2))):
+        lambert_radiance(maps, np.arange(3), points, unit[:, :4], np.array([0, 1, 0, 1]), np.arange(4) % 2 == 0, 4.0,
+                         segments, budget, rng.random((3, 4)), np.zeros((3, 4)))

@@ -221,6 +221,68 @@ def test_the_twin_gives_the_same_bits_at_the_edges_and_without_tables():
     assert not np.array_equal(gather.flux_sums(*calls[3]), gather_jit.flux_sums(wrong, *calls[3][1:]))
 
 
+def recorded_lambert_calls(limit=12):
+    """The arguments of gather.lambert_radiance's calls in a caustic-room render (NumPy backend), `out`
+    as it was before each call."""
+    calls, real = [], gather.lambert_radiance
+
+    def recording(maps, *args):
+        if len(calls) < limit:
+            calls.append((maps,) + tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args))
+        return real(maps, *args)
+    caustics_module.gather.lambert_radiance = recording
+    try:
+        api.render(caustic_scene((24, 24)), RenderSettings(samples=10, threads=1, backend="numpy", photons_per_pass=2000,
+                                                           caustics_method="photons"), log=lambda m: None)
+    finally:
+        caustics_module.gather.lambert_radiance = real
+    return calls
+
+
+def made_up_lambert_calls():
+    """lambert_radiance on the made-up maps: a subset of rows, wide and narrow, albedo with NaN, inf
+    and -0, points at NaN and inf, no limits; and into a pass with no photon."""
+    maps, _ = made_up_maps()
+    (_, points, facing, _, _, segments, budget), _, (half, *into) = edge_calls(maps)
+    rng = np.random.default_rng(10)
+    m = points.shape[1]
+    albedo = rng.random((3, m))
+    albedo[0, 1], albedo[1, 2], albedo[2, 3], albedo[:, 4] = np.nan, np.inf, -0.0, 0.0
+    passes, wide = rng.integers(0, 2, m), rng.random(m) < 0.4
+    rows = np.union1d(np.flatnonzero(rng.random(m) < 0.8), [1, 2, 3, 4])
+    rows = rows[rows != 0]                   # row 0 is not asked: left as it was
+    n = into[0].shape[1]
+    return [(maps, rows, points, facing, passes, wide, 4.0, segments, budget, albedo, rng.random((3, m))),
+            (maps, rows[::2], points, facing, passes, wide, 4.0, None, None, albedo, np.zeros((3, m))),
+            (half, np.arange(n), into[0], into[1], np.arange(n) % 2, np.arange(n) % 3 == 0, 4.0, None, None,
+             rng.random((3, n)), np.zeros((3, n)))]
+
+
+def test_the_twins_lambert_radiance_is_gather_pys():
+    """The caustic radiance of a batch's rows on a Lambertian BSDF: the same bits in the same
+    places (the other columns of `out` left as they were), on a render's calls and made-up ones."""
+    require_compiled()
+    from engine.integrators.photons import gather_jit
+    calls = recorded_lambert_calls() + made_up_lambert_calls()
+    assert len(calls) > 10 and sum(np.count_nonzero(c[-2][:, c[1]]) for c in calls) > 1000
+    outs = []
+    for *args, out in calls:
+        expected, got = out.copy(), out.copy()
+        with np.errstate(invalid="ignore"):
+            gather.lambert_radiance(*args, expected)
+            gather_jit.lambert_radiance(*args, got)
+        assert np.array_equal(expected, got, equal_nan=True)
+        outs.append(expected)
+    assert sum(np.count_nonzero(o > 0) for o in outs) > 1000
+    assert np.isnan(outs[-3][0, 1]) and np.array_equal(outs[-3][:, 0], calls[-3][-1][:, 0])
+    *args, out = calls[-3]                   # control: the wide radius' scale off by an ulp is other bits
+    args[6] = np.nextafter(args[6], 5.0)
+    nudged = out.copy()
+    with np.errstate(invalid="ignore"):
+        gather_jit.lambert_radiance(*args, nudged)
+    assert not np.array_equal(nudged, outs[-3], equal_nan=True)
+
+
 def test_a_render_is_the_same_on_both_backends():
     require_compiled()
     images = [api.render(caustic_scene((12, 12)), RenderSettings(samples=5, threads=1, backend=b, photons_per_pass=1500,
