@@ -65,8 +65,9 @@ def pass_grid(position: np.ndarray, radius: float):
 
 def column_table(key: np.ndarray, dims: np.ndarray) -> np.ndarray:
     """(dims_x dims_y + 1,) int32: where each column of a grid of `dims` starts among the photons
-    with cell keys `key` (N,) sorted by key (BatchMaps.columns); empty when the grid has more columns
-    than COLUMNS_PER_PHOTON N or MIN_COLUMNS."""
+    with cell keys `key` (N,, in any order: a count per column) once they are sorted by key
+    (BatchMaps.columns); empty when the grid has more columns than COLUMNS_PER_PHOTON N or
+    MIN_COLUMNS."""
     n_columns = int(dims[0]) * int(dims[1])
     if n_columns > max(COLUMNS_PER_PHOTON * len(key), MIN_COLUMNS):
         return np.zeros(0, np.int32)
@@ -90,7 +91,7 @@ class BatchMaps:
     for every z are one run), the last the slot's count.  The compiled walk (gather_jit.py) reads a
     column's run there instead of searching the slot's keys for it; a slot whose grid has more
     columns than COLUMNS_PER_PHOTON per photon (or MIN_COLUMNS) has no table (an empty range) and
-    is searched.  The table changes which photons are read in which order in nothing."""
+    is searched.  Which photons are read, and in which order, is the same either way."""
 
     def __init__(self, stored, passes, radii, scales=(1.0,)):
         """stored: engine/integrators/photons/tracing.py Stored."""
