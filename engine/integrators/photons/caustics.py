@@ -232,21 +232,23 @@ class CausticPhotons:
             gathering[wide] = gather_coins(self.settings.seed, sample[wide], points[:, wide]) < SECONDARY_GATHER
         batch = passes // PASSES_PER_BATCH
         everyone = gathering.all()
+        albedo = None if bsdf is None else bsdf.lambert_albedo(si)     # f = rho / pi: one kernel call a batch
         for b in np.unique(batch if everyone else batch[gathering]):
             maps = self.maps_of(int(b), counters)
             start = time.perf_counter()
             rows = np.flatnonzero((batch == b) & gathering)
-            whole = len(rows) == m
-            part = (lambda a: a) if whole else (lambda a: a.take(rows, axis=-1))
-            is_wide = part(wide)
-            local = part(passes) - maps.passes[0] + np.where(is_wide, len(maps.passes), 0)   # the wide grids' slots
-            radius = maps.radius.take(local) * np.where(is_wide, SECONDARY_SCALE, 1.0)
-            found = maps.radiance(bsdf, si if whole else si.take(rows), part(points), part(facing), local, radius,
-                                  None if segments is None else part(segments),
-                                  None if budget is None else part(budget), self.kernels)
-            if SECONDARY_GATHER < 1.0 and is_wide.any():
-                found[:, is_wide] *= 1.0 / SECONDARY_GATHER
-            out[:, rows] = found
+            if albedo is not None:
+                self.kernels.lambert_radiance(maps, rows, points, facing, passes, wide, SECONDARY_SCALE, segments,
+                                              budget, albedo, out)
+            else:
+                whole = len(rows) == m
+                part = (lambda a: a) if whole else (lambda a: a.take(rows, axis=-1))
+                local, radius = gather.slots_of(maps, part(passes), part(wide), SECONDARY_SCALE)
+                out[:, rows] = maps.radiance(bsdf, si if whole else si.take(rows), part(points), part(facing), local,
+                                             radius, None if segments is None else part(segments),
+                                             None if budget is None else part(budget), self.kernels)
+            if SECONDARY_GATHER < 1.0:
+                out[:, rows[wide.take(rows)]] *= 1.0 / SECONDARY_GATHER
             counters.photons["gather_seconds"] = counters.photons.get("gather_seconds", 0.0) + \
                 time.perf_counter() - start
         return out

@@ -89,3 +89,23 @@ def flux_sums(maps, points, facing, local, radius, segments=None, budget=None):
         for c in range(3):
             out[c] = np.bincount(query, flux[c], minlength=m)
     return out
+
+
+def slots_of(maps, passes, wide, wide_scale):
+    """(local, radius) (M,) of queries of the batch's passes `passes` (M,): each pass's slot and
+    radius, or for the wide ones (M,) bool the slot of its grid of the maps' second scale and
+    wide_scale x its radius (engine/integrators/photons/caustics.py builds BatchMaps with the scales
+    (1, wide_scale))."""
+    local = passes - maps.passes[0] + np.where(wide, len(maps.passes), 0)
+    return local, maps.radius.take(local) * np.where(wide, wide_scale, 1.0)
+
+
+def lambert_radiance(maps, rows, points, facing, passes, wide, wide_scale, segments, budget, albedo, out):
+    """out[:, rows] = the caustic radiance at the queries `rows` (K,) of the arrays points, facing,
+    albedo (3, M), passes, wide, segments (M,), budget (3, M) (segments, budget: None, any) on a
+    BSDF f = albedo / pi: flux_sums x albedo / (pi^2 r^2), the operations and their order of
+    photon_map.py BatchMaps.radiance; the slots and radii `slots_of`'s."""
+    local, radius = slots_of(maps, passes.take(rows), wide.take(rows), wide_scale)
+    at = (lambda a: None if a is None else a.take(rows, axis=-1))
+    sums = flux_sums(maps, at(points), at(facing), local, radius, at(segments), at(budget))
+    out[:, rows] = sums * albedo.take(rows, axis=1) * (1.0 / (np.pi * np.pi * radius * radius))

@@ -36,6 +36,8 @@ except ImportError:             # Blender's Python: the standard library's log G
 GRID_CELLS = 1 << 16            # a pass's grid has at most this many cells per axis (+ 1) ...
 PASS_STRIDE = 1 << 50           # ... so its keys are below 2^49, and a batch's keys stride * pass + key
 MAX_PASSES = 1 << 12            # passes of one BatchMaps at most (its keys below 2^62)
+COLUMNS_PER_PHOTON = 32         # a slot's column table (BatchMaps.columns) has at most this many entries
+MIN_COLUMNS = 1 << 16           # per photon of the slot, or this many: past that the kernel searches the keys
 
 
 def radius_of_pass(r1: float, k: int, alpha: float) -> float:
@@ -61,13 +63,35 @@ def pass_grid(position: np.ndarray, radius: float):
     return lo, cell, dims, (c[0] * dims[1] + c[1]) * dims[2] + c[2]
 
 
+def column_table(key: np.ndarray, dims: np.ndarray) -> np.ndarray:
+    """(dims_x dims_y + 1,) int32: where each column of a grid of `dims` starts among the photons
+    with cell keys `key` (N,, in any order: a count per column) once they are sorted by key
+    (BatchMaps.columns); empty when the grid has more columns than COLUMNS_PER_PHOTON N or
+    MIN_COLUMNS."""
+    n_columns = int(dims[0]) * int(dims[1])
+    if n_columns > max(COLUMNS_PER_PHOTON * len(key), MIN_COLUMNS):
+        return np.zeros(0, np.int32)
+    if len(key) >= np.iinfo(np.int32).max:
+        raise ValueError(f"{len(key)} photons in one pass: at most {np.iinfo(np.int32).max - 1}")
+    count = np.bincount(key // dims[2], minlength=n_columns)
+    return np.concatenate([[0], np.cumsum(count)]).astype(np.int32)
+
+
 class BatchMaps:
     """The photon maps of the passes `passes` (labels of the stored photons), with radii `radii`,
     each in one grid per scale of `scales` (cells of at least scale x the pass's radius: a query
     over that scale x the radius looks at a few cells): a slot per (scale, pass), slot
     s = scale's place x len(passes) + pass's place.  A slot holds its pass's stored photons, sorted
     by their cell's key in its grid (stable: within a cell in their stored order); the slots come
-    one after the other, `offsets` (slots + 1,) bound them."""
+    one after the other, `offsets` (slots + 1,) bound them.
+
+    `columns` (int32, relative to the slot's offset) tells where each column of a slot's grid
+    starts: slot s's table is columns[column_at[s]:column_at[s + 1]], dims_x dims_y + 1 entries,
+    entry x dims_y + y the place of the column's first photon (its keys (x dims_y + y) dims_z + z
+    for every z are one run), the last the slot's count.  The compiled walk (gather_jit.py) reads a
+    column's run there instead of searching the slot's keys for it; a slot whose grid has more
+    columns than COLUMNS_PER_PHOTON per photon (or MIN_COLUMNS) has no table (an empty range) and
+    is searched.  Which photons are read, and in which order, is the same either way."""
 
     def __init__(self, stored, passes, radii, scales=(1.0,)):
         """stored: engine/integrators/photons/tracing.py Stored."""
@@ -79,7 +103,7 @@ class BatchMaps:
             raise ValueError(f"{slots} grids in one BatchMaps: at most {MAX_PASSES}")
         self.radius = np.tile(np.array([float(r) for r in radii]), len(self.scales))     # per slot: its pass's
         self.lo, self.cell, self.dims = np.zeros((3, slots)), np.zeros(slots), np.zeros((3, slots), np.int64)
-        order, keys = [], []
+        order, keys, tables = [], [], []
         mine = [np.flatnonzero(stored.label == j) for j in passes]
         for s in range(slots):
             k = s % p
@@ -89,10 +113,13 @@ class BatchMaps:
             sort = np.argsort(key, kind="stable")
             order.append(mine[k].take(sort))
             keys.append(s * PASS_STRIDE + key.take(sort))
+            tables.append(column_table(key, dims))
         order = np.concatenate(order) if order else np.zeros(0, np.int64)
         self.source = order                 # each photon's index in the stored batch
         self.keys = np.ascontiguousarray(np.concatenate(keys) if keys else np.zeros(0, np.int64), np.int64)
         self.offsets = np.concatenate([[0], np.cumsum([len(o) for o in keys])]).astype(np.int64)
+        self.columns = np.concatenate(tables) if tables else np.zeros(0, np.int32)
+        self.column_at = np.concatenate([[0], np.cumsum([len(t) for t in tables])]).astype(np.int64)
         self.position, self.incoming, self.flux, self.normal = (
             np.ascontiguousarray(a.take(order, axis=1), np.float64)
             for a in (stored.position, stored.incoming, stored.flux, stored.normal))
@@ -101,7 +128,7 @@ class BatchMaps:
         self.chain = np.ascontiguousarray(chain.take(order, axis=1), np.int64)
         self.count = len(order)
         self.nbytes = sum(a.nbytes for a in (self.position, self.incoming, self.flux, self.normal, self.segments,
-                                             self.chain, self.keys, self.source))
+                                             self.chain, self.keys, self.source, self.columns))
 
     def slot(self, k: int, scale: float = 1.0) -> int:
         """The slot of pass k whose grid is scale's (the grid of the largest scale up to it)."""
