@@ -127,16 +127,20 @@ class LightSet:
     SKY_MAP_WEIGHT = 0.2
 
     def __init__(self, scene, solid_angle: bool = True, spatial: bool = True, lamps_hittable: bool = False,
-                 world: bool = False, backend: str = "numpy", shapes_backend: str = "numpy"):
+                 world: bool = False, backend: str = "numpy", shapes_backend: str = "numpy",
+                 wavefront_backend: str = "numpy"):
         self.solid_angle, self.backend = solid_angle, backend    # backend: the light tree's (engine/core/backend.py)
         emitters = SceneEmitters(scene, solid_angle, lamps_hittable, world)    # the emitters, per kind
         local_kinds, distant_kinds = emitters.local_kinds(), emitters.distant_kinds()
         self.kinds = local_kinds + distant_kinds
-        for kind in self.kinds:                # shapes_backend: the kinds with compiled sampling (parallelograms)
+        # The kinds with compiled sampling: local ones (parallelograms) on shapes_backend (the kernel
+        # "emission"'s), those at infinity (suns, the world: the warps of every bounce) on the
+        # wavefront's, as the shadow rays and the samples' tails (engine/lights/light_set_jit.py).
+        for kind in self.kinds:
             if hasattr(kind, "use_backend"):
-                kind.use_backend(shapes_backend)
-        self.compiled_shadows = None           # and the shadow rays, samples' tails (engine/lights/light_set_jit.py)
-        if shapes_backend == "numba":
+                kind.use_backend(wavefront_backend if kind.at_infinity else shapes_backend)
+        self.compiled_shadows = None
+        if "numba" in (shapes_backend, wavefront_backend):
             from . import light_set_jit
             self.compiled_shadows = light_set_jit
         start = 0
