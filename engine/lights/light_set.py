@@ -229,16 +229,10 @@ class LightSet:
         m = len(u_pick)
         q = self.distant_share
         if q == 0:                           # no lights at infinity: every ray's is local (no index arrays)
-            s, light, pmf = self.local.sample_unpicked(x, n, u_pick, u1, u2, self.solid_angle)
-            if self.compiled_shadows is not None:         # the rest in one loop, the same numbers
-                pdf, offset, one_sided = self.compiled_shadows.finish_sample(s.pdf, pmf, self.local.share, s.point, light,
-                                                                             self.one_sided, LIGHT_OFFSET)
-                return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, pdf, light, offset,
-                                   one_sided)
-            s.pdf = s.pdf * pmf * self.local.share
-            return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, s.pdf, light,
-                               LIGHT_OFFSET * max_abs3(s.point), self.one_sided.take(light))
+            return self._sample_in(self.local, x, n, u_pick, u1, u2)
         far = u_pick < q
+        if self.compiled_shadows is not None and (far.all() or not far.any()):    # one group for all: no copies
+            return self._sample_in(self.distant if m and far[0] else self.local, x, n, u_pick, u1, u2)
         parts, lights = [], []
         for group, rays in ((self.local, np.flatnonzero(~far)), (self.distant, np.flatnonzero(far))):
             if len(rays) == m:                                     # the whole wavefront: no copies
@@ -258,6 +252,17 @@ class LightSet:
             s, light = _gather_samples(m, parts), np.empty(m, dtype=np.int64)
             for rays, lt in lights:
                 light[rays] = lt
+        return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, s.pdf, light,
+                           LIGHT_OFFSET * max_abs3(s.point), self.one_sided.take(light))
+
+    def _sample_in(self, group, x, n, u_pick, u1, u2) -> LightSample:
+        """`sample` where every ray picks a light of `group`."""
+        s, light, pmf = group.sample_unpicked(x, n, u_pick, u1, u2, self.solid_angle)
+        if self.compiled_shadows is not None:         # the rest in one loop, the same numbers
+            pdf, offset, one_sided = self.compiled_shadows.finish_sample(s.pdf, pmf, group.share, s.point, light,
+                                                                         self.one_sided, LIGHT_OFFSET)
+            return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, pdf, light, offset, one_sided)
+        s.pdf = s.pdf * pmf * group.share
         return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, s.pdf, light,
                            LIGHT_OFFSET * max_abs3(s.point), self.one_sided.take(light))
 
