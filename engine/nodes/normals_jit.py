@@ -13,6 +13,7 @@ import numpy as np
 
 from ..core.backend import numba_module
 from ..geometry.shading_normals_jit import _dot3, _max, _min
+from ..integrators.wavefront_jit import _fit       # inputs as contiguous read-only arrays: one signature
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -115,14 +116,13 @@ def tangent_normal_map(color, strength, tangent, sign, base, backfacing, has, sh
     """normals.normal_map's "Normal" in tangent space: colour rows (3, N), strength (N,), the context's
     tangent, tangent_sign, tangent_base, backfacing (N,) bool, has_tangent and normal."""
     m = shading.shape[1]
-    c = np.ascontiguousarray
-    out = np.empty((3, m))
+    rows, values = (3, m), (m,)
+    out = np.empty(rows)
     new = tuple(cycles_version) >= (4, 0)
-    color = np.broadcast_to(np.asarray(color, np.float64).reshape(3, -1), (3, m))     # a constant colour: (3,)
-    _tangent_normal_map(c(color), c(np.broadcast_to(strength, (m,)), np.float64), c(tangent, np.float64),
-                        c(np.broadcast_to(sign, (m,)), np.float64), c(base, np.float64),
-                        c(np.broadcast_to(backfacing, (m,)), np.bool_), c(np.broadcast_to(has, (m,)), np.bool_),
-                        c(shading, np.float64), new, not new, out)
+    color = np.asarray(color, np.float64).reshape(3, -1)              # a constant colour: (3,)
+    _tangent_normal_map(_fit(color, rows), _fit(strength, values), _fit(tangent, rows), _fit(sign, values),
+                        _fit(base, rows), _fit(backfacing, values, np.bool_), _fit(has, values, np.bool_),
+                        _fit(shading, rows), new, not new, out)
     return out
 
 
