@@ -65,8 +65,9 @@ JIT_MODULES = {
     "geometry.accel.embree_jit": ("wavefront",),
     "integrators.wavefront_jit": ("wavefront",),
     "scene.camera_rays_jit": ("wavefront",),
-    "lights.light_set_jit": ("emission",),
+    "lights.light_set_jit": ("emission", "wavefront"),
     "lights.environment_jit": ("wavefront",),
+    "sampling.warps_jit": ("wavefront",),
     "integrators.photons.gather_jit": ("photon_caustics",),
     "materials.textures_jit": ("textures",),
 }

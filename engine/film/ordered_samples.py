@@ -26,7 +26,8 @@ class OrderedSamples:
     def add(self, pixel: np.ndarray, radiance: np.ndarray, sample: np.ndarray) -> None:
         """Samples' radiance rows (3, N) of tile pixels `pixel` and sample numbers `sample`."""
         slot = (sample - self.first) * self.pixels + pixel
-        self.radiance[:, slot] = radiance
+        for row, values in zip(self.radiance, radiance):     # a 1-D scatter a row: twice as fast as [:, slot]
+            row[slot] = values
         self.filled[slot] = True
 
     def flush(self) -> None:

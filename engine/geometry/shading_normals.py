@@ -33,9 +33,39 @@ naming the object (TriangleMesh.validate_normals).
 """
 from __future__ import annotations
 
+import threading
+from contextlib import contextmanager
+
 import numpy as np
 
 from ..core.vec import dot
+
+# The compiled twins (engine/geometry/shading_normals_jit.py) of the render this thread traces, or
+# None: NumPy.  ensure_valid_reflection is called by the BSDFs (engine/materials/specular.py) and the
+# Normal Map node (engine/nodes/normals.py) with no render at hand, so PathTracer.trace sets it for
+# the time of its trace (`compiled_for`); per thread, so renders of either backend may run at once.
+_this_thread = threading.local()
+
+
+@contextmanager
+def compiled_for(numba: bool):
+    """Within: this thread's ensure_valid_reflection and Normal Map node compiled (numba True), the
+    same numbers, or NumPy's; the previous choice is restored after."""
+    before = getattr(_this_thread, "jit", None)
+    if numba:
+        from . import shading_normals_jit
+        _this_thread.jit = shading_normals_jit
+    else:
+        _this_thread.jit = None
+    try:
+        yield
+    finally:
+        _this_thread.jit = before
+
+
+def compiled():
+    """This thread's compiled twins (engine/geometry/shading_normals_jit.py), or None (`compiled_for`)."""
+    return getattr(_this_thread, "jit", None)
 
 
 def interpolate(corners: np.ndarray, u: np.ndarray, v: np.ndarray, fallback=None) -> np.ndarray:
@@ -204,7 +234,11 @@ def ensure_valid_reflection(ng: np.ndarray, i: np.ndarray, n: np.ndarray) -> np.
     rows on the viewer's side of ng (dot(i, ng) >= 0).  Returns n where its mirror direction
     R = 2 (n.i) n - i is at least min(0.9 i.ng, 0.01) above the geometric surface, else the
     normal n' in the plane of n and ng, tilted towards ng, whose reflection lies exactly at that
-    height (the larger root of 2 (n'.i) n'_z - i_z = t), or ng when no such normal exists."""
+    height (the larger root of 2 (n'.i) n'_z - i_z = t), or ng when no such normal exists.
+    Compiled within compiled_for(True): the same numbers in one loop."""
+    jit = compiled()
+    if jit is not None:
+        return jit.ensure_valid_reflection(ng, i, n)
     iz = dot(i, ng)
     r = 2.0 * dot(n, i) * n - i
     threshold = np.minimum(0.9 * iz, 0.01)

@@ -25,14 +25,14 @@ TRIANGLE = 1            # engine/geometry/scene_geometry.py's kind of a triangle
 
 @jit
 def _max(a, b):
-    """np.maximum of two scalars (NaN wins)."""
-    return a if (a >= b or a != a) else b
+    """np.maximum of two scalars (NaN wins; of two equal ones b, as NumPy: np.maximum(-0.0, 0.0) is 0.0)."""
+    return a if (a > b or a != a) else b
 
 
 @jit
 def _min(a, b):
-    """np.minimum of two scalars (NaN wins)."""
-    return a if (a <= b or a != a) else b
+    """np.minimum of two scalars (NaN wins; of two equal ones b, as NumPy)."""
+    return a if (a < b or a != a) else b
 
 
 @jit
@@ -70,6 +70,63 @@ def shading(prim, u, v, geometric, index, corners):
     index: the smooth row of each triangle (-1: flat), corners (count, 3, 3)."""
     return _shading(np.ascontiguousarray(prim, np.int64), np.ascontiguousarray(u, np.float64),
                     np.ascontiguousarray(v, np.float64), np.ascontiguousarray(geometric, np.float64), index, corners)
+
+
+# -- the normal a mirror reflects about (Cycles 3.x's ensure_valid_reflection) -------------------------
+@jit
+def _valid_reflection(ng, i, n, out):
+    bad = 0
+    for h in range(n.shape[1]):
+        gx, gy, gz = ng[0, h], ng[1, h], ng[2, h]
+        ix_, iy_, iz_ = i[0, h], i[1, h], i[2, h]
+        nx, ny, nz = n[0, h], n[1, h], n[2, h]
+        out[0, h], out[1, h], out[2, h] = nx, ny, nz
+        iz = _dot3(ix_, iy_, iz_, gx, gy, gz)
+        ni2 = 2.0 * _dot3(nx, ny, nz, ix_, iy_, iz_)
+        rx, ry, rz = ni2 * nx - ix_, ni2 * ny - iy_, ni2 * nz - iz_
+        t = _min(0.9 * iz, 0.01)
+        if not _dot3(gx, gy, gz, rx, ry, rz) < t:
+            continue
+        bad += 1
+        d = _dot3(nx, ny, nz, gx, gy, gz)                    # X axis: n's part orthogonal to ng
+        xx, xy, xz = nx - d * gx, ny - d * gy, nz - d * gz
+        x_len = np.sqrt(_dot3(xx, xy, xz, xx, xy, xz))
+        if x_len > 1e-12:
+            s = _max(x_len, 1e-300)
+            xx, xy, xz = xx / s, xy / s, xz / s
+        else:
+            xx, xy, xz = nx, ny, nz
+        ix = _dot3(ix_, iy_, iz_, xx, xy, xz)
+        a = ix * ix + iz * iz
+        b = np.sqrt(_max(ix * ix * (a - t * t), 0.0))
+        c = iz * t + a
+        fac = 0.5 / a
+        n1z2, n2z2 = fac * (b + c), fac * (c - b)
+        valid1 = n1z2 > 1e-5 and n1z2 <= 1.0 + 1e-5
+        valid2 = n2z2 > 1e-5 and n2z2 <= 1.0 + 1e-5
+        n1x, n1z = np.sqrt(_max(1.0 - n1z2, 0.0)), np.sqrt(_max(n1z2, 0.0))
+        n2x, n2z = np.sqrt(_max(1.0 - n2z2, 0.0)), np.sqrt(_max(n2z2, 0.0))
+        r1 = 2.0 * (n1x * ix + n1z * iz) * n1z - iz
+        r2 = 2.0 * (n2x * ix + n2z * iz) * n2z - iz
+        if valid1 and valid2:                                # the valid one; the shallower if both are
+            pick1 = r1 < r2 if (r1 >= 1e-5 and r2 >= 1e-5) else r1 > r2
+        else:
+            pick1 = valid1
+        px, pz = (n1x, n1z) if pick1 else (n2x, n2z)
+        wx, wy, wz = px * xx + pz * gx, px * xy + pz * gy, px * xz + pz * gz
+        if not (valid1 or valid2) or not (np.isfinite(wx) and np.isfinite(wy) and np.isfinite(wz)):
+            wx, wy, wz = gx, gy, gz
+        s = _max(np.sqrt(_dot3(wx, wy, wz, wx, wy, wz)), 1e-300)
+        out[0, h], out[1, h], out[2, h] = wx / s, wy / s, wz / s
+    return bad
+
+
+def ensure_valid_reflection(ng, i, n):
+    """shading_normals.ensure_valid_reflection (rows (3, N) each): n itself when no hit needs raising,
+    else a new array."""
+    c = np.ascontiguousarray
+    out = np.empty((3, n.shape[1]))
+    return out if _valid_reflection(c(ng, np.float64), c(i, np.float64), c(n, np.float64), out) else n
 
 
 # -- the shadow terminator's lift ----------------------------------------------------------------------
@@ -149,6 +206,7 @@ def warm_up() -> None:
     corners = np.tile(np.eye(3), (1, 1, 1)).reshape(1, 3, 3)
     rows = np.tile(np.array([[0.0], [0.0], [1.0]]), (1, n))
     shading(prim, uv, uv, rows, np.zeros(1, np.int64), corners)
+    ensure_valid_reflection(rows, rows, rows)
     triangles = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
     terminator_lift(np.ones(n, np.int8), prim, uv, uv, rows, slice(0, n), np.zeros(1, np.int64), np.full(1, 0.1),
                     corners, triangles)

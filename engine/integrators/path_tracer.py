@@ -55,7 +55,7 @@ import numpy as np
 
 from ..core.vec import dot, max3
 from ..geometry.scene_geometry import LIGHT, QUAD, SPHERE, TRIANGLE
-from ..geometry.shading_normals import terminator_amount
+from ..geometry.shading_normals import compiled_for, terminator_amount
 from ..materials.media import MEDIUM_STACK_DEPTH, MediumStack
 from ..materials.protocol import BSDFFlags, ShadingPoint, transmits_non_delta
 from ..materials.table import ABSORB, N_SCATTER_GROUPS, PASS_THROUGH, MaterialTable
@@ -231,8 +231,14 @@ class PathTracer:
             self.wavefront_jit, self.normals_jit = wavefront_jit, normals_jit
 
     # -- the wavefront -----------------------------------------------------------------
-    def trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None,
-              on_transparent=None) -> bool:
+    def trace(self, *args, **kwargs) -> bool:
+        """_trace with the shading-normal fix-ups that the BSDFs and nodes call on this render's
+        backend (engine/geometry/shading_normals.py compiled_for)."""
+        with compiled_for(self.normals_jit is not None):
+            return self._trace(*args, **kwargs)
+
+    def _trace(self, samples, rng, counters, on_finished, cancel=None, sampler=None, features=None,
+               on_transparent=None) -> bool:
         """Trace every camera sample of `samples` (engine/scene/camera_rays.py TileSamples) to
         completion: True when all are traced, False when cancelled.
 

@@ -34,6 +34,7 @@ class DistantKind:
     light tree, rays emitted from a disk of the scene's radius (`self.scene_radius`)."""
     at_infinity = True
     first = 0
+    compiled = None           # suns, the world: their light samples' kernel when the backend is numba
 
     def power(self):
         return self.flux
@@ -92,9 +93,20 @@ class SunLights(DistantKind):
         return self._disk_rays(-towards, u3, u4, direction, self.radiance.take(idx, axis=1),
                                self.pdf_li(None, idx, None), targets)
 
+    def use_backend(self, backend: str) -> None:
+        """The cone's directions compiled (engine/sampling/warps_jit.py, the same numbers) when
+        backend is "numba" (set by engine/lights/light_set.py LightSet: the wavefront's backend)."""
+        self.compiled = None
+        if backend == "numba":
+            from ..sampling import warps_jit
+            self.compiled = warps_jit
+
     def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
         """Uniform in the sun's cone; a delta sun's 'density' is 1 (its radiance is the irradiance E)."""
-        direction, _ = uniform_cone(u1, u2, self.axis.take(idx, axis=1), self.one_minus_cos.take(idx))
+        if self.compiled is not None:             # the line below in one loop, the same numbers
+            direction = self.compiled.uniform_cone_at(u1, u2, idx, self.axis, self.one_minus_cos)
+        else:
+            direction, _ = uniform_cone(u1, u2, self.axis.take(idx, axis=1), self.one_minus_cos.take(idx))
         return infinite_sample(x, direction, self.radiance.take(idx, axis=1), self.pdf_li(x, idx, None))
 
     def pdf_li(self, x, idx, point, n=None, direction=None, solid_angle: bool = True):
@@ -126,8 +138,20 @@ class WorldLight(DistantKind):
         return self._disk_rays(direction, u3, u4, direction, self.radiance.take(idx, axis=1),
                                np.full(len(u1), 1.0 / (4.0 * np.pi)), targets)
 
+    def use_backend(self, backend: str) -> None:
+        """The samples compiled when backend is "numba" (set by engine/lights/light_set.py LightSet: the
+        wavefront's backend): the cosine-weighted directions and their cos / pi are those of
+        Lambertian.sample, whose kernel (engine/materials/lambert_jit.py) gives NumPy's numbers."""
+        self.compiled = None
+        if backend == "numba":
+            from ..materials import lambert_jit
+            self.compiled = lambert_jit
+
     def sample_li(self, x, idx, u1, u2, n=None, solid_angle: bool = True):
         """Cosine-distributed about the receivers' facing normals n."""
+        if self.compiled is not None:             # the lines below in one loop (pmf 1: the same numbers)
+            direction, pdf = self.compiled.sample(u1, u2, n)
+            return infinite_sample(x, direction, self.radiance.take(idx, axis=1), pdf)
         direction = cosine_directions(u1, u2, n)
         return infinite_sample(x, direction, self.radiance.take(idx, axis=1), self.pdf_li(x, idx, None, n, direction))
 

@@ -127,16 +127,20 @@ class LightSet:
     SKY_MAP_WEIGHT = 0.2
 
     def __init__(self, scene, solid_angle: bool = True, spatial: bool = True, lamps_hittable: bool = False,
-                 world: bool = False, backend: str = "numpy", shapes_backend: str = "numpy"):
+                 world: bool = False, backend: str = "numpy", shapes_backend: str = "numpy",
+                 wavefront_backend: str = "numpy"):
         self.solid_angle, self.backend = solid_angle, backend    # backend: the light tree's (engine/core/backend.py)
         emitters = SceneEmitters(scene, solid_angle, lamps_hittable, world)    # the emitters, per kind
         local_kinds, distant_kinds = emitters.local_kinds(), emitters.distant_kinds()
         self.kinds = local_kinds + distant_kinds
-        for kind in self.kinds:                # shapes_backend: the kinds with compiled sampling (parallelograms)
+        # The kinds with compiled sampling: local ones (parallelograms) on shapes_backend (the kernel
+        # "emission"'s), those at infinity (suns, the world: the warps of every bounce) on the
+        # wavefront's, as the shadow rays and the samples' tails (engine/lights/light_set_jit.py).
+        for kind in self.kinds:
             if hasattr(kind, "use_backend"):
-                kind.use_backend(shapes_backend)
-        self.compiled_shadows = None           # and the shadow rays, samples' tails (engine/lights/light_set_jit.py)
-        if shapes_backend == "numba":
+                kind.use_backend(wavefront_backend if kind.at_infinity else shapes_backend)
+        self.compiled_shadows = None
+        if "numba" in (shapes_backend, wavefront_backend):
             from . import light_set_jit
             self.compiled_shadows = light_set_jit
         start = 0
@@ -225,16 +229,10 @@ class LightSet:
         m = len(u_pick)
         q = self.distant_share
         if q == 0:                           # no lights at infinity: every ray's is local (no index arrays)
-            s, light, pmf = self.local.sample_unpicked(x, n, u_pick, u1, u2, self.solid_angle)
-            if self.compiled_shadows is not None:         # the rest in one loop, the same numbers
-                pdf, offset, one_sided = self.compiled_shadows.finish_sample(s.pdf, pmf, self.local.share, s.point, light,
-                                                                             self.one_sided, LIGHT_OFFSET)
-                return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, pdf, light, offset,
-                                   one_sided)
-            s.pdf = s.pdf * pmf * self.local.share
-            return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, s.pdf, light,
-                               LIGHT_OFFSET * max_abs3(s.point), self.one_sided.take(light))
+            return self._sample_in(self.local, x, n, u_pick, u1, u2)
         far = u_pick < q
+        if self.compiled_shadows is not None and (far.all() or not far.any()):    # one group for all: no copies
+            return self._sample_in(self.distant if m and far[0] else self.local, x, n, u_pick, u1, u2)
         parts, lights = [], []
         for group, rays in ((self.local, np.flatnonzero(~far)), (self.distant, np.flatnonzero(far))):
             if len(rays) == m:                                     # the whole wavefront: no copies
@@ -254,6 +252,17 @@ class LightSet:
             s, light = _gather_samples(m, parts), np.empty(m, dtype=np.int64)
             for rays, lt in lights:
                 light[rays] = lt
+        return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, s.pdf, light,
+                           LIGHT_OFFSET * max_abs3(s.point), self.one_sided.take(light))
+
+    def _sample_in(self, group, x, n, u_pick, u1, u2) -> LightSample:
+        """`sample` where every ray picks a light of `group`."""
+        s, light, pmf = group.sample_unpicked(x, n, u_pick, u1, u2, self.solid_angle)
+        if self.compiled_shadows is not None:         # the rest in one loop, the same numbers
+            pdf, offset, one_sided = self.compiled_shadows.finish_sample(s.pdf, pmf, group.share, s.point, light,
+                                                                         self.one_sided, LIGHT_OFFSET)
+            return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, pdf, light, offset, one_sided)
+        s.pdf = s.pdf * pmf * group.share
         return LightSample(s.point, s.direction, s.distance, s.normal, s.radiance, s.pdf, light,
                            LIGHT_OFFSET * max_abs3(s.point), self.one_sided.take(light))
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.shading_normals import compiled
 from ..geometry.shading_normals import ensure_valid_reflection as valid_reflection_3x
 
 # Bump's offsets without a camera: this fraction of the ray length (bump_offsets).
@@ -65,6 +66,10 @@ def normal_map(inputs, props, ctx):
         c = np.asarray(color, dtype=np.float64)
         tangent, sign = ctx.attr("tangent"), ctx.attr("tangent_sign")
         has = ctx.attr("has_tangent")
+        if compiled() is not None:           # a numba render (shading_normals.compiled_for): the same numbers
+            from . import normals_jit
+            return {"Normal": normals_jit.tangent_normal_map(c, strength, tangent, sign, ctx.attr("tangent_base"),
+                                                             backfacing, has, shading, version)}
         n = tangent_space_normal(c, tangent, sign, ctx.attr("tangent_base"), backfacing, strength, version)
         n = np.where(has, n, shading)                      # no tangents (no UV map, a sphere): N
         linear = version < (4, 0)

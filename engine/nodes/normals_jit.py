@@ -1,7 +1,8 @@
 """engine/nodes/normals.py's bump shadowing term (Blender 4.x / 5.0) compiled with numba: PathTracer.bump_shadowing's
 smooth normal towards the ray (repeated per shadow ray) and bump_shadowing / _bump_term_4x per direction in
-one loop instead of some thirty NumPy passes.  Imported only through engine/core/backend.py's choice (it
-imports numba; kernel name "wavefront").
+one loop instead of some thirty NumPy passes; and the Normal Map node in tangent space (`tangent_normal_map`:
+tangent_space_normal, the strength's blend and the fallbacks of normal_map) in one loop instead of some
+forty.  Imported only through engine/core/backend.py's choice (it imports numba; kernel name "wavefront").
 
 The float operations are the NumPy code's, in its order and precision (normals.py's _dot, a sum over the
 three rows, is (x + y) + z as engine/core/vec.py dot; x ** 2 is x * x; np.clip, np.maximum with their NaN
@@ -12,6 +13,7 @@ import numpy as np
 
 from ..core.backend import numba_module
 from ..geometry.shading_normals_jit import _dot3, _max, _min
+from ..integrators.wavefront_jit import _fit       # inputs as contiguous read-only arrays: one signature
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -74,8 +76,60 @@ def bump_shadowing(direction, normal, shading, n, wi, diffuse, is_eval, repeat=1
                            diffuse, bool(is_eval), int(repeat))
 
 
+@jit
+def _safe_normalize(x, y, z):
+    """normals.safe_normalize of one vector: v / |v|, 0 where |v| is not > 0."""
+    length = np.sqrt(_dot3(x, y, z, x, y, z))
+    if length > 0.0:
+        return x / length, y / length, z / length
+    return 0.0, 0.0, 0.0
+
+
+@jit
+def _tangent_normal_map(color, strength, tangent, sign, base, backfacing, has, shading, new, linear, out):
+    for h in range(color.shape[1]):
+        st = strength[h]
+        c0, c1, c2 = 2.0 * (color[0, h] - 0.5), 2.0 * (color[1, h] - 0.5), 2.0 * (color[2, h] - 0.5)
+        if new:                                       # Blender 4.x / 5.0: the strength in tangent space
+            c0, c1, c2 = c0 * st, c1 * st, 1.0 + (c2 - 1.0) * _min(_max(st, 0.0), 1.0)
+        tx, ty, tz = tangent[0, h], tangent[1, h], tangent[2, h]
+        bx, by, bz = base[0, h], base[1, h], base[2, h]
+        sg = sign[h]
+        ux, uy, uz = sg * (by * tz - bz * ty), sg * (bz * tx - bx * tz), sg * (bx * ty - by * tx)   # bitangent
+        nx, ny, nz = _safe_normalize(c0 * tx + c1 * ux + c2 * bx, c0 * ty + c1 * uy + c2 * by,
+                                     c0 * tz + c1 * uz + c2 * bz)
+        if backfacing[h]:
+            nx, ny, nz = -nx, -ny, -nz
+        sx, sy, sz = shading[0, h], shading[1, h], shading[2, h]
+        if not has[h]:                                # no tangents: N
+            nx, ny, nz = sx, sy, sz
+        if linear and st != 1.0:                      # Blender 3.x: a linear blend with N
+            s = _max(st, 0.0)
+            nx, ny, nz = _safe_normalize(sx + (nx - sx) * s, sy + (ny - sy) * s, sz + (nz - sz) * s)
+        finite = np.isfinite(nx) and np.isfinite(ny) and np.isfinite(nz)
+        if not finite or not (abs(nx) > 0 or abs(ny) > 0 or abs(nz) > 0):
+            nx, ny, nz = sx, sy, sz
+        out[0, h], out[1, h], out[2, h] = nx, ny, nz
+
+
+def tangent_normal_map(color, strength, tangent, sign, base, backfacing, has, shading, cycles_version):
+    """normals.normal_map's "Normal" in tangent space: colour rows (3, N), strength (N,), the context's
+    tangent, tangent_sign, tangent_base, backfacing (N,) bool, has_tangent and normal."""
+    m = shading.shape[1]
+    rows, values = (3, m), (m,)
+    out = np.empty(rows)
+    new = tuple(cycles_version) >= (4, 0)
+    color = np.asarray(color, np.float64).reshape(3, -1)              # a constant colour: (3,)
+    _tangent_normal_map(_fit(color, rows), _fit(strength, values), _fit(tangent, rows), _fit(sign, values),
+                        _fit(base, rows), _fit(backfacing, values, np.bool_), _fit(has, values, np.bool_),
+                        _fit(shading, rows), new, not new, out)
+    return out
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
+    ones, yes = np.ones(3), np.ones(3, np.bool_)
     rows = np.tile(np.array([[0.0], [0.6], [0.8]]), (1, 3))
     for shade in (rows, None):
         bump_shadowing(-rows, rows, shade, rows[::-1].copy(), rows, np.ones(3, bool), True, 1)
+    tangent_normal_map(rows, ones, rows, ones, rows, yes, yes, rows, (5, 0))

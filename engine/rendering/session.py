@@ -138,7 +138,8 @@ class PreparedScene:
         self.lights = LightSet(lit, solid_angle=self.plan.solid_angle, spatial=self.plan.light_tree,
                                lamps_hittable=self.plan.area_lights, world=self.plan.world_light,
                                backend=self.plan.backends.get("light_tree", "numpy"),
-                               shapes_backend=self.plan.backends.get("emission", "numpy"))
+                               shapes_backend=self.plan.backends.get("emission", "numpy"),
+                               wavefront_backend=self.plan.backends.get("wavefront", "numpy"))
         self.plan.describe_light_kinds(self.lights)
         self.tracer = PathTracer(self.geometry, self.lights, lit.materials, self.plan, settings,
                                  scene.background, textures=textures and textures.bind(self.geometry, self.lights))

@@ -56,3 +56,44 @@ def test_masked_ranges_keep_their_samples_in_order():
     assert film.count[0].tolist() == [0, 3, 0, 3]
     # (1 + 1e16) - 1e16 is 0 in float64, the arrival order (1e16 - 1e16) + 1 would give 1.
     assert film.sum[0, :, 0].tolist() == [0.0, (2.0 + 2e16) - 2e16, 0.0, (4.0 + 4e16) - 4e16] == [0.0] * 4
+
+
+def _slots_as_before(ordered, pixel, radiance, sample):
+    """OrderedSamples.add as it was written before the row-by-row scatter: one 2-D fancy assignment."""
+    slot = (sample - ordered.first) * ordered.pixels + pixel
+    ordered.radiance[:, slot] = radiance
+    ordered.filled[slot] = True
+
+
+def _added_both_ways(pixel, radiance, sample, add=OrderedSamples.add):
+    mine, before = OrderedSamples(Film(4, 1), 5, 2, 6), OrderedSamples(Film(4, 1), 5, 2, 6)
+    add(mine, pixel, radiance, sample)
+    _slots_as_before(before, pixel, radiance, sample)
+    return mine, before
+
+
+def _some_samples():
+    """Arrivals of a unit (5 pixels, samples 2..5) with NaN, inf, -0.0, a repeated slot (the later
+    value stays) and radiance rows that are a strided view, as a wavefront's rows may be."""
+    rng = np.random.default_rng(7)
+    pixel = np.array([0, 4, 2, 2, 1, 3, 0])
+    sample = np.array([2, 5, 3, 3, 4, 2, 5])
+    radiance = rng.normal(size=(6, 7))[::2]
+    radiance[0, 1], radiance[1, 2], radiance[2, 5] = np.nan, np.inf, -0.0
+    return pixel, radiance, sample
+
+
+def test_add_scatters_as_the_two_dimensional_assignment():
+    for pixel, radiance, sample in (_some_samples(), (np.zeros(0, int), np.zeros((3, 0)), np.zeros(0, int))):
+        mine, before = _added_both_ways(pixel, radiance, sample)
+        assert np.array_equal(mine.radiance, before.radiance, equal_nan=True)
+        assert np.array_equal(np.signbit(mine.radiance), np.signbit(before.radiance))
+        assert np.array_equal(mine.filled, before.filled)
+
+
+def test_control_a_wrong_scatter_is_caught():
+    """A scatter that writes the rows in another order differs from the assignment."""
+    def rows_swapped(self, pixel, radiance, sample):
+        OrderedSamples.add(self, pixel, radiance[::-1], sample)
+    mine, before = _added_both_ways(*_some_samples(), add=rows_swapped)
+    assert not np.array_equal(mine.radiance, before.radiance, equal_nan=True)

@@ -121,3 +121,114 @@ def test_bump_shadowing_is_the_numpy_numbers():
                 tracer.normals_jit = None
                 assert np.array_equal(one, PathTracer.bump_shadowing(tracer, si, wi, np.ones(len(diffuse), bool),
                                                                      is_eval, repeat), equal_nan=True)
+
+
+# -- Cycles 3.x's ensure_valid_reflection (engine/geometry/shading_normals.py), compiled ---------------
+def recorded_reflections(limit=12):
+    """[(ng, i, n)] of the first `limit` calls of ensure_valid_reflection in a 16 x 16, 4 spp NumPy render
+    of tests/geometry/test_shading_normals.py's box room with a smooth, low-poly mirror ball."""
+    from engine import api
+    from engine.core.settings import RenderSettings
+    from engine.materials import specular
+    from tests.geometry.test_shading_normals import box_room
+    calls, original = [], specular.ensure_valid_reflection
+
+    def recording(ng, i, n):
+        if len(calls) < limit:
+            calls.append((ng.copy(), i.copy(), n.copy()))
+        return original(ng, i, n)
+    specular.ensure_valid_reflection = recording
+    try:
+        api.render(box_room(smooth_ball=True, ball_material=2), RenderSettings(samples=4, threads=1, backend="numpy"),
+                   log=lambda m: None)
+    finally:
+        specular.ensure_valid_reflection = original
+    return calls
+
+
+def reflections_both_ways(ng, i, n):
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        return _reflections_both_ways(ng, i, n)
+
+
+def _reflections_both_ways(ng, i, n):
+    from engine.geometry import shading_normals_jit
+    from engine.geometry.shading_normals import ensure_valid_reflection
+    return ensure_valid_reflection(ng, i, n), shading_normals_jit.ensure_valid_reflection(ng, i, n)
+
+
+def same_rows(a, b):
+    return a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True) and np.array_equal(np.signbit(a), np.signbit(b))
+
+
+def test_valid_reflection_of_recorded_hits_is_the_numpy_numbers():
+    require_compiled()
+    calls = recorded_reflections()
+    assert len(calls) >= 4
+    raised = 0
+    for ng, i, n in calls:
+        expected, got = reflections_both_ways(ng, i, n)
+        assert same_rows(got, expected)
+        raised += expected is not n
+    assert raised >= 2                          # calls with hits whose normal was raised
+
+
+def grazing_views(rng, m=500):
+    """Unit ng, i on its side (grazing ones many), shading normals tilted up to 80 degrees off ng, and
+    the edge cases: n = ng (no X axis), n = -ng, i along ng, zeros, -0.0, NaN, inf."""
+    ng = rng.normal(size=(3, m))
+    ng /= np.linalg.norm(ng, axis=0)
+    tilt = rng.normal(size=(3, m))
+    n = ng + np.tan(rng.random(m) * np.radians(80)) * (tilt - (tilt * ng).sum(axis=0) * ng)
+    n /= np.linalg.norm(n, axis=0)
+    i = rng.normal(size=(3, m))
+    i -= (i * ng).sum(axis=0) * ng * (1.0 - 0.05 * rng.random(m))     # near the surface
+    i /= np.linalg.norm(i, axis=0)
+    i *= np.where((i * ng).sum(axis=0) < 0.0, -1.0, 1.0)
+    n[:, 0], n[:, 1], i[:, 2] = ng[:, 0], -ng[:, 1], ng[:, 2]
+    ng[:, 3], n[:, 3], i[:, 3] = (0.0, 0.0, 1.0), (1.0, -0.0, 0.0), (-1.0, 0.0, -0.0)
+    n[:, 4], i[:, 5], ng[:, 6] = np.nan, np.nan, np.nan
+    n[0, 7], i[1, 8], ng[2, 9] = np.inf, -np.inf, np.inf
+    n[:, 10], i[:, 11] = 0.0, 0.0
+    return ng, i, n
+
+
+def test_valid_reflection_of_hand_made_views_is_the_numpy_numbers():
+    require_compiled()
+    ng, i, n = grazing_views(np.random.default_rng(21))
+    expected, got = reflections_both_ways(ng, i, n)
+    assert same_rows(got, expected)
+    assert 50 < (expected != n).any(axis=0).sum() < len(n[0]) - 50     # raised and kept normals both
+    wide = np.concatenate([n, n], axis=1)                               # strided views, as BSDFs pass them
+    assert same_rows(*reflections_both_ways(ng, i, wide[:, ::2]))
+    empty = np.zeros((3, 0))
+    assert same_rows(*reflections_both_ways(empty, empty, empty))
+    fine = n[:, expected[0] == n[0]]                                    # nothing to raise: n itself
+    assert reflections_both_ways(ng[:, expected[0] == n[0]], i[:, expected[0] == n[0]], fine)[1] is fine
+
+
+def test_control_valid_reflection_sees_a_last_bit():
+    """One view moved by one ulp at a raised normal changes its result, and the comparison says so."""
+    require_compiled()
+    ng, i, n = grazing_views(np.random.default_rng(21))
+    expected, _ = reflections_both_ways(ng, i, n)
+    k = int(np.flatnonzero((expected != n).any(axis=0) & np.isfinite(expected).all(axis=0))[0])
+    i[0, k] = np.nextafter(i[0, k], 2.0)
+    _, got = reflections_both_ways(ng, i, n)
+    assert np.allclose(got, expected, atol=1e-9, equal_nan=True) and not same_rows(got, expected)
+
+
+def test_valid_reflection_runs_compiled_only_within_compiled_for(monkeypatch):
+    require_compiled()
+    from engine.geometry import shading_normals, shading_normals_jit
+    calls = []
+    monkeypatch.setattr(shading_normals_jit, "ensure_valid_reflection", lambda *a: calls.append(a) or a[2])
+    ng, i, n = grazing_views(np.random.default_rng(2), 40)
+    shading_normals.ensure_valid_reflection(ng, i, n)
+    with shading_normals.compiled_for(True):
+        shading_normals.ensure_valid_reflection(ng, i, n)
+        with shading_normals.compiled_for(False):
+            shading_normals.ensure_valid_reflection(ng, i, n)
+        shading_normals.ensure_valid_reflection(ng, i, n)
+    shading_normals.ensure_valid_reflection(ng, i, n)
+    assert len(calls) == 2

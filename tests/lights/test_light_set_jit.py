@@ -124,6 +124,43 @@ def test_light_set_samples_are_bit_identical():
                                                                np.zeros(4, np.int64), np.zeros(1, bool), 1.0)[0])
 
 
+def test_samples_of_lights_at_infinity_are_bit_identical():
+    """LightSet.sample on the wavefront's backend (the suns' and the world's compiled samples, the tail in
+    finish_sample when every ray picks one group) against NumPy's: the Cornell box with two suns (both
+    groups; then every ray picking the suns, then every ray the lamp), two suns alone, a grey sky alone.
+    Control: the compiled set with one sun's cone a last bit wider differs."""
+    require_compiled()
+    from engine.lights.light_set import LightSet
+    from engine.scene.builtin import BUILTIN_SCENES, LIGHT
+    from tests.lights.kinds import SUNS
+    rng = np.random.default_rng(12)
+    k = 2000
+    x = rng.normal(size=(3, k)) * 0.5 + np.array([[0.0], [0.0], [0.5]])
+    n = rng.normal(size=(3, k))
+    n /= np.linalg.norm(n, axis=0)
+    n[2, :5] = -0.0
+    u = rng.random((3, k))
+    with_suns, suns_alone, sky = (BUILTIN_SCENES["cornell"]((8, 8)) for _ in range(3))
+    for scene in (with_suns, suns_alone):
+        scene.suns = list(SUNS)
+    for scene in (suns_alone, sky):
+        scene.materials[LIGHT].emission = (0.0, 0.0, 0.0)
+    sky.background = (0.5, 0.6, 0.7)
+    compiled = {"backend": "numba", "shapes_backend": "numba", "wavefront_backend": "numba"}
+    for scene, world in ((with_suns, False), (suns_alone, False), (sky, True)):
+        a, b = LightSet(scene, world=world), LightSet(scene, world=world, **compiled)
+        q = a.distant_share
+        assert q > 0
+        for picks in (u[0], u[0] * q, q + (1.0 - q) * u[0]) if q < 1.0 else (u[0],):
+            sa, sb = a.sample(x, n, picks, u[1], u[2]), b.sample(x, n, picks, u[1], u[2])
+            for field in sa.__dataclass_fields__:
+                assert np.array_equal(getattr(sa, field), getattr(sb, field), equal_nan=True), (scene.name, field)
+    sun = LightSet(suns_alone, **compiled)
+    reference = LightSet(suns_alone).sample(x, n, *u)
+    sun.distant.kinds[0].one_minus_cos = np.nextafter(sun.distant.kinds[0].one_minus_cos, 1.0)
+    assert not np.array_equal(sun.sample(x, n, *u).direction, reference.direction)
+
+
 def test_read_only_inputs_need_no_compilation_after_warm_up():
     """Shadow rays from read-only arrays (np.broadcast_to views, as engine/lights/parallelograms.py's
     light normals) run warm_up's signature with the writable arrays' bits (scripts/check_warm_up.py);
