@@ -12,14 +12,17 @@ at its last steps (tests/materials/test_dielectric_jit.py; docs/performance.md, 
 The Principled BSDF's glass closure's coloured Fresnel (dielectric_lobe.py RealFresnel: R and T per
 channel, the reflection picked by their channel means) has kernels of its own (`sample_coloured`,
 `eval_coloured`); other Fresnel functions and the albedo tables' sampling stay NumPy's.  `frame`
-(microfacet_jit.py's shading_frame twin) is the glass BSDFs' frame.  Imported only through the
-lobe's backend choice (it imports numba)."""
+(microfacet_jit.py's shading_frame twin) is the glass BSDFs' frame and `energy_scale` their
+multiscatter GGX compensation (engine/materials/dielectric.py energy_scale: its albedo tables read
+per hit, bit for bit).  Imported only through the lobe's backend choice (it imports numba)."""
 from __future__ import annotations
 
 import numpy as np
 
 from .microfacet_jit import (_clip01, _d, _finite, _lambda, _max0, _normalized, beckmann_d, beckmann_lambda,
                              beckmann_vndf, frame, jit, vndf)  # noqa: F401 (frame: the glass BSDFs')
+from . import glass_albedo
+from .glass_albedo import SIZE
 from .principled_jit import _fresnel_dielectric
 
 
@@ -238,6 +241,54 @@ def _eval_coloured(wo, wi, alpha, eta, beckmann, separable, reflection, transmis
         f_out[2, i] = _finite(x2 * common * g2)
 
 
+# -- the multiscatter GGX glass's compensation (engine/materials/dielectric.py energy_scale) ----------
+LAST = SIZE - 1                 # the tables' last index
+
+
+@jit
+def _coords(x):
+    """glass_albedo._coords of one number: (i, min(i + 1, LAST), fraction)."""
+    x = _clip01(x) * LAST
+    i = min(int(x), LAST)
+    return i, min(i + 1, LAST), x - i
+
+
+@jit
+def _bilinear(table, z, x, y):
+    """glass_albedo._read_2d_stack of one point: bilinear in (x = roughness, y) over table[z, y, x]."""
+    x0, x1, tx = _coords(x)
+    y0, y1, ty = _coords(y)
+    low = (1.0 - tx) * table[z, y0, x0] + tx * table[z, y0, x1]
+    high = (1.0 - tx) * table[z, y1, x0] + tx * table[z, y1, x1]
+    return (1.0 - ty) * low + ty * high
+
+
+@jit
+def _energy_scale(roughness, mu, eta, tint, e_table, e_inv, e_avg_table, e_avg_inv, out):
+    for i in range(roughness.shape[0]):
+        r, m, n = roughness[i], _clip01(mu[i]), eta[i]
+        z = np.sqrt(abs((n - 1.0) / (n + 1.0)))
+        z0, z1, tz = _coords(z)
+        table, average = (e_table, e_avg_table) if n >= 1.0 else (e_inv, e_avg_inv)
+        e = (1.0 - tz) * _bilinear(table, z0, r, m) + tz * _bilinear(table, z1, r, m)
+        e_avg = _bilinear(average, 0, r, z)
+        missing = (1.0 - e) / e if e > 0.0 else 0.0
+        for ch in range(3):
+            c = tint[ch, i]
+            out[ch, i] = 1.0 + c * e_avg / (1.0 - c * (1.0 - e_avg)) * missing
+
+
+def energy_scale(roughness, mu, eta, tint):
+    """dielectric.py energy_scale (3, N) of roughness, mu = wo.z and eta (N,) each and the tint (3, N):
+    the same numbers (only +, -, *, / and sqrt; the tables read at the same points)."""
+    t = glass_albedo.tables()
+    count = len(roughness)
+    out = np.empty((3, count))
+    _energy_scale(_rows(roughness), _rows(mu), _rows(eta), _rows(np.broadcast_to(tint, (3, count))), t["E"],
+                  t["E_inv"], t["E_avg"][None], t["E_avg_inv"][None], out)
+    return out
+
+
 def _rows(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
@@ -312,3 +363,4 @@ def warm_up() -> None:
     fresnel = RealFresnel(e, np.full((3, 2), 0.04), np.full((3, 2), 0.9))
     sample_coloured(wo, a, e, beckmann, u, u, u[::-1], None, True, True, fresnel)
     eval_coloured(wo, wi, a, e, beckmann, None, True, True, fresnel)
+    energy_scale(a, wo[2], e, np.full((3, 2), 0.9))
