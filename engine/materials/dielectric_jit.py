@@ -255,12 +255,12 @@ def _coords(x):
 
 @jit
 def _bilinear(table, z, x, y):
-    """glass_albedo._read_2d_stack of one point: bilinear in (x = roughness, y) over table[z, y, x]."""
+    """glass_albedo._read_2d_stack of one point: bilinear in (x = roughness, y) over table[z, y, x]
+    (its row y0, its row y1, then between them)."""
     x0, x1, tx = _coords(x)
     y0, y1, ty = _coords(y)
-    low = (1.0 - tx) * table[z, y0, x0] + tx * table[z, y0, x1]
-    high = (1.0 - tx) * table[z, y1, x0] + tx * table[z, y1, x1]
-    return (1.0 - ty) * low + ty * high
+    row = table[z]
+    return (1.0 - ty) * ((1.0 - tx) * row[y0, x0] + tx * row[y0, x1]) + ty * ((1.0 - tx) * row[y1, x0] + tx * row[y1, x1])
 
 
 @jit

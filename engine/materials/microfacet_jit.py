@@ -38,14 +38,18 @@ def _finite(v):
 
 
 @jit
-def _lambda(w0, w1, w2, ax, ay):
-    """ggx_lambda of one direction (slope_term: inf where w2 = 0)."""
+def _slope_term(w0, w1, w2, ax, ay):
+    """microfacet.py slope_term of one direction: alpha^2 tan^2, inf where w2 = 0."""
     if w2 != 0.0:
         a, b = ax * w0, ay * w1
-        s = (a * a + b * b) / (w2 * w2)
-    else:
-        s = np.inf
-    return 0.5 * (np.sqrt(1.0 + s) - 1.0)
+        return (a * a + b * b) / (w2 * w2)
+    return np.inf
+
+
+@jit
+def _lambda(w0, w1, w2, ax, ay):
+    """ggx_lambda of one direction."""
+    return 0.5 * (np.sqrt(1.0 + _slope_term(w0, w1, w2, ax, ay)) - 1.0)
 
 
 @jit
@@ -236,11 +240,7 @@ def beckmann_d(h0, h1, h2, ax, ay):
 @jit
 def beckmann_lambda(w0, w1, w2, ax, ay):
     """beckmann_lambda of one direction: 0 along the normal, inf where the formula is not finite."""
-    if w2 != 0.0:
-        a, b = ax * w0, ay * w1
-        s = (a * a + b * b) / (w2 * w2)
-    else:
-        s = np.inf
+    s = _slope_term(w0, w1, w2, ax, ay)
     if not s > 0.0:
         return 0.0
     a = 1.0 / np.sqrt(s)

@@ -210,49 +210,47 @@ def _recorded_calls(limit=6, beckmann=False):
     return calls
 
 
-def test_recorded_render_inputs_are_bit_identical():
-    require_compiled()
+def _replayed(calls):
+    """(NumPy's result, the compiled lobe's result) of each recorded call, and the compiled lobe of the
+    first sample call (for the controls)."""
     from engine.materials import dielectric_jit
-    calls = _recorded_calls()
-    assert calls["sample"] and calls["eval"]
+    pairs, first = [], None
     for name, recorded in calls.items():
         for reflection, transmission, args, kwargs in recorded:
-            numpy_lobe = MicrofacetDielectric(reflection, transmission)
             compiled = MicrofacetDielectric(reflection, transmission)
             compiled.compiled = dielectric_jit
-            a = getattr(numpy_lobe, name)(*args, **kwargs)
-            b = getattr(compiled, name)(*args, **kwargs)
-            assert all(x.dtype == y.dtype and np.array_equal(x, y) for x, y in zip(a, b))
+            pairs.append((getattr(MicrofacetDielectric(reflection, transmission), name)(*args, **kwargs),
+                          getattr(compiled, name)(*args, **kwargs)))
+            if first is None and name == "sample":
+                first = compiled, args, kwargs
+    return pairs, first
+
+
+def test_recorded_render_inputs_are_bit_identical():
+    require_compiled()
+    calls = _recorded_calls()
+    assert calls["sample"] and calls["eval"]
+    pairs, (lobe, args, kwargs) = _replayed(calls)
+    for a, b in pairs:
+        assert all(x.dtype == y.dtype and np.array_equal(x, y) for x, y in zip(a, b))
     # Control: the recorded hits 1 ulp rougher are told apart.
-    reflection, transmission, args, kwargs = calls["eval"][0]
-    lobe = MicrofacetDielectric(reflection, transmission)
-    lobe.compiled = dielectric_jit
-    rougher = [args[0], args[1], np.nextafter(args[2], 2.0)] + args[3:]
-    assert not np.array_equal(lobe.eval(*rougher, **kwargs)[1], MicrofacetDielectric(reflection, transmission).eval(
-        *args, **kwargs)[1])
+    rougher = [args[0], np.nextafter(args[1], 2.0)] + args[2:]
+    reference = MicrofacetDielectric(lobe.reflection, lobe.transmission).sample(*args, **kwargs)[2]
+    assert not np.array_equal(lobe.sample(*rougher, **kwargs)[2], reference)
 
 
 def test_recorded_beckmann_inputs_agree_to_exp_rounding():
     require_compiled()
-    from engine.materials import dielectric_jit
     calls = _recorded_calls(beckmann=True)
     assert calls["sample"] and calls["eval"] and all(args[3].all() for _, _, args, _ in calls["sample"])
-    for name, recorded in calls.items():
-        for reflection, transmission, args, kwargs in recorded:
-            numpy_lobe = MicrofacetDielectric(reflection, transmission)
-            compiled = MicrofacetDielectric(reflection, transmission)
-            compiled.compiled = dielectric_jit
-            a = getattr(numpy_lobe, name)(*args, **kwargs)
-            b = getattr(compiled, name)(*args, **kwargs)
-            assert all(x.dtype == y.dtype for x, y in zip(a, b))
-            assert all(np.array_equal(x, y) if x.dtype == bool else _within(x, y, 1e-9) for x, y in zip(a, b))
+    pairs, (lobe, args, kwargs) = _replayed(calls)
+    for a, b in pairs:
+        assert all(x.dtype == y.dtype for x, y in zip(a, b))
+        assert all(np.array_equal(x, y) if x.dtype == bool else _within(x, y, 1e-9) for x, y in zip(a, b))
     # Control: the recorded hits 1e-9 rougher are told apart.
-    reflection, transmission, args, kwargs = calls["sample"][0]
-    lobe = MicrofacetDielectric(reflection, transmission)
-    lobe.compiled = dielectric_jit
-    rougher = args[:1] + [args[1] * (1.0 + 1e-9)] + args[2:]
-    assert not _within(lobe.sample(*rougher, **kwargs)[2],
-                       MicrofacetDielectric(reflection, transmission).sample(*args, **kwargs)[2], 1e-9)
+    rougher = [args[0], args[1] * (1.0 + 1e-9)] + args[2:]
+    reference = MicrofacetDielectric(lobe.reflection, lobe.transmission).sample(*args, **kwargs)[2]
+    assert not _within(lobe.sample(*rougher, **kwargs)[2], reference, 1e-9)
 
 
 def test_energy_scale_is_bit_identical():
