@@ -284,9 +284,15 @@ def energy_scale(roughness, mu, eta, tint):
     t = glass_albedo.tables()
     count = len(roughness)
     out = np.empty((3, count))
-    _energy_scale(_rows(roughness), _rows(mu), _rows(eta), _rows(np.broadcast_to(tint, (3, count))), t["E"],
-                  t["E_inv"], t["E_avg"][None], t["E_avg_inv"][None], out)
+    _energy_scale(_writable(roughness, (count,)), _writable(mu, (count,)), _writable(eta, (count,)),
+                  _writable(tint, (3, count)), t["E"], t["E_inv"], t["E_avg"][None], t["E_avg_inv"][None], out)
     return out
+
+
+def _writable(a, shape):
+    """a broadcast to `shape`, float64, C-contiguous and writable (a copy where it was not): one array
+    type whatever the caller passes (a read-only broadcast tint, a view), the type warm_up compiled."""
+    return np.require(np.broadcast_to(np.asarray(a, dtype=np.float64), shape), requirements=("C", "W"))
 
 
 def _rows(a):
