@@ -112,7 +112,8 @@ class RoughDielectric(BSDF):
         on = self.compensate.take(mat)
         if not on.any():
             return None
-        return np.where(on, energy_scale(self._rough(si)[0], mu, eta, si.color), 1.0)
+        scale = energy_scale if self.lobe.compiled is None else self.lobe.compiled.energy_scale     # the same numbers
+        return np.where(on, scale(self._rough(si)[0], mu, eta, si.color), 1.0)
 
     def _alpha(self, si: ShadingPoint, mat):
         """Each hit's alpha (a roughness texture's where it has one: `_rough`), at least

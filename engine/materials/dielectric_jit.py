@@ -1,20 +1,28 @@
 """The rough dielectric lobe (engine/materials/dielectric_lobe.py MicrofacetDielectric: its sample
-and eval at GGX hits with the dielectric Fresnel, in the local frame) compiled with numba: one loop
-over the hits and no temporaries.  Every hit repeats the NumPy path's float64 operations in the same
-order (engine/materials/microfacet.py ggx_sample_vndf, ggx_d, ggx_lambda; engine/materials/glossy.py
-fresnel_dielectric; the lobe's split, _jacobian, _g2 and the nan_to_num of its results), with only
-+, -, *, /, sqrt, cos and sin, as engine/materials/microfacet_jit.py does (whose scalar helpers it
-uses): the same numbers bit for bit (tests/materials/test_dielectric_jit.py).  The Principled
-BSDF's glass closure's coloured Fresnel (dielectric_lobe.py RealFresnel: R and T per channel, the
-reflection picked by their channel means) has kernels of its own (`sample_coloured`,
-`eval_coloured`); the Beckmann lobe, other Fresnel functions and the albedo tables' sampling stay
-NumPy's.  `frame` (microfacet_jit.py's shading_frame twin) is the glass BSDFs' frame.  Imported only
-through the lobe's backend choice (it imports numba)."""
+and eval with the dielectric Fresnel, in the local frame) compiled with numba: one loop over the hits
+and no temporaries.  Every hit repeats the NumPy path's float64 operations in the same order
+(engine/materials/microfacet.py ggx_sample_vndf, ggx_d, ggx_lambda, or at Beckmann hits
+beckmann_sample_vndf, beckmann_d, beckmann_lambda; engine/materials/glossy.py fresnel_dielectric;
+the lobe's split, _jacobian, _g2 and the nan_to_num of its results), with the scalar helpers of
+engine/materials/microfacet_jit.py.  GGX hits use only +, -, *, /, sqrt, cos and sin: the same
+numbers bit for bit.  Beckmann hits also call exp and log, which are the C library's here and
+NumPy's own SIMD code on AVX512F machines, 1 ulp apart in about one call in four: their results
+agree to about 1e-15 relative, rarely more where the sampled slope's bisection turns the other way
+at its last steps (tests/materials/test_dielectric_jit.py; docs/performance.md, branch beckmann3).
+The Principled BSDF's glass closure's coloured Fresnel (dielectric_lobe.py RealFresnel: R and T per
+channel, the reflection picked by their channel means) has kernels of its own (`sample_coloured`,
+`eval_coloured`); other Fresnel functions and the albedo tables' sampling stay NumPy's.  `frame`
+(microfacet_jit.py's shading_frame twin) is the glass BSDFs' frame and `energy_scale` their
+multiscatter GGX compensation (engine/materials/dielectric.py energy_scale: its albedo tables read
+per hit, bit for bit).  Imported only through the lobe's backend choice (it imports numba)."""
 from __future__ import annotations
 
 import numpy as np
 
-from .microfacet_jit import _clip01, _d, _finite, _lambda, _max0, _normalized, frame, jit, vndf  # noqa: F401 (frame: the glass BSDFs')
+from .microfacet_jit import (_clip01, _d, _finite, _lambda, _max0, _normalized, beckmann_d, beckmann_lambda,
+                             beckmann_vndf, frame, jit, vndf)  # noqa: F401 (frame: the glass BSDFs')
+from . import glass_albedo
+from .glass_albedo import SIZE
 from .principled_jit import _fresnel_dielectric
 
 
@@ -45,12 +53,29 @@ def _g2(lo, li, separable):
 
 
 @jit
-def _sample(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, transmission,
+def _normal(beckmann, o0, o1, o2, a, u1, u2):
+    """A visible microfacet normal of the hit's distribution (isotropic alpha a)."""
+    if beckmann:
+        return beckmann_vndf(o0, o1, o2, a, a, u1, u2)
+    return vndf(o0, o1, o2, a, a, u1, u2)
+
+
+@jit
+def _terms(beckmann, h0, h1, h2, o0, o1, o2, w0, w1, w2, a):
+    """MicrofacetDielectric._terms of one hit: (D(h), Lambda(wo), Lambda(wi with |z|))."""
+    if beckmann:
+        return (beckmann_d(h0, h1, h2, a, a), beckmann_lambda(o0, o1, o2, a, a),
+                beckmann_lambda(w0, w1, abs(w2), a, a))
+    return _d(h0, h1, h2, a, a), _lambda(o0, o1, o2, a, a), _lambda(w0, w1, abs(w2), a, a)
+
+
+@jit
+def _sample(wo, alpha, eta, beckmann, u_lobe, u1, u2, separable, reflection, transmission,
             wi_out, weight_out, pdf_out, refracted_out, ok_out):
     for i in range(wo.shape[1]):
         o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
         a, e = alpha[i], eta[i]
-        h0, h1, h2 = vndf(o0, o1, o2, a, a, u1[i], u2[i])
+        h0, h1, h2 = _normal(beckmann[i], o0, o1, o2, a, u1[i], u2[i])
         cos_ho = _clip01(o0 * h0 + o1 * h1 + o2 * h2)
         r, t = _split(cos_ho, e, reflection, transmission)
         total = r + t
@@ -65,9 +90,7 @@ def _sample(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, transmission,
             w0, w1, w2 = c * h0 - o0, c * h1 - o1, c * h2 - o2
         w0, w1, w2 = _normalized(w0, w1, w2)
         ok = (o2 > 0.0) and (total > 0.0) and ((w2 < 0.0) if refracted else (w2 > 0.0))
-        d = _d(h0, h1, h2, a, a)
-        lo = _lambda(o0, o1, o2, a, a)
-        li = _lambda(w0, w1, abs(w2), a, a)
+        d, lo, li = _terms(beckmann[i], h0, h1, h2, o0, o1, o2, w0, w1, w2, a)
         cos_hi = w0 * h0 + w1 * h1 + w2 * h2
         lobe = 1.0 - p_reflect if refracted else p_reflect
         if ok:
@@ -109,7 +132,7 @@ def _half_vector(o0, o1, o2, i0, i1, i2, e, reflection, transmission):
 
 
 @jit
-def _eval(wo, wi, alpha, eta, separable, reflection, transmission, f_out, pdf_out):
+def _eval(wo, wi, alpha, eta, beckmann, separable, reflection, transmission, f_out, pdf_out):
     for i in range(wo.shape[1]):
         o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
         i0, i1, i2 = wi[0, i], wi[1, i], wi[2, i]
@@ -120,9 +143,7 @@ def _eval(wo, wi, alpha, eta, separable, reflection, transmission, f_out, pdf_ou
             continue
         r, t = _split(_clip01(cos_ho), e, reflection, transmission)
         total = r + t
-        d = _d(h0, h1, h2, a, a)
-        lo = _lambda(o0, o1, o2, a, a)
-        li = _lambda(i0, i1, abs(i2), a, a)
+        d, lo, li = _terms(beckmann[i], h0, h1, h2, o0, o1, o2, i0, i1, i2, a)
         p_reflect = r / total if total > 0.0 else 0.0
         lobe = 1.0 - p_reflect if refracted else p_reflect
         common = d / o2 * _jacobian(cos_ho, cos_hi, e, refracted)
@@ -150,13 +171,13 @@ def _real_fresnel(cos_h, eta, f0, tint, i):
 
 
 @jit
-def _sample_coloured(wo, alpha, eta, u_lobe, u1, u2, separable, feta, f0, tint,
+def _sample_coloured(wo, alpha, eta, beckmann, u_lobe, u1, u2, separable, feta, f0, tint,
                      wi_out, weight_out, pdf_out, refracted_out, ok_out):
     """_sample with RealFresnel's coloured (R, T): the weight (3, N); reflection and refraction both."""
     for i in range(wo.shape[1]):
         o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
         a, e = alpha[i], eta[i]
-        h0, h1, h2 = vndf(o0, o1, o2, a, a, u1[i], u2[i])
+        h0, h1, h2 = _normal(beckmann[i], o0, o1, o2, a, u1[i], u2[i])
         cos_ho = _clip01(o0 * h0 + o1 * h1 + o2 * h2)
         r0, r1, r2, t0, t1, t2, mean_r, total = _real_fresnel(cos_ho, feta[i], f0, tint, i)
         p_reflect = mean_r / total if total > 0.0 else 0.0
@@ -170,9 +191,7 @@ def _sample_coloured(wo, alpha, eta, u_lobe, u1, u2, separable, feta, f0, tint,
             w0, w1, w2 = c * h0 - o0, c * h1 - o1, c * h2 - o2
         w0, w1, w2 = _normalized(w0, w1, w2)
         ok = (o2 > 0.0) and (total > 0.0) and ((w2 < 0.0) if refracted else (w2 > 0.0))
-        d = _d(h0, h1, h2, a, a)
-        lo = _lambda(o0, o1, o2, a, a)
-        li = _lambda(w0, w1, abs(w2), a, a)
+        d, lo, li = _terms(beckmann[i], h0, h1, h2, o0, o1, o2, w0, w1, w2, a)
         cos_hi = w0 * h0 + w1 * h1 + w2 * h2
         lobe = 1.0 - p_reflect if refracted else p_reflect
         if ok:
@@ -196,7 +215,7 @@ def _sample_coloured(wo, alpha, eta, u_lobe, u1, u2, separable, feta, f0, tint,
 
 
 @jit
-def _eval_coloured(wo, wi, alpha, eta, separable, reflection, transmission, feta, f0, tint, f_out, pdf_out):
+def _eval_coloured(wo, wi, alpha, eta, beckmann, separable, reflection, transmission, feta, f0, tint, f_out, pdf_out):
     """_eval with RealFresnel's coloured (R, T): f cos (3, N)."""
     for i in range(wo.shape[1]):
         o0, o1, o2 = wo[0, i], wo[1, i], wo[2, i]
@@ -207,9 +226,7 @@ def _eval_coloured(wo, wi, alpha, eta, separable, reflection, transmission, feta
             f_out[0, i], f_out[1, i], f_out[2, i], pdf_out[i] = 0.0, 0.0, 0.0, 0.0
             continue
         r0, r1, r2, t0, t1, t2, mean_r, total = _real_fresnel(_clip01(cos_ho), feta[i], f0, tint, i)
-        d = _d(h0, h1, h2, a, a)
-        lo = _lambda(o0, o1, o2, a, a)
-        li = _lambda(i0, i1, abs(i2), a, a)
+        d, lo, li = _terms(beckmann[i], h0, h1, h2, o0, o1, o2, i0, i1, i2, a)
         p_reflect = mean_r / total if total > 0.0 else 0.0
         lobe = 1.0 - p_reflect if refracted else p_reflect
         common = d / o2 * _jacobian(cos_ho, cos_hi, e, refracted)
@@ -224,32 +241,88 @@ def _eval_coloured(wo, wi, alpha, eta, separable, reflection, transmission, feta
         f_out[2, i] = _finite(x2 * common * g2)
 
 
+# -- the multiscatter GGX glass's compensation (engine/materials/dielectric.py energy_scale) ----------
+LAST = SIZE - 1                 # the tables' last index
+
+
+@jit
+def _coords(x):
+    """glass_albedo._coords of one number: (i, min(i + 1, LAST), fraction)."""
+    x = _clip01(x) * LAST
+    i = min(int(x), LAST)
+    return i, min(i + 1, LAST), x - i
+
+
+@jit
+def _bilinear(table, z, x, y):
+    """glass_albedo._read_2d_stack of one point: bilinear in (x = roughness, y) over table[z, y, x]
+    (its row y0, its row y1, then between them)."""
+    x0, x1, tx = _coords(x)
+    y0, y1, ty = _coords(y)
+    row = table[z]
+    return (1.0 - ty) * ((1.0 - tx) * row[y0, x0] + tx * row[y0, x1]) + ty * ((1.0 - tx) * row[y1, x0] + tx * row[y1, x1])
+
+
+@jit
+def _energy_scale(roughness, mu, eta, tint, e_table, e_inv, e_avg_table, e_avg_inv, out):
+    for i in range(roughness.shape[0]):
+        r, m, n = roughness[i], _clip01(mu[i]), eta[i]
+        z = np.sqrt(abs((n - 1.0) / (n + 1.0)))
+        z0, z1, tz = _coords(z)
+        table, average = (e_table, e_avg_table) if n >= 1.0 else (e_inv, e_avg_inv)
+        e = (1.0 - tz) * _bilinear(table, z0, r, m) + tz * _bilinear(table, z1, r, m)
+        e_avg = _bilinear(average, 0, r, z)
+        missing = (1.0 - e) / e if e > 0.0 else 0.0
+        for ch in range(3):
+            c = tint[ch, i]
+            out[ch, i] = 1.0 + c * e_avg / (1.0 - c * (1.0 - e_avg)) * missing
+
+
+def energy_scale(roughness, mu, eta, tint):
+    """dielectric.py energy_scale (3, N) of roughness, mu = wo.z and eta (N,) each and the tint (3, N):
+    the same numbers (only +, -, *, / and sqrt; the tables read at the same points)."""
+    t = glass_albedo.tables()
+    count = len(roughness)
+    out = np.empty((3, count))
+    _energy_scale(_writable(roughness, (count,)), _writable(mu, (count,)), _writable(eta, (count,)),
+                  _writable(tint, (3, count)), t["E"], t["E_inv"], t["E_avg"][None], t["E_avg_inv"][None], out)
+    return out
+
+
+def _writable(a, shape):
+    """a broadcast to `shape`, float64, C-contiguous and writable (a copy where it was not): one array
+    type whatever the caller passes (a read-only broadcast tint, a view), the type warm_up compiled."""
+    return np.require(np.broadcast_to(np.asarray(a, dtype=np.float64), shape), requirements=("C", "W"))
+
+
 def _rows(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _flags(separable, count):
+    """A bool per hit, C-contiguous and writable (None: all False)."""
     if separable is None:
         return np.zeros(count, dtype=np.bool_)
     return np.require(np.broadcast_to(np.asarray(separable, dtype=np.bool_), (count,)), requirements=("C", "W"))
 
 
-def sample(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, transmission):
-    """(wi, weight, pdf, refracted, ok) of MicrofacetDielectric.sample at GGX hits, fresnel None."""
+def sample(wo, alpha, eta, beckmann, u_lobe, u1, u2, separable, reflection, transmission):
+    """(wi, weight, pdf, refracted, ok) of MicrofacetDielectric.sample, fresnel None; beckmann: a bool per
+    hit (else GGX)."""
     count = wo.shape[1]
     wi = np.empty((3, count))
     weight, pdf = np.empty(count), np.empty(count)
     refracted, ok = np.empty(count, dtype=np.bool_), np.empty(count, dtype=np.bool_)
-    _sample(_rows(wo), _rows(alpha), _rows(eta), _rows(u_lobe), _rows(u1), _rows(u2), _flags(separable, count),
+    _sample(_rows(wo), _rows(alpha), _rows(eta), _flags(beckmann, count), _rows(u_lobe), _rows(u1), _rows(u2), _flags(separable, count),
             bool(reflection), bool(transmission), wi, weight, pdf, refracted, ok)
     return wi, weight, pdf, refracted, ok
 
 
-def eval(wo, wi, alpha, eta, separable, reflection, transmission):
-    """(f cos / tint, pdf) of MicrofacetDielectric.eval at GGX hits, fresnel None."""
+def eval(wo, wi, alpha, eta, beckmann, separable, reflection, transmission):
+    """(f cos / tint, pdf) of MicrofacetDielectric.eval, fresnel None."""
     count = wo.shape[1]
     f_cos, pdf = np.empty(count), np.empty(count)
-    _eval(_rows(wo), _rows(wi), _rows(alpha), _rows(eta), _flags(separable, count), bool(reflection),
+    _eval(_rows(wo), _rows(wi), _rows(alpha), _rows(eta), _flags(beckmann, count), _flags(separable, count), bool(reflection),
           bool(transmission), f_cos, pdf)
     return f_cos, pdf
 
@@ -260,8 +333,8 @@ def _fresnel_rows(fresnel, count):
             _rows(np.broadcast_to(fresnel.tint, (3, count))))
 
 
-def sample_coloured(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, transmission, fresnel):
-    """(wi, weight (3, N), pdf, refracted, ok) of MicrofacetDielectric.sample at GGX hits with
+def sample_coloured(wo, alpha, eta, beckmann, u_lobe, u1, u2, separable, reflection, transmission, fresnel):
+    """(wi, weight (3, N), pdf, refracted, ok) of MicrofacetDielectric.sample with
     fresnel a dielectric_lobe.RealFresnel (both lobes: the Principled glass closure)."""
     if not (reflection and transmission):
         raise ValueError("the coloured Fresnel's compiled sample is the glass's: reflection and transmission")
@@ -269,16 +342,16 @@ def sample_coloured(wo, alpha, eta, u_lobe, u1, u2, separable, reflection, trans
     wi, weight = np.empty((3, count)), np.empty((3, count))
     pdf = np.empty(count)
     refracted, ok = np.empty(count, dtype=np.bool_), np.empty(count, dtype=np.bool_)
-    _sample_coloured(_rows(wo), _rows(alpha), _rows(eta), _rows(u_lobe), _rows(u1), _rows(u2),
+    _sample_coloured(_rows(wo), _rows(alpha), _rows(eta), _flags(beckmann, count), _rows(u_lobe), _rows(u1), _rows(u2),
                      _flags(separable, count), *_fresnel_rows(fresnel, count), wi, weight, pdf, refracted, ok)
     return wi, weight, pdf, refracted, ok
 
 
-def eval_coloured(wo, wi, alpha, eta, separable, reflection, transmission, fresnel):
-    """(f cos (3, N), pdf) of MicrofacetDielectric.eval at GGX hits with fresnel a RealFresnel."""
+def eval_coloured(wo, wi, alpha, eta, beckmann, separable, reflection, transmission, fresnel):
+    """(f cos (3, N), pdf) of MicrofacetDielectric.eval with fresnel a RealFresnel."""
     count = wo.shape[1]
     f_cos, pdf = np.empty((3, count)), np.empty(count)
-    _eval_coloured(_rows(wo), _rows(wi), _rows(alpha), _rows(eta), _flags(separable, count), bool(reflection),
+    _eval_coloured(_rows(wo), _rows(wi), _rows(alpha), _rows(eta), _flags(beckmann, count), _flags(separable, count), bool(reflection),
                    bool(transmission), *_fresnel_rows(fresnel, count), f_cos, pdf)
     return f_cos, pdf
 
@@ -288,10 +361,12 @@ def warm_up() -> None:
     wo = np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]])
     wi = np.array([[0.1, 0.3], [-0.2, 0.0], [0.9, -0.95]])
     a, e, u = np.array([0.25, 0.5]), np.array([1.5, 1.0 / 1.5]), np.array([0.3, 0.7])
+    beckmann = np.array([False, True])
     for reflection in (True, False):
-        sample(wo, a, e, u, u, u[::-1], None, reflection, True)
-        eval(wo, wi, a, e, np.array([True, False]), reflection, True)
+        sample(wo, a, e, beckmann, u, u, u[::-1], None, reflection, True)
+        eval(wo, wi, a, e, beckmann, np.array([True, False]), reflection, True)
     from .dielectric_lobe import RealFresnel
     fresnel = RealFresnel(e, np.full((3, 2), 0.04), np.full((3, 2), 0.9))
-    sample_coloured(wo, a, e, u, u, u[::-1], None, True, True, fresnel)
-    eval_coloured(wo, wi, a, e, None, True, True, fresnel)
+    sample_coloured(wo, a, e, beckmann, u, u, u[::-1], None, True, True, fresnel)
+    eval_coloured(wo, wi, a, e, beckmann, None, True, True, fresnel)
+    energy_scale(a, wo[2], e, np.full((3, 2), 0.9))

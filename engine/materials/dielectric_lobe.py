@@ -65,10 +65,10 @@ class MicrofacetDielectric:
     def __init__(self, reflection: bool = True, transmission: bool = True):
         self.reflection, self.transmission = reflection, transmission
 
-    def _compiles(self, beckmann, fresnel, refraction_side=True) -> bool:
-        """Whether the compiled twin computes these hits: all GGX, the dielectric Fresnel or RealFresnel."""
-        return (self.compiled is not None and (fresnel is None or isinstance(fresnel, RealFresnel))
-                and refraction_side and not beckmann.any())
+    def _compiles(self, fresnel, refraction_side=True) -> bool:
+        """Whether the compiled twin computes these hits: the dielectric Fresnel or RealFresnel (GGX and
+        Beckmann hits alike)."""
+        return self.compiled is not None and (fresnel is None or isinstance(fresnel, RealFresnel)) and refraction_side
 
     def split(self, cos_h: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(R, T): the weights of the reflected and refracted lobe at a microfacet with wo.h = cos_h."""
@@ -122,11 +122,12 @@ class MicrofacetDielectric:
         function of wo.h giving the lobes' weights (R, T), each (N,) or coloured (3, N); coloured,
         the reflection is picked with probability mean(R) / mean(R + T) (Cycles' pdf_reflect) and
         the weight is (3, N)."""
-        if self._compiles(beckmann, fresnel, refraction_side):          # the lines below, the same numbers
+        if self._compiles(fresnel, refraction_side):          # the lines below (numbers: dielectric_jit.py)
             if fresnel is not None:
-                return self.compiled.sample_coloured(wo, alpha, eta, u_lobe, u1, u2, separable, self.reflection,
+                return self.compiled.sample_coloured(wo, alpha, eta, beckmann, u_lobe, u1, u2, separable, self.reflection,
                                                      self.transmission, fresnel)
-            return self.compiled.sample(wo, alpha, eta, u_lobe, u1, u2, separable, self.reflection, self.transmission)
+            return self.compiled.sample(wo, alpha, eta, beckmann, u_lobe, u1, u2, separable, self.reflection,
+                                        self.transmission)
         h = np.empty_like(wo)
         for dist, mask in ((GGX, ~beckmann), (BECKMANN, beckmann)):
             sel = np.flatnonzero(mask)
@@ -157,11 +158,11 @@ class MicrofacetDielectric:
     def eval(self, wo, wi, alpha, eta, beckmann, separable=None, fresnel=None):
         """(f cos / tint, pdf) per hit for local directions wo (above) and wi (either side);
         fresnel as in `sample` (coloured: f cos is (3, N))."""
-        if self._compiles(beckmann, fresnel):                           # the lines below, the same numbers
+        if self._compiles(fresnel):                           # the lines below (numbers: dielectric_jit.py)
             if fresnel is not None:
-                return self.compiled.eval_coloured(wo, wi, alpha, eta, separable, self.reflection, self.transmission,
-                                                   fresnel)
-            return self.compiled.eval(wo, wi, alpha, eta, separable, self.reflection, self.transmission)
+                return self.compiled.eval_coloured(wo, wi, alpha, eta, beckmann, separable, self.reflection,
+                                                   self.transmission, fresnel)
+            return self.compiled.eval(wo, wi, alpha, eta, beckmann, separable, self.reflection, self.transmission)
         refracted = wi[2] < 0.0
         half = np.where(refracted, -(wo + eta * wi), wo + wi)
         length = np.sqrt(dot(half, half))

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from ..core.backend import numba_module
+from .microfacet import SQRT_PI
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -20,6 +21,8 @@ jit = nb.njit(cache=True, error_model="numpy", nogil=True)
 BIG = np.finfo(np.float64).max          # what np.nan_to_num makes of +inf
 TWO_PI = 2.0 * np.pi
 PI = np.pi
+TWO_OVER_SQRT_PI = 2.0 / SQRT_PI        # microfacet.py _erfinv's Newton step: (2 / sqrt(pi)) exp(-x^2)
+ERFINV_LOW, ERFINV_HIGH = -1.0 + 1e-15, 1.0 - 1e-15
 
 
 @jit
@@ -35,14 +38,18 @@ def _finite(v):
 
 
 @jit
-def _lambda(w0, w1, w2, ax, ay):
-    """ggx_lambda of one direction (slope_term: inf where w2 = 0)."""
+def _slope_term(w0, w1, w2, ax, ay):
+    """microfacet.py slope_term of one direction: alpha^2 tan^2, inf where w2 = 0."""
     if w2 != 0.0:
         a, b = ax * w0, ay * w1
-        s = (a * a + b * b) / (w2 * w2)
-    else:
-        s = np.inf
-    return 0.5 * (np.sqrt(1.0 + s) - 1.0)
+        return (a * a + b * b) / (w2 * w2)
+    return np.inf
+
+
+@jit
+def _lambda(w0, w1, w2, ax, ay):
+    """ggx_lambda of one direction."""
+    return 0.5 * (np.sqrt(1.0 + _slope_term(w0, w1, w2, ax, ay)) - 1.0)
 
 
 @jit
@@ -165,6 +172,176 @@ def _sample(wo, x, y, n, ax, ay, u1, u2, wi_out, cos_out, pdf_out, ratio_out):
     for i in range(wo.shape[1]):
         wi_out[0, i], wi_out[1, i], wi_out[2, i], cos_out[i], pdf_out[i], ratio_out[i] = sample_hit(
             wo, x, y, n, i, ax[i], ay[i], u1[i], u2[i])
+
+
+# -- Beckmann (microfacet.py beckmann_d, beckmann_lambda, beckmann_sample_vndf, erf, _erfinv) ----
+# Their exp and log are the C library's; NumPy's float64 exp and log on AVX512F machines are its own
+# SIMD code, which rounds about one result in four to the other neighbour: within 1 ulp per call.
+
+
+@jit
+def erf(x):
+    """microfacet.py erf of one number (Numerical Recipes' Chebyshev fit, the same operations)."""
+    z = abs(x)
+    t = 1.0 / (1.0 + 0.5 * z)
+    poly = (-z * z - 1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 + t * (
+        -0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587 + t * (
+            -0.82215223 + t * 0.17087277)))))))))
+    return math.copysign(1.0 - t * np.exp(poly), x)
+
+
+@jit
+def erfinv(y):
+    """microfacet.py _erfinv of one number: Giles' start (the branch the NumPy path keeps), two
+    Newton steps on `erf`."""
+    if y < ERFINV_LOW:                              # np.clip (NaN stays NaN)
+        y = ERFINV_LOW
+    elif y > ERFINV_HIGH:
+        y = ERFINV_HIGH
+    w = -np.log((1.0 - y) * (1.0 + y))
+    if w < 5.0:
+        ws = w - 2.5
+        p = 2.81022636e-08
+        p = 3.43273939e-07 + p * ws
+        p = -3.5233877e-06 + p * ws
+        p = -4.39150654e-06 + p * ws
+        p = 0.00021858087 + p * ws
+        p = -0.00125372503 + p * ws
+        p = -0.00417768164 + p * ws
+        p = 0.246640727 + p * ws
+        p = 1.50140941 + p * ws
+    else:
+        wl = np.sqrt(w) - 3.0
+        p = -0.000200214257
+        p = 0.000100950558 + p * wl
+        p = 0.00134934322 + p * wl
+        p = -0.00367342844 + p * wl
+        p = 0.00573950773 + p * wl
+        p = -0.0076224613 + p * wl
+        p = 0.00943887047 + p * wl
+        p = 1.00167406 + p * wl
+        p = 2.83297682 + p * wl
+    x = p * y
+    for _ in range(2):
+        x = x - (erf(x) - y) / (TWO_OVER_SQRT_PI * np.exp(-x * x))
+    return x
+
+
+@jit
+def beckmann_d(h0, h1, h2, ax, ay):
+    """beckmann_d of one normal (its nan_to_num included): 0 below the surface."""
+    if not h2 > 0.0:
+        return 0.0
+    z2 = h2 * h2
+    a, b = h0 / ax, h1 / ay
+    return _finite(np.exp(-(a * a + b * b) / z2) / (PI * ax * ay * z2 * z2))
+
+
+@jit
+def beckmann_lambda(w0, w1, w2, ax, ay):
+    """beckmann_lambda of one direction: 0 along the normal, inf where the formula is not finite."""
+    s = _slope_term(w0, w1, w2, ax, ay)
+    if not s > 0.0:
+        return 0.0
+    a = 1.0 / np.sqrt(s)
+    lam = 0.5 * (erf(a) - 1.0) + np.exp(-a * a) / (2.0 * a * SQRT_PI)
+    if not math.isfinite(lam):
+        return np.inf
+    return lam if lam >= 0.0 else 0.0
+
+
+@jit
+def _slope_cdf(x, k):
+    """The visible-slope CDF (unnormalised) of beckmann_sample_vndf."""
+    return 1.0 + erf(x) + k * np.exp(-x * x)
+
+
+SLOPE_STEPS = 48                # beckmann_sample_vndf's bisection steps
+SLOPE_LOW = -8.0                # and the low end of its bracket
+CERTAIN = 1e-13                 # visible_slope's margin in CDF units: 100 x the CDF's rounding
+
+
+@jit
+def _bisect(hi, k, target):
+    """beckmann_sample_vndf's bisection: SLOPE_STEPS halvings of [SLOPE_LOW, hi], the CDF at every mid."""
+    lo = SLOPE_LOW
+    for _ in range(SLOPE_STEPS):
+        mid = 0.5 * (lo + hi)
+        if _slope_cdf(mid, k) < target:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@jit
+def _slope_root(hi, k, target):
+    """(x, CDF'(x)) with CDF(x) = target on [SLOPE_LOW, hi] by Newton's method kept in the bracket
+    (a bisection step where Newton's leaves it), to 1 % of visible_slope's margin; CDF' 0 where it
+    does not converge in 40 steps."""
+    a, b = SLOPE_LOW, hi
+    x = 0.0 if b > 0.0 else 0.5 * (a + b)
+    for _ in range(40):
+        e = np.exp(-x * x)
+        slope = e * (TWO_OVER_SQRT_PI - 2.0 * k * x)
+        c = _slope_cdf(x, k)
+        if c < target:
+            a = x
+        else:
+            b = x
+        step = (c - target) / slope
+        x_new = x - step
+        if abs(step) <= 0.01 * CERTAIN * max(1.0, target) / slope:
+            return x_new, slope
+        x = x_new if a < x_new < b else 0.5 * (a + b)
+    return x, 0.0
+
+
+@jit
+def visible_slope(hi, k, target):
+    """_bisect's result (the same steps, the same CDF where it decides), computing the CDF only at
+    the mids within CERTAIN of the root: elsewhere the side of the root decides, as the CDF is
+    increasing on the bracket and its rounding (about 1e-16 of max(1, target)) is far smaller than
+    its change over that distance.  Where the root is in the flat tails (x < -3.5, CDF' < 1e-4), the
+    CDF is not increasing (k < 0: the lower hemisphere) or not finite, every mid's CDF decides.
+    About 10 CDFs instead of 48 (tests/materials/test_microfacet_jit.py: the same bits as _bisect)."""
+    root, slope = _slope_root(hi, k, target)
+    if not (k >= 0.0 and root > -3.5 and slope > 1e-4 and np.isfinite(target) and np.isfinite(hi)):
+        return _bisect(hi, k, target)
+    certain = CERTAIN * max(1.0, target) / slope
+    lo = SLOPE_LOW
+    for _ in range(SLOPE_STEPS):
+        mid = 0.5 * (lo + hi)
+        if mid < root - certain:
+            below = True
+        elif mid > root + certain:
+            below = False
+        else:
+            below = _slope_cdf(mid, k) < target
+        if below:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@jit
+def beckmann_vndf(o0, o1, o2, a_x, a_y, u1, u2):
+    """beckmann_sample_vndf of one direction: stretch, the slope x of the visible-slope CDF
+    (`visible_slope`: its bisection's result), the slope y = erfinv(2 u2 - 1), rotate, unstretch."""
+    v0, v1, v2 = _normalized(a_x * o0, a_y * o1, o2)
+    sin_t = np.sqrt(_max0(1.0 - v2 * v2))
+    if sin_t > 1e-7:
+        cos_phi, sin_phi = v0 / sin_t, v1 / sin_t
+        k, cot = sin_t / (v2 * SQRT_PI), v2 / sin_t
+    else:
+        cos_phi, sin_phi, k, cot = 1.0, 0.0, 0.0, np.inf
+    hi = cot if (cot <= 8.0 or cot != cot) else 8.0        # np.minimum(cot, 8.0)
+    sx = visible_slope(hi, k, u1 * _slope_cdf(hi, k))
+    sy = erfinv(2.0 * u2 - 1.0)
+    rx = cos_phi * sx - sin_phi * sy
+    ry = sin_phi * sx + cos_phi * sy
+    return _normalized(-rx * a_x, -ry * a_y, 1.0)
 
 
 @jit

@@ -3,7 +3,8 @@ engine/materials/dielectric_lobe.py MicrofacetDielectric: sample and eval bit fo
 from the floor to 1, entering and leaving (eta > 1 and < 1, total internal reflection), separable
 and height-correlated G2, glass and the Refraction BSDF, normal and grazing incidence, directions
 on both sides; the Principled glass closure's coloured RealFresnel; the glass BSDFs' and the
-Principled BSDF's use_backend reach the lobe."""
+Principled BSDF's use_backend reach the lobe; Beckmann hits to the rounding of exp and log (NumPy's
+SIMD code against the C library's), recorded from a render of Beckmann rough glass too."""
 import numpy as np
 
 from engine.core.settings import RenderSettings
@@ -115,15 +116,48 @@ def test_principled_glass_follows_the_backend():
         assert bsdf.glass.lobe.compiled is None
 
 
-def test_beckmann_and_other_fresnels_stay_numpy():
+def test_beckmann_hits_agree_to_exp_rounding():
+    """Beckmann hits (mixed with GGX ones) compiled: their exp and log are the C library's, NumPy's
+    its SIMD code's, so sample and eval agree to 1e-9 relative (the measured 5e-11: the slope's
+    erfinv, near 0), the same lobes chosen and the same validity; GGX hits stay bit for bit."""
+    require_compiled()
+    rng = np.random.default_rng(3)
+    wo, wi, alpha, eta, separable, u = _inputs(rng, 3000)
+    beckmann = rng.random(3000) < 0.7
+    for reflection in (True, False):
+        numpy_lobe, compiled = _pair(reflection)
+        for sep in (None, separable):
+            with np.errstate(all="ignore"):
+                a = numpy_lobe.sample(wo, alpha, eta, beckmann, u[0], u[1], u[2], separable=sep)
+            b = compiled.sample(wo, alpha, eta, beckmann, u[0], u[1], u[2], separable=sep)
+            assert a[4][beckmann].sum() > 1000 and np.array_equal(a[3], b[3]) and np.array_equal(a[4], b[4])
+            assert all(np.array_equal(x[..., ~beckmann], y[..., ~beckmann]) for x, y in zip(a, b))
+            assert all(_within(x, y, 1e-9) for x, y in zip(a[:3], b[:3]))
+            with np.errstate(all="ignore"):
+                f_a, p_a = numpy_lobe.eval(wo, wi, alpha, eta, beckmann, sep)
+            f_b, p_b = compiled.eval(wo, wi, alpha, eta, beckmann, sep)
+            assert (p_a[beckmann] > 0).sum() > 100 and _within(f_a, f_b, 1e-12) and _within(p_a, p_b, 1e-12)
+    # Control: alpha 1e-9 rougher at the Beckmann hits is told apart at these tolerances.
+    rougher = np.where(beckmann, alpha * (1.0 + 1e-9), alpha)
+    with np.errstate(all="ignore"):                     # the reference's Lambda at w = 0 (its inf * False)
+        assert not _within(compiled.sample(wo, rougher, eta, beckmann, u[0], u[1], u[2])[1],
+                           numpy_lobe.sample(wo, alpha, eta, beckmann, u[0], u[1], u[2])[1], 1e-9)
+        assert not _within(compiled.eval(wo, wi, rougher, eta, beckmann)[1],
+                           numpy_lobe.eval(wo, wi, alpha, eta, beckmann)[1], 1e-12)
+
+
+def _within(a, b, rel):
+    """The same where a is not finite, else |a - b| <= rel |a|."""
+    finite = np.isfinite(a)
+    return np.array_equal(a[~finite], b[~finite], equal_nan=True) and bool(
+        np.all(np.abs(a[finite] - b[finite]) <= rel * np.abs(a[finite])))
+
+
+def test_other_fresnels_stay_numpy():
     require_compiled()
     rng = np.random.default_rng(3)
     wo, wi, alpha, eta, separable, u = _inputs(rng, 200)
     numpy_lobe, compiled = _pair(True)
-    beckmann = rng.random(200) < 0.5
-    a = numpy_lobe.sample(wo, alpha, eta, beckmann, u[0], u[1], u[2])
-    b = compiled.sample(wo, alpha, eta, beckmann, u[0], u[1], u[2])
-    assert all(np.array_equal(x, y) for x, y in zip(a, b))
 
     def fresnel(c):
         return np.stack([c, c, c]), np.stack([1.0 - c] * 3)
@@ -144,12 +178,18 @@ def test_glass_bsdfs_follow_the_backend():
             assert bsdf.lobe.compiled is None
 
 
-def _recorded_calls(limit=6):
+def _recorded_calls(limit=6, beckmann=False):
     """Up to `limit` calls of MicrofacetDielectric.sample and .eval (their arguments, copied) from a
     16 x 16, 2 spp NumPy render of the built-in Cornell box with Filter Glossy 1 (its glass after a
-    blurry bounce scatters as this lobe: engine/integrators/delta_blur.py)."""
+    blurry bounce scatters as this lobe: engine/integrators/delta_blur.py); beckmann: its glass
+    Beckmann rough glass of roughness 0.35 (sample_blends/rough_glass.blend's "Ground glass")."""
+    import dataclasses
     from engine import api
     from engine.scene.builtin import BUILTIN_SCENES
+    scene = BUILTIN_SCENES["cornell"]((16, 16))
+    if beckmann:
+        scene.materials = [dataclasses.replace(m, roughness=0.35, distribution="beckmann") if m.kind == "glass" else m
+                           for m in scene.materials]
     calls = {"sample": [], "eval": []}
     originals = {name: getattr(MicrofacetDielectric, name) for name in calls}
 
@@ -163,31 +203,91 @@ def _recorded_calls(limit=6):
     for name in calls:
         setattr(MicrofacetDielectric, name, recorder(name))
     try:
-        api.render(BUILTIN_SCENES["cornell"]((16, 16)),
-                   RenderSettings(samples=2, threads=1, backend="numpy", filter_glossy=1.0), log=lambda m: None)
+        api.render(scene, RenderSettings(samples=2, threads=1, backend="numpy", filter_glossy=1.0), log=lambda m: None)
     finally:
         for name, original in originals.items():
             setattr(MicrofacetDielectric, name, original)
     return calls
 
 
-def test_recorded_render_inputs_are_bit_identical():
-    require_compiled()
+def _replayed(calls):
+    """(NumPy's result, the compiled lobe's result) of each recorded call, and the compiled lobe of the
+    first sample call (for the controls)."""
     from engine.materials import dielectric_jit
-    calls = _recorded_calls()
-    assert calls["sample"] and calls["eval"]
+    pairs, first = [], None
     for name, recorded in calls.items():
         for reflection, transmission, args, kwargs in recorded:
-            numpy_lobe = MicrofacetDielectric(reflection, transmission)
             compiled = MicrofacetDielectric(reflection, transmission)
             compiled.compiled = dielectric_jit
-            a = getattr(numpy_lobe, name)(*args, **kwargs)
-            b = getattr(compiled, name)(*args, **kwargs)
-            assert all(x.dtype == y.dtype and np.array_equal(x, y) for x, y in zip(a, b))
+            pairs.append((getattr(MicrofacetDielectric(reflection, transmission), name)(*args, **kwargs),
+                          getattr(compiled, name)(*args, **kwargs)))
+            if first is None and name == "sample":
+                first = compiled, args, kwargs
+    return pairs, first
+
+
+def test_recorded_render_inputs_are_bit_identical():
+    require_compiled()
+    calls = _recorded_calls()
+    assert calls["sample"] and calls["eval"]
+    pairs, (lobe, args, kwargs) = _replayed(calls)
+    for a, b in pairs:
+        assert all(x.dtype == y.dtype and np.array_equal(x, y) for x, y in zip(a, b))
     # Control: the recorded hits 1 ulp rougher are told apart.
-    reflection, transmission, args, kwargs = calls["eval"][0]
-    lobe = MicrofacetDielectric(reflection, transmission)
-    lobe.compiled = dielectric_jit
-    rougher = [args[0], args[1], np.nextafter(args[2], 2.0)] + args[3:]
-    assert not np.array_equal(lobe.eval(*rougher, **kwargs)[1], MicrofacetDielectric(reflection, transmission).eval(
-        *args, **kwargs)[1])
+    rougher = [args[0], np.nextafter(args[1], 2.0)] + args[2:]
+    reference = MicrofacetDielectric(lobe.reflection, lobe.transmission).sample(*args, **kwargs)[2]
+    assert not np.array_equal(lobe.sample(*rougher, **kwargs)[2], reference)
+
+
+def test_recorded_beckmann_inputs_agree_to_exp_rounding():
+    require_compiled()
+    calls = _recorded_calls(beckmann=True)
+    assert calls["sample"] and calls["eval"] and all(args[3].all() for _, _, args, _ in calls["sample"])
+    pairs, (lobe, args, kwargs) = _replayed(calls)
+    for a, b in pairs:
+        assert all(x.dtype == y.dtype for x, y in zip(a, b))
+        assert all(np.array_equal(x, y) if x.dtype == bool else _within(x, y, 1e-9) for x, y in zip(a, b))
+    # Control: the recorded hits 1e-9 rougher are told apart.
+    rougher = [args[0], args[1] * (1.0 + 1e-9)] + args[2:]
+    reference = MicrofacetDielectric(lobe.reflection, lobe.transmission).sample(*args, **kwargs)[2]
+    assert not _within(lobe.sample(*rougher, **kwargs)[2], reference, 1e-9)
+
+
+def test_energy_scale_is_bit_identical():
+    """The multiscatter GGX glass's compensation (dielectric.py energy_scale, its albedo tables read
+    compiled): made-up points over the tables' edges (roughness 0 and 1, mu outside [0, 1], eta 1,
+    entering and leaving, tints 0 and 1) and the points of a NumPy render of multiscatter rough glass."""
+    require_compiled()
+    import dataclasses
+    from engine import api
+    from engine.materials import dielectric, dielectric_jit
+    from engine.scene.builtin import BUILTIN_SCENES
+    rng = np.random.default_rng(41)
+    count = 3000
+    roughness, mu = rng.random(count), rng.uniform(-0.2, 1.2, count)
+    roughness[:100], roughness[100:200] = 0.0, 1.0
+    eta = np.where(rng.random(count) < 0.5, 1.5, 1.0 / 1.5) * (1.0 + rng.random(count))
+    eta[:50] = 1.0
+    tint = rng.random((3, count))
+    tint[:, 200:300], tint[:, 300:400] = 1.0, 0.0
+    calls = [(roughness, mu, eta, tint)]
+    original = dielectric.energy_scale
+
+    def record(*args):
+        calls.append(tuple(np.array(a, copy=True) for a in args))
+        return original(*args)
+    scene = BUILTIN_SCENES["cornell"]((16, 16))
+    scene.materials = [dataclasses.replace(m, roughness=0.7, distribution="multi_ggx") if m.kind == "glass" else m
+                       for m in scene.materials]
+    dielectric.energy_scale = record
+    try:
+        api.render(scene, RenderSettings(samples=2, threads=1, backend="numpy"), log=lambda m: None)
+    finally:
+        dielectric.energy_scale = original
+    assert len(calls) > 2
+    for args in calls:
+        a, b = original(*args), dielectric_jit.energy_scale(*args)
+        assert a.shape == b.shape == (3, len(args[0])) and np.array_equal(a, b)
+    # Control: a tint 1 ulp darker is told apart.
+    darker = calls[-1][:3] + (np.nextafter(calls[-1][3], -1.0),)
+    assert not np.array_equal(dielectric_jit.energy_scale(*darker), original(*calls[-1]))
