@@ -170,9 +170,11 @@ class MixBSDF(BSDF):
         material ids of each material (engine/scene/model.py with_mix_leaves)."""
         self.table = table
         flags = BSDFFlags.NONE
+        self.leaf_count = np.zeros(len(leaf_ids), np.int64)     # leaves per material (its pairs per hit)
         for m, ids in enumerate(leaf_ids):
             if not ids:
                 continue
+            self.leaf_count[m] = len(ids)
             leaves = self.materials[m].mix.leaves
             self.closures[m] = [(leaf_id, int(table.kind[leaf_id]), leaf.factors, firsts)
                                 for leaf_id, leaf, firsts in zip(ids, leaves, _first_readers(leaves))]
@@ -182,36 +184,38 @@ class MixBSDF(BSDF):
 
     # -- the closures at some hits ----------------------------------------------------------------
     def _pairs(self, si: ShadingPoint):
-        """Every (hit, leaf) pair of the hits, hit-major: (hit (P,), row (P,), weight (P,),
-        probability (P,), total weight x albedo per hit (N,), the leaves of the pairs (_Leaves))."""
-        hit, leaf, row, weight = [], [], [], []
+        """Every (hit, leaf) pair of the hits, hit-major (a hit's pairs follow each other, its leaves in
+        the material's order): (hit (P,), row (P,), weight (P,), probability (P,), total weight x albedo
+        per hit (N,), the leaves of the pairs (_Leaves))."""
+        n = len(si)
+        count = self.leaf_count.take(si.material)          # pairs per hit
+        hit = np.repeat(np.arange(n), count)
+        start = np.cumsum(count) - count                    # each hit's first pair
+        leaf, row, weight = np.empty(len(hit), np.int64), np.empty(len(hit), np.int64), np.empty(len(hit))
         for m in _ids_in(si.material):
             idx = np.flatnonzero(si.material == m)
-            at = si.take(idx) if len(idx) != len(si) else si
+            at = si.take(idx) if len(idx) != n else si
+            first = start.take(idx)
             read = {}                                   # a factor's value, once for the leaves that share it
-            for leaf_id, r, factors, firsts in self.closures[int(m)]:
+            for j, (leaf_id, r, factors, firsts) in enumerate(self.closures[int(m)]):
                 w = np.ones(len(idx))
-                for factor, first in zip(factors, firsts):
+                for factor, first_reader in zip(factors, firsts):
                     if factor.kind not in READ:
-                        w = w * np.full(len(idx), factor.constant())
+                        w = w * float(factor.constant())
                         continue
-                    if id(first) not in read:
-                        read[id(first)] = _factor_input(first, at)
-                    f = read[id(first)]
+                    if id(first_reader) not in read:
+                        read[id(first_reader)] = _factor_input(first_reader, at)
+                    f = read[id(first_reader)]
                     w = w * (1.0 - f if factor.invert else f)
-                hit.append(idx)
-                leaf.append(np.full(len(idx), leaf_id))
-                row.append(np.full(len(idx), r))
-                weight.append(w)
-        hit, leaf, row, weight = (np.concatenate(a) for a in (hit, leaf, row, weight))
-        order = np.argsort(hit, kind="stable")
-        hit, leaf, row, weight = hit[order], leaf[order], row[order], weight[order]
+                pairs = first + j
+                leaf[pairs], row[pairs], weight[pairs] = leaf_id, r, w
         color = self.table.color.take(leaf, axis=1)
         if si.lookup is not None:
             color = si.lookup.take(hit).color(color, leaf)
         leaves = _Leaves.of(si, hit, row, leaf, color)
-        rate = weight * np.maximum(color.mean(axis=0), ALBEDO_FLOOR)
-        total = np.bincount(hit, weights=rate, minlength=len(si))
+        albedo = (color[0] + color[1] + color[2]) / 3.0    # color.mean(axis=0), the same sums
+        rate = weight * np.maximum(albedo, ALBEDO_FLOOR)
+        total = np.bincount(hit, weights=rate, minlength=n)
         with np.errstate(divide="ignore", invalid="ignore"):
             prob = np.where(total.take(hit) > 0.0, rate / total.take(hit), 0.0)
         return hit, row, weight, prob, total, leaves
