@@ -6,7 +6,10 @@ of some fifteen NumPy passes over the pairs.  Imported only through engine/core/
 The same float64 operations in the same order: np.cumsum adds the probabilities one after another,
 np.bincount adds each pair's product to its hit's sum in the pairs' order from 0, np.searchsorted
 (side "right") counts the sums <= the target (NumPy's comparison: a NaN target counts them all), and
-np.minimum / np.clip keep a NaN (tests/materials/test_mix_jit.py)."""
+np.minimum / np.clip keep a NaN (tests/materials/test_mix_jit.py).  On a sorted table (the
+cumulative sum of probabilities without NaN: every render's) that count, clipped to the hit's pairs,
+is found by stepping through the hit's few pairs instead of a binary search of the whole table (any
+correct search of a sorted table counts the same); a table with a NaN is searched as NumPy does."""
 from __future__ import annotations
 
 import numpy as np
@@ -23,9 +26,14 @@ def _pick(hit, prob, total, u_lobe, u_max, chosen, p_c, u_leaf):
     count, n = hit.shape[0], total.shape[0]
     cum = np.empty(count)
     acc = 0.0
+    ordered = True                                          # cum non-decreasing, without NaN
     for i in range(count):                                  # np.cumsum(prob)
         acc = prob[i] if i == 0 else acc + prob[i]
         cum[i] = acc
+        if i > 0 and not cum[i - 1] <= acc:
+            ordered = False
+    if count and cum[0] != cum[0]:
+        ordered = False
     j = 0
     for h in range(n):
         while j < count and hit[j] < h:                     # start: np.searchsorted(hit, h) (hit sorted)
@@ -41,8 +49,15 @@ def _pick(hit, prob, total, u_lobe, u_max, chosen, p_c, u_leaf):
         if not u != u and u > u_max:                        # np.minimum(u_lobe, u_max): NaN stays NaN
             u = u_max
         target = base + u * (1.0 if total[h] > 0.0 else 0.0)
-        lo = search_right(cum, count, target)               # np.searchsorted(cum, target, side="right")
-        c = lo if lo > start else start                     # np.clip(lo, start, stop - 1)
+        if ordered:                                         # the count of sums <= target, from start on
+            c = start
+            while c < stop - 1 and cum[c] <= target:
+                c += 1
+            if target != target:                            # a NaN target counts them all
+                c = count
+        else:
+            c = search_right(cum, count, target)            # np.searchsorted(cum, target, side="right")
+        c = c if c > start else start                       # np.clip(c, start, stop - 1)
         c = c if c < stop - 1 else stop - 1
         chosen[h] = c
         pc = prob[c]
