@@ -55,12 +55,18 @@ def factor_value(factor, si: ShadingPoint) -> np.ndarray:
     return 1.0 - f if factor.invert else f
 
 
-def _factor_input(factor, si: ShadingPoint) -> np.ndarray:
-    """A factor read at the hits (not a constant), clamped to [0, 1], before its invert."""
+def _facing(si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
+    """What the Fresnel and Layer Weight factors read of the hits: (cos, backfacing) (N,) each."""
+    cos = dot(si.wo, si.n)                                   # Cycles: dot(sd->wi, N), N the shading normal
+    return cos, dot(si.wo, si.normal) < 0.0                  # the viewer inside the surface
+
+
+def _factor_input(factor, si: ShadingPoint, facing=None) -> np.ndarray:
+    """A factor read at the hits (not a constant), clamped to [0, 1], before its invert; `facing`:
+    _facing(si) when known."""
     n = len(si)
     if factor.kind == FRESNEL or factor.kind == LAYER_WEIGHT:
-        cos = dot(si.wo, si.n)                               # Cycles: dot(sd->wi, N), N the shading normal
-        backfacing = dot(si.wo, si.normal) < 0.0            # the viewer inside the surface
+        cos, backfacing = _facing(si) if facing is None else facing
         if factor.kind == FRESNEL:                           # its svm_node_fresnel
             eta = max(factor.ior, 1e-5)
             f = fresnel_dielectric_cos(cos, np.where(backfacing, 1.0 / eta, eta))
@@ -112,10 +118,12 @@ class _Leaves:
     samples' eval, the sample and the sample's mixture eval, not once per call.  `media`: the pairs'
     medium stacks as they were when the call began (a leaf's sample updates the paths' own), or None;
     a leaf's memo reads the stacks `rows[r]` was made with (the bounce's first call: before any of its
-    leaves crossed a surface, as the calls' own stacks are for every pair they evaluate)."""
+    leaves crossed a surface, as the calls' own stacks are for every pair they evaluate).  `whole`:
+    the pairs are the span's own, in order (a take of all), so that every pair of a row is that row's
+    view itself, which `at` then takes whole (no gathers)."""
 
-    def __init__(self, rows, slot, media=None):
-        self.rows, self.slot, self.media = rows, slot, media
+    def __init__(self, rows, slot, media=None, whole=False):
+        self.rows, self.slot, self.media, self.whole = rows, slot, media, whole
 
     @classmethod
     def of(cls, si: ShadingPoint, hit, row, leaf, color):
@@ -134,12 +142,16 @@ class _Leaves:
         """The pairs `pairs` of these (None: all), now at the hits `hit` (per pair) of the medium
         stacks `media` (or None): their stacks copied from those now, as a take of the hits would."""
         stacks = None if media is None else type(media)(media.media.take(hit, axis=0), media.depth.take(hit))
-        return _Leaves(self.rows, self.slot if pairs is None else self.slot.take(pairs), stacks)
+        if pairs is None:
+            return _Leaves(self.rows, self.slot, stacks, whole=True)
+        return _Leaves(self.rows, self.slot.take(pairs), stacks)
 
     def at(self, r: int, pairs: np.ndarray, media=None) -> ShadingPoint:
-        """The row-r leaves of pairs `pairs` (all of row r), with the medium stacks `media` (default:
-        these pairs' own), set without starting the take's memo afresh (ShadingPoint.__setattr__)."""
-        view = self.rows[r].take(self.slot.take(pairs))
+        """The row-r leaves of pairs `pairs` (all of row r, ascending), with the medium stacks `media`
+        (default: these pairs' own), set without starting the take's memo afresh
+        (ShadingPoint.__setattr__)."""
+        every = self.whole and len(pairs) == len(self.rows[r])     # then the row's pairs in order
+        view = self.rows[r].take(None if every else self.slot.take(pairs))
         if media is None and self.media is not None:
             media = type(self.media)(self.media.media.take(pairs, axis=0), self.media.depth.take(pairs))
         if media is not None:
@@ -192,9 +204,11 @@ class MixBSDF(BSDF):
         hit = np.repeat(np.arange(n), count)
         start = np.cumsum(count) - count                    # each hit's first pair
         leaf, row, weight = np.empty(len(hit), np.int64), np.empty(len(hit), np.int64), np.empty(len(hit))
+        facing = None                                   # _facing of every hit, once for the materials that read it
         for m in _ids_in(si.material):
             idx = np.flatnonzero(si.material == m)
-            at = si.take(idx) if len(idx) != n else si
+            every = len(idx) == n
+            at = si if every else si.take(idx)
             first = start.take(idx)
             read = {}                                   # a factor's value, once for the leaves that share it
             for j, (leaf_id, r, factors, firsts) in enumerate(self.closures[int(m)]):
@@ -204,7 +218,11 @@ class MixBSDF(BSDF):
                         w = w * float(factor.constant())
                         continue
                     if id(first_reader) not in read:
-                        read[id(first_reader)] = _factor_input(first_reader, at)
+                        mine = None
+                        if first_reader.kind == FRESNEL or first_reader.kind == LAYER_WEIGHT:
+                            facing = _facing(si) if facing is None else facing
+                            mine = facing if every else (facing[0].take(idx), facing[1].take(idx))
+                        read[id(first_reader)] = _factor_input(first_reader, at, mine)
                     f = read[id(first_reader)]
                     w = w * (1.0 - f if factor.invert else f)
                 pairs = first + j
