@@ -165,7 +165,8 @@ class MixBSDF(BSDF):
 
     def __init__(self, materials, settings):
         self.materials = materials
-        self.closures = {}
+        self.closures = {}              # material id -> [(leaf material id, row, factors, first readers)] (bind)
+        self.rows = []                  # the rows of every material's leaves, ascending (bind)
         self.compiled = None
 
     def use_backend(self, backends: dict) -> None:
@@ -193,6 +194,7 @@ class MixBSDF(BSDF):
             for leaf_id, row, _, _ in self.closures[m]:
                 flags |= table.bsdfs[row].flags
         self.flags = flags
+        self.rows = sorted({row for closures in self.closures.values() for _, row, _, _ in closures})   # the leaves' rows
 
     # -- the closures at some hits ----------------------------------------------------------------
     def _pairs(self, si: ShadingPoint):
@@ -287,25 +289,28 @@ class MixBSDF(BSDF):
             u_leaf = np.clip((target - (cum.take(chosen) - p_c)) / p_c, 0.0, U_MAX)
         return chosen, p_c, np.where(p_c > 0.0, u_leaf, 0.0)
 
-    def _eval_pairs(self, row, leaves, wi_pairs, only=None):
-        """(f cos (3, P), pdf (P,)) of the leaves at wi (per pair); `only`: the pairs to evaluate,
-        wi_pairs then theirs alone and the results theirs alone (3, len(only)), (len(only),): no
-        full-length temporaries where a sample's mixture needs some hits' pairs."""
-        f_cos, pdf = np.zeros(wi_pairs.shape), np.zeros(wi_pairs.shape[1])
+    def _eval_pairs(self, row, leaves, wi, hit, only=None):
+        """(f cos (3, P), pdf (P,)) of the leaves at the directions wi (3, N) of their hits `hit` (per
+        pair); `only`: the pairs to evaluate, `hit` then theirs alone and the results theirs alone
+        (3, len(only)), (len(only),): no full-length temporaries where a sample's mixture needs some
+        hits' pairs.  Each row's directions are gathered from wi at once (no per-pair copy of wi)."""
+        f_cos, pdf = np.zeros((3, len(hit))), np.zeros(len(hit))
         rows = row if only is None else row.take(only)
-        for r in _ids_in(rows):
+        for r in self.rows:
             if not self.table.non_delta[r]:
                 continue                                    # delta leaves: no given direction meets them
-            k = np.flatnonzero(rows == r)                   # places in wi_pairs; the pairs themselves:
+            k = np.flatnonzero(rows == r)                   # places in the results; the pairs themselves:
+            if not len(k):
+                continue
             sel = k if only is None else only.take(k)
-            f, p = self.table.bsdfs[r].eval(leaves.at(r, sel), wi_pairs.take(k, axis=1))
+            f, p = self.table.bsdfs[r].eval(leaves.at(r, sel), wi.take(hit.take(k), axis=1))
             f_cos[:, k], pdf[k] = f, p
         return f_cos, pdf
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = len(si)
         hit, row, weight, prob, _, leaves = self._pairs_at(si)
-        f_cos, pdf = self._eval_pairs(row, leaves, wi.take(hit, axis=1))
+        f_cos, pdf = self._eval_pairs(row, leaves, wi, hit)
         return self._sums(hit, f_cos, weight, pdf, prob, n)
 
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
@@ -320,7 +325,7 @@ class MixBSDF(BSDF):
         wi[:] = si.n
         delta = np.zeros(n, dtype=bool)
         picked, live = row.take(chosen), p_c > 0.0
-        for r in _ids_in(picked):
+        for r in self.rows:
             mine = np.flatnonzero((picked == r) & live)     # hits that picked a row-r leaf
             if not len(mine):
                 continue
@@ -348,7 +353,7 @@ class MixBSDF(BSDF):
             of[spread] = True
             pairs = np.flatnonzero(of.take(hit))            # every pair of those hits: their sums whole
             at = hit.take(pairs)
-            f_cos, p = self._eval_pairs(row, leaves, wi.take(at, axis=1), only=pairs)
+            f_cos, p = self._eval_pairs(row, leaves, wi, at, only=pairs)
             f_sum, p_sum = self._sums(at, f_cos, weight.take(pairs), p, prob.take(pairs), n)
             f_sum, p_sum = f_sum.take(spread, axis=1), p_sum.take(spread)
             with np.errstate(divide="ignore", invalid="ignore"):

@@ -135,7 +135,7 @@ class WeightOnlyPdf(MixBSDF):
     """Control: the pdf weights the closures by w_c alone while `sample` picks by w_c x albedo."""
     def pdf(self, si, wi):
         hit, row, weight, prob, _, leaves = self._pairs(si)
-        _, pdf = self._eval_pairs(row, leaves, wi.take(hit, axis=1))
+        _, pdf = self._eval_pairs(row, leaves, wi, hit)
         w_sum = np.bincount(hit, weights=weight, minlength=len(si))
         return np.bincount(hit, weights=pdf * weight / w_sum.take(hit), minlength=len(si))
 
