@@ -126,11 +126,11 @@ class _Leaves:
         self.rows, self.slot, self.media, self.whole = rows, slot, media, whole
 
     @classmethod
-    def of(cls, si: ShadingPoint, hit, row, leaf, color):
-        """The pairs (hit, row, leaf material, leaf colour) of the hits `si` (without `media`)."""
+    def of(cls, si: ShadingPoint, hit, groups, leaf, color):
+        """The pairs (hit, leaf material, leaf colour) of the hits `si` (without `media`), grouped by
+        row (MixBSDF._by_row)."""
         rows, slot = {}, np.empty(len(hit), dtype=np.int64)
-        for r in _ids_in(row):
-            sel = np.flatnonzero(row == r)
+        for r, sel in groups:
             slot[sel] = np.arange(len(sel))
             view = si.take(hit.take(sel))
             view.color, view.material = color.take(sel, axis=1), leaf.take(sel)   # a ShadingPoint of its own
@@ -232,7 +232,7 @@ class MixBSDF(BSDF):
         color = self.table.color.take(leaf, axis=1)
         if si.lookup is not None:
             color = si.lookup.take(hit).color(color, leaf)
-        leaves = _Leaves.of(si, hit, row, leaf, color)
+        leaves = _Leaves.of(si, hit, self._by_row(row), leaf, color)
         albedo = (color[0] + color[1] + color[2]) / 3.0    # color.mean(axis=0), the same sums
         rate = weight * np.maximum(albedo, ALBEDO_FLOOR)
         total = np.bincount(hit, weights=rate, minlength=n)
@@ -265,6 +265,18 @@ class MixBSDF(BSDF):
         count = np.bincount(hit, minlength=len(si))
         return hit, row, weight, prob, total, leaves, np.cumsum(count) - count, count
 
+    def _by_row(self, rows: np.ndarray, keep: np.ndarray | None = None) -> list:
+        """[(r, the places (ascending) where `rows` is r and `keep` is True)] for the leaves' rows r
+        (ascending) that have any."""
+        if self.compiled is not None:                       # mix_jit.by_row: one counting pass, the same places
+            return self.compiled.by_row(rows, keep, self.rows)
+        groups = []
+        for r in self.rows:
+            k = np.flatnonzero(rows == r if keep is None else (rows == r) & keep)
+            if len(k):
+                groups.append((r, k))
+        return groups
+
     def _sums(self, hit, f_cos, weight, pdf, prob, n):
         """Per-hit sums over the pairs (hit (P,)) of f_cos x weight (3, n) and of pdf x prob (n,)."""
         if self.compiled is not None:                       # mix_jit.sums: the same sums in the same order
@@ -295,14 +307,10 @@ class MixBSDF(BSDF):
         (3, len(only)), (len(only),): no full-length temporaries where a sample's mixture needs some
         hits' pairs.  Each row's directions are gathered from wi at once (no per-pair copy of wi)."""
         f_cos, pdf = np.zeros((3, len(hit))), np.zeros(len(hit))
-        rows = row if only is None else row.take(only)
-        for r in self.rows:
+        for r, k in self._by_row(row if only is None else row.take(only)):   # k: places in the results
             if not self.table.non_delta[r]:
                 continue                                    # delta leaves: no given direction meets them
-            k = np.flatnonzero(rows == r)                   # places in the results; the pairs themselves:
-            if not len(k):
-                continue
-            sel = k if only is None else only.take(k)
+            sel = k if only is None else only.take(k)       # the pairs themselves
             f, p = self.table.bsdfs[r].eval(leaves.at(r, sel), wi.take(hit.take(k), axis=1))
             f_cos[:, k], pdf[k] = f, p
         return f_cos, pdf
@@ -324,11 +332,7 @@ class MixBSDF(BSDF):
         pdf, flags = np.zeros(n), np.full(n, DEAD, dtype=np.int8)
         wi[:] = si.n
         delta = np.zeros(n, dtype=bool)
-        picked, live = row.take(chosen), p_c > 0.0
-        for r in self.rows:
-            mine = np.flatnonzero((picked == r) & live)     # hits that picked a row-r leaf
-            if not len(mine):
-                continue
+        for r, mine in self._by_row(row.take(chosen), p_c > 0.0):  # the live hits that picked a row-r leaf
             pairs = chosen.take(mine)
             media = None                                    # glass leaves cross the paths' media
             if si.media is not None:

@@ -1,6 +1,7 @@
 """engine/materials/mix.py's pair bookkeeping compiled with numba: the sample's pick of one (hit,
 leaf) pair per hit and the per-hit sums of the pairs' weighted f cos and pdfs, each one loop instead
-of some fifteen NumPy passes over the pairs.  Imported only through engine/core/backend.py's choice
+of some fifteen NumPy passes over the pairs, and the pairs (or hits) grouped by their leaf's row in
+one counting pass (the same ascending places as np.flatnonzero per row).  Imported only through engine/core/backend.py's choice
 (it imports numba).
 
 The same float64 operations in the same order: np.cumsum adds the probabilities one after another,
@@ -104,9 +105,44 @@ def sums(hit, f_cos, weight, pdf, prob, n):
     return f_sum, p_sum
 
 
+@jit
+def _group(rows, keep, use_keep, n_codes, order, offsets):
+    for c in range(n_codes + 1):
+        offsets[c] = 0
+    for i in range(rows.shape[0]):                          # how many places each code has
+        r = rows[i]
+        if 0 <= r < n_codes and (not use_keep or keep[i]):
+            offsets[r + 1] += 1
+    for c in range(n_codes):
+        offsets[c + 1] += offsets[c]
+    fill = offsets[:n_codes].copy()
+    for i in range(rows.shape[0]):                          # each code's places, ascending
+        r = rows[i]
+        if 0 <= r < n_codes and (not use_keep or keep[i]):
+            order[fill[r]] = i
+            fill[r] += 1
+
+
+def by_row(rows, keep, codes):
+    """MixBSDF._by_row: [(r, the places (ascending) where `rows` (int) is r and `keep` (bool, or None:
+    everywhere) is True)] for the codes r of `codes` (ascending list of non-negative ints) that have
+    any; a counting sort of the places by row instead of one comparison and np.flatnonzero per row."""
+    if not codes:
+        return []
+    n_codes = codes[-1] + 1
+    order, offsets = np.empty(len(rows), np.int64), np.empty(n_codes + 1, np.int64)
+    use_keep = keep is not None
+    _group(np.ascontiguousarray(rows, np.int64),
+           np.ascontiguousarray(keep, np.bool_) if use_keep else np.zeros(0, np.bool_), use_keep, n_codes,
+           order, offsets)
+    return [(r, order[offsets[r]:offsets[r + 1]]) for r in codes if offsets[r + 1] > offsets[r]]
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     hit = np.array([0, 0, 1])
     prob = np.array([0.25, 0.75, 1.0])
     pick(hit, prob, np.ones(2), np.array([0.5, 0.5]), 1.0 - 1e-12)
     sums(hit, np.ones((3, 3)), np.ones(3), np.ones(3), prob, 2)
+    for keep in (None, np.array([True, False, True])):
+        by_row(hit, keep, [0, 1])

@@ -97,6 +97,32 @@ def test_the_pick_is_numpys_on_odd_tables_and_uniforms():
     assert under.sum() >= 1 and (below[0][under] % 2 == 0).all()
 
 
+def groups_equal(a, b) -> bool:
+    return len(a) == len(b) and all(r == q and k.dtype == j.dtype and np.array_equal(k, j)
+                                    for (r, k), (q, j) in zip(a, b))
+
+
+def test_the_rows_grouping_is_numpys():
+    """The pairs grouped by row (MixBSDF._by_row) on captured-like rows (the mixes' own) and odd ones:
+    empty, rows no leaf has (ignored: above, between and below the leaves' rows), keep masks none,
+    all False and random."""
+    numpy_bsdf, compiled, _ = mix_pair()
+    assert numpy_bsdf.rows == compiled.rows and len(numpy_bsdf.rows) >= 3
+    rng = np.random.default_rng(23)
+    codes = numpy_bsdf.rows
+    cases = [np.zeros(0, np.int64), rng.choice(codes, 5000),
+             rng.integers(-2, max(codes) + 3, 5000), np.full(100, codes[-1])]
+    for rows in cases:
+        for keep in (None, np.zeros(len(rows), bool), rng.random(len(rows)) < 0.6):
+            a, b = numpy_bsdf._by_row(rows, keep), compiled._by_row(rows, keep)
+            assert groups_equal(a, b)
+    assert len(numpy_bsdf._by_row(cases[1])) == len(codes)
+    # control: one pair moved to another row is told apart
+    moved = cases[1].copy()
+    moved[1234] = codes[0] if moved[1234] != codes[0] else codes[1]
+    assert not groups_equal(numpy_bsdf._by_row(cases[1]), compiled._by_row(moved))
+
+
 def test_the_sums_are_bincounts_in_the_pairs_order():
     numpy_bsdf, compiled, _ = mix_pair()
     rng = np.random.default_rng(9)
