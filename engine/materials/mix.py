@@ -206,27 +206,10 @@ class MixBSDF(BSDF):
         hit = np.repeat(np.arange(n), count)
         start = np.cumsum(count) - count                    # each hit's first pair
         leaf, row, weight = np.empty(len(hit), np.int64), np.empty(len(hit), np.int64), np.empty(len(hit))
-        facing = None                                   # _facing of every hit, once for the materials that read it
         for m in _ids_in(si.material):
             idx = np.flatnonzero(si.material == m)
-            every = len(idx) == n
-            at = si if every else si.take(idx)
             first = start.take(idx)
-            read = {}                                   # a factor's value, once for the leaves that share it
-            for j, (leaf_id, r, factors, firsts) in enumerate(self.closures[int(m)]):
-                w = np.ones(len(idx))
-                for factor, first_reader in zip(factors, firsts):
-                    if factor.kind not in READ:
-                        w = w * float(factor.constant())
-                        continue
-                    if id(first_reader) not in read:
-                        mine = None
-                        if first_reader.kind == FRESNEL or first_reader.kind == LAYER_WEIGHT:
-                            facing = _facing(si) if facing is None else facing
-                            mine = facing if every else (facing[0].take(idx), facing[1].take(idx))
-                        read[id(first_reader)] = _factor_input(first_reader, at, mine)
-                    f = read[id(first_reader)]
-                    w = w * (1.0 - f if factor.invert else f)
+            for j, ((leaf_id, r, _, _), w) in enumerate(zip(self.closures[int(m)], self._weights(si, int(m), idx))):
                 pairs = first + j
                 leaf[pairs], row[pairs], weight[pairs] = leaf_id, r, w
         color = self.table.color.take(leaf, axis=1)
@@ -236,9 +219,34 @@ class MixBSDF(BSDF):
         albedo = (color[0] + color[1] + color[2]) / 3.0    # color.mean(axis=0), the same sums
         rate = weight * np.maximum(albedo, ALBEDO_FLOOR)
         total = np.bincount(hit, weights=rate, minlength=n)
+        of_hit = total.take(hit)
         with np.errstate(divide="ignore", invalid="ignore"):
-            prob = np.where(total.take(hit) > 0.0, rate / total.take(hit), 0.0)
+            prob = np.where(of_hit > 0.0, rate / of_hit, 0.0)
         return hit, row, weight, prob, total, leaves
+
+    def _weights(self, si: ShadingPoint, m: int, idx: np.ndarray) -> list:
+        """The weight (len(idx),) of each leaf of material m at the hits `idx` of si, each value a
+        factor reads computed once for the leaves that share it; the Fresnel and Layer Weight
+        factors' view of the hits (_facing) once for every hit of si (its memo), then taken."""
+        every = len(idx) == len(si)
+        at = si if every else si.take(idx)
+        read, weights = {}, []
+        for _, _, factors, firsts in self.closures[m]:
+            w = np.ones(len(idx))
+            for factor, first in zip(factors, firsts):
+                if factor.kind not in READ:
+                    w = w * float(factor.constant())
+                    continue
+                if id(first) not in read:
+                    facing = None
+                    if first.kind == FRESNEL or first.kind == LAYER_WEIGHT:
+                        facing = si.memo(("mix", "facing"), _facing)
+                        facing = facing if every else (facing[0].take(idx), facing[1].take(idx))
+                    read[id(first)] = _factor_input(first, at, facing)
+                f = read[id(first)]
+                w = w * (1.0 - f if factor.invert else f)
+            weights.append(w)
+        return weights
 
     def _pairs_at(self, si: ShadingPoint):
         """_pairs of the hits `si`, computed once per span (ShadingPoint.memo_at: the light samples'
