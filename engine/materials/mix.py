@@ -34,6 +34,7 @@ ALBEDO_FLOOR = 0.05             # a leaf's albedo estimate is at least this (bla
 # Cycles' colour-to-float conversion (linear_rgb_to_gray): luminance of linear Rec.709 (rgb_to_y).
 LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])
 DEAD = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION     # the flags of a hit whose weights are all 0
+DELTA = int(BSDFFlags.DELTA)    # as a plain int: an array's & with it needs no enum conversion
 U_MAX = 1.0 - 1e-12             # the largest uniform the pick passes on
 READ = (FRESNEL, LAYER_WEIGHT, TEXTURE, PROGRAM)   # factors read at the hits (the other kind: constants)
 
@@ -352,7 +353,7 @@ class MixBSDF(BSDF):
             if si.media is not None:
                 si.media.media[mine], si.media.depth[mine] = at.media.media, at.media.depth
             wi[:, mine], flags[mine] = s.wi, s.flags
-            is_delta = (s.flags & BSDFFlags.DELTA) != 0
+            is_delta = (s.flags & DELTA) != 0
             delta[mine] = is_delta
             d = mine[is_delta]                              # delta: the leaf's own value and pdf
             w_over_p = weight.take(pairs[is_delta]) / p_c.take(d)

@@ -735,6 +735,10 @@ class HitLookup:
         return self.textures.attributes is not None and bool(self.textures.textures.has_program["normal"].any())
 
     def tangent(self, tangents, material):
+        """The tangents of these hits with the meshes' corner tangents (HitTextures.tangent); without
+        any, `tangents` itself, none of these arrays read."""
+        if self.textures.tri_tangent is None:
+            return tangents
         return self.textures.tangent(tangents, material, self.kind, self.prim, self.b1, self.b2)
 
 

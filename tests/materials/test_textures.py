@@ -384,6 +384,8 @@ def test_a_take_of_a_lookup_gathers_what_is_read_when_read():
     fresh = lookup.take(outer)
     values = rng.random(20)
     assert fresh.input("metallic", values, np.zeros(20, np.int64)) is values and "kind" not in vars(fresh)
+    tangents = rng.random((3, 20))
+    assert fresh.tangent(tangents, np.zeros(20, np.int64)) is tangents and "kind" not in vars(fresh)   # no mesh tangents
     assert not np.array_equal(fresh.input("roughness", values, np.zeros(20, np.int64)), values)
     # control: the indices composed the other way round are other hits
     assert not np.array_equal(twice.b1, b1.take(inner))
