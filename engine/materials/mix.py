@@ -34,6 +34,7 @@ ALBEDO_FLOOR = 0.05             # a leaf's albedo estimate is at least this (bla
 # Cycles' colour-to-float conversion (linear_rgb_to_gray): luminance of linear Rec.709 (rgb_to_y).
 LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])
 DEAD = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION     # the flags of a hit whose weights are all 0
+DELTA = int(BSDFFlags.DELTA)    # as a plain int: an array's & with it needs no enum conversion
 U_MAX = 1.0 - 1e-12             # the largest uniform the pick passes on
 READ = (FRESNEL, LAYER_WEIGHT, TEXTURE, PROGRAM)   # factors read at the hits (the other kind: constants)
 
@@ -55,12 +56,18 @@ def factor_value(factor, si: ShadingPoint) -> np.ndarray:
     return 1.0 - f if factor.invert else f
 
 
-def _factor_input(factor, si: ShadingPoint) -> np.ndarray:
-    """A factor read at the hits (not a constant), clamped to [0, 1], before its invert."""
+def _facing(si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
+    """What the Fresnel and Layer Weight factors read of the hits: (cos, backfacing) (N,) each."""
+    cos = dot(si.wo, si.n)                                   # Cycles: dot(sd->wi, N), N the shading normal
+    return cos, dot(si.wo, si.normal) < 0.0                  # the viewer inside the surface
+
+
+def _factor_input(factor, si: ShadingPoint, facing=None) -> np.ndarray:
+    """A factor read at the hits (not a constant), clamped to [0, 1], before its invert; `facing`:
+    _facing(si) when known."""
     n = len(si)
     if factor.kind == FRESNEL or factor.kind == LAYER_WEIGHT:
-        cos = dot(si.wo, si.n)                               # Cycles: dot(sd->wi, N), N the shading normal
-        backfacing = dot(si.wo, si.normal) < 0.0            # the viewer inside the surface
+        cos, backfacing = _facing(si) if facing is None else facing
         if factor.kind == FRESNEL:                           # its svm_node_fresnel
             eta = max(factor.ior, 1e-5)
             f = fresnel_dielectric_cos(cos, np.where(backfacing, 1.0 / eta, eta))
@@ -112,17 +119,19 @@ class _Leaves:
     samples' eval, the sample and the sample's mixture eval, not once per call.  `media`: the pairs'
     medium stacks as they were when the call began (a leaf's sample updates the paths' own), or None;
     a leaf's memo reads the stacks `rows[r]` was made with (the bounce's first call: before any of its
-    leaves crossed a surface, as the calls' own stacks are for every pair they evaluate)."""
+    leaves crossed a surface, as the calls' own stacks are for every pair they evaluate).  `whole`:
+    the pairs are the span's own, in order (a take of all), so that every pair of a row is that row's
+    view itself, which `at` then takes whole (no gathers)."""
 
-    def __init__(self, rows, slot, media=None):
-        self.rows, self.slot, self.media = rows, slot, media
+    def __init__(self, rows, slot, media=None, whole=False):
+        self.rows, self.slot, self.media, self.whole = rows, slot, media, whole
 
     @classmethod
-    def of(cls, si: ShadingPoint, hit, row, leaf, color):
-        """The pairs (hit, row, leaf material, leaf colour) of the hits `si` (without `media`)."""
+    def of(cls, si: ShadingPoint, hit, groups, leaf, color):
+        """The pairs (hit, leaf material, leaf colour) of the hits `si` (without `media`), grouped by
+        row (MixBSDF._by_row)."""
         rows, slot = {}, np.empty(len(hit), dtype=np.int64)
-        for r in _ids_in(row):
-            sel = np.flatnonzero(row == r)
+        for r, sel in groups:
             slot[sel] = np.arange(len(sel))
             view = si.take(hit.take(sel))
             view.color, view.material = color.take(sel, axis=1), leaf.take(sel)   # a ShadingPoint of its own
@@ -134,12 +143,16 @@ class _Leaves:
         """The pairs `pairs` of these (None: all), now at the hits `hit` (per pair) of the medium
         stacks `media` (or None): their stacks copied from those now, as a take of the hits would."""
         stacks = None if media is None else type(media)(media.media.take(hit, axis=0), media.depth.take(hit))
-        return _Leaves(self.rows, self.slot if pairs is None else self.slot.take(pairs), stacks)
+        if pairs is None:
+            return _Leaves(self.rows, self.slot, stacks, whole=True)
+        return _Leaves(self.rows, self.slot.take(pairs), stacks)
 
     def at(self, r: int, pairs: np.ndarray, media=None) -> ShadingPoint:
-        """The row-r leaves of pairs `pairs` (all of row r), with the medium stacks `media` (default:
-        these pairs' own), set without starting the take's memo afresh (ShadingPoint.__setattr__)."""
-        view = self.rows[r].take(self.slot.take(pairs))
+        """The row-r leaves of pairs `pairs` (all of row r, ascending), with the medium stacks `media`
+        (default: these pairs' own), set without starting the take's memo afresh
+        (ShadingPoint.__setattr__)."""
+        every = self.whole and len(pairs) == len(self.rows[r])     # then the row's pairs in order
+        view = self.rows[r].take(None if every else self.slot.take(pairs))
         if media is None and self.media is not None:
             media = type(self.media)(self.media.media.take(pairs, axis=0), self.media.depth.take(pairs))
         if media is not None:
@@ -153,7 +166,8 @@ class MixBSDF(BSDF):
 
     def __init__(self, materials, settings):
         self.materials = materials
-        self.closures = {}
+        self.closures = {}              # material id -> [(leaf material id, row, factors, first readers)] (bind)
+        self.rows = []                  # the rows of every material's leaves, ascending (bind)
         self.compiled = None
 
     def use_backend(self, backends: dict) -> None:
@@ -170,51 +184,70 @@ class MixBSDF(BSDF):
         material ids of each material (engine/scene/model.py with_mix_leaves)."""
         self.table = table
         flags = BSDFFlags.NONE
+        self.leaf_count = np.zeros(len(leaf_ids), np.int64)     # leaves per material (its pairs per hit)
         for m, ids in enumerate(leaf_ids):
             if not ids:
                 continue
+            self.leaf_count[m] = len(ids)
             leaves = self.materials[m].mix.leaves
             self.closures[m] = [(leaf_id, int(table.kind[leaf_id]), leaf.factors, firsts)
                                 for leaf_id, leaf, firsts in zip(ids, leaves, _first_readers(leaves))]
             for leaf_id, row, _, _ in self.closures[m]:
                 flags |= table.bsdfs[row].flags
         self.flags = flags
+        self.rows = sorted({row for closures in self.closures.values() for _, row, _, _ in closures})   # the leaves' rows
 
     # -- the closures at some hits ----------------------------------------------------------------
     def _pairs(self, si: ShadingPoint):
-        """Every (hit, leaf) pair of the hits, hit-major: (hit (P,), row (P,), weight (P,),
-        probability (P,), total weight x albedo per hit (N,), the leaves of the pairs (_Leaves))."""
-        hit, leaf, row, weight = [], [], [], []
+        """Every (hit, leaf) pair of the hits, hit-major (a hit's pairs follow each other, its leaves in
+        the material's order): (hit (P,), row (P,), weight (P,), probability (P,), total weight x albedo
+        per hit (N,), the leaves of the pairs (_Leaves))."""
+        n = len(si)
+        count = self.leaf_count.take(si.material)          # pairs per hit
+        hit = np.repeat(np.arange(n), count)
+        start = np.cumsum(count) - count                    # each hit's first pair
+        leaf, row, weight = np.empty(len(hit), np.int64), np.empty(len(hit), np.int64), np.empty(len(hit))
         for m in _ids_in(si.material):
             idx = np.flatnonzero(si.material == m)
-            at = si.take(idx) if len(idx) != len(si) else si
-            read = {}                                   # a factor's value, once for the leaves that share it
-            for leaf_id, r, factors, firsts in self.closures[int(m)]:
-                w = np.ones(len(idx))
-                for factor, first in zip(factors, firsts):
-                    if factor.kind not in READ:
-                        w = w * np.full(len(idx), factor.constant())
-                        continue
-                    if id(first) not in read:
-                        read[id(first)] = _factor_input(first, at)
-                    f = read[id(first)]
-                    w = w * (1.0 - f if factor.invert else f)
-                hit.append(idx)
-                leaf.append(np.full(len(idx), leaf_id))
-                row.append(np.full(len(idx), r))
-                weight.append(w)
-        hit, leaf, row, weight = (np.concatenate(a) for a in (hit, leaf, row, weight))
-        order = np.argsort(hit, kind="stable")
-        hit, leaf, row, weight = hit[order], leaf[order], row[order], weight[order]
+            first = start.take(idx)
+            for j, ((leaf_id, r, _, _), w) in enumerate(zip(self.closures[int(m)], self._weights(si, int(m), idx))):
+                pairs = first + j
+                leaf[pairs], row[pairs], weight[pairs] = leaf_id, r, w
         color = self.table.color.take(leaf, axis=1)
         if si.lookup is not None:
             color = si.lookup.take(hit).color(color, leaf)
-        leaves = _Leaves.of(si, hit, row, leaf, color)
-        rate = weight * np.maximum(color.mean(axis=0), ALBEDO_FLOOR)
-        total = np.bincount(hit, weights=rate, minlength=len(si))
+        leaves = _Leaves.of(si, hit, self._by_row(row), leaf, color)
+        albedo = (color[0] + color[1] + color[2]) / 3.0    # color.mean(axis=0), the same sums
+        rate = weight * np.maximum(albedo, ALBEDO_FLOOR)
+        total = np.bincount(hit, weights=rate, minlength=n)
+        of_hit = total.take(hit)
         with np.errstate(divide="ignore", invalid="ignore"):
-            prob = np.where(total.take(hit) > 0.0, rate / total.take(hit), 0.0)
+            prob = np.where(of_hit > 0.0, rate / of_hit, 0.0)
         return hit, row, weight, prob, total, leaves
+
+    def _weights(self, si: ShadingPoint, m: int, idx: np.ndarray) -> list:
+        """The weight (len(idx),) of each leaf of material m at the hits `idx` of si, each value a
+        factor reads computed once for the leaves that share it; the Fresnel and Layer Weight
+        factors' view of the hits (_facing) once for every hit of si (its memo), then taken."""
+        every = len(idx) == len(si)
+        at = si if every else si.take(idx)
+        read, weights = {}, []
+        for _, _, factors, firsts in self.closures[m]:
+            w = np.ones(len(idx))
+            for factor, first in zip(factors, firsts):
+                if factor.kind not in READ:
+                    w = w * float(factor.constant())
+                    continue
+                if id(first) not in read:
+                    facing = None
+                    if first.kind == FRESNEL or first.kind == LAYER_WEIGHT:
+                        facing = si.memo(("mix", "facing"), _facing)
+                        facing = facing if every else (facing[0].take(idx), facing[1].take(idx))
+                    read[id(first)] = _factor_input(first, at, facing)
+                f = read[id(first)]
+                w = w * (1.0 - f if factor.invert else f)
+            weights.append(w)
+        return weights
 
     def _pairs_at(self, si: ShadingPoint):
         """_pairs of the hits `si`, computed once per span (ShadingPoint.memo_at: the light samples'
@@ -241,6 +274,18 @@ class MixBSDF(BSDF):
         count = np.bincount(hit, minlength=len(si))
         return hit, row, weight, prob, total, leaves, np.cumsum(count) - count, count
 
+    def _by_row(self, rows: np.ndarray, keep: np.ndarray | None = None) -> list:
+        """[(r, the places (ascending) where `rows` is r and `keep` is True)] for the leaves' rows r
+        (ascending) that have any."""
+        if self.compiled is not None:                       # mix_jit.by_row: one counting pass, the same places
+            return self.compiled.by_row(rows, keep, self.rows)
+        groups = []
+        for r in self.rows:
+            k = np.flatnonzero(rows == r if keep is None else (rows == r) & keep)
+            if len(k):
+                groups.append((r, k))
+        return groups
+
     def _sums(self, hit, f_cos, weight, pdf, prob, n):
         """Per-hit sums over the pairs (hit (P,)) of f_cos x weight (3, n) and of pdf x prob (n,)."""
         if self.compiled is not None:                       # mix_jit.sums: the same sums in the same order
@@ -265,25 +310,24 @@ class MixBSDF(BSDF):
             u_leaf = np.clip((target - (cum.take(chosen) - p_c)) / p_c, 0.0, U_MAX)
         return chosen, p_c, np.where(p_c > 0.0, u_leaf, 0.0)
 
-    def _eval_pairs(self, row, leaves, wi_pairs, only=None):
-        """(f cos (3, P), pdf (P,)) of the leaves at wi (per pair); `only`: the pairs to evaluate,
-        wi_pairs then theirs alone and the results theirs alone (3, len(only)), (len(only),): no
-        full-length temporaries where a sample's mixture needs some hits' pairs."""
-        f_cos, pdf = np.zeros(wi_pairs.shape), np.zeros(wi_pairs.shape[1])
-        rows = row if only is None else row.take(only)
-        for r in _ids_in(rows):
+    def _eval_pairs(self, row, leaves, wi, hit, only=None):
+        """(f cos (3, P), pdf (P,)) of the leaves at the directions wi (3, N) of their hits `hit` (per
+        pair); `only`: the pairs to evaluate, `hit` then theirs alone and the results theirs alone
+        (3, len(only)), (len(only),): no full-length temporaries where a sample's mixture needs some
+        hits' pairs.  Each row's directions are gathered from wi at once (no per-pair copy of wi)."""
+        f_cos, pdf = np.zeros((3, len(hit))), np.zeros(len(hit))
+        for r, k in self._by_row(row if only is None else row.take(only)):   # k: places in the results
             if not self.table.non_delta[r]:
                 continue                                    # delta leaves: no given direction meets them
-            k = np.flatnonzero(rows == r)                   # places in wi_pairs; the pairs themselves:
-            sel = k if only is None else only.take(k)
-            f, p = self.table.bsdfs[r].eval(leaves.at(r, sel), wi_pairs.take(k, axis=1))
+            sel = k if only is None else only.take(k)       # the pairs themselves
+            f, p = self.table.bsdfs[r].eval(leaves.at(r, sel), wi.take(hit.take(k), axis=1))
             f_cos[:, k], pdf[k] = f, p
         return f_cos, pdf
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = len(si)
         hit, row, weight, prob, _, leaves = self._pairs_at(si)
-        f_cos, pdf = self._eval_pairs(row, leaves, wi.take(hit, axis=1))
+        f_cos, pdf = self._eval_pairs(row, leaves, wi, hit)
         return self._sums(hit, f_cos, weight, pdf, prob, n)
 
     def pdf(self, si: ShadingPoint, wi: np.ndarray) -> np.ndarray:
@@ -297,11 +341,7 @@ class MixBSDF(BSDF):
         pdf, flags = np.zeros(n), np.full(n, DEAD, dtype=np.int8)
         wi[:] = si.n
         delta = np.zeros(n, dtype=bool)
-        picked, live = row.take(chosen), p_c > 0.0
-        for r in _ids_in(picked):
-            mine = np.flatnonzero((picked == r) & live)     # hits that picked a row-r leaf
-            if not len(mine):
-                continue
+        for r, mine in self._by_row(row.take(chosen), p_c > 0.0):  # the live hits that picked a row-r leaf
             pairs = chosen.take(mine)
             media = None                                    # glass leaves cross the paths' media
             if si.media is not None:
@@ -313,7 +353,7 @@ class MixBSDF(BSDF):
             if si.media is not None:
                 si.media.media[mine], si.media.depth[mine] = at.media.media, at.media.depth
             wi[:, mine], flags[mine] = s.wi, s.flags
-            is_delta = (s.flags & BSDFFlags.DELTA) != 0
+            is_delta = (s.flags & DELTA) != 0
             delta[mine] = is_delta
             d = mine[is_delta]                              # delta: the leaf's own value and pdf
             w_over_p = weight.take(pairs[is_delta]) / p_c.take(d)
@@ -326,7 +366,7 @@ class MixBSDF(BSDF):
             of[spread] = True
             pairs = np.flatnonzero(of.take(hit))            # every pair of those hits: their sums whole
             at = hit.take(pairs)
-            f_cos, p = self._eval_pairs(row, leaves, wi.take(at, axis=1), only=pairs)
+            f_cos, p = self._eval_pairs(row, leaves, wi, at, only=pairs)
             f_sum, p_sum = self._sums(at, f_cos, weight.take(pairs), p, prob.take(pairs), n)
             f_sum, p_sum = f_sum.take(spread, axis=1), p_sum.take(spread)
             with np.errstate(divide="ignore", invalid="ignore"):

@@ -1,12 +1,16 @@
 """engine/materials/mix.py's pair bookkeeping compiled with numba: the sample's pick of one (hit,
 leaf) pair per hit and the per-hit sums of the pairs' weighted f cos and pdfs, each one loop instead
-of some fifteen NumPy passes over the pairs.  Imported only through engine/core/backend.py's choice
+of some fifteen NumPy passes over the pairs, and the pairs (or hits) grouped by their leaf's row in
+one counting pass (the same ascending places as np.flatnonzero per row).  Imported only through engine/core/backend.py's choice
 (it imports numba).
 
 The same float64 operations in the same order: np.cumsum adds the probabilities one after another,
 np.bincount adds each pair's product to its hit's sum in the pairs' order from 0, np.searchsorted
 (side "right") counts the sums <= the target (NumPy's comparison: a NaN target counts them all), and
-np.minimum / np.clip keep a NaN (tests/materials/test_mix_jit.py)."""
+np.minimum / np.clip keep a NaN (tests/materials/test_mix_jit.py).  On a sorted table (the
+cumulative sum of probabilities without NaN: every render's) that count, clipped to the hit's pairs,
+is found by stepping through the hit's few pairs instead of a binary search of the whole table (any
+correct search of a sorted table counts the same); a table with a NaN is searched as NumPy does."""
 from __future__ import annotations
 
 import numpy as np
@@ -23,9 +27,14 @@ def _pick(hit, prob, total, u_lobe, u_max, chosen, p_c, u_leaf):
     count, n = hit.shape[0], total.shape[0]
     cum = np.empty(count)
     acc = 0.0
+    ordered = True                                          # cum non-decreasing, without NaN
     for i in range(count):                                  # np.cumsum(prob)
         acc = prob[i] if i == 0 else acc + prob[i]
         cum[i] = acc
+        if i > 0 and not cum[i - 1] <= acc:
+            ordered = False
+    if count and cum[0] != cum[0]:
+        ordered = False
     j = 0
     for h in range(n):
         while j < count and hit[j] < h:                     # start: np.searchsorted(hit, h) (hit sorted)
@@ -41,8 +50,15 @@ def _pick(hit, prob, total, u_lobe, u_max, chosen, p_c, u_leaf):
         if not u != u and u > u_max:                        # np.minimum(u_lobe, u_max): NaN stays NaN
             u = u_max
         target = base + u * (1.0 if total[h] > 0.0 else 0.0)
-        lo = search_right(cum, count, target)               # np.searchsorted(cum, target, side="right")
-        c = lo if lo > start else start                     # np.clip(lo, start, stop - 1)
+        if ordered:                                         # the count of sums <= target, from start on
+            c = start
+            while c < stop - 1 and cum[c] <= target:
+                c += 1
+            if target != target:                            # a NaN target counts them all
+                c = count
+        else:
+            c = search_right(cum, count, target)            # np.searchsorted(cum, target, side="right")
+        c = c if c > start else start                       # np.clip(c, start, stop - 1)
         c = c if c < stop - 1 else stop - 1
         chosen[h] = c
         pc = prob[c]
@@ -89,9 +105,44 @@ def sums(hit, f_cos, weight, pdf, prob, n):
     return f_sum, p_sum
 
 
+@jit
+def _group(rows, keep, use_keep, n_codes, order, offsets):
+    for c in range(n_codes + 1):
+        offsets[c] = 0
+    for i in range(rows.shape[0]):                          # how many places each code has
+        r = rows[i]
+        if 0 <= r < n_codes and (not use_keep or keep[i]):
+            offsets[r + 1] += 1
+    for c in range(n_codes):
+        offsets[c + 1] += offsets[c]
+    fill = offsets[:n_codes].copy()
+    for i in range(rows.shape[0]):                          # each code's places, ascending
+        r = rows[i]
+        if 0 <= r < n_codes and (not use_keep or keep[i]):
+            order[fill[r]] = i
+            fill[r] += 1
+
+
+def by_row(rows, keep, codes):
+    """MixBSDF._by_row: [(r, the places (ascending) where `rows` (int) is r and `keep` (bool, or None:
+    everywhere) is True)] for the codes r of `codes` (ascending list of non-negative ints) that have
+    any; a counting sort of the places by row instead of one comparison and np.flatnonzero per row."""
+    if not codes:
+        return []
+    n_codes = codes[-1] + 1
+    order, offsets = np.empty(len(rows), np.int64), np.empty(n_codes + 1, np.int64)
+    use_keep = keep is not None
+    _group(np.ascontiguousarray(rows, np.int64),
+           np.ascontiguousarray(keep, np.bool_) if use_keep else np.zeros(0, np.bool_), use_keep, n_codes,
+           order, offsets)
+    return [(r, order[offsets[r]:offsets[r + 1]]) for r in codes if offsets[r + 1] > offsets[r]]
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     hit = np.array([0, 0, 1])
     prob = np.array([0.25, 0.75, 1.0])
     pick(hit, prob, np.ones(2), np.array([0.5, 0.5]), 1.0 - 1e-12)
     sums(hit, np.ones((3, 3)), np.ones(3), np.ones(3), prob, 2)
+    for keep in (None, np.array([True, False, True])):
+        by_row(hit, keep, [0, 1])

@@ -125,7 +125,8 @@ class ShadingPoint:
                 self._memo[key] = compute(self)
             else:
                 source, index = self._source
-                self._memo[key] = take_hits(source.memo(key, compute), index)
+                value = source.memo(key, compute)
+                self._memo[key] = value if index is None else take_hits(value, index)
         return self._memo[key]
 
     def recolour(self, color: np.ndarray) -> "ShadingPoint":
@@ -146,22 +147,27 @@ class ShadingPoint:
         object.__setattr__(view, "_shared", True)
         return view
 
-    def take(self, index: np.ndarray) -> "ShadingPoint":
-        """The hits `index` (for evaluating directions only).  The rows and the material ids are
-        gathered when first read (a BSDF that reads its per-hit values through `memo_at` reads none
-        of them; Lambert reads only n), so a row written in place in these hits' source after the
-        take and before that read shows in the take (nothing in the tracer does that: a bounce's
-        hits are written once, before their takes); the medium stacks, which a scattering updates in
-        place, and the fields with defaults are copied at once."""
+    def take(self, index: np.ndarray | None) -> "ShadingPoint":
+        """The hits `index` (for evaluating directions only; None: every hit, in order).  The rows and
+        the material ids are gathered when first read (a BSDF that reads its per-hit values through
+        `memo_at` reads none of them; Lambert reads only n), so a row written in place in these hits'
+        source after the take and before that read shows in the take (nothing in the tracer does
+        that: a bounce's hits are written once, before their takes); the medium stacks, which a
+        scattering updates in place, and the fields with defaults are copied at once.  A take of every
+        hit (None) gathers nothing: its rows, lookups and memo values are the source's own arrays."""
         taken = object.__new__(ShadingPoint)
         state = taken.__dict__
         state.update(smooth=self.smooth, _memo={}, _spans={}, _shared=False, _source=None,
-                     _lazy=(self, index), _count=len(index))
-        state["media"] = None if self.media is None else type(self.media)(self.media.media.take(index, axis=0),
-                                                                          self.media.depth.take(index))
+                     _lazy=(self, index), _count=len(self) if index is None else len(index))
+        if self.media is None:
+            state["media"] = None
+        elif index is None:
+            state["media"] = type(self.media)(self.media.media.copy(), self.media.depth.copy())
+        else:
+            state["media"] = type(self.media)(self.media.media.take(index, axis=0), self.media.depth.take(index))
         for name in ("lookup", "alpha_floor", "glossy_off"):      # fields with defaults: never lazy
             value = getattr(self, name)
-            state[name] = None if value is None else value.take(index)
+            state[name] = value if value is None or index is None else value.take(index)
         if self._shared or self._source is not None:
             state["_source"] = (self, index)
         return taken
@@ -173,7 +179,7 @@ class ShadingPoint:
             raise AttributeError(name)
         source, index = lazy
         value = getattr(source, name)
-        if value is not None:
+        if value is not None and index is not None:
             value = value.take(index, axis=1) if name in _ROWS else value.take(index)
         self.__dict__[name] = value
         return value
@@ -189,6 +195,8 @@ class ShadingPoint:
         if self._source is None:
             return self.memo(key, compute), None
         source, index = self._source
+        if index is None:                                          # every hit of the source, in order
+            return source.memo_at(key, compute)
         if len(index) and (index.min() < 0 or index.max() >= len(source)):
             raise IndexError(f"a take of {len(source)} hits at {index.min()}..{index.max()}")  # kernels read unchecked
         value, inner = source.memo_at(key, compute)

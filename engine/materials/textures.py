@@ -422,6 +422,7 @@ class HitTextures:
         if textures.has_programs:
             from ..nodes.context import SceneAttributes
             self.attributes = SceneAttributes(scene, triangles, self.tri_uv)
+        self._reads_input = {}                        # input name -> reads_input(name)
         self.light_a = self.light_b = None
         emits = self.has_emission | textures.has_program["emission"]
         if lights is not None and emits.any() and len(lights.triangle_light):
@@ -532,11 +533,30 @@ class HitTextures:
         itself when none has."""
         return apply_writes(values, self.input_writes(name, material, kind, prim, b1, b2, points))
 
+    def reads_input(self, name) -> bool:
+        """Whether any material reads float input `name` from a node program or an image texture
+        (else `input_writes` writes nothing, whatever the hits: HitLookup.input then reads none of
+        its arrays)."""
+        if name not in self._reads_input:
+            self._reads_input[name] = bool(self._image_inputs(name).any()) or (
+                self.attributes is not None and bool(self.textures.has_program[name].any()))
+        return self._reads_input[name]
+
+    def _image_inputs(self, name) -> np.ndarray:
+        """Which materials (M,) read float input `name` from an image texture (with node programs:
+        the inputs whose program did not take the image over)."""
+        has = self.textures.has_input[name]
+        if self.attributes is not None:
+            has = has & np.array([s is not None for s in self.textures.inputs[name]], dtype=bool)
+        return has
+
     def input_writes(self, name, material, kind, prim, b1, b2, points=None) -> list:
         """What `input` writes over the per-material values: [(hits, values)] in order (node
         programs first, then image textures), empty when no hit reads either."""
         from ..geometry.scene_geometry import TRIANGLE
         writes = []
+        if not self.reads_input(name):
+            return writes
         has = self.textures.has_program[name]
         if self.attributes is not None and has.any():
             sel = np.flatnonzero(has.take(material))
@@ -546,9 +566,7 @@ class HitTextures:
                 for m, mine in by_material(mat):
                     idx = picked(sel, mine)
                     writes.append((idx, self.run_program(programs[m], kind, prim, b1, b2, points, idx)))
-        has = self.textures.has_input[name]
-        if self.attributes is not None:
-            has = has & np.array([s is not None for s in self.textures.inputs[name]], dtype=bool)
+        has = self._image_inputs(name)
         if not has.any():
             return writes
         sel = np.flatnonzero(has.take(material) & (kind == TRIANGLE))
@@ -677,8 +695,8 @@ class HitLookup:
                          self._spans.setdefault((span.start, span.stop, span.step), {}))
 
     def take(self, index) -> "HitLookup":
-        return HitLookup(self.textures, self.kind.take(index), self.prim.take(index), self.b1.take(index),
-                         self.b2.take(index), None if self.points is None else self.points.take(index))
+        """The lookups of the hits `index`, their arrays gathered when first read (_TakenLookup)."""
+        return _TakenLookup(self, index)
 
     def color(self, color, material):
         """Colour rows (3, N) of materials `material` at these hits (textured ones read)."""
@@ -698,6 +716,8 @@ class HitLookup:
     def input(self, name, values, material):
         """`values` (N,) with the hits that read input `name` from an image or a program replaced
         (HitTextures.input), read once per material ids at these hits."""
+        if not self.textures.reads_input(name):             # nothing to read: none of these arrays gathered
+            return values
         known = self._memo.get(name)
         if known is not None and (known[0] is material or np.array_equal(known[0], material)):
             return apply_writes(values, known[1])
@@ -715,7 +735,36 @@ class HitLookup:
         return self.textures.attributes is not None and bool(self.textures.textures.has_program["normal"].any())
 
     def tangent(self, tangents, material):
+        """The tangents of these hits with the meshes' corner tangents (HitTextures.tangent); without
+        any, `tangents` itself, none of these arrays read."""
+        if self.textures.tri_tangent is None:
+            return tangents
         return self.textures.tangent(tangents, material, self.kind, self.prim, self.b1, self.b2)
+
+
+class _TakenLookup(HitLookup):
+    """HitLookup.take: the lookups of the hits `index` of `source`, each of the arrays (kind, prim,
+    b1, b2, points) gathered from the source's when first read.  Most takes read none: a Mix
+    Shader's leaves (engine/materials/mix.py) take the hits' ShadingPoint, with its lookup, once per
+    row and per evaluation, and only leaves with textured inputs look anything up.  A take of a take
+    gathers from the first source at the composed index (one gather of the index instead of one of
+    each array).  The hits' lookup arrays are written once, before any take, so a gather on first
+    read gives what a gather at the take would."""
+    _FIELDS = ("kind", "prim", "b1", "b2", "points")
+
+    def __init__(self, source: HitLookup, index):
+        if isinstance(source, _TakenLookup):
+            source, index = source._source, source._index.take(index)
+        self.textures, self._source, self._index = source.textures, source, index
+        self._memo, self._spans = {}, {}
+
+    def __getattr__(self, name):
+        if name not in _TakenLookup._FIELDS:
+            raise AttributeError(name)
+        value = getattr(self._source, name)
+        value = None if value is None else value.take(self._index)
+        setattr(self, name, value)
+        return value
 
 
 def apply_writes(values, writes):

@@ -135,7 +135,7 @@ class WeightOnlyPdf(MixBSDF):
     """Control: the pdf weights the closures by w_c alone while `sample` picks by w_c x albedo."""
     def pdf(self, si, wi):
         hit, row, weight, prob, _, leaves = self._pairs(si)
-        _, pdf = self._eval_pairs(row, leaves, wi.take(hit, axis=1))
+        _, pdf = self._eval_pairs(row, leaves, wi, hit)
         w_sum = np.bincount(hit, weights=weight, minlength=len(si))
         return np.bincount(hit, weights=pdf * weight / w_sum.take(hit), minlength=len(si))
 
@@ -407,3 +407,37 @@ def test_a_span_reads_its_pairs_once_for_the_light_samples_and_the_sample():
     assert (s_a.flags & BSDFFlags.TRANSMISSION).any()
     span.memo_at((bsdf, "pairs"), None)[0][2][:] *= 1.5             # control: the weights of the span's pairs
     assert not np.array_equal(bsdf.eval(span.take(idx), wi.take(idx, axis=1))[0], f_b)
+
+
+def test_rows_taken_whole_evaluate_and_sample_as_gathered_ones(monkeypatch):
+    """When a call's pairs are all of a row's (the span's eval at every hit; a sample whose hits all
+    scatter by non-delta leaves), _Leaves.at takes the row whole (ShadingPoint.take(None): no
+    gathers): eval and sample give the same bits as the same pairs gathered by index.  Control: the
+    whole takes happen in the first run and not in the second."""
+    from engine.materials import mix
+    from engine.materials.media import MediumStack
+    materials = [MIXES[k] for k in ("diffuse+glossy", "fresnel diffuse+glossy", "layer weight")]
+    bsdf = MaterialTable(materials, RenderSettings(fresnel="exact")).bsdfs[KIND_CODE[MIX]]
+    n, rng = 1500, np.random.default_rng(41)
+    normal, wo, facing, material, wi, u_lobe, u, _ = random_hits(rng, n, len(materials))
+    whole_takes, take = [], ShadingPoint.take
+    monkeypatch.setattr(ShadingPoint, "take", lambda self, index: whole_takes.append(index is None) or take(self, index))
+
+    def run():
+        si = ShadingPoint(wo.copy(), facing.copy(), facing.copy(), normal.copy(), np.ones((3, n)), material.copy())
+        si.media = MediumStack.empty(n)
+        span = si[0:n]
+        f, p = bsdf.eval(span, wi)
+        s = bsdf.sample(span, u_lobe, u)
+        return f, p, s.wi, s.value, s.pdf, s.flags
+    whole = run()
+    assert sum(whole_takes) >= 4                                    # two rows, in the eval and the sample
+    whole_takes.clear()
+    leaves_take = mix._Leaves.take
+    monkeypatch.setattr(mix._Leaves, "take", lambda self, pairs, hit, media: leaves_take(
+        self, np.arange(len(self.slot)) if pairs is None else pairs, hit, media))
+    gathered = run()
+    assert not any(whole_takes)
+    assert (whole[1] > 0).sum() > n // 4
+    for x, y in zip(whole, gathered):
+        assert np.array_equal(x, y)

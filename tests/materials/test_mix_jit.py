@@ -65,6 +65,64 @@ def test_the_pick_is_numpys():
     assert not all(np.array_equal(x, y) for x, y in zip(a, c))
 
 
+def test_the_pick_is_numpys_on_odd_tables_and_uniforms():
+    """NaN, -0 and inf uniforms on a sorted table (the stepping through a hit's pairs), and tables with
+    a NaN probability (no longer sorted: the binary search of the whole table, NumPy's)."""
+    numpy_bsdf, compiled, _ = mix_pair()
+    rng = np.random.default_rng(17)
+    hit, prob, total, u = random_pairs(rng, 400)
+    u[200:210], u[210:220], u[220:230], u[230:240] = np.nan, -0.0, np.inf, -np.inf
+    tables = [prob]
+    for k in (0, 123, len(prob) - 1):                            # a NaN first, inside, last
+        bad = prob.copy()
+        bad[k] = np.nan
+        tables.append(bad)
+    for table in tables:
+        with np.errstate(invalid="ignore"):
+            a = numpy_bsdf._pick(hit, table, total, u)
+        b = compiled._pick(hit, table, total, u)
+        assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b))
+    # ties: targets exactly on a hit's first cumulative sum (searchsorted side "right" counts it: the
+    # second pair) ...
+    hit, prob = np.repeat(np.arange(50), 2), np.full(100, 0.5)
+    tie, total = np.full(50, 0.5), np.ones(50)
+    cum = np.cumsum(prob)
+    assert np.array_equal(cum[0::2] - prob[0::2] + tie, cum[0::2])
+    a, b = numpy_bsdf._pick(hit, prob, total, tie), compiled._pick(hit, prob, total, tie)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b)) and (a[0] % 2 == 1).all()
+    # control: ... and one ulp below them the first pair (a step comparing with < would pick it at the tie)
+    lower = np.nextafter(tie, 0.0)
+    under = cum[0::2] - prob[0::2] + lower < cum[0::2]            # the hits whose target is now below
+    below = compiled._pick(hit, prob, total, lower)
+    assert under.sum() >= 1 and (below[0][under] % 2 == 0).all()
+
+
+def groups_equal(a, b) -> bool:
+    return len(a) == len(b) and all(r == q and k.dtype == j.dtype and np.array_equal(k, j)
+                                    for (r, k), (q, j) in zip(a, b))
+
+
+def test_the_rows_grouping_is_numpys():
+    """The pairs grouped by row (MixBSDF._by_row) on captured-like rows (the mixes' own) and odd ones:
+    empty, rows no leaf has (ignored: above, between and below the leaves' rows), keep masks none,
+    all False and random."""
+    numpy_bsdf, compiled, _ = mix_pair()
+    assert numpy_bsdf.rows == compiled.rows and len(numpy_bsdf.rows) >= 3
+    rng = np.random.default_rng(23)
+    codes = numpy_bsdf.rows
+    cases = [np.zeros(0, np.int64), rng.choice(codes, 5000),
+             rng.integers(-2, max(codes) + 3, 5000), np.full(100, codes[-1])]
+    for rows in cases:
+        for keep in (None, np.zeros(len(rows), bool), rng.random(len(rows)) < 0.6):
+            a, b = numpy_bsdf._by_row(rows, keep), compiled._by_row(rows, keep)
+            assert groups_equal(a, b)
+    assert len(numpy_bsdf._by_row(cases[1])) == len(codes)
+    # control: one pair moved to another row is told apart
+    moved = cases[1].copy()
+    moved[1234] = codes[0] if moved[1234] != codes[0] else codes[1]
+    assert not groups_equal(numpy_bsdf._by_row(cases[1]), compiled._by_row(moved))
+
+
 def test_the_sums_are_bincounts_in_the_pairs_order():
     numpy_bsdf, compiled, _ = mix_pair()
     rng = np.random.default_rng(9)

@@ -61,3 +61,25 @@ def test_a_recoloured_span_keeps_its_own_memo_and_gathers_for_its_takes():
     assert np.array_equal(lobe.memo("k", compute)[0], np.full(4, 3.0))
     assert np.array_equal(lobe.take(np.array([2, 1])).memo("k", compute)[0], np.full(2, 3.0))
     assert calls == [4, 4]
+
+
+def test_a_take_of_every_hit_shares_arrays_and_memo_values():
+    """ShadingPoint.take(None) (a Mix Shader's row of leaves taken whole, engine/materials/mix.py): the
+    same hits in order, reading the source's arrays and memo values without a gather; its medium
+    stacks are copies; memo_at gives the source's index.  Control: a take of every hit by index
+    gathers (equal values, other arrays)."""
+    from engine.materials.media import MediumStack
+    si, (compute, calls) = hits(), counting()
+    si.media = MediumStack.empty(6)
+    span = si[1:5]
+    whole = span.take(None)
+    assert len(whole) == 4 and whole.n is span.n and whole.wo is span.wo and whole.material is span.material
+    value = whole.memo("k", compute)
+    assert calls == [4] and value is span.memo("k", compute)
+    assert whole.media.media is not span.media.media and np.array_equal(whole.media.media, span.media.media)
+    assert whole.memo_at("k", compute) == (value, None)
+    inner = span.take(np.array([2, 0]))
+    assert np.array_equal(inner.take(None).memo_at("k", compute)[1], [2, 0])
+    by_index = span.take(np.arange(4))                                  # control
+    assert by_index.n is not span.n and np.array_equal(by_index.n, span.n)
+    assert by_index.memo("k", compute)[0] is not value[0] and np.array_equal(by_index.memo("k", compute)[0], value[0])

@@ -352,6 +352,46 @@ def test_views_of_one_span_read_a_float_input_once(monkeypatch):
     assert len(reads) == 5
 
 
+def test_a_take_of_a_lookup_gathers_what_is_read_when_read():
+    """HitLookup.take: each array gathered on first read, equal to an eager take's; a take of a take
+    gathers from the first lookup at the composed index; the lookup's node-program points too.  An
+    input no material textures is read without gathering any array.  Control: the composed index in
+    the other order reads other hits."""
+    from engine.geometry.scene_geometry import TRIANGLE
+    from engine.materials.textures import HitTextures, HitLookup
+    from engine.nodes.context import HitPoints
+    pixels = np.random.default_rng(1).random((3, 5, 1)).astype(np.float32)
+    scene = texture_scene([ImageTexture("rough", pixels=pixels, colorspace="Non-Color", is_float=True)], None,
+                          input_textures={"roughness": TextureSlot(0, "Linear", "REPEAT")})
+    triangles = np.array([m.vertices[t] for m in scene.meshes for t in m.triangles])
+    hits = HitTextures(TextureSet(scene), scene, triangles, np.zeros(2, np.int64))
+    rng = np.random.default_rng(4)
+    n = 30
+    kind, prim, b1, b2 = np.full(n, TRIANGLE, np.int8), rng.integers(0, 2, n), rng.random(n) * 0.5, rng.random(n) * 0.5
+    points = HitPoints(point=rng.random((3, n)), depth=rng.integers(0, 4, n))
+    lookup = HitLookup(hits, kind, prim, b1, b2, points)
+    outer, inner = rng.integers(0, n, 20), rng.integers(0, 20, 12)
+    taken = lookup.take(outer)
+    assert "prim" not in vars(taken)                                    # nothing gathered yet
+    assert np.array_equal(taken.prim, prim.take(outer)) and "b1" not in vars(taken)
+    twice = taken.take(inner)
+    for name in ("kind", "prim", "b1", "b2"):
+        assert np.array_equal(getattr(twice, name), getattr(lookup, name).take(outer).take(inner))
+    assert np.array_equal(twice.points.point, points.point.take(outer, axis=1).take(inner, axis=1))
+    assert np.array_equal(twice.points.depth, points.depth.take(outer).take(inner))
+    assert twice.points.normal is None
+    # an input no material textures: the values themselves, no array gathered
+    fresh = lookup.take(outer)
+    values = rng.random(20)
+    assert fresh.input("metallic", values, np.zeros(20, np.int64)) is values and "kind" not in vars(fresh)
+    tangents = rng.random((3, 20))
+    assert fresh.tangent(tangents, np.zeros(20, np.int64)) is tangents and "kind" not in vars(fresh)   # no mesh tangents
+    assert not np.array_equal(fresh.input("roughness", values, np.zeros(20, np.int64)), values)
+    # control: the indices composed the other way round are other hits
+    assert not np.array_equal(twice.b1, b1.take(inner))
+    assert not np.array_equal(twice.b1, b1.take(outer.take(np.arange(12))))
+
+
 def test_by_material_groups_hits_as_np_unique_does():
     from engine.materials.textures import by_material, picked
     rng = np.random.default_rng(9)
