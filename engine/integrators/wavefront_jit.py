@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
+from ..core.kernel_inputs import fitted, read_only
 from ..materials.protocol import BSDFFlags
 from ..geometry.shapes.light_polygons import RAY_KINDS
 
@@ -121,27 +122,8 @@ def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable
             out[c, i] = radiance[c, i] * weight[i] * albedo[c, i] * inv_pi
 
 
-def _read_only(a):
-    """a, or a read-only view of it: the kernels' inputs always reach numba read-only, so one compiled
-    signature (warm_up's) serves both the callers' writable arrays and their read-only ones
-    (np.broadcast_to views, e.g. engine/lights/parallelograms.py's light normals), instead of a
-    compilation in each worker's first render (scripts/check_warm_up.py)."""
-    if a.flags.writeable:
-        a = a.view()
-        a.flags.writeable = False
-    return a
-
-
-def _fit(a, shape, dtype=np.float64):
-    """a as a contiguous read-only array of `shape` (np.broadcast_to only when needed: its Python costs
-    more than these loops' work on small batches)."""
-    if isinstance(a, np.ndarray) and a.shape == shape:
-        return _read_only(np.ascontiguousarray(a, dtype))
-    return _read_only(np.ascontiguousarray(np.broadcast_to(a, shape), dtype))
-
-
 def _rows(a, k):
-    return _fit(a, (3, k))
+    return fitted(a, (3, k))
 
 
 def _columns(a, k):
@@ -158,8 +140,8 @@ def light_tests(n, ls, any_one_sided):
     k = ls.pdf.shape[0]
     cos_x, cos_ly = np.empty(k), np.empty(k)
     valid = _light_tests(_rows(n, k), _rows(ls.direction, k), *_columns(ls.normal, k),
-                         _fit(ls.pdf, (k,)), _fit(ls.distance, (k,)),
-                         _fit(ls.one_sided, (k,), np.bool_), bool(any_one_sided),
+                         fitted(ls.pdf, (k,)), fitted(ls.distance, (k,)),
+                         fitted(ls.one_sided, (k,), np.bool_), bool(any_one_sided),
                          cos_x, cos_ly)
     return cos_x, cos_ly, valid
 
@@ -172,13 +154,13 @@ def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=N
     state: radiance[:, start:start + k] += beta[:, start:start + k] x that, in place (returns None)."""
     k = cos_x.shape[0]
     if into is None:
-        out, beta, start = np.empty((3, k)), _read_only(NO_ROWS), 0
+        out, beta, start = np.empty((3, k)), read_only(NO_ROWS), 0
     else:
         out, beta, start = into
-        beta = _read_only(beta)
+        beta = read_only(beta)
     _lambert_light(np.ascontiguousarray(valid, np.int64), np.ascontiguousarray(blocked, np.bool_), cos_x,
-                   _fit(ls.pdf, (k,)),
-                   _fit(0.0 if p_b is None else p_b, (k,)), p_b is None,
+                   fitted(ls.pdf, (k,)),
+                   fitted(0.0 if p_b is None else p_b, (k,)), p_b is None,
                    np.ascontiguousarray(ls.light, np.int64), np.ascontiguousarray(reachable, np.bool_), bool(mis),
                    _rows(ls.radiance, k), _rows(albedo, k), out, into is not None, beta, int(start))
     return out if into is None else None
@@ -336,17 +318,17 @@ def survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, r
     has_tail = tail is not None
     flags, ray_kind, value, ng = tail if has_tail else (NO_FLAGS, NO_KINDS, NO_ROWS, None)
     smooth = ng is not None
-    return _survivors(_read_only(np.ascontiguousarray(beta, f64)), _read_only(np.ascontiguousarray(bounce, np.int32)),
+    return _survivors(read_only(np.ascontiguousarray(beta, f64)), read_only(np.ascontiguousarray(bounce, np.int32)),
                       delta if has_tail else np.ascontiguousarray(delta, np.bool_),
-                      _read_only(np.ascontiguousarray(u, f64)),
+                      read_only(np.ascontiguousarray(u, f64)),
                       int(max_depth), bool(final_rays), bool(russian_roulette), int(rr_start_depth),
-                      _read_only(np.ascontiguousarray(point, f64)),
-                      _read_only(np.ascontiguousarray(side if not has_tail else np.zeros(0), f64)),
-                      _read_only(np.ascontiguousarray(offset, f64)), _read_only(np.ascontiguousarray(facing, f64)),
-                      _read_only(np.ascontiguousarray(new_d, f64)), has_tail,
-                      _read_only(np.ascontiguousarray(flags, np.int8)), ray_kind,
-                      _read_only(np.ascontiguousarray(value, f64)), smooth,
-                      _read_only(np.ascontiguousarray(ng, f64) if smooth else NO_ROWS))
+                      read_only(np.ascontiguousarray(point, f64)),
+                      read_only(np.ascontiguousarray(side if not has_tail else np.zeros(0), f64)),
+                      read_only(np.ascontiguousarray(offset, f64)), read_only(np.ascontiguousarray(facing, f64)),
+                      read_only(np.ascontiguousarray(new_d, f64)), has_tail,
+                      read_only(np.ascontiguousarray(flags, np.int8)), ray_kind,
+                      read_only(np.ascontiguousarray(value, f64)), smooth,
+                      read_only(np.ascontiguousarray(ng, f64) if smooth else NO_ROWS))
 
 
 @jit
@@ -445,18 +427,18 @@ def take(arrays, index):
     index = np.asarray(index)
     compiled = index.dtype == np.int64 and index.ndim == 1
     if compiled:
-        index = _read_only(np.ascontiguousarray(index))
+        index = read_only(np.ascontiguousarray(index))
     out = []
     for a, axis in arrays:
         if compiled and a.flags.c_contiguous:
             if a.ndim == 2 and axis == 1 and a.dtype == np.float64:
                 rows = np.empty((a.shape[0], index.shape[0]))
-                _take_rows(_read_only(a), index, rows)
+                _take_rows(read_only(a), index, rows)
                 out.append(rows)
                 continue
             if a.ndim == 1 and a.dtype in TAKE_DTYPES:
                 values = np.empty(index.shape[0], a.dtype)
-                _take_1d(_read_only(a), index, values)
+                _take_1d(read_only(a), index, values)
                 out.append(values)
                 continue
         out.append(a.take(index, axis=axis))

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..core.backend import numba_module
 from ..geometry.shading_normals_jit import _dot3, _max, _min
-from ..integrators.wavefront_jit import _fit       # inputs as contiguous read-only arrays: one signature
+from ..core.kernel_inputs import fitted        # inputs as contiguous read-only arrays: one signature
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -120,9 +120,9 @@ def tangent_normal_map(color, strength, tangent, sign, base, backfacing, has, sh
     out = np.empty(rows)
     new = tuple(cycles_version) >= (4, 0)
     color = np.asarray(color, np.float64).reshape(3, -1)              # a constant colour: (3,)
-    _tangent_normal_map(_fit(color, rows), _fit(strength, values), _fit(tangent, rows), _fit(sign, values),
-                        _fit(base, rows), _fit(backfacing, values, np.bool_), _fit(has, values, np.bool_),
-                        _fit(shading, rows), new, not new, out)
+    _tangent_normal_map(fitted(color, rows), fitted(strength, values), fitted(tangent, rows), fitted(sign, values),
+                        fitted(base, rows), fitted(backfacing, values, np.bool_), fitted(has, values, np.bool_),
+                        fitted(shading, rows), new, not new, out)
     return out
 
 
