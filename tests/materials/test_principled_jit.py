@@ -237,3 +237,49 @@ def test_layered_probabilities_are_bit_identical():
                                                                            2000, True), sample_total=True)
         assert not np.array_equal(principled_jit.layered_probabilities(layers_b, w_metal, w_spec, w_diffuse, base)[1],
                                   p_a[:6])
+
+
+def _opaque_beside_transmitting():
+    """Opaque Principled BSDFs beside transmitting ones (full and partial Transmission, layered too)."""
+    out = _materials()[:3]
+    for i, (weight, coat) in enumerate([(1.0, 0.0), (0.6, 0.0), (1.0, 0.5)]):
+        out.append(Material(f"t{i}", kind="principled", color=(0.9, 0.95, 1.0), roughness=0.1 + 0.2 * i,
+                            principled=Principled(transmission_weight=weight, coat_weight=coat)))
+    return out
+
+
+def test_sample_and_eval_on_takes_of_mixed_transmitting_hits():
+    """As the Mix Shader's leaves sample (always on a take of the span's hits): the compiled sample and
+    eval on takes equal NumPy's, whether the span's own values were computed before the take or not.
+    (The merge of branch principled3 failed this: its transmission setup, kept at the transmitting
+    hits only, was read by hit index on takes: wrong values or an IndexError.)"""
+    require_compiled()
+    materials = _opaque_beside_transmitting()
+    numpy_bsdf, compiled = _pair(materials)
+    assert compiled.any_transmission
+    count = 600
+    make_hits = lambda: _hits(np.random.default_rng(3), len(materials), count)      # noqa: E731
+    rng = np.random.default_rng(8)
+    u_lobe, u = rng.random(count), (rng.random(count), rng.random(count))
+    wi = rng.normal(size=(3, count))
+    wi /= np.linalg.norm(wi, axis=0)
+    checked = 0
+    for idx in (np.arange(0, count, 3), np.sort(rng.choice(count, count // 2, replace=False)), np.arange(count)):
+        a = numpy_bsdf.sample(make_hits().take(idx), u_lobe.take(idx), (u[0].take(idx), u[1].take(idx)))
+        f_a, p_a = numpy_bsdf.eval(make_hits().take(idx), wi.take(idx, axis=1))
+        for filled in (False, True):
+            hits = make_hits()
+            if filled:                          # the span's values first, then the take reads them
+                compiled.sample(hits, u_lobe, u)
+            b = compiled.sample(hits.take(idx), u_lobe.take(idx), (u[0].take(idx), u[1].take(idx)))
+            for x, y in ((a.wi, b.wi), (a.value, b.value), (a.pdf, b.pdf), (a.flags, b.flags)):
+                assert np.array_equal(x, y)
+            f_b, p_b = compiled.eval(hits.take(idx), wi.take(idx, axis=1))
+            assert np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+            checked += int((a.pdf > 0).sum())
+    assert checked > 1000
+    # Control: the take's hits in another order are other hits: the comparison tells them apart.
+    idx = np.arange(0, count, 3)
+    a = numpy_bsdf.sample(make_hits().take(idx), u_lobe.take(idx), (u[0].take(idx), u[1].take(idx)))
+    b = compiled.sample(make_hits().take(idx[::-1]), u_lobe.take(idx), (u[0].take(idx), u[1].take(idx)))
+    assert not np.array_equal(a.value, b.value)
