@@ -695,7 +695,7 @@ class PrincipledV2(BSDF):
             wi[:, idx] = self.sheen.sample(si.take(idx), u[0].take(idx), u[1].take(idx),
                                            layers.sheen_a.take(idx), layers.sheen_b.take(idx))
             flags[idx] = SHEEN_LOBE
-        passed = None
+        passed = crossing = None
         if hits is not None:                        # the diffuse picks' cosine directions (NumPy's sin, cos)
             idx = np.flatnonzero(choice == 5)
             if len(idx):
@@ -706,19 +706,23 @@ class PrincipledV2(BSDF):
                     failed[idx] = np.maximum(dot(d, n_d), 0.0) * (1.0 / np.pi) <= 0.0
             glass = np.flatnonzero(choice == 6)
             if len(glass):                          # np.cumsum's row 5 at those hits: the same sums
-                passed = self._sample_glass(si, glass, u_lobe, u, np.cumsum(prob.take(glass, axis=1), axis=0)[5],
-                                            prob, weights, wi, flags, failed)
+                passed, crossing = self._sample_glass(si, glass, u_lobe, u,
+                                                      np.cumsum(prob.take(glass, axis=1), axis=0)[5], prob, weights,
+                                                      wi, flags, failed)
         else:
             views = (layers.coat_view,) + self._views(si)
             _sample_lobes((self.coat, self.metal, self.specular, self.diffuse), views, choice, 2, u, wi, flags,
                           failed if self.any_transmission else None)
             glass = np.flatnonzero(choice == 6)
-            passed = self._sample_glass(si, glass, u_lobe, u, cdf[5].take(glass), prob, weights, wi, flags, failed)
+            passed, crossing = self._sample_glass(si, glass, u_lobe, u, cdf[5].take(glass), prob, weights, wi, flags,
+                                                  failed)
         if hits is not None:
             f_cos, pdf = self.compiled.base_eval(hits, None, wi)
             self._add_glass(si, hits, None, wi, f_cos, pdf)
         else:
             f_cos, pdf = self._layered_mixture(si, wi, layers, weights, prob)
+        if crossing is not None:                    # weighed on this side of the surface, then crossed
+            si.media.cross(*crossing)
         with np.errstate(divide="ignore", invalid="ignore"):
             value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
             p_through = prob[0].take(through)
@@ -737,10 +741,11 @@ class PrincipledV2(BSDF):
     def _sample_glass(self, si, idx, u_lobe, u, below, prob, weights, wi, flags, failed):
         """Directions of the hits idx that picked the transmission closure (into wi, flags, failed), with
         the closure-choice uniform rescaled to pick reflection or refraction (below: the cdf of the
-        lobes before it at idx); the refracted paths cross the surface on their medium stacks.
-        Returns (indices, weight) of the delta pass-throughs, or None."""
+        lobes before it at idx).  Returns ((indices, weight) of the delta pass-throughs, or None;
+        the arguments of si.media.cross for the refracted paths, or None): the caller crosses after
+        the mixture is weighed, whose transmission lobe reads the stack on this side of the surface."""
         if not len(idx):
-            return None
+            return None, None
         p = prob[6].take(idx)
         with np.errstate(divide="ignore", invalid="ignore"):
             u_fresnel = np.clip(np.nan_to_num((np.asarray(u_lobe).take(idx) - below) / p), 0.0, 1.0 - 1e-12)
@@ -749,12 +754,12 @@ class PrincipledV2(BSDF):
         wi[:, idx] = d
         flags[idx] = sampled
         failed[idx] = ~np.any(weight > 0.0, axis=0)
+        crossing = None
         if si.media is not None:
-            crossed = np.flatnonzero(refracted)
-            si.media.cross(idx.take(crossed), _scatter(entering, idx, len(si)), _scatter(self.glass.ior.take(at.material),
-                                                                                       idx, len(si)))
+            crossing = (idx.take(np.flatnonzero(refracted)), _scatter(entering, idx, len(si)),
+                        _scatter(self.glass.ior.take(at.material), idx, len(si)))
         delta = np.flatnonzero((sampled & BSDFFlags.DELTA) != 0)
-        return (idx.take(delta), weight.take(delta, axis=1)) if len(delta) else None
+        return ((idx.take(delta), weight.take(delta, axis=1)) if len(delta) else None), crossing
 
     def _add_glass(self, si: ShadingPoint, hits, index, wi: np.ndarray, f_cos: np.ndarray, pdf: np.ndarray):
         """The transmission closure's f cos and pdf added into the compiled lobes' sums (in place) at

@@ -442,13 +442,15 @@ class PrincipledV1(BSDF):
                                              u[0].take(idx), u[1].take(idx))
             if code < 2:
                 flags[idx] = DIFFUSE_LOBE
-        failed = None
+        failed, crossings = None, []
         if last > 3:            # with the glass, a reflection drawn below the surface must not count its refraction
-            failed = self._sample_glass(si, choice, u_lobe, u, cdf, prob, wo_l, wi_l, flags) | \
-                ((choice < 4) & (wi_l[2] <= 0.0))
+            failed, crossings = self._sample_glass(si, choice, u_lobe, u, cdf, prob, wo_l, wi_l, flags)
+            failed |= (choice < 4) & (wi_l[2] <= 0.0)
         wi = normalize(to_world(wi_l, x, y, si.n))
         # evaluated from the world direction, exactly as eval() does (peaked lobes amplify rounding)
         f_cos, pdf = self._mixture(si, wo_l, to_local(wi, x, y, si.n), weights, prob)
+        for crossing in crossings:          # weighed on this side of the surface, then crossed
+            si.media.cross(*crossing)
         with np.errstate(divide="ignore", invalid="ignore"):
             value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
         if failed is not None and failed.any():      # a rejected glass sample: no direction
@@ -457,8 +459,10 @@ class PrincipledV1(BSDF):
 
     def _sample_glass(self, si, choice, u_lobe, u, cdf, prob, wo_l, wi_l, flags):
         """Local directions (into wi_l, flags) of the hits that picked a glass closure (codes 4-6),
-        the closure-choice uniform rescaled for the multiscatter glass's reflect-or-refract choice;
-        refracted paths cross the surface on their medium stacks.  Returns the rejected samples."""
+        the closure-choice uniform rescaled for the multiscatter glass's reflect-or-refract choice.
+        Returns the rejected samples and the arguments of si.media.cross for the refracted paths: the
+        caller crosses after the mixture is weighed, whose glass reads the stack on this side."""
+        crossings = []
         failed = np.zeros(len(si), dtype=bool)
         for code in range(4, 7):
             idx = np.flatnonzero(choice == code)
@@ -480,5 +484,5 @@ class PrincipledV1(BSDF):
                 crossed = idx.take(np.flatnonzero(refracted))
                 enter, ior = np.zeros(n, dtype=bool), np.ones(n)
                 enter[idx], ior[idx] = entering, self.glass.ior.take(at.material)
-                si.media.cross(crossed, enter, ior)
-        return failed
+                crossings.append((crossed, enter, ior))
+        return failed, crossings

@@ -232,6 +232,28 @@ def test_refraction_keeps_the_medium_stack(m):
     assert np.all(inside.media.depth[through] == 0) and np.all(inside.media.depth[~through] == 1)
 
 
+@pytest.mark.parametrize("m", [v2(), v2(0.6, coat_weight=0.5), v1(), v1(0.6)], ids=["v2", "v2-layered", "v1", "v1-partly"])
+@pytest.mark.parametrize("leaving", [False, True], ids=["entering", "leaving"])
+def test_a_sample_is_weighed_before_its_path_crosses_the_surface(m, leaving):
+    """With Nested Dielectrics a lone glass in air is the same glass: a sample's value and pdf with the
+    medium stacks equal those without them.  The stacks are crossed after the sample is weighed (as
+    RoughDielectric does): weighed after, the transmission lobe read the crossed stack's IOR ratio
+    (ior / ior = 1: index-matched, value 0) and refracted samples came out black."""
+    n = 3000
+    rng = np.random.default_rng(21)
+    u_lobe, u = rng.random(n), (rng.random(n), rng.random(n))
+    plain = bsdf_of(m).sample(fixed_hits(n, 0.9, leaving, COLOUR), u_lobe, u)
+    si = fixed_hits(n, 0.9, leaving, COLOUR)
+    si.media = MediumStack(np.full((n, 4), IOR), np.ones(n, dtype=np.int64)) if leaving else MediumStack.empty(n)
+    nested = bsdf_of(m).sample(si, u_lobe, u)
+    through = (nested.flags & BSDFFlags.TRANSMISSION) != 0
+    assert through.sum() > 500 and np.array_equal(nested.flags, plain.flags)
+    assert np.allclose(nested.wi, plain.wi, rtol=1e-12, atol=1e-12)
+    assert np.allclose(nested.pdf, plain.pdf, rtol=1e-9, atol=0.0)
+    assert np.allclose(nested.value, plain.value, rtol=1e-9, atol=0.0)
+    assert (nested.value[:, through].max(axis=0) > 0.0).mean() > 0.9          # refracted light is not lost
+
+
 def sheet_scene(material):
     """Camera under a 2 x 2 m Principled sheet at z = 0 looking up; a 1 m lamp at z = 1 above it."""
     materials = [material, Material("Lamp", DIFFUSE, (0.0, 0.0, 0.0), emission=(5.0, 5.0, 5.0))]
