@@ -526,8 +526,14 @@ class DaskPool(Pool):
 
     def _collect_results(self):
         from distributed import as_completed
-        for future in as_completed(self.futures, loop=self.client.loop):
+        completed = as_completed(self.futures, loop=self.client.loop)
+        for future in completed:
             unit = self.unit_of[future.key]
+            if future.status == "lost" and not self.cancelled:
+                # Finished, then its result went with a worker the unit deadline removed (a stopped
+                # one): the scheduler computes it again, and it completes a second time.
+                completed.add(future)
+                continue
             try:
                 if future.status == "finished":
                     answer = (unit, self._result(future), None)

@@ -118,6 +118,55 @@ def test_a_cancel_drops_a_finished_unit_whose_worker_does_not_answer():
     assert pool._result(fetch) == "the unit's result" and fetch.calls == 5
 
 
+class LostThenComputedAgain:
+    """A finished unit whose result went with a removed worker (status "lost") and which the scheduler
+    computes again: as_completed yields it once lost, and again once finished when added back."""
+    def __init__(self):
+        self.key, self.status = "tncg15-unit-0", "lost"
+
+    def result(self, timeout=None):
+        assert self.status == "finished"
+        return "the unit's result"
+
+    def exception(self, timeout=None):
+        return None
+
+
+class FakeCompleted:
+    """distributed.as_completed over fakes: add() puts a future back, finished (the scheduler's second run)."""
+    def __init__(self, futures, loop=None):
+        self.queue = list(futures)
+
+    def __iter__(self):
+        while self.queue:
+            yield self.queue.pop(0)
+
+    def add(self, future):
+        future.status = "finished"
+        self.queue.append(future)
+
+
+def results_of(cancelled, monkeypatch):
+    import queue
+    import threading
+    from types import SimpleNamespace
+    from engine.pools.dask_cluster import DaskPool
+    monkeypatch.setattr(distributed, "as_completed", FakeCompleted)
+    pool = object.__new__(DaskPool)            # the results thread alone, no cluster
+    future = LostThenComputedAgain()
+    pool.cancelled, pool.fetch_stalled, pool.futures = cancelled, False, [future]
+    pool.unit_of, pool.answered, pool.answer_lock, pool.finished = {future.key: "unit"}, set(), threading.Lock(), queue.Queue()
+    pool.client, pool.address = SimpleNamespace(loop=None), "tcp://127.0.0.1:1"
+    pool._collect_results()
+    return pool.finished.get_nowait()
+
+
+def test_a_result_lost_with_a_removed_worker_is_awaited_again(monkeypatch):
+    assert results_of(False, monkeypatch) == ("unit", "the unit's result", None)
+    unit, result, error = results_of(True, monkeypatch)     # control: cancelled, the lost unit is not awaited
+    assert result is None and "lost" in str(error)
+
+
 # -- a cluster of real processes -------------------------------------------------------------------
 @pytest.mark.slow          # a cluster of processes and a 5 s deadline (today's main: hung for worker-ttl, 300 s)
 def test_a_stopped_dask_worker_is_removed_at_its_unit_deadline_and_the_image_is_bit_identical(
