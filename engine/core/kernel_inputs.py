@@ -18,9 +18,14 @@ def read_only(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def contiguous(a, dtype=np.float64) -> np.ndarray:
+    """a as a contiguous read-only array of `dtype` (copied only when it is not one)."""
+    return read_only(np.ascontiguousarray(a, dtype))
+
+
 def fitted(a, shape, dtype=np.float64) -> np.ndarray:
     """a as a contiguous read-only array of `shape` and `dtype` (np.broadcast_to only when needed: its
     Python costs more than the kernels' work on small batches)."""
     if isinstance(a, np.ndarray) and a.shape == shape:
-        return read_only(np.ascontiguousarray(a, dtype))
-    return read_only(np.ascontiguousarray(np.broadcast_to(a, shape), dtype))
+        return contiguous(a, dtype)
+    return contiguous(np.broadcast_to(a, shape), dtype)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
+from ..core.kernel_inputs import contiguous
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -60,20 +61,10 @@ def finish_sample(pdf, pmf, share, point, light, one_sided_of, scale):
     """LightSet.sample's tail: (pdf * pmf * share, scale * max_abs3(point), one_sided_of.take(light))."""
     n = len(pdf)
     pdf_out, offset, one_sided = np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_)
-    _finish_sample(_c(pdf), _c(pmf), float(share), _c(point), np.ascontiguousarray(light, dtype=np.int64),
-                   np.ascontiguousarray(one_sided_of, dtype=np.bool_), float(scale), pdf_out, offset, one_sided)
+    _finish_sample(contiguous(pdf), contiguous(pmf), float(share), contiguous(point),
+                   np.ascontiguousarray(light, dtype=np.int64), np.ascontiguousarray(one_sided_of, dtype=np.bool_),
+                   float(scale), pdf_out, offset, one_sided)
     return pdf_out, offset, one_sided
-
-
-def _c(a):
-    """a as a contiguous read-only float64 array: the kernels' inputs always reach numba read-only, so
-    warm_up's signature serves the callers' writable arrays and their read-only ones (np.broadcast_to
-    views, e.g. engine/lights/parallelograms.py's light normals) alike (scripts/check_warm_up.py)."""
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    if a.flags.writeable:
-        a = a.view()
-        a.flags.writeable = False
-    return a
 
 
 def shadow_rays(ls, valid, x, lift, ng, cos_ly, raised=None):
@@ -82,10 +73,10 @@ def shadow_rays(ls, valid, x, lift, ng, cos_ly, raised=None):
     valid = np.arange(k, dtype=np.int64) if valid is None else np.ascontiguousarray(valid, dtype=np.int64)
     v = len(valid)
     origin, direction, length = np.empty((3, v)), np.empty((3, v)), np.empty(v)
-    amount, s = (np.zeros(1), np.zeros((3, 1))) if raised is None else (_c(raised[0]), _c(raised[1]))
-    _shadow_rays(valid, _c(x), _c(np.broadcast_to(lift, (k,))), _c(ng), _c(cos_ly), _c(ls.offset), _c(ls.point),
-                 _c(ls.normal), _c(ls.distance), _c(ls.direction), raised is not None, amount, s,
-                 origin, direction, length)
+    amount, s = (np.zeros(1), np.zeros((3, 1))) if raised is None else (contiguous(raised[0]), contiguous(raised[1]))
+    _shadow_rays(valid, contiguous(x), contiguous(np.broadcast_to(lift, (k,))), contiguous(ng), contiguous(cos_ly),
+                 contiguous(ls.offset), contiguous(ls.point), contiguous(ls.normal), contiguous(ls.distance),
+                 contiguous(ls.direction), raised is not None, amount, s, origin, direction, length)
     return origin, direction, length
 
 

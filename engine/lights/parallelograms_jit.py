@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
+from ..core.kernel_inputs import contiguous, fitted, read_only
 from . import trig
 
 nb = numba_module()
@@ -303,29 +304,6 @@ def _pdf_blocks(x, idx, one, axis1, axis2, axis3, v0, len1, len2, center, normal
                 pdf[i] = _area_pdf(x, i, p, j, normal, area)
 
 
-def _read_only(a):
-    """a, or a read-only view of it: the kernels' inputs always reach numba read-only, so warm_up's
-    signature serves writable arrays and read-only ones (a light radiance from np.broadcast_to,
-    engine/lights/emitting_surface.py) alike, instead of a compilation in each worker's first render
-    (scripts/check_warm_up.py)."""
-    if a.flags.writeable:
-        a = a.view()
-        a.flags.writeable = False
-    return a
-
-
-def _c(a):
-    return _read_only(np.ascontiguousarray(a, dtype=np.float64))
-
-
-def _per_receiver(a, n):
-    """a (an array of n, or one number for all) as n contiguous float64 (np.broadcast_to only when
-    needed: its Python costs more than the kernels' loops on small batches)."""
-    if isinstance(a, np.ndarray) and a.shape == (n,):
-        return _c(a)
-    return _c(np.broadcast_to(a, (n,)))
-
-
 def _light_index(lights, idx):
     """(one, index): whether every receiver sees the same light, and the int64 light index the
     kernels read (one entry when `one`)."""
@@ -344,9 +322,9 @@ def sample_li(lights, x, idx, u1, u2, omega_min, grazing):
     one, index = _light_index(lights, idx)
     point, direction, distance, pdf = np.empty((3, n)), np.empty((3, n)), np.empty(n), np.empty(n)
     radiance = np.empty((3, n))
-    _sample_blocks(_c(x), index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2,
-                   lights.center, lights.e1, lights.e2, lights.normal, lights.area, lights.rectangle,
-                   _read_only(lights.radiance), omega_min, grazing, _per_receiver(u1, n), _per_receiver(u2, n),
+    _sample_blocks(contiguous(x), index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1,
+                   lights.len2, lights.center, lights.e1, lights.e2, lights.normal, lights.area, lights.rectangle,
+                   read_only(lights.radiance), omega_min, grazing, fitted(u1, (n,)), fitted(u2, (n,)),
                    point, direction, distance, pdf, radiance)
     return point, direction, distance, pdf, radiance
 
@@ -355,8 +333,9 @@ def _pdf_and_omega(lights, x, idx, point, omega_min, grazing):
     n = x.shape[1]
     one, index = _light_index(lights, idx)
     pdf, omega = np.empty(n), np.empty(n)
-    _pdf_blocks(_c(x), index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1, lights.len2,
-                lights.center, lights.normal, lights.area, lights.rectangle, omega_min, grazing, _c(point), pdf, omega)
+    _pdf_blocks(contiguous(x), index, one, lights.axis1, lights.axis2, lights.axis3, lights.v0, lights.len1,
+                lights.len2, lights.center, lights.normal, lights.area, lights.rectangle, omega_min, grazing,
+                contiguous(point), pdf, omega)
     return pdf, omega
 
 

@@ -2,7 +2,7 @@
 changing a value, and without a copy where none is needed."""
 import numpy as np
 
-from engine.core.kernel_inputs import fitted, read_only
+from engine.core.kernel_inputs import contiguous, fitted, read_only
 
 
 def test_read_only_is_a_view_that_cannot_be_written():
@@ -23,6 +23,15 @@ def test_fitted_keeps_the_values_and_makes_one_signature():
     assert scalar.shape == (5,) and np.all(np.signbit(scalar)) and not scalar.flags.writeable
     flags = fitted(np.array([1, 0, 2]), (3,), np.bool_)
     assert flags.dtype == np.bool_ and flags.tolist() == [True, False, True]
+
+
+def test_contiguous_copies_only_what_is_not():
+    rows = np.arange(12.0).reshape(3, 4)
+    assert np.shares_memory(contiguous(rows), rows) and not contiguous(rows).flags.writeable
+    column = rows[:, 1]                                  # strided: copied
+    out = contiguous(column)
+    assert out.flags.c_contiguous and not np.shares_memory(out, rows) and np.array_equal(out, column)
+    assert contiguous(np.array([1, 2]), np.int64).dtype == np.int64
 
 
 def test_control_a_wrong_shape_is_not_broadcast_silently():
