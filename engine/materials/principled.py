@@ -692,10 +692,12 @@ class PrincipledV2(BSDF):
 
     def _glass_setup(self, si: ShadingPoint) -> SimpleNamespace:
         """The transmission closure at the hits for the compiled path, once per hit set (ShadingPoint.memo):
-        its weight w (N,) (`_glass_weight`), its `setup` (principled_glass.py) at the hits where w > 0,
-        rows (N,): each hit's place in it (-1 where w is 0), and the albedo estimate sample_weight
-        (N,) from it (`_glass_sample_weight`'s numbers).  Its eval and sample read the setup by index
-        (`_glass_rows`) instead of setting the closure up again on each take of the hits."""
+        its weight w (N,) (`_glass_weight`), its `setup` (principled_glass.py GlassSetup) at the hits
+        where w > 0, rows (N,): each hit's place in it (-1 where w is 0), and the albedo estimate
+        sample_weight (N,) from it (`_glass_sample_weight`'s numbers).  Its eval and sample read the
+        setup by index (`_glass_rows`) instead of setting the closure up again on each take of the
+        hits; the memo of a take gathers w, rows and sample_weight and keeps the setup whole, so a
+        take's rows still index it."""
         def make(at):
             w_glass = self._glass_weight(at)
             idx = np.flatnonzero(w_glass > 0.0)
@@ -711,16 +713,20 @@ class PrincipledV2(BSDF):
             return SimpleNamespace(w=w_glass, rows=rows, setup=setup, sample_weight=sample_weight)
         return si.memo((self, "glass setup"), make)
 
-    def _glass_rows(self, glass: SimpleNamespace, at: np.ndarray | None):
-        """The setup of `_glass_setup` at its hits `at` (None: the hits it was set up at, in order), or
-        None where one of them has none (w 0: the transmission closure picked by rounding, see
-        _compiled_layered_sample)."""
-        if at is None:
-            return glass.setup
-        rows = glass.rows.take(at)
-        if glass.setup is None or (rows < 0).any():
+    @staticmethod
+    def _glass_rows(glass: SimpleNamespace, at: np.ndarray):
+        """The setup of `_glass_setup` (`glass`, of these hits or gathered for a take of them) at the
+        hits `at`, or None where one of them has none (w 0: the transmission closure picked by
+        rounding, see _compiled_layered_sample): the setup itself where `at` are the hits it was set
+        up at, in order; else its rows read (GlassSetup.at)."""
+        if glass.setup is None:
             return None
-        return self.glass.setup_at(glass.setup, rows)
+        rows = glass.rows.take(at)
+        if len(rows) == len(glass.setup) and np.array_equal(rows, np.arange(len(rows))):
+            return glass.setup
+        if (rows < 0).any():
+            return None
+        return glass.setup.at(rows)
 
     def _lobes_at(self, si: ShadingPoint):
         """_layered_lobes or lobe_weights at the hits (they depend on the hits, not on wi): once per hit for
@@ -845,9 +851,7 @@ class PrincipledV2(BSDF):
             return
         at = k if index is None else index.take(k)
         every = index is None and len(k) == len(si)
-        # set up wherever on (w > 0); at the hits themselves, as many as set up: those, in order
-        same = index is None and len(k) == len(hits.glass.setup.setup.eta)
-        setup = self._glass_rows(hits.glass.setup, None if same else at)
+        setup = self._glass_rows(hits.glass.setup, at)
         f_l, pdf_l = self.glass.eval(None, wi if every else wi.take(k, axis=1), setup)
         f_cos[:, k] += hits.glass.w.take(at, axis=1) * f_l
         pdf[k] += hits.glass.p.take(at) * pdf_l

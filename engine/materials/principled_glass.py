@@ -33,7 +33,7 @@ reads its s(mu) table for the reflected part); it changes the noise only.
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -55,6 +55,39 @@ def _f0(ior):
     return ((ior - 1.0) / (ior + 1.0)) ** 2
 
 
+@dataclass
+class GlassSetup:
+    """The closure's values at some hits, which depend on the hits and not on wi (`PrincipledGlass.setup`):
+    material ids mat, eta and entering (refraction_eta), the frame (x, y, n) on the specular normal,
+    F0 f0 and the transmission tint (3, N), wo in that frame (3, N), alpha, the compensation scale
+    (3, N) or None, and where the interface is index-matched.
+
+    Not a namespace on purpose: a ShadingPoint memo value that holds one (principled.py `_glass_setup`,
+    set up at the transmitting hits only) keeps it whole on a take of the hits (protocol.py take_hits
+    gathers arrays, tuples, lists and namespaces, and returns anything else as it is), while the
+    value's per-hit rows into it are gathered; `at` reads it at those rows."""
+    mat: np.ndarray
+    eta: np.ndarray
+    entering: np.ndarray
+    frame: tuple
+    f0: np.ndarray
+    tint: np.ndarray
+    wo: np.ndarray
+    alpha: np.ndarray
+    scale: np.ndarray | None
+    matched: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.eta)
+
+    def at(self, rows: np.ndarray) -> "GlassSetup":
+        """The values at the hits `rows` of these (ascending or not, repeated or not)."""
+        def rows_of(a):
+            return None if a is None else a.take(rows, axis=a.ndim - 1)
+        values = {f.name: rows_of(getattr(self, f.name)) for f in fields(self) if f.name != "frame"}
+        return GlassSetup(frame=tuple(rows_of(a) for a in self.frame), **values)
+
+
 class PrincipledGlass:
     """The transmission closure of every material (zero weight where a material has none):
     transmission (M,) the node's Transmission Weight clamped to [0, 1] (0 below the cutoff)."""
@@ -70,31 +103,18 @@ class PrincipledGlass:
         self.lobe = MicrofacetDielectric(reflection=True, transmission=True)
 
     # -- per hit -------------------------------------------------------------------------------
-    def setup(self, si: ShadingPoint) -> SimpleNamespace:
-        """The closure's values at the hits `si`, which depend on the hits and not on wi: material ids
-        mat, eta and entering (refraction_eta), the frame (x, y, n) on the specular normal, F0 f0 and
-        the transmission tint (3, N), wo in that frame (3, N), alpha (`_alpha`), the compensation
-        scale (3, N) or None, and where the interface is index-matched.  principled.py computes them
-        once per bounce where the closure is set up and reads them by index (`setup_at`)."""
+    def setup(self, si: ShadingPoint) -> GlassSetup:
+        """The closure's values at the hits `si` (`GlassSetup`; alpha: `_alpha`).  principled.py computes
+        them once per bounce where the closure is set up and reads them by index (`GlassSetup.at`)."""
         mat = si.material
         eta, entering = refraction_eta(si, self.ior.take(mat))
         n = specular_normal_at(si)
         frame = (*(shading_frame(n) if self.lobe.compiled is None else self.lobe.compiled.frame(n)), n)
         tint = np.sqrt(np.clip(si.color, 0.0, 1.0))
         wo = to_local(si.wo, *frame)
-        return SimpleNamespace(mat=mat, eta=eta, entering=entering, frame=frame, f0=self.f0.take(mat, axis=1),
-                               tint=tint, wo=wo, alpha=self._alpha(si, mat), scale=self._scale(mat, wo[2], eta, tint),
-                               matched=np.abs(eta - 1.0) < INDEX_MATCHED)
-
-    @staticmethod
-    def setup_at(setup: SimpleNamespace, rows: np.ndarray) -> SimpleNamespace:
-        """The values of `setup` at its hits `rows`."""
-        def rows_of(a):
-            return None if a is None else a.take(rows, axis=a.ndim - 1)
-        return SimpleNamespace(mat=rows_of(setup.mat), eta=rows_of(setup.eta), entering=rows_of(setup.entering),
-                               frame=tuple(rows_of(a) for a in setup.frame), f0=rows_of(setup.f0),
-                               tint=rows_of(setup.tint), wo=rows_of(setup.wo), alpha=rows_of(setup.alpha),
-                               scale=rows_of(setup.scale), matched=rows_of(setup.matched))
+        return GlassSetup(mat=mat, eta=eta, entering=entering, frame=frame, f0=self.f0.take(mat, axis=1), tint=tint,
+                          wo=wo, alpha=self._alpha(si, mat), scale=self._scale(mat, wo[2], eta, tint),
+                          matched=np.abs(eta - 1.0) < INDEX_MATCHED)
 
     @staticmethod
     def _fresnel(eta, f0, tint) -> RealFresnel:
@@ -121,7 +141,7 @@ class PrincipledGlass:
         f0, tint = self.f0.take(mat, axis=1), np.sqrt(np.clip(si.color, 0.0, 1.0))
         return self._albedo(eta, f0, tint, dot(si.wo, specular_normal_at(si)))
 
-    def sample_weight_at(self, setup: SimpleNamespace) -> np.ndarray:
+    def sample_weight_at(self, setup: GlassSetup) -> np.ndarray:
         """sample_weight from the hits' setup (wo's z in the frame is the same dot product)."""
         return self._albedo(setup.eta, setup.f0, setup.tint, setup.wo[2])
 
@@ -129,7 +149,7 @@ class PrincipledGlass:
         r, t = self._fresnel(eta, f0, tint)(np.clip(cos, 0.0, 1.0))
         return (r + t).mean(axis=0)
 
-    def eval(self, si: ShadingPoint, wi: np.ndarray, setup: SimpleNamespace | None = None):
+    def eval(self, si: ShadingPoint, wi: np.ndarray, setup: GlassSetup | None = None):
         """(f cos (3, N), pdf (N,)) of the closure without its weight; wi on either side; setup: the
         hits' `setup` when known."""
         at = self.setup(si) if setup is None else setup
@@ -142,7 +162,7 @@ class PrincipledGlass:
             f, pdf = np.where(at.matched, 0.0, f), np.where(at.matched, 0.0, pdf)
         return f, pdf
 
-    def sample(self, si: ShadingPoint, u_lobe, u1, u2, setup: SimpleNamespace | None = None):
+    def sample(self, si: ShadingPoint, u_lobe, u1, u2, setup: GlassSetup | None = None):
         """(wi (3, N), weight (3, N) = f cos / pdf without the closure weight, pdf (N,), flags (N,),
         refracted (N,) bool, entering (N,) bool).  The caller moves the refracted paths across the
         surface on their medium stacks (si may be a copy); setup: the hits' `setup` when known."""

@@ -9,8 +9,9 @@ the transmission closure (NumPy's lobe) added to them; a rough diffuse keeps the
 import numpy as np
 
 from engine.core.settings import RenderSettings
+from engine.materials.media import MEDIUM_STACK_DEPTH, MediumStack
 from engine.materials.principled import PrincipledV2
-from engine.materials.protocol import ShadingPoint
+from engine.materials.protocol import BSDFFlags, ShadingPoint
 from engine.scene.model import Material, Principled
 from tests.backend_capture import require_compiled
 
@@ -30,7 +31,7 @@ def _materials():
     return out
 
 
-def _hits(rng, m, count, extras=False):
+def _hits(rng, m, count, extras=False, media=None):
     n = rng.normal(size=(3, count))
     n /= np.linalg.norm(n, axis=0)
     wo = rng.normal(size=(3, count))
@@ -43,6 +44,7 @@ def _hits(rng, m, count, extras=False):
     if extras:
         si.alpha_floor = np.where(rng.random(count) < 0.5, 0.3, 0.0)
         si.glossy_off = rng.random(count) < 0.3
+    si.media = media                            # the paths' medium stacks (Nested Dielectrics), or None
     return si[0:count]                          # a span's view: takes of it read its memo
 
 
@@ -285,6 +287,58 @@ def test_sample_and_eval_on_takes_of_mixed_transmitting_hits():
     assert not np.array_equal(a.value, b.value)
 
 
+def test_takes_that_reorder_the_transmitting_hits_under_nested_dielectrics():
+    """Takes of exactly the transmitting hits in another order (as many hits as the transmission closure
+    was set up at, none of them where it was: its setup is read by their rows) and with repeats, of
+    paths in air and inside the glass (Nested Dielectrics): the compiled sample and eval equal NumPy's,
+    and so do the medium stacks the sample crossed.  Control: the setup read whole wherever the take
+    has as many transmitting hits as it (the shortcut the re-landed principled3 took) is told apart."""
+    require_compiled()
+    materials = _opaque_beside_transmitting()
+    count = 600
+    rng = np.random.default_rng(12)
+    inside = rng.random(count) < 0.5
+    ior = 1.0 + 0.5 * inside
+
+    def make_hits():
+        stacks = MediumStack(np.tile(ior[:, None], (1, MEDIUM_STACK_DEPTH)), inside.astype(np.int64))
+        return _hits(np.random.default_rng(4), len(materials), count, media=stacks)
+    transmitting = np.flatnonzero(make_hits().material >= 3)
+    u_lobe, u = rng.random(count), (rng.random(count), rng.random(count))
+    wi = rng.normal(size=(3, count))
+    wi /= np.linalg.norm(wi, axis=0)
+
+    def compare(numpy_bsdf, compiled, idx, filled):
+        """Whether the compiled sample and eval at the take idx equal NumPy's (stacks too)."""
+        uv = (u[0].take(idx), u[1].take(idx))
+        a_hits = make_hits().take(idx)
+        a = numpy_bsdf.sample(a_hits, u_lobe.take(idx), uv)
+        f_a, p_a = numpy_bsdf.eval(make_hits().take(idx), wi.take(idx, axis=1))
+        hits = make_hits()
+        if filled:                              # the span's values first, then the take reads them
+            hits.memo((compiled, "fused"), compiled._fused_hits)
+        b_hits = hits.take(idx)
+        b = compiled.sample(b_hits, u_lobe.take(idx), uv)
+        f_b, p_b = compiled.eval(make_hits().take(idx), wi.take(idx, axis=1))
+        same = [np.array_equal(x, y) for x, y in ((a.wi, b.wi), (a.value, b.value), (a.pdf, b.pdf),
+                                                   (a.flags, b.flags), (f_a, f_b), (p_a, p_b),
+                                                   (a_hits.media.media, b_hits.media.media),
+                                                   (a_hits.media.depth, b_hits.media.depth))]
+        return all(same), a
+    numpy_bsdf, compiled = _pair(materials)
+    crossed = 0
+    for idx in (transmitting[::-1].copy(), np.roll(transmitting, 7), np.repeat(transmitting[::2], 2)):
+        for filled in (False, True):
+            same, a = compare(numpy_bsdf, compiled, idx, filled)
+            assert same
+            crossed += int(((a.flags & BSDFFlags.TRANSMISSION) != 0).sum())
+    assert crossed > 300
+    # Control: the setup read whole where as many hits transmit as it was set up at.
+    glass_rows = compiled._glass_rows
+    compiled._glass_rows = lambda glass, at: (glass.setup if len(at) == len(glass.setup) else glass_rows(glass, at))
+    assert not compare(numpy_bsdf, compiled, transmitting[::-1].copy(), True)[0]
+
+
 def _principled_cornell():
     """The built-in Cornell box in Principled materials, as sample_blends/principled.blend builds it
     (diffuse walls, the mirror a metal, the glass transmitting), the blue block coated with a sheen
@@ -349,8 +403,8 @@ def test_recorded_hits_are_bit_identical():
     # Control: the transmission closure's setup read one hit off (its rows rolled).
     fields, u_lobe, u1, u2 = max(calls, key=lambda c: (c[0][5] == 5).sum())      # the most glass hits
     other = _pair(scene.materials)[1]
-    setup_at = other.glass.setup_at
-    other.glass.setup_at = lambda setup, rows: setup_at(setup, np.roll(rows, 1))
+    glass_rows = other._glass_rows
+    other._glass_rows = lambda glass, at: glass_rows(glass, np.roll(at, 1))
     wi = compiled.sample(ShadingPoint(*(a.copy() for a in fields)), u_lobe, (u1, u2)).wi
     idx = np.arange(len(u1))[::-1].copy()             # the light samples' take: the setup read by index
     f_cos = []
