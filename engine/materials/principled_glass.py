@@ -122,10 +122,12 @@ class PrincipledGlass:
         return RealFresnel(eta, f0, tint)
 
     def _scale(self, mat, mu, eta, tint):
+        """The multiscatter compensation (3, N) where a material has it (1 elsewhere), or None."""
         on = self.compensate.take(mat)
         if not on.any():
             return None
-        return np.where(on, energy_scale(self.roughness.take(mat), mu, eta, tint), 1.0)
+        scale = energy_scale if self.lobe.compiled is None else self.lobe.compiled.energy_scale     # the same numbers
+        return np.where(on, scale(self.roughness.take(mat), mu, eta, tint), 1.0)
 
     def _alpha(self, si: ShadingPoint, mat) -> np.ndarray:
         """Each hit's alpha, at least si.alpha_floor (Filter Glossy, engine/integrators/light_paths.py:
