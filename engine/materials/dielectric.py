@@ -51,13 +51,20 @@ HEIGHT_CORRELATED_SINCE = (3, 5)        # Cycles' G2 before: separable G1 G1
 
 def energy_scale(roughness, mu, eta, tint) -> np.ndarray:
     """Cycles 4.x's multiscatter factor (3, N) of the GGX glass: 1 + F_ms (1 - E) / E, E and E_avg
-    from engine/materials/glass_albedo.py at (roughness, mu = wo.z, eta), F_ms from the tint."""
-    e = glass_albedo.albedo(roughness, np.clip(mu, 0.0, 1.0), eta)
+    from engine/materials/glass_albedo.py at (roughness, mu = wo.z, eta), F_ms from the tint.  NaN
+    at a point off the tables (a NaN roughness, mu or eta, or an infinite eta: a NaN coordinate,
+    which no table index is), where the tables are not read (dielectric_jit.energy_scale the same)."""
+    mu = np.clip(mu, 0.0, 1.0)
+    off = np.isnan(roughness + mu) | ~np.isfinite(eta)
+    if off.any():                               # read at a point on the tables there, then NaN
+        roughness, mu, eta = np.where(off, 0.0, roughness), np.where(off, 0.0, mu), np.where(off, 1.0, eta)
+    e = glass_albedo.albedo(roughness, mu, eta)
     e_avg = glass_albedo.average_albedo(roughness, eta)
     f_ms = tint * e_avg / (1.0 - tint * (1.0 - e_avg))
     with np.errstate(divide="ignore", invalid="ignore"):
         missing = np.where(e > 0.0, (1.0 - e) / e, 0.0)
-    return 1.0 + f_ms * missing
+    scale = 1.0 + f_ms * missing
+    return np.where(off, np.nan, scale) if off.any() else scale
 
 
 class RoughDielectric(BSDF):

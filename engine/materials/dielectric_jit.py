@@ -267,6 +267,10 @@ def _bilinear(table, z, x, y):
 def _energy_scale(roughness, mu, eta, tint, e_table, e_inv, e_avg_table, e_avg_inv, out):
     for i in range(roughness.shape[0]):
         r, m, n = roughness[i], _clip01(mu[i]), eta[i]
+        if np.isnan(r + m) or not np.isfinite(n):      # off the tables: NaN, none of them read
+            for ch in range(3):
+                out[ch, i] = np.nan
+            continue
         z = np.sqrt(abs((n - 1.0) / (n + 1.0)))
         z0, z1, tz = _coords(z)
         table, average = (e_table, e_avg_table) if n >= 1.0 else (e_inv, e_avg_inv)
@@ -280,7 +284,7 @@ def _energy_scale(roughness, mu, eta, tint, e_table, e_inv, e_avg_table, e_avg_i
 
 def energy_scale(roughness, mu, eta, tint):
     """dielectric.py energy_scale (3, N) of roughness, mu = wo.z and eta (N,) each and the tint (3, N):
-    the same numbers (only +, -, *, / and sqrt; the tables read at the same points)."""
+    the same numbers (only +, -, *, / and sqrt; the tables read at the same points; NaN off them)."""
     t = glass_albedo.tables()
     count = len(roughness)
     out = np.empty((3, count))

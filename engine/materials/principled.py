@@ -86,7 +86,6 @@ from ..core import table_cache, vec
 from ..core.backend import JIT_MODULES, NUMBA
 from ..core.vec import dot
 from ..sampling import warps
-from ..sampling.warps import cosine_directions
 from ..scene.model import PRINCIPLED, Principled, PrincipledV1
 from . import albedo_tables, glossy, microfacet
 from .glossy import MicrofacetReflection, f82_b, fresnel_dielectric, fresnel_dielectric_average
@@ -401,7 +400,8 @@ class PrincipledV2(BSDF):
             w_diffuse=rows(w_diffuse), on_metal=on_metal, on_spec=on_spec, on_diffuse=on_diffuse, prob=rows(prob),
             base_row=0, any_metal=bool(on_metal.any()), layered=layers is not None, glass=None)
         if self.any_transmission:
-            hits.glass = SimpleNamespace(w=weights[5], p=prob[6], on=weights[5].max(axis=0) > 0.0)
+            hits.glass = SimpleNamespace(w=weights[5], p=prob[6], on=weights[5].max(axis=0) > 0.0,
+                                         setup=self._glass_setup(si))
         if layers is not None:
             hits.base_row = 3
             coat_on, sheen_on = weights[1].max(axis=0) > 0.0, weights[0].max(axis=0) > 0.0
@@ -472,6 +472,11 @@ class PrincipledV2(BSDF):
                 out[idx.take(mine)] = (1.0 - ti) * low + ti * high
         return s_metal, s_spec
 
+    def _s_at(self, si: ShadingPoint, mu: np.ndarray):
+        """(s_metal, s_spec) (N,) at the hits' mu: the material's tables, read at the hit's roughness
+        where it is textured (`_textured_s`)."""
+        return self._textured_s(si, mu, *_read_both(self.s_metal, self.s_specular, si.material, mu))
+
     def layer_albedos(self, si: ShadingPoint):
         """Cycles' albedo estimates (3, N) of the metallic and the specular lobe at wo (without
         their weights): darkening x mix(F0, 1, s(mu)) (bsdf_albedo)."""
@@ -483,7 +488,7 @@ class PrincipledV2(BSDF):
             s_metal = _read(self.s_metal, rows, mu)
             a_metal = self._darkening(self.metal, metal, mu, True) * (metal.color + (1.0 - metal.color) * s_metal)
             return a_metal, np.zeros((3, len(si)))
-        s_metal, s_spec = self._textured_s(si, mu, *_read_both(self.s_metal, self.s_specular, rows, mu))
+        s_metal, s_spec = self._s_at(si, mu)
         a_metal = self._darkening(self.metal, metal, mu, True) * (metal.color + (1.0 - metal.color) * s_metal)
         a_spec = self._darkening(self.specular, specular, mu, True) * (specular.color + (1.0 - specular.color) * s_spec)
         return a_metal, np.where(self.has_specular.take(rows), a_spec, 0.0)
@@ -491,7 +496,10 @@ class PrincipledV2(BSDF):
     def lobe_weights(self, si: ShadingPoint, sample_total: bool = False):
         """((w_metal, w_specular, w_diffuse) (N,) each: the lobes' scalar closure weights, and
         their sampling probabilities (3, N)), as closure.h and the closures' sample_weight
-        (sample_total: the sample weights themselves, unnormalised)."""
+        (sample_total: the sample weights themselves, unnormalised).  Compiled in one pass
+        (principled_jit.py lobe_weights, the same numbers) on the numba backend."""
+        if self.compiled is not None:
+            return self._compiled_lobe_weights(si, sample_total)
         rows = si.material
         m = np.clip(per_hit(si, self.metallic, "metallic"), 0.0, 1.0)
         w_metal = np.where(m > WEIGHT_CUTOFF, m, 0.0)
@@ -513,6 +521,23 @@ class PrincipledV2(BSDF):
         with np.errstate(divide="ignore", invalid="ignore"):
             prob = np.where(total > 0.0, sample / total, 0.0)
         return (w_metal, w_spec, w_diffuse), prob
+
+    def _compiled_lobe_weights(self, si: ShadingPoint, sample_total: bool):
+        """lobe_weights by principled_jit.py lobe_weights: NumPy's per-hit inputs (the metallic, the
+        lobes' colours and darkening, each only where lobe_weights reads it; s(mu) at textured
+        roughness, `_textured_s`) into one pass."""
+        metal, specular, _ = self._views(si)
+        s_hits = None
+        if textured_mask(si, self.specular.roughness_input) is not None:
+            s_hits = np.stack(self._s_at(si, np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0)))
+        any_specular = bool(self.has_specular.any())
+        dark = [None if not on or lobe.compensation_at(view) is None else self._darkening(lobe, view, None, True)
+                for lobe, view, on in ((self.metal, metal, True), (self.specular, specular, any_specular))]
+        return self.compiled.lobe_weights(
+            si.material, per_hit(si, self.metallic, "metallic"), si.wo, specular_normal_at(si), self.s_metal,
+            self.s_specular, s_hits, metal.color, specular.color, *dark, self.has_specular,
+            self.glass.transmission if self.any_transmission else None, si.color, si.glossy_off, WEIGHT_CUTOFF,
+            not sample_total)
 
     def _mixture(self, si: ShadingPoint, wi: np.ndarray, weights, prob):
         """(f cos (3, N), pdf (N,)): the weighted lobes summed, each evaluated where it is set up."""
@@ -598,9 +623,9 @@ class PrincipledV2(BSDF):
             if not self.any_transmission:
                 weights, prob = self.compiled.layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_prob)
                 return layers, weights, prob
-            w_glass = self._glass_weight(si)
+            glass = self._glass_setup(si)
             weights, prob = self.compiled.layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_prob,
-                                                                w_glass, self._glass_sample_weight(si, w_glass))
+                                                                glass.w, glass.sample_weight)
             return layers, weights, prob
         base = layers.base
         weights = [layers.sheen, layers.coat, w_metal * base, w_spec * base, w_diffuse * base]
@@ -665,62 +690,72 @@ class PrincipledV2(BSDF):
             out[idx] = self.glass.sample_weight(si.take(idx))
         return out
 
+    def _glass_setup(self, si: ShadingPoint) -> SimpleNamespace:
+        """The transmission closure at the hits for the compiled path, once per hit set (ShadingPoint.memo):
+        its weight w (N,) (`_glass_weight`), its `setup` (principled_glass.py GlassSetup) at the hits
+        where w > 0, rows (N,): each hit's place in it (-1 where w is 0), and the albedo estimate
+        sample_weight (N,) from it (`_glass_sample_weight`'s numbers).  Its eval and sample read the
+        setup by index (`_glass_rows`) instead of setting the closure up again on each take of the
+        hits; the memo of a take gathers w, rows and sample_weight and keeps the setup whole, so a
+        take's rows still index it."""
+        def make(at):
+            w_glass = self._glass_weight(at)
+            idx = np.flatnonzero(w_glass > 0.0)
+            rows = np.full(len(at), -1, dtype=np.int64)
+            rows[idx] = np.arange(len(idx))
+            setup = None if not len(idx) else self.glass.setup(at if len(idx) == len(at) else at.take(idx))
+            if len(idx) == len(at):
+                sample_weight = self.glass.sample_weight_at(setup)
+            else:
+                sample_weight = np.zeros(len(at))
+                if len(idx):
+                    sample_weight[idx] = self.glass.sample_weight_at(setup)
+            return SimpleNamespace(w=w_glass, rows=rows, setup=setup, sample_weight=sample_weight)
+        return si.memo((self, "glass setup"), make)
+
+    @staticmethod
+    def _glass_rows(glass: SimpleNamespace, at: np.ndarray):
+        """The setup of `_glass_setup` (`glass`, of these hits or gathered for a take of them) at the
+        hits `at`, or None where one of them has none (w 0: the transmission closure picked by
+        rounding, see _compiled_layered_sample): the setup itself where `at` are the hits it was set
+        up at, in order; else its rows read (GlassSetup.at)."""
+        if glass.setup is None:
+            return None
+        rows = glass.rows.take(at)
+        if len(rows) == len(glass.setup) and np.array_equal(rows, np.arange(len(rows))):
+            return glass.setup
+        if (rows < 0).any():
+            return None
+        return glass.setup.at(rows)
+
     def _lobes_at(self, si: ShadingPoint):
         """_layered_lobes or lobe_weights at the hits (they depend on the hits, not on wi): once per hit for
         its eval and its sample (ShadingPoint.memo)."""
         return si.memo((self, "lobes"), self._layered_lobes if self.any_layers else self.lobe_weights)
 
-    def _layered_sample(self, si: ShadingPoint, u_lobe, u, hits=None) -> BSDFSample:
-        """sample() with the layers.  Where `hits` (the compiled kernels, principled_jit.py, the same
-        numbers): the lobe pick and the GGX directions by layered_pick, the sheen's and the diffuse
-        lobe's directions in NumPy (their sin and cos), the mixture by base_eval."""
+    def _layered_sample(self, si: ShadingPoint, u_lobe, u) -> BSDFSample:
+        """sample() with the layers: a lobe picked by u_lobe against the cumulative probabilities, its
+        direction, and the mixture of every lobe at it (the NumPy reference of _compiled_layered_sample)."""
         layers, weights, prob = self._lobes_at(si)
         n = len(si)
         failed = np.zeros(n, dtype=bool)            # samples their own lobe rejected: value 0
-        if hits is not None:                        # the pick and the GGX directions compiled
-            cdf = None
-            wi, flags, choice, ggx_failed = self.compiled.layered_pick(hits, u_lobe, u[0], u[1])
-            if self.any_transmission:
-                failed = ggx_failed
-        else:
-            cdf = np.cumsum(prob, axis=0)
-            choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
-            wi = np.zeros((3, n))
-            flags = np.zeros(n, dtype=np.int8)
+        cdf = np.cumsum(prob, axis=0)
+        choice = (np.asarray(u_lobe)[None, :] >= cdf[:-1]).sum(axis=0)   # 0 through, 1 sheen, 2 coat, 3.. base
+        wi = np.zeros((3, n))
+        flags = np.zeros(n, dtype=np.int8)
         through = np.flatnonzero(choice == 0)
         wi[:, through] = -si.wo[:, through]
         flags[through] = PASS_LOBE
         idx = np.flatnonzero(choice == 1)
         if len(idx):
-            wi[:, idx] = self.sheen.sample(si.take(idx), u[0].take(idx), u[1].take(idx),
-                                           layers.sheen_a.take(idx), layers.sheen_b.take(idx))
-            flags[idx] = SHEEN_LOBE
-        passed = crossing = None
-        if hits is not None:                        # the diffuse picks' cosine directions (NumPy's sin, cos)
-            idx = np.flatnonzero(choice == 5)
-            if len(idx):
-                n_d = si.n.take(idx, axis=1)
-                d = cosine_directions(u[0].take(idx), u[1].take(idx), n_d)
-                wi[:, idx] = d
-                if self.any_transmission:           # the Lambertian's pdf (oren_nayar.py _pdf) not positive
-                    failed[idx] = np.maximum(dot(d, n_d), 0.0) * (1.0 / np.pi) <= 0.0
-            glass = np.flatnonzero(choice == 6)
-            if len(glass):                          # np.cumsum's row 5 at those hits: the same sums
-                passed, crossing = self._sample_glass(si, glass, u_lobe, u,
-                                                      np.cumsum(prob.take(glass, axis=1), axis=0)[5], prob, weights,
-                                                      wi, flags, failed)
-        else:
-            views = (layers.coat_view,) + self._views(si)
-            _sample_lobes((self.coat, self.metal, self.specular, self.diffuse), views, choice, 2, u, wi, flags,
-                          failed if self.any_transmission else None)
-            glass = np.flatnonzero(choice == 6)
-            passed, crossing = self._sample_glass(si, glass, u_lobe, u, cdf[5].take(glass), prob, weights, wi, flags,
-                                                  failed)
-        if hits is not None:
-            f_cos, pdf = self.compiled.base_eval(hits, None, wi)
-            self._add_glass(si, hits, None, wi, f_cos, pdf)
-        else:
-            f_cos, pdf = self._layered_mixture(si, wi, layers, weights, prob)
+            self._sample_sheen(si, idx, u, layers, wi, flags)
+        views = (layers.coat_view,) + self._views(si)
+        _sample_lobes((self.coat, self.metal, self.specular, self.diffuse), views, choice, 2, u, wi, flags,
+                      failed if self.any_transmission else None)
+        glass = np.flatnonzero(choice == 6)
+        passed, crossing = self._sample_glass(si, glass, u_lobe, u, cdf[5].take(glass), prob, weights, wi, flags,
+                                              failed)
+        f_cos, pdf = self._layered_mixture(si, wi, layers, weights, prob)
         if crossing is not None:                    # weighed on this side of the surface, then crossed
             si.media.cross(*crossing)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -738,19 +773,62 @@ class PrincipledV2(BSDF):
             value[:, failed], pdf[failed] = 0.0, 0.0
         return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
 
-    def _sample_glass(self, si, idx, u_lobe, u, below, prob, weights, wi, flags, failed):
+    def _compiled_layered_sample(self, si: ShadingPoint, hits, u_lobe, u) -> BSDFSample:
+        """_layered_sample on the compiled kernels (principled_jit.py, the same numbers): the lobe pick
+        with the pass-through's and the GGX directions by layered_pick, the diffuse picks' directions
+        by diffuse_directions, the sheen's and the transmission closure's in NumPy, the mixture by
+        base_eval (and _add_glass), the throughput weights by sample_values."""
+        layers, weights, prob = self._lobes_at(si)
+        compiled = self.compiled
+        wi, flags, choice, failed, counts = compiled.layered_pick(hits, u_lobe, u[0], u[1], PASS_LOBE)
+        if not self.any_transmission:               # no lobe's failed sample is zeroed without it (NumPy's path)
+            failed = None
+        if counts[1]:
+            self._sample_sheen(si, np.flatnonzero(choice == 1), u, layers, wi, flags)
+        if counts[5]:
+            compiled.diffuse_directions(np.flatnonzero(choice == 5), u[0], u[1], si.n, wi, failed)
+        passed = crossing = None
+        if counts[6]:                               # np.cumsum's row 5 at those hits: the same sums
+            glass = np.flatnonzero(choice == 6)
+            passed, crossing = self._sample_glass(si, glass, u_lobe, u,
+                                                  np.cumsum(prob.take(glass, axis=1), axis=0)[5], prob, weights, wi,
+                                                  flags, failed, self._glass_rows(hits.glass.setup, glass))
+        f_cos, pdf = compiled.base_eval(hits, None, wi)
+        self._add_glass(si, hits, None, wi, f_cos, pdf)
+        if crossing is not None:                    # weighed on this side of the surface, then crossed
+            si.media.cross(*crossing)
+        value, pdf = compiled.sample_values(f_cos, pdf, choice, prob[0], layers.through, failed)
+        if passed is not None:                      # the glass's delta pass-through (index-matched)
+            idx, weight = passed
+            p_glass = prob[6].take(idx)
+            kept = ~failed.take(idx)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                through = np.where(p_glass > 0.0, weights[5].take(idx, axis=1) * weight / p_glass, 0.0)
+            value[:, idx] = np.nan_to_num(np.where(kept, through, 0.0))
+            pdf[idx] = np.where(kept, p_glass, 0.0)
+        return BSDFSample(wi, value, pdf, flags)
+
+    def _sample_sheen(self, si: ShadingPoint, idx, u, layers, wi, flags):
+        """The sheen's directions of the hits idx that picked it, written into wi and flags."""
+        wi[:, idx] = self.sheen.sample(si.take(idx), u[0].take(idx), u[1].take(idx),
+                                       layers.sheen_a.take(idx), layers.sheen_b.take(idx))
+        flags[idx] = SHEEN_LOBE
+
+    def _sample_glass(self, si, idx, u_lobe, u, below, prob, weights, wi, flags, failed, setup=None):
         """Directions of the hits idx that picked the transmission closure (into wi, flags, failed), with
         the closure-choice uniform rescaled to pick reflection or refraction (below: the cdf of the
-        lobes before it at idx).  Returns ((indices, weight) of the delta pass-throughs, or None;
-        the arguments of si.media.cross for the refracted paths, or None): the caller crosses after
-        the mixture is weighed, whose transmission lobe reads the stack on this side of the surface."""
+        lobes before it at idx); setup: the closure's setup at idx when known (`_glass_rows`).  Returns
+        ((indices, weight) of the delta pass-throughs, or None; the arguments of si.media.cross for the
+        refracted paths, or None): the caller crosses after the mixture is weighed, whose transmission
+        lobe reads the stack on this side of the surface."""
         if not len(idx):
             return None, None
         p = prob[6].take(idx)
         with np.errstate(divide="ignore", invalid="ignore"):
             u_fresnel = np.clip(np.nan_to_num((np.asarray(u_lobe).take(idx) - below) / p), 0.0, 1.0 - 1e-12)
         at = si.take(idx)
-        d, weight, _, sampled, refracted, entering = self.glass.sample(at, u_fresnel, u[0].take(idx), u[1].take(idx))
+        d, weight, _, sampled, refracted, entering = self.glass.sample(at, u_fresnel, u[0].take(idx), u[1].take(idx),
+                                                                       setup)
         wi[:, idx] = d
         flags[idx] = sampled
         failed[idx] = ~np.any(weight > 0.0, axis=0)
@@ -764,7 +842,7 @@ class PrincipledV2(BSDF):
     def _add_glass(self, si: ShadingPoint, hits, index, wi: np.ndarray, f_cos: np.ndarray, pdf: np.ndarray):
         """The transmission closure's f cos and pdf added into the compiled lobes' sums (in place) at
         the pairs (hit index[k], wi[:, k]) whose material transmits, as _layered_mixture adds it:
-        last, on a take of the hits where it is set up."""
+        last, from its setup at those hits (`_glass_setup`)."""
         if hits.glass is None:
             return
         on = hits.glass.on if index is None else hits.glass.on.take(index)
@@ -772,10 +850,9 @@ class PrincipledV2(BSDF):
         if not len(k):
             return
         at = k if index is None else index.take(k)
-        if len(k) == len(si):                       # every pair: no gathers, the same numbers
-            f_l, pdf_l = self.glass.eval(si, wi)
-        else:
-            f_l, pdf_l = self.glass.eval(si.take(k), wi.take(k, axis=1))
+        every = index is None and len(k) == len(si)
+        setup = self._glass_rows(hits.glass.setup, at)
+        f_l, pdf_l = self.glass.eval(None, wi if every else wi.take(k, axis=1), setup)
         f_cos[:, k] += hits.glass.w.take(at, axis=1) * f_l
         pdf[k] += hits.glass.p.take(at) * pdf_l
 
@@ -812,7 +889,7 @@ class PrincipledV2(BSDF):
             hits = si.memo((self, "fused"), self._fused_hits)
             if hits is not None:
                 if self.any_layers:
-                    return self._layered_sample(si, u_lobe, u, hits)
+                    return self._compiled_layered_sample(si, hits, u_lobe, u)
                 return self._compiled_sample(si, hits, u_lobe, u)
         if self.any_layers:
             return self._layered_sample(si, u_lobe, u)
@@ -832,12 +909,11 @@ class PrincipledV2(BSDF):
     def _compiled_sample(self, si: ShadingPoint, hits, u_lobe, u) -> BSDFSample:
         """sample() of the base on the compiled kernels: the same picks, directions and numbers."""
         wi, flags, diffuse = self.compiled.base_pick(hits, u_lobe, u[0], u[1])
-        if len(diffuse):                            # the diffuse lobe's cosine directions (NumPy's sin, cos)
-            wi[:, diffuse] = cosine_directions(u[0].take(diffuse), u[1].take(diffuse), si.n.take(diffuse, axis=1))
+        if len(diffuse):                            # the diffuse lobe's cosine directions
+            self.compiled.diffuse_directions(diffuse, u[0], u[1], si.n, wi)
         f_cos, pdf = self.compiled.base_eval(hits, None, wi)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
-        return BSDFSample(wi, np.nan_to_num(value), pdf, flags)
+        value, pdf = self.compiled.sample_values(f_cos, pdf)
+        return BSDFSample(wi, value, pdf, flags)
 
 
 def _scatter(values: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:

@@ -33,6 +33,8 @@ reads its s(mu) table for the reflected part); it changes the noise only.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
+
 import numpy as np
 
 from ..core.vec import dot, normalize
@@ -53,6 +55,39 @@ def _f0(ior):
     return ((ior - 1.0) / (ior + 1.0)) ** 2
 
 
+@dataclass
+class GlassSetup:
+    """The closure's values at some hits, which depend on the hits and not on wi (`PrincipledGlass.setup`):
+    material ids mat, eta and entering (refraction_eta), the frame (x, y, n) on the specular normal,
+    F0 f0 and the transmission tint (3, N), wo in that frame (3, N), alpha, the compensation scale
+    (3, N) or None, and where the interface is index-matched.
+
+    Not a namespace on purpose: a ShadingPoint memo value that holds one (principled.py `_glass_setup`,
+    set up at the transmitting hits only) keeps it whole on a take of the hits (protocol.py take_hits
+    gathers arrays, tuples, lists and namespaces, and returns anything else as it is), while the
+    value's per-hit rows into it are gathered; `at` reads it at those rows."""
+    mat: np.ndarray
+    eta: np.ndarray
+    entering: np.ndarray
+    frame: tuple
+    f0: np.ndarray
+    tint: np.ndarray
+    wo: np.ndarray
+    alpha: np.ndarray
+    scale: np.ndarray | None
+    matched: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.eta)
+
+    def at(self, rows: np.ndarray) -> "GlassSetup":
+        """The values at the hits `rows` of these (ascending or not, repeated or not)."""
+        def rows_of(a):
+            return None if a is None else a.take(rows, axis=a.ndim - 1)
+        values = {f.name: rows_of(getattr(self, f.name)) for f in fields(self) if f.name != "frame"}
+        return GlassSetup(frame=tuple(rows_of(a) for a in self.frame), **values)
+
+
 class PrincipledGlass:
     """The transmission closure of every material (zero weight where a material has none):
     transmission (M,) the node's Transmission Weight clamped to [0, 1] (0 below the cutoff)."""
@@ -68,13 +103,18 @@ class PrincipledGlass:
         self.lobe = MicrofacetDielectric(reflection=True, transmission=True)
 
     # -- per hit -------------------------------------------------------------------------------
-    def _setup(self, si: ShadingPoint):
+    def setup(self, si: ShadingPoint) -> GlassSetup:
+        """The closure's values at the hits `si` (`GlassSetup`; alpha: `_alpha`).  principled.py computes
+        them once per bounce where the closure is set up and reads them by index (`GlassSetup.at`)."""
         mat = si.material
         eta, entering = refraction_eta(si, self.ior.take(mat))
         n = specular_normal_at(si)
         frame = (*(shading_frame(n) if self.lobe.compiled is None else self.lobe.compiled.frame(n)), n)
         tint = np.sqrt(np.clip(si.color, 0.0, 1.0))
-        return mat, eta, entering, frame, self.f0.take(mat, axis=1), tint
+        wo = to_local(si.wo, *frame)
+        return GlassSetup(mat=mat, eta=eta, entering=entering, frame=frame, f0=self.f0.take(mat, axis=1), tint=tint,
+                          wo=wo, alpha=self._alpha(si, mat), scale=self._scale(mat, wo[2], eta, tint),
+                          matched=np.abs(eta - 1.0) < INDEX_MATCHED)
 
     @staticmethod
     def _fresnel(eta, f0, tint) -> RealFresnel:
@@ -82,10 +122,12 @@ class PrincipledGlass:
         return RealFresnel(eta, f0, tint)
 
     def _scale(self, mat, mu, eta, tint):
+        """The multiscatter compensation (3, N) where a material has it (1 elsewhere), or None."""
         on = self.compensate.take(mat)
         if not on.any():
             return None
-        return np.where(on, energy_scale(self.roughness.take(mat), mu, eta, tint), 1.0)
+        scale = energy_scale if self.lobe.compiled is None else self.lobe.compiled.energy_scale     # the same numbers
+        return np.where(on, scale(self.roughness.take(mat), mu, eta, tint), 1.0)
 
     def _alpha(self, si: ShadingPoint, mat) -> np.ndarray:
         """Each hit's alpha, at least si.alpha_floor (Filter Glossy, engine/integrators/light_paths.py:
@@ -96,47 +138,51 @@ class PrincipledGlass:
 
     def sample_weight(self, si: ShadingPoint) -> np.ndarray:
         """mean(R + T) (N,) at wo.n: the closure's albedo estimate (without its weight)."""
-        mat = si.material                           # _setup's eta, F0 and tint (not its frame)
+        mat = si.material                           # setup's eta, F0 and tint (not its frame)
         eta, _ = refraction_eta(si, self.ior.take(mat))
         f0, tint = self.f0.take(mat, axis=1), np.sqrt(np.clip(si.color, 0.0, 1.0))
-        r, t = self._fresnel(eta, f0, tint)(np.clip(dot(si.wo, specular_normal_at(si)), 0.0, 1.0))
+        return self._albedo(eta, f0, tint, dot(si.wo, specular_normal_at(si)))
+
+    def sample_weight_at(self, setup: GlassSetup) -> np.ndarray:
+        """sample_weight from the hits' setup (wo's z in the frame is the same dot product)."""
+        return self._albedo(setup.eta, setup.f0, setup.tint, setup.wo[2])
+
+    def _albedo(self, eta, f0, tint, cos) -> np.ndarray:
+        r, t = self._fresnel(eta, f0, tint)(np.clip(cos, 0.0, 1.0))
         return (r + t).mean(axis=0)
 
-    def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(f cos (3, N), pdf (N,)) of the closure without its weight; wi on either side."""
-        mat, eta, _, frame, f0, tint = self._setup(si)
-        wo_l, wi_l = to_local(si.wo, *frame), to_local(wi, *frame)
-        f, pdf = self.lobe.eval(wo_l, wi_l, self._alpha(si, mat), eta, np.zeros(len(si), bool),
-                                fresnel=self._fresnel(eta, f0, tint))
-        scale = self._scale(mat, wo_l[2], eta, tint)
-        if scale is not None:
-            f = f * scale
-        matched = np.abs(eta - 1.0) < INDEX_MATCHED
-        if matched.any():
-            f, pdf = np.where(matched, 0.0, f), np.where(matched, 0.0, pdf)
+    def eval(self, si: ShadingPoint, wi: np.ndarray, setup: GlassSetup | None = None):
+        """(f cos (3, N), pdf (N,)) of the closure without its weight; wi on either side; setup: the
+        hits' `setup` when known."""
+        at = self.setup(si) if setup is None else setup
+        wi_l = to_local(wi, *at.frame)
+        f, pdf = self.lobe.eval(at.wo, wi_l, at.alpha, at.eta, np.zeros(len(at.eta), bool),
+                                fresnel=self._fresnel(at.eta, at.f0, at.tint))
+        if at.scale is not None:
+            f = f * at.scale
+        if at.matched.any():
+            f, pdf = np.where(at.matched, 0.0, f), np.where(at.matched, 0.0, pdf)
         return f, pdf
 
-    def sample(self, si: ShadingPoint, u_lobe, u1, u2):
+    def sample(self, si: ShadingPoint, u_lobe, u1, u2, setup: GlassSetup | None = None):
         """(wi (3, N), weight (3, N) = f cos / pdf without the closure weight, pdf (N,), flags (N,),
         refracted (N,) bool, entering (N,) bool).  The caller moves the refracted paths across the
-        surface on their medium stacks (si may be a copy)."""
-        mat, eta, entering, frame, f0, tint = self._setup(si)
-        wo = to_local(si.wo, *frame)
-        fresnel = self._fresnel(eta, f0, tint)
-        wi_l, weight, pdf, refracted, ok = self.lobe.sample(wo, self._alpha(si, mat), eta, np.zeros(len(si), bool),
+        surface on their medium stacks (si may be a copy); setup: the hits' `setup` when known."""
+        at = self.setup(si) if setup is None else setup
+        fresnel = self._fresnel(at.eta, at.f0, at.tint)
+        wi_l, weight, pdf, refracted, ok = self.lobe.sample(at.wo, at.alpha, at.eta, np.zeros(len(at.eta), bool),
                                                             u_lobe, u1, u2, fresnel=fresnel)
-        wi = normalize(to_world(wi_l, *frame))
-        scale = self._scale(mat, wo[2], eta, tint)
-        if scale is not None:
-            weight = weight * scale
+        wi = normalize(to_world(wi_l, *at.frame))
+        if at.scale is not None:
+            weight = weight * at.scale
         flags = np.where(refracted, np.int8(REFRACTED), np.int8(REFLECTED))
-        matched = np.abs(eta - 1.0) < INDEX_MATCHED
+        matched = at.matched
         if matched.any():
-            straight = fresnel(np.ones(len(si)))[1]
+            straight = fresnel(np.ones(len(at.eta)))[1]
             wi = np.where(matched, -si.wo, wi)
             weight = np.where(matched, straight, weight)
             pdf = np.where(matched, 1.0, pdf)
             flags = np.where(matched, np.int8(PASSED), flags)
             refracted, ok = refracted | matched, ok | matched
         weight = np.where(ok, weight, 0.0)
-        return wi, weight, np.where(ok, pdf, 0.0), flags.astype(np.int8), refracted & ok, entering
+        return wi, weight, np.where(ok, pdf, 0.0), flags.astype(np.int8), refracted & ok, at.entering

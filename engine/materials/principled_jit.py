@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
+from . import lambert_jit
 from .microfacet_jit import PI, _clip01, _finite, eval_hit, sample_hit
 
 nb = numba_module()
@@ -31,6 +32,7 @@ jit = nb.njit(cache=True, error_model="numpy", nogil=True)
 INV_PI = 1.0 / np.pi
 GLOSSY = 9                  # BSDFFlags.GLOSSY | REFLECTION (engine/materials/protocol.py)
 DIFFUSE = 5                 # BSDFFlags.DIFFUSE | REFLECTION
+MAX_FLOAT = np.finfo(np.float64).max
 
 
 @jit
@@ -166,13 +168,15 @@ def _pick(wo, x, y, n, ax, ay, prob, u_lobe, u1, u2, wi_out, flags_out):
 
 @jit
 def _layered_pick(wo, x, y, n, ax, ay, cx, cy, cn, cax, cay, prob, u_lobe, u1, u2, wi_out, flags_out, choice_out,
-                  failed_out):
+                  failed_out, counts, pass_flags):
     """The lobe pick of principled.py _layered_sample (0 pass-through, 1 sheen, 2 coat, 3 metal,
     4 specular, 5 diffuse, 6 the transmission closure where prob has its row: u_lobe against the
-    running sum of prob, as np.cumsum) and the GGX directions of the coat (its frame cx, cy, cn)
-    and of the base's microfacet lobes; failed_out: where such a GGX sample's pdf is not positive
-    (principled.py _sample_lobes' `failed`), False elsewhere."""
+    running sum of prob, as np.cumsum), the pass-through's direction -wo and flags pass_flags, and the GGX
+    directions of the coat (its frame cx, cy, cn) and of the base's microfacet lobes; failed_out:
+    where such a GGX sample's pdf is not positive (principled.py _sample_lobes' `failed`), False
+    elsewhere; counts (7,): how many hits picked each lobe."""
     rows = prob.shape[0]
+    counts[:] = 0
     for i in range(wo.shape[1]):
         c = 0.0
         choice = 0
@@ -181,17 +185,173 @@ def _layered_pick(wo, x, y, n, ax, ay, cx, cy, cn, cax, cay, prob, u_lobe, u1, u
             if u_lobe[i] >= c:
                 choice += 1
         choice_out[i] = choice
+        counts[choice] += 1
         failed_out[i] = False
         if choice == 2:
             d0, d1, d2, _, pdf, _ = sample_hit(wo, cx, cy, cn, i, cax[i], cay[i], u1[i], u2[i])
         elif choice == 3 or choice == 4:
             d0, d1, d2, _, pdf, _ = sample_hit(wo, x, y, n, i, ax[i], ay[i], u1[i], u2[i])
+        elif choice == 0:
+            wi_out[0, i], wi_out[1, i], wi_out[2, i] = -wo[0, i], -wo[1, i], -wo[2, i]
+            flags_out[i] = pass_flags
+            continue
         else:
             flags_out[i] = DIFFUSE
             continue
         wi_out[0, i], wi_out[1, i], wi_out[2, i] = d0, d1, d2
         flags_out[i] = GLOSSY
         failed_out[i] = pdf <= 0.0
+
+
+@jit
+def _to_finite(v):
+    """np.nan_to_num of one float64: NaN 0, +-inf the largest finite float of that sign."""
+    if v != v:
+        return 0.0
+    if v > MAX_FLOAT:
+        return MAX_FLOAT
+    if v < -MAX_FLOAT:
+        return -MAX_FLOAT
+    return v
+
+
+@jit
+def _values(f_cos, pdf, choice, p_through, w_through, failed, value):
+    """The throughput weights of principled.py's sample from the mixture's f cos (3, N) and pdf (N,)
+    (in place): f cos / pdf where pdf > 0, else 0; at the pass-through picks (choice 0; `choice`
+    empty: none) w_through / p_through where p_through > 0, else 0, and pdf p_through; 0 and pdf 0
+    where `failed` (empty: nowhere); then np.nan_to_num."""
+    layered = choice.shape[0] > 0
+    checked = failed.shape[0] > 0
+    for i in range(pdf.shape[0]):
+        if layered and choice[i] == 0:
+            p = p_through[i]
+            v = w_through[i] / p if p > 0.0 else 0.0
+            value[0, i], value[1, i], value[2, i] = v, v, v
+            pdf[i] = p
+        else:
+            p = pdf[i]
+            for c in range(3):
+                value[c, i] = f_cos[c, i] / p if p > 0.0 else 0.0
+        if checked and failed[i]:
+            value[0, i], value[1, i], value[2, i] = 0.0, 0.0, 0.0
+            pdf[i] = 0.0
+        for c in range(3):
+            value[c, i] = _to_finite(value[c, i])
+
+
+def sample_values(f_cos, pdf, choice=None, p_through=None, w_through=None, failed=None):
+    """(value (3, N), pdf (N,)) of a sample from its mixture's f_cos and pdf (pdf changed in place):
+    `_values`; choice, p_through, w_through (N,): the layered pick and its pass-through's
+    probability and weight, failed (N,) bool: the samples their lobe rejected (None: none)."""
+    value = np.empty_like(f_cos)
+    none = np.empty(0)
+    _values(f_cos, pdf, none.astype(np.int64) if choice is None else choice, none if p_through is None else p_through,
+            none if w_through is None else np.ascontiguousarray(w_through, dtype=np.float64),
+            none.astype(np.bool_) if failed is None else failed, value)
+    return value, pdf
+
+
+def diffuse_directions(idx, u1, u2, n, wi, failed=None):
+    """The diffuse picks idx's cosine-weighted directions about n[:, idx] written into wi (3, N), as
+    principled.py's NumPy path draws them (warps.cosine_directions, by engine/materials/lambert_jit.py
+    with NumPy's float32 cos and sin), and where their Lambertian pdf is not positive into failed."""
+    pdf = lambert_jit.sample_at(idx, u1, u2, n, wi)
+    if failed is not None:
+        failed[idx] = pdf <= 0.0
+
+
+@jit
+def _nan_max(a, b):
+    """np.maximum of two floats: a where a >= b or a is NaN, else b (NaN where b is)."""
+    if a != a or a >= b:
+        return a
+    return b
+
+
+@jit
+def _table(flat, row, mu, points):
+    """principled.py _read of one hit: the table row `row` (of `points` points over sqrt(mu), flat)
+    at mu clipped to [0, 1], linear between its points (NaN where mu is NaN, where NumPy's gather
+    raises)."""
+    x = np.sqrt(_clip01(mu)) * (points - 1)
+    if x != x:
+        return x
+    j = min(int(x), points - 1)
+    k = min(j + 1, points - 1)
+    t = x - j
+    return (1.0 - t) * flat[row * points + j] + t * flat[row * points + k]
+
+
+@jit
+def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
+                  has_specular, transmission, colour, glossy_off, cutoff, points, normalise, w_out, sample_out):
+    """principled.py lobe_weights and layer_albedos per hit: the albedo estimates darkening x
+    (F0 + (1 - F0) s(mu)) of the metal and the specular lobe at mu = wo . ns (s from the tables, or
+    the hits' own s_hits (2, N) where not empty: textured roughness; dark_* empty: no compensation,
+    a factor 1.0), the closure weights into w_out (3, N) and the sample weights (or, where
+    `normalise`, the probabilities) into sample_out (3, N)."""
+    dark_m, dark_s = dark_metal.shape[0] > 0, dark_spec.shape[0] > 0
+    own_s = s_hits.shape[0] > 0
+    transmits, off = transmission.shape[0] > 0, glossy_off.shape[0] > 0
+    a_m = np.empty(3)
+    a_s = np.empty(3)
+    for i in range(mat.shape[0]):
+        row = mat[i]
+        spec = has_specular[row]
+        if own_s:
+            sm, ss = s_hits[0, i], s_hits[1, i]
+        else:
+            mu = wo[0, i] * ns[0, i] + wo[1, i] * ns[1, i] + wo[2, i] * ns[2, i]
+            sm = _table(s_metal, row, mu, points)
+            ss = _table(s_spec, row, mu, points) if spec else 0.0
+        for c in range(3):
+            mc = metal_colour[c, i]
+            a_m[c] = (dark_metal[c, i] if dark_m else 1.0) * (mc + (1.0 - mc) * sm)
+            sc = spec_colour[c, i]
+            a_s[c] = (dark_spec[c, i] if dark_s else 1.0) * (sc + (1.0 - sc) * ss) if spec else 0.0
+        m = _clip01(metallic[i])
+        w_metal = m if m > cutoff else 0.0
+        w_rest = 1.0 - m
+        w_rest = w_rest if w_rest > cutoff else 0.0
+        if transmits:
+            w_rest = w_rest * (1.0 - transmission[row])
+        w_spec = w_rest if spec else 0.0
+        w_diffuse = w_rest * _clip01(1.0 - _nan_max(_nan_max(a_s[0], a_s[1]), a_s[2]))
+        if off and glossy_off[i]:
+            w_metal, w_spec, w_diffuse = 0.0, 0.0, w_rest
+        w_out[0, i], w_out[1, i], w_out[2, i] = w_metal, w_spec, w_diffuse
+        s0 = w_metal * ((a_m[0] + a_m[1] + a_m[2]) / 3.0)
+        s1 = w_spec * ((a_s[0] + a_s[1] + a_s[2]) / 3.0)
+        s2 = w_diffuse * ((abs(colour[0, i]) + abs(colour[1, i]) + abs(colour[2, i])) / 3.0)
+        if normalise:
+            total = s0 + s1 + s2
+            if total > 0.0:
+                s0, s1, s2 = s0 / total, s1 / total, s2 / total
+            else:
+                s0, s1, s2 = 0.0, 0.0, 0.0
+        sample_out[0, i], sample_out[1, i], sample_out[2, i] = s0, s1, s2
+
+
+def lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
+                 has_specular, transmission, colour, glossy_off, cutoff, normalise):
+    """((w_metal, w_specular, w_diffuse) (N,) each, sample weights or probabilities (3, N)) of
+    principled.py lobe_weights: mat (N,) material ids, metallic (N,) the hits' metallic, wo and ns
+    (3, N) the view and the lobes' normal, s_metal and s_spec (M, points) the s(mu) tables, s_hits
+    (2, N) the hits' s of the metal and the specular lobe or None (read from the tables), metal_colour and spec_colour (3, N) the lobes' F0, dark_metal and
+    dark_spec (3, N) their darkening or None, has_specular (M,), transmission (M,) or None (no
+    transmission closure), colour (3, N), glossy_off (N,) or None, normalise: probabilities."""
+    count = len(mat)
+    w, sample = np.empty((3, count)), np.empty((3, count))
+    rows = np.ascontiguousarray
+    none = np.empty((0, 0))
+    _lobe_weights(rows(mat, dtype=np.int64), rows(metallic, dtype=np.float64), rows(wo), rows(ns), rows(s_metal).ravel(),
+                  rows(s_spec).ravel(), none if s_hits is None else rows(s_hits), rows(metal_colour), rows(spec_colour),
+                  none if dark_metal is None else rows(dark_metal), none if dark_spec is None else rows(dark_spec),
+                  has_specular, np.empty(0) if transmission is None else transmission, rows(colour),
+                  np.empty(0, dtype=np.bool_) if glossy_off is None else glossy_off, cutoff, s_metal.shape[1],
+                  normalise, w, sample)
+    return (w[0], w[1], w[2]), sample
 
 
 @jit
@@ -285,22 +445,24 @@ def base_pick(hits, u_lobe, u1, u2):
     return wi, flags, diffuse
 
 
-def layered_pick(hits, u_lobe, u1, u2):
-    """(wi (3, N) with the GGX directions of the coat, metal and specular picks, flags (N,) int8 (those
-    glossy, the rest diffuse: principled.py sets the pass-through's, the sheen's and the
-    transmission's), the choices (N,), where a GGX pick's pdf is not positive (N,) bool) at the
-    hits themselves (hits.layered)."""
+def layered_pick(hits, u_lobe, u1, u2, pass_flags):
+    """(wi (3, N) with the directions of the pass-through (-wo), coat, metal and specular picks, flags
+    (N,) int8 (pass_flags at the pass-through, principled.py PASS_LOBE; glossy; the rest diffuse:
+    principled.py sets the sheen's and the transmission's), the choices (N,), where a GGX pick's pdf
+    is not positive (N,) bool, how many hits picked each lobe (7,)) at the hits themselves
+    (hits.layered)."""
     count = hits.wo.shape[1]
     wi = np.empty((3, count))
     flags = np.empty(count, dtype=np.int8)
     choice = np.empty(count, dtype=np.int64)
     failed = np.empty(count, dtype=np.bool_)
+    counts = np.empty(7, dtype=np.int64)
     u_lobe, u1, u2 = (np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64), (count,)))
                       for a in (u_lobe, u1, u2))
     c = hits.coat
     _layered_pick(hits.wo, hits.x, hits.y, hits.n, hits.ax, hits.ay, c.x, c.y, c.n, c.ax, c.ay, hits.prob, u_lobe,
-                  u1, u2, wi, flags, choice, failed)
-    return wi, flags, choice, failed
+                  u1, u2, wi, flags, choice, failed, counts, int(pass_flags))
+    return wi, flags, choice, failed, counts
 
 
 def warm_up() -> None:
@@ -329,7 +491,16 @@ def warm_up() -> None:
                                  w=ones * 0.5, on=on)
     base_eval(hits, None, wo[::-1].copy())
     base_eval(hits, np.array([1, 0]), wo.copy())
-    layered_pick(hits, np.array([0.3, 0.9]), np.array([0.3, 0.6]), np.array([0.2, 0.9]))
+    wi, _, choice, failed, _ = layered_pick(hits, np.array([0.3, 0.9]), np.array([0.3, 0.6]), np.array([0.2, 0.9]), 50)
+    f_cos, pdf = base_eval(hits, None, wi)
+    sample_values(f_cos, pdf, choice, hits.prob[0], np.array([0.0, 0.5]), failed)
+    sample_values(f_cos, pdf)
+    diffuse_directions(np.array([1]), np.array([0.3, 0.6]), np.array([0.2, 0.9]), hits.n, wi, failed)
+    for dark, off in ((None, None), (ones, np.array([True, False]))):
+        for normalise in (False, True):
+            lobe_weights(np.array([0, 1]), np.array([0.5, 1.0]), wo, frame[2].copy(), ones * 0.5, ones * 0.25,
+                         None if dark is None else ones[:2] * 0.5, ones * 0.9, ones * 0.04, dark, dark, np.array([True, False]),
+                         None if dark is None else np.array([0.0, 0.5]), ones, off, 1e-5, normalise)
     layers = SimpleNamespace(sheen=ones * 0.1, coat=ones * 0.2, coat_albedo=np.array([0.1, 0.2]), base=ones * 0.5,
                              through=np.array([0.0, 0.5]))
     w = np.array([0.5, 0.25])

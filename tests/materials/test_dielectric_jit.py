@@ -291,3 +291,33 @@ def test_energy_scale_is_bit_identical():
     # Control: a tint 1 ulp darker is told apart.
     darker = calls[-1][:3] + (np.nextafter(calls[-1][3], -1.0),)
     assert not np.array_equal(dielectric_jit.energy_scale(*darker), original(*calls[-1]))
+
+
+def test_energy_scale_off_the_tables_is_nan_on_both_backends():
+    """A point off the albedo tables (a NaN roughness, mu or eta, an infinite eta: a NaN table
+    coordinate; NumPy's reads raised an IndexError there, numba's read out of bounds) gives NaN on
+    both, its tables not read; mu and roughness beyond [0, 1] (inf too) are clipped onto them and
+    read; -0.0 is 0.  Empty inputs give (3, 0).  Control: a kernel that read such a point at the
+    tables' edge instead (a finite scale) is told apart."""
+    require_compiled()
+    from engine.materials import dielectric, dielectric_jit
+    nan, inf = np.nan, np.inf
+    roughness = np.array([0.5, nan, 0.5, 0.5, 0.5, 0.5, 0.5, inf, -0.0, 0.5, 0.3])
+    mu = np.array([0.5, 0.5, nan, 0.5, 0.5, 0.5, inf, 0.5, 0.5, -inf, -0.0])
+    eta = np.array([1.5, 1.5, 1.5, nan, inf, -inf, 1.5, 1.5, 0.7, 0.7, 1.0])
+    tint = np.full((3, len(eta)), 0.8)
+    tint[:, 0] = nan, -0.0, inf
+    off = np.isnan(roughness) | np.isnan(mu) | ~np.isfinite(eta)
+    with np.errstate(invalid="ignore"):                                 # NumPy's inf / inf of the inf tint
+        a = dielectric.energy_scale(roughness, mu, eta, tint)
+    b = dielectric_jit.energy_scale(roughness, mu, eta, tint)
+    assert np.array_equal(a, b, equal_nan=True)
+    assert np.isnan(a[:, off]).all() and np.isfinite(a[:, ~off][:, 1:]).all() and np.isnan(a[0, 0])
+    empty = np.empty(0)
+    assert dielectric_jit.energy_scale(empty, empty, empty, np.empty((3, 0))).shape == (3, 0)
+    assert dielectric.energy_scale(empty, empty, empty, np.empty((3, 0))).shape == (3, 0)
+    # Control: the off points read at the tables' edge (roughness 0, mu 0, eta 1) are told apart.
+    with np.errstate(invalid="ignore"):
+        edge = dielectric.energy_scale(np.where(off, 0.0, roughness), np.where(off, 0.0, mu),
+                                       np.where(off, 1.0, eta), tint)
+    assert not np.array_equal(edge, b, equal_nan=True)

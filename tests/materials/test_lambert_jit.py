@@ -75,3 +75,54 @@ def test_control_a_last_bit_change_is_seen():
     wrong = type(compiled)(to_world(local, n), compiled.value, compiled.pdf, compiled.flags)
     assert np.allclose(wrong.wi, reference.wi, atol=1e-6)
     assert not same(reference, wrong)
+
+
+def at_hits(n, u1, u2, idx):
+    """(NumPy's directions and pdfs at the hits idx, lambert_jit.sample_at's, the rows sample_at left
+    alone) for the hits with shading normals n: what principled.py's diffuse picks draw."""
+    from engine.materials import lambert_jit
+    m = n.shape[1]
+    si = ShadingPoint(-n, n, n, n, np.ones((3, m)), np.zeros(m, np.int64)).take(idx)
+    reference = Lambertian([], RenderSettings()).sample(si, None, (u1.take(idx), u2.take(idx)))
+    wi = np.full((3, m), 7.0)
+    pdf = lambert_jit.sample_at(idx, u1, u2, n, wi)
+    untouched = np.delete(wi, idx, axis=1)
+    return reference, wi.take(idx, axis=1), pdf, untouched
+
+
+@pytest.mark.parametrize("scene", ["cornell", "caustic"])
+def test_sample_at_a_take_of_recorded_hits(scene):
+    """lambert_jit.sample_at (principled_jit.py's diffuse picks, written in place) on recorded hits:
+    NumPy's directions and pdfs at every other hit, the rest of wi untouched; on a slice of the
+    wavefront's rows too."""
+    require_compiled()
+    for n, u1, u2 in capture(scene, limit=4):
+        idx = np.arange(0, n.shape[1], 2)
+        for normals in (n, np.concatenate([n, n], axis=1)[:, n.shape[1]:]):
+            reference, wi, pdf, untouched = at_hits(normals, u1, u2, idx)
+            assert np.array_equal(reference.wi, wi) and np.array_equal(reference.pdf, pdf)
+            assert (untouched == 7.0).all()
+
+
+def test_sample_at_hand_made_hits():
+    """sample_at on the hand-made normals (z = 0, -0.0, +-1, NaN) and uniforms (near and at 1), on
+    an empty take, and a control: a normal 1 ulp off at one hit is told apart."""
+    require_compiled()
+    rng = np.random.default_rng(8)
+    n = rng.normal(size=(3, 100))
+    n /= np.linalg.norm(n, axis=0)
+    n[:, 0], n[:, 1], n[:, 2], n[:, 3], n[:, 4] = (1.0, 0.0, 0.0), (0.0, 1.0, -0.0), (0.0, 0.0, 1.0), (0.0, 0.0, -1.0), np.nan
+    n[2, 5:20], n[2, 20:30] = 0.0, -0.0
+    u1, u2 = rng.random(100), rng.random(100)
+    u1[30:35], u1[35:40], u2[40:45] = np.nextafter(1.0, 0.0), 1.0, 0.0
+    idx = np.flatnonzero(rng.random(100) < 0.7)
+    idx[:5] = np.arange(5)
+    reference, wi, pdf, _ = at_hits(n, u1, u2, idx)
+    assert np.array_equal(reference.wi, wi, equal_nan=True) and np.array_equal(reference.pdf, pdf, equal_nan=True)
+    assert np.isnan(wi[:, 4]).all()
+    reference, wi, pdf, untouched = at_hits(n, u1, u2, np.empty(0, dtype=np.int64))
+    assert wi.shape == (3, 0) and len(pdf) == 0 and (untouched == 7.0).all()
+    moved = n.copy()
+    moved[0, idx[10]] = np.nextafter(moved[0, idx[10]], 2.0)
+    reference = at_hits(n, u1, u2, idx)[0]
+    assert not np.array_equal(reference.wi, at_hits(moved, u1, u2, idx)[1])

@@ -9,8 +9,9 @@ the transmission closure (NumPy's lobe) added to them; a rough diffuse keeps the
 import numpy as np
 
 from engine.core.settings import RenderSettings
+from engine.materials.media import MEDIUM_STACK_DEPTH, MediumStack
 from engine.materials.principled import PrincipledV2
-from engine.materials.protocol import ShadingPoint
+from engine.materials.protocol import BSDFFlags, ShadingPoint
 from engine.scene.model import Material, Principled
 from tests.backend_capture import require_compiled
 
@@ -30,7 +31,7 @@ def _materials():
     return out
 
 
-def _hits(rng, m, count, extras=False):
+def _hits(rng, m, count, extras=False, media=None):
     n = rng.normal(size=(3, count))
     n /= np.linalg.norm(n, axis=0)
     wo = rng.normal(size=(3, count))
@@ -43,6 +44,7 @@ def _hits(rng, m, count, extras=False):
     if extras:
         si.alpha_floor = np.where(rng.random(count) < 0.5, 0.3, 0.0)
         si.glossy_off = rng.random(count) < 0.3
+    si.media = media                            # the paths' medium stacks (Nested Dielectrics), or None
     return si[0:count]                          # a span's view: takes of it read its memo
 
 
@@ -283,3 +285,216 @@ def test_sample_and_eval_on_takes_of_mixed_transmitting_hits():
     a = numpy_bsdf.sample(make_hits().take(idx), u_lobe.take(idx), (u[0].take(idx), u[1].take(idx)))
     b = compiled.sample(make_hits().take(idx[::-1]), u_lobe.take(idx), (u[0].take(idx), u[1].take(idx)))
     assert not np.array_equal(a.value, b.value)
+
+
+def test_takes_that_reorder_the_transmitting_hits_under_nested_dielectrics():
+    """Takes of exactly the transmitting hits in another order (as many hits as the transmission closure
+    was set up at, none of them where it was: its setup is read by their rows) and with repeats, of
+    paths in air and inside the glass (Nested Dielectrics): the compiled sample and eval equal NumPy's,
+    and so do the medium stacks the sample crossed.  Control: the setup read whole wherever the take
+    has as many transmitting hits as it (the shortcut the re-landed principled3 took) is told apart."""
+    require_compiled()
+    materials = _opaque_beside_transmitting()
+    count = 600
+    rng = np.random.default_rng(12)
+    inside = rng.random(count) < 0.5
+    ior = 1.0 + 0.5 * inside
+
+    def make_hits():
+        stacks = MediumStack(np.tile(ior[:, None], (1, MEDIUM_STACK_DEPTH)), inside.astype(np.int64))
+        return _hits(np.random.default_rng(4), len(materials), count, media=stacks)
+    transmitting = np.flatnonzero(make_hits().material >= 3)
+    u_lobe, u = rng.random(count), (rng.random(count), rng.random(count))
+    wi = rng.normal(size=(3, count))
+    wi /= np.linalg.norm(wi, axis=0)
+
+    def compare(numpy_bsdf, compiled, idx, filled):
+        """Whether the compiled sample and eval at the take idx equal NumPy's (stacks too)."""
+        uv = (u[0].take(idx), u[1].take(idx))
+        a_hits = make_hits().take(idx)
+        a = numpy_bsdf.sample(a_hits, u_lobe.take(idx), uv)
+        f_a, p_a = numpy_bsdf.eval(make_hits().take(idx), wi.take(idx, axis=1))
+        hits = make_hits()
+        if filled:                              # the span's values first, then the take reads them
+            hits.memo((compiled, "fused"), compiled._fused_hits)
+        b_hits = hits.take(idx)
+        b = compiled.sample(b_hits, u_lobe.take(idx), uv)
+        f_b, p_b = compiled.eval(make_hits().take(idx), wi.take(idx, axis=1))
+        same = [np.array_equal(x, y) for x, y in ((a.wi, b.wi), (a.value, b.value), (a.pdf, b.pdf),
+                                                   (a.flags, b.flags), (f_a, f_b), (p_a, p_b),
+                                                   (a_hits.media.media, b_hits.media.media),
+                                                   (a_hits.media.depth, b_hits.media.depth))]
+        return all(same), a
+    numpy_bsdf, compiled = _pair(materials)
+    crossed = 0
+    for idx in (transmitting[::-1].copy(), np.roll(transmitting, 7), np.repeat(transmitting[::2], 2)):
+        for filled in (False, True):
+            same, a = compare(numpy_bsdf, compiled, idx, filled)
+            assert same
+            crossed += int(((a.flags & BSDFFlags.TRANSMISSION) != 0).sum())
+    assert crossed > 300
+    # Control: the setup read whole where as many hits transmit as it was set up at.
+    glass_rows = compiled._glass_rows
+    compiled._glass_rows = lambda glass, at: (glass.setup if len(at) == len(glass.setup) else glass_rows(glass, at))
+    assert not compare(numpy_bsdf, compiled, transmitting[::-1].copy(), True)[0]
+
+
+def _principled_cornell():
+    """The built-in Cornell box in Principled materials, as sample_blends/principled.blend builds it
+    (diffuse walls, the mirror a metal, the glass transmitting), the blue block coated with a sheen
+    and the red wall's specular at its IOR level 0.5."""
+    from dataclasses import replace
+    from engine.scene.builtin import BUILTIN_SCENES
+    scene = BUILTIN_SCENES["cornell"]((16, 16))
+    extra = {"Mirror": dict(metallic=1.0), "Glass": dict(transmission_weight=1.0),
+             "Blue": dict(coat_weight=0.6, sheen_weight=0.5), "Red": dict(specular_ior_level=0.5)}
+    rough = {"Mirror": 0.05, "Glass": 0.1}
+    scene.materials = [replace(m, kind="principled", roughness=rough.get(m.name, 0.5), ior=1.5,
+                               principled=Principled(**{"specular_ior_level": 0.0, **extra.get(m.name, {})}))
+                       for m in scene.materials]
+    return scene
+
+
+def _recorded_principled_hits(limit=6):
+    """[(ShadingPoint fields, u_lobe, u1, u2)] of PrincipledV2.sample in a 16 x 16, 2 spp NumPy render
+    of _principled_cornell."""
+    from engine import api
+    calls, original = [], PrincipledV2.sample
+
+    def recording(self, si, u_lobe, u):
+        if len(calls) < limit:
+            calls.append(([np.array(getattr(si, f)) for f in ("wo", "n", "ng", "normal", "color", "material")],
+                          np.array(u_lobe), u[0].copy(), u[1].copy()))
+        return original(self, si, u_lobe, u)
+    PrincipledV2.sample = recording
+    try:
+        scene = _principled_cornell()
+        api.render(scene, RenderSettings(samples=2, threads=1, backend="numpy"), log=lambda m: None)
+    finally:
+        PrincipledV2.sample = original
+    return scene, calls
+
+
+def test_recorded_hits_are_bit_identical():
+    """On the hits of a real render (a Principled Cornell box with a metal, a glass, a coat and a
+    sheen): sample, eval at the sampled directions and at a take, lobe_weights, the same bits as
+    backend=numpy.  Control: the compiled glass's setup read one hit off is told apart."""
+    require_compiled()
+    scene, calls = _recorded_principled_hits()
+    assert len(calls) >= 4
+    numpy_bsdf, compiled = _pair(scene.materials)
+    picked = set()
+    for fields, u_lobe, u1, u2 in calls:
+        def make_hits():
+            return ShadingPoint(*(a.copy() for a in fields))[0:len(u1)]
+        a, b = numpy_bsdf.sample(make_hits(), u_lobe, (u1, u2)), compiled.sample(make_hits(), u_lobe, (u1, u2))
+        for x, y in ((a.wi, b.wi), (a.value, b.value), (a.pdf, b.pdf), (a.flags, b.flags)):
+            assert np.array_equal(x, y)
+        picked |= set(np.unique(a.flags).tolist())
+        f_a, p_a = numpy_bsdf.eval(make_hits(), a.wi)
+        assert all(np.array_equal(x, y) for x, y in zip((f_a, p_a), compiled.eval(make_hits(), a.wi)))
+        idx = np.arange(0, len(u1), 3)
+        f_a, p_a = numpy_bsdf.eval(make_hits().take(idx), a.wi.take(idx, axis=1))
+        hits = make_hits()
+        hits.memo((compiled, "fused"), compiled._fused_hits)
+        f_b, p_b = compiled.eval(hits.take(idx), a.wi.take(idx, axis=1))
+        assert np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
+    assert len(picked) >= 4                                         # diffuse, glossy, sheen, the glass's
+    # Control: the transmission closure's setup read one hit off (its rows rolled).
+    fields, u_lobe, u1, u2 = max(calls, key=lambda c: (c[0][5] == 5).sum())      # the most glass hits
+    other = _pair(scene.materials)[1]
+    glass_rows = other._glass_rows
+    other._glass_rows = lambda glass, at: glass_rows(glass, np.roll(at, 1))
+    wi = compiled.sample(ShadingPoint(*(a.copy() for a in fields)), u_lobe, (u1, u2)).wi
+    idx = np.arange(len(u1))[::-1].copy()             # the light samples' take: the setup read by index
+    f_cos = []
+    for bsdf in (compiled, other):
+        hits = ShadingPoint(*(a.copy() for a in fields))[0:len(u1)]
+        hits.memo((bsdf, "fused"), bsdf._fused_hits)
+        f_cos.append(bsdf.eval(hits.take(idx), wi.take(idx, axis=1))[0])
+    assert not np.array_equal(*f_cos)
+
+
+def test_lobe_weights_at_edge_inputs():
+    """The compiled lobe_weights (principled_jit.py) against NumPy's on colours NaN, inf, -0.0, 0 and
+    above 1, metallic 0 and 1, Reflective Caustics off, with and without a transmission closure and
+    compensation, and on no hits at all; control: an s(mu) table 1 ulp off is told apart."""
+    require_compiled()
+    for materials in (_materials(), _transmitting_materials()):
+        numpy_bsdf, compiled = _pair(materials)
+        for count in (0, 600):
+            si = _hits(np.random.default_rng(31), len(materials), max(count, 100), extras=True)
+            if count == 0:
+                si = si.take(np.empty(0, dtype=np.int64))
+            else:
+                si.color[0, :20], si.color[1, 20:40], si.color[2, 40:60] = np.nan, np.inf, -np.inf
+                si.color[:, 60:80], si.color[:, 80:90] = -0.0, 0.0
+            for total in (False, True):
+                with np.errstate(invalid="ignore"):             # NumPy's NaN colours
+                    (wa, pa), (wb, pb) = numpy_bsdf.lobe_weights(si, total), compiled.lobe_weights(si, total)
+                assert all(_same(x, y) for x, y in zip((*wa, pa), (*wb, pb)))
+                assert count == 0 or (np.isnan(pa).any() and (pa > 0).sum() > 200)
+    si = _hits(np.random.default_rng(31), len(materials), 600)
+    compiled.s_metal = np.nextafter(compiled.s_metal, 2.0)
+    assert not np.array_equal(numpy_bsdf.lobe_weights(si, True)[1], compiled.lobe_weights(si, True)[1])
+
+
+def _same(x, y) -> bool:
+    """The same numbers, NaN where NaN, and the same signs (of zeros too)."""
+    return np.array_equal(x, y, equal_nan=True) and np.array_equal(np.signbit(x), np.signbit(y))
+
+
+def test_sample_values_at_edge_inputs():
+    """principled_jit.sample_values against the lines of principled.py _layered_sample it replaces,
+    on f cos NaN, inf, -inf and -0.0, pdfs 0, -0.0, NaN and tiny, pass-throughs of probability 0,
+    failed samples, and no hits; control: a pdf 1 ulp off is told apart."""
+    require_compiled()
+    from engine.materials import principled_jit
+    rng = np.random.default_rng(41)
+
+    def numpy_values(f_cos, pdf, choice, p_through, w_through, failed):
+        through = np.flatnonzero(choice == 0)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            value = np.where(pdf > 0.0, f_cos / pdf, 0.0)
+            value[:, through] = np.where(p_through[through] > 0.0, w_through[through] / p_through[through], 0.0)
+        pdf = pdf.copy()
+        pdf[through] = p_through[through]
+        value[:, failed], pdf[failed] = 0.0, 0.0
+        return np.nan_to_num(value), pdf
+
+    for count in (0, 500):
+        f_cos, pdf = rng.normal(size=(3, count)), rng.random(count)
+        f_cos[0, :10], f_cos[1, 10:20], f_cos[2, 20:30], f_cos[:, 30:40] = np.nan, np.inf, -np.inf, -0.0
+        pdf[40:50], pdf[50:60], pdf[60:70], pdf[70:80] = 0.0, -0.0, np.nan, 1e-320
+        choice, failed = rng.integers(0, 7, count), rng.random(count) < 0.1
+        p_through, w_through = rng.random(count), rng.random(count)
+        p_through[:count // 10] = 0.0
+        expected = numpy_values(f_cos, pdf, choice, p_through, w_through, failed)
+        got = principled_jit.sample_values(f_cos.copy(), pdf.copy(), choice, p_through, w_through, failed)
+        assert all(_same(x, y) for x, y in zip(expected, got))
+        base = numpy_values(f_cos, pdf, np.ones(count, int), p_through, w_through, np.zeros(count, bool))
+        assert all(_same(x, y) for x, y in zip(base, principled_jit.sample_values(f_cos.copy(), pdf.copy())))
+    pdf[100] = np.nextafter(pdf[100], 2.0)
+    assert not np.array_equal(expected[0], principled_jit.sample_values(f_cos.copy(), pdf.copy(), choice, p_through,
+                                                                        w_through, failed)[0])
+
+
+def test_textured_roughness_renders_the_same_bits():
+    """A Principled plate whose roughness and metallic are read from a texture (lobe_weights with the
+    hits' own s(mu), principled.py _textured_s) rendered on both backends: the same image bit for
+    bit (float32 pixels).  Control: the compiled render of the plate 1e-6 more metallic is another image."""
+    require_compiled()
+    import dataclasses
+    from engine import render
+    from tests.materials.test_input_textures import SLOT, half_texture, plate_scene, principled
+    material = dataclasses.replace(principled(roughness=0.5, metallic=0.3, color=(0.9, 0.6, 0.2)),
+                                   input_textures={"roughness": SLOT})
+    settings = RenderSettings(samples=4, seed=3, threads=1, parallelism="threads")
+
+    def image(m, backend):
+        scene = plate_scene([m], [half_texture(0.2, 0.8)], split=False)
+        return render(scene, dataclasses.replace(settings, backend=backend), log=lambda *a: None).image
+    reference = image(material, "numpy")
+    assert reference.mean() > 0.01 and np.array_equal(reference, image(material, "numba"))
+    more = dataclasses.replace(material, principled=Principled(metallic=0.3 + 1e-6))
+    assert not np.array_equal(reference, image(more, "numba"))
