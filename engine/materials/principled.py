@@ -704,7 +704,7 @@ class PrincipledV2(BSDF):
             rows = np.full(len(at), -1, dtype=np.int64)
             rows[idx] = np.arange(len(idx))
             setup = None if not len(idx) else self.glass.setup(at if len(idx) == len(at) else at.take(idx))
-            if len(idx) == len(at):
+            if setup is not None and len(idx) == len(at):
                 sample_weight = self.glass.sample_weight_at(setup)
             else:
                 sample_weight = np.zeros(len(at))
@@ -716,8 +716,8 @@ class PrincipledV2(BSDF):
     @staticmethod
     def _glass_rows(glass: SimpleNamespace, at: np.ndarray):
         """The setup of `_glass_setup` (`glass`, of these hits or gathered for a take of them) at the
-        hits `at`, or None where one of them has none (w 0: the transmission closure picked by
-        rounding, see _compiled_layered_sample): the setup itself where `at` are the hits it was set
+        hits `at`, or None where one of them has none (w 0: a hit whose lobe pick lands on the
+        transmission closure only by the rounding of its probabilities): the setup itself where `at` are the hits it was set
         up at, in order; else its rows read (GlassSetup.at)."""
         if glass.setup is None:
             return None

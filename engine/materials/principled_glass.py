@@ -58,7 +58,7 @@ def _f0(ior):
 @dataclass
 class GlassSetup:
     """The closure's values at some hits, which depend on the hits and not on wi (`PrincipledGlass.setup`):
-    material ids mat, eta and entering (refraction_eta), the frame (x, y, n) on the specular normal,
+    eta and entering (refraction_eta), the frame (x, y, n) on the specular normal,
     F0 f0 and the transmission tint (3, N), wo in that frame (3, N), alpha, the compensation scale
     (3, N) or None, and where the interface is index-matched.
 
@@ -66,7 +66,6 @@ class GlassSetup:
     set up at the transmitting hits only) keeps it whole on a take of the hits (protocol.py take_hits
     gathers arrays, tuples, lists and namespaces, and returns anything else as it is), while the
     value's per-hit rows into it are gathered; `at` reads it at those rows."""
-    mat: np.ndarray
     eta: np.ndarray
     entering: np.ndarray
     frame: tuple
@@ -112,7 +111,7 @@ class PrincipledGlass:
         frame = (*(shading_frame(n) if self.lobe.compiled is None else self.lobe.compiled.frame(n)), n)
         tint = np.sqrt(np.clip(si.color, 0.0, 1.0))
         wo = to_local(si.wo, *frame)
-        return GlassSetup(mat=mat, eta=eta, entering=entering, frame=frame, f0=self.f0.take(mat, axis=1), tint=tint,
+        return GlassSetup(eta=eta, entering=entering, frame=frame, f0=self.f0.take(mat, axis=1), tint=tint,
                           wo=wo, alpha=self._alpha(si, mat), scale=self._scale(mat, wo[2], eta, tint),
                           matched=np.abs(eta - 1.0) < INDEX_MATCHED)
 

@@ -498,3 +498,24 @@ def test_textured_roughness_renders_the_same_bits():
     assert reference.mean() > 0.01 and np.array_equal(reference, image(material, "numba"))
     more = dataclasses.replace(material, principled=Principled(metallic=0.3 + 1e-6))
     assert not np.array_equal(reference, image(more, "numba"))
+
+
+def _no_hits(span: bool) -> ShadingPoint:
+    z = np.zeros((3, 0))
+    si = ShadingPoint(z, z.copy(), z.copy(), z.copy(), z.copy(), np.zeros(0, np.int64))
+    return si[0:0] if span else si
+
+
+def test_sample_and_eval_of_no_hits_with_a_transmitting_material():
+    """No hits at all (a ShadingPoint of none, or an empty span of one) under a material set with a
+    transmission closure: both backends return empty results.  (The re-landed compiled path first
+    asked the closure's albedo estimate of a setup that was never made: AttributeError on numba;
+    found by review of the principled4 merge.)"""
+    require_compiled()
+    numpy_bsdf, compiled = _pair(_opaque_beside_transmitting())
+    for bsdf in (numpy_bsdf, compiled):
+        for span in (False, True):
+            f, pdf = bsdf.eval(_no_hits(span), np.zeros((3, 0)))
+            assert f.shape == (3, 0) and pdf.shape == (0,)
+            s = bsdf.sample(_no_hits(span), np.zeros(0), (np.zeros(0), np.zeros(0)))
+            assert s.value.shape == (3, 0) and s.wi.shape == (3, 0)
