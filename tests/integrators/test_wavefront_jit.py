@@ -13,6 +13,7 @@ import pytest
 from engine import api
 from engine.core.settings import RenderSettings
 from engine.integrators import path_tracer
+from engine.integrators.light_paths import LightPaths
 from engine.scene.builtin import BUILTIN_SCENES
 from tests.backend_capture import recorded, require_compiled
 
@@ -91,10 +92,7 @@ def test_a_render_with_a_direct_light_slightly_off_differs():
     def off(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=None):
         return wavefront_jit.lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo * (1.0 + 2.0 ** -20),
                                            into)
-    wrong = SimpleNamespace(next_rays=wavefront_jit.next_rays, light_tests=wavefront_jit.light_tests, lambert_light=off,
-                            scatter_tail=wavefront_jit.scatter_tail, roulette=wavefront_jit.roulette,
-                            emitter_lights=wavefront_jit.emitter_lights, add_emission=wavefront_jit.add_emission,
-                            survivors=wavefront_jit.survivors, take=wavefront_jit.take)
+    wrong = SimpleNamespace(**dict(vars(wavefront_jit), lambert_light=off))
     assert not np.array_equal(render_with("cornell", None, 16), render_with("cornell", wrong, 16))
 
 
@@ -136,16 +134,32 @@ def test_recorded_direct_light_calls_are_bit_identical(scene):
             # hits' columns, the same as NumPy's; control: beta an ulp off.
             m = reference.shape[1]
             start, beta = rng.random((3, m + 7)), rng.random((3, m + 7))
+            bounce = rng.integers(0, 2, m + 7).astype(np.int32)
             expected = start.copy()
             expected[:, 5:5 + m] += beta[:, 5:5 + m] * reference
             radiance, off = start.copy(), start.copy()
-            assert original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5))) is None
+            assert original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5, bounce, None))) is None
             assert np.array_equal(radiance, expected)
-            original(tracer, *args, **dict(kwargs, into=(off, np.nextafter(beta, 2.0), 5)))
+            original(tracer, *args, **dict(kwargs, into=(off, np.nextafter(beta, 2.0), 5, bounce, None)))
             assert not np.array_equal(off, expected)
+            # Clamped (Light Paths' clamp: PathTracer.bounce's NumPy lines), Clamp Direct at bounce 0 only;
+            # limits at the light's quantiles, so that some of both kinds are clamped and some are not.
+            light = beta[:, 5:5 + m] * reference
+            limits = tuple(float(np.quantile(np.abs(light).sum(axis=0), q)) / 3.0 for q in (0.5, 0.8))
+            expected = start.copy()
+            expected[:, 5:5 + m] += LightPaths.clamp(SimpleNamespace(clamping=True, limit_direct=limits[0],
+                                                                     limit_indirect=limits[1]),
+                                                     light, bounce[5:5 + m] == 0)
+            assert not np.array_equal(expected[:, 5:5 + m], start[:, 5:5 + m] + light)
+            radiance = start.copy()
+            original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5, bounce, limits)))
+            assert np.array_equal(radiance, expected)
+            radiance = start.copy()         # control: Clamp Direct up to bounce 1 (the emission's) differs
+            original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5, bounce - 1, limits)))
+            assert not np.array_equal(radiance, expected)
     finally:
         session.PathTracer.lambert_direct_light = lambert
-    assert len(fused) == 3 * min(len(calls), 6)        # the compiled case ran every time
+    assert len(fused) == 5 * min(len(calls), 6)        # the compiled case ran every time
 
 
 def capture_scatters(scene_name, limit=6):
@@ -272,12 +286,14 @@ def test_cosine_pdf_is_the_lambertians_pdf_of_the_cosine_the_kernel_has():
     assert not np.array_equal(np.nextafter(pdf, 1.0)[kept], cos_x[kept] * (1.0 / np.pi))
 
 
-@pytest.mark.parametrize("scene,estimator", [("cornell", "mis"), ("cornell", "report"), ("many_lights", "mis"),
-                                             ("near_lamp", "mis")])
-def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
+@pytest.mark.parametrize("scene,estimator,clamp", [("cornell", "mis", None), ("cornell", "report", None),
+                                                   ("many_lights", "mis", None), ("near_lamp", "mis", None),
+                                                   ("cornell", "mis", (1.0, 0.001)), ("many_lights", "mis", (1.0, 0.001))])
+def test_recorded_emissions_are_bit_identical(scene, estimator, clamp, monkeypatch):
     """PathTracer.emission on deep copies of the calls of a real render, with NumPy's weights and sum and
-    with this module's (emitter_lights, add_emission): the same radiance bit for bit; controls: a MIS
-    weight or an emission 2^-40 off, or every weight 1, differ."""
+    with this module's (emitter_lights, add_emission): the same radiance bit for bit, with Light Paths'
+    clamp too; controls: a MIS weight or an emission 2^-40 off, every weight 1, or (clamp) no clamping or
+    Clamp Direct for every bounce, differ."""
     require_compiled()
     from engine.integrators import wavefront_jit
     calls, original = [], path_tracer.PathTracer.emission
@@ -287,10 +303,11 @@ def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
             calls.append((self, copy.deepcopy(args)))
         return original(self, *args)
     monkeypatch.setattr(path_tracer.PathTracer, "emission", recording)
+    clamps = {} if clamp is None else dict(clamp_direct=clamp[0], clamp_indirect=clamp[1])
     api.render(BUILTIN_SCENES[scene]((16, 16)), RenderSettings(samples=4, threads=1, backend="numpy",
-                                                               estimator=estimator), log=lambda m: None)
+                                                               estimator=estimator, **clamps), log=lambda m: None)
     monkeypatch.setattr(path_tracer.PathTracer, "emission", original)
-    assert len(calls) >= 4
+    assert len(calls) >= 4 and (calls[0][0].clamp_limits == clamp)
 
     def radiance(tracer, args, jit):
         p, *rest = copy.deepcopy(args)
@@ -298,16 +315,23 @@ def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
         original(tracer, p, *rest)
         return p.radiance
 
-    def mis_off(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n):
-        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light * (1.0 + 2.0 ** -40), mode, n)
+    def mis_off(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n, *rest):
+        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light * (1.0 + 2.0 ** -40), mode, n,
+                                   *rest)
 
     def le_off(radiance_, beta, idx, le, *rest):
         wavefront_jit.add_emission(radiance_, beta, idx, le * (1.0 + 2.0 ** -40), *rest)
 
-    def weight_one(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n):
-        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light, 0, n)
+    def weight_one(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n, *rest):
+        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light, 0, n, *rest)
+
+    def unclamped(*args):
+        wavefront_jit.add_emission(*args[:-1], None)
+
+    def all_direct(*args):
+        wavefront_jit.add_emission(*args[:-2], np.zeros_like(args[-2]), args[-1])
     controls = [SimpleNamespace(emitter_lights=wavefront_jit.emitter_lights, add_emission=f)
-                for f in (mis_off, le_off, weight_one)]
+                for f in (mis_off, le_off, weight_one, unclamped, all_direct)]
     differs = [False] * len(controls)
     for tracer, args in calls:
         reference, compiled = radiance(tracer, args, None), radiance(tracer, args, wavefront_jit)
@@ -315,6 +339,7 @@ def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
         for k, control in enumerate(controls):
             differs[k] |= not np.array_equal(reference, radiance(tracer, args, control), equal_nan=True)
     assert differs[1] and differs[2] and (differs[0] or estimator != "mis")    # p_light is read under MIS only
+    assert differs[3] == differs[4] == (clamp is not None)
 
 
 def test_read_only_inputs_need_no_compilation_after_warm_up():
