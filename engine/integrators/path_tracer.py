@@ -165,6 +165,16 @@ def next_rays(keep, point, side, offset, facing, new_d, beta):
             new_d.take(keep, axis=1), beta.take(keep, axis=1))
 
 
+def filled(buffer: np.ndarray, a) -> np.ndarray:
+    """`buffer` filled with a, or a itself where it already is such an array (C-contiguous, of the
+    buffer's shape and dtype): PathTracer.scatter's rows when one BSDF samples every hit (read only
+    after, so the BSDF's own arrays can stand for the copies)."""
+    if isinstance(a, np.ndarray) and a.dtype == buffer.dtype and a.shape == buffer.shape and a.flags.c_contiguous:
+        return a
+    buffer[...] = a
+    return buffer
+
+
 def group_of(spans, n) -> np.ndarray:
     """(n,) the scatter group of each of the first n paths, from the groups' slices."""
     return np.repeat(np.arange(len(spans)), [span.stop - span.start for span in spans])[:n]
@@ -342,6 +352,8 @@ class PathTracer:
         smooth = surf.shading is not surf.normal
         if surf.facing is not None and not smooth:      # computed with the points (the same numbers)
             facing = shade = surf.facing
+        elif smooth and self.wavefront_jit is not None:  # the lines below in one loop
+            facing, shade = self.wavefront_jit.facing(p.d, surf.normal, surf.shading)
         else:
             towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
             facing = surf.normal * towards                                  # towards the ray
@@ -767,7 +779,10 @@ class PathTracer:
             if span.stop == span.start:
                 continue
             s = self.bsdfs[g].sample(si[span], u_lobe[span], u_dir[g])
-            new_d[:, span], value[:, span], flags[span] = s.wi, s.value, s.flags
+            if span.stop - span.start == alive:      # one BSDF for all: its arrays, not copies
+                new_d, value, flags = filled(new_d, s.wi), filled(value, s.value), filled(flags, s.flags)
+            else:
+                new_d[:, span], value[:, span], flags[span] = s.wi, s.value, s.flags
             part = self.bsdfs[g].diffuse_part(si[span], s.wi) if normals else None
             if part is not None:
                 if split is None:

@@ -509,6 +509,25 @@ NO_PDF = np.zeros(0)
 
 
 @jit
+def _facing(d, normal, shading, facing, shade):
+    for i in range(d.shape[1]):
+        towards = 1.0 if d[0, i] * normal[0, i] + d[1, i] * normal[1, i] + d[2, i] * normal[2, i] < 0.0 else -1.0
+        for c in range(3):
+            facing[c, i] = normal[c, i] * towards
+            shade[c, i] = shading[c, i] * towards
+
+
+def facing(d, normal, shading):
+    """(facing, shade) of PathTracer.bounce under smooth shading: the geometric normals (3, N) and the
+    shading normals turned towards the rays d, each by the side of the ray the geometric one is on."""
+    n = normal.shape[1]
+    towards_rays, shade = np.empty((3, n)), np.empty((3, n))
+    _facing(read_only(np.ascontiguousarray(d[:, :n], np.float64)), read_only(np.ascontiguousarray(normal, np.float64)),
+            read_only(np.ascontiguousarray(shading, np.float64)), towards_rays, shade)
+    return towards_rays, shade
+
+
+@jit
 def _count_bounces(counts, flags):
     for i in range(flags.shape[0]):
         f = flags[i]
@@ -575,12 +594,13 @@ def _take_1d(a, index, out):
 
 # The path state's 1-D dtypes (Paths: pixel and sample int64, bounce int32, ray_kind int8, flags bool, pdfs)
 TAKE_DTYPES = tuple(np.dtype(t) for t in (np.float64, np.int64, np.int32, np.int8, np.bool_))
+TAKE_ROW_DTYPES = (np.dtype(np.float64), np.dtype(np.int32))     # its rows: vectors, the bounce counts
 
 
 def take(arrays, index):
     """[a.take(index, axis=axis) for a, axis in arrays] of path-state arrays: compiled for C-contiguous
-    float64 rows (axis 1) and 1-D arrays of TAKE_DTYPES with int64 indices in range (what Paths.take
-    passes; NumPy's take for anything else)."""
+    rows (axis 1) of TAKE_ROW_DTYPES and 1-D arrays of TAKE_DTYPES with int64 indices in range (what
+    Paths.take passes; NumPy's take for anything else)."""
     index = np.asarray(index)
     compiled = index.dtype == np.int64 and index.ndim == 1
     if compiled:
@@ -588,8 +608,8 @@ def take(arrays, index):
     out = []
     for a, axis in arrays:
         if compiled and a.flags.c_contiguous:
-            if a.ndim == 2 and axis == 1 and a.dtype == np.float64:
-                rows = np.empty((a.shape[0], index.shape[0]))
+            if a.ndim == 2 and axis == 1 and a.dtype in TAKE_ROW_DTYPES:
+                rows = np.empty((a.shape[0], index.shape[0]), a.dtype)
                 _take_rows(read_only(a), index, rows)
                 out.append(rows)
                 continue
@@ -629,6 +649,7 @@ def warm_up() -> None:
                 background_light(rows, rows, idx, le, delta, np.ones(3), sampled(idx, delta), np.ones(1), mode, 1,
                                  np.zeros(3, np.int32), clamp)
     count_bounces(np.zeros((4, 3), np.int32), flags)
+    facing(rows, rows, rows)
     for counts, rr_after in ((None, None), (np.zeros((4, 3), np.int32), np.ones(3))):
         final_groups(np.zeros(3, np.int32), 8, True, counts, None if counts is None else np.ones(4, np.int64),
                      rr_after, 3)
@@ -638,4 +659,5 @@ def warm_up() -> None:
     for ng in (None, rows):
         survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3, rows,
                   None, np.ones(3), rows, rows, (flags, np.zeros(3, np.int8), rows, ng))
-    take([(rows, 1)] + [(np.zeros(3, dtype), 0) for dtype in TAKE_DTYPES], idx)
+    take([(np.zeros((3, 3), dtype), 1) for dtype in TAKE_ROW_DTYPES] + [(np.zeros(3, dtype), 0) for dtype in TAKE_DTYPES],
+         idx)
