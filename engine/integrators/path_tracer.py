@@ -175,6 +175,14 @@ def filled(buffer: np.ndarray, a) -> np.ndarray:
     return buffer
 
 
+def facing_normals(d, normal, shading):
+    """(facing, shade) of hits under smooth shading: the geometric normals (3, N) turned towards the rays
+    d, and the shading normals on the geometric normal's side of the ray (shading only; offsets and side
+    tests keep `facing`).  (The same in one loop: engine/integrators/wavefront_jit.py facing.)"""
+    towards = np.where(dot(d, normal) < 0.0, 1.0, -1.0)
+    return normal * towards, shading * towards
+
+
 def group_of(spans, n) -> np.ndarray:
     """(n,) the scatter group of each of the first n paths, from the groups' slices."""
     return np.repeat(np.arange(len(spans)), [span.stop - span.start for span in spans])[:n]
@@ -352,14 +360,11 @@ class PathTracer:
         smooth = surf.shading is not surf.normal
         if surf.facing is not None and not smooth:      # computed with the points (the same numbers)
             facing = shade = surf.facing
-        elif smooth and self.wavefront_jit is not None:  # the lines below in one loop
-            facing, shade = self.wavefront_jit.facing(p.d, surf.normal, surf.shading)
-        else:
-            towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
-            facing = surf.normal * towards                                  # towards the ray
-            # Smooth shading: the shading normal on the geometric normal's side of the ray (shading
-            # only; offsets and side tests keep `facing`).  Flat-only scenes: the same array.
-            shade = surf.shading * towards if smooth else facing
+        elif smooth:
+            facing, shade = (facing_normals if self.wavefront_jit is None else self.wavefront_jit.facing)(
+                p.d, surf.normal, surf.shading)
+        else:                               # flat-only scenes: the same array
+            facing = shade = surf.normal * np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
         if lookup is not None and lookup.has_normals:       # a BSDF's Normal input (Normal Map, Bump)
             shade = lookup.normal(shade, surf.material, facing, -p.d, self.mats.raised_normal)
             smooth = True

@@ -11,9 +11,16 @@
   input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
   the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
   (`lambert_light`), one loop each instead of some twenty NumPy passes;
-* the emission a ray reaches (`PathTracer.emission` and `emission_weight` without Light Paths options,
-  caustic photons or textures): the emitters' light numbers (`emitter_lights`) and the MIS-weighted
-  sum into the radiance (`add_emission`), two loops instead of some thirty NumPy calls on a few rays;
+* the emission a ray reaches (`PathTracer.emission` and `emission_weight` without caustic photons):
+  the emitters' light numbers (`emitter_lights`) and the MIS-weighted sum into the radiance
+  (`add_emission`), two loops instead of some thirty NumPy calls on a few rays; the background the rays
+  that leave the scene see (`PathTracer.misses` on an opaque film, `background_light`) in the same loop,
+  around the world's pdf;
+* Light Paths' clamp (engine/integrators/light_paths.py clamp_contribution) inside those sums and the
+  Lambertian direct light's (`_clamp_scale`), the bounce counts per type (`count_bounces`) and the rays
+  whose next hit only emits (`final_groups`: the depth limit, a type past its limit, the deferred
+  roulette), one loop each instead of some five NumPy passes each;
+* the facing and shading normals of smooth-shaded hits (`facing`: path_tracer.facing_normals);
 * the gathers of the path state (`take`: `Paths.take`'s fields, twice a bounce): a plain loop per row,
   which costs 0.55-0.75x NumPy 1.26's `take` (its per-element index checks) on the same indices.
 
@@ -510,7 +517,7 @@ NO_PDF = np.zeros(0)
 
 @jit
 def _facing(d, normal, shading, facing, shade):
-    for i in range(d.shape[1]):
+    for i in range(facing.shape[1]):
         towards = 1.0 if d[0, i] * normal[0, i] + d[1, i] * normal[1, i] + d[2, i] * normal[2, i] < 0.0 else -1.0
         for c in range(3):
             facing[c, i] = normal[c, i] * towards
@@ -518,11 +525,11 @@ def _facing(d, normal, shading, facing, shade):
 
 
 def facing(d, normal, shading):
-    """(facing, shade) of PathTracer.bounce under smooth shading: the geometric normals (3, N) and the
-    shading normals turned towards the rays d, each by the side of the ray the geometric one is on."""
+    """path_tracer.facing_normals(d, normal, shading): the geometric normals (3, N) and the shading normals
+    turned towards the rays d, both by the side of the ray the geometric one is on."""
     n = normal.shape[1]
     towards_rays, shade = np.empty((3, n)), np.empty((3, n))
-    _facing(read_only(np.ascontiguousarray(d[:, :n], np.float64)), read_only(np.ascontiguousarray(normal, np.float64)),
+    _facing(read_only(np.ascontiguousarray(d, np.float64)), read_only(np.ascontiguousarray(normal, np.float64)),
             read_only(np.ascontiguousarray(shading, np.float64)), towards_rays, shade)
     return towards_rays, shade
 
