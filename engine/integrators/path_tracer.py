@@ -69,6 +69,11 @@ WAVEFRONT_SIZE = 1 << 16       # paths advanced together: 65536 measured 0.89-0.
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
 
 
+# The lobe flags as plain ints for arrays of flags (`flags & BSDFFlags.DELTA` converts the enum member
+# on every call)
+TRANSMISSION_LOBE, DIFFUSE_LOBE, DELTA_LOBE, STRAIGHT_LOBE = (int(f) for f in (
+    BSDFFlags.TRANSMISSION, BSDFFlags.DIFFUSE, BSDFFlags.DELTA, BSDFFlags.STRAIGHT))
+
 VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n", "f_thru", "counts")
 CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = 0, 1, 2, 3   # LightPolygons.RAY_KINDS
 # Dimension pairs of the sampler (engine/sampling/qmc.py): 0 is the camera jitter (engine/scene/camera_rays.py);
@@ -666,9 +671,9 @@ class PathTracer:
         and pass_glossy_weight, set at bounce 0): diffuse lobes (translucent too) -> diffuse, other
         reflections -> glossy, other transmissions -> transmission (engine/film/passes.py LIGHT)."""
         alive = len(flags)
-        new = (p.lobe[:alive] < 0) & ((flags & BSDFFlags.STRAIGHT) == 0)
+        new = (p.lobe[:alive] < 0) & ((flags & STRAIGHT_LOBE) == 0)
         if new.any():
-            cls = np.where((flags & BSDFFlags.DIFFUSE) != 0, 0, np.where((flags & BSDFFlags.TRANSMISSION) != 0, 2, 1))
+            cls = np.where((flags & DIFFUSE_LOBE) != 0, 0, np.where((flags & TRANSMISSION_LOBE) != 0, 2, 1))
             p.lobe[:alive] = np.where(new, cls, p.lobe[:alive])
             p.lobe_at[:alive] = np.where(new, p.bounce[:alive], p.lobe_at[:alive])
 
@@ -798,7 +803,7 @@ class PathTracer:
             if pdf is not None:
                 pdf[span] = s.pdf
             if self.mis and self.mats.non_delta[g]:          # MIS: the vertex and pdf of non-delta samples
-                delta = (s.flags & BSDFFlags.DELTA) != 0
+                delta = (s.flags & DELTA_LOBE) != 0
                 if delta.any():                 # a BSDF with delta lobes too: its non-delta samples
                     local = np.flatnonzero(~delta)
                     sampled = span.start + local
@@ -815,20 +820,20 @@ class PathTracer:
             side, beta = self.wavefront_jit.scatter_tail(flags, p.prev_delta[:alive], p.ray_kind[:alive], p.beta,
                                                          value, new_d, si.ng if si.smooth else None)
             return new_d, side, beta             # the lines below in one loop
-        transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
+        transmitted = (flags & TRANSMISSION_LOBE) != 0
         if p.lobe is not None:
             self.first_lobe(p, flags)
-        p.prev_delta[:alive] = (flags & BSDFFlags.DELTA) != 0
+        p.prev_delta[:alive] = (flags & DELTA_LOBE) != 0
         if p.caustic is not None:
             p.caustic[:alive] = np.where(p.prev_delta[:alive], p.caustic[:alive], AFTER_RECEIVER)
-        kind = np.where(transmitted, TRANSMISSION_RAY, np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
+        kind = np.where(transmitted, TRANSMISSION_RAY, np.where((flags & DIFFUSE_LOBE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
         # A straight pass-through (alpha) keeps a camera ray a camera ray (Area lights' visibility, as Cycles).
-        p.ray_kind[:alive] = np.where(((flags & BSDFFlags.STRAIGHT) != 0) & (p.ray_kind[:alive] == CAMERA_RAY),
+        p.ray_kind[:alive] = np.where(((flags & STRAIGHT_LOBE) != 0) & (p.ray_kind[:alive] == CAMERA_RAY),
                                       CAMERA_RAY, kind)
         side = np.where(transmitted, -1.0, 1.0)
         beta = p.beta[:, :alive] * value             # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
         if si.lookup is not None and si.lookup.has_normals:     # a Normal input: Cycles' bump shadowing
-            shadowing = self.bump_shadowing(si, new_d, (flags & BSDFFlags.DIFFUSE) != 0, False)
+            shadowing = self.bump_shadowing(si, new_d, (flags & DIFFUSE_LOBE) != 0, False)
             if split is None:
                 beta = beta * shadowing
             else:                               # per closure, as Cycles: the glossy part and the diffuse part
@@ -892,7 +897,7 @@ class PathTracer:
         elif p.counts is not None:
             lp.count(p.counts[:, :alive], flags)
         if pdf is not None:
-            non_delta = (flags & BSDFFlags.DELTA) == 0
+            non_delta = (flags & DELTA_LOBE) == 0
             p.min_pdf[:alive] = np.where(non_delta, np.minimum(p.min_pdf[:alive], pdf), p.min_pdf[:alive])
         if lp.caustics:
             after_diffuse = p.after_diffuse[:alive]
