@@ -195,7 +195,7 @@ def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=N
     direct light where bounce (the paths' bounces) is 0."""
     k = cos_x.shape[0]
     if into is None:
-        out, beta, start, bounce, clamp = np.empty((3, k)), read_only(NO_ROWS), 0, NO_BOUNCES, None
+        out, beta, start, bounce, clamp = np.empty((3, k)), read_only(NO_ROWS), 0, read_only(NO_BOUNCES), None
     else:
         out, beta, start, bounce, clamp = into
         beta, bounce = read_only(beta), read_only(np.ascontiguousarray(bounce, np.int32))
