@@ -43,6 +43,10 @@ import numpy as np
 
 from ..materials.protocol import BSDFFlags
 
+# The lobe flags as plain ints for arrays of flags (`flags & BSDFFlags.DELTA` converts the enum member
+# on every call)
+REFLECTION_LOBE, TRANSMISSION_LOBE, DIFFUSE_LOBE, STRAIGHT_LOBE = (int(f) for f in (
+    BSDFFlags.REFLECTION, BSDFFlags.TRANSMISSION, BSDFFlags.DIFFUSE, BSDFFlags.STRAIGHT))
 DIFFUSE_BOUNCE, GLOSSY_BOUNCE, TRANSMISSION_BOUNCE, TRANSPARENT_BOUNCE = 0, 1, 2, 3   # rows of Paths.counts
 BOUNCE_TYPES = ("diffuse", "glossy", "transmission", "transparent")
 CLAMP_SCALE = 3.0              # Cycles: the clamp is on |R| + |G| + |B|, the user's value x 3
@@ -50,16 +54,16 @@ CLAMP_SCALE = 3.0              # Cycles: the clamp is on |R| + |G| + |B|, the us
 
 def bounce_type(flags: np.ndarray) -> np.ndarray:
     """The row of Paths.counts each sampled lobe counts in (path_state_next)."""
-    transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
-    diffuse = (flags & BSDFFlags.DIFFUSE) != 0
+    transmitted = (flags & TRANSMISSION_LOBE) != 0
+    diffuse = (flags & DIFFUSE_LOBE) != 0
     kind = np.where(transmitted, TRANSMISSION_BOUNCE, np.where(diffuse, DIFFUSE_BOUNCE, GLOSSY_BOUNCE))
-    return np.where((flags & BSDFFlags.STRAIGHT) != 0, TRANSPARENT_BOUNCE, kind)   # Cycles' LABEL_TRANSPARENT
+    return np.where((flags & STRAIGHT_LOBE) != 0, TRANSPARENT_BOUNCE, kind)   # Cycles' LABEL_TRANSPARENT
 
 
 def after_diffuse(flags: np.ndarray, before: np.ndarray) -> np.ndarray:
     """Whether the next hit follows a diffuse bounce (Cycles' PATH_RAY_VISIBILITY_DIFFUSE): the lobe
     taken was diffuse (reflection or transmission); a straight pass-through keeps `before`."""
-    return np.where((flags & BSDFFlags.STRAIGHT) != 0, before, (flags & BSDFFlags.DIFFUSE) != 0)
+    return np.where((flags & STRAIGHT_LOBE) != 0, before, (flags & DIFFUSE_LOBE) != 0)
 
 
 def clamp_contribution(contribution: np.ndarray, limit: np.ndarray) -> np.ndarray:
@@ -101,12 +105,12 @@ class LightPaths:
         flags = [int(b.flags) for b in bsdfs]
         # Groups with lobes but no diffuse one: every reflection lobe is glossy or a mirror, every
         # transmission lobe a refraction.  Those with both (Principled) filter their own lobes.
-        sides = BSDFFlags.REFLECTION | BSDFFlags.TRANSMISSION
-        self.specular_only = np.array([bool(f & sides) and not f & BSDFFlags.DIFFUSE for f in flags] + [False, False])
-        self.reflects = np.array([bool(f & BSDFFlags.REFLECTION) for f in flags] + [False, False])
-        self.transmits = np.array([bool(f & BSDFFlags.TRANSMISSION) for f in flags] + [False, False])
+        sides = REFLECTION_LOBE | TRANSMISSION_LOBE
+        self.specular_only = np.array([bool(f & sides) and not f & DIFFUSE_LOBE for f in flags] + [False, False])
+        self.reflects = np.array([bool(f & REFLECTION_LOBE) for f in flags] + [False, False])
+        self.transmits = np.array([bool(f & TRANSMISSION_LOBE) for f in flags] + [False, False])
         # A straight pass-through (Transparent BSDF, alpha) is no refraction: never left out.
-        self.passes = np.array([bool(f & BSDFFlags.STRAIGHT) for f in flags] + [False, False])
+        self.passes = np.array([bool(f & STRAIGHT_LOBE) for f in flags] + [False, False])
 
     @property
     def on(self) -> bool:
@@ -129,7 +133,7 @@ class LightPaths:
         else glossy) and each bounce of the chain before the last must keep every type within its
         limit; the last may pass it (its next hit, the light, only emits)."""
         made = counts.astype(np.int64)
-        made[DIFFUSE_BOUNCE if receiver_flags & BSDFFlags.DIFFUSE else GLOSSY_BOUNCE] += 1
+        made[DIFFUSE_BOUNCE if receiver_flags & DIFFUSE_LOBE else GLOSSY_BOUNCE] += 1
         budget = self.limits[:, None] - made
         return np.where((budget < 0).any(axis=0), -1, budget[1:])
 
@@ -173,7 +177,7 @@ class LightPaths:
         """(N,) samples of a left-out lobe of a BSDF without a diffuse lobe."""
         drop = np.zeros(len(flags), dtype=bool)
         if not self.reflective:
-            drop |= (flags & BSDFFlags.REFLECTION) != 0
+            drop |= (flags & REFLECTION_LOBE) != 0
         if not self.refractive:
-            drop |= ((flags & BSDFFlags.TRANSMISSION) != 0) & ((flags & BSDFFlags.STRAIGHT) == 0)
+            drop |= ((flags & TRANSMISSION_LOBE) != 0) & ((flags & STRAIGHT_LOBE) == 0)
         return drop & after_diffuse & self.specular_only.take(group)

@@ -69,6 +69,11 @@ WAVEFRONT_SIZE = 1 << 16       # paths advanced together: 65536 measured 0.89-0.
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
 
 
+# The lobe flags as plain ints for arrays of flags (`flags & BSDFFlags.DELTA` converts the enum member
+# on every call)
+TRANSMISSION_LOBE, DIFFUSE_LOBE, DELTA_LOBE, STRAIGHT_LOBE = (int(f) for f in (
+    BSDFFlags.TRANSMISSION, BSDFFlags.DIFFUSE, BSDFFlags.DELTA, BSDFFlags.STRAIGHT))
+
 VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n", "f_thru", "counts")
 CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = 0, 1, 2, 3   # LightPolygons.RAY_KINDS
 # Dimension pairs of the sampler (engine/sampling/qmc.py): 0 is the camera jitter (engine/scene/camera_rays.py);
@@ -165,6 +170,24 @@ def next_rays(keep, point, side, offset, facing, new_d, beta):
             new_d.take(keep, axis=1), beta.take(keep, axis=1))
 
 
+def filled(buffer: np.ndarray, a) -> np.ndarray:
+    """`buffer` filled with a, or a itself where it already is such an array (C-contiguous, of the
+    buffer's shape and dtype): PathTracer.scatter's rows when one BSDF samples every hit (read only
+    after, so the BSDF's own arrays can stand for the copies)."""
+    if isinstance(a, np.ndarray) and a.dtype == buffer.dtype and a.shape == buffer.shape and a.flags.c_contiguous:
+        return a
+    buffer[...] = a
+    return buffer
+
+
+def facing_normals(d, normal, shading):
+    """(facing, shade) of hits under smooth shading: the geometric normals (3, N) turned towards the rays
+    d, and the shading normals on the geometric normal's side of the ray (shading only; offsets and side
+    tests keep `facing`).  (The same in one loop: engine/integrators/wavefront_jit.py facing.)"""
+    towards = np.where(dot(d, normal) < 0.0, 1.0, -1.0)
+    return normal * towards, shading * towards
+
+
 def group_of(spans, n) -> np.ndarray:
     """(n,) the scatter group of each of the first n paths, from the groups' slices."""
     return np.repeat(np.arange(len(spans)), [span.stop - span.start for span in spans])[:n]
@@ -216,6 +239,9 @@ class PathTracer:
                                          for k in range(len(tables))], np.int64)
         light_paths = LightPaths(settings, plan, self.bsdfs)
         self.light_paths = light_paths if light_paths.on else None       # Cycles' Light Paths options
+        # (Clamp Direct, Clamp Indirect) for the compiled sums of the light the paths gather; None: no clamping
+        self.clamp_limits = ((light_paths.limit_direct, light_paths.limit_indirect) if light_paths.on and
+                             light_paths.clamping else None)
         # Filter Glossy on mirrors and smooth glass: their hits after blurry bounces scatter as GGX
         # lobes (engine/integrators/delta_blur.py), whose glossy rays leave round lamps to the shadow rays.
         self.delta_blur = DeltaBlur.of(self.mats, self.light_paths, N_SCATTER_GROUPS)
@@ -289,18 +315,10 @@ class PathTracer:
         # Under MIS a non-delta vertex at the depth limit still traces its BSDF ray: that ray only
         # collects the MIS-weighted emission it reaches (the other half of that vertex's direct
         # light), then ends: its surface absorbs (as Cycles' terminate-on-next-surface).
-        final = p.bounce > self.settings.max_depth if self.final_rays else None
         start_radiance = p.radiance.copy() if p.lobe is not None else None       # light passes
-        if p.counts is not None:            # a bounce type past its limit: this hit only emits
-            past = self.light_paths.past_limit(p.counts)
-            final = past if final is None else final | past
-        if p.rr_after is not None:          # ended by the deferred roulette: this hit only emits
-            ended = p.rr_after == 0.0
-            final = ended if final is None else final | ended
         hits = self.geometry.nearest_hits(p.o, p.d, counters, self.scatter_group, N_SCATTER_GROUPS,
                                           light_group=PASS_THROUGH, ray_kind=p.ray_kind,
-                                          forced_group=None if final is None or not final.any()
-                                          else np.where(final, ABSORB, -1))
+                                          forced_group=self.final_groups(p))
         if self.delta_blur is not None:     # blurred mirror and glass hits: to their non-delta rows
             hits = self.delta_blur.regroup(hits, p.min_pdf)
         # 2. Round lamps and suns met by mirror and glass rays (engine/lights/seen.py).
@@ -347,12 +365,11 @@ class PathTracer:
         smooth = surf.shading is not surf.normal
         if surf.facing is not None and not smooth:      # computed with the points (the same numbers)
             facing = shade = surf.facing
-        else:
-            towards = np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
-            facing = surf.normal * towards                                  # towards the ray
-            # Smooth shading: the shading normal on the geometric normal's side of the ray (shading
-            # only; offsets and side tests keep `facing`).  Flat-only scenes: the same array.
-            shade = surf.shading * towards if smooth else facing
+        elif smooth:
+            facing, shade = (facing_normals if self.wavefront_jit is None else self.wavefront_jit.facing)(
+                p.d, surf.normal, surf.shading)
+        else:                               # flat-only scenes: the same array
+            facing = shade = surf.normal * np.where(dot(p.d, surf.normal) < 0.0, 1.0, -1.0)
         if lookup is not None and lookup.has_normals:       # a BSDF's Normal input (Normal Map, Bump)
             shade = lookup.normal(shade, surf.material, facing, -p.d, self.mats.raised_normal)
             smooth = True
@@ -383,7 +400,8 @@ class PathTracer:
                     bsdf, si[span], surf.point[:, span], surf.offset[span], None, counters,
                     u=self.light_uniforms(sampler, p.pixel[span], p.sample[span], dim[span], u_choice[span]),
                     lift=self.geometry.terminator_lift(hits, span, facing) if smooth else None,
-                    into=(p.radiance, p.beta, span.start) if self.light_paths is None else None)
+                    into=None if no_light is not None else (p.radiance, p.beta, span.start, p.bounce,
+                                                            self.clamp_limits))
                 if light is None:
                     continue
                 light = p.beta[:, span] * light
@@ -435,13 +453,33 @@ class PathTracer:
         return survivors if passing is None else survivors.extend(passing)
 
     # -- stages ------------------------------------------------------------------------
+    def final_groups(self, p):
+        """The scatter group ABSORB for the rays whose hit only emits (beyond the depth limit under `mis`,
+        a bounce type past its limit, ended by the deferred roulette), -1 for the others; None when none
+        does (nearest_hits' forced_group).  Compiled: wavefront_jit.final_groups, the same groups."""
+        limits = None if p.counts is None else self.light_paths.limits
+        if self.wavefront_jit is not None:
+            return self.wavefront_jit.final_groups(p.bounce, self.settings.max_depth, self.final_rays, p.counts,
+                                                   limits, p.rr_after, ABSORB)
+        final = p.bounce > self.settings.max_depth if self.final_rays else None
+        if p.counts is not None:            # a bounce type past its limit: this hit only emits
+            past = self.light_paths.past_limit(p.counts)
+            final = past if final is None else final | past
+        if p.rr_after is not None:          # ended by the deferred roulette: this hit only emits
+            ended = p.rr_after == 0.0
+            final = ended if final is None else final | ended
+        return None if final is None or not final.any() else np.where(final, ABSORB, -1)
+
     def misses(self, p, miss, on_transparent=None):
         """Rays that leave the scene reach the background, with weight 1 (the report), unless
         the world is a light (shadow rays sample it): then a ray sampled at a non-delta vertex
         (the final MIS rays beyond the depth limit included) counts with its MIS weight, or 0
         without MIS.  A transparent film takes the camera rays (Area lights pass them on) instead:
         weight 0, counted by on_transparent with their mean throughput (Cycles' average(throughput):
-        1 for a camera ray)."""
+        1 for a camera ray).  Compiled (an opaque film, no caustic photons): the weights, the clamp and the
+        sum in engine/integrators/wavefront_jit.py (background_light), the same numbers."""
+        if self.wavefront_jit is not None and on_transparent is None and p.caustic is None and self.has_background:
+            return p.pixel.take(miss), self.background_light(self.wavefront_jit, p, miss)
         radiance = p.radiance.take(miss, axis=1)
         camera = None
         if on_transparent is not None:
@@ -466,6 +504,22 @@ class PathTracer:
             radiance += self.clamped(p.beta.take(miss, axis=1) * self.background_seen(p, miss) * weight,
                                      p.bounce.take(miss))
         return p.pixel.take(miss), radiance
+
+    def background_light(self, jit, p, miss):
+        """misses' radiance (3, len(miss)) of the paths `miss` in wavefront_jit's loops: the world's pdfs
+        are the one call between them."""
+        mode, places, p_world = 0, np.zeros(0, np.int64), np.zeros(0)
+        if self.world_nee and not self.mis:
+            mode = 1
+        elif self.world_nee:
+            mode = 2
+            places = jit.sampled(miss, p.prev_delta)
+            if len(places):
+                m = miss.take(places)
+                p_world = self.lights.world_pdf(p.prev_n.take(m, axis=1), p.d.take(m, axis=1))
+        return jit.background_light(p.radiance, p.beta, miss, self.background_seen(p, miss), p.prev_delta,
+                                    p.prev_bsdf_pdf, places, p_world, mode, self.settings.shadow_rays, p.bounce,
+                                    self.clamp_limits)
 
     def background_seen(self, p, miss):
         """What the rays `miss` see where they leave the scene: the constant background (3, 1), or
@@ -525,8 +579,8 @@ class PathTracer:
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
         the camera or a delta bounce or without shadow rays; after a non-delta bounce 0 under
         `report`/`solid-angle`, the power-heuristic weight under `mis`.  Compiled (without Light
-        Paths options, caustic photons and textures): the weights and the sum in
-        engine/integrators/wavefront_jit.py (emitter_lights, add_emission), the same numbers."""
+        photons): the weights, the clamp and the sum in engine/integrators/wavefront_jit.py
+        (emitter_lights, add_emission), the same numbers."""
         mat = surf.material
         lit = np.flatnonzero(self.mats.is_emissive.take(mat[:surfaces]))
         parts = [(lit, self.mats.emission.take(mat.take(lit), axis=1))] if len(lit) else []
@@ -543,7 +597,7 @@ class PathTracer:
                 if len(idx):
                     parts.append((idx, lamps.radiance.take(prim[front], axis=1)))
         jit = self.wavefront_jit
-        if jit is not None and p.caustic is None and self.light_paths is None and self.textures is None:
+        if jit is not None and p.caustic is None:
             for idx, le in parts:
                 self.add_emission(jit, p, surf, hits, idx, le)
             return
@@ -568,7 +622,7 @@ class PathTracer:
                 p_light = self.lights.pdf(p.prev_p.take(h, axis=1), p.prev_n.take(h, axis=1), light,
                                           surf.point.take(h, axis=1))
         jit.add_emission(p.radiance, p.beta, idx, le, p.prev_delta, p.prev_bsdf_pdf, places, p_light, mode,
-                         self.settings.shadow_rays)
+                         self.settings.shadow_rays, p.bounce, self.clamp_limits)
 
     def emission_weight(self, p, surf, hits, idx):
         delta = p.prev_delta.take(idx)
@@ -617,9 +671,9 @@ class PathTracer:
         and pass_glossy_weight, set at bounce 0): diffuse lobes (translucent too) -> diffuse, other
         reflections -> glossy, other transmissions -> transmission (engine/film/passes.py LIGHT)."""
         alive = len(flags)
-        new = (p.lobe[:alive] < 0) & ((flags & BSDFFlags.STRAIGHT) == 0)
+        new = (p.lobe[:alive] < 0) & ((flags & STRAIGHT_LOBE) == 0)
         if new.any():
-            cls = np.where((flags & BSDFFlags.DIFFUSE) != 0, 0, np.where((flags & BSDFFlags.TRANSMISSION) != 0, 2, 1))
+            cls = np.where((flags & DIFFUSE_LOBE) != 0, 0, np.where((flags & TRANSMISSION_LOBE) != 0, 2, 1))
             p.lobe[:alive] = np.where(new, cls, p.lobe[:alive])
             p.lobe_at[:alive] = np.where(new, p.bounce[:alive], p.lobe_at[:alive])
 
@@ -735,7 +789,10 @@ class PathTracer:
             if span.stop == span.start:
                 continue
             s = self.bsdfs[g].sample(si[span], u_lobe[span], u_dir[g])
-            new_d[:, span], value[:, span], flags[span] = s.wi, s.value, s.flags
+            if span.stop - span.start == alive:      # one BSDF for all: its arrays, not copies
+                new_d, value, flags = filled(new_d, s.wi), filled(value, s.value), filled(flags, s.flags)
+            else:
+                new_d[:, span], value[:, span], flags[span] = s.wi, s.value, s.flags
             part = self.bsdfs[g].diffuse_part(si[span], s.wi) if normals else None
             if part is not None:
                 if split is None:
@@ -746,7 +803,7 @@ class PathTracer:
             if pdf is not None:
                 pdf[span] = s.pdf
             if self.mis and self.mats.non_delta[g]:          # MIS: the vertex and pdf of non-delta samples
-                delta = (s.flags & BSDFFlags.DELTA) != 0
+                delta = (s.flags & DELTA_LOBE) != 0
                 if delta.any():                 # a BSDF with delta lobes too: its non-delta samples
                     local = np.flatnonzero(~delta)
                     sampled = span.start + local
@@ -763,20 +820,20 @@ class PathTracer:
             side, beta = self.wavefront_jit.scatter_tail(flags, p.prev_delta[:alive], p.ray_kind[:alive], p.beta,
                                                          value, new_d, si.ng if si.smooth else None)
             return new_d, side, beta             # the lines below in one loop
-        transmitted = (flags & BSDFFlags.TRANSMISSION) != 0
+        transmitted = (flags & TRANSMISSION_LOBE) != 0
         if p.lobe is not None:
             self.first_lobe(p, flags)
-        p.prev_delta[:alive] = (flags & BSDFFlags.DELTA) != 0
+        p.prev_delta[:alive] = (flags & DELTA_LOBE) != 0
         if p.caustic is not None:
             p.caustic[:alive] = np.where(p.prev_delta[:alive], p.caustic[:alive], AFTER_RECEIVER)
-        kind = np.where(transmitted, TRANSMISSION_RAY, np.where((flags & BSDFFlags.DIFFUSE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
+        kind = np.where(transmitted, TRANSMISSION_RAY, np.where((flags & DIFFUSE_LOBE) != 0, DIFFUSE_RAY, GLOSSY_RAY))
         # A straight pass-through (alpha) keeps a camera ray a camera ray (Area lights' visibility, as Cycles).
-        p.ray_kind[:alive] = np.where(((flags & BSDFFlags.STRAIGHT) != 0) & (p.ray_kind[:alive] == CAMERA_RAY),
+        p.ray_kind[:alive] = np.where(((flags & STRAIGHT_LOBE) != 0) & (p.ray_kind[:alive] == CAMERA_RAY),
                                       CAMERA_RAY, kind)
         side = np.where(transmitted, -1.0, 1.0)
         beta = p.beta[:, :alive] * value             # eq. 2.14 (f cos / pdf = colour), 2.16, glass tint
         if si.lookup is not None and si.lookup.has_normals:     # a Normal input: Cycles' bump shadowing
-            shadowing = self.bump_shadowing(si, new_d, (flags & BSDFFlags.DIFFUSE) != 0, False)
+            shadowing = self.bump_shadowing(si, new_d, (flags & DIFFUSE_LOBE) != 0, False)
             if split is None:
                 beta = beta * shadowing
             else:                               # per closure, as Cycles: the glossy part and the diffuse part
@@ -835,10 +892,12 @@ class PathTracer:
         """After sampling: count the bounce types, keep the least non-delta pdf, and drop the
         samples of the lobes the caustics toggles leave out (their throughput 0 ends the path)."""
         lp, alive = self.light_paths, len(flags)
-        if p.counts is not None:
+        if p.counts is not None and self.wavefront_jit is not None and p.counts.flags.c_contiguous:
+            self.wavefront_jit.count_bounces(p.counts, flags)           # the line below in one loop
+        elif p.counts is not None:
             lp.count(p.counts[:, :alive], flags)
         if pdf is not None:
-            non_delta = (flags & BSDFFlags.DELTA) == 0
+            non_delta = (flags & DELTA_LOBE) == 0
             p.min_pdf[:alive] = np.where(non_delta, np.minimum(p.min_pdf[:alive], pdf), p.min_pdf[:alive])
         if lp.caustics:
             after_diffuse = p.after_diffuse[:alive]
@@ -899,8 +958,8 @@ class PathTracer:
         drawn from rng.  Smooth shading (si.smooth): shadow rays start off the geometric surface
         si.ng and directions below it count 0 (no light leaks, engine/geometry/shading_normals.py).
         lift: (lift rows, cutoff) per point, the shadow-terminator geometry offset of smooth
-        triangles (Cycles' shadow_ray_offset).  into: (radiance, beta, start), the path state's rows and
-        the first path of these hits: where the compiled Lambertian case runs (lambert_direct_light) it adds
+        triangles (Cycles' shadow_ray_offset).  into: (radiance, beta, start, bounce, clamp), the path state's
+        rows, the first path of these hits and PathTracer.clamp_limits (None: no clamping): where the compiled Lambertian case runs (lambert_direct_light) it adds
         beta x its light into radiance in place (the caller's product and sum) and returns None."""
         ns = self.settings.shadow_rays
         m = point.shape[1]

@@ -11,9 +11,16 @@
   input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
   the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
   (`lambert_light`), one loop each instead of some twenty NumPy passes;
-* the emission a ray reaches (`PathTracer.emission` and `emission_weight` without Light Paths options,
-  caustic photons or textures): the emitters' light numbers (`emitter_lights`) and the MIS-weighted
-  sum into the radiance (`add_emission`), two loops instead of some thirty NumPy calls on a few rays;
+* the emission a ray reaches (`PathTracer.emission` and `emission_weight` without caustic photons):
+  the emitters' light numbers (`emitter_lights`) and the MIS-weighted sum into the radiance
+  (`add_emission`), two loops instead of some thirty NumPy calls on a few rays; the background the rays
+  that leave the scene see (`PathTracer.misses` on an opaque film, `background_light`) in the same loop,
+  around the world's pdf;
+* Light Paths' clamp (engine/integrators/light_paths.py clamp_contribution) inside those sums and the
+  Lambertian direct light's (`_clamp_scale`), the bounce counts per type (`count_bounces`) and the rays
+  whose next hit only emits (`final_groups`: the depth limit, a type past its limit, the deferred
+  roulette), one loop each instead of some five NumPy passes each;
+* the facing and shading normals of smooth-shaded hits (`facing`: path_tracer.facing_normals);
 * the gathers of the path state (`take`: `Paths.take`'s fields, twice a bounce): a plain loop per row,
   which costs 0.55-0.75x NumPy 1.26's `take` (its per-element index checks) on the same indices.
 
@@ -28,6 +35,7 @@ from ..core.backend import numba_module
 from ..core.kernel_inputs import fitted, read_only
 from ..materials.protocol import BSDFFlags
 from ..geometry.shapes.light_polygons import RAY_KINDS
+from .light_paths import CLAMP_SCALE, DIFFUSE_BOUNCE, GLOSSY_BOUNCE, TRANSMISSION_BOUNCE, TRANSPARENT_BOUNCE
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -86,12 +94,35 @@ def _light_tests(n, w, normal, step, pdf, distance, one_sided, any_one_sided, co
 
 
 @jit
+def _clamp_scale(c0, c1, c2, bounce, clamp):
+    """light_paths.clamp_contribution's factor of one contribution (c0, c1, c2) reached after `bounce`
+    bounces: bound / (|R| + |G| + |B|) where the sum exceeds bound = CLAMP_SCALE x the limit, else 1.
+    clamp: (direct_max, limit_direct, limit_indirect): Clamp Direct up to bounce direct_max."""
+    direct_max, limit_direct, limit_indirect = clamp
+    total = (abs(c0) + abs(c1)) + abs(c2)             # np.abs(rows).sum(axis=0): row after row
+    bound = CLAMP_SCALE * (limit_direct if bounce <= direct_max else limit_indirect)
+    return bound / total if total > bound else 1.0
+
+
+NO_CLAMP = (0, np.inf, np.inf)                        # (the kernels' clamp argument when clamping is off)
+
+
+def clamp_args(clamp, direct_max):
+    """(clamping, the kernels' clamp tuple) of a PathTracer's clamp limits (None: off) for the light
+    reached after up to direct_max bounces counting as direct."""
+    if clamp is None:
+        return False, NO_CLAMP
+    return True, (int(direct_max), float(clamp[0]), float(clamp[1]))
+
+
+@jit
 def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable, mis, radiance, albedo, out,
-                   add, beta, start):
+                   add, beta, start, clamping, bounce, clamp):
     """out = Le weight rho / pi: weight = cos / p_l (times the power heuristic's light weight
     against p_b under MIS, with p_b 0 for lights a BSDF sample cannot reach) where unblocked,
     0 elsewhere; the products in direct_light's order ((Le weight) rho) (1 / pi).  With `add`,
-    out[:, start + i] += beta[:, start + i] x that instead (PathTracer.bounce's sum).  cosine_pdf:
+    out[:, start + i] += beta[:, start + i] x that instead (PathTracer.bounce's sum), scaled by
+    _clamp_scale first with `clamping` (bounce: the paths' bounces, read at start + i).  cosine_pdf:
     p_b is the Lambertian's max(cos, 0) (1 / pi) (engine/materials/lambert.py pdf), computed here
     from cos_x (the same products and sum: <n, w> = <w, n>; cos > 0 for every kept sample)."""
     k = pdf.shape[0]
@@ -114,8 +145,16 @@ def _lambert_light(valid, blocked, cos_x, pdf, p_b, cosine_pdf, light, reachable
     inv_pi = 1.0 / np.pi
     if add:
         for i in range(k):
-            for c in range(3):
-                out[c, start + i] += beta[c, start + i] * (radiance[c, i] * weight[i] * albedo[c, i] * inv_pi)
+            q = start + i
+            c0 = beta[0, q] * (radiance[0, i] * weight[i] * albedo[0, i] * inv_pi)
+            c1 = beta[1, q] * (radiance[1, i] * weight[i] * albedo[1, i] * inv_pi)
+            c2 = beta[2, q] * (radiance[2, i] * weight[i] * albedo[2, i] * inv_pi)
+            if clamping:
+                scale = _clamp_scale(c0, c1, c2, bounce[q], clamp)
+                c0, c1, c2 = c0 * scale, c1 * scale, c2 * scale
+            out[0, q] += c0
+            out[1, q] += c1
+            out[2, q] += c2
         return
     for i in range(k):
         for c in range(3):
@@ -150,20 +189,27 @@ def lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=N
     """(3, k) Le weight rho / pi of the samples ls (direct_light's Lambertian return, one shadow ray):
     valid from light_tests, blocked (len(valid),) from the shadow rays, p_b the BSDF's pdf of each
     sample's direction (read only under mis; None: the Lambertian's, from cos_x), reachable per
-    light (LightSet.bsdf_reachable).  into: (radiance, beta, start), C-contiguous rows of the path
-    state: radiance[:, start:start + k] += beta[:, start:start + k] x that, in place (returns None)."""
+    light (LightSet.bsdf_reachable).  into: (radiance, beta, start, bounce, clamp), C-contiguous rows of
+    the path state: radiance[:, start:start + k] += beta[:, start:start + k] x that, in place (returns
+    None), clamped as light_paths.clamp_contribution by PathTracer.clamp_limits `clamp` (None: not) as
+    direct light where bounce (the paths' bounces) is 0."""
     k = cos_x.shape[0]
     if into is None:
-        out, beta, start = np.empty((3, k)), read_only(NO_ROWS), 0
+        out, beta, start, bounce, clamp = np.empty((3, k)), read_only(NO_ROWS), 0, read_only(NO_BOUNCES), None
     else:
-        out, beta, start = into
-        beta = read_only(beta)
+        out, beta, start, bounce, clamp = into
+        beta, bounce = read_only(beta), read_only(np.ascontiguousarray(bounce, np.int32))
+    clamping, limits = clamp_args(clamp, 0)
     _lambert_light(np.ascontiguousarray(valid, np.int64), np.ascontiguousarray(blocked, np.bool_), cos_x,
                    fitted(ls.pdf, (k,)),
                    fitted(0.0 if p_b is None else p_b, (k,)), p_b is None,
                    np.ascontiguousarray(ls.light, np.int64), np.ascontiguousarray(reachable, np.bool_), bool(mis),
-                   _rows(ls.radiance, k), _rows(albedo, k), out, into is not None, beta, int(start))
+                   _rows(ls.radiance, k), _rows(albedo, k), out, into is not None, beta, int(start), clamping, bounce,
+                   limits)
     return out if into is None else None
+
+
+NO_BOUNCES = np.zeros(0, np.int32)
 
 
 @jit
@@ -359,10 +405,10 @@ def emitter_lights(idx, prev_delta, kind, prim, light_table, kind_base):
 
 
 @jit
-def _add_emission(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light):
-    """radiance[:, idx] += (beta[:, idx] le) weight, weight per path: mode 0 one, 1 its delta flag (0 or 1),
-    2 one after a delta bounce else the power heuristic's of the BSDF sample against n_light light samples
-    with p_light at `places` (0 elsewhere)."""
+def _weights(idx, prev_delta, bsdf_pdf, places, p_light, mode, n_light):
+    """(len(idx),) the weights of the light the paths idx reach: mode 0 one, 1 the path's delta flag (0 or
+    1), 2 one after a delta bounce, else the power heuristic's of the BSDF sample against n_light light
+    samples with p_light at `places` (0 elsewhere)."""
     m = idx.shape[0]
     w = np.ones(m)
     if mode == 1:
@@ -384,23 +430,160 @@ def _add_emission(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light
             elif h != h:                         # np.nan_to_num (h is never infinite)
                 h = 0.0
             w[j] = h
-    for j in range(m):
+    return w
+
+
+@jit
+def _add_light(radiance, beta, idx, le, step, w, gathered, out, clamping, bounce, clamp):
+    """(beta[:, idx] le) w, clamped by _clamp_scale with `clamping`, added to radiance[:, idx] in place, or
+    with `gathered` to radiance[:, idx] into out (3, len(idx)) (radiance unchanged).  Path j's le is
+    column j x step (step 0: one column for all)."""
+    for j in range(idx.shape[0]):
         i = idx[j]
-        for c in range(3):
-            radiance[c, i] += beta[c, i] * le[c, j] * w[j]
+        q = j * step
+        c0 = beta[0, i] * le[0, q] * w[j]
+        c1 = beta[1, i] * le[1, q] * w[j]
+        c2 = beta[2, i] * le[2, q] * w[j]
+        if clamping:
+            scale = _clamp_scale(c0, c1, c2, bounce[i], clamp)
+            c0, c1, c2 = c0 * scale, c1 * scale, c2 * scale
+        if gathered:
+            out[0, j], out[1, j], out[2, j] = radiance[0, i] + c0, radiance[1, i] + c1, radiance[2, i] + c2
+        else:
+            radiance[0, i] += c0
+            radiance[1, i] += c1
+            radiance[2, i] += c2
 
 
-def add_emission(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light):
+@jit
+def _reached_light(radiance, beta, idx, le, step, prev_delta, bsdf_pdf, places, p_light, mode, n_light, gathered, out,
+                   clamping, bounce, clamp):
+    _add_light(radiance, beta, idx, le, step, _weights(idx, prev_delta, bsdf_pdf, places, p_light, mode, n_light),
+               gathered, out, clamping, bounce, clamp)
+
+
+def _reached(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light, bounce, clamp, out):
+    """_reached_light's call: the light le (3, len(idx)) or (3, 1) reached by the paths idx."""
+    idx = np.ascontiguousarray(idx, np.int64)
+    m = len(idx)
+    le, step = (_rows(le, 1), 0) if le.shape[1] == 1 and m != 1 else _columns(le, m)
+    clamping, limits = clamp_args(clamp, 1)
+    _reached_light(radiance, read_only(np.ascontiguousarray(beta, np.float64)), idx, le, step, prev_delta,
+                   NO_PDF if bsdf_pdf is None else bsdf_pdf, np.ascontiguousarray(places, np.int64),
+                   np.ascontiguousarray(p_light, np.float64), int(mode), float(n_light), out is not None,
+                   NO_OUT if out is None else out, clamping,
+                   read_only(NO_BOUNCES if bounce is None else np.ascontiguousarray(bounce, np.int32)), limits)
+
+
+def add_emission(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light, bounce=None,
+                 clamp=None):
     """PathTracer.emission's sum of the emission le (3, len(idx)) the paths idx reach, into the rows
     radiance in place, weighted as emission_weight (mode: 0 weight 1, 1 the delta flag, 2 MIS with the
-    lights' pdfs p_light at `places` from emitter_lights); bsdf_pdf read only in mode 2."""
-    _add_emission(radiance, np.ascontiguousarray(beta, np.float64), np.ascontiguousarray(idx, np.int64),
-                  _rows(le, len(idx)), prev_delta, NO_PDF if bsdf_pdf is None else bsdf_pdf,
-                  np.ascontiguousarray(places, np.int64), np.ascontiguousarray(p_light, np.float64), int(mode),
-                  float(n_light))
+    lights' pdfs p_light at `places` from emitter_lights); bsdf_pdf read only in mode 2.  clamp:
+    PathTracer.clamp_limits (None: no clamping), Clamp Direct up to one bounce (bounce: the paths')."""
+    _reached(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light, bounce, clamp, None)
 
 
+def background_light(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light, bounce=None,
+                     clamp=None):
+    """PathTracer.misses' radiance (3, len(idx)) of the paths idx that leave the scene: theirs plus the
+    background le they see ((3, len(idx)), or (3, 1) for all) weighted and clamped as add_emission's
+    (mode 1 and 2: the world is a light; p_light: its pdfs at the non-delta misses `places`)."""
+    out = np.empty((3, len(idx)))
+    _reached(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light, bounce, clamp, out)
+    return out
+
+
+@jit
+def _sampled(idx, prev_delta):
+    """The places j of idx whose path's last bounce was not a delta."""
+    places = np.empty(idx.shape[0], np.int64)
+    count = 0
+    for j in range(idx.shape[0]):
+        if not prev_delta[idx[j]]:
+            places[count] = j
+            count += 1
+    return places[:count]
+
+
+def sampled(idx, prev_delta):
+    """np.flatnonzero(~prev_delta[idx]): the paths idx sampled at a non-delta vertex, by place in idx."""
+    return _sampled(np.ascontiguousarray(idx, np.int64), prev_delta)
+
+
+NO_OUT = np.zeros((3, 0))
 NO_PDF = np.zeros(0)
+
+
+@jit
+def _facing(d, normal, shading, facing, shade):
+    for i in range(facing.shape[1]):
+        towards = 1.0 if d[0, i] * normal[0, i] + d[1, i] * normal[1, i] + d[2, i] * normal[2, i] < 0.0 else -1.0
+        for c in range(3):
+            facing[c, i] = normal[c, i] * towards
+            shade[c, i] = shading[c, i] * towards
+
+
+def facing(d, normal, shading):
+    """path_tracer.facing_normals(d, normal, shading): the geometric normals (3, N) and the shading normals
+    turned towards the rays d, both by the side of the ray the geometric one is on."""
+    n = normal.shape[1]
+    towards_rays, shade = np.empty((3, n)), np.empty((3, n))
+    _facing(read_only(np.ascontiguousarray(d, np.float64)), read_only(np.ascontiguousarray(normal, np.float64)),
+            read_only(np.ascontiguousarray(shading, np.float64)), towards_rays, shade)
+    return towards_rays, shade
+
+
+@jit
+def _count_bounces(counts, flags):
+    for i in range(flags.shape[0]):
+        f = flags[i]
+        if (f & STRAIGHT) != 0:                  # light_paths.bounce_type's rows
+            kind = TRANSPARENT_BOUNCE
+        elif (f & TRANSMISSION) != 0:
+            kind = TRANSMISSION_BOUNCE
+        elif (f & DIFFUSE) != 0:
+            kind = DIFFUSE_BOUNCE
+        else:
+            kind = GLOSSY_BOUNCE
+        counts[kind, i] += 1
+
+
+def count_bounces(counts, flags):
+    """LightPaths.count: each of the first len(flags) paths' scatter added to its type's row of counts
+    (4, N) in place (C-contiguous int32 rows, as Paths keeps them)."""
+    _count_bounces(counts, read_only(np.ascontiguousarray(flags, np.int8)))
+
+
+@jit
+def _final_groups(bounce, max_depth, final_rays, counts, limits, rr_after, forced, absorb):
+    any_final = False
+    for i in range(bounce.shape[0]):
+        final = final_rays and bounce[i] > max_depth
+        for t in range(counts.shape[0]):
+            final = final or counts[t, i] > limits[t]
+        if rr_after.shape[0] and rr_after[i] == 0.0:
+            final = True
+        forced[i] = absorb if final else -1
+        any_final = any_final or final
+    return any_final
+
+
+def final_groups(bounce, max_depth, final_rays, counts, limits, rr_after, absorb):
+    """PathTracer.bounce's forced groups of the rays' hits: `absorb` where the hit only emits (beyond the
+    depth limit with final rays, a bounce type past its limit (counts (4, N) against limits, or None), the
+    deferred roulette ended it (rr_after 0, or None)), -1 elsewhere; None where no hit only emits."""
+    forced = np.empty(bounce.shape[0], np.int64)
+    found = _final_groups(read_only(np.ascontiguousarray(bounce, np.int32)), int(max_depth), bool(final_rays),
+                          read_only(NO_COUNTS if counts is None else np.ascontiguousarray(counts, np.int32)),
+                          read_only(np.ascontiguousarray(NO_LIMITS if limits is None else limits, np.int64)),
+                          read_only(NO_PDF if rr_after is None else np.ascontiguousarray(rr_after, np.float64)),
+                          forced, int(absorb))
+    return forced if found else None
+
+
+NO_COUNTS = np.zeros((0, 0), np.int32)
+NO_LIMITS = np.zeros(0, np.int64)
 
 
 @jit
@@ -418,12 +601,13 @@ def _take_1d(a, index, out):
 
 # The path state's 1-D dtypes (Paths: pixel and sample int64, bounce int32, ray_kind int8, flags bool, pdfs)
 TAKE_DTYPES = tuple(np.dtype(t) for t in (np.float64, np.int64, np.int32, np.int8, np.bool_))
+TAKE_ROW_DTYPES = (np.dtype(np.float64), np.dtype(np.int32))     # its rows: vectors, the bounce counts
 
 
 def take(arrays, index):
     """[a.take(index, axis=axis) for a, axis in arrays] of path-state arrays: compiled for C-contiguous
-    float64 rows (axis 1) and 1-D arrays of TAKE_DTYPES with int64 indices in range (what Paths.take
-    passes; NumPy's take for anything else)."""
+    rows (axis 1) of TAKE_ROW_DTYPES and 1-D arrays of TAKE_DTYPES with int64 indices in range (what
+    Paths.take passes; NumPy's take for anything else)."""
     index = np.asarray(index)
     compiled = index.dtype == np.int64 and index.ndim == 1
     if compiled:
@@ -431,8 +615,8 @@ def take(arrays, index):
     out = []
     for a, axis in arrays:
         if compiled and a.flags.c_contiguous:
-            if a.ndim == 2 and axis == 1 and a.dtype == np.float64:
-                rows = np.empty((a.shape[0], index.shape[0]))
+            if a.ndim == 2 and axis == 1 and a.dtype in TAKE_ROW_DTYPES:
+                rows = np.empty((a.shape[0], index.shape[0]), a.dtype)
                 _take_rows(read_only(a), index, rows)
                 out.append(rows)
                 continue
@@ -453,7 +637,8 @@ def warm_up() -> None:
     ls = SimpleNamespace(direction=rows, normal=-rows, pdf=np.ones(3), distance=np.ones(3),
                          one_sided=np.ones(3, np.bool_), light=np.zeros(3, np.int64), radiance=rows)
     cos_x, _, valid = light_tests(rows, ls, True)
-    for into in (None, (np.zeros((3, 4)), np.ones((3, 4)), 1)):
+    for into in (None, (np.zeros((3, 4)), np.ones((3, 4)), 1, np.zeros(4, np.int32), None),
+                 (np.zeros((3, 4)), np.ones((3, 4)), 1, np.zeros(4, np.int32), (1.0, np.inf))):
         lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, np.ones(3), np.ones(1, np.bool_), True, rows,
                       into)
     flags = np.array([int(BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION), DELTA | TRANSMISSION, DELTA], np.int8)
@@ -464,12 +649,22 @@ def warm_up() -> None:
     places, lights = emitter_lights(idx, delta, np.ones(3, np.int8), np.zeros(3, np.int64), np.zeros(1, np.int64),
                                     np.array([-1, 0, -1, -1, -1], np.int64))
     for mode in (0, 1, 2):
-        add_emission(np.zeros((3, 3)), rows, idx, rows[:, :2], delta, np.ones(3), places, np.ones(len(places)),
-                     mode, 1)
+        for clamp in (None, (np.inf, 10.0)):
+            add_emission(np.zeros((3, 3)), rows, idx, rows[:, :2], delta, np.ones(3), places, np.ones(len(places)),
+                         mode, 1, np.zeros(3, np.int32), clamp)
+            for le in (rows[:, :2], rows[:, :1]):
+                background_light(rows, rows, idx, le, delta, np.ones(3), sampled(idx, delta), np.ones(1), mode, 1,
+                                 np.zeros(3, np.int32), clamp)
+    count_bounces(np.zeros((4, 3), np.int32), flags)
+    facing(rows, rows, rows)
+    for counts, rr_after in ((None, None), (np.zeros((4, 3), np.int32), np.ones(3))):
+        final_groups(np.zeros(3, np.int32), 8, True, counts, None if counts is None else np.ones(4, np.int64),
+                     rr_after, 3)
     for flag in (True, False):
         survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, flag, flag, 3, rows,
                   np.ones(3), np.ones(3), rows, rows)
     for ng in (None, rows):
         survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3, rows,
                   None, np.ones(3), rows, rows, (flags, np.zeros(3, np.int8), rows, ng))
-    take([(rows, 1)] + [(np.zeros(3, dtype), 0) for dtype in TAKE_DTYPES], idx)
+    take([(np.zeros((3, 3), dtype), 1) for dtype in TAKE_ROW_DTYPES] + [(np.zeros(3, dtype), 0) for dtype in TAKE_DTYPES],
+         idx)

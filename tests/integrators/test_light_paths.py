@@ -184,7 +184,8 @@ def test_transmission_limits_darken_what_is_seen_through_glass():
 
 # -- clamping ----------------------------------------------------------------------------------------
 def clamped_contributions(scene, monkeypatch, **settings):
-    """The largest mean over R, G, B of any contribution the clamp let through, in a 1-spp render."""
+    """The largest mean over R, G, B of any contribution the clamp let through, in a 1-spp NumPy render
+    (the compiled sums clamp in their loops, the same numbers: tests/integrators/test_wavefront_jit.py)."""
     seen = []
     clamp = lp.LightPaths.clamp
 
@@ -194,7 +195,7 @@ def clamped_contributions(scene, monkeypatch, **settings):
             seen.append(np.abs(out).sum(axis=0).max() / 3.0)
         return out
     monkeypatch.setattr(lp.LightPaths, "clamp", spy)
-    image(scene, samples=1, **settings)
+    image(scene, samples=1, backend="numpy", **settings)
     return max(seen)
 
 

@@ -13,6 +13,7 @@ import pytest
 from engine import api
 from engine.core.settings import RenderSettings
 from engine.integrators import path_tracer
+from engine.integrators.light_paths import LightPaths
 from engine.scene.builtin import BUILTIN_SCENES
 from tests.backend_capture import recorded, require_compiled
 
@@ -91,10 +92,7 @@ def test_a_render_with_a_direct_light_slightly_off_differs():
     def off(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo, into=None):
         return wavefront_jit.lambert_light(valid, blocked, cos_x, ls, p_b, reachable, mis, albedo * (1.0 + 2.0 ** -20),
                                            into)
-    wrong = SimpleNamespace(next_rays=wavefront_jit.next_rays, light_tests=wavefront_jit.light_tests, lambert_light=off,
-                            scatter_tail=wavefront_jit.scatter_tail, roulette=wavefront_jit.roulette,
-                            emitter_lights=wavefront_jit.emitter_lights, add_emission=wavefront_jit.add_emission,
-                            survivors=wavefront_jit.survivors, take=wavefront_jit.take)
+    wrong = SimpleNamespace(**dict(vars(wavefront_jit), lambert_light=off))
     assert not np.array_equal(render_with("cornell", None, 16), render_with("cornell", wrong, 16))
 
 
@@ -136,16 +134,32 @@ def test_recorded_direct_light_calls_are_bit_identical(scene):
             # hits' columns, the same as NumPy's; control: beta an ulp off.
             m = reference.shape[1]
             start, beta = rng.random((3, m + 7)), rng.random((3, m + 7))
+            bounce = rng.integers(0, 2, m + 7).astype(np.int32)
             expected = start.copy()
             expected[:, 5:5 + m] += beta[:, 5:5 + m] * reference
             radiance, off = start.copy(), start.copy()
-            assert original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5))) is None
+            assert original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5, bounce, None))) is None
             assert np.array_equal(radiance, expected)
-            original(tracer, *args, **dict(kwargs, into=(off, np.nextafter(beta, 2.0), 5)))
+            original(tracer, *args, **dict(kwargs, into=(off, np.nextafter(beta, 2.0), 5, bounce, None)))
             assert not np.array_equal(off, expected)
+            # Clamped (Light Paths' clamp: PathTracer.bounce's NumPy lines), Clamp Direct at bounce 0 only;
+            # limits at the light's quantiles, so that some of both kinds are clamped and some are not.
+            light = beta[:, 5:5 + m] * reference
+            limits = tuple(float(np.quantile(np.abs(light).sum(axis=0), q)) / 3.0 for q in (0.5, 0.8))
+            expected = start.copy()
+            expected[:, 5:5 + m] += LightPaths.clamp(SimpleNamespace(clamping=True, limit_direct=limits[0],
+                                                                     limit_indirect=limits[1]),
+                                                     light, bounce[5:5 + m] == 0)
+            assert not np.array_equal(expected[:, 5:5 + m], start[:, 5:5 + m] + light)
+            radiance = start.copy()
+            original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5, bounce, limits)))
+            assert np.array_equal(radiance, expected)
+            radiance = start.copy()         # control: Clamp Direct up to bounce 1 (the emission's) differs
+            original(tracer, *args, **dict(kwargs, into=(radiance, beta, 5, bounce - 1, limits)))
+            assert not np.array_equal(radiance, expected)
     finally:
         session.PathTracer.lambert_direct_light = lambert
-    assert len(fused) == 3 * min(len(calls), 6)        # the compiled case ran every time
+    assert len(fused) == 5 * min(len(calls), 6)        # the compiled case ran every time
 
 
 def capture_scatters(scene_name, limit=6):
@@ -272,12 +286,14 @@ def test_cosine_pdf_is_the_lambertians_pdf_of_the_cosine_the_kernel_has():
     assert not np.array_equal(np.nextafter(pdf, 1.0)[kept], cos_x[kept] * (1.0 / np.pi))
 
 
-@pytest.mark.parametrize("scene,estimator", [("cornell", "mis"), ("cornell", "report"), ("many_lights", "mis"),
-                                             ("near_lamp", "mis")])
-def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
+@pytest.mark.parametrize("scene,estimator,clamp", [("cornell", "mis", None), ("cornell", "report", None),
+                                                   ("many_lights", "mis", None), ("near_lamp", "mis", None),
+                                                   ("cornell", "mis", (1.0, 0.001)), ("many_lights", "mis", (1.0, 0.001))])
+def test_recorded_emissions_are_bit_identical(scene, estimator, clamp, monkeypatch):
     """PathTracer.emission on deep copies of the calls of a real render, with NumPy's weights and sum and
-    with this module's (emitter_lights, add_emission): the same radiance bit for bit; controls: a MIS
-    weight or an emission 2^-40 off, or every weight 1, differ."""
+    with this module's (emitter_lights, add_emission): the same radiance bit for bit, with Light Paths'
+    clamp too; controls: a MIS weight or an emission 2^-40 off, every weight 1, or (clamp) no clamping or
+    Clamp Direct for every bounce, differ."""
     require_compiled()
     from engine.integrators import wavefront_jit
     calls, original = [], path_tracer.PathTracer.emission
@@ -287,10 +303,11 @@ def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
             calls.append((self, copy.deepcopy(args)))
         return original(self, *args)
     monkeypatch.setattr(path_tracer.PathTracer, "emission", recording)
+    clamps = {} if clamp is None else dict(clamp_direct=clamp[0], clamp_indirect=clamp[1])
     api.render(BUILTIN_SCENES[scene]((16, 16)), RenderSettings(samples=4, threads=1, backend="numpy",
-                                                               estimator=estimator), log=lambda m: None)
+                                                               estimator=estimator, **clamps), log=lambda m: None)
     monkeypatch.setattr(path_tracer.PathTracer, "emission", original)
-    assert len(calls) >= 4
+    assert len(calls) >= 4 and (calls[0][0].clamp_limits == clamp)
 
     def radiance(tracer, args, jit):
         p, *rest = copy.deepcopy(args)
@@ -298,16 +315,23 @@ def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
         original(tracer, p, *rest)
         return p.radiance
 
-    def mis_off(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n):
-        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light * (1.0 + 2.0 ** -40), mode, n)
+    def mis_off(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n, *rest):
+        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light * (1.0 + 2.0 ** -40), mode, n,
+                                   *rest)
 
     def le_off(radiance_, beta, idx, le, *rest):
         wavefront_jit.add_emission(radiance_, beta, idx, le * (1.0 + 2.0 ** -40), *rest)
 
-    def weight_one(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n):
-        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light, 0, n)
+    def weight_one(radiance_, beta, idx, le, delta, pdf, places, p_light, mode, n, *rest):
+        wavefront_jit.add_emission(radiance_, beta, idx, le, delta, pdf, places, p_light, 0, n, *rest)
+
+    def unclamped(*args):
+        wavefront_jit.add_emission(*args[:-1], None)
+
+    def all_direct(*args):
+        wavefront_jit.add_emission(*args[:-2], np.zeros_like(args[-2]), args[-1])
     controls = [SimpleNamespace(emitter_lights=wavefront_jit.emitter_lights, add_emission=f)
-                for f in (mis_off, le_off, weight_one)]
+                for f in (mis_off, le_off, weight_one, unclamped, all_direct)]
     differs = [False] * len(controls)
     for tracer, args in calls:
         reference, compiled = radiance(tracer, args, None), radiance(tracer, args, wavefront_jit)
@@ -315,6 +339,7 @@ def test_recorded_emissions_are_bit_identical(scene, estimator, monkeypatch):
         for k, control in enumerate(controls):
             differs[k] |= not np.array_equal(reference, radiance(tracer, args, control), equal_nan=True)
     assert differs[1] and differs[2] and (differs[0] or estimator != "mis")    # p_light is read under MIS only
+    assert differs[3] == differs[4] == (clamp is not None)
 
 
 def test_read_only_inputs_need_no_compilation_after_warm_up():
@@ -387,3 +412,219 @@ def test_take_is_numpys_take():
         expected = [a.take(index, axis=axis) for a, axis in arrays]
         assert same(expected, wavefront_jit.take(arrays, index))
         assert not same(expected[:6], wavefront_jit.take(arrays[:6], (index + 1) % n))
+
+
+# -- Light Paths' clamp and bounce limits, the background, the facing normals (branch glue4) --------------
+def recorded_calls(owner, name, scene, limit=8, **settings):
+    """[the arguments] of owner.name's first `limit` calls in a one-thread NumPy render: the first as it was
+    (a method's tracer), deep copies of the others (the path state changes)."""
+    calls, original = [], getattr(owner, name)
+
+    def recording(first, *args):
+        if len(calls) < limit:
+            calls.append((first, *copy.deepcopy(args)))
+        return original(first, *args)
+    setattr(owner, name, recording)
+    try:
+        api.render(scene, RenderSettings(**{"samples": 4, "threads": 1, "backend": "numpy", **settings}),
+                   log=lambda m: None)
+    finally:
+        setattr(owner, name, original)
+    return calls
+
+
+def sky_lit_box():
+    """The built-in Cornell box without its lamp under a uniform sky, its only light (the world is then
+    sampled as a light under `mis` and `solid-angle`): rays leave through its open front at every bounce."""
+    scene = BUILTIN_SCENES["cornell"]((16, 16))
+    for m in scene.materials:
+        m.emission = (0.0, 0.0, 0.0)
+    scene.background = (0.5, 0.6, 0.8)
+    return scene
+
+
+@pytest.mark.parametrize("estimator,clamp", [("mis", None), ("mis", (0.5, 0.05)), ("solid-angle", (0.5, 0.05)),
+                                             ("report", None)])
+def test_recorded_misses_are_bit_identical(estimator, clamp):
+    """PathTracer.misses on the calls of a render of the Cornell box lit by a uniform sky through its open
+    front (sky_lit_box): NumPy's
+    weights (1, the delta flag, or MIS against the world's light samples), clamp and sum against this
+    module's background_light, the same pixels and radiance bit for bit.  Controls: the world's pdf or the
+    background 2^-40 off, no clamping, or Clamp Direct at every bounce, differ (those that apply)."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    clamps = {} if clamp is None else dict(clamp_direct=clamp[0], clamp_indirect=clamp[1])
+    calls = recorded_calls(path_tracer.PathTracer, "misses", sky_lit_box(), estimator=estimator, max_depth=4, **clamps)
+    assert len(calls) >= 4
+    tracer = calls[0][0]
+    assert tracer.world_nee == (estimator != "report") and tracer.clamp_limits == clamp
+
+    def misses(args, jit):
+        t, (p, miss, *rest) = args[0], copy.deepcopy(args[1:])
+        t.wavefront_jit = jit
+        return path_tracer.PathTracer.misses(t, p, miss, *rest)
+
+    def changed(**change):
+        def background_light(radiance, beta, idx, le, prev_delta, bsdf_pdf, places, p_light, mode, n_light, bounce,
+                             clamp_):
+            return wavefront_jit.background_light(
+                radiance, beta, idx, le * change.get("le", 1.0), prev_delta, bsdf_pdf, places,
+                p_light * change.get("p", 1.0), mode, n_light, np.zeros_like(bounce) if change.get("direct") else bounce,
+                None if change.get("unclamped") else clamp_)
+        return SimpleNamespace(sampled=wavefront_jit.sampled, background_light=background_light)
+    controls = [changed(p=1.0 + 2.0 ** -40), changed(le=1.0 + 2.0 ** -40), changed(unclamped=True), changed(direct=True)]
+    differs = [False] * len(controls)
+    for args in calls:
+        (pixel, reference), (pixel_c, compiled) = misses(args, None), misses(args, wavefront_jit)
+        assert np.array_equal(pixel, pixel_c) and compiled.dtype == np.float64
+        assert np.array_equal(reference, compiled, equal_nan=True)
+        for k, control in enumerate(controls):
+            differs[k] |= not np.array_equal(reference, misses(args, control)[1], equal_nan=True)
+    assert differs == [estimator == "mis", True, clamp is not None, clamp is not None]
+
+
+def test_made_up_background_light_with_nan_inf_and_signed_zeros():
+    """background_light against the NumPy lines of PathTracer.misses (weights, power heuristic, clamp_contribution,
+    the sum) on made-up paths: NaN and inf throughputs, zero and NaN pdfs, -0 radiance, a (3, 1) background;
+    control: the power heuristic's light count 2 instead of 1 differs."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    from engine.integrators.light_paths import clamp_contribution
+    rng = np.random.default_rng(21)
+    n = 4000
+    radiance, beta = rng.normal(size=(3, n)), rng.random((3, n)) * 4.0
+    radiance[:, :50] = -0.0
+    beta[0, 7], beta[1, 8], beta[2, 9] = np.nan, np.inf, -np.inf
+    prev_delta = rng.random(n) < 0.3
+    bsdf_pdf = rng.random(n)
+    bsdf_pdf[11], bsdf_pdf[12], bsdf_pdf[13] = 0.0, np.nan, np.inf
+    bounce = rng.integers(0, 5, n).astype(np.int32)
+    miss = np.sort(rng.choice(n, 2500, replace=False))
+    for le in (rng.random((3, 1)) * 3.0, rng.random((3, len(miss))) * 3.0):
+        for mode in (0, 1, 2):
+            for clamp in (None, (0.4, 0.1)):
+                places = np.flatnonzero(~prev_delta.take(miss))
+                p_world = rng.random(len(places)) * 2.0
+                p_world[:3] = 0.0
+                weight = np.ones(len(miss))
+                if mode:
+                    weight[places] = 0.0
+                if mode == 2:
+                    weight[places] = path_tracer.power_heuristic(1.0, bsdf_pdf.take(miss.take(places)), 1.0, p_world)
+                with np.errstate(invalid="ignore"):         # (inf x 0 weights, inf x 0 scales: NaN)
+                    contribution = beta.take(miss, axis=1) * le * weight
+                    if clamp is not None:
+                        contribution = clamp_contribution(contribution, np.where(bounce.take(miss) <= 1, *clamp))
+                expected = radiance.take(miss, axis=1) + contribution
+                got = wavefront_jit.background_light(radiance, beta, miss, le, prev_delta, bsdf_pdf, places, p_world, mode,
+                                                     1, bounce, clamp)
+                assert np.array_equal(expected, got, equal_nan=True)
+                assert np.array_equal(np.signbit(expected), np.signbit(got))
+                if mode == 2:
+                    control = wavefront_jit.background_light(radiance, beta, miss, le, prev_delta, bsdf_pdf, places,
+                                                             p_world, mode, 2, bounce, clamp)
+                    assert not np.array_equal(expected, control, equal_nan=True)
+    assert np.array_equal(wavefront_jit.sampled(miss, prev_delta), np.flatnonzero(~prev_delta.take(miss)))
+
+
+def every_flag_combination(n, rng):
+    from engine.materials.protocol import BSDFFlags
+    return rng.integers(0, int(max(BSDFFlags)) * 2, n).astype(np.int8)
+
+
+def test_bounce_counts_are_light_paths_counts():
+    """count_bounces against LightPaths.count on every combination of lobe flags, and on the flags of a real
+    render with bounce limits; control: the transparent bounces counted as transmissions differ."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    from engine.materials.protocol import BSDFFlags
+    rng = np.random.default_rng(3)
+    flags = every_flag_combination(3000, rng)
+    recorded = recorded_calls(path_tracer.PathTracer, "scatter_light_paths", BUILTIN_SCENES["caustic"]((16, 16)),
+                              diffuse_bounces=1, glossy_bounces=2)
+    assert len(recorded) >= 4
+    for f in [flags] + [args[3] for args in recorded]:
+        counts = rng.integers(0, 5, (4, len(f) + 9)).astype(np.int32)
+        expected, got = counts.copy(), counts.copy()
+        LightPaths.count(None, expected[:, :len(f)], f)
+        wavefront_jit.count_bounces(got, f)
+        assert np.array_equal(expected, got)
+    straight = (flags & BSDFFlags.STRAIGHT) != 0
+    assert straight.any()
+    control = counts[:, :0].copy()
+    control = np.zeros((4, len(flags)), np.int32)
+    wavefront_jit.count_bounces(control, np.where(straight, flags & ~np.int8(BSDFFlags.STRAIGHT), flags).astype(np.int8))
+    expected = np.zeros((4, len(flags)), np.int32)
+    LightPaths.count(None, expected, flags)
+    assert not np.array_equal(expected, control)
+
+
+@pytest.mark.parametrize("settings", [dict(diffuse_bounces=1, glossy_bounces=2), dict(max_depth=3)])
+def test_recorded_final_groups_are_the_numpy_ones(settings):
+    """PathTracer.final_groups compiled against NumPy's on the paths of a render (bounce limits, MIS final
+    rays) and on made-up ones with the deferred roulette's ended paths (rr_after 0, NaN); control: final
+    rays off gives other groups."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    calls = recorded_calls(path_tracer.PathTracer, "final_groups", BUILTIN_SCENES["caustic"]((16, 16)), **settings)
+    assert len(calls) >= 4
+
+    def groups(tracer, p, jit):
+        tracer.wavefront_jit = jit
+        return tracer.final_groups(p)
+    found = False
+    for tracer, p in calls:
+        expected, got = groups(tracer, p, None), groups(tracer, p, wavefront_jit)
+        assert (expected is None) == (got is None) and (got is None or np.array_equal(expected, got))
+        found |= got is not None
+    assert found
+    rng = np.random.default_rng(8)
+    tracer, p = calls[0]
+    n = len(p.bounce)
+    p.bounce = rng.integers(0, 10, n).astype(np.int32)
+    if p.counts is not None:                # some past their limits, most not
+        p.counts = np.where(rng.random((4, n)) < 0.05, 3, 0).astype(np.int32)
+    p.rr_after = np.where(rng.random(n) < 0.1, 0.0, 1.5)
+    p.rr_after[:3] = np.nan, -0.0, np.inf
+    for final_rays in (True, False):
+        tracer.final_rays = final_rays
+        expected, got = groups(tracer, p, None), groups(tracer, p, wavefront_jit)
+        assert np.array_equal(expected, got)
+    assert not np.array_equal(got, wavefront_jit.final_groups(p.bounce, tracer.settings.max_depth, True, p.counts,
+                                                              None if p.counts is None else tracer.light_paths.limits,
+                                                              p.rr_after, path_tracer.ABSORB))
+
+
+def test_recorded_facing_normals_are_the_numpy_ones(monkeypatch):
+    """wavefront_jit.facing against path_tracer.facing_normals on the hits of a render with a smooth ball and
+    on made-up rays with NaN, a ray along the surface (dot 0) and -0; control: turned by the shading
+    normal's side instead differs."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    from tests.geometry.test_shading_normals import box_room
+    calls = recorded_calls(path_tracer, "facing_normals", box_room(smooth_ball=True))
+    assert len(calls) >= 4
+    rng = np.random.default_rng(6)
+    n = 500
+    normal = rng.normal(size=(3, n))
+    d, shading = rng.normal(size=(3, n)), normal + rng.normal(0, 0.3, (3, n))
+    d[:, 0], normal[:, 1], shading[:, 2] = np.nan, -0.0, -0.0
+    d[:, 3], normal[:, 3] = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)                   # along the surface: dot 0
+    for args in calls + [(d, normal, shading)]:
+        expected, got = path_tracer.facing_normals(*args), wavefront_jit.facing(*args)
+        assert same(expected, got) and all(np.array_equal(np.signbit(a), np.signbit(b)) for a, b in zip(expected, got))
+    wrong = path_tracer.facing_normals(d, shading, shading)[1]
+    assert not same([wrong], [wavefront_jit.facing(d, normal, shading)[1]])
+
+
+def test_one_bsdf_keeps_its_sample_arrays_and_other_arrays_are_copied():
+    """path_tracer.filled: a BSDF's own C-contiguous array of the buffer's shape and dtype stands for the copy;
+    anything else (a column slice, another dtype, a broadcast) is copied into the buffer, the same values."""
+    rows = np.arange(12.0).reshape(3, 4)
+    assert path_tracer.filled(np.empty((3, 4)), rows) is rows
+    for a in (np.arange(15.0).reshape(3, 5)[:, :4], rows.astype(np.float32), np.ones(3)[:, None]):
+        buffer = np.empty((3, 4))
+        out = path_tracer.filled(buffer, a)
+        assert out is buffer and np.array_equal(out, np.broadcast_to(a, (3, 4)))
+    flags = np.full(4, 5, np.int64)
+    assert path_tracer.filled(np.empty(4, np.int8), flags).dtype == np.int8
