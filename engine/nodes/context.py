@@ -27,6 +27,8 @@ program pays only for what its nodes read.  Names (rows (3, N) unless noted), as
   tangent         the UV map's interpolated (unnormalised) corner tangent, world space (Normal Map)
   tangent_sign    (N,) the interpolated corner bitangent sign; has_tangent (N,) bool: the hit has both
   tangent_base    the outward base normal of the tangent frame: the smooth normal, or Ng on flat faces
+  tangent_corners a TangentCorners: what tangent and tangent_sign are interpolated from (the compiled
+                  Normal Map makes them per hit itself: engine/nodes/normals_jit.py corner_normal_map)
   object_to_world_normal  a function: rows (3, N) in object space -> normalised world normals
   camera_pixel    (right, up, forward) rows (3, 1) of the camera and one pixel's size at unit distance
                   (the image centre's), for Bump's footprint (engine/nodes/normals.py bump_offsets)
@@ -40,10 +42,25 @@ When folding constants (n = 1, no hits) every attribute raises `Varying`.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 
 SHADOW_RAY = 4        # ray_kind at light samples (engine/nodes/inputs.py Light Path: Is Shadow Ray)
+
+
+class TangentCorners(NamedTuple):
+    """The hits' kind, prim, b1, b2 (N,) and the scene's corner tangents (T, 3, 3) and bitangent signs
+    (T, 3) (None, None: no mesh has tangents): a triangle hit's (kind == triangle) tangent is its
+    corners' tangents weighted by (1 - b1 - b2, b1, b2), its sign likewise; other hits have none."""
+    kind: np.ndarray
+    prim: np.ndarray
+    b1: np.ndarray
+    b2: np.ndarray
+    triangle: int
+    tangents: np.ndarray | None
+    signs: np.ndarray | None
 
 
 class Varying(LookupError):
@@ -422,6 +439,8 @@ class SceneAttributes:
         attrs["has_tangent"] = lambda: ((ctx.attr("tangent_sign") != 0.0)
                                         & ((ctx.attr("tangent") ** 2).sum(axis=0) > 0.0))
         attrs["tangent_base"] = lambda: ctx.attr("normal") * ctx.attr("_towards")
+        attrs["tangent_corners"] = lambda: TangentCorners(kind, prim, b1, b2, triangle_kind, self.tri_tangent,
+                                                          self.tri_sign)
         attrs["object_to_world_normal"] = lambda: to_world_normal
         if self.camera_pixel is not None:
             attrs["camera_pixel"] = self.camera_pixel
