@@ -51,21 +51,30 @@ def ground(version):
 def capture(version, limit=6):
     """[(inputs, props, ctx)] of normal_map's calls in a 16 x 16, 2 spp NumPy render of ground(version),
     the context's attributes read at once (they are computed on first use)."""
-    calls, original = [], normals.normal_map
+    calls = []
 
-    def recording(inputs, props, ctx):
+    def record(inputs, props, ctx):
         if len(calls) < limit:
             names = ("normal", "backfacing", "tangent", "tangent_sign", "has_tangent", "tangent_base")
             kept = NodeContext(ctx.n, ctx.cycles_version, {k: np.array(ctx.attr(k)) for k in names})
             calls.append(({k: np.array(v) for k, v in inputs.items()}, dict(props), kept))
+    render_seeing(ground(version), record)
+    return calls
+
+
+def render_seeing(scene, record):
+    """A 2 spp NumPy render of `scene` in which record(inputs, props, ctx) sees each Normal Map call first."""
+    original = normals.normal_map
+
+    def recording(inputs, props, ctx):
+        record(inputs, props, ctx)
         return original(inputs, props, ctx)
     table = kernels()                         # the evaluator's table of kernels, built once
     table["ShaderNodeNormalMap"] = recording
     try:
-        api.render(ground(version), RenderSettings(samples=2, threads=1, backend="numpy"), log=lambda m: None)
+        api.render(scene, RenderSettings(samples=2, threads=1, backend="numpy"), log=lambda m: None)
     finally:
         table["ShaderNodeNormalMap"] = original
-    return calls
 
 
 def both(inputs, props, ctx):
@@ -134,19 +143,13 @@ def capture_scene_calls(version, limit=6):
     """[(NumPy's Normal, the compiled one)] of normal_map's calls in a 16 x 16, 2 spp NumPy render of
     ground(version), both made on the render's own context at the call (SceneAttributes.context: the
     compiled one reads its tangent_corners)."""
-    pairs, original = [], normals.normal_map
+    pairs = []
 
-    def recording(inputs, props, ctx):
+    def record(inputs, props, ctx):
         assert ctx.has("tangent_corners")
         if len(pairs) < limit:
             pairs.append(both(inputs, props, ctx))
-        return original(inputs, props, ctx)
-    table = kernels()
-    table["ShaderNodeNormalMap"] = recording
-    try:
-        api.render(ground(version), RenderSettings(samples=2, threads=1, backend="numpy"), log=lambda m: None)
-    finally:
-        table["ShaderNodeNormalMap"] = original
+    render_seeing(ground(version), record)
     return pairs
 
 
@@ -236,3 +239,21 @@ def test_inputs_of_other_lengths_are_refused():
     corners = TangentCorners(np.ones(1, np.int8), np.zeros(1, np.int64), np.zeros(1), np.zeros(1), 1, None, None)
     with pytest.raises(ValueError, match="corner_normal_map"):
         normals_jit.corner_normal_map(rows, np.ones(4), corners, rows, np.ones(4), (5, 0))
+
+
+def test_one_colour_and_strength_are_broadcast_to_the_hits():
+    """The Normal Map's colour (3, 1) and strength (1,) stand for every hit (copied to N): the same normals
+    as the full arrays, on both kernels."""
+    require_compiled()
+    from engine.nodes import normals_jit
+    inputs, _, ctx = hand_made((5, 0), m=50)
+    colour, strength = inputs["Color"][:, 7:8], inputs["Strength"][20:21]
+    full = np.repeat(colour, 50, axis=1), np.repeat(strength, 50)
+    names = ("tangent", "tangent_sign", "tangent_base")
+    args = [ctx.attr(k) for k in names] + [ctx.attr("backfacing") > 0.5, ctx.attr("has_tangent"), ctx.attr("normal")]
+    assert same(normals_jit.tangent_normal_map(colour, strength, *args, (5, 0)),
+                normals_jit.tangent_normal_map(*full, *args, (5, 0)))
+    scene_ctx = corner_context(corner_scene(), (5, 0), m=50)
+    corners, shading, towards = scene_ctx.attr("tangent_corners"), scene_ctx.attr("normal"), scene_ctx.attr("_towards")
+    assert same(normals_jit.corner_normal_map(colour, strength, corners, shading, towards, (5, 0)),
+                normals_jit.corner_normal_map(*full, corners, shading, towards, (5, 0)))
