@@ -75,11 +75,11 @@ def bump_shadowing(direction, normal, shading, n, wi, diffuse, is_eval, repeat=1
     repeat, at M hits with ray directions `direction`, geometric normals `normal`, smooth normals
     `shading` (None: flat) and the BSDF's normal n (rows (3, M)); diffuse (K,) bool or one bool."""
     k = wi.shape[1]
-    m, rest = divmod(k, max(int(repeat), 1))
-    given = [("direction", direction), ("normal", normal), ("n", n)] + ([("shading", shading)] if shading is not None else [])
-    if rest or repeat < 1 or any(np.shape(a) != (3, m) for _, a in given):
-        raise ValueError(f"bump_shadowing: {k} directions, repeat {repeat}: the hits' rows must be (3, {k // max(int(repeat), 1)}), "
-                         f"not {', '.join(f'{name} {np.shape(a)}' for name, a in given)}")
+    rows = (3, k // repeat) if repeat >= 1 else None
+    if (rows is None or rows[1] * repeat != k or direction.shape != rows or normal.shape != rows or n.shape != rows
+            or (shading is not None and shading.shape != rows)):
+        raise ValueError(f"bump_shadowing: {k} directions, repeat {repeat}: the hits' rows must be {rows}, not direction "
+                         f"{direction.shape}, normal {normal.shape}, shading {getattr(shading, 'shape', None)}, n {n.shape}")
     diffuse = np.ascontiguousarray(np.broadcast_to(np.asarray(diffuse, dtype=np.bool_), (k,)))
     has = shading is not None
     c = np.ascontiguousarray
