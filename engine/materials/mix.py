@@ -62,31 +62,45 @@ def _facing(si: ShadingPoint) -> tuple[np.ndarray, np.ndarray]:
     return cos, dot(si.wo, si.normal) < 0.0                  # the viewer inside the surface
 
 
+def _etas(factor):
+    """(eta in front, eta behind) of a Fresnel factor (its svm_node_fresnel) or a Layer Weight's
+    "fresnel" (its svm_node_layer_weight): the IOR ratio its fresnel_dielectric_cos reads; None for
+    Layer Weight's "facing"."""
+    if factor.kind == FRESNEL:
+        eta = max(factor.ior, 1e-5)
+        return eta, 1.0 / eta
+    if factor.output == "fresnel":
+        eta = max(1.0 - factor.blend, 1e-5)
+        return 1.0 / eta, eta
+    return None
+
+
+def _layer_facing(abs_cos: np.ndarray, blend: float) -> np.ndarray:
+    """Layer Weight's "facing" of |dot(wo, n)| (before the clip)."""
+    f = abs_cos
+    if blend != 0.5:
+        blend = min(max(blend, 0.0), 1.0 - 1e-5)
+        f = f ** (2.0 * blend if blend < 0.5 else 0.5 / (1.0 - blend))
+    return 1.0 - f
+
+
 def _factor_input(factor, si: ShadingPoint, facing=None) -> np.ndarray:
     """A factor read at the hits (not a constant), clamped to [0, 1], before its invert; `facing`:
-    _facing(si) when known."""
-    n = len(si)
+    _facing(si) when known (si is then not read: None will do)."""
     if factor.kind == FRESNEL or factor.kind == LAYER_WEIGHT:
         cos, backfacing = _facing(si) if facing is None else facing
-        if factor.kind == FRESNEL:                           # its svm_node_fresnel
-            eta = max(factor.ior, 1e-5)
-            f = fresnel_dielectric_cos(cos, np.where(backfacing, 1.0 / eta, eta))
-        elif factor.output == "fresnel":                     # its svm_node_layer_weight
-            eta = max(1.0 - factor.blend, 1e-5)
-            f = fresnel_dielectric_cos(cos, np.where(backfacing, eta, 1.0 / eta))
+        etas = _etas(factor)
+        if etas is not None:
+            f = fresnel_dielectric_cos(cos, np.where(backfacing, etas[1], etas[0]))
         else:
-            f = np.abs(cos)
-            if factor.blend != 0.5:
-                blend = min(max(factor.blend, 0.0), 1.0 - 1e-5)
-                f = f ** (2.0 * blend if blend < 0.5 else 0.5 / (1.0 - blend))
-            f = 1.0 - f
+            f = _layer_facing(np.abs(cos), factor.blend)
     elif factor.kind == TEXTURE:
         if si.lookup is None:
-            f = np.full(n, float(factor.value))
+            f = np.full(len(si), float(factor.value))
         else:
             f = si.lookup.factor(factor.texture, factor.value)
     elif factor.kind == PROGRAM:                             # a node program (engine/nodes/evaluator.py)
-        f = np.full(n, float(factor.value)) if si.lookup is None else si.lookup.program(factor.program)
+        f = np.full(len(si), float(factor.value)) if si.lookup is None else si.lookup.program(factor.program)
     return np.clip(f, 0.0, 1.0)
 
 
@@ -227,10 +241,10 @@ class MixBSDF(BSDF):
 
     def _weights(self, si: ShadingPoint, m: int, idx: np.ndarray) -> list:
         """The weight (len(idx),) of each leaf of material m at the hits `idx` of si, each value a
-        factor reads computed once for the leaves that share it; the Fresnel and Layer Weight
-        factors' view of the hits (_facing) once for every hit of si (its memo), then taken."""
+        factor reads computed once for the leaves that share it; si taken at idx only for the factors
+        that read more than the hits' view (_view_factor)."""
         every = len(idx) == len(si)
-        at = si if every else si.take(idx)
+        at = si if every else None                              # si.take(idx) once a factor needs it
         read, weights = {}, []
         for _, _, factors, firsts in self.closures[m]:
             w = np.ones(len(idx))
@@ -239,15 +253,29 @@ class MixBSDF(BSDF):
                     w = w * float(factor.constant())
                     continue
                 if id(first) not in read:
-                    facing = None
                     if first.kind == FRESNEL or first.kind == LAYER_WEIGHT:
-                        facing = si.memo(("mix", "facing"), _facing)
-                        facing = facing if every else (facing[0].take(idx), facing[1].take(idx))
-                    read[id(first)] = _factor_input(first, at, facing)
+                        read[id(first)] = self._view_factor(first, si, idx, every)
+                    else:
+                        at = si.take(idx) if at is None else at
+                        read[id(first)] = _factor_input(first, at)
                 f = read[id(first)]
                 w = w * (1.0 - f if factor.invert else f)
             weights.append(w)
         return weights
+
+    def _view_factor(self, factor, si: ShadingPoint, idx: np.ndarray, every: bool) -> np.ndarray:
+        """_factor_input of a Fresnel or Layer Weight factor at the hits idx of si (`every`: all of
+        them).  Compiled: the hits' view and the Fresnel in mix_jit.facing's loop over idx (no takes;
+        Layer Weight's "facing" then takes its power from NumPy: the same numbers).  NumPy: the view
+        (_facing) once for every hit of si (its memo), then taken."""
+        if self.compiled is not None:
+            etas = _etas(factor)
+            f = self.compiled.facing(si.wo, si.n, si.normal, None if every else idx, etas)
+            return f if etas is not None else np.clip(_layer_facing(f, factor.blend), 0.0, 1.0)
+        facing = si.memo(("mix", "facing"), _facing)
+        if every:
+            return _factor_input(factor, si, facing)
+        return _factor_input(factor, None, (facing[0].take(idx), facing[1].take(idx)))
 
     def _pairs_at(self, si: ShadingPoint):
         """_pairs of the hits `si`, computed once per span (ShadingPoint.memo_at: the light samples'

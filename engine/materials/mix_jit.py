@@ -1,13 +1,17 @@
 """engine/materials/mix.py's pair bookkeeping compiled with numba: the sample's pick of one (hit,
 leaf) pair per hit and the per-hit sums of the pairs' weighted f cos and pdfs, each one loop instead
 of some fifteen NumPy passes over the pairs, and the pairs (or hits) grouped by their leaf's row in
-one counting pass (the same ascending places as np.flatnonzero per row).  Imported only through engine/core/backend.py's choice
-(it imports numba).
+one counting pass (the same ascending places as np.flatnonzero per row); and the Fresnel and Layer Weight
+factors' view of the hits (`facing`: dot(wo, n), the backfacing test, engine/nodes/inputs.py
+fresnel_dielectric_cos and the clip to [0, 1] in one loop over the hits a material has, instead of some
+twenty NumPy passes and the takes of the hits' view).  Imported only through engine/core/backend.py's
+choice (it imports numba).
 
 The same float64 operations in the same order: np.cumsum adds the probabilities one after another,
 np.bincount adds each pair's product to its hit's sum in the pairs' order from 0, np.searchsorted
 (side "right") counts the sums <= the target (NumPy's comparison: a NaN target counts them all), and
-np.minimum / np.clip keep a NaN (tests/materials/test_mix_jit.py).  On a sorted table (the
+np.minimum / np.clip keep a NaN (tests/materials/test_mix_jit.py); np.nan_to_num(nan=1.0) makes NaN 1 and
++-inf the largest finite floats.  On a sorted table (the
 cumulative sum of probabilities without NaN: every render's) that count, clipped to the hit's pairs,
 is found by stepping through the hit's few pairs instead of a binary search of the whole table (any
 correct search of a sorted table counts the same); a table with a NaN is searched as NumPy does."""
@@ -16,10 +20,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.backend import numba_module
+from ..core.kernel_inputs import contiguous
 from ..sampling.search_jit import search_right
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
+FLOAT_MAX = float(np.finfo(np.float64).max)
 
 
 @jit
@@ -138,6 +144,60 @@ def by_row(rows, keep, codes):
     return [(r, order[offsets[r]:offsets[r + 1]]) for r in codes if offsets[r + 1] > offsets[r]]
 
 
+@jit
+def _fresnel_dielectric(cos, eta):
+    """engine/nodes/inputs.py fresnel_dielectric_cos of one hit, then np.clip(f, 0, 1)."""
+    c = abs(cos)
+    g = eta * eta - 1.0 + c * c
+    if not g > 0.0:
+        return 1.0
+    g = np.sqrt(g)
+    a = (g - c) / (g + c)
+    b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+    f = 0.5 * a * a * (1.0 + b * b)
+    if f != f:                                              # np.nan_to_num(f, nan=1.0)
+        return 1.0
+    if f == np.inf:                                         # ... and +-inf the largest finite floats
+        f = FLOAT_MAX
+    elif f == -np.inf:
+        f = -FLOAT_MAX
+    f = f if f > 0.0 else 0.0                               # np.clip(f, 0, 1) (f is not NaN here)
+    return f if f < 1.0 else 1.0
+
+
+@jit
+def _facing(wo, n, normal, idx, every, fresnel, front, back, out):
+    for k in range(out.shape[0]):
+        h = k if every else idx[k]
+        if h < 0 or h >= wo.shape[1]:
+            raise IndexError("mix_jit.facing: a hit index outside the hits")
+        cos = wo[0, h] * n[0, h] + wo[1, h] * n[1, h] + wo[2, h] * n[2, h]          # engine/core/vec.py dot
+        if fresnel:
+            behind = wo[0, h] * normal[0, h] + wo[1, h] * normal[1, h] + wo[2, h] * normal[2, h] < 0.0
+            out[k] = _fresnel_dielectric(cos, back if behind else front)
+        else:
+            out[k] = abs(cos)
+
+
+def facing(wo, n, normal, idx, etas):
+    """At the hits idx (None: all) of a ShadingPoint's wo, n and normal (rows (3, N)): with etas =
+    (eta in front, eta behind) the Fresnel factor, clipped to [0, 1], of MixBSDF's Fresnel and Layer
+    Weight "fresnel" factors (engine/materials/mix.py _factor_input); with etas None |dot(wo, n)|,
+    what Layer Weight's "facing" raises to its power (NumPy's: its pow is not libm's)."""
+    every = idx is None
+    if wo.ndim != 2 or wo.shape[0] != 3 or n.shape != wo.shape or (etas is not None and normal.shape != wo.shape):
+        raise ValueError(f"mix_jit.facing: wo, n and normal must be rows (3, N) alike, not {wo.shape}, {n.shape}, "
+                         f"{normal.shape}")
+    out = np.empty(wo.shape[1] if every else len(idx))
+    front, back = (1.0, 1.0) if etas is None else (float(etas[0]), float(etas[1]))
+    _facing(contiguous(wo), contiguous(n), contiguous(normal if etas is not None else n),
+            contiguous(NO_HITS if every else idx, np.int64), every, etas is not None, front, back, out)
+    return out
+
+
+NO_HITS = np.zeros(0, np.int64)
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     hit = np.array([0, 0, 1])
@@ -146,3 +206,7 @@ def warm_up() -> None:
     sums(hit, np.ones((3, 3)), np.ones(3), np.ones(3), prob, 2)
     for keep in (None, np.array([True, False, True])):
         by_row(hit, keep, [0, 1])
+    rows = np.array([[0.0, 0.6, 0.8]] * 3).T.copy()
+    for idx in (None, np.array([1])):
+        for etas in ((1.45, 1.0 / 1.45), None):
+            facing(rows, rows, -rows, idx, etas)

@@ -27,6 +27,8 @@ program pays only for what its nodes read.  Names (rows (3, N) unless noted), as
   tangent         the UV map's interpolated (unnormalised) corner tangent, world space (Normal Map)
   tangent_sign    (N,) the interpolated corner bitangent sign; has_tangent (N,) bool: the hit has both
   tangent_base    the outward base normal of the tangent frame: the smooth normal, or Ng on flat faces
+  tangent_corners a TangentCorners: what tangent and tangent_sign are interpolated from (the compiled
+                  Normal Map makes them per hit itself: engine/nodes/normals_jit.py corner_normal_map)
   object_to_world_normal  a function: rows (3, N) in object space -> normalised world normals
   camera_pixel    (right, up, forward) rows (3, 1) of the camera and one pixel's size at unit distance
                   (the image centre's), for Bump's footprint (engine/nodes/normals.py bump_offsets)
@@ -40,10 +42,25 @@ When folding constants (n = 1, no hits) every attribute raises `Varying`.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 
 SHADOW_RAY = 4        # ray_kind at light samples (engine/nodes/inputs.py Light Path: Is Shadow Ray)
+
+
+class TangentCorners(NamedTuple):
+    """The hits' kind, prim, b1, b2 (N,) and the scene's corner tangents (T, 3, 3) and bitangent signs
+    (T, 3) (None, None: no mesh has tangents): a triangle hit's (kind == triangle) tangent is its
+    corners' tangents weighted by (1 - b1 - b2, b1, b2), its sign likewise; other hits have none."""
+    kind: np.ndarray
+    prim: np.ndarray
+    b1: np.ndarray
+    b2: np.ndarray
+    triangle: int
+    tangents: np.ndarray | None
+    signs: np.ndarray | None
 
 
 class Varying(LookupError):
@@ -288,8 +305,14 @@ class SceneAttributes:
         all_tri = len(tri) == n
         # The triangle hits' primitives and barycentrics (all of the hits: the arrays themselves).
         prim_t, b1t, b2t = (prim, b1, b2) if all_tri else (prim.take(tri), b1.take(tri), b2.take(tri))
-        obj = self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(len(tri), np.int64)
-        one_object = len(self.centre) == 1 or (len(obj) > 0 and obj.min() == obj.max())
+
+        def objects():
+            """The triangle hits' objects (len(tri),) (read by the object attributes only)."""
+            return self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(len(tri), np.int64)
+
+        def one_object():
+            obj = ctx.attr("_object")
+            return len(self.centre) == 1 or (len(obj) > 0 and obj.min() == obj.max())
 
         def on_triangles(values_t, rest=0.0):
             """Rows (k, N) with the triangle hits' values; `rest` elsewhere."""
@@ -339,7 +362,8 @@ class SceneAttributes:
         def per_object(table):
             """table (O, ...) at the triangle hits' objects: one row when they all have one object
             (the products with it are the same numbers), else (k, ...)."""
-            return table[obj[0]][None] if one_object else table.take(obj, axis=0)
+            obj = ctx.attr("_object")
+            return table[obj[0]][None] if ctx.attr("_one_object") else table.take(obj, axis=0)
 
         def obj_pos():
             p = ctx.attr("position")
@@ -368,7 +392,7 @@ class SceneAttributes:
             nrm = ctx.attr("normal")
             if not len(tri):
                 return nrm
-            m = self.to_world[obj]                                    # M^T n
+            m = self.to_world[ctx.attr("_object")]                    # M^T n
             local = np.einsum("kji,jk->ik", m, nrm[:, tri])
             out = nrm.copy()
             out[:, tri] = local / np.maximum(np.sqrt((local * local).sum(axis=0)), 1e-300)
@@ -393,8 +417,9 @@ class SceneAttributes:
                  "normal": normal, "incoming": incoming, "object": obj_pos, "generated": generated,
                  "object_normal": object_normal, "uv": uv, "camera": camera,
                  "backfacing": lambda: (ctx.attr("_towards") < 0.0).astype(np.float64),
-                 "object_location": lambda: on_triangles(self.location[obj].T),
-                 "object_random": lambda: on_triangles(self.random[obj])}
+                 "object_location": lambda: on_triangles(self.location[ctx.attr("_object")].T),
+                 "object_random": lambda: on_triangles(self.random[ctx.attr("_object")]),
+                 "_object": objects, "_one_object": one_object}
         attrs["ray_kind"], attrs["ray_depth"] = lambda: np.full(n, SHADOW_RAY), lambda: np.zeros(n)   # light samples
         if points is not None:
             for name, field in (("ray_depth", "depth"), ("ray_kind", "ray_kind"), ("ray_length", "distance")):
@@ -412,7 +437,7 @@ class SceneAttributes:
             """Cycles' object_normal_transform: normalize(inverse(M)^T local)."""
             out = np.array(local, dtype=np.float64)
             if len(tri):
-                m = self.to_object[obj][:, :, :3]                     # inverse(M), (k, 3, 3)
+                m = self.to_object[ctx.attr("_object")][:, :, :3]     # inverse(M), (k, 3, 3)
                 out[:, tri] = np.einsum("kji,jk->ik", m, out[:, tri])
             return out / np.maximum(np.sqrt((out * out).sum(axis=0)), 1e-300)
 
@@ -422,6 +447,8 @@ class SceneAttributes:
         attrs["has_tangent"] = lambda: ((ctx.attr("tangent_sign") != 0.0)
                                         & ((ctx.attr("tangent") ** 2).sum(axis=0) > 0.0))
         attrs["tangent_base"] = lambda: ctx.attr("normal") * ctx.attr("_towards")
+        attrs["tangent_corners"] = lambda: TangentCorners(kind, prim, b1, b2, triangle_kind, self.tri_tangent,
+                                                          self.tri_sign)
         attrs["object_to_world_normal"] = lambda: to_world_normal
         if self.camera_pixel is not None:
             attrs["camera_pixel"] = self.camera_pixel
@@ -430,7 +457,7 @@ class SceneAttributes:
             out = np.tile(np.eye(4)[:3], (n, 1, 1))
             if len(tri):
                 out[tri] = (self.to_object if inverse else np.concatenate(
-                    [self.to_world, self.location[:, :, None]], axis=2))[obj]
+                    [self.to_world, self.location[:, :, None]], axis=2))[ctx.attr("_object")]
             return out
         attrs["object_to_world"] = lambda: object_transforms(False)
         attrs["world_to_object"] = lambda: object_transforms(True)

@@ -59,18 +59,22 @@ def normal_map(inputs, props, ctx):
     strength = inputs.get("Strength", np.ones(ctx.n))
     space = props.get("space", "TANGENT")
     shading = ctx.attr("normal")
-    backfacing = ctx.attr("backfacing") > 0.5
     version = ctx.cycles_version
     linear = True
     if space == "TANGENT":
         c = np.asarray(color, dtype=np.float64)
-        tangent, sign = ctx.attr("tangent"), ctx.attr("tangent_sign")
-        has = ctx.attr("has_tangent")
         if compiled() is not None:           # a numba render (shading_normals.compiled_for): the same numbers
             from . import normals_jit
-            return {"Normal": normals_jit.tangent_normal_map(c, strength, tangent, sign, ctx.attr("tangent_base"),
-                                                             backfacing, has, shading, version)}
-        n = tangent_space_normal(c, tangent, sign, ctx.attr("tangent_base"), backfacing, strength, version)
+            if ctx.has("tangent_corners"):   # a scene's hits: the tangent frame made in the kernel's loop
+                return {"Normal": normals_jit.corner_normal_map(c, strength, ctx.attr("tangent_corners"), shading,
+                                                                ctx.attr("_towards"), version)}
+            return {"Normal": normals_jit.tangent_normal_map(
+                c, strength, ctx.attr("tangent"), ctx.attr("tangent_sign"), ctx.attr("tangent_base"),
+                ctx.attr("backfacing") > 0.5, ctx.attr("has_tangent"), shading, version)}
+        tangent, sign = ctx.attr("tangent"), ctx.attr("tangent_sign")
+        has = ctx.attr("has_tangent")
+        n = tangent_space_normal(c, tangent, sign, ctx.attr("tangent_base"), ctx.attr("backfacing") > 0.5, strength,
+                                 version)
         n = np.where(has, n, shading)                      # no tangents (no UV map, a sphere): N
         linear = version < (4, 0)
     else:
@@ -78,7 +82,7 @@ def normal_map(inputs, props, ctx):
         if space in ("BLENDER_OBJECT", "BLENDER_WORLD"):
             c = np.stack([c[0], -c[1], -c[2]])
         n = ctx.attr("object_to_world_normal")(c) if space in ("OBJECT", "BLENDER_OBJECT") else safe_normalize(c)
-        n = np.where(backfacing, -n, n)
+        n = np.where(ctx.attr("backfacing") > 0.5, -n, n)
     if linear:
         s = np.maximum(strength, 0.0)
         n = np.where(strength != 1.0, safe_normalize(shading + (n - shading) * s), n)

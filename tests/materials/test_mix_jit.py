@@ -11,7 +11,7 @@ from engine.materials.mix import U_MAX
 from engine.materials.protocol import ShadingPoint
 from engine.materials.table import KIND_CODE, MaterialTable
 from engine import RenderSettings
-from engine.scene.model import MIX
+from engine.scene.model import MIX, MixFactor
 from tests.backend_capture import require_compiled
 from tests.materials.test_mix import MIXES, random_hits
 
@@ -163,3 +163,105 @@ def test_warm_up_covers_the_kernels(u_max):
     twin.warm_up()
     chosen, p_c, u_leaf = twin.pick(np.array([0, 1]), np.array([1.0, 1.0]), np.ones(2), np.array([1.0, 0.0]), u_max)
     assert list(chosen) == [0, 1] and u_leaf[0] == u_max and u_leaf[1] == 0.0
+
+
+# -- the Fresnel and Layer Weight factors (mix_jit.facing, MixBSDF._view_factor) ----------------------------
+VIEW_FACTORS = ([MixFactor("fresnel", ior=ior) for ior in (1.45, 1.0, 0.5, 1e-9, 40.0)]
+                + [MixFactor("layer_weight", blend=b, output="fresnel") for b in (0.0, 0.3, 0.5, 0.99, 1.0)]
+                + [MixFactor("layer_weight", blend=b, output="facing") for b in (0.0, 0.25, 0.3, 0.5, 0.75, 0.4000000059604645, 1.0)])
+
+
+def both_views(factor, si, idx):
+    """(NumPy's, the compiled) _view_factor of `factor` at the hits idx of si (all when idx has them)."""
+    numpy_bsdf, compiled, _ = mix_pair()
+    every = len(idx) == len(si)
+    with np.errstate(all="ignore"):
+        return numpy_bsdf._view_factor(factor, si, idx, every), compiled._view_factor(factor, si, idx, every)
+
+
+def edge_hits(n=600, seed=3):
+    """Hits whose wo and n meet at every angle, grazing (cos +-1, 0, -0.0), from behind (normal opposite
+    wo) and with NaN, inf and zero components."""
+    rng = np.random.default_rng(seed)
+    normal = rng.normal(size=(3, n))
+    normal /= np.linalg.norm(normal, axis=0)
+    wo = rng.normal(size=(3, n))
+    wo /= np.linalg.norm(wo, axis=0)
+    shading = np.where(rng.random(n) < 0.5, normal, -normal) + 0.1 * rng.normal(size=(3, n))
+    wo[:, 0], shading[:, 0] = (1.0, 0.0, 0.0), (1.0, 0.0, 0.0)           # cos 1
+    wo[:, 1], shading[:, 1] = (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)          # cos -1
+    wo[:, 2], shading[:, 2] = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)           # cos 0
+    wo[:, 9], shading[:, 9], normal[:, 9] = (1.0, 0.0, 0.0), (0.6, 0.8, 0.0), (0.0, 0.0, 1.0)   # on the side
+    wo[:, 3], shading[:, 3] = (-0.0, 0.0, 1.0), (1.0, 0.0, -0.0)         # cos -0.0
+    wo[0, 4], shading[1, 5], normal[2, 6], wo[:, 7] = np.nan, np.inf, np.nan, 0.0
+    wo[:, 8], shading[:, 8] = (1e200, 0.0, 0.0), (1e200, 0.0, 0.0)       # cos inf
+    si = ShadingPoint(wo, shading, shading, normal, np.ones((3, n)), np.zeros(n, np.int64))
+    return si
+
+
+def same_bits(a, b):
+    return a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True) and np.array_equal(np.signbit(a), np.signbit(b))
+
+
+def test_the_view_factors_are_numpys_on_edge_hits():
+    si = edge_hits()
+    some = np.sort(np.random.default_rng(4).choice(len(si), 250, replace=False))
+    for factor in VIEW_FACTORS:
+        for idx in (np.arange(len(si)), some, np.zeros(0, np.int64)):
+            a, b = both_views(factor, si, idx)
+            assert same_bits(a, b), (factor, len(idx))
+    a, _ = both_views(MixFactor("fresnel", ior=1.45), si, np.arange(len(si)))
+    assert (a == 1.0).any() and ((a > 0.0) & (a < 1.0)).any()       # beyond the critical angle, and not
+
+
+def test_the_view_factors_of_a_render_are_numpys():
+    """Every Fresnel / Layer Weight factor the mixes read in a NumPy render of a floor whose two
+    triangles have a Fresnel mix and a Layer Weight mix (the hits and each material's indices as the
+    render passes them), compiled: the same numbers."""
+    from engine import render
+    from engine.materials.mix import MixBSDF
+    from tests.materials.test_mix import textured_floor_scene
+    import importlib
+    twin = importlib.import_module(TWIN)
+    original, seen = MixBSDF._view_factor, []
+
+    def recording(self, factor, si, idx, every):
+        reference = original(self, factor, si, idx, every)
+        self.compiled = twin
+        try:
+            seen.append((reference, original(self, factor, si, idx, every), every))
+        finally:
+            self.compiled = None
+        return reference
+    scene = textured_floor_scene(MIXES["fresnel diffuse+glossy"])      # its triangles: Fresnel, Layer Weight
+    scene.materials.append(MIXES["layer weight"])
+    scene.meshes[0].material_ids = np.array([0, 2])
+    MixBSDF._view_factor = recording
+    try:
+        render(scene, RenderSettings(samples=16, seed=2, threads=1, backend="numpy"), log=lambda *a: None)
+    finally:
+        MixBSDF._view_factor = original
+    assert len(seen) >= 2 and not any(every for _, _, every in seen) and sum(len(a) for a, _, _ in seen) > 400
+    for reference, compiled, _ in seen:
+        assert same_bits(reference, compiled)
+
+
+def test_control_a_last_bit_change_of_the_view_is_seen():
+    """wo moved by one ulp changes the factors in their last bits, and the comparison sees it."""
+    si = edge_hits()
+    idx = np.arange(len(si))
+    reference, _ = both_views(MixFactor("fresnel", ior=1.45), si, idx)
+    si.wo = np.nextafter(si.wo, 10.0)
+    _, moved = both_views(MixFactor("fresnel", ior=1.45), si, idx)
+    assert np.allclose(moved, reference, atol=1e-12, equal_nan=True) and not same_bits(moved, reference)
+
+
+def test_the_view_kernel_refuses_rows_and_indices_it_would_read_past():
+    require_compiled()
+    import importlib
+    twin = importlib.import_module(TWIN)
+    rows = np.ones((3, 4))
+    with pytest.raises(ValueError, match="facing"):
+        twin.facing(rows, np.ones((3, 1)), rows, None, (1.5, 1 / 1.5))
+    with pytest.raises(IndexError, match="facing"):
+        twin.facing(rows, rows, rows, np.array([0, 4]), (1.5, 1 / 1.5))

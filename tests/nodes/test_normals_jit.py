@@ -51,21 +51,30 @@ def ground(version):
 def capture(version, limit=6):
     """[(inputs, props, ctx)] of normal_map's calls in a 16 x 16, 2 spp NumPy render of ground(version),
     the context's attributes read at once (they are computed on first use)."""
-    calls, original = [], normals.normal_map
+    calls = []
 
-    def recording(inputs, props, ctx):
+    def record(inputs, props, ctx):
         if len(calls) < limit:
             names = ("normal", "backfacing", "tangent", "tangent_sign", "has_tangent", "tangent_base")
             kept = NodeContext(ctx.n, ctx.cycles_version, {k: np.array(ctx.attr(k)) for k in names})
             calls.append(({k: np.array(v) for k, v in inputs.items()}, dict(props), kept))
+    render_seeing(ground(version), record)
+    return calls
+
+
+def render_seeing(scene, record):
+    """A 2 spp NumPy render of `scene` in which record(inputs, props, ctx) sees each Normal Map call first."""
+    original = normals.normal_map
+
+    def recording(inputs, props, ctx):
+        record(inputs, props, ctx)
         return original(inputs, props, ctx)
     table = kernels()                         # the evaluator's table of kernels, built once
     table["ShaderNodeNormalMap"] = recording
     try:
-        api.render(ground(version), RenderSettings(samples=2, threads=1, backend="numpy"), log=lambda m: None)
+        api.render(scene, RenderSettings(samples=2, threads=1, backend="numpy"), log=lambda m: None)
     finally:
         table["ShaderNodeNormalMap"] = original
-    return calls
 
 
 def both(inputs, props, ctx):
@@ -127,3 +136,124 @@ def test_control_a_last_bit_change_is_seen():
     inputs["Color"] = np.nextafter(inputs["Color"], 10.0)
     _, moved = both(inputs, props, ctx)
     assert np.allclose(moved, reference, atol=1e-12, equal_nan=True) and not same(moved, reference)
+
+
+# -- at a scene's hits: the tangent frame interpolated in the kernel (normals_jit.corner_normal_map) --------
+def capture_scene_calls(version, limit=6):
+    """[(NumPy's Normal, the compiled one)] of normal_map's calls in a 16 x 16, 2 spp NumPy render of
+    ground(version), both made on the render's own context at the call (SceneAttributes.context: the
+    compiled one reads its tangent_corners)."""
+    pairs = []
+
+    def record(inputs, props, ctx):
+        assert ctx.has("tangent_corners")
+        if len(pairs) < limit:
+            pairs.append(both(inputs, props, ctx))
+    render_seeing(ground(version), record)
+    return pairs
+
+
+@pytest.mark.parametrize("version", [(3, 4), (5, 0)])
+def test_recorded_scene_calls_interpolate_the_numpy_tangents(version):
+    require_compiled()
+    pairs = capture_scene_calls(version)
+    assert len(pairs) >= 2 and sum(r.shape[1] for r, _ in pairs) > 100
+    for reference, compiled in pairs:
+        assert same(reference, compiled)
+
+
+def corner_scene(tangents=True):
+    """Six triangles whose corner tangents and signs hold the edge values: NaN, +-inf, -0.0, zero
+    tangents, sign 0 and NaN; without `tangents` no mesh has any."""
+    rng = np.random.default_rng(12)
+    verts = rng.normal(size=(18, 3))
+    tris = np.arange(18).reshape(6, 3)
+    t = rng.normal(size=(6, 3, 3))
+    s = rng.choice([-1.0, 1.0], (6, 3))
+    t[1, 0, 0], t[1, 2, 1], t[2, 1] = np.nan, np.inf, 0.0
+    t[3] = 0.0
+    t[4, 0, 2], s[4, 1] = -np.inf, -0.0
+    s[2] = 0.0
+    s[5, 2] = np.nan
+    mesh = TriangleMesh("Edges", verts, tris, np.zeros(6, np.int64), object_matrix=np.eye(4),
+                        tangents=t if tangents else None, tangent_signs=s if tangents else None)
+    return Scene(None, [Material("M")], [mesh], [], [])
+
+
+def corner_context(scene, version, m=300, seed=5):
+    """A context of m hits on corner_scene: triangles and other kinds (spheres, none), barycentrics
+    inside, outside, 0, 1 and NaN, viewers on both sides (a shading normal given or not)."""
+    from engine.geometry.scene_geometry import SPHERE, TRIANGLE
+    from engine.nodes.context import HitPoints, SceneAttributes
+    rng = np.random.default_rng(seed)
+    attrs = SceneAttributes(scene, scene.meshes[0].vertices[scene.meshes[0].triangles], None)
+    kind = rng.choice(np.array([TRIANGLE, TRIANGLE, TRIANGLE, SPHERE, 0], np.int8), m)
+    prim = rng.integers(0, 6, m)
+    b1, b2 = rng.random(m), rng.random(m) * 0.5
+    if m >= 6:
+        b1[:6], b2[:6] = [0.0, 1.0, -0.25, 1.5, np.nan, 0.0], [0.0, 0.0, 0.5, 0.1, 0.2, np.nan]
+        kind[:6], prim[:6] = TRIANGLE, [0, 1, 2, 3, 4, 5]
+    normal = rng.normal(size=(3, m))
+    shading = normal + 0.2 * rng.normal(size=(3, m))
+    points = HitPoints(direction=rng.normal(size=(3, m)), normal=normal, shading=shading)
+    return attrs.context(kind, prim, b1, b2, points, version, None, TRIANGLE)
+
+
+@pytest.mark.parametrize("version", [(3, 4), (5, 0)])
+@pytest.mark.parametrize("tangents", [True, False])
+def test_hand_made_scene_hits_are_the_numpy_numbers(version, tangents):
+    require_compiled()
+    inputs, props, _ = hand_made(version, m=300)
+    ctx = corner_context(corner_scene(tangents), version)
+    assert ctx.has("tangent_corners") and (ctx.attr("backfacing") > 0).any() and (ctx.attr("backfacing") == 0).any()
+    assert same(*both(inputs, props, corner_context(corner_scene(tangents), version)))
+    constant = {"Color": np.array([0.6, 0.4, 0.9])}
+    assert same(*both(constant, props, corner_context(corner_scene(tangents), version)))
+    empty = corner_context(corner_scene(tangents), version, m=0)
+    assert same(*both({"Color": np.zeros((3, 0)), "Strength": np.zeros(0)}, props, empty))
+
+
+def test_control_a_last_bit_change_of_a_corner_is_seen():
+    """A corner tangent moved by one ulp changes the interpolated normals in their last bits, and the
+    comparison says so (the kernel reads the corners, not the NumPy attributes)."""
+    require_compiled()
+    inputs, props, _ = hand_made((5, 0), m=300)
+    scene = corner_scene()
+    reference, _ = both(inputs, props, corner_context(scene, (5, 0)))
+    scene.meshes[0].tangents[0, 1] = np.nextafter(scene.meshes[0].tangents[0, 1], 10.0)
+    _, moved = both(inputs, props, corner_context(scene, (5, 0)))
+    assert np.allclose(moved, reference, atol=1e-12, equal_nan=True) and not same(moved, reference)
+
+
+def test_inputs_of_other_lengths_are_refused():
+    """(3, 1) rows where N hits are meant would be read past their end by the loops: refused."""
+    require_compiled()
+    from engine.nodes import normals_jit
+    from engine.nodes.context import TangentCorners
+    rows, one = np.ones((3, 4)), np.ones((3, 1))
+    with pytest.raises(ValueError, match="bump_shadowing"):
+        normals_jit.bump_shadowing(one, rows, None, rows, rows, True, True)
+    with pytest.raises(ValueError, match="bump_shadowing"):
+        normals_jit.bump_shadowing(rows, rows, rows, rows, np.ones((3, 8)), True, True, repeat=3)
+    assert normals_jit.bump_shadowing(rows, rows, rows, rows, np.ones((3, 8)), True, True, repeat=2).shape == (8,)
+    corners = TangentCorners(np.ones(1, np.int8), np.zeros(1, np.int64), np.zeros(1), np.zeros(1), 1, None, None)
+    with pytest.raises(ValueError, match="corner_normal_map"):
+        normals_jit.corner_normal_map(rows, np.ones(4), corners, rows, np.ones(4), (5, 0))
+
+
+def test_one_colour_and_strength_are_broadcast_to_the_hits():
+    """The Normal Map's colour (3, 1) and strength (1,) stand for every hit (copied to N): the same normals
+    as the full arrays, on both kernels."""
+    require_compiled()
+    from engine.nodes import normals_jit
+    inputs, _, ctx = hand_made((5, 0), m=50)
+    colour, strength = inputs["Color"][:, 7:8], inputs["Strength"][20:21]
+    full = np.repeat(colour, 50, axis=1), np.repeat(strength, 50)
+    names = ("tangent", "tangent_sign", "tangent_base")
+    args = [ctx.attr(k) for k in names] + [ctx.attr("backfacing") > 0.5, ctx.attr("has_tangent"), ctx.attr("normal")]
+    assert same(normals_jit.tangent_normal_map(colour, strength, *args, (5, 0)),
+                normals_jit.tangent_normal_map(*full, *args, (5, 0)))
+    scene_ctx = corner_context(corner_scene(), (5, 0), m=50)
+    corners, shading, towards = scene_ctx.attr("tangent_corners"), scene_ctx.attr("normal"), scene_ctx.attr("_towards")
+    assert same(normals_jit.corner_normal_map(colour, strength, corners, shading, towards, (5, 0)),
+                normals_jit.corner_normal_map(*full, corners, shading, towards, (5, 0)))
