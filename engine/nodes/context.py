@@ -73,6 +73,7 @@ class NodeContext:
         self.cycles_version = tuple(cycles_version)[:2]
         self.images = images
         self._attributes = dict(attributes or {})
+        self._values: dict = {}                # the attributes read so far, lazy ones made
         self.folding = attributes is None      # evaluator.fold's context: no hits at all
         self.shifted = None                    # offset rows (3, N) -> NodeContext (SceneAttributes)
         self.warnings: list[str] = []
@@ -84,10 +85,12 @@ class NodeContext:
         """The attribute `name` (see the module doc); Varying when the context has none."""
         if name not in self._attributes:
             raise Varying(name)
+        if name in self._values:
+            return self._values[name]
         value = self._attributes[name]
-        if callable(value):
+        if callable(value):             # a lazy attribute: made on its first read, kept
             value = value()
-            self._attributes[name] = value
+        self._values[name] = value      # (apart, so an attribute that is a function stays one)
         return value
 
     def image(self):

@@ -144,3 +144,42 @@ def test_bump_shadowing_is_one_for_the_smooth_normal_and_dims_grazing_light(vers
     assert np.all(normals.bump_shadowing(smooth, smooth, wi, diffuse, True, version) == 1.0)
     term = normals.bump_shadowing(smooth, tilted, wi, diffuse, True, version)
     assert term[0] == pytest.approx(1.0) and 0.0 <= term[1] < 0.9
+
+
+def test_two_object_space_normal_maps_in_one_program():
+    """Two Object-space Normal Map nodes, the second fed by the first, on one context: the context's
+    object_to_world_normal (an attribute that is a function) read twice.  (It was made by a lazy entry
+    and then stored in its place, so the second read called the function itself without its argument:
+    TypeError; found by review.)  The chain equals the second node fed the first's output as a constant."""
+    from engine.geometry.scene_geometry import TRIANGLE
+    from engine.nodes.context import SceneAttributes
+    from engine.nodes.evaluator import run
+    from engine.scene.model import Material, Scene, TriangleMesh
+    from engine.scene.programs import Link, Program, ProgramNode
+
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]])
+    tris = np.array([[0, 1, 2]])
+    matrix = np.eye(4)
+    matrix[:3, :3] = [[0.0, -2.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]     # turned, stretched: not the identity
+    mesh = TriangleMesh("A", verts, tris, np.zeros(1, np.int64), object_matrix=matrix)
+    attrs = SceneAttributes(Scene(None, [Material("M")], [mesh], [], []), verts[tris], None)
+
+    def context():
+        n = 4
+        return attrs.context(np.full(n, TRIANGLE, np.int8), np.zeros(n, np.int64), np.full(n, .2),
+                             np.full(n, .3), None, (5, 0), None, TRIANGLE)
+
+    def node(name, color):
+        return ProgramNode("ShaderNodeNormalMap", name, {"space": "OBJECT", "_outputs": ["Normal"]},
+                           {"Color": color, "Strength": 1.0})
+
+    color = (0.7, 0.5, 0.9)
+    one = run(Program([node("a", color)], (0, "Normal", "VECTOR"), "VECTOR"), context())
+    chain = run(Program([node("a", color), node("b", Link(0, "Normal", "VECTOR", "RGBA"))],
+                        (1, "Normal", "VECTOR"), "VECTOR"), context())
+    first = np.asarray(one).reshape(3, -1)[:, 0]                  # the same at every hit
+    second = run(Program([node("b", tuple(float(c) for c in first))], (0, "Normal", "VECTOR"), "VECTOR"),
+                 context())
+    assert np.all(np.isfinite(np.asarray(chain)))
+    assert np.array_equal(np.asarray(chain), np.asarray(second))
+    assert not np.allclose(np.asarray(chain), np.asarray(one))     # the second node did turn it
