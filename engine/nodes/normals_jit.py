@@ -152,6 +152,8 @@ def _corner_normal_map(color, strength, kind, prim, b1, b2, triangle, has_corner
         tx = ty = tz = sg = 0.0                   # off triangles (or without tangents): none
         if has_corners and kind[h] == triangle:   # context.py's bary and tangent_sign, per hit
             p, u, v = prim[h], b1[h], b2[h]
+            if p < 0 or p >= tangents.shape[0]:   # as NumPy's take refuses it, not a read past the end
+                raise IndexError("normals_jit.corner_normal_map: a triangle hit's primitive outside the tangents")
             w = 1.0 - u - v
             tx = w * tangents[p, 0, 0] + u * tangents[p, 1, 0] + v * tangents[p, 2, 0]
             ty = w * tangents[p, 0, 1] + u * tangents[p, 1, 1] + v * tangents[p, 2, 1]

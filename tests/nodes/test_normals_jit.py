@@ -257,3 +257,35 @@ def test_one_colour_and_strength_are_broadcast_to_the_hits():
     corners, shading, towards = scene_ctx.attr("tangent_corners"), scene_ctx.attr("normal"), scene_ctx.attr("_towards")
     assert same(normals_jit.corner_normal_map(colour, strength, corners, shading, towards, (5, 0)),
                 normals_jit.corner_normal_map(*full, corners, shading, towards, (5, 0)))
+
+
+def test_a_triangle_hit_outside_the_tangents_is_refused_on_both_backends():
+    """A triangle hit whose primitive is past the scene's triangles: NumPy's take raises IndexError, and
+    so does the compiled corner kernel (it read past the tangents' end before; found by review); the
+    hits inside give the same normals on both."""
+    require_compiled()
+    from engine.geometry.scene_geometry import TRIANGLE
+    from engine.geometry.shading_normals import compiled_for
+    from engine.nodes import normals
+    from engine.nodes.context import HitPoints, SceneAttributes
+    from engine.scene.model import Material, Scene, TriangleMesh
+    r = np.random.default_rng(1)
+    mesh = TriangleMesh("A", r.normal(size=(6, 3)), np.arange(6).reshape(2, 3), np.zeros(2, np.int64),
+                        object_matrix=np.eye(4), tangents=r.normal(size=(2, 3, 3)), tangent_signs=np.ones((2, 3)))
+    attrs = SceneAttributes(Scene(None, [Material("M")], [mesh], [], []), mesh.vertices[mesh.triangles], None)
+
+    def normal(prim, compiled):
+        n = len(prim)
+        ctx = attrs.context(np.full(n, TRIANGLE, np.int8), np.asarray(prim), np.full(n, .2), np.full(n, .3),
+                            HitPoints(direction=-np.ones((3, n)), normal=np.ones((3, n)), shading=np.ones((3, n))),
+                            (5, 0), None, TRIANGLE)
+        with compiled_for(compiled):
+            return normals.normal_map({"Color": np.full((3, n), 0.7), "Strength": np.ones(n)},
+                                      {"space": "TANGENT"}, ctx)["Normal"]
+    assert np.array_equal(normal([0, 1, 1], False), normal([0, 1, 1], True))
+    for compiled in (False, True):
+        for prim in ([0, 1, 2], [0, -1, 1]):
+            if prim[1] == -1 and not compiled:
+                continue            # NumPy's take reads -1 as the last row: only the kernel's own check applies
+            with pytest.raises(IndexError):
+                normal(prim, compiled)
