@@ -395,7 +395,8 @@ class PathTracer:
                 caustic_light = p.radiance[:, :alive] - before
         for bsdf, span, non_delta in zip(self.bsdfs, spans, self.mats.non_delta):
             if self.use_nee and non_delta and span.stop > span.start:
-                # (compiled Lambertian hits without Light Paths options: the sum below in place, None)
+                # (compiled Lambertian hits, unless the caustics toggles leave light samples out
+                # (no_light): the sum below done in place, None returned)
                 light = self.direct_light(
                     bsdf, si[span], surf.point[:, span], surf.offset[span], None, counters,
                     u=self.light_uniforms(sampler, p.pixel[span], p.sample[span], dim[span], u_choice[span]),
@@ -578,7 +579,7 @@ class PathTracer:
     def emission(self, p, surf, hits, surfaces, lookup=None):
         """Add emission at emissive surfaces and front faces of Area lights, weighted: 1 after
         the camera or a delta bounce or without shadow rays; after a non-delta bounce 0 under
-        `report`/`solid-angle`, the power-heuristic weight under `mis`.  Compiled (without Light
+        `report`/`solid-angle`, the power-heuristic weight under `mis`.  Compiled (without caustic
         photons): the weights, the clamp and the sum in engine/integrators/wavefront_jit.py
         (emitter_lights, add_emission), the same numbers."""
         mat = surf.material
@@ -958,9 +959,10 @@ class PathTracer:
         drawn from rng.  Smooth shading (si.smooth): shadow rays start off the geometric surface
         si.ng and directions below it count 0 (no light leaks, engine/geometry/shading_normals.py).
         lift: (lift rows, cutoff) per point, the shadow-terminator geometry offset of smooth
-        triangles (Cycles' shadow_ray_offset).  into: (radiance, beta, start, bounce, clamp), the path state's
-        rows, the first path of these hits and PathTracer.clamp_limits (None: no clamping): where the compiled Lambertian case runs (lambert_direct_light) it adds
-        beta x its light into radiance in place (the caller's product and sum) and returns None."""
+        triangles (Cycles' shadow_ray_offset).  into: (radiance, beta, start, bounce, clamp), the path
+        state's rows, the first path of these hits and PathTracer.clamp_limits (None: no clamping):
+        where the compiled Lambertian case runs (lambert_direct_light) it adds beta x its light into
+        radiance in place (the caller's product and sum) and returns None."""
         ns = self.settings.shadow_rays
         m = point.shape[1]
         k = m * ns
