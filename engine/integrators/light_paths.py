@@ -41,12 +41,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..materials.protocol import BSDFFlags
+from ..materials.protocol import DIFFUSE_LOBE, REFLECTION_LOBE, STRAIGHT_LOBE, TRANSMISSION_LOBE
 
-# The lobe flags as plain ints for arrays of flags (`flags & BSDFFlags.DELTA` converts the enum member
-# on every call)
-REFLECTION_LOBE, TRANSMISSION_LOBE, DIFFUSE_LOBE, STRAIGHT_LOBE = (int(f) for f in (
-    BSDFFlags.REFLECTION, BSDFFlags.TRANSMISSION, BSDFFlags.DIFFUSE, BSDFFlags.STRAIGHT))
 DIFFUSE_BOUNCE, GLOSSY_BOUNCE, TRANSMISSION_BOUNCE, TRANSPARENT_BOUNCE = 0, 1, 2, 3   # rows of Paths.counts
 BOUNCE_TYPES = ("diffuse", "glossy", "transmission", "transparent")
 CLAMP_SCALE = 3.0              # Cycles: the clamp is on |R| + |G| + |B|, the user's value x 3

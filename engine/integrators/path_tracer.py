@@ -57,7 +57,8 @@ from ..core.vec import dot, max3
 from ..geometry.scene_geometry import LIGHT, QUAD, SPHERE, TRIANGLE
 from ..geometry.shading_normals import compiled_for, terminator_amount
 from ..materials.media import MEDIUM_STACK_DEPTH, MediumStack
-from ..materials.protocol import BSDFFlags, ShadingPoint, transmits_non_delta
+from ..materials.protocol import (DELTA_LOBE, DIFFUSE_LOBE, STRAIGHT_LOBE, TRANSMISSION_LOBE, ShadingPoint,
+                                  transmits_non_delta)
 from ..materials.table import ABSORB, N_SCATTER_GROUPS, PASS_THROUGH, MaterialTable
 from ..sampling.qmc import RandomSampler
 from .delta_blur import DeltaBlur
@@ -68,11 +69,6 @@ WAVEFRONT_SIZE = 1 << 16       # paths advanced together: 65536 measured 0.89-0.
                                # (docs/performance.md "Speed"); images do not depend on it
 SHADOW_TMAX_SCALE = 1.0 - 2.0 ** -20
 
-
-# The lobe flags as plain ints for arrays of flags (`flags & BSDFFlags.DELTA` converts the enum member
-# on every call)
-TRANSMISSION_LOBE, DIFFUSE_LOBE, DELTA_LOBE, STRAIGHT_LOBE = (int(f) for f in (
-    BSDFFlags.TRANSMISSION, BSDFFlags.DIFFUSE, BSDFFlags.DELTA, BSDFFlags.STRAIGHT))
 
 VECTOR_FIELDS = ("o", "d", "beta", "radiance", "prev_p", "prev_n", "f_thru", "counts")
 CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = 0, 1, 2, 3   # LightPolygons.RAY_KINDS

@@ -33,15 +33,13 @@ import numpy as np
 
 from ..core.backend import numba_module
 from ..core.kernel_inputs import fitted, read_only
-from ..materials.protocol import BSDFFlags
+from ..materials.protocol import DELTA_LOBE, DIFFUSE_LOBE, REFLECTION_LOBE, STRAIGHT_LOBE, TRANSMISSION_LOBE
 from ..geometry.shapes.light_polygons import RAY_KINDS
 from .light_paths import CLAMP_SCALE, DIFFUSE_BOUNCE, GLOSSY_BOUNCE, TRANSMISSION_BOUNCE, TRANSPARENT_BOUNCE
 
 nb = numba_module()
 jit = nb.njit(cache=True, error_model="numpy", nogil=True)
 
-TRANSMISSION, DELTA, DIFFUSE, STRAIGHT = (int(BSDFFlags.TRANSMISSION), int(BSDFFlags.DELTA), int(BSDFFlags.DIFFUSE),
-                                          int(BSDFFlags.STRAIGHT))
 NO_ROWS = np.zeros((3, 0))
 # path_tracer.py's ray kinds (not imported from it: it imports this module), LightPolygons' order
 CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = (RAY_KINDS.index(k) for k in
@@ -217,11 +215,11 @@ def _tail_at(i, flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, wri
     """_scatter_tail's lines for path i: (side, the three beta x value); with `write`, its delta flag and ray
     kind written too."""
     f = flags[i]
-    transmitted = (f & TRANSMISSION) != 0
+    transmitted = (f & TRANSMISSION_LOBE) != 0
     if write:
-        prev_delta[i] = (f & DELTA) != 0
-        kind = TRANSMISSION_RAY if transmitted else (DIFFUSE_RAY if (f & DIFFUSE) != 0 else GLOSSY_RAY)
-        if (f & STRAIGHT) != 0 and ray_kind[i] == CAMERA_RAY:
+        prev_delta[i] = (f & DELTA_LOBE) != 0
+        kind = TRANSMISSION_RAY if transmitted else (DIFFUSE_RAY if (f & DIFFUSE_LOBE) != 0 else GLOSSY_RAY)
+        if (f & STRAIGHT_LOBE) != 0 and ray_kind[i] == CAMERA_RAY:
             kind = CAMERA_RAY
         ray_kind[i] = kind
     s = -1.0 if transmitted else 1.0
@@ -538,11 +536,11 @@ def facing(d, normal, shading):
 def _count_bounces(counts, flags):
     for i in range(flags.shape[0]):
         f = flags[i]
-        if (f & STRAIGHT) != 0:                  # light_paths.bounce_type's rows
+        if (f & STRAIGHT_LOBE) != 0:             # light_paths.bounce_type's rows
             kind = TRANSPARENT_BOUNCE
-        elif (f & TRANSMISSION) != 0:
+        elif (f & TRANSMISSION_LOBE) != 0:
             kind = TRANSMISSION_BOUNCE
-        elif (f & DIFFUSE) != 0:
+        elif (f & DIFFUSE_LOBE) != 0:
             kind = DIFFUSE_BOUNCE
         else:
             kind = GLOSSY_BOUNCE
@@ -641,7 +639,7 @@ def warm_up() -> None:
                  (np.zeros((3, 4)), np.ones((3, 4)), 1, np.zeros(4, np.int32), (1.0, np.inf))):
         lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, np.ones(3), np.ones(1, np.bool_), True, rows,
                       into)
-    flags = np.array([int(BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION), DELTA | TRANSMISSION, DELTA], np.int8)
+    flags = np.array([DIFFUSE_LOBE | REFLECTION_LOBE, DELTA_LOBE | TRANSMISSION_LOBE, DELTA_LOBE], np.int8)
     for ng in (None, rows):
         scatter_tail(flags, np.zeros(3, np.bool_), np.zeros(3, np.int8), rows, rows, rows, ng)
     roulette(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3)

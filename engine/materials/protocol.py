@@ -45,6 +45,10 @@ class BSDFFlags(IntFlag):
 
 
 NON_DELTA = BSDFFlags.DIFFUSE | BSDFFlags.GLOSSY
+# The lobe flags as plain ints, for arrays of flags (`flags & BSDFFlags.DELTA` converts the enum member on
+# every call) and for the compiled kernels
+REFLECTION_LOBE, TRANSMISSION_LOBE, DIFFUSE_LOBE, DELTA_LOBE, STRAIGHT_LOBE = (int(f) for f in (
+    BSDFFlags.REFLECTION, BSDFFlags.TRANSMISSION, BSDFFlags.DIFFUSE, BSDFFlags.DELTA, BSDFFlags.STRAIGHT))
 
 
 def has_non_delta(flags: BSDFFlags) -> bool:
