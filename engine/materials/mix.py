@@ -27,18 +27,15 @@ import numpy as np
 from ..core.backend import NUMBA
 from ..core.vec import dot
 from ..scene.model import FRESNEL, LAYER_WEIGHT, PROGRAM, TEXTURE
-from .protocol import BSDF, BSDFFlags, BSDFSample, ShadingPoint
+from .protocol import BSDF, DELTA_LOBE, BSDFFlags, BSDFSample, ShadingPoint
 from ..nodes.inputs import fresnel_dielectric_cos   # Cycles' Fresnel of the Fresnel and Layer Weight factors
 
 ALBEDO_FLOOR = 0.05             # a leaf's albedo estimate is at least this (black leaves may reflect)
 # Cycles' colour-to-float conversion (linear_rgb_to_gray): luminance of linear Rec.709 (rgb_to_y).
 LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])
 DEAD = BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION     # the flags of a hit whose weights are all 0
-DELTA = int(BSDFFlags.DELTA)    # as a plain int: an array's & with it needs no enum conversion
 U_MAX = 1.0 - 1e-12             # the largest uniform the pick passes on
 READ = (FRESNEL, LAYER_WEIGHT, TEXTURE, PROGRAM)   # factors read at the hits (the other kind: constants)
-
-
 
 
 def _ids_in(ids: np.ndarray) -> np.ndarray:
@@ -265,12 +262,12 @@ class MixBSDF(BSDF):
 
     def _view_factor(self, factor, si: ShadingPoint, idx: np.ndarray, every: bool) -> np.ndarray:
         """_factor_input of a Fresnel or Layer Weight factor at the hits idx of si (`every`: all of
-        them).  Compiled: the hits' view and the Fresnel in mix_jit.facing's loop over idx (no takes;
+        them).  Compiled: the hits' view and the Fresnel in mix_jit.view_factor's loop over idx (no takes;
         Layer Weight's "facing" then takes its power from NumPy: the same numbers).  NumPy: the view
         (_facing) once for every hit of si (its memo), then taken."""
         if self.compiled is not None:
             etas = _etas(factor)
-            f = self.compiled.facing(si.wo, si.n, si.normal, None if every else idx, etas)
+            f = self.compiled.view_factor(si.wo, si.n, si.normal, None if every else idx, etas)
             return f if etas is not None else np.clip(_layer_facing(f, factor.blend), 0.0, 1.0)
         facing = si.memo(("mix", "facing"), _facing)
         if every:
@@ -381,7 +378,7 @@ class MixBSDF(BSDF):
             if si.media is not None:
                 si.media.media[mine], si.media.depth[mine] = at.media.media, at.media.depth
             wi[:, mine], flags[mine] = s.wi, s.flags
-            is_delta = (s.flags & DELTA) != 0
+            is_delta = (s.flags & DELTA_LOBE) != 0
             delta[mine] = is_delta
             d = mine[is_delta]                              # delta: the leaf's own value and pdf
             w_over_p = weight.take(pairs[is_delta]) / p_c.take(d)

@@ -2,7 +2,7 @@
 leaf) pair per hit and the per-hit sums of the pairs' weighted f cos and pdfs, each one loop instead
 of some fifteen NumPy passes over the pairs, and the pairs (or hits) grouped by their leaf's row in
 one counting pass (the same ascending places as np.flatnonzero per row); and the Fresnel and Layer Weight
-factors' view of the hits (`facing`: dot(wo, n), the backfacing test, engine/nodes/inputs.py
+factors' view of the hits (`view_factor`: dot(wo, n), the backfacing test, engine/nodes/inputs.py
 fresnel_dielectric_cos and the clip to [0, 1] in one loop over the hits a material has, instead of some
 twenty NumPy passes and the takes of the hits' view).  Imported only through engine/core/backend.py's
 choice (it imports numba).
@@ -166,11 +166,11 @@ def _fresnel_dielectric(cos, eta):
 
 
 @jit
-def _facing(wo, n, normal, idx, every, fresnel, front, back, out):
+def _view_factor(wo, n, normal, idx, every, fresnel, front, back, out):
     for k in range(out.shape[0]):
         h = k if every else idx[k]
         if h < 0 or h >= wo.shape[1]:
-            raise IndexError("mix_jit.facing: a hit index outside the hits")
+            raise IndexError("mix_jit.view_factor: a hit index outside the hits")
         cos = wo[0, h] * n[0, h] + wo[1, h] * n[1, h] + wo[2, h] * n[2, h]          # engine/core/vec.py dot
         if fresnel:
             behind = wo[0, h] * normal[0, h] + wo[1, h] * normal[1, h] + wo[2, h] * normal[2, h] < 0.0
@@ -179,23 +179,24 @@ def _facing(wo, n, normal, idx, every, fresnel, front, back, out):
             out[k] = abs(cos)
 
 
-def facing(wo, n, normal, idx, etas):
+NO_HITS = np.zeros(0, np.int64)         # view_factor's idx when it reads every hit
+
+
+def view_factor(wo, n, normal, idx, etas):
     """At the hits idx (None: all) of a ShadingPoint's wo, n and normal (rows (3, N)): with etas =
     (eta in front, eta behind) the Fresnel factor, clipped to [0, 1], of MixBSDF's Fresnel and Layer
     Weight "fresnel" factors (engine/materials/mix.py _factor_input); with etas None |dot(wo, n)|,
     what Layer Weight's "facing" raises to its power (NumPy's: its pow is not libm's)."""
     every = idx is None
     if wo.ndim != 2 or wo.shape[0] != 3 or n.shape != wo.shape or (etas is not None and normal.shape != wo.shape):
-        raise ValueError(f"mix_jit.facing: wo, n and normal must be rows (3, N) alike, not {wo.shape}, {n.shape}, "
+        raise ValueError(f"mix_jit.view_factor: wo, n and normal must be rows (3, N) alike, not {wo.shape}, {n.shape}, "
                          f"{normal.shape}")
     out = np.empty(wo.shape[1] if every else len(idx))
     front, back = (1.0, 1.0) if etas is None else (float(etas[0]), float(etas[1]))
-    _facing(contiguous(wo), contiguous(n), contiguous(normal if etas is not None else n),
-            contiguous(NO_HITS if every else idx, np.int64), every, etas is not None, front, back, out)
+    _view_factor(contiguous(wo), contiguous(n), contiguous(normal if etas is not None else n),
+                 contiguous(NO_HITS if every else idx, np.int64), every, etas is not None, front, back, out)
     return out
 
-
-NO_HITS = np.zeros(0, np.int64)
 
 
 def warm_up() -> None:
@@ -209,4 +210,4 @@ def warm_up() -> None:
     rows = np.array([[0.0, 0.6, 0.8]] * 3).T.copy()
     for idx in (None, np.array([1])):
         for etas in ((1.45, 1.0 / 1.45), None):
-            facing(rows, rows, -rows, idx, etas)
+            view_factor(rows, rows, -rows, idx, etas)

@@ -34,6 +34,8 @@ program pays only for what its nodes read.  Names (rows (3, N) unless noted), as
                   (the image centre's), for Bump's footprint (engine/nodes/normals.py bump_offsets)
   object_to_world (N, 3, 4) the hit's object matrix (identity off meshes); world_to_object its inverse
   world_to_camera (4, 4) world -> Cycles' camera space; camera_to_world its inverse (Vector Transform)
+  _object, _one_object  (internal) the triangle hits' object ids, made when an object attribute first
+                  reads them, and whether they are all one object
   window          Texture Coordinate's Window: (x, y, 0), the point's place in the camera's frame, 0..1
                   from the bottom left (Cycles' camera_world_to_ndc; `camera_window`)
 `ctx.shifted(offset)` (None without hits) is the context of the same hits moved by offset rows (3, N)
@@ -52,13 +54,13 @@ SHADOW_RAY = 4        # ray_kind at light samples (engine/nodes/inputs.py Light 
 
 class TangentCorners(NamedTuple):
     """The hits' kind, prim, b1, b2 (N,) and the scene's corner tangents (T, 3, 3) and bitangent signs
-    (T, 3) (None, None: no mesh has tangents): a triangle hit's (kind == triangle) tangent is its
+    (T, 3) (None, None: no mesh has tangents): a triangle hit's (kind == triangle_kind) tangent is its
     corners' tangents weighted by (1 - b1 - b2, b1, b2), its sign likewise; other hits have none."""
     kind: np.ndarray
     prim: np.ndarray
     b1: np.ndarray
     b2: np.ndarray
-    triangle: int
+    triangle_kind: int
     tangents: np.ndarray | None
     signs: np.ndarray | None
 
@@ -314,6 +316,7 @@ class SceneAttributes:
             return self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(len(tri), np.int64)
 
         def one_object():
+            """Whether the triangle hits all lie on one object (per_object then reads one row)."""
             obj = ctx.attr("_object")
             return len(self.centre) == 1 or (len(obj) > 0 and obj.min() == obj.max())
 

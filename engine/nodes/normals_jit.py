@@ -183,7 +183,7 @@ def corner_normal_map(color, strength, corners, shading, towards, cycles_version
     has = corners.tangents is not None and corners.signs is not None
     _corner_normal_map(fitted(color, rows), fitted(strength, values), contiguous(corners.kind, np.int8),
                        contiguous(corners.prim, np.int64), contiguous(corners.b1), contiguous(corners.b2),
-                       corners.triangle, has,
+                       corners.triangle_kind, has,
                        contiguous(corners.tangents) if has else NO_CORNERS,
                        contiguous(corners.signs) if has else NO_SIGNS,
                        fitted(shading, rows), contiguous(towards), new, not new, out)

@@ -165,7 +165,7 @@ def test_warm_up_covers_the_kernels(u_max):
     assert list(chosen) == [0, 1] and u_leaf[0] == u_max and u_leaf[1] == 0.0
 
 
-# -- the Fresnel and Layer Weight factors (mix_jit.facing, MixBSDF._view_factor) ----------------------------
+# -- the Fresnel and Layer Weight factors (mix_jit.view_factor, MixBSDF._view_factor) ----------------------------
 VIEW_FACTORS = ([MixFactor("fresnel", ior=ior) for ior in (1.45, 1.0, 0.5, 1e-9, 40.0)]
                 + [MixFactor("layer_weight", blend=b, output="fresnel") for b in (0.0, 0.3, 0.5, 0.99, 1.0)]
                 + [MixFactor("layer_weight", blend=b, output="facing") for b in (0.0, 0.25, 0.3, 0.5, 0.75, 0.4000000059604645, 1.0)])
@@ -261,7 +261,7 @@ def test_the_view_kernel_refuses_rows_and_indices_it_would_read_past():
     import importlib
     twin = importlib.import_module(TWIN)
     rows = np.ones((3, 4))
-    with pytest.raises(ValueError, match="facing"):
-        twin.facing(rows, np.ones((3, 1)), rows, None, (1.5, 1 / 1.5))
-    with pytest.raises(IndexError, match="facing"):
-        twin.facing(rows, rows, rows, np.array([0, 4]), (1.5, 1 / 1.5))
+    with pytest.raises(ValueError, match="view_factor"):
+        twin.view_factor(rows, np.ones((3, 1)), rows, None, (1.5, 1 / 1.5))
+    with pytest.raises(IndexError, match="view_factor"):
+        twin.view_factor(rows, rows, rows, np.array([0, 4]), (1.5, 1 / 1.5))
