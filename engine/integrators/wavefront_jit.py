@@ -278,6 +278,19 @@ def _survives(b0, b1, b2, bounce, delta, u, max_depth, final_rays, russian_roule
 
 
 @jit
+def _continuation(b0, b1, b2, bounce, u, rr_start_depth):
+    """PathTracer.deferred_roulette's factor of one path's throughput after its ray's emission: 1 / the
+    survival probability min(1, sqrt(max throughput)) (1 before the bounce rr_start_depth) where u is below
+    it, else 0 (the path ends at its next hit)."""
+    m = _max(_max(b0, b1), b2)
+    survive = 1.0
+    if bounce + 1 >= rr_start_depth:
+        root = np.sqrt(m)
+        survive = root if (root <= 1.0 or root != root) else 1.0     # np.minimum (NaN wins)
+    return 1.0 / survive if u < survive else 0.0
+
+
+@jit
 def _roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, keep, beta_out):
     for i in range(bounce.shape[0]):
         k, divisor = _survives(beta[0, i], beta[1, i], beta[2, i], bounce[i], delta[i], u[i], max_depth,
@@ -299,11 +312,13 @@ def roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr
 
 @jit
 def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
-               facing, new_d, has_tail, flags, ray_kind, value, smooth, ng):
+               facing, new_d, has_tail, flags, ray_kind, value, smooth, ng, deferred, rr_after):
     """_roulette and _next_rays in one: which paths go on (their indices, and those of the others in
     order) and the kept paths' next origin, direction and throughput after the survival division.
     has_tail: _scatter_tail's lines first (beta: the rows before the scatter; delta and ray_kind
-    written), their side and throughput computed again where the compaction needs them, not stored."""
+    written), their side and throughput computed again where the compaction needs them, not stored.
+    deferred: the deferred roulette instead of the roulette (russian_roulette then False: no division),
+    its factor written to rr_after[i] (_continuation)."""
     n = bounce.shape[0]
     divisor = np.empty(n)
     kept = np.empty(n, np.bool_)
@@ -315,6 +330,8 @@ def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, 
             b0, b1, b2 = beta[0, i], beta[1, i], beta[2, i]
         k, dv = _survives(b0, b1, b2, bounce[i], delta[i], u[i], max_depth, final_rays, russian_roulette,
                           rr_start_depth)                # _roulette's tests, the same operations
+        if deferred:
+            rr_after[i] = _continuation(b0, b1, b2, bounce[i], u[i], rr_start_depth)
         kept[i] = k
         divisor[i] = dv
         if k:
@@ -350,31 +367,38 @@ def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, 
 
 NO_FLAGS = np.zeros(0, np.int8)
 NO_KINDS = np.zeros(0, np.int8)
+NO_AFTER = np.zeros(0)                                  # (survivors' rr_after without the deferred roulette)
 
 
 def survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
-              facing, new_d, tail=None):
+              facing, new_d, tail=None, rr_after=None):
     """(keep, ended, o, d, beta): PathTracer.roulette's paths that go on (indices, `keep`) and those that
     end (`ended`), then next_rays(keep, point, side, offset, facing, new_d, the roulette's beta) in one
     pass: the same arrays as roulette, np.flatnonzero and next_rays.  tail: (flags, ray_kind, value, ng):
     scatter_tail(flags, delta, ray_kind, beta, value, new_d, ng) first, in the same pass (beta: the paths'
-    rows before it, of which the first len(bounce) are read; side unused; delta and ray_kind are written)."""
+    rows before it, of which the first len(bounce) are read; side unused; delta and ray_kind are written).
+    rr_after: PathTracer.deferred_roulette instead of roulette (float64, C-contiguous, len(bounce)): its
+    `after` written into rr_after in place, keep as its keep, the throughputs not divided."""
     f64 = np.float64
     n = bounce.shape[0]
     has_tail = tail is not None
+    deferred = rr_after is not None
+    if deferred and not (rr_after.dtype == f64 and rr_after.flags.c_contiguous and rr_after.shape == (n,)):
+        raise ValueError("survivors: rr_after must be C-contiguous float64 of the paths' length")
     flags, ray_kind, value, ng = tail if has_tail else (NO_FLAGS, NO_KINDS, NO_ROWS, None)
     smooth = ng is not None
     return _survivors(read_only(np.ascontiguousarray(beta, f64)), read_only(np.ascontiguousarray(bounce, np.int32)),
                       delta if has_tail else np.ascontiguousarray(delta, np.bool_),
                       read_only(np.ascontiguousarray(u, f64)),
-                      int(max_depth), bool(final_rays), bool(russian_roulette), int(rr_start_depth),
+                      int(max_depth), bool(final_rays), bool(russian_roulette) and not deferred, int(rr_start_depth),
                       read_only(np.ascontiguousarray(point, f64)),
                       read_only(np.ascontiguousarray(side if not has_tail else np.zeros(0), f64)),
                       read_only(np.ascontiguousarray(offset, f64)), read_only(np.ascontiguousarray(facing, f64)),
                       read_only(np.ascontiguousarray(new_d, f64)), has_tail,
                       read_only(np.ascontiguousarray(flags, np.int8)), ray_kind,
                       read_only(np.ascontiguousarray(value, f64)), smooth,
-                      read_only(np.ascontiguousarray(ng, f64) if smooth else NO_ROWS))
+                      read_only(np.ascontiguousarray(ng, f64) if smooth else NO_ROWS), deferred,
+                      rr_after if deferred else NO_AFTER)
 
 
 @jit
@@ -663,8 +687,8 @@ def warm_up() -> None:
     for flag in (True, False):
         survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, flag, flag, 3, rows,
                   np.ones(3), np.ones(3), rows, rows)
-    for ng in (None, rows):
+    for ng, rr_after in ((None, None), (rows, None), (None, np.ones(3)), (rows, np.ones(3))):
         survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3, rows,
-                  None, np.ones(3), rows, rows, (flags, np.zeros(3, np.int8), rows, ng))
+                  None, np.ones(3), rows, rows, (flags, np.zeros(3, np.int8), rows, ng), rr_after)
     take([(np.zeros((3, 3), dtype), 1) for dtype in TAKE_ROW_DTYPES] + [(np.zeros(3, dtype), 0) for dtype in TAKE_DTYPES],
          idx)
