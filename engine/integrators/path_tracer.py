@@ -909,11 +909,9 @@ class PathTracer:
 
     def roulette(self, beta, bounce, delta, u):
         """Which paths go on (report 2.4) and their throughput after the survival division.
-        Under `mis` a non-delta bounce at the depth limit goes on for its emission (see `bounce`)."""
+        Under `mis` a non-delta bounce at the depth limit goes on for its emission (see `bounce`).
+        (Compiled with the compaction: engine/integrators/wavefront_jit.py survivors.)"""
         s = self.settings
-        if self.wavefront_jit is not None:      # the lines below in one loop
-            return self.wavefront_jit.roulette(beta, bounce, delta, u, s.max_depth, self.final_rays,
-                                               s.russian_roulette, s.rr_start_depth)
         within = bounce < s.max_depth
         if self.final_rays:
             within |= (bounce == s.max_depth) & ~delta
@@ -930,7 +928,8 @@ class PathTracer:
         throughput takes after the emission that ray reaches: 1 / survival probability, or 0 for
         the paths the roulette ends, whose next hit then only emits).  The survival probability is
         Cycles' (path_state_continuation_probability), min(1, sqrt(max throughput)), from the bounce
-        `rr_start_depth` on as `roulette`; the throughput is left as it is until that emission is counted."""
+        `rr_start_depth` on as `roulette`; the throughput is left as it is until that emission is counted.
+        (Compiled with the compaction: engine/integrators/wavefront_jit.py survivors(rr_after).)"""
         s = self.settings
         within = bounce < s.max_depth
         if self.final_rays:

@@ -4,9 +4,10 @@
   off the surface, to the side they leave on), directions and throughputs gathered in one loop,
   instead of nine gathers and the temporaries of the origin's arithmetic;
 * the end of the scatter stage (`scatter_tail`: the paths' delta flag and ray kind, the side they leave
-  on, beta x value) and the Russian roulette (`roulette`: which paths go on and their throughput after
-  the survival division), one loop each instead of some ten NumPy passes each; the roulette and the
-  compaction in one pass (`survivors`: no throughput rows and keep flags between them);
+  on, beta x value), the Russian roulette (which paths go on and their throughput after the survival
+  division; or the deferred roulette in Cycles' order: which paths trace their next ray and the factor
+  their throughput takes after its emission) and the compaction in one pass (`survivors`: no throughput
+  rows and keep flags between them) instead of some thirty NumPy passes;
 * the direct light of a Lambertian BSDF with one shadow ray per hit, flat shading and no Normal
   input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
   the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
@@ -291,29 +292,9 @@ def _continuation(b0, b1, b2, bounce, u, rr_start_depth):
 
 
 @jit
-def _roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, keep, beta_out):
-    for i in range(bounce.shape[0]):
-        k, divisor = _survives(beta[0, i], beta[1, i], beta[2, i], bounce[i], delta[i], u[i], max_depth,
-                               final_rays, russian_roulette, rr_start_depth)
-        keep[i] = k
-        for c in range(3):
-            beta_out[c, i] = beta[c, i] / divisor if russian_roulette else beta[c, i]
-
-
-def roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth):
-    """(keep, beta) of PathTracer.roulette for rows beta (3, N), bounce, delta and u (N,)."""
-    n = bounce.shape[0]
-    keep, beta_out = np.empty(n, np.bool_), np.empty((3, n))
-    _roulette(np.ascontiguousarray(beta, np.float64), np.ascontiguousarray(bounce, np.int32),
-              np.ascontiguousarray(delta, np.bool_), np.ascontiguousarray(u, np.float64), int(max_depth),
-              bool(final_rays), bool(russian_roulette), int(rr_start_depth), keep, beta_out)
-    return keep, beta_out
-
-
-@jit
 def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
                facing, new_d, has_tail, flags, ray_kind, value, smooth, ng, deferred, rr_after):
-    """_roulette and _next_rays in one: which paths go on (their indices, and those of the others in
+    """PathTracer.roulette and _next_rays in one: which paths go on (their indices, and those of the others in
     order) and the kept paths' next origin, direction and throughput after the survival division.
     has_tail: _scatter_tail's lines first (beta: the rows before the scatter; delta and ray_kind
     written), their side and throughput computed again where the compaction needs them, not stored.
@@ -329,7 +310,7 @@ def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, 
         else:
             b0, b1, b2 = beta[0, i], beta[1, i], beta[2, i]
         k, dv = _survives(b0, b1, b2, bounce[i], delta[i], u[i], max_depth, final_rays, russian_roulette,
-                          rr_start_depth)                # _roulette's tests, the same operations
+                          rr_start_depth)                # PathTracer.roulette's tests, the same operations
         if deferred:
             rr_after[i] = _continuation(b0, b1, b2, bounce[i], u[i], rr_start_depth)
         kept[i] = k
@@ -668,7 +649,6 @@ def warm_up() -> None:
     flags = np.array([int(BSDFFlags.DIFFUSE | BSDFFlags.REFLECTION), DELTA | TRANSMISSION, DELTA], np.int8)
     for ng in (None, rows):
         scatter_tail(flags, np.zeros(3, np.bool_), np.zeros(3, np.int8), rows, rows, rows, ng)
-    roulette(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3)
     idx, delta = np.array([0, 2], np.int64), np.array([True, False, False])
     places, lights = emitter_lights(idx, delta, np.ones(3, np.int8), np.zeros(3, np.int64), np.zeros(1, np.int64),
                                     np.array([-1, 0, -1, -1, -1], np.int64))

@@ -2,8 +2,8 @@
 (engine/integrators/path_tracer.py next_rays), on the inputs of real renders of built-in scenes and
 on made-up ones with NaN and huge offsets; and renders whose only compiled kernels are this module's
 (the compaction and the Lambertian direct light, light_tests and lambert_light), with a control; the
-scatter stage's tail and the roulette (scatter_tail, roulette; survivors, also with the deferred roulette)
-against PathTracer's NumPy lines on recorded and made-up paths."""
+scatter stage's tail (scatter_tail), the roulette and the compaction in one pass (survivors, also with the
+deferred roulette) against PathTracer's NumPy lines on recorded and made-up paths."""
 import copy
 from types import SimpleNamespace
 
@@ -343,26 +343,6 @@ def test_made_up_deferred_roulettes_with_nan_inf_and_signed_zeros():
         with pytest.raises(ValueError):
             wavefront_jit.survivors(beta, bounce, delta, u, 8, True, True, 3, point, side, offset, facing, new_d,
                                     rr_after=bad)
-
-
-def test_made_up_roulettes_and_the_control():
-    require_compiled()
-    from engine.integrators import wavefront_jit
-    rng = np.random.default_rng(9)
-    n = 4000
-    beta = rng.choice([0.0, -0.0, 0.3, 1.0, 1.7, np.nan, np.inf, 1e-300], (3, n))
-    bounce, delta, u = rng.integers(0, 10, n).astype(np.int32), rng.random(n) < 0.5, rng.random(n)
-    for final_rays in (False, True):
-        for rr in (False, True):
-            settings = SimpleNamespace(max_depth=8, russian_roulette=rr, rr_start_depth=3)
-            tracer = SimpleNamespace(settings=settings, final_rays=final_rays, wavefront_jit=None)
-            a = path_tracer.PathTracer.roulette(tracer, beta, bounce, delta, u)
-            tracer.wavefront_jit = wavefront_jit
-            b = path_tracer.PathTracer.roulette(tracer, beta, bounce, delta, u)
-            assert 0 < a[0].sum() < n and same(a, b)
-    # control: the survival probability's division one ulp off changes the throughputs
-    wrong = wavefront_jit.roulette(beta * (1.0 + 2.0 ** -52), bounce, delta, u, 8, True, True, 3)
-    assert not same(a, wrong)
 
 
 def test_the_ray_kinds_are_the_path_tracers():
