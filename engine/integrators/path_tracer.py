@@ -412,7 +412,7 @@ class PathTracer:
         u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1))
                   if non_delta and span.stop > span.start else None       # (scatter skips empty spans)
                   for span, non_delta in zip(spans, self.mats.non_delta)]
-        fused = self.wavefront_jit is not None and p.rr_after is None     # 6's tail, 7 and 8's rays in one pass
+        fused = self.wavefront_jit is not None     # 6's tail, 7 and 8's rays in one pass
         new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf, defer_tail=fused)
         if before_light is not None:        # the shadow rays' light, by the lobe the vertex sampled
             vertex = p.radiance[:, :alive] - before_light
@@ -422,12 +422,12 @@ class PathTracer:
             self.vertex_light(p, vertex, features)
         # 7. Russian roulette and the depth limit.
         rays = None                         # the survivors' next (o, d, beta), when 7 makes them
-        if fused:                           # (side None: scatter left its tail to this pass)
+        if fused:                           # (side None: scatter left its tail to this pass; either roulette)
             s = self.settings
             keep, ended, *rays = self.wavefront_jit.survivors(
                 p.beta if side is None else beta, p.bounce[:alive], p.prev_delta[:alive], u_rr, s.max_depth,
                 self.final_rays, s.russian_roulette, s.rr_start_depth, surf.point, side, surf.offset, facing, new_d,
-                beta if side is None else None)
+                beta if side is None else None, None if p.rr_after is None else p.rr_after[:alive])
         else:
             if p.rr_after is None:
                 keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
@@ -443,9 +443,8 @@ class PathTracer:
             on_finished(pixel, np.concatenate([f[1] for f in finished], axis=1),
                         np.concatenate([f[2] for f in finished]))
         survivors = p.take(keep, replaced=("o", "d", "beta"), jit=self.wavefront_jit)
-        survivors.o, survivors.d, survivors.beta = rays if rays is not None else (
-            (next_rays if self.wavefront_jit is None else self.wavefront_jit.next_rays)(
-                keep, surf.point, side, surf.offset, facing, new_d, beta))
+        survivors.o, survivors.d, survivors.beta = rays if rays is not None else next_rays(
+            keep, surf.point, side, surf.offset, facing, new_d, beta)
         survivors.bounce = survivors.bounce + 1
         return survivors if passing is None else survivors.extend(passing)
 
@@ -907,11 +906,9 @@ class PathTracer:
 
     def roulette(self, beta, bounce, delta, u):
         """Which paths go on (report 2.4) and their throughput after the survival division.
-        Under `mis` a non-delta bounce at the depth limit goes on for its emission (see `bounce`)."""
+        Under `mis` a non-delta bounce at the depth limit goes on for its emission (see `bounce`).
+        (Compiled with the compaction: engine/integrators/wavefront_jit.py survivors.)"""
         s = self.settings
-        if self.wavefront_jit is not None:      # the lines below in one loop
-            return self.wavefront_jit.roulette(beta, bounce, delta, u, s.max_depth, self.final_rays,
-                                               s.russian_roulette, s.rr_start_depth)
         within = bounce < s.max_depth
         if self.final_rays:
             within |= (bounce == s.max_depth) & ~delta
@@ -928,7 +925,8 @@ class PathTracer:
         throughput takes after the emission that ray reaches: 1 / survival probability, or 0 for
         the paths the roulette ends, whose next hit then only emits).  The survival probability is
         Cycles' (path_state_continuation_probability), min(1, sqrt(max throughput)), from the bounce
-        `rr_start_depth` on as `roulette`; the throughput is left as it is until that emission is counted."""
+        `rr_start_depth` on as `roulette`; the throughput is left as it is until that emission is counted.
+        (Compiled with the compaction: engine/integrators/wavefront_jit.py survivors(rr_after).)"""
         s = self.settings
         within = bounce < s.max_depth
         if self.final_rays:

@@ -4,9 +4,10 @@
   off the surface, to the side they leave on), directions and throughputs gathered in one loop,
   instead of nine gathers and the temporaries of the origin's arithmetic;
 * the end of the scatter stage (`scatter_tail`: the paths' delta flag and ray kind, the side they leave
-  on, beta x value) and the Russian roulette (`roulette`: which paths go on and their throughput after
-  the survival division), one loop each instead of some ten NumPy passes each; the roulette and the
-  compaction in one pass (`survivors`: no throughput rows and keep flags between them);
+  on, beta x value), the Russian roulette (which paths go on and their throughput after the survival
+  division; or the deferred roulette in Cycles' order: which paths trace their next ray and the factor
+  their throughput takes after its emission) and the compaction in one pass (`survivors`: no throughput
+  rows and keep flags between them) instead of some thirty NumPy passes;
 * the direct light of a Lambertian BSDF with one shadow ray per hit, flat shading and no Normal
   input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
   the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
@@ -276,32 +277,27 @@ def _survives(b0, b1, b2, bounce, delta, u, max_depth, final_rays, russian_roule
 
 
 @jit
-def _roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, keep, beta_out):
-    for i in range(bounce.shape[0]):
-        k, divisor = _survives(beta[0, i], beta[1, i], beta[2, i], bounce[i], delta[i], u[i], max_depth,
-                               final_rays, russian_roulette, rr_start_depth)
-        keep[i] = k
-        for c in range(3):
-            beta_out[c, i] = beta[c, i] / divisor if russian_roulette else beta[c, i]
-
-
-def roulette(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth):
-    """(keep, beta) of PathTracer.roulette for rows beta (3, N), bounce, delta and u (N,)."""
-    n = bounce.shape[0]
-    keep, beta_out = np.empty(n, np.bool_), np.empty((3, n))
-    _roulette(np.ascontiguousarray(beta, np.float64), np.ascontiguousarray(bounce, np.int32),
-              np.ascontiguousarray(delta, np.bool_), np.ascontiguousarray(u, np.float64), int(max_depth),
-              bool(final_rays), bool(russian_roulette), int(rr_start_depth), keep, beta_out)
-    return keep, beta_out
+def _continuation(b0, b1, b2, bounce, u, rr_start_depth):
+    """PathTracer.deferred_roulette's factor of one path's throughput after its ray's emission: 1 / the
+    survival probability min(1, sqrt(max throughput)) (1 before the bounce rr_start_depth) where u is below
+    it, else 0 (the path ends at its next hit)."""
+    m = _max(_max(b0, b1), b2)
+    survive = 1.0
+    if bounce + 1 >= rr_start_depth:
+        root = np.sqrt(m)
+        survive = root if (root <= 1.0 or root != root) else 1.0     # np.minimum (NaN wins)
+    return 1.0 / survive if u < survive else 0.0
 
 
 @jit
 def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
-               facing, new_d, has_tail, flags, ray_kind, value, smooth, ng):
-    """_roulette and _next_rays in one: which paths go on (their indices, and those of the others in
+               facing, new_d, has_tail, flags, ray_kind, value, smooth, ng, deferred, rr_after):
+    """PathTracer.roulette and _next_rays in one: which paths go on (their indices, and those of the others in
     order) and the kept paths' next origin, direction and throughput after the survival division.
     has_tail: _scatter_tail's lines first (beta: the rows before the scatter; delta and ray_kind
-    written), their side and throughput computed again where the compaction needs them, not stored."""
+    written), their side and throughput computed again where the compaction needs them, not stored.
+    deferred: the deferred roulette instead of the roulette (russian_roulette then False: no division),
+    its factor written to rr_after[i] (_continuation)."""
     n = bounce.shape[0]
     divisor = np.empty(n)
     kept = np.empty(n, np.bool_)
@@ -312,7 +308,9 @@ def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, 
         else:
             b0, b1, b2 = beta[0, i], beta[1, i], beta[2, i]
         k, dv = _survives(b0, b1, b2, bounce[i], delta[i], u[i], max_depth, final_rays, russian_roulette,
-                          rr_start_depth)                # _roulette's tests, the same operations
+                          rr_start_depth)                # PathTracer.roulette's tests, the same operations
+        if deferred:
+            rr_after[i] = _continuation(b0, b1, b2, bounce[i], u[i], rr_start_depth)
         kept[i] = k
         divisor[i] = dv
         if k:
@@ -348,31 +346,38 @@ def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, 
 
 NO_FLAGS = np.zeros(0, np.int8)
 NO_KINDS = np.zeros(0, np.int8)
+NO_AFTER = np.zeros(0)                                  # (survivors' rr_after without the deferred roulette)
 
 
 def survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
-              facing, new_d, tail=None):
+              facing, new_d, tail=None, rr_after=None):
     """(keep, ended, o, d, beta): PathTracer.roulette's paths that go on (indices, `keep`) and those that
     end (`ended`), then next_rays(keep, point, side, offset, facing, new_d, the roulette's beta) in one
     pass: the same arrays as roulette, np.flatnonzero and next_rays.  tail: (flags, ray_kind, value, ng):
     scatter_tail(flags, delta, ray_kind, beta, value, new_d, ng) first, in the same pass (beta: the paths'
-    rows before it, of which the first len(bounce) are read; side unused; delta and ray_kind are written)."""
+    rows before it, of which the first len(bounce) are read; side unused; delta and ray_kind are written).
+    rr_after: PathTracer.deferred_roulette instead of roulette (float64, C-contiguous, len(bounce)): its
+    `after` written into rr_after in place, keep as its keep, the throughputs not divided."""
     f64 = np.float64
     n = bounce.shape[0]
     has_tail = tail is not None
+    deferred = rr_after is not None
+    if deferred and not (rr_after.dtype == f64 and rr_after.flags.c_contiguous and rr_after.shape == (n,)):
+        raise ValueError("survivors: rr_after must be C-contiguous float64 of the paths' length")
     flags, ray_kind, value, ng = tail if has_tail else (NO_FLAGS, NO_KINDS, NO_ROWS, None)
     smooth = ng is not None
     return _survivors(read_only(np.ascontiguousarray(beta, f64)), read_only(np.ascontiguousarray(bounce, np.int32)),
                       delta if has_tail else np.ascontiguousarray(delta, np.bool_),
                       read_only(np.ascontiguousarray(u, f64)),
-                      int(max_depth), bool(final_rays), bool(russian_roulette), int(rr_start_depth),
+                      int(max_depth), bool(final_rays), bool(russian_roulette) and not deferred, int(rr_start_depth),
                       read_only(np.ascontiguousarray(point, f64)),
                       read_only(np.ascontiguousarray(side if not has_tail else np.zeros(0), f64)),
                       read_only(np.ascontiguousarray(offset, f64)), read_only(np.ascontiguousarray(facing, f64)),
                       read_only(np.ascontiguousarray(new_d, f64)), has_tail,
                       read_only(np.ascontiguousarray(flags, np.int8)), ray_kind,
                       read_only(np.ascontiguousarray(value, f64)), smooth,
-                      read_only(np.ascontiguousarray(ng, f64) if smooth else NO_ROWS))
+                      read_only(np.ascontiguousarray(ng, f64) if smooth else NO_ROWS), deferred,
+                      rr_after if deferred else NO_AFTER)
 
 
 @jit
@@ -642,7 +647,6 @@ def warm_up() -> None:
     flags = np.array([DIFFUSE_LOBE | REFLECTION_LOBE, DELTA_LOBE | TRANSMISSION_LOBE, DELTA_LOBE], np.int8)
     for ng in (None, rows):
         scatter_tail(flags, np.zeros(3, np.bool_), np.zeros(3, np.int8), rows, rows, rows, ng)
-    roulette(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3)
     idx, delta = np.array([0, 2], np.int64), np.array([True, False, False])
     places, lights = emitter_lights(idx, delta, np.ones(3, np.int8), np.zeros(3, np.int64), np.zeros(1, np.int64),
                                     np.array([-1, 0, -1, -1, -1], np.int64))
@@ -661,8 +665,8 @@ def warm_up() -> None:
     for flag in (True, False):
         survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, flag, flag, 3, rows,
                   np.ones(3), np.ones(3), rows, rows)
-    for ng in (None, rows):
+    for ng, rr_after in ((None, None), (rows, None), (None, np.ones(3)), (rows, np.ones(3))):
         survivors(rows, np.zeros(3, np.int32), np.zeros(3, np.bool_), np.full(3, 0.5), 8, True, True, 3, rows,
-                  None, np.ones(3), rows, rows, (flags, np.zeros(3, np.int8), rows, ng))
+                  None, np.ones(3), rows, rows, (flags, np.zeros(3, np.int8), rows, ng), rr_after)
     take([(np.zeros((3, 3), dtype), 1) for dtype in TAKE_ROW_DTYPES] + [(np.zeros(3, dtype), 0) for dtype in TAKE_DTYPES],
          idx)

@@ -2,8 +2,8 @@
 (engine/integrators/path_tracer.py next_rays), on the inputs of real renders of built-in scenes and
 on made-up ones with NaN and huge offsets; and renders whose only compiled kernels are this module's
 (the compaction and the Lambertian direct light, light_tests and lambert_light), with a control; the
-scatter stage's tail and the roulette (scatter_tail, roulette) against PathTracer's NumPy lines on
-recorded and made-up paths."""
+scatter stage's tail (scatter_tail), the roulette and the compaction in one pass (survivors, also with the
+deferred roulette) against PathTracer's NumPy lines on recorded and made-up paths."""
 import copy
 from types import SimpleNamespace
 
@@ -162,17 +162,19 @@ def test_recorded_direct_light_calls_are_bit_identical(scene):
     assert len(fused) == 5 * min(len(calls), 6)        # the compiled case ran every time
 
 
-def capture_scatters(scene_name, limit=6):
-    """[(tracer, args)] deep copies of PathTracer.scatter's calls in a 16 x 16, 2 spp NumPy render."""
+def capture_scatters(scene, limit=6, **settings):
+    """[(tracer, args)] deep copies of PathTracer.scatter's calls in a 16 x 16, 2 spp NumPy render of a built-in
+    scene (by name) or a scene, with `settings`."""
     calls, reference = [], path_tracer.PathTracer.scatter
+    scene = BUILTIN_SCENES[scene]((16, 16)) if isinstance(scene, str) else scene
 
     def recording(self, *args, **kwargs):
         if len(calls) < limit:
-            calls.append(copy.deepcopy((None, args)))
+            calls.append((self, copy.deepcopy(args)))
         return reference(self, *args, **kwargs)
     path_tracer.PathTracer.scatter = recording
     try:
-        api.render(BUILTIN_SCENES[scene_name]((16, 16)), RenderSettings(samples=2, threads=1, backend="numpy"),
+        api.render(scene, RenderSettings(**{"samples": 2, "threads": 1, "backend": "numpy", **settings}),
                    log=lambda m: None)
     finally:
         path_tracer.PathTracer.scatter = reference
@@ -241,24 +243,106 @@ def test_recorded_scatter_tails_in_the_compaction_are_bit_identical(scene, monke
         assert len(keep) and same(expected, results[0]) and not same(expected, results[1])
 
 
-def test_made_up_roulettes_and_the_control():
+def deferred_reference(tracer, args, u, offset, facing):
+    """NumPy's lines of PathTracer.bounce with the deferred roulette on a recorded scatter call `args`: scatter,
+    deferred_roulette, np.flatnonzero and next_rays; (keep, ended, o, d, beta, prev_delta, ray_kind, rr_after)."""
+    p, *rest = copy.deepcopy(args)
+    alive = len(rest[1])
+    tracer.wavefront_jit = None
+    new_d, side, beta = tracer.scatter(p, *rest)
+    keep, p.rr_after[:alive] = tracer.deferred_roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u)
+    keep, ended = np.flatnonzero(keep), np.flatnonzero(~keep)
+    return (keep, ended) + path_tracer.next_rays(keep, rest[0], side, offset, facing, new_d, beta) + (
+        p.prev_delta, p.ray_kind, p.rr_after)
+
+
+def deferred_compiled(tracer, args, u, offset, facing, scale=1.0, rr_start_depth=None):
+    """The same through scatter(defer_tail=True) and wavefront_jit.survivors with rr_after (the compiled bounce's
+    call); scale: the throughput rows scaled, rr_start_depth: another one (controls)."""
+    from engine.integrators import wavefront_jit
+    p, *rest = copy.deepcopy(args)
+    alive = len(rest[1])
+    tracer.wavefront_jit = wavefront_jit
+    s = tracer.settings
+    new_d, side, tail = tracer.scatter(p, *rest, defer_tail=True)
+    assert side is None
+    got = wavefront_jit.survivors(p.beta * scale, p.bounce[:alive], p.prev_delta[:alive], u, s.max_depth,
+                                  tracer.final_rays, s.russian_roulette, rr_start_depth or s.rr_start_depth, rest[0],
+                                  None, offset, facing, new_d, tail, p.rr_after[:alive])
+    return tuple(got) + (p.prev_delta, p.ray_kind, p.rr_after)
+
+
+@pytest.mark.parametrize("rr_start_depth", [1, 3])
+def test_recorded_deferred_roulettes_in_the_compaction_are_bit_identical(rr_start_depth):
+    """The compiled bounce's pass with the deferred roulette (Cycles' order, scenes of Cycles' materials) against
+    NumPy's lines, on the recorded scatters of a box with a Glossy wall (made-up roulette numbers and origins):
+    the same kept and ended paths, next rays, flags and roulette factors (rr_after); controls: the throughput
+    one ulp off, the roulette from one bounce later, and the plain roulette (no rr_after) differ."""
     require_compiled()
     from engine.integrators import wavefront_jit
-    rng = np.random.default_rng(9)
+    from tests.integrators.test_deferred_roulette import glossy_box
+    calls = capture_scatters(glossy_box(), limit=8, rr_start_depth=rr_start_depth, max_depth=12)
+    tracer, rng = calls[0][0], np.random.default_rng(17)
+    assert len(calls) >= 4 and tracer.deferred_rr
+    ended_some, controls = False, [False] * 3
+    for _, args in calls:
+        alive = len(args[2])
+        u, offset, facing = rng.random(alive), 10.0 ** rng.uniform(-9, -3, alive), rng.normal(size=(3, alive))
+        expected = deferred_reference(tracer, args, u, offset, facing)
+        assert same(expected, deferred_compiled(tracer, args, u, offset, facing))
+        ended_some |= bool((expected[-1][:alive] == 0.0).any() and (expected[-1][:alive] > 1.0).any())
+        wrong = (deferred_compiled(tracer, args, u, offset, facing, scale=1.0 + 2.0 ** -52),
+                 deferred_compiled(tracer, args, u, offset, facing, rr_start_depth=rr_start_depth + 1))
+        controls[0] |= not same(expected, wrong[0])
+        controls[1] |= not same(expected, wrong[1])
+        p, *rest = copy.deepcopy(args)
+        new_d, _, tail = tracer.scatter(p, *rest, defer_tail=True)
+        s = tracer.settings
+        plain = wavefront_jit.survivors(p.beta, p.bounce[:alive], p.prev_delta[:alive], u, s.max_depth,
+                                        tracer.final_rays, True, rr_start_depth, rest[0], None, offset, facing, new_d,
+                                        tail)
+        controls[2] |= not same(expected[:5], plain)
+    assert ended_some and all(controls), controls
+
+
+def test_made_up_deferred_roulettes_with_nan_inf_and_signed_zeros():
+    """wavefront_jit.survivors with rr_after against PathTracer.deferred_roulette, np.flatnonzero and
+    path_tracer.next_rays on made-up paths (NaN, inf, -0, negative and tiny throughputs, u 0 and near 1,
+    every bounce and delta flag, final rays on and off) and on no paths; controls: the throughput one ulp
+    off and the roulette from one bounce later differ; an rr_after of another length or dtype is refused."""
+    require_compiled()
+    from engine.integrators import wavefront_jit
+    rng = np.random.default_rng(23)
     n = 4000
-    beta = rng.choice([0.0, -0.0, 0.3, 1.0, 1.7, np.nan, np.inf, 1e-300], (3, n))
-    bounce, delta, u = rng.integers(0, 10, n).astype(np.int32), rng.random(n) < 0.5, rng.random(n)
-    for final_rays in (False, True):
-        for rr in (False, True):
-            settings = SimpleNamespace(max_depth=8, russian_roulette=rr, rr_start_depth=3)
-            tracer = SimpleNamespace(settings=settings, final_rays=final_rays, wavefront_jit=None)
-            a = path_tracer.PathTracer.roulette(tracer, beta, bounce, delta, u)
-            tracer.wavefront_jit = wavefront_jit
-            b = path_tracer.PathTracer.roulette(tracer, beta, bounce, delta, u)
-            assert 0 < a[0].sum() < n and same(a, b)
-    # control: the survival probability's division one ulp off changes the throughputs
-    wrong = wavefront_jit.roulette(beta * (1.0 + 2.0 ** -52), bounce, delta, u, 8, True, True, 3)
-    assert not same(a, wrong)
+    beta = rng.choice([0.0, -0.0, -0.5, 0.3, 1.0, 1.7, 4.0, np.nan, np.inf, -np.inf, 1e-300, 5e-324], (3, n))
+    bounce, delta = rng.integers(0, 10, n).astype(np.int32), rng.random(n) < 0.5
+    u = rng.choice([0.0, 0.25, 0.5, 1.0 - 2.0 ** -53, 0.7], n)
+    point, facing, new_d = (rng.normal(0, 1e3, (3, n)) for _ in range(3))
+    side, offset = np.where(rng.random(n) < 0.5, -1.0, 1.0), 10.0 ** rng.uniform(-12, 3, n)
+
+    def compiled(m, final_rays, b=beta, start=3):
+        after = np.full(m, -1.0)
+        got = wavefront_jit.survivors(b[:, :m], bounce[:m], delta[:m], u[:m], 8, final_rays, True, start,
+                                      point[:, :m], side[:m], offset[:m], facing[:, :m], new_d[:, :m],
+                                      rr_after=after)
+        return tuple(got) + (after,)
+    for m in (n, 0):
+        for final_rays in (False, True):
+            tracer = SimpleNamespace(settings=SimpleNamespace(max_depth=8, rr_start_depth=3), final_rays=final_rays)
+            with np.errstate(invalid="ignore"):
+                keep, after = path_tracer.PathTracer.deferred_roulette(tracer, beta[:, :m], bounce[:m], delta[:m],
+                                                                       u[:m])
+            ended, keep = np.flatnonzero(~keep), np.flatnonzero(keep)
+            expected = (keep, ended) + path_tracer.next_rays(keep, point[:, :m], side[:m], offset[:m], facing[:, :m],
+                                                             new_d[:, :m], beta[:, :m]) + (after,)
+            assert same(expected, compiled(m, final_rays))
+            assert m == 0 or (0 < len(keep) < m and (after == 0.0).any() and (after > 1.0).any())
+    assert not same(expected, compiled(n, True, b=beta * (1.0 + 2.0 ** -52)))
+    assert not same(expected, compiled(n, True, start=4))
+    for bad in (np.ones(n - 1), np.ones(n, np.float32), np.ones(2 * n)[::2]):
+        with pytest.raises(ValueError):
+            wavefront_jit.survivors(beta, bounce, delta, u, 8, True, True, 3, point, side, offset, facing, new_d,
+                                    rr_after=bad)
 
 
 def test_the_ray_kinds_are_the_path_tracers():
