@@ -16,7 +16,7 @@ In one process a kernel compiled for one scene is no longer new for the next: --
 scene in a process of its own (about 3 s each: bpy and the kernels loaded again), so that each
 scene's report is what a worker's first render of it compiles.
 
---control first calls one kernel (wavefront_jit._next_rays) with float32 rows, a type no render
+--control first calls one kernel (wavefront_jit._take_1d) with float32 rows, a type no render
 passes: its compilation must be reported (the check's own control).
 """
 import argparse
@@ -99,8 +99,7 @@ def main(argv=None) -> int:
     seen = signatures(found)
     if args.control:                       # a type no render passes (float32 rows): must be reported
         from engine.integrators import wavefront_jit
-        rows, one = np.zeros((3, 1), np.float32), np.zeros(1, np.float32)
-        wavefront_jit._next_rays(np.zeros(0, np.int64), rows, one, one, rows, rows, rows)
+        wavefront_jit._take_1d(np.zeros(1, np.float32), np.zeros(0, np.int64), np.zeros(0, np.float32))
     compiled = {}
     for label, scene, settings in ([("control", None, None)] if args.control else []) + list(scenes(args)):
         if scene is not None:

@@ -413,7 +413,7 @@ class PathTracer:
                   if non_delta and span.stop > span.start else None       # (scatter skips empty spans)
                   for span, non_delta in zip(spans, self.mats.non_delta)]
         fused = self.wavefront_jit is not None     # 6's tail, 7 and 8's rays in one pass
-        new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf, defer_tail=fused)
+        new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf)
         if before_light is not None:        # the shadow rays' light, by the lobe the vertex sampled
             vertex = p.radiance[:, :alive] - before_light
             if caustic_light is not None:
@@ -762,7 +762,7 @@ class PathTracer:
         pick, _ = sampler.pair(pixel, sample, dim + (LIGHT_PICK - 1), light=True)
         return pick, u1, u2
 
-    def scatter(self, p, point, si, spans, u_lobe, u_dir, defer_tail=False):
+    def scatter(self, p, point, si, spans, u_lobe, u_dir):
         """New directions, the side to leave on (+1 facing, -1 through) and throughputs of the
         paths at a BSDF (the first len(si) of `p`): bsdfs[g].sample on the hits spans[g], with the
         lobe uniforms u_lobe and the direction pairs u_dir[g] (None for delta-only BSDFs); updates
@@ -770,10 +770,9 @@ class PathTracer:
 
         Under smooth shading a direction on the wrong side of the geometric surface for its lobe
         (a reflection below it, a transmission not through it) ends the path
-        (engine/geometry/shading_normals.py).
-
-        defer_tail: where the compiled tail (wavefront_jit.scatter_tail) would run, return
-        (new_d, None, its other inputs) instead, for wavefront_jit.survivors to run it in its pass."""
+        (engine/geometry/shading_normals.py).  Returns (new_d, side, beta); where the compiled bounce
+        runs the tail below in its compaction's pass (wavefront_jit.survivors), (new_d, None, that
+        tail's other inputs) instead."""
         alive = len(si)
         new_d = np.empty((3, alive))
         value = np.empty((3, alive))
@@ -811,11 +810,8 @@ class PathTracer:
         if self.light_paths is not None:
             value = self.scatter_light_paths(p, spans, flags, pdf, value)
         if self.wavefront_jit is not None and p.lobe is None and p.caustic is None and not normals:
-            if defer_tail:                       # the lines below in the compaction's pass (bounce)
-                return new_d, None, (flags, p.ray_kind[:alive], value, si.ng if si.smooth else None)
-            side, beta = self.wavefront_jit.scatter_tail(flags, p.prev_delta[:alive], p.ray_kind[:alive], p.beta,
-                                                         value, new_d, si.ng if si.smooth else None)
-            return new_d, side, beta             # the lines below in one loop
+            # the lines below in the compaction's pass (bounce: wavefront_jit.survivors)
+            return new_d, None, (flags, p.ray_kind[:alive], value, si.ng if si.smooth else None)
         transmitted = (flags & TRANSMISSION_LOBE) != 0
         if p.lobe is not None:
             self.first_lobe(p, flags)

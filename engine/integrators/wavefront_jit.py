@@ -1,13 +1,12 @@
 """engine/integrators/path_tracer.py's glue compiled with numba:
 
-* the compaction of the surviving paths (`next_rays`): their next ray origins (the hit point moved
-  off the surface, to the side they leave on), directions and throughputs gathered in one loop,
-  instead of nine gathers and the temporaries of the origin's arithmetic;
-* the end of the scatter stage (`scatter_tail`: the paths' delta flag and ray kind, the side they leave
-  on, beta x value), the Russian roulette (which paths go on and their throughput after the survival
-  division; or the deferred roulette in Cycles' order: which paths trace their next ray and the factor
-  their throughput takes after its emission) and the compaction in one pass (`survivors`: no throughput
-  rows and keep flags between them) instead of some thirty NumPy passes;
+* the end of the scatter stage (the paths' delta flag and ray kind, the side they leave on, beta x
+  value), the Russian roulette (which paths go on and their throughput after the survival division; or
+  the deferred roulette in Cycles' order: which paths trace their next ray and the factor their
+  throughput takes after its emission) and the compaction of the surviving paths (their next ray
+  origins, the hit point moved off the surface to the side they leave on, directions and throughputs)
+  in one pass (`survivors`: no throughput rows and keep flags between them) instead of some thirty
+  NumPy passes (path_tracer.py scatter's tail, roulette or deferred_roulette, next_rays);
 * the direct light of a Lambertian BSDF with one shadow ray per hit, flat shading and no Normal
   input (`PathTracer.direct_light`'s commonest case), around its light sample and its shadow rays:
   the tests that keep a sample (`light_tests`) and its weight, MIS and Le f cos / p_l
@@ -45,29 +44,6 @@ NO_ROWS = np.zeros((3, 0))
 # path_tracer.py's ray kinds (not imported from it: it imports this module), LightPolygons' order
 CAMERA_RAY, DIFFUSE_RAY, GLOSSY_RAY, TRANSMISSION_RAY = (RAY_KINDS.index(k) for k in
                                                          ("camera", "diffuse", "glossy", "transmission"))
-
-
-@jit
-def _next_rays(keep, point, side, offset, facing, new_d, beta):
-    k = keep.shape[0]
-    o = np.empty((3, k))
-    d = np.empty((3, k))
-    b = np.empty((3, k))
-    for j in range(k):
-        i = keep[j]
-        s = side[i] * offset[i]
-        for c in range(3):
-            o[c, j] = point[c, i] + s * facing[c, i]
-            d[c, j] = new_d[c, i]
-            b[c, j] = beta[c, i]
-    return o, d, b
-
-
-def next_rays(keep, point, side, offset, facing, new_d, beta):
-    """(o, d, beta) of the paths `keep`: point + (side x offset) facing, new_d and beta at keep (rows)."""
-    rows = [np.ascontiguousarray(a, np.float64) for a in (point, facing, new_d, beta)]
-    return _next_rays(np.ascontiguousarray(keep, np.int64), rows[0], np.ascontiguousarray(side, np.float64),
-                      np.ascontiguousarray(offset, np.float64), rows[1], rows[2], rows[3])
 
 
 @jit
@@ -213,8 +189,8 @@ NO_BOUNCES = np.zeros(0, np.int32)
 
 @jit
 def _tail_at(i, flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, write):
-    """_scatter_tail's lines for path i: (side, the three beta x value); with `write`, its delta flag and ray
-    kind written too."""
+    """PathTracer.scatter's tail for path i: (side, the three beta x value); with `write`, its delta flag and
+    ray kind written too."""
     f = flags[i]
     transmitted = (f & TRANSMISSION_LOBE) != 0
     if write:
@@ -228,29 +204,6 @@ def _tail_at(i, flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, wri
     if wrong:
         return s, 0.0, 0.0, 0.0
     return s, beta[0, i] * value[0, i], beta[1, i] * value[1, i], beta[2, i] * value[2, i]
-
-
-@jit
-def _scatter_tail(flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, side, beta_out):
-    """PathTracer.scatter after the BSDFs' samples (no Light Paths options, light passes, caustic
-    photons or Normal inputs): the paths' delta flag and ray kind, the side they leave on and
-    beta x value, 0 where a smooth-shaded direction lies on the wrong side of the geometric surface."""
-    for i in range(flags.shape[0]):
-        side[i], beta_out[0, i], beta_out[1, i], beta_out[2, i] = _tail_at(
-            i, flags, prev_delta, ray_kind, beta, value, smooth, new_d, ng, True)
-
-
-def scatter_tail(flags, prev_delta, ray_kind, beta, value, new_d, ng):
-    """(side, beta) of PathTracer.scatter's tail for the first len(flags) paths (beta: the paths' rows,
-    of which those are read), writing their prev_delta and ray_kind in place; ng: the geometric normals
-    under smooth shading, else None."""
-    alive = flags.shape[0]
-    side, beta_out = np.empty(alive), np.empty((3, alive))
-    smooth = ng is not None
-    _scatter_tail(np.ascontiguousarray(flags, np.int8), prev_delta, ray_kind, np.ascontiguousarray(beta),
-                  np.ascontiguousarray(value), smooth, np.ascontiguousarray(new_d),
-                  np.ascontiguousarray(ng) if smooth else NO_ROWS, side, beta_out)
-    return side, beta_out
 
 
 @jit
@@ -292,9 +245,9 @@ def _continuation(b0, b1, b2, bounce, u, rr_start_depth):
 @jit
 def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
                facing, new_d, has_tail, flags, ray_kind, value, smooth, ng, deferred, rr_after):
-    """PathTracer.roulette and _next_rays in one: which paths go on (their indices, and those of the others in
+    """PathTracer.roulette and path_tracer.next_rays in one: which paths go on (their indices, and those of the others in
     order) and the kept paths' next origin, direction and throughput after the survival division.
-    has_tail: _scatter_tail's lines first (beta: the rows before the scatter; delta and ray_kind
+    has_tail: the scatter's tail first (_tail_at; beta: the rows before the scatter; delta and ray_kind
     written), their side and throughput computed again where the compaction needs them, not stored.
     deferred: the deferred roulette instead of the roulette (russian_roulette then False: no division),
     its factor written to rr_after[i] (_continuation)."""
@@ -332,7 +285,7 @@ def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, 
             si, b0, b1, b2 = _tail_at(i, flags, delta, ray_kind, beta, value, smooth, new_d, ng, False)
         else:
             si, b0, b1, b2 = side[i], beta[0, i], beta[1, i], beta[2, i]
-        s = si * offset[i]                       # _next_rays' operations
+        s = si * offset[i]                       # path_tracer.next_rays' operations
         for c in range(3):
             o[c, j] = point[c, i] + s * facing[c, i]
             d[c, j] = new_d[c, i]
@@ -354,7 +307,8 @@ def survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, r
     """(keep, ended, o, d, beta): PathTracer.roulette's paths that go on (indices, `keep`) and those that
     end (`ended`), then next_rays(keep, point, side, offset, facing, new_d, the roulette's beta) in one
     pass: the same arrays as roulette, np.flatnonzero and next_rays.  tail: (flags, ray_kind, value, ng):
-    scatter_tail(flags, delta, ray_kind, beta, value, new_d, ng) first, in the same pass (beta: the paths'
+    PathTracer.scatter's tail first (ng: the geometric normals under smooth shading, else None), in the
+    same pass (beta: the paths'
     rows before it, of which the first len(bounce) are read; side unused; delta and ray_kind are written).
     rr_after: PathTracer.deferred_roulette instead of roulette (float64, C-contiguous, len(bounce)): its
     `after` written into rr_after in place, keep as its keep, the throughputs not divided."""
@@ -636,7 +590,6 @@ def warm_up() -> None:
     """Compile (or load) the kernels for the types a render passes."""
     from types import SimpleNamespace
     rows = np.ones((3, 3))
-    next_rays(np.array([0, 2]), rows, np.ones(3), np.ones(3), rows, rows, rows)
     ls = SimpleNamespace(direction=rows, normal=-rows, pdf=np.ones(3), distance=np.ones(3),
                          one_sided=np.ones(3, np.bool_), light=np.zeros(3, np.int64), radiance=rows)
     cos_x, _, valid = light_tests(rows, ls, True)
@@ -645,8 +598,6 @@ def warm_up() -> None:
         lambert_light(valid, np.zeros(len(valid), np.bool_), cos_x, ls, np.ones(3), np.ones(1, np.bool_), True, rows,
                       into)
     flags = np.array([DIFFUSE_LOBE | REFLECTION_LOBE, DELTA_LOBE | TRANSMISSION_LOBE, DELTA_LOBE], np.int8)
-    for ng in (None, rows):
-        scatter_tail(flags, np.zeros(3, np.bool_), np.zeros(3, np.int8), rows, rows, rows, ng)
     idx, delta = np.array([0, 2], np.int64), np.array([True, False, False])
     places, lights = emitter_lights(idx, delta, np.ones(3, np.int8), np.zeros(3, np.int64), np.zeros(1, np.int64),
                                     np.array([-1, 0, -1, -1, -1], np.int64))

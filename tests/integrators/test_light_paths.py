@@ -229,7 +229,7 @@ def caustic_scatters(scene, monkeypatch, **settings):
     counts = {GLOSSY_RAY: 0, TRANSMISSION_RAY: 0}
     scatter = PathTracer.scatter
 
-    def spy(self, p, point, si, spans, u_lobe, u_dir, defer_tail=False):     # (the tail here, to read beta)
+    def spy(self, p, point, si, spans, u_lobe, u_dir):     # (NumPy's: the compiled bounce's tail comes later)
         before = p.ray_kind[:len(si)].copy()
         new_d, side, beta = scatter(self, p, point, si, spans, u_lobe, u_dir)
         went_on = (before == DIFFUSE_RAY) & (beta.max(axis=0) > 0.0)
@@ -237,7 +237,7 @@ def caustic_scatters(scene, monkeypatch, **settings):
             counts[kind] += int((went_on & (p.ray_kind[:len(si)] == kind)).sum())
         return new_d, side, beta
     monkeypatch.setattr(PathTracer, "scatter", spy)
-    image(scene, samples=4, **settings)
+    image(scene, samples=4, backend="numpy", **settings)
     return counts
 
 

@@ -1,9 +1,9 @@
-"""The compiled compaction (engine/integrators/wavefront_jit.py next_rays) against the NumPy one
-(engine/integrators/path_tracer.py next_rays), on the inputs of real renders of built-in scenes and
-on made-up ones with NaN and huge offsets; and renders whose only compiled kernels are this module's
-(the compaction and the Lambertian direct light, light_tests and lambert_light), with a control; the
-scatter stage's tail (scatter_tail), the roulette and the compaction in one pass (survivors, also with the
-deferred roulette) against PathTracer's NumPy lines on recorded and made-up paths."""
+"""The compiled glue of the wavefront (engine/integrators/wavefront_jit.py) against PathTracer's NumPy lines:
+renders whose only compiled kernels are this module's (the Lambertian direct light, light_tests and
+lambert_light, and the rest), with a control; the scatter stage's tail, the roulette and the compaction
+in one pass (survivors, also with the deferred roulette) against PathTracer's scatter, roulette and
+path_tracer.next_rays on recorded and made-up paths (NaN, huge offsets, both sides); the emission, the
+misses, the bounce counts, the final groups, the facing normals and the path state's take."""
 import copy
 from types import SimpleNamespace
 
@@ -15,47 +15,13 @@ from engine.core.settings import RenderSettings
 from engine.integrators import path_tracer
 from engine.integrators.light_paths import LightPaths
 from engine.scene.builtin import BUILTIN_SCENES
-from tests.backend_capture import recorded, require_compiled
+from tests.backend_capture import require_compiled
 
 TWIN = "engine.integrators.wavefront_jit"       # imported after require_compiled(): numba may be missing
 
 
-def capture_next_rays(scene_name, limit=8):
-    """[the arguments, copied] of path_tracer.next_rays in a 16 x 16, 2 spp NumPy render."""
-    return recorded(path_tracer, "next_rays", scene_name,
-                    lambda *args: tuple(np.array(a, copy=True) for a in args), limit)
-
-
 def same(a, b):
     return all(x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b))
-
-
-@pytest.mark.parametrize("scene", ["cornell", "caustic"])
-def test_recorded_compactions_are_bit_identical(scene):
-    require_compiled()
-    from engine.integrators.wavefront_jit import next_rays
-    calls = capture_next_rays(scene)
-    assert len(calls) >= 4
-    for args in calls:
-        assert same(path_tracer.next_rays(*args), next_rays(*args))
-
-
-def test_made_up_paths_with_nan_and_both_sides():
-    require_compiled()
-    from engine.integrators.wavefront_jit import next_rays
-    rng = np.random.default_rng(4)
-    n = 5000
-    point, facing, new_d, beta = (rng.normal(0, 1e3, (3, n)) for _ in range(4))
-    point[1, 17] = np.nan
-    side, offset = np.where(rng.random(n) < 0.5, -1.0, 1.0), 10.0 ** rng.uniform(-12, 3, n)
-    keep = np.sort(rng.choice(n, 3000, replace=False))
-    a, b = path_tracer.next_rays(keep, point, side, offset, facing, new_d, beta), \
-        next_rays(keep, point, side, offset, facing, new_d, beta)
-    assert same(a, b)
-    # Controls: an origin one ulp off, or moved by the offset without the side, is not the same.
-    assert not same(a, (np.nextafter(a[0], np.inf),) + a[1:])
-    unsided = point.take(keep, axis=1) + offset.take(keep) * facing.take(keep, axis=1)
-    assert not same(a, (unsided,) + a[1:])
 
 
 def render_with(scene, twin, size=24):
@@ -182,30 +148,8 @@ def capture_scatters(scene, limit=6, **settings):
 
 
 @pytest.mark.parametrize("scene", ["cornell", "caustic"])
-def test_recorded_scatter_tails_are_bit_identical(scene, monkeypatch):
-    require_compiled()
-    from engine.integrators import wavefront_jit
-    tracers, init = [], path_tracer.PathTracer.__init__
-
-    def keeping(self, *args, **kwargs):
-        init(self, *args, **kwargs)
-        tracers.append(self)
-    monkeypatch.setattr(path_tracer.PathTracer, "__init__", keeping)
-    calls = capture_scatters(scene)
-    assert len(calls) >= 3 and tracers
-    for _, args in calls:
-        outs = []
-        for jit in (None, wavefront_jit):
-            p, *rest = copy.deepcopy(args)
-            tracers[0].wavefront_jit = jit
-            new_d, side, beta = tracers[0].scatter(p, *rest)
-            outs.append((new_d, side, beta, p.prev_delta, p.ray_kind))
-        assert same(*outs)
-
-
-@pytest.mark.parametrize("scene", ["cornell", "caustic"])
 def test_recorded_scatter_tails_in_the_compaction_are_bit_identical(scene, monkeypatch):
-    """PathTracer.scatter(defer_tail=True) and wavefront_jit.survivors with its tail against NumPy's scatter,
+    """PathTracer.scatter on the compiled bounce and wavefront_jit.survivors with its tail against NumPy's scatter,
     roulette, np.flatnonzero and next_rays, on recorded scatters (made-up roulette numbers and origins);
     control: the tail's throughput one ulp off."""
     require_compiled()
@@ -234,7 +178,7 @@ def test_recorded_scatter_tails_in_the_compaction_are_bit_identical(scene, monke
         for scale in (1.0, 1.0 + 2.0 ** -52):
             p, *rest = copy.deepcopy(args)
             tracer.wavefront_jit = wavefront_jit
-            new_d, side, tail = tracer.scatter(p, *rest, defer_tail=True)
+            new_d, side, tail = tracer.scatter(p, *rest)
             assert side is None
             got = wavefront_jit.survivors(p.beta * scale, p.bounce[:alive], p.prev_delta[:alive], u, s.max_depth,
                                           tracer.final_rays, s.russian_roulette, s.rr_start_depth, rest[0], None,
@@ -257,14 +201,14 @@ def deferred_reference(tracer, args, u, offset, facing):
 
 
 def deferred_compiled(tracer, args, u, offset, facing, scale=1.0, rr_start_depth=None):
-    """The same through scatter(defer_tail=True) and wavefront_jit.survivors with rr_after (the compiled bounce's
+    """The same through scatter on the compiled bounce and wavefront_jit.survivors with rr_after (the compiled bounce's
     call); scale: the throughput rows scaled, rr_start_depth: another one (controls)."""
     from engine.integrators import wavefront_jit
     p, *rest = copy.deepcopy(args)
     alive = len(rest[1])
     tracer.wavefront_jit = wavefront_jit
     s = tracer.settings
-    new_d, side, tail = tracer.scatter(p, *rest, defer_tail=True)
+    new_d, side, tail = tracer.scatter(p, *rest)
     assert side is None
     got = wavefront_jit.survivors(p.beta * scale, p.bounce[:alive], p.prev_delta[:alive], u, s.max_depth,
                                   tracer.final_rays, s.russian_roulette, rr_start_depth or s.rr_start_depth, rest[0],
@@ -296,7 +240,7 @@ def test_recorded_deferred_roulettes_in_the_compaction_are_bit_identical(rr_star
         controls[0] |= not same(expected, wrong[0])
         controls[1] |= not same(expected, wrong[1])
         p, *rest = copy.deepcopy(args)
-        new_d, _, tail = tracer.scatter(p, *rest, defer_tail=True)
+        new_d, _, tail = tracer.scatter(p, *rest)
         s = tracer.settings
         plain = wavefront_jit.survivors(p.beta, p.bounce[:alive], p.prev_delta[:alive], u, s.max_depth,
                                         tracer.final_rays, True, rr_start_depth, rest[0], None, offset, facing, new_d,

@@ -24,7 +24,7 @@ def test_the_check_reports_a_kernel_compiled_after_warm_up():
     require_compiled()
     r = run("--control", "--files", "--no-builtins", timeout=300)
     assert r.returncode == 1, r.stdout[-2000:] + r.stderr[-2000:]
-    assert "control: integrators.wavefront_jit._next_rays" in r.stdout and "float32" in r.stdout
+    assert "control: integrators.wavefront_jit._take_1d" in r.stdout and "float32" in r.stdout
 
 
 @pytest.mark.slow
