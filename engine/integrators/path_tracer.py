@@ -412,7 +412,6 @@ class PathTracer:
         u_bsdf = [sampler.pair(p.pixel[span], p.sample[span], dim[span] + (BSDF_UV - 1))
                   if non_delta and span.stop > span.start else None       # (scatter skips empty spans)
                   for span, non_delta in zip(spans, self.mats.non_delta)]
-        fused = self.wavefront_jit is not None     # 6's tail, 7 and 8's rays in one pass
         new_d, side, beta = self.scatter(p, surf.point, si, spans, u_choice, u_bsdf)
         if before_light is not None:        # the shadow rays' light, by the lobe the vertex sampled
             vertex = p.radiance[:, :alive] - before_light
@@ -422,13 +421,14 @@ class PathTracer:
             self.vertex_light(p, vertex, features)
         # 7. Russian roulette and the depth limit.
         rays = None                         # the survivors' next (o, d, beta), when 7 makes them
-        if fused:                           # (side None: scatter left its tail to this pass; either roulette)
+        if self.wavefront_jit is not None:  # 6's tail, 7 and 8's rays in one pass (side None: scatter left
+            # its tail to it); either roulette
             s = self.settings
             keep, ended, *rays = self.wavefront_jit.survivors(
                 p.beta if side is None else beta, p.bounce[:alive], p.prev_delta[:alive], u_rr, s.max_depth,
                 self.final_rays, s.russian_roulette, s.rr_start_depth, surf.point, side, surf.offset, facing, new_d,
                 beta if side is None else None, None if p.rr_after is None else p.rr_after[:alive])
-        else:
+        else:                               # NumPy's lines
             if p.rr_after is None:
                 keep, beta = self.roulette(beta, p.bounce[:alive], p.prev_delta[:alive], u_rr)
             else:

@@ -245,8 +245,9 @@ def _continuation(b0, b1, b2, bounce, u, rr_start_depth):
 @jit
 def _survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
                facing, new_d, has_tail, flags, ray_kind, value, smooth, ng, deferred, rr_after):
-    """PathTracer.roulette and path_tracer.next_rays in one: which paths go on (their indices, and those of the others in
-    order) and the kept paths' next origin, direction and throughput after the survival division.
+    """PathTracer.roulette and path_tracer.next_rays in one: which paths go on (their indices, and those of
+    the others in order) and the kept paths' next origin, direction and throughput after the survival
+    division.
     has_tail: the scatter's tail first (_tail_at; beta: the rows before the scatter; delta and ray_kind
     written), their side and throughput computed again where the compaction needs them, not stored.
     deferred: the deferred roulette instead of the roulette (russian_roulette then False: no division),
@@ -305,11 +306,11 @@ NO_AFTER = np.zeros(0)                                  # (survivors' rr_after w
 def survivors(beta, bounce, delta, u, max_depth, final_rays, russian_roulette, rr_start_depth, point, side, offset,
               facing, new_d, tail=None, rr_after=None):
     """(keep, ended, o, d, beta): PathTracer.roulette's paths that go on (indices, `keep`) and those that
-    end (`ended`), then next_rays(keep, point, side, offset, facing, new_d, the roulette's beta) in one
-    pass: the same arrays as roulette, np.flatnonzero and next_rays.  tail: (flags, ray_kind, value, ng):
-    PathTracer.scatter's tail first (ng: the geometric normals under smooth shading, else None), in the
-    same pass (beta: the paths'
-    rows before it, of which the first len(bounce) are read; side unused; delta and ray_kind are written).
+    end (`ended`), then path_tracer.next_rays(keep, point, side, offset, facing, new_d, the roulette's
+    beta) in one pass: the same arrays as roulette, np.flatnonzero and next_rays.  tail: (flags,
+    ray_kind, value, ng): PathTracer.scatter's tail first, in the same pass (ng: the geometric normals
+    under smooth shading, else None; beta: the paths' rows before it, of which the first len(bounce)
+    are read; side unused; delta and ray_kind are written).
     rr_after: PathTracer.deferred_roulette instead of roulette (float64, C-contiguous, len(bounce)): its
     `after` written into rr_after in place, keep as its keep, the throughputs not divided."""
     f64 = np.float64

@@ -254,6 +254,18 @@ def test_caustics_off_ends_the_paths_that_would_make_caustics(monkeypatch):
     assert reflective_off[GLOSSY_RAY] == 0 and reflective_off[TRANSMISSION_RAY] > 0, reflective_off
 
 
+def test_caustics_off_renders_the_same_on_the_compiled_bounce():
+    """The counts above are NumPy's (their spy reads the scatter's tail); the compiled bounce gives the same
+    image with each toggle off (control: the toggle changes the image)."""
+    from tests.backend_capture import require_compiled
+    require_compiled()
+    scene = scene_of("cornell", 24)
+    for toggle in ("caustics_refractive", "caustics_reflective"):
+        numpy_image = image(scene, samples=4, backend="numpy", **{toggle: False})
+        assert np.array_equal(numpy_image, image(scene, samples=4, backend="numba", **{toggle: False}))
+        assert not np.array_equal(numpy_image, image(scene, samples=4, backend="numpy"))
+
+
 def test_principled_without_glossy_lobes_weights_its_diffuse_as_cycles():
     from engine.materials.principled import PrincipledV2
     from engine.scene.model import PRINCIPLED, Principled

@@ -21,7 +21,11 @@ TWIN = "engine.integrators.wavefront_jit"       # imported after require_compile
 
 
 def same(a, b):
-    return all(x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b))
+    """The same arrays: dtype, values (NaN where NaN) and the sign of every non-NaN value (-0.0 is not 0.0)."""
+    def signs(x):
+        return np.signbit(x) & ~np.isnan(x) if x.dtype.kind == "f" else x
+    return all(x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True) and np.array_equal(signs(x), signs(y))
+               for x, y in zip(a, b))
 
 
 def render_with(scene, twin, size=24):
