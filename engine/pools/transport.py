@@ -293,7 +293,7 @@ class WorkerProcess:
     """One worker process, `python -m MODULE [ARGS...] PARENT_PID` (`module`: the list MODULE,
     ARGS...), named `label (pid N)`.
 
-    send() queues a message (or pre-encoded frame bytes): a writer thread pickles and writes it,
+    send() queues a message (or a Frame from encode()): a writer thread pickles and writes it,
     so the caller (Blender's UI thread) never waits for a busy worker's pipe or for pickling a big
     scene.  A reader thread checks the worker's hello and hands every later message to
     on_message(worker, message); when the worker's stdout ends, on_exit(worker, exit code or None).
