@@ -43,9 +43,9 @@ def watched_render(exported, settings, threads):
 
     encode = viewport.encode
 
-    def timed_encode(message):
+    def timed_encode(message, **options):
         start = time.perf_counter()
-        data = encode(message)
+        data = encode(message, **options)
         if message and message[0] == "prepare":
             mark("parent", "encode", ms=1e3 * (time.perf_counter() - start), bytes=len(data))
         return data

@@ -120,7 +120,7 @@ class SubprocessPool(Pool):
     # -- preparation ----------------------------------------------------------------------------
     def prepare(self, scene, settings, timeout: float = START_TIMEOUT):
         """Send the scene to every worker; wait for the first to be ready and return its facts."""
-        payload = encode(("prepare", scene, settings))
+        payload = encode(("prepare", scene, settings), views=True)
         for w in self.workers:
             w.send(payload)
         deadline = time.perf_counter() + timeout

@@ -4,8 +4,10 @@ Used by the render worker processes (engine/pools/processes.py) and the viewport
 (engine/pools/viewport.py).  A worker is ``python -m MODULE [ARGS] PARENT_PID`` with the tracer's parent
 directory (and any bundled wheels) on PYTHONPATH (engine/core/paths.py worker_environment).
 
-* Frames: a little-endian 8-byte length, then a pickle.  The worker's stdout carries only frames
-  (the tracer's own prints go to stderr); stdin carries the parent's frames; EOF ends the worker.
+* Frames: a little-endian 8-byte length, then a pickle (protocol 5).  A frame with out-of-band
+  buffers (only when the sender asked: encode `views`) has their count in the length's top 24 bits
+  (COUNT_SHIFT) and each after the pickle as an 8-byte length and its bytes.  The worker's stdout carries only frames (the tracer's own prints go to stderr); stdin
+  carries the parent's frames; EOF ends the worker.
 * Handshake: the parent's first frame is ("hello", its tracer package, its engine version, its
   build hash); the worker answers ("hello", its engine version, its Python version, its pid, its
   build hash), and a worker of another engine version or build (engine/core/version.py BUILD_HASH:
@@ -42,6 +44,9 @@ PR_SET_PDEATHSIG = 1
 REFUSED = 3                       # the worker's exit code when the engine versions or builds differ
 NOT_A_FRAME = 2                   # its exit code when stdin holds something else than the parent's frames
 LARGEST_FRAME = 1 << 36           # 64 GiB, far beyond any scene: a longer length is not a frame
+OUT_OF_BAND_BYTES = 1 << 20       # encode(views=True): arrays this large are written from where they are
+COUNT_SHIFT = 40                  # a frame's first 8 bytes: its pickle's length, its buffer count << 40
+LARGEST_COUNT = 1 << 12           # out-of-band buffers of one frame, at most: a larger count is not a frame
 
 
 class FrameError(Exception):
@@ -50,8 +55,8 @@ class FrameError(Exception):
 
 # -- frames ---------------------------------------------------------------------------------------
 class _Remap(pickle.Unpickler):
-    def __init__(self, data: bytes, foreign: str, own: str):
-        super().__init__(io.BytesIO(data))
+    def __init__(self, data: bytes, foreign: str, own: str, buffers=()):
+        super().__init__(io.BytesIO(data), buffers=buffers)
         self.foreign, self.own = foreign, own
 
     def find_class(self, module, name):
@@ -60,9 +65,48 @@ class _Remap(pickle.Unpickler):
         return super().find_class(module, name)
 
 
-def encode(obj) -> bytes:
-    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
-    return HEADER.pack(len(data)) + data
+class Frame:
+    """An encoded message: the pieces to write in order (bytes, and views of the arrays sent out of
+    band).  bytes(frame) joins them; len(frame) is their size in bytes."""
+
+    __slots__ = ("pieces",)
+
+    def __init__(self, pieces: list):
+        self.pieces = pieces
+
+    def write_to(self, stream) -> None:
+        for piece in self.pieces:
+            stream.write(piece)
+        stream.flush()
+
+    def __bytes__(self) -> bytes:
+        return b"".join(self.pieces)
+
+    def __len__(self) -> int:
+        return sum(memoryview(piece).nbytes for piece in self.pieces)
+
+
+def encode(obj, views: bool = False) -> Frame:
+    """The frame of `obj`.  views: the contiguous arrays of OUT_OF_BAND_BYTES or more go out of
+    band (pickle protocol 5), the frame holding views of them instead of copies: a scene's 25 MB
+    baked sky was copied twice here (pickled, then joined to its length: 30-40 ms on the parent's
+    side of every render) and once more by the worker's unpickler.  The arrays must not change until
+    the frame is written (a writer thread writes it later): for the scenes sent to be prepared,
+    whose arrays the exporter makes anew for every render and nothing changes in place (engine/pools/
+    kept.py compares the next scene with them)."""
+    buffers: list = []
+
+    def in_band(buffer) -> bool:
+        raw = buffer.raw()
+        if raw.nbytes < OUT_OF_BAND_BYTES:
+            return True
+        buffers.append(raw)
+        return False
+    data = pickle.dumps(obj, protocol=5, buffer_callback=in_band if views else None)
+    pieces = [HEADER.pack(len(data) | len(buffers) << COUNT_SHIFT), data]
+    for raw in buffers:
+        pieces += [HEADER.pack(raw.nbytes), raw]
+    return Frame(pieces)
 
 
 def send_to_live(workers, message) -> None:
@@ -73,22 +117,46 @@ def send_to_live(workers, message) -> None:
             w.send(payload)
 
 
-def read_frame(stream) -> bytes | None:
-    """One frame's bytes, or None at end of stream."""
+def _read_length(stream) -> int | None:
     head = stream.read(HEADER.size)
-    if len(head) < HEADER.size:
+    return HEADER.unpack(head)[0] if len(head) == HEADER.size else None
+
+
+def _not_a_frame(size: int, limit: int, what: str = "frame length") -> None:
+    if size > limit:                      # reading it would be an "out of memory" for a few stray bytes
+        raise FrameError(f"a {what} of {size:,} (at most {limit:,}): not a frame")
+
+
+def read_frame(stream):
+    """One frame as (its pickle's bytes, its out-of-band buffers), or None at end of stream.  Each
+    buffer is a bytearray of its own, read straight from the stream: the arrays unpickled from it
+    use it as it is (writable, as an array pickled in band is)."""
+    head = _read_length(stream)
+    if head is None:
         return None
-    size = HEADER.unpack(head)[0]
-    if size > LARGEST_FRAME:              # reading it would be an "out of memory" for a few stray bytes
-        raise FrameError(f"a frame length of {size:,} bytes (at most {LARGEST_FRAME:,}): not a frame")
+    _not_a_frame(head, (LARGEST_COUNT << COUNT_SHIFT) - 1, "frame header")
+    size, count = head & ((1 << COUNT_SHIFT) - 1), head >> COUNT_SHIFT
+    _not_a_frame(size, LARGEST_FRAME)
     data = stream.read(size)
     if len(data) < size:
         return None
-    return data
+    buffers = []
+    for _ in range(count):
+        size = _read_length(stream)
+        if size is None:
+            return None
+        _not_a_frame(size, LARGEST_FRAME)
+        buffer = bytearray(size)
+        if stream.readinto(buffer) < size:
+            return None
+        buffers.append(buffer)
+    return data, buffers
 
 
-def decode(data: bytes, foreign: str, own: str = TRACER_BASE):
-    return _Remap(data, foreign, own).load()
+def decode(frame, foreign: str, own: str = TRACER_BASE):
+    """The message of a frame read by read_frame, the package `foreign` read as `own`."""
+    data, buffers = frame
+    return _Remap(data, foreign, own, buffers).load()
 
 
 # -- the worker's end -----------------------------------------------------------------------------
@@ -138,10 +206,10 @@ class WorkerEnd:
         """Read the parent's hello and answer it; False at EOF (exit_code 0), when the engine versions or
         builds differ (REFUSED) or when stdin holds no hello frame (NOT_A_FRAME, one line on stderr)."""
         try:
-            data = read_frame(self.inp)
-            if data is None:
+            frame = read_frame(self.inp)
+            if frame is None:
                 return False
-            _, self.foreign, version, *build = pickle.loads(data)
+            _, self.foreign, version, *build = pickle.loads(frame[0], buffers=frame[1])
         except Exception as exc:                    # noqa: BLE001 - any bytes can reach an unpickler
             print(f"error: this worker reads its parent's frames on stdin (engine/pools/transport.py); it got "
                   f"something else: {type(exc).__name__}: {' '.join(str(exc).split())[:200]}", file=sys.stderr)
@@ -162,13 +230,12 @@ class WorkerEnd:
 
     def receive(self):
         """The parent's next message, or None at EOF."""
-        data = read_frame(self.inp)
-        return None if data is None else decode(data, self.foreign)
+        frame = read_frame(self.inp)
+        return None if frame is None else decode(frame, self.foreign)
 
     def send(self, message) -> None:
         with self.lock:
-            self.out.write(encode(message))
-            self.out.flush()
+            encode(message).write_to(self.out)
 
 
 def log_to_stderr(message) -> None:
@@ -226,7 +293,7 @@ class WorkerProcess:
     """One worker process, `python -m MODULE [ARGS...] PARENT_PID` (`module`: the list MODULE,
     ARGS...), named `label (pid N)`.
 
-    send() queues a message (or pre-encoded frame bytes): a writer thread pickles and writes it,
+    send() queues a message (or a Frame from encode()): a writer thread pickles and writes it,
     so the caller (Blender's UI thread) never waits for a busy worker's pipe or for pickling a big
     scene.  A reader thread checks the worker's hello and hands every later message to
     on_message(worker, message); when the worker's stdout ends, on_exit(worker, exit code or None).
@@ -250,7 +317,7 @@ class WorkerProcess:
         threading.Thread(target=self._read, daemon=True, name=self.name).start()
 
     def send(self, message) -> None:
-        """Queue a message (any picklable object, or bytes from encode())."""
+        """Queue a message (any picklable object, or a Frame from encode())."""
         if not self.closed:
             self.outbox.put(message)
 
@@ -260,8 +327,7 @@ class WorkerProcess:
             if message is None:
                 break
             try:
-                self.proc.stdin.write(message if isinstance(message, bytes) else encode(message))
-                self.proc.stdin.flush()
+                (message if isinstance(message, Frame) else encode(message)).write_to(self.proc.stdin)
             except (BrokenPipeError, OSError, ValueError):
                 break                                   # it died: the reader reports it
         try:
@@ -273,14 +339,14 @@ class WorkerProcess:
         foreign = os.path.basename(TRACER_DIR)
         stream = self.proc.stdout
         try:
-            data = read_frame(stream)
-            if data is not None:
-                _, self.version, self.python_version, _, *self.build = decode(data, foreign)
+            frame = read_frame(stream)
+            if frame is not None:
+                _, self.version, self.python_version, _, *self.build = decode(frame, foreign)
                 while True:
-                    data = read_frame(stream)
-                    if data is None:
+                    frame = read_frame(stream)
+                    if frame is None:
                         break
-                    self.on_message(self, decode(data, foreign))
+                    self.on_message(self, decode(frame, foreign))
         except Exception:                       # noqa: BLE001 - a frame we cannot read: the worker is lost
             self.stderr_tail.append(traceback.format_exc())
         try:

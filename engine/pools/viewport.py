@@ -318,7 +318,7 @@ class ViewportPool(Pool):
         shipped, kept = scene, (None, [])
         if checked and self.sent is not None:           # the arrays that did not change stay out
             shipped, kept = without_unchanged(scene, self.sent[1], self.sent[0])
-        payload = encode(("prepare", self.preparation, shipped, settings, checked, kept))
+        payload = encode(("prepare", self.preparation, shipped, settings, checked, kept), views=True)
         self.sent = (self.preparation, scene)
         for w in self.workers:
             w.prepared = None

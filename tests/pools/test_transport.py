@@ -20,23 +20,23 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 
 
 def test_frames_round_trip_and_end_at_eof():
-    stream = io.BytesIO(encode(("unit", 3, [1.5, 2.5])) + encode({"a": None}))
+    stream = io.BytesIO(bytes(encode(("unit", 3, [1.5, 2.5]))) + bytes(encode({"a": None})))
     assert decode(read_frame(stream), "engine") == ("unit", 3, [1.5, 2.5])
     assert decode(read_frame(stream), "engine") == {"a": None}
     assert read_frame(stream) is None                       # EOF: no more frames
 
 
 def test_a_truncated_frame_is_not_a_message():
-    data = encode(("unit", 3))
+    data = bytes(encode(("unit", 3)))
     assert read_frame(io.BytesIO(data[:-2])) is None
 
 
 def test_the_other_sides_package_name_is_mapped_onto_ours():
     """A worker that imports the tracer as `tracer` (the add-on's zips) sends classes of
     `tracer.core.errors`; the parent that imports it as `engine` reads them as its own."""
-    data = read_frame(io.BytesIO(encode(SceneError("Material 'x': bad"))))
+    data, buffers = read_frame(io.BytesIO(bytes(encode(SceneError("Material 'x': bad")))))
     assert b"engine.core.errors" in data
-    foreign = data.replace(b"engine.core.errors", b"tracer.core.errors")     # same length: a valid pickle
+    foreign = (data.replace(b"engine.core.errors", b"tracer.core.errors"), buffers)     # same length: a valid pickle
     restored = decode(foreign, "tracer", "engine")
     assert type(restored) is SceneError and str(restored) == "Material 'x': bad"
     with pytest.raises(ModuleNotFoundError):                                 # control: without the map
@@ -46,12 +46,46 @@ def test_the_other_sides_package_name_is_mapped_onto_ours():
 def test_a_worker_of_another_engine_version_refuses_in_one_line():
     proc = subprocess.Popen([sys.executable, "-m", "engine", "worker", str(os.getpid())], cwd=ROOT,
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    out, err = proc.communicate(encode(("hello", "engine", "0.0.0-other")), timeout=120)
+    out, err = proc.communicate(bytes(encode(("hello", "engine", "0.0.0-other"))), timeout=120)
     hello = decode(read_frame(io.BytesIO(out)), "engine")
     assert hello[0] == "hello" and hello[1] == ENGINE_VERSION
     assert proc.returncode == REFUSED
     refusals = [line for line in err.decode().splitlines() if "refused" in line]
     assert refusals == [f"this worker runs engine {ENGINE_VERSION}, the parent 0.0.0-other: refused"]
+
+
+def test_large_arrays_go_out_of_band_and_come_back_equal_and_writable():
+    """encode(views=True): arrays of OUT_OF_BAND_BYTES or more are written from where they are, not
+    copied into the pickle; read back they equal the sent ones bit for bit (NaN, -0.0, inf, a
+    Fortran-ordered one), writable as an array pickled in band is.  Control: without views the
+    pickle holds them."""
+    import numpy as np
+    n = transport.OUT_OF_BAND_BYTES // 8
+    big = np.linspace(-1.0, 1.0, n)
+    big[:4] = [np.nan, -0.0, np.inf, -np.inf]
+    fortran = np.asfortranarray(np.arange(2 * n, dtype=np.float32).reshape(2, n))
+    small = np.arange(5.0)
+    message = ("prepare", {"big": big, "fortran": fortran, "small": small, "empty": np.zeros((0, 3))})
+    frame = encode(message, views=True)
+    data, buffers = read_frame(io.BytesIO(bytes(frame)))
+    assert len(buffers) == 2 and len(data) < 4096                    # the two large arrays left the pickle
+    assert len(frame) == len(bytes(frame))
+    _, got = decode((data, buffers), "engine")
+    for key, sent in message[1].items():
+        assert got[key].dtype == sent.dtype and got[key].shape == sent.shape
+        assert got[key].tobytes(order="A") == sent.tobytes(order="A"), key          # the same bits
+        assert got[key].flags.writeable
+    assert got["fortran"].flags.f_contiguous
+    in_band, no_buffers = read_frame(io.BytesIO(bytes(encode(message))))          # control: copied in
+    assert no_buffers == [] and len(in_band) > 2 * transport.OUT_OF_BAND_BYTES
+
+
+def test_a_frame_cut_in_its_out_of_band_buffers_is_not_a_message():
+    import numpy as np
+    data = bytes(encode(np.ones(transport.OUT_OF_BAND_BYTES // 8), views=True))
+    assert read_frame(io.BytesIO(data)) is not None                                 # control: whole
+    assert read_frame(io.BytesIO(data[:-1])) is None
+    assert read_frame(io.BytesIO(data[:-transport.OUT_OF_BAND_BYTES - 4])) is None  # in a buffer's length
 
 
 def test_a_length_no_frame_has_is_not_read():
