@@ -6,8 +6,9 @@ directory (and any bundled wheels) on PYTHONPATH (engine/core/paths.py worker_en
 
 * Frames: a little-endian 8-byte length, then a pickle (protocol 5).  A frame with out-of-band
   buffers (only when the sender asked: encode `views`) has their count in the length's top 24 bits
-  (COUNT_SHIFT) and each after the pickle as an 8-byte length and its bytes.  The worker's stdout carries only frames (the tracer's own prints go to stderr); stdin
-  carries the parent's frames; EOF ends the worker.
+  (COUNT_SHIFT) and each after the pickle as an 8-byte length and its bytes.  The worker's stdout
+  carries only frames (the tracer's own prints go to stderr); stdin carries the parent's frames; EOF
+  ends the worker.
 * Handshake: the parent's first frame is ("hello", its tracer package, its engine version, its
   build hash); the worker answers ("hello", its engine version, its Python version, its pid, its
   build hash), and a worker of another engine version or build (engine/core/version.py BUILD_HASH:
