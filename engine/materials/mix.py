@@ -207,6 +207,12 @@ class MixBSDF(BSDF):
                 flags |= table.bsdfs[row].flags
         self.flags = flags
         self.rows = sorted({row for closures in self.closures.values() for _, row, _, _ in closures})   # the leaves' rows
+        # For mix_jit.place: material m's j-th leaf and its row (-1 past its leaves)
+        self.leaf_table = np.full((len(leaf_ids), max(1, int(self.leaf_count.max(initial=0)))), -1, np.int64)
+        self.row_table = self.leaf_table.copy()
+        for m, closures in self.closures.items():
+            for j, (leaf_id, row, _, _) in enumerate(closures):
+                self.leaf_table[m, j], self.row_table[m, j] = leaf_id, row
 
     # -- the closures at some hits ----------------------------------------------------------------
     def _pairs(self, si: ShadingPoint):
@@ -214,27 +220,54 @@ class MixBSDF(BSDF):
         the material's order): (hit (P,), row (P,), weight (P,), probability (P,), total weight x albedo
         per hit (N,), the leaves of the pairs (_Leaves))."""
         n = len(si)
-        count = self.leaf_count.take(si.material)          # pairs per hit
-        hit = np.repeat(np.arange(n), count)
-        start = np.cumsum(count) - count                    # each hit's first pair
-        leaf, row, weight = np.empty(len(hit), np.int64), np.empty(len(hit), np.int64), np.empty(len(hit))
-        for m in _ids_in(si.material):
-            idx = np.flatnonzero(si.material == m)
-            first = start.take(idx)
-            for j, ((leaf_id, r, _, _), w) in enumerate(zip(self.closures[int(m)], self._weights(si, int(m), idx))):
-                pairs = first + j
-                leaf[pairs], row[pairs], weight[pairs] = leaf_id, r, w
-        color = self.table.color.take(leaf, axis=1)
+        if self.compiled is not None:                       # mix_jit.place: the same pairs in one pass
+            weights = np.empty((self.leaf_table.shape[1], n))
+            for m, idx, leaf_weights in self._material_weights(si):
+                for j, w in enumerate(leaf_weights):
+                    weights[j, idx] = w
+            hit, leaf, row, weight, color = self.compiled.place(si.material, self.leaf_count, self.leaf_table,
+                                                                self.row_table, weights, self.table.color)
+        else:
+            hit, leaf, row, weight, color = self._placed(si)
         if si.lookup is not None:
             color = si.lookup.take(hit).color(color, leaf)
         leaves = _Leaves.of(si, hit, self._by_row(row), leaf, color)
+        prob, total = self._probabilities(hit, weight, color, n)
+        return hit, row, weight, prob, total, leaves
+
+    def _material_weights(self, si: ShadingPoint):
+        """(material m, its hits idx in si, its leaves' weights there (_weights)) for each material of si."""
+        for m in _ids_in(si.material):
+            idx = np.flatnonzero(si.material == m)
+            yield int(m), idx, self._weights(si, int(m), idx)
+
+    def _placed(self, si: ShadingPoint):
+        """The pairs of _pairs before the colour lookups and the probabilities: (hit, leaf material id,
+        row, weight (P,) each, the leaves' table colours (3, P)).  Each hit's pairs start at the cumulative
+        sum of its material's leaf count: every leaf's pairs are written at their hit-major places."""
+        count = self.leaf_count.take(si.material)          # pairs per hit
+        hit = np.repeat(np.arange(len(si)), count)
+        start = np.cumsum(count) - count                    # each hit's first pair
+        leaf, row, weight = np.empty(len(hit), np.int64), np.empty(len(hit), np.int64), np.empty(len(hit))
+        for m, idx, leaf_weights in self._material_weights(si):
+            first = start.take(idx)
+            for j, ((leaf_id, r, _, _), w) in enumerate(zip(self.closures[m], leaf_weights)):
+                pairs = first + j
+                leaf[pairs], row[pairs], weight[pairs] = leaf_id, r, w
+        return hit, leaf, row, weight, self.table.color.take(leaf, axis=1)
+
+    def _probabilities(self, hit, weight, color, n):
+        """(each pair's pick probability p_c (P,), each hit's total weight x albedo (n,)): the albedo the
+        leaf colour's mean, at least ALBEDO_FLOOR."""
+        if self.compiled is not None:                       # mix_jit.probabilities: the same numbers
+            return self.compiled.probabilities(hit, weight, color, ALBEDO_FLOOR, n)
         albedo = (color[0] + color[1] + color[2]) / 3.0    # color.mean(axis=0), the same sums
         rate = weight * np.maximum(albedo, ALBEDO_FLOOR)
         total = np.bincount(hit, weights=rate, minlength=n)
         of_hit = total.take(hit)
         with np.errstate(divide="ignore", invalid="ignore"):
             prob = np.where(of_hit > 0.0, rate / of_hit, 0.0)
-        return hit, row, weight, prob, total, leaves
+        return prob, total
 
     def _weights(self, si: ShadingPoint, m: int, idx: np.ndarray) -> list:
         """The weight (len(idx),) of each leaf of material m at the hits `idx` of si, each value a
@@ -346,7 +379,10 @@ class MixBSDF(BSDF):
                 continue                                    # delta leaves: no given direction meets them
             sel = k if only is None else only.take(k)       # the pairs themselves
             f, p = self.table.bsdfs[r].eval(leaves.at(r, sel), wi.take(hit.take(k), axis=1))
-            f_cos[:, k], pdf[k] = f, p
+            if self.compiled is not None:                   # mix_jit.put: the same copies in one loop
+                self.compiled.put(f_cos, pdf, k, f, p)
+            else:
+                f_cos[:, k], pdf[k] = f, p
         return f_cos, pdf
 
     def eval(self, si: ShadingPoint, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

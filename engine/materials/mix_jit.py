@@ -145,6 +145,92 @@ def by_row(rows, keep, codes):
 
 
 @jit
+def _place(material, leaf_count, leaf_table, row_table, weights, table_color):
+    n, materials = material.shape[0], leaf_count.shape[0]
+    size = 0
+    for h in range(n):
+        m = material[h]
+        if m < 0 or m >= materials:
+            raise IndexError("mix_jit.place: a material id outside the leaf table")
+        if leaf_count[m] > leaf_table.shape[1]:
+            raise IndexError("mix_jit.place: a material with more leaves than the table's columns")
+        size += leaf_count[m]
+    hit, leaf, row = np.empty(size, np.int64), np.empty(size, np.int64), np.empty(size, np.int64)
+    weight, color = np.empty(size), np.empty((3, size))
+    p = 0
+    for h in range(n):                                      # hit-major: a hit's pairs in its leaves' order
+        m = material[h]
+        for j in range(leaf_count[m]):
+            c = leaf_table[m, j]
+            if c < 0 or c >= table_color.shape[1]:
+                raise IndexError("mix_jit.place: a leaf outside the colour table")
+            hit[p], leaf[p], row[p], weight[p] = h, c, row_table[m, j], weights[j, h]
+            color[0, p], color[1, p], color[2, p] = table_color[0, c], table_color[1, c], table_color[2, c]
+            p += 1
+    return hit, leaf, row, weight, color
+
+
+def place(material, leaf_count, leaf_table, row_table, weights, table_color):
+    """MixBSDF._placed: every (hit, leaf) pair of hits of materials `material` (N,), hit-major: (hit,
+    leaf material, row, weight, the leaf's table colour (3, P)).  leaf_count (M,): leaves per material;
+    leaf_table, row_table (M, J): material m's j-th leaf and its row; weights (J, N): leaf j's weight at
+    each hit (read for j < its material's count); table_color (3, materials).  One pass instead of a
+    repeat, a cumulative sum and three scatters per leaf and the colours' gather."""
+    if not (leaf_table.shape == row_table.shape and leaf_table.shape[0] == len(leaf_count)
+            and weights.shape[1] == len(material) and weights.shape[0] >= leaf_table.shape[1]
+            and table_color.shape[0] == 3):
+        raise ValueError(f"mix_jit.place: tables {leaf_table.shape}, {row_table.shape}, weights {weights.shape} "
+                         f"for {len(material)} hits of {len(leaf_count)} materials")
+    return _place(contiguous(material, np.int64), contiguous(leaf_count, np.int64), contiguous(leaf_table, np.int64),
+                  contiguous(row_table, np.int64), contiguous(weights), contiguous(table_color))
+
+
+@jit
+def _probabilities(hit, weight, color, floor, n):
+    size = hit.shape[0]
+    rate, prob, total = np.empty(size), np.empty(size), np.zeros(n)
+    for p in range(size):
+        h = hit[p]
+        if h < 0 or h >= n:
+            raise IndexError("mix_jit.probabilities: a pair's hit outside the hits")
+        albedo = (color[0, p] + color[1, p] + color[2, p]) / 3.0
+        if albedo < floor:                                  # np.maximum(albedo, floor): NaN stays NaN
+            albedo = floor
+        r = weight[p] * albedo
+        rate[p] = r
+        total[h] += r                                       # np.bincount: in the pairs' order from 0
+    for p in range(size):
+        t = total[hit[p]]
+        prob[p] = rate[p] / t if t > 0.0 else 0.0
+    return prob, total
+
+
+def probabilities(hit, weight, color, floor, n):
+    """MixBSDF._probabilities: (each pair's pick probability (P,), each hit's total weight x albedo
+    (n,)), albedo the mean of the leaf colour (at least `floor`)."""
+    if color.shape != (3, len(hit)) or weight.shape != hit.shape:
+        raise ValueError(f"mix_jit.probabilities: hit {hit.shape}, weight {weight.shape}, color {color.shape}")
+    return _probabilities(contiguous(hit, np.int64), contiguous(weight), contiguous(color), float(floor), int(n))
+
+
+@jit
+def _put(f_cos, pdf, k, f, p):
+    for i in range(k.shape[0]):
+        j = k[i]
+        if j < 0 or j >= pdf.shape[0]:
+            raise IndexError("mix_jit.put: a place outside the results")
+        f_cos[0, j], f_cos[1, j], f_cos[2, j] = f[0, i], f[1, i], f[2, i]
+        pdf[j] = p[i]
+
+
+def put(f_cos, pdf, k, f, p):
+    """f_cos[:, k], pdf[k] = f, p (MixBSDF._eval_pairs' scatter of a row's results) in one loop."""
+    if f.shape != (3, len(k)) or p.shape != (len(k),) or f_cos.shape != (3, len(pdf)):
+        raise ValueError(f"mix_jit.put: {f.shape}, {p.shape} at {len(k)} places of {f_cos.shape}")
+    _put(f_cos, pdf, contiguous(k, np.int64), contiguous(f), contiguous(p))
+
+
+@jit
 def _fresnel_dielectric(cos, eta):
     """engine/nodes/inputs.py fresnel_dielectric_cos of one hit, then np.clip(f, 0, 1)."""
     c = abs(cos)
@@ -207,6 +293,10 @@ def warm_up() -> None:
     sums(hit, np.ones((3, 3)), np.ones(3), np.ones(3), prob, 2)
     for keep in (None, np.array([True, False, True])):
         by_row(hit, keep, [0, 1])
+    table = np.array([[0, 1], [2, -1]])
+    placed = place(np.array([0, 1]), np.array([2, 1]), table, table, np.ones((2, 2)), np.ones((3, 3)))
+    probabilities(placed[0], placed[3], placed[4], 0.05, 2)
+    put(np.zeros((3, 3)), np.zeros(3), np.array([2, 0]), np.ones((3, 2)), np.ones(2))
     rows = np.array([[0.0, 0.6, 0.8]] * 3).T.copy()
     for idx in (None, np.array([1])):
         for etas in ((1.45, 1.0 / 1.45), None):
