@@ -413,24 +413,45 @@ class MixBSDF(BSDF):
             s = bsdf.sample(at, u_leaf.take(mine), uv)
             if si.media is not None:
                 si.media.media[mine], si.media.depth[mine] = at.media.media, at.media.depth
-            wi[:, mine], flags[mine] = s.wi, s.flags
-            is_delta = (s.flags & DELTA_LOBE) != 0
-            delta[mine] = is_delta
-            d = mine[is_delta]                              # delta: the leaf's own value and pdf
-            w_over_p = weight.take(pairs[is_delta]) / p_c.take(d)
-            value[:, d] = s.value[:, is_delta] * w_over_p
-            pdf[d] = p_c.take(d) * s.pdf[is_delta]
+            self._keep(mine, pairs, s, weight, p_c, wi, value, pdf, flags, delta)
         # Non-delta samples: the mixture of every non-delta leaf of the hit at wi.
-        spread = np.flatnonzero(~delta & (p_c > 0.0))
+        spread, pairs, at = self._spread(hit, delta, p_c)
         if len(spread):
-            of = np.zeros(n, dtype=bool)
-            of[spread] = True
-            pairs = np.flatnonzero(of.take(hit))            # every pair of those hits: their sums whole
-            at = hit.take(pairs)
             f_cos, p = self._eval_pairs(row, leaves, wi, at, only=pairs)
             f_sum, p_sum = self._sums(at, f_cos, weight.take(pairs), p, prob.take(pairs), n)
-            f_sum, p_sum = f_sum.take(spread, axis=1), p_sum.take(spread)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                value[:, spread] = np.where(p_sum > 0.0, f_sum / p_sum, 0.0)
-            pdf[spread] = p_sum
+            self._mixture(spread, f_sum, p_sum, value, pdf)
         return BSDFSample(wi, value, pdf, flags)
+
+    def _keep(self, mine, pairs, s: BSDFSample, weight, p_c, wi, value, pdf, flags, delta) -> None:
+        """Write the leaf samples `s` of the hits `mine` (their chosen pairs `pairs`) into the sample's
+        arrays: wi, flags and whether the lobe is a delta of each; where it is, the leaf's own value x
+        weight / p_c and pdf x p_c (the other hits' value and pdf: the mixture's, _mixture)."""
+        if self.compiled is not None:                       # mix_jit.keep: the same numbers in one loop
+            return self.compiled.keep(mine, pairs, s, DELTA_LOBE, weight, p_c, wi, value, pdf, flags, delta)
+        wi[:, mine], flags[mine] = s.wi, s.flags
+        is_delta = (s.flags & DELTA_LOBE) != 0
+        delta[mine] = is_delta
+        d = mine[is_delta]
+        w_over_p = weight.take(pairs[is_delta]) / p_c.take(d)
+        value[:, d] = s.value[:, is_delta] * w_over_p
+        pdf[d] = p_c.take(d) * s.pdf[is_delta]
+
+    def _spread(self, hit, delta, p_c):
+        """(the live hits whose leaf took no delta lobe, every pair of those hits (their sums whole),
+        those pairs' hits), ascending."""
+        if self.compiled is not None:                       # mix_jit.spread: the same places
+            return self.compiled.spread(hit, delta, p_c)
+        spread = np.flatnonzero(~delta & (p_c > 0.0))
+        of = np.zeros(len(delta), dtype=bool)
+        of[spread] = True
+        pairs = np.flatnonzero(of.take(hit))
+        return spread, pairs, hit.take(pairs)
+
+    def _mixture(self, spread, f_sum, p_sum, value, pdf) -> None:
+        """value, pdf at the hits `spread`: the mixture's sums f_sum / p_sum (0 where p_sum is not > 0), p_sum."""
+        if self.compiled is not None:                       # mix_jit.mixture: the same quotients
+            return self.compiled.mixture(spread, f_sum, p_sum, value, pdf)
+        f_sum, p_sum = f_sum.take(spread, axis=1), p_sum.take(spread)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            value[:, spread] = np.where(p_sum > 0.0, f_sum / p_sum, 0.0)
+        pdf[spread] = p_sum

@@ -231,6 +231,88 @@ def put(f_cos, pdf, k, f, p):
 
 
 @jit
+def _keep(mine, pairs, s_wi, s_value, s_pdf, s_flags, delta_lobe, weight, p_c, wi, value, pdf, flags, delta):
+    n, size = pdf.shape[0], weight.shape[0]
+    for i in range(mine.shape[0]):
+        h, c = mine[i], pairs[i]
+        if h < 0 or h >= n or c < 0 or c >= size:
+            raise IndexError("mix_jit.keep: a hit or pair outside the arrays")
+        wi[0, h], wi[1, h], wi[2, h] = s_wi[0, i], s_wi[1, i], s_wi[2, i]
+        flags[h] = s_flags[i]
+        is_delta = (s_flags[i] & delta_lobe) != 0
+        delta[h] = is_delta
+        if is_delta:                                        # the leaf's own value and pdf
+            w_over_p = weight[c] / p_c[h]
+            value[0, h], value[1, h], value[2, h] = s_value[0, i] * w_over_p, s_value[1, i] * w_over_p, s_value[2, i] * w_over_p
+            pdf[h] = p_c[h] * s_pdf[i]
+
+
+def keep(mine, pairs, s, delta_lobe, weight, p_c, wi, value, pdf, flags, delta):
+    """MixBSDF._keep: the leaf samples `s` (BSDFSample) of hits `mine` (their pairs `pairs`) written into
+    the mixture's sample arrays (wi, value (3, N), pdf (N,), flags (N,) int8, delta (N,) bool) in one
+    loop: wi and flags of each, value = the leaf's value x weight / p_c and pdf = p_c x its pdf where
+    the leaf took a delta lobe (the others: the mixture's, later)."""
+    if s.wi.shape != (3, len(mine)) or s.value.shape != s.wi.shape or len(s.pdf) != len(mine) or len(pairs) != len(mine):
+        raise ValueError(f"mix_jit.keep: a sample of {s.wi.shape} for {len(mine)} hits")
+    _keep(contiguous(mine, np.int64), contiguous(pairs, np.int64), contiguous(s.wi), contiguous(s.value),
+          contiguous(s.pdf), contiguous(s.flags, np.int64), int(delta_lobe), contiguous(weight), contiguous(p_c),
+          wi, value, pdf, flags, delta)
+
+
+@jit
+def _spread(hit, delta, p_c):
+    n, size = delta.shape[0], hit.shape[0]
+    of = np.empty(n, np.bool_)
+    count = 0
+    for h in range(n):
+        of[h] = not delta[h] and p_c[h] > 0.0
+        count += of[h]
+    spread = np.empty(count, np.int64)
+    k = 0
+    for h in range(n):
+        if of[h]:
+            spread[k] = h
+            k += 1
+    count = 0
+    for i in range(size):
+        if hit[i] < 0 or hit[i] >= n:
+            raise IndexError("mix_jit.spread: a pair's hit outside the hits")
+        count += of[hit[i]]
+    pairs, at = np.empty(count, np.int64), np.empty(count, np.int64)
+    k = 0
+    for i in range(size):
+        if of[hit[i]]:
+            pairs[k], at[k] = i, hit[i]
+            k += 1
+    return spread, pairs, at
+
+
+def spread(hit, delta, p_c):
+    """MixBSDF._spread: (the live hits that took no delta lobe (ascending), every pair of theirs
+    (ascending), those pairs' hits)."""
+    return _spread(contiguous(hit, np.int64), contiguous(delta, np.bool_), contiguous(p_c))
+
+
+@jit
+def _mixture(spread, f_sum, p_sum, value, pdf):
+    for k in range(spread.shape[0]):
+        h = spread[k]
+        if h < 0 or h >= pdf.shape[0]:
+            raise IndexError("mix_jit.mixture: a hit outside the arrays")
+        p = p_sum[h]
+        for c in range(3):
+            value[c, h] = f_sum[c, h] / p if p > 0.0 else 0.0
+        pdf[h] = p
+
+
+def mixture(spread, f_sum, p_sum, value, pdf):
+    """MixBSDF._mixture: value[:, spread] = f_sum / p_sum (0 where p_sum is not > 0), pdf[spread] = p_sum."""
+    if f_sum.shape != (3, len(p_sum)) or value.shape != (3, len(pdf)) or len(p_sum) != len(pdf):
+        raise ValueError(f"mix_jit.mixture: sums {f_sum.shape}, {p_sum.shape} for {value.shape}")
+    _mixture(contiguous(spread, np.int64), contiguous(f_sum), contiguous(p_sum), value, pdf)
+
+
+@jit
 def _fresnel_dielectric(cos, eta):
     """engine/nodes/inputs.py fresnel_dielectric_cos of one hit, then np.clip(f, 0, 1)."""
     c = abs(cos)
@@ -291,12 +373,18 @@ def warm_up() -> None:
     prob = np.array([0.25, 0.75, 1.0])
     pick(hit, prob, np.ones(2), np.array([0.5, 0.5]), 1.0 - 1e-12)
     sums(hit, np.ones((3, 3)), np.ones(3), np.ones(3), prob, 2)
-    for keep in (None, np.array([True, False, True])):
-        by_row(hit, keep, [0, 1])
+    for kept in (None, np.array([True, False, True])):
+        by_row(hit, kept, [0, 1])
     table = np.array([[0, 1], [2, -1]])
     placed = place(np.array([0, 1]), np.array([2, 1]), table, table, np.ones((2, 2)), np.ones((3, 3)))
     probabilities(placed[0], placed[3], placed[4], 0.05, 2)
     put(np.zeros((3, 3)), np.zeros(3), np.array([2, 0]), np.ones((3, 2)), np.ones(2))
+    from types import SimpleNamespace
+    sample = SimpleNamespace(wi=np.ones((3, 2)), value=np.ones((3, 2)), pdf=np.ones(2), flags=np.array([4, 16], np.int8))
+    wi, value, pdf = np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(2)
+    keep(np.array([0, 1]), np.array([0, 2]), sample, 16, placed[3], np.ones(2), wi, value, pdf,
+         np.zeros(2, np.int8), np.zeros(2, np.bool_))
+    mixture(spread(placed[0], np.array([False, True]), np.ones(2))[0], value, pdf, value, pdf)
     rows = np.array([[0.0, 0.6, 0.8]] * 3).T.copy()
     for idx in (None, np.array([1])):
         for etas in ((1.45, 1.0 / 1.45), None):
