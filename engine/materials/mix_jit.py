@@ -141,7 +141,8 @@ def by_row(rows, keep, codes):
     _group(np.ascontiguousarray(rows, np.int64),
            np.ascontiguousarray(keep, np.bool_) if use_keep else np.zeros(0, np.bool_), use_keep, n_codes,
            order, offsets)
-    return [(r, order[offsets[r]:offsets[r + 1]]) for r in codes if offsets[r + 1] > offsets[r]]
+    ends = offsets.tolist()                                 # Python ints: no NumPy scalar per comparison
+    return [(r, order[ends[r]:ends[r + 1]]) for r in codes if ends[r + 1] > ends[r]]
 
 
 @jit
@@ -295,9 +296,9 @@ def spread(hit, delta, p_c):
 
 @jit
 def _mixture(spread, f_sum, p_sum, value, pdf):
-    for k in range(spread.shape[0]):
-        h = spread[k]
-        if h < 0 or h >= pdf.shape[0]:
+    n = pdf.shape[0]
+    for h in spread:
+        if not 0 <= h < n:
             raise IndexError("mix_jit.mixture: a hit outside the arrays")
         p = p_sum[h]
         for c in range(3):
