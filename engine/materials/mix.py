@@ -207,6 +207,9 @@ class MixBSDF(BSDF):
                 flags |= table.bsdfs[row].flags
         self.flags = flags
         self.rows = sorted({row for closures in self.closures.values() for _, row, _, _ in closures})   # the leaves' rows
+        self.leaf_ids = np.array([leaf_id for closures in self.closures.values() for leaf_id, _, _, _ in closures],
+                                 np.int64)
+        self._colour_reads = (None, True)                   # (the lookups' textures, whether leaf colours read them)
         # For mix_jit.place: material m's j-th leaf and its row (-1 past its leaves)
         self.leaf_table = np.full((len(leaf_ids), max(1, int(self.leaf_count.max(initial=0)))), -1, np.int64)
         self.row_table = self.leaf_table.copy()
@@ -229,11 +232,21 @@ class MixBSDF(BSDF):
                                                                 self.row_table, weights, self.table.color)
         else:
             hit, leaf, row, weight, color = self._placed(si)
-        if si.lookup is not None:
+        if si.lookup is not None and self._colours_read(si.lookup):
             color = si.lookup.take(hit).color(color, leaf)
         leaves = _Leaves.of(si, hit, self._by_row(row), leaf, color)
         prob, total = self._probabilities(hit, weight, color, n)
         return hit, row, weight, prob, total, leaves
+
+    def _colours_read(self, lookup) -> bool:
+        """Whether the hits' lookups (engine/materials/textures.py HitLookup) may change a leaf's colour:
+        some leaf has an image texture or a node program on it.  Otherwise HitTextures.color gives back
+        the colours it is given (the same array), and its per-pair gathers are left out."""
+        textures = lookup.textures
+        if self._colour_reads[0] is not textures:           # once per scene's lookups
+            programs = textures.attributes is not None and textures.textures.has_program["color"].take(self.leaf_ids).any()
+            self._colour_reads = (textures, bool(programs or textures.has_color.take(self.leaf_ids).any()))
+        return self._colour_reads[1]
 
     def _material_weights(self, si: ShadingPoint):
         """(material m, its hits idx in si, its leaves' weights there (_weights)) for each material of si."""
@@ -277,10 +290,11 @@ class MixBSDF(BSDF):
         at = si if every else None                              # si.take(idx) once a factor needs it
         read, weights = {}, []
         for _, _, factors, firsts in self.closures[m]:
-            w = np.ones(len(idx))
+            w = None                                            # the product from 1: 1 x the first factor is it
             for factor, first in zip(factors, firsts):
                 if factor.kind not in READ:
-                    w = w * float(factor.constant())
+                    c = float(factor.constant())
+                    w = np.full(len(idx), c) if w is None else w * c
                     continue
                 if id(first) not in read:
                     if first.kind == FRESNEL or first.kind == LAYER_WEIGHT:
@@ -289,8 +303,9 @@ class MixBSDF(BSDF):
                         at = si.take(idx) if at is None else at
                         read[id(first)] = _factor_input(first, at)
                 f = read[id(first)]
-                w = w * (1.0 - f if factor.invert else f)
-            weights.append(w)
+                f = 1.0 - f if factor.invert else f
+                w = f if w is None else w * f
+            weights.append(np.ones(len(idx)) if w is None else w)
         return weights
 
     def _view_factor(self, factor, si: ShadingPoint, idx: np.ndarray, every: bool) -> np.ndarray:
@@ -329,7 +344,7 @@ class MixBSDF(BSDF):
         """_pairs and, per hit, where its pairs start and how many it has (not per-hit arrays: read
         through _pairs_at only)."""
         hit, row, weight, prob, total, leaves = self._pairs(si)
-        count = np.bincount(hit, minlength=len(si))
+        count = self.leaf_count.take(si.material)          # each hit's pairs: its material's leaves
         return hit, row, weight, prob, total, leaves, np.cumsum(count) - count, count
 
     def _by_row(self, rows: np.ndarray, keep: np.ndarray | None = None) -> list:

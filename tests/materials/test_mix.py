@@ -4,6 +4,7 @@ and Layer Weight factors, delta leaves and the medium stack, texture factors, sc
 validation.  Controls: a pdf with the wrong closure probabilities fails the χ²; a mix whose
 factors are ignored gives another image."""
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -227,7 +228,9 @@ def test_a_hit_with_all_weights_zero_ends_its_path():
 
 
 class FakeLookup:
-    """A texture factor's values at the hits (what HitLookup gives)."""
+    """A texture factor's values at the hits (what HitLookup gives); its scene's textures colour no leaf."""
+    textures = SimpleNamespace(attributes=None, has_color=np.zeros(64, bool))
+
     def __init__(self, values):
         self.values = np.asarray(values, dtype=np.float64)
 
@@ -350,6 +353,38 @@ def test_a_texture_mix_of_white_and_black_renders_as_the_textured_colour():
                    for leaf in mix.mix.leaves))
     flat_image = render(textured_floor_scene(flat), RenderSettings(**settings), **quiet).image
     assert not np.allclose(flat_image, reference, rtol=0.05, atol=1e-3)
+
+
+def test_leaf_colours_are_looked_up_only_where_a_leaf_has_a_textured_colour(monkeypatch):
+    """MixBSDF._colours_read: a mix of a textured diffuse (weight 1) and a black one renders as the
+    textured diffuse (its colour looked up per pair); a texture-factor mix of untextured leaves skips
+    the lookups and renders the same bits as with them.  Control: the textured leaf's lookups left out
+    render another image."""
+    from engine import render
+    slot = TextureSlot(0, interpolation="Closest", node="Checker")
+    settings = RenderSettings(samples=4, seed=4, threads=1, parallelism="threads", backend="numpy")
+    quiet = dict(log=lambda *a: None)
+    textured = Material("Textured", DIFFUSE, (0.5, 0.5, 0.5), color_texture=slot)
+    mix = mixed(leaf(textured, const(1.0)), leaf(Material("Black", DIFFUSE, (0, 0, 0)), const(0.0)))
+    asked = []
+    original = MixBSDF._colours_read
+
+    def recording(self, lookup):
+        asked.append(original(self, lookup))
+        return asked[-1]
+    monkeypatch.setattr(MixBSDF, "_colours_read", recording)
+    image = render(textured_floor_scene(mix), settings, **quiet).image
+    reference = render(textured_floor_scene(textured), settings, **quiet).image
+    assert asked and all(asked) and np.allclose(image, reference, rtol=1e-4, atol=1e-6)
+    factor_mix = mixed(leaf(diffuse((1, 1, 1)), MixFactor("texture", value=0.5, texture=slot)),
+                       leaf(diffuse((0, 0, 0)), MixFactor("texture", value=0.5, texture=slot, invert=True)))
+    asked.clear()
+    skipped = render(textured_floor_scene(factor_mix), settings, **quiet).image
+    assert asked and not any(asked)
+    monkeypatch.setattr(MixBSDF, "_colours_read", lambda self, lookup: True)
+    assert np.array_equal(render(textured_floor_scene(factor_mix), settings, **quiet).image, skipped)
+    monkeypatch.setattr(MixBSDF, "_colours_read", lambda self, lookup: False)       # control
+    assert not np.allclose(render(textured_floor_scene(mix), settings, **quiet).image, reference, rtol=0.05, atol=1e-3)
 
 
 def test_the_effect_plan_names_the_mixed_lobes():
