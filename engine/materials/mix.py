@@ -223,15 +223,7 @@ class MixBSDF(BSDF):
         the material's order): (hit (P,), row (P,), weight (P,), probability (P,), total weight x albedo
         per hit (N,), the leaves of the pairs (_Leaves))."""
         n = len(si)
-        if self.compiled is not None:                       # mix_jit.place: the same pairs in one pass
-            weights = np.empty((self.leaf_table.shape[1], n))
-            for m, idx, leaf_weights in self._material_weights(si):
-                for j, w in enumerate(leaf_weights):
-                    weights[j, idx] = w
-            hit, leaf, row, weight, color = self.compiled.place(si.material, self.leaf_count, self.leaf_table,
-                                                                self.row_table, weights, self.table.color)
-        else:
-            hit, leaf, row, weight, color = self._placed(si)
+        hit, leaf, row, weight, color = self._placed(si)
         if si.lookup is not None and self._colours_read(si.lookup):
             color = si.lookup.take(hit).color(color, leaf)
         leaves = _Leaves.of(si, hit, self._by_row(row), leaf, color)
@@ -258,6 +250,13 @@ class MixBSDF(BSDF):
         """The pairs of _pairs before the colour lookups and the probabilities: (hit, leaf material id,
         row, weight (P,) each, the leaves' table colours (3, P)).  Each hit's pairs start at the cumulative
         sum of its material's leaf count: every leaf's pairs are written at their hit-major places."""
+        if self.compiled is not None:                       # mix_jit.place: the same pairs in one pass
+            weights = np.empty((self.leaf_table.shape[1], len(si)))
+            for m, idx, leaf_weights in self._material_weights(si):
+                for j, w in enumerate(leaf_weights):
+                    weights[j, idx] = w
+            return self.compiled.place(si.material, self.leaf_count, self.leaf_table, self.row_table, weights,
+                                       self.table.color)
         count = self.leaf_count.take(si.material)          # pairs per hit
         hit = np.repeat(np.arange(len(si)), count)
         start = np.cumsum(count) - count                    # each hit's first pair

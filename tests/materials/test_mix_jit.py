@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from engine.materials.media import MediumStack
-from engine.materials.mix import U_MAX
+from engine.materials.mix import ALBEDO_FLOOR, U_MAX
 from engine.materials.protocol import ShadingPoint
 from engine.materials.table import KIND_CODE, MaterialTable
 from engine import RenderSettings
@@ -265,3 +265,195 @@ def test_the_view_kernel_refuses_rows_and_indices_it_would_read_past():
         twin.view_factor(rows, np.ones((3, 1)), rows, None, (1.5, 1 / 1.5))
     with pytest.raises(IndexError, match="view_factor"):
         twin.view_factor(rows, rows, rows, np.array([0, 4]), (1.5, 1 / 1.5))
+
+
+# -- the pairs' placing and probabilities, a row's eval scatter, a sample's bookkeeping ---------------------
+# (mix_jit.place, probabilities, put, keep, spread, mixture: MixBSDF._placed, _probabilities, _eval_pairs,
+# _keep, _spread, _mixture on NumPy and compiled)
+BOOKKEEPING = ("_placed", "_probabilities", "_keep", "_spread", "_mixture", "_eval_pairs")
+
+
+def both_ways(bsdf, method, *args):
+    """(NumPy's, the compiled) results of MixBSDF method `method` (a function or its name) on copies of
+    args, with the arrays it writes into (the arguments) after it: [result, *args]."""
+    import copy
+    import importlib
+    twin = importlib.import_module(TWIN)
+    from engine.materials.mix import MixBSDF
+    method = getattr(MixBSDF, method) if isinstance(method, str) else method
+    out, kept = [], bsdf.compiled
+    for compiled in (None, twin):
+        mine = copy.deepcopy(args) if method.__name__ in ("_keep", "_mixture") else args
+        bsdf.compiled = compiled
+        try:
+            with np.errstate(all="ignore"):
+                out.append([method(bsdf, *mine), *mine])
+        finally:
+            bsdf.compiled = kept
+    return out
+
+
+def flat_arrays(value):
+    """The arrays of a result (nested tuples / lists, a ShadingPoint's leaves left out), in order."""
+    if isinstance(value, np.ndarray):
+        return [value]
+    if isinstance(value, (tuple, list)):
+        return [a for v in value for a in flat_arrays(v)]
+    return []
+
+
+def same_results(a, b) -> bool:
+    """The same arrays bit for bit, of the same dtypes (but empty ones: np.bincount of no pairs is int64)."""
+    xs, ys = flat_arrays(a), flat_arrays(b)
+    return len(xs) == len(ys) and all(x.shape == y.shape and same_bits(np.asarray(x, np.float64), np.asarray(y, np.float64))
+                                      and (x.dtype == y.dtype or not x.size) for x, y in zip(xs, ys))
+
+
+def test_the_bookkeeping_of_renders_is_numpys(monkeypatch):
+    """Every call of the pair and sample bookkeeping in NumPy renders of a floor of two mixes (a delta
+    leaf among them: glass, mirror), repeated compiled on the same inputs: the same bits."""
+    from engine import render
+    from engine.materials.mix import MixBSDF
+    from tests.materials.test_mix import textured_floor_scene
+    require_compiled()
+    seen = {name: 0 for name in BOOKKEEPING}
+
+    def recorder(name):
+        original = getattr(MixBSDF, name)
+
+        def recording(self, *args, **kw):
+            if name == "_eval_pairs" and kw:
+                args, kw = args + (kw["only"],), {}
+            a, b = both_ways(self, original, *args)
+            assert same_results(a, b), name
+            seen[name] += 1
+            return original(self, *args)
+        return recording
+    for name in BOOKKEEPING:
+        monkeypatch.setattr(MixBSDF, name, recorder(name))
+    for floor, second in (("diffuse+glass", "fresnel diffuse+glossy"), ("glossy+mirror", "layer weight")):
+        scene = textured_floor_scene(MIXES[floor])
+        scene.materials.append(MIXES[second])
+        scene.meshes[0].material_ids = np.array([0, 2])
+        render(scene, RenderSettings(samples=8, seed=2, threads=1, backend="numpy", max_depth=4), log=lambda *a: None)
+    assert all(count >= 2 for count in seen.values()), seen           # each scene's first bounce at least
+
+
+def edge_table(rng, n=500):
+    """A mix table's hits with NaN, +-inf, -0 and 0 weights and colours (mix_pair's materials)."""
+    numpy_bsdf, compiled, kinds = mix_pair()
+    material = rng.integers(0, kinds, n)
+    weights = rng.random((numpy_bsdf.leaf_table.shape[1], n))
+    weights.flat[rng.choice(weights.size, 40, replace=False)] = np.repeat([np.nan, np.inf, -np.inf, -0.0, 0.0, 1e-300, 1e300, -1.0], 5)
+    color = rng.random((3, numpy_bsdf.table.color.shape[1])) * 1.5
+    color[:, :4] = np.array([[np.nan, 0.0, 0.0], [np.inf, 1.0, 1.0], [-0.0, -0.0, -0.0], [0.01, 0.02, 0.03]]).T
+    return numpy_bsdf, material, weights, color
+
+
+def test_the_placing_and_probabilities_are_numpys_on_edge_inputs():
+    import importlib
+    twin = importlib.import_module(TWIN)
+    numpy_bsdf, material, weights, color = edge_table(np.random.default_rng(12))
+    numpy_bsdf.table.color = color
+    for take in (np.arange(len(material)), np.zeros(0, np.int64), np.arange(0, len(material), 7)):
+        mat, w = material.take(take), weights.take(take, axis=1)
+        placed = twin.place(mat, numpy_bsdf.leaf_count, numpy_bsdf.leaf_table, numpy_bsdf.row_table, w, color)
+        hit, leaf, row, weight, colors = placed
+        # NumPy's placing of the same weights: _placed with _material_weights giving them
+        numpy_bsdf._material_weights = lambda si: ((int(m), np.flatnonzero(mat == m),
+                                                    [w[j, mat == m] for j in range(numpy_bsdf.leaf_count[m])])
+                                                   for m in np.unique(mat))
+        si = ShadingPoint(*(np.zeros((3, len(mat))),) * 5, mat)
+        reference = numpy_bsdf._placed(si)
+        assert same_results(placed, reference) and len(hit) == numpy_bsdf.leaf_count.take(mat).sum()
+        with np.errstate(all="ignore"):
+            assert same_results(twin.probabilities(hit, weight, colors, ALBEDO_FLOOR, len(mat)),
+                                numpy_bsdf._probabilities(hit, weight, colors, len(mat)))
+    assert np.isnan(placed[3]).any() and np.isinf(placed[3]).any()
+    # control: one ulp of one colour changes a probability in its last bit, and the comparison sees it
+    moved = colors.copy()
+    moved[0, 5] = np.nextafter(moved[0, 5], 10.0)
+    a, b = twin.probabilities(hit, weight, moved, 0.05, len(mat)), twin.probabilities(hit, weight, colors, 0.05, len(mat))
+    assert not same_results(a, b)
+
+
+def test_the_placing_control_a_swapped_leaf_is_seen():
+    """Control: a leaf table with two leaves of one material swapped places other pairs."""
+    import importlib
+    twin = importlib.import_module(TWIN)
+    numpy_bsdf, material, weights, color = edge_table(np.random.default_rng(13))
+    args = (material, numpy_bsdf.leaf_count, numpy_bsdf.leaf_table, numpy_bsdf.row_table, weights, color)
+    swapped = numpy_bsdf.leaf_table.copy()
+    swapped[0, [0, 1]] = swapped[0, [1, 0]]
+    assert not same_results(twin.place(*args), twin.place(material, numpy_bsdf.leaf_count, swapped, *args[3:]))
+
+
+def test_a_samples_bookkeeping_is_numpys_on_edge_inputs():
+    """_keep, _spread and _mixture on NaN / inf / -0 values, pdfs and probabilities, delta and non-delta
+    lobes, dead hits (p_c 0) and no hits."""
+    from types import SimpleNamespace
+    from engine.materials.protocol import DELTA_LOBE, DIFFUSE_LOBE, REFLECTION_LOBE
+    numpy_bsdf, _, _ = mix_pair()
+    rng = np.random.default_rng(21)
+    for n in (300, 0):
+        count = rng.integers(1, 4, n)
+        hit = np.repeat(np.arange(n), count)
+        p_c = rng.random(n) * (rng.random(n) > 0.1)
+        p_c[:8] = (np.nan, np.inf, -0.0, 0.0, 1e-300, 1.0, -1.0, 0.5)[:len(p_c[:8])]
+        weight = rng.random(len(hit))
+        mine = np.sort(rng.choice(n, n // 2, replace=False))
+        pairs = np.searchsorted(hit, mine)
+        s = SimpleNamespace(wi=rng.normal(size=(3, len(mine))), value=rng.random((3, len(mine))),
+                            pdf=rng.random(len(mine)),
+                            flags=rng.choice([DELTA_LOBE | REFLECTION_LOBE, DIFFUSE_LOBE | REFLECTION_LOBE], len(mine)).astype(np.int8))
+        s.value[:, :3], s.pdf[:3] = np.nan, (np.inf, -0.0, np.nan)[:len(s.pdf[:3])]
+        arrays = (np.zeros((3, n)), np.zeros((3, n)), np.zeros(n), np.full(n, 5, np.int8), np.zeros(n, bool))
+        a, b = both_ways(numpy_bsdf, "_keep", mine, pairs, s, weight, p_c, *arrays)
+        assert same_results(a[6:], b[6:])
+        delta = a[-1]
+        a, b = both_ways(numpy_bsdf, "_spread", hit, delta, p_c)
+        assert same_results(a, b)
+        spread = a[0][0]
+        f_sum, p_sum = rng.random((3, n)), rng.random(n) * (rng.random(n) > 0.2)
+        p_sum[:6] = (np.nan, np.inf, -0.0, 0.0, 1e-300, -1.0)[:len(p_sum[:6])]
+        a, b = both_ways(numpy_bsdf, "_mixture", spread, f_sum, p_sum, np.zeros((3, n)), np.zeros(n))
+        assert same_results(a[4:], b[4:])
+    assert len(spread) == 0
+    # control: the compiled keep told another delta flag keeps other hits' values
+    import importlib
+    twin = importlib.import_module(TWIN)
+    n = 300
+    arrays = [(np.zeros((3, n)), np.zeros((3, n)), np.zeros(n), np.full(n, 5, np.int8), np.zeros(n, bool)) for _ in range(2)]
+    p_c = np.full(n, 0.5)
+    mine, pairs = np.arange(0, n, 2), np.arange(0, n, 2)
+    s = SimpleNamespace(wi=np.ones((3, len(mine))), value=np.ones((3, len(mine))), pdf=np.ones(len(mine)),
+                        flags=np.where(np.arange(len(mine)) % 3, DELTA_LOBE, DIFFUSE_LOBE).astype(np.int8))
+    twin.keep(mine, pairs, s, DELTA_LOBE, np.ones(n), p_c, *arrays[0])
+    twin.keep(mine, pairs, s, DIFFUSE_LOBE, np.ones(n), p_c, *arrays[1])
+    assert not same_results(arrays[0], arrays[1])
+
+
+def test_the_bookkeeping_kernels_refuse_what_they_would_read_past():
+    require_compiled()
+    import importlib
+    from types import SimpleNamespace
+    twin = importlib.import_module(TWIN)
+    table = np.array([[0, 1]])
+    with pytest.raises(IndexError, match="place"):
+        twin.place(np.array([1]), np.array([2]), table, table, np.ones((2, 1)), np.ones((3, 2)))
+    with pytest.raises(IndexError, match="place"):
+        twin.place(np.array([0]), np.array([2]), np.array([[0, 5]]), table, np.ones((2, 1)), np.ones((3, 2)))
+    with pytest.raises(ValueError, match="place"):
+        twin.place(np.array([0]), np.array([2]), table, table, np.ones((1, 1)), np.ones((3, 2)))
+    with pytest.raises(IndexError, match="probabilities"):
+        twin.probabilities(np.array([0, 3]), np.ones(2), np.ones((3, 2)), 0.05, 2)
+    with pytest.raises(IndexError, match="put"):
+        twin.put(np.zeros((3, 2)), np.zeros(2), np.array([2]), np.ones((3, 1)), np.ones(1))
+    s = SimpleNamespace(wi=np.ones((3, 1)), value=np.ones((3, 1)), pdf=np.ones(1), flags=np.array([16], np.int8))
+    with pytest.raises(IndexError, match="keep"):
+        twin.keep(np.array([2]), np.array([0]), s, 16, np.ones(1), np.ones(2), np.zeros((3, 2)), np.zeros((3, 2)),
+                  np.zeros(2), np.zeros(2, np.int8), np.zeros(2, bool))
+    with pytest.raises(IndexError, match="spread"):
+        twin.spread(np.array([0, 2]), np.zeros(2, bool), np.ones(2))
+    with pytest.raises(IndexError, match="mixture"):
+        twin.mixture(np.array([2]), np.ones((3, 2)), np.ones(2), np.zeros((3, 2)), np.zeros(2))
