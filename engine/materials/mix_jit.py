@@ -1,11 +1,14 @@
 """engine/materials/mix.py's pair bookkeeping compiled with numba: the sample's pick of one (hit,
 leaf) pair per hit and the per-hit sums of the pairs' weighted f cos and pdfs, each one loop instead
 of some fifteen NumPy passes over the pairs, and the pairs (or hits) grouped by their leaf's row in
-one counting pass (the same ascending places as np.flatnonzero per row); and the Fresnel and Layer Weight
-factors' view of the hits (`view_factor`: dot(wo, n), the backfacing test, engine/nodes/inputs.py
-fresnel_dielectric_cos and the clip to [0, 1] in one loop over the hits a material has, instead of some
-twenty NumPy passes and the takes of the hits' view).  Imported only through engine/core/backend.py's
-choice (it imports numba).
+one counting pass (the same ascending places as np.flatnonzero per row); the pairs placed hit-major with
+their leaves, rows, weights and colours (`place`) and their pick probabilities (`probabilities`), a row's
+eval results scattered (`put`), a sample's leaf results kept (`keep`), its mixture's hits and pairs found
+(`spread`) and its quotients written (`mixture`), each one loop instead of a handful of NumPy calls and
+fancy scatters; and the Fresnel and Layer Weight factors' view of the hits (`view_factor`: dot(wo, n),
+the backfacing test, engine/nodes/inputs.py fresnel_dielectric_cos and the clip to [0, 1] in one loop over
+the hits a material has, instead of some twenty NumPy passes and the takes of the hits' view).  Imported
+only through engine/core/backend.py's choice (it imports numba).
 
 The same float64 operations in the same order: np.cumsum adds the probabilities one after another,
 np.bincount adds each pair's product to its hit's sum in the pairs' order from 0, np.searchsorted
