@@ -182,8 +182,11 @@ class MixBSDF(BSDF):
         self.compiled = None
 
     def use_backend(self, backends: dict) -> None:
-        """The pairs' pick and sums compiled (engine/materials/mix_jit.py, the same numbers) when the
-        render runs the mix on numba; the leaves are the material table's rows (their own choice)."""
+        """The pairs' bookkeeping compiled (engine/materials/mix_jit.py, the same numbers) when the
+        render runs the mix on numba: their placing (_placed), pick probabilities (_probabilities), grouping
+        by row (_by_row), the Fresnel and Layer Weight factors' view (_view_factor), a row's eval scatter
+        (_eval_pairs), the per-hit sums (_sums), the pick (_pick) and the sample's writes (_write_leaf,
+        _spread, _mixture); the leaves are the material table's rows (their own choice)."""
         if backends.get("mix") == NUMBA:
             from . import mix_jit
             self.compiled = mix_jit
@@ -209,7 +212,7 @@ class MixBSDF(BSDF):
         self.rows = sorted({row for closures in self.closures.values() for _, row, _, _ in closures})   # the leaves' rows
         self.leaf_ids = np.array([leaf_id for closures in self.closures.values() for leaf_id, _, _, _ in closures],
                                  np.int64)
-        self._colour_reads = (None, True)                   # (the lookups' textures, whether leaf colours read them)
+        self._colour_reads = (None, None)                   # (the lookups' textures, whether leaf colours read them)
         # For mix_jit.place: material m's j-th leaf and its row (-1 past its leaves)
         self.leaf_table = np.full((len(leaf_ids), max(1, int(self.leaf_count.max(initial=0)))), -1, np.int64)
         self.row_table = self.leaf_table.copy()
@@ -427,7 +430,7 @@ class MixBSDF(BSDF):
             s = bsdf.sample(at, u_leaf.take(mine), uv)
             if si.media is not None:
                 si.media.media[mine], si.media.depth[mine] = at.media.media, at.media.depth
-            self._keep(mine, pairs, s, weight, p_c, wi, value, pdf, flags, delta)
+            self._write_leaf(mine, pairs, s, weight, p_c, wi, value, pdf, flags, delta)
         # Non-delta samples: the mixture of every non-delta leaf of the hit at wi.
         spread, pairs, at = self._spread(hit, delta, p_c)
         if len(spread):
@@ -436,12 +439,13 @@ class MixBSDF(BSDF):
             self._mixture(spread, f_sum, p_sum, value, pdf)
         return BSDFSample(wi, value, pdf, flags)
 
-    def _keep(self, mine, pairs, s: BSDFSample, weight, p_c, wi, value, pdf, flags, delta) -> None:
+    def _write_leaf(self, mine, pairs, s: BSDFSample, weight, p_c, wi, value, pdf, flags, delta) -> None:
         """Write the leaf samples `s` of the hits `mine` (their chosen pairs `pairs`) into the sample's
         arrays: wi, flags and whether the lobe is a delta of each; where it is, the leaf's own value x
         weight / p_c and pdf x p_c (the other hits' value and pdf: the mixture's, _mixture)."""
-        if self.compiled is not None:                       # mix_jit.keep: the same numbers in one loop
-            return self.compiled.keep(mine, pairs, s, DELTA_LOBE, weight, p_c, wi, value, pdf, flags, delta)
+        if self.compiled is not None:                       # mix_jit.write_leaf: the same numbers in one loop
+            self.compiled.write_leaf(mine, pairs, s, DELTA_LOBE, weight, p_c, wi, value, pdf, flags, delta)
+            return
         wi[:, mine], flags[mine] = s.wi, s.flags
         is_delta = (s.flags & DELTA_LOBE) != 0
         delta[mine] = is_delta
@@ -464,7 +468,8 @@ class MixBSDF(BSDF):
     def _mixture(self, spread, f_sum, p_sum, value, pdf) -> None:
         """value, pdf at the hits `spread`: the mixture's sums f_sum / p_sum (0 where p_sum is not > 0), p_sum."""
         if self.compiled is not None:                       # mix_jit.mixture: the same quotients
-            return self.compiled.mixture(spread, f_sum, p_sum, value, pdf)
+            self.compiled.mixture(spread, f_sum, p_sum, value, pdf)
+            return
         f_sum, p_sum = f_sum.take(spread, axis=1), p_sum.take(spread)
         with np.errstate(divide="ignore", invalid="ignore"):
             value[:, spread] = np.where(p_sum > 0.0, f_sum / p_sum, 0.0)

@@ -3,7 +3,7 @@ leaf) pair per hit and the per-hit sums of the pairs' weighted f cos and pdfs, e
 of some fifteen NumPy passes over the pairs, and the pairs (or hits) grouped by their leaf's row in
 one counting pass (the same ascending places as np.flatnonzero per row); the pairs placed hit-major with
 their leaves, rows, weights and colours (`place`) and their pick probabilities (`probabilities`), a row's
-eval results scattered (`put`), a sample's leaf results kept (`keep`), its mixture's hits and pairs found
+eval results scattered (`put`), a sample's leaf results written (`write_leaf`), its mixture's hits and pairs found
 (`spread`) and its quotients written (`mixture`), each one loop instead of a handful of NumPy calls and
 fancy scatters; and the Fresnel and Layer Weight factors' view of the hits (`view_factor`: dot(wo, n),
 the backfacing test, engine/nodes/inputs.py fresnel_dielectric_cos and the clip to [0, 1] in one loop over
@@ -235,12 +235,12 @@ def put(f_cos, pdf, k, f, p):
 
 
 @jit
-def _keep(mine, pairs, s_wi, s_value, s_pdf, s_flags, delta_lobe, weight, p_c, wi, value, pdf, flags, delta):
+def _write_leaf(mine, pairs, s_wi, s_value, s_pdf, s_flags, delta_lobe, weight, p_c, wi, value, pdf, flags, delta):
     n, size = pdf.shape[0], weight.shape[0]
     for i in range(mine.shape[0]):
         h, c = mine[i], pairs[i]
         if h < 0 or h >= n or c < 0 or c >= size:
-            raise IndexError("mix_jit.keep: a hit or pair outside the arrays")
+            raise IndexError("mix_jit.write_leaf: a hit or pair outside the arrays")
         wi[0, h], wi[1, h], wi[2, h] = s_wi[0, i], s_wi[1, i], s_wi[2, i]
         flags[h] = s_flags[i]
         is_delta = (s_flags[i] & delta_lobe) != 0
@@ -251,16 +251,25 @@ def _keep(mine, pairs, s_wi, s_value, s_pdf, s_flags, delta_lobe, weight, p_c, w
             pdf[h] = p_c[h] * s_pdf[i]
 
 
-def keep(mine, pairs, s, delta_lobe, weight, p_c, wi, value, pdf, flags, delta):
-    """MixBSDF._keep: the leaf samples `s` (BSDFSample) of hits `mine` (their pairs `pairs`) written into
-    the mixture's sample arrays (wi, value (3, N), pdf (N,), flags (N,) int8, delta (N,) bool) in one
+def write_leaf(mine, pairs, s, delta_lobe, weight, p_c, wi, value, pdf, flags, delta):
+    """MixBSDF._write_leaf: the leaf samples `s` (BSDFSample) of hits `mine` (their pairs `pairs`) written
+    into the mixture's sample arrays (wi, value (3, N), pdf (N,), flags (N,) int8, delta (N,) bool) in one
     loop: wi and flags of each, value = the leaf's value x weight / p_c and pdf = p_c x its pdf where
-    the leaf took a delta lobe (the others: the mixture's, later)."""
-    if s.wi.shape != (3, len(mine)) or s.value.shape != s.wi.shape or len(s.pdf) != len(mine) or len(pairs) != len(mine):
-        raise ValueError(f"mix_jit.keep: a sample of {s.wi.shape} for {len(mine)} hits")
-    _keep(contiguous(mine, np.int64), contiguous(pairs, np.int64), contiguous(s.wi), contiguous(s.value),
-          contiguous(s.pdf), contiguous(s.flags, np.int64), int(delta_lobe), contiguous(weight), contiguous(p_c),
-          wi, value, pdf, flags, delta)
+    the leaf took a delta lobe (the others: the mixture's, later).  Refuses (ValueError) unless mine,
+    pairs, s.pdf and s.flags have shape (m,), s.wi and s.value (3, m), weight one axis, p_c, pdf, flags
+    and delta shape (N,) and wi and value (3, N), N = len(pdf); the kernel then refuses (IndexError) a
+    hit of `mine` outside [0, N) and a pair outside the weights."""
+    m, n = len(mine), len(pdf)
+    if not (mine.shape == pairs.shape == s.pdf.shape == s.flags.shape == (m,) and s.wi.shape == s.value.shape == (3, m)
+            and weight.ndim == 1 and p_c.shape == pdf.shape == flags.shape == delta.shape == (n,)
+            and wi.shape == value.shape == (3, n)):
+        raise ValueError(f"mix_jit.write_leaf: a sample of wi {s.wi.shape}, value {s.value.shape}, pdf {s.pdf.shape}, "
+                         f"flags {s.flags.shape} for hits {mine.shape}, pairs {pairs.shape}; weight {weight.shape}, "
+                         f"p_c {p_c.shape}, into wi {wi.shape}, value {value.shape}, pdf {pdf.shape}, "
+                         f"flags {flags.shape}, delta {delta.shape}")
+    _write_leaf(contiguous(mine, np.int64), contiguous(pairs, np.int64), contiguous(s.wi), contiguous(s.value),
+                contiguous(s.pdf), contiguous(s.flags, np.int64), int(delta_lobe), contiguous(weight), contiguous(p_c),
+                wi, value, pdf, flags, delta)
 
 
 @jit
@@ -293,7 +302,10 @@ def _spread(hit, delta, p_c):
 
 def spread(hit, delta, p_c):
     """MixBSDF._spread: (the live hits that took no delta lobe (ascending), every pair of theirs
-    (ascending), those pairs' hits)."""
+    (ascending), those pairs' hits).  Refuses (ValueError) unless hit has one axis and delta and p_c
+    the same shape (N,); the kernel then refuses (IndexError) a pair's hit outside [0, N)."""
+    if not (hit.ndim == 1 and delta.ndim == 1 and p_c.shape == delta.shape):
+        raise ValueError(f"mix_jit.spread: hit {hit.shape}, delta {delta.shape}, p_c {p_c.shape}")
     return _spread(contiguous(hit, np.int64), contiguous(delta, np.bool_), contiguous(p_c))
 
 
@@ -386,7 +398,7 @@ def warm_up() -> None:
     from types import SimpleNamespace
     sample = SimpleNamespace(wi=np.ones((3, 2)), value=np.ones((3, 2)), pdf=np.ones(2), flags=np.array([4, 16], np.int8))
     wi, value, pdf = np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(2)
-    keep(np.array([0, 1]), np.array([0, 2]), sample, 16, placed[3], np.ones(2), wi, value, pdf,
+    write_leaf(np.array([0, 1]), np.array([0, 2]), sample, 16, placed[3], np.ones(2), wi, value, pdf,
          np.zeros(2, np.int8), np.zeros(2, np.bool_))
     mixture(spread(placed[0], np.array([False, True]), np.ones(2))[0], value, pdf, value, pdf)
     rows = np.array([[0.0, 0.6, 0.8]] * 3).T.copy()

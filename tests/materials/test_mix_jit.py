@@ -268,9 +268,9 @@ def test_the_view_kernel_refuses_rows_and_indices_it_would_read_past():
 
 
 # -- the pairs' placing and probabilities, a row's eval scatter, a sample's bookkeeping ---------------------
-# (mix_jit.place, probabilities, put, keep, spread, mixture: MixBSDF._placed, _probabilities, _eval_pairs,
-# _keep, _spread, _mixture on NumPy and compiled)
-BOOKKEEPING = ("_placed", "_probabilities", "_keep", "_spread", "_mixture", "_eval_pairs")
+# (mix_jit.place, probabilities, put, write_leaf, spread, mixture: MixBSDF._placed, _probabilities, _eval_pairs,
+# _write_leaf, _spread, _mixture on NumPy and compiled)
+BOOKKEEPING = ("_placed", "_probabilities", "_write_leaf", "_spread", "_mixture", "_eval_pairs")
 
 
 def both_ways(bsdf, method, *args):
@@ -283,7 +283,7 @@ def both_ways(bsdf, method, *args):
     method = getattr(MixBSDF, method) if isinstance(method, str) else method
     out, kept = [], bsdf.compiled
     for compiled in (None, twin):
-        mine = copy.deepcopy(args) if method.__name__ in ("_keep", "_mixture") else args
+        mine = copy.deepcopy(args) if method.__name__ in ("_write_leaf", "_mixture") else args
         bsdf.compiled = compiled
         try:
             with np.errstate(all="ignore"):
@@ -389,7 +389,7 @@ def test_the_placing_control_a_swapped_leaf_is_seen():
 
 
 def test_a_samples_bookkeeping_is_numpys_on_edge_inputs():
-    """_keep, _spread and _mixture on NaN / inf / -0 values, pdfs and probabilities, delta and non-delta
+    """_write_leaf, _spread and _mixture on NaN / inf / -0 values, pdfs and probabilities, delta and non-delta
     lobes, dead hits (p_c 0) and no hits."""
     from types import SimpleNamespace
     from engine.materials.protocol import DELTA_LOBE, DIFFUSE_LOBE, REFLECTION_LOBE
@@ -408,7 +408,7 @@ def test_a_samples_bookkeeping_is_numpys_on_edge_inputs():
                             flags=rng.choice([DELTA_LOBE | REFLECTION_LOBE, DIFFUSE_LOBE | REFLECTION_LOBE], len(mine)).astype(np.int8))
         s.value[:, :3], s.pdf[:3] = np.nan, (np.inf, -0.0, np.nan)[:len(s.pdf[:3])]
         arrays = (np.zeros((3, n)), np.zeros((3, n)), np.zeros(n), np.full(n, 5, np.int8), np.zeros(n, bool))
-        a, b = both_ways(numpy_bsdf, "_keep", mine, pairs, s, weight, p_c, *arrays)
+        a, b = both_ways(numpy_bsdf, "_write_leaf", mine, pairs, s, weight, p_c, *arrays)
         assert same_results(a[6:], b[6:])
         delta = a[-1]
         a, b = both_ways(numpy_bsdf, "_spread", hit, delta, p_c)
@@ -419,7 +419,7 @@ def test_a_samples_bookkeeping_is_numpys_on_edge_inputs():
         a, b = both_ways(numpy_bsdf, "_mixture", spread, f_sum, p_sum, np.zeros((3, n)), np.zeros(n))
         assert same_results(a[4:], b[4:])
     assert len(spread) == 0
-    # control: the compiled keep told another delta flag keeps other hits' values
+    # control: the compiled write_leaf told another delta flag keeps other hits' values
     import importlib
     twin = importlib.import_module(TWIN)
     n = 300
@@ -428,8 +428,8 @@ def test_a_samples_bookkeeping_is_numpys_on_edge_inputs():
     mine, pairs = np.arange(0, n, 2), np.arange(0, n, 2)
     s = SimpleNamespace(wi=np.ones((3, len(mine))), value=np.ones((3, len(mine))), pdf=np.ones(len(mine)),
                         flags=np.where(np.arange(len(mine)) % 3, DELTA_LOBE, DIFFUSE_LOBE).astype(np.int8))
-    twin.keep(mine, pairs, s, DELTA_LOBE, np.ones(n), p_c, *arrays[0])
-    twin.keep(mine, pairs, s, DIFFUSE_LOBE, np.ones(n), p_c, *arrays[1])
+    twin.write_leaf(mine, pairs, s, DELTA_LOBE, np.ones(n), p_c, *arrays[0])
+    twin.write_leaf(mine, pairs, s, DIFFUSE_LOBE, np.ones(n), p_c, *arrays[1])
     assert not same_results(arrays[0], arrays[1])
 
 
@@ -450,10 +450,47 @@ def test_the_bookkeeping_kernels_refuse_what_they_would_read_past():
     with pytest.raises(IndexError, match="put"):
         twin.put(np.zeros((3, 2)), np.zeros(2), np.array([2]), np.ones((3, 1)), np.ones(1))
     s = SimpleNamespace(wi=np.ones((3, 1)), value=np.ones((3, 1)), pdf=np.ones(1), flags=np.array([16], np.int8))
-    with pytest.raises(IndexError, match="keep"):
-        twin.keep(np.array([2]), np.array([0]), s, 16, np.ones(1), np.ones(2), np.zeros((3, 2)), np.zeros((3, 2)),
-                  np.zeros(2), np.zeros(2, np.int8), np.zeros(2, bool))
+    with pytest.raises(IndexError, match="write_leaf"):
+        twin.write_leaf(np.array([2]), np.array([0]), s, 16, np.ones(1), np.ones(2), np.zeros((3, 2)), np.zeros((3, 2)),
+                        np.zeros(2), np.zeros(2, np.int8), np.zeros(2, bool))
+    # write_leaf: every array it reads or writes of the wrong shape (n = 3 hits, one sample of hit 2)
+    n = 3
+    out = dict(wi=np.zeros((3, n)), value=np.zeros((3, n)), pdf=np.zeros(n), flags=np.zeros(n, np.int8),
+               delta=np.zeros(n, bool))
+    fine = dict(mine=np.array([2]), pairs=np.array([0]), s=s, weight=np.ones(1), p_c=np.full(n, 0.5), **out)
+
+    def write(**changed):
+        a = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in {**fine, **changed}.items()}
+        twin.write_leaf(a["mine"], a["pairs"], a["s"], 16, a["weight"], a["p_c"], a["wi"], a["value"], a["pdf"],
+                        a["flags"], a["delta"])
+        return a
+    assert write()["pdf"][2] == 0.5                           # the shapes it takes
+    short = dict(wi=np.ones((3, 0)), value=np.ones((3, 0)), pdf=np.ones(0), flags=np.zeros(0, np.int8))
+    wrong = [dict(p_c=np.ones(1)),                            # reviewer's proof: p_c[2] read past its end
+             dict(p_c=np.ones((1, n))), dict(pairs=np.array([0, 0])), dict(mine=np.array([[2]])),
+             dict(s=SimpleNamespace(**{**vars(s), "flags": np.array([16, 16], np.int8)})),
+             dict(s=SimpleNamespace(**{**vars(s), "flags": np.zeros(0, np.int8)})),
+             dict(s=SimpleNamespace(**{**vars(s), "pdf": np.ones(2)})),
+             dict(s=SimpleNamespace(**{**vars(s), "value": np.ones((3, 2))})),
+             dict(s=SimpleNamespace(**{**vars(s), "wi": np.ones((2, 1))})),
+             dict(s=SimpleNamespace(**short)), dict(weight=np.ones((1, 1)))]
+    wrong += [{k: v[..., :2]} for k, v in out.items()] + [{k: np.zeros((2,) + v.shape, v.dtype)} for k, v in out.items()]
+    for changed in wrong:
+        with pytest.raises(ValueError, match="write_leaf"):
+            write(**changed)
+    # the reviewer's short s.flags: two samples of hits 0, 1 with one flag
+    s2 = SimpleNamespace(wi=np.ones((3, 2)), value=np.ones((3, 2)), pdf=np.ones(2), flags=np.array([16], np.int8))
+    with pytest.raises(ValueError, match="write_leaf"):
+        write(mine=np.array([0, 1]), pairs=np.array([0, 0]), s=s2)
     with pytest.raises(IndexError, match="spread"):
         twin.spread(np.array([0, 2]), np.zeros(2, bool), np.ones(2))
+    # spread: p_c, delta of other shapes (p_c[h] read for h < len(delta)), a hit table of two axes
+    for hit, delta, p_c in ((np.arange(4), np.zeros(4, bool), np.ones(1)),     # the reviewer's proof
+                            (np.arange(2), np.zeros(2, bool), np.ones(3)),
+                            (np.arange(2), np.zeros((1, 2), bool), np.ones((1, 2))),
+                            (np.zeros((1, 2), np.int64), np.zeros(2, bool), np.ones(2))):
+        with pytest.raises(ValueError, match="spread"):
+            twin.spread(hit, delta, p_c)
+    assert [len(x) for x in twin.spread(np.arange(4), np.zeros(4, bool), np.ones(4))] == [4, 4, 4]
     with pytest.raises(IndexError, match="mixture"):
         twin.mixture(np.array([2]), np.ones((3, 2)), np.ones(2), np.zeros((3, 2)), np.zeros(2))
