@@ -377,6 +377,69 @@ def test_the_placing_and_probabilities_are_numpys_on_edge_inputs():
     assert not same_results(a, b)
 
 
+def test_control_a_perturbed_kernel_is_told_apart(monkeypatch):
+    """A real control of the NumPy-vs-compiled comparison (both_ways, same_results): the compiled
+    probabilities and write_leaf kernels swapped for copies with one operation changed (w / t as
+    w x (1 / t), as a careless rewrite might) give other bits, and the comparison the render and
+    edge-input tests use says so; the unchanged kernels on the same inputs agree."""
+    import importlib
+    from types import SimpleNamespace
+    from engine.materials.protocol import DELTA_LOBE, DIFFUSE_LOBE
+    twin = importlib.import_module(TWIN)
+    nb = twin.nb
+    numpy_bsdf, material, weights, color = edge_table(np.random.default_rng(14))
+    weights, color = np.abs(np.nan_to_num(weights, posinf=2.0, neginf=2.0)), np.random.default_rng(15).random(color.shape)
+    hit, _, _, weight, colors = twin.place(material, numpy_bsdf.leaf_count, numpy_bsdf.leaf_table, numpy_bsdf.row_table,
+                                           weights, color)
+    n = len(material)
+    mine = np.arange(0, n, 2)
+    pairs = np.searchsorted(hit, mine)
+    p_c = np.random.default_rng(16).random(n) + 0.1
+    s = SimpleNamespace(wi=np.ones((3, len(mine))), value=np.random.default_rng(17).random((3, len(mine))),
+                        pdf=np.ones(len(mine)), flags=np.where(np.arange(len(mine)) % 3, DELTA_LOBE, DIFFUSE_LOBE).astype(np.int8))
+
+    def compare():
+        """(probabilities the same, write_leaf the same) on NumPy and the compiled path."""
+        a, b = both_ways(numpy_bsdf, "_probabilities", hit, weight, colors, n)
+        arrays = (np.zeros((3, n)), np.zeros((3, n)), np.zeros(n), np.zeros(n, np.int8), np.zeros(n, bool))
+        c, d = both_ways(numpy_bsdf, "_write_leaf", mine, pairs, s, weight, p_c, *arrays)
+        return same_results(a, b), same_results(c[6:], d[6:])
+    assert compare() == (True, True)
+
+    @nb.njit(error_model="numpy")
+    def probabilities_times_inverse(hit, weight, color, floor, n):
+        size = hit.shape[0]
+        rate, prob, total = np.empty(size), np.empty(size), np.zeros(n)
+        for p in range(size):
+            albedo = (color[0, p] + color[1, p] + color[2, p]) / 3.0
+            if albedo < floor:
+                albedo = floor
+            rate[p] = weight[p] * albedo
+            total[hit[p]] += rate[p]
+        for p in range(size):
+            t = total[hit[p]]
+            prob[p] = rate[p] * (1.0 / t) if t > 0.0 else 0.0           # the change: rate / t
+        return prob, total
+
+    @nb.njit(error_model="numpy")
+    def write_leaf_times_inverse(mine, pairs, s_wi, s_value, s_pdf, s_flags, delta_lobe, weight, p_c, wi, value, pdf,
+                                 flags, delta):
+        for i in range(mine.shape[0]):
+            h, c = mine[i], pairs[i]
+            wi[0, h], wi[1, h], wi[2, h] = s_wi[0, i], s_wi[1, i], s_wi[2, i]
+            flags[h] = s_flags[i]
+            delta[h] = (s_flags[i] & delta_lobe) != 0
+            if delta[h]:
+                w_over_p = weight[c] * (1.0 / p_c[h])                  # the change: weight / p_c
+                for k in range(3):
+                    value[k, h] = s_value[k, i] * w_over_p
+                pdf[h] = p_c[h] * s_pdf[i]
+    monkeypatch.setattr(twin, "_probabilities", probabilities_times_inverse)
+    assert compare() == (False, True)
+    monkeypatch.setattr(twin, "_write_leaf", write_leaf_times_inverse)
+    assert compare() == (False, False)
+
+
 def test_the_placing_control_a_swapped_leaf_is_seen():
     """Control: a leaf table with two leaves of one material swapped places other pairs."""
     import importlib
