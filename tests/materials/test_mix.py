@@ -387,6 +387,38 @@ def test_leaf_colours_are_looked_up_only_where_a_leaf_has_a_textured_colour(monk
     assert not np.allclose(render(textured_floor_scene(mix), settings, **quiet).image, reference, rtol=0.05, atol=1e-3)
 
 
+def test_a_leaf_colour_from_a_node_program_is_looked_up(monkeypatch):
+    """MixBSDF._colours_read's node-program branch: a mix of a diffuse whose colour is a node program
+    (the floor's generated coordinates as RGBA, engine/scene/programs.py) at weight 1 and a black one
+    reads the leaf colours (no image texture in the scene: the program alone says so), renders the same
+    bits as with the lookups forced on, and as the programmed diffuse alone up to rounding.  Control:
+    the lookups forced off render another image (the leaf's field colour)."""
+    from engine import render
+    from engine.scene.programs import Program, ProgramNode
+    generated = Program([ProgramNode("ShaderNodeTexCoord", "Coords", {"_outputs": ["Generated"]})],
+                        (0, "Generated", "VECTOR"), "RGBA")
+    programmed = Material("Programmed", DIFFUSE, (0.9, 0.2, 0.1), programs={"color": generated})
+    mix = mixed(leaf(programmed, const(1.0)), leaf(Material("Black", DIFFUSE, (0, 0, 0)), const(0.0)))
+    settings = RenderSettings(samples=4, seed=4, threads=1, parallelism="threads", backend="numpy")
+    quiet = dict(log=lambda *a: None)
+    asked, seen = [], []
+    original = MixBSDF._colours_read
+
+    def recording(self, lookup):
+        asked.append(original(self, lookup))
+        seen.append((lookup.textures.attributes is not None, bool(lookup.textures.textures.has_color.any())))
+        return asked[-1]
+    monkeypatch.setattr(MixBSDF, "_colours_read", recording)
+    image = render(textured_floor_scene(mix), settings, **quiet).image
+    assert asked and all(asked) and set(seen) == {(True, False)}       # read: the program, not an image
+    alone = render(textured_floor_scene(programmed), settings, **quiet).image
+    assert alone.mean() > 0.02 and np.allclose(image, alone, rtol=1e-4, atol=1e-6)
+    monkeypatch.setattr(MixBSDF, "_colours_read", lambda self, lookup: True)
+    assert np.array_equal(render(textured_floor_scene(mix), settings, **quiet).image, image)
+    monkeypatch.setattr(MixBSDF, "_colours_read", lambda self, lookup: False)       # control
+    assert not np.allclose(render(textured_floor_scene(mix), settings, **quiet).image, image, rtol=0.05, atol=1e-3)
+
+
 def test_the_effect_plan_names_the_mixed_lobes():
     from engine.integrators.effects import plan_effects
     scene = textured_floor_scene(MIXES["fresnel diffuse+glossy"])
