@@ -204,6 +204,18 @@ class _Taken(HitPoints):
         return self._source.given(name)
 
 
+def components_adjacent(points):
+    """Which order object_points sums a point's terms in: True when the points' components are adjacent
+    (rows (3, k) that are the transpose of a (k, 3) array: (0 + 2) + 1), False for rows whose
+    components lie apart or one point ((0 + 1) + 2), None for other layouts (einsum's own)."""
+    item = points.itemsize
+    if points.strides[0] == item and points.shape[1] > 0:
+        return True
+    if points.strides[1] == item or points.shape[1] <= 1:
+        return False
+    return None
+
+
 def object_points(m, points) -> np.ndarray:
     """m (k or 1, 3, 4) world-to-object matrices, points rows (3, k) -> the object-space rows: the
     numbers of einsum("kij,jk->ik", m[:, :, :3], points) + m[:, :, 3].T, without gathering a matrix
@@ -212,15 +224,11 @@ def object_points(m, points) -> np.ndarray:
     transpose: its unrolled contiguous loop); it starts from 0.0, so "+ 0.0" turns the -0.0 that
     all-zero terms give here into its 0.0.  Other layouts: the einsum itself."""
     k = points.shape[1]
-    item = points.itemsize
-    if points.strides[0] == item and k > 0:
-        order = (0, 2, 1)
-    elif points.strides[1] == item or k <= 1:
-        order = (0, 1, 2)
-    else:
+    adjacent = components_adjacent(points)
+    if adjacent is None:
         full = np.broadcast_to(m, (k, 3, 4))
         return np.einsum("kij,jk->ik", full[:, :, :3], points) + full[:, :, 3].T
-    first, second, third = order
+    first, second, third = (0, 2, 1) if adjacent else (0, 1, 2)
     out = np.empty((3, k))
     for i in range(3):
         np.multiply(m[:, i, first], points[first], out=out[i])
@@ -234,9 +242,13 @@ def object_points(m, points) -> np.ndarray:
 class SceneAttributes:
     """A scene's per-triangle data for the input nodes, gathered once per prepared scene: the corner
     UVs and colour attributes, each triangle's object (its inverse matrix, texture space, location,
-    Random), the triangles' corners, and the camera (Cycles' camera space)."""
+    Random), the triangles' corners, and the camera (Cycles' camera space).
 
-    def __init__(self, scene, triangles, tri_uv):
+    `compiled`: None (NumPy), or engine/nodes/context_jit.py for a numba render (HitTextures sets it):
+    the Object and Generated attributes in one loop each, the same numbers."""
+
+    def __init__(self, scene, triangles, tri_uv, compiled=None):
+        self.compiled = compiled
         meshes = [m for m in scene.meshes if len(m.triangles)]
         self.triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
         self.tri_uv = tri_uv                       # rows (6, T)
@@ -376,22 +388,31 @@ class SceneAttributes:
             if not len(tri):
                 return p
             pt = p[:, tri] if not all_tri else p
-            local = object_points(per_object(self.to_object), pt)
+            m = per_object(self.to_object)
+            adjacent = None if self.compiled is None or pt.dtype != np.float64 else components_adjacent(pt)
+            local = (object_points(m, pt) if adjacent is None
+                     else self.compiled.object_points(m, pt, adjacent))
             if all_tri:
                 return local
             out = p.copy()
             out[:, tri] = local
             return out
 
+        def texture_space(o):
+            """Object-space rows (3, len(tri)) of the triangle hits -> their Generated rows."""
+            if self.compiled is not None:
+                return self.compiled.generated(o, per_object(self.centre), per_object(self.size))
+            centre, size = per_object(self.centre).T, per_object(self.size).T
+            return (o - centre) / (2.0 * size) + 0.5
+
         def generated():
             o = ctx.attr("object")
             if not len(tri):
                 return o
-            centre, size = per_object(self.centre).T, per_object(self.size).T
             if all_tri:
-                return (o - centre) / (2.0 * size) + 0.5
+                return texture_space(o)
             out = o.copy()
-            out[:, tri] = (o[:, tri] - centre) / (2.0 * size) + 0.5
+            out[:, tri] = texture_space(o[:, tri])
             return out
 
         def object_normal():
