@@ -318,14 +318,21 @@ class SceneAttributes:
         """The NodeContext of some hits (kind, prim, b1, b2 (N,); points: a HitPoints or None, e.g. at
         light samples: then positions and normals come from the triangles)."""
         n = len(kind)
-        tri = np.flatnonzero(kind == triangle_kind)
-        all_tri = len(tri) == n
+        is_tri = kind == triangle_kind
+        all_tri = bool(is_tri.all())
+        # The triangle hits' positions among the hits: found here only when some are not triangles (all
+        # of them: 0 .. n-1, made by the few attributes that index with them, `tri_index`).
+        tri = None if all_tri else np.flatnonzero(is_tri)
+        count = n if all_tri else len(tri)
+
+        def tri_index():
+            return np.arange(n) if tri is None else tri
         # The triangle hits' primitives and barycentrics (all of the hits: the arrays themselves).
         prim_t, b1t, b2t = (prim, b1, b2) if all_tri else (prim.take(tri), b1.take(tri), b2.take(tri))
 
         def objects():
-            """The triangle hits' objects (len(tri),) (read by the object attributes only)."""
-            return self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(len(tri), np.int64)
+            """The triangle hits' objects (count,) (read by the object attributes only)."""
+            return self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(count, np.int64)
 
         def one_object():
             """Whether the triangle hits all lie on one object (per_object then reads one row)."""
@@ -340,10 +347,10 @@ class SceneAttributes:
             out[..., tri] = values_t
             return out
 
-        def bary(rows):             # rows (9, T): corner c's component x in row 3 c + x -> rows (3, len(tri))
+        def bary(rows):             # rows (9, T): corner c's component x in row 3 c + x -> rows (3, count)
             c = rows.take(prim_t, axis=1)
             b0 = 1.0 - b1t - b2t
-            out = np.empty((len(tri), 3)).T     # the layout the (k, 3) form of this sum had
+            out = np.empty((count, 3)).T     # the layout the (k, 3) form of this sum had
             np.multiply(b0, c[0:3], out=out)
             out += b1t * c[3:6]
             out += b2t * c[6:9]
@@ -385,7 +392,7 @@ class SceneAttributes:
 
         def obj_pos():
             p = ctx.attr("position")
-            if not len(tri):
+            if not count:
                 return p
             pt = p[:, tri] if not all_tri else p
             m = per_object(self.to_object)
@@ -399,7 +406,7 @@ class SceneAttributes:
             return out
 
         def texture_space(o):
-            """Object-space rows (3, len(tri)) of the triangle hits -> their Generated rows."""
+            """Object-space rows (3, count) of the triangle hits -> their Generated rows."""
             if self.compiled is not None:
                 return self.compiled.generated(o, per_object(self.centre), per_object(self.size))
             centre, size = per_object(self.centre).T, per_object(self.size).T
@@ -407,7 +414,7 @@ class SceneAttributes:
 
         def generated():
             o = ctx.attr("object")
-            if not len(tri):
+            if not count:
                 return o
             if all_tri:
                 return texture_space(o)
@@ -417,22 +424,23 @@ class SceneAttributes:
 
         def object_normal():
             nrm = ctx.attr("normal")
-            if not len(tri):
+            if not count:
                 return nrm
             m = self.to_world[ctx.attr("_object")]                    # M^T n
-            local = np.einsum("kji,jk->ik", m, nrm[:, tri])
+            hits_t = tri_index()
+            local = np.einsum("kji,jk->ik", m, nrm[:, hits_t])
             out = nrm.copy()
-            out[:, tri] = local / np.maximum(np.sqrt((local * local).sum(axis=0)), 1e-300)
+            out[:, hits_t] = local / np.maximum(np.sqrt((local * local).sum(axis=0)), 1e-300)
             return out
 
         def uv():
-            if self.tri_uv is None or not len(tri):
+            if self.tri_uv is None or not count:
                 return np.zeros((3, n))
             c = self.tri_uv.take(prim_t, axis=1)
             b0 = 1.0 - b1t - b2t
             u = b0 * c[0] + b1t * c[2] + b2t * c[4]
             v = b0 * c[1] + b1t * c[3] + b2t * c[5]
-            return on_triangles(np.stack([u, v, np.zeros(len(tri))]))
+            return on_triangles(np.stack([u, v, np.zeros(count)]))
 
         def camera():
             if self.world_to_camera is None:
@@ -455,7 +463,7 @@ class SceneAttributes:
         for name, rows in self.colors.items():
             attrs[f"color:{name}"] = (lambda rows=rows: on_triangles(bary(rows)))
         def tangent_sign():
-            if self.tri_sign is None or not len(tri):
+            if self.tri_sign is None or not count:
                 return np.zeros(n)
             c = self.tri_sign[prim_t]
             return on_triangles((1.0 - b1t - b2t) * c[:, 0] + b1t * c[:, 1] + b2t * c[:, 2])
@@ -463,12 +471,13 @@ class SceneAttributes:
         def to_world_normal(local):
             """Cycles' object_normal_transform: normalize(inverse(M)^T local)."""
             out = np.array(local, dtype=np.float64)
-            if len(tri):
+            if count:
                 m = self.to_object[ctx.attr("_object")][:, :, :3]     # inverse(M), (k, 3, 3)
-                out[:, tri] = np.einsum("kji,jk->ik", m, out[:, tri])
+                hits_t = tri_index()
+                out[:, hits_t] = np.einsum("kji,jk->ik", m, out[:, hits_t])
             return out / np.maximum(np.sqrt((out * out).sum(axis=0)), 1e-300)
 
-        attrs["tangent"] = lambda: (np.zeros((3, n)) if self.tri_tangent is None or not len(tri)
+        attrs["tangent"] = lambda: (np.zeros((3, n)) if self.tri_tangent is None or not count
                                     else on_triangles(bary(self.rows("tri_tangent"))))
         attrs["tangent_sign"] = tangent_sign
         attrs["has_tangent"] = lambda: ((ctx.attr("tangent_sign") != 0.0)
@@ -482,8 +491,8 @@ class SceneAttributes:
 
         def object_transforms(inverse):
             out = np.tile(np.eye(4)[:3], (n, 1, 1))
-            if len(tri):
-                out[tri] = (self.to_object if inverse else np.concatenate(
+            if count:
+                out[tri_index()] = (self.to_object if inverse else np.concatenate(
                     [self.to_world, self.location[:, :, None]], axis=2))[ctx.attr("_object")]
             return out
         attrs["object_to_world"] = lambda: object_transforms(False)
@@ -497,14 +506,15 @@ class SceneAttributes:
         def shifted(offset):
             """The context of these hits moved by `offset` rows (3, N) (their normals kept)."""
             nb1, nb2 = b1.copy(), b2.copy()
-            if len(tri):
+            if count:
                 c = self.triangles[prim_t]
                 e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
-                w = (ctx.attr("position")[:, tri] + offset[:, tri]).T - c[:, 0]
+                hits_t = tri_index()
+                w = (ctx.attr("position")[:, hits_t] + offset[:, hits_t]).T - c[:, 0]
                 d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
                 w1, w2 = (w * e1).sum(1), (w * e2).sum(1)
                 inv = 1.0 / np.maximum(d11 * d22 - d12 * d12, 1e-300)
-                nb1[tri], nb2[tri] = (d22 * w1 - d12 * w2) * inv, (d11 * w2 - d12 * w1) * inv
+                nb1[hits_t], nb2[hits_t] = (d22 * w1 - d12 * w2) * inv, (d11 * w2 - d12 * w1) * inv
             moved = HitPoints(**{f: getattr(points, f) for f in HitPoints.FIELDS}) if points is not None else \
                 HitPoints(direction=None)
             moved.point = ctx.attr("position") + offset
