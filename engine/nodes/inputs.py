@@ -250,3 +250,8 @@ def scale(inputs, props, ctx):
 
 
 KERNELS["TNCG15Scale"] = scale
+
+# Constants these kernels broadcast (engine/nodes/registry.py broadcast_inputs): Mapping's Location, Rotation
+# and Scale meet the (3, N) Vector (always full: linked, or a full constant) in products and sums, a constant
+# Rotation is one matrix either way; Scale's Strength multiplies the full Color.
+BROADCAST_INPUTS = {"ShaderNodeMapping": ("Location", "Rotation", "Scale"), "TNCG15Scale": ("Strength",)}
