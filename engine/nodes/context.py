@@ -207,7 +207,7 @@ class _Taken(HitPoints):
 def components_adjacent(points):
     """Which order object_points sums a point's terms in: True when the points' components are adjacent
     (rows (3, k) that are the transpose of a (k, 3) array: (0 + 2) + 1), False for rows whose
-    components lie apart or one point ((0 + 1) + 2), None for other layouts (einsum's own)."""
+    components lie apart or one point whose rows are not item-strided ((0 + 1) + 2), None for other layouts (einsum's own)."""
     item = points.itemsize
     if points.strides[0] == item and points.shape[1] > 0:
         return True
@@ -323,7 +323,7 @@ class SceneAttributes:
         # The triangle hits' positions among the hits: found here only when some are not triangles (all
         # of them: 0 .. n-1, made by the few attributes that index with them, `tri_index`).
         tri = None if all_tri else np.flatnonzero(is_tri)
-        count = n if all_tri else len(tri)
+        tri_count = n if all_tri else len(tri)
 
         def tri_index():
             return np.arange(n) if tri is None else tri
@@ -331,8 +331,8 @@ class SceneAttributes:
         prim_t, b1t, b2t = (prim, b1, b2) if all_tri else (prim.take(tri), b1.take(tri), b2.take(tri))
 
         def objects():
-            """The triangle hits' objects (count,) (read by the object attributes only)."""
-            return self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(count, np.int64)
+            """The triangle hits' objects (tri_count,) (read by the object attributes only)."""
+            return self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(tri_count, np.int64)
 
         def one_object():
             """Whether the triangle hits all lie on one object (per_object then reads one row)."""
@@ -347,10 +347,10 @@ class SceneAttributes:
             out[..., tri] = values_t
             return out
 
-        def bary(rows):             # rows (9, T): corner c's component x in row 3 c + x -> rows (3, count)
+        def bary(rows):             # rows (9, T): corner c's component x in row 3 c + x -> rows (3, tri_count)
             c = rows.take(prim_t, axis=1)
             b0 = 1.0 - b1t - b2t
-            out = np.empty((count, 3)).T     # the layout the (k, 3) form of this sum had
+            out = np.empty((tri_count, 3)).T     # the layout the (k, 3) form of this sum had
             np.multiply(b0, c[0:3], out=out)
             out += b1t * c[3:6]
             out += b2t * c[6:9]
@@ -392,7 +392,7 @@ class SceneAttributes:
 
         def obj_pos():
             p = ctx.attr("position")
-            if not count:
+            if not tri_count:
                 return p
             pt = p[:, tri] if not all_tri else p
             m = per_object(self.to_object)
@@ -406,7 +406,7 @@ class SceneAttributes:
             return out
 
         def texture_space(o):
-            """Object-space rows (3, count) of the triangle hits -> their Generated rows."""
+            """Object-space rows (3, tri_count) of the triangle hits -> their Generated rows."""
             if self.compiled is not None:
                 return self.compiled.generated(o, per_object(self.centre), per_object(self.size))
             centre, size = per_object(self.centre).T, per_object(self.size).T
@@ -414,7 +414,7 @@ class SceneAttributes:
 
         def generated():
             o = ctx.attr("object")
-            if not count:
+            if not tri_count:
                 return o
             if all_tri:
                 return texture_space(o)
@@ -424,7 +424,7 @@ class SceneAttributes:
 
         def object_normal():
             nrm = ctx.attr("normal")
-            if not count:
+            if not tri_count:
                 return nrm
             m = self.to_world[ctx.attr("_object")]                    # M^T n
             hits_t = tri_index()
@@ -434,13 +434,13 @@ class SceneAttributes:
             return out
 
         def uv():
-            if self.tri_uv is None or not count:
+            if self.tri_uv is None or not tri_count:
                 return np.zeros((3, n))
             c = self.tri_uv.take(prim_t, axis=1)
             b0 = 1.0 - b1t - b2t
             u = b0 * c[0] + b1t * c[2] + b2t * c[4]
             v = b0 * c[1] + b1t * c[3] + b2t * c[5]
-            return on_triangles(np.stack([u, v, np.zeros(count)]))
+            return on_triangles(np.stack([u, v, np.zeros(tri_count)]))
 
         def camera():
             if self.world_to_camera is None:
@@ -463,7 +463,7 @@ class SceneAttributes:
         for name, rows in self.colors.items():
             attrs[f"color:{name}"] = (lambda rows=rows: on_triangles(bary(rows)))
         def tangent_sign():
-            if self.tri_sign is None or not count:
+            if self.tri_sign is None or not tri_count:
                 return np.zeros(n)
             c = self.tri_sign[prim_t]
             return on_triangles((1.0 - b1t - b2t) * c[:, 0] + b1t * c[:, 1] + b2t * c[:, 2])
@@ -471,13 +471,13 @@ class SceneAttributes:
         def to_world_normal(local):
             """Cycles' object_normal_transform: normalize(inverse(M)^T local)."""
             out = np.array(local, dtype=np.float64)
-            if count:
+            if tri_count:
                 m = self.to_object[ctx.attr("_object")][:, :, :3]     # inverse(M), (k, 3, 3)
                 hits_t = tri_index()
                 out[:, hits_t] = np.einsum("kji,jk->ik", m, out[:, hits_t])
             return out / np.maximum(np.sqrt((out * out).sum(axis=0)), 1e-300)
 
-        attrs["tangent"] = lambda: (np.zeros((3, n)) if self.tri_tangent is None or not count
+        attrs["tangent"] = lambda: (np.zeros((3, n)) if self.tri_tangent is None or not tri_count
                                     else on_triangles(bary(self.rows("tri_tangent"))))
         attrs["tangent_sign"] = tangent_sign
         attrs["has_tangent"] = lambda: ((ctx.attr("tangent_sign") != 0.0)
@@ -491,7 +491,7 @@ class SceneAttributes:
 
         def object_transforms(inverse):
             out = np.tile(np.eye(4)[:3], (n, 1, 1))
-            if count:
+            if tri_count:
                 out[tri_index()] = (self.to_object if inverse else np.concatenate(
                     [self.to_world, self.location[:, :, None]], axis=2))[ctx.attr("_object")]
             return out
@@ -506,7 +506,7 @@ class SceneAttributes:
         def shifted(offset):
             """The context of these hits moved by `offset` rows (3, N) (their normals kept)."""
             nb1, nb2 = b1.copy(), b2.copy()
-            if count:
+            if tri_count:
                 c = self.triangles[prim_t]
                 e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
                 hits_t = tri_index()

@@ -71,6 +71,9 @@ def _generated(o, centre, size, out):
 def generated(o, centre, size) -> np.ndarray:
     """(o - centre.T) / (2 size.T) + 0.5 for object-space rows o (3, k) and the objects' texture-space
     centres and half sizes centre, size (1 or k, 3): context.py's Generated, rows (3, k) C-ordered."""
+    k = o.shape[1]
+    if not (centre.shape == size.shape and centre.shape[0] in (1, k) and centre.shape[1:] == (3,)):
+        raise ValueError(f"{centre.shape[0]} centres and {size.shape[0]} sizes for {k} points")
     out = np.empty(o.shape)
     _generated(contiguous(o), contiguous(centre), contiguous(size), out)
     return out

@@ -171,3 +171,16 @@ def test_controls_other_operations_give_other_bits():
     centre, size = rng.normal(size=(1, 3)), rng.random((1, 3)) * 3.0
     assert not same((reference - centre.T) * (1.0 / (2.0 * size.T)) + 0.5,
                     context_jit.generated(reference, centre, size))
+
+
+def test_refuses_other_numbers_of_centres_and_sizes():
+    """Generated's twin reads centre and size rows 0 (one object) or 0..k-1 (one per point): other counts
+    or widths are refused, not read out of range."""
+    require_compiled()
+    from engine.nodes import context_jit
+    o = np.zeros((3, 5))
+    for centre, size in ((np.zeros((2, 3)), np.ones((2, 3))), (np.zeros((1, 3)), np.ones((5, 3))),
+                         (np.zeros((1, 2)), np.ones((1, 2)))):
+        with pytest.raises(ValueError):
+            context_jit.generated(o, centre, size)
+    assert context_jit.generated(o, np.zeros((5, 3)), np.ones((5, 3))).shape == (3, 5)      # the control
