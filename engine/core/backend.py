@@ -70,6 +70,7 @@ JIT_MODULES = {
     "sampling.warps_jit": ("wavefront",),
     "integrators.photons.gather_jit": ("photon_caustics",),
     "materials.textures_jit": ("textures",),
+    "nodes.context_jit": ("textures",),
 }
 KERNELS = tuple(k for names in JIT_MODULES.values() for k in names)
 

@@ -421,7 +421,10 @@ class HitTextures:
         self.attributes = None                        # engine/nodes/context.py SceneAttributes: programs only
         if textures.has_programs:
             from ..nodes.context import SceneAttributes
-            self.attributes = SceneAttributes(scene, triangles, self.tri_uv)
+            compiled = None
+            if textures.compiled is not None:         # the numba backend: the attributes' twins too
+                from ..nodes import context_jit as compiled
+            self.attributes = SceneAttributes(scene, triangles, self.tri_uv, compiled)
         self._reads_input = {}                        # input name -> reads_input(name)
         self.light_a = self.light_b = None
         emits = self.has_emission | textures.has_program["emission"]

@@ -204,6 +204,18 @@ class _Taken(HitPoints):
         return self._source.given(name)
 
 
+def components_adjacent(points):
+    """Which order object_points sums a point's terms in: True when the points' components are adjacent
+    (rows (3, k) that are the transpose of a (k, 3) array: (0 + 2) + 1), False for rows whose
+    components lie apart or one point whose rows are not item-strided ((0 + 1) + 2), None for other layouts (einsum's own)."""
+    item = points.itemsize
+    if points.strides[0] == item and points.shape[1] > 0:
+        return True
+    if points.strides[1] == item or points.shape[1] <= 1:
+        return False
+    return None
+
+
 def object_points(m, points) -> np.ndarray:
     """m (k or 1, 3, 4) world-to-object matrices, points rows (3, k) -> the object-space rows: the
     numbers of einsum("kij,jk->ik", m[:, :, :3], points) + m[:, :, 3].T, without gathering a matrix
@@ -212,15 +224,11 @@ def object_points(m, points) -> np.ndarray:
     transpose: its unrolled contiguous loop); it starts from 0.0, so "+ 0.0" turns the -0.0 that
     all-zero terms give here into its 0.0.  Other layouts: the einsum itself."""
     k = points.shape[1]
-    item = points.itemsize
-    if points.strides[0] == item and k > 0:
-        order = (0, 2, 1)
-    elif points.strides[1] == item or k <= 1:
-        order = (0, 1, 2)
-    else:
+    adjacent = components_adjacent(points)
+    if adjacent is None:
         full = np.broadcast_to(m, (k, 3, 4))
         return np.einsum("kij,jk->ik", full[:, :, :3], points) + full[:, :, 3].T
-    first, second, third = order
+    first, second, third = (0, 2, 1) if adjacent else (0, 1, 2)
     out = np.empty((3, k))
     for i in range(3):
         np.multiply(m[:, i, first], points[first], out=out[i])
@@ -234,9 +242,13 @@ def object_points(m, points) -> np.ndarray:
 class SceneAttributes:
     """A scene's per-triangle data for the input nodes, gathered once per prepared scene: the corner
     UVs and colour attributes, each triangle's object (its inverse matrix, texture space, location,
-    Random), the triangles' corners, and the camera (Cycles' camera space)."""
+    Random), the triangles' corners, and the camera (Cycles' camera space).
 
-    def __init__(self, scene, triangles, tri_uv):
+    `compiled`: None (NumPy), or engine/nodes/context_jit.py for a numba render (HitTextures sets it):
+    the Object and Generated attributes in one loop each, the same numbers."""
+
+    def __init__(self, scene, triangles, tri_uv, compiled=None):
+        self.compiled = compiled
         meshes = [m for m in scene.meshes if len(m.triangles)]
         self.triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
         self.tri_uv = tri_uv                       # rows (6, T)
@@ -306,14 +318,21 @@ class SceneAttributes:
         """The NodeContext of some hits (kind, prim, b1, b2 (N,); points: a HitPoints or None, e.g. at
         light samples: then positions and normals come from the triangles)."""
         n = len(kind)
-        tri = np.flatnonzero(kind == triangle_kind)
-        all_tri = len(tri) == n
+        is_tri = kind == triangle_kind
+        all_tri = bool(is_tri.all())
+        # The triangle hits' positions among the hits: found here only when some are not triangles (all
+        # of them: 0 .. n-1, made by the few attributes that index with them, `tri_index`).
+        tri = None if all_tri else np.flatnonzero(is_tri)
+        tri_count = n if all_tri else len(tri)
+
+        def tri_index():
+            return np.arange(n) if tri is None else tri
         # The triangle hits' primitives and barycentrics (all of the hits: the arrays themselves).
         prim_t, b1t, b2t = (prim, b1, b2) if all_tri else (prim.take(tri), b1.take(tri), b2.take(tri))
 
         def objects():
-            """The triangle hits' objects (len(tri),) (read by the object attributes only)."""
-            return self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(len(tri), np.int64)
+            """The triangle hits' objects (tri_count,) (read by the object attributes only)."""
+            return self.tri_object.take(prim_t) if len(self.tri_object) else np.zeros(tri_count, np.int64)
 
         def one_object():
             """Whether the triangle hits all lie on one object (per_object then reads one row)."""
@@ -328,10 +347,10 @@ class SceneAttributes:
             out[..., tri] = values_t
             return out
 
-        def bary(rows):             # rows (9, T): corner c's component x in row 3 c + x -> rows (3, len(tri))
+        def bary(rows):             # rows (9, T): corner c's component x in row 3 c + x -> rows (3, tri_count)
             c = rows.take(prim_t, axis=1)
             b0 = 1.0 - b1t - b2t
-            out = np.empty((len(tri), 3)).T     # the layout the (k, 3) form of this sum had
+            out = np.empty((tri_count, 3)).T     # the layout the (k, 3) form of this sum had
             np.multiply(b0, c[0:3], out=out)
             out += b1t * c[3:6]
             out += b2t * c[6:9]
@@ -373,45 +392,55 @@ class SceneAttributes:
 
         def obj_pos():
             p = ctx.attr("position")
-            if not len(tri):
+            if not tri_count:
                 return p
             pt = p[:, tri] if not all_tri else p
-            local = object_points(per_object(self.to_object), pt)
+            m = per_object(self.to_object)
+            adjacent = None if self.compiled is None or pt.dtype != np.float64 else components_adjacent(pt)
+            local = (object_points(m, pt) if adjacent is None
+                     else self.compiled.object_points(m, pt, adjacent))
             if all_tri:
                 return local
             out = p.copy()
             out[:, tri] = local
             return out
 
+        def texture_space(o):
+            """Object-space rows (3, tri_count) of the triangle hits -> their Generated rows."""
+            if self.compiled is not None:
+                return self.compiled.generated(o, per_object(self.centre), per_object(self.size))
+            centre, size = per_object(self.centre).T, per_object(self.size).T
+            return (o - centre) / (2.0 * size) + 0.5
+
         def generated():
             o = ctx.attr("object")
-            if not len(tri):
+            if not tri_count:
                 return o
-            centre, size = per_object(self.centre).T, per_object(self.size).T
             if all_tri:
-                return (o - centre) / (2.0 * size) + 0.5
+                return texture_space(o)
             out = o.copy()
-            out[:, tri] = (o[:, tri] - centre) / (2.0 * size) + 0.5
+            out[:, tri] = texture_space(o[:, tri])
             return out
 
         def object_normal():
             nrm = ctx.attr("normal")
-            if not len(tri):
+            if not tri_count:
                 return nrm
             m = self.to_world[ctx.attr("_object")]                    # M^T n
-            local = np.einsum("kji,jk->ik", m, nrm[:, tri])
+            hits_t = tri_index()
+            local = np.einsum("kji,jk->ik", m, nrm[:, hits_t])
             out = nrm.copy()
-            out[:, tri] = local / np.maximum(np.sqrt((local * local).sum(axis=0)), 1e-300)
+            out[:, hits_t] = local / np.maximum(np.sqrt((local * local).sum(axis=0)), 1e-300)
             return out
 
         def uv():
-            if self.tri_uv is None or not len(tri):
+            if self.tri_uv is None or not tri_count:
                 return np.zeros((3, n))
             c = self.tri_uv.take(prim_t, axis=1)
             b0 = 1.0 - b1t - b2t
             u = b0 * c[0] + b1t * c[2] + b2t * c[4]
             v = b0 * c[1] + b1t * c[3] + b2t * c[5]
-            return on_triangles(np.stack([u, v, np.zeros(len(tri))]))
+            return on_triangles(np.stack([u, v, np.zeros(tri_count)]))
 
         def camera():
             if self.world_to_camera is None:
@@ -434,7 +463,7 @@ class SceneAttributes:
         for name, rows in self.colors.items():
             attrs[f"color:{name}"] = (lambda rows=rows: on_triangles(bary(rows)))
         def tangent_sign():
-            if self.tri_sign is None or not len(tri):
+            if self.tri_sign is None or not tri_count:
                 return np.zeros(n)
             c = self.tri_sign[prim_t]
             return on_triangles((1.0 - b1t - b2t) * c[:, 0] + b1t * c[:, 1] + b2t * c[:, 2])
@@ -442,12 +471,13 @@ class SceneAttributes:
         def to_world_normal(local):
             """Cycles' object_normal_transform: normalize(inverse(M)^T local)."""
             out = np.array(local, dtype=np.float64)
-            if len(tri):
+            if tri_count:
                 m = self.to_object[ctx.attr("_object")][:, :, :3]     # inverse(M), (k, 3, 3)
-                out[:, tri] = np.einsum("kji,jk->ik", m, out[:, tri])
+                hits_t = tri_index()
+                out[:, hits_t] = np.einsum("kji,jk->ik", m, out[:, hits_t])
             return out / np.maximum(np.sqrt((out * out).sum(axis=0)), 1e-300)
 
-        attrs["tangent"] = lambda: (np.zeros((3, n)) if self.tri_tangent is None or not len(tri)
+        attrs["tangent"] = lambda: (np.zeros((3, n)) if self.tri_tangent is None or not tri_count
                                     else on_triangles(bary(self.rows("tri_tangent"))))
         attrs["tangent_sign"] = tangent_sign
         attrs["has_tangent"] = lambda: ((ctx.attr("tangent_sign") != 0.0)
@@ -461,8 +491,8 @@ class SceneAttributes:
 
         def object_transforms(inverse):
             out = np.tile(np.eye(4)[:3], (n, 1, 1))
-            if len(tri):
-                out[tri] = (self.to_object if inverse else np.concatenate(
+            if tri_count:
+                out[tri_index()] = (self.to_object if inverse else np.concatenate(
                     [self.to_world, self.location[:, :, None]], axis=2))[ctx.attr("_object")]
             return out
         attrs["object_to_world"] = lambda: object_transforms(False)
@@ -476,14 +506,15 @@ class SceneAttributes:
         def shifted(offset):
             """The context of these hits moved by `offset` rows (3, N) (their normals kept)."""
             nb1, nb2 = b1.copy(), b2.copy()
-            if len(tri):
+            if tri_count:
                 c = self.triangles[prim_t]
                 e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
-                w = (ctx.attr("position")[:, tri] + offset[:, tri]).T - c[:, 0]
+                hits_t = tri_index()
+                w = (ctx.attr("position")[:, hits_t] + offset[:, hits_t]).T - c[:, 0]
                 d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
                 w1, w2 = (w * e1).sum(1), (w * e2).sum(1)
                 inv = 1.0 / np.maximum(d11 * d22 - d12 * d12, 1e-300)
-                nb1[tri], nb2[tri] = (d22 * w1 - d12 * w2) * inv, (d11 * w2 - d12 * w1) * inv
+                nb1[hits_t], nb2[hits_t] = (d22 * w1 - d12 * w2) * inv, (d11 * w2 - d12 * w1) * inv
             moved = HitPoints(**{f: getattr(points, f) for f in HitPoints.FIELDS}) if points is not None else \
                 HitPoints(direction=None)
             moved.point = ctx.attr("position") + offset

@@ -2,7 +2,8 @@
 over all the hits of the material, as Cycles' SVM runs a shader's nodes in order.
 
 `run(program, ctx)` gives the material input's value: (N,) for a float input, rows (3, N) for a colour.
-Inputs are broadcast to full arrays before a kernel sees them (constants: (N,) or (3, N)), and links
+Inputs are broadcast to full arrays before a kernel sees them (constants: (N,) or (3, N); those a kernel
+broadcasts itself, engine/nodes/registry.py broadcast_inputs, as (1,) or (3, 1)), and links
 convert between socket types as Cycles' svm_node_convert: colour to float is the luminance of the
 running Blender's colour space (engine/nodes/converter.py luminance_weights: 3.4's and 4.x/5.0's
 differ in the fifth digit), vector to float the average of the three components, float to
@@ -15,7 +16,7 @@ import numpy as np
 
 from ..scene.programs import Link, Program, ProgramNode
 from .context import NodeContext, Varying
-from .registry import kernels, offset_inputs
+from .registry import broadcast_inputs, kernels, offset_inputs
 
 LUMINANCE = np.array([0.2126729, 0.7151522, 0.0721750])     # without converter.py: Blender 3.4's
 THREE = ("RGBA", "VECTOR")
@@ -69,8 +70,9 @@ def run_nodes(program: Program, ctx: NodeContext, table=None):
         kernel = table.get(node.kind)
         if kernel is None:
             raise UnsupportedNode(node.kind)
+        one = broadcast_inputs(node.kind)          # constants the kernel broadcasts: one value, not n
         inputs = {key: (convert(outputs[v.node][v.output], v.source, v.target, ctx.n, weights) if isinstance(v, Link)
-                        else constant(v, ctx.n)) for key, v in node.inputs.items()}
+                        else constant(v, 1 if key in one else ctx.n)) for key, v in node.inputs.items()}
         for key in offset_inputs(node.kind):
             if isinstance(node.inputs.get(key), Link) and ctx.shifted is not None:
                 inputs[f"_{key}_at"] = _at_offsets(upstream(program, node.inputs[key]), ctx, table)

@@ -250,3 +250,9 @@ def scale(inputs, props, ctx):
 
 
 KERNELS["TNCG15Scale"] = scale
+
+# Constants these kernels broadcast (engine/nodes/registry.py broadcast_inputs): Mapping's Location and Scale
+# meet the (3, N) Vector (always full: linked, or a full constant) in products and sums; Scale's Strength
+# multiplies the full Color.  Not Rotation: a constant rotation with a NaN angle is not "uniform" to mapping's
+# test, and given as one value it would take the matmul path instead of the per-point einsum (other bits).
+BROADCAST_INPUTS = {"ShaderNodeMapping": ("Location", "Scale"), "TNCG15Scale": ("Strength",)}

@@ -8,6 +8,7 @@ import importlib
 KERNEL_MODULES = ("inputs", "image", "color", "math", "converter", "procedural", "normals", "vector_transform")
 _TABLE: dict | None = None
 _OFFSETS: dict = {}
+_BROADCAST: dict = {}
 
 
 def kernels() -> dict:
@@ -25,6 +26,7 @@ def kernels() -> dict:
                 continue
             table.update(getattr(module, "KERNELS", {}))
             _OFFSETS.update(getattr(module, "OFFSET_INPUTS", {}))
+            _BROADCAST.update(getattr(module, "BROADCAST_INPUTS", {}))
         _TABLE = table
     return _TABLE
 
@@ -34,6 +36,14 @@ def offset_inputs(kind: str) -> tuple:
     OFFSET_INPUTS, e.g. Bump's Height: engine/nodes/evaluator.py gives the kernel "_Height_at")."""
     kernels()
     return _OFFSETS.get(kind, ())
+
+
+def broadcast_inputs(kind: str) -> tuple:
+    """The inputs of node type `kind` whose constants its kernel takes as one value, (1,) or (3, 1), and
+    broadcasts against its other inputs (a module's BROADCAST_INPUTS): the same numbers as full arrays
+    of that value, without making them (engine/nodes/evaluator.py run_nodes)."""
+    kernels()
+    return _BROADCAST.get(kind, ())
 
 
 def supported(kind: str) -> bool:

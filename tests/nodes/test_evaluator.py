@@ -90,3 +90,55 @@ def test_bad_program_is_refused():
                   (0, "Vector", "VECTOR"))
     with pytest.raises(SceneError, match="not an earlier node"):
         bad.validate("Material 'M'")
+
+
+def broadcast_cases(rng, n=200):
+    """(program, ctx) pairs: Mapping of every vector type with constant Location / Rotation / Scale (zeros,
+    -0.0, NaN (in a rotation angle too), inf, a zero scale for the divisions), and Scale (TNCG15Scale) of a colour and of a value."""
+    p = rng.normal(size=(3, n)) * 3.0
+    p[:, 0], p[0, 1], p[1, 2], p[:, 3] = np.nan, np.inf, -0.0, 0.0
+    ctx = ctx_at(p, rng.normal(size=(3, n)))
+    geometry = ProgramNode("ShaderNodeNewGeometry", "Geometry")
+    cases = []
+    for kind in ("POINT", "TEXTURE", "VECTOR", "NORMAL"):
+        for loc, rot, scale in (((0.3, -0.0, 7.0), (0.1, 0.4363323152065277, -2.0), (2.0, 0.5, 3.0)),
+                                ((np.nan, 0.0, 1.0), (0.0, 0.0, 0.0), (0.0, -1.5, np.inf)),
+                                ((0.3, 0.2, -1.0), (0.3, 0.2, np.nan), (1.0, 2.0, 3.0)),
+                                ((0.0, 0.0, 0.0), (np.nan, 0.3, 0.2), (-0.0, 1.0, 1.0))):
+            mapping = ProgramNode("ShaderNodeMapping", "Mapping", {"vector_type": kind},
+                                  {"Vector": Link(0, "Position", "VECTOR", "VECTOR"), "Location": loc,
+                                   "Rotation": rot, "Scale": scale})
+            cases.append((Program([geometry, mapping], (1, "Vector", "VECTOR"), "RGBA"), ctx))
+    for source, output in (("RGBA", "Position"), ("VALUE", "Backfacing")):
+        ctx_b = NodeContext(n, (5, 0), {"position": p, "backfacing": (rng.random(n) < 0.5).astype(np.float64)})
+        scaled = ProgramNode("TNCG15Scale", "Scale", {}, {"Color": Link(0, output, "VECTOR" if source == "RGBA" else "VALUE",
+                                                                        source), "Strength": 14.0})
+        cases.append((Program([geometry, scaled], (1, "Color", "RGBA"), "RGBA"), ctx_b))
+    return cases
+
+
+def same_bits(a, b):
+    return a.shape == b.shape and np.array_equal(a, b, equal_nan=True) and np.array_equal(np.signbit(a), np.signbit(b))
+
+
+def test_constants_a_kernel_broadcasts_give_the_numbers_of_full_arrays(monkeypatch):
+    """Mapping's and Scale's constants given as one value (registry.broadcast_inputs) give the outputs of
+    the full arrays (the registry's list emptied) bit for bit, in shape; a control: a constant moved by
+    one ulp is told apart; and Rotation, left out of the list, would not keep the bits (a NaN angle)."""
+    assert registry.broadcast_inputs("ShaderNodeMapping") == ("Location", "Scale")
+    rng = np.random.default_rng(11)
+    with np.errstate(all="ignore"):
+        one = [run(program, ctx) for program, ctx in broadcast_cases(rng)]
+        registry.kernels()
+        monkeypatch.setattr(registry, "_BROADCAST", {})
+        assert registry.broadcast_inputs("ShaderNodeMapping") == ()
+        full = [run(program, ctx) for program, ctx in broadcast_cases(np.random.default_rng(11))]
+        assert all(same_bits(a, b) for a, b in zip(one, full))
+        program, ctx = broadcast_cases(np.random.default_rng(11))[0]
+        node = program.nodes[1]
+        moved = dict(node.inputs, Scale=(np.nextafter(2.0, 3.0), 0.5, 3.0))
+        program.nodes[1] = ProgramNode(node.kind, node.name, node.props, moved)
+        assert not same_bits(run(program, ctx), full[0])
+        monkeypatch.setattr(registry, "_BROADCAST", {"ShaderNodeMapping": ("Location", "Rotation", "Scale")})
+        rotated = [run(program, ctx) for program, ctx in broadcast_cases(np.random.default_rng(11))]
+        assert not all(same_bits(a, b) for a, b in zip(rotated, full))
