@@ -32,7 +32,9 @@ class OrderedSamples:
 
     def flush(self) -> None:
         """Add every kept sample to the film, in sample order per pixel."""
-        if self.filled.all():
+        if self.filled.all() and self.film.width * self.film.height == self.pixels:
+            self.film.add_every_pixel(self.radiance)
+        elif self.filled.all():
             pixel = np.tile(np.arange(self.pixels), len(self.filled) // max(self.pixels, 1))
             self.film.add_samples(pixel, self.radiance)
         else:
