@@ -139,23 +139,46 @@ class Paths:
     def _fields(self):
         return [(name, axis) for name, axis in _FIELD_AXES if getattr(self, name) is not None]
 
-    def take(self, index, replaced=(), jit=None) -> "Paths":
+    def take(self, index, replaced=(), jit=None, room=0) -> "Paths":
         """The paths `index`; the fields named in `replaced` are left None, for the caller to set.
-        jit: engine/integrators/wavefront_jit.py, whose compiled gathers then take them (the same arrays)."""
-        if jit is not None:
-            names = [(name, axis) for name, axis in self._fields() if name not in replaced]
-            taken = jit.take([(getattr(self, name), axis) for name, axis in names], index)
-            return Paths(**{name: None for name in replaced}, **{name: a for (name, _), a in zip(names, taken)})
+        jit: engine/integrators/wavefront_jit.py, whose compiled gathers then take them (the same arrays).
+        room: each array has that many uninitialised paths more at its end, for `put` to fill (the paths
+        that join the wavefront: no concatenation of the wavefront's arrays)."""
+        names = [(name, axis) for name, axis in self._fields() if name not in replaced]
+        arrays = [(getattr(self, name), axis) for name, axis in names]
+        taken = jit.take(arrays, index, room) if jit is not None else [None] * len(arrays)
         return Paths(**{name: None for name in replaced},
-                     **{name: getattr(self, name).take(index, axis=axis) for name, axis in self._fields()
-                        if name not in replaced})
+                     **{name: taken_with_room(a, index, axis, room) if t is None else t
+                        for (name, _), (a, axis), t in zip(names, arrays, taken)})
 
-    def extend(self, other: "Paths") -> "Paths":
-        return Paths(**{name: np.concatenate([getattr(self, name), getattr(other, name)], axis=axis)
-                        for name, axis in self._fields()})
+    def put(self, start: int, other: "Paths") -> None:
+        """Write the paths `other` (the same fields) into these paths' places start .. start + len(other)."""
+        stop = start + len(other.pixel)
+        for name, axis in self._fields():
+            getattr(self, name)[(slice(None),) * axis + (slice(start, stop),)] = getattr(other, name)
 
 
 _FIELD_AXES = tuple((f.name, 1 if f.name in VECTOR_FIELDS else 0) for f in fields(Paths))   # the paths' axis
+
+
+def taken_with_room(a, index, axis, room):
+    """a.take(index, axis=axis) with `room` uninitialised entries more at the end of the axis."""
+    if not room:
+        return a.take(index, axis=axis)
+    shape = list(a.shape)
+    shape[axis] = len(index) + room
+    out = np.empty(shape, a.dtype)
+    a.take(index, axis=axis, out=out[(slice(None),) * axis + (slice(0, len(index)),)])
+    return out
+
+
+def with_room(rows, room):
+    """rows (3, M) with `room` uninitialised columns more (rows themselves when room is 0)."""
+    if not room:
+        return rows
+    out = np.empty((rows.shape[0], rows.shape[1] + room), rows.dtype)
+    out[:, :rows.shape[1]] = rows
+    return out
 
 
 def next_rays(keep, point, side, offset, facing, new_d, beta):
@@ -280,30 +303,39 @@ class PathTracer:
         scene, weighted by their throughput; they then get no background (None: an opaque film).
         """
         sampler = sampler or RandomSampler(rng)
-        paths = None
-        while True:
-            alive = 0 if paths is None else len(paths.pixel)
+
+        def joining(alive):
+            """How many camera paths join a wavefront of `alive` paths: all there is room for, once
+            there is room for a quarter of it at least, while the samples last."""
             room = WAVEFRONT_SIZE - alive
-            fresh = 0
+            return min(room, samples.remaining) if alive == 0 or room >= WAVEFRONT_SIZE // 4 else 0
+
+        paths, fresh = None, joining(0)
+        while True:
             if cancel is not None and cancel.is_set():
                 return False
-            if samples.remaining and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
-                pixel, sample, o, d = samples.take(room)
-                fresh = len(pixel)
+            if fresh:                       # the camera paths, into the last `fresh` places of the arrays
+                pixel, sample, o, d = samples.take(fresh)
                 new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis,
                                   features is not None and features.surface, self.light_paths,
                                   self.photons is not None, self.deferred_rr)
                 if features is not None and features.light_split:       # engine/film/passes.py LIGHT
                     new.lobe, new.lobe_at = np.full(fresh, -1, np.int8), np.zeros(fresh, np.int32)
-                paths = new if paths is None else paths.extend(new)
+                if paths is None:
+                    paths = new
+                else:
+                    paths.put(len(paths.pixel) - fresh, new)
             if paths is None or len(paths.pixel) == 0:
                 return True
             counters.rays["camera"] += fresh
             counters.rays["extension"] += len(paths.pixel) - fresh
-            paths = self.bounce(paths, sampler, counters, on_finished, features, on_transparent)
+            paths, fresh = self.bounce(paths, sampler, counters, on_finished, features, on_transparent, joining)
 
-    def bounce(self, p: "Paths", sampler, counters, on_finished, features=None, on_transparent=None) -> "Paths":
-        """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
+    def bounce(self, p: "Paths", sampler, counters, on_finished, features=None, on_transparent=None,
+               joining=None) -> tuple:
+        """Advance every path one bounce (report §2.3-2.5); returns (the survivors, fresh): the survivors'
+        arrays end in `fresh` = joining(number of survivors) places for the camera paths that join the
+        wavefront, which the caller fills (Paths.put); joining None: none."""
         finished = []                                   # (pixel, radiance, sample) of paths that end
         # 1. Intersect.  Hits sorted by scatter group (engine/materials/table.py: one per BSDF,
         # 0 diffuse, 1 mirror, 2 glass, then ABSORB and PASS_THROUGH, the Area lights), then by
@@ -442,11 +474,16 @@ class PathTracer:
         if len(pixel):
             on_finished(pixel, np.concatenate([f[1] for f in finished], axis=1),
                         np.concatenate([f[2] for f in finished]))
-        survivors = p.take(keep, replaced=("o", "d", "beta"), jit=self.wavefront_jit)
-        survivors.o, survivors.d, survivors.beta = rays if rays is not None else next_rays(
-            keep, surf.point, side, surf.offset, facing, new_d, beta)
-        survivors.bounce = survivors.bounce + 1
-        return survivors if passing is None else survivors.extend(passing)
+        kept, passed = len(keep), 0 if passing is None else len(passing.pixel)
+        fresh = 0 if joining is None else joining(kept + passed)
+        room = passed + fresh
+        survivors = p.take(keep, replaced=("o", "d", "beta"), jit=self.wavefront_jit, room=room)
+        survivors.o, survivors.d, survivors.beta = (with_room(a, room) for a in (
+            rays if rays is not None else next_rays(keep, surf.point, side, surf.offset, facing, new_d, beta)))
+        survivors.bounce[:kept] += 1
+        if passing is not None:
+            survivors.put(kept, passing)
+        return survivors, fresh
 
     # -- stages ------------------------------------------------------------------------
     def final_groups(self, p):
