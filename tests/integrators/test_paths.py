@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from engine.integrators.path_tracer import Paths, VECTOR_FIELDS
+from engine.materials.media import MEDIUM_STACK_DEPTH
 from tests.backend_capture import require_compiled
 
 DTYPES = {"pixel": np.int64, "sample": np.int64, "prev_delta": np.bool_, "ray_kind": np.int8, "bounce": np.int32,
@@ -18,7 +19,7 @@ def random_paths(n, rng):
     values = {}
     for name in Paths.__dataclass_fields__:
         dtype = DTYPES.get(name, np.float64)
-        shape = ((4 if name == "counts" else 3, n) if name in VECTOR_FIELDS else (n, 4) if name == "media" else (n,))
+        shape = ((4 if name == "counts" else 3, n) if name in VECTOR_FIELDS else (n, MEDIUM_STACK_DEPTH) if name == "media" else (n,))
         a = rng.integers(-100, 100, shape).astype(dtype) if dtype != np.float64 else rng.normal(size=shape)
         if dtype == np.float64 and a.size > 3:
             a.reshape(-1)[:3] = (np.nan, np.inf, -0.0)
@@ -68,3 +69,26 @@ def test_control_a_put_one_place_late_is_caught():
     taken = p.take(index, room=11)
     taken.put(len(index) + 1, joining)
     assert not same_bits(taken.radiance[:, :60], np.concatenate([p.radiance[:, :50], joining.radiance], axis=1))
+
+
+def test_camera_paths_put_in_the_room_are_paths_start():
+    """put_start writes what Paths.start makes, every optional field on, after the taken paths; control:
+    another starting value is caught."""
+    from types import SimpleNamespace
+    rng = np.random.default_rng(6)
+    light_paths = SimpleNamespace(bounce_limits=True, caustics=True, filter_glossy=1.0)
+    starting = Paths.starting(True, True, True, light_paths, True, True, True)
+    assert set(starting) == set(Paths.__dataclass_fields__) - {"pixel", "sample", "o", "d"}
+    p = random_paths(60, rng)
+    rays = (rng.integers(0, 9, 25), rng.integers(0, 9, 25), rng.normal(size=(3, 25)), rng.normal(size=(3, 25)))
+    new = Paths.start(*rays, starting)
+    index = np.flatnonzero(rng.random(60) < 0.5)
+    taken = p.take(index, room=25)
+    taken.put_start(len(index), *rays, starting)
+    for name in Paths.__dataclass_fields__:
+        axis = axis_of(name)
+        expected = np.concatenate([getattr(p, name).take(index, axis=axis), getattr(new, name)], axis=axis)
+        assert same_bits(getattr(taken, name), expected), name
+    wrong = dict(starting, beta=(np.nextafter(1.0, 2.0), np.float64))
+    taken.put_start(len(index), *rays, wrong)
+    assert not same_bits(taken.beta[:, len(index):], new.beta)
