@@ -163,12 +163,11 @@ class Paths:
     def take(self, index, replaced=(), jit=None, room=0) -> "Paths":
         """The paths `index`; the fields named in `replaced` are left None, for the caller to set.
         jit: engine/integrators/wavefront_jit.py, whose compiled gathers then take them (the same arrays).
-        room: each array has that many uninitialised paths more at its end, for `put` to fill (the paths
-        that join the wavefront: no concatenation of the wavefront's arrays)."""
-        names = [name for name, _ in self._fields() if name not in replaced]
-        taken = gather(jit, [(getattr(self, name), axis) for name, axis in self._fields() if name not in replaced],
-                       index, room)
-        return Paths(**{name: None for name in replaced}, **dict(zip(names, taken)))
+        room: each array has that many uninitialised paths more at its end, for `put` and `put_start` to
+        fill (the paths that join the wavefront: no concatenation of the wavefront's arrays)."""
+        kept = [(name, axis) for name, axis in self._fields() if name not in replaced]
+        taken = gather(jit, [(getattr(self, name), axis) for name, axis in kept], index, room)
+        return Paths(**{name: None for name in replaced}, **{name: a for (name, _), a in zip(kept, taken)})
 
     def put(self, start: int, other: "Paths") -> None:
         """Write the paths `other` (the same fields) into these paths' places start .. start + len(other)."""
@@ -361,7 +360,7 @@ class PathTracer:
                joining=None) -> tuple:
         """Advance every path one bounce (report §2.3-2.5); returns (the survivors, fresh): the survivors'
         arrays end in `fresh` = joining(number of survivors) places for the camera paths that join the
-        wavefront, which the caller fills (Paths.put); joining None: none."""
+        wavefront, which the caller fills (Paths.put_start); joining None: none."""
         finished = []                                   # (pixel, radiance, sample) of paths that end
         # 1. Intersect.  Hits sorted by scatter group (engine/materials/table.py: one per BSDF,
         # 0 diffuse, 1 mirror, 2 glass, then ABSORB and PASS_THROUGH, the Area lights), then by
