@@ -346,6 +346,7 @@ class PathTracer:
                 return False
             if fresh:                       # the camera paths, into the last `fresh` places of the arrays
                 rays = samples.take(fresh)
+                assert len(rays[0]) == fresh, "fewer camera samples than the room they were taken for"
                 if paths is None:
                     paths = Paths.start(*rays, starting)
                 else:

@@ -49,8 +49,8 @@ def camera_rays(camera, width: int, height: int, sx: np.ndarray, sy: np.ndarray)
 
 def serial_pixels(first: int, count: int, pixels: int):
     """(serial % pixels, serial // pixels) of the serial numbers first .. first + count - 1 (int64), the
-    pixel and sample of each, from a tiled range and a repeat: no integer division per sample (a sixth
-    of the time)."""
+    pixel and sample of each: the samples a repeat of the sample numbers the range touches, the pixels
+    the serials less sample x pixels (no integer division per sample; O(count), whatever the tile)."""
     if count <= 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     start, sample = first % pixels, first // pixels
@@ -58,8 +58,8 @@ def serial_pixels(first: int, count: int, pixels: int):
     lengths = np.full(rounds, pixels)
     lengths[0] -= start
     lengths[-1] = count - lengths[:-1].sum()
-    return (np.tile(np.arange(pixels, dtype=np.int64), rounds)[start:start + count],
-            np.repeat(np.arange(sample, sample + rounds, dtype=np.int64), lengths))
+    samples = np.repeat(np.arange(sample, sample + rounds, dtype=np.int64), lengths)
+    return np.arange(first, first + count, dtype=np.int64) - samples * pixels, samples
 
 
 class TileSamples:

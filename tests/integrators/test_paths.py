@@ -35,7 +35,7 @@ def same_bits(a, b):
     return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
 
 
-def gather(compiled):
+def take_jit(compiled):
     """Paths.take's jit: wavefront_jit's compiled gathers, or None (NumPy's)."""
     if not compiled:
         return None
@@ -47,7 +47,7 @@ def gather(compiled):
 @pytest.mark.parametrize("compiled", [False, True])
 def test_take_with_room_then_put_is_take_then_concatenate(compiled):
     rng = np.random.default_rng(4)
-    jit = gather(compiled)
+    jit = take_jit(compiled)
     p, joining = random_paths(500, rng), random_paths(37, rng)
     for index in (np.flatnonzero(rng.random(500) < 0.6), np.arange(0, dtype=np.int64), np.arange(500)):
         for room in (0, 37):
@@ -92,3 +92,23 @@ def test_camera_paths_put_in_the_room_are_paths_start():
     wrong = dict(starting, beta=(np.nextafter(1.0, 2.0), np.float64))
     taken.put_start(len(index), *rays, wrong)
     assert not same_bits(taken.beta[:, len(index):], new.beta)
+
+
+def test_camera_paths_start_as_a_path_tracer_starts_them():
+    """Paths.starting's values, every option on, are what a camera path starts with (the report's
+    throughput 1, no radiance yet; the camera ray counts as a delta vertex for MIS; the MIS vertex zero,
+    its BSDF pdf 1; media of index 1 in an empty stack; no bounce counted; no diffuse bounce yet; no
+    glossy filter bound (inf); the camera chain of the photon caustics; the deferred roulette's survival
+    1; no lobe yet (-1) set at bounce 0): pinned value by value, so a wrong one in the table that
+    Paths.start and put_start share is caught."""
+    from types import SimpleNamespace
+    light_paths = SimpleNamespace(bounce_limits=True, caustics=True, filter_glossy=1.0)
+    starting = Paths.starting(True, True, True, light_paths, True, True, True)
+    f64 = np.float64
+    expected = {"beta": (1.0, f64), "radiance": (0.0, f64), "prev_delta": (True, np.bool_), "ray_kind": (0, np.int8),
+                "bounce": (0, np.int32), "prev_p": (0.0, f64), "prev_n": (0.0, f64), "prev_bsdf_pdf": (1.0, f64),
+                "media": (1.0, f64), "depth": (0, np.int64), "f_thru": (1.0, f64), "f_open": (True, np.bool_),
+                "counts": (0, np.int32), "after_diffuse": (False, np.bool_), "min_pdf": (np.inf, f64),
+                "caustic": (0, np.int8), "rr_after": (1.0, f64), "lobe": (-1, np.int8), "lobe_at": (0, np.int32)}
+    assert {k: (v, np.dtype(t)) for k, (v, t) in starting.items()} == {k: (v, np.dtype(t)) for k, (v, t) in expected.items()}
+    assert Paths.starting(False, False) == {k: expected[k] for k in ("beta", "radiance", "prev_delta", "ray_kind", "bounce")}
