@@ -36,6 +36,20 @@ class Film:
             total[:, c] += np.bincount(pixel, weights=radiance[c], minlength=n)
             squares[:, c] += np.bincount(pixel, weights=radiance[c] * radiance[c], minlength=n)
 
+    def add_every_pixel(self, radiance: np.ndarray) -> None:
+        """add_samples of S samples of every pixel in sample-major order (column s n + p: pixel p's sample s,
+        n = width x height), with the same sums bit for bit: NumPy's reduction over the samples' axis of
+        the (S, n) rows adds them one after the other in sample order, as bincount does (a third of its
+        time).  One pixel: bincount (the reduction of a single column would sum pairwise)."""
+        n = self.width * self.height
+        if n < 2:
+            self.add_samples(np.tile(np.arange(n), radiance.shape[1] // max(n, 1)), radiance)
+            return
+        rows = radiance.reshape(3, -1, n)
+        self.count.reshape(n)[:] += rows.shape[1]
+        self.sum.reshape(n, 3)[:] += np.add.reduce(rows, axis=1).T
+        self.sum_sq.reshape(n, 3)[:] += np.add.reduce(rows * rows, axis=1).T
+
     def add_transparent(self, pixel: np.ndarray, weight: np.ndarray) -> None:
         """Camera samples (their pixels' flat indices) that left the scene, each with its weight:
         Cycles' transparent background counts the mean throughput, 1 for a camera ray."""

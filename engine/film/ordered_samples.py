@@ -32,9 +32,9 @@ class OrderedSamples:
 
     def flush(self) -> None:
         """Add every kept sample to the film, in sample order per pixel."""
-        if self.filled.all():
-            pixel = np.tile(np.arange(self.pixels), len(self.filled) // max(self.pixels, 1))
-            self.film.add_samples(pixel, self.radiance)
+        if self.filled.all():               # the film is the tile's (engine/rendering/session.py)
+            assert self.film.width * self.film.height == self.pixels, "a tile's samples on another film"
+            self.film.add_every_pixel(self.radiance)
         else:
             slot = np.flatnonzero(self.filled)
             self.film.add_samples(slot % self.pixels, self.radiance.take(slot, axis=1))

@@ -112,50 +112,100 @@ class Paths:
     rr_after: np.ndarray | None = None  # deferred roulette: (N,) factor of the throughput after this ray's
     #                                     emission: 1 / survival probability, 0 = ended (the ray only emits)
 
-    @classmethod
-    def start(cls, pixel, sample, origins, directions, nested: bool, mis: bool, features: bool = False,
-              light_paths: LightPaths | None = None, photons: bool = False,
-              deferred_roulette: bool = False) -> "Paths":
-        n = len(pixel)
-        paths = cls(pixel, sample, origins, directions, np.ones((3, n)), np.zeros((3, n)), np.ones(n, dtype=bool),
-                    np.zeros(n, dtype=np.int8), np.zeros(n, dtype=np.int32),
-                    np.zeros((3, n)) if mis else None, np.zeros((3, n)) if mis else None,
-                    np.ones(n) if mis else None,
-                    np.ones((n, MEDIUM_STACK_DEPTH)) if nested else None,
-                    np.zeros(n, dtype=np.int64) if nested else None,
-                    np.ones((3, n)) if features else None, np.ones(n, dtype=bool) if features else None)
+    @staticmethod
+    def starting(nested: bool, mis: bool, features: bool = False, light_paths: LightPaths | None = None,
+                 photons: bool = False, deferred_roulette: bool = False, light_split: bool = False) -> dict:
+        """What every field of a camera path but its own (pixel, sample, o, d) starts at, {name: (value,
+        dtype)}, for the render's options; the fields left out stay None."""
+        f64 = np.float64
+        values = {"beta": (1.0, f64), "radiance": (0.0, f64), "prev_delta": (True, np.bool_), "ray_kind": (0, np.int8),
+                  "bounce": (0, np.int32)}
+        if mis:
+            values.update(prev_p=(0.0, f64), prev_n=(0.0, f64), prev_bsdf_pdf=(1.0, f64))
+        if nested:
+            values.update(media=(1.0, f64), depth=(0, np.int64))
+        if features:
+            values.update(f_thru=(1.0, f64), f_open=(True, np.bool_))
         if light_paths is not None and light_paths.bounce_limits:
-            paths.counts = np.zeros((4, n), dtype=np.int32)
+            values["counts"] = (0, np.int32)
         if light_paths is not None and light_paths.caustics:
-            paths.after_diffuse = np.zeros(n, dtype=bool)
+            values["after_diffuse"] = (False, np.bool_)
         if light_paths is not None and light_paths.filter_glossy > 0:
-            paths.min_pdf = np.full(n, np.inf)
+            values["min_pdf"] = (np.inf, f64)
         if photons:
-            paths.caustic = np.zeros(n, dtype=np.int8)
+            values["caustic"] = (CAMERA_CHAIN, np.int8)
         if deferred_roulette:
-            paths.rr_after = np.ones(n)
-        return paths
+            values["rr_after"] = (1.0, f64)
+        if light_split:                     # engine/film/passes.py LIGHT
+            values.update(lobe=(-1, np.int8), lobe_at=(0, np.int32))
+        return values
+
+    @classmethod
+    def start(cls, pixel, sample, origins, directions, starting: dict) -> "Paths":
+        """New camera paths: their pixels, sample numbers and rays, the other fields as `starting` says."""
+        n = len(pixel)
+        shapes = {"counts": (4, n), "media": (n, MEDIUM_STACK_DEPTH)}
+        return cls(pixel, sample, origins, directions,
+                   **{name: np.full(shapes.get(name, (3, n) if name in VECTOR_FIELDS else n), value, dtype)
+                      for name, (value, dtype) in starting.items()})
+
+    def put_start(self, at: int, pixel, sample, origins, directions, starting: dict) -> None:
+        """Paths.start's camera paths written into these paths' places at .. at + len(pixel) (the room
+        of `take`), without arrays of their own."""
+        span = slice(at, at + len(pixel))
+        self.pixel[span], self.sample[span], self.o[:, span], self.d[:, span] = pixel, sample, origins, directions
+        for name, (value, _) in starting.items():
+            getattr(self, name)[(slice(None),) * _AXIS[name] + (span,)] = value
 
     def _fields(self):
         return [(name, axis) for name, axis in _FIELD_AXES if getattr(self, name) is not None]
 
-    def take(self, index, replaced=(), jit=None) -> "Paths":
+    def take(self, index, replaced=(), jit=None, room=0) -> "Paths":
         """The paths `index`; the fields named in `replaced` are left None, for the caller to set.
-        jit: engine/integrators/wavefront_jit.py, whose compiled gathers then take them (the same arrays)."""
-        if jit is not None:
-            names = [(name, axis) for name, axis in self._fields() if name not in replaced]
-            taken = jit.take([(getattr(self, name), axis) for name, axis in names], index)
-            return Paths(**{name: None for name in replaced}, **{name: a for (name, _), a in zip(names, taken)})
-        return Paths(**{name: None for name in replaced},
-                     **{name: getattr(self, name).take(index, axis=axis) for name, axis in self._fields()
-                        if name not in replaced})
+        jit: engine/integrators/wavefront_jit.py, whose compiled gathers then take them (the same arrays).
+        room: each array has that many uninitialised paths more at its end, for `put` and `put_start` to
+        fill (the paths that join the wavefront: no concatenation of the wavefront's arrays)."""
+        kept = [(name, axis) for name, axis in self._fields() if name not in replaced]
+        taken = gather(jit, [(getattr(self, name), axis) for name, axis in kept], index, room)
+        return Paths(**{name: None for name in replaced}, **{name: a for (name, _), a in zip(kept, taken)})
 
-    def extend(self, other: "Paths") -> "Paths":
-        return Paths(**{name: np.concatenate([getattr(self, name), getattr(other, name)], axis=axis)
-                        for name, axis in self._fields()})
+    def put(self, start: int, other: "Paths") -> None:
+        """Write the paths `other` (the same fields) into these paths' places start .. start + len(other)."""
+        stop = start + len(other.pixel)
+        for name, axis in self._fields():
+            getattr(self, name)[(slice(None),) * axis + (slice(start, stop),)] = getattr(other, name)
 
 
 _FIELD_AXES = tuple((f.name, 1 if f.name in VECTOR_FIELDS else 0) for f in fields(Paths))   # the paths' axis
+_AXIS = dict(_FIELD_AXES)
+
+
+def gather(jit, arrays, index, room=0):
+    """[a.take(index, axis=axis) for a, axis in arrays], each with `room` uninitialised entries more at
+    the end of its axis: by engine/integrators/wavefront_jit.py's compiled gathers (jit) where they
+    apply (the same arrays), else NumPy's take."""
+    taken = jit.take(arrays, index, room) if jit is not None else [None] * len(arrays)
+    return [taken_with_room(a, index, axis, room) if t is None else t for (a, axis), t in zip(arrays, taken)]
+
+
+def taken_with_room(a, index, axis, room):
+    """a.take(index, axis=axis) with `room` uninitialised entries more at the end of the axis."""
+    if not room:
+        return a.take(index, axis=axis)
+    shape = list(a.shape)
+    shape[axis] = len(index) + room
+    out = np.empty(shape, a.dtype)
+    a.take(index, axis=axis, out=out[(slice(None),) * axis + (slice(0, len(index)),)])
+    return out
+
+
+def with_room(rows, room):
+    """rows (3, M) with `room` uninitialised columns more (rows themselves when room is 0)."""
+    if not room:
+        return rows
+    out = np.empty((rows.shape[0], rows.shape[1] + room), rows.dtype)
+    out[:, :rows.shape[1]] = rows
+    return out
 
 
 def next_rays(keep, point, side, offset, facing, new_d, beta):
@@ -280,30 +330,38 @@ class PathTracer:
         scene, weighted by their throughput; they then get no background (None: an opaque film).
         """
         sampler = sampler or RandomSampler(rng)
-        paths = None
-        while True:
-            alive = 0 if paths is None else len(paths.pixel)
+
+        def joining(alive):
+            """How many camera paths join a wavefront of `alive` paths: all there is room for, once
+            there is room for a quarter of it at least, while the samples last."""
             room = WAVEFRONT_SIZE - alive
-            fresh = 0
+            return min(room, samples.remaining) if alive == 0 or room >= WAVEFRONT_SIZE // 4 else 0
+
+        starting = Paths.starting(self.settings.nested_dielectrics, self.mis, features is not None and features.surface,
+                                  self.light_paths, self.photons is not None, self.deferred_rr,
+                                  features is not None and features.light_split)
+        paths, fresh = None, joining(0)
+        while True:
             if cancel is not None and cancel.is_set():
                 return False
-            if samples.remaining and (alive == 0 or room >= WAVEFRONT_SIZE // 4):
-                pixel, sample, o, d = samples.take(room)
-                fresh = len(pixel)
-                new = Paths.start(pixel, sample, o, d, self.settings.nested_dielectrics, self.mis,
-                                  features is not None and features.surface, self.light_paths,
-                                  self.photons is not None, self.deferred_rr)
-                if features is not None and features.light_split:       # engine/film/passes.py LIGHT
-                    new.lobe, new.lobe_at = np.full(fresh, -1, np.int8), np.zeros(fresh, np.int32)
-                paths = new if paths is None else paths.extend(new)
+            if fresh:                       # the camera paths, into the last `fresh` places of the arrays
+                rays = samples.take(fresh)
+                assert len(rays[0]) == fresh, "fewer camera samples than the room they were taken for"
+                if paths is None:
+                    paths = Paths.start(*rays, starting)
+                else:
+                    paths.put_start(len(paths.pixel) - fresh, *rays, starting)
             if paths is None or len(paths.pixel) == 0:
                 return True
             counters.rays["camera"] += fresh
             counters.rays["extension"] += len(paths.pixel) - fresh
-            paths = self.bounce(paths, sampler, counters, on_finished, features, on_transparent)
+            paths, fresh = self.bounce(paths, sampler, counters, on_finished, features, on_transparent, joining)
 
-    def bounce(self, p: "Paths", sampler, counters, on_finished, features=None, on_transparent=None) -> "Paths":
-        """Advance every path one bounce; returns the survivors (report §2.3-2.5)."""
+    def bounce(self, p: "Paths", sampler, counters, on_finished, features=None, on_transparent=None,
+               joining=None) -> tuple:
+        """Advance every path one bounce (report §2.3-2.5); returns (the survivors, fresh): the survivors'
+        arrays end in `fresh` = joining(number of survivors) places for the camera paths that join the
+        wavefront, which the caller fills (Paths.put_start); joining None: none."""
         finished = []                                   # (pixel, radiance, sample) of paths that end
         # 1. Intersect.  Hits sorted by scatter group (engine/materials/table.py: one per BSDF,
         # 0 diffuse, 1 mirror, 2 glass, then ABSORB and PASS_THROUGH, the Area lights), then by
@@ -369,7 +427,7 @@ class PathTracer:
         if lookup is not None and lookup.has_normals:       # a BSDF's Normal input (Normal Map, Bump)
             shade = lookup.normal(shade, surf.material, facing, -p.d, self.mats.raised_normal)
             smooth = True
-        color = self.mats.color.take(surf.material, axis=1)
+        (color,) = gather(self.wavefront_jit, [(self.mats.color, 1)], surf.material)
         if lookup is not None:
             color = lookup.color(color, surf.material)
         # this hit's dimensions (int64, as the compiled sampler reads them: no copy per call)
@@ -436,17 +494,22 @@ class PathTracer:
                                                                   u_rr)
             keep, ended = np.flatnonzero(keep), np.flatnonzero(~keep)
         # 8. Compaction: hand finished paths to the film, keep the rest.
-        finished += [(p.pixel.take(ended), p.radiance.take(ended, axis=1), p.sample.take(ended)),
+        finished += [tuple(gather(self.wavefront_jit, [(p.pixel, 0), (p.radiance, 1), (p.sample, 0)], ended)),
                      (p.pixel[alive:surfaces], p.radiance[:, alive:surfaces], p.sample[alive:surfaces])]
         pixel = np.concatenate([f[0] for f in finished])
         if len(pixel):
             on_finished(pixel, np.concatenate([f[1] for f in finished], axis=1),
                         np.concatenate([f[2] for f in finished]))
-        survivors = p.take(keep, replaced=("o", "d", "beta"), jit=self.wavefront_jit)
-        survivors.o, survivors.d, survivors.beta = rays if rays is not None else next_rays(
-            keep, surf.point, side, surf.offset, facing, new_d, beta)
-        survivors.bounce = survivors.bounce + 1
-        return survivors if passing is None else survivors.extend(passing)
+        kept, passed = len(keep), 0 if passing is None else len(passing.pixel)
+        fresh = 0 if joining is None else joining(kept + passed)
+        room = passed + fresh
+        survivors = p.take(keep, replaced=("o", "d", "beta"), jit=self.wavefront_jit, room=room)
+        survivors.o, survivors.d, survivors.beta = (with_room(a, room) for a in (
+            rays if rays is not None else next_rays(keep, surf.point, side, surf.offset, facing, new_d, beta)))
+        survivors.bounce[:kept] += 1
+        if passing is not None:
+            survivors.put(kept, passing)
+        return survivors, fresh
 
     # -- stages ------------------------------------------------------------------------
     def final_groups(self, p):

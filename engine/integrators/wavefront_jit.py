@@ -562,28 +562,27 @@ TAKE_DTYPES = tuple(np.dtype(t) for t in (np.float64, np.int64, np.int32, np.int
 TAKE_ROW_DTYPES = (np.dtype(np.float64), np.dtype(np.int32))     # its rows: vectors, the bounce counts
 
 
-def take(arrays, index):
-    """[a.take(index, axis=axis) for a, axis in arrays] of path-state arrays: compiled for C-contiguous
+def take(arrays, index, room=0):
+    """[a.take(index, axis=axis) for a, axis in arrays] of path-state arrays, each with `room`
+    uninitialised entries more along its axis (path_tracer.Paths.take's room), compiled for C-contiguous
     rows (axis 1) of TAKE_ROW_DTYPES and 1-D arrays of TAKE_DTYPES with int64 indices in range (what
-    Paths.take passes; NumPy's take for anything else)."""
+    Paths.take passes); None for any other array (the caller's NumPy take: path_tracer.taken_with_room)."""
     index = np.asarray(index)
-    compiled = index.dtype == np.int64 and index.ndim == 1
-    if compiled:
-        index = read_only(np.ascontiguousarray(index))
+    if index.dtype != np.int64 or index.ndim != 1:
+        return [None] * len(arrays)
+    index = read_only(np.ascontiguousarray(index))
     out = []
     for a, axis in arrays:
-        if compiled and a.flags.c_contiguous:
-            if a.ndim == 2 and axis == 1 and a.dtype in TAKE_ROW_DTYPES:
-                rows = np.empty((a.shape[0], index.shape[0]), a.dtype)
-                _take_rows(read_only(a), index, rows)
-                out.append(rows)
-                continue
-            if a.ndim == 1 and a.dtype in TAKE_DTYPES:
-                values = np.empty(index.shape[0], a.dtype)
-                _take_1d(read_only(a), index, values)
-                out.append(values)
-                continue
-        out.append(a.take(index, axis=axis))
+        if a.flags.c_contiguous and a.ndim == 2 and axis == 1 and a.dtype in TAKE_ROW_DTYPES:
+            rows = np.empty((a.shape[0], index.shape[0] + room), a.dtype)
+            _take_rows(read_only(a), index, rows)
+            out.append(rows)
+        elif a.flags.c_contiguous and a.ndim == 1 and a.dtype in TAKE_DTYPES:
+            values = np.empty(index.shape[0] + room, a.dtype)
+            _take_1d(read_only(a), index, values)
+            out.append(values)
+        else:
+            out.append(None)
     return out
 
 

@@ -430,20 +430,25 @@ def test_survivors_are_the_roulette_then_the_compaction():
 
 def test_take_is_numpys_take():
     """wavefront_jit.take against ndarray.take for every dtype of the path state, on a sorting
-    permutation and a compaction, and NumPy's own take for what it does not compile (an int32 index,
-    an axis-0 2-D array); control: the index shifted by one gives other arrays."""
+    permutation and a compaction, with and without room after the taken paths (Paths.take's room), and
+    None for what it does not compile (an axis-0 2-D array; every array for an int32 index); control:
+    the index shifted by one gives other arrays."""
     require_compiled()
     from engine.integrators import wavefront_jit
     rng = np.random.default_rng(12)
     n = 3000
     arrays = [(rng.normal(size=(3, n)), 1), (rng.normal(size=n), 0), (rng.integers(0, 1 << 40, n), 0),
               (rng.integers(0, 9, n).astype(np.int32), 0), (rng.integers(-3, 4, n).astype(np.int8), 0),
-              (rng.random(n) < 0.5, 0), (rng.normal(size=(n, 4)), 0), (rng.integers(0, 9, (4, n)).astype(np.int32), 1)]
-    for index in (np.argsort(rng.integers(0, 6, n), kind="stable"), np.flatnonzero(rng.random(n) < 0.7),
-                  np.arange(n - 5, dtype=np.int32)):
+              (rng.random(n) < 0.5, 0), (rng.integers(0, 9, (4, n)).astype(np.int32), 1)]
+    for index in (np.argsort(rng.integers(0, 6, n), kind="stable"), np.flatnonzero(rng.random(n) < 0.7)):
         expected = [a.take(index, axis=axis) for a, axis in arrays]
-        assert same(expected, wavefront_jit.take(arrays, index))
+        for room in (0, 17):
+            got = wavefront_jit.take(arrays, index, room)
+            assert [g.shape[-1] for g in got] == [len(index) + room] * len(arrays)
+            assert same(expected, [g[..., :len(index)] for g in got])
         assert not same(expected[:6], wavefront_jit.take(arrays[:6], (index + 1) % n))
+    assert wavefront_jit.take([(rng.normal(size=(n, 4)), 0)] + arrays[:1], np.arange(5))[0] is None
+    assert wavefront_jit.take(arrays, np.arange(n - 5, dtype=np.int32)) == [None] * len(arrays)
 
 
 # -- Light Paths' clamp and bounce limits, the background, the facing normals (branch glue4) --------------
