@@ -218,27 +218,38 @@ def test_a_rough_diffuse_keeps_the_numpy_lobes():
     assert layered.compiled is None
 
 
-def test_layered_probabilities_are_bit_identical():
-    """_layered_lobes' closure weights and lobe probabilities from principled_jit.layered_probabilities
-    against NumPy's, with and without a transmission closure and Reflective Caustics off; control: a
-    layer 1 ulp more transparent is told apart."""
+def test_layered_lobes_are_bit_identical():
+    """_layered_lobes' closure weights and lobe probabilities from principled_jit.layered_lobes (the
+    base's lobe weights and the layers' probabilities in one pass) against NumPy's, with and without a
+    transmission closure and Reflective Caustics off, on hits with layers and on hits without any
+    (layer_weights' `bare`: the kernel reads alpha for W); control: a layer 1 ulp more transparent is
+    told apart."""
     require_compiled()
     for materials in (_layered_materials(), _transmitting_materials()):
         numpy_bsdf, compiled = _pair(materials)
         for extras in (False, True):
-            layers_a, w_a, p_a = numpy_bsdf._layered_lobes(_hits(np.random.default_rng(29), len(materials), 2000,
-                                                                 extras))
-            layers_b, w_b, p_b = compiled._layered_lobes(_hits(np.random.default_rng(29), len(materials), 2000,
-                                                               extras))
-            assert len(w_a) == len(w_b) and p_a.shape == p_b.shape and np.array_equal(p_a, p_b)
-            assert all(np.array_equal(x, y) for x, y in zip(w_a, w_b))
-            assert (p_a[1:] > 0).sum(axis=1).min() > 20             # every lobe picked somewhere
+            for bare in (False, True):
+                def make_hits():
+                    si = _hits(np.random.default_rng(29), len(materials), 2000, extras)
+                    if bare:                # only the materials without a sheen or a coat
+                        plain = np.flatnonzero((numpy_bsdf.sheen_weight == 0.0) & (numpy_bsdf.coat_weight == 0.0))
+                        si.material[:] = plain[si.material % len(plain)]
+                    return si
+                layers_a, w_a, p_a = numpy_bsdf._layered_lobes(make_hits())
+                layers_b, w_b, p_b = compiled._layered_lobes(make_hits())
+                assert layers_a.bare == layers_b.bare == bare
+                assert len(w_a) == len(w_b) and p_a.shape == p_b.shape and np.array_equal(p_a, p_b)
+                assert all(np.array_equal(x, y) for x, y in zip(w_a, w_b))
+                assert (p_a[3:] > 0).sum(axis=1).min() > 20             # every base lobe picked somewhere
+                assert bare or (p_a[1:] > 0).sum(axis=1).min() > 20     # and every layer
         from engine.materials import principled_jit
-        layers_b.through = np.nextafter(layers_b.through, 2.0)
-        (w_metal, w_spec, w_diffuse), base = numpy_bsdf.lobe_weights(_hits(np.random.default_rng(29), len(materials),
-                                                                           2000, True), sample_total=True)
-        assert not np.array_equal(principled_jit.layered_probabilities(layers_b, w_metal, w_spec, w_diffuse, base)[1],
-                                  p_a[:6])
+        si = _hits(np.random.default_rng(29), len(materials), 2000, True)
+        layers, p_a = compiled.layer_weights(si), numpy_bsdf._layered_lobes(si)[2]
+        glass = (compiled._glass_setup(si).w, compiled._glass_setup(si).sample_weight) if compiled.any_transmission else ()
+        assert np.array_equal(principled_jit.layered_lobes(compiled._compiled_lobe_inputs(si), layers, *glass)[1], p_a)
+        layers.through = np.nextafter(layers.through, 2.0)
+        assert not np.array_equal(principled_jit.layered_lobes(compiled._compiled_lobe_inputs(si), layers, *glass)[1],
+                                  p_a)
 
 
 def _opaque_beside_transmitting():
