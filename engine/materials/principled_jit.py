@@ -298,112 +298,65 @@ def _table(flat, row, mu, points):
 
 
 @jit
-def _base_hit(i, mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
-              has_specular, transmission, colour, glossy_off, cutoff, points, a_m, a_s):
-    """principled.py lobe_weights and layer_albedos at hit i: the albedo estimates darkening x
-    (F0 + (1 - F0) s(mu)) of the metal and the specular lobe (into a_m, a_s (3,)) at mu = wo . ns
-    (s from the tables, or the hit's own s_hits (2, N) where not empty: textured roughness; dark_*
-    empty: no compensation, a factor 1.0); returns the closure weights (w_metal, w_spec, w_diffuse)
-    and the sample weights (s0, s1, s2)."""
-    row = mat[i]
-    spec = has_specular[row]
-    if s_hits.shape[0] > 0:
-        sm, ss = s_hits[0, i], s_hits[1, i]
-    else:
-        mu = wo[0, i] * ns[0, i] + wo[1, i] * ns[1, i] + wo[2, i] * ns[2, i]
-        sm = _table(s_metal, row, mu, points)
-        ss = _table(s_spec, row, mu, points) if spec else 0.0
-    dark_m, dark_s = dark_metal.shape[0] > 0, dark_spec.shape[0] > 0
-    for c in range(3):
-        mc = metal_colour[c, i]
-        a_m[c] = (dark_metal[c, i] if dark_m else 1.0) * (mc + (1.0 - mc) * sm)
-        sc = spec_colour[c, i]
-        a_s[c] = (dark_spec[c, i] if dark_s else 1.0) * (sc + (1.0 - sc) * ss) if spec else 0.0
-    m = _clip01(metallic[i])
-    w_metal = m if m > cutoff else 0.0
-    w_rest = 1.0 - m
-    w_rest = w_rest if w_rest > cutoff else 0.0
-    if transmission.shape[0] > 0:
-        w_rest = w_rest * (1.0 - transmission[row])
-    w_spec = w_rest if spec else 0.0
-    w_diffuse = w_rest * _clip01(1.0 - _nan_max(_nan_max(a_s[0], a_s[1]), a_s[2]))
-    if glossy_off.shape[0] > 0 and glossy_off[i]:
-        w_metal, w_spec, w_diffuse = 0.0, 0.0, w_rest
-    s0 = w_metal * ((a_m[0] + a_m[1] + a_m[2]) / 3.0)
-    s1 = w_spec * ((a_s[0] + a_s[1] + a_s[2]) / 3.0)
-    s2 = w_diffuse * ((abs(colour[0, i]) + abs(colour[1, i]) + abs(colour[2, i])) / 3.0)
-    return w_metal, w_spec, w_diffuse, s0, s1, s2
-
-
-@jit
 def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
-                  has_specular, transmission, colour, glossy_off, cutoff, points, normalise, w_out, sample_out):
-    """principled.py lobe_weights per hit (`_base_hit`): the closure weights into w_out (3, N) and
-    the sample weights (or, where `normalise`, the probabilities) into sample_out (3, N)."""
-    a_m = np.empty(3)
-    a_s = np.empty(3)
-    for i in range(mat.shape[0]):
-        w_metal, w_spec, w_diffuse, s0, s1, s2 = _base_hit(
-            i, mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
-            has_specular, transmission, colour, glossy_off, cutoff, points, a_m, a_s)
-        w_out[0, i], w_out[1, i], w_out[2, i] = w_metal, w_spec, w_diffuse
-        if normalise:
-            total = s0 + s1 + s2
-            if total > 0.0:
-                s0, s1, s2 = s0 / total, s1 / total, s2 / total
-            else:
-                s0, s1, s2 = 0.0, 0.0, 0.0
-        sample_out[0, i], sample_out[1, i], sample_out[2, i] = s0, s1, s2
-
-
-def _base_inputs(base):
-    """The arguments of `_base_hit` after i, from the namespace of principled.py
-    `_compiled_lobe_inputs` (C-contiguous; empty arrays for the inputs it leaves None)."""
-    rows = np.ascontiguousarray
-    none = np.empty((0, 0))
-    return (rows(base.mat, dtype=np.int64), rows(base.metallic, dtype=np.float64), rows(base.wo), rows(base.ns),
-            rows(base.s_metal).ravel(), rows(base.s_spec).ravel(), none if base.s_hits is None else rows(base.s_hits),
-            rows(base.metal_colour), rows(base.spec_colour), none if base.dark_metal is None else rows(base.dark_metal),
-            none if base.dark_spec is None else rows(base.dark_spec), base.has_specular,
-            np.empty(0) if base.transmission is None else base.transmission, rows(base.colour),
-            np.empty(0, dtype=np.bool_) if base.glossy_off is None else base.glossy_off, base.cutoff,
-            base.s_metal.shape[1])
-
-
-def lobe_weights(base, normalise):
-    """((w_metal, w_specular, w_diffuse) (N,) each, sample weights or probabilities (3, N)) of
-    principled.py lobe_weights; base: its per-hit inputs (principled.py `_compiled_lobe_inputs`):
-    mat (N,) material ids, metallic (N,) the hits' metallic, wo and ns (3, N) the view and the lobes'
-    normal, s_metal and s_spec (M, points) the s(mu) tables, s_hits (2, N) the hits' s of the metal
-    and the specular lobe or None (read from the tables), metal_colour and spec_colour (3, N) the
-    lobes' F0, dark_metal and dark_spec (3, N) their darkening or None, has_specular (M,),
-    transmission (M,) or None (no transmission closure), colour (3, N), glossy_off (N,) or None,
-    cutoff; normalise: probabilities."""
-    count = len(base.mat)
-    w, sample = np.empty((3, count)), np.empty((3, count))
-    _lobe_weights(*_base_inputs(base), normalise, w, sample)
-    return (w[0], w[1], w[2]), sample
-
-
-@jit
-def _layered_lobes(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
-                   has_specular, transmission, colour, glossy_off, cutoff, points, sheen, coat, coat_albedo, base,
-                   alpha, through, w_glass, glass_weight, weights_out, prob_out):
-    """principled.py _layered_lobes per hit: the base's lobe weights and sample weights (`_base_hit`),
-    the base lobes' closure weights (3, N) each into weights_out (metal, specular, diffuse, and the
-    glass where w_glass has hits), the probabilities (6 or 7, N) of pass-through, sheen, coat,
-    metal, specular, diffuse (, glass): NumPy's channel means (c0 + c1 + c2) / 3, its row sums in row
-    order, np.where's choices.  sheen, coat, base empty: no sheen nor coat at these hits (layer_weights'
+                  has_specular, transmission, colour, glossy_off, cutoff, points, normalise, w_out, sample_out,
+                  sheen, coat, coat_albedo, base, alpha, through, w_glass, glass_weight, weights_out, prob_out):
+    """principled.py lobe_weights and layer_albedos per hit: the albedo estimates darkening x
+    (F0 + (1 - F0) s(mu)) of the metal and the specular lobe at mu = wo . ns (s from the tables, or
+    the hits' own s_hits (2, N) where not empty: textured roughness; dark_* empty: no compensation,
+    a factor 1.0), the closure weights into w_out (3, N) and the sample weights (or, where
+    `normalise`, the probabilities) into sample_out (3, N).  Where prob_out is not empty, instead
+    principled.py _layered_lobes on them (the base's sample weights, not normalised): the base lobes'
+    closure weights (3, N) each into weights_out (metal, specular, diffuse, and the glass where w_glass
+    has hits), the probabilities (6 or 7, N) of pass-through, sheen, coat, metal, specular, diffuse
+    (, glass) into prob_out: NumPy's channel means (c0 + c1 + c2) / 3, its row sums in row order,
+    np.where's choices; sheen, coat, base empty: no sheen nor coat at these hits (layer_weights'
     zeros; the base weight W is alpha in every channel)."""
+    dark_m, dark_s = dark_metal.shape[0] > 0, dark_spec.shape[0] > 0
+    own_s = s_hits.shape[0] > 0
+    transmits, off = transmission.shape[0] > 0, glossy_off.shape[0] > 0
+    layered, bare = prob_out.shape[0] > 0, sheen.shape[0] == 0
     rows = prob_out.shape[0] - 1
-    bare = sheen.shape[0] == 0
-    sample = np.empty(6)
     a_m = np.empty(3)
     a_s = np.empty(3)
+    sample = np.empty(6)
     for i in range(mat.shape[0]):
-        w_metal, w_spec, w_diffuse, s0, s1, s2 = _base_hit(
-            i, mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
-            has_specular, transmission, colour, glossy_off, cutoff, points, a_m, a_s)
+        row = mat[i]
+        spec = has_specular[row]
+        if own_s:
+            sm, ss = s_hits[0, i], s_hits[1, i]
+        else:
+            mu = wo[0, i] * ns[0, i] + wo[1, i] * ns[1, i] + wo[2, i] * ns[2, i]
+            sm = _table(s_metal, row, mu, points)
+            ss = _table(s_spec, row, mu, points) if spec else 0.0
+        for c in range(3):
+            mc = metal_colour[c, i]
+            a_m[c] = (dark_metal[c, i] if dark_m else 1.0) * (mc + (1.0 - mc) * sm)
+            sc = spec_colour[c, i]
+            a_s[c] = (dark_spec[c, i] if dark_s else 1.0) * (sc + (1.0 - sc) * ss) if spec else 0.0
+        m = _clip01(metallic[i])
+        w_metal = m if m > cutoff else 0.0
+        w_rest = 1.0 - m
+        w_rest = w_rest if w_rest > cutoff else 0.0
+        if transmits:
+            w_rest = w_rest * (1.0 - transmission[row])
+        w_spec = w_rest if spec else 0.0
+        w_diffuse = w_rest * _clip01(1.0 - _nan_max(_nan_max(a_s[0], a_s[1]), a_s[2]))
+        if off and glossy_off[i]:
+            w_metal, w_spec, w_diffuse = 0.0, 0.0, w_rest
+        s0 = w_metal * ((a_m[0] + a_m[1] + a_m[2]) / 3.0)
+        s1 = w_spec * ((a_s[0] + a_s[1] + a_s[2]) / 3.0)
+        s2 = w_diffuse * ((abs(colour[0, i]) + abs(colour[1, i]) + abs(colour[2, i])) / 3.0)
+        if not layered:
+            w_out[0, i], w_out[1, i], w_out[2, i] = w_metal, w_spec, w_diffuse
+            if normalise:
+                total = s0 + s1 + s2
+                if total > 0.0:
+                    s0, s1, s2 = s0 / total, s1 / total, s2 / total
+                else:
+                    s0, s1, s2 = 0.0, 0.0, 0.0
+            sample_out[0, i], sample_out[1, i], sample_out[2, i] = s0, s1, s2
+            continue
         if bare:
             b0 = b1 = b2 = alpha[i]
             sample[0], sample[1] = 0.0, 0.0            # the zeros' means (and 0 x a coat albedo of 0)
@@ -432,6 +385,45 @@ def _layered_lobes(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour,
             prob_out[r + 1, i] = opaque * sample[r] / total if total > 0.0 else 0.0
 
 
+def _run_lobe_weights(base, normalise, w_out, sample_out, layers=None, w_glass=None, glass_weight=None,
+                      weights_out=None, prob_out=None):
+    """`_lobe_weights` on the per-hit inputs `base` (principled.py `_compiled_lobe_inputs`; None
+    becomes an empty array) and, where prob_out is given, the layers (layer_weights' namespace)."""
+    rows = np.ascontiguousarray
+    none, none2, none3 = np.empty(0), np.empty((0, 0)), np.empty((0, 0, 0))
+    if layers is None or layers.bare:
+        over = (none2, none2, none, none2)
+    else:
+        over = (rows(layers.sheen), rows(layers.coat), rows(layers.coat_albedo, dtype=np.float64), rows(layers.base))
+    _lobe_weights(rows(base.mat, dtype=np.int64), rows(base.metallic, dtype=np.float64), rows(base.wo), rows(base.ns),
+                  rows(base.s_metal).ravel(), rows(base.s_spec).ravel(), none2 if base.s_hits is None else rows(base.s_hits),
+                  rows(base.metal_colour), rows(base.spec_colour),
+                  none2 if base.dark_metal is None else rows(base.dark_metal),
+                  none2 if base.dark_spec is None else rows(base.dark_spec), base.has_specular,
+                  none if base.transmission is None else base.transmission, rows(base.colour),
+                  np.empty(0, dtype=np.bool_) if base.glossy_off is None else base.glossy_off, base.cutoff,
+                  base.s_metal.shape[1], normalise, w_out, sample_out, *over,
+                  rows(layers.alpha, dtype=np.float64) if layers is not None and layers.bare else none,
+                  none if layers is None else rows(layers.through, dtype=np.float64),
+                  none if w_glass is None else rows(w_glass), none if glass_weight is None else rows(glass_weight),
+                  none3 if weights_out is None else weights_out, none2 if prob_out is None else prob_out)
+
+
+def lobe_weights(base, normalise):
+    """((w_metal, w_specular, w_diffuse) (N,) each, sample weights or probabilities (3, N)) of
+    principled.py lobe_weights; base: its per-hit inputs (principled.py `_compiled_lobe_inputs`):
+    mat (N,) material ids, metallic (N,) the hits' metallic, wo and ns (3, N) the view and the lobes'
+    normal, s_metal and s_spec (M, points) the s(mu) tables, s_hits (2, N) the hits' s of the metal
+    and the specular lobe or None (read from the tables), metal_colour and spec_colour (3, N) the
+    lobes' F0, dark_metal and dark_spec (3, N) their darkening or None, has_specular (M,),
+    transmission (M,) or None (no transmission closure), colour (3, N), glossy_off (N,) or None,
+    cutoff; normalise: probabilities."""
+    count = len(base.mat)
+    w, sample = np.empty((3, count)), np.empty((3, count))
+    _run_lobe_weights(base, normalise, w, sample)
+    return (w[0], w[1], w[2]), sample
+
+
 def layered_lobes(base, layers, w_glass=None, glass_weight=None):
     """(closure weights [sheen, coat, metal, specular, diffuse (, glass)] (3, N) each, probabilities
     (6 or 7, N)) of principled.py _layered_lobes in one pass: base, the inputs of `lobe_weights`;
@@ -439,16 +431,11 @@ def layered_lobes(base, layers, w_glass=None, glass_weight=None):
     weight and its sheen and coat are not read); w_glass, glass_weight (N,): the transmission
     closure's weight and albedo estimate where any material transmits."""
     count = len(base.mat)
-    rows = np.ascontiguousarray
     glass = w_glass is not None
     out = np.empty((4 if glass else 3, 3, count))
     prob = np.empty((7 if glass else 6, count))
-    none, none2 = np.empty(0), np.empty((0, 0))
-    bare = layers.bare
-    _layered_lobes(*_base_inputs(base), none2 if bare else rows(layers.sheen), none2 if bare else rows(layers.coat),
-                   none if bare else rows(layers.coat_albedo, dtype=np.float64), none2 if bare else rows(layers.base),
-                   rows(layers.alpha, dtype=np.float64) if bare else none, rows(layers.through, dtype=np.float64),
-                   rows(w_glass) if glass else none, rows(glass_weight) if glass else none, out, prob)
+    none2 = np.empty((0, 0))
+    _run_lobe_weights(base, False, none2, none2, layers, w_glass, glass_weight, out, prob)
     return [layers.sheen, layers.coat, *out], prob
 
 
