@@ -15,9 +15,11 @@ _layered_mixture: sheen, coat, metal, specular, diffuse, each added to the runni
 oren_nayar.py's Lambert case) with only +, -, *, /, sqrt, cos and sin; the one power (the F82
 Fresnel's (1 - cos)^5) and the directions that take NumPy's sin and cos (the diffuse picks' cosine
 directions, the sheen's disk) stay NumPy, between the passes; so do the per-hit layer weights (the
-coat tint's power), whose closure weights and lobe probabilities are then combined in one pass
-(`layered_probabilities`).  The same bits as backend=numpy (tests/materials/test_principled_jit.py).
-Imported only through engine/core/backend.py's choice (it imports numba)."""
+coat tint's power), which the base's lobe weights then combine into the closure weights and lobe
+probabilities in the same pass (`layered_lobes`).  The metal's F82 b is made per pair from its F0
+and the material's edge tint (glossy.py f82_b's operations), not read from a per-hit array.  The
+same bits as backend=numpy (tests/materials/test_principled_jit.py).  Imported only through
+engine/core/backend.py's choice (it imports numba)."""
 from __future__ import annotations
 
 import numpy as np
