@@ -88,7 +88,7 @@ from ..core.vec import dot
 from ..sampling import warps
 from ..scene.model import PRINCIPLED, Principled, PrincipledV1
 from . import albedo_tables, glossy, microfacet
-from .glossy import MicrofacetReflection, f82_b, fresnel_dielectric, fresnel_dielectric_average
+from .glossy import MicrofacetReflection, fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import GGX, clamp_alpha, ggx_sample_vndf
 from .oren_nayar import EnergyPreservingOrenNayar
 from .principled_glass import FLAGS as GLASS_LOBES, PrincipledGlass

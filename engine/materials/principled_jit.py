@@ -133,9 +133,12 @@ def _combine(index, wi, cos, pdf_g, g, s5, nd, w_metal, w_spec, w_diffuse, on_me
             t5 = s5[k]
             gk = g[k]
             m = mat[j]
-            f_r = f_r + w_metal[0, j] * (_f82(c, s, t5, f0_metal[0, j], tint_metal[0, m]) * gk * _scale(comp_metal, 0, j))
-            f_g = f_g + w_metal[1, j] * (_f82(c, s, t5, f0_metal[1, j], tint_metal[1, m]) * gk * _scale(comp_metal, 1, j))
-            f_b = f_b + w_metal[2, j] * (_f82(c, s, t5, f0_metal[2, j], tint_metal[2, m]) * gk * _scale(comp_metal, 2, j))
+            fr = _f82(c, s, t5, f0_metal[0, j], tint_metal[0, m])
+            f_r = f_r + w_metal[0, j] * (fr * gk * _scale(comp_metal, 0, j))
+            fr = _f82(c, s, t5, f0_metal[1, j], tint_metal[1, m])
+            f_g = f_g + w_metal[1, j] * (fr * gk * _scale(comp_metal, 1, j))
+            fr = _f82(c, s, t5, f0_metal[2, j], tint_metal[2, m])
+            f_b = f_b + w_metal[2, j] * (fr * gk * _scale(comp_metal, 2, j))
             pdf = pdf + prob[row, j] * pdf_g[k]
         if on_spec[j]:
             f0 = f0_spec[j]
@@ -398,7 +401,8 @@ def _run_lobe_weights(base, normalise, w_out, sample_out, layers=None, w_glass=N
     else:
         over = (rows(layers.sheen), rows(layers.coat), rows(layers.coat_albedo, dtype=np.float64), rows(layers.base))
     _lobe_weights(rows(base.mat, dtype=np.int64), rows(base.metallic, dtype=np.float64), rows(base.wo), rows(base.ns),
-                  rows(base.s_metal).ravel(), rows(base.s_spec).ravel(), none2 if base.s_hits is None else rows(base.s_hits),
+                  rows(base.s_metal).ravel(), rows(base.s_spec).ravel(),
+                  none2 if base.s_hits is None else rows(base.s_hits),
                   rows(base.metal_colour), rows(base.spec_colour),
                   none2 if base.dark_metal is None else rows(base.dark_metal),
                   none2 if base.dark_spec is None else rows(base.dark_spec), base.has_specular,

@@ -231,7 +231,8 @@ def test_no_compensation_and_no_layer_at_the_hits():
         if change == "tint":
             other.metal_tint = np.nextafter(other.metal_tint, -1.0)
         else:
-            other.metal._compensation_terms_at = lambda at: (np.full((3, len(at)), np.nextafter(1.0, 2.0)), np.ones(len(at)))
+            other.metal._compensation_terms_at = lambda at: (np.full((3, len(at)), np.nextafter(1.0, 2.0)),
+                                                             np.ones(len(at)))
         assert not np.array_equal(other.eval(make_hits(), wi)[0], f_a)
 
 
@@ -276,7 +277,9 @@ def test_layered_lobes_are_bit_identical():
         from engine.materials import principled_jit
         si = _hits(np.random.default_rng(29), len(materials), 2000, True)
         layers, p_a = compiled.layer_weights(si), numpy_bsdf._layered_lobes(si)[2]
-        glass = (compiled._glass_setup(si).w, compiled._glass_setup(si).sample_weight) if compiled.any_transmission else ()
+        glass = ()
+        if compiled.any_transmission:
+            glass = (compiled._glass_setup(si).w, compiled._glass_setup(si).sample_weight)
         assert np.array_equal(principled_jit.layered_lobes(compiled._compiled_lobe_inputs(si), layers, *glass)[1], p_a)
         layers.through = np.nextafter(layers.through, 2.0)
         assert not np.array_equal(principled_jit.layered_lobes(compiled._compiled_lobe_inputs(si), layers, *glass)[1],
