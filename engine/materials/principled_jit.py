@@ -475,9 +475,9 @@ def base_eval(hits, index, wi, tint_metal):
               cos, pdf_g, g)
     s5 = np.clip(1.0 - cos, 0.0, 1.0) ** 5 if hits.any_metal else cos     # fresnel_f82's power, NumPy's
     _combine(index, wi, cos, pdf_g, g, s5, hits.nd, hits.w_metal, hits.w_spec, hits.w_diffuse, hits.on_metal,
-             hits.on_spec, hits.on_diffuse, hits.prob, hits.base_row, hits.mat, hits.f0_metal, tint_metal,
-             _comp(hits.comp_metal), hits.spec_colour, hits.eta, hits.f0_spec, _comp(hits.comp_spec), hits.colour,
-             f_cos, pdf)
+             hits.on_spec, hits.on_diffuse, hits.prob, hits.base_row, np.asarray(hits.mat, dtype=np.int64),
+             hits.f0_metal, tint_metal, _comp(hits.comp_metal), hits.spec_colour, hits.eta, hits.f0_spec,
+             _comp(hits.comp_spec), hits.colour, f_cos, pdf)
     return f_cos, pdf
 
 
@@ -527,9 +527,9 @@ def warm_up() -> None:
                            w_spec=ones * [0.0, 1.0], w_diffuse=ones * [0.0, 0.5], on_metal=np.array([True, False]),
                            on_spec=np.array([False, True]), on_diffuse=np.array([False, True]),
                            prob=np.ascontiguousarray(np.array([[1.0, 0.0], [0.0, 0.5], [0.0, 0.5]])), base_row=0,
-                           mat=np.array([0, 1]), f0_metal=ones * 0.5, comp_metal=ones, spec_colour=ones * 0.04,
-                           eta=np.array([1.5, 1.5]), f0_spec=np.array([0.04, 0.04]), comp_spec=None, colour=ones * 0.8,
-                           any_metal=True, layered=False, over_base=False)
+                           mat=np.array([0, 1], dtype=np.int64), f0_metal=ones * 0.5, comp_metal=ones,
+                           spec_colour=ones * 0.04, eta=np.array([1.5, 1.5]), f0_spec=np.array([0.04, 0.04]),
+                           comp_spec=None, colour=ones * 0.8, any_metal=True, layered=False, over_base=False)
     base_eval(hits, None, wo[::-1].copy(), tint)
     base_eval(hits, np.array([1, 0]), wo.copy(), tint)
     base_pick(hits, np.array([0.3, 0.6]), np.array([0.3, 0.6]), np.array([0.2, 0.9]))
