@@ -12,9 +12,10 @@ at its last steps (tests/materials/test_dielectric_jit.py; docs/performance.md, 
 The Principled BSDF's glass closure's coloured Fresnel (dielectric_lobe.py RealFresnel: R and T per
 channel, the reflection picked by their channel means) has kernels of its own (`sample_coloured`,
 `eval_coloured`, and its albedo estimate `albedo_coloured`); other Fresnel functions and the albedo
-tables' sampling stay NumPy's.  `frame` (microfacet_jit.py's shading_frame twin) is the glass BSDFs' frame and `energy_scale` their
-multiscatter GGX compensation (engine/materials/dielectric.py energy_scale: its albedo tables read
-per hit, bit for bit).  Imported only through the lobe's backend choice (it imports numba)."""
+tables' sampling stay NumPy's.  `frame` (microfacet_jit.py's shading_frame twin) is the glass
+BSDFs' frame and `energy_scale` their multiscatter GGX compensation (engine/materials/dielectric.py
+energy_scale: its albedo tables read per hit, bit for bit).  Imported only through the lobe's
+backend choice (it imports numba)."""
 from __future__ import annotations
 
 import numpy as np

@@ -569,10 +569,12 @@ class PrincipledV2(BSDF):
         alpha = self.alpha.take(rows)
         sheen_w = self.sheen_weight.take(rows)
         coat_w = self.coat_weight.take(rows)
-        if not (sheen_w.any() or coat_w.any()):     # neither layer at these hits: the lines below give this
-            return SimpleNamespace(                 # (0 x finite = +0, w x clip(1 - 0) = w, no tint without a
-                through=1.0 - alpha, sheen=np.zeros((3, n)), sheen_a=np.zeros(n), sheen_b=np.zeros(n),  # coat weight),
-                coat=np.zeros((3, n)), base=np.broadcast_to(alpha, (3, n)), sheen_albedo=np.zeros(n),   # read-only
+        if not (sheen_w.any() or coat_w.any()):
+            # neither layer at these hits: the lines below give this (0 x finite = +0, w x clip(1 - 0) = w,
+            # no tint without a coat weight); base is a read-only view of alpha
+            return SimpleNamespace(
+                through=1.0 - alpha, sheen=np.zeros((3, n)), sheen_a=np.zeros(n), sheen_b=np.zeros(n),
+                coat=np.zeros((3, n)), base=np.broadcast_to(alpha, (3, n)), sheen_albedo=np.zeros(n),
                 coat_albedo=np.zeros(n), coat_view=si.recolour(np.broadcast_to(1.0, (3, n))), alpha=alpha, bare=True)
         w = np.tile(alpha, (3, 1))
         mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)

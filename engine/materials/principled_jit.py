@@ -321,7 +321,7 @@ def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, 
     own_s = s_hits.shape[0] > 0
     transmits, off = transmission.shape[0] > 0, glossy_off.shape[0] > 0
     layered, bare = prob_out.shape[0] > 0, sheen.shape[0] == 0
-    rows = prob_out.shape[0] - 1
+    n_sample = prob_out.shape[0] - 1      # the sample weights' rows: 5, or 6 with the glass
     a_m = np.empty(3)
     a_s = np.empty(3)
     sample = np.empty(6)
@@ -377,22 +377,22 @@ def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, 
         weights_out[1, 0, i], weights_out[1, 1, i], weights_out[1, 2, i] = w_spec * b0, w_spec * b1, w_spec * b2
         weights_out[2, 0, i], weights_out[2, 1, i], weights_out[2, 2, i] = (w_diffuse * b0, w_diffuse * b1,
                                                                              w_diffuse * b2)
-        if rows == 6:
+        if n_sample == 6:
             wg = w_glass[i]
             sample[5] = wg * mean_base * glass_weight[i]
             weights_out[3, 0, i], weights_out[3, 1, i], weights_out[3, 2, i] = wg * b0, wg * b1, wg * b2
         total = sample[0]
-        for r in range(1, rows):
+        for r in range(1, n_sample):
             total = total + sample[r]
         opaque = 1.0 - through[i] if total > 0.0 else 0.0
         prob_out[0, i] = 1.0 - opaque
-        for r in range(rows):
+        for r in range(n_sample):
             prob_out[r + 1, i] = opaque * sample[r] / total if total > 0.0 else 0.0
 
 
-def _run_lobe_weights(base, normalise, w_out, sample_out, layers=None, w_glass=None, glass_weight=None,
+def _run_lobe_weights(inputs, normalise, w_out, sample_out, layers=None, w_glass=None, glass_weight=None,
                       weights_out=None, prob_out=None):
-    """`_lobe_weights` on the per-hit inputs `base` (principled.py `_compiled_lobe_inputs`; None
+    """`_lobe_weights` on the per-hit inputs `inputs` (principled.py `_compiled_lobe_inputs`; None
     becomes an empty array) and, where prob_out is given, the layers (layer_weights' namespace)."""
     rows = np.ascontiguousarray
     none, none2, none3 = np.empty(0), np.empty((0, 0)), np.empty((0, 0, 0))
@@ -400,48 +400,48 @@ def _run_lobe_weights(base, normalise, w_out, sample_out, layers=None, w_glass=N
         over = (none2, none2, none, none2)
     else:
         over = (rows(layers.sheen), rows(layers.coat), rows(layers.coat_albedo, dtype=np.float64), rows(layers.base))
-    _lobe_weights(rows(base.mat, dtype=np.int64), rows(base.metallic, dtype=np.float64), rows(base.wo), rows(base.ns),
-                  rows(base.s_metal).ravel(), rows(base.s_spec).ravel(),
-                  none2 if base.s_hits is None else rows(base.s_hits),
-                  rows(base.metal_colour), rows(base.spec_colour),
-                  none2 if base.dark_metal is None else rows(base.dark_metal),
-                  none2 if base.dark_spec is None else rows(base.dark_spec), base.has_specular,
-                  none if base.transmission is None else base.transmission, rows(base.colour),
-                  np.empty(0, dtype=np.bool_) if base.glossy_off is None else base.glossy_off, base.cutoff,
-                  base.s_metal.shape[1], normalise, w_out, sample_out, *over,
+    _lobe_weights(rows(inputs.mat, dtype=np.int64), rows(inputs.metallic, dtype=np.float64), rows(inputs.wo),
+                  rows(inputs.ns), rows(inputs.s_metal).ravel(), rows(inputs.s_spec).ravel(),
+                  none2 if inputs.s_hits is None else rows(inputs.s_hits),
+                  rows(inputs.metal_colour), rows(inputs.spec_colour),
+                  none2 if inputs.dark_metal is None else rows(inputs.dark_metal),
+                  none2 if inputs.dark_spec is None else rows(inputs.dark_spec), inputs.has_specular,
+                  none if inputs.transmission is None else inputs.transmission, rows(inputs.colour),
+                  np.empty(0, dtype=np.bool_) if inputs.glossy_off is None else inputs.glossy_off, inputs.cutoff,
+                  inputs.s_metal.shape[1], normalise, w_out, sample_out, *over,
                   rows(layers.alpha, dtype=np.float64) if layers is not None and layers.bare else none,
                   none if layers is None else rows(layers.through, dtype=np.float64),
                   none if w_glass is None else rows(w_glass), none if glass_weight is None else rows(glass_weight),
                   none3 if weights_out is None else weights_out, none2 if prob_out is None else prob_out)
 
 
-def lobe_weights(base, normalise):
+def lobe_weights(inputs, normalise):
     """((w_metal, w_specular, w_diffuse) (N,) each, sample weights or probabilities (3, N)) of
-    principled.py lobe_weights; base: its per-hit inputs (principled.py `_compiled_lobe_inputs`):
+    principled.py lobe_weights; inputs: its per-hit inputs (principled.py `_compiled_lobe_inputs`):
     mat (N,) material ids, metallic (N,) the hits' metallic, wo and ns (3, N) the view and the lobes'
     normal, s_metal and s_spec (M, points) the s(mu) tables, s_hits (2, N) the hits' s of the metal
     and the specular lobe or None (read from the tables), metal_colour and spec_colour (3, N) the
     lobes' F0, dark_metal and dark_spec (3, N) their darkening or None, has_specular (M,),
     transmission (M,) or None (no transmission closure), colour (3, N), glossy_off (N,) or None,
     cutoff; normalise: probabilities."""
-    count = len(base.mat)
+    count = len(inputs.mat)
     w, sample = np.empty((3, count)), np.empty((3, count))
-    _run_lobe_weights(base, normalise, w, sample)
+    _run_lobe_weights(inputs, normalise, w, sample)
     return (w[0], w[1], w[2]), sample
 
 
-def layered_lobes(base, layers, w_glass=None, glass_weight=None):
+def layered_lobes(inputs, layers, w_glass=None, glass_weight=None):
     """(closure weights [sheen, coat, metal, specular, diffuse (, glass)] (3, N) each, probabilities
-    (6 or 7, N)) of principled.py _layered_lobes in one pass: base, the inputs of `lobe_weights`;
+    (6 or 7, N)) of principled.py _layered_lobes in one pass: inputs, those of `lobe_weights`;
     layers, principled.py layer_weights' namespace (where layers.bare, its alpha stands for the base
     weight and its sheen and coat are not read); w_glass, glass_weight (N,): the transmission
     closure's weight and albedo estimate where any material transmits."""
-    count = len(base.mat)
+    count = len(inputs.mat)
     glass = w_glass is not None
     out = np.empty((4 if glass else 3, 3, count))
     prob = np.empty((7 if glass else 6, count))
     none2 = np.empty((0, 0))
-    _run_lobe_weights(base, False, none2, none2, layers, w_glass, glass_weight, out, prob)
+    _run_lobe_weights(inputs, False, none2, none2, layers, w_glass, glass_weight, out, prob)
     return [layers.sheen, layers.coat, *out], prob
 
 
@@ -550,15 +550,16 @@ def warm_up() -> None:
                              through=np.array([0.0, 0.5]), alpha=np.array([1.0, 0.5]), bare=False)
     w = np.array([0.5, 0.25])
     for dark, off in ((None, None), (ones, np.array([True, False]))):
-        base = SimpleNamespace(mat=np.array([0, 1]), metallic=np.array([0.5, 1.0]), wo=wo, ns=frame[2].copy(),
-                               s_metal=ones * 0.5, s_spec=ones * 0.25, s_hits=None if dark is None else ones[:2] * 0.5,
-                               metal_colour=ones * 0.9, spec_colour=ones * 0.04, dark_metal=dark, dark_spec=dark,
-                               has_specular=np.array([True, False]),
-                               transmission=None if dark is None else np.array([0.0, 0.5]), colour=ones,
-                               glossy_off=off, cutoff=1e-5)
+        inputs = SimpleNamespace(mat=np.array([0, 1]), metallic=np.array([0.5, 1.0]), wo=wo, ns=frame[2].copy(),
+                                 s_metal=ones * 0.5, s_spec=ones * 0.25,
+                                 s_hits=None if dark is None else ones[:2] * 0.5, metal_colour=ones * 0.9,
+                                 spec_colour=ones * 0.04, dark_metal=dark, dark_spec=dark,
+                                 has_specular=np.array([True, False]),
+                                 transmission=None if dark is None else np.array([0.0, 0.5]), colour=ones,
+                                 glossy_off=off, cutoff=1e-5)
         for normalise in (False, True):
-            lobe_weights(base, normalise)
+            lobe_weights(inputs, normalise)
         for bare in (False, True):
             layers.bare = bare
-            layered_lobes(base, layers)
-            layered_lobes(base, layers, w, np.array([1.0, 0.9]))
+            layered_lobes(inputs, layers)
+            layered_lobes(inputs, layers, w, np.array([1.0, 0.9]))
