@@ -207,14 +207,15 @@ def test_transmission_is_bit_identical():
 def test_no_compensation_and_no_layer_at_the_hits():
     """Materials that do not compensate (the compiled lobes multiply by no compensation array) beside a
     transmitting one (the layered path) whose hits have no sheen nor coat (layer_weights' `bare`: no
-    sheen or coat pass in base_eval): eval on the span and on a take, and sample, the same bits as
-    backend=numpy.  Controls: the metal's clipped edge tint (from which the kernel makes its F82 b)
+    sheen or coat pass in base_eval; alpha 1, 0.5 and 0.3 there, with and without transmission): eval
+    on the span and on a take, and sample, the same bits as backend=numpy.  Controls: the metal's clipped edge tint (from which the kernel makes its F82 b)
     1 ulp off, and a compensation of 1 + 1 ulp where there is none, are told apart."""
     require_compiled()
     from dataclasses import replace
     materials = [replace(m, multiscatter=False) for m in _materials()]
     materials.append(Material("t", kind="principled", color=(0.9, 0.95, 1.0), roughness=0.2, multiscatter=False,
                               principled=Principled(transmission_weight=0.8, metallic=0.2)))
+    materials += _see_through(True, multiscatter=False)
     numpy_bsdf, compiled = _pair(materials)
     assert compiled.any_transmission and not compiled.coat_weight.any() and not compiled.sheen_weight.any()
     for extras in (False, True):
@@ -223,6 +224,7 @@ def test_no_compensation_and_no_layer_at_the_hits():
         hits = make_hits()
         fused = compiled._fused_hits(hits)
         assert compiled._lobes_at(hits)[0].bare and not fused.over_base
+        assert (compiled.alpha[hits.material] < 1.0).sum() > 200
         assert fused.comp_metal is None and fused.comp_spec is None and fused.any_metal
         wi = _check(numpy_bsdf, compiled, make_hits, np.random.default_rng(7), kinds=(3, 4))   # the glass's too
     f_a = compiled.eval(make_hits(), wi)[0]
@@ -250,14 +252,24 @@ def test_a_rough_diffuse_keeps_the_numpy_lobes():
     assert layered.compiled is None
 
 
+def _see_through(transmission, multiscatter=True):
+    """Materials without a sheen or a coat and of alpha below 1 (their hits are layer_weights' `bare`
+    ones, where the kernel reads alpha for W): an opaque one of alpha 0.5 and one of alpha 0.3, with a
+    transmission closure where `transmission`."""
+    return [Material("a0", kind="principled", color=(0.7, 0.4, 0.2), roughness=0.3, multiscatter=multiscatter,
+                     principled=Principled(metallic=0.4, alpha=0.5)),
+            Material("a1", kind="principled", color=(0.7, 0.9, 0.8), roughness=0.1, multiscatter=multiscatter,
+                     principled=Principled(transmission_weight=0.6 if transmission else 0.0, alpha=0.3))]
+
+
 def test_layered_lobes_are_bit_identical():
     """_layered_lobes' closure weights and lobe probabilities from principled_jit.layered_lobes (the
     base's lobe weights and the layers' probabilities in one pass) against NumPy's, with and without a
     transmission closure and Reflective Caustics off, on hits with layers and on hits without any
-    (layer_weights' `bare`: the kernel reads alpha for W); control: a layer 1 ulp more transparent is
-    told apart."""
+    (layer_weights' `bare`: the kernel reads alpha for W; alpha 1, 0.5 and 0.3 there, with and without
+    transmission); control: a layer 1 ulp more transparent is told apart."""
     require_compiled()
-    for materials in (_layered_materials(), _transmitting_materials()):
+    for materials in (_layered_materials() + _see_through(False), _transmitting_materials() + _see_through(True)):
         numpy_bsdf, compiled = _pair(materials)
         for extras in (False, True):
             for bare in (False, True):
@@ -270,6 +282,7 @@ def test_layered_lobes_are_bit_identical():
                 layers_a, w_a, p_a = numpy_bsdf._layered_lobes(make_hits())
                 layers_b, w_b, p_b = compiled._layered_lobes(make_hits())
                 assert layers_a.bare == layers_b.bare == bare
+                assert (numpy_bsdf.alpha[make_hits().material] < 1.0).sum() > 200    # alpha below 1, bare too
                 assert len(w_a) == len(w_b) and p_a.shape == p_b.shape and np.array_equal(p_a, p_b)
                 assert all(np.array_equal(x, y) for x, y in zip(w_a, w_b))
                 assert (p_a[3:] > 0).sum(axis=1).min() > 20             # every base lobe picked somewhere
