@@ -102,12 +102,12 @@ def test_coloured_real_fresnel_is_bit_identical():
                               numpy_lobe.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2], fresnel=fresnel)[1])
 
 
-def test_coloured_albedo_is_bit_identical():
+def test_coloured_albedo_is_bit_identical(monkeypatch):
     """dielectric_jit.albedo_coloured (the Principled glass closure's albedo estimate) against
     principled_glass.py PrincipledGlass._albedo's NumPy lines, mean(R + T) at cos clipped to [0, 1]:
     on random cosines, IORs (entering, leaving, index-matched) and colours, and at cos NaN, +-inf,
     -0.0, below 0 and above 1, eta NaN and 1, and no hits; control: an F0 one ulp larger is told
-    apart."""
+    apart.  The Principled BSDF's glass closure calls it on the numba backend (a spy), not on numpy."""
     require_compiled()
     from engine.materials import dielectric_jit
     from engine.materials.principled_glass import PrincipledGlass
@@ -131,9 +131,24 @@ def test_coloured_albedo_is_bit_identical():
     brighter = RealFresnel(fresnel.eta, np.nextafter(fresnel.f0, 2.0), fresnel.tint)
     assert not np.array_equal(dielectric_jit.albedo_coloured(cos, brighter), glass._albedo(
         fresnel.eta, fresnel.f0, fresnel.tint, cos), equal_nan=True)
-    glass.lobe.compiled = dielectric_jit                    # and the closure reads it on the numba backend
-    assert np.array_equal(glass._albedo(fresnel.eta, fresnel.f0, fresnel.tint, cos),
-                          dielectric_jit.albedo_coloured(cos, fresnel), equal_nan=True)
+    from engine.materials.principled import PrincipledV2
+    from engine.scene.model import Principled
+    calls = []
+    kernel = dielectric_jit.albedo_coloured
+
+    def spy(*args):
+        calls.append(len(args[0]))
+        return kernel(*args)
+    monkeypatch.setattr(dielectric_jit, "albedo_coloured", spy)
+    bsdf = PrincipledV2([Material("g", kind="principled", principled=Principled(transmission_weight=1.0))],
+                        RenderSettings())
+    for backend, called in (("numpy", []), ("numba", [count])):
+        bsdf.use_backend({"principled": backend})
+        calls.clear()
+        with np.errstate(invalid="ignore"):
+            got = bsdf.glass._albedo(fresnel.eta, fresnel.f0, fresnel.tint, cos)
+        assert calls == called and np.array_equal(got, glass._albedo(fresnel.eta, fresnel.f0, fresnel.tint, cos),
+                                                  equal_nan=True), backend
 
 
 def test_principled_glass_follows_the_backend():
