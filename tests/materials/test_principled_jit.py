@@ -208,8 +208,9 @@ def test_no_compensation_and_no_layer_at_the_hits():
     """Materials that do not compensate (the compiled lobes multiply by no compensation array) beside a
     transmitting one (the layered path) whose hits have no sheen nor coat (layer_weights' `bare`: no
     sheen or coat pass in base_eval; alpha 1, 0.5 and 0.3 there, with and without transmission): eval
-    on the span and on a take, and sample, the same bits as backend=numpy.  Controls: the metal's clipped edge tint (from which the kernel makes its F82 b)
-    1 ulp off, and a compensation of 1 + 1 ulp where there is none, are told apart."""
+    on the span and on a take, and sample, the same bits as backend=numpy.  Controls: the metal's
+    clipped edge tint (from which the kernel makes its F82 b) 1 ulp off, and a compensation of 1 + 1 ulp
+    where there is none, are told apart."""
     require_compiled()
     from dataclasses import replace
     materials = [replace(m, multiscatter=False) for m in _materials()]
