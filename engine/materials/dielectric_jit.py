@@ -11,10 +11,11 @@ agree to about 1e-15 relative, rarely more where the sampled slope's bisection t
 at its last steps (tests/materials/test_dielectric_jit.py; docs/performance.md, branch beckmann3).
 The Principled BSDF's glass closure's coloured Fresnel (dielectric_lobe.py RealFresnel: R and T per
 channel, the reflection picked by their channel means) has kernels of its own (`sample_coloured`,
-`eval_coloured`); other Fresnel functions and the albedo tables' sampling stay NumPy's.  `frame`
-(microfacet_jit.py's shading_frame twin) is the glass BSDFs' frame and `energy_scale` their
-multiscatter GGX compensation (engine/materials/dielectric.py energy_scale: its albedo tables read
-per hit, bit for bit).  Imported only through the lobe's backend choice (it imports numba)."""
+`eval_coloured`, and its albedo estimate `albedo_coloured`); other Fresnel functions and the albedo
+tables' sampling stay NumPy's.  `frame` (microfacet_jit.py's shading_frame twin) is the glass
+BSDFs' frame and `energy_scale` their multiscatter GGX compensation (engine/materials/dielectric.py
+energy_scale: its albedo tables read per hit, bit for bit).  Imported only through the lobe's
+backend choice (it imports numba)."""
 from __future__ import annotations
 
 import numpy as np
@@ -168,6 +169,14 @@ def _real_fresnel(cos_h, eta, f0, tint, i):
     mean_r = (r0 + r1 + r2) / 3.0
     total = ((r0 + t0) + (r1 + t1) + (r2 + t2)) / 3.0
     return r0, r1, r2, t0, t1, t2, mean_r, total
+
+
+@jit
+def _albedo_coloured(cos, eta, f0, tint, out):
+    """principled_glass.py PrincipledGlass._albedo per hit: the channel mean of R + T at cos clipped to
+    [0, 1] (`_real_fresnel`'s total)."""
+    for i in range(cos.shape[0]):
+        out[i] = _real_fresnel(_clip01(cos[i]), eta[i], f0, tint, i)[7]
 
 
 @jit
@@ -351,6 +360,15 @@ def sample_coloured(wo, alpha, eta, beckmann, u_lobe, u1, u2, separable, reflect
     return wi, weight, pdf, refracted, ok
 
 
+def albedo_coloured(cos, fresnel):
+    """mean(R + T) (N,) of a RealFresnel at cos (N,) clipped to [0, 1] (the glass closure's albedo
+    estimate, principled_glass.py PrincipledGlass._albedo)."""
+    count = cos.shape[0]
+    out = np.empty(count)
+    _albedo_coloured(_rows(cos), *_fresnel_rows(fresnel, count), out)
+    return out
+
+
 def eval_coloured(wo, wi, alpha, eta, beckmann, separable, reflection, transmission, fresnel):
     """(f cos (3, N), pdf) of MicrofacetDielectric.eval with fresnel a RealFresnel."""
     count = wo.shape[1]
@@ -373,4 +391,5 @@ def warm_up() -> None:
     fresnel = RealFresnel(e, np.full((3, 2), 0.04), np.full((3, 2), 0.9))
     sample_coloured(wo, a, e, beckmann, u, u, u[::-1], None, True, True, fresnel)
     eval_coloured(wo, wi, a, e, beckmann, None, True, True, fresnel)
+    albedo_coloured(wo[2], fresnel)
     energy_scale(a, wo[2], e, np.full((3, 2), 0.9))

@@ -84,11 +84,13 @@ def fresnel_conductor(cos: np.ndarray, n: np.ndarray, k: np.ndarray) -> np.ndarr
     return np.nan_to_num(0.5 * (rs + rp), nan=1.0)
 
 
+F82_POW5 = (6.0 / 7.0) ** 5                        # f82_b's (1 - cos)^5 at cos = 1/7
+F82_SCALE = 7.0 / (F82_POW5 * (6.0 / 7.0))         # and its 1 / (cos (1 - cos)^6) there
+
+
 def f82_b(f0: np.ndarray, tint: np.ndarray) -> np.ndarray:
     """The F82-tint model's b: Schlick at cos = 1/7 times `tint` there (Cycles' fresnel_f82tint_B)."""
-    f = 6.0 / 7.0
-    f5 = f ** 5
-    return (f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint)
+    return (f0 + (1.0 - f0) * F82_POW5) * F82_SCALE * (1.0 - tint)
 
 
 def fresnel_f82(cos: np.ndarray, f0: np.ndarray, b: np.ndarray) -> np.ndarray:

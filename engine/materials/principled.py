@@ -88,7 +88,7 @@ from ..core.vec import dot
 from ..sampling import warps
 from ..scene.model import PRINCIPLED, Principled, PrincipledV1
 from . import albedo_tables, glossy, microfacet
-from .glossy import MicrofacetReflection, f82_b, fresnel_dielectric, fresnel_dielectric_average
+from .glossy import MicrofacetReflection, fresnel_dielectric, fresnel_dielectric_average
 from .microfacet import GGX, clamp_alpha, ggx_sample_vndf
 from .oren_nayar import EnergyPreservingOrenNayar
 from .principled_glass import FLAGS as GLASS_LOBES, PrincipledGlass
@@ -259,6 +259,7 @@ class PrincipledV2(BSDF):
         self.spec_f0 = np.clip(np.array([f for _, f in eta_f0]).reshape(m_count, 1) * tint, 0.0, 1.0).T.copy()
         self.metal = MicrofacetReflection([_lobe_material(m, "f82", 1.0, tuple(np.minimum(t, 1.0)))
                                            for m, t in zip(materials, tint)], settings)
+        self.metal_tint = np.ascontiguousarray(np.clip(self.metal.edge_tint, 0.0, 1.0))  # its F82 b's (3, M)
         self.specular = _SpecularLayer([_lobe_material(m, "dielectric", e, (1.0, 1.0, 1.0))
                                         for m, (e, _) in zip(materials, eta_f0)], settings)
         alphas = np.array([principled_alphas(m.roughness, m.anisotropy) for m in materials]).reshape(m_count, 2)
@@ -358,9 +359,10 @@ class PrincipledV2(BSDF):
     def _fused_hits(self, si: ShadingPoint):
         """What the compiled base reads per hit (C-contiguous, over the hits on the last axis): wo;
         the microfacet frame x, y, n and alphas ax, ay the metallic and specular lobes share (both
-        are set up from the material's roughness, anisotropy, tangent and rotation); the metal's F0
-        and F82 b, the specular colour, eta and F0; both compensations (1 where none); the diffuse
-        normal nd and colour; the lobe weights and probabilities; where any material transmits,
+        are set up from the material's roughness, anisotropy, tangent and rotation); the material
+        ids mat and the metal's F0 (the kernel makes its F82 b from F0 and `metal_tint`), the specular
+        colour, eta and F0; both compensations (None where none); the diffuse normal nd and colour;
+        the lobe weights and probabilities; over_base: a sheen or a coat at some hit; where any material transmits,
         `glass`: the transmission closure's weight w (3, N), probability p (N,) and where it is set
         up, on (N,) (its lobe is NumPy's, `_add_glass`).  None where a diffuse roughness texture may
         make the diffuse lobe rough (the NumPy lobes then)."""
@@ -377,45 +379,43 @@ class PrincipledV2(BSDF):
             w_metal, w_spec, w_diffuse = (np.broadcast_to(w, (3, n_hits)) for w in (w_metal, w_spec, w_diffuse))
         x, y, n = self.metal._frame_at(metal)
         ax, ay, _ = self.metal._alphas(metal)
-        ones = None
 
         def compensation(lobe, view):
-            nonlocal ones
             scale = lobe.compensation_at(view)
-            if scale is None:
-                ones = np.ones((3, n_hits)) if ones is None else ones
-                return ones
-            return scale
+            return None if scale is None else np.ascontiguousarray(scale)
         f0_metal = np.clip(metal.color, 0.0, 1.0)
         eta = self.specular.ior.take(si.material)
         rows = np.ascontiguousarray
         on_metal, on_spec, on_diffuse = (w.max(axis=0) > 0.0 for w in (w_metal, w_spec, w_diffuse))
         hits = SimpleNamespace(
             wo=rows(si.wo), x=rows(x), y=rows(y), n=rows(n), ax=rows(ax), ay=rows(ay),
-            f0_metal=rows(f0_metal),
-            b_metal=rows(f82_b(f0_metal, np.clip(self.metal.edge_tint.take(si.material, axis=1), 0.0, 1.0))),
-            comp_metal=rows(compensation(self.metal, metal)), spec_colour=rows(specular.color), eta=rows(eta),
-            f0_spec=rows(f0_from_ior(eta)), comp_spec=rows(compensation(self.specular, specular)),
+            mat=rows(si.material, dtype=np.int64), f0_metal=rows(f0_metal),
+            comp_metal=compensation(self.metal, metal), spec_colour=rows(specular.color), eta=rows(eta),
+            f0_spec=rows(f0_from_ior(eta)), comp_spec=compensation(self.specular, specular),
             nd=rows(si.n), colour=rows(si.color), w_metal=rows(w_metal), w_spec=rows(w_spec),
             w_diffuse=rows(w_diffuse), on_metal=on_metal, on_spec=on_spec, on_diffuse=on_diffuse, prob=rows(prob),
-            base_row=0, any_metal=bool(on_metal.any()), layered=layers is not None, glass=None)
+            base_row=0, any_metal=bool(on_metal.any()), layered=layers is not None, over_base=False, glass=None)
         if self.any_transmission:
             hits.glass = SimpleNamespace(w=weights[5], p=prob[6], on=weights[5].max(axis=0) > 0.0,
                                          setup=self._glass_setup(si))
         if layers is not None:
             hits.base_row = 3
-            coat_on, sheen_on = weights[1].max(axis=0) > 0.0, weights[0].max(axis=0) > 0.0
+            if layers.bare:                 # no sheen nor coat at these hits: their weights are zeros
+                coat_on = sheen_on = np.zeros(n_hits, dtype=bool)
+            else:
+                coat_on, sheen_on = weights[1].max(axis=0) > 0.0, weights[0].max(axis=0) > 0.0
+            hits.over_base = bool(coat_on.any() or sheen_on.any())
             if coat_on.any():
                 coat_view = layers.coat_view
                 cx, cy, cn = self.coat._frame_at(coat_view)
                 cax, cay, _ = self.coat._alphas(coat_view)
                 comp_coat = compensation(self.coat, coat_view)
+                coat_eta = self.coat.ior.take(si.material)
             else:                   # no coat here: the kernels read none of its values (only where on)
-                cx, cy, cn, cax, cay, comp_coat = hits.x, hits.y, hits.n, hits.ax, hits.ay, hits.comp_metal
+                cx, cy, cn, cax, cay, comp_coat, coat_eta = hits.x, hits.y, hits.n, hits.ax, hits.ay, None, hits.eta
             sx, sy = self.sheen.frame(si) if sheen_on.any() else (hits.x, hits.y)
             hits.coat = SimpleNamespace(x=rows(cx), y=rows(cy), n=rows(cn), ax=rows(cax), ay=rows(cay),
-                                        w=rows(weights[1]), on=coat_on, eta=rows(self.coat.ior.take(si.material)),
-                                        comp=rows(comp_coat))
+                                        w=rows(weights[1]), on=coat_on, eta=rows(coat_eta), comp=comp_coat)
             hits.sheen = SimpleNamespace(x=rows(sx), y=rows(sy), n=rows(si.n), a=rows(layers.sheen_a),
                                          b=rows(layers.sheen_b), w=rows(weights[0]), on=sheen_on)
         return hits
@@ -499,7 +499,7 @@ class PrincipledV2(BSDF):
         (sample_total: the sample weights themselves, unnormalised).  Compiled in one pass
         (principled_jit.py lobe_weights, the same numbers) on the numba backend."""
         if self.compiled is not None:
-            return self._compiled_lobe_weights(si, sample_total)
+            return self.compiled.lobe_weights(self._compiled_lobe_inputs(si), not sample_total)
         rows = si.material
         m = np.clip(per_hit(si, self.metallic, "metallic"), 0.0, 1.0)
         w_metal = np.where(m > WEIGHT_CUTOFF, m, 0.0)
@@ -522,10 +522,10 @@ class PrincipledV2(BSDF):
             prob = np.where(total > 0.0, sample / total, 0.0)
         return (w_metal, w_spec, w_diffuse), prob
 
-    def _compiled_lobe_weights(self, si: ShadingPoint, sample_total: bool):
-        """lobe_weights by principled_jit.py lobe_weights: NumPy's per-hit inputs (the metallic, the
-        lobes' colours and darkening, each only where lobe_weights reads it; s(mu) at textured
-        roughness, `_textured_s`) into one pass."""
+    def _compiled_lobe_inputs(self, si: ShadingPoint) -> SimpleNamespace:
+        """What principled_jit.py's lobe_weights and layered_lobes read per hit: NumPy's inputs of
+        lobe_weights (the metallic, the lobes' colours and darkening, each only where lobe_weights reads
+        it; s(mu) at textured roughness, `_textured_s`) and the material tables."""
         metal, specular, _ = self._views(si)
         s_hits = None
         if textured_mask(si, self.specular.roughness_input) is not None:
@@ -533,11 +533,12 @@ class PrincipledV2(BSDF):
         any_specular = bool(self.has_specular.any())
         dark = [None if not on or lobe.compensation_at(view) is None else self._darkening(lobe, view, None, True)
                 for lobe, view, on in ((self.metal, metal, True), (self.specular, specular, any_specular))]
-        return self.compiled.lobe_weights(
-            si.material, per_hit(si, self.metallic, "metallic"), si.wo, specular_normal_at(si), self.s_metal,
-            self.s_specular, s_hits, metal.color, specular.color, *dark, self.has_specular,
-            self.glass.transmission if self.any_transmission else None, si.color, si.glossy_off, WEIGHT_CUTOFF,
-            not sample_total)
+        return SimpleNamespace(
+            mat=si.material, metallic=per_hit(si, self.metallic, "metallic"), wo=si.wo, ns=specular_normal_at(si),
+            s_metal=self.s_metal, s_spec=self.s_specular, s_hits=s_hits, metal_colour=metal.color,
+            spec_colour=specular.color, dark_metal=dark[0], dark_spec=dark[1], has_specular=self.has_specular,
+            transmission=self.glass.transmission if self.any_transmission else None, colour=si.color,
+            glossy_off=si.glossy_off, cutoff=WEIGHT_CUTOFF)
 
     def _mixture(self, si: ShadingPoint, wi: np.ndarray, weights, prob):
         """(f cos (3, N), pdf (N,)): the weighted lobes summed, each evaluated where it is set up."""
@@ -560,18 +561,22 @@ class PrincipledV2(BSDF):
     def layer_weights(self, si: ShadingPoint):
         """The layers at the hits (see the module): a namespace of the pass-through weight (N,),
         the sheen's closure weight (3, N) and LTC (a, b), the coat's closure weight (3, N), the
-        base's weight W (3, N), and the albedo estimates sheen_albedo (N,) and coat_albedo (N,)."""
+        base's weight W (3, N), the albedo estimates sheen_albedo (N,) and coat_albedo (N,), alpha (N,),
+        and `bare`: no sheen nor coat at these hits (their weights and albedos are zeros that no one
+        writes, W is alpha in every channel: read-only views and untouched zeros, not filled arrays)."""
         rows = si.material
         n = len(si)
         alpha = self.alpha.take(rows)
-        w = np.tile(alpha, (3, 1))
         sheen_w = self.sheen_weight.take(rows)
         coat_w = self.coat_weight.take(rows)
-        if not (sheen_w.any() or coat_w.any()):     # neither layer at these hits: the lines below give this
-            zeros = np.zeros((3, n))                # (0 x finite = +0, w x clip(1 - 0) = w, no tint
-            return SimpleNamespace(through=1.0 - alpha, sheen=zeros, sheen_a=np.zeros(n), sheen_b=np.zeros(n),
-                                   coat=zeros.copy(), base=w, sheen_albedo=np.zeros(n), coat_albedo=np.zeros(n),
-                                   coat_view=si.recolour(np.ones((3, n))))      # without a coat weight)
+        if not (sheen_w.any() or coat_w.any()):
+            # neither layer at these hits: the lines below give this (0 x finite = +0, w x clip(1 - 0) = w,
+            # no tint without a coat weight); base is a read-only view of alpha
+            return SimpleNamespace(
+                through=1.0 - alpha, sheen=np.zeros((3, n)), sheen_a=np.zeros(n), sheen_b=np.zeros(n),
+                coat=np.zeros((3, n)), base=np.broadcast_to(alpha, (3, n)), sheen_albedo=np.zeros(n),
+                coat_albedo=np.zeros(n), coat_view=si.recolour(np.broadcast_to(1.0, (3, n))), alpha=alpha, bare=True)
+        w = np.tile(alpha, (3, 1))
         mu = np.clip(dot(si.wo, si.n), 0.0, 1.0)
         a, b, r = self._sheen_params(si, sheen_w)
         r = np.where(sheen_w > 0.0, r, 0.0)
@@ -598,7 +603,7 @@ class PrincipledV2(BSDF):
                 absorbed = self.coat_tint.take(rows, axis=1) ** (1.0 / np.maximum(cos_t, 1e-12))
             w = np.where(tinted, w * (1.0 + coat_w * (absorbed - 1.0)), w)
         return SimpleNamespace(through=1.0 - alpha, sheen=sheen, sheen_a=a, sheen_b=b, coat=coat, base=w,
-                               sheen_albedo=r, coat_albedo=a_coat, coat_view=coat_view)
+                               sheen_albedo=r, coat_albedo=a_coat, coat_view=coat_view, alpha=alpha, bare=False)
 
     def _sheen_params(self, si: ShadingPoint, sheen_w: np.ndarray):
         """The sheen's (a, b, R) (N,) each where sheen_w > 0, 0 elsewhere (nothing reads them there:
@@ -618,15 +623,15 @@ class PrincipledV2(BSDF):
         any material transmits), and the probabilities (6 or 7, N) of pass-through, sheen, coat,
         metal, specular, diffuse (, glass))."""
         layers = self.layer_weights(si)
-        (w_metal, w_spec, w_diffuse), base_prob = self.lobe_weights(si, sample_total=True)
-        if self.compiled is not None:               # the lines below in one pass (principled_jit.py)
+        if self.compiled is not None:       # lobe_weights and the lines below in one pass (principled_jit.py)
             if not self.any_transmission:
-                weights, prob = self.compiled.layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_prob)
+                weights, prob = self.compiled.layered_lobes(self._compiled_lobe_inputs(si), layers)
                 return layers, weights, prob
             glass = self._glass_setup(si)
-            weights, prob = self.compiled.layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_prob,
-                                                                glass.w, glass.sample_weight)
+            weights, prob = self.compiled.layered_lobes(self._compiled_lobe_inputs(si), layers, glass.w,
+                                                        glass.sample_weight)
             return layers, weights, prob
+        (w_metal, w_spec, w_diffuse), base_prob = self.lobe_weights(si, sample_total=True)
         base = layers.base
         weights = [layers.sheen, layers.coat, w_metal * base, w_spec * base, w_diffuse * base]
         coat_sample = layers.coat.mean(axis=0) * layers.coat_albedo
@@ -793,7 +798,7 @@ class PrincipledV2(BSDF):
             passed, crossing = self._sample_glass(si, glass, u_lobe, u,
                                                   np.cumsum(prob.take(glass, axis=1), axis=0)[5], prob, weights, wi,
                                                   flags, failed, self._glass_rows(hits.glass.setup, glass))
-        f_cos, pdf = compiled.base_eval(hits, None, wi)
+        f_cos, pdf = compiled.base_eval(hits, None, wi, self.metal_tint)
         self._add_glass(si, hits, None, wi, f_cos, pdf)
         if crossing is not None:                    # weighed on this side of the surface, then crossed
             si.media.cross(*crossing)
@@ -861,7 +866,7 @@ class PrincipledV2(BSDF):
         if self.compiled is not None:
             hits, index = si.memo_at((self, "fused"), self._fused_hits)
             if hits is not None:
-                f_cos, pdf = self.compiled.base_eval(hits, index, wi)
+                f_cos, pdf = self.compiled.base_eval(hits, index, wi, self.metal_tint)
                 self._add_glass(si, hits, index, wi, f_cos, pdf)
                 return f_cos, pdf
         if self.any_layers:
@@ -911,7 +916,7 @@ class PrincipledV2(BSDF):
         wi, flags, diffuse = self.compiled.base_pick(hits, u_lobe, u[0], u[1])
         if len(diffuse):                            # the diffuse lobe's cosine directions
             self.compiled.diffuse_directions(diffuse, u[0], u[1], si.n, wi)
-        f_cos, pdf = self.compiled.base_eval(hits, None, wi)
+        f_cos, pdf = self.compiled.base_eval(hits, None, wi, self.metal_tint)
         value, pdf = self.compiled.sample_values(f_cos, pdf)
         return BSDFSample(wi, value, pdf, flags)
 

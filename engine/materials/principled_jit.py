@@ -15,15 +15,18 @@ _layered_mixture: sheen, coat, metal, specular, diffuse, each added to the runni
 oren_nayar.py's Lambert case) with only +, -, *, /, sqrt, cos and sin; the one power (the F82
 Fresnel's (1 - cos)^5) and the directions that take NumPy's sin and cos (the diffuse picks' cosine
 directions, the sheen's disk) stay NumPy, between the passes; so do the per-hit layer weights (the
-coat tint's power), whose closure weights and lobe probabilities are then combined in one pass
-(`layered_probabilities`).  The same bits as backend=numpy (tests/materials/test_principled_jit.py).
-Imported only through engine/core/backend.py's choice (it imports numba)."""
+coat tint's power), which the base's lobe weights then combine into the closure weights and lobe
+probabilities in the same pass (`layered_lobes`).  The metal's F82 b is made per pair from its F0
+and the material's edge tint (glossy.py f82_b's operations), not read from a per-hit array.  The
+same bits as backend=numpy (tests/materials/test_principled_jit.py).  Imported only through
+engine/core/backend.py's choice (it imports numba)."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..core.backend import numba_module
 from . import lambert_jit
+from .glossy import F82_POW5, F82_SCALE
 from .microfacet_jit import PI, _clip01, _finite, eval_hit, sample_hit
 
 nb = numba_module()
@@ -59,6 +62,13 @@ def _fresnel_dielectric(cos, ior):
 
 
 @jit
+def _scale(comp, ch, j):
+    """The compensation comp[ch, j], or 1.0 where comp is empty (no material compensates: NumPy's
+    lobe multiplies by nothing, and x * 1.0 is x)."""
+    return comp[ch, j] if comp.shape[0] > 0 else 1.0
+
+
+@jit
 def _geometry(index, wo, wi, x, y, n, ax, ay, on_a, on_b, cos_out, pdf_out, g_out):
     """GGX (cos, pdf, g) of each pair (hit index[k], wi[:, k]) where a lobe on_a or on_b is set up."""
     for k in range(index.shape[0]):
@@ -74,7 +84,7 @@ def _layers(index, wi, sx, sy, sn, sheen_a, sheen_b, w_sheen, on_sheen, cos, pdf
             comp_coat, prob, f_out, pdf_out):
     """f cos (3, K) and pdf (K,) of the layers over the base: the sheen (engine/materials/sheen.py
     ltc_value in its frame sx, sy, sn), then the coat (GGX, dielectric Fresnel of coat_eta, colour
-    1), as principled.py _layered_mixture sums them (from 0)."""
+    1, compensation comp_coat or, where empty, 1), as principled.py _layered_mixture sums them (from 0)."""
     for k in range(index.shape[0]):
         j = index[k]
         f_r, f_g, f_b, pdf = 0.0, 0.0, 0.0, 0.0
@@ -92,19 +102,28 @@ def _layers(index, wi, sx, sy, sn, sheen_a, sheen_b, w_sheen, on_sheen, cos, pdf
             pdf = pdf + prob[1, j] * d
         if on_coat[j]:
             fg = _fresnel_dielectric(cos[k], coat_eta[j]) * g[k]
-            f_r = f_r + w_coat[0, j] * (fg * comp_coat[0, j])
-            f_g = f_g + w_coat[1, j] * (fg * comp_coat[1, j])
-            f_b = f_b + w_coat[2, j] * (fg * comp_coat[2, j])
+            f_r = f_r + w_coat[0, j] * (fg * _scale(comp_coat, 0, j))
+            f_g = f_g + w_coat[1, j] * (fg * _scale(comp_coat, 1, j))
+            f_b = f_b + w_coat[2, j] * (fg * _scale(comp_coat, 2, j))
             pdf = pdf + prob[2, j] * pdf_g[k]
         f_out[0, k], f_out[1, k], f_out[2, k] = f_r, f_g, f_b
         pdf_out[k] = pdf
 
 
 @jit
+def _f82(c, s, t5, f0, tint):
+    """engine/materials/glossy.py fresnel_f82 of one channel at cos c (s = clip(1 - c), t5 = s^5,
+    NumPy's power) with F0 f0 and its b = f82_b(f0, tint) (tint clipped to [0, 1])."""
+    b = (f0 + (1.0 - f0) * F82_POW5) * F82_SCALE * (1.0 - tint)
+    return _clip01(f0 + (1.0 - f0) * t5 - b * c * t5 * s)
+
+
+@jit
 def _combine(index, wi, cos, pdf_g, g, s5, nd, w_metal, w_spec, w_diffuse, on_metal, on_spec, on_diffuse, prob, row,
-             f0_metal, b_metal, comp_metal, spec_colour, eta, f0_spec, comp_spec, colour, f_out, pdf_out):
+             mat, f0_metal, tint_metal, comp_metal, spec_colour, eta, f0_spec, comp_spec, colour, f_out, pdf_out):
     """The base's metal, specular and diffuse (weights (3, N), probabilities prob[row:row + 3])
-    added in that order to f cos (3, K) and pdf (K,) (zeros, or the layers over the base)."""
+    added in that order to f cos (3, K) and pdf (K,) (zeros, or the layers over the base); the metal's
+    F82 b from its F0 and its material's clipped tint tint_metal (3, M); comp_* (3, N), or empty: 1."""
     for k in range(index.shape[0]):
         j = index[k]
         f_r, f_g, f_b, pdf = f_out[0, k], f_out[1, k], f_out[2, k], pdf_out[k]
@@ -113,12 +132,13 @@ def _combine(index, wi, cos, pdf_g, g, s5, nd, w_metal, w_spec, w_diffuse, on_me
             s = _clip01(1.0 - c)
             t5 = s5[k]
             gk = g[k]
-            out = [0.0, 0.0, 0.0]
-            for ch in range(3):
-                f0 = f0_metal[ch, j]
-                fr = _clip01(f0 + (1.0 - f0) * t5 - b_metal[ch, j] * c * t5 * s)
-                out[ch] = w_metal[ch, j] * (fr * gk * comp_metal[ch, j])
-            f_r, f_g, f_b = f_r + out[0], f_g + out[1], f_b + out[2]
+            m = mat[j]
+            fr = _f82(c, s, t5, f0_metal[0, j], tint_metal[0, m])
+            f_r = f_r + w_metal[0, j] * (fr * gk * _scale(comp_metal, 0, j))
+            fr = _f82(c, s, t5, f0_metal[1, j], tint_metal[1, m])
+            f_g = f_g + w_metal[1, j] * (fr * gk * _scale(comp_metal, 1, j))
+            fr = _f82(c, s, t5, f0_metal[2, j], tint_metal[2, m])
+            f_b = f_b + w_metal[2, j] * (fr * gk * _scale(comp_metal, 2, j))
             pdf = pdf + prob[row, j] * pdf_g[k]
         if on_spec[j]:
             f0 = f0_spec[j]
@@ -127,11 +147,10 @@ def _combine(index, wi, cos, pdf_g, g, s5, nd, w_metal, w_spec, w_diffuse, on_me
                 s = 1.0
             s = _clip01(s)
             gk = g[k]
-            out = [0.0, 0.0, 0.0]
-            for ch in range(3):
-                col = spec_colour[ch, j]
-                out[ch] = w_spec[ch, j] * ((col + (1.0 - col) * s) * gk * comp_spec[ch, j])
-            f_r, f_g, f_b = f_r + out[0], f_g + out[1], f_b + out[2]
+            c0, c1, c2 = spec_colour[0, j], spec_colour[1, j], spec_colour[2, j]
+            f_r = f_r + w_spec[0, j] * ((c0 + (1.0 - c0) * s) * gk * _scale(comp_spec, 0, j))
+            f_g = f_g + w_spec[1, j] * ((c1 + (1.0 - c1) * s) * gk * _scale(comp_spec, 1, j))
+            f_b = f_b + w_spec[2, j] * ((c2 + (1.0 - c2) * s) * gk * _scale(comp_spec, 2, j))
             pdf = pdf + prob[row + 1, j] * pdf_g[k]
         if on_diffuse[j]:
             cos_d = wi[0, k] * nd[0, j] + wi[1, k] * nd[1, j] + wi[2, k] * nd[2, j]
@@ -285,17 +304,27 @@ def _table(flat, row, mu, points):
 
 @jit
 def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
-                  has_specular, transmission, colour, glossy_off, cutoff, points, normalise, w_out, sample_out):
+                  has_specular, transmission, colour, glossy_off, cutoff, points, normalise, w_out, sample_out,
+                  sheen, coat, coat_albedo, base, alpha, through, w_glass, glass_weight, weights_out, prob_out):
     """principled.py lobe_weights and layer_albedos per hit: the albedo estimates darkening x
     (F0 + (1 - F0) s(mu)) of the metal and the specular lobe at mu = wo . ns (s from the tables, or
     the hits' own s_hits (2, N) where not empty: textured roughness; dark_* empty: no compensation,
     a factor 1.0), the closure weights into w_out (3, N) and the sample weights (or, where
-    `normalise`, the probabilities) into sample_out (3, N)."""
+    `normalise`, the probabilities) into sample_out (3, N).  Where prob_out is not empty, instead
+    principled.py _layered_lobes on them (the base's sample weights, not normalised): the base lobes'
+    closure weights (3, N) each into weights_out (metal, specular, diffuse, and the glass where w_glass
+    has hits), the probabilities (6 or 7, N) of pass-through, sheen, coat, metal, specular, diffuse
+    (, glass) into prob_out: NumPy's channel means (c0 + c1 + c2) / 3, its row sums in row order,
+    np.where's choices; sheen, coat, base empty: no sheen nor coat at these hits (layer_weights'
+    zeros; the base weight W is alpha in every channel)."""
     dark_m, dark_s = dark_metal.shape[0] > 0, dark_spec.shape[0] > 0
     own_s = s_hits.shape[0] > 0
     transmits, off = transmission.shape[0] > 0, glossy_off.shape[0] > 0
+    layered, bare = prob_out.shape[0] > 0, sheen.shape[0] == 0
+    n_sample = prob_out.shape[0] - 1      # the sample weights' rows: 5, or 6 with the glass
     a_m = np.empty(3)
     a_s = np.empty(3)
+    sample = np.empty(6)
     for i in range(mat.shape[0]):
         row = mat[i]
         spec = has_specular[row]
@@ -320,96 +349,115 @@ def _lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, 
         w_diffuse = w_rest * _clip01(1.0 - _nan_max(_nan_max(a_s[0], a_s[1]), a_s[2]))
         if off and glossy_off[i]:
             w_metal, w_spec, w_diffuse = 0.0, 0.0, w_rest
-        w_out[0, i], w_out[1, i], w_out[2, i] = w_metal, w_spec, w_diffuse
         s0 = w_metal * ((a_m[0] + a_m[1] + a_m[2]) / 3.0)
         s1 = w_spec * ((a_s[0] + a_s[1] + a_s[2]) / 3.0)
         s2 = w_diffuse * ((abs(colour[0, i]) + abs(colour[1, i]) + abs(colour[2, i])) / 3.0)
-        if normalise:
-            total = s0 + s1 + s2
-            if total > 0.0:
-                s0, s1, s2 = s0 / total, s1 / total, s2 / total
-            else:
-                s0, s1, s2 = 0.0, 0.0, 0.0
-        sample_out[0, i], sample_out[1, i], sample_out[2, i] = s0, s1, s2
-
-
-def lobe_weights(mat, metallic, wo, ns, s_metal, s_spec, s_hits, metal_colour, spec_colour, dark_metal, dark_spec,
-                 has_specular, transmission, colour, glossy_off, cutoff, normalise):
-    """((w_metal, w_specular, w_diffuse) (N,) each, sample weights or probabilities (3, N)) of
-    principled.py lobe_weights: mat (N,) material ids, metallic (N,) the hits' metallic, wo and ns
-    (3, N) the view and the lobes' normal, s_metal and s_spec (M, points) the s(mu) tables, s_hits
-    (2, N) the hits' s of the metal and the specular lobe or None (read from the tables), metal_colour and spec_colour (3, N) the lobes' F0, dark_metal and
-    dark_spec (3, N) their darkening or None, has_specular (M,), transmission (M,) or None (no
-    transmission closure), colour (3, N), glossy_off (N,) or None, normalise: probabilities."""
-    count = len(mat)
-    w, sample = np.empty((3, count)), np.empty((3, count))
-    rows = np.ascontiguousarray
-    none = np.empty((0, 0))
-    _lobe_weights(rows(mat, dtype=np.int64), rows(metallic, dtype=np.float64), rows(wo), rows(ns), rows(s_metal).ravel(),
-                  rows(s_spec).ravel(), none if s_hits is None else rows(s_hits), rows(metal_colour), rows(spec_colour),
-                  none if dark_metal is None else rows(dark_metal), none if dark_spec is None else rows(dark_spec),
-                  has_specular, np.empty(0) if transmission is None else transmission, rows(colour),
-                  np.empty(0, dtype=np.bool_) if glossy_off is None else glossy_off, cutoff, s_metal.shape[1],
-                  normalise, w, sample)
-    return (w[0], w[1], w[2]), sample
-
-
-@jit
-def _layered_probabilities(sheen, coat, coat_albedo, base, base_sample, w_metal, w_spec, w_diffuse, w_glass,
-                           glass_weight, through, weights_out, prob_out):
-    """principled.py _layered_lobes after its layer and lobe weights: the base lobes' closure weights
-    (3, N) each into weights_out (metal, specular, diffuse, and the glass where w_glass has hits),
-    the probabilities (6 or 7, N) of pass-through, sheen, coat, metal, specular, diffuse (, glass):
-    NumPy's channel means (c0 + c1 + c2) / 3, its row sums in row order, np.where's choices."""
-    rows = prob_out.shape[0] - 1
-    sample = np.empty(6)
-    for i in range(base.shape[1]):
-        mean_base = (base[0, i] + base[1, i] + base[2, i]) / 3.0
-        sample[0] = (sheen[0, i] + sheen[1, i] + sheen[2, i]) / 3.0
-        sample[1] = (coat[0, i] + coat[1, i] + coat[2, i]) / 3.0 * coat_albedo[i]
-        sample[2] = base_sample[0, i] * mean_base
-        sample[3] = base_sample[1, i] * mean_base
-        sample[4] = base_sample[2, i] * mean_base
-        for c in range(3):
-            weights_out[0, c, i] = w_metal[i] * base[c, i]
-            weights_out[1, c, i] = w_spec[i] * base[c, i]
-            weights_out[2, c, i] = w_diffuse[i] * base[c, i]
-        if rows == 6:
-            sample[5] = w_glass[i] * mean_base * glass_weight[i]
-            for c in range(3):
-                weights_out[3, c, i] = w_glass[i] * base[c, i]
+        if not layered:
+            w_out[0, i], w_out[1, i], w_out[2, i] = w_metal, w_spec, w_diffuse
+            if normalise:
+                total = s0 + s1 + s2
+                if total > 0.0:
+                    s0, s1, s2 = s0 / total, s1 / total, s2 / total
+                else:
+                    s0, s1, s2 = 0.0, 0.0, 0.0
+            sample_out[0, i], sample_out[1, i], sample_out[2, i] = s0, s1, s2
+            continue
+        if bare:
+            b0 = b1 = b2 = alpha[i]
+            sample[0], sample[1] = 0.0, 0.0            # the zeros' means (and 0 x a coat albedo of 0)
+        else:
+            b0, b1, b2 = base[0, i], base[1, i], base[2, i]
+            sample[0] = (sheen[0, i] + sheen[1, i] + sheen[2, i]) / 3.0
+            sample[1] = (coat[0, i] + coat[1, i] + coat[2, i]) / 3.0 * coat_albedo[i]
+        mean_base = (b0 + b1 + b2) / 3.0
+        sample[2] = s0 * mean_base
+        sample[3] = s1 * mean_base
+        sample[4] = s2 * mean_base
+        weights_out[0, 0, i], weights_out[0, 1, i], weights_out[0, 2, i] = w_metal * b0, w_metal * b1, w_metal * b2
+        weights_out[1, 0, i], weights_out[1, 1, i], weights_out[1, 2, i] = w_spec * b0, w_spec * b1, w_spec * b2
+        weights_out[2, 0, i], weights_out[2, 1, i], weights_out[2, 2, i] = (w_diffuse * b0, w_diffuse * b1,
+                                                                             w_diffuse * b2)
+        if n_sample == 6:
+            wg = w_glass[i]
+            sample[5] = wg * mean_base * glass_weight[i]
+            weights_out[3, 0, i], weights_out[3, 1, i], weights_out[3, 2, i] = wg * b0, wg * b1, wg * b2
         total = sample[0]
-        for r in range(1, rows):
+        for r in range(1, n_sample):
             total = total + sample[r]
         opaque = 1.0 - through[i] if total > 0.0 else 0.0
         prob_out[0, i] = 1.0 - opaque
-        for r in range(rows):
+        for r in range(n_sample):
             prob_out[r + 1, i] = opaque * sample[r] / total if total > 0.0 else 0.0
 
 
-def layered_probabilities(layers, w_metal, w_spec, w_diffuse, base_sample, w_glass=None, glass_weight=None):
-    """(closure weights [sheen, coat, metal, specular, diffuse (, glass)] (3, N) each, probabilities
-    (6 or 7, N)) of principled.py _layered_lobes from its layers (layer_weights) and the base's lobe
-    weights and sample weights (lobe_weights(sample_total=True)); w_glass, glass_weight (N,): the
-    transmission closure's weight and albedo estimate where any material transmits."""
-    count = layers.base.shape[1]
+def _run_lobe_weights(inputs, normalise, w_out, sample_out, layers=None, w_glass=None, glass_weight=None,
+                      weights_out=None, prob_out=None):
+    """`_lobe_weights` on the per-hit inputs `inputs` (principled.py `_compiled_lobe_inputs`; None
+    becomes an empty array) and, where prob_out is given, the layers (layer_weights' namespace)."""
     rows = np.ascontiguousarray
+    none, none2, none3 = np.empty(0), np.empty((0, 0)), np.empty((0, 0, 0))
+    if layers is None or layers.bare:
+        over = (none2, none2, none, none2)
+    else:
+        over = (rows(layers.sheen), rows(layers.coat), rows(layers.coat_albedo, dtype=np.float64), rows(layers.base))
+    _lobe_weights(rows(inputs.mat, dtype=np.int64), rows(inputs.metallic, dtype=np.float64), rows(inputs.wo),
+                  rows(inputs.ns), rows(inputs.s_metal).ravel(), rows(inputs.s_spec).ravel(),
+                  none2 if inputs.s_hits is None else rows(inputs.s_hits),
+                  rows(inputs.metal_colour), rows(inputs.spec_colour),
+                  none2 if inputs.dark_metal is None else rows(inputs.dark_metal),
+                  none2 if inputs.dark_spec is None else rows(inputs.dark_spec), inputs.has_specular,
+                  none if inputs.transmission is None else inputs.transmission, rows(inputs.colour),
+                  np.empty(0, dtype=np.bool_) if inputs.glossy_off is None else inputs.glossy_off, inputs.cutoff,
+                  inputs.s_metal.shape[1], normalise, w_out, sample_out, *over,
+                  rows(layers.alpha, dtype=np.float64) if layers is not None and layers.bare else none,
+                  none if layers is None else rows(layers.through, dtype=np.float64),
+                  none if w_glass is None else rows(w_glass), none if glass_weight is None else rows(glass_weight),
+                  none3 if weights_out is None else weights_out, none2 if prob_out is None else prob_out)
+
+
+def lobe_weights(inputs, normalise):
+    """((w_metal, w_specular, w_diffuse) (N,) each, sample weights or probabilities (3, N)) of
+    principled.py lobe_weights; inputs: its per-hit inputs (principled.py `_compiled_lobe_inputs`):
+    mat (N,) material ids, metallic (N,) the hits' metallic, wo and ns (3, N) the view and the lobes'
+    normal, s_metal and s_spec (M, points) the s(mu) tables, s_hits (2, N) the hits' s of the metal
+    and the specular lobe or None (read from the tables), metal_colour and spec_colour (3, N) the
+    lobes' F0, dark_metal and dark_spec (3, N) their darkening or None, has_specular (M,),
+    transmission (M,) or None (no transmission closure), colour (3, N), glossy_off (N,) or None,
+    cutoff; normalise: probabilities."""
+    count = len(inputs.mat)
+    w, sample = np.empty((3, count)), np.empty((3, count))
+    _run_lobe_weights(inputs, normalise, w, sample)
+    return (w[0], w[1], w[2]), sample
+
+
+def layered_lobes(inputs, layers, w_glass=None, glass_weight=None):
+    """(closure weights [sheen, coat, metal, specular, diffuse (, glass)] (3, N) each, probabilities
+    (6 or 7, N)) of principled.py _layered_lobes in one pass: inputs, those of `lobe_weights`;
+    layers, principled.py layer_weights' namespace (where layers.bare, its alpha stands for the base
+    weight and its sheen and coat are not read); w_glass, glass_weight (N,): the transmission
+    closure's weight and albedo estimate where any material transmits."""
+    count = len(inputs.mat)
     glass = w_glass is not None
     out = np.empty((4 if glass else 3, 3, count))
     prob = np.empty((7 if glass else 6, count))
-    none = np.empty(0)
-    _layered_probabilities(rows(layers.sheen), rows(layers.coat), rows(layers.coat_albedo, dtype=np.float64),
-                           rows(layers.base), rows(base_sample), rows(w_metal, dtype=np.float64),
-                           rows(w_spec, dtype=np.float64), rows(w_diffuse, dtype=np.float64),
-                           rows(w_glass) if glass else none, rows(glass_weight) if glass else none,
-                           rows(layers.through, dtype=np.float64), out, prob)
+    none2 = np.empty((0, 0))
+    _run_lobe_weights(inputs, False, none2, none2, layers, w_glass, glass_weight, out, prob)
     return [layers.sheen, layers.coat, *out], prob
 
 
-def base_eval(hits, index, wi):
+_NO_SCALE = np.empty((0, 0))
+
+
+def _comp(scale):
+    """A compensation (3, N) for the kernels: the array, or an empty one for None (none: 1)."""
+    return _NO_SCALE if scale is None else scale
+
+
+def base_eval(hits, index, wi, tint_metal):
     """(f cos (3, K), pdf (K,)) of the lobes at the pairs (hit index[k], wi[:, k]): the sheen and the
-    coat where hits.layered, then the base; hits: the per-hit arrays of principled.py `_fused_hits`,
-    index None for the hits themselves."""
+    coat where hits.layered and any hit has one (hits.over_base), then the base; hits: the per-hit
+    arrays of principled.py `_fused_hits`, index None for the hits themselves; tint_metal (3, M): the
+    metal's edge tints clipped to [0, 1] (principled.py metal_tint)."""
     count = wi.shape[1]
     if index is None:
         index = np.arange(count)
@@ -417,18 +465,19 @@ def base_eval(hits, index, wi):
     wi = np.ascontiguousarray(wi, dtype=np.float64)
     f_cos, pdf = np.zeros((3, count)), np.zeros(count)
     cos, pdf_g, g = np.empty(count), np.empty(count), np.empty(count)
-    if hits.layered:
+    if hits.layered and hits.over_base:
         c = hits.coat
         _geometry(index, hits.wo, wi, c.x, c.y, c.n, c.ax, c.ay, c.on, c.on, cos, pdf_g, g)
         s = hits.sheen
-        _layers(index, wi, s.x, s.y, s.n, s.a, s.b, s.w, s.on, cos, pdf_g, g, c.w, c.on, c.eta, c.comp, hits.prob,
-                f_cos, pdf)
+        _layers(index, wi, s.x, s.y, s.n, s.a, s.b, s.w, s.on, cos, pdf_g, g, c.w, c.on, c.eta, _comp(c.comp),
+                hits.prob, f_cos, pdf)
     _geometry(index, hits.wo, wi, hits.x, hits.y, hits.n, hits.ax, hits.ay, hits.on_metal, hits.on_spec,
               cos, pdf_g, g)
     s5 = np.clip(1.0 - cos, 0.0, 1.0) ** 5 if hits.any_metal else cos     # fresnel_f82's power, NumPy's
     _combine(index, wi, cos, pdf_g, g, s5, hits.nd, hits.w_metal, hits.w_spec, hits.w_diffuse, hits.on_metal,
-             hits.on_spec, hits.on_diffuse, hits.prob, hits.base_row, hits.f0_metal, hits.b_metal, hits.comp_metal,
-             hits.spec_colour, hits.eta, hits.f0_spec, hits.comp_spec, hits.colour, f_cos, pdf)
+             hits.on_spec, hits.on_diffuse, hits.prob, hits.base_row, np.asarray(hits.mat, dtype=np.int64),
+             hits.f0_metal, tint_metal, _comp(hits.comp_metal), hits.spec_colour, hits.eta, hits.f0_spec,
+             _comp(hits.comp_spec), hits.colour, f_cos, pdf)
     return f_cos, pdf
 
 
@@ -472,37 +521,45 @@ def warm_up() -> None:
     wo = np.ascontiguousarray(np.array([[0.1, 0.0], [0.2, 0.0], [0.97, 1.0]]))
     ones = np.ones((3, 2))
     on = np.array([True, True])
+    tint = ones * 0.9
     hits = SimpleNamespace(wo=wo, x=frame[0].copy(), y=frame[1].copy(), n=frame[2].copy(), nd=frame[2].copy(),
                            ax=np.array([0.25, 0.5]), ay=np.array([0.25, 0.5]), w_metal=ones * [1.0, 0.0],
                            w_spec=ones * [0.0, 1.0], w_diffuse=ones * [0.0, 0.5], on_metal=np.array([True, False]),
                            on_spec=np.array([False, True]), on_diffuse=np.array([False, True]),
                            prob=np.ascontiguousarray(np.array([[1.0, 0.0], [0.0, 0.5], [0.0, 0.5]])), base_row=0,
-                           f0_metal=ones * 0.5, b_metal=ones * 0.1, comp_metal=ones, spec_colour=ones * 0.04,
-                           eta=np.array([1.5, 1.5]), f0_spec=np.array([0.04, 0.04]), comp_spec=ones, colour=ones * 0.8,
-                           any_metal=True, layered=False)
-    base_eval(hits, None, wo[::-1].copy())
-    base_eval(hits, np.array([1, 0]), wo.copy())
+                           mat=np.array([0, 1], dtype=np.int64), f0_metal=ones * 0.5, comp_metal=ones,
+                           spec_colour=ones * 0.04, eta=np.array([1.5, 1.5]), f0_spec=np.array([0.04, 0.04]),
+                           comp_spec=None, colour=ones * 0.8, any_metal=True, layered=False, over_base=False)
+    base_eval(hits, None, wo[::-1].copy(), tint)
+    base_eval(hits, np.array([1, 0]), wo.copy(), tint)
     base_pick(hits, np.array([0.3, 0.6]), np.array([0.3, 0.6]), np.array([0.2, 0.9]))
-    hits.layered, hits.base_row = True, 3
+    hits.layered, hits.over_base, hits.base_row = True, True, 3
     hits.prob = np.ascontiguousarray(np.vstack([np.zeros((3, 2)), hits.prob]))
     hits.coat = SimpleNamespace(x=hits.x, y=hits.y, n=hits.n, ax=hits.ax, ay=hits.ay, w=ones * 0.5, on=on,
                                 eta=np.array([1.5, 1.5]), comp=ones)
     hits.sheen = SimpleNamespace(x=hits.x, y=hits.y, n=hits.n, a=np.array([0.5, 0.5]), b=np.array([0.1, 0.1]),
                                  w=ones * 0.5, on=on)
-    base_eval(hits, None, wo[::-1].copy())
-    base_eval(hits, np.array([1, 0]), wo.copy())
+    base_eval(hits, None, wo[::-1].copy(), tint)
+    base_eval(hits, np.array([1, 0]), wo.copy(), tint)
     wi, _, choice, failed, _ = layered_pick(hits, np.array([0.3, 0.9]), np.array([0.3, 0.6]), np.array([0.2, 0.9]), 50)
-    f_cos, pdf = base_eval(hits, None, wi)
+    f_cos, pdf = base_eval(hits, None, wi, tint)
     sample_values(f_cos, pdf, choice, hits.prob[0], np.array([0.0, 0.5]), failed)
     sample_values(f_cos, pdf)
     diffuse_directions(np.array([1]), np.array([0.3, 0.6]), np.array([0.2, 0.9]), hits.n, wi, failed)
-    for dark, off in ((None, None), (ones, np.array([True, False]))):
-        for normalise in (False, True):
-            lobe_weights(np.array([0, 1]), np.array([0.5, 1.0]), wo, frame[2].copy(), ones * 0.5, ones * 0.25,
-                         None if dark is None else ones[:2] * 0.5, ones * 0.9, ones * 0.04, dark, dark, np.array([True, False]),
-                         None if dark is None else np.array([0.0, 0.5]), ones, off, 1e-5, normalise)
     layers = SimpleNamespace(sheen=ones * 0.1, coat=ones * 0.2, coat_albedo=np.array([0.1, 0.2]), base=ones * 0.5,
-                             through=np.array([0.0, 0.5]))
+                             through=np.array([0.0, 0.5]), alpha=np.array([1.0, 0.5]), bare=False)
     w = np.array([0.5, 0.25])
-    layered_probabilities(layers, w, w, w, ones * 0.3)
-    layered_probabilities(layers, w, w, w, ones * 0.3, w, np.array([1.0, 0.9]))
+    for dark, off in ((None, None), (ones, np.array([True, False]))):
+        inputs = SimpleNamespace(mat=np.array([0, 1]), metallic=np.array([0.5, 1.0]), wo=wo, ns=frame[2].copy(),
+                                 s_metal=ones * 0.5, s_spec=ones * 0.25,
+                                 s_hits=None if dark is None else ones[:2] * 0.5, metal_colour=ones * 0.9,
+                                 spec_colour=ones * 0.04, dark_metal=dark, dark_spec=dark,
+                                 has_specular=np.array([True, False]),
+                                 transmission=None if dark is None else np.array([0.0, 0.5]), colour=ones,
+                                 glossy_off=off, cutoff=1e-5)
+        for normalise in (False, True):
+            lobe_weights(inputs, normalise)
+        for bare in (False, True):
+            layers.bare = bare
+            layered_lobes(inputs, layers)
+            layered_lobes(inputs, layers, w, np.array([1.0, 0.9]))

@@ -102,6 +102,55 @@ def test_coloured_real_fresnel_is_bit_identical():
                               numpy_lobe.sample(wo, alpha, eta, no_beckmann, u[0], u[1], u[2], fresnel=fresnel)[1])
 
 
+def test_coloured_albedo_is_bit_identical(monkeypatch):
+    """dielectric_jit.albedo_coloured (the Principled glass closure's albedo estimate) against
+    principled_glass.py PrincipledGlass._albedo's NumPy lines, mean(R + T) at cos clipped to [0, 1]:
+    on random cosines, IORs (entering, leaving, index-matched) and colours, and at cos NaN, +-inf,
+    -0.0, below 0 and above 1, eta NaN and 1, and no hits; control: an F0 one ulp larger is told
+    apart.  The Principled BSDF's glass closure calls it on the numba backend (a spy), not on numpy."""
+    require_compiled()
+    from engine.materials import dielectric_jit
+    from engine.materials.principled_glass import PrincipledGlass
+    rng = np.random.default_rng(41)
+    count = 2000
+    _, _, _, eta, _, _ = _inputs(rng, count)
+    eta, fresnel = _real_fresnel(rng, eta, count)
+    cos = rng.uniform(-0.2, 1.2, count)
+    cos[:6] = np.nan, np.inf, -np.inf, -0.0, 0.0, 1.0
+    fresnel.eta = np.asarray(fresnel.eta, dtype=np.float64).copy()
+    fresnel.eta[6:9] = np.nan, 1.0, 1.0
+    glass = PrincipledGlass([Material("g", kind="principled")], np.array([1.0]), np.ones((3, 1)))
+    for n in (count, 0):
+        at = slice(0, n)
+        part = RealFresnel(fresnel.eta[at], fresnel.f0[:, at], fresnel.tint[:, at])
+        with np.errstate(invalid="ignore"):
+            expected = glass._albedo(part.eta, part.f0, part.tint, cos[at])      # NumPy: no compiled lobe
+        got = dielectric_jit.albedo_coloured(cos[at], part)
+        assert got.shape == (n,) and np.array_equal(expected, got, equal_nan=True)
+        assert np.array_equal(np.signbit(expected), np.signbit(got))
+    brighter = RealFresnel(fresnel.eta, np.nextafter(fresnel.f0, 2.0), fresnel.tint)
+    assert not np.array_equal(dielectric_jit.albedo_coloured(cos, brighter), glass._albedo(
+        fresnel.eta, fresnel.f0, fresnel.tint, cos), equal_nan=True)
+    from engine.materials.principled import PrincipledV2
+    from engine.scene.model import Principled
+    calls = []
+    kernel = dielectric_jit.albedo_coloured
+
+    def spy(*args):
+        calls.append(len(args[0]))
+        return kernel(*args)
+    monkeypatch.setattr(dielectric_jit, "albedo_coloured", spy)
+    bsdf = PrincipledV2([Material("g", kind="principled", principled=Principled(transmission_weight=1.0))],
+                        RenderSettings())
+    for backend, called in (("numpy", []), ("numba", [count])):
+        bsdf.use_backend({"principled": backend})
+        calls.clear()
+        with np.errstate(invalid="ignore"):
+            got = bsdf.glass._albedo(fresnel.eta, fresnel.f0, fresnel.tint, cos)
+        assert calls == called and np.array_equal(got, glass._albedo(fresnel.eta, fresnel.f0, fresnel.tint, cos),
+                                                  equal_nan=True), backend
+
+
 def test_principled_glass_follows_the_backend():
     require_compiled()
     from engine.materials.principled import PrincipledV2

@@ -56,7 +56,7 @@ def _pair(materials):
     return numpy_bsdf, compiled
 
 
-def _check(numpy_bsdf, compiled, make_hits, rng, count=1500):
+def _check(numpy_bsdf, compiled, make_hits, rng, count=1500, kinds=(2,)):
     wi = rng.normal(size=(3, count))
     wi /= np.linalg.norm(wi, axis=0)                                # half of them below the surface
     f_a, p_a = numpy_bsdf.eval(make_hits(), wi)
@@ -72,7 +72,7 @@ def _check(numpy_bsdf, compiled, make_hits, rng, count=1500):
         assert np.array_equal(f_a, f_b) and np.array_equal(p_a, p_b)
     u_lobe, u = rng.random(count), (rng.random(count), rng.random(count))
     a, b = numpy_bsdf.sample(make_hits(), u_lobe, u), compiled.sample(make_hits(), u_lobe, u)
-    assert (a.pdf > 0).sum() > 500 and len(np.unique(a.flags)) == 2
+    assert (a.pdf > 0).sum() > 500 and len(np.unique(a.flags)) in kinds        # the kinds of lobes picked
     for x, y in ((a.wi, b.wi), (a.value, b.value), (a.pdf, b.pdf), (a.flags, b.flags)):
         assert np.array_equal(x, y)
     return wi
@@ -204,6 +204,41 @@ def test_transmission_is_bit_identical():
     assert not np.array_equal(other.eval(make_hits(), wi)[0], compiled.eval(make_hits(), wi)[0])
 
 
+def test_no_compensation_and_no_layer_at_the_hits():
+    """Materials that do not compensate (the compiled lobes multiply by no compensation array) beside a
+    transmitting one (the layered path) whose hits have no sheen nor coat (layer_weights' `bare`: no
+    sheen or coat pass in base_eval; alpha 1, 0.5 and 0.3 there, with and without transmission): eval
+    on the span and on a take, and sample, the same bits as backend=numpy.  Controls: the metal's
+    clipped edge tint (from which the kernel makes its F82 b) 1 ulp off, and a compensation of 1 + 1 ulp
+    where there is none, are told apart."""
+    require_compiled()
+    from dataclasses import replace
+    materials = [replace(m, multiscatter=False) for m in _materials()]
+    materials.append(Material("t", kind="principled", color=(0.9, 0.95, 1.0), roughness=0.2, multiscatter=False,
+                              principled=Principled(transmission_weight=0.8, metallic=0.2)))
+    materials += _see_through(True, multiscatter=False)
+    numpy_bsdf, compiled = _pair(materials)
+    assert compiled.any_transmission and not compiled.coat_weight.any() and not compiled.sheen_weight.any()
+    for extras in (False, True):
+        def make_hits():
+            return _hits(np.random.default_rng(23), len(materials), 1500, extras)
+        hits = make_hits()
+        fused = compiled._fused_hits(hits)
+        assert compiled._lobes_at(hits)[0].bare and not fused.over_base
+        assert (compiled.alpha[hits.material] < 1.0).sum() > 200
+        assert fused.comp_metal is None and fused.comp_spec is None and fused.any_metal
+        wi = _check(numpy_bsdf, compiled, make_hits, np.random.default_rng(7), kinds=(3, 4))   # the glass's too
+    f_a = compiled.eval(make_hits(), wi)[0]
+    for change in ("tint", "scale"):
+        other = _pair(materials)[1]
+        if change == "tint":
+            other.metal_tint = np.nextafter(other.metal_tint, -1.0)
+        else:
+            other.metal._compensation_terms_at = lambda at: (np.full((3, len(at)), np.nextafter(1.0, 2.0)),
+                                                             np.ones(len(at)))
+        assert not np.array_equal(other.eval(make_hits(), wi)[0], f_a)
+
+
 def test_a_rough_diffuse_keeps_the_numpy_lobes():
     require_compiled()
     rough = Material("r", kind="principled", diffuse_roughness=0.5, principled=Principled())
@@ -218,27 +253,51 @@ def test_a_rough_diffuse_keeps_the_numpy_lobes():
     assert layered.compiled is None
 
 
-def test_layered_probabilities_are_bit_identical():
-    """_layered_lobes' closure weights and lobe probabilities from principled_jit.layered_probabilities
-    against NumPy's, with and without a transmission closure and Reflective Caustics off; control: a
-    layer 1 ulp more transparent is told apart."""
+def _see_through(transmission, multiscatter=True):
+    """Materials without a sheen or a coat and of alpha below 1 (their hits are layer_weights' `bare`
+    ones, where the kernel reads alpha for W): an opaque one of alpha 0.5 and one of alpha 0.3, with a
+    transmission closure where `transmission`."""
+    return [Material("a0", kind="principled", color=(0.7, 0.4, 0.2), roughness=0.3, multiscatter=multiscatter,
+                     principled=Principled(metallic=0.4, alpha=0.5)),
+            Material("a1", kind="principled", color=(0.7, 0.9, 0.8), roughness=0.1, multiscatter=multiscatter,
+                     principled=Principled(transmission_weight=0.6 if transmission else 0.0, alpha=0.3))]
+
+
+def test_layered_lobes_are_bit_identical():
+    """_layered_lobes' closure weights and lobe probabilities from principled_jit.layered_lobes (the
+    base's lobe weights and the layers' probabilities in one pass) against NumPy's, with and without a
+    transmission closure and Reflective Caustics off, on hits with layers and on hits without any
+    (layer_weights' `bare`: the kernel reads alpha for W; alpha 1, 0.5 and 0.3 there, with and without
+    transmission); control: a layer 1 ulp more transparent is told apart."""
     require_compiled()
-    for materials in (_layered_materials(), _transmitting_materials()):
+    for materials in (_layered_materials() + _see_through(False), _transmitting_materials() + _see_through(True)):
         numpy_bsdf, compiled = _pair(materials)
         for extras in (False, True):
-            layers_a, w_a, p_a = numpy_bsdf._layered_lobes(_hits(np.random.default_rng(29), len(materials), 2000,
-                                                                 extras))
-            layers_b, w_b, p_b = compiled._layered_lobes(_hits(np.random.default_rng(29), len(materials), 2000,
-                                                               extras))
-            assert len(w_a) == len(w_b) and p_a.shape == p_b.shape and np.array_equal(p_a, p_b)
-            assert all(np.array_equal(x, y) for x, y in zip(w_a, w_b))
-            assert (p_a[1:] > 0).sum(axis=1).min() > 20             # every lobe picked somewhere
+            for bare in (False, True):
+                def make_hits():
+                    si = _hits(np.random.default_rng(29), len(materials), 2000, extras)
+                    if bare:                # only the materials without a sheen or a coat
+                        plain = np.flatnonzero((numpy_bsdf.sheen_weight == 0.0) & (numpy_bsdf.coat_weight == 0.0))
+                        si.material[:] = plain[si.material % len(plain)]
+                    return si
+                layers_a, w_a, p_a = numpy_bsdf._layered_lobes(make_hits())
+                layers_b, w_b, p_b = compiled._layered_lobes(make_hits())
+                assert layers_a.bare == layers_b.bare == bare
+                assert (numpy_bsdf.alpha[make_hits().material] < 1.0).sum() > 200    # alpha below 1, bare too
+                assert len(w_a) == len(w_b) and p_a.shape == p_b.shape and np.array_equal(p_a, p_b)
+                assert all(np.array_equal(x, y) for x, y in zip(w_a, w_b))
+                assert (p_a[3:] > 0).sum(axis=1).min() > 20             # every base lobe picked somewhere
+                assert bare or (p_a[1:] > 0).sum(axis=1).min() > 20     # and every layer
         from engine.materials import principled_jit
-        layers_b.through = np.nextafter(layers_b.through, 2.0)
-        (w_metal, w_spec, w_diffuse), base = numpy_bsdf.lobe_weights(_hits(np.random.default_rng(29), len(materials),
-                                                                           2000, True), sample_total=True)
-        assert not np.array_equal(principled_jit.layered_probabilities(layers_b, w_metal, w_spec, w_diffuse, base)[1],
-                                  p_a[:6])
+        si = _hits(np.random.default_rng(29), len(materials), 2000, True)
+        layers, p_a = compiled.layer_weights(si), numpy_bsdf._layered_lobes(si)[2]
+        glass = ()
+        if compiled.any_transmission:
+            glass = (compiled._glass_setup(si).w, compiled._glass_setup(si).sample_weight)
+        assert np.array_equal(principled_jit.layered_lobes(compiled._compiled_lobe_inputs(si), layers, *glass)[1], p_a)
+        layers.through = np.nextafter(layers.through, 2.0)
+        assert not np.array_equal(principled_jit.layered_lobes(compiled._compiled_lobe_inputs(si), layers, *glass)[1],
+                                  p_a)
 
 
 def _opaque_beside_transmitting():
@@ -418,7 +477,8 @@ def test_recorded_hits_are_bit_identical():
 def test_lobe_weights_at_edge_inputs():
     """The compiled lobe_weights (principled_jit.py) against NumPy's on colours NaN, inf, -0.0, 0 and
     above 1, metallic 0 and 1, Reflective Caustics off, with and without a transmission closure and
-    compensation, and on no hits at all; control: an s(mu) table 1 ulp off is told apart."""
+    compensation, and on no hits at all, and so layered_lobes (the layered materials' weights and
+    probabilities); control: an s(mu) table 1 ulp off is told apart."""
     require_compiled()
     for materials in (_materials(), _transmitting_materials()):
         numpy_bsdf, compiled = _pair(materials)
@@ -432,6 +492,11 @@ def test_lobe_weights_at_edge_inputs():
             for total in (False, True):
                 with np.errstate(invalid="ignore"):             # NumPy's NaN colours
                     (wa, pa), (wb, pb) = numpy_bsdf.lobe_weights(si, total), compiled.lobe_weights(si, total)
+                assert all(_same(x, y) for x, y in zip((*wa, pa), (*wb, pb)))
+                assert count == 0 or (np.isnan(pa).any() and (pa > 0).sum() > 200)
+            if numpy_bsdf.any_layers:               # the same kernel's layered mode (layered_lobes)
+                with np.errstate(invalid="ignore"):
+                    (_, wa, pa), (_, wb, pb) = numpy_bsdf._layered_lobes(si), compiled._layered_lobes(si)
                 assert all(_same(x, y) for x, y in zip((*wa, pa), (*wb, pb)))
                 assert count == 0 or (np.isnan(pa).any() and (pa > 0).sum() > 200)
     si = _hits(np.random.default_rng(31), len(materials), 600)
