@@ -209,7 +209,7 @@ def load_modules(names) -> None:
 # A cold compile on two cores: the modules from this one on are compiled by a second Python into the
 # shared cache while this process compiles the ones before (about half the compile time each,
 # numba's import and LLVM's start paid by both), then loaded from the cache here.
-SECOND_HALF_FROM = "materials.principled_jit"
+SECOND_HALF_FROM = "materials.principled_v1_jit"
 
 
 def _compile_second_half():
