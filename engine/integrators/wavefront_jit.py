@@ -416,6 +416,9 @@ def _add_light(radiance, beta, idx, le, step, w, gathered, out, clamping, bounce
 @jit
 def _reached_light(radiance, beta, idx, le, step, prev_delta, bsdf_pdf, places, p_light, mode, n_light, gathered, out,
                    clamping, bounce, clamp):
+    """The light le the paths idx reach (an emitter hit or the sky), weighted by _weights (mode: none,
+    delta only, after delta, or MIS against the light samples) and added by _add_light (clamped, in place or
+    gathered into out): one loop's worth of PathTracer's emission and miss terms (`_reached` calls it)."""
     _add_light(radiance, beta, idx, le, step, _weights(idx, prev_delta, bsdf_pdf, places, p_light, mode, n_light),
                gathered, out, clamping, bounce, clamp)
 
