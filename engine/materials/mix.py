@@ -239,7 +239,8 @@ class MixBSDF(BSDF):
         the colours it is given (the same array), and its per-pair gathers are left out."""
         textures = lookup.textures
         if self._colour_reads[0] is not textures:           # once per scene's lookups
-            programs = textures.attributes is not None and textures.textures.has_program["color"].take(self.leaf_ids).any()
+            programs = (textures.attributes is not None
+                        and textures.textures.has_program["color"].take(self.leaf_ids).any())
             self._colour_reads = (textures, bool(programs or textures.has_color.take(self.leaf_ids).any()))
         return self._colour_reads[1]
 

@@ -247,7 +247,9 @@ def _write_leaf(mine, pairs, s_wi, s_value, s_pdf, s_flags, delta_lobe, weight, 
         delta[h] = is_delta
         if is_delta:                                        # the leaf's own value and pdf
             w_over_p = weight[c] / p_c[h]
-            value[0, h], value[1, h], value[2, h] = s_value[0, i] * w_over_p, s_value[1, i] * w_over_p, s_value[2, i] * w_over_p
+            value[0, h] = s_value[0, i] * w_over_p
+            value[1, h] = s_value[1, i] * w_over_p
+            value[2, h] = s_value[2, i] * w_over_p
             pdf[h] = p_c[h] * s_pdf[i]
 
 
@@ -396,7 +398,8 @@ def warm_up() -> None:
     probabilities(placed[0], placed[3], placed[4], 0.05, 2)
     put(np.zeros((3, 3)), np.zeros(3), np.array([2, 0]), np.ones((3, 2)), np.ones(2))
     from types import SimpleNamespace
-    sample = SimpleNamespace(wi=np.ones((3, 2)), value=np.ones((3, 2)), pdf=np.ones(2), flags=np.array([4, 16], np.int8))
+    sample = SimpleNamespace(wi=np.ones((3, 2)), value=np.ones((3, 2)), pdf=np.ones(2),
+                             flags=np.array([4, 16], np.int8))
     wi, value, pdf = np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(2)
     write_leaf(np.array([0, 1]), np.array([0, 2]), sample, 16, placed[3], np.ones(2), wi, value, pdf,
          np.zeros(2, np.int8), np.zeros(2, np.bool_))

@@ -207,7 +207,8 @@ class _Taken(HitPoints):
 def components_adjacent(points):
     """Which order object_points sums a point's terms in: True when the points' components are adjacent
     (rows (3, k) that are the transpose of a (k, 3) array: (0 + 2) + 1), False for rows whose
-    components lie apart or one point whose rows are not item-strided ((0 + 1) + 2), None for other layouts (einsum's own)."""
+    components lie apart or one point whose rows are not item-strided ((0 + 1) + 2), None for other
+    layouts (einsum's own)."""
     item = points.itemsize
     if points.strides[0] == item and points.shape[1] > 0:
         return True
