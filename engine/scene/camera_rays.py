@@ -47,21 +47,6 @@ def camera_rays(camera, width: int, height: int, sx: np.ndarray, sy: np.ndarray)
     return origins, directions
 
 
-def serial_pixels(first: int, count: int, pixels: int):
-    """(serial % pixels, serial // pixels) of the serial numbers first .. first + count - 1 (int64), the
-    pixel and sample of each: the samples a repeat of the sample numbers the range touches, the pixels
-    the serials less sample x pixels (no integer division per sample; O(count), whatever the tile)."""
-    if count <= 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    start, sample = first % pixels, first // pixels
-    rounds = -(-(start + count) // pixels)           # the samples the range touches
-    lengths = np.full(rounds, pixels)
-    lengths[0] -= start
-    lengths[-1] = count - lengths[:-1].sum()
-    samples = np.repeat(np.arange(sample, sample + rounds, dtype=np.int64), lengths)
-    return np.arange(first, first + count, dtype=np.int64) - samples * pixels, samples
-
-
 class TileSamples:
     """The camera samples of one image tile, handed out in chunks (report 2.3).
 
@@ -94,7 +79,8 @@ class TileSamples:
         """(pixel index within the tile, sample index within the pixel, origins, directions)
         of the next `count` samples."""
         count = min(count, self.remaining)
-        pixel, sample = serial_pixels(self.taken, count, self.pixels)
+        serial = np.arange(self.taken, self.taken + count)
+        pixel, sample = serial % self.pixels, serial // self.pixels
         self.taken += count
         return self.rays(pixel, sample)
 
